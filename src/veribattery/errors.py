@@ -1,0 +1,56 @@
+"""The one error hierarchy of veribattery: every user-facing error says where it happened."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True, slots=True)
+class Span:
+    """A 1-based position in a source text; *source* names the file (or ``<string>``)."""
+
+    line: int
+    col: int
+    source: str = "<string>"
+
+    def __str__(self) -> str:
+        return f"{self.source}:{self.line}:{self.col}"
+
+
+NO_SPAN = Span(0, 0, "")
+
+
+class VeribatteryError(Exception):
+    """Base of every error veribattery reports to a user (the CLI exits 2 on these)."""
+
+    def __init__(self, message: str, span: Span | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.span = span if span is not None and span.line > 0 else None
+
+    def __str__(self) -> str:
+        return f"{self.span}: {self.message}" if self.span else self.message
+
+
+class ConfigError(VeribatteryError):
+    """A mission config is malformed: YAML syntax, unknown key, wrong type or range."""
+
+
+class RenderError(VeribatteryError):
+    """A template could not be rendered from a config."""
+
+
+class PrismSyntaxError(VeribatteryError):
+    """PRISM model or property text does not parse."""
+
+
+class PrismSemanticError(VeribatteryError):
+    """PRISM text parses but is not a valid model or property (types, names, ranges)."""
+
+
+class ModelError(VeribatteryError):
+    """The state space cannot be built: out-of-range update, bad probabilities."""
+
+
+class CheckError(VeribatteryError):
+    """A property cannot be checked on a built model."""
