@@ -378,6 +378,10 @@ class Property:
     name: str | None = None
     text: str = ""
     span: Span = field(default=NO_SPAN, compare=False)
+    #: Why the property is outside the supported subset (filters, LTL, S ...), or None.
+    #: Such properties still parse, so that -prop style indices count them; *formula*
+    #: is then a placeholder and resolving the property raises an error.
+    unsupported: str | None = None
 
 
 @dataclass(frozen=True, slots=True)

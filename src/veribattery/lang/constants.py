@@ -1,0 +1,170 @@
+"""Constants: ``--const`` parsing, typed values, and evaluation in dependency order."""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping, Sequence
+from fractions import Fraction
+
+from veribattery.errors import PrismSemanticError
+from veribattery.lang.evaluate import evaluate
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import ConstDecl, Ident, Value, ValueType
+from veribattery.lang.typecheck import TypeEnv, type_of
+
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def parse_constant_assignments(items: Sequence[str]) -> dict[str, str]:
+    """Parse CLI ``--const`` items: ``N=16``, or several at once as ``N=16,MAX=2``.
+
+    :raises PrismSemanticError: for an item that is not ``NAME=VALUE``, or a name given twice
+    """
+    result: dict[str, str] = {}
+    for item in items:
+        for part in item.split(","):
+            name, sep, value = (s.strip() for s in part.partition("="))
+            if not sep or not _NAME.fullmatch(name) or not value:
+                raise PrismSemanticError(
+                    f"malformed constant '{part.strip()}' in --const {item}: "
+                    "expected NAME=VALUE, e.g. N=16"
+                )
+            if name in result:
+                raise PrismSemanticError(f"constant '{name}' is given twice in --const")
+            result[name] = value
+    return result
+
+
+def _parse_text(decl: ConstDecl, text: str) -> Value:
+    text = text.strip()
+    if decl.type == "bool" and text in ("true", "false"):
+        return text == "true"
+    try:
+        if decl.type == "int":
+            return int(text)
+        if decl.type == "double":
+            return float(Fraction(text)) if "/" in text else float(text)
+    except (ValueError, ZeroDivisionError):
+        pass
+    raise PrismSemanticError(
+        f"constant '{decl.name}' is {_a(decl.type)}, but was given the value '{text}'"
+    )
+
+
+def _a(kind: ValueType) -> str:
+    return {"int": "an int", "double": "a double", "bool": "a bool"}[kind]
+
+
+def coerce_value(decl: ConstDecl, raw: Value | str) -> Value:
+    """A value given for an undefined constant, checked against its declared type."""
+    if isinstance(raw, str):
+        return _parse_text(decl, raw)
+    if decl.type == "bool" and isinstance(raw, bool):
+        return raw
+    if decl.type == "int" and isinstance(raw, int) and not isinstance(raw, bool):
+        return raw
+    if decl.type == "double" and isinstance(raw, int | float) and not isinstance(raw, bool):
+        return float(raw)
+    raise PrismSemanticError(
+        f"constant '{decl.name}' is {_a(decl.type)}, but was given the value {raw!r}"
+    )
+
+
+def _check_not_defined(decls: Sequence[ConstDecl], given: Mapping[str, Value | str]) -> None:
+    for decl in decls:
+        if decl.value is not None and decl.name in given:
+            raise PrismSemanticError(
+                f"constant '{decl.name}' is already defined and cannot be given a value",
+                decl.span,
+            )
+
+
+def _missing_error(missing: Sequence[ConstDecl]) -> PrismSemanticError:
+    names = ", ".join(d.name for d in missing)
+    plural = "s" if len(missing) > 1 else ""
+    return PrismSemanticError(
+        f"undefined constant{plural} {names}: give a value with --const NAME=VALUE",
+        missing[0].span,
+    )
+
+
+class ConstantTable:
+    """One file's constants, evaluated on demand: the order of definition is free, and
+    an undefined constant needs a value only if it is used."""
+
+    def __init__(
+        self,
+        decls: Sequence[ConstDecl],
+        given: Mapping[str, Value | str],
+        outer: Mapping[str, Value],
+    ) -> None:
+        _check_not_defined(decls, given)
+        self.decls = {d.name: d for d in decls}
+        self.given = given
+        self.values: dict[str, Value] = dict(outer)
+        self.pending: set[str] = set()
+        types = {n: _type_of_value(v) for n, v in outer.items()}
+        self.env = TypeEnv({**types, **{d.name: d.type for d in decls}})
+
+    def value(self, name: str) -> Value:
+        """The value of constant *name* (of this file or an outer one)."""
+        if name in self.values:
+            return self.values[name]
+        decl = self.decls[name]
+        if name in self.pending:
+            raise PrismSemanticError(f"constant '{name}' is defined in terms of itself", decl.span)
+        self.pending.add(name)
+        self.values[name] = self._compute(decl)
+        self.pending.discard(name)
+        return self.values[name]
+
+    def _compute(self, decl: ConstDecl) -> Value:
+        if decl.value is None:
+            if decl.name not in self.given:
+                raise _missing_error([decl])
+            return coerce_value(decl, self.given[decl.name])
+        kind = type_of(decl.value, self.env)
+        if not _assignable(decl.type, kind):
+            raise PrismSemanticError(
+                f"type error: constant '{decl.name}' is {_a(decl.type)}, "
+                f"but its definition is {_a(kind)}",
+                decl.value.span,
+            )
+        for node in walk(decl.value):
+            if isinstance(node, Ident) and node.name in self.decls:
+                self.value(node.name)
+        value = evaluate(decl.value, self.values)
+        return float(value) if decl.type == "double" else value
+
+
+def _type_of_value(value: Value) -> ValueType:
+    if isinstance(value, bool):
+        return "bool"
+    return "int" if isinstance(value, int) else "double"
+
+
+def _assignable(target: ValueType, source: ValueType) -> bool:
+    """An int may be stored in a double, nothing else converts."""
+    return target == source or (target == "double" and source == "int")
+
+
+def evaluate_constants(
+    decls: Sequence[ConstDecl],
+    given: Mapping[str, Value | str],
+    outer: Mapping[str, Value] | None = None,
+) -> dict[str, Value]:
+    """Values of *decls* (in declaration order), using *given* for the undefined ones.
+
+    :param outer: constants already known (the model's, for a properties file)
+    :raises PrismSemanticError: missing or ill-typed values, cycles, unknown names
+    """
+    missing = [d for d in decls if d.value is None and d.name not in given]
+    if missing:
+        raise _missing_error(missing)
+    table = ConstantTable(decls, given, outer or {})
+    return {d.name: table.value(d.name) for d in decls}
+
+
+def assignable(target: ValueType, source: ValueType) -> bool:
+    """Whether a value of type *source* may be stored in a *target* (int → double only)."""
+    return _assignable(target, source)

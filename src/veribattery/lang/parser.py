@@ -1,0 +1,177 @@
+"""The parser facade: PRISM text or file → AST nodes, lark errors → ``PrismSyntaxError``.
+
+The LALR parser is built once from ``prism.lark`` (next to this module) and shared.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import Any
+
+from lark import Lark, UnexpectedCharacters, UnexpectedInput, UnexpectedToken
+from lark.exceptions import VisitError
+
+from veribattery.errors import PrismSyntaxError, Span, VeribatteryError
+from veribattery.lang.nodes import Model, PropertiesFile, Property
+from veribattery.lang.transform import ToNodes
+
+__all__ = ["parse_model", "parse_properties", "parse_property"]
+
+_GRAMMAR = Path(__file__).with_name("prism.lark")
+# Terminals that can start an operand: listed together as "an expression".
+_OPERAND_STARTS = frozenset(
+    {
+        "IDENT",
+        "INT",
+        "DOUBLE",
+        "STRING",
+        "LPAR",
+        "MINUS",
+        "NOT",
+        "TRUE",
+        "FALSE",
+        "FUNC",
+        "MIN",
+        "MAX",
+        "FLOOR",
+        "CEIL",
+        "POW",
+        "MOD",
+        "LOG",
+        "ROUND",
+        "P",
+        "R",
+        "S",
+        "FILTER",
+        "NEXT",
+        "FINALLY",
+        "GLOBALLY",
+    }
+)
+_REGEX_NAMES = {
+    "IDENT": "a name",
+    "INT": "a number",
+    "DOUBLE": "a number",
+    "STRING": "a quoted name",
+}
+_MAX_EXPECTED = 6
+
+
+@functools.cache
+def _lark() -> Lark:
+    return Lark(
+        _GRAMMAR.read_text(encoding="utf-8"),
+        parser="lalr",
+        lexer="contextual",
+        start=["start_model", "start_props", "start_property"],
+        propagate_positions=True,
+        maybe_placeholders=False,
+    )
+
+
+def _read(source: str | Path, name: str | None) -> tuple[str, str]:
+    """The text and the name used in error messages; a str is PRISM text, never a path."""
+    if isinstance(source, str):
+        return source, name or "<string>"
+    try:
+        return source.read_text(encoding="utf-8"), name or str(source)
+    except FileNotFoundError:
+        raise PrismSyntaxError(f"file not found: {source}") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise PrismSyntaxError(f"cannot read {source}: {exc}") from None
+
+
+def _describe_terminal(name: str) -> str:
+    if name in _REGEX_NAMES:
+        return _REGEX_NAMES[name]
+    if name == "$END":
+        return "end of input"
+    pattern = _lark().get_terminal(name).pattern
+    return f"'{pattern.value}'" if pattern.type == "str" else name
+
+
+def _expected(names: set[str]) -> str:
+    """A short English list of what the parser would have accepted."""
+    words = [] if not names & {"IDENT", "INT", "LPAR"} else ["an expression"]
+    rest = sorted(names - _OPERAND_STARTS) if words else sorted(names)
+    words += [_describe_terminal(n) for n in rest]
+    words = list(dict.fromkeys(words))
+    if len(words) > _MAX_EXPECTED:
+        words = [*words[:_MAX_EXPECTED], "..."]
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
+
+
+def _caret(text: str, line: int, col: int) -> str:
+    lines = text.splitlines()
+    if not 0 < line <= len(lines):
+        return ""
+    return f"\n  {lines[line - 1].expandtabs(1)}\n  {' ' * (col - 1)}^"
+
+
+def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxError:
+    line, col = exc.line, exc.column
+    if isinstance(exc, UnexpectedCharacters):
+        message = f"unexpected character '{exc.char}'"
+    elif isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
+        message = f"unexpected token '{exc.token}' (expected {_expected(set(exc.expected))})"
+    else:
+        line, col = _end_position(text)
+        expected = set(exc.expected) if isinstance(exc, UnexpectedToken) else set()
+        message = "unexpected end of input" + (
+            f" (expected {_expected(expected)})" if expected else ""
+        )
+    if line < 1:
+        line, col = _end_position(text)
+    return PrismSyntaxError(message + _caret(text, line, col), Span(line, col, source))
+
+
+def _end_position(text: str) -> tuple[int, int]:
+    lines = text.splitlines() or [""]
+    return len(lines), len(lines[-1]) + 1
+
+
+def _parse(text: str, source: str, start: str) -> Any:
+    try:
+        tree = _lark().parse(text, start=start)
+        return ToNodes(text, source).transform(tree)
+    except UnexpectedInput as exc:
+        raise _syntax_error(exc, text, source) from None
+    except VisitError as exc:
+        if isinstance(exc.orig_exc, VeribatteryError):
+            raise exc.orig_exc from None
+        raise
+
+
+def parse_model(source: str | Path, *, name: str | None = None) -> Model:
+    """Parse a PRISM model: a :class:`~pathlib.Path` to read, or a str of PRISM text.
+
+    :param source: the file, or the model text itself (a str is never taken as a path)
+    :param name: the name used in error messages (default: the path, or ``<string>``)
+    :raises PrismSyntaxError: if the file is missing or the text does not parse
+    :raises PrismSemanticError: if the model is not a DTMC
+    """
+    text, label = _read(source, name)
+    model: Model = _parse(text, label, "start_model")
+    return model
+
+
+def parse_properties(source: str | Path, *, name: str | None = None) -> PropertiesFile:
+    """Parse a PRISM properties file (``.props``/``.pctl``); ``;`` between items is optional.
+
+    :param source: the file, or the properties text itself
+    :param name: the name used in error messages
+    :raises PrismSyntaxError: if the file is missing or the text does not parse
+    """
+    text, label = _read(source, name)
+    props: PropertiesFile = _parse(text, label, "start_props")
+    return props
+
+
+def parse_property(text: str) -> Property:
+    """Parse one property, e.g. ``P=? [ F "done" ]`` or ``"name": R=? [ C<=10 ]``.
+
+    :raises PrismSyntaxError: if the text is not a single property
+    """
+    prop: Property = _parse(text, "<property>", "start_property")
+    return prop

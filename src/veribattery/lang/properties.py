@@ -1,0 +1,212 @@
+"""Semantic analysis of properties: constants, formulas and labels resolved against a model."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, cast
+
+from veribattery.errors import PrismSemanticError
+from veribattery.lang.constants import ConstantTable
+from veribattery.lang.evaluate import evaluate
+from veribattery.lang.expressions import fold, literal, substitute, walk
+from veribattery.lang.nodes import (
+    ConstDecl,
+    Cumulative,
+    Expr,
+    FlatModel,
+    Ident,
+    Instantaneous,
+    LabelRef,
+    ProbOp,
+    PropertiesFile,
+    Property,
+    RewardOp,
+    TimeBound,
+    Value,
+    ValueType,
+)
+from veribattery.lang.semantics import BUILTIN_LABELS, check_unique
+from veribattery.lang.typecheck import TypeEnv, type_of
+
+
+def select_properties(props: PropertiesFile, selector: str) -> tuple[Property, ...]:
+    """The properties picked by *selector*: a 1-based index (as PRISM's ``-prop``), a
+    property name, or several of these separated by commas.
+
+    :raises PrismSemanticError: for an index out of range or an unknown name
+    """
+    return tuple(_select_one(props, part.strip()) for part in selector.split(","))
+
+
+def _select_one(props: PropertiesFile, selector: str) -> Property:
+    count = len(props.properties)
+    if selector.isdigit():
+        index = int(selector)
+        if not 1 <= index <= count:
+            raise PrismSemanticError(
+                f"there is no property {index} in {props.source} (it has {count} properties)"
+            )
+        return props.properties[index - 1]
+    name = selector.strip('"')
+    for prop in props.properties:
+        if prop.name == name:
+            return prop
+    named = ", ".join(f'"{p.name}"' for p in props.properties if p.name) or "none"
+    raise PrismSemanticError(
+        f'there is no property named "{name}" in {props.source} (named properties: {named})'
+    )
+
+
+class _Resolver:
+    """Substitutes one properties file's names into formulas, checking each use."""
+
+    def __init__(
+        self, model: FlatModel, props: PropertiesFile | None, given: Mapping[str, Value | str]
+    ) -> None:
+        self.model = model
+        self.props = props or PropertiesFile((), (), (), model.source)
+        model_values = dict(model.constants)
+        own = _own(given, self.props.constants)
+        self.table = ConstantTable(self.props.constants, own, model_values)
+        self.types = {**_value_types(model_values), **_decl_types(self.props.constants)}
+        self.formulas = {f.name: f.expr for f in model.formulas}
+        self.model_labels = {lab.name for lab in model.labels}
+        self.labels = {lab.name: lab.expr for lab in self.props.labels}
+        self.named = {p.name: p for p in self.props.properties if p.name is not None}
+        self.variables: dict[str, ValueType] = {
+            v.name: "bool" if v.is_bool else "int" for v in model.variables
+        }
+        self._check_names()
+
+    def _check_names(self) -> None:
+        check_unique(((c.name, c.span) for c in self.props.constants), "constant")
+        for decl in self.props.constants:
+            taken = (dict(self.model.constants), self.variables, self.formulas)
+            if any(decl.name in names for names in taken):
+                raise PrismSemanticError(
+                    f"'{decl.name}' is already defined in the model", decl.span
+                )
+        check_unique(((lab.name, lab.span) for lab in self.props.labels), "label")
+        for lab in self.props.labels:
+            if lab.name in self.model_labels or lab.name in BUILTIN_LABELS:
+                raise PrismSemanticError(f'label "{lab.name}" is already defined', lab.span)
+
+    def resolve(self, node: Any, stack: tuple[str, ...] = ()) -> Any:
+        """*node* with constants, formulas, file labels and named properties inlined."""
+
+        def replace(sub: Any) -> Any | None:
+            if isinstance(sub, Ident):
+                return self._ident(sub)
+            if isinstance(sub, LabelRef):
+                return self._label(sub, stack)
+            return None
+
+        return substitute(node, replace)
+
+    def _ident(self, ident: Ident) -> Expr | None:
+        if ident.name in self.types:
+            return literal(self.table.value(ident.name), ident.span, self.types[ident.name])
+        if ident.name in self.formulas:
+            return self.formulas[ident.name]
+        if ident.name in self.variables:
+            return None
+        raise PrismSemanticError(f"unknown identifier '{ident.name}'", ident.span)
+
+    def _label(self, ref: LabelRef, stack: tuple[str, ...]) -> Expr | None:
+        if ref.name in self.model_labels or ref.name in BUILTIN_LABELS:
+            return None
+        if ref.name in stack:
+            raise PrismSemanticError(f'label "{ref.name}" refers to itself', ref.span)
+        if ref.name in self.labels:
+            return cast(Expr, self.resolve(self.labels[ref.name], (*stack, ref.name)))
+        if ref.name in self.named and self.named[ref.name].unsupported is None:
+            return cast(Expr, self.resolve(self.named[ref.name].formula, (*stack, ref.name)))
+        known = sorted(self.model_labels | self.labels.keys() | BUILTIN_LABELS)
+        raise PrismSemanticError(
+            f'unknown label "{ref.name}" (known labels: {", ".join(known)})', ref.span
+        )
+
+
+def _own(given: Mapping[str, Value | str], decls: tuple[ConstDecl, ...]) -> dict[str, Value | str]:
+    names = {d.name for d in decls}
+    return {k: v for k, v in given.items() if k in names}
+
+
+def _value_types(values: Mapping[str, Value]) -> dict[str, ValueType]:
+    def kind(value: Value) -> ValueType:
+        if isinstance(value, bool):
+            return "bool"
+        return "int" if isinstance(value, int) else "double"
+
+    return {name: kind(value) for name, value in values.items()}
+
+
+def _decl_types(decls: tuple[ConstDecl, ...]) -> dict[str, ValueType]:
+    return {d.name: d.type for d in decls}
+
+
+def _check_reward(op: RewardOp, model: FlatModel) -> None:
+    names = [r.name for r in model.rewards]
+    if not names:
+        raise PrismSemanticError(
+            "the R operator needs a reward structure, and the model has none", op.span
+        )
+    if isinstance(op.reward, str) and op.reward not in names:
+        known = ", ".join(f'"{n}"' for n in names if n is not None) or "only unnamed ones"
+        raise PrismSemanticError(
+            f'unknown reward structure "{op.reward}" (the model has {known})', op.span
+        )
+    if isinstance(op.reward, int) and not 0 <= op.reward < len(names):
+        raise PrismSemanticError(
+            f"there is no reward structure {op.reward + 1} (the model has {len(names)})", op.span
+        )
+
+
+def _check_bound(op: ProbOp | RewardOp) -> None:
+    if op.bound is None:
+        return
+    value = evaluate(op.bound, {})
+    if isinstance(op, ProbOp) and not 0 <= value <= 1:
+        raise PrismSemanticError(f"the probability bound {value} is not in [0, 1]", op.bound.span)
+
+
+def _check_steps(value: Expr) -> None:
+    if evaluate(value, {}) < 0:
+        raise PrismSemanticError("a step bound cannot be negative", value.span)
+
+
+def _check_operators(formula: Expr, model: FlatModel) -> None:
+    for node in walk(formula):
+        if isinstance(node, RewardOp):
+            _check_reward(node, model)
+        if isinstance(node, ProbOp | RewardOp):
+            _check_bound(node)
+        elif isinstance(node, TimeBound | Cumulative):
+            _check_steps(node.value if isinstance(node, TimeBound) else node.bound)
+        elif isinstance(node, Instantaneous):
+            _check_steps(node.time)
+
+
+def resolve_property(
+    prop: Property,
+    model: FlatModel,
+    props: PropertiesFile | None = None,
+    constants: Mapping[str, Value | str] | None = None,
+) -> Property:
+    """*prop* made closed over *model*: only variables, literals and model/built-in labels.
+
+    Constants (the model's, then the properties file's, with *constants* for the
+    undefined ones) become literals; the model's formulas and the file's labels
+    (and named properties used as ``"name"``) are inlined; types, labels, reward
+    structures and bounds are checked.
+
+    :raises PrismSemanticError: for an unsupported construct or any of those errors
+    """
+    if prop.unsupported is not None:
+        raise PrismSemanticError(f"unsupported property {prop.text}: {prop.unsupported}", prop.span)
+    resolver = _Resolver(model, props, constants or {})
+    formula = cast(Expr, resolver.resolve(prop.formula))
+    type_of(formula, TypeEnv(resolver.variables, in_property=True))
+    formula = cast(Expr, fold(formula))
+    _check_operators(formula, model)
+    return Property(formula, prop.name, prop.text, prop.span)

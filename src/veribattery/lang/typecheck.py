@@ -1,0 +1,212 @@
+"""Static types of expressions (int, double, bool), with PRISM's rules.
+
+Numbers mix freely (int + double is double, ``/`` is always double); booleans
+only meet booleans. Errors name the operator and the operand types.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+from veribattery.errors import PrismSemanticError, Span
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    Cumulative,
+    DoubleLit,
+    Eventually,
+    Expr,
+    Globally,
+    Ident,
+    Instantaneous,
+    IntLit,
+    Ite,
+    LabelRef,
+    Next,
+    ProbOp,
+    Reach,
+    RewardOp,
+    TimeBound,
+    Unary,
+    Until,
+    ValueType,
+)
+
+_BOOL_OPS = frozenset({"&", "|", "=>", "<=>"})
+_ORDER_OPS = frozenset({"<", "<=", ">", ">="})
+_ARITY = {"floor": (1, 1), "ceil": (1, 1), "pow": (2, 2), "mod": (2, 2), "log": (2, 2)}
+
+
+def _numeric(kind: ValueType) -> bool:
+    return kind in ("int", "double")
+
+
+def _join(a: ValueType, b: ValueType) -> ValueType:
+    return "int" if a == b == "int" else "double"
+
+
+class TypeEnv:
+    """Names in scope with their types; *in_property* allows labels and P/R operators."""
+
+    def __init__(self, types: Mapping[str, ValueType], *, in_property: bool = False) -> None:
+        self.types = types
+        self.in_property = in_property
+
+    def lookup(self, ident: Ident) -> ValueType:
+        if ident.name not in self.types:
+            raise PrismSemanticError(f"unknown identifier '{ident.name}'", ident.span)
+        return self.types[ident.name]
+
+
+def type_of(expr: Expr, env: TypeEnv) -> ValueType:
+    """The type of *expr*; raises :class:`PrismSemanticError` on a type error."""
+    if isinstance(expr, IntLit):
+        return "int"
+    if isinstance(expr, DoubleLit):
+        return "double"
+    if isinstance(expr, BoolLit):
+        return "bool"
+    if isinstance(expr, Ident):
+        return env.lookup(expr)
+    if isinstance(expr, Unary):
+        return _unary(expr, env)
+    if isinstance(expr, Binary):
+        return _binary(expr, env)
+    if isinstance(expr, Ite):
+        return _ite(expr, env)
+    if isinstance(expr, Call):
+        return _call(expr, env)
+    return _property_type(expr, env)
+
+
+def expect(expr: Expr, env: TypeEnv, wanted: str, what: str) -> ValueType:
+    """Check that *expr* is ``bool`` or ``numeric`` (*wanted*); *what* names the context."""
+    kind = type_of(expr, env)
+    ok = kind == "bool" if wanted == "bool" else _numeric(kind)
+    if not ok:
+        article = "a bool" if wanted == "bool" else "a number"
+        raise PrismSemanticError(f"type error: {what} must be {article}, not {kind}", expr.span)
+    return kind
+
+
+def _unary(expr: Unary, env: TypeEnv) -> ValueType:
+    kind = type_of(expr.operand, env)
+    if expr.op == "!" and kind != "bool":
+        raise PrismSemanticError(f"type error: '!' needs a bool, not {kind}", expr.span)
+    if expr.op == "-" and not _numeric(kind):
+        raise PrismSemanticError(f"type error: unary '-' needs a number, not {kind}", expr.span)
+    return kind
+
+
+def _binary(expr: Binary, env: TypeEnv) -> ValueType:
+    left, right = type_of(expr.left, env), type_of(expr.right, env)
+    op = expr.op
+    if op in _BOOL_OPS:
+        ok = left == right == "bool"
+    elif op in ("=", "!="):
+        ok = left == right == "bool" or (_numeric(left) and _numeric(right))
+    else:
+        ok = _numeric(left) and _numeric(right)
+    if not ok:
+        raise PrismSemanticError(
+            f"type error: operator '{op}' cannot be applied to {left} and {right}", expr.span
+        )
+    if op in _BOOL_OPS or op in _ORDER_OPS or op in ("=", "!="):
+        return "bool"
+    return "double" if op == "/" else _join(left, right)
+
+
+def _ite(expr: Ite, env: TypeEnv) -> ValueType:
+    expect(expr.cond, env, "bool", "the condition of '? :'")
+    then, otherwise = type_of(expr.then, env), type_of(expr.otherwise, env)
+    if then == otherwise:
+        return then
+    if _numeric(then) and _numeric(otherwise):
+        return "double"
+    raise PrismSemanticError(
+        f"type error: the branches of '? :' are {then} and {otherwise}", expr.span
+    )
+
+
+def _call(expr: Call, env: TypeEnv) -> ValueType:
+    low, high = _ARITY.get(expr.func, (2, 10**9))
+    if not low <= len(expr.args) <= high:
+        count = f"{low}" if low == high else f"at least {low}"
+        raise PrismSemanticError(
+            f"{expr.func}(...) takes {count} arguments, not {len(expr.args)}", expr.span
+        )
+    kinds = [expect(a, env, "numeric", f"an argument of {expr.func}") for a in expr.args]
+    if expr.func in ("floor", "ceil"):
+        return "int"
+    if expr.func == "mod":
+        for arg, kind in zip(expr.args, kinds, strict=True):
+            if kind != "int":
+                raise PrismSemanticError("type error: mod(...) needs int arguments", arg.span)
+        return "int"
+    if expr.func == "log":
+        return "double"
+    return "int" if all(k == "int" for k in kinds) else "double"
+
+
+# ----------------------------------------------------------------- properties
+
+
+def _not_in_model(expr: Expr, env: TypeEnv, what: str) -> None:
+    if not env.in_property:
+        raise PrismSemanticError(f"{what} can only be used in properties", _span(expr))
+
+
+def _span(expr: object) -> Span | None:
+    span = getattr(expr, "span", None)
+    return span if isinstance(span, Span) else None
+
+
+def _property_type(expr: Expr, env: TypeEnv) -> ValueType:
+    if isinstance(expr, LabelRef):
+        _not_in_model(expr, env, f'the label "{expr.name}"')
+        return "bool"
+    if isinstance(expr, ProbOp):
+        _not_in_model(expr, env, "the P operator")
+        _check_query_bound(expr.bound, env)
+        _check_path(expr.path, env)
+        return "double" if expr.op == "=?" else "bool"
+    if isinstance(expr, RewardOp):
+        _not_in_model(expr, env, "the R operator")
+        _check_query_bound(expr.bound, env)
+        _check_reward_path(expr.path, env)
+        return "double" if expr.op == "=?" else "bool"
+    raise PrismSemanticError(f"unexpected expression {type(expr).__name__}", _span(expr))
+
+
+def _check_query_bound(bound: Expr | None, env: TypeEnv) -> None:
+    if bound is not None:
+        expect(bound, env, "numeric", "the bound of a P or R operator")
+
+
+def check_time(bound: TimeBound | Expr | None, env: TypeEnv) -> None:
+    """A step bound must be an int."""
+    value = bound.value if isinstance(bound, TimeBound) else bound
+    if value is not None and type_of(value, env) != "int":
+        raise PrismSemanticError("type error: a step bound must be an int", value.span)
+
+
+def _check_path(path: object, env: TypeEnv) -> None:
+    if isinstance(path, Next):
+        expect(path.operand, env, "bool", "the operand of X")
+    elif isinstance(path, Eventually | Globally):
+        check_time(path.bound, env)
+        expect(path.operand, env, "bool", "the operand of F or G")
+    elif isinstance(path, Until):
+        check_time(path.bound, env)
+        expect(path.left, env, "bool", "the left operand of U")
+        expect(path.right, env, "bool", "the right operand of U")
+
+
+def _check_reward_path(path: object, env: TypeEnv) -> None:
+    if isinstance(path, Cumulative):
+        check_time(path.bound, env)
+    elif isinstance(path, Instantaneous):
+        check_time(path.time, env)
+    elif isinstance(path, Reach):
+        expect(path.target, env, "bool", "the target of F")
