@@ -1,0 +1,219 @@
+"""YAML → :class:`MissionConfig`: read, apply ``--set`` overrides, validate; and back to YAML."""
+
+from __future__ import annotations
+
+import copy
+import difflib
+from collections.abc import Mapping, Sequence
+from fractions import Fraction
+from pathlib import Path as FsPath
+from typing import Any
+
+import yaml
+from pydantic import BaseModel
+
+from veribattery.config.exact import fraction_to_decimal
+from veribattery.config.schema import MissionConfig
+from veribattery.config.validate import Path, known_keys, validate_config
+from veribattery.errors import ConfigError, Span
+
+__all__ = ["config_to_yaml", "load_config", "parse_override", "set_value"]
+
+_PROPERTY_KEY = "properties."
+
+
+def load_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> MissionConfig:
+    """Load a mission config from a file (or YAML text), apply overrides, validate.
+
+    A :class:`~pathlib.Path`, or a one-line string naming an existing file or ending
+    in ``.yaml``/``.yml``, is read as a file; any other string is the YAML itself
+    (so ``""`` is the paper's baseline).
+
+    :param path_or_text: the config file, or its text.
+    :param overrides: ``KEY=VALUE`` strings (``--set``); VALUE is parsed as YAML, so
+        ``farm.base=[1,1]`` and ``battery.model=basic_high`` both work.
+    :raises ConfigError: on unreadable files, YAML syntax errors (with line:col),
+        malformed overrides and every validation problem.
+    """
+    text, source = _read(path_or_text)
+    data = _parse_yaml(text, source)
+    overridden: list[str] = []
+    for item in overrides:
+        key, value = parse_override(item)
+        data = set_value(data, key, value)
+        overridden.append(key)
+    root = _compose(text, source)
+
+    def locate(path: Path) -> Span | None:
+        if any(_under(path, key) for key in overridden):
+            return None
+        return _locate(root, path, source)
+
+    return validate_config(data, locate)
+
+
+def _read(path_or_text: str | FsPath) -> tuple[str, str]:
+    """The text to parse and the name to report it under."""
+    if isinstance(path_or_text, FsPath) or _looks_like_path(path_or_text):
+        path = FsPath(path_or_text)
+        try:
+            return path.read_text(encoding="utf-8"), str(path)
+        except OSError as exc:
+            raise ConfigError(f"cannot read config {str(path)!r}: {exc.strerror}") from None
+    return path_or_text, "<string>"
+
+
+def _looks_like_path(text: str) -> bool:
+    if "\n" in text or not text.strip():
+        return False
+    return text.endswith((".yaml", ".yml")) or FsPath(text).is_file()
+
+
+def _parse_yaml(text: str, source: str) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(_yaml_message(exc), _yaml_span(exc, source)) from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise ConfigError(f"config: must be a mapping of keys, got {type(data).__name__}",
+                          Span(1, 1, source))
+    return data
+
+
+def _yaml_message(exc: yaml.YAMLError) -> str:
+    problem = getattr(exc, "problem", None) or str(exc)
+    context = getattr(exc, "context", None)
+    return f"YAML syntax error: {problem}" + (f" ({context})" if context else "")
+
+
+def _yaml_span(exc: yaml.YAMLError, source: str) -> Span | None:
+    mark = getattr(exc, "problem_mark", None)
+    return Span(mark.line + 1, mark.column + 1, source) if mark is not None else None
+
+
+def parse_override(item: str) -> tuple[str, object]:
+    """Split ``KEY=VALUE`` and parse VALUE as YAML.
+
+    :raises ConfigError: when ``=`` is missing, KEY is unknown or VALUE is not YAML.
+    """
+    key, sep, raw = item.partition("=")
+    key = key.strip()
+    if not sep or not key:
+        raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. strategy.safe_t=0.25")
+    if not _known(key):
+        raise ConfigError(f"--set {item!r}: {_unknown_key_message(key)}")
+    try:
+        value = yaml.safe_load(raw) if raw.strip() else None
+    except yaml.YAMLError as exc:
+        message = f"--set {item!r}: value is not valid YAML: {_yaml_message(exc)}"
+        raise ConfigError(message) from None
+    return key, value
+
+
+def _known(key: str) -> bool:
+    if key.startswith(_PROPERTY_KEY):
+        return key[len(_PROPERTY_KEY) :].isidentifier()
+    return key in known_keys()
+
+
+def _unknown_key_message(key: str) -> str:
+    close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
+    hint = f"did you mean '{close[0]}'?" if close else "see configs/example.yaml for the keys"
+    return f"unknown key '{key}' ({hint})"
+
+
+def set_value(cfg_dict: Mapping[str, Any], dotted_key: str, value: object) -> dict[str, Any]:
+    """A copy of *cfg_dict* with *value* at *dotted_key* (``farm.base``), sections created.
+
+    The input is left untouched, so a sweep can derive many configs from one base.
+    """
+    result: dict[str, Any] = copy.deepcopy(dict(cfg_dict))
+    node = result
+    *parents, leaf = dotted_key.split(".")
+    for part in parents:
+        child = node.get(part)
+        if not isinstance(child, dict):
+            child = {}
+            node[part] = child
+        node = child
+    node[leaf] = value
+    return result
+
+
+def _under(path: Path, key: str) -> bool:
+    parts = tuple(key.split("."))
+    return tuple(str(p) for p in path[: len(parts)]) == parts
+
+
+def _compose(text: str, source: str) -> yaml.Node | None:
+    try:
+        return yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError:  # already parsed once; cannot happen, but never mask the real error
+        return None
+
+
+def _locate(node: yaml.Node | None, path: Path, source: str) -> Span | None:
+    """Where *path* is written: the deepest key or list item of it found in the YAML."""
+    mark = node.start_mark if node is not None else None
+    for part in path:
+        found = _child(node, part)
+        if found is None:
+            break
+        mark, node = found
+    return Span(mark.line + 1, mark.column + 1, source) if mark is not None else None
+
+
+def _child(node: yaml.Node | None, part: str | int) -> tuple[Any, yaml.Node] | None:
+    if isinstance(node, yaml.MappingNode):
+        for key, value in node.value:
+            if key.value == part:
+                return key.start_mark, value
+    if isinstance(node, yaml.SequenceNode) and isinstance(part, int) and part < len(node.value):
+        item = node.value[part]
+        return item.start_mark, item
+    return None
+
+
+def config_to_yaml(cfg: MissionConfig) -> str:
+    """The resolved config as YAML (every key, defaults filled in); it loads back to *cfg*."""
+    text: str = yaml.dump(
+        _plain(cfg), Dumper=_Dumper, sort_keys=False, allow_unicode=True, width=100
+    )
+    return text
+
+
+class _Dumper(yaml.SafeDumper):  # type: ignore[misc]
+    """Block-style mappings; lists of scalars (cells) on one line, as a person writes them."""
+
+
+def _represent_list(dumper: yaml.SafeDumper, data: list[Any]) -> yaml.Node:
+    flow = all(not isinstance(item, dict | list) for item in data)
+    return dumper.represent_sequence("tag:yaml.org,2002:seq", data, flow_style=flow)
+
+
+_Dumper.add_representer(list, _represent_list)
+
+
+def _plain(value: object) -> object:
+    """Models as dicts, fractions as decimals where exact (else ``"p/q"``), tuples as lists."""
+    if isinstance(value, BaseModel):
+        return {name: _plain(getattr(value, name)) for name in type(value).model_fields}
+    if isinstance(value, Fraction):
+        return _plain_fraction(value)
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+def _plain_fraction(value: Fraction) -> int | float | str:
+    if value.denominator == 1:
+        return value.numerator
+    decimal = fraction_to_decimal(value)
+    if decimal is not None and repr(float(value)) == decimal:
+        return float(value)
+    return decimal if decimal is not None else f"{value.numerator}/{value.denominator}"
+

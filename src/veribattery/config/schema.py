@@ -1,0 +1,455 @@
+"""The mission config: frozen pydantic models whose defaults are the paper's baseline.
+
+An empty YAML file validates to the paper's setting (6 x 6 turbines, 11 Ah, advanced
+battery, ``safe_t`` 0.3, ``p_wsp_c`` 0.1). Every decimal a user writes (thresholds,
+fade, capacity, resolution, times) is kept as an exact :class:`~fractions.Fraction`:
+YAML hands us binary floats, and ``Fraction(repr(x))`` recovers the decimal as written.
+
+Validation problems are reported by :func:`validate_config` as one-line
+:class:`~veribattery.errors.ConfigError` messages that name the dotted key path.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Annotated, Literal, Self
+
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    StrictInt,
+    Tag,
+    field_validator,
+    model_validator,
+)
+from pydantic_core import PydanticCustomError
+
+from veribattery.config.exact import Exact, problem, show
+
+__all__ = [
+    "BatteryConfig",
+    "Cell",
+    "ConsumptionEq2",
+    "ConsumptionTable",
+    "EnvironmentConfig",
+    "FarmConfig",
+    "LevelValues",
+    "MissionConfig",
+    "Requirement",
+    "StrategyConfig",
+    "TimesConfig",
+    "parse_requirement",
+]
+
+Cell = tuple[int, int]
+BatteryModel = Literal["advanced", "basic_high", "basic_medium", "basic_low"]
+RouteName = Literal["snake_rows", "snake_columns"]
+
+PAPER_PROPERTIES: dict[str, str] = {
+    "p_success": 'P=? [ F "success" ]',
+    "exp_mission_time": 'R{"mt"}=? [ F "done" ]',
+    "exp_recharges": 'R{"rc"}=? [ F "done" ]',
+}
+
+
+def _to_cell(value: object) -> Cell:
+    """A cell ``[x, y]`` of two integers."""
+    if isinstance(value, list | tuple) and len(value) == 2:
+        x, y = value
+        if _is_int(x) and _is_int(y):
+            return (x, y)
+    raise problem(f"must be a cell [x, y] of two integers, got {show(value)}")
+
+
+def _is_int(value: object) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
+def _to_route(value: object) -> RouteName | tuple[Cell, ...]:
+    """A route name, or an explicit list of cells."""
+    if value == "snake_rows" or value == "snake_columns":
+        return value
+    if isinstance(value, list | tuple) and value:
+        try:
+            return tuple(_to_cell(c) for c in value)
+        except PydanticCustomError:
+            pass
+    raise problem(
+        "must be 'snake_rows', 'snake_columns' or a list of cells [x, y], " f"got {show(value)}"
+    )
+
+
+CellField = Annotated[Cell, BeforeValidator(_to_cell)]
+RouteField = Annotated[RouteName | tuple[Cell, ...], BeforeValidator(_to_route)]
+
+
+def _check_range(value: Fraction, low: Fraction | None, high: Fraction | None, text: str) -> None:
+    """Raise ``must be <text>, got v`` unless low < value < high (bounds exclusive when given)."""
+    if (low is not None and value <= low) or (high is not None and value >= high):
+        raise problem(f"must be {text}, got {show(value)}")
+
+
+class _Section(BaseModel):
+    """Every config section: immutable, unknown keys rejected."""
+
+    model_config = ConfigDict(
+        extra="forbid", frozen=True, arbitrary_types_allowed=True, validate_default=False
+    )
+
+
+class FarmConfig(_Section):
+    """The wind farm: a lattice of ``cols x rows`` turbines and the cells between them."""
+
+    cols: StrictInt = 6
+    rows: StrictInt = 6
+    spacing_m: Exact = Fraction(500)
+    base: CellField = (2, 2)
+    route: RouteField = "snake_rows"
+
+    @field_validator("cols", "rows")
+    @classmethod
+    def _at_least_two(cls, value: int) -> int:
+        if value < 2:
+            raise problem(f"must be at least 2 turbines, got {value}")
+        return value
+
+    @field_validator("spacing_m")
+    @classmethod
+    def _positive_spacing(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), None, "> 0")
+        return value
+
+    @property
+    def cells(self) -> tuple[int, int]:
+        """Number of cells across and up: one fewer than the turbines."""
+        return (self.cols - 1, self.rows - 1)
+
+    @model_validator(mode="after")
+    def _cells_fit(self) -> Self:
+        if not self._inside(self.base):
+            raise problem(f"cell {show(self.base)} is outside the {self._extent()}", "base")
+        if isinstance(self.route, tuple):
+            self._check_route(self.route)
+        return self
+
+    def _inside(self, cell: Cell) -> bool:
+        return 0 <= cell[0] < self.cols - 1 and 0 <= cell[1] < self.rows - 1
+
+    def _extent(self) -> str:
+        cx, cy = self.cells
+        return f"{cx} x {cy} cells (x in 0..{cx - 1}, y in 0..{cy - 1})"
+
+    def _check_route(self, route: tuple[Cell, ...]) -> None:
+        seen: set[Cell] = set()
+        for cell in route:
+            if not self._inside(cell):
+                raise problem(f"cell {show(cell)} is outside the {self._extent()}", "route")
+            if cell in seen:
+                raise problem(f"cell {show(cell)} appears twice", "route")
+            seen.add(cell)
+        missing = [(x, y) for y in range(self.rows - 1) for x in range(self.cols - 1)]
+        missing = [c for c in missing if c not in seen]
+        if missing:
+            raise problem(f"misses cell {show(missing[0])} ({len(missing)} missing)", "route")
+
+
+class LevelValues(_Section):
+    """One value per voltage level."""
+
+    low: Exact
+    medium: Exact
+    high: Exact
+
+    @field_validator("low", "medium", "high")
+    @classmethod
+    def _positive(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), None, "> 0")
+        return value
+
+
+class ConsumptionTable(_Section):
+    """Table 2 of the paper (Ah per action at low wind) and the high-wind factor."""
+
+    takeoff_land: LevelValues = LevelValues(
+        low=Fraction(3, 10), medium=Fraction(2, 10), high=Fraction(1, 10)
+    )
+    cell: LevelValues = LevelValues(
+        low=Fraction(5, 10), medium=Fraction(4, 10), high=Fraction(3, 10)
+    )
+    inspection: LevelValues = LevelValues(
+        low=Fraction(45, 10), medium=Fraction(40, 10), high=Fraction(36, 10)
+    )
+    high_wind_factor: Exact = Fraction(2)
+
+    @field_validator("high_wind_factor")
+    @classmethod
+    def _positive_factor(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), None, "> 0")
+        return value
+
+
+class WindValues(_Section):
+    """One value per wind level (power demand level of BA2)."""
+
+    low_wind: Exact
+    high_wind: Exact
+
+    @field_validator("low_wind", "high_wind")
+    @classmethod
+    def _positive(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), None, "> 0")
+        return value
+
+
+class ActionValues(_Section):
+    """One value per kind of action."""
+
+    takeoff_land: Exact
+    cell: Exact
+    inspection: Exact
+
+    @field_validator("takeoff_land", "cell", "inspection")
+    @classmethod
+    def _positive(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), None, "> 0")
+        return value
+
+
+class ConsumptionEq2(_Section):
+    """Eq. 2's physical parameters, ``C = E_spec·t / (V·T)``; the table is computed from them."""
+
+    energy_wh: Exact = Fraction(180)
+    voltages_v: LevelValues = LevelValues(
+        low=Fraction(20), medium=Fraction(22), high=Fraction(25)
+    )
+    flight_time_h: WindValues = WindValues(low_wind=Fraction(1, 2), high_wind=Fraction(1, 4))
+    action_time_h: ActionValues = ActionValues(
+        takeoff_land=Fraction(1, 60), cell=Fraction(2, 60), inspection=Fraction(1, 4)
+    )
+
+    @field_validator("energy_wh")
+    @classmethod
+    def _positive_energy(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), None, "> 0")
+        return value
+
+
+_EQ2_KEYS = frozenset(ConsumptionEq2.model_fields)
+
+
+def _consumption_kind(value: object) -> str:
+    """``eq2`` when any of Eq. 2's keys is given, else the table."""
+    keys = value.keys() if isinstance(value, Mapping) else ()
+    if isinstance(value, ConsumptionEq2) or _EQ2_KEYS.intersection(keys):
+        return "eq2"
+    return "table"
+
+
+Consumption = Annotated[
+    Annotated[ConsumptionTable, Tag("table")] | Annotated[ConsumptionEq2, Tag("eq2")],
+    Discriminator(_consumption_kind),
+]
+UNION_TAGS = frozenset({"table", "eq2"})
+
+
+class VoltageThresholds(_Section):
+    """SOC bounds of the voltage levels (BA3): high above ``high``, low below ``low``."""
+
+    high: Exact = Fraction(3, 4)
+    low: Exact = Fraction(1, 4)
+
+    @field_validator("high", "low")
+    @classmethod
+    def _unit_interval(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), Fraction(1), "in (0, 1)")
+        return value
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Self:
+        if self.low > self.high:
+            raise problem(f"must be <= high ({show(self.high)}), got {show(self.low)}", "low")
+        return self
+
+
+class BatteryConfig(_Section):
+    """The battery: model variant, capacity, resolution, fade and consumption."""
+
+    model: BatteryModel = "advanced"
+    capacity_ah: Exact = Fraction(11)
+    resolution_ah: Exact = Fraction(1, 10)
+    fade_per_recharge: Exact = Fraction(2, 1000)
+    max_recharges: StrictInt = 200
+    voltage_thresholds: VoltageThresholds = VoltageThresholds()
+    consumption: Consumption = ConsumptionTable()
+
+    @field_validator("capacity_ah", "resolution_ah")
+    @classmethod
+    def _positive(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), None, "> 0")
+        return value
+
+    @field_validator("fade_per_recharge")
+    @classmethod
+    def _fade(cls, value: Fraction) -> Fraction:
+        if not 0 <= value < 1:
+            raise problem(f"must be in [0, 1), got {show(value)}")
+        return value
+
+    @field_validator("max_recharges")
+    @classmethod
+    def _recharges(cls, value: int) -> int:
+        if value < 0:
+            raise problem(f"must be >= 0, got {value}")
+        return value
+
+    @model_validator(mode="after")
+    def _whole_units(self) -> Self:
+        units = self.capacity_ah / self.resolution_ah
+        if units.denominator != 1:
+            raise problem(
+                f"must be a whole number of resolution_ah ({show(self.resolution_ah)}) units, "
+                f"got {show(self.capacity_ah)}",
+                "capacity_ah",
+            )
+        if self.model == "advanced" and self.fade_per_recharge * self.max_recharges >= 1:
+            raise problem(
+                f"fade_per_recharge x max_recharges must be < 1 so the capacity stays "
+                f"positive, got {show(self.fade_per_recharge)} x {self.max_recharges}",
+                "fade_per_recharge",
+            )
+        return self
+
+    @property
+    def fade(self) -> Fraction:
+        """The fade actually modelled: basic models have none."""
+        return self.fade_per_recharge if self.model == "advanced" else Fraction(0)
+
+
+class StrategyConfig(_Section):
+    """The battery safety strategy BS1."""
+
+    safe_t: Exact = Fraction(3, 10)
+
+    @field_validator("safe_t")
+    @classmethod
+    def _unit_interval(cls, value: Fraction) -> Fraction:
+        _check_range(value, Fraction(0), Fraction(1), "in (0, 1)")
+        return value
+
+
+class EnvironmentConfig(_Section):
+    """The wind: probability that it changes level at each drone action (EA2)."""
+
+    p_wsp_c: Exact = Fraction(1, 10)
+
+    @field_validator("p_wsp_c")
+    @classmethod
+    def _probability(cls, value: Fraction) -> Fraction:
+        if not 0 <= value <= 1:
+            raise problem(f"must be in [0, 1], got {show(value)}")
+        return value
+
+
+class TimesConfig(_Section):
+    """Minutes per action: the ``mt`` reward."""
+
+    takeoff_land: Exact = Fraction(1)
+    per_cell: Exact = Fraction(2)
+    inspection: Exact = Fraction(15)
+    recharge: Exact = Fraction(90)
+    wait: Exact = Fraction(0)
+
+    @field_validator("*")
+    @classmethod
+    def _non_negative(cls, value: Fraction) -> Fraction:
+        if value < 0:
+            raise problem(f"must be >= 0, got {show(value)}")
+        return value
+
+
+@dataclass(frozen=True, slots=True)
+class Requirement:
+    """A requirement ``<property> <op> <bound>``, e.g. ``p_success >= 0.99``."""
+
+    prop: str
+    op: str
+    bound: Fraction
+
+    def holds(self, value: float) -> bool:
+        """Whether a checked *value* meets this requirement."""
+        ops: dict[str, Callable[[float, float], bool]] = {
+            "<": float.__lt__,
+            "<=": float.__le__,
+            ">": float.__gt__,
+            ">=": float.__ge__,
+        }
+        return ops[self.op](float(value), float(self.bound))
+
+    def __str__(self) -> str:
+        return f"{self.prop} {self.op} {show(self.bound)}"
+
+
+_REQUIREMENT = re.compile(r"\s*([A-Za-z_]\w*)\s*(<=|>=|<|>)\s*(\S+)\s*")
+_IDENT = re.compile(r"[A-Za-z_]\w*")
+
+
+def parse_requirement(text: str) -> Requirement:
+    """Parse ``name op number`` (op one of ``< <= > >=``).
+
+    :raises ValueError: when *text* is not of that form.
+    """
+    match = _REQUIREMENT.fullmatch(text)
+    if match is None:
+        raise ValueError(f"must look like 'p_success >= 0.99' (op: <, <=, >, >=), got {text!r}")
+    try:
+        bound = Fraction(match.group(3))
+    except (ValueError, ZeroDivisionError):
+        raise ValueError(f"bound must be a number, got {match.group(3)!r}") from None
+    return Requirement(match.group(1), match.group(2), bound)
+
+
+class MissionConfig(_Section):
+    """A whole mission: farm, battery, strategy, environment, times, properties, requirements."""
+
+    farm: FarmConfig = FarmConfig()
+    battery: BatteryConfig = BatteryConfig()
+    strategy: StrategyConfig = StrategyConfig()
+    environment: EnvironmentConfig = EnvironmentConfig()
+    times_min: TimesConfig = TimesConfig()
+    properties: dict[str, str] = Field(default_factory=lambda: dict(PAPER_PROPERTIES))
+    requirements: tuple[str, ...] = ()
+
+    @field_validator("properties")
+    @classmethod
+    def _named(cls, value: dict[str, str]) -> dict[str, str]:
+        for name, text in value.items():
+            if not _IDENT.fullmatch(name):
+                raise problem(f"property name must be an identifier, got {name!r}")
+            if not text.strip():
+                raise problem(f"property {name!r} has an empty formula")
+        return value
+
+    @model_validator(mode="after")
+    def _requirements_named(self) -> Self:
+        for i, text in enumerate(self.requirements):
+            try:
+                req = parse_requirement(text)
+            except ValueError as exc:
+                raise problem(str(exc), f"requirements.{i}") from None
+            if req.prop not in self.properties:
+                names = ", ".join(self.properties) or "none"
+                raise problem(
+                    f"unknown property {req.prop!r} (declared: {names})", f"requirements.{i}"
+                )
+        return self
+
+    @property
+    def parsed_requirements(self) -> tuple[Requirement, ...]:
+        """The requirements, parsed."""
+        return tuple(parse_requirement(t) for t in self.requirements)

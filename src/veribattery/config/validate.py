@@ -1,0 +1,123 @@
+"""Validation with one-line messages: pydantic's errors → ``key.path: what is allowed, got X``."""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Callable, Mapping
+from typing import Any, get_args
+
+from pydantic import BaseModel, ValidationError
+
+from veribattery.config.exact import show
+from veribattery.config.schema import UNION_TAGS, MissionConfig
+from veribattery.errors import ConfigError, Span
+
+__all__ = ["Path", "dotted", "known_keys", "validate_config"]
+
+#: A key path as pydantic reports it: ``('farm', 'route', 3)``.
+Path = tuple[str | int, ...]
+
+
+def known_keys() -> tuple[str, ...]:
+    """Every dotted key of the schema (both consumption forms), sections included."""
+    return tuple(sorted(set(_keys_of(MissionConfig, ""))))
+
+
+def _keys_of(model: type[BaseModel], prefix: str) -> list[str]:
+    keys: list[str] = []
+    for name, info in model.model_fields.items():
+        key = prefix + name
+        keys.append(key)
+        for sub in _submodels(info.annotation):
+            keys.extend(_keys_of(sub, key + "."))
+    return keys
+
+
+def _submodels(annotation: object) -> list[type[BaseModel]]:
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    return [m for arg in get_args(annotation) for m in _submodels(arg)]
+
+
+def dotted(path: Path) -> str:
+    """``('farm', 'route', 3)`` → ``farm.route[3]``; union tags are dropped."""
+    text = ""
+    for part in path:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        elif part not in UNION_TAGS:
+            text += ("." if text else "") + part
+    return text or "config"
+
+
+def _clean(path: Path) -> Path:
+    return tuple(p for p in path if p not in UNION_TAGS or isinstance(p, int))
+
+
+def _suggest(path: Path) -> str:
+    key = dotted(path)
+    if key in known_keys():  # valid in the other consumption form, not beside this one
+        return (
+            "cannot be mixed with the other form of battery.consumption: give either the "
+            "table (takeoff_land, cell, inspection, high_wind_factor) or Eq. 2's parameters "
+            "(energy_wh, voltages_v, flight_time_h, action_time_h)"
+        )
+    close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
+    if close:
+        return f"unknown key (did you mean '{close[0]}'?)"
+    parent = dotted(path[:-1]) + "." if len(path) > 1 else ""
+    siblings = [k[len(parent) :] for k in known_keys() if k.startswith(parent)]
+    allowed = sorted({k.split(".")[0] for k in siblings})
+    return f"unknown key (allowed: {', '.join(allowed)})"
+
+
+_TYPE_WORDS = {
+    "int_type": "an integer",
+    "string_type": "a string",
+    "dict_type": "a mapping",
+    "model_type": "a mapping of keys",
+    "model_attributes_type": "a mapping of keys",
+    "tuple_type": "a list",
+}
+
+
+def _describe(error: Mapping[str, Any]) -> tuple[Path, str]:
+    """The key path and the message of one pydantic error."""
+    path: Path = _clean(tuple(error["loc"]))
+    kind = error["type"]
+    ctx = error.get("ctx") or {}
+    if kind == "vb_problem":
+        if ctx.get("key"):
+            subkey: Path = tuple(int(p) if p.isdigit() else p for p in ctx["key"].split("."))
+            path = path + subkey
+        return path, str(ctx["message"])
+    if kind == "extra_forbidden":
+        return path, _suggest(path)
+    if kind == "literal_error":
+        return path, f"must be one of {ctx['expected']}, got {show(error['input'])}"
+    if kind in _TYPE_WORDS:
+        return path, f"must be {_TYPE_WORDS[kind]}, got {show(error['input'])}"
+    return path, str(error["msg"])
+
+
+def validate_config(
+    data: object, locate: Callable[[Path], Span | None] = lambda _path: None
+) -> MissionConfig:
+    """Validate a parsed YAML document into a :class:`MissionConfig`.
+
+    :param data: the document (``None`` for an empty file).
+    :param locate: maps a key path to its place in the source, for the error's span.
+    :raises ConfigError: naming the first bad key, e.g.
+        ``strategy.safe_t: must be in (0, 1), got 1.5``.
+    """
+    if data is None:
+        data = {}
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"config: must be a mapping of keys, got {show(data)}", locate(()))
+    try:
+        return MissionConfig.model_validate(data)
+    except ValidationError as exc:
+        errors = exc.errors(include_url=False)
+        path, message = _describe(errors[0])
+        more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
+        raise ConfigError(f"{dotted(path)}: {message}{more}", locate(path)) from None
