@@ -1,1 +1,14 @@
-"""explore"""
+"""State-space exploration: compile expressions, build the DTMC of a flat model."""
+
+from veribattery.explore.builder import build_dtmc
+from veribattery.explore.compile import compile_expr
+from veribattery.explore.domain import check_update_ranges_over_domain
+from veribattery.explore.dtmc import DTMC, RewardVectors
+
+__all__ = [
+    "DTMC",
+    "RewardVectors",
+    "build_dtmc",
+    "check_update_ranges_over_domain",
+    "compile_expr",
+]

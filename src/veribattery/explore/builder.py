@@ -1,0 +1,261 @@
+"""Breadth-first construction of the DTMC of a flat model, one whole frontier at a time.
+
+States are numbered in discovery order: the initial states first, then each BFS
+layer's new successors in order of (source state, choice, update). Each layer is
+expanded group by group with numpy over all its states (see ``successors``), and
+the successors are deduplicated against the known states in one batch (see
+``store``). PRISM's DTMC rules apply: a state with several enabled choices takes
+each with probability 1/n, and a state with none gets a self-loop.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.errors import ModelError
+from veribattery.explore.compile import compile_expr
+from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.explore.program import Program, compile_program
+from veribattery.explore.store import StateStore
+from veribattery.explore.successors import GroupSuccessors, expand_group
+from veribattery.lang.nodes import FlatModel, RewardStruct
+
+__all__ = ["build_dtmc", "initial_states"]
+
+#: Rows of the variables' domain enumerated at once when evaluating an ``init`` block.
+_INIT_CHUNK = 1 << 20
+#: Frontier states expanded at once.
+_CHUNK = 1 << 14
+
+
+@dataclass(frozen=True, slots=True)
+class _Layer:
+    """The transitions out of one frontier and its states' choice counts."""
+
+    rows: IntArray
+    columns: IntArray
+    probabilities: FloatArray
+    choices: IntArray
+    action_choices: dict[str | None, IntArray]
+
+
+def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None = None) -> DTMC:
+    """Explore the reachable states of *model* and return its DTMC.
+
+    :param model: a flat model (constants substituted, formulas inlined).
+    :param progress: called once per BFS layer with (states found so far, frontier size).
+    :raises ModelError: an update leaves a variable's range, a probability is
+        negative, or a choice's probabilities do not sum to 1.
+    """
+    program = compile_program(model)
+    store = StateStore(program.lows, program.highs)
+    initial = store.add(initial_states(model))
+    rewarded = _rewarded_actions(model.rewards)
+    layers: list[_Layer] = []
+    low = 0
+    while low < store.count:
+        high = store.count
+        # Chunks bound the memory of wide layers; sources stay in order, so the
+        # numbering is the same as for the whole layer at once.
+        for start in range(low, high, _CHUNK):
+            stop = min(start + _CHUNK, high)
+            layers.append(_explore_layer(program, store, start, stop, rewarded))
+        if progress is not None:
+            progress(store.count, high - low)
+        low = high
+    return _assemble(model, store.states.copy(), initial, layers)
+
+
+def initial_states(model: FlatModel) -> IntArray:
+    """The initial states of *model*: its variables' init values, or the domain
+    states that satisfy its ``init`` block (enumerated in chunks, first variable
+    most significant).
+    """
+    if model.init is None:
+        return np.array([[v.init for v in model.variables]], dtype=np.int64)
+    lows = np.array([v.low for v in model.variables], dtype=np.int64)
+    sizes = np.array([v.high - v.low + 1 for v in model.variables], dtype=np.int64)
+    total = int(np.prod(sizes.astype(object)))  # exact: the product may overflow int64
+    if total > 1 << 40:
+        raise ModelError(f"init block ranges over {total} states: too many to enumerate")
+    predicate = compile_expr(model.init, model.variable_names)
+    found = [
+        rows[predicate(rows).astype(bool)]
+        for rows in (
+            _domain_rows(lows, sizes, s, min(s + _INIT_CHUNK, total))
+            for s in range(0, total, _INIT_CHUNK)
+        )
+    ]
+    result = np.concatenate(found) if found else np.empty((0, lows.size), dtype=np.int64)
+    if result.shape[0] == 0:
+        raise ModelError("the init block is satisfied by no state")
+    return result
+
+
+def _domain_rows(lows: IntArray, sizes: IntArray, start: int, stop: int) -> IntArray:
+    """Rows ``start..stop-1`` of the domain in mixed-radix order."""
+    flat = np.arange(start, stop, dtype=np.int64)
+    rows = np.empty((flat.size, sizes.size), dtype=np.int64)
+    for i in range(sizes.size - 1, -1, -1):
+        flat, rows[:, i] = np.divmod(flat, sizes[i])
+    return rows + lows
+
+
+# ---------------------------------------------------------------------------
+# One BFS layer
+# ---------------------------------------------------------------------------
+
+
+def _explore_layer(
+    program: Program, store: StateStore, low: int, high: int, rewarded: set[str | None]
+) -> _Layer:
+    frontier = store.states[low:high]  # a view: the store only appends
+    n = frontier.shape[0]
+    parts = [(g.action, expand_group(program, g, frontier)) for g in program.groups]
+    found = [(a, s) for a, s in parts if s is not None]
+    choices = np.zeros(n, dtype=np.int64)
+    action_choices: dict[str | None, IntArray] = {}
+    for action, successors in found:
+        choices += successors.choices
+        if action in rewarded:
+            action_choices[action] = action_choices.get(action, 0) + successors.choices
+    source, targets, probability = _merge(found, choices, frontier)
+    columns = store.add(targets)
+    index_type = np.int32 if store.count < np.iinfo(np.int32).max else np.int64
+    return _Layer(
+        (source + low).astype(index_type),
+        columns.astype(index_type),
+        probability,
+        choices,
+        action_choices,
+    )
+
+
+def _merge(
+    found: list[tuple[str | None, GroupSuccessors]], choices: IntArray, frontier: IntArray
+) -> tuple[IntArray, IntArray, FloatArray]:
+    """All branches of a layer ordered by source, weighted 1/n, deadlocks self-looped."""
+    dead = np.flatnonzero(choices == 0)
+    source = np.concatenate([s.source for _, s in found] + [dead])
+    targets = np.concatenate([s.targets for _, s in found] + [frontier[dead]])
+    probability = np.concatenate([s.probability for _, s in found] + [np.ones(dead.size)])
+    probability /= np.maximum(choices, 1)[source]
+    keep = probability > 0
+    if np.all(source[1:] >= source[:-1]):  # one group, already in source order
+        if keep.all():
+            return source, targets, probability
+        return source[keep], targets[keep], probability[keep]
+    # Chunks have < 2**15 states: an int16 key lets numpy use its O(n) radix sort.
+    key = source.astype(np.int16) if choices.size < 1 << 15 else source
+    order = np.argsort(key, kind="stable")
+    order = order[keep[order]]
+    return source[order], targets[order], probability[order]
+
+
+# ---------------------------------------------------------------------------
+# Assembling the DTMC
+# ---------------------------------------------------------------------------
+
+
+def _assemble(model: FlatModel, states: IntArray, initial: IntArray, layers: list[_Layer]) -> DTMC:
+    n = states.shape[0]
+    matrix = _transition_matrix(n, layers)
+    choices = np.concatenate([layer.choices for layer in layers])
+    labels = _labels(model, states, initial, choices == 0)
+    rewards = tuple(_reward_vectors(model, r, states, choices, layers) for r in model.rewards)
+    deadlocks = int(np.count_nonzero(choices == 0))
+    nondeterministic = int(np.count_nonzero(choices > 1))
+    return DTMC(
+        transitions=matrix,
+        states=states,
+        variable_names=model.variable_names,
+        initial=np.unique(initial),
+        labels=labels,
+        rewards=rewards,
+        deadlocks=deadlocks,
+        nondeterministic=nondeterministic,
+        warnings=_warnings(deadlocks, nondeterministic),
+    )
+
+
+def _transition_matrix(n: int, layers: list[_Layer]) -> sp.csr_matrix:
+    """CSR straight from the layers: their rows are already sorted by source state."""
+    rows = np.concatenate([layer.rows for layer in layers])
+    columns = np.concatenate([layer.columns for layer in layers])
+    data = np.concatenate([layer.probabilities for layer in layers])
+    indptr = np.zeros(n + 1, dtype=columns.dtype)
+    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
+    del rows
+    matrix = sp.csr_matrix((data, columns, indptr), shape=(n, n))
+    matrix.sum_duplicates()  # sorts each row's columns and adds repeated successors
+    return matrix
+
+
+def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
+    found = []
+    if deadlocks:
+        found.append(f"{deadlocks} deadlock states (self-loops added)")
+    if nondeterministic:
+        found.append(
+            f"{nondeterministic} states with several enabled choices "
+            "(each taken with equal probability)"
+        )
+    return tuple(found)
+
+
+def _labels(
+    model: FlatModel, states: IntArray, initial: IntArray, dead: BoolArray
+) -> dict[str, BoolArray]:
+    labels = {
+        label.name: compile_expr(label.expr, model.variable_names)(states).astype(bool)
+        for label in model.labels
+    }
+    init = np.zeros(states.shape[0], dtype=bool)
+    init[initial] = True
+    labels["init"] = init
+    labels["deadlock"] = dead
+    return labels
+
+
+def _rewarded_actions(rewards: tuple[RewardStruct, ...]) -> set[str | None]:
+    return {item.action for r in rewards for item in r.items if item.is_transition}
+
+
+def _reward_vectors(
+    model: FlatModel,
+    struct: RewardStruct,
+    states: IntArray,
+    choices: IntArray,
+    layers: list[_Layer],
+) -> RewardVectors:
+    """State rewards, and transition rewards weighted by each action's share of the choices."""
+    names = model.variable_names
+    state = np.zeros(states.shape[0], dtype=np.float64)
+    transition = np.zeros(states.shape[0], dtype=np.float64)
+    share: dict[str | None, FloatArray] = {}
+    for item in struct.items:
+        guard = compile_expr(item.guard, names)(states).astype(bool)
+        value = np.where(guard, compile_expr(item.value, names)(states), 0.0)
+        if not item.is_transition:
+            state += value
+            continue
+        if item.action not in share:
+            share[item.action] = _action_share(item.action, choices, layers)
+        transition += share[item.action] * value
+    return RewardVectors(struct.name, state, transition)
+
+
+def _action_share(action: str | None, choices: IntArray, layers: list[_Layer]) -> FloatArray:
+    """Fraction of each state's choices that carry *action* (0 in deadlock states)."""
+    counts = np.concatenate(
+        [
+            np.asarray(layer.action_choices.get(action, np.zeros(layer.choices.size)))
+            for layer in layers
+        ]
+    )
+    return counts / np.maximum(choices, 1)

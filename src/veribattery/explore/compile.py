@@ -1,0 +1,503 @@
+"""Compile PRISM expressions into numpy functions over many states at once.
+
+A compiled expression takes an ``(n, n_vars)`` int64 array of variable values
+(one row per state) and returns an array of length *n*. Integer arithmetic stays
+int64 and exact; ``/`` always gives a float, as in PRISM. Boolean variables are
+stored as 0/1, which numpy's logical functions and comparisons treat correctly.
+
+Sub-expressions whose operands are all literals are folded at compile time.
+Operations that can fail on some rows (division, ``mod``, ``pow``) are *risky*:
+the branches of ``? :`` and the right operands of ``&``, ``|`` and ``=>`` that
+contain them are evaluated only on the rows that need them, so that a guard such
+as ``y>0 & x/y>1`` does not report a division by zero where ``y=0``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from veribattery._types import BoolArray, IntArray
+from veribattery.errors import ModelError, PrismSemanticError, Span
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    DoubleLit,
+    Expr,
+    Ident,
+    IntLit,
+    Ite,
+    LabelRef,
+    Unary,
+)
+
+__all__ = [
+    "Bounds",
+    "CompiledExpr",
+    "compile_expr",
+    "constant_value",
+    "value_bounds",
+    "variables_of",
+]
+
+#: The public shape of a compiled expression.
+CompiledExpr = Callable[[IntArray], np.ndarray]
+# Internal evaluators may return a numpy scalar where the value is constant.
+_Fn = Callable[[IntArray], Any]
+
+
+@dataclass(frozen=True, slots=True)
+class _Node:
+    """A compiled sub-expression: an evaluator, or a folded constant."""
+
+    fn: _Fn
+    const: Any = None
+    is_const: bool = False
+    risky: bool = False  # may raise on some rows
+    labels: bool = False  # reads label masks (aligned with all rows: no row subsets)
+
+    @property
+    def subsettable(self) -> bool:
+        """Whether evaluating this node on a subset of rows is both useful and safe."""
+        return self.risky and not self.labels
+
+
+@dataclass(frozen=True, slots=True)
+class _Scope:
+    """What compilation needs besides the expression.
+
+    With *ranges* (variable name → (low, high)), sub-expressions over a small
+    domain are tabulated once; *tables* caches them across compilations.
+    """
+
+    columns: Mapping[str, int]
+    labels: Mapping[str, BoolArray] | None = None
+    ranges: Mapping[str, tuple[int, int]] | None = None
+    tables: dict[Expr, _Node] | None = None
+
+
+def compile_expr(
+    expr: Expr,
+    variable_names: Sequence[str],
+    label_masks: Mapping[str, BoolArray] | None = None,
+    ranges: Mapping[str, tuple[int, int]] | None = None,
+    tables: dict[Expr, Any] | None = None,
+) -> CompiledExpr:
+    """Compile *expr* into a function over an ``(n, n_vars)`` array of variable values.
+
+    The result always has length *n* (constants are broadcast). It may share memory
+    with the input (a bare variable returns its column): do not write to it.
+
+    :param expr: an expression using only variables, literals, operators and
+        built-in functions (and ``"label"`` references if *label_masks* is given).
+    :param variable_names: the column names of the state arrays, in order.
+    :param label_masks: label name to mask, aligned with the rows evaluated.
+    :param ranges: the variables' bounds; when given, sub-expressions whose variables
+        span at most ``TABLE_LIMIT`` valuations are evaluated once into a lookup table.
+    :param tables: a cache of such tables, shared between compilations.
+    :raises PrismSemanticError: for an unknown identifier or label.
+    """
+    columns = {name: i for i, name in enumerate(variable_names)}
+    node = _compile(expr, _Scope(columns, label_masks, ranges, tables))
+
+    def evaluate(states: IntArray) -> np.ndarray:
+        value = np.asarray(node.fn(states))
+        if value.ndim == 0:
+            return np.full(states.shape[0], value, dtype=value.dtype)
+        return value
+
+    return evaluate
+
+
+def variables_of(expr: Expr) -> set[str]:
+    """The identifiers that occur in *expr*."""
+    if isinstance(expr, Ident):
+        return {expr.name}
+    children: tuple[Expr, ...] = ()
+    if isinstance(expr, Unary):
+        children = (expr.operand,)
+    elif isinstance(expr, Binary):
+        children = (expr.left, expr.right)
+    elif isinstance(expr, Ite):
+        children = (expr.cond, expr.then, expr.otherwise)
+    elif isinstance(expr, Call):
+        children = expr.args
+    return set().union(*(variables_of(c) for c in children))
+
+
+# ---------------------------------------------------------------------------
+# Leaves
+# ---------------------------------------------------------------------------
+
+
+def _compile(expr: Expr, scope: _Scope) -> _Node:
+    if scope.ranges is not None and _worth_tabulating(expr, scope.ranges):
+        return _tabulated(expr, scope)
+    return _compile_node(expr, scope)
+
+
+def _compile_node(expr: Expr, scope: _Scope) -> _Node:
+    columns, labels = scope.columns, scope.labels
+    if isinstance(expr, IntLit):
+        return _constant(np.int64(expr.value))
+    if isinstance(expr, DoubleLit):
+        return _constant(np.float64(expr.value))
+    if isinstance(expr, BoolLit):
+        return _constant(np.bool_(expr.value))
+    if isinstance(expr, Ident):
+        return _variable(expr, columns)
+    if isinstance(expr, LabelRef):
+        return _label(expr, labels)
+    if isinstance(expr, Unary):
+        return _unary(expr, _compile(expr.operand, scope))
+    if isinstance(expr, Binary):
+        left, right = _compile(expr.left, scope), _compile(expr.right, scope)
+        return _binary(expr, left, right)
+    if isinstance(expr, Ite):
+        parts = [_compile(e, scope) for e in (expr.cond, expr.then, expr.otherwise)]
+        return _ite(parts[0], parts[1], parts[2])
+    if isinstance(expr, Call):
+        return _call(expr, [_compile(a, scope) for a in expr.args])
+    raise PrismSemanticError(
+        f"{type(expr).__name__} is not allowed in a state expression", expr.span
+    )
+
+
+def _constant(value: Any) -> _Node:
+    return _Node(fn=lambda _states: value, const=value, is_const=True)
+
+
+def _variable(expr: Ident, columns: Mapping[str, int]) -> _Node:
+    if expr.name not in columns:
+        raise PrismSemanticError(f"unknown identifier '{expr.name}'", expr.span)
+    column = columns[expr.name]
+    return _Node(fn=lambda states: states[:, column])
+
+
+def _label(expr: LabelRef, labels: Mapping[str, BoolArray] | None) -> _Node:
+    if labels is None or expr.name not in labels:
+        raise PrismSemanticError(f'unknown label "{expr.name}"', expr.span)
+    mask = labels[expr.name]
+    return _Node(fn=lambda _states: mask, labels=True)
+
+
+# ---------------------------------------------------------------------------
+# Lookup tables: a deep ``? :`` chain over one small variable (a distance per
+# route position, a cost per wind and voltage level) costs dozens of numpy calls
+# per BFS layer; tabulated over its variables' domain it costs one gather.
+# ---------------------------------------------------------------------------
+
+#: Largest number of valuations a tabulated sub-expression may range over.
+TABLE_LIMIT = 1 << 17
+
+
+def _worth_tabulating(expr: Expr, ranges: Mapping[str, tuple[int, int]]) -> bool:
+    if isinstance(expr, IntLit | DoubleLit | BoolLit | Ident | LabelRef):
+        return False
+    names, size = _shape_of(expr)
+    if not names or not names <= ranges.keys():
+        return False
+    valuations = math.prod(ranges[n][1] - ranges[n][0] + 1 for n in names)
+    return valuations <= TABLE_LIMIT and size > 2 * len(names) + 1
+
+
+@functools.lru_cache(maxsize=4096)
+def _shape_of(expr: Expr) -> tuple[frozenset[str], int]:
+    """The variables of *expr* and its number of nodes (memoised: asked at every node)."""
+    if isinstance(expr, Ident):
+        return frozenset((expr.name,)), 1
+    parts = [_shape_of(c) for c in _children(expr)]
+    return frozenset().union(*(p[0] for p in parts)), 1 + sum(p[1] for p in parts)
+
+
+def _children(expr: Expr) -> tuple[Expr, ...]:
+    if isinstance(expr, Unary):
+        return (expr.operand,)
+    if isinstance(expr, Binary):
+        return (expr.left, expr.right)
+    if isinstance(expr, Ite):
+        return (expr.cond, expr.then, expr.otherwise)
+    if isinstance(expr, Call):
+        return expr.args
+    return ()
+
+
+def _tabulated(expr: Expr, scope: _Scope) -> _Node:
+    """*expr* as a lookup table over its variables' domain (row-wise if that fails)."""
+    if scope.tables is not None and expr in scope.tables:
+        return scope.tables[expr]
+    assert scope.ranges is not None
+    direct = _compile_node(expr, _Scope(scope.columns, scope.labels))
+    names = sorted(_shape_of(expr)[0], key=lambda n: scope.columns[n])
+    lows = [scope.ranges[n][0] for n in names]
+    shape = [scope.ranges[n][1] - low + 1 for n, low in zip(names, lows, strict=True)]
+    grid = np.zeros((math.prod(shape), len(scope.columns)), dtype=np.int64)
+    cols = [scope.columns[n] for n in names]
+    grid[:, cols] = np.indices(shape).reshape(len(shape), -1).T + np.array(lows)
+    try:
+        table = np.broadcast_to(np.asarray(direct.fn(grid)), grid.shape[:1]).copy()
+    except ModelError:  # fails on some valuation (e.g. x/y at y=0): evaluate per row
+        return direct
+    node = _Node(fn=_lookup(table, cols, lows, shape))
+    if scope.tables is not None:
+        scope.tables[expr] = node
+    return node
+
+
+def _lookup(table: np.ndarray, cols: list[int], lows: list[int], shape: list[int]) -> _Fn:
+    strides = [math.prod(shape[i + 1 :]) for i in range(len(shape))]
+    offset = sum(low * stride for low, stride in zip(lows, strides, strict=True))
+    if len(cols) == 1:
+        (col,) = cols
+        return lambda states: table[states[:, col] - offset]
+
+    terms = list(zip(cols, strides, strict=True))
+
+    def evaluate(states: IntArray) -> Any:
+        index = states[:, cols[0]] * strides[0] - offset
+        for col, stride in terms[1:]:
+            index += states[:, col] * stride
+        return table[index]
+
+    return evaluate
+
+
+# ---------------------------------------------------------------------------
+# Operators
+# ---------------------------------------------------------------------------
+
+
+def _lift(op: Callable[..., Any], args: Sequence[_Node], risky: bool = False) -> _Node:
+    """Combine *args* with *op*, folding when every argument is a constant."""
+    if all(a.is_const for a in args):
+        try:
+            return _constant(op(*(a.const for a in args)))
+        except ModelError:
+            pass  # e.g. ``N=0 ? 0 : 1/N``: only fail if the branch is ever evaluated
+    return _Node(
+        fn=_applied(op, [a.fn for a in args]),
+        risky=risky or any(a.risky for a in args),
+        labels=any(a.labels for a in args),
+    )
+
+
+def _applied(op: Callable[..., Any], fns: Sequence[_Fn]) -> _Fn:
+    """``op`` over the evaluated arguments (unrolled for arity 1 and 2: it runs per layer)."""
+    if len(fns) == 1:
+        (f,) = fns
+        return lambda states: op(f(states))
+    if len(fns) == 2:
+        f, g = fns
+        return lambda states: op(f(states), g(states))
+    return lambda states: op(*(h(states) for h in fns))
+
+
+def _unary(expr: Unary, operand: _Node) -> _Node:
+    if expr.op == "!":
+        return _lift(np.logical_not, [operand])
+    return _lift(np.negative, [operand])
+
+
+_SIMPLE_BINARY: dict[str, Callable[[Any, Any], Any]] = {
+    "<=>": np.equal,
+    "=": np.equal,
+    "!=": np.not_equal,
+    "<": np.less,
+    "<=": np.less_equal,
+    ">": np.greater,
+    ">=": np.greater_equal,
+    "+": np.add,
+    "-": np.subtract,
+    "*": np.multiply,
+}
+
+
+def _binary(expr: Binary, left: _Node, right: _Node) -> _Node:
+    op = expr.op
+    if op in ("&", "|", "=>"):
+        return _logical(op, left, right)
+    if op == "<=>":
+        return _lift(lambda a, b: np.equal(np.asarray(a, bool), np.asarray(b, bool)), [left, right])
+    if op == "/":
+        return _lift(lambda a, b: _divide(a, b, expr.span), [left, right], risky=True)
+    return _lift(_SIMPLE_BINARY[op], [left, right])
+
+
+def _logical(op: str, left: _Node, right: _Node) -> _Node:
+    """``&``, ``|`` and ``=>``; a risky right operand is evaluated only where needed."""
+    if op == "=>":
+        left = _lift(np.logical_not, [left])
+    combine = np.logical_and if op == "&" else np.logical_or
+    if not right.subsettable or left.is_const:
+        return _lift(combine, [left, right])
+    # Rows where the left operand alone decides: false for ``&``, true for ``|``/``=>``.
+    decided_value = op != "&"
+
+    def evaluate(states: IntArray) -> Any:
+        first = np.broadcast_to(np.asarray(left.fn(states), dtype=bool), (states.shape[0],))
+        result = first.copy()
+        todo = first != decided_value
+        if todo.any():
+            result[todo] = np.asarray(right.fn(states[todo]), dtype=bool)
+        return result
+
+    return _Node(fn=evaluate, risky=True, labels=left.labels)
+
+
+def _ite(cond: _Node, then: _Node, otherwise: _Node) -> _Node:
+    if cond.is_const:
+        return then if bool(cond.const) else otherwise
+    if not (then.subsettable or otherwise.subsettable):
+        return _lift(np.where, [cond, then, otherwise])
+
+    def evaluate(states: IntArray) -> Any:
+        pick = np.broadcast_to(np.asarray(cond.fn(states), dtype=bool), (states.shape[0],))
+        high, low = then.fn(states[pick]), otherwise.fn(states[~pick])
+        out = np.empty(states.shape[0], dtype=np.result_type(high, low))
+        out[pick] = high
+        out[~pick] = low
+        return out
+
+    return _Node(fn=evaluate, risky=True, labels=cond.labels)
+
+
+def _divide(a: Any, b: Any, span: Span) -> Any:
+    if np.any(np.asarray(b) == 0):
+        raise ModelError("division by zero", span)
+    return np.true_divide(a, b, dtype=np.float64)
+
+
+# ---------------------------------------------------------------------------
+# Built-in functions
+# ---------------------------------------------------------------------------
+
+
+def _call(expr: Call, args: list[_Node]) -> _Node:
+    func, span = expr.func, expr.span
+    arity = {"floor": 1, "ceil": 1, "pow": 2, "mod": 2, "log": 2}.get(func)
+    if (arity is not None and len(args) != arity) or (arity is None and not args):
+        raise PrismSemanticError(f"wrong number of arguments to {func}", span)
+    if func in ("min", "max"):
+        return _lift(lambda *xs: _reduce(np.minimum if func == "min" else np.maximum, xs), args)
+    if func in ("floor", "ceil"):
+        return _lift(lambda x: _round(np.floor if func == "floor" else np.ceil, x), args)
+    if func == "pow":
+        return _lift(lambda a, b: _power(a, b, span), args, risky=True)
+    if func == "mod":
+        return _lift(lambda a, b: _modulo(a, b, span), args, risky=True)
+    return _lift(_log, args)
+
+
+def _is_int(x: Any) -> bool:
+    return np.asarray(x).dtype.kind in "iub"
+
+
+def _reduce(op: Callable[[Any, Any], Any], xs: Sequence[Any]) -> Any:
+    result = xs[0]
+    for x in xs[1:]:
+        result = op(result, x)
+    return result
+
+
+def _round(op: Callable[[Any], Any], x: Any) -> Any:
+    if _is_int(x):
+        return np.asarray(x, dtype=np.int64)[()]
+    with np.errstate(invalid="ignore"):
+        return np.asarray(op(x)).astype(np.int64)[()]
+
+
+def _power(a: Any, b: Any, span: Span) -> Any:
+    if _is_int(a) and _is_int(b):
+        if np.any(np.asarray(b) < 0):
+            raise ModelError("negative exponent in integer pow", span)
+        return np.power(np.asarray(a, np.int64), np.asarray(b, np.int64))[()]
+    with np.errstate(all="ignore"):  # Java's Math.pow: NaN/Infinity, no exception
+        return np.power(np.asarray(a, np.float64), np.asarray(b, np.float64))[()]
+
+
+def _modulo(a: Any, b: Any, span: Span) -> Any:
+    if not (_is_int(a) and _is_int(b)):
+        raise ModelError("mod requires integer arguments", span)
+    if np.any(np.asarray(b) <= 0):
+        raise ModelError("modulo with non-positive divisor", span)
+    # PRISM returns a result in 0..b-1 even for negative a: numpy's (Python's) convention.
+    return np.mod(np.asarray(a, np.int64), np.asarray(b, np.int64))[()]
+
+
+def _log(x: Any, base: Any) -> Any:
+    with np.errstate(all="ignore"):  # Java's Math.log: NaN/-Infinity, no exception
+        return (np.log(np.asarray(x, np.float64)) / np.log(np.asarray(base, np.float64)))[()]
+
+
+# ---------------------------------------------------------------------------
+# Static facts used to skip run-time checks
+# ---------------------------------------------------------------------------
+
+
+def constant_value(expr: Expr, variable_names: Sequence[str]) -> Any | None:
+    """The value of *expr* if it folds to a constant, else None."""
+    node = _compile(expr, _Scope({name: i for i, name in enumerate(variable_names)}))
+    return node.const.item() if node.is_const else None
+
+
+Bounds = tuple[float, float]
+_RELATIONAL = frozenset({"=", "!=", "<", "<=", ">", ">=", "&", "|", "=>", "<=>"})
+
+
+def value_bounds(expr: Expr, bounds: Mapping[str, Bounds]) -> Bounds | None:
+    """An interval containing every value of *expr* given its variables' *bounds*.
+
+    None when unknown (division, ``pow``, ``mod`` ...): callers then check at run time.
+    """
+    if isinstance(expr, IntLit | DoubleLit | BoolLit):
+        return (float(expr.value), float(expr.value))
+    if isinstance(expr, Ident):
+        return bounds.get(expr.name)
+    if isinstance(expr, Unary):
+        inner = value_bounds(expr.operand, bounds)
+        if expr.op == "!" or inner is None:
+            return (0.0, 1.0) if expr.op == "!" else None
+        return (-inner[1], -inner[0])
+    if isinstance(expr, Binary):
+        return _binary_bounds(expr, bounds)
+    if isinstance(expr, Ite):
+        return _hull([value_bounds(expr.then, bounds), value_bounds(expr.otherwise, bounds)])
+    if isinstance(expr, Call) and expr.func in ("min", "max"):
+        return _min_max_bounds(expr, bounds)
+    return None
+
+
+def _binary_bounds(expr: Binary, bounds: Mapping[str, Bounds]) -> Bounds | None:
+    if expr.op in _RELATIONAL:
+        return (0.0, 1.0)
+    left, right = value_bounds(expr.left, bounds), value_bounds(expr.right, bounds)
+    if left is None or right is None or expr.op == "/":
+        return None
+    if expr.op == "+":
+        return (left[0] + right[0], left[1] + right[1])
+    if expr.op == "-":
+        return (left[0] - right[1], left[1] - right[0])
+    products = [a * b for a in left for b in right]
+    return (min(products), max(products))
+
+
+def _min_max_bounds(expr: Call, bounds: Mapping[str, Bounds]) -> Bounds | None:
+    args = [value_bounds(a, bounds) for a in expr.args]
+    known = [a for a in args if a is not None]
+    if len(known) < len(args):
+        return None
+    pick = min if expr.func == "min" else max
+    return (pick(a[0] for a in known), pick(a[1] for a in known))
+
+
+def _hull(parts: Sequence[Bounds | None]) -> Bounds | None:
+    if any(p is None for p in parts):
+        return None
+    known = [p for p in parts if p is not None]
+    return (min(p[0] for p in known), max(p[1] for p in known))

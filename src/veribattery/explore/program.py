@@ -1,0 +1,156 @@
+"""A flat model compiled for exploration: commands as numpy functions, grouped into choices.
+
+A *choice group* is one source of choices. Each module's unlabelled commands form
+a group with a single part (every enabled command is its own choice). Each action
+label forms a group with one part per module whose alphabet contains it; a joint
+choice picks one enabled command from every part.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from veribattery.errors import PrismSemanticError, Span
+from veribattery.explore.compile import CompiledExpr, compile_expr, constant_value, value_bounds
+from veribattery.lang.nodes import Command, Expr, FlatModel, FlatModule, Update
+
+__all__ = ["ChoiceGroup", "CompiledCommand", "CompiledUpdate", "Program", "compile_program"]
+
+
+@dataclass(frozen=True, slots=True)
+class CompiledUpdate:
+    """One probabilistic branch: its probability and ``(column, right-hand side)`` pairs.
+
+    *constant_probability* is set when the probability folds to a constant;
+    *unchecked* lists the columns whose right-hand side provably stays in range
+    (interval analysis), so the explorer need not check them per state.
+    """
+
+    probability: CompiledExpr
+    assignments: tuple[tuple[int, CompiledExpr], ...]
+    span: Span
+    constant_probability: float | None = None
+    unchecked: frozenset[int] = frozenset()
+
+
+@dataclass(frozen=True, slots=True)
+class CompiledCommand:
+    """A command of module *module*, compiled."""
+
+    module: str
+    command: Command
+    guard: CompiledExpr
+    updates: tuple[CompiledUpdate, ...]
+
+    @property
+    def span(self) -> Span:
+        """Where the command is written."""
+        return self.command.span
+
+    @property
+    def constant_total(self) -> float | None:
+        """The sum of the update probabilities if they are all constants, else None."""
+        values = [u.constant_probability for u in self.updates]
+        if any(v is None for v in values):
+            return None
+        return float(sum(v for v in values if v is not None))
+
+
+@dataclass(frozen=True, slots=True)
+class ChoiceGroup:
+    """Commands that produce choices together: one part per participating module."""
+
+    action: str | None
+    parts: tuple[tuple[CompiledCommand, ...], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class Program:
+    """Everything the explorer evaluates, compiled once."""
+
+    variable_names: tuple[str, ...]
+    lows: tuple[int, ...]
+    highs: tuple[int, ...]
+    groups: tuple[ChoiceGroup, ...]
+
+
+def compile_program(model: FlatModel) -> Program:
+    """Compile every command of *model* and group the commands into choice groups."""
+    names = _Names(model.variable_names, {v.name: (v.low, v.high) for v in model.variables})
+    groups = [
+        ChoiceGroup(None, (_compile_commands(m, None, names),))
+        for m in model.modules
+        if any(c.action is None for c in m.commands)
+    ]
+    for action in _actions(model):
+        parts = tuple(
+            _compile_commands(m, action, names) for m in model.modules if action in m.alphabet
+        )
+        groups.append(ChoiceGroup(action, parts))
+    return Program(
+        variable_names=names.names,
+        lows=tuple(v.low for v in model.variables),
+        highs=tuple(v.high for v in model.variables),
+        groups=tuple(groups),
+    )
+
+
+def _actions(model: FlatModel) -> list[str]:
+    """Action labels in order of first appearance (module order, then command order)."""
+    seen: dict[str, None] = {}
+    for module in model.modules:
+        for action in sorted(module.alphabet):
+            seen.setdefault(action, None)
+        for command in module.commands:
+            if command.action is not None:
+                seen.setdefault(command.action, None)
+    return list(seen)
+
+
+@dataclass(frozen=True, slots=True)
+class _Names:
+    names: tuple[str, ...]
+    ranges: dict[str, tuple[int, int]]
+    tables: dict[Expr, Any] = field(default_factory=dict)
+
+    def compile(self, expr: Expr) -> CompiledExpr:
+        """Compile over the state vector, tabulating small sub-domains (shared cache)."""
+        return compile_expr(expr, self.names, ranges=self.ranges, tables=self.tables)
+
+
+def _compile_commands(
+    module: FlatModule, action: str | None, names: _Names
+) -> tuple[CompiledCommand, ...]:
+    return tuple(
+        CompiledCommand(
+            module=module.name,
+            command=c,
+            guard=names.compile(c.guard),
+            updates=tuple(_compile_update(u, names) for u in c.updates),
+        )
+        for c in module.commands
+        if c.action == action
+    )
+
+
+def _compile_update(update: Update, names: _Names) -> CompiledUpdate:
+    columns = {name: i for i, name in enumerate(names.names)}
+    bounds = {n: (float(lo), float(hi)) for n, (lo, hi) in names.ranges.items()}
+    assignments, unchecked = [], set()
+    for a in update.assignments:
+        if a.variable not in columns:
+            raise PrismSemanticError(f"assignment to unknown variable '{a.variable}'", a.span)
+        assignments.append((columns[a.variable], names.compile(a.expr)))
+        low, high = names.ranges[a.variable]
+        interval = value_bounds(a.expr, bounds)
+        if interval is not None and low <= interval[0] and interval[1] <= high:
+            unchecked.add(columns[a.variable])
+    constant = constant_value(update.probability, names.names)
+    return CompiledUpdate(
+        probability=names.compile(update.probability),
+        assignments=tuple(assignments),
+        span=update.span,
+        constant_probability=None if constant is None else float(constant),
+        unchecked=frozenset(unchecked),
+    )

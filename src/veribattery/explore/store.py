@@ -1,0 +1,202 @@
+"""The set of known states: rows of variable values, numbered in insertion order.
+
+Each state is encoded by mixed radix over its variables' ranges into one int64
+*key* word (or a few words when the product of the ranges overflows 63 bits).
+Keys live in an open-addressing hash table that is probed for a whole batch at
+once: each probing round is a handful of numpy operations over the rows still
+unresolved, so lookups cost O(1) per state without a Python loop per state, and
+unlike a sorted key array nothing is re-copied when a layer adds a few states.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from veribattery._types import IntArray
+
+__all__ = ["StateStore", "radix_words"]
+
+_WORD_LIMIT = 1 << 62  # largest product of ranges packed into one signed word
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing multiplier
+
+
+def radix_words(lows: Sequence[int], highs: Sequence[int]) -> IntArray:
+    """Multipliers ``(n_vars, n_words)`` packing variable offsets into key words.
+
+    Variables are packed greedily in order; a variable whose range alone exceeds
+    a word still gets a word of its own (its offset fits: ranges are int64).
+    """
+    words: list[dict[int, int]] = [{}]
+    product = 1
+    for i, (low, high) in enumerate(zip(lows, highs, strict=True)):
+        size = high - low + 1
+        if product * size > _WORD_LIMIT and words[-1]:
+            words.append({})
+            product = 1
+        words[-1][i] = product
+        product *= size
+    multipliers = np.zeros((len(lows), len(words)), dtype=np.int64)
+    for w, word in enumerate(words):
+        for i, factor in word.items():
+            multipliers[i, w] = factor
+    return multipliers
+
+
+class StateStore:
+    """A growing, deduplicated table of states with O(1) batch lookup.
+
+    :param lows: each variable's lower bound.
+    :param highs: each variable's upper bound.
+    """
+
+    def __init__(self, lows: Sequence[int], highs: Sequence[int]) -> None:
+        self._lows = np.asarray(lows, dtype=np.int64)
+        self._multipliers = radix_words(lows, highs)
+        self._states = np.empty((1024, len(lows)), dtype=np.int64)
+        self._keys = np.empty((1024, self._multipliers.shape[1]), dtype=np.int64)
+        self._table = np.zeros(1 << 14, dtype=np.int64)  # state index + 1; 0 = empty
+        self.count = 0
+
+    @property
+    def states(self) -> IntArray:
+        """The known states, one row each, in numbering order (a view)."""
+        return self._states[: self.count]
+
+    def add(self, rows: IntArray) -> IntArray:
+        """Index of each row, numbering unseen rows in order of first occurrence."""
+        keys = self.encode(rows)
+        first, inverse = _first_occurrences(keys)
+        unique_keys = keys[first]
+        index, slots = self._lookup(unique_keys)
+        new = np.flatnonzero(index < 0)
+        new = new[np.argsort(first[new], kind="stable")]
+        index[new] = self.count + np.arange(new.size)
+        self._append(rows[first[new]], unique_keys[new])
+        if not self._reserve_table():  # a rehash re-inserted everything already
+            self._insert(index[new], slots[new])
+        return index[inverse]
+
+    def encode(self, rows: IntArray) -> IntArray:
+        """Key words ``(n, n_words)`` of *rows*."""
+        return (rows - self._lows) @ self._multipliers
+
+    # -- internals -----------------------------------------------------------
+
+    def _append(self, rows: IntArray, keys: IntArray) -> None:
+        end = self.count + rows.shape[0]
+        if end > self._states.shape[0]:
+            capacity = max(end, 2 * self._states.shape[0])
+            self._states = _grown(self._states, capacity)
+            self._keys = _grown(self._keys, capacity)
+        self._states[self.count : end] = rows
+        self._keys[self.count : end] = keys
+        self.count = end
+
+    def _reserve_table(self) -> bool:
+        """Keep the load factor at most 1/4 (short probe chains mean few rounds).
+
+        :returns: whether the table was rebuilt (with every known key inserted).
+        """
+        if 4 * self.count <= self._table.size:
+            return False
+        size = self._table.size
+        while 4 * self.count > size:
+            size *= 4
+        self._table = np.zeros(size, dtype=np.int64)
+        everything = np.arange(self.count, dtype=np.int64)
+        self._insert_probing(everything, self._slots(self._keys[: self.count]))
+        return True
+
+    def _slots(self, keys: IntArray) -> IntArray:
+        bits = np.uint64(64 - int(self._table.size).bit_length() + 1)
+        mixed = keys[:, 0].view(np.uint64) * _GOLDEN
+        for w in range(1, keys.shape[1]):
+            mixed = (mixed ^ keys[:, w].view(np.uint64)) * _GOLDEN
+        return (mixed >> bits).astype(np.int64)
+
+    def _lookup(self, keys: IntArray) -> tuple[IntArray, IntArray]:
+        """Index of each key (-1 when absent) and the slot where its probe stopped.
+
+        For an absent key that slot was empty: the key can be inserted there. The
+        first probe is done for all keys at once; only the (few, at load <= 1/4)
+        keys that hit another key's slot go through the probing loop.
+        """
+        slots = self._slots(keys)
+        index = self._table[slots] - 1
+        clash = index >= 0
+        clash &= ~_rows_equal(self._keys[np.maximum(index, 0)], keys)
+        if clash.any():
+            where = np.flatnonzero(clash)
+            mask = self._table.size - 1
+            index[where], slots[where] = self._probe(keys[where], (slots[where] + 1) & mask)
+        return index, slots
+
+    def _probe(self, keys: IntArray, slots: IntArray) -> tuple[IntArray, IntArray]:
+        """Linear probing from *slots*, one round per step for all unresolved keys."""
+        mask = self._table.size - 1
+        index = np.full(keys.shape[0], -1, dtype=np.int64)
+        active = np.arange(keys.shape[0])
+        while active.size:
+            held = self._table[slots[active]]
+            occupied = held > 0
+            match = occupied.copy()
+            match[occupied] = _rows_equal(self._keys[held[occupied] - 1], keys[active[occupied]])
+            index[active[match]] = held[match] - 1
+            active = active[occupied & ~match]
+            slots[active] = (slots[active] + 1) & mask
+        return index, slots
+
+    def _insert(self, index: IntArray, slots: IntArray) -> None:
+        """Put the states *index* (absent, distinct) into the table at *slots*.
+
+        Every slot must be empty; keys sharing one slot race, the write that sticks
+        wins, and the others probe on.
+        """
+        self._table[slots] = index + 1
+        lost = self._table[slots] != index + 1
+        if lost.any():
+            mask = self._table.size - 1
+            self._insert_probing(index[lost], (slots[lost] + 1) & mask)
+
+    def _insert_probing(self, index: IntArray, slots: IntArray) -> None:
+        mask = self._table.size - 1
+        active = np.arange(index.size)
+        while active.size:
+            targets = slots[active]
+            free = self._table[targets] == 0
+            self._table[targets[free]] = index[active[free]] + 1
+            placed = self._table[targets] == index[active] + 1
+            active = active[~placed]
+            slots[active] = (slots[active] + 1) & mask
+
+
+def _grown(array: IntArray, capacity: int) -> IntArray:
+    bigger = np.empty((capacity, array.shape[1]), dtype=array.dtype)
+    bigger[: array.shape[0]] = array
+    return bigger
+
+
+def _rows_equal(a: IntArray, b: IntArray) -> np.ndarray:
+    if a.shape[1] == 1:
+        return np.asarray(a[:, 0] == b[:, 0])
+    return np.asarray((a == b).all(axis=1))
+
+
+def _first_occurrences(keys: IntArray) -> tuple[IntArray, IntArray]:
+    """Positions of the first occurrence of each distinct key row, and the inverse map."""
+    if keys.shape[1] > 1:  # lexicographic order of whole rows
+        order = np.lexsort(keys.T[::-1])
+        ordered = keys[order]
+        changed = np.any(ordered[1:] != ordered[:-1], axis=1)
+    else:  # np.unique, minus its per-call overhead (this runs once per BFS layer)
+        order = np.argsort(keys[:, 0], kind="stable")
+        ordered = keys[order, 0]
+        changed = ordered[1:] != ordered[:-1]
+    starts = np.empty(keys.shape[0], dtype=bool)
+    starts[:1] = True
+    starts[1:] = changed
+    inverse = np.empty(keys.shape[0], dtype=np.int64)
+    inverse[order] = np.cumsum(starts) - 1
+    return order[starts], inverse

@@ -1,0 +1,260 @@
+"""build_dtmc on hand-built flat models: semantics, numbering, errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.explore.models import boolean, command, flat_model, module, rewards, var
+from veribattery.errors import ModelError, Span
+from veribattery.explore import build_dtmc
+from veribattery.lang.nodes import FlatModel
+
+
+def walk(n: int = 4) -> FlatModel:
+    """A bounded random walk on 0..n-1 with a reflecting top."""
+    return flat_model(
+        [var("x", 0, n - 1)],
+        [
+            module(
+                "W",
+                ["x"],
+                [
+                    command(f"x < {n - 1}", [("0.5", {"x": "x+1"}), ("0.5", {"x": "max(x-1, 0)"})]),
+                    command(f"x = {n - 1}", [("1", {"x": "x-1"})]),
+                ],
+            )
+        ],
+        labels={"top": f"x = {n - 1}"},
+    )
+
+
+def test_random_walk_counts_and_numbering() -> None:
+    dtmc = build_dtmc(walk(4))
+    assert dtmc.num_states == 4
+    assert dtmc.num_transitions == 7  # 0:{0,1} 1:{0,2} 2:{1,3} 3:{2}
+    assert dtmc.states[:, 0].tolist() == [0, 1, 2, 3]  # BFS discovery order
+    assert dtmc.initial.tolist() == [0]
+    assert dtmc.labels["top"].tolist() == [False, False, False, True]
+    assert dtmc.labels["init"].tolist() == [True, False, False, False]
+    assert not dtmc.labels["deadlock"].any()
+    assert dtmc.warnings == ()
+    np.testing.assert_allclose(dtmc.transitions.sum(axis=1).A1, 1.0)
+
+
+def test_duplicate_successors_are_summed_and_zero_probabilities_dropped() -> None:
+    model = flat_model(
+        [var("x", 0, 1)],
+        [
+            module(
+                "M",
+                ["x"],
+                [command("true", [("0.25", {"x": "0"}), ("0.75", {"x": "0"}), ("0", {"x": "1"})])],
+            )
+        ],
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.num_states == 1
+    assert dtmc.num_transitions == 1
+    assert dtmc.transitions[0, 0] == pytest.approx(1.0)
+
+
+def test_uniform_choice_between_enabled_commands() -> None:
+    model = flat_model(
+        [var("x", 0, 2)],
+        [
+            module(
+                "M",
+                ["x"],
+                [command("x = 0", [("1", {"x": "1"})]), command("x = 0", [("1", {"x": "2"})])],
+            )
+        ],
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.transitions.toarray()[0].tolist() == [0.0, 0.5, 0.5]
+    assert dtmc.nondeterministic == 1
+    assert dtmc.deadlocks == 2
+    assert "1 states with several enabled choices" in dtmc.warnings[1]
+
+
+def test_deadlocks_get_self_loops_and_a_label() -> None:
+    model = flat_model(
+        [var("x", 0, 3)], [module("M", ["x"], [command("x < 2", [("1", {"x": "x+1"})])])]
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.num_states == 3
+    assert dtmc.deadlocks == 1
+    assert dtmc.transitions[2, 2] == 1.0
+    assert dtmc.labels["deadlock"].tolist() == [False, False, True]
+    assert dtmc.warnings == ("1 deadlock states (self-loops added)",)
+
+
+def two_synchronising_modules() -> FlatModel:
+    return flat_model(
+        [var("x", 0, 2, module="A"), var("y", 0, 2, module="B")],
+        [
+            module(
+                "A",
+                ["x"],
+                [
+                    command("x = 0", [("0.5", {"x": "1"}), ("0.5", {"x": "2"})], action="go"),
+                    command("x = 0", [("1", {"x": "x"})], action="go"),
+                ],
+            ),
+            module(
+                "B",
+                ["y"],
+                # The right-hand side reads x in the SOURCE state (x=0), not A's new value.
+                [command("y = 0", [("0.25", {"y": "x + 1"}), ("0.75", {"y": "2"})], action="go")],
+            ),
+        ],
+    )
+
+
+def test_synchronisation_is_a_product_of_commands_and_updates() -> None:
+    dtmc = build_dtmc(two_synchronising_modules())
+    # Joint choices at (0,0): A's first command x B's, A's second x B's: two choices.
+    expected = {
+        (1, 1): 0.5 * 0.5 * 0.25,
+        (2, 1): 0.5 * 0.5 * 0.25,
+        (1, 2): 0.5 * 0.5 * 0.75,
+        (2, 2): 0.5 * 0.5 * 0.75,
+        (0, 1): 0.5 * 0.25,
+        (0, 2): 0.5 * 0.75,
+    }
+    row = dtmc.transitions[0].toarray()[0]
+    got = {tuple(dtmc.states[j].tolist()): row[j] for j in np.flatnonzero(row)}
+    assert got == pytest.approx(expected)
+    assert dtmc.nondeterministic == 1
+    # Every successor has y != 0: B blocks "go", so all of them deadlock.
+    assert dtmc.deadlocks == 6
+
+
+def test_action_blocked_when_one_module_has_no_enabled_command() -> None:
+    model = flat_model(
+        [var("x", 0, 1, module="A"), var("y", 0, 1, module="B")],
+        [
+            module("A", ["x"], [command("true", [("1", {"x": "1"})], action="s")]),
+            module("B", ["y"], [command("false", [("1", {"y": "1"})], action="s")]),
+        ],
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.num_states == 1 and dtmc.deadlocks == 1
+
+
+def test_init_block_enumerates_the_domain() -> None:
+    model = flat_model(
+        [boolean(f"b{i}", module=f"P{i}") for i in range(3)],
+        [module("P0", ["b0"], [command("true", [("1", {})])])],
+        init="b0 | b1 & b2",
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.num_states == 5
+    assert dtmc.initial.tolist() == [0, 1, 2, 3, 4]
+    assert dtmc.states.tolist() == [[0, 1, 1], [1, 0, 0], [1, 0, 1], [1, 1, 0], [1, 1, 1]]
+
+
+def test_progress_is_called_per_layer() -> None:
+    calls: list[tuple[int, int]] = []
+    build_dtmc(walk(4), progress=lambda found, frontier: calls.append((found, frontier)))
+    assert calls == [(2, 1), (3, 1), (4, 1), (4, 1)]
+
+
+def test_state_and_transition_rewards() -> None:
+    model = flat_model(
+        [var("x", 0, 2)],
+        [
+            module(
+                "M",
+                ["x"],
+                [
+                    command("x < 2", [("1", {"x": "x+1"})]),
+                    command("x = 0", [("1", {"x": "2"})], action="jump"),
+                ],
+            )
+        ],
+        reward_structs=[
+            rewards("r", ("x > 0", "x * 1.5"), ("jump", "true", "4"), (None, "true", "1"))
+        ],
+    )
+    dtmc = build_dtmc(model)
+    r = dtmc.reward("r")
+    assert r.state.tolist() == [0.0, 1.5, 3.0]
+    # x=0: two choices, [] (reward 1) and [jump] (reward 4): (1 + 4) / 2.
+    assert r.transition.tolist() == [2.5, 1.0, 0.0]
+
+
+@pytest.mark.parametrize(
+    ("updates", "message"),
+    [
+        (
+            [("1", {"x": "x+2"})],
+            r"module M, command: update sets x to 3, outside its range 0\.\.2, "
+            r"in state \(x=1, y=0\)",
+        ),
+        (
+            [("0.5", {"x": "0"}), ("0.4", {"x": "1"})],
+            r"probabilities sum to 0\.9, not 1, in state \(x=1, y=0\)",
+        ),
+        (
+            [("1.5", {"x": "0"}), ("-0.5", {"x": "1"})],
+            r"negative probability -0\.5 in state \(x=1, y=0\)",
+        ),
+        ([("1", {"x": "x/2"})], "non-integer value to 'x'"),
+    ],
+)
+def test_errors_name_module_state_and_span(
+    updates: list[tuple[str, dict[str, str]]], message: str
+) -> None:
+    model = flat_model(
+        [var("x", 0, 2), var("y", 0, 1)],
+        [
+            module(
+                "M",
+                ["x", "y"],
+                [command("x = 0", [("1", {"x": "1"})]), command("x = 1", updates, line=7)],
+            )
+        ],
+    )
+    with pytest.raises(ModelError, match=message) as info:
+        build_dtmc(model)
+    assert info.value.span == Span(7, 3, "test.pm")
+
+
+def test_synchronised_sum_error_names_both_modules() -> None:
+    model = flat_model(
+        [var("x", 0, 1, module="A"), var("y", 0, 1, module="B")],
+        [
+            module(
+                "A",
+                ["x"],
+                [command("true", [("0.5", {"x": "1"}), ("0.5", {})], action="s", line=4)],
+            ),
+            module("B", ["y"], [command("true", [("0.5", {"y": "1"})], action="s", line=9)]),
+        ],
+    )
+    with pytest.raises(ModelError, match=r"modules A, B, command \[s\]: probabilities sum to 0\.5"):
+        build_dtmc(model)
+
+
+def test_huge_ranges_use_multi_word_keys() -> None:
+    # 2^40 * 2^40 overflows one 63-bit word.
+    big = 1 << 40
+    model = flat_model(
+        [var("x", 0, big), var("y", -(1 << 50), 0, init=0)],
+        [
+            module(
+                "M",
+                ["x", "y"],
+                [
+                    command(
+                        "x < 3",
+                        [("0.5", {"x": "x+1"}), ("0.5", {"x": "x+1", "y": "y - 1099511627776"})],
+                    )
+                ],
+            )
+        ],
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.num_states == 1 + 2 + 3 + 4
+    assert dtmc.deadlocks == 4

@@ -1,0 +1,128 @@
+"""compile_expr: PRISM expression semantics over many states at once."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from tests.explore.models import expr
+from veribattery.errors import ModelError, PrismSemanticError, Span
+from veribattery.explore import compile_expr
+from veribattery.explore.compile import constant_value, value_bounds
+from veribattery.lang.nodes import Eventually, Ident, LabelRef, ProbOp
+
+NAMES = ("x", "y")
+STATES = np.array([[0, 3], [2, 5], [-3, 4], [7, -2]], dtype=np.int64)
+
+
+def run(text: str, states: np.ndarray = STATES) -> np.ndarray:
+    return compile_expr(expr(text), NAMES)(states)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected", "kind"),
+    [
+        ("x + y * 2", [6, 12, 5, 3], "i"),
+        ("y / 2", [1.5, 2.5, 2.0, -1.0], "f"),
+        ("4 / 2", [2.0] * 4, "f"),
+        ("floor(y / 2)", [1, 2, 2, -1], "i"),
+        ("ceil(y / 2)", [2, 3, 2, -1], "i"),
+        ("mod(x, 3)", [0, 2, 0, 1], "i"),  # PRISM: result in 0..b-1 even for negative x
+        ("pow(y, 2)", [9, 25, 16, 4], "i"),
+        ("pow(2, 0.5)", [2**0.5] * 4, "f"),
+        ("min(x, y)", [0, 2, -3, -2], "i"),
+        ("max(x, y, 1)", [3, 5, 4, 7], "i"),
+        ("max(x, 0.5)", [0.5, 2.0, 0.5, 7.0], "f"),
+        ("log(8, 2)", [3.0] * 4, "f"),
+        ("x > 1 ? x : -1", [-1, 2, -1, 7], "i"),
+        ("x = 2 | y = 4", [False, True, True, False], "b"),
+        ("x > 0 => y > 4", [True, True, True, False], "b"),
+        ("x > 0 <=> y > 0", [False, True, False, False], "b"),
+        ("!(x = 0) & y != 4", [False, True, False, True], "b"),
+        ("y / 2 = 2.5", [False, True, False, False], "b"),  # int/float compare numerically
+        ("-x", [0, -2, 3, -7], "i"),
+        ("1 + 2", [3] * 4, "i"),
+        ("true", [True] * 4, "b"),
+    ],
+)
+def test_semantics(text: str, expected: list[object], kind: str) -> None:
+    result = run(text)
+    assert result.shape == (4,)
+    assert result.dtype.kind == kind
+    assert result.tolist() == pytest.approx(expected)
+
+
+def test_integers_stay_exact() -> None:
+    big = np.array([[2**53 + 1, 1]], dtype=np.int64)
+    assert run("x + y", big)[0] == 2**53 + 2
+
+
+def test_risky_operands_only_evaluated_where_needed() -> None:
+    # Division by zero would occur where x = 0, but those rows are excluded.
+    assert run("x != 0 & y / x > 1").tolist() == [False, True, False, False]
+    assert run("x = 0 ? 0 : y / x").tolist() == pytest.approx([0, 2.5, -4 / 3, -2 / 7])
+    assert run("x = 0 | y / x > 1").tolist() == [True, True, False, False]
+
+
+def test_division_by_zero_is_a_model_error() -> None:
+    node = expr("y / x")
+    with pytest.raises(ModelError, match="division by zero"):
+        compile_expr(node, NAMES)(STATES)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [("mod(y, x)", "non-positive divisor"), ("pow(2, x)", "negative exponent")],
+)
+def test_integer_function_errors(text: str, message: str) -> None:
+    with pytest.raises(ModelError, match=message):
+        run(text)
+
+
+def test_constant_division_by_zero_in_untaken_branch_is_fine() -> None:
+    assert run("true ? 1 : 1 / 0").tolist() == [1, 1, 1, 1]
+
+
+def test_unknown_identifier_has_span() -> None:
+    with pytest.raises(PrismSemanticError, match="unknown identifier 'z'") as info:
+        compile_expr(Ident("z", Span(3, 7, "m.pm")), NAMES)
+    assert info.value.span == Span(3, 7, "m.pm")
+
+
+def test_labels_and_unknown_label() -> None:
+    masks = {"goal": np.array([True, False, True, False])}
+    fn = compile_expr(LabelRef("goal"), NAMES, masks)
+    assert fn(STATES).tolist() == [True, False, True, False]
+    with pytest.raises(PrismSemanticError, match='unknown label "other"'):
+        compile_expr(LabelRef("other", Span(1, 2)), NAMES, masks)
+
+
+def test_property_operators_are_rejected() -> None:
+    node = ProbOp("=?", None, Eventually(Ident("x")), Span(2, 1))
+    with pytest.raises(PrismSemanticError, match="not allowed"):
+        compile_expr(node, NAMES)
+
+
+def test_no_rows() -> None:
+    assert run("x + 1", np.empty((0, 2), dtype=np.int64)).shape == (0,)
+    assert run("3", np.empty((0, 2), dtype=np.int64)).shape == (0,)
+
+
+@pytest.mark.parametrize(
+    ("text", "bounds"),
+    [
+        ("min(x + 1, 5)", (1.0, 5.0)),
+        ("max(x - 1, 0)", (0.0, 4.0)),
+        ("x > 2 ? x : 0", (0.0, 5.0)),
+        ("2 * x - y", (-10.0, 10.0)),
+        ("x / 2", None),
+        ("mod(x, 2)", None),
+    ],
+)
+def test_value_bounds(text: str, bounds: tuple[float, float] | None) -> None:
+    assert value_bounds(expr(text), {"x": (0.0, 5.0), "y": (0.0, 10.0)}) == bounds
+
+
+def test_constant_value() -> None:
+    assert constant_value(expr("1 / 4 + 0.5"), NAMES) == 0.75
+    assert constant_value(expr("x + 1"), NAMES) is None

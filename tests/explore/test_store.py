@@ -1,0 +1,51 @@
+"""StateStore: numbering, deduplication and multi-word keys."""
+
+from __future__ import annotations
+
+import numpy as np
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from veribattery.explore.store import StateStore, radix_words
+
+
+def test_first_occurrence_numbering() -> None:
+    store = StateStore([0, 0], [9, 9])
+    assert store.add(np.array([[1, 1], [0, 0], [1, 1]])).tolist() == [0, 1, 0]
+    assert store.add(np.array([[5, 5], [0, 0], [2, 2], [5, 5]])).tolist() == [2, 1, 3, 2]
+    assert store.states.tolist() == [[1, 1], [0, 0], [5, 5], [2, 2]]
+
+
+def test_radix_words_split_when_a_word_overflows() -> None:
+    assert radix_words([0, 0], [9, 9]).tolist() == [[1], [10]]
+    big = (1 << 40) - 1
+    assert radix_words([0, 0, 0], [big, big, 1]).shape == (3, 2)
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(
+        st.lists(st.tuples(st.integers(-3, 3), st.integers(0, 1 << 45)), min_size=0, max_size=60),
+        min_size=1,
+        max_size=8,
+    )
+)
+def test_matches_a_dictionary(batches: list[list[tuple[int, int]]]) -> None:
+    # Ranges whose product overflows one word, so rows compare over two words.
+    store = StateStore([-3, 0], [3, 1 << 45])
+    reference: dict[tuple[int, int], int] = {}
+    for batch in batches:
+        rows = np.array(batch, dtype=np.int64).reshape(-1, 2)
+        expected = [reference.setdefault(row, len(reference)) for row in batch]
+        assert store.add(rows).tolist() == expected
+    assert [tuple(r) for r in store.states.tolist()] == list(reference)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.integers(0, 5000), min_size=1, max_size=3000))
+def test_growth_and_rehash(values: list[int]) -> None:
+    store = StateStore([0], [5000])
+    index = store.add(np.array(values, dtype=np.int64)[:, None])
+    first = {v: i for i, v in reversed(list(enumerate(dict.fromkeys(values))))}
+    assert index.tolist() == [first[v] for v in values]
+    assert store.add(np.array(values, dtype=np.int64)[:, None]).tolist() == index.tolist()
