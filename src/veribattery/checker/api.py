@@ -1,0 +1,24 @@
+"""The checker's facade: one model, one property, one result."""
+
+from __future__ import annotations
+
+import time
+
+from veribattery.checker.pctl import values
+from veribattery.checker.result import CheckResult
+from veribattery.explore.dtmc import DTMC
+from veribattery.lang.nodes import Expr, Property
+
+
+def check(dtmc: DTMC, prop: Property | Expr) -> CheckResult:
+    """Check *prop* on *dtmc* and report its value at the initial states.
+
+    :param dtmc: the built model.
+    :param prop: a property (constants substituted, property-file labels inlined),
+        or a bare formula.
+    :raises CheckError: when the property cannot be checked on this model.
+    """
+    prop = prop if isinstance(prop, Property) else Property(prop)
+    start = time.perf_counter()
+    per_state = values(dtmc, prop.formula)
+    return CheckResult.at_initial(prop, per_state, dtmc.initial, time.perf_counter() - start)

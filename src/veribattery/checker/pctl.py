@@ -1,0 +1,278 @@
+"""The PCTL recursion: formulas in, per-state arrays out, kernels doing the numbers.
+
+State formulas become boolean masks (:func:`state_set`); ``P=?`` and ``R=?``
+become per-state values (:func:`values`). Path formulas are reduced to the
+kernels' vocabulary here, so that :mod:`~veribattery.checker.kernels` never sees
+a node: ``F phi`` is ``true U phi``, ``G phi`` is ``1 - P(F !phi)``, ``U<k`` is
+``U<=k-1`` and ``U>k`` is ``U>=k+1``.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable, Iterator
+from typing import TypeAlias
+
+import numpy as np
+
+from veribattery._types import BoolArray, FloatArray
+from veribattery.checker import kernels
+from veribattery.errors import CheckError
+from veribattery.explore.compile import compile_expr
+from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    Cumulative,
+    DoubleLit,
+    Eventually,
+    Expr,
+    Globally,
+    Instantaneous,
+    IntLit,
+    Ite,
+    LabelRef,
+    Next,
+    PathFormula,
+    ProbOp,
+    Reach,
+    RewardOp,
+    RewardPath,
+    TimeBound,
+    Unary,
+    Until,
+)
+
+Values: TypeAlias = FloatArray | BoolArray
+
+_CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
+    "&": operator.and_,
+    "|": operator.or_,
+    "=>": lambda a, b: ~a | b,
+    "<=>": operator.eq,
+}
+
+_COMPARISONS: dict[str, Callable[[FloatArray, float], BoolArray]] = {
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+}
+
+
+# ---------------------------------------------------------------------------
+# Public entry points
+# ---------------------------------------------------------------------------
+
+
+def values(dtmc: DTMC, formula: Expr) -> Values:
+    """Per-state value of *formula*: numbers for ``P=?``/``R=?``, booleans otherwise.
+
+    :param dtmc: the model.
+    :param formula: a property formula (constants substituted, labels inlined).
+    :raises CheckError: on unknown labels or reward structures, or unsupported nesting.
+    """
+    if isinstance(formula, ProbOp) and formula.op == "=?":
+        return path_probs(dtmc, formula.path)
+    if isinstance(formula, RewardOp) and formula.op == "=?":
+        return path_rewards(dtmc, formula)
+    if _has_operator(formula):
+        return state_set(dtmc, formula)
+    return _leaf(dtmc, formula)
+
+
+def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
+    """The states that satisfy the state formula *expr*, as a boolean mask.
+
+    :param dtmc: the model.
+    :param expr: a boolean state formula, possibly with bounded ``P``/``R`` operators.
+    :raises CheckError: when *expr* is not boolean or nests operators unsupportedly.
+    """
+    match expr:
+        case ProbOp() | RewardOp():
+            return _bounded_operator(dtmc, expr)
+        case Unary(op="!", operand=operand):
+            return ~state_set(dtmc, operand)
+        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
+            return _CONNECTIVES[op](state_set(dtmc, left), state_set(dtmc, right))
+        case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
+            return np.where(state_set(dtmc, cond), state_set(dtmc, then),
+                            state_set(dtmc, otherwise))
+    if _has_operator(expr):
+        raise CheckError("P and R operators may only be combined with ! & | => <=> "
+                         "and ?:", expr.span)
+    return _as_mask(_leaf(dtmc, expr), expr)
+
+
+def path_probs(dtmc: DTMC, path: PathFormula) -> FloatArray:
+    """Per-state probability of the path formula *path*.
+
+    :param dtmc: the model.
+    :param path: ``X``, ``U``, ``F`` or ``G``, optionally step-bounded.
+    """
+    match path:
+        case Next(operand=operand):
+            return kernels.next_probs(dtmc.transitions, state_set(dtmc, operand))
+        case Until(left=left, right=right, bound=bound):
+            return _until(dtmc, state_set(dtmc, left), state_set(dtmc, right), bound)
+        case Eventually(operand=operand, bound=bound):
+            return _until(dtmc, _everywhere(dtmc), state_set(dtmc, operand), bound)
+        case Globally(operand=operand, bound=bound):
+            escape = _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound)
+            return np.asarray(1.0 - escape, dtype=np.float64)
+    raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
+
+
+def path_rewards(dtmc: DTMC, op: RewardOp) -> FloatArray:
+    """Per-state expected reward of the reward operator *op* (its bound is ignored).
+
+    :param dtmc: the model.
+    :param op: ``R{..}`` over ``F``, ``C<=k`` or ``I=k``.
+    """
+    structure = _reward_structure(dtmc, op)
+    path: RewardPath = op.path
+    P = dtmc.transitions
+    match path:
+        case Reach(target=target):
+            return kernels.reach_rewards(P, structure.total, state_set(dtmc, target))
+        case Cumulative(bound=bound):
+            return kernels.cumulative_rewards(P, structure.total, _steps(bound))
+        case Instantaneous(time=time):
+            return kernels.instantaneous_rewards(P, structure.state, _steps(time))
+    raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
+
+
+# ---------------------------------------------------------------------------
+# Operators and bounds
+# ---------------------------------------------------------------------------
+
+
+def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp) -> BoolArray:
+    """``P~p [..]`` or ``R~r [..]`` as a mask: the value compared with the bound."""
+    if op.op == "=?" or op.bound is None:
+        raise CheckError("a query (=?) cannot be used as a state formula", op.span)
+    numbers = path_probs(dtmc, op.path) if isinstance(op, ProbOp) else path_rewards(dtmc, op)
+    return _COMPARISONS[op.op](numbers, _number(op.bound))
+
+
+def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
+           bound: TimeBound | None) -> FloatArray:
+    """Dispatch ``remain U target`` to the kernel for its step bound."""
+    P = dtmc.transitions
+    if bound is None:
+        return kernels.until_probs(P, remain, target)
+    k = _steps(bound.value)
+    match bound.op:
+        case "<=":
+            return kernels.bounded_until_probs(P, remain, target, k)
+        case "<":
+            # U<0 can never be met; U<k is U<=k-1.
+            if k == 0:
+                return np.zeros(dtmc.num_states)
+            return kernels.bounded_until_probs(P, remain, target, k - 1)
+        case ">=":
+            return kernels.lower_bounded_until_probs(P, remain, target, k)
+        case ">":
+            return kernels.lower_bounded_until_probs(P, remain, target, k + 1)
+    raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
+
+
+def _reward_structure(dtmc: DTMC, op: RewardOp) -> RewardVectors:
+    """The reward structure *op* names, or a CheckError that says where."""
+    try:
+        return dtmc.reward(op.reward)
+    except (KeyError, IndexError):
+        key = "" if op.reward is None else f" {op.reward!r}"
+        raise CheckError(f"the model has no reward structure{key}", op.span) from None
+
+
+def _number(expr: Expr) -> float:
+    """The value of a literal (constants are substituted before checking)."""
+    match expr:
+        case IntLit(value=value) | DoubleLit(value=value):
+            return float(value)
+        case Unary(op="-", operand=operand):
+            return -_number(operand)
+    raise CheckError("expected a numeric constant", expr.span)
+
+
+def _steps(expr: Expr) -> int:
+    """A step bound: a non-negative integer literal."""
+    value = _number(expr)
+    if value < 0 or value != int(value):
+        raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
+                         expr.span)
+    return int(value)
+
+
+# ---------------------------------------------------------------------------
+# Leaves: labels and operator-free state expressions
+# ---------------------------------------------------------------------------
+
+
+def _leaf(dtmc: DTMC, expr: Expr) -> Values:
+    """Evaluate an operator-free state expression in every state."""
+    for ref in _labels_in(expr):
+        if ref.name not in dtmc.labels:
+            raise CheckError(f'unknown label "{ref.name}"', ref.span)
+    match expr:
+        case LabelRef(name=name):
+            return np.asarray(dtmc.labels[name], dtype=bool)
+        case BoolLit(value=value):
+            return np.full(dtmc.num_states, value, dtype=bool)
+    return _compiled(dtmc, expr)
+
+
+def _compiled(dtmc: DTMC, expr: Expr) -> Values:
+    """Evaluate *expr* with the builder's expression compiler."""
+    result = np.asarray(compile_expr(expr, dtmc.variable_names, dtmc.labels)(dtmc.states))
+    result = np.broadcast_to(result, (dtmc.num_states,)).copy()
+    return result if result.dtype == np.bool_ else result.astype(np.float64)
+
+
+def _as_mask(result: Values, expr: Expr) -> BoolArray:
+    """A leaf's values as a mask; boolean variables arrive as 0/1 integers."""
+    if result.dtype == np.bool_:
+        return np.asarray(result, dtype=np.bool_)
+    if np.all((result == 0) | (result == 1)):
+        return np.asarray(result == 1, dtype=np.bool_)
+    raise CheckError("expected a boolean state formula", expr.span)
+
+
+def _everywhere(dtmc: DTMC) -> BoolArray:
+    return np.ones(dtmc.num_states, dtype=bool)
+
+
+def _children(expr: Expr | PathFormula | RewardPath) -> Iterator[Expr]:
+    """The direct sub-expressions of a node, path operands and bounds included."""
+    match expr:
+        case Unary(operand=a) | Next(operand=a) | Reach(target=a):
+            yield a
+        case Binary(left=a, right=b):
+            yield from (a, b)
+        case Ite(cond=a, then=b, otherwise=c):
+            yield from (a, b, c)
+        case Call(args=args):
+            yield from args
+        case Until(left=a, right=b):
+            yield from (a, b)
+        case Eventually(operand=a) | Globally(operand=a):
+            yield a
+        case ProbOp(path=path) | RewardOp(path=path):
+            yield from _children(path)
+
+
+def _has_operator(expr: Expr) -> bool:
+    """Whether a ``P`` or ``R`` operator occurs anywhere in *expr*."""
+    if isinstance(expr, ProbOp | RewardOp):
+        return True
+    return any(_has_operator(child) for child in _children(expr))
+
+
+def _labels_in(expr: Expr) -> Iterator[LabelRef]:
+    """Every label reference in *expr*."""
+    if isinstance(expr, LabelRef):
+        yield expr
+    for child in _children(expr):
+        yield from _labels_in(child)
