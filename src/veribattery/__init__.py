@@ -1,3 +1,99 @@
-"""veribattery: verify battery-powered robot missions with an in-repo PRISM DTMC model checker."""
+"""veribattery: verify battery-powered robot missions with an in-repo PRISM DTMC model checker.
+
+The pipeline, stage by stage (each a pure function)::
+
+    model = parse_model(Path("die.pm"))
+    dtmc = build_dtmc(flatten_model(model, {"N": 3}))
+    result = check(dtmc, parse_property('P=? [ F "six" ]'))
+    result.value
+
+and for missions::
+
+    report = check_mission(load_config("configs/paper/case1.yaml"))
+    report.values["p_success"]
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from veribattery.checker import CheckResult, check
+    from veribattery.config import MissionConfig, load_config
+    from veribattery.errors import (
+        CheckError,
+        ConfigError,
+        ModelError,
+        PrismSemanticError,
+        PrismSyntaxError,
+        RenderError,
+        VeribatteryError,
+    )
+    from veribattery.explore import DTMC, build_dtmc
+    from veribattery.lang import (
+        flatten_model,
+        parse_model,
+        parse_properties,
+        parse_property,
+        resolve_property,
+    )
+    from veribattery.mission import MissionReport, check_mission, mission_files
+    from veribattery.pipeline import ModelCheckRun, check_prism_file
+    from veribattery.render import render_model, render_properties
 
 __version__ = "0.1.0"
+
+# Exports are imported on first use, so `import veribattery` (and the CLI's start-up)
+# does not pay for numpy, scipy, pydantic and Jinja until a stage needs them.
+_EXPORTS = {
+    "veribattery.checker": ("CheckResult", "check"),
+    "veribattery.config": ("MissionConfig", "load_config"),
+    "veribattery.errors": (
+        "CheckError", "ConfigError", "ModelError", "PrismSemanticError",
+        "PrismSyntaxError", "RenderError", "VeribatteryError",
+    ),
+    "veribattery.explore": ("DTMC", "build_dtmc"),
+    "veribattery.lang": (
+        "flatten_model", "parse_model", "parse_properties", "parse_property", "resolve_property",
+    ),
+    "veribattery.mission": ("MissionReport", "check_mission", "mission_files"),
+    "veribattery.pipeline": ("ModelCheckRun", "check_prism_file"),
+    "veribattery.render": ("render_model", "render_properties"),
+}
+_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'veribattery' has no attribute {name!r}")
+    return getattr(importlib.import_module(_HOME[name]), name)
+
+
+__all__ = [
+    "DTMC",
+    "CheckError",
+    "CheckResult",
+    "ConfigError",
+    "MissionConfig",
+    "MissionReport",
+    "ModelCheckRun",
+    "ModelError",
+    "PrismSemanticError",
+    "PrismSyntaxError",
+    "RenderError",
+    "VeribatteryError",
+    "build_dtmc",
+    "check",
+    "check_mission",
+    "check_prism_file",
+    "flatten_model",
+    "load_config",
+    "mission_files",
+    "parse_model",
+    "parse_properties",
+    "parse_property",
+    "render_model",
+    "render_properties",
+    "resolve_property",
+]

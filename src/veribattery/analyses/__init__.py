@@ -1,1 +1,1 @@
-"""analyses"""
+"""Analyses built on the pipeline: reproductions of the seed paper's results."""

@@ -67,6 +67,7 @@ def _lark() -> Lark:
         start=["start_model", "start_props", "start_property"],
         propagate_positions=True,
         maybe_placeholders=False,
+        cache=True,
     )
 
 

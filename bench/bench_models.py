@@ -1,0 +1,130 @@
+"""Benchmark veribattery against Storm (stormpy), side by side in one run.
+
+Each measurement runs in a fresh subprocess (bench/run_one.py), so peak memory is
+the tool's own. Prints a table and writes it to bench/RESULTS.md.
+
+    python bench/bench_models.py            # the full table (10^4 .. 10^6 states)
+    python bench/bench_models.py --quick    # small sizes only
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from models import BenchModel, counters, grid_walk
+
+HERE = Path(__file__).resolve().parent
+REPO = HERE.parent
+
+FULL = [grid_walk(100), grid_walk(316), grid_walk(448), grid_walk(1000), counters(3, 58), counters(4, 31)]
+QUICK = [grid_walk(100), counters(3, 20)]
+
+
+def measure(tool: str, model: Path, props: Path) -> dict[str, object]:
+    """One tool on one model file, in its own process."""
+    proc = subprocess.run(
+        [sys.executable, str(HERE / "run_one.py"), tool, str(model), str(props)],
+        capture_output=True, text=True, check=False,
+    )
+    if proc.returncode != 0:
+        raise SystemExit(f"{tool} failed on {model}:\n{proc.stderr[-2000:]}")
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def agree(a: list[object], b: list[object]) -> bool:
+    """Values equal within 1e-6 relative (Storm's default solver precision)."""
+    return all(
+        math.isclose(float(x), float(y), rel_tol=1e-6, abs_tol=1e-12)  # type: ignore[arg-type]
+        for x, y in zip(a, b, strict=True)
+    )
+
+
+def bench_model(bench: BenchModel, workdir: Path) -> list[str]:
+    """A table row for one model instance."""
+    model = workdir / f"{bench.family}.prism"
+    props = workdir / f"{bench.family}.props"
+    model.write_text(bench.model)
+    props.write_text(bench.properties)
+    ours = measure("veribattery", model, props)
+    storm = measure("storm", model, props)
+    ratio = float(ours["total_s"]) / float(storm["total_s"])  # type: ignore[arg-type]
+    assert ours["states"] == storm["states"], (ours["states"], storm["states"])
+    return [
+        bench.family, bench.size, f"{ours['states']:,}", f"{ours['transitions']:,}",
+        f"{ours['build_s']:.2f}", f"{ours['check_s']:.2f}",
+        f"{storm['build_s']:.2f}", f"{storm['check_s']:.2f}", f"{ratio:.2f}",
+        f"{ours['peak_rss_mb']:.0f}", f"{storm['peak_rss_mb']:.0f}",
+        "yes" if agree(ours["values"], storm["values"]) else "NO",  # type: ignore[arg-type]
+    ]
+
+
+def whole_process(argv: list[str]) -> float:
+    """Wall-clock seconds of a whole command, interpreter start-up included."""
+    start = time.perf_counter()
+    subprocess.run(argv, check=True, capture_output=True)
+    return time.perf_counter() - start
+
+
+STORM_SCRIPT = """
+import sys, stormpy
+prog = stormpy.parse_prism_program(sys.argv[1])
+props = stormpy.parse_properties(open(sys.argv[2]).read(), prog)
+model = stormpy.build_model(prog, props)
+init = model.initial_states[0]
+print(model.nr_states, [stormpy.model_checking(model, p).get_value(init) for p in props])
+"""
+
+
+def bench_mission(config: str, workdir: Path) -> list[str]:
+    """`veribattery check CONFIG` against Storm on the emitted files, whole process each."""
+    exe = str(Path(sys.executable).parent / "veribattery")
+    emitted = workdir / "mission"
+    subprocess.run([exe, "emit", config, "-o", str(emitted)], check=True, capture_output=True)
+    ours = whole_process([exe, "check", config, "--format", "json"])
+    storm = whole_process([sys.executable, "-c", STORM_SCRIPT,
+                           str(emitted / "model.prism"), str(emitted / "properties.props")])
+    return ["mission", Path(config).stem, "", "", "", f"{ours:.2f} (whole)", "",
+            f"{storm:.2f} (whole)", f"{ours / storm:.2f}", "", "", ""]
+
+
+HEADER = ["model", "size", "states", "transitions", "vb build s", "vb check s",
+          "storm build s", "storm check s", "ratio vb/storm", "vb peak MB", "storm peak MB", "agree"]
+
+
+def markdown(rows: list[list[str]]) -> str:
+    """The table as GitHub markdown."""
+    lines = ["| " + " | ".join(HEADER) + " |", "|" + "---|" * len(HEADER)]
+    lines += ["| " + " | ".join(r) + " |" for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--quick", action="store_true", help="small models only")
+    parser.add_argument("--no-mission", action="store_true", help="skip the mission baseline")
+    args = parser.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for bench in QUICK if args.quick else FULL:
+            rows.append(bench_model(bench, Path(tmp)))
+            print(" | ".join(rows[-1]), flush=True)
+        if not args.no_mission:
+            rows.append(bench_mission(str(REPO / "configs/paper/case1.yaml"), Path(tmp)))
+    table = markdown(rows)
+    print(table)
+    if not args.quick:
+        (HERE / "RESULTS.md").write_text(
+            "# Benchmark results\n\nGenerated by `python bench/bench_models.py` "
+            f"on {time.strftime('%Y-%m-%d')}; times are wall-clock seconds.\n\n" + table
+        )
+
+
+if __name__ == "__main__":
+    main()

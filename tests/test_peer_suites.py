@@ -1,0 +1,96 @@
+"""The PRISM peer suites, every entry, through the `veribattery prism` CLI contract.
+
+Each manifest entry is run in-process with click's CliRunner using the argument
+list the suite's own harness (`prism_suite.py`) would pass, and judged by the
+harness's own value extraction and tolerance, so passing here means passing
+`prism_suite.py MANIFEST --cmd "veribattery prism"`. One test also runs the
+harness itself against the installed console script.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+from click.testing import CliRunner
+
+from tests.conftest import PEER_TESTS, require_shared
+from veribattery.cli import cli
+
+SUITES = ("prism", "prism-examples")
+
+
+def _harness() -> ModuleType:
+    path = require_shared() / "prism_suite.py"
+    spec = importlib.util.spec_from_file_location("prism_suite", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _entries() -> list[Any]:
+    params = []
+    for suite in SUITES:
+        manifest = PEER_TESTS / suite / "manifest.json"
+        if not manifest.is_file():
+            params.append(pytest.param(None, None, id=f"{suite}-absent"))
+            continue
+        for entry in json.loads(manifest.read_text())["entries"]:
+            params.append(pytest.param(suite, entry, id=f"{suite}:{entry['id']}"))
+    return params
+
+
+@pytest.mark.parametrize(("suite", "entry"), _entries())
+def test_peer_entry(suite: str | None, entry: dict[str, Any] | None) -> None:
+    if suite is None or entry is None:
+        require_shared()
+        return
+    harness = _harness()
+    argv = harness.entry_argv(entry, str(PEER_TESTS / suite), [])
+    result = CliRunner().invoke(cli, ["prism", *argv])
+    assert result.exit_code == 0, result.output
+    found, got, raw = harness.extract_value(result.stdout)
+    assert found, result.output
+    expected = harness.parse_value(entry["expected"])
+    assert harness.values_match(expected, got, 1e-6, 1e-12), (expected, raw)
+
+
+def test_peer_entry_sizes() -> None:
+    """The prism-examples manifest states, transitions and initial states, exactly."""
+    require_shared()
+    manifest = json.loads((PEER_TESTS / "prism-examples" / "manifest.json").read_text())
+    seen = set()
+    for entry in manifest["entries"]:
+        key = (entry["model"], tuple(sorted(entry["constants"].items())))
+        if key in seen:
+            continue
+        seen.add(key)
+        argv = _harness().entry_argv(entry, str(PEER_TESTS / "prism-examples"), [])
+        output = CliRunner().invoke(cli, ["prism", *argv]).stdout
+        model = json.loads(output)["model"]
+        assert (model["states"], model["transitions"], model["initial_states"]) == (
+            entry["states"], entry["transitions"], entry["initial_states"]
+        ), entry["id"]
+
+
+def test_harness_runs_the_console_script() -> None:
+    """`prism_suite.py MANIFEST --cmd "veribattery prism"` passes on a slice of each suite."""
+    require_shared()
+    exe = shutil.which("veribattery") or str(Path(sys.executable).parent / "veribattery")
+    for suite, pattern in (("prism", "dtmc_pctl"), ("prism-examples", "dice")):
+        proc = subprocess.run(
+            [sys.executable, str(PEER_TESTS / "prism_suite.py"),
+             str(PEER_TESTS / suite / "manifest.json"), "--cmd", f"{exe} prism",
+             "--filter", pattern, "-j", "2"],
+            capture_output=True, text=True, timeout=600, check=False,
+        )
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert " 0 failed" in proc.stdout, proc.stdout
