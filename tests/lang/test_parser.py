@@ -242,3 +242,15 @@ def test_model_without_type_is_mdp_in_prism() -> None:
 def test_temporal_operator_in_a_model_is_a_syntax_error() -> None:
     with pytest.raises(PrismSyntaxError, match="5:7"):
         parse_model(MINI.replace("x<N ->", "F x<N ->"))
+
+
+def test_true_update_may_stand_anywhere_in_a_sum() -> None:
+    model = parse_model(
+        "dtmc\nmodule m\n  w : [0..1] init 0;\n"
+        "  [] w=0 -> 0.5:true + 0.5:(w'=1);\n  [] w=1 -> 0.25:(w'=0) + 0.75:true;\n"
+        "  [] w=1 -> true;\nendmodule\n"
+    )
+    first, second, lone = model.modules[0].commands  # type: ignore[union-attr]
+    assert [len(u.assignments) for u in first.updates] == [0, 1]
+    assert [len(u.assignments) for u in second.updates] == [1, 0]
+    assert len(lone.updates) == 1 and lone.updates[0].assignments == ()

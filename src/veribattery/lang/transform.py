@@ -340,17 +340,15 @@ class ToNodes(Transformer[Token, Any]):
         return tuple(children)
 
     def true_update(self, meta: Meta, children: list[Any]) -> tuple[Assignment, ...]:
-        if children[0] != BoolLit(True):
-            raise PrismSyntaxError("an update is 'true' or assignments (x'=...)", self._span(meta))
         return ()
 
     def prob_update(self, meta: Meta, children: list[Any]) -> Update:
         prob = self._model_expr(children[0])
         return Update(prob, children[1], self._span(meta))
 
-    def plain_update(self, meta: Meta, children: list[Any]) -> Update:
+    def plain_update(self, meta: Meta, children: list[Any]) -> tuple[Update, ...]:
         # A single update without a probability is taken with probability 1.
-        return Update(IntLit(1, self._span(meta)), children[0], self._span(meta))
+        return (Update(IntLit(1, self._span(meta)), children[0], self._span(meta)),)
 
     def updates(self, meta: Meta, children: list[Any]) -> tuple[Any, ...]:
         return tuple(children)
