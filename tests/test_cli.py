@@ -205,3 +205,9 @@ def test_emitted_files_check_like_the_config(tmp_path: Path, baseline: str) -> N
     resolved = json.loads(run(
         "check", str(out / "config.resolved.yaml"), "--format", "json").stdout)
     assert resolved["results"] == direct["results"]
+
+
+def test_prism_unknown_const_name_is_rejected(die: Path) -> None:
+    result = run("prism", str(die), "--property", 'P=? [ F "six" ]', "--const", "Y=3")
+    assert result.exit_code == 2
+    assert "--const Y: no such constant" in result.stderr

@@ -26,6 +26,7 @@ from veribattery.lang import (
     parse_property,
     resolve_property,
     select_properties,
+    undefined_constants,
 )
 from veribattery.lang.nodes import Value
 
@@ -132,7 +133,22 @@ def check_prism_file(
     with watch.stage("parse"):
         model = parse_model(model_source)
         props = parse_properties(props_source) if props_source is not None else None
+        _reject_unknown_constants(model, props, constants or {})
         chosen = select(props, selectors)
     return check_model(
         model, chosen, props_file=props, constants=constants, progress=progress, stopwatch=watch
     )
+
+
+def _reject_unknown_constants(
+    model: Model, props: PropertiesFile | None, constants: Mapping[str, object]
+) -> None:
+    """A ``--const`` that names no declared constant is a typo: say so, don't ignore it."""
+    declared = {c.name for c in model.constants}
+    declared |= {c.name for c in props.constants} if props is not None else set()
+    unknown = sorted(set(constants) - declared)
+    if unknown:
+        hint = ", ".join(undefined_constants(model, props)) or "none"
+        raise PrismSemanticError(
+            f"--const {', '.join(unknown)}: no such constant (undefined constants: {hint})"
+        )
