@@ -5,8 +5,9 @@ domain (reachable or not) where its guard holds; if an update can leave a
 variable's range there, PRISM refuses the model. The explicit builder only sees
 reachable states, so this check is offered separately.
 
-Per command, only the variables that occur in its guard, probabilities and
-right-hand sides matter: their ranges' product is enumerated in chunks (the
+A command whose right-hand sides provably stay in range (interval analysis)
+needs no enumeration. Otherwise only the variables that occur in its guard,
+probabilities and right-hand sides matter: their ranges' product is enumerated in chunks (the
 other columns are fixed at their lower bound, which the command cannot read).
 A command whose product exceeds *max_combinations* is not checked; its
 description is returned so that the caller can warn -- nothing is skipped
@@ -55,6 +56,8 @@ def check_update_ranges_over_domain(
 
 def _check_command(program: Program, command: CompiledCommand, limit: int) -> int | None:
     """Check one command; return its domain size instead if that exceeds *limit*."""
+    if _provably_in_range(command):
+        return None
     columns = sorted(program.variable_names.index(v) for v in _mentioned(command.command))
     sizes = [program.highs[c] - program.lows[c] + 1 for c in columns]
     total = int(np.prod(np.array(sizes, dtype=object))) if sizes else 1
@@ -66,6 +69,19 @@ def _check_command(program: Program, command: CompiledCommand, limit: int) -> in
         if enabled.shape[0]:
             check_update_ranges(program, command, enabled)
     return None
+
+
+def _provably_in_range(command: CompiledCommand) -> bool:
+    """Whether interval analysis alone shows that no update can leave a range.
+
+    Such a command (e.g. ``(s'=3)``) needs no enumeration, however many variables
+    its guard reads: the mission's Drone commands read all six.
+    """
+    return all(
+        column in update.unchecked
+        for update in command.updates
+        for column, _ in update.assignments
+    )
 
 
 def _mentioned(command: Command) -> set[str]:
