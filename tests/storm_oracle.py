@@ -91,7 +91,7 @@ def run_storm(
     value_type = stormpy.Rational if exact else float
     built = stormpy.build_model[value_type](program, options=options)
     valuations = tuple(
-        {k: int(v) for k, v in json.loads(str(built.state_valuations.to_json(s))).items()}
+        {k: int(v) for k, v in (json.loads(str(built.state_valuations.to_json(s))) or {}).items()}
         for s in range(built.nr_states)
     )
     values = []
@@ -156,9 +156,16 @@ def compare(
     storm_sizes = (storm.states, storm.transitions, len(storm.initial))
     if sizes != storm_sizes:
         problems.append(f"(states, transitions, initial): veribattery {sizes}, Storm {storm_sizes}")
-    names = dtmc.variable_names
+    # Storm leaves variables that are never assigned out of its valuations
+    # (they keep their initial value): match states on the variables both know.
+    known = set(storm.valuations[0]) if storm.valuations else set()
+    columns = [i for i, n in enumerate(dtmc.variable_names) if n in known]
+    names = tuple(dtmc.variable_names[i] for i in columns)
     index = {tuple(v[n] for n in names): s for s, v in enumerate(storm.valuations)}
-    rows = [tuple(int(x) for x in row) for row in np.asarray(dtmc.states)]
+    rows = [tuple(int(row[i]) for i in columns) for row in np.asarray(dtmc.states)]
+    if len(set(rows)) != len(rows):
+        problems.append(f"veribattery states repeat on the variables Storm keeps, {names}")
+        return problems
     mapping = [index.get(row) for row in rows]
     missing = [dict(zip(names, row, strict=True)) for row, s in zip(rows, mapping, strict=True)
                if s is None]
