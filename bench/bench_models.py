@@ -23,7 +23,10 @@ from models import BenchModel, counters, grid_walk
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 
-FULL = [grid_walk(100), grid_walk(316), grid_walk(448), grid_walk(1000), counters(3, 58), counters(4, 31)]
+FULL = [
+    grid_walk(100), grid_walk(316), grid_walk(448), grid_walk(1000),
+    counters(3, 58), counters(4, 31),
+]
 QUICK = [grid_walk(100), counters(3, 20)]
 
 
@@ -95,7 +98,8 @@ def bench_mission(config: str, workdir: Path) -> list[str]:
 
 
 HEADER = ["model", "size", "states", "transitions", "vb build s", "vb check s",
-          "storm build s", "storm check s", "ratio vb/storm", "vb peak MB", "storm peak MB", "agree"]
+          "storm build s", "storm check s", "ratio vb/storm", "vb peak MB", "storm peak MB",
+          "agree"]
 
 
 def markdown(rows: list[list[str]]) -> str:

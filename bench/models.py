@@ -16,7 +16,7 @@ class BenchModel:
 
 
 def grid_walk(n: int) -> BenchModel:
-    """A drifting random walk on an n×n grid (n² states, BFS depth 2n)."""
+    """A drifting random walk on an n-by-n grid (n² states, BFS depth 2n)."""
     model = f"""dtmc
 const int N = {n};
 module walker
@@ -35,7 +35,10 @@ endrewards
 
 
 def counters(modules: int, top: int) -> BenchModel:
-    """*modules* counters in lock-step on one action, each advancing w.p. 1/2 ((top+1)^modules states)."""
+    """*modules* counters in lock-step on one action, each advancing w.p. 1/2.
+
+    (top+1)^modules states.
+    """
     body = [f"dtmc\nconst int K = {top};\n"]
     for i in range(modules):
         body.append(

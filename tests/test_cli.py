@@ -67,7 +67,8 @@ def test_prism_json_contract(die: Path) -> None:
 def test_prism_selects_by_index_name_and_text(die: Path) -> None:
     props = str(die.with_suffix(".props"))
     for selector in ("1", "six", 'P=? [ F "six" ]'):
-        doc = json.loads(run("prism", str(die), "--props", props, "--property", selector, "--json").stdout)
+        result = run("prism", str(die), "--props", props, "--property", selector, "--json")
+        doc = json.loads(result.stdout)
         assert [r["value"] for r in doc["results"]] == [pytest.approx(1 / 6, rel=1e-12)]
 
 

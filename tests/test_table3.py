@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from veribattery.analyses.paper import TABLE3
 from veribattery.analyses import table3
+from veribattery.analyses.paper import TABLE3
 from veribattery.analyses.table3 import Table3Comparison, case_overrides, reproduce_table3
 from veribattery.cli import cli
 from veribattery.config import load_config

@@ -104,7 +104,11 @@ def cli() -> None:
 @click.option("--const", "consts", multiple=True, metavar="NAME=VALUE", help="Undefined constant.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
 def prism_command(
-    model: Path, props: Path | None, selectors: tuple[str, ...], consts: tuple[str, ...], as_json: bool
+    model: Path,
+    props: Path | None,
+    selectors: tuple[str, ...],
+    consts: tuple[str, ...],
+    as_json: bool,
 ) -> None:
     """Check PCTL properties of a PRISM DTMC MODEL file."""
     with user_errors(), build_progress() as progress:
@@ -168,7 +172,9 @@ def _set_option(function: F) -> F:
     "--format", "output_format", type=click.Choice(["table", "json", "csv"]), default="table",
     show_default=True, help="Output format.",
 )
-@click.option("--emit", "emit_dir", type=click.Path(path_type=Path), help="Also write the model files here.")
+@click.option(
+    "--emit", "emit_dir", type=click.Path(path_type=Path), help="Also write the model files here."
+)
 @click.option("--force", is_flag=True, help="Let --emit overwrite existing files.")
 def check_command(
     config: Path, overrides: tuple[str, ...], output_format: str, emit_dir: Path | None, force: bool

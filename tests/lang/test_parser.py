@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from tests.lang.helpers import MINI
 
+from tests.lang.helpers import MINI
 from veribattery.errors import PrismSemanticError, PrismSyntaxError
 from veribattery.lang import (
     Binary,

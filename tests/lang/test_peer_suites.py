@@ -7,8 +7,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from tests.lang.helpers import PEER, manifest_entries, peer_files
 
+from tests.lang.helpers import PEER, manifest_entries, peer_files
 from veribattery.lang import (
     flatten_model,
     parse_model,

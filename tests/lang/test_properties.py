@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import pytest
-from tests.lang.helpers import MINI
 
+from tests.lang.helpers import MINI
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import (
     Binary,

@@ -6,8 +6,8 @@ import math
 from pathlib import Path
 
 import pytest
-from tests.lang.helpers import MINI, PEER
 
+from tests.lang.helpers import MINI, PEER
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import (
     Binary,

@@ -24,7 +24,7 @@ class Table3Comparison:
         return float(self.report.values[quantity])
 
     def relative_difference(self, quantity: str) -> float:
-        """(ours − paper) / paper."""
+        """(ours - paper) / paper."""
         paper = float(getattr(self.paper, quantity))
         return (self.ours(quantity) - paper) / paper
 
