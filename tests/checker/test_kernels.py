@@ -220,3 +220,44 @@ def test_refinement_recovers_accuracy_on_a_long_symmetric_walk() -> None:
     x = linsolve.solve(A, b)
     exact = np.arange(1, n) / n
     assert np.max(np.abs(x - exact) / exact) < 1e-12
+
+
+# --- acyclic systems, shared systems -------------------------------------------------
+
+
+def test_acyclic_system_is_solved_by_substitution() -> None:
+    # A forward-only chain with self-loops: triangular in a topological order.
+    n = 50
+    rng = np.random.default_rng(1)
+    P = matrix({i: {i: 0.3, i + 1: 0.5, min(i + 2, n - 1): 0.2} for i in range(n - 1)}, n)
+    A, _rows = linsolve.restricted_matrix(P, mask(n, range(n - 1)))
+    A64 = sp.csr_matrix(A.astype(np.float64))
+    inverse = linsolve._triangular_inverse(A64)
+    assert inverse is not None
+    b = rng.random(n - 1)
+    assert np.allclose(A64 @ inverse(b), b, rtol=1e-13)
+    x = linsolve.solve(A, b.astype(np.longdouble))
+    assert np.allclose(x, sp.linalg.spsolve(A64.tocsc(), b), rtol=1e-12)
+
+
+def test_cyclic_system_is_not_triangular() -> None:
+    A, _b = _ruin_system(10, 0.5)
+    assert linsolve._triangular_inverse(sp.csr_matrix(A.astype(np.float64))) is None
+
+
+def test_superlu_triangular_entry_point_is_used() -> None:
+    lower = sp.csc_matrix(np.array([[1.0, 0.0], [-0.5, 1.0]]))
+    substitute = linsolve._substitution(lower)
+    assert substitute.__name__ == "private"  # scipy's private API still behaves
+    assert substitute(np.array([1.0, 0.0])).tolist() == [1.0, 0.5]
+
+
+def test_reward_properties_on_one_target_share_their_system() -> None:
+    chain = gamblers_ruin(20, 0.4)
+    P, end = chain.transitions, chain.labels["end"]
+    steps = kernels.reach_rewards(P, np.ones(P.shape[0]), end)
+    doubled = kernels.reach_rewards(P, np.full(P.shape[0], 2.0), end)
+    assert len(kernels._memo(P).systems) == 1
+    np.testing.assert_allclose(doubled, 2 * steps, rtol=1e-13)
+    expected = [_ruin_duration(i, 20, 0.4) for i in range(1, 20)]
+    assert steps[1:20].tolist() == pytest.approx(expected, rel=1e-10)

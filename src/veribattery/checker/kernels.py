@@ -20,12 +20,90 @@ every bit), after which further steps cannot change the result.
 
 from __future__ import annotations
 
+import weakref
+from collections import OrderedDict
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import linsolve
+
+# ---------------------------------------------------------------------------
+# Memo per transition matrix: properties of one model share targets (``F "done"``
+# under two reward structures) and hence graph searches and linear systems.
+# Matrices are keyed by identity and forgotten with them; they must not be
+# modified in place afterwards (a DTMC's never is).
+# ---------------------------------------------------------------------------
+
+#: Linear systems kept per matrix (each holds its matrix and direct solver).
+SYSTEMS_KEPT = 4
+
+
+@dataclass(frozen=True, slots=True)
+class _System:
+    """``I - P_mm``, the rows ``P[maybe, :]`` and the prepared solver."""
+
+    rows: CsrMatrix
+    factorization: linsolve.Factorization
+
+
+@dataclass(slots=True)
+class _Memo:
+    matrix: weakref.ref[CsrMatrix]
+    masks: dict[tuple[str, bytes, bytes], BoolArray] = field(default_factory=dict)
+    systems: OrderedDict[bytes, _System] = field(default_factory=OrderedDict)
+
+
+_MEMOS: dict[int, _Memo] = {}
+
+
+def _memo(P: CsrMatrix) -> _Memo:
+    key = id(P)
+    memo = _MEMOS.get(key)
+    if memo is None or memo.matrix() is not P:
+        memo = _Memo(weakref.ref(P))
+        _MEMOS[key] = memo
+        weakref.finalize(P, _forget, key, memo)
+    return memo
+
+
+def _forget(key: int, memo: _Memo) -> None:
+    if _MEMOS.get(key) is memo:
+        del _MEMOS[key]
+
+
+def _mask_key(mask: BoolArray) -> bytes:
+    return np.packbits(mask).tobytes() + mask.size.to_bytes(8, "little")
+
+
+def _memoised_mask(P: CsrMatrix, kind: str, a: BoolArray, b: BoolArray,
+                   compute: Callable[[], BoolArray]) -> BoolArray:
+    masks = _memo(P).masks
+    key = (kind, _mask_key(a), _mask_key(b))
+    if key not in masks:
+        masks[key] = compute()
+    return masks[key].copy()
+
+
+def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
+    """The restricted system on *maybe*, built (and its solver prepared) once per matrix."""
+    systems = _memo(P).systems
+    key = _mask_key(maybe)
+    found = systems.get(key)
+    if found is None:
+        A, rows = linsolve.restricted_matrix(P, maybe)
+        found = _System(rows, linsolve.Factorization(A))
+        systems[key] = found
+        while len(systems) > SYSTEMS_KEPT:
+            systems.popitem(last=False)
+    else:
+        systems.move_to_end(key)
+    return found
+
 
 # ---------------------------------------------------------------------------
 # Qualitative pre-pass: graph searches
@@ -62,7 +140,8 @@ def prob0(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> BoolArray:
     :param target: states to reach.
     :return: mask of the states that cannot reach *target* inside *remain*.
     """
-    return ~_backward_reach(P, remain & ~target, target)
+    return _memoised_mask(P, "prob0", remain, target,
+                          lambda: ~_backward_reach(P, remain & ~target, target))
 
 
 def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray) -> BoolArray:
@@ -78,7 +157,8 @@ def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray) -> 
     :param no: the result of :func:`prob0` for the same arguments.
     :return: mask of the states that reach *target* inside *remain* almost surely.
     """
-    return ~_backward_reach(P, remain & ~target, no)
+    through = remain & ~target
+    return _memoised_mask(P, "prob1", through, no, lambda: ~_backward_reach(P, through, no))
 
 
 # ---------------------------------------------------------------------------
@@ -102,9 +182,9 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> FloatArra
     result = yes.astype(np.float64)
     maybe = ~(no | yes)
     if maybe.any():
-        A, rows = linsolve.restricted_matrix(P, maybe)
-        b = rows.astype(np.longdouble) @ yes.astype(np.longdouble)
-        result[maybe] = np.clip(linsolve.solve(A, b), 0.0, 1.0)
+        system = _system(P, maybe)
+        b = system.rows.astype(np.longdouble) @ yes.astype(np.longdouble)
+        result[maybe] = np.clip(system.factorization.solve(b), 0.0, 1.0)
     return result
 
 
@@ -126,8 +206,8 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Float
     maybe = sure & ~target
     if maybe.any():
         # Successors of almost-sure states are almost sure, so the system is closed.
-        A, _rows = linsolve.restricted_matrix(P, maybe)
-        result[maybe] = linsolve.solve(A, np.asarray(rewards[maybe], dtype=np.longdouble))
+        solver = _system(P, maybe).factorization
+        result[maybe] = solver.solve(np.asarray(rewards[maybe], dtype=np.longdouble))
     return result
 
 

@@ -26,10 +26,18 @@ meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
+from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
+
+try:  # SuperLU's triangular solve, used by _substitution when it behaves as expected
+    from scipy.sparse.linalg._dsolve import _superlu
+except ImportError:  # pragma: no cover -- scipy moved it: the public path is used
+    _superlu = None
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.errors import CheckError
@@ -88,43 +96,185 @@ def solve(A: sp.csr_matrix, b: ExtArray) -> FloatArray:
     :param b: the right-hand side, in extended precision.
     :raises CheckError: when neither the direct nor the iterative path is accepted.
     """
-    if not b.any():
-        return np.zeros(b.shape, dtype=np.float64)
-    A64 = sp.csr_matrix(A.astype(np.float64))
-    x = _solve_direct(A, A64, b) if A.shape[0] <= DIRECT_LIMIT else None
-    if x is not None and backward_error(A, x, b) <= RESIDUAL_TOL:
+    return Factorization(A).solve(b)
+
+
+class Factorization:
+    """A system matrix prepared once for any number of right-hand sides.
+
+    The direct solver is built on the first non-trivial solve and kept: when the
+    off-diagonal graph of *A* is acyclic (every strongly connected component a
+    single state, as in a mission that only moves forward), *A* is triangular in
+    a topological order and the "factorisation" is that permutation, so each
+    solve is one sparse substitution; otherwise SuperLU factorises *A*.
+
+    :param A: the system matrix from :func:`restricted_matrix` (extended precision).
+    """
+
+    def __init__(self, A: sp.csr_matrix) -> None:
+        self.A = A
+        self._A64: sp.csr_matrix | None = None
+        self._direct: _Inverse | None = None
+        self._direct_tried = False
+        self._norm_a: float | None = None
+
+    @property
+    def A64(self) -> sp.csr_matrix:
+        """*A* rounded to float64."""
+        if self._A64 is None:
+            self._A64 = sp.csr_matrix(self.A.astype(np.float64))
+        return self._A64
+
+    def solve(self, b: ExtArray) -> FloatArray:
+        """Solve ``A x = b`` under the module's rule.
+
+        :param b: the right-hand side, in extended precision.
+        :raises CheckError: when neither the direct nor the iterative path is accepted.
+        """
+        A = self.A
+        if not b.any():
+            return np.zeros(b.shape, dtype=np.float64)
+        inverse = self._inverse() if A.shape[0] <= DIRECT_LIMIT else None
+        if self._norm_a is None:
+            self._norm_a = matrix_norm(A)
+        x = _refined(A, inverse, b) if inverse is not None else None
+        if x is not None and backward_error(A, x, b, self._norm_a) <= RESIDUAL_TOL:
+            return x
+        x = _solve_iterative(self.A64, b.astype(np.float64), x)
+        if not backward_error(A, x, b, self._norm_a) <= RESIDUAL_TOL:
+            raise CheckError(f"linear solver did not reach backward error {RESIDUAL_TOL:g} "
+                             f"on {A.shape[0]} states")
         return x
-    x = _solve_iterative(A64, b.astype(np.float64), x)
-    if not backward_error(A, x, b) <= RESIDUAL_TOL:
-        raise CheckError(f"linear solver did not reach backward error {RESIDUAL_TOL:g} "
-                         f"on {A.shape[0]} states")
-    return x
+
+    def _inverse(self) -> _Inverse | None:
+        if not self._direct_tried:
+            self._direct_tried = True
+            self._direct = _triangular_inverse(self.A64) or _lu_inverse(self.A64)
+        return self._direct
 
 
-def backward_error(A: sp.csr_matrix, x: FloatArray, b: ExtArray) -> float:
-    """``||b - A x|| / (||A|| ||x|| + ||b||)`` in the infinity norm (inf if x is not finite)."""
+#: Applies an approximate inverse of the system matrix to a float64 vector.
+_Inverse = Callable[[FloatArray], FloatArray]
+
+
+def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
+    """SuperLU's factors of *A64* (None if the factorisation fails)."""
+    try:
+        lu = spla.splu(A64.tocsc())
+    except (RuntimeError, MemoryError):
+        return None
+    return lu.solve  # type: ignore[no-any-return]
+
+
+def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
+    """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
+
+    The strongly connected components come numbered in reverse topological order
+    (Tarjan/Pearce), which the permuted pattern is checked against: a state's
+    successors precede it, so the permuted matrix is lower triangular.
+    """
+    n = A64.shape[0]
+    count, labels = csgraph.connected_components(A64, directed=True, connection="strong")
+    if count != n:
+        return None
+    coo = A64.tocoo()
+    position = labels.astype(np.int64)
+    rows, cols = position[coo.row], position[coo.col]
+    if np.any(cols > rows):  # not the order expected: try the opposite one
+        position = n - 1 - position
+        rows, cols = n - 1 - rows, n - 1 - cols
+        if np.any(cols > rows):
+            return None
+    diagonal = np.zeros(n, dtype=np.float64)
+    on_diagonal = rows == cols
+    np.add.at(diagonal, rows[on_diagonal], coo.data[on_diagonal])
+    if not np.all(diagonal > 0):
+        return None
+    scale = 1.0 / diagonal
+    # Columns scaled to a unit diagonal: L y = b, then x = y / diagonal.
+    lower = sp.csc_matrix((coo.data * scale[cols], (rows, cols)), shape=(n, n))
+    lower.sum_duplicates()
+    substitute = _substitution(lower)
+    order = np.empty(n, dtype=np.int64)
+    order[position] = np.arange(n)
+
+    def apply(b: FloatArray) -> FloatArray:
+        x = np.empty(n, dtype=np.float64)
+        x[order] = substitute(np.ascontiguousarray(b[order], dtype=np.float64)) * scale
+        return x
+
+    return apply
+
+
+def _substitution(lower: sp.csc_matrix) -> _Inverse:
+    """Forward substitution with the unit lower-triangular CSC matrix *lower*.
+
+    SuperLU's triangular solve on prepared arrays (what ``spsolve_triangular``
+    calls after copying and rescaling its argument each time); the public
+    function is the fallback should that private entry point change.
+    """
+    n = lower.shape[0]
+    data = np.ascontiguousarray(lower.data, dtype=np.float64)
+    indices = lower.indices.astype(np.intc)
+    indptr = lower.indptr.astype(np.intc)
+    empty_data = np.zeros(0, dtype=np.float64)
+    empty_indices = np.zeros(0, dtype=np.intc)
+    empty_indptr = np.zeros(n + 1, dtype=np.intc)
+
+    def private(b: FloatArray) -> FloatArray:
+        x, info = _superlu.gstrs("N", n, data.size, data, indices, indptr,
+                                 n, 0, empty_data, empty_indices, empty_indptr, b.copy())
+        if info:
+            raise RuntimeError("triangular solve failed")
+        return np.asarray(x, dtype=np.float64)
+
+    def public(b: FloatArray) -> FloatArray:
+        x = spla.spsolve_triangular(lower, b, lower=True, unit_diagonal=True)
+        return np.asarray(x, dtype=np.float64)
+
+    try:
+        if _superlu is None:
+            return public
+        probe = private(np.ones(n, dtype=np.float64))
+        if np.all(np.isfinite(probe)) and np.allclose(lower @ probe, 1.0):
+            return private
+    except Exception:
+        pass
+    return public
+
+
+def backward_error(A: sp.csr_matrix, x: FloatArray, b: ExtArray,
+                   norm_a: float | None = None) -> float:
+    """``||b - A x|| / (||A|| ||x|| + ||b||)`` in the infinity norm (inf if x is not finite).
+
+    :param norm_a: ``||A||_inf`` if already known.
+    """
     if not np.all(np.isfinite(x)):
         return float("inf")
     residual = _norm(b - A @ x.astype(np.longdouble))
-    norm_a = _norm(np.asarray(abs(A).sum(axis=1)).ravel())
+    if norm_a is None:
+        norm_a = matrix_norm(A)
     scale = norm_a * _norm(x) + _norm(b)
     return residual / scale if scale > 0 else residual
+
+
+def matrix_norm(A: sp.csr_matrix) -> float:
+    """``||A||_inf``: the largest absolute row sum."""
+    row_of = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    sums = np.bincount(row_of, weights=np.abs(A.data).astype(np.float64), minlength=A.shape[0])
+    return _norm(np.asarray(sums, dtype=np.float64))
 
 
 def _norm(v: npt.NDArray[np.floating]) -> float:
     return float(np.max(np.abs(v), initial=0.0))
 
 
-def _solve_direct(A: sp.csr_matrix, A64: sp.csr_matrix, b: ExtArray) -> FloatArray | None:
-    """LU in float64, refined with extended-precision residuals; None if LU fails."""
-    try:
-        lu = spla.splu(A64.tocsc())
-    except (RuntimeError, MemoryError):
-        return None
-    x: FloatArray = lu.solve(b.astype(np.float64))
+def _refined(A: sp.csr_matrix, inverse: _Inverse, b: ExtArray) -> FloatArray:
+    """``inverse(b)``, refined with extended-precision residuals."""
+    x: FloatArray = inverse(b.astype(np.float64))
     for _ in range(REFINE_STEPS):
         residual = (b - A @ x.astype(np.longdouble)).astype(np.float64)
-        correction: FloatArray = lu.solve(residual)
+        correction: FloatArray = inverse(residual)
         x = x + correction
         if not np.all(np.isfinite(x)) or _converged(correction, x):
             break
