@@ -258,3 +258,49 @@ def test_huge_ranges_use_multi_word_keys() -> None:
     dtmc = build_dtmc(model)
     assert dtmc.num_states == 1 + 2 + 3 + 4
     assert dtmc.deadlocks == 4
+
+
+# --- one command per part: the fast path must equal the general product -----------
+
+
+def _three_part_sync() -> FlatModel:
+    """Three modules on one action, one command each, 2 x 1 x 3 updates (some varying)."""
+    return flat_model(
+        [var("x", 0, 3), var("y", 0, 3), var("z", 0, 3)],
+        [
+            module("A", ["x"], [command("x < 3", [("0.5", {"x": "x+1"}), ("0.5", {"x": "0"})],
+                                        action="t")]),
+            module("B", ["y"], [command("y <= x", [("1", {"y": "min(y+1, 3)"})], action="t")]),
+            module("C", ["z"], [command("true", [("0.2", {"z": "0"}), ("x/10", {"z": "1"}),
+                                                 ("0.8 - x/10", {"z": "min(z+1, 3)"})],
+                                        action="t")]),
+        ],
+    )
+
+
+def test_one_command_per_part_matches_the_general_product() -> None:
+    from veribattery.explore import successors
+    from veribattery.explore.program import compile_program
+
+    program = compile_program(_three_part_sync())
+    (group,) = program.groups
+    states = np.array([[x, y, z] for x in range(4) for y in range(4) for z in range(4)])
+    fast = successors.expand_group(program, group, states)
+    general = successors._expand_product(program, group, states)
+    assert fast is not None and general is not None
+    assert fast.source.tolist() == general.source.tolist()
+    assert fast.targets.tolist() == general.targets.tolist()
+    assert fast.probability.tolist() == general.probability.tolist()  # bit for bit
+    assert fast.choices.tolist() == general.choices.tolist()
+
+
+def test_one_command_per_part_reports_bad_sums() -> None:
+    model = flat_model(
+        [var("x", 0, 1), var("y", 0, 1)],
+        [
+            module("A", ["x"], [command("true", [("0.5", {"x": "1"})], action="t")]),
+            module("B", ["y"], [command("true", [("1", {"y": "1"})], action="t")]),
+        ],
+    )
+    with pytest.raises(ModelError, match=r"sum to 0\.5"):
+        build_dtmc(model)

@@ -14,6 +14,7 @@ as ``y>0 & x/y>1`` does not report a division by zero where ``y=0``.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
@@ -39,6 +40,7 @@ from veribattery.lang.nodes import (
 
 __all__ = [
     "Bounds",
+    "CompileCache",
     "CompiledExpr",
     "compile_expr",
     "constant_value",
@@ -73,13 +75,69 @@ class _Scope:
     """What compilation needs besides the expression.
 
     With *ranges* (variable name → (low, high)), sub-expressions over a small
-    domain are tabulated once; *tables* caches them across compilations.
+    domain are tabulated once; *cache* shares compiled nodes across compilations.
     """
 
     columns: Mapping[str, int]
     labels: Mapping[str, BoolArray] | None = None
     ranges: Mapping[str, tuple[int, int]] | None = None
-    tables: dict[Expr, _Node] | None = None
+    cache: CompileCache | None = None
+
+
+class CompileCache:
+    """Compiled sub-expressions shared by all the expressions of one program.
+
+    Every distinct sub-expression is compiled once (common subexpressions of
+    guards and updates become one node, tables included), and each node
+    remembers its results for the last two state arrays it was applied to, by
+    identity: the explorer evaluates every guard of a BFS layer on the same
+    frontier array, so a formula shared by a dozen guards (a cost, a voltage
+    level) is computed once per layer. Arrays passed to compiled expressions
+    must therefore not be modified in place afterwards.
+    """
+
+    def __init__(self) -> None:
+        self.nodes: dict[int, _Node] = {}
+        self.plain: dict[int, _Node] = {}  # row-wise nodes (tables' contents), no memo
+        self.indices: dict[tuple[tuple[int, ...], tuple[int, ...], int], _Fn] = {}
+        self.shapes: dict[int, tuple[frozenset[str], int]] = {}
+        self._keys: dict[tuple[Any, ...], int] = {}
+        self._by_id: dict[int, tuple[Expr, int]] = {}
+
+    def key(self, expr: Expr) -> int:
+        """A number per structurally distinct expression (equal iff the nodes compare equal).
+
+        Hashing a frozen node hashes its whole subtree, at every level; numbering
+        subtrees bottom-up, by object, makes each lookup O(1).
+        """
+        found = self._by_id.get(id(expr))
+        if found is not None and found[0] is expr:
+            return found[1]
+        parts: tuple[Any, ...]
+        if isinstance(expr, Binary):
+            parts = (Binary, expr.op, self.key(expr.left), self.key(expr.right))
+        elif isinstance(expr, Ident):
+            parts = (Ident, expr.name)
+        elif isinstance(expr, IntLit | DoubleLit | BoolLit):
+            parts = (type(expr), type(expr.value), expr.value)
+        elif isinstance(expr, Ite):
+            parts = (Ite, self.key(expr.cond), self.key(expr.then), self.key(expr.otherwise))
+        elif isinstance(expr, Unary):
+            parts = (Unary, expr.op, self.key(expr.operand))
+        else:
+            parts = (type(expr), *(self._field_key(getattr(expr, f.name))
+                                   for f in dataclasses.fields(expr)
+                                   if f.compare))
+        number = self._keys.setdefault(parts, len(self._keys))
+        self._by_id[id(expr)] = (expr, number)  # the reference keeps the id unique
+        return number
+
+    def _field_key(self, value: Any) -> Any:
+        if isinstance(value, tuple):
+            return (tuple, *(self._field_key(v) for v in value))
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            return (Expr, self.key(value))  # type: ignore[arg-type]
+        return (type(value), value)
 
 
 def compile_expr(
@@ -87,7 +145,7 @@ def compile_expr(
     variable_names: Sequence[str],
     label_masks: Mapping[str, BoolArray] | None = None,
     ranges: Mapping[str, tuple[int, int]] | None = None,
-    tables: dict[Expr, Any] | None = None,
+    cache: CompileCache | None = None,
 ) -> CompiledExpr:
     """Compile *expr* into a function over an ``(n, n_vars)`` array of variable values.
 
@@ -100,11 +158,12 @@ def compile_expr(
     :param label_masks: label name to mask, aligned with the rows evaluated.
     :param ranges: the variables' bounds; when given, sub-expressions whose variables
         span at most ``TABLE_LIMIT`` valuations are evaluated once into a lookup table.
-    :param tables: a cache of such tables, shared between compilations.
+    :param cache: compiled nodes (tables included) shared between compilations; their
+        results are remembered per input array (see :class:`CompileCache`).
     :raises PrismSemanticError: for an unknown identifier or label.
     """
     columns = {name: i for i, name in enumerate(variable_names)}
-    node = _compile(expr, _Scope(columns, label_masks, ranges, tables))
+    node = _compile(expr, _Scope(columns, label_masks, ranges, cache))
 
     def evaluate(states: IntArray) -> np.ndarray:
         value = np.asarray(node.fn(states))
@@ -137,9 +196,39 @@ def variables_of(expr: Expr) -> set[str]:
 
 
 def _compile(expr: Expr, scope: _Scope) -> _Node:
-    if scope.ranges is not None and _worth_tabulating(expr, scope.ranges):
-        return _tabulated(expr, scope)
-    return _compile_node(expr, scope)
+    cache = scope.cache
+    store = None
+    if cache is not None:
+        store = cache.nodes if scope.ranges is not None else cache.plain
+        key = cache.key(expr)
+        found = store.get(key)
+        if found is not None:
+            return found
+    if scope.ranges is not None and _worth_tabulating(expr, scope.ranges, cache):
+        node = _tabulated(expr, scope)
+    else:
+        node = _compile_node(expr, scope)
+    if store is not None:
+        if scope.ranges is not None and not (node.is_const or isinstance(expr, Ident | LabelRef)):
+            node = dataclasses.replace(node, fn=_memoised(node.fn))
+        store[key] = node
+    return node
+
+
+def _memoised(fn: _Fn) -> _Fn:
+    """*fn* remembering its results for the last two inputs (by identity)."""
+    memo: list[Any] = [None, None, None, None]  # input, result, older input, result
+
+    def evaluate(states: IntArray) -> Any:
+        if states is memo[0]:
+            return memo[1]
+        if states is memo[2]:
+            return memo[3]
+        result = fn(states)
+        memo[2], memo[3], memo[0], memo[1] = memo[0], memo[1], states, result
+        return result
+
+    return evaluate
 
 
 def _compile_node(expr: Expr, scope: _Scope) -> _Node:
@@ -197,14 +286,32 @@ def _label(expr: LabelRef, labels: Mapping[str, BoolArray] | None) -> _Node:
 TABLE_LIMIT = 1 << 17
 
 
-def _worth_tabulating(expr: Expr, ranges: Mapping[str, tuple[int, int]]) -> bool:
+def _worth_tabulating(
+    expr: Expr, ranges: Mapping[str, tuple[int, int]], cache: CompileCache | None
+) -> bool:
     if isinstance(expr, IntLit | DoubleLit | BoolLit | Ident | LabelRef):
         return False
-    names, size = _shape_of(expr)
+    names, size = _shape(expr, cache)
     if not names or not names <= ranges.keys():
         return False
     valuations = math.prod(ranges[n][1] - ranges[n][0] + 1 for n in names)
     return valuations <= TABLE_LIMIT and size > 2 * len(names) + 1
+
+
+def _shape(expr: Expr, cache: CompileCache | None) -> tuple[frozenset[str], int]:
+    """:func:`_shape_of`, memoised in *cache* by structural number when there is one."""
+    if cache is None:
+        return _shape_of(expr)
+    key = cache.key(expr)
+    found = cache.shapes.get(key)
+    if found is None:
+        if isinstance(expr, Ident):
+            found = frozenset((expr.name,)), 1
+        else:
+            parts = [_shape(c, cache) for c in _children(expr)]
+            found = frozenset().union(*(p[0] for p in parts)), 1 + sum(p[1] for p in parts)
+        cache.shapes[key] = found
+    return found
 
 
 @functools.lru_cache(maxsize=4096)
@@ -230,11 +337,9 @@ def _children(expr: Expr) -> tuple[Expr, ...]:
 
 def _tabulated(expr: Expr, scope: _Scope) -> _Node:
     """*expr* as a lookup table over its variables' domain (row-wise if that fails)."""
-    if scope.tables is not None and expr in scope.tables:
-        return scope.tables[expr]
     assert scope.ranges is not None
-    direct = _compile_node(expr, _Scope(scope.columns, scope.labels))
-    names = sorted(_shape_of(expr)[0], key=lambda n: scope.columns[n])
+    direct = _compile_node(expr, _Scope(scope.columns, scope.labels, cache=scope.cache))
+    names = sorted(_shape(expr, scope.cache)[0], key=lambda n: scope.columns[n])
     lows = [scope.ranges[n][0] for n in names]
     shape = [scope.ranges[n][1] - low + 1 for n, low in zip(names, lows, strict=True)]
     grid = np.zeros((math.prod(shape), len(scope.columns)), dtype=np.int64)
@@ -244,26 +349,40 @@ def _tabulated(expr: Expr, scope: _Scope) -> _Node:
         table = np.broadcast_to(np.asarray(direct.fn(grid)), grid.shape[:1]).copy()
     except ModelError:  # fails on some valuation (e.g. x/y at y=0): evaluate per row
         return direct
-    node = _Node(fn=_lookup(table, cols, lows, shape))
-    if scope.tables is not None:
-        scope.tables[expr] = node
-    return node
+    return _Node(fn=_lookup(table, cols, lows, shape, scope.cache))
 
 
-def _lookup(table: np.ndarray, cols: list[int], lows: list[int], shape: list[int]) -> _Fn:
+def _lookup(
+    table: np.ndarray, cols: list[int], lows: list[int], shape: list[int],
+    cache: CompileCache | None = None,
+) -> _Fn:
     strides = [math.prod(shape[i + 1 :]) for i in range(len(shape))]
     offset = sum(low * stride for low, stride in zip(lows, strides, strict=True))
+    if len(cols) == 1 and offset == 0:
+        (col,) = cols
+        return lambda states: table[states[:, col]]
+    # Tables over the same variables share their index (computed once per input).
+    key = (tuple(cols), tuple(strides), offset)
+    index_of = cache.indices.get(key) if cache is not None else None
+    if index_of is None:
+        index_of = _index(cols, strides, offset)
+        if cache is not None:
+            index_of = cache.indices[key] = _memoised(index_of)
+    return lambda states: table[index_of(states)]
+
+
+def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
+    """Mixed-radix position of each row's valuation of *cols* in a table."""
     if len(cols) == 1:
         (col,) = cols
-        return lambda states: table[states[:, col] - offset]
-
+        return lambda states: states[:, col] - offset
     terms = list(zip(cols, strides, strict=True))
 
     def evaluate(states: IntArray) -> Any:
         index = states[:, cols[0]] * strides[0] - offset
         for col, stride in terms[1:]:
             index += states[:, col] * stride
-        return table[index]
+        return index
 
     return evaluate
 
@@ -440,9 +559,15 @@ def _log(x: Any, base: Any) -> Any:
 # ---------------------------------------------------------------------------
 
 
-def constant_value(expr: Expr, variable_names: Sequence[str]) -> Any | None:
-    """The value of *expr* if it folds to a constant, else None."""
-    node = _compile(expr, _Scope({name: i for i, name in enumerate(variable_names)}))
+def constant_value(
+    expr: Expr, variable_names: Sequence[str], cache: CompileCache | None = None
+) -> Any | None:
+    """The value of *expr* if it folds to a constant, else None.
+
+    :param cache: compiled nodes to reuse (see :class:`CompileCache`).
+    """
+    columns = {name: i for i, name in enumerate(variable_names)}
+    node = _compile(expr, _Scope(columns, cache=cache))
     return node.const.item() if node.is_const else None
 
 

@@ -9,10 +9,15 @@ choice picks one enabled command from every part.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 from veribattery.errors import PrismSemanticError, Span
-from veribattery.explore.compile import CompiledExpr, compile_expr, constant_value, value_bounds
+from veribattery.explore.compile import (
+    CompileCache,
+    CompiledExpr,
+    compile_expr,
+    constant_value,
+    value_bounds,
+)
 from veribattery.lang.nodes import Command, Expr, FlatModel, FlatModule, Update
 
 __all__ = ["ChoiceGroup", "CompiledCommand", "CompiledUpdate", "Program", "compile_program"]
@@ -42,19 +47,14 @@ class CompiledCommand:
     command: Command
     guard: CompiledExpr
     updates: tuple[CompiledUpdate, ...]
+    always: bool = False  # the guard folds to true
+    #: The sum of the update probabilities if they are all constants, else None.
+    constant_total: float | None = None
 
     @property
     def span(self) -> Span:
         """Where the command is written."""
         return self.command.span
-
-    @property
-    def constant_total(self) -> float | None:
-        """The sum of the update probabilities if they are all constants, else None."""
-        values = [u.constant_probability for u in self.updates]
-        if any(v is None for v in values):
-            return None
-        return float(sum(v for v in values if v is not None))
 
 
 @dataclass(frozen=True, slots=True)
@@ -112,25 +112,34 @@ def _actions(model: FlatModel) -> list[str]:
 class _Names:
     names: tuple[str, ...]
     ranges: dict[str, tuple[int, int]]
-    tables: dict[Expr, Any] = field(default_factory=dict)
+    cache: CompileCache = field(default_factory=CompileCache)
 
     def compile(self, expr: Expr) -> CompiledExpr:
         """Compile over the state vector, tabulating small sub-domains (shared cache)."""
-        return compile_expr(expr, self.names, ranges=self.ranges, tables=self.tables)
+        return compile_expr(expr, self.names, ranges=self.ranges, cache=self.cache)
 
 
 def _compile_commands(
     module: FlatModule, action: str | None, names: _Names
 ) -> tuple[CompiledCommand, ...]:
     return tuple(
-        CompiledCommand(
-            module=module.name,
-            command=c,
-            guard=names.compile(c.guard),
-            updates=tuple(_compile_update(u, names) for u in c.updates),
-        )
-        for c in module.commands
-        if c.action == action
+        _compile_command(module, c, names) for c in module.commands if c.action == action
+    )
+
+
+def _compile_command(module: FlatModule, command: Command, names: _Names) -> CompiledCommand:
+    updates = tuple(_compile_update(u, names) for u in command.updates)
+    constants = [u.constant_probability for u in updates]
+    return CompiledCommand(
+        module=module.name,
+        command=command,
+        guard=names.compile(command.guard),
+        updates=updates,
+        always=constant_value(command.guard, names.names, names.cache) is True,
+        constant_total=(
+            None if any(v is None for v in constants)
+            else float(sum(v for v in constants if v is not None))
+        ),
     )
 
 
@@ -146,7 +155,7 @@ def _compile_update(update: Update, names: _Names) -> CompiledUpdate:
         interval = value_bounds(a.expr, bounds)
         if interval is not None and low <= interval[0] and interval[1] <= high:
             unchecked.add(columns[a.variable])
-    constant = constant_value(update.probability, names.names)
+    constant = constant_value(update.probability, names.names, names.cache)
     return CompiledUpdate(
         probability=names.compile(update.probability),
         assignments=tuple(assignments),

@@ -9,6 +9,8 @@ columns, every right-hand side evaluated in the *source* state.
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -55,6 +57,15 @@ def expand_group(program: Program, group: ChoiceGroup, states: IntArray) -> Grou
     """
     if len(group.parts) == 1:
         return _expand_single(program, group.parts[0], states)
+    if all(len(part) == 1 for part in group.parts):
+        return _expand_one_each(program, [part[0] for part in group.parts], states)
+    return _expand_product(program, group, states)
+
+
+def _expand_product(
+    program: Program, group: ChoiceGroup, states: IntArray
+) -> GroupSuccessors | None:
+    """The general case: every combination of one enabled command per part."""
     choices = _enumerate_choices(group, states)
     if choices is None:
         return None
@@ -74,6 +85,88 @@ def expand_group(program: Program, group: ChoiceGroup, states: IntArray) -> Grou
             targets[:, column] = values.ravel().take(cell)
     counts = np.bincount(choices.source, minlength=states.shape[0])
     return GroupSuccessors(choices.source[choice], targets, probability, counts)
+
+
+def _expand_one_each(
+    program: Program, commands: Sequence[CompiledCommand], states: IntArray
+) -> GroupSuccessors | None:
+    """:func:`expand_group` when every part has one command: at most one choice per state.
+
+    The same branches in the same order as the general product (one choice per
+    enabled state; per choice, the first part's update outermost), built on
+    ``(choices, branches)`` grids with a handful of whole-array operations.
+    """
+    enabled: np.ndarray | None = None
+    for command in commands:
+        if not command.always:
+            guard = np.asarray(command.guard(states), dtype=bool)
+            enabled = guard if enabled is None else enabled & guard
+            if not enabled.any():
+                return None
+    source = np.arange(states.shape[0]) if enabled is None else np.flatnonzero(enabled)
+    sources = states[source]
+    n = source.size
+    layout = _branch_layout(tuple(len(c.updates) for c in commands))
+    width = layout.width
+    targets = np.repeat(sources, width, axis=0) if width > 1 else sources.copy()
+    grid = targets.reshape(n, width, states.shape[1])
+    probability = np.ones((n, width), dtype=np.float64)
+    total: FloatArray | float = 1.0  # the product of the parts' sums, as in _check_sums
+    for command, part_branches in zip(commands, layout.branches, strict=True):
+        sums: FloatArray | float = 0.0
+        for update, branches in zip(command.updates, part_branches, strict=True):
+            constant = update.constant_probability
+            if constant is not None and constant >= 0:
+                if constant != 1.0:  # x * 1.0 == x: nothing to do
+                    probability[:, branches] *= constant
+                sums = sums + constant
+            else:
+                p = _probability(program, command, update, sources)
+                probability[:, branches] *= p[:, None]
+                sums = sums + p
+            for column, rhs in update.assignments:
+                values = rhs(sources)
+                _check_range(program, command, column, values, sources,
+                             column not in update.unchecked)
+                grid[:, branches, column] = values[:, None]
+        total = total * (sums if command.constant_total is None else command.constant_total)
+    if isinstance(total, float):
+        if not abs(total - 1.0) <= _TOLERANCE:  # also catches NaN
+            raise _sum_error(program, commands, total, sources[0])
+    else:
+        wrong = ~(np.abs(total - 1.0) <= _TOLERANCE)
+        if wrong.any():
+            bad = int(np.argmax(wrong))
+            raise _sum_error(program, commands, float(total[bad]), sources[bad])
+    counts = np.zeros(states.shape[0], dtype=np.int64)
+    counts[source] = 1
+    return GroupSuccessors(np.repeat(source, width), targets, probability.ravel(), counts)
+
+
+@dataclass(frozen=True, slots=True)
+class _BranchLayout:
+    """Per part and update, the branches (columns of a choice's row) that take it."""
+
+    width: int
+    branches: tuple[tuple[slice | IntArray, ...], ...]
+
+
+@functools.lru_cache(maxsize=256)
+def _branch_layout(sizes: tuple[int, ...]) -> _BranchLayout:
+    """Branches in mixed radix over the parts' updates, the last part's fastest."""
+    width = math.prod(sizes)
+    parts: list[tuple[slice | IntArray, ...]] = []
+    inner = width
+    for size in sizes:
+        inner //= size
+        digit = (np.arange(width) // inner) % size
+        if size == 1:
+            parts.append((slice(None),))
+        elif inner == 1:
+            parts.append(tuple(slice(u, None, size) for u in range(size)))
+        else:
+            parts.append(tuple(np.flatnonzero(digit == u) for u in range(size)))
+    return _BranchLayout(width, tuple(parts))
 
 
 def format_state(names: Sequence[str], row: IntArray) -> str:
