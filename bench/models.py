@@ -30,7 +30,7 @@ rewards "steps"
   true : 1;
 endrewards
 """
-    props = 'P=? [ F<=100 "goal" ]\nR{"steps"}=? [ F "goal" ]\n'
+    props = 'P=? [ F<=100 "goal" ];\nR{"steps"}=? [ F "goal" ];\n'
     return BenchModel("grid", f"N={n}", model, props)
 
 
@@ -48,5 +48,5 @@ def counters(modules: int, top: int) -> BenchModel:
         )
     done = " & ".join(f"x{i}=K" for i in range(modules))
     body.append(f'label "done" = {done};\n')
-    props = 'P=? [ F "done" ]\nP=? [ F<=50 "done" ]\n'
+    props = 'P=? [ F "done" ];\nP=? [ F<=50 "done" ];\n'
     return BenchModel("counters", f"M={modules},K={top}", "".join(body), props)
