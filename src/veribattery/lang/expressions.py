@@ -1,9 +1,16 @@
-"""Generic expression plumbing: walking, substitution, literals and constant folding."""
+"""Generic expression plumbing: walking, substitution, literals and constant folding.
+
+The expression types (literals, names, ``Unary``/``Binary``/``Ite``/``Call``) make up
+nearly every node of a model, so each traversal handles them directly and falls back
+to the dataclass fields only for the other node types. Each traversal also remembers
+its result per node object: formulas are inlined as shared sub-trees, and a shared
+sub-tree is then visited once, not once per use.
+"""
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any, cast
 
 from veribattery.errors import NO_SPAN, Span
@@ -18,6 +25,7 @@ from veribattery.lang.nodes import (
     Ident,
     IntLit,
     Ite,
+    LabelRef,
     Unary,
     Value,
     ValueType,
@@ -29,53 +37,126 @@ _NODE_TYPES = tuple(
     if isinstance(obj, type) and dataclasses.is_dataclass(obj) and obj.__module__ == nodes.__name__
 )
 _LITERALS = (IntLit, DoubleLit, BoolLit)
+_LITERAL_TYPES = frozenset(_LITERALS)
+#: Node types without sub-nodes.
+_LEAVES = frozenset({IntLit, DoubleLit, BoolLit, Ident, LabelRef})
+#: Field names per node type, in declaration order (``dataclasses.fields`` is slow).
+_FIELDS: dict[type, tuple[str, ...]] = {
+    cls: tuple(f.name for f in dataclasses.fields(cls)) for cls in _NODE_TYPES
+}
+
+#: Results of one traversal per node object; the node is kept so that its id stays valid.
+Memo = dict[int, tuple[Any, Any]]
 
 
 def _is_node(value: object) -> bool:
     return isinstance(value, _NODE_TYPES)
 
 
+def _child_nodes(node: Any) -> tuple[Any, ...]:
+    cls = type(node)
+    if cls is Binary:
+        return (node.left, node.right)
+    if cls is Ite:
+        return (node.cond, node.then, node.otherwise)
+    if cls is Unary:
+        return (node.operand,)
+    if cls is Call:
+        return tuple(a for a in node.args if _is_node(a))
+    if cls in _LEAVES:
+        return ()
+    found: list[Any] = []
+    for name in _FIELDS[cls]:
+        value = getattr(node, name)
+        if _is_node(value):
+            found.append(value)
+        elif isinstance(value, tuple):
+            found.extend(v for v in value if _is_node(v))
+    return tuple(found)
+
+
 def children(node: Any) -> Iterator[Any]:
     """The direct sub-nodes of an AST node (expressions, paths, bounds)."""
-    for f in dataclasses.fields(node):
-        value = getattr(node, f.name)
-        if _is_node(value):
-            yield value
-        elif isinstance(value, tuple):
-            yield from (v for v in value if _is_node(v))
+    return iter(_child_nodes(node))
 
 
 def walk(node: Any) -> Iterator[Any]:
     """*node* and all nodes below it, parents first."""
-    yield node
-    for child in children(node):
-        yield from walk(child)
+    stack = [node]
+    while stack:
+        current = stack.pop()
+        yield current
+        stack.extend(reversed(_child_nodes(current)))
+
+
+def _rebuild(node: Any, visit: Callable[[Any], Any]) -> Any:
+    """*node* with *visit* applied to each direct sub-node (*node* itself if none changes)."""
+    cls = type(node)
+    if cls is Binary:
+        left, right = visit(node.left), visit(node.right)
+        if left is node.left and right is node.right:
+            return node
+        return Binary(node.op, left, right, node.span)
+    if cls is Ite:
+        cond, then, otherwise = visit(node.cond), visit(node.then), visit(node.otherwise)
+        if cond is node.cond and then is node.then and otherwise is node.otherwise:
+            return node
+        return Ite(cond, then, otherwise, node.span)
+    if cls is Unary:
+        operand = visit(node.operand)
+        return node if operand is node.operand else Unary(node.op, operand, node.span)
+    if cls is Call:
+        args = tuple(visit(a) if _is_node(a) else a for a in node.args)
+        if all(new is old for new, old in zip(args, node.args, strict=True)):
+            return node
+        return Call(node.func, args, node.span)
+    if cls in _LEAVES:
+        return node
+    values = []
+    changed = False
+    for name in _FIELDS[cls]:
+        value = getattr(node, name)
+        if _is_node(value):
+            new = visit(value)
+        elif isinstance(value, tuple) and any(_is_node(v) for v in value):
+            new = tuple(visit(v) if _is_node(v) else v for v in value)
+            changed = changed or any(a is not b for a, b in zip(new, value, strict=True))
+            values.append(new)
+            continue
+        else:
+            new = value
+        changed = changed or new is not value
+        values.append(new)
+    return cls(*values) if changed else node
 
 
 def substitute(node: Any, replace: Callable[[Any], Any | None]) -> Any:
     """Rebuild *node*, replacing each sub-node for which *replace* returns a value.
 
     The replacement is not visited again, so a formula body substituted for its name
-    is not renamed twice.
+    is not renamed twice. *replace* must give the same answer for the same node
+    object: a shared sub-tree is visited once.
     """
-    new = replace(node)
-    if new is not None:
+    memo: Memo = {}
+
+    def visit(sub: Any) -> Any:
+        hit = memo.get(id(sub))
+        if hit is not None:
+            return hit[1]
+        new = replace(sub)
+        if new is None:
+            new = _rebuild(sub, visit)
+        memo[id(sub)] = (sub, new)
         return new
-    changes: dict[str, Any] = {}
-    for f in dataclasses.fields(node):
-        value = getattr(node, f.name)
-        if _is_node(value):
-            changes[f.name] = substitute(value, replace)
-        elif isinstance(value, tuple) and any(_is_node(v) for v in value):
-            changes[f.name] = tuple(substitute(v, replace) if _is_node(v) else v for v in value)
-    return dataclasses.replace(node, **changes) if changes else node
+
+    return visit(node)
 
 
 def rename_idents(expr: Expr, mapping: dict[str, Expr]) -> Expr:
     """Replace identifiers by expressions, simultaneously."""
 
     def replace(node: Any) -> Any | None:
-        if isinstance(node, Ident) and node.name in mapping:
+        if type(node) is Ident and node.name in mapping:
             return mapping[node.name]
         return None
 
@@ -97,27 +178,46 @@ def fold(node: Any) -> Any:
     Sub-expressions whose evaluation fails (``mod(x, 0)``, a negative int power)
     are left alone, so that the error is reported where the expression is used.
     """
-    node = _fold_children(node)
-    if not isinstance(node, Unary | Binary | Ite | Call):
-        return node
-    if not all(isinstance(c, _LITERALS) for c in children(node)):
-        return node
+    return close(node, {}, {}, {})
+
+
+def close(
+    node: Any, values: Mapping[str, Value], types: Mapping[str, ValueType], memo: Memo
+) -> Any:
+    """*node* with the constants of *values* replaced by literals (typed per *types*),
+    then folded (as :func:`fold`), in one pass.
+
+    *memo* keeps the result per node object; pass the same dict to calls with the
+    same *values* to share the work on shared sub-trees.
+    """
+
+    def visit(sub: Any) -> Any:
+        hit = memo.get(id(sub))
+        if hit is not None:
+            return hit[1]
+        cls = type(sub)
+        if cls is Ident:
+            name = sub.name
+            new = literal(values[name], sub.span, types[name]) if name in values else sub
+        elif cls is Binary or cls is Ite or cls is Unary or cls is Call:
+            new = _rebuild(sub, visit)
+            if all(type(c) in _LITERAL_TYPES for c in _child_nodes(new)):
+                new = _evaluated(new)
+        else:
+            new = _rebuild(sub, visit)
+        memo[id(sub)] = (sub, new)
+        return new
+
+    return visit(node)
+
+
+def _evaluated(node: Expr) -> Expr:
+    """The literal value of *node*, whose operands are literals, or *node* if it fails."""
     try:
         value = evaluate(node, {})
     except EvaluationError:
         return node
     return literal(value, node.span, "double" if _double_ite(node) else None)
-
-
-def _fold_children(node: Any) -> Any:
-    changes: dict[str, Any] = {}
-    for f in dataclasses.fields(node):
-        value = getattr(node, f.name)
-        if _is_node(value):
-            changes[f.name] = fold(value)
-        elif isinstance(value, tuple) and any(_is_node(v) for v in value):
-            changes[f.name] = tuple(fold(v) if _is_node(v) else v for v in value)
-    return dataclasses.replace(node, **changes) if changes else node
 
 
 def _double_ite(node: Expr) -> bool:

@@ -14,7 +14,7 @@ from typing import Any, cast
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.lang.constants import assignable, evaluate_constants
 from veribattery.lang.evaluate import evaluate
-from veribattery.lang.expressions import fold, literal, rename_idents, substitute, walk
+from veribattery.lang.expressions import Memo, close, rename_idents, substitute, walk
 from veribattery.lang.nodes import (
     Command,
     ConstDecl,
@@ -81,7 +81,7 @@ def expand_formulas(formulas: Sequence[FormulaDecl]) -> dict[str, Expr]:
 
 def _inline(node: Any, formulas: Mapping[str, Expr]) -> Any:
     def replace_ident(sub: Any) -> Any | None:
-        if isinstance(sub, Ident) and sub.name in formulas:
+        if type(sub) is Ident and sub.name in formulas:
             return formulas[sub.name]
         return None
 
@@ -101,7 +101,7 @@ def _rename_module(renamed: RenamedModule, bases: Mapping[str, Module]) -> Modul
     mapping = dict(renamed.renames)
 
     def rename(sub: Any) -> Any | None:
-        if isinstance(sub, Ident) and sub.name in mapping:
+        if type(sub) is Ident and sub.name in mapping:
             return Ident(mapping[sub.name], sub.span)
         return None
 
@@ -153,19 +153,23 @@ class _Scope:
         self.const_types: dict[str, ValueType] = {d.name: d.type for d in decls}
         self.owner: dict[str, str | None] = {}
         self.var_types: dict[str, ValueType] = {}
+        self._env: TypeEnv | None = None
+        self._closed: Memo = {}
+
+    def add_variable(self, var: Variable) -> None:
+        self.owner[var.name] = var.module
+        self.var_types[var.name] = "bool" if var.is_bool else "int"
+        self._env = None
 
     def env(self) -> TypeEnv:
-        return TypeEnv({**self.const_types, **self.var_types})
+        """Constants and variables; the types of checked sub-trees are remembered."""
+        if self._env is None:
+            self._env = TypeEnv({**self.const_types, **self.var_types}, memo=True)
+        return self._env
 
     def closed(self, node: Any) -> Any:
         """Constants replaced by literals, then closed sub-expressions folded."""
-
-        def replace_const(sub: Any) -> Any | None:
-            if isinstance(sub, Ident) and sub.name in self.values:
-                return literal(self.values[sub.name], sub.span, self.const_types[sub.name])
-            return None
-
-        return fold(substitute(node, replace_const))
+        return close(node, self.values, self.const_types, self._closed)
 
     def constant_int(self, expr: Expr, what: str) -> int:
         expect(expr, TypeEnv(self.const_types), "numeric", what)
@@ -215,8 +219,7 @@ def _variables(model: Model, modules: Sequence[Module], scope: _Scope) -> tuple[
     init_block = model.init is not None
     result = tuple(_variable(v, owner, scope, init_block) for v, owner in owned)
     for var in result:
-        scope.owner[var.name] = var.module
-        scope.var_types[var.name] = "bool" if var.is_bool else "int"
+        scope.add_variable(var)
     return result
 
 

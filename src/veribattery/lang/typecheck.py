@@ -7,6 +7,7 @@ only meet booleans. Errors name the operator and the operand types.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import cast
 
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.lang.nodes import (
@@ -47,11 +48,19 @@ def _join(a: ValueType, b: ValueType) -> ValueType:
 
 
 class TypeEnv:
-    """Names in scope with their types; *in_property* allows labels and P/R operators."""
+    """Names in scope with their types; *in_property* allows labels and P/R operators.
 
-    def __init__(self, types: Mapping[str, ValueType], *, in_property: bool = False) -> None:
+    With *memo*, the type of each checked compound expression is remembered per node
+    object, so that a shared sub-tree (an inlined formula) is checked once; *types*
+    must then not change.
+    """
+
+    def __init__(
+        self, types: Mapping[str, ValueType], *, in_property: bool = False, memo: bool = False
+    ) -> None:
         self.types = types
         self.in_property = in_property
+        self.memo: dict[int, tuple[Expr, ValueType]] | None = {} if memo else None
 
     def lookup(self, ident: Ident) -> ValueType:
         if ident.name not in self.types:
@@ -61,20 +70,33 @@ class TypeEnv:
 
 def type_of(expr: Expr, env: TypeEnv) -> ValueType:
     """The type of *expr*; raises :class:`PrismSemanticError` on a type error."""
-    if isinstance(expr, IntLit):
+    cls = type(expr)
+    if cls is Ident:
+        return env.lookup(cast(Ident, expr))
+    if cls is IntLit:
         return "int"
-    if isinstance(expr, DoubleLit):
+    if cls is DoubleLit:
         return "double"
-    if isinstance(expr, BoolLit):
+    if cls is BoolLit:
         return "bool"
-    if isinstance(expr, Ident):
-        return env.lookup(expr)
-    if isinstance(expr, Unary):
-        return _unary(expr, env)
+    memo = env.memo
+    if memo is None:
+        return _compound(expr, env)
+    hit = memo.get(id(expr))
+    if hit is not None:
+        return hit[1]
+    kind = _compound(expr, env)
+    memo[id(expr)] = (expr, kind)
+    return kind
+
+
+def _compound(expr: Expr, env: TypeEnv) -> ValueType:
     if isinstance(expr, Binary):
         return _binary(expr, env)
     if isinstance(expr, Ite):
         return _ite(expr, env)
+    if isinstance(expr, Unary):
+        return _unary(expr, env)
     if isinstance(expr, Call):
         return _call(expr, env)
     return _property_type(expr, env)
