@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import functools
+import importlib.util
 import os
 from pathlib import Path
+from types import ModuleType
 
 import pytest
 
@@ -17,3 +20,14 @@ def require_shared() -> Path:
     if not PEER_TESTS.is_dir():
         pytest.skip(f"peer suites not found at {PEER_TESTS} (../shared is absent)")
     return PEER_TESTS
+
+
+@functools.cache
+def peer_harness() -> ModuleType:
+    """The suites' own harness (prism_suite.py), loaded once as a module."""
+    path = require_shared() / "prism_suite.py"
+    spec = importlib.util.spec_from_file_location("prism_suite", path)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

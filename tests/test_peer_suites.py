@@ -9,31 +9,20 @@ harness itself against the installed console script.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import shutil
 import subprocess
 import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
 from click.testing import CliRunner
 
-from tests.conftest import PEER_TESTS, require_shared
+from tests.conftest import PEER_TESTS, peer_harness, require_shared
 from veribattery.cli import cli
 
 SUITES = ("prism", "prism-examples")
-
-
-def _harness() -> ModuleType:
-    path = require_shared() / "prism_suite.py"
-    spec = importlib.util.spec_from_file_location("prism_suite", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 def _entries() -> list[Any]:
@@ -53,7 +42,7 @@ def test_peer_entry(suite: str | None, entry: dict[str, Any] | None) -> None:
     if suite is None or entry is None:
         require_shared()
         return
-    harness = _harness()
+    harness = peer_harness()
     argv = harness.entry_argv(entry, str(PEER_TESTS / suite), [])
     result = CliRunner().invoke(cli, ["prism", *argv])
     assert result.exit_code == 0, result.output
@@ -73,7 +62,7 @@ def test_peer_entry_sizes() -> None:
         if key in seen:
             continue
         seen.add(key)
-        argv = _harness().entry_argv(entry, str(PEER_TESTS / "prism-examples"), [])
+        argv = peer_harness().entry_argv(entry, str(PEER_TESTS / "prism-examples"), [])
         output = CliRunner().invoke(cli, ["prism", *argv]).stdout
         model = json.loads(output)["model"]
         assert (model["states"], model["transitions"], model["initial_states"]) == (

@@ -17,7 +17,6 @@ falls back to Storm's floating point at 1e-6 relative, and the test id ends in
 
 from __future__ import annotations
 
-import importlib.util
 import itertools
 import json
 from collections import defaultdict
@@ -34,7 +33,7 @@ stormpy = pytest.importorskip("stormpy")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from tests.conftest import PEER_TESTS, require_shared  # noqa: E402
+from tests.conftest import PEER_TESTS, peer_harness, require_shared  # noqa: E402
 from tests.storm_oracle import compare, run_storm  # noqa: E402
 from veribattery.pipeline import check_prism_file  # noqa: E402
 
@@ -49,16 +48,6 @@ FLOAT_ONLY: frozenset[str] = frozenset()
 # ---------------------------------------------------------------------------
 # 1. The peer suites' manifests
 # ---------------------------------------------------------------------------
-
-
-def _harness() -> ModuleType:
-    """The suites' own harness (prism_suite.py): property-file reading for Storm."""
-    path = require_shared() / "prism_suite.py"
-    spec = importlib.util.spec_from_file_location("prism_suite", path)
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @dataclass(frozen=True)
@@ -123,7 +112,7 @@ def test_manifest_model_matches_storm(group: Group | None) -> None:
     if group is None:
         require_shared()
         return
-    harness = _harness()
+    harness = peer_harness()
     root = PEER_TESTS / group.suite
     model = root / group.model
     constants = dict(group.constants)
