@@ -176,18 +176,7 @@ def compile_expr(
 
 def variables_of(expr: Expr) -> set[str]:
     """The identifiers that occur in *expr*."""
-    if isinstance(expr, Ident):
-        return {expr.name}
-    children: tuple[Expr, ...] = ()
-    if isinstance(expr, Unary):
-        children = (expr.operand,)
-    elif isinstance(expr, Binary):
-        children = (expr.left, expr.right)
-    elif isinstance(expr, Ite):
-        children = (expr.cond, expr.then, expr.otherwise)
-    elif isinstance(expr, Call):
-        children = expr.args
-    return set().union(*(variables_of(c) for c in children))
+    return set(_shape_of(expr)[0])
 
 
 # ---------------------------------------------------------------------------
