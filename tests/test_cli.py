@@ -212,3 +212,20 @@ def test_prism_unknown_const_name_is_rejected(die: Path) -> None:
     result = run("prism", str(die), "--property", 'P=? [ F "six" ]', "--const", "Y=3")
     assert result.exit_code == 2
     assert "--const Y: no such constant" in result.stderr
+
+
+def test_error_text_with_brackets_is_printed_verbatim(tmp_path: Path) -> None:
+    model = tmp_path / "model.pm"
+    model.write_text("dtmc\nmodule m\n  x : [0..1] init 0;\n  [go] x=0 -> (x'=2);\nendmodule\n")
+    result = run("prism", str(model), "--property", "P=? [ F x=1 ]")
+    assert result.exit_code == 2
+    assert result.stderr.count("\n") == 1
+    assert "model.pm:4:3: module m, command [go]: update sets x to 2, outside its range 0..1, " \
+        "in state (x=0)" in result.stderr
+
+
+def test_syntax_error_is_one_line_off_a_terminal(tmp_path: Path) -> None:
+    model = tmp_path / "model.pm"
+    model.write_text("dtmc\nmodule m\n  x : [0..1] init 0;\n  [] x=0 -> (x'=1)\nendmodule\n")
+    result = run("prism", str(model), "--property", "P=? [ F x=1 ]")
+    assert result.stderr.count("\n") == 1

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from veribattery.errors import VeribatteryError
@@ -33,8 +34,15 @@ _err = Console(stderr=True, highlight=False, soft_wrap=True)
 
 
 def fail(message: str) -> None:
-    """Report a user error on one line and exit with status 2."""
-    _err.print(f"[bold red]error:[/] {message}", markup=True)
+    """Report a user error on one line and exit with status 2.
+
+    Context lines after the first (a syntax error's source line and caret) are
+    shown on a terminal only, so logs and pipes get exactly one line.
+    """
+    first, _, context = message.partition("\n")
+    _err.print(f"[bold red]error:[/] {escape(first)}", markup=True, highlight=False)
+    if context and _err.is_terminal:
+        _err.print(context, markup=False, highlight=False)
     sys.exit(2)
 
 
@@ -82,7 +90,7 @@ def format_value(value: object) -> str:
 def print_warnings(warnings: Sequence[str]) -> None:
     """Print the model's warnings (deadlocks, nondeterminism) to stderr."""
     for warning in warnings:
-        _err.print(f"[yellow]warning:[/] {warning}", markup=True)
+        _err.print(f"[yellow]warning:[/] {escape(warning)}", markup=True)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
