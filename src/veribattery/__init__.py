@@ -41,6 +41,7 @@ if TYPE_CHECKING:
     from veribattery.mission import MissionReport, check_mission, mission_files
     from veribattery.pipeline import ModelCheckRun, check_prism_file
     from veribattery.render import render_model, render_properties
+    from veribattery.sweep import run_sweep
 
 __version__ = "0.1.0"
 
@@ -60,6 +61,7 @@ _EXPORTS = {
     "veribattery.mission": ("MissionReport", "check_mission", "mission_files"),
     "veribattery.pipeline": ("ModelCheckRun", "check_prism_file"),
     "veribattery.render": ("render_model", "render_properties"),
+    "veribattery.sweep": ("run_sweep",),
 }
 _HOME = {name: module for module, names in _EXPORTS.items() for name in names}
 
@@ -96,4 +98,5 @@ __all__ = [
     "render_model",
     "render_properties",
     "resolve_property",
+    "run_sweep",
 ]
