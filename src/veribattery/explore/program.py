@@ -11,12 +11,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from veribattery.errors import PrismSemanticError, Span
+from veribattery.explore.bounds import value_bounds
 from veribattery.explore.compile import (
     CompileCache,
     CompiledExpr,
     compile_expr,
     constant_value,
-    value_bounds,
 )
 from veribattery.lang.nodes import Command, Expr, FlatModel, FlatModule, Update
 
