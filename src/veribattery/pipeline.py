@@ -10,7 +10,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from veribattery.checker import CheckResult, check
@@ -83,6 +83,19 @@ def select(
     return tuple(p for s in selectors for p in _select_one(props, s))
 
 
+def _supported(properties: Sequence[Property]) -> tuple[tuple[Property, ...], tuple[str, ...]]:
+    """Split off properties outside the supported subset, with a warning for each.
+
+    Checking a whole file should not fail for one ``filter(...)``; a property the
+    user picked by name, index or text still fails with the reason (resolve_property).
+    """
+    skipped = tuple(
+        f"skipped {p.span}: unsupported property {p.text} ({p.unsupported})"
+        for p in properties if p.unsupported is not None
+    )
+    return tuple(p for p in properties if p.unsupported is None), skipped
+
+
 def _select_one(props: PropertiesFile | None, selector: str) -> tuple[Property, ...]:
     if props is not None and (selector.isdigit() or _names_property(props, selector)):
         return select_properties(props, selector)
@@ -135,9 +148,13 @@ def check_prism_file(
         props = parse_properties(props_source) if props_source is not None else None
         _reject_unknown_constants(model, props, constants or {})
         chosen = select(props, selectors)
-    return check_model(
+        skipped: tuple[str, ...] = ()
+        if not selectors:
+            chosen, skipped = _supported(chosen)
+    run = check_model(
         model, chosen, props_file=props, constants=constants, progress=progress, stopwatch=watch
     )
+    return replace(run, warnings=skipped + run.warnings) if skipped else run
 
 
 def _reject_unknown_constants(
