@@ -18,6 +18,7 @@ from fractions import Fraction
 from typing import Annotated, Literal, Self
 
 from pydantic import (
+    AfterValidator,
     BaseModel,
     BeforeValidator,
     ConfigDict,
@@ -95,6 +96,15 @@ def _check_range(value: Fraction, low: Fraction | None, high: Fraction | None, t
         raise problem(f"must be {text}, got {show(value)}")
 
 
+def _positive(value: Fraction) -> Fraction:
+    _check_range(value, Fraction(0), None, "> 0")
+    return value
+
+
+#: An exact number that must be > 0 (capacities, times, energies, factors).
+Positive = Annotated[Exact, AfterValidator(_positive)]
+
+
 class _Section(BaseModel):
     """Every config section: immutable, unknown keys rejected."""
 
@@ -108,7 +118,7 @@ class FarmConfig(_Section):
 
     cols: StrictInt = 6
     rows: StrictInt = 6
-    spacing_m: Exact = Fraction(500)
+    spacing_m: Positive = Fraction(500)
     base: CellField = (2, 2)
     route: RouteField = "snake_rows"
 
@@ -119,11 +129,6 @@ class FarmConfig(_Section):
             raise problem(f"must be at least 2 turbines, got {value}")
         return value
 
-    @field_validator("spacing_m")
-    @classmethod
-    def _positive_spacing(cls, value: Fraction) -> Fraction:
-        _check_range(value, Fraction(0), None, "> 0")
-        return value
 
     @property
     def cells(self) -> tuple[int, int]:
@@ -162,15 +167,10 @@ class FarmConfig(_Section):
 class LevelValues(_Section):
     """One value per voltage level."""
 
-    low: Exact
-    medium: Exact
-    high: Exact
+    low: Positive
+    medium: Positive
+    high: Positive
 
-    @field_validator("low", "medium", "high")
-    @classmethod
-    def _positive(cls, value: Fraction) -> Fraction:
-        _check_range(value, Fraction(0), None, "> 0")
-        return value
 
 
 class ConsumptionTable(_Section):
@@ -185,46 +185,31 @@ class ConsumptionTable(_Section):
     inspection: LevelValues = LevelValues(
         low=Fraction(45, 10), medium=Fraction(40, 10), high=Fraction(36, 10)
     )
-    high_wind_factor: Exact = Fraction(2)
+    high_wind_factor: Positive = Fraction(2)
 
-    @field_validator("high_wind_factor")
-    @classmethod
-    def _positive_factor(cls, value: Fraction) -> Fraction:
-        _check_range(value, Fraction(0), None, "> 0")
-        return value
 
 
 class WindValues(_Section):
     """One value per wind level (power demand level of BA2)."""
 
-    low_wind: Exact
-    high_wind: Exact
+    low_wind: Positive
+    high_wind: Positive
 
-    @field_validator("low_wind", "high_wind")
-    @classmethod
-    def _positive(cls, value: Fraction) -> Fraction:
-        _check_range(value, Fraction(0), None, "> 0")
-        return value
 
 
 class ActionValues(_Section):
     """One value per kind of action."""
 
-    takeoff_land: Exact
-    cell: Exact
-    inspection: Exact
+    takeoff_land: Positive
+    cell: Positive
+    inspection: Positive
 
-    @field_validator("takeoff_land", "cell", "inspection")
-    @classmethod
-    def _positive(cls, value: Fraction) -> Fraction:
-        _check_range(value, Fraction(0), None, "> 0")
-        return value
 
 
 class ConsumptionEq2(_Section):
     """Eq. 2's physical parameters, ``C = E_spec·t / (V·T)``; the table is computed from them."""
 
-    energy_wh: Exact = Fraction(180)
+    energy_wh: Positive = Fraction(180)
     voltages_v: LevelValues = LevelValues(
         low=Fraction(20), medium=Fraction(22), high=Fraction(25)
     )
@@ -233,11 +218,6 @@ class ConsumptionEq2(_Section):
         takeoff_land=Fraction(1, 60), cell=Fraction(2, 60), inspection=Fraction(1, 4)
     )
 
-    @field_validator("energy_wh")
-    @classmethod
-    def _positive_energy(cls, value: Fraction) -> Fraction:
-        _check_range(value, Fraction(0), None, "> 0")
-        return value
 
 
 _EQ2_KEYS = frozenset(ConsumptionEq2.model_fields)
@@ -281,18 +261,13 @@ class BatteryConfig(_Section):
     """The battery: model variant, capacity, resolution, fade and consumption."""
 
     model: BatteryModel = "advanced"
-    capacity_ah: Exact = Fraction(11)
-    resolution_ah: Exact = Fraction(1, 10)
+    capacity_ah: Positive = Fraction(11)
+    resolution_ah: Positive = Fraction(1, 10)
     fade_per_recharge: Exact = Fraction(2, 1000)
     max_recharges: StrictInt = 200
     voltage_thresholds: VoltageThresholds = VoltageThresholds()
     consumption: Consumption = ConsumptionTable()
 
-    @field_validator("capacity_ah", "resolution_ah")
-    @classmethod
-    def _positive(cls, value: Fraction) -> Fraction:
-        _check_range(value, Fraction(0), None, "> 0")
-        return value
 
     @field_validator("fade_per_recharge")
     @classmethod
