@@ -1,0 +1,118 @@
+"""The mission commands: ``check`` a config and ``emit`` its PRISM files."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+from rich.table import Table
+
+from veribattery.cli.output import (
+    build_progress,
+    format_value,
+    json_value,
+    out,
+    print_warnings,
+    set_option,
+    user_errors,
+)
+
+if TYPE_CHECKING:
+    from veribattery.mission import MissionReport
+
+
+@click.command("check")
+@click.argument("config", type=click.Path(path_type=Path))
+@set_option
+@click.option(
+    "--format", "output_format", type=click.Choice(["table", "json", "csv"]), default="table",
+    show_default=True, help="Output format.",
+)
+@click.option(
+    "--emit", "emit_dir", type=click.Path(path_type=Path), help="Also write the model files here."
+)
+@click.option("--force", is_flag=True, help="Let --emit overwrite existing files.")
+def check_command(
+    config: Path, overrides: tuple[str, ...], output_format: str, emit_dir: Path | None, force: bool
+) -> None:
+    """Verify the mission of CONFIG (YAML); exit 1 if a requirement fails."""
+    from veribattery.config import load_config
+    from veribattery.mission import check_mission, mission_files, write_files
+
+    with user_errors():
+        cfg = load_config(config, overrides)
+        with build_progress() as progress:
+            report = check_mission(cfg, progress=progress)
+        if emit_dir is not None:
+            write_files(mission_files(cfg), emit_dir, force=force)
+    print_warnings(report.warnings)
+    {"table": print_mission_table, "json": print_mission_json, "csv": print_mission_csv}[
+        output_format
+    ](report)
+    sys.exit(0 if report.all_requirements_hold else 1)
+
+
+def print_mission_table(report: MissionReport) -> None:
+    """Model size, named results, requirements, timings."""
+    dtmc = report.run.dtmc
+    out.print(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
+    table = Table("property", "formula", "value", show_edge=False)
+    for result in report.run.results:
+        table.add_row(result.property.name or "", result.property.text, format_value(result.value))
+    out.print(table)
+    for outcome in report.requirements:
+        verdict = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
+        out.print(f"{verdict} {outcome.requirement} (value {format_value(outcome.value)})")
+    timings = ", ".join(f"{k} {v:.3f}s" for k, v in report.run.timings_s.items())
+    out.print(f"Time: {timings}", style="dim")
+
+
+def mission_json(report: MissionReport) -> dict[str, object]:
+    """The ``check --format json`` document."""
+    dtmc = report.run.dtmc
+    return {
+        "model": {"states": dtmc.num_states, "transitions": dtmc.num_transitions},
+        "results": {name: json_value(value) for name, value in report.values.items()},
+        "requirements": [
+            {**o.as_dict(), "value": json_value(o.value)} for o in report.requirements
+        ],
+        "timings_s": {k: round(v, 6) for k, v in report.run.timings_s.items()},
+    }
+
+
+def print_mission_json(report: MissionReport) -> None:
+    """One JSON object on stdout."""
+    click.echo(json.dumps(mission_json(report)))
+
+
+def print_mission_csv(report: MissionReport) -> None:
+    """``property,value`` rows (values with full precision)."""
+    click.echo("property,value")
+    for name, value in report.values.items():
+        click.echo(f"{name},{format_value(value) if isinstance(value, bool) else repr(value)}")
+
+
+@click.command("emit")
+@click.argument("config", type=click.Path(path_type=Path))
+@click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path), required=True,
+              help="Directory for model.prism, properties.props, config.resolved.yaml.")
+@set_option
+@click.option("--force", is_flag=True, help="Overwrite existing files.")
+def emit_command(config: Path, out_dir: Path, overrides: tuple[str, ...], force: bool) -> None:
+    """Write the PRISM model and properties of CONFIG for PRISM or Storm."""
+    from veribattery.config import load_config
+    from veribattery.lang import flatten_model, parse_model, parse_properties
+    from veribattery.mission import MODEL_FILE, PROPERTIES_FILE, mission_files, write_files
+
+    with user_errors():
+        files = mission_files(load_config(config, overrides))
+        # The emitted text must be valid for our own front end before it is written.
+        flatten_model(parse_model(files.model, name=MODEL_FILE))
+        parse_properties(files.properties, name=PROPERTIES_FILE)
+        written = write_files(files, out_dir, force=force)
+    for path in written:
+        click.echo(str(path))
+
