@@ -86,6 +86,26 @@ def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = Non
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
 
 
+class MissionChecker:
+    """Checks mission configs one after another, for sweeps.
+
+    The seam for structure reuse: a checker may keep the state space of the configs
+    it has seen and, when a new config changes only transition probabilities,
+    re-evaluate and re-solve instead of rebuilding. Configs with equal
+    :func:`reuse_key` are the ones that can share a state space; this version
+    shares none and builds every config afresh.
+    """
+
+    def check(self, cfg: MissionConfig) -> MissionReport:
+        """Check *cfg* as :func:`check_mission` does."""
+        return check_mission(cfg)
+
+
+def reuse_key(cfg: MissionConfig) -> str | None:
+    """A key equal for configs that can share one state space (None: this one shares none)."""
+    return None
+
+
 def _judge(requirement: Requirement, values: Mapping[str | None, Value]) -> RequirementOutcome:
     value = values[requirement.prop]
     holds = not isinstance(value, bool) and not math.isnan(value) and requirement.holds(value)
