@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import click
 
+from veribattery.cli.explain import explain_command, simulate_command
 from veribattery.cli.mission import check_command, emit_command
 from veribattery.cli.prism import prism_command
 from veribattery.cli.reproduce import reproduce_command
@@ -28,6 +29,8 @@ def cli() -> None:
 
 for _command in (check_command, emit_command, prism_command, reproduce_command, sweep_command):
     cli.add_command(_command)
+cli.add_command(explain_command)
+cli.add_command(simulate_command)
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any
 
 import click
 from rich.table import Table
 
+from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
 from veribattery.cli.output import (
     build_progress,
     format_value,
@@ -32,20 +34,32 @@ from veribattery.pipeline import ModelCheckRun, check_prism_file
 )
 @click.option("--const", "consts", multiple=True, metavar="NAME=VALUE", help="Undefined constant.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@prism_analysis_options
 def prism_command(
     model: Path,
     props: Path | None,
     selectors: tuple[str, ...],
     consts: tuple[str, ...],
     as_json: bool,
+    **analysis: Any,
 ) -> None:
     """Check PCTL properties of a PRISM DTMC MODEL file."""
+    if analysis["explain"] is not None:
+        with user_errors():
+            constants = parse_constant_assignments(consts)
+        prism_explain(model, constants, analysis["explain"], analysis["top"], as_json)
+        return
     with user_errors(), build_progress() as progress:
         constants = parse_constant_assignments(consts)
         run = check_prism_file(
             model, props_source=props, selectors=selectors, constants=constants, progress=progress
         )
     print_warnings(run.warnings)
+    if analysis["simulate"] is not None:
+        prism_simulate(run, model, constants, analysis["simulate"], seed=analysis["seed"],
+                       max_steps=analysis["max_steps"], paths_file=analysis["paths_file"],
+                       path_count=analysis["path_count"], as_json=as_json)
+        return
     if as_json:
         click.echo(json.dumps(prism_json(run)))
     else:

@@ -1,0 +1,374 @@
+"""``veribattery explain``, ``veribattery simulate``, and ``prism --explain/--simulate``.
+
+Where failures come from (the exact breakdown and the most probable paths), and
+Monte-Carlo estimates beside the exact values.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+from rich.markup import escape
+from rich.table import Table
+
+from veribattery.cli.output import (
+    build_progress,
+    format_value,
+    json_value,
+    out,
+    print_warnings,
+    set_option,
+    user_errors,
+)
+from veribattery.errors import VeribatteryError
+
+if TYPE_CHECKING:
+    from veribattery._types import IntArray
+    from veribattery.analyses.explain import Explanation, Grouping
+    from veribattery.analyses.mission_view import MissionView
+    from veribattery.analyses.simulate import Simulation
+    from veribattery.config import MissionConfig
+    from veribattery.explore import DTMC
+    from veribattery.lang import FlatModel
+    from veribattery.lang.nodes import Value
+    from veribattery.pipeline import ModelCheckRun
+
+#: Rows shown per grouping in the table output (JSON has them all).
+GROUP_ROWS = 8
+#: Width of the text bar beside each group's probability.
+BAR_WIDTH = 24
+#: Columns of the mission's path table: (header, step-row key).
+MISSION_COLUMNS = (
+    ("step", "step"), ("action", "action"), ("drone", "state"), ("cell", "cell"),
+    ("turbines", "turbines"), ("wind", "wind"), ("charge", "charge"), ("SOC", "soc_text"),
+    ("level", "level"), ("rc", "rc"),
+)
+#: Columns of ``explain --csv``.
+CSV_COLUMNS = ("path", "probability", "step", "action", "state", "s", "k", "j", "x", "y",
+               "wsp", "b", "rc", "charge_ah", "soc", "level")
+
+
+def _positive(name: str) -> Callable[[click.Context, click.Parameter, int], int]:
+    def check(ctx: click.Context, param: click.Parameter, value: int) -> int:
+        if value is not None and value < 1:
+            raise click.BadParameter(f"must be at least 1, not {value}", ctx, param)
+        return value
+
+    return check
+
+
+def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
+    """``--by cell,wind --by k+cell`` → ``(("cell",), ("wind",), ("k", "cell"))``."""
+    return tuple(tuple(part.split("+")) for item in by for part in item.split(",") if part)
+
+
+# ---------------------------------------------------------------------------
+# explain
+# ---------------------------------------------------------------------------
+
+
+@click.command("explain")
+@click.argument("config", type=click.Path(path_type=Path))
+@set_option
+@click.option("--top", default=3, show_default=True, callback=_positive("--top"),
+              help="How many most probable failure paths.")
+@click.option("--by", "by", multiple=True, metavar="KEYS",
+              help="Groupings, comma-separated; join keys with + for a joint grouping "
+                   "(keys: k, cell, state, action, wind, level, recharges, or a variable).")
+@click.option("--csv", "csv_file", type=click.Path(path_type=Path),
+              help="Write the paths here, one row per step.")
+@click.option("--format", "output_format", type=click.Choice(["table", "json"]),
+              default="table", show_default=True, help="Output format.")
+def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tuple[str, ...],
+                    csv_file: Path | None, output_format: str) -> None:
+    """Where the mission's failures come from: exact breakdown and most probable paths."""
+    from veribattery.analyses.explain import explain_target
+    from veribattery.analyses.mission_view import DEFAULT_GROUPINGS, MissionView, build_mission
+    from veribattery.config import load_config
+
+    with user_errors():
+        cfg = load_config(config, overrides)
+        with build_progress() as progress:
+            mission = build_mission(cfg, progress=progress)
+        view = MissionView(mission)
+        explanation = explain_target(
+            mission.dtmc, mission.dtmc.labels["failure"], name="failure",
+            describe=view.columns, by=_groupings(by) or DEFAULT_GROUPINGS, top=top,
+        )
+        steps = [_mission_steps(view, path.states) for path in explanation.paths]
+        if csv_file is not None:
+            _write_paths_csv(csv_file, explanation, steps)
+    print_warnings(mission.dtmc.warnings)
+    if output_format == "json":
+        click.echo(json.dumps(_explanation_json(explanation, steps)))
+        return
+    _print_explanation(explanation, steps, MISSION_COLUMNS, marker="recharge")
+
+
+def _mission_steps(view: MissionView, states: IntArray) -> list[dict[str, object]]:
+    rows = view.steps(states)
+    for row in rows:
+        row["charge"] = f"{row['charge_ah']:.1f} Ah"
+        row["soc_text"] = f"{100 * float(str(row['soc'])):.0f}%"
+    return rows
+
+
+def _write_paths_csv(path: Path, explanation: Explanation,
+                     steps: Sequence[Sequence[Mapping[str, object]]]) -> None:
+    from veribattery.analyses.csvout import write_csv
+
+    rows = []
+    for number, (found, path_steps) in enumerate(zip(explanation.paths, steps, strict=True), 1):
+        for row in path_steps:
+            x, y = _xy(str(row.get("cell", "")))
+            extra = {"path": number, "probability": repr(found.probability), "x": x, "y": y}
+            rows.append([{**row, **extra}.get(c, "") for c in CSV_COLUMNS])
+    write_csv(path, CSV_COLUMNS, rows)
+
+
+def _xy(cell: str) -> tuple[object, object]:
+    if not cell.startswith("["):
+        return "", ""
+    x, y = cell.strip("[]").split(",")
+    return int(x), int(y)
+
+
+def _explanation_json(explanation: Explanation,
+                      steps: Sequence[Sequence[Mapping[str, object]]]) -> dict[str, object]:
+    return {
+        f"p_{explanation.target}": explanation.probability,
+        "breakdown": {"+".join(g.keys): g.records() for g in explanation.groupings},
+        "paths": [
+            {"probability": p.probability, "steps": p.steps,
+             "states": [{k: v for k, v in row.items() if k not in ("charge", "soc_text")}
+                        for row in rows]}
+            for p, rows in zip(explanation.paths, steps, strict=True)
+        ],
+    }
+
+
+def _print_explanation(
+    explanation: Explanation, steps: Sequence[Sequence[Mapping[str, object]]],
+    columns: Sequence[tuple[str, str]], *, marker: str | None,
+) -> None:
+    total = explanation.probability
+    out.print(f"P({explanation.target}) = {format_value(total)}  (exact; the breakdown sums to "
+              f"it over the {explanation.inflow.states.size:,} states "
+              f"{explanation.target} is entered from)")
+    for grouping in explanation.groupings:
+        _print_grouping(grouping, total)
+    for number, (path, rows) in enumerate(zip(explanation.paths, steps, strict=True), 1):
+        out.print(f"\n[bold]Path {number}[/]: probability {path.probability:.6g}, "
+                  f"{path.steps} steps")
+        _print_path(rows, columns, marker)
+    if not explanation.paths:
+        out.print(f"\nNo path reaches {explanation.target}.")
+
+
+def _print_grouping(grouping: Grouping, total: float) -> None:
+    table = Table(*grouping.keys, "probability", "share", "", show_edge=False,
+                  title=f"by {', '.join(grouping.keys)}", title_justify="left")
+    for values, p in grouping.groups[:GROUP_ROWS]:
+        share = p / total if total > 0 else 0.0
+        table.add_row(*(escape(str(v)) for v in values), f"{p:.6g}", f"{100 * share:.2f}%",
+                      "█" * round(BAR_WIDTH * share))
+    hidden = len(grouping.groups) - GROUP_ROWS
+    if hidden > 0:
+        rest = sum(p for _, p in grouping.groups[GROUP_ROWS:])
+        table.add_row(f"… {hidden} more", *[""] * (len(grouping.keys) - 1), f"{rest:.6g}", "", "")
+    out.print()
+    out.print(table)
+
+
+def _print_path(rows: Sequence[Mapping[str, object]], columns: Sequence[tuple[str, str]],
+                marker: str | None) -> None:
+    from veribattery.analyses.folding import fold_path
+
+    head, fold, end = fold_path([str(r["action"]) for r in rows], marker=marker)
+    table = Table(*(h for h, _ in columns), show_edge=False)
+    for i in head:
+        table.add_row(*(escape(str(rows[i][key])) for _, key in columns))
+    if fold is not None:
+        table.add_row("", f"[dim]{escape(fold.describe(marker))}[/]")
+    for i in end:
+        table.add_row(*(escape(str(rows[i][key])) for _, key in columns))
+    out.print(table)
+
+
+# ---------------------------------------------------------------------------
+# simulate
+# ---------------------------------------------------------------------------
+
+
+def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
+    for option in reversed((
+        click.option("--seed", default=0, show_default=True, help="Random seed."),
+        click.option("--max-steps", default=100_000, show_default=True,
+                     callback=_positive("--max-steps"),
+                     help="Steps after which an undecided run stops (and is reported)."),
+        click.option("--paths", "paths_file", type=click.Path(path_type=Path),
+                     help="Write sampled paths here (PRISM simulator columns)."),
+        click.option("--path-count", default=10, show_default=True,
+                     callback=_positive("--path-count"), help="How many runs --paths writes."),
+    )):
+        function = option(function)
+    return function
+
+
+@click.command("simulate")
+@click.argument("config", type=click.Path(path_type=Path))
+@set_option
+@click.option("--runs", required=True, type=int, callback=_positive("--runs"),
+              help="Number of simulated runs.")
+@_simulation_options
+@click.option("--format", "output_format", type=click.Choice(["table", "json"]),
+              default="table", show_default=True, help="Output format.")
+def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: int,
+                     max_steps: int, paths_file: Path | None, path_count: int,
+                     output_format: str) -> None:
+    """Monte-Carlo estimates of the mission's named results, beside the exact values."""
+    from veribattery.config import load_config
+    from veribattery.mission import check_mission
+
+    with user_errors():
+        cfg = load_config(config, overrides)
+        with build_progress() as progress:
+            report = check_mission(cfg, progress=progress)
+        flat = _mission_flat(cfg) if paths_file is not None else None
+        simulation = _simulate_run(report.run, runs, seed, max_steps,
+                                   path_count if paths_file else 0)
+        if paths_file is not None:
+            _write_simulated_paths(paths_file, report.run.dtmc, simulation, flat)
+    print_warnings(report.warnings)
+    _show_simulation(simulation, output_format)
+
+
+def _mission_flat(cfg: MissionConfig) -> FlatModel:
+    from veribattery.lang import flatten_model, parse_model
+    from veribattery.mission import MODEL_FILE, mission_files
+
+    return flatten_model(parse_model(mission_files(cfg).model, name=MODEL_FILE))
+
+
+def _simulate_run(run: ModelCheckRun, runs: int, seed: int, max_steps: int,
+                  record: int) -> Simulation:
+    from veribattery.analyses.simulate import simulate
+
+    exact: dict[str, float] = {}
+    for r in run.results:
+        if isinstance(r.value, float):
+            exact[r.property.name or r.property.text] = r.value
+    return simulate(run.dtmc, [r.property for r in run.results], runs=runs, seed=seed,
+                    max_steps=max_steps, exact=exact, record=record)
+
+
+def _write_simulated_paths(path: Path, dtmc: DTMC, simulation: Simulation,
+                           flat: FlatModel | None) -> None:
+    from veribattery.analyses.actions import action_labeller
+    from veribattery.analyses.csvout import write_csv
+    from veribattery.analyses.simulate import path_table
+
+    labeller = action_labeller(flat) if flat is not None else None
+    header, rows = path_table(dtmc, simulation.paths, labeller)
+    write_csv(path, header, rows)
+
+
+def _show_simulation(simulation: Simulation, output_format: str) -> None:
+    print_warnings(simulation.warnings())
+    if output_format == "json":
+        click.echo(json.dumps(_simulation_json(simulation)))
+        return
+    table = Table("property", "exact", "estimate", "95% CI", "runs", show_edge=False)
+    for e in simulation.estimates:
+        exact = format_value(e.exact) if e.exact is not None else "-"
+        ci = f"[{e.ci95[0]:.6g}, {e.ci95[1]:.6g}]"
+        runs = f"{e.runs:,}" + (f" ({e.undecided:,} undecided)" if e.undecided else "")
+        table.add_row(escape(e.name), exact, f"{e.estimate:.6g}", ci, runs)
+    out.print(table)
+    out.print(f"{simulation.runs:,} runs, seed {simulation.seed}, "
+              f"longest {simulation.steps:,} steps", style="dim")
+
+
+def _simulation_json(simulation: Simulation) -> dict[str, object]:
+    return {
+        "runs": simulation.runs,
+        "seed": simulation.seed,
+        "max_steps": simulation.max_steps,
+        "results": {
+            e.name: {"estimate": json_value(e.estimate),
+                     "ci95": [json_value(e.ci95[0]), json_value(e.ci95[1])],
+                     "runs": e.runs, "undecided": e.undecided,
+                     "value": json_value(e.exact)}
+            for e in simulation.estimates
+        },
+        "skipped": list(simulation.skipped),
+    }
+
+
+# ---------------------------------------------------------------------------
+# prism MODEL --explain LABEL / --simulate N
+# ---------------------------------------------------------------------------
+
+
+def prism_analysis_options(function: Callable[..., None]) -> Callable[..., None]:
+    """The ``--explain LABEL [--top N]`` and ``--simulate N`` options of ``prism``."""
+    function = _simulation_options(function)
+    for option in reversed((
+        click.option("--explain", metavar="LABEL",
+                     help="Break P(F LABEL) down by variable values; show the top paths."),
+        click.option("--top", default=3, show_default=True, callback=_positive("--top"),
+                     help="With --explain: how many most probable paths."),
+        click.option("--simulate", type=int, metavar="N", callback=_positive("--simulate"),
+                     help="Also estimate the properties from N simulated runs."),
+    )):
+        function = option(function)
+    return function
+
+
+def prism_explain(model: Path, constants: Mapping[str, Value | str], label: str, top: int,
+                  as_json: bool) -> None:
+    """``prism MODEL --explain LABEL``: breakdown by variable values, and the top paths."""
+    from veribattery.analyses.actions import action_labeller
+    from veribattery.analyses.explain import explain_target, path_rows
+
+    with user_errors():
+        flat, dtmc = _build_prism(model, constants)
+        if label not in dtmc.labels:
+            known = ", ".join(f'"{name}"' for name in dtmc.labels)
+            raise VeribatteryError(f'--explain "{label}": the model has no such label '
+                                   f"(labels: {known})")
+        explanation = explain_target(dtmc, dtmc.labels[label], name=label, top=top)
+        labeller = action_labeller(flat)
+        steps = [path_rows(dtmc, p, labeller) for p in explanation.paths]
+    print_warnings(dtmc.warnings)
+    if as_json:
+        click.echo(json.dumps(_explanation_json(explanation, steps)))
+        return
+    columns = [("step", "step"), ("action", "action"), *((v, v) for v in dtmc.variable_names)]
+    _print_explanation(explanation, steps, columns, marker=None)
+
+
+def prism_simulate(run: ModelCheckRun, model: Path, constants: Mapping[str, Value | str],
+                   runs: int, *, seed: int, max_steps: int, paths_file: Path | None,
+                   path_count: int, as_json: bool) -> None:
+    """``prism MODEL --simulate N``: estimates of the checked properties."""
+    from veribattery.lang import flatten_model, parse_model
+
+    with user_errors():
+        simulation = _simulate_run(run, runs, seed, max_steps, path_count if paths_file else 0)
+        if paths_file is not None:
+            flat = flatten_model(parse_model(model), constants)
+            _write_simulated_paths(paths_file, run.dtmc, simulation, flat)
+    _show_simulation(simulation, "json" if as_json else "table")
+
+
+def _build_prism(model: Path, constants: Mapping[str, Value | str]) -> tuple[FlatModel, DTMC]:
+    from veribattery.explore import build_dtmc
+    from veribattery.lang import flatten_model, parse_model
+
+    flat = flatten_model(parse_model(model), constants)
+    return flat, build_dtmc(flat)
