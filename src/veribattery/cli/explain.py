@@ -17,6 +17,7 @@ from rich.table import Table
 
 from veribattery.cli.output import (
     build_progress,
+    fail,
     format_value,
     json_value,
     out,
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
 #: Rows shown per grouping in the table output (JSON has them all).
 GROUP_ROWS = 8
 #: Width of the text bar beside each group's probability.
-BAR_WIDTH = 24
+BAR_WIDTH = 20
 #: Columns of the mission's path table: (header, step-row key).
 MISSION_COLUMNS = (
     ("step", "step"), ("action", "action"), ("drone", "state"), ("cell", "cell"),
@@ -53,9 +54,11 @@ CSV_COLUMNS = ("path", "probability", "step", "action", "state", "s", "k", "j", 
 
 
 def _positive(name: str) -> Callable[[click.Context, click.Parameter, int], int]:
+    """An option callback: a count below 1 is bad input, reported on one line (exit 2)."""
+
     def check(ctx: click.Context, param: click.Parameter, value: int) -> int:
         if value is not None and value < 1:
-            raise click.BadParameter(f"must be at least 1, not {value}", ctx, param)
+            fail(f"{name} must be at least 1, not {value}")
         return value
 
     return check
@@ -186,17 +189,23 @@ def _print_grouping(grouping: Grouping, total: float) -> None:
 
 def _print_path(rows: Sequence[Mapping[str, object]], columns: Sequence[tuple[str, str]],
                 marker: str | None) -> None:
+    """Aligned plain columns (a path is read down, and must not wrap on a narrow console)."""
     from veribattery.analyses.folding import fold_path
 
     head, fold, end = fold_path([str(r["action"]) for r in rows], marker=marker)
-    table = Table(*(h for h, _ in columns), show_edge=False)
-    for i in head:
-        table.add_row(*(escape(str(rows[i][key])) for _, key in columns))
+    cells = [[str(rows[i][key]) for _, key in columns] for i in (*head, *end)]
+    widths = [max([len(h), *(len(c[j]) for c in cells)]) for j, (h, _) in enumerate(columns)]
+
+    def line(values: Sequence[str]) -> str:
+        return "  ".join(v.ljust(w) for v, w in zip(values, widths, strict=True)).rstrip()
+
+    out.print(escape(line([h for h, _ in columns])), style="bold")
+    for row in cells[: len(head)]:
+        out.print(escape(line(row)))
     if fold is not None:
-        table.add_row("", f"[dim]{escape(fold.describe(marker))}[/]")
-    for i in end:
-        table.add_row(*(escape(str(rows[i][key])) for _, key in columns))
-    out.print(table)
+        out.print(escape(" " * (widths[0] + 2) + fold.describe(marker)), style="dim")
+    for row in cells[len(head):]:
+        out.print(escape(line(row)))
 
 
 # ---------------------------------------------------------------------------

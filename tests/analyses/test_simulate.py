@@ -1,0 +1,118 @@
+"""Monte-Carlo simulation against exact values, with fixed seeds (so every run is deterministic)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from tests.checker.chains import dtmc
+from veribattery.analyses.simulate import _Sampler, path_table, simulate
+from veribattery.checker import check
+from veribattery.errors import CheckError
+from veribattery.explore.dtmc import DTMC
+from veribattery.lang import Property, parse_property
+
+# The loop of test_explain, with a reward of 1 per step outside {2, 3} and 2 on leaving 1.
+LOOP = {0: {1: 0.5, 2: 0.3, 3: 0.2}, 1: {0: 0.4, 3: 0.1, 2: 0.5}}
+PROPERTIES = (
+    'P=? [ F "bad" ]',  # 5/16
+    'P=? [ F<=3 "bad" ]',
+    'P=? [ X "good" ]',  # 3/10
+    'P=? [ G !"bad" ]',  # 11/16
+    'P=? [ s<2 U "good" ]',
+    'R{"r"}=? [ F "done" ]',
+    'R{"r"}=? [ C<=2 ]',
+    'R{"r"}=? [ I=1 ]',
+)
+
+
+def _loop() -> DTMC:
+    return dtmc(LOOP, 4, labels={"bad": [3], "good": [2], "done": [2, 3]},
+                rewards={"r": ([1, 1, 0, 0], [0, 2, 0, 0])})
+
+
+def _props() -> list[Property]:
+    return [parse_property(text) for text in PROPERTIES]
+
+
+def test_estimates_agree_with_exact_values() -> None:
+    chain = _loop()
+    exact = {p.text: check(chain, p).value for p in _props()}
+    assert exact['P=? [ F "bad" ]'] == pytest.approx(5 / 16)
+    sim = simulate(chain, _props(), runs=20_000, seed=7, exact=exact)
+    assert [e.text for e in sim.estimates] == list(PROPERTIES)
+    for e in sim.estimates:
+        assert e.runs == 20_000 and e.undecided == 0
+        assert e.ci95[0] <= e.estimate <= e.ci95[1]
+        assert e.ci999[0] <= e.exact <= e.ci999[1], e
+        assert not e.disagrees
+    assert sim.warnings() == ()
+
+
+def test_same_seed_same_estimates() -> None:
+    first = simulate(_loop(), _props(), runs=500, seed=3)
+    again = simulate(_loop(), _props(), runs=500, seed=3)
+    other = simulate(_loop(), _props(), runs=500, seed=4)
+    assert [e.estimate for e in first.estimates] == [e.estimate for e in again.estimates]
+    assert [e.estimate for e in first.estimates] != [e.estimate for e in other.estimates]
+
+
+def test_sampler_follows_the_row_distribution() -> None:
+    chain = _loop()
+    sampler = _Sampler(chain)
+    draws = sampler.step(np.zeros(200_000, dtype=np.int64), np.random.default_rng(1))
+    freq = np.bincount(draws, minlength=4) / draws.size
+    # 4.5 standard errors at most (sd of a frequency <= 0.5/sqrt(n) ~ 0.0011).
+    assert freq == pytest.approx([0.0, 0.5, 0.3, 0.2], abs=0.005)
+
+
+def test_a_wrong_exact_value_is_flagged() -> None:
+    sim = simulate(_loop(), _props()[:1], runs=5_000, seed=0,
+                   exact={'P=? [ F "bad" ]': 0.5})
+    assert sim.estimates[0].disagrees
+    assert any("outside the 99.9 % interval" in w for w in sim.warnings())
+
+
+def test_undecided_runs_are_reported_not_dropped() -> None:
+    # A slow random walk: few runs reach the end within 5 steps.
+    walk = {s: {s + 1: 0.5, max(s - 1, 0): 0.5} for s in range(10)}
+    chain = dtmc(walk, 11, labels={"end": [10]})
+    sim = simulate(chain, [parse_property('P=? [ F "end" ]')], runs=200, seed=0, max_steps=5)
+    (e,) = sim.estimates
+    assert e.undecided == 200 and e.runs == 0 and math.isnan(e.estimate)
+    assert "200 of 200 runs undecided after 5 steps" in sim.warnings()[0]
+
+
+def test_reward_is_infinite_on_runs_that_cannot_reach_the_target() -> None:
+    chain = _loop()  # R[F "bad"]: runs absorbed in "good" never reach "bad"
+    prop = parse_property('R{"r"}=? [ F "bad" ]')
+    assert check(chain, prop).value == math.inf
+    sim = simulate(chain, [prop], runs=100, seed=0, exact={prop.text: math.inf})
+    assert sim.estimates[0].estimate == math.inf and not sim.estimates[0].disagrees
+
+
+def test_unsupported_properties_are_skipped_with_a_reason() -> None:
+    sim = simulate(_loop(), [parse_property('P>0.5 [ F "bad" ]')], runs=10)
+    assert sim.estimates == () and "not simulated" in sim.skipped[0]
+
+
+def test_bad_counts_are_errors() -> None:
+    with pytest.raises(CheckError, match="--runs must be at least 1"):
+        simulate(_loop(), _props(), runs=0)
+    with pytest.raises(CheckError, match="--max-steps must be at least 1"):
+        simulate(_loop(), _props(), runs=1, max_steps=0)
+
+
+def test_path_table_has_prism_simulator_columns() -> None:
+    chain = _loop()
+    sim = simulate(chain, _props()[:1], runs=3, seed=0, record=2)
+    header, rows = path_table(chain, sim.paths)
+    assert header == ["run", "action", "step", "s", "r"]
+    assert {r[0] for r in rows} == {1, 2}
+    for run in (1, 2):
+        steps = [r for r in rows if r[0] == run]
+        assert [r[2] for r in steps] == list(range(len(steps)))
+        assert steps[0][3] == 0 and steps[-1][3] in (2, 3)  # from the start to absorption
+        assert steps[-1][1] == ""
