@@ -160,3 +160,13 @@ def test_prism_bad_input(loop: Path) -> None:
                     "--top must be at least 1")
     _one_line_error(run("prism", str(loop), "--property", "P=? [ F x=3 ]", "--simulate", "0"),
                     "--simulate must be at least 1")
+
+
+def test_prism_simulate_reports_undecided_runs(loop: Path) -> None:
+    result = run("prism", str(loop), "--property", 'P=? [ F "bad" ]', "--simulate", "50",
+                 "--max-steps", "1", "--seed", "2", "--json")
+    assert result.exit_code == 0, result.output
+    (entry,) = json.loads(result.stdout)["results"].values()
+    # After one step only runs at x=1 are undecided (x=2, x=3 decide at once).
+    assert entry["runs"] + entry["undecided"] == 50 and entry["undecided"] > 0
+    assert "undecided after 1 steps" in result.stderr

@@ -7,6 +7,7 @@ Monte-Carlo estimates beside the exact values.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -302,16 +303,21 @@ def _show_simulation(simulation: Simulation, output_format: str) -> None:
               f"longest {simulation.steps:,} steps", style="dim")
 
 
+def _number(value: float | None) -> object:
+    """A JSON number: infinities as strings (as ``check`` does), NaN (no decided run) as null."""
+    return None if value is None or math.isnan(value) else json_value(value)
+
+
 def _simulation_json(simulation: Simulation) -> dict[str, object]:
     return {
         "runs": simulation.runs,
         "seed": simulation.seed,
         "max_steps": simulation.max_steps,
         "results": {
-            e.name: {"estimate": json_value(e.estimate),
-                     "ci95": [json_value(e.ci95[0]), json_value(e.ci95[1])],
+            e.name: {"estimate": _number(e.estimate),
+                     "ci95": [_number(e.ci95[0]), _number(e.ci95[1])],
                      "runs": e.runs, "undecided": e.undecided,
-                     "value": json_value(e.exact)}
+                     "value": _number(e.exact)}
             for e in simulation.estimates
         },
         "skipped": list(simulation.skipped),
