@@ -157,3 +157,25 @@ def test_fold_keeps_the_last_sortie() -> None:
     assert fold.describe("recharge").startswith("… 9 recharge trips")
     short = fold_path(["a", "b", "c"], tail=2)
     assert short[1] is None and list(short[0]) == [0, 1, 2]
+
+
+def test_mission_breakdown_against_storm_exact() -> None:
+    """P(failure) of a small mission (2,607 states) from the breakdown vs Storm in rationals."""
+    pytest.importorskip("stormpy")
+    from tests.storm_oracle import run_storm
+    from veribattery.analyses.mission_view import DEFAULT_GROUPINGS, MissionView, build_mission
+    from veribattery.config import load_config
+    from veribattery.mission import mission_files
+
+    small = ("farm.cols=3", "farm.rows=3", "farm.base=[0,0]", "strategy.safe_t=0.1",
+             "battery.capacity_ah=6", "battery.max_recharges=15")
+    cfg = load_config("", small)
+    mission = build_mission(cfg)
+    explanation = explain_target(mission.dtmc, mission.dtmc.labels["failure"], name="failure",
+                                 describe=MissionView(mission).columns, by=DEFAULT_GROUPINGS)
+    storm = run_storm(mission_files(cfg).model, 'P=? [ F "failure" ]')
+    expected = storm.values[0][storm.initial[0]]
+    assert isinstance(expected, float) and 0.05 < expected < 0.2
+    assert explanation.probability == pytest.approx(expected, abs=1e-12)
+    for grouping in explanation.groupings:
+        assert sum(p for _, p in grouping.groups) == pytest.approx(expected, abs=1e-12)
