@@ -13,6 +13,7 @@ from collections.abc import Sequence
 import click
 
 from veribattery.cli.mission import check_command, emit_command
+from veribattery.cli.phm import phm_group, recheck_command
 from veribattery.cli.prism import prism_command
 from veribattery.cli.reproduce import reproduce_command
 from veribattery.cli.sweep import sweep_command
@@ -28,6 +29,8 @@ def cli() -> None:
 
 for _command in (check_command, emit_command, prism_command, reproduce_command, sweep_command):
     cli.add_command(_command)
+cli.add_command(phm_group)
+cli.add_command(recheck_command)
 
 
 def main(argv: Sequence[str] | None = None) -> None:
