@@ -24,7 +24,8 @@ import numpy as np
 from veribattery._types import FloatArray
 from veribattery.phm.data import PhmDataError
 
-__all__ = ["CYCLES_FILE", "DISCHARGE_FILE", "SEI_MODELS", "Pack", "Simulation", "simulate", "write_csvs"]
+__all__ = ["CYCLES_FILE", "DISCHARGE_FILE", "SEI_MODELS", "Pack", "Simulation", "simulate",
+           "write_csvs"]
 
 DISCHARGE_FILE = "discharge.csv"
 CYCLES_FILE = "cycles.csv"
