@@ -227,7 +227,13 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
 
     with user_errors():
         pack = Pack(parameter_set, power_w, cells_series, cells_parallel, sei)
-        written = write_csvs(simulate(pack, cycles, period_s), out_dir, sys.argv, force=force)
+        argv = ["veribattery", "phm", "simulate", "--parameter-set", parameter_set,
+                "--power-w", f"{power_w:g}", "--cells-series", str(cells_series),
+                "--cells-parallel", str(cells_parallel)]
+        if cycles:
+            argv += ["--cycles", str(cycles), "--sei", sei]
+        argv += ["--period-s", f"{period_s:g}", "-o", str(out_dir)]
+        written = write_csvs(simulate(pack, cycles, period_s), out_dir, argv, force=force)
     for path in written:
         click.echo(str(path))
 
@@ -316,10 +322,10 @@ def recheck_command(config: Path, cycles_path: Path, discharge_path: Path | None
 
 
 def _print_recheck(result: Recheck) -> None:
-    out.print("parameters moved by the refit:", style="bold")
+    out.print("parameters moved by the refit ('-': not set that way before):", style="bold")
     for moved in result.moved:
-        before = "(not set this way)" if moved.before is None else _show(moved.before)
-        out.print(f"  {moved.key}: {before} → {_show(moved.after)}")
+        before = "-" if moved.before is None else _show(moved.before)
+        out.print(f"  {moved.key}: {before} → {_show(moved.after)}", markup=False)
     if not result.moved:
         out.print("  none")
     table = Table("property", "before", "after", "change", show_edge=False)

@@ -96,8 +96,8 @@ def plot_forecast(result: Forecast, time_property: str | None, path: Path) -> Pa
     if result.fails_after is not None:
         top.axvline(result.fails_after, color="tab:red", ls=":", lw=1,
                     label=f"fails after {result.fails_after} more cycles")
-    top.set(ylabel=req.prop, title=f"{req.prop} as the battery ages (from cycle "
-                                   f"{result.now:g})")
+    top.set(ylabel=req.prop)
+    figure.suptitle(f"{req.prop} as the battery ages (from cycle {result.now:g})")
     top.legend(fontsize=8)
     if time_property:
         rows[1].plot(ahead, [_num(p.values[time_property]) for p in result.points], "o-", ms=3,
@@ -106,10 +106,11 @@ def plot_forecast(result: Forecast, time_property: str | None, path: Path) -> Pa
     rows[-1].set(xlabel="cycles from now")
     for axes in rows:
         axes.grid(alpha=0.3)
+    every = ahead[:: max(1, len(ahead) // 6)]
     caps = {p.ahead: p.capacity_ah for p in result.points}
-    rows[-1].secondary_xaxis("top", functions=(lambda x: x, lambda x: x)).set_xticks(
-        ahead[:: max(1, len(ahead) // 6)],
-        [f"{caps[a]} Ah" for a in ahead[:: max(1, len(ahead) // 6)]], fontsize=7)
+    capacity_axis = top.secondary_xaxis("top")
+    capacity_axis.set_xticks(every, [f"{show(caps[a])}" for a in every], fontsize=8)
+    capacity_axis.set_xlabel("new capacity used at that age (Ah)", fontsize=8)
     return _save(figure, path)
 
 

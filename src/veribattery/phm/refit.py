@@ -8,12 +8,14 @@ and an Eq. 2 ``battery.consumption``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from fractions import Fraction
 
 import numpy as np
 
 from veribattery.config import MissionConfig
+from veribattery.config.exact import show
 from veribattery.config.schema import ConsumptionEq2
 from veribattery.phm.data import CycleLog, DischargeCurve, PhmDataError
 from veribattery.phm.fade import FadeFit, FadeReport, choose
@@ -76,8 +78,15 @@ def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = 
         raise PhmDataError(f"{where}: the {fit.name} fit has the capacity rising at cycle "
                            f"{cycle:g} (fade {fade:.3g}/cycle); not a meaningful fade fit")
     grid = on_grid(capacity, cfg.battery.resolution_ah)
+    value = fade_value(fade, cfg, grid)
+    rc_max = cfg.battery.max_recharges
+    if value * rc_max >= 1:
+        raise PhmDataError(
+            f"{where}: the fitted fade {show(value)}/recharge x battery.max_recharges {rc_max} "
+            f">= 1, so the model's capacity would reach zero; set battery.max_recharges below "
+            f"{math.ceil(1 / value)} (e.g. --set battery.max_recharges={math.ceil(1 / value) - 1})")
     return FadeParameters(report, fit, cycle, capacity, grid, fade, fit.fade_interval(cycle),
-                          fade_value(fade, cfg, grid))
+                          value)
 
 
 @dataclass(frozen=True, slots=True)

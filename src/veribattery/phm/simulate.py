@@ -146,8 +146,7 @@ def simulate(pack: Pack, cycles: int | None = None, period_s: float = 30.0) -> S
 
 
 def _header(argv: Sequence[str], what: str) -> str:
-    command = shlex.join(["veribattery", *argv[1:]]) if argv else "veribattery phm simulate"
-    return f"# {what}, made by PyBaMM with:\n# {command}\n"
+    return f"# {what}, made by PyBaMM with:\n# {shlex.join(argv)}\n"
 
 
 def _rows(columns: Sequence[FloatArray]) -> str:
@@ -156,7 +155,7 @@ def _rows(columns: Sequence[FloatArray]) -> str:
 
 def write_csvs(sim: Simulation, directory: Path, argv: Sequence[str],
                force: bool = False) -> tuple[Path, ...]:
-    """Write ``discharge.csv`` (and ``cycles.csv``) with the command line as a comment.
+    """Write ``discharge.csv`` (and ``cycles.csv``) with the command line *argv* as a comment.
 
     :raises PhmDataError: when a file exists and not *force* (nothing is written then).
     """
