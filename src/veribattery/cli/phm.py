@@ -281,13 +281,13 @@ def forecast_command(config: Path, cycles_path: Path, horizon: int, step: int | 
 
 def _print_forecast(result: Forecast, time_property: str) -> None:
     req = result.requirement
-    columns = ["cycles ahead", "cycle", "capacity_ah", "fade", req.prop]
+    columns = ["ahead", "cycle", "capacity_ah", "fade", req.prop]
     shown = time_property if time_property and time_property != req.prop else ""
     table = Table(*columns, *([shown] if shown else []), "holds", show_edge=False)
     for p in result.points:
-        extra = [format_value(p.values.get(shown))] if shown else []
+        extra = [_short(p.values.get(shown))] if shown else []
         table.add_row(str(p.ahead), f"{result.now + p.ahead:g}", _show(p.capacity_ah),
-                      _show(p.fade), format_value(p.values[req.prop]), *extra,
+                      _show(p.fade), _short(p.values[req.prop]), *extra,
                       "yes" if p.holds else "[bold red]no[/]")
     out.print(table)
     if result.fails_after is None:
@@ -348,6 +348,11 @@ def _print_requirements(result: Recheck) -> None:
         out.print(f"{name}: before {was}, after {now}")
     if result.regressions:
         out.print(f"[bold red]no longer holds:[/] {', '.join(result.regressions)}")
+
+
+def _short(value: object) -> str:
+    """A value to 6 significant digits, for narrow tables."""
+    return f"{value:.6g}" if isinstance(value, float) else format_value(value)
 
 
 def _show(value: object) -> str:
