@@ -128,3 +128,29 @@ def test_knee_fit_direct(tmp_path: Path) -> None:
     fit = fit_knee(_log(tmp_path, n, knee_curve(n, 5.0, 0.001, 0.01, 50.0)))  # type: ignore[arg-type]
     assert fit.params["nk"] == pytest.approx(50.0, abs=1.0)
     assert fit.rmse < 1e-6
+
+
+def test_extrapolation_to_no_capacity_is_refused(tmp_path: Path) -> None:
+    n = np.arange(0, 101, 10.0)
+    log = _log(tmp_path, n, 11.0 - 0.05 * n)  # linear: zero at cycle 220
+    with pytest.raises(PhmDataError, match=r"cycles.csv:12: row 11, column 'capacity_ah': the "
+                                           r"linear fit gives capacity -4 Ah at cycle 300"):
+        fade_parameters(log, load_config(""), at_cycle=300, model="linear")  # type: ignore[arg-type]
+
+
+def test_flat_noisy_log_gives_zero_fade(tmp_path: Path) -> None:
+    """No measurable fade: a slope whose CI includes zero is read as no fade, not a rise."""
+    n = np.arange(0, 101, 10.0)
+    clamped = 0
+    for seed in range(20):
+        try:
+            log = _log(tmp_path, n, np.full(n.shape, 11.0), noise=0.01, seed=seed)
+        except PhmDataError:
+            continue  # ends above its start: refused by the reader as "increases overall"
+        params = fade_parameters(log, load_config(""), model="linear")  # type: ignore[arg-type]
+        raw = params.fit.relative_fade(100.0)
+        if raw < 0:
+            assert params.fade_ci[1] >= 0 and params.fade == 0
+            clamped += 1
+        assert params.fade_per_recharge >= 0 and params.capacity_ah == 11
+    assert clamped > 0, "some seed should give an insignificant rising slope"

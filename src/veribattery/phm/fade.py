@@ -137,7 +137,9 @@ def _curve_fit(name: str, log: CycleLog, start: FloatArray) -> tuple[FloatArray,
 
     from scipy.optimize import OptimizeWarning, curve_fit
 
-    with warnings.catch_warnings():
+    # A poor start can overflow exp() on the way; such trials are rejected by the
+    # optimiser itself, and a fit that ends badly is judged afterwards (_attempt).
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", OptimizeWarning)
         theta, cov = curve_fit(_CURVES[name], log.cycle, log.capacity_ah, p0=start, maxfev=20000)
     return np.asarray(theta, dtype=np.float64), np.asarray(cov, dtype=np.float64)

@@ -38,7 +38,8 @@ class FadeParameters:
     :ivar at_cycle: the cycle the battery is at (``C_NEW`` is its capacity there).
     :ivar capacity_fit_ah: fitted capacity at *at_cycle*.
     :ivar capacity_ah: the same on the ``resolution_ah`` grid.
-    :ivar fade: fitted relative loss per cycle at *at_cycle*.
+    :ivar fade: fitted relative loss per cycle at *at_cycle* (0 when negative but not
+        significantly so).
     :ivar fade_ci: its 95% confidence interval.
     :ivar fade_per_recharge: the exact decimal written to the config.
     """
@@ -73,7 +74,9 @@ def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = 
     if capacity <= 0:
         raise PhmDataError(f"{where}: the {fit.name} fit gives capacity {capacity:.4g} Ah at "
                            f"cycle {cycle:g}; not a meaningful fit there")
-    fade = fit.relative_fade(cycle)
+    fade, interval = fit.relative_fade(cycle), fit.fade_interval(cycle)
+    if fade < 0 <= interval[1]:
+        fade = 0.0  # no measurable fade: the rise is within the fit's uncertainty
     if fade < 0:
         raise PhmDataError(f"{where}: the {fit.name} fit has the capacity rising at cycle "
                            f"{cycle:g} (fade {fade:.3g}/cycle); not a meaningful fade fit")
@@ -85,8 +88,7 @@ def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = 
             f"{where}: the fitted fade {show(value)}/recharge x battery.max_recharges {rc_max} "
             f">= 1, so the model's capacity would reach zero; set battery.max_recharges below "
             f"{math.ceil(1 / value)} (e.g. --set battery.max_recharges={math.ceil(1 / value) - 1})")
-    return FadeParameters(report, fit, cycle, capacity, grid, fade, fit.fade_interval(cycle),
-                          value)
+    return FadeParameters(report, fit, cycle, capacity, grid, fade, interval, value)
 
 
 @dataclass(frozen=True, slots=True)
