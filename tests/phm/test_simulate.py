@@ -45,3 +45,12 @@ def test_unknown_parameter_set(tmp_path: Path) -> None:
     assert result.exit_code == 2
     assert "unknown PyBaMM parameter set 'Nope2000'" in result.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_power_beyond_the_cell_is_one_line(tmp_path: Path) -> None:
+    result = CliRunner().invoke(cli, ["phm", "simulate", "--power-w", "2000",
+                                      "-o", str(tmp_path / "out")])
+    assert result.exit_code == 2
+    assert "PyBaMM could not solve the experiment at 2000 W per cell" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()

@@ -141,7 +141,7 @@ def _print_fade(params: FadeParameters) -> None:
 @_plot_option
 def levels_command(discharge: Path, capacity_ah: float | None, soc_step: str,
                    config: Path | None, write: Path | None, plot_path: Path | None) -> None:
-    """Voltage levels, SOC thresholds (BA3) and Eq. 2's consumption from a discharge curve."""
+    """Derive voltage levels, SOC thresholds (BA3) and consumption from a discharge curve."""
     from veribattery.phm.data import PhmDataError, read_discharge
     from veribattery.phm.levels import fixed_steps
     from veribattery.phm.refit import level_parameters
@@ -203,7 +203,8 @@ def _print_levels(params: LevelParameters) -> None:
 @phm_group.command("simulate")
 @click.option("--parameter-set", default="Chen2020", show_default=True,
               help="PyBaMM parameter set (built in; nothing is downloaded).")
-@click.option("--power-w", type=float, required=True, help="Constant pack power, W.")
+@click.option("--power-w", type=click.FloatRange(min=0, min_open=True), required=True,
+              help="Constant pack power, W.")
 @click.option("--cells-series", type=click.IntRange(min=1), default=1, show_default=True)
 @click.option("--cells-parallel", type=click.IntRange(min=1), default=1, show_default=True)
 @click.option("--cycles", type=click.IntRange(min=3), default=None,

@@ -13,7 +13,8 @@ from __future__ import annotations
 import os
 import shlex
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from types import ModuleType
@@ -75,6 +76,7 @@ def _pybamm() -> ModuleType:
     telemetry = getattr(pybamm, "telemetry", None)
     if telemetry is not None and hasattr(telemetry, "disable"):
         telemetry.disable()
+    pybamm.set_logging_level("CRITICAL")  # failures are reported as one line of ours
     module: ModuleType = pybamm
     return module
 
@@ -124,6 +126,23 @@ def _discharged(step: Any) -> float:
     return float(drawn[-1] - drawn[0])
 
 
+@contextmanager
+def _quiet_stderr() -> Iterator[None]:
+    """Silence file descriptor 2 while SUNDIALS (C code) prints its own solver errors."""
+    try:
+        saved = os.dup(2)
+    except OSError:  # no real stderr (embedded use): nothing to silence
+        yield
+        return
+    with open(os.devnull, "w") as null:
+        os.dup2(null.fileno(), 2)
+        try:
+            yield
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+
+
 def simulate(pack: Pack, cycles: int | None = None, period_s: float = 30.0) -> Simulation:
     """Discharge *pack* at constant power from full; with *cycles*, also age it.
 
@@ -134,11 +153,13 @@ def simulate(pack: Pack, cycles: int | None = None, period_s: float = 30.0) -> S
     if pack.power_w <= 0:
         raise PhmDataError(f"--power-w: must be > 0, got {pack.power_w:g}")
     try:
-        time, voltage, current = _discharge(pybamm, pack, period_s)
-        aged = _ageing(pybamm, pack, cycles) if cycles else (None, None)
+        with _quiet_stderr():
+            time, voltage, current = _discharge(pybamm, pack, period_s)
+            aged = _ageing(pybamm, pack, cycles) if cycles else (None, None)
     except pybamm.SolverError as exc:
-        raise PhmDataError(f"PyBaMM could not solve the experiment: "
-                           f"{str(exc).splitlines()[0]}") from None
+        raise PhmDataError(f"PyBaMM could not solve the experiment at {pack.cell_power_w:g} W "
+                           f"per cell ({str(exc).splitlines()[0]}); is --power-w more than the "
+                           "cells can give? add cells in parallel or lower it") from None
     if len(time) < 3:
         raise PhmDataError(f"--power-w {pack.power_w:g}: the pack reaches its cut-off at "
                            "once; lower the power or add cells in parallel")
