@@ -70,7 +70,7 @@ def _pybamm() -> ModuleType:
     os.environ.setdefault("PYBAMM_DISABLE_TELEMETRY", "true")
     os.environ.setdefault("PYBAMM_OPTOUT_TELEMETRY", "true")
     try:
-        import pybamm  # type: ignore[import-untyped]
+        import pybamm  # type: ignore[import-untyped, import-not-found, unused-ignore]
     except ImportError:
         raise PhmDataError("phm simulate needs PyBaMM: pip install 'veribattery[pybamm]'") from None
     telemetry = getattr(pybamm, "telemetry", None)
