@@ -14,6 +14,7 @@ import click
 
 from veribattery.cli.explain import explain_command, simulate_command
 from veribattery.cli.mission import check_command, emit_command
+from veribattery.cli.phm import phm_group, recheck_command
 from veribattery.cli.prism import prism_command
 from veribattery.cli.reproduce import reproduce_command
 from veribattery.cli.sweep import sweep_command
@@ -31,6 +32,8 @@ for _command in (check_command, emit_command, prism_command, reproduce_command, 
     cli.add_command(_command)
 cli.add_command(explain_command)
 cli.add_command(simulate_command)
+cli.add_command(phm_group)
+cli.add_command(recheck_command)
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -1,0 +1,300 @@
+"""Reading PHM logs: capacity against cycle, and discharge curves (CSV, ``#`` comments).
+
+Every problem is one :class:`PhmDataError` naming the file, the line (1-based, as an
+editor shows it; comment lines count), the data row (1-based, header excluded) and the
+column, what is wrong and what would be right.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from veribattery._types import FloatArray, IntArray
+from veribattery.errors import VeribatteryError
+
+__all__ = [
+    "CycleLog",
+    "DischargeCurve",
+    "PhmDataError",
+    "Table",
+    "coulomb_count",
+    "read_cycles",
+    "read_discharge",
+    "read_table",
+]
+
+#: Columns of a capacity log.
+CYCLE_COLUMNS = ("cycle", "capacity_ah")
+#: The two accepted forms of a discharge log.
+SOC_COLUMNS = ("soc", "voltage_v")
+CURRENT_COLUMNS = ("time_s", "voltage_v", "current_a")
+#: A voltage may rise above the lowest seen so far by this fraction of the curve's
+#: span before it counts as "rising while discharging" (sensor noise, relaxation).
+VOLTAGE_NOISE = 0.01
+
+
+class PhmDataError(VeribatteryError):
+    """A PHM data file is unusable: missing column, bad cell, inconsistent rows."""
+
+
+@dataclass(frozen=True, slots=True)
+class Table:
+    """Numeric columns of a CSV file, with the file line of every data row.
+
+    :ivar source: the file name, for messages.
+    :ivar columns: column name → values, one per data row.
+    :ivar lines: the 1-based file line of each data row.
+    """
+
+    source: str
+    columns: dict[str, FloatArray]
+    lines: tuple[int, ...]
+
+    def __len__(self) -> int:
+        return len(self.lines)
+
+    def where(self, row: int, column: str) -> str:
+        """``file:line: row R, column 'c'`` for data row index *row* (0-based)."""
+        return f"{self.source}:{self.lines[row]}: row {row + 1}, column {column!r}"
+
+    def error(self, row: int, column: str, message: str) -> PhmDataError:
+        """A one-line error located at *row*, *column*."""
+        return PhmDataError(f"{self.where(row, column)}: {message}")
+
+
+def read_table(path: str | Path, forms: Sequence[Sequence[str]]) -> Table:
+    """Read the CSV at *path*, keeping the columns of the first of *forms* it has.
+
+    Lines starting with ``#`` (after blanks) and empty lines are skipped; the first
+    other line is the header. Every kept cell must be a finite number.
+
+    :raises PhmDataError: on unreadable files, missing columns and bad cells.
+    """
+    source = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise PhmDataError(f"cannot read {source!r}: {exc.strerror}") from None
+    except UnicodeDecodeError:
+        raise PhmDataError(f"{source}: not a UTF-8 text (CSV) file") from None
+    rows = [(n, line) for n, line in enumerate(text.splitlines(), 1) if _is_data(line)]
+    if not rows:
+        raise PhmDataError(f"{source}: no header line; expected columns {_wanted(forms)}")
+    header_line, header = rows[0][0], _fields(rows[0][1])
+    form = _pick_form(source, header_line, header, forms)
+    return _numeric(source, header, form, rows[1:])
+
+
+def _is_data(line: str) -> bool:
+    stripped = line.strip()
+    return bool(stripped) and not stripped.startswith("#")
+
+
+def _fields(line: str) -> list[str]:
+    return [cell.strip() for cell in next(csv.reader([line]))]
+
+
+def _wanted(forms: Sequence[Sequence[str]]) -> str:
+    return " or ".join(",".join(form) for form in forms)
+
+
+def _pick_form(
+    source: str, line: int, header: list[str], forms: Sequence[Sequence[str]]
+) -> tuple[str, ...]:
+    for form in forms:
+        if all(name in header for name in form):
+            return tuple(form)
+    missing = [name for name in forms[0] if name not in header]
+    raise PhmDataError(
+        f"{source}:{line}: header: missing column {missing[0]!r}; expected columns "
+        f"{_wanted(forms)}, got {','.join(header)}"
+    )
+
+
+def _numeric(
+    source: str, header: list[str], form: tuple[str, ...], rows: list[tuple[int, str]]
+) -> Table:
+    index = {name: header.index(name) for name in form}
+    values: dict[str, list[float]] = {name: [] for name in form}
+    lines = tuple(n for n, _ in rows)
+    located = Table(source, {}, lines)
+    for row, (_, line) in enumerate(rows):
+        cells = _fields(line)
+        for name, col in index.items():
+            values[name].append(_number(located, row, name, cells[col] if col < len(cells) else ""))
+    return Table(source, {k: np.asarray(v, dtype=np.float64) for k, v in values.items()}, lines)
+
+
+def _number(table: Table, row: int, column: str, cell: str) -> float:
+    if not cell:
+        raise table.error(row, column, "empty cell; expected a number")
+    try:
+        value = float(cell)
+    except ValueError:
+        raise table.error(row, column, f"not a number: {cell!r}") from None
+    if not math.isfinite(value):
+        raise table.error(row, column, f"{cell!r} is not a finite number (NaN/inf)")
+    return value
+
+
+@dataclass(frozen=True, slots=True)
+class CycleLog:
+    """Capacity measured at successive cycles (strictly increasing)."""
+
+    table: Table
+
+    @property
+    def cycle(self) -> FloatArray:
+        """Cycle numbers."""
+        return self.table.columns["cycle"]
+
+    @property
+    def capacity_ah(self) -> FloatArray:
+        """Measured capacity, Ah."""
+        return self.table.columns["capacity_ah"]
+
+
+def read_cycles(path: str | Path) -> CycleLog:
+    """Read a ``cycle,capacity_ah`` log and check it is a fade log one can fit.
+
+    :raises PhmDataError: fewer than 3 rows, cycles not strictly increasing, a capacity
+        that is not positive, or a capacity that increases overall (last above first).
+    """
+    table = read_table(path, [CYCLE_COLUMNS])
+    if len(table) < 3:
+        raise PhmDataError(
+            f"{table.source}: {len(table)} data row(s); a fade fit needs at least 3 cycles"
+        )
+    cycle, capacity = table.columns["cycle"], table.columns["capacity_ah"]
+    _check_increasing(table, "cycle", cycle)
+    bad = np.flatnonzero(capacity <= 0)
+    if bad.size:
+        raise table.error(int(bad[0]), "capacity_ah", f"must be > 0, got {capacity[bad[0]]:g}")
+    if capacity[-1] > capacity[0]:
+        raise table.error(
+            len(table) - 1, "capacity_ah",
+            f"capacity increases overall ({capacity[0]:g} Ah at row 1 to {capacity[-1]:g} Ah); "
+            "a fade log must not end above where it starts",
+        )
+    return CycleLog(table)
+
+
+def _check_increasing(table: Table, column: str, values: FloatArray) -> None:
+    steps = np.flatnonzero(np.diff(values) <= 0)
+    if steps.size:
+        row = int(steps[0]) + 1
+        raise table.error(
+            row, column,
+            f"{values[row]:g} does not increase on the previous row's {values[row - 1]:g}; "
+            f"{column} must be strictly increasing",
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class DischargeCurve:
+    """Voltage against state of charge, ordered from full (SOC 1) towards empty.
+
+    :ivar soc: state of charge, in [0, 1], decreasing.
+    :ivar voltage_v: terminal voltage at each SOC.
+    :ivar charge_ah: charge delivered over the log (Coulomb counting), when known.
+    :ivar source: the file name.
+    """
+
+    soc: FloatArray
+    voltage_v: FloatArray
+    charge_ah: float | None
+    source: str
+
+
+def coulomb_count(time_s: FloatArray, current_a: FloatArray, q_max_ah: float) -> FloatArray:
+    """Eq. 1: ``SOC(k+1) = SOC(k) - I(k)·Δt / Q_max`` from SOC(0) = 1 (Δt in hours)."""
+    dt_h = np.diff(time_s) / 3600.0
+    drawn = np.concatenate(([0.0], np.cumsum(current_a[:-1] * dt_h)))
+    result: FloatArray = 1.0 - drawn / q_max_ah
+    return result
+
+
+def read_discharge(path: str | Path, capacity_ah: float | None = None) -> DischargeCurve:
+    """Read a discharge log: ``soc,voltage_v``, or ``time_s,voltage_v,current_a``.
+
+    With time and current the SOC is Coulomb-counted (Eq. 1) from a full battery, with
+    ``Q_max`` = *capacity_ah*, or by default the charge the log itself delivers.
+
+    :raises PhmDataError: SOC outside [0, 1] or not monotone, time not increasing,
+        negative current, fewer than 3 rows, or voltage rising as the battery discharges.
+    """
+    table = read_table(path, [SOC_COLUMNS, CURRENT_COLUMNS])
+    if len(table) < 3:
+        raise PhmDataError(f"{table.source}: {len(table)} data row(s); need at least 3")
+    if "soc" in table.columns:
+        soc, charge, soc_column = _given_soc(table), None, "soc"
+    else:
+        soc, charge = _counted_soc(table, capacity_ah)
+        soc_column = "current_a"
+    order = np.arange(len(table)) if soc[0] >= soc[-1] else np.arange(len(table))[::-1]
+    _check_soc_monotone(table, soc, order, soc_column)
+    _check_voltage_falls(table, table.columns["voltage_v"], order)
+    return DischargeCurve(soc[order], table.columns["voltage_v"][order], charge, table.source)
+
+
+def _given_soc(table: Table) -> FloatArray:
+    soc = table.columns["soc"]
+    bad = np.flatnonzero((soc < 0) | (soc > 1))
+    if bad.size:
+        raise table.error(int(bad[0]), "soc", f"{soc[bad[0]]:g} is outside [0, 1]")
+    return soc
+
+
+def _counted_soc(table: Table, capacity_ah: float | None) -> tuple[FloatArray, float]:
+    time_s, current = table.columns["time_s"], table.columns["current_a"]
+    _check_increasing(table, "time_s", time_s)
+    bad = np.flatnonzero(current < 0)
+    if bad.size:
+        raise table.error(
+            int(bad[0]), "current_a",
+            f"{current[bad[0]]:g} A is negative; a discharge log has current >= 0 (discharging)",
+        )
+    drawn = float(np.sum(current[:-1] * np.diff(time_s)) / 3600.0)
+    if drawn <= 0:
+        raise table.error(len(table) - 1, "current_a", "no charge is drawn over the log")
+    q_max = drawn if capacity_ah is None else capacity_ah
+    soc = coulomb_count(time_s, current, q_max)
+    bad = np.flatnonzero(soc < -1e-9)
+    if bad.size:
+        raise table.error(
+            int(bad[0]), "current_a",
+            f"Coulomb-counted SOC {soc[bad[0]]:.4g} is outside [0, 1]: the log draws "
+            f"{drawn:.4g} Ah, more than the capacity {q_max:g} Ah",
+        )
+    return np.clip(soc, 0.0, 1.0), drawn
+
+
+def _check_soc_monotone(table: Table, soc: FloatArray, order: IntArray, column: str) -> None:
+    ordered = soc[order]
+    steps = np.flatnonzero(np.diff(ordered) > 0)
+    if steps.size:
+        row = int(order[steps[0] + 1])
+        raise table.error(
+            row, column,
+            f"SOC {soc[row]:.4g} rises again; a discharge log goes one way from full to empty",
+        )
+
+
+def _check_voltage_falls(table: Table, voltage: FloatArray, order: IntArray) -> None:
+    ordered = voltage[order]
+    tolerance = VOLTAGE_NOISE * max(float(np.ptp(ordered)), 1e-9)
+    lowest = np.minimum.accumulate(ordered)
+    rises = np.flatnonzero(ordered - lowest > tolerance)
+    if rises.size:
+        row = int(order[rises[0]])
+        raise table.error(
+            row, "voltage_v",
+            f"{voltage[row]:g} V rises above the {lowest[rises[0]]:g} V already reached as the "
+            "battery discharges; voltage must fall (within 1% of its span) as SOC falls",
+        )

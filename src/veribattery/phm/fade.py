@@ -1,0 +1,272 @@
+"""Capacity fade per cycle: linear, exponential and two-phase "knee" fits, chosen by AIC.
+
+Each model gives capacity ``C(n)`` at cycle ``n``. The model's BA1 parameter at cycle
+``N`` is the *relative* loss per cycle there, ``fade(N) = -C'(N) / C(N)``, so that the
+model's ``cap(rc) = C(N)·(1 - fade·rc)`` continues the fitted curve from ``N`` (to first
+order). Its confidence interval comes from the fit's covariance by the delta method.
+
+scipy is imported inside the functions that fit, so the CLI starts fast.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from veribattery._types import FloatArray
+from veribattery.phm.data import CycleLog, PhmDataError
+
+__all__ = ["FadeFit", "FadeReport", "choose", "fit_all", "fit_exponential", "fit_knee",
+           "fit_linear"]
+
+Curve = Callable[..., FloatArray]
+#: Two-sided confidence level of the reported intervals.
+CONFIDENCE = 0.95
+
+
+def _linear(n: FloatArray, a: float, b: float) -> FloatArray:
+    return a - b * n
+
+
+def _exponential(n: FloatArray, a: float, k: float) -> FloatArray:
+    return a * np.exp(-k * n)
+
+
+def _knee(n: FloatArray, a: float, b1: float, b2: float, nk: float) -> FloatArray:
+    return a - b1 * np.minimum(n, nk) - b2 * np.maximum(n - nk, 0.0)
+
+
+@dataclass(frozen=True, slots=True)
+class FadeFit:
+    """One fitted fade model.
+
+    :ivar name: ``linear``, ``exponential`` or ``knee``.
+    :ivar formula: the model, for people.
+    :ivar params: parameter name → fitted value.
+    :ivar covariance: covariance of the parameters (order of *params*).
+    :ivar residuals: measured minus fitted capacity at each logged cycle, Ah.
+    :ivar aic: Akaike's information criterion ``n·ln(SSE/n) + 2k``.
+    """
+
+    name: str
+    formula: str
+    params: dict[str, float]
+    covariance: FloatArray
+    residuals: FloatArray
+    aic: float
+
+    @property
+    def dof(self) -> int:
+        """Residual degrees of freedom."""
+        return len(self.residuals) - len(self.params)
+
+    @property
+    def rmse(self) -> float:
+        """Root-mean-square residual, Ah."""
+        return float(np.sqrt(np.mean(self.residuals**2)))
+
+    def capacity(self, cycle: FloatArray | float) -> FloatArray:
+        """Fitted capacity at *cycle*, Ah."""
+        return _CURVES[self.name](np.asarray(cycle, dtype=np.float64), *self.params.values())
+
+    def loss_per_cycle(self, cycle: float) -> float:
+        """``-C'(cycle)``: Ah lost per cycle at *cycle*."""
+        return _slope(_CURVES[self.name], np.array(list(self.params.values())), cycle)
+
+    def relative_fade(self, cycle: float) -> float:
+        """``-C'(cycle) / C(cycle)``: the model's ``fade_per_recharge`` at *cycle*."""
+        return _relative(_CURVES[self.name], np.array(list(self.params.values())), cycle)
+
+    def fade_interval(self, cycle: float) -> tuple[float, float]:
+        """95% confidence interval of :meth:`relative_fade` (delta method, t quantile)."""
+        from scipy import stats
+
+        theta = np.array(list(self.params.values()))
+        grad = _gradient(lambda p: _relative(_CURVES[self.name], p, cycle), theta)
+        spread = math.sqrt(max(float(grad @ self.covariance @ grad), 0.0))
+        t = float(stats.t.ppf(0.5 + CONFIDENCE / 2, max(self.dof, 1)))
+        centre = self.relative_fade(cycle)
+        return (centre - t * spread, centre + t * spread)
+
+
+def _slope(curve: Curve, theta: FloatArray, cycle: float) -> float:
+    """``-C'(cycle)`` by a central difference (exact for the piecewise-linear models)."""
+    h = 1e-3
+    ahead, behind = curve(np.array([cycle + h, cycle - h]), *theta)
+    return -float(ahead - behind) / (2 * h)
+
+
+def _relative(curve: Curve, theta: FloatArray, cycle: float) -> float:
+    return _slope(curve, theta, cycle) / float(curve(np.array([cycle]), *theta)[0])
+
+
+def _gradient(function: Callable[[FloatArray], float], theta: FloatArray) -> FloatArray:
+    """Central-difference gradient, steps scaled to each parameter."""
+    grad = np.empty_like(theta)
+    for i, value in enumerate(theta):
+        h = 1e-6 * max(abs(value), 1e-3)
+        up, down = theta.copy(), theta.copy()
+        up[i], down[i] = value + h, value - h
+        grad[i] = (function(up) - function(down)) / (2 * h)
+    return grad
+
+
+_CURVES: dict[str, Curve] = {"linear": _linear, "exponential": _exponential, "knee": _knee}
+
+
+def _aic(residuals: FloatArray, k: int, scale: float) -> float:
+    """Gaussian AIC; SSE is floored so exact (synthetic) data does not give ``-inf``."""
+    n = len(residuals)
+    sse = max(float(residuals @ residuals), n * (1e-12 * scale) ** 2)
+    return n * math.log(sse / n) + 2 * k
+
+
+def _finish(name: str, formula: str, names: tuple[str, ...], theta: FloatArray,
+            cov: FloatArray, log: CycleLog) -> FadeFit:
+    residuals = log.capacity_ah - _CURVES[name](log.cycle, *theta)
+    aic = _aic(residuals, len(names), float(np.max(log.capacity_ah)))
+    return FadeFit(name, formula, dict(zip(names, map(float, theta), strict=True)),
+                   np.asarray(cov, dtype=np.float64), residuals, aic)
+
+
+def _curve_fit(name: str, log: CycleLog, start: FloatArray) -> tuple[FloatArray, FloatArray]:
+    import warnings
+
+    from scipy.optimize import OptimizeWarning, curve_fit
+
+    # A poor start can overflow exp() on the way; such trials are rejected by the
+    # optimiser itself, and a fit that ends badly is judged afterwards (_attempt).
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", OptimizeWarning)
+        theta, cov = curve_fit(_CURVES[name], log.cycle, log.capacity_ah, p0=start, maxfev=20000)
+    return np.asarray(theta, dtype=np.float64), np.asarray(cov, dtype=np.float64)
+
+
+def fit_linear(log: CycleLog) -> FadeFit:
+    """``C(n) = a - b·n`` by least squares."""
+    slope, intercept = np.polyfit(log.cycle, log.capacity_ah, 1)
+    theta, cov = _curve_fit("linear", log, np.array([intercept, -slope]))
+    return _finish("linear", "C(n) = a - b*n", ("a", "b"), theta, cov, log)
+
+
+def fit_exponential(log: CycleLog) -> FadeFit:
+    """``C(n) = a·exp(-k·n)``, started from the log-linear fit."""
+    slope, intercept = np.polyfit(log.cycle, np.log(log.capacity_ah), 1)
+    theta, cov = _curve_fit("exponential", log, np.array([math.exp(intercept), -slope]))
+    return _finish("exponential", "C(n) = a*exp(-k*n)", ("a", "k"), theta, cov, log)
+
+
+def fit_knee(log: CycleLog) -> FadeFit:
+    """Two straight lines meeting at the knee cycle ``nk`` (continuous).
+
+    The knee is first located by profiling: for each candidate ``nk`` between the
+    second and the second-to-last logged cycle the remaining parameters are linear and
+    solved exactly; the best candidate starts a joint nonlinear fit for the covariance.
+    """
+    cycles = log.cycle
+    candidates = np.linspace(cycles[1], cycles[-2], 200)
+    best = min(candidates, key=lambda nk: _knee_sse(log, float(nk))[0])
+    _, (a, b1, b2) = _knee_sse(log, float(best))
+    theta, cov = _curve_fit("knee", log, np.array([a, b1, b2, best]))
+    return _finish("knee", "C(n) = a - b1*min(n, nk) - b2*max(n - nk, 0)",
+                   ("a", "b1", "b2", "nk"), theta, cov, log)
+
+
+def _knee_sse(log: CycleLog, nk: float) -> tuple[float, FloatArray]:
+    n = log.cycle
+    design = np.column_stack([np.ones_like(n), -np.minimum(n, nk), -np.maximum(n - nk, 0.0)])
+    coef, *_ = np.linalg.lstsq(design, log.capacity_ah, rcond=None)
+    residual = log.capacity_ah - design @ coef
+    return float(residual @ residual), coef
+
+
+@dataclass(frozen=True, slots=True)
+class FadeReport:
+    """Every usable fit, the AIC choice and why, and what was left out.
+
+    :ivar fits: usable fits, best (lowest AIC) first.
+    :ivar skipped: model name → why it was not usable.
+    """
+
+    fits: tuple[FadeFit, ...]
+    skipped: dict[str, str]
+
+    @property
+    def chosen(self) -> FadeFit:
+        """The fit with the lowest AIC."""
+        return self.fits[0]
+
+    def explanation(self) -> str:
+        """Why the chosen fit won: ΔAIC and Akaike weights against the others."""
+        best = self.chosen
+        weights = _akaike_weights([f.aic for f in self.fits])
+        parts = [f"{best.name} has the lowest AIC ({best.aic:.2f}; Akaike weight {weights[0]:.2f})"]
+        for fit, weight in zip(self.fits[1:], weights[1:], strict=True):
+            delta = fit.aic - best.aic
+            parts.append(f"{fit.name} ΔAIC {delta:+.2f} (weight {weight:.2f}"
+                         f"{', essentially as good' if delta < 2 else ''})")
+        return "; ".join(parts)
+
+
+def _akaike_weights(aics: list[float]) -> list[float]:
+    best = min(aics)
+    raw = [math.exp(-(a - best) / 2) for a in aics]
+    return [r / sum(raw) for r in raw]
+
+
+#: A knee has 4 parameters: fewer than 6 points leaves too little to judge it by.
+KNEE_MIN_POINTS = 6
+
+
+def fit_all(log: CycleLog) -> FadeReport:
+    """Fit every model that the data supports and rank them by AIC.
+
+    :raises PhmDataError: when no model gives a meaningful fit.
+    """
+    fits: list[FadeFit] = []
+    skipped: dict[str, str] = {}
+    fitters: list[tuple[str, Callable[[CycleLog], FadeFit]]] = [
+        ("linear", fit_linear), ("exponential", fit_exponential), ("knee", fit_knee)]
+    for name, fitter in fitters:
+        if name == "knee" and len(log.cycle) < KNEE_MIN_POINTS:
+            skipped[name] = f"needs at least {KNEE_MIN_POINTS} cycles for 4 parameters"
+            continue
+        reason, fit = _attempt(fitter, log)
+        if fit is None:
+            skipped[name] = reason
+        else:
+            fits.append(fit)
+    if not fits:
+        why = "; ".join(f"{k}: {v}" for k, v in skipped.items())
+        raise PhmDataError(f"{log.table.source}: no meaningful fade fit ({why})")
+    return FadeReport(tuple(sorted(fits, key=lambda f: f.aic)), skipped)
+
+
+def _attempt(fitter: Callable[[CycleLog], FadeFit], log: CycleLog) -> tuple[str, FadeFit | None]:
+    try:
+        fit = fitter(log)
+    except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
+        return f"did not converge ({exc})", None
+    if not np.all(np.isfinite(fit.covariance)):
+        return "parameters not identifiable (infinite covariance)", None
+    if fit.name == "knee" and not log.cycle[0] < fit.params["nk"] < log.cycle[-1]:
+        return "knee falls outside the logged cycles", None
+    return "", fit
+
+
+def choose(log: CycleLog, model: str | None = None) -> tuple[FadeReport, FadeFit]:
+    """All fits, and the one to use: *model* when named, else the lowest AIC.
+
+    :raises PhmDataError: when the named model could not be fitted.
+    """
+    report = fit_all(log)
+    if model is None:
+        return report, report.chosen
+    for fit in report.fits:
+        if fit.name == model:
+            return report, fit
+    raise PhmDataError(f"{log.table.source}: the {model} fit is not usable: "
+                       f"{report.skipped.get(model, 'unknown model')}")

@@ -1,0 +1,139 @@
+"""Merge config values into a user's YAML file without losing its comments or layout.
+
+PyYAML drops comments on a round trip, so the merge edits the *text*: the position
+of every key and value comes from :func:`yaml.compose`, a changed scalar is replaced
+in place (its trailing comment stays), a new key is inserted after its section's last
+line at the section's indentation, and a replaced section is rewritten at its own
+indentation (comments *inside* a replaced section go with the old values). The result
+is parsed again and must equal the intended data, or nothing is written; the file is
+replaced atomically.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from veribattery.config import set_value
+from veribattery.phm.data import PhmDataError
+from veribattery.phm.fragment import block_yaml, to_yaml_value
+
+__all__ = ["merge_text", "write_atomic"]
+
+
+def merge_text(text: str, updates: Mapping[str, object], source: str = "<string>") -> str:
+    """*text* with each dotted key of *updates* set, comments and layout kept.
+
+    :raises PhmDataError: when the text is not a YAML mapping, or the edit would not
+        give exactly the intended data.
+    """
+    expected = _load(text, source)
+    for key, value in updates.items():
+        text = _set(text, key.split("."), value, source)
+        expected = set_value(expected, key, yaml.safe_load(to_yaml_value(value)))
+    if _load(text, source) != expected:
+        raise PhmDataError(f"{source}: cannot merge {', '.join(updates)} safely into this "
+                           "layout; the file is left unchanged (apply the fragment by hand)")
+    return text
+
+
+def _load(text: str, source: str) -> dict[str, Any]:
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise PhmDataError(f"{source}: not valid YAML: {exc}".splitlines()[0]) from None
+    if data is None:
+        return {}
+    if not isinstance(data, dict):
+        raise PhmDataError(f"{source}: a config must be a mapping of keys")
+    return data
+
+
+def _nest(path: list[str], value: object) -> object:
+    for part in reversed(path):
+        value = {part: value}
+    return value
+
+
+def _set(text: str, path: list[str], value: object, source: str) -> str:
+    root = yaml.compose(text)
+    if root is None:
+        prefix = text if not text or text.endswith("\n") else text + "\n"
+        return prefix + block_yaml(_nest(path, value), 0)
+    if not isinstance(root, yaml.MappingNode):
+        raise PhmDataError(f"{source}: a config must be a mapping of keys")
+    node: yaml.MappingNode = root
+    for depth, part in enumerate(path):
+        child = next((v for k, v in node.value if k.value == part), None)
+        rest = _nest(path[depth + 1 :], value)
+        if child is None:
+            return _insert(text, node, part, rest)
+        if depth == len(path) - 1 or not isinstance(child, yaml.MappingNode):
+            return _replace(text, child, rest)
+        node = child
+    raise AssertionError("unreachable: the path is never empty")
+
+
+def _line_end(text: str, index: int) -> int:
+    """Index just past the end of the line holding *index*."""
+    newline = text.find("\n", index)
+    return len(text) if newline < 0 else newline + 1
+
+
+def _content_end(node: yaml.Node) -> int:
+    """Index of the last character of *node*'s content (its last scalar)."""
+    if isinstance(node, yaml.MappingNode) and node.value and not node.flow_style:
+        return _content_end(node.value[-1][1])
+    if isinstance(node, yaml.SequenceNode) and node.value and not node.flow_style:
+        return _content_end(node.value[-1])
+    end: int = node.end_mark.index
+    start: int = node.start_mark.index
+    return max(end - 1, start)
+
+
+def _insert(text: str, mapping: yaml.MappingNode, key: str, value: object) -> str:
+    if mapping.flow_style or not mapping.value:
+        return _replace_flow(text, mapping, key, value)
+    indent = mapping.value[0][0].start_mark.column
+    at = _line_end(text, _content_end(mapping))
+    prefix = text[:at] if text[:at].endswith("\n") or not at else text[:at] + "\n"
+    return prefix + block_yaml({key: value}, indent) + text[at:]
+
+
+def _replace_flow(text: str, mapping: yaml.MappingNode, key: str, value: object) -> str:
+    start, end = mapping.start_mark.index, mapping.end_mark.index
+    data = yaml.safe_load(text[start:end]) or {}
+    data[key] = yaml.safe_load(to_yaml_value(value))
+    flow: str = yaml.safe_dump(data, default_flow_style=True, sort_keys=False, width=10**6)
+    flow = flow.strip()
+    return text[:start] + flow + text[end:]
+
+
+def _replace(text: str, node: yaml.Node, value: object) -> str:
+    if isinstance(value, Mapping) and isinstance(node, yaml.MappingNode) and not node.flow_style:
+        indent = node.start_mark.column
+        start = node.start_mark.index - indent
+        return text[:start] + block_yaml(value, indent) + text[_line_end(text, _content_end(node)):]
+    start, end = node.start_mark.index, node.end_mark.index
+    if start == end:  # an empty value (``key:``): put the new one after the colon
+        return text[:start] + " " + to_yaml_value(value) + text[end:]
+    return text[:start] + to_yaml_value(value) + text[end:]
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Replace *path* by *text* atomically (temporary file + rename), keeping its mode."""
+    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(handle, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        if path.exists():
+            os.chmod(name, path.stat().st_mode & 0o7777)
+        os.replace(name, path)
+    except BaseException:
+        Path(name).unlink(missing_ok=True)
+        raise

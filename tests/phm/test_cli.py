@@ -1,0 +1,141 @@
+"""The phm commands and recheck through CliRunner: outputs, files, exit codes, bad input."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner, Result
+
+from tests.phm.helpers import EXAMPLES, cycles_csv
+from veribattery.cli import cli
+
+SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]")
+PNG = b"\x89PNG\r\n\x1a\n"
+MISSION = "# my mission\nbattery:\n  capacity_ah: 11  # as bought\n  max_recharges: 50\n" \
+          "requirements: ['p_success >= 0.99']  # CI gate\n"
+
+
+def run(*args: str) -> Result:
+    return CliRunner().invoke(cli, list(args))
+
+
+def _fading(tmp_path: Path) -> Path:
+    cycles = np.arange(0, 101, 10.0)
+    return cycles_csv(tmp_path / "cycles.csv", cycles, 6.0 - 0.03 * cycles)
+
+
+def test_fade_prints_fits_choice_and_fragment(tmp_path: Path) -> None:
+    png = tmp_path / "fade.png"
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--plot", str(png))
+    assert result.exit_code == 0, result.output
+    for text in ("linear", "exponential", "knee", "choice:", "lowest AIC", "95% CI",
+                 "residuals", "capacity_ah: 9.5\n", "fade_per_recharge: 0.000145"):
+        assert text in result.output
+    assert png.read_bytes().startswith(PNG)
+
+
+def test_fade_write_keeps_comments(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    result = run("phm", "fade", str(_fading(tmp_path)), "--write", str(config), "--at-cycle", "50")
+    assert result.exit_code == 0, result.output
+    text = config.read_text()
+    assert text == MISSION.replace("capacity_ah: 11  # as bought",
+                                   "capacity_ah: 4.5  # as bought").replace(
+        "  max_recharges: 50\n", "  max_recharges: 50\n  fade_per_recharge: 0.00667\n")
+
+
+def test_fade_write_refuses_invalid_result_and_keeps_file(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text("battery:\n  max_recharges: 200  # long missions\n")
+    result = run("phm", "fade", str(_fading(tmp_path)), "--write", str(config))
+    assert result.exit_code == 2
+    assert "max_recharges" in result.stderr and len(result.stderr.strip().splitlines()) == 1
+    assert config.read_text() == "battery:\n  max_recharges: 200  # long missions\n"
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("cycle,capacity_ah\n0,11\n1,x\n2,10\n", "c.csv:3: row 2, column 'capacity_ah'"),
+    ("cycle,cap\n0,11\n", "c.csv:1: header: missing column 'capacity_ah'"),
+    ("cycle,capacity_ah\n0,11\n1,10\n", "at least 3 cycles"),
+])
+def test_fade_bad_input_one_line_exit_2(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "c.csv"
+    path.write_text(text)
+    result = run("phm", "fade", str(path))
+    assert result.exit_code == 2
+    assert message in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
+    assert result.stdout == ""
+
+
+def test_plot_never_overwrites(tmp_path: Path) -> None:
+    png = tmp_path / "mine.png"
+    png.write_bytes(b"keep")
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--plot", str(png))
+    assert result.exit_code == 2 and "already exists" in result.stderr
+    assert png.read_bytes() == b"keep"
+
+
+def test_levels_on_example(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    png = tmp_path / "levels.png"
+    result = run("phm", "levels", str(EXAMPLES / "discharge.csv"), "--write", str(config),
+                 "--plot", str(png))
+    assert result.exit_code == 0, result.output
+    assert "thresholds: low SOC < 0.19" in result.output
+    assert "RMS" in result.output and "Eq. 2 consumption" in result.output
+    merged = yaml.safe_load(config.read_text())
+    assert merged["battery"]["voltage_thresholds"] == {"high": 0.65, "low": 0.19}
+    assert "# as bought" in config.read_text() and "# CI gate" in config.read_text()
+    assert png.read_bytes().startswith(PNG)
+
+
+def test_levels_bad_soc_step(tmp_path: Path) -> None:
+    result = run("phm", "levels", str(EXAMPLES / "discharge.csv"), "--soc-step", "abc")
+    assert result.exit_code == 2 and "--soc-step" in result.stderr
+
+
+def test_recheck_exit_1_on_regression(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    result = run("recheck", str(config), "--cycles", str(_fading(tmp_path)), *SMALL)
+    assert result.exit_code == 1, result.output
+    assert "battery.capacity_ah: 11 → 3" in result.output
+    assert "p_success >= 0.99: before PASS, after FAIL" in result.output
+    assert "no longer holds: p_success >= 0.99" in result.output
+    assert config.read_text() == MISSION  # recheck never edits the config
+
+
+def test_recheck_bad_data_exit_2(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    bad = tmp_path / "d.csv"
+    bad.write_text("soc,voltage_v\n1,25\n0.5,26\n0,20\n")
+    result = run("recheck", str(config), "--cycles", str(_fading(tmp_path)), "--discharge",
+                 str(bad), *SMALL)
+    assert result.exit_code == 2
+    assert "d.csv:3: row 2, column 'voltage_v'" in result.stderr
+
+
+def test_forecast_cli(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    png = tmp_path / "forecast.png"
+    cycles = np.arange(0, 51, 5.0)
+    log = cycles_csv(tmp_path / "c.csv", cycles, 8.6 - 0.032 * cycles)
+    result = run("phm", "forecast", str(config), "--cycles", str(log), "--horizon", "20",
+                 "--step", "10", "--plot", str(png), *SMALL)
+    assert result.exit_code == 0, result.output
+    assert "stops holding after" in result.output
+    assert png.read_bytes().startswith(PNG)
+
+
+def test_forecast_bad_requirement(tmp_path: Path) -> None:
+    result = run("phm", "forecast", str(EXAMPLES / "mission.yaml"), "--cycles",
+                 str(EXAMPLES / "cycles.csv"), "--require", "p_success ~ 1")
+    assert result.exit_code == 2 and "--require" in result.stderr
