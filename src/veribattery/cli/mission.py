@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
-from rich.table import Table
+from rich.table import Column, Table
 
 from veribattery.cli.output import (
     build_progress,
@@ -66,7 +66,7 @@ def print_mission_table(report: MissionReport) -> None:
     """Model size, named results, requirements, timings."""
     dtmc = report.run.dtmc
     out.print(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
-    table = Table("property", "formula", "value", show_edge=False)
+    table = Table("property", "formula", Column("value", overflow="fold"), show_edge=False)
     for result in report.run.results:
         table.add_row(result.property.name or "", result.property.text, format_result(result))
     out.print(table)

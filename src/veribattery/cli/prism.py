@@ -6,7 +6,7 @@ import json
 from pathlib import Path
 
 import click
-from rich.table import Table
+from rich.table import Column, Table
 
 from veribattery.checker import CheckResult
 from veribattery.cli.output import (
@@ -83,7 +83,7 @@ def print_prism_run(run: ModelCheckRun) -> None:
         f"Model: {size['states']:,} states, {size['transitions']:,} transitions, "
         f"{size['initial_states']} initial, {size['deadlocks']} deadlocks"
     )
-    table = Table("property", "value", title=None, show_edge=False)
+    table = Table("property", Column("value", overflow="fold"), title=None, show_edge=False)
     for result in run.results:
         table.add_row(result.property.text, format_result(result))
     out.print(table)
