@@ -171,12 +171,13 @@ def _group_branches(
     sources = states[source[choice]]
     targets = sources.copy()
     probability = np.full(choice.size, _ONE, dtype=object)
-    for part, pick, update in zip(group.parts, picks, updates, strict=True):
+    for first, (part, pick, update) in enumerate(zip(group.parts, picks, updates, strict=True)):
         chosen = pick[choice]
         for j, command in enumerate(part):
             here = chosen == j
             if here.any():
-                _apply_command(command, here, update, sources, targets, probability, context)
+                _apply_command(command, here, update, sources, targets, probability, context,
+                               first == 0)
     counts = np.bincount(source, minlength=states.shape[0])
     return _Branches(source[choice], targets, probability), counts
 
@@ -189,8 +190,12 @@ def _apply_command(
     targets: IntArray,
     probability: ObjectArray,
     context: _Context,
+    first: bool,
 ) -> None:
-    """Multiply in the exact probability and write the assignments of *command*'s updates."""
+    """Multiply in the exact probability and write the assignments of *command*'s updates.
+
+    :param first: the first part of the group (its probability is set, not multiplied).
+    """
     expressions = context.updates[id(command.command)]
     for u, (compiled, expr) in enumerate(zip(command.updates, expressions, strict=True)):
         at = np.flatnonzero(here & (update == u))
@@ -198,7 +203,7 @@ def _apply_command(
             continue
         rows = sources[at]
         exact = tabulate(expr, context.constants, context.columns, rows)
-        probability[at] = probability[at] * exact
+        probability[at] = exact if first else probability[at] * exact
         for column, rhs in compiled.assignments:
             targets[at, column] = rhs(rows)
 
@@ -257,13 +262,15 @@ def _aligned(
     source = np.concatenate([p.source for p in parts] + [dead])
     target = store.add(np.concatenate([p.targets for p in parts] + [dtmc.states[dead]]))
     probability = np.concatenate([p.probability for p in parts] + [_ones(dead.size)])
-    probability = probability / np.maximum(choices, 1)[source].astype(object)
+    shared = np.flatnonzero(choices[source] > 1)  # nondeterministic states: uniform choice
+    if shared.size:
+        probability[shared] = probability[shared] / choices[source[shared]].astype(object)
     keep = probability != _ZERO
     key = source[keep].astype(np.int64) * n + target[keep]
     order = np.argsort(key, kind="stable")
     key, values = key[order], probability[keep][order]
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
-    summed = np.add.reduceat(values, starts) if starts.size else values[:0]
+    summed = values if starts.size == key.size else np.add.reduceat(values, starts)
     P = dtmc.transitions
     rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(P.indptr))
     expected = rows * n + P.indices
