@@ -129,7 +129,8 @@ def check_model(
     with watch.stage("build"):
         dtmc = build_dtmc(flat, progress=progress)
     if exact:
-        results = _check_exact(model, flat, dtmc, resolved, constants, watch)
+        results = _check_exact(model, flat, dtmc, (properties, resolved), props_file, constants,
+                               watch)
     else:
         with watch.stage("check"):
             results = tuple(check(dtmc, p) for p in resolved)
@@ -140,18 +141,31 @@ def _check_exact(
     model: Model,
     flat: FlatModel,
     dtmc: DTMC,
-    properties: Sequence[Property],
+    properties: tuple[Sequence[Property], Sequence[Property]],
+    props_file: PropertiesFile | None,
     constants: Mapping[str, Value | str] | None,
     watch: _Stopwatch,
 ) -> tuple[CheckResult, ...]:
-    """Exact probabilities and rewards (timed as part of the build), then exact checking."""
-    from veribattery.checker.exact import check_exact  # python-flint only when asked for
+    """Exact probabilities and rewards (timed as part of the build), then exact checking.
+
+    *properties* are the properties as written and as resolved: bounds such as
+    ``P<=1/3`` are evaluated exactly from the former.
+    """
+    from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
     from veribattery.explore.exact import exact_dtmc
+    from veribattery.explore.rational import exact_constants
 
     with watch.stage("build"):
         exact = exact_dtmc(model, flat, dtmc, constants)
     with watch.stage("check"):
-        return tuple(check_exact(exact, p) for p in properties)
+        given = dict(constants or {})
+        decls = props_file.constants if props_file is not None else ()
+        values = exact_constants(decls, given, outer=exact.constants)
+        originals, resolved = properties
+        return tuple(
+            check_exact(exact, p, exact_bounds(o.formula, values))
+            for o, p in zip(originals, resolved, strict=True)
+        )
 
 
 def check_prism_file(

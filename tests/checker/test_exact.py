@@ -316,3 +316,13 @@ def test_cli_prints_the_fraction_and_json_carries_it(tmp_path) -> None:
     first, second = document["results"]
     assert (first["value"], first["exact"]) == (0.7, "7/10")
     assert second == {"property": "P>=0.7 [ F x=0 ]", "value": True}
+
+
+def test_bounds_are_exact_as_written() -> None:
+    """``P<=1/3`` holds at exactly 1/3 (the double nearest 1/3 is below it)."""
+    model = "dtmc\nmodule m\n s:[0..2] init 0;\n [] s=0 -> 1/3:(s'=1) + 2/3:(s'=2);" \
+            "\n [] s>0 -> true;\nendmodule\n"
+    props = "const double third = 1/3;\nP<=1/3 [ F s=1 ];\nP>=third [ F s=1 ];\n" \
+            "P<0.3333333333333333 [ F s=1 ];\n"
+    run = check_prism_file(model, props_source=props, exact=True)
+    assert [r.value for r in run.results] == [True, True, False]

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import operator
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
+from contextvars import ContextVar
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -27,9 +28,10 @@ from veribattery.checker import kernels
 from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
 from veribattery.checker.pctl import _as_mask, _has_operator, _leaf, _steps
 from veribattery.checker.result import CheckResult
-from veribattery.errors import CheckError
+from veribattery.errors import CheckError, Span, VeribatteryError
 from veribattery.explore.exact import ExactDTMC, ExactRewards
-from veribattery.explore.rational import ObjectArray, rational
+from veribattery.explore.rational import ExactScalar, ObjectArray, evaluate_rational, rational
+from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     Binary,
     Cumulative,
@@ -51,10 +53,13 @@ from veribattery.lang.nodes import (
     Until,
 )
 
-__all__ = ["ExactCheckResult", "ExactValues", "check_exact", "exact_values"]
+__all__ = ["ExactCheckResult", "ExactValues", "check_exact", "exact_bounds", "exact_values"]
 
 _ZERO = mpq(0)
 _ONE = mpq(1)
+
+#: The exact bounds of the property being checked (set by :func:`exact_values`).
+_BOUNDS: ContextVar[Mapping[Span, mpq] | None] = ContextVar("exact_bounds", default=None)
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,14 +94,18 @@ class ExactCheckResult(CheckResult):
     exact_values: ExactValues | None = None
 
 
-def check_exact(model: ExactDTMC, prop: Property | Expr) -> ExactCheckResult:
+def check_exact(
+    model: ExactDTMC, prop: Property | Expr, bounds: Mapping[Span, mpq] | None = None
+) -> ExactCheckResult:
     """Check *prop* on *model* in exact arithmetic and report it at the initial states.
 
+    :param bounds: exact values of ``P~p``/``R~r`` bounds by their span (see
+        :func:`exact_bounds`); a bound not in it is read from its literal's digits.
     :raises CheckError: when the property cannot be checked on this model.
     """
     prop = prop if isinstance(prop, Property) else Property(prop)
     start = time.perf_counter()
-    result = exact_values(model, prop.formula)
+    result = exact_values(model, prop.formula, bounds or {})
     initial = model.dtmc.initial
     if isinstance(result, ExactValues):
         plain = CheckResult.at_initial(prop, result.floats(), initial, 0.0)
@@ -112,14 +121,41 @@ def _fraction(value: mpq) -> Fraction:
     return Fraction(int(value.numerator), int(value.denominator))
 
 
-def exact_values(model: ExactDTMC, formula: Expr) -> ExactValues | BoolArray:
-    """Per-state value of *formula*: rationals for ``P=?``/``R=?``, booleans otherwise."""
+def exact_bounds(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Span, mpq]:
+    """The exact value of every ``P~p``/``R~r`` bound in *formula* (before resolution), by span.
+
+    Resolving a property folds ``P<=1/3`` into the double nearest 1/3; evaluated
+    here from the expression as written, the bound stays 1/3.
+    """
+    found: dict[Span, mpq] = {}
+    for node in walk(formula):
+        if isinstance(node, ProbOp | RewardOp) and node.bound is not None:
+            try:
+                value = evaluate_rational(node.bound, constants, {}, 1)[0]
+            except VeribatteryError:
+                continue  # not a closed numeric expression: resolution reports it
+            if not isinstance(value, bool | np.bool_):
+                found[node.bound.span] = value
+    return found
+
+
+def exact_values(
+    model: ExactDTMC, formula: Expr, bounds: Mapping[Span, mpq] | None = None
+) -> ExactValues | BoolArray:
+    """Per-state value of *formula*: rationals for ``P=?``/``R=?``, booleans otherwise.
+
+    :param bounds: exact bound values by span (see :func:`exact_bounds`).
+    """
     if isinstance(formula, ProbOp) and formula.op == "=?":
         return ExactValues.finite(path_probs(model, formula.path))
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(model, formula)
     if _has_operator(formula):
-        return state_set(model, formula)
+        token = _BOUNDS.set(bounds or {})
+        try:
+            return state_set(model, formula)
+        finally:
+            _BOUNDS.reset(token)
     leaf = _leaf(model.dtmc, formula)
     if leaf.dtype == np.bool_:
         return np.asarray(leaf, dtype=np.bool_)
@@ -164,7 +200,8 @@ def _bounded_operator(model: ExactDTMC, op: ProbOp | RewardOp) -> BoolArray:
         numbers = ExactValues.finite(path_probs(model, op.path))
     else:
         numbers = path_rewards(model, op)
-    bound = _bound(op.bound)
+    exact = (_BOUNDS.get() or {}).get(op.bound.span)
+    bound = _bound(op.bound) if exact is None else exact
     holds = np.asarray(_COMPARE[op.op](numbers.values, bound), dtype=bool)
     return np.where(numbers.infinite, op.op in (">", ">="), holds)
 
