@@ -204,9 +204,10 @@ def _solve_level(
     known = rhs[lo:hi] + _sums(rows[solved] - lo, values[solved] * x[columns[solved]], hi - lo)
     inner = ~solved
     rows, columns, values = rows[inner], columns[inner], values[inner]
-    components = np.unique(order.component[lo:hi])
+    present = order.component[lo:hi]  # sorted: components are contiguous
+    components = present[np.r_[True, present[1:] != present[:-1]]]
     sizes = order.component_size[components]
-    for k in np.unique(sizes):
+    for k in (1,) if sizes.max() == 1 else np.unique(sizes):
         batch = components[sizes == k]
         if k <= BATCH_LIMIT:
             _solve_batch(order, int(k), batch, lo, rows, columns, values, known, x)
@@ -222,7 +223,8 @@ def _solve_batch(
     """Gauss-Jordan without pivoting on ``I - A_CC`` for every component *C* of *batch*."""
     starts = order.component_start[batch]
     if k == 1:
-        _solve_single(starts, rows, columns, values, known[starts - lo], x)
+        alone = order.component_size[order.component[rows]] == 1
+        _solve_single(starts, rows[alone], columns[alone], values[alone], known[starts - lo], x)
         return
     owner = np.searchsorted(batch, order.component[rows])  # batch is sorted
     mine = batch[np.minimum(owner, batch.size - 1)] == order.component[rows]
@@ -246,12 +248,10 @@ def _solve_single(
 ) -> None:
     """One-state components: ``x_s = known_s / (1 - a_ss)``, dividing only where a loop is."""
     x[states] = known
-    loops = rows == columns
+    loops = rows == columns  # the entries given are those of one-state components
     if loops.any():
         at = rows[loops]
-        chosen = np.isin(at, states)
-        at = at[chosen]
-        x[at] = x[at] / (_ONE - values[loops][chosen])
+        x[at] = x[at] / (_ONE - values[loops])
 
 
 def _solve_large(
