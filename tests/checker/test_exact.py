@@ -326,3 +326,20 @@ def test_bounds_are_exact_as_written() -> None:
             "P<0.3333333333333333 [ F s=1 ];\n"
     run = check_prism_file(model, props_source=props, exact=True)
     assert [r.value for r in run.results] == [True, True, False]
+
+
+def test_check_exact_cli_json_csv_and_exact_requirements() -> None:
+    """``check --exact``: JSON gains ``exact``, CSV an ``exact`` column; requirements exact."""
+    small = ["--set", "farm.cols=3", "--set", "farm.rows=2", "--set", "farm.base=[0,0]",
+             "--set", "battery.capacity_ah=6", "--exact"]
+    base = ["check", "configs/example.yaml", *small]
+    document = json.loads(CliRunner().invoke(cli, [*base, "--format", "json"]).stdout)
+    success = Fraction(document["exact"]["p_success"])
+    assert float(success) == document["results"]["p_success"] and 0 < success < 1
+    csv = CliRunner().invoke(cli, [*base, "--format", "csv"]).stdout.splitlines()
+    assert csv[0] == "property,value,exact" and csv[1].endswith(f",{success}")
+    # The exact value as the bound: >= holds, > fails (no rounding either way).
+    for op, code in ((">=", 0), (">", 1)):
+        requirement = f'requirements=["p_success {op} {success}"]'
+        result = CliRunner().invoke(cli, [*base, "--set", requirement])
+        assert result.exit_code == code, result.output
