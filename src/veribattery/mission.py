@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+import operator
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 
-from veribattery.checker import check
+from veribattery.checker import CheckResult, check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
 from veribattery.lang import parse_model, parse_properties, parse_property
@@ -75,13 +77,18 @@ def mission_files(cfg: MissionConfig) -> MissionFiles:
     return MissionFiles(render_model(cfg), render_properties(cfg), config_to_yaml(cfg))
 
 
-def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = None) -> MissionReport:
-    """Render *cfg*, parse and check the text like any PRISM file, and judge the requirements."""
+def check_mission(
+    cfg: MissionConfig, *, progress: ProgressCallback | None = None, exact: bool = False
+) -> MissionReport:
+    """Render *cfg*, parse and check the text like any PRISM file, and judge the requirements.
+
+    :param exact: check in exact rational arithmetic and judge requirements exactly.
+    """
     files = mission_files(cfg)
     model = parse_model(files.model, name=MODEL_FILE)
     props = parse_properties(files.properties, name=PROPERTIES_FILE)
-    run = check_model(model, props.properties, props_file=props, progress=progress)
-    values = {r.property.name: r.value for r in run.results}
+    run = check_model(model, props.properties, props_file=props, progress=progress, exact=exact)
+    values = {r.property.name: _judged_value(r) for r in run.results}
     outcomes = tuple(_judge(req, values) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
 
@@ -106,8 +113,24 @@ def reuse_key(cfg: MissionConfig) -> str | None:
     return None
 
 
-def _judge(requirement: Requirement, values: Mapping[str | None, Value]) -> RequirementOutcome:
+def _judged_value(result: CheckResult) -> Value | Fraction:
+    """The exact value of an ``--exact`` result (a Fraction), else the value."""
+    exact = getattr(result, "exact", None)
+    return exact if isinstance(exact, Fraction) else result.value
+
+
+_EXACT_HOLDS: dict[str, Callable[[Fraction, Fraction], bool]] = {
+    "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
+}
+
+
+def _judge(
+    requirement: Requirement, values: Mapping[str | None, Value | Fraction]
+) -> RequirementOutcome:
     value = values[requirement.prop]
+    if isinstance(value, Fraction):  # --exact: decided without rounding
+        holds = _EXACT_HOLDS[requirement.op](value, requirement.bound)
+        return RequirementOutcome(requirement, float(value), holds)
     holds = not isinstance(value, bool) and not math.isnan(value) and requirement.holds(value)
     return RequirementOutcome(requirement, value, holds)
 

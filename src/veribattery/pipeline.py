@@ -17,6 +17,7 @@ from veribattery.checker import CheckResult, check
 from veribattery.errors import PrismSemanticError
 from veribattery.explore import DTMC, build_dtmc
 from veribattery.lang import (
+    FlatModel,
     Model,
     PropertiesFile,
     Property,
@@ -114,17 +115,57 @@ def check_model(
     constants: Mapping[str, Value | str] | None = None,
     progress: ProgressCallback | None = None,
     stopwatch: _Stopwatch | None = None,
+    exact: bool = False,
 ) -> ModelCheckRun:
-    """Flatten *model*, build its DTMC and check each property at the initial states."""
+    """Flatten *model*, build its DTMC and check each property at the initial states.
+
+    :param exact: compute in exact rational arithmetic (results are
+        :class:`~veribattery.checker.exact.ExactCheckResult`).
+    """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
     with watch.stage("build"):
         dtmc = build_dtmc(flat, progress=progress)
-    with watch.stage("check"):
-        results = tuple(check(dtmc, p) for p in resolved)
+    if exact:
+        results = _check_exact(model, flat, dtmc, (properties, resolved), props_file, constants,
+                               watch)
+    else:
+        with watch.stage("check"):
+            results = tuple(check(dtmc, p) for p in resolved)
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings)
+
+
+def _check_exact(
+    model: Model,
+    flat: FlatModel,
+    dtmc: DTMC,
+    properties: tuple[Sequence[Property], Sequence[Property]],
+    props_file: PropertiesFile | None,
+    constants: Mapping[str, Value | str] | None,
+    watch: _Stopwatch,
+) -> tuple[CheckResult, ...]:
+    """Exact probabilities and rewards (timed as part of the build), then exact checking.
+
+    *properties* are the properties as written and as resolved: bounds such as
+    ``P<=1/3`` are evaluated exactly from the former.
+    """
+    from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
+    from veribattery.explore.exact import exact_dtmc
+    from veribattery.explore.rational import exact_constants
+
+    with watch.stage("build"):
+        exact = exact_dtmc(model, flat, dtmc, constants)
+    with watch.stage("check"):
+        given = dict(constants or {})
+        decls = props_file.constants if props_file is not None else ()
+        values = exact_constants(decls, given, outer=exact.constants)
+        originals, resolved = properties
+        return tuple(
+            check_exact(exact, p, exact_bounds(o.formula, values))
+            for o, p in zip(originals, resolved, strict=True)
+        )
 
 
 def check_prism_file(
@@ -134,6 +175,7 @@ def check_prism_file(
     selectors: Sequence[str] = (),
     constants: Mapping[str, Value | str] | None = None,
     progress: ProgressCallback | None = None,
+    exact: bool = False,
 ) -> ModelCheckRun:
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
@@ -141,6 +183,7 @@ def check_prism_file(
     :param props_source: a properties file path, or properties text.
     :param selectors: properties to check, by 1-based index, name or text.
     :param constants: values of undefined constants.
+    :param exact: check in exact rational arithmetic (``--exact``).
     """
     watch = _Stopwatch()
     with watch.stage("parse"):
@@ -152,7 +195,8 @@ def check_prism_file(
         if not selectors:
             chosen, skipped = _supported(chosen)
     run = check_model(
-        model, chosen, props_file=props, constants=constants, progress=progress, stopwatch=watch
+        model, chosen, props_file=props, constants=constants, progress=progress, stopwatch=watch,
+        exact=exact,
     )
     return replace(run, warnings=skipped + run.warnings) if skipped else run
 

@@ -8,10 +8,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
-from rich.table import Table
+from rich.table import Column, Table
 
 from veribattery.cli.output import (
     build_progress,
+    exact_text,
+    format_result,
     format_value,
     json_value,
     out,
@@ -35,8 +37,13 @@ if TYPE_CHECKING:
     "--emit", "emit_dir", type=click.Path(path_type=Path), help="Also write the model files here."
 )
 @click.option("--force", is_flag=True, help="Let --emit overwrite existing files.")
+@click.option(
+    "--exact", is_flag=True,
+    help="Compute in exact rational arithmetic; results as p/q, requirements decided exactly.",
+)
 def check_command(
-    config: Path, overrides: tuple[str, ...], output_format: str, emit_dir: Path | None, force: bool
+    config: Path, overrides: tuple[str, ...], output_format: str, emit_dir: Path | None,
+    force: bool, exact: bool,
 ) -> None:
     """Verify the mission of CONFIG (YAML); exit 1 if a requirement fails."""
     from veribattery.config import load_config
@@ -45,7 +52,7 @@ def check_command(
     with user_errors():
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            report = check_mission(cfg, progress=progress)
+            report = check_mission(cfg, progress=progress, exact=exact)
         if emit_dir is not None:
             write_files(mission_files(cfg), emit_dir, force=force)
     print_warnings(report.warnings)
@@ -59,9 +66,9 @@ def print_mission_table(report: MissionReport) -> None:
     """Model size, named results, requirements, timings."""
     dtmc = report.run.dtmc
     out.print(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
-    table = Table("property", "formula", "value", show_edge=False)
+    table = Table("property", "formula", Column("value", overflow="fold"), show_edge=False)
     for result in report.run.results:
-        table.add_row(result.property.name or "", result.property.text, format_value(result.value))
+        table.add_row(result.property.name or "", result.property.text, format_result(result))
     out.print(table)
     for outcome in report.requirements:
         verdict = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
@@ -80,7 +87,18 @@ def mission_json(report: MissionReport) -> dict[str, object]:
             {**o.as_dict(), "value": json_value(o.value)} for o in report.requirements
         ],
         "timings_s": {k: round(v, 6) for k, v in report.run.timings_s.items()},
+        **_exact_json(report),
     }
+
+
+def _exact_json(report: MissionReport) -> dict[str, object]:
+    """``{"exact": {name: "p/q"}}`` for an ``--exact`` run (numeric results only), else {}."""
+    exact = {
+        r.property.name or r.property.text: text
+        for r in report.run.results
+        if (text := exact_text(r)) is not None
+    }
+    return {"exact": exact} if exact else {}
 
 
 def print_mission_json(report: MissionReport) -> None:
@@ -89,10 +107,13 @@ def print_mission_json(report: MissionReport) -> None:
 
 
 def print_mission_csv(report: MissionReport) -> None:
-    """``property,value`` rows (values with full precision)."""
-    click.echo("property,value")
-    for name, value in report.values.items():
-        click.echo(f"{name},{format_value(value) if isinstance(value, bool) else repr(value)}")
+    """``property,value`` rows (values with full precision; ``exact`` too under ``--exact``)."""
+    exact = [exact_text(r) for r in report.run.results]
+    with_exact = any(e is not None for e in exact)
+    click.echo("property,value,exact" if with_exact else "property,value")
+    for (name, value), text in zip(report.values.items(), exact, strict=True):
+        shown = format_value(value) if isinstance(value, bool) else repr(value)
+        click.echo(f"{name},{shown},{text or ''}" if with_exact else f"{name},{shown}")
 
 
 @click.command("emit")

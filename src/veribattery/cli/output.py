@@ -83,6 +83,25 @@ def format_value(value: object) -> str:
     return str(value)
 
 
+def exact_text(result: object) -> str | None:
+    """An ``--exact`` result's value as ``p/q`` (``Infinity`` if infinite); None otherwise.
+
+    Duck-typed on :class:`~veribattery.checker.exact.ExactCheckResult`, so that
+    the CLI does not import the exact checker (and python-flint) unless asked to.
+    """
+    if getattr(result, "exact_values", None) is None:
+        return None  # a boolean result, or not an exact run
+    exact = getattr(result, "exact", None)
+    return "Infinity" if exact is None else str(exact)
+
+
+def format_result(result: object) -> str:
+    """A result for a table: its value, preceded by ``p/q ≈`` for an exact result."""
+    value = format_value(getattr(result, "value", None))
+    exact = exact_text(result)
+    return value if exact is None or exact == "Infinity" else f"{exact} ≈ {value}"
+
+
 def print_warnings(warnings: Sequence[str]) -> None:
     """Print the model's warnings (deadlocks, nondeterminism) to stderr."""
     for warning in warnings:

@@ -7,12 +7,14 @@ from pathlib import Path
 from typing import Any
 
 import click
-from rich.table import Table
+from rich.table import Column, Table
 
+from veribattery.checker import CheckResult
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
 from veribattery.cli.output import (
     build_progress,
-    format_value,
+    exact_text,
+    format_result,
     json_value,
     out,
     print_warnings,
@@ -34,6 +36,10 @@ from veribattery.pipeline import ModelCheckRun, check_prism_file
 )
 @click.option("--const", "consts", multiple=True, metavar="NAME=VALUE", help="Undefined constant.")
 @click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option(
+    "--exact", is_flag=True,
+    help="Compute in exact rational arithmetic; results as p/q (JSON: \"exact\").",
+)
 @prism_analysis_options
 def prism_command(
     model: Path,
@@ -41,6 +47,7 @@ def prism_command(
     selectors: tuple[str, ...],
     consts: tuple[str, ...],
     as_json: bool,
+    exact: bool,
     **analysis: Any,
 ) -> None:
     """Check PCTL properties of a PRISM DTMC MODEL file."""
@@ -52,7 +59,8 @@ def prism_command(
     with user_errors(), build_progress() as progress:
         constants = parse_constant_assignments(consts)
         run = check_prism_file(
-            model, props_source=props, selectors=selectors, constants=constants, progress=progress
+            model, props_source=props, selectors=selectors, constants=constants, progress=progress,
+            exact=exact,
         )
     print_warnings(run.warnings)
     if analysis["simulate"] is not None:
@@ -70,11 +78,16 @@ def prism_json(run: ModelCheckRun) -> dict[str, object]:
     """The ``prism --json`` document."""
     return {
         "model": run.model_summary,
-        "results": [
-            {"property": r.property.text, "value": json_value(r.value)} for r in run.results
-        ],
+        "results": [_result_json(r) for r in run.results],
         "timings_s": {k: round(v, 6) for k, v in run.timings_s.items()},
     }
+
+
+def _result_json(result: CheckResult) -> dict[str, object]:
+    """One entry of ``results``: the property, its value, and ``exact`` under ``--exact``."""
+    entry = {"property": result.property.text, "value": json_value(result.value)}
+    exact = exact_text(result)
+    return entry if exact is None else {**entry, "exact": exact}
 
 
 def print_prism_run(run: ModelCheckRun) -> None:
@@ -84,9 +97,9 @@ def print_prism_run(run: ModelCheckRun) -> None:
         f"Model: {size['states']:,} states, {size['transitions']:,} transitions, "
         f"{size['initial_states']} initial, {size['deadlocks']} deadlocks"
     )
-    table = Table("property", "value", title=None, show_edge=False)
+    table = Table("property", Column("value", overflow="fold"), title=None, show_edge=False)
     for result in run.results:
-        table.add_row(result.property.text, format_value(result.value))
+        table.add_row(result.property.text, format_result(result))
     out.print(table)
     timings = ", ".join(f"{k} {v:.3f}s" for k, v in run.timings_s.items())
     out.print(f"Time: {timings}", style="dim")

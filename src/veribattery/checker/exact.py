@@ -1,0 +1,359 @@
+"""PCTL model checking in exact rational arithmetic (``--exact``).
+
+The same recursion as :mod:`~veribattery.checker.pctl` over an
+:class:`~veribattery.explore.exact.ExactDTMC`: state formulas are masks, ``P``
+and ``R`` operators are per-state rationals (:class:`ExactValues`), and
+``P~p``/``R~r`` compare them with the bound exactly. The qualitative pre-pass
+is the float checker's (prob0/prob1 are graph searches, identical on the exact
+matrix, which has the same structure); the maybe states are then solved SCC by
+SCC in rationals (:mod:`~veribattery.checker.exact_solve`), and step-bounded
+operators iterate exact matrix-vector products. Infinite expected rewards are
+kept in a separate mask.
+"""
+
+from __future__ import annotations
+
+import operator
+import time
+from collections.abc import Callable, Mapping
+from contextvars import ContextVar
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+from gmpy2 import mpq
+
+from veribattery._types import BoolArray, FloatArray
+from veribattery.checker import kernels
+from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
+from veribattery.checker.pctl import _as_mask, _has_operator, _leaf, _steps
+from veribattery.checker.result import CheckResult
+from veribattery.errors import CheckError, Span, VeribatteryError
+from veribattery.explore.exact import ExactDTMC, ExactRewards
+from veribattery.explore.rational import ExactScalar, ObjectArray, evaluate_rational, rational
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import (
+    Binary,
+    Cumulative,
+    DoubleLit,
+    Eventually,
+    Expr,
+    Globally,
+    Instantaneous,
+    IntLit,
+    Ite,
+    Next,
+    PathFormula,
+    ProbOp,
+    Property,
+    Reach,
+    RewardOp,
+    TimeBound,
+    Unary,
+    Until,
+)
+
+__all__ = ["ExactCheckResult", "ExactValues", "check_exact", "exact_bounds", "exact_values"]
+
+_ZERO = mpq(0)
+_ONE = mpq(1)
+
+#: The exact bounds of the property being checked (set by :func:`exact_values`).
+_BOUNDS: ContextVar[Mapping[Span, mpq] | None] = ContextVar("exact_bounds", default=None)
+
+
+@dataclass(frozen=True, slots=True)
+class ExactValues:
+    """Per-state rationals; *infinite* marks expected rewards that are infinite."""
+
+    values: ObjectArray
+    infinite: BoolArray
+
+    @classmethod
+    def finite(cls, values: ObjectArray) -> ExactValues:
+        """Values none of which is infinite."""
+        return cls(np.asarray(values, dtype=object), np.zeros(values.size, dtype=bool))
+
+    def floats(self) -> FloatArray:
+        """The nearest doubles (``inf`` where infinite)."""
+        result = np.array([float(v) for v in self.values], dtype=np.float64)
+        result[self.infinite] = np.inf
+        return result
+
+
+@dataclass(frozen=True, slots=True)
+class ExactCheckResult(CheckResult):
+    """A :class:`CheckResult` that also carries the exact answer.
+
+    :param exact: the value at the first initial state as a :class:`fractions.Fraction`
+        (None for booleans and infinite values).
+    :param exact_values: per-state exact values (None for boolean results).
+    """
+
+    exact: Fraction | None = None
+    exact_values: ExactValues | None = None
+
+
+def check_exact(
+    model: ExactDTMC, prop: Property | Expr, bounds: Mapping[Span, mpq] | None = None
+) -> ExactCheckResult:
+    """Check *prop* on *model* in exact arithmetic and report it at the initial states.
+
+    :param bounds: exact values of ``P~p``/``R~r`` bounds by their span (see
+        :func:`exact_bounds`); a bound not in it is read from its literal's digits.
+    :raises CheckError: when the property cannot be checked on this model.
+    """
+    prop = prop if isinstance(prop, Property) else Property(prop)
+    start = time.perf_counter()
+    result = exact_values(model, prop.formula, bounds or {})
+    initial = model.dtmc.initial
+    if isinstance(result, ExactValues):
+        plain = CheckResult.at_initial(prop, result.floats(), initial, 0.0)
+        first = int(initial[0])
+        exact = None if result.infinite[first] else _fraction(result.values[first])
+        return ExactCheckResult(prop, plain.values, plain.value,
+                                time.perf_counter() - start, exact, result)
+    plain = CheckResult.at_initial(prop, result, initial, 0.0)
+    return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
+
+
+def _fraction(value: mpq) -> Fraction:
+    return Fraction(int(value.numerator), int(value.denominator))
+
+
+def exact_bounds(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Span, mpq]:
+    """The exact value of every ``P~p``/``R~r`` bound in *formula* (before resolution), by span.
+
+    Resolving a property folds ``P<=1/3`` into the double nearest 1/3; evaluated
+    here from the expression as written, the bound stays 1/3.
+    """
+    found: dict[Span, mpq] = {}
+    for node in walk(formula):
+        if isinstance(node, ProbOp | RewardOp) and node.bound is not None:
+            try:
+                value = evaluate_rational(node.bound, constants, {}, 1)[0]
+            except VeribatteryError:
+                continue  # not a closed numeric expression: resolution reports it
+            if not isinstance(value, bool | np.bool_):
+                found[node.bound.span] = value
+    return found
+
+
+def exact_values(
+    model: ExactDTMC, formula: Expr, bounds: Mapping[Span, mpq] | None = None
+) -> ExactValues | BoolArray:
+    """Per-state value of *formula*: rationals for ``P=?``/``R=?``, booleans otherwise.
+
+    :param bounds: exact bound values by span (see :func:`exact_bounds`).
+    """
+    if isinstance(formula, ProbOp) and formula.op == "=?":
+        return ExactValues.finite(path_probs(model, formula.path))
+    if isinstance(formula, RewardOp) and formula.op == "=?":
+        return path_rewards(model, formula)
+    if _has_operator(formula):
+        token = _BOUNDS.set(bounds or {})
+        try:
+            return state_set(model, formula)
+        finally:
+            _BOUNDS.reset(token)
+    leaf = _leaf(model.dtmc, formula)
+    if leaf.dtype == np.bool_:
+        return np.asarray(leaf, dtype=np.bool_)
+    raise CheckError("--exact checks P and R operators and boolean formulas; "
+                     "this is a numeric state expression", formula.span)
+
+
+# ---------------------------------------------------------------------------
+# State formulas
+# ---------------------------------------------------------------------------
+
+_CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
+    "&": operator.and_,
+    "|": operator.or_,
+    "=>": lambda a, b: ~a | b,
+    "<=>": operator.eq,
+}
+
+
+def state_set(model: ExactDTMC, expr: Expr) -> BoolArray:
+    """The states satisfying *expr*, bounded operators decided exactly."""
+    match expr:
+        case ProbOp() | RewardOp():
+            return _bounded_operator(model, expr)
+        case Unary(op="!", operand=operand):
+            return ~state_set(model, operand)
+        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
+            return _CONNECTIVES[op](state_set(model, left), state_set(model, right))
+        case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
+            return np.where(state_set(model, cond), state_set(model, then),
+                            state_set(model, otherwise))
+    if _has_operator(expr):
+        raise CheckError("P and R operators may only be combined with ! & | => <=> "
+                         "and ?:", expr.span)
+    return _as_mask(_leaf(model.dtmc, expr), expr)
+
+
+def _bounded_operator(model: ExactDTMC, op: ProbOp | RewardOp) -> BoolArray:
+    if op.op == "=?" or op.bound is None:
+        raise CheckError("a query (=?) cannot be used as a state formula", op.span)
+    if isinstance(op, ProbOp):
+        numbers = ExactValues.finite(path_probs(model, op.path))
+    else:
+        numbers = path_rewards(model, op)
+    exact = (_BOUNDS.get() or {}).get(op.bound.span)
+    bound = _bound(op.bound) if exact is None else exact
+    holds = np.asarray(_COMPARE[op.op](numbers.values, bound), dtype=bool)
+    return np.where(numbers.infinite, op.op in (">", ">="), holds)
+
+
+_COMPARE: dict[str, Callable[[ObjectArray, mpq], object]] = {
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+}
+
+
+def _bound(expr: Expr) -> mpq:
+    """A probability or reward bound, read exactly from its digits."""
+    match expr:
+        case IntLit(value=value):
+            return mpq(value)
+        case DoubleLit(value=value, text=text):
+            return rational(text) if text else rational(value)
+        case Unary(op="-", operand=operand):
+            return -_bound(operand)
+    raise CheckError("expected a numeric constant", expr.span)
+
+
+# ---------------------------------------------------------------------------
+# Path formulas
+# ---------------------------------------------------------------------------
+
+
+def path_probs(model: ExactDTMC, path: PathFormula) -> ObjectArray:
+    """Per-state exact probability of *path* (``X``, ``U``, ``F``, ``G``, step-bounded too)."""
+    everywhere = np.ones(model.dtmc.num_states, dtype=bool)
+    match path:
+        case Next(operand=operand):
+            return _next(model, state_set(model, operand))
+        case Until(left=left, right=right, bound=bound):
+            return _until(model, state_set(model, left), state_set(model, right), bound)
+        case Eventually(operand=operand, bound=bound):
+            return _until(model, everywhere, state_set(model, operand), bound)
+        case Globally(operand=operand, bound=bound):
+            escape = _until(model, everywhere, ~state_set(model, operand), bound)
+            return np.asarray(_ONE - escape, dtype=object)
+    raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
+
+
+def _until(model: ExactDTMC, remain: BoolArray, target: BoolArray,
+           bound: TimeBound | None) -> ObjectArray:
+    if bound is None:
+        return until_probs(model, remain, target)
+    k = _steps(bound.value)
+    hit = _indicator(target)
+    match bound.op:
+        case "<=" | "<":
+            steps = k if bound.op == "<=" else k - 1
+            if steps < 0:  # U<0 can never be met
+                return _indicator(np.zeros_like(target))
+            return _power(model, remain & ~target, hit, hit, steps)
+        case ">=" | ">":
+            later = until_probs(model, remain, target)
+            zero = _indicator(np.zeros_like(target))
+            return _power(model, remain, later, zero, k if bound.op == ">=" else k + 1)
+    raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
+
+
+def until_probs(model: ExactDTMC, remain: BoolArray, target: BoolArray) -> ObjectArray:
+    """Exact probability of ``remain U target``: pre-pass, then the SCC-wise solve."""
+    P = model.dtmc.transitions
+    no = kernels.prob0(P, remain, target)
+    yes = kernels.prob1(P, remain, target, no)
+    result = _indicator(yes)
+    maybe = ~(no | yes)
+    if maybe.any():
+        rows = np.flatnonzero(maybe)
+        b = row_products(P, model.probabilities, rows, _indicator(yes))
+        result[rows] = solve(_system(model, maybe), b)
+    return result
+
+
+def _system(model: ExactDTMC, maybe: BoolArray) -> Prepared:
+    """The system on *maybe*, prepared once per model and mask (rewards share targets)."""
+    key = np.packbits(maybe).tobytes()
+    found = model.cache.get(key)
+    if not isinstance(found, Prepared):
+        found = prepare(restrict(model.dtmc.transitions, model.probabilities, maybe))
+        model.cache[key] = found
+    return found
+
+
+def _next(model: ExactDTMC, target: BoolArray) -> ObjectArray:
+    everything = np.arange(model.dtmc.num_states)
+    return row_products(model.dtmc.transitions, model.probabilities, everything,
+                        _indicator(target))
+
+
+def _power(model: ExactDTMC, moving: BoolArray, start: ObjectArray, offset: ObjectArray,
+           k: int) -> ObjectArray:
+    """``k`` steps of ``x <- offset + M x`` (M: the rows of *moving*), stopping at a fixpoint."""
+    P, probabilities = model.dtmc.transitions, model.probabilities
+    rows = np.flatnonzero(moving)
+    x = start.copy()
+    for _ in range(k):
+        following = offset.copy()
+        following[rows] = following[rows] + row_products(P, probabilities, rows, x)
+        if np.all(following == x):
+            break
+        x = following
+    return x
+
+
+def _indicator(mask: BoolArray) -> ObjectArray:
+    result: ObjectArray = np.where(mask, _ONE, _ZERO).astype(object)
+    return result
+
+
+# ---------------------------------------------------------------------------
+# Rewards
+# ---------------------------------------------------------------------------
+
+
+def path_rewards(model: ExactDTMC, op: RewardOp) -> ExactValues:
+    """Per-state exact expected reward of ``R{..}`` over ``F``, ``C<=k`` or ``I=k``."""
+    structure = _reward_structure(model, op)
+    zero = _indicator(np.zeros(model.dtmc.num_states, dtype=bool))
+    everywhere = np.ones(model.dtmc.num_states, dtype=bool)
+    match op.path:
+        case Reach(target=target):
+            return reach_rewards(model, structure.total, state_set(model, target))
+        case Cumulative(bound=bound):
+            total = structure.total
+            return ExactValues.finite(_power(model, everywhere, zero, total, _steps(bound)))
+        case Instantaneous(time=time_):
+            state = structure.state
+            return ExactValues.finite(_power(model, everywhere, state, zero, _steps(time_)))
+    raise CheckError(f"unsupported reward path {type(op.path).__name__}", op.path.span)
+
+
+def reach_rewards(model: ExactDTMC, rewards: ObjectArray, target: BoolArray) -> ExactValues:
+    """Exact ``R=? [F target]``: infinite where *target* is not almost sure (PRISM)."""
+    P = model.dtmc.transitions
+    everywhere = np.ones(P.shape[0], dtype=bool)
+    sure = kernels.prob1(P, everywhere, target, kernels.prob0(P, everywhere, target))
+    result = _indicator(np.zeros_like(target))
+    maybe = sure & ~target
+    if maybe.any():
+        rows = np.flatnonzero(maybe)
+        result[rows] = solve(_system(model, maybe), rewards[rows])
+    return ExactValues(result, ~sure)
+
+
+def _reward_structure(model: ExactDTMC, op: RewardOp) -> ExactRewards:
+    try:
+        return model.reward(op.reward)
+    except (KeyError, IndexError):
+        key = "" if op.reward is None else f" {op.reward!r}"
+        raise CheckError(f"the model has no reward structure{key}", op.span) from None

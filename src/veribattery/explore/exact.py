@@ -1,0 +1,343 @@
+"""Exact rational transition probabilities and rewards of an already-built DTMC.
+
+The builder explores the state space in floating point; :func:`exact_dtmc` then
+re-derives, for every transition of that DTMC, its probability as an exact
+rational (:mod:`~veribattery.explore.rational`): each command's updates are
+re-expanded over all states at once (guards and assignments are the builder's
+compiled ones, so the successors are the same), and each update's probability
+is evaluated from the model's *source* expression -- formulas inlined and
+modules renamed, but constants kept exact rather than folded into doubles --
+once per distinct valuation of the variables it reads. Branches with the same
+source and target are summed, and the result is aligned with the float CSR
+matrix entry by entry (a mismatch is reported, never papered over). Rewards are
+recomputed the same way.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+from gmpy2 import mpq
+
+from veribattery._types import BoolArray, IntArray
+from veribattery.errors import ModelError
+from veribattery.explore.compile import compile_expr
+from veribattery.explore.dtmc import DTMC
+from veribattery.explore.program import ChoiceGroup, CompiledCommand, compile_program
+from veribattery.explore.rational import ExactScalar, ObjectArray, exact_constants, tabulate
+from veribattery.explore.store import StateStore
+from veribattery.explore.successors import format_state
+from veribattery.lang.nodes import Expr, FlatModel, Model, RewardStruct, Value
+from veribattery.lang.semantics import _inline, _modules, expand_formulas
+
+__all__ = ["ExactDTMC", "ExactRewards", "exact_dtmc"]
+
+_ONE = mpq(1)
+_ZERO = mpq(0)
+
+
+@dataclass(frozen=True, slots=True)
+class ExactRewards:
+    """One reward structure in rationals: per state, and expected per step (transition)."""
+
+    name: str | None
+    state: ObjectArray
+    transition: ObjectArray
+
+    @property
+    def total(self) -> ObjectArray:
+        """State plus expected transition reward per step."""
+        return np.asarray(self.state + self.transition, dtype=object)
+
+
+@dataclass(frozen=True, slots=True)
+class ExactDTMC:
+    """A built DTMC with its transition probabilities and rewards as exact rationals.
+
+    :param dtmc: the float DTMC (states, labels, CSR structure).
+    :param probabilities: ``mpq`` per entry of ``dtmc.transitions`` (CSR data order).
+    :param rewards: the reward structures, in declaration order.
+    :param constants: the exact values of the model's constants.
+    :param cache: the checker's per-model memo (prepared linear systems).
+    """
+
+    dtmc: DTMC
+    probabilities: ObjectArray
+    rewards: tuple[ExactRewards, ...]
+    constants: Mapping[str, ExactScalar]
+    cache: dict[bytes, object] = field(default_factory=dict, compare=False, repr=False)
+
+    def reward(self, key: str | int | None) -> ExactRewards:
+        """The reward structure named *key*, at index *key*, or the first (None)."""
+        if key is None or isinstance(key, int):
+            return self.rewards[key or 0]
+        for structure in self.rewards:
+            if structure.name == key:
+                return structure
+        raise KeyError(key)
+
+
+@dataclass(frozen=True, slots=True)
+class _Context:
+    """What the expansion needs besides the states."""
+
+    constants: Mapping[str, ExactScalar]
+    columns: dict[str, tuple[int, bool]]
+    updates: dict[int, tuple[Expr, ...]]  # id(flat command) -> exact update probabilities
+
+
+@dataclass(frozen=True, slots=True)
+class _Branches:
+    source: IntArray
+    targets: IntArray
+    probability: ObjectArray
+
+
+def exact_dtmc(
+    model: Model,
+    flat: FlatModel,
+    dtmc: DTMC,
+    constants: Mapping[str, Value | str] | None = None,
+) -> ExactDTMC:
+    """Exact probabilities and rewards for *dtmc*, built from *flat* (flattened *model*).
+
+    :param model: the parsed model (its unfolded expressions are evaluated).
+    :param flat: ``flatten_model(model, constants)``.
+    :param dtmc: ``build_dtmc(flat)``.
+    :param constants: the values given for undefined constants (decimals are exact).
+    :raises ModelError: for an expression without an exact rational value, or a
+        state whose probabilities do not sum to exactly 1.
+    """
+    given = {k: v for k, v in (constants or {}).items()}
+    exact = exact_constants(model.constants, given)
+    formulas = expand_formulas(model.formulas)
+    context = _Context(exact, _columns(flat), _update_map(model, flat, formulas))
+    program = compile_program(flat)
+    states = dtmc.states
+    counts: dict[str | None, IntArray] = {}
+    parts: list[_Branches] = []
+    for group in program.groups:
+        found = _group_branches(group, states, context)
+        if found is not None:
+            branches, choices = found
+            parts.append(branches)
+            counts[group.action] = counts.get(group.action, 0) + choices
+    total = sum(counts.values(), np.zeros(dtmc.num_states, dtype=np.int64))
+    probabilities = _aligned(program.lows, program.highs, dtmc, parts, total)
+    _check_sums(dtmc, probabilities, flat.variable_names)
+    sources = [_inline(r, formulas) for r in model.rewards]
+    rewards = tuple(
+        _rewards(f, s, dtmc, context, counts, total)
+        for f, s in zip(flat.rewards, sources, strict=True)
+    )
+    return ExactDTMC(dtmc, probabilities, rewards, exact)
+
+
+def _columns(flat: FlatModel) -> dict[str, tuple[int, bool]]:
+    return {v.name: (i, v.is_bool) for i, v in enumerate(flat.variables)}
+
+
+def _update_map(
+    model: Model, flat: FlatModel, formulas: Mapping[str, Expr]
+) -> dict[int, tuple[Expr, ...]]:
+    """Each flat command's update probabilities as written (formulas inlined, renamed).
+
+    Flattening keeps modules, commands and updates in source order, so the
+    unfolded modules line up with the flat ones position by position.
+    """
+    found: dict[int, tuple[Expr, ...]] = {}
+    for flat_module, module in zip(flat.modules, _modules(model, formulas), strict=True):
+        for flat_command, command in zip(flat_module.commands, module.commands, strict=True):
+            found[id(flat_command)] = tuple(u.probability for u in command.updates)
+    return found
+
+
+# ---------------------------------------------------------------------------
+# Branches of one choice group over all states
+# ---------------------------------------------------------------------------
+
+
+def _group_branches(
+    group: ChoiceGroup, states: IntArray, context: _Context
+) -> tuple[_Branches, IntArray] | None:
+    """Every branch of *group* in every state, and each state's number of choices."""
+    enumerated = _choices(group, states)
+    if enumerated is None:
+        return None
+    source, picks = enumerated
+    choice, updates = _branch_updates(group, picks)
+    sources = states[source[choice]]
+    targets = sources.copy()
+    probability = np.full(choice.size, _ONE, dtype=object)
+    for first, (part, pick, update) in enumerate(zip(group.parts, picks, updates, strict=True)):
+        chosen = pick[choice]
+        for j, command in enumerate(part):
+            here = chosen == j
+            if here.any():
+                _apply_command(command, here, update, sources, targets, probability, context,
+                               first == 0)
+    counts = np.bincount(source, minlength=states.shape[0])
+    return _Branches(source[choice], targets, probability), counts
+
+
+def _apply_command(
+    command: CompiledCommand,
+    here: BoolArray,
+    update: IntArray,
+    sources: IntArray,
+    targets: IntArray,
+    probability: ObjectArray,
+    context: _Context,
+    first: bool,
+) -> None:
+    """Multiply in the exact probability and write the assignments of *command*'s updates.
+
+    :param first: the first part of the group (its probability is set, not multiplied).
+    """
+    expressions = context.updates[id(command.command)]
+    for u, (compiled, expr) in enumerate(zip(command.updates, expressions, strict=True)):
+        at = np.flatnonzero(here & (update == u))
+        if at.size == 0:
+            continue
+        rows = sources[at]
+        exact = tabulate(expr, context.constants, context.columns, rows)
+        probability[at] = exact if first else probability[at] * exact
+        for column, rhs in compiled.assignments:
+            targets[at, column] = rhs(rows)
+
+
+def _choices(group: ChoiceGroup, states: IntArray) -> tuple[IntArray, list[IntArray]] | None:
+    """Joint choices: the state of each, and per part the index of the command picked."""
+    source = np.arange(states.shape[0])
+    picks: list[IntArray] = []
+    for part in group.parts:
+        if not part:
+            return None
+        enabled = np.empty((source.size, len(part)), dtype=bool)
+        for j, command in enumerate(part):
+            enabled[:, j] = np.broadcast_to(command.guard(states[source]), source.shape)
+        rows, columns = np.nonzero(enabled)
+        source = source[rows]
+        picks = [p[rows] for p in picks] + [columns.astype(np.int64)]
+        if source.size == 0:
+            return None
+    return source, picks
+
+
+def _branch_updates(
+    group: ChoiceGroup, picks: Sequence[IntArray]
+) -> tuple[IntArray, list[IntArray]]:
+    """Branch-to-choice map and, per part, each branch's update index (product order)."""
+    choice = np.arange(picks[0].size)
+    updates: list[IntArray] = []
+    for part, pick in zip(group.parts, picks, strict=True):
+        sizes = np.array([len(c.updates) for c in part], dtype=np.int64)
+        repeats = sizes[pick[choice]]
+        starts = np.cumsum(repeats) - repeats
+        choice = np.repeat(choice, repeats)
+        updates = [np.repeat(u, repeats) for u in updates]
+        updates.append(np.arange(choice.size) - np.repeat(starts, repeats))
+    return choice, updates
+
+
+# ---------------------------------------------------------------------------
+# Assembling and checking
+# ---------------------------------------------------------------------------
+
+
+def _aligned(
+    lows: Sequence[int],
+    highs: Sequence[int],
+    dtmc: DTMC,
+    parts: list[_Branches],
+    choices: IntArray,
+) -> ObjectArray:
+    """Exact branch probabilities summed per (source, target), in the float CSR's order."""
+    n = dtmc.num_states
+    store = StateStore(lows, highs)
+    store.add(dtmc.states)
+    dead = np.flatnonzero(choices == 0)
+    source = np.concatenate([p.source for p in parts] + [dead])
+    target = store.add(np.concatenate([p.targets for p in parts] + [dtmc.states[dead]]))
+    probability = np.concatenate([p.probability for p in parts] + [_ones(dead.size)])
+    shared = np.flatnonzero(choices[source] > 1)  # nondeterministic states: uniform choice
+    if shared.size:
+        probability[shared] = probability[shared] / choices[source[shared]].astype(object)
+    keep = probability != _ZERO
+    key = source[keep].astype(np.int64) * n + target[keep]
+    order = np.argsort(key, kind="stable")
+    key, values = key[order], probability[keep][order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    summed = values if starts.size == key.size else np.add.reduceat(values, starts)
+    P = dtmc.transitions
+    rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(P.indptr))
+    expected = rows * n + P.indices
+    if store.count != n or not np.array_equal(key[starts], expected):
+        raise ModelError(
+            "the exact re-expansion of the model does not match its float state space "
+            "(a guard or assignment evaluates differently in rational arithmetic)"
+        )
+    return np.asarray(summed, dtype=object)
+
+
+def _ones(size: int) -> ObjectArray:
+    return np.full(size, _ONE, dtype=object)
+
+
+def _check_sums(dtmc: DTMC, probabilities: ObjectArray, names: Sequence[str]) -> None:
+    """Every row of the exact matrix must sum to exactly 1 (the float check allows 1e-6)."""
+    indptr = dtmc.transitions.indptr
+    sums = np.add.reduceat(probabilities, indptr[:-1]) if probabilities.size else probabilities
+    wrong = np.flatnonzero(sums != _ONE)
+    if wrong.size:
+        state = int(wrong[0])
+        where = format_state(names, dtmc.states[state])
+        raise ModelError(
+            f"in exact arithmetic the probabilities leaving state ({where}) sum to "
+            f"{sums[state]}, not 1 (--exact takes each literal as written, e.g. 0.333 is "
+            "333/1000: write 1/3)"
+        )
+
+
+def _rewards(
+    flat: RewardStruct,
+    source: RewardStruct,
+    dtmc: DTMC,
+    context: _Context,
+    counts: Mapping[str | None, IntArray],
+    choices: IntArray,
+) -> ExactRewards:
+    """State rewards, and transition rewards weighted by each action's share of the choices."""
+    states = dtmc.states
+    state = np.full(dtmc.num_states, _ZERO, dtype=object)
+    transition = np.full(dtmc.num_states, _ZERO, dtype=object)
+    for item, exact in zip(flat.items, source.items, strict=True):
+        guard = np.broadcast_to(compile_expr(item.guard, dtmc.variable_names)(states),
+                                (dtmc.num_states,)).astype(bool)
+        at = np.flatnonzero(guard)
+        if at.size == 0:
+            continue
+        value = tabulate(exact.value, context.constants, context.columns, states[at])
+        if not item.is_transition:
+            state[at] = state[at] + value
+            continue
+        share = np.asarray(counts.get(item.action, np.zeros(dtmc.num_states, np.int64)))
+        weight = _shares(share[at], choices[at])
+        transition[at] = transition[at] + weight * value
+    return ExactRewards(source.name, state, transition)
+
+
+def _shares(count: IntArray, choices: IntArray) -> ObjectArray:
+    """``count / choices`` as rationals (0 where a state has no choice)."""
+    key = count.astype(np.int64) * (int(choices.max(initial=0)) + 1) + choices
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    table = [mpq(int(count[i]), max(int(choices[i]), 1)) for i in first]
+    return np.asarray(_as_objects(table)[inverse.reshape(-1)], dtype=object)
+
+
+def _as_objects(items: Sequence[mpq]) -> ObjectArray:
+    array = np.empty(len(items), dtype=object)
+    array[:] = items
+    return array

@@ -1,0 +1,384 @@
+"""Expressions evaluated in exact rational arithmetic, vectorised over valuations.
+
+Numbers are :class:`gmpy2.mpq` (GMP rationals) held in numpy
+object arrays, so each operator is one numpy call over all valuations at once
+while every element is exact: a literal ``0.1`` is ``1/10`` (read from the
+digits as written), ``/`` is rational division, and int and double values are
+both rationals. Booleans are numpy bool arrays.
+
+An expression is evaluated over its *distinct* valuations only (see
+:func:`tabulate`): a probability that reads two small variables is computed a
+few dozen times, whatever the number of states.
+
+Operators without an exact rational value -- ``log``, ``pow`` with a
+non-integer exponent -- raise :class:`~veribattery.errors.ModelError` naming the
+expression, as do divisions by zero.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from fractions import Fraction
+from typing import Any, TypeAlias
+
+import numpy as np
+from gmpy2 import mpq
+
+from veribattery._types import IntArray
+from veribattery.errors import ModelError, PrismSemanticError, Span
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    ConstDecl,
+    DoubleLit,
+    Expr,
+    Ident,
+    IntLit,
+    Ite,
+    Unary,
+    Value,
+)
+
+__all__ = [
+    "ExactScalar",
+    "ObjectArray",
+    "evaluate_rational",
+    "exact_constants",
+    "rational",
+    "tabulate",
+]
+
+ObjectArray: TypeAlias = np.ndarray
+#: An exact constant: a rational (ints included) or a boolean.
+ExactScalar: TypeAlias = mpq | bool
+
+_ZERO = mpq(0)
+
+
+def rational(value: Value | Fraction | str) -> mpq:
+    """*value* as an exact rational; a float is read from its shortest decimal (0.1 is 1/10)."""
+    if isinstance(value, bool):
+        raise TypeError("a boolean is not a number")
+    if isinstance(value, int):
+        return mpq(value)
+    if isinstance(value, float):
+        if not np.isfinite(value):
+            raise ValueError(f"{value} has no exact rational value")
+        value = repr(value)
+    fraction = Fraction(value)
+    return mpq(fraction.numerator, fraction.denominator)
+
+
+# ---------------------------------------------------------------------------
+# Constants
+# ---------------------------------------------------------------------------
+
+
+def exact_constants(
+    decls: Sequence[ConstDecl],
+    given: Mapping[str, Value | str],
+    outer: Mapping[str, ExactScalar] | None = None,
+) -> dict[str, ExactScalar]:
+    """Exact values of *decls* (defined ones evaluated rationally, undefined from *given*).
+
+    The flattening (:func:`~veribattery.lang.flatten_model`) has already
+    checked names, types and cycles; this only recomputes the values without
+    rounding: ``const double p = 1/3`` is 1/3, ``--const p=0.7`` is 7/10.
+    """
+    values: dict[str, ExactScalar] = dict(outer or {})
+    pending = {d.name: d for d in decls}
+
+    def value(name: str) -> ExactScalar:
+        if name not in values:
+            decl = pending[name]
+            for node in walk(decl.value) if decl.value is not None else ():
+                if isinstance(node, Ident) and node.name in pending:
+                    value(node.name)
+            values[name] = _constant(decl, given, values)
+        return values[name]
+
+    for decl in decls:
+        value(decl.name)
+    return values
+
+
+def _constant(
+    decl: ConstDecl, given: Mapping[str, Value | str], values: Mapping[str, ExactScalar]
+) -> ExactScalar:
+    if decl.value is None:
+        raw = given[decl.name]
+        if decl.type == "bool":
+            return raw in (True, "true")
+        return rational(raw.strip() if isinstance(raw, str) else raw)
+    result = evaluate_rational(decl.value, values, {}, 1)[0]
+    return bool(result) if decl.type == "bool" else result
+
+
+# ---------------------------------------------------------------------------
+# Tabulation over distinct valuations
+# ---------------------------------------------------------------------------
+
+
+def tabulate(
+    expr: Expr,
+    constants: Mapping[str, ExactScalar],
+    columns: Mapping[str, tuple[int, bool]],
+    states: IntArray,
+) -> ObjectArray:
+    """Exact value of *expr* in each row of *states*, evaluated once per distinct valuation.
+
+    :param constants: exact values of the model's constants.
+    :param columns: each variable's column in *states* and whether it is a bool.
+    :param states: one row per state.
+    """
+    names = sorted({n.name for n in walk(expr) if isinstance(n, Ident)} - constants.keys())
+    if not names:
+        scalar = evaluate_rational(expr, constants, {}, 1)
+        return np.full(states.shape[0], scalar[0], dtype=object)
+    unknown = [n for n in names if n not in columns]
+    if unknown:
+        raise PrismSemanticError(f"unknown identifier '{unknown[0]}'", expr.span)
+    picked = states[:, [columns[n][0] for n in names]]
+    first, inverse = _distinct_rows(picked)
+    distinct = picked[first]
+    env = {n: _column(distinct[:, i], columns[n][1]) for i, n in enumerate(names)}
+    table = evaluate_rational(expr, constants, env, distinct.shape[0])
+    return np.asarray(table[inverse], dtype=object)
+
+
+def _distinct_rows(rows: IntArray) -> tuple[IntArray, IntArray]:
+    """First occurrence of each distinct row and each row's index among them.
+
+    Rows are packed into one integer key by mixed radix when the ranges allow
+    (``np.unique`` over whole rows sorts them as bytes, an order of magnitude slower).
+    """
+    low = rows.min(axis=0)
+    sizes = [int(s) for s in rows.max(axis=0) - low + 1]
+    if int(np.prod(np.array(sizes, dtype=object))) >= 1 << 62:
+        _, first, inverse = np.unique(rows, axis=0, return_index=True, return_inverse=True)
+        return first, inverse.reshape(-1)
+    key = np.zeros(rows.shape[0], dtype=np.int64)
+    for column, size in enumerate(sizes):
+        key = key * size + (rows[:, column] - low[column])
+    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
+    return first, inverse.reshape(-1)
+
+
+def _column(values: IntArray, is_bool: bool) -> np.ndarray:
+    if is_bool:
+        return values.astype(bool)
+    return _as_objects([mpq(int(v)) for v in values])
+
+
+def _as_objects(items: Sequence[Any]) -> ObjectArray:
+    array = np.empty(len(items), dtype=object)
+    array[:] = items
+    return array
+
+
+# ---------------------------------------------------------------------------
+# The evaluator
+# ---------------------------------------------------------------------------
+
+
+def evaluate_rational(
+    expr: Expr,
+    constants: Mapping[str, ExactScalar],
+    variables: Mapping[str, np.ndarray],
+    n: int,
+) -> np.ndarray:
+    """*expr* evaluated exactly for *n* valuations (object array of mpq, or bools).
+
+    :param constants: exact constant values (scalars).
+    :param variables: per variable, an array of *n* values (mpq objects or bools).
+    :raises ModelError: for an operation without an exact rational result.
+    """
+    return _Evaluator(constants, variables, n).run(expr)
+
+
+class _Evaluator:
+    """One evaluation: constants are broadcast, sub-expressions see row subsets."""
+
+    def __init__(
+        self, constants: Mapping[str, ExactScalar], variables: Mapping[str, np.ndarray], n: int
+    ) -> None:
+        self.constants = constants
+        self.variables = variables
+        self.n = n
+
+    def subset(self, mask: np.ndarray) -> _Evaluator:
+        chosen = {k: v[mask] for k, v in self.variables.items()}
+        return _Evaluator(self.constants, chosen, int(np.count_nonzero(mask)))
+
+    def full(self, value: Any) -> np.ndarray:
+        if isinstance(value, bool | np.bool_):
+            return np.full(self.n, bool(value), dtype=bool)
+        return np.full(self.n, value, dtype=object)
+
+    def run(self, expr: Expr) -> np.ndarray:
+        if isinstance(expr, IntLit):
+            return self.full(mpq(expr.value))
+        if isinstance(expr, DoubleLit):
+            return self.full(rational(expr.text) if expr.text else rational(expr.value))
+        if isinstance(expr, BoolLit):
+            return self.full(expr.value)
+        if isinstance(expr, Ident):
+            return self._ident(expr)
+        if isinstance(expr, Unary):
+            operand = self.run(expr.operand)
+            return ~_bools(operand) if expr.op == "!" else -operand
+        if isinstance(expr, Binary):
+            return self._binary(expr)
+        if isinstance(expr, Ite):
+            return self._ite(expr)
+        if isinstance(expr, Call):
+            return _call(expr, [self.run(a) for a in expr.args])
+        raise PrismSemanticError(f"{type(expr).__name__} has no exact rational value", expr.span)
+
+    def _ident(self, expr: Ident) -> np.ndarray:
+        if expr.name in self.variables:
+            return self.variables[expr.name]
+        if expr.name in self.constants:
+            return self.full(self.constants[expr.name])
+        raise PrismSemanticError(f"unknown identifier '{expr.name}'", expr.span)
+
+    def _binary(self, expr: Binary) -> np.ndarray:
+        if expr.op in ("&", "|", "=>"):
+            return self._logical(expr)
+        left, right = self.run(expr.left), self.run(expr.right)
+        if expr.op == "/":
+            return _divide(left, right, expr.span)
+        if expr.op == "<=>":
+            return np.asarray(_bools(left) == _bools(right))
+        result = _OPERATORS[expr.op](left, right)
+        return np.asarray(result, dtype=bool) if expr.op in _RELATIONS else result
+
+    def _logical(self, expr: Binary) -> np.ndarray:
+        """``&``, ``|``, ``=>``: the right operand only where the left does not decide."""
+        left = _bools(self.run(expr.left))
+        if expr.op == "=>":
+            left = ~left
+        decided = left if expr.op != "&" else ~left
+        result = left.copy()
+        todo = ~decided
+        if todo.any():
+            result[todo] = _bools(self.subset(todo).run(expr.right))
+        return result
+
+    def _ite(self, expr: Ite) -> np.ndarray:
+        pick = _bools(self.run(expr.cond))
+        high = self.subset(pick).run(expr.then)
+        low = self.subset(~pick).run(expr.otherwise)
+        kind = bool if high.dtype == bool and low.dtype == bool else object
+        out = np.empty(self.n, dtype=kind)
+        out[pick] = high
+        out[~pick] = low
+        return out
+
+
+def _bools(values: np.ndarray) -> np.ndarray:
+    if values.dtype == bool:
+        return values
+    return np.asarray(values != _ZERO, dtype=bool)  # a 0/1 int used as a condition
+
+
+_RELATIONS = frozenset({"=", "!=", "<", "<=", ">", ">="})
+
+_OPERATORS: dict[str, Callable[[Any, Any], Any]] = {
+    "+": np.add,
+    "-": np.subtract,
+    "*": np.multiply,
+    "=": np.equal,
+    "!=": np.not_equal,
+    "<": np.less,
+    "<=": np.less_equal,
+    ">": np.greater,
+    ">=": np.greater_equal,
+}
+
+
+def _divide(left: np.ndarray, right: np.ndarray, span: Span) -> np.ndarray:
+    if np.any(right == _ZERO):
+        raise ModelError("division by zero (no exact rational value)", span)
+    return np.asarray(left / right, dtype=object)
+
+
+# ---------------------------------------------------------------------------
+# Built-in functions
+# ---------------------------------------------------------------------------
+
+
+def _call(expr: Call, args: list[np.ndarray]) -> np.ndarray:
+    func = expr.func
+    if func in ("min", "max"):
+        pick = np.minimum if func == "min" else np.maximum
+        result = args[0]
+        for arg in args[1:]:
+            result = pick(result, arg)
+        return np.asarray(result, dtype=object)
+    if func in ("floor", "ceil"):
+        round_ = _floor if func == "floor" else _ceil
+        return _as_objects([round_(x) for x in args[0]])
+    if func == "pow":
+        return _power(args[0], args[1], expr)
+    if func == "mod":
+        return _modulo(args[0], args[1], expr)
+    raise ModelError(
+        f"{_text(expr)}: {func} has no exact rational value; --exact needs rational "
+        "expressions (+ - * / min max floor ceil mod, pow with an integer exponent)",
+        expr.span,
+    )
+
+
+def _floor(x: mpq) -> mpq:
+    return mpq(math.floor(x))
+
+
+def _ceil(x: mpq) -> mpq:
+    return mpq(math.ceil(x))
+
+
+def _power(base: np.ndarray, exponent: np.ndarray, expr: Call) -> np.ndarray:
+    if any(e.denominator != 1 for e in exponent):
+        raise ModelError(
+            f"{_text(expr)}: pow with a non-integer exponent has no exact rational value",
+            expr.span,
+        )
+    out = []
+    for b, e in zip(base, exponent, strict=True):
+        if b == _ZERO and e.numerator < 0:
+            raise ModelError(f"{_text(expr)}: zero to a negative power", expr.span)
+        out.append(b ** int(e.numerator))
+    return _as_objects(out)
+
+
+def _modulo(a: np.ndarray, b: np.ndarray, expr: Call) -> np.ndarray:
+    if any(x.denominator != 1 for x in a) or any(y.denominator != 1 for y in b):
+        raise ModelError(f"{_text(expr)}: mod requires integer arguments", expr.span)
+    if any(y.numerator <= 0 for y in b):
+        raise ModelError(f"{_text(expr)}: modulo with non-positive divisor", expr.span)
+    pairs = zip(a, b, strict=True)
+    return _as_objects([mpq(int(x.numerator) % int(y.numerator)) for x, y in pairs])
+
+
+def _text(expr: Expr) -> str:
+    """*expr* written back in PRISM syntax, for error messages."""
+    match expr:
+        case IntLit(value=value) | BoolLit(value=value):
+            return str(value).lower() if isinstance(value, bool) else str(value)
+        case DoubleLit(value=value, text=text):
+            return text or repr(value)
+        case Ident(name=name):
+            return name
+        case Unary(op=op, operand=operand):
+            return f"{op}{_text(operand)}"
+        case Binary(op=op, left=left, right=right):
+            return f"({_text(left)} {op} {_text(right)})"
+        case Ite(cond=cond, then=then, otherwise=otherwise):
+            return f"({_text(cond)} ? {_text(then)} : {_text(otherwise)})"
+        case Call(func=func, args=args):
+            return f"{func}({', '.join(_text(a) for a in args)})"
+    return type(expr).__name__
