@@ -9,7 +9,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-from veribattery.checker import check
+from veribattery.checker import CheckResult, check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
 from veribattery.lang import parse_model, parse_properties, parse_property
@@ -28,11 +28,13 @@ class RequirementOutcome:
     requirement: Requirement
     value: Value
     holds: bool
+    #: False when the certified interval straddles the bound (then *holds* is False).
+    decided: bool = True
 
     def as_dict(self) -> dict[str, object]:
         """JSON-ready form."""
         return {"requirement": str(self.requirement), "property": self.requirement.prop,
-                "value": self.value, "holds": self.holds}
+                "value": self.value, "holds": self.holds, "decided": self.decided}
 
 
 @dataclass(frozen=True, slots=True)
@@ -81,8 +83,8 @@ def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = Non
     model = parse_model(files.model, name=MODEL_FILE)
     props = parse_properties(files.properties, name=PROPERTIES_FILE)
     run = check_model(model, props.properties, props_file=props, progress=progress)
-    values = {r.property.name: r.value for r in run.results}
-    outcomes = tuple(_judge(req, values) for req in cfg.parsed_requirements)
+    results = {r.property.name: r for r in run.results}
+    outcomes = tuple(_judge(req, results) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
 
 
@@ -106,10 +108,23 @@ def reuse_key(cfg: MissionConfig) -> str | None:
     return None
 
 
-def _judge(requirement: Requirement, values: Mapping[str | None, Value]) -> RequirementOutcome:
-    value = values[requirement.prop]
-    holds = not isinstance(value, bool) and not math.isnan(value) and requirement.holds(value)
-    return RequirementOutcome(requirement, value, holds)
+def _judge(requirement: Requirement,
+           results: Mapping[str | None, CheckResult]) -> RequirementOutcome:
+    """Decide *requirement* from the certified interval, never from the point value alone.
+
+    It holds only if it holds at both ends of ``[lower, upper]`` (the comparisons
+    are monotone, so then everywhere between); it fails if it fails at both;
+    otherwise it is undecided, which counts as not holding.
+    """
+    result = results[requirement.prop]
+    value = result.value
+    if isinstance(value, bool) or math.isnan(value):
+        return RequirementOutcome(requirement, value, False)
+    ends = (value, value) if result.lower is None or result.upper is None else (
+        result.lower, result.upper)
+    verdicts = {requirement.holds(end) for end in ends}
+    decided = len(verdicts) == 1
+    return RequirementOutcome(requirement, value, decided and verdicts == {True}, decided)
 
 
 def _recharge_cap_warning(run: ModelCheckRun, cfg: MissionConfig) -> tuple[str, ...]:

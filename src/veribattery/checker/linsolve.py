@@ -146,6 +146,23 @@ class Factorization:
                              f"on {A.shape[0]} states")
         return x
 
+    def correction(self, v: FloatArray) -> FloatArray | None:
+        """An approximate ``A^{-1} v`` for certification margins (None if unavailable).
+
+        The direct solver's factors when there are any (one substitution pass);
+        otherwise a full :meth:`solve`. Accuracy only affects how tight the
+        certified bounds come out, never their validity.
+        """
+        if not v.any():
+            return np.zeros_like(v)
+        inverse = self._inverse() if self.A.shape[0] <= DIRECT_LIMIT else None
+        try:
+            if inverse is not None:
+                return np.asarray(inverse(np.ascontiguousarray(v, dtype=np.float64)))
+            return self.solve(v.astype(np.longdouble))
+        except (CheckError, RuntimeError):
+            return None
+
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
             self._direct_tried = True

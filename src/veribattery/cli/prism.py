@@ -8,12 +8,15 @@ from pathlib import Path
 import click
 from rich.table import Table
 
+from veribattery.checker import CheckResult
 from veribattery.cli.output import (
     build_progress,
-    format_value,
+    format_result,
     json_value,
     out,
+    print_imprecise,
     print_warnings,
+    result_bounds,
     user_errors,
 )
 from veribattery.lang import parse_constant_assignments
@@ -46,6 +49,7 @@ def prism_command(
             model, props_source=props, selectors=selectors, constants=constants, progress=progress
         )
     print_warnings(run.warnings)
+    print_imprecise(run.results)
     if as_json:
         click.echo(json.dumps(prism_json(run)))
     else:
@@ -56,11 +60,20 @@ def prism_json(run: ModelCheckRun) -> dict[str, object]:
     """The ``prism --json`` document."""
     return {
         "model": run.model_summary,
-        "results": [
-            {"property": r.property.text, "value": json_value(r.value)} for r in run.results
-        ],
+        "results": [_result_json(r) for r in run.results],
         "timings_s": {k: round(v, 6) for k, v in run.timings_s.items()},
     }
+
+
+def _result_json(result: CheckResult) -> dict[str, object]:
+    """One result: property, value and, for numbers, certified bounds and precision."""
+    entry: dict[str, object] = {"property": result.property.text,
+                                "value": json_value(result.value)}
+    bounds = result_bounds(result)
+    if bounds is not None:
+        entry["bounds"] = bounds
+        entry["precise"] = result.precise
+    return entry
 
 
 def print_prism_run(run: ModelCheckRun) -> None:
@@ -72,7 +85,7 @@ def print_prism_run(run: ModelCheckRun) -> None:
     )
     table = Table("property", "value", title=None, show_edge=False)
     for result in run.results:
-        table.add_row(result.property.text, format_value(result.value))
+        table.add_row(result.property.text, format_result(result))
     out.print(table)
     timings = ", ".join(f"{k} {v:.3f}s" for k, v in run.timings_s.items())
     out.print(f"Time: {timings}", style="dim")
