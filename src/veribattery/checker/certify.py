@@ -42,9 +42,9 @@ INTERVAL_WORK = 400_000_000
 Correction = Callable[[FloatArray], FloatArray | None]
 
 
-def pattern(M: CsrMatrix) -> CsrMatrix:
-    """*M* with every stored entry replaced by 1 (to count the nonzero terms of a product)."""
-    return sp.csr_matrix((np.ones(M.nnz), M.indices, M.indptr), shape=M.shape)
+def row_terms(M: CsrMatrix) -> FloatArray:
+    """Number of stored entries of each row of *M* (as floats, for the error bound)."""
+    return np.asarray(np.diff(M.indptr), dtype=np.float64)
 
 
 def product_error(magnitude: FloatArray, roundings: FloatArray,
@@ -65,31 +65,34 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
 
 
 def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = None,
-                    ones: CsrMatrix | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
+                    terms: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``offset + M x`` in floating point, with a rigorous enclosure of its exact value.
 
-    Only nonzero terms count, and products with a vector of zeros and ones are
-    exact, so a row with one nonzero term of such a vector has no error at all.
+    When *x* holds only zeros and ones the products are exact and only nonzero
+    terms count, so a row with a single such term has no error at all;
+    otherwise every stored entry of the row counts as a term.
 
     :param M: a sparse matrix with nonnegative entries.
     :param x: a float64 vector (taken as exact).
     :param offset: an optional vector added to the product.
-    :param ones: ``pattern(M)`` if already known.
+    :param terms: ``row_terms(M)`` if already known.
     :return: ``(y, lower, upper)`` with ``lower <= offset + M x <= upper`` exactly.
     """
-    ones = pattern(M) if ones is None else ones
     with np.errstate(invalid="ignore"):
         y = np.asarray(M @ x, dtype=np.float64)
     magnitude = y if _nonnegative(x) else np.asarray(M @ np.abs(x), dtype=np.float64)
-    products = np.asarray(ones @ (x != 0).astype(np.float64), dtype=np.float64)
     exact = bool(np.all((x == 0) | (x == 1)))
-    terms = products
+    if exact:
+        ones = sp.csr_matrix((np.ones(M.nnz), M.indices, M.indptr), shape=M.shape)
+        count = np.asarray(ones @ x, dtype=np.float64)
+    else:
+        count = row_terms(M) if terms is None else terms
     if offset is not None:
         y = y + offset
         magnitude = magnitude + np.abs(offset)
-        terms = terms + (offset != 0)
-    roundings = np.maximum(terms - 1.0, 0.0) if exact else terms
-    error = product_error(magnitude, roundings, np.zeros_like(y) if exact else products)
+        count = count + (offset != 0)
+    roundings = np.maximum(count - 1.0, 0.0) if exact else count
+    error = product_error(magnitude, roundings, np.zeros_like(y) if exact else count)
     with np.errstate(invalid="ignore"):
         lower, upper = round_down(y - error), round_up(y + error)
     lower = np.where(error == 0, y, lower)
@@ -123,6 +126,7 @@ class AffineMap:
     offset: FloatArray | None
     leave_lower: FloatArray
     leave_upper: FloatArray
+    terms: FloatArray
 
     @classmethod
     def of(cls, rows: CsrMatrix, states: IntArray, known_lower: FloatArray,
@@ -136,12 +140,12 @@ class AffineMap:
         off = sp.csr_matrix((coo.data[keep], (coo.row[keep], coo.col[keep])), shape=rows.shape)
         _, leave_lower, leave_upper = enclose_product(off, np.ones(rows.shape[1]))
         return cls(off, states, known_lower, known_upper, offset,
-                   np.maximum(leave_lower, 0.0), leave_upper)
+                   np.maximum(leave_lower, 0.0), leave_upper, row_terms(off))
 
     def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
         full = known.copy()
         full[self.states] = x
-        _, lower, upper = enclose_product(self.rows, full, self.offset)
+        _, lower, upper = enclose_product(self.rows, full, self.offset, self.terms)
         return lower, upper
 
     def lower(self, x: FloatArray) -> FloatArray:

@@ -283,13 +283,13 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Boun
     """
     x = start.value
     radius = np.maximum(round_up(x - start.lower), round_up(start.upper - x))
-    ones = certify.pattern(M)
+    terms = certify.row_terms(M)
     for step in range(k):
-        following, low, high = certify.enclose_product(M, x, offset, ones)
+        following, low, high = certify.enclose_product(M, x, offset, terms)
         rounding = np.maximum(high - following, following - low)
         if np.array_equal(following, x):
             return _finish(M, x, radius, rounding, k - step)
-        radius = round_up(certify.enclose_product(M, radius, rounding, ones)[2])
+        radius = round_up(certify.enclose_product(M, radius, rounding, terms)[2])
         x = following
     return _finish(M, x, radius, np.zeros_like(x), 0)
 
