@@ -113,7 +113,7 @@ prog = stormpy.parse_prism_program(sys.argv[1])
 props = stormpy.parse_properties(open(sys.argv[2]).read(), prog)
 exact = mode == "exact"
 model = stormpy.build_model[stormpy.Rational if exact else float](prog, props)
-env = {"default": stormpy.environments.default, "sound": stormpy.environments.sound,
+env = {"default": stormpy.Environment, "sound": stormpy.environments.sound,
        "exact": stormpy.environments.exact}[mode]()
 value = stormpy.model_checking(model, props[0], environment=env).get_value(
     model.initial_states[0])

@@ -200,3 +200,42 @@ def test_requirement_judged_from_interval(lower: float, upper: float, holds: boo
     requirement = parse_requirement("p_success >= 0.999")
     outcome = _judge(requirement, {"p_success": _result((lower + upper) / 2, lower, upper)})
     assert (outcome.holds, outcome.decided) == (holds, decided)
+
+
+# --- SCC-wise LU ------------------------------------------------------------------------
+
+
+def _chain_of_cycles(blocks: int, size: int, seed: int) -> sp.csr_matrix:
+    """Cycles of *size* states, each leaking into the next cycle and to an exit state."""
+    rng = np.random.default_rng(seed)
+    n = blocks * size + 1
+    rows: dict[int, dict[int, float]] = {}
+    for s in range(n - 1):
+        block, pos = divmod(s, size)
+        around = block * size + (pos + 1) % size
+        onward = min((block + 1) * size + int(rng.integers(size)), n - 1)
+        w = rng.random(3) + 0.1
+        w /= w.sum()
+        rows[s] = {around: float(w[0]), onward: float(w[1]), n - 1: float(w[2])}
+    return matrix(rows, n)
+
+
+def test_block_lu_matches_dense_solve_and_certifies() -> None:
+    from veribattery.checker import linsolve
+
+    P = _chain_of_cycles(10, 4, seed=1)
+    n = P.shape[0]
+    maybe = np.ones(n, dtype=bool)
+    maybe[-1] = False
+    A, _ = linsolve.restricted_matrix(P, maybe)
+    A64 = sp.csr_matrix(A.astype(np.float64))
+    inverse = linsolve._block_inverse(A64)
+    assert inverse is not None  # 10 SCCs of 4 states: the SCC-wise path applies
+    b = np.linspace(1.0, 2.0, n - 1)
+    assert np.allclose(inverse(b), np.linalg.solve(A64.toarray(), b), rtol=1e-12)
+    target = ~maybe
+    everywhere = np.ones(n, dtype=bool)
+    found = kernels.reach_rewards(P, np.ones(n), target)
+    assert contains(found, ref.reach_rewards(P, np.ones(n), target))
+    assert found.precise_states().all()
+    assert contains(kernels.until_probs(P, everywhere, target), ref.until(P, everywhere, target))
