@@ -258,6 +258,10 @@ def _certified(F: certify.AffineMap, x: FloatArray | None, system: _System,
         return Bounds(*exact)
     low, high = certify.interval_iteration(F, low, high, found.value,
                                            lambda b: b.precise_states())
+    if x is None:  # no float solution: the midpoint where the interval is finite
+        with np.errstate(invalid="ignore", over="ignore"):
+            middle = low + (high - low) / 2
+        return Bounds.around(np.where(np.isfinite(middle), middle, low), low, high)
     return Bounds.around(found.value, low, high)
 
 
