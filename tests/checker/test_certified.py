@@ -239,3 +239,22 @@ def test_block_lu_matches_dense_solve_and_certifies() -> None:
     assert contains(found, ref.reach_rewards(P, np.ones(n), target))
     assert found.precise_states().all()
     assert contains(kernels.until_probs(P, everywhere, target), ref.until(P, everywhere, target))
+
+
+# --- output ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("value", "lower", "upper", "text"), [
+    (0.7, 0.7, 0.7, "0.7"),
+    (4796.963222950812, 4796.963222923, 4796.963222978, "4796.96322295 ± 2.8e-08"),
+    (4796.963222950812, 4796.963222947433, 4796.963222954192, "4796.96322295"),
+    (0.5, 0.5 - 1e-17, 0.5 + 1e-17, "0.5"),
+    (0.0, 0.0, 1.0, "0 ± 1"),
+])
+def test_table_shows_error_when_visible(value: float, lower: float, upper: float,
+                                        text: str) -> None:
+    from veribattery.cli.output import format_result, result_bounds
+
+    result = _result(value, lower, upper)
+    assert format_result(result) == text
+    assert result_bounds(result) == [lower, upper]
