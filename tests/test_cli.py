@@ -135,10 +135,15 @@ def test_check_json_contract_on_a_small_farm(tmp_path: Path) -> None:
     result = run("check", str(config), *SMALL_FARM, "--format", "json")
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    assert set(doc) == {"model", "results", "requirements", "timings_s"}
+    assert set(doc) == {"model", "results", "bounds", "precise", "requirements", "timings_s"}
     assert set(doc["results"]) == {"p_success", "exp_mission_time", "exp_recharges"}
     assert doc["requirements"][0]["holds"] is True
+    assert doc["requirements"][0]["decided"] is True
     assert doc["results"]["p_success"] == pytest.approx(1.0, abs=1e-12)
+    for name, value in doc["results"].items():
+        lower, upper = doc["bounds"][name]
+        assert lower <= value <= upper
+        assert doc["precise"][name] is True
 
 
 def test_check_failing_requirement_exits_1(tmp_path: Path) -> None:

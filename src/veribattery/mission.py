@@ -30,11 +30,13 @@ class RequirementOutcome:
     requirement: Requirement
     value: Value
     holds: bool
+    #: False when the certified interval straddles the bound (then *holds* is False).
+    decided: bool = True
 
     def as_dict(self) -> dict[str, object]:
         """JSON-ready form."""
         return {"requirement": str(self.requirement), "property": self.requirement.prop,
-                "value": self.value, "holds": self.holds}
+                "value": self.value, "holds": self.holds, "decided": self.decided}
 
 
 @dataclass(frozen=True, slots=True)
@@ -88,8 +90,8 @@ def check_mission(
     model = parse_model(files.model, name=MODEL_FILE)
     props = parse_properties(files.properties, name=PROPERTIES_FILE)
     run = check_model(model, props.properties, props_file=props, progress=progress, exact=exact)
-    values = {r.property.name: _judged_value(r) for r in run.results}
-    outcomes = tuple(_judge(req, values) for req in cfg.parsed_requirements)
+    results = {r.property.name: r for r in run.results}
+    outcomes = tuple(_judge(req, results) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
 
 
@@ -113,26 +115,34 @@ def reuse_key(cfg: MissionConfig) -> str | None:
     return None
 
 
-def _judged_value(result: CheckResult) -> Value | Fraction:
-    """The exact value of an ``--exact`` result (a Fraction), else the value."""
-    exact = getattr(result, "exact", None)
-    return exact if isinstance(exact, Fraction) else result.value
-
-
 _EXACT_HOLDS: dict[str, Callable[[Fraction, Fraction], bool]] = {
     "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
 }
 
 
-def _judge(
-    requirement: Requirement, values: Mapping[str | None, Value | Fraction]
-) -> RequirementOutcome:
-    value = values[requirement.prop]
-    if isinstance(value, Fraction):  # --exact: decided without rounding
-        holds = _EXACT_HOLDS[requirement.op](value, requirement.bound)
-        return RequirementOutcome(requirement, float(value), holds)
-    holds = not isinstance(value, bool) and not math.isnan(value) and requirement.holds(value)
-    return RequirementOutcome(requirement, value, holds)
+def _judge(requirement: Requirement,
+           results: Mapping[str | None, CheckResult]) -> RequirementOutcome:
+    """Decide *requirement* from the exact value or the certified interval, never from a
+    rounded point value alone.
+
+    With ``--exact`` the comparison is exact. Otherwise it holds only if it holds at
+    both ends of ``[lower, upper]`` (the comparisons are monotone, so then everywhere
+    between); it fails if it fails at both; otherwise it is undecided, which counts as
+    not holding.
+    """
+    result = results[requirement.prop]
+    value = result.value
+    exact = getattr(result, "exact", None)
+    if isinstance(exact, Fraction):
+        return RequirementOutcome(requirement, value, _EXACT_HOLDS[requirement.op](
+            exact, requirement.bound))
+    if isinstance(value, bool) or math.isnan(value):
+        return RequirementOutcome(requirement, value, False)
+    ends = (value, value) if result.lower is None or result.upper is None else (
+        result.lower, result.upper)
+    verdicts = {requirement.holds(end) for end in ends}
+    decided = len(verdicts) == 1
+    return RequirementOutcome(requirement, value, decided and verdicts == {True}, decided)
 
 
 def _recharge_cap_warning(run: ModelCheckRun, cfg: MissionConfig) -> tuple[str, ...]:

@@ -66,13 +66,13 @@ def test_prob0_on_long_chain_is_fast() -> None:
 @pytest.mark.parametrize("face", range(1, 7))
 def test_die_faces_are_one_sixth(face: int) -> None:
     die = knuth_die()
-    probs = kernels.until_probs(die.transitions, ALL13, die.labels[f"face{face}"])
+    probs = kernels.until_probs(die.transitions, ALL13, die.labels[f"face{face}"]).value
     assert probs[0] == pytest.approx(1 / 6, rel=1e-12)
 
 
 def test_die_expected_flips() -> None:
     die = knuth_die()
-    flips = kernels.reach_rewards(die.transitions, die.rewards[0].total, die.labels["done"])
+    flips = kernels.reach_rewards(die.transitions, die.rewards[0].total, die.labels["done"]).value
     assert flips[0] == pytest.approx(11 / 3, rel=1e-12)
     assert flips[7:].tolist() == [0.0] * 6
 
@@ -82,8 +82,8 @@ def test_die_expected_flips() -> None:
 def test_gamblers_ruin_closed_forms(n: int, p: float) -> None:
     chain = gamblers_ruin(n, p)
     P = chain.transitions
-    win = kernels.until_probs(P, np.ones(n + 1, dtype=bool), chain.labels["win"])
-    steps = kernels.reach_rewards(P, chain.rewards[0].total, chain.labels["end"])
+    win = kernels.until_probs(P, np.ones(n + 1, dtype=bool), chain.labels["win"]).value
+    steps = kernels.reach_rewards(P, chain.rewards[0].total, chain.labels["end"]).value
     for i in range(n + 1):
         assert win[i] == pytest.approx(_ruin_win(i, n, p), rel=1e-9)
         assert steps[i] == pytest.approx(_ruin_duration(i, n, p), rel=1e-9, abs=1e-9)
@@ -92,7 +92,7 @@ def test_gamblers_ruin_closed_forms(n: int, p: float) -> None:
 def test_until_with_remain_restriction() -> None:
     # 0 -> {1: .5, 2: .5}, 1 -> 3 (target), 2 -> 3; only 1 may be passed through.
     P = matrix({0: {1: 0.5, 2: 0.5}, 1: {3: 1.0}, 2: {3: 1.0}}, 4)
-    probs = kernels.until_probs(P, mask(4, [0, 1]), mask(4, [3]))
+    probs = kernels.until_probs(P, mask(4, [0, 1]), mask(4, [3])).value
     assert probs.tolist() == pytest.approx([0.5, 1.0, 0.0, 1.0])
 
 
@@ -100,7 +100,7 @@ def test_until_with_near_one_self_loop() -> None:
     # Leaving probability 1e-12: 1 - P_ii would lose four digits; the off-diagonal sum does not.
     eps = 1e-12
     P = matrix({0: {0: 1 - eps, 1: eps / 4, 2: 3 * eps / 4}}, 3)
-    probs = kernels.until_probs(P, np.ones(3, dtype=bool), mask(3, [1]))
+    probs = kernels.until_probs(P, np.ones(3, dtype=bool), mask(3, [1])).value
     assert probs[0] == pytest.approx(0.25, rel=1e-12)
 
 
@@ -110,13 +110,13 @@ def test_until_with_near_one_self_loop() -> None:
 def test_reach_reward_is_infinite_without_almost_sure_reach() -> None:
     # 0 -> 1 (target) or 2 (trap); reward 0 in the trap still gives inf (PRISM).
     P = matrix({0: {1: 0.5, 2: 0.5}}, 3)
-    result = kernels.reach_rewards(P, np.array([1.0, 5.0, 0.0]), mask(3, [1]))
+    result = kernels.reach_rewards(P, np.array([1.0, 5.0, 0.0]), mask(3, [1])).value
     assert result.tolist() == [np.inf, 0.0, np.inf]
 
 
 def test_reach_reward_zero_rewards() -> None:
     P = matrix({0: {0: 0.5, 1: 0.5}}, 2)
-    assert kernels.reach_rewards(P, np.zeros(2), mask(2, [1])).tolist() == [0.0, 0.0]
+    assert kernels.reach_rewards(P, np.zeros(2), mask(2, [1])).value.tolist() == [0.0, 0.0]
 
 
 # 0 stays with 1/2 or moves to the absorbing 1; state reward 1 and transition reward 2 in 0,
@@ -127,14 +127,14 @@ GEOMETRIC = matrix({0: {0: 0.5, 1: 0.5}}, 2)
 @pytest.mark.parametrize("k", [0, 1, 2, 5, 30])
 def test_cumulative_rewards(k: int) -> None:
     total = np.array([3.0, 10.0])
-    result = kernels.cumulative_rewards(GEOMETRIC, total, k)
+    result = kernels.cumulative_rewards(GEOMETRIC, total, k).value
     expected0 = sum(3 * 0.5**i + 10 * (1 - 0.5**i) for i in range(k))
     assert result.tolist() == pytest.approx([expected0, 10.0 * k], rel=1e-12)
 
 
 @pytest.mark.parametrize("k", [0, 1, 2, 5, 60])
 def test_instantaneous_rewards(k: int) -> None:
-    result = kernels.instantaneous_rewards(GEOMETRIC, np.array([1.0, 10.0]), k)
+    result = kernels.instantaneous_rewards(GEOMETRIC, np.array([1.0, 10.0]), k).value
     assert result.tolist() == pytest.approx([0.5**k + 10 * (1 - 0.5**k), 10.0], rel=1e-12)
 
 
@@ -147,18 +147,19 @@ LADDER_F = {0: [0, 0, 1], 1: [0, 0.5, 1], 2: [0.25, 0.5, 1], 3: [0.375, 0.625, 1
 
 @pytest.mark.parametrize("k", sorted(LADDER_F))
 def test_bounded_until_hand_values(k: int) -> None:
-    result = kernels.bounded_until_probs(LADDER, np.ones(3, dtype=bool), mask(3, [2]), k)
+    result = kernels.bounded_until_probs(LADDER, np.ones(3, dtype=bool), mask(3, [2]), k).value
     assert result.tolist() == pytest.approx(LADDER_F[k], rel=1e-12)
 
 
 def test_bounded_until_respects_remain() -> None:
-    result = kernels.bounded_until_probs(LADDER, mask(3, [1]), mask(3, [2]), 3)
+    result = kernels.bounded_until_probs(LADDER, mask(3, [1]), mask(3, [2]), 3).value
     assert result.tolist() == pytest.approx([0.0, 0.5, 1.0])
 
 
 def test_bounded_until_large_k_stops_at_fixpoint() -> None:
     P = matrix({0: {1: 1.0}}, 2)
-    assert kernels.bounded_until_probs(P, mask(2, [0, 1]), mask(2, [1]), 10**9).tolist() == [1, 1]
+    found = kernels.bounded_until_probs(P, mask(2, [0, 1]), mask(2, [1]), 10**9)
+    assert found.value.tolist() == [1, 1]
 
 
 # 0 -> 1 -> 2 -> 2; target {1} is visited exactly at step 1 from 0.
@@ -167,18 +168,18 @@ PATH = matrix({0: {1: 1.0}, 1: {2: 1.0}}, 3)
 
 @pytest.mark.parametrize(("k", "expected"), [(0, [1, 1, 0]), (1, [1, 0, 0]), (2, [0, 0, 0])])
 def test_lower_bounded_until(k: int, expected: list[float]) -> None:
-    result = kernels.lower_bounded_until_probs(PATH, np.ones(3, dtype=bool), mask(3, [1]), k)
+    result = kernels.lower_bounded_until_probs(PATH, np.ones(3, dtype=bool), mask(3, [1]), k).value
     assert result.tolist() == expected
 
 
 def test_lower_bounded_until_needs_remain_before_k() -> None:
     # On LADDER, F>=1 target from 0 is 1, but with remain = {1, 2} state 0 fails at once.
-    result = kernels.lower_bounded_until_probs(LADDER, mask(3, [1, 2]), mask(3, [2]), 1)
+    result = kernels.lower_bounded_until_probs(LADDER, mask(3, [1, 2]), mask(3, [2]), 1).value
     assert result.tolist() == pytest.approx([0.0, 0.5, 1.0])
 
 
 def test_next_probs() -> None:
-    assert kernels.next_probs(LADDER, mask(3, [1, 2])).tolist() == [0.5, 0.5, 1.0]
+    assert kernels.next_probs(LADDER, mask(3, [1, 2])).value.tolist() == [0.5, 0.5, 1.0]
 
 
 # --- solver fallback -----------------------------------------------------------------
@@ -201,7 +202,7 @@ def test_iterative_fallback_meets_residual_rule() -> None:
 def test_direct_limit_zero_uses_iterative(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(linsolve, "DIRECT_LIMIT", 0)
     die = knuth_die()
-    probs = kernels.until_probs(die.transitions, ALL13, die.labels["face3"])
+    probs = kernels.until_probs(die.transitions, ALL13, die.labels["face3"]).value
     assert probs[0] == pytest.approx(1 / 6, rel=1e-10)
 
 
@@ -255,8 +256,8 @@ def test_superlu_triangular_entry_point_is_used() -> None:
 def test_reward_properties_on_one_target_share_their_system() -> None:
     chain = gamblers_ruin(20, 0.4)
     P, end = chain.transitions, chain.labels["end"]
-    steps = kernels.reach_rewards(P, np.ones(P.shape[0]), end)
-    doubled = kernels.reach_rewards(P, np.full(P.shape[0], 2.0), end)
+    steps = kernels.reach_rewards(P, np.ones(P.shape[0]), end).value
+    doubled = kernels.reach_rewards(P, np.full(P.shape[0], 2.0), end).value
     assert len(kernels._memo(P).systems) == 1
     np.testing.assert_allclose(doubled, 2 * steps, rtol=1e-13)
     expected = [_ruin_duration(i, 20, 0.4) for i in range(1, 20)]

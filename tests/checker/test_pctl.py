@@ -7,6 +7,7 @@ import pytest
 
 from tests.checker.chains import dtmc, gamblers_ruin, knuth_die
 from veribattery.checker import CheckResult, check, state_set, values
+from veribattery.checker.bounds import Bounds
 from veribattery.errors import CheckError, Span
 from veribattery.lang.nodes import (
     Binary,
@@ -117,7 +118,7 @@ def test_variable_expressions_use_compiled_leaves() -> None:
     target = Binary(">=", Ident("s"), IntLit(20))
     by_var = values(chain, P(Eventually(target)))
     by_label = values(chain, P(Eventually(L("win"))))
-    assert by_var.tolist() == by_label.tolist()
+    assert by_var.value.tolist() == by_label.value.tolist()
     assert state_set(chain, Binary("<", Ident("s"), IntLit(3))).tolist() == [
         i < 3 for i in range(21)
     ]
@@ -133,8 +134,10 @@ def test_boolean_variable_as_state_formula() -> None:
 def test_values_of_plain_numeric_expression() -> None:
     chain = gamblers_ruin(4, 0.5)
     result = values(chain, Binary("*", Ident("s"), IntLit(2)))
-    assert result.dtype == np.float64
-    assert result.tolist() == [0, 2, 4, 6, 8]
+    assert isinstance(result, Bounds)
+    assert result.value.dtype == np.float64
+    assert result.value.tolist() == [0, 2, 4, 6, 8]
+    assert result.lower.tolist() == result.upper.tolist() == [0, 2, 4, 6, 8]
 
 
 # --- initial states -----------------------------------------------------------------

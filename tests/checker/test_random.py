@@ -65,7 +65,7 @@ def _dense_reach_rewards(dense: np.ndarray, rewards: np.ndarray, target: np.ndar
 @given(chains())
 def test_until_matches_dense_solve(case: tuple[np.ndarray, ...]) -> None:
     dense, remain, target, _ = case
-    result = kernels.until_probs(sp.csr_matrix(dense), remain, target)
+    result = kernels.until_probs(sp.csr_matrix(dense), remain, target).value
     assert result.tolist() == pytest.approx(_dense_until(dense, remain, target).tolist(),
                                             rel=1e-9, abs=1e-12)
 
@@ -74,7 +74,7 @@ def test_until_matches_dense_solve(case: tuple[np.ndarray, ...]) -> None:
 @given(chains())
 def test_reach_rewards_match_dense_solve(case: tuple[np.ndarray, ...]) -> None:
     dense, _, target, rewards = case
-    result = kernels.reach_rewards(sp.csr_matrix(dense), rewards, target)
+    result = kernels.reach_rewards(sp.csr_matrix(dense), rewards, target).value
     expected = _dense_reach_rewards(dense, rewards, target)
     assert np.array_equal(np.isinf(result), np.isinf(expected))
     finite = np.isfinite(expected)
@@ -92,11 +92,11 @@ def test_step_bounded_kernels_match_dense_iteration(case: tuple[np.ndarray, ...]
         bounded = np.where(target, 1.0, np.where(remain, dense @ bounded, 0.0))
         cumulative = rewards + dense @ cumulative
         instant = dense @ instant
-    assert kernels.bounded_until_probs(P, remain, target, k).tolist() == pytest.approx(
+    assert kernels.bounded_until_probs(P, remain, target, k).value.tolist() == pytest.approx(
         bounded.tolist(), rel=1e-12, abs=1e-15)
-    assert kernels.cumulative_rewards(P, rewards, k).tolist() == pytest.approx(
+    assert kernels.cumulative_rewards(P, rewards, k).value.tolist() == pytest.approx(
         cumulative.tolist(), rel=1e-12)
-    assert kernels.instantaneous_rewards(P, rewards, k).tolist() == pytest.approx(
+    assert kernels.instantaneous_rewards(P, rewards, k).value.tolist() == pytest.approx(
         instant.tolist(), rel=1e-12)
 
 
@@ -108,5 +108,5 @@ def test_lower_bounded_until_matches_dense_iteration(case: tuple[np.ndarray, ...
     later = _dense_until(dense, remain, target)
     for _ in range(k):
         later = np.where(remain, dense @ later, 0.0)
-    result = kernels.lower_bounded_until_probs(sp.csr_matrix(dense), remain, target, k)
+    result = kernels.lower_bounded_until_probs(sp.csr_matrix(dense), remain, target, k).value
     assert result.tolist() == pytest.approx(later.tolist(), rel=1e-9, abs=1e-12)

@@ -13,10 +13,14 @@ from veribattery.lang.nodes import Expr, Property
 def check(dtmc: DTMC, prop: Property | Expr) -> CheckResult:
     """Check *prop* on *dtmc* and report its value at the initial states.
 
+    Numeric results carry certified bounds (``result.lower``, ``result.upper``)
+    and ``result.precise``; see :class:`CheckResult`.
+
     :param dtmc: the built model.
     :param prop: a property (constants substituted, property-file labels inlined),
         or a bare formula.
-    :raises CheckError: when the property cannot be checked on this model.
+    :raises CheckError: when the property cannot be checked on this model, or a
+        bounded operator (``P>=0.9 [..]``) cannot be decided at the precision reached.
     """
     prop = prop if isinstance(prop, Property) else Property(prop)
     start = time.perf_counter()

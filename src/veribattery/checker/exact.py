@@ -25,6 +25,7 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
+from veribattery.checker.bounds import Bounds
 from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
 from veribattery.checker.pctl import _as_mask, _has_operator, _leaf, _steps
 from veribattery.checker.result import CheckResult
@@ -108,13 +109,31 @@ def check_exact(
     result = exact_values(model, prop.formula, bounds or {})
     initial = model.dtmc.initial
     if isinstance(result, ExactValues):
-        plain = CheckResult.at_initial(prop, result.floats(), initial, 0.0)
+        plain = CheckResult.at_initial(prop, _enclosure(result), initial, 0.0)
         first = int(initial[0])
         exact = None if result.infinite[first] else _fraction(result.values[first])
-        return ExactCheckResult(prop, plain.values, plain.value,
-                                time.perf_counter() - start, exact, result)
+        return ExactCheckResult(
+            prop, plain.values, plain.value, time.perf_counter() - start, plain.lower,
+            plain.upper, plain.precise, plain.bounds, exact=exact, exact_values=result)
     plain = CheckResult.at_initial(prop, result, initial, 0.0)
     return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
+
+
+def _enclosure(values: ExactValues) -> Bounds:
+    """Certified float bounds of exact values.
+
+    A rational's conversion to float64 is within one unit in the last place of it
+    (correctly rounded or truncated), so the neighbouring floats enclose it; values
+    that a float represents exactly (0, 1, halves, infinities) are their own bounds.
+    """
+    floats = values.floats()
+    represented = np.fromiter(
+        (bool(inf) or v == mpq(f)
+         for v, f, inf in zip(values.values, floats, values.infinite, strict=True)),
+        dtype=bool, count=floats.size)
+    lower = np.where(represented, floats, np.nextafter(floats, -np.inf))
+    upper = np.where(represented, floats, np.nextafter(floats, np.inf))
+    return Bounds(floats, lower, upper)
 
 
 def _fraction(value: mpq) -> Fraction:

@@ -8,14 +8,18 @@ pre-pass first (:func:`prob0`, :func:`prob1`, both graph searches in C via
 states whose value is strictly between the trivial ones, where they are
 nonsingular.
 
-The linear systems of :func:`until_probs` and :func:`reach_rewards` are solved
-by :func:`veribattery.checker.linsolve.solve`: sparse LU with extended-precision
-iterative refinement, accepted when the normwise backward error is at most
-1e-10, with an iterative fallback (its module docstring states the rule).
+Every kernel returns :class:`~veribattery.checker.bounds.Bounds`: point values
+with certified enclosures (``docs/numerics.md``). The linear systems of
+:func:`until_probs` and :func:`reach_rewards` are solved by
+:mod:`~veribattery.checker.linsolve` (sparse LU with extended-precision iterative
+refinement, or an iterative method), then certified by
+:func:`~veribattery.checker.certify.certify_fixpoint`; when that interval is too
+wide, small systems are solved exactly (:mod:`~veribattery.checker.rational`)
+and larger ones tightened by interval iteration.
 
-Step-bounded kernels iterate one sparse matrix-vector product per step and stop
-early only at an exact fixpoint (the next iterate equal to the current one in
-every bit), after which further steps cannot change the result.
+Step-bounded kernels iterate one sparse matrix-vector product per step, plus
+one on the error radius, and stop early only at an exact fixpoint of the float
+map (the next iterate equal to the current one in every bit).
 """
 
 from __future__ import annotations
@@ -26,11 +30,14 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
-from veribattery.checker import linsolve
+from veribattery.checker import certify, linsolve, rational
+from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.errors import CheckError
 
 # ---------------------------------------------------------------------------
 # Memo per transition matrix: properties of one model share targets (``F "done"``
@@ -162,33 +169,38 @@ def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray) -> 
 
 
 # ---------------------------------------------------------------------------
-# Unbounded properties: pre-pass, then a linear system (see linsolve)
+# Unbounded properties: pre-pass, then a certified linear system (see certify)
 # ---------------------------------------------------------------------------
 
 
-def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> FloatArray:
-    """Probability of ``remain U target`` in every state.
+def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
+    """Probability of ``remain U target`` in every state, with certified bounds.
 
     prob0/prob1 fix the states with value 0 and 1; the rest solve
-    ``(I - P_mm) x = P_my 1`` under the module's residual rule.
+    ``(I - P_mm) x = P_my 1`` under linsolve's residual rule, and the answer is
+    certified (then refined if needed) by :func:`_certified`.
 
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that may be passed through before *target*.
     :param target: states to reach.
-    :return: probabilities in [0, 1].
+    :return: probabilities in [0, 1] and their certified enclosures.
     """
     no = prob0(P, remain, target)
     yes = prob1(P, remain, target, no)
     result = yes.astype(np.float64)
     maybe = ~(no | yes)
-    if maybe.any():
-        system = _system(P, maybe)
-        b = system.rows.astype(np.longdouble) @ yes.astype(np.longdouble)
-        result[maybe] = np.clip(system.factorization.solve(b), 0.0, 1.0)
-    return result
+    if not maybe.any():
+        return Bounds.exact(result)
+    system = _system(P, maybe)
+    F = certify.AffineMap.of(system.rows, np.flatnonzero(maybe), result, result, None)
+    b = system.rows.astype(np.longdouble) @ yes.astype(np.longdouble)
+    x = _point(system, b)
+    x = None if x is None else np.clip(x, 0.0, 1.0)
+    found = _certified(F, x, system, 0.0, 1.0)
+    return _spread(result, maybe, found)
 
 
-def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> FloatArray:
+def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bounds:
     """Expected reward accumulated until *target* is first reached (``R=? [F target]``).
 
     PRISM semantics: 0 in *target* states; infinity in states that reach
@@ -198,33 +210,107 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Float
     :param P: row-stochastic CSR transition matrix.
     :param rewards: reward earned per step taken from each state (state + transition).
     :param target: states to reach.
-    :return: expected rewards, ``inf`` where *target* is not almost sure.
+    :return: expected rewards, ``inf`` where *target* is not almost sure, with bounds.
     """
     everywhere = np.ones(P.shape[0], dtype=bool)
     sure = prob1(P, everywhere, target, prob0(P, everywhere, target))
     result = np.where(sure, 0.0, np.inf)
     maybe = sure & ~target
-    if maybe.any():
-        # Successors of almost-sure states are almost sure, so the system is closed.
-        solver = _system(P, maybe).factorization
-        result[maybe] = solver.solve(np.asarray(rewards[maybe], dtype=np.longdouble))
-    return result
+    if not maybe.any():
+        return Bounds.exact(result)
+    # Successors of almost-sure states are almost sure, so the system is closed
+    # and every known value it reads is a target's 0.
+    system = _system(P, maybe)
+    offset = np.asarray(rewards[maybe], dtype=np.float64)
+    zeros = np.zeros(P.shape[0])
+    F = certify.AffineMap.of(system.rows, np.flatnonzero(maybe), zeros, zeros, offset)
+    x = _point(system, offset.astype(np.longdouble))
+    floor = 0.0 if np.all(offset >= 0) else -np.inf
+    return _spread(result, maybe, _certified(F, x, system, floor, np.inf))
+
+
+def _point(system: _System, b: npt.NDArray[np.longdouble]) -> FloatArray | None:
+    """The fast path's approximate solution (None when no solver was accepted)."""
+    try:
+        return system.factorization.solve(b)
+    except CheckError:
+        return None
+
+
+def _certified(F: certify.AffineMap, x: FloatArray | None, system: _System,
+               floor: float, ceiling: float) -> Bounds:
+    """Certified bounds of the fixed point of *F*, escalating until precise.
+
+    1. certify the fast path's *x* (:func:`certify.certify_fixpoint`);
+    2. if too wide, solve the system exactly when it is small (:mod:`rational`);
+    3. otherwise tighten by interval iteration, and return what it reached.
+    """
+    n = F.states.size
+    low, high = np.full(n, floor), np.full(n, ceiling)
+    if x is not None:
+        correct = system.factorization.correction
+        low, high = certify.certify_fixpoint(F, x, correct, low, high)
+    found = Bounds.around(x if x is not None else low, low, high)
+    if found.precise_states().all():
+        return found
+    exact = rational.solve_exact(F)
+    if exact is not None:
+        return Bounds(*exact)
+    low, high = certify.interval_iteration(F, low, high, found.value,
+                                           lambda b: b.precise_states())
+    if x is None:  # no float solution: the midpoint where the interval is finite
+        with np.errstate(invalid="ignore", over="ignore"):
+            middle = low + (high - low) / 2
+        return Bounds.around(np.where(np.isfinite(middle), middle, low), low, high)
+    return Bounds.around(found.value, low, high)
+
+
+def _spread(known: FloatArray, unknown: BoolArray, found: Bounds) -> Bounds:
+    """Full-length bounds: *known* (exact) outside *unknown*, *found* inside."""
+    value, lower, upper = known.copy(), known.copy(), known.copy()
+    value[unknown], lower[unknown], upper[unknown] = found.value, found.lower, found.upper
+    return Bounds(value, lower, upper)
 
 
 # ---------------------------------------------------------------------------
-# Step-bounded kernels
+# Step-bounded kernels: iterate, carrying a rigorous forward error bound
 # ---------------------------------------------------------------------------
 
 
-def _step_power(M: CsrMatrix, start: FloatArray, offset: FloatArray, k: int) -> FloatArray:
-    """``k`` steps of ``x <- offset + M x`` from *start*, stopping at an exact fixpoint."""
-    x = start
-    for _ in range(k):
-        following = offset + M @ x
+def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Bounds:
+    """``k`` steps of ``x <- offset + M x`` from *start*, with a certified radius.
+
+    The radius *e* bounds ``|x - exact|`` componentwise: ``e <- M e + delta`` where
+    *delta* bounds the rounding of the step (:func:`certify.enclose_product`).
+    The iteration stops early at an exact fixpoint of the float map; the
+    remaining steps are accounted normwise with ``||M||_inf`` (rounded up).
+    """
+    x = start.value
+    radius = np.maximum(round_up(x - start.lower), round_up(start.upper - x))
+    terms = certify.row_terms(M)
+    for step in range(k):
+        following, low, high = certify.enclose_product(M, x, offset, terms)
+        rounding = np.maximum(high - following, following - low)
         if np.array_equal(following, x):
-            break
+            return _finish(M, x, radius, rounding, k - step)
+        radius = round_up(certify.enclose_product(M, radius, rounding, terms)[2])
         x = following
-    return x
+    return _finish(M, x, radius, np.zeros_like(x), 0)
+
+
+def _finish(M: CsrMatrix, x: FloatArray, radius: FloatArray, rounding: FloatArray,
+            remaining: int) -> Bounds:
+    """Bounds after *remaining* more steps at a float fixpoint *x* (normwise)."""
+    if remaining:
+        rho = max(1.0, certify.spectral_cap(M))
+        try:
+            growth = rho**remaining
+        except OverflowError:
+            growth = np.inf
+        extra = growth * (float(np.max(radius)) + remaining * float(np.max(rounding)))
+        radius = round_up(np.full_like(x, extra)) if extra > 0 else radius
+    with np.errstate(invalid="ignore"):
+        return Bounds(x, round_down(x - radius), round_up(x + radius))
 
 
 def _rows_in(P: CsrMatrix, mask: BoolArray) -> CsrMatrix:
@@ -232,17 +318,28 @@ def _rows_in(P: CsrMatrix, mask: BoolArray) -> CsrMatrix:
     return sp.csr_matrix(sp.diags(mask.astype(np.float64), format="csr") @ P)
 
 
-def next_probs(P: CsrMatrix, target: BoolArray) -> FloatArray:
+def _probabilities(found: Bounds) -> Bounds:
+    """Probabilities: the value clipped to [0, 1], lower bounds to 0.
+
+    Upper bounds are not clipped to 1: a stored row may sum to a little more
+    than 1 in exact arithmetic, and the bounds are for the model as stored.
+    """
+    lower = np.maximum(found.lower, 0.0)
+    return Bounds.around(np.clip(found.value, 0.0, 1.0), lower, found.upper)
+
+
+def next_probs(P: CsrMatrix, target: BoolArray) -> Bounds:
     """Probability that the next state is in *target* (``X target``).
 
     :param P: row-stochastic CSR transition matrix.
     :param target: states to reach in one step.
     """
-    return np.asarray(P @ target.astype(np.float64), dtype=np.float64)
+    value, lower, upper = certify.enclose_product(P, target.astype(np.float64))
+    return _probabilities(Bounds(value, lower, upper))
 
 
 def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                        k: int) -> FloatArray:
+                        k: int) -> Bounds:
     """Probability of reaching *target* within *k* steps while staying in *remain*.
 
     :param P: row-stochastic CSR transition matrix.
@@ -251,11 +348,12 @@ def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param k: step bound (``U<=k``), at least 0.
     """
     hit = target.astype(np.float64)
-    return _step_power(_rows_in(P, remain & ~target), hit, hit, k)
+    found = _step_power(_rows_in(P, remain & ~target), Bounds.exact(hit), hit, k)
+    return _probabilities(found)
 
 
 def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                              k: int) -> FloatArray:
+                              k: int) -> Bounds:
     """Probability of ``remain U>=k target``: *remain* for the first *k* steps, then until.
 
     :param P: row-stochastic CSR transition matrix.
@@ -264,10 +362,11 @@ def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray
     :param k: lower step bound, at least 0.
     """
     later = until_probs(P, remain, target)
-    return _step_power(_rows_in(P, remain), later, np.zeros_like(later), k)
+    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), k)
+    return _probabilities(found)
 
 
-def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int) -> FloatArray:
+def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int) -> Bounds:
     """Expected reward of the first *k* steps (``C<=k``).
 
     :param P: row-stochastic CSR transition matrix.
@@ -275,10 +374,10 @@ def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int) -> FloatArray:
     :param k: number of steps, at least 0.
     """
     offset = np.asarray(rewards, dtype=np.float64)
-    return _step_power(P, np.zeros_like(offset), offset, k)
+    return _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k)
 
 
-def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int) -> FloatArray:
+def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int) -> Bounds:
     """Expected state reward of the state occupied at step *k* (``I=k``).
 
     :param P: row-stochastic CSR transition matrix.
@@ -286,4 +385,4 @@ def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int) -> Fl
     :param k: the step, at least 0.
     """
     start = np.asarray(state_rewards, dtype=np.float64)
-    return _step_power(P, start, np.zeros_like(start), k)
+    return _step_power(P, Bounds.exact(start), np.zeros_like(start), k)

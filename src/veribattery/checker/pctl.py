@@ -15,8 +15,9 @@ from typing import TypeAlias
 
 import numpy as np
 
-from veribattery._types import BoolArray, FloatArray
+from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker import kernels
+from veribattery.checker.bounds import Bounds, required_precision
 from veribattery.errors import CheckError
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -45,6 +46,8 @@ from veribattery.lang.nodes import (
 )
 
 Values: TypeAlias = FloatArray | BoolArray
+#: What :func:`values` returns: certified numbers, or a state set.
+Result: TypeAlias = Bounds | BoolArray
 
 _CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
     "&": operator.and_,
@@ -53,21 +56,13 @@ _CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
     "<=>": operator.eq,
 }
 
-_COMPARISONS: dict[str, Callable[[FloatArray, float], BoolArray]] = {
-    "<": operator.lt,
-    "<=": operator.le,
-    ">": operator.gt,
-    ">=": operator.ge,
-}
-
-
 # ---------------------------------------------------------------------------
 # Public entry points
 # ---------------------------------------------------------------------------
 
 
-def values(dtmc: DTMC, formula: Expr) -> Values:
-    """Per-state value of *formula*: numbers for ``P=?``/``R=?``, booleans otherwise.
+def values(dtmc: DTMC, formula: Expr) -> Result:
+    """Per-state value of *formula*: certified numbers for ``P=?``/``R=?``, booleans otherwise.
 
     :param dtmc: the model.
     :param formula: a property formula (constants substituted, labels inlined).
@@ -77,9 +72,16 @@ def values(dtmc: DTMC, formula: Expr) -> Values:
         return path_probs(dtmc, formula.path)
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(dtmc, formula)
+    if isinstance(formula, ProbOp | RewardOp):
+        # Only the initial states' answers are reported: decide those, and mark
+        # the other states true only where certified.
+        return _bounded_operator(dtmc, formula, must_decide=dtmc.initial)
     if _has_operator(formula):
         return state_set(dtmc, formula)
-    return _leaf(dtmc, formula)
+    leaf = _leaf(dtmc, formula)
+    if leaf.dtype == np.bool_:
+        return np.asarray(leaf, dtype=np.bool_)
+    return Bounds.exact(np.asarray(leaf, dtype=np.float64))
 
 
 def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
@@ -105,8 +107,8 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
     return _as_mask(_leaf(dtmc, expr), expr)
 
 
-def path_probs(dtmc: DTMC, path: PathFormula) -> FloatArray:
-    """Per-state probability of the path formula *path*.
+def path_probs(dtmc: DTMC, path: PathFormula) -> Bounds:
+    """Per-state probability of the path formula *path*, with certified bounds.
 
     :param dtmc: the model.
     :param path: ``X``, ``U``, ``F`` or ``G``, optionally step-bounded.
@@ -119,13 +121,12 @@ def path_probs(dtmc: DTMC, path: PathFormula) -> FloatArray:
         case Eventually(operand=operand, bound=bound):
             return _until(dtmc, _everywhere(dtmc), state_set(dtmc, operand), bound)
         case Globally(operand=operand, bound=bound):
-            escape = _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound)
-            return np.asarray(1.0 - escape, dtype=np.float64)
+            return _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound).complement()
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
 
 
-def path_rewards(dtmc: DTMC, op: RewardOp) -> FloatArray:
-    """Per-state expected reward of the reward operator *op* (its bound is ignored).
+def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
+    """Per-state expected reward of the reward operator *op* (its bound is ignored), certified.
 
     :param dtmc: the model.
     :param op: ``R{..}`` over ``F``, ``C<=k`` or ``I=k``.
@@ -148,16 +149,44 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> FloatArray:
 # ---------------------------------------------------------------------------
 
 
-def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp) -> BoolArray:
-    """``P~p [..]`` or ``R~r [..]`` as a mask: the value compared with the bound."""
+def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp,
+                      must_decide: IntArray | None = None) -> BoolArray:
+    """``P~p [..]`` or ``R~r [..]`` as a mask: the value compared with the bound.
+
+    Decided from the certified interval: a state whose interval straddles the
+    bound is undecided. The property is refused rather than guessed when a state
+    in *must_decide* (default: every state) is undecided; other undecided states
+    are not in the mask (it holds only where certified).
+    """
     if op.op == "=?" or op.bound is None:
         raise CheckError("a query (=?) cannot be used as a state formula", op.span)
+    threshold = _number(op.bound)
+    numbers, holds, undecided = _decide(dtmc, op, threshold, must_decide)
+    if undecided.any():
+        # Escalate: ask the kernels for exact (or as tight as reachable) bounds.
+        with required_precision(0.0, 0.0):
+            numbers, holds, undecided = _decide(dtmc, op, threshold, must_decide)
+    if undecided.any():
+        state = int(np.flatnonzero(undecided)[0])
+        raise CheckError(
+            f"precision not enough to decide {op.op} {threshold:g}: in {int(undecided.sum())} "
+            f"state(s) the certified interval straddles the bound (state {state}: "
+            f"[{numbers.lower[state]!r}, {numbers.upper[state]!r}])", op.span)
+    return holds
+
+
+def _decide(dtmc: DTMC, op: ProbOp | RewardOp, threshold: float,
+            must_decide: IntArray | None) -> tuple[Bounds, BoolArray, BoolArray]:
+    """The operator's numbers, where the bound certainly holds, and where it is undecided."""
     numbers = path_probs(dtmc, op.path) if isinstance(op, ProbOp) else path_rewards(dtmc, op)
-    return _COMPARISONS[op.op](numbers, _number(op.bound))
+    holds, undecided = numbers.compare(op.op, threshold)
+    if must_decide is not None:
+        undecided = undecided & np.isin(np.arange(dtmc.num_states), must_decide)
+    return numbers, holds, undecided
 
 
 def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
-           bound: TimeBound | None) -> FloatArray:
+           bound: TimeBound | None) -> Bounds:
     """Dispatch ``remain U target`` to the kernel for its step bound."""
     P = dtmc.transitions
     if bound is None:
@@ -169,7 +198,7 @@ def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
         case "<":
             # U<0 can never be met; U<k is U<=k-1.
             if k == 0:
-                return np.zeros(dtmc.num_states)
+                return Bounds.exact(np.zeros(dtmc.num_states))
             return kernels.bounded_until_probs(P, remain, target, k - 1)
         case ">=":
             return kernels.lower_bounded_until_probs(P, remain, target, k)

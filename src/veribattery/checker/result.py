@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import builtins
 from dataclasses import dataclass
 
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
 from veribattery.errors import CheckError
 from veribattery.lang.nodes import Property
 
@@ -15,21 +17,33 @@ from veribattery.lang.nodes import Property
 class CheckResult:
     """A property's value in every state and its value at the initial states.
 
+    Numeric results carry a certified interval: ``lower <= exact <= upper`` for
+    the exact value of the model as built (``docs/numerics.md``).
+
     :param property: the property checked.
     :param values: one value per state (float64 for ``=?``, bool for state formulas).
     :param value: the answer: for booleans True iff the formula holds in *all*
         initial states (as PRISM reports it); for numbers the value at the first
         initial state.
     :param time_s: wall-clock time of the check in seconds.
+    :param lower: certified lower bound of a numeric *value* (None for booleans).
+    :param upper: certified upper bound of a numeric *value* (None for booleans).
+    :param precise: False when the interval is wider than the default precision
+        (1e-9 relative or 1e-12 absolute) could be reached.
+    :param bounds: the per-state certified bounds of a numeric result.
     """
 
     property: Property
     values: FloatArray | BoolArray
     value: float | bool
     time_s: float
+    lower: float | None = None
+    upper: float | None = None
+    precise: bool = True
+    bounds: Bounds | None = None
 
     @classmethod
-    def at_initial(cls, prop: Property, values: FloatArray | BoolArray, initial: IntArray,
+    def at_initial(cls, prop: Property, values: Bounds | BoolArray, initial: IntArray,
                    time_s: float) -> CheckResult:
         """Build a result, reducing *values* to the answer at the *initial* states.
 
@@ -37,9 +51,21 @@ class CheckResult:
         """
         if len(initial) == 0:
             raise CheckError("the model has no initial state", prop.span)
-        if values.dtype == np.bool_:
+        if not isinstance(values, Bounds):
             return cls(prop, values, bool(np.all(values[initial])), time_s)
-        return cls(prop, values, float(values[initial[0]]), time_s)
+        first = initial[0]
+        precise = bool(values.precise_states(RELATIVE_PRECISION, ABSOLUTE_PRECISION)[first])
+        return cls(prop, values.value, float(values.value[first]), time_s,
+                   float(values.lower[first]), float(values.upper[first]), precise, values)
+
+    @builtins.property
+    def error(self) -> float:
+        """Half the interval's width around *value* at most: ``max(value-lower, upper-value)``."""
+        if self.lower is None or self.upper is None or isinstance(self.value, bool):
+            return 0.0
+        if self.lower == self.upper:
+            return 0.0
+        return max(self.value - self.lower, self.upper - self.value)
 
     def __str__(self) -> str:
         label = self.property.name or self.property.text or "property"

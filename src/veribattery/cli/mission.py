@@ -17,7 +17,9 @@ from veribattery.cli.output import (
     format_value,
     json_value,
     out,
+    print_imprecise,
     print_warnings,
+    result_bounds,
     set_option,
     user_errors,
 )
@@ -56,6 +58,7 @@ def check_command(
         if emit_dir is not None:
             write_files(mission_files(cfg), emit_dir, force=force)
     print_warnings(report.warnings)
+    print_imprecise(report.run.results)
     {"table": print_mission_table, "json": print_mission_json, "csv": print_mission_csv}[
         output_format
     ](report)
@@ -72,6 +75,9 @@ def print_mission_table(report: MissionReport) -> None:
     out.print(table)
     for outcome in report.requirements:
         verdict = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
+        if not outcome.decided:
+            verdict = "[bold red]UNDECIDED[/] (precision not enough: the certified interval " \
+                "straddles the bound)"
         out.print(f"{verdict} {outcome.requirement} (value {format_value(outcome.value)})")
     timings = ", ".join(f"{k} {v:.3f}s" for k, v in report.run.timings_s.items())
     out.print(f"Time: {timings}", style="dim")
@@ -83,6 +89,9 @@ def mission_json(report: MissionReport) -> dict[str, object]:
     return {
         "model": {"states": dtmc.num_states, "transitions": dtmc.num_transitions},
         "results": {name: json_value(value) for name, value in report.values.items()},
+        "bounds": {r.property.name or r.property.text: result_bounds(r)
+                   for r in report.run.results if result_bounds(r) is not None},
+        "precise": {r.property.name or r.property.text: r.precise for r in report.run.results},
         "requirements": [
             {**o.as_dict(), "value": json_value(o.value)} for o in report.requirements
         ],

@@ -10,13 +10,16 @@ import math
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 from rich.console import Console
 from rich.markup import escape
 
 from veribattery.errors import VeribatteryError
+
+if TYPE_CHECKING:
+    from veribattery.checker import CheckResult
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -95,11 +98,55 @@ def exact_text(result: object) -> str | None:
     return "Infinity" if exact is None else str(exact)
 
 
-def format_result(result: object) -> str:
-    """A result for a table: its value, preceded by ``p/q ≈`` for an exact result."""
-    value = format_value(getattr(result, "value", None))
+def format_result(result: CheckResult) -> str:
+    """A result for a table: ``p/q ≈ value`` for an exact result, else ``value ± error``."""
     exact = exact_text(result)
-    return value if exact is None or exact == "Infinity" else f"{exact} ≈ {value}"
+    if exact is not None and exact != "Infinity":
+        return f"{exact} ≈ {format_value(result.value)}"
+    return _certified_text(result)
+
+
+#: Significant digits of numbers in tables.
+TABLE_DIGITS = 12
+
+
+def _certified_text(result: CheckResult) -> str:
+    """A float result for a table: its value, with ``± error`` when the certified error shows.
+
+    The error is shown when it reaches half a unit in the last printed digit
+    (TABLE_DIGITS significant digits), so every digit printed without one is certified.
+    """
+    text = format_value(result.value)
+    error = result.error
+    if isinstance(result.value, bool) or not math.isfinite(result.value) or error <= 0:
+        return text
+    if math.isinf(error) or error >= _half_last_digit(result.value):
+        return f"{text} ± {error:.2g}"
+    return text
+
+
+def _half_last_digit(value: float) -> float:
+    """Half a unit in the last of TABLE_DIGITS significant digits of *value* (0 for 0)."""
+    if value == 0:
+        return 0.0
+    return 0.5 * 10.0 ** (math.floor(math.log10(abs(value))) - TABLE_DIGITS + 1)
+
+
+def result_bounds(result: CheckResult) -> list[object] | None:
+    """``[lower, upper]`` of a numeric result for JSON (None for booleans)."""
+    if result.lower is None or result.upper is None:
+        return None
+    return [json_value(result.lower), json_value(result.upper)]
+
+
+def print_imprecise(results: Sequence[CheckResult]) -> None:
+    """Warn on stderr about every result whose certified interval missed the precision."""
+    for result in results:
+        if not result.precise:
+            name = result.property.name or result.property.text
+            err.print(f"[yellow]warning:[/] {escape(name)}: imprecise result, certified "
+                      f"interval [{result.lower!r}, {result.upper!r}] is wider than 1e-9 "
+                      "relative / 1e-12 absolute", markup=True)
 
 
 def print_warnings(warnings: Sequence[str]) -> None:

@@ -17,7 +17,9 @@ from veribattery.cli.output import (
     format_result,
     json_value,
     out,
+    print_imprecise,
     print_warnings,
+    result_bounds,
     user_errors,
 )
 from veribattery.lang import parse_constant_assignments
@@ -63,6 +65,7 @@ def prism_command(
             exact=exact,
         )
     print_warnings(run.warnings)
+    print_imprecise(run.results)
     if analysis["simulate"] is not None:
         prism_simulate(run, model, constants, analysis["simulate"], seed=analysis["seed"],
                        max_steps=analysis["max_steps"], paths_file=analysis["paths_file"],
@@ -84,10 +87,18 @@ def prism_json(run: ModelCheckRun) -> dict[str, object]:
 
 
 def _result_json(result: CheckResult) -> dict[str, object]:
-    """One entry of ``results``: the property, its value, and ``exact`` under ``--exact``."""
-    entry = {"property": result.property.text, "value": json_value(result.value)}
+    """One result: property, value, ``exact`` under ``--exact``, and for numbers the
+    certified bounds and whether they meet the precision."""
+    entry: dict[str, object] = {"property": result.property.text,
+                                "value": json_value(result.value)}
     exact = exact_text(result)
-    return entry if exact is None else {**entry, "exact": exact}
+    if exact is not None:
+        entry["exact"] = exact
+    bounds = result_bounds(result)
+    if bounds is not None:
+        entry["bounds"] = bounds
+        entry["precise"] = result.precise
+    return entry
 
 
 def print_prism_run(run: ModelCheckRun) -> None:

@@ -1,0 +1,125 @@
+"""Certified per-state results: a point value inside an interval that provably holds the truth.
+
+Every numeric kernel returns :class:`Bounds`. ``lower <= exact <= upper`` holds for
+the exact value of the model as built (its float64 transition matrix and rewards
+taken as exact numbers); ``docs/numerics.md`` gives the argument for each kernel.
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
+from dataclasses import dataclass
+
+import numpy as np
+
+from veribattery._types import BoolArray, FloatArray
+
+#: Default precision: an interval is *precise* when its width is at most this,
+#: relative to the value ...
+RELATIVE_PRECISION = 1e-9
+#: ... or at most this in absolute terms.
+ABSOLUTE_PRECISION = 1e-12
+
+_PRECISION: ContextVar[tuple[float, float]] = ContextVar(
+    "precision", default=(RELATIVE_PRECISION, ABSOLUTE_PRECISION))
+
+
+@contextmanager
+def required_precision(relative: float, absolute: float) -> Iterator[None]:
+    """Kernels called inside escalate until intervals are this narrow (0, 0: exact)."""
+    token = _PRECISION.set((relative, absolute))
+    try:
+        yield
+    finally:
+        _PRECISION.reset(token)
+
+
+_COMPARISONS: dict[str, Callable[[FloatArray, float], BoolArray]] = {
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+}
+
+
+def round_down(x: FloatArray) -> FloatArray:
+    """The next float below each entry (covers one rounding to nearest)."""
+    return np.nextafter(x, -np.inf)
+
+
+def round_up(x: FloatArray) -> FloatArray:
+    """The next float above each entry (covers one rounding to nearest)."""
+    return np.nextafter(x, np.inf)
+
+
+@dataclass(frozen=True, slots=True)
+class Bounds:
+    """Per-state point values with certified enclosures ``lower <= exact <= upper``.
+
+    :param value: the best float64 estimate of each state's value (inside the interval).
+    :param lower: certified lower bounds.
+    :param upper: certified upper bounds.
+    """
+
+    value: FloatArray
+    lower: FloatArray
+    upper: FloatArray
+
+    @classmethod
+    def exact(cls, value: FloatArray) -> Bounds:
+        """Values known exactly (0/1 from graph analysis, infinities, exact sums)."""
+        return cls(value, value.copy(), value.copy())
+
+    @classmethod
+    def around(cls, value: FloatArray, lower: FloatArray, upper: FloatArray) -> Bounds:
+        """Bounds whose point value is *value* moved into ``[lower, upper]``."""
+        return cls(np.minimum(np.maximum(value, lower), upper), lower, upper)
+
+    @property
+    def width(self) -> FloatArray:
+        """``upper - lower`` (0 where both are the same infinity)."""
+        same = self.lower == self.upper
+        with np.errstate(invalid="ignore"):
+            return np.where(same, 0.0, self.upper - self.lower)
+
+    def precise_states(self, relative: float | None = None,
+                       absolute: float | None = None) -> BoolArray:
+        """States whose interval meets the precision (relative *or* absolute).
+
+        Unset arguments come from :func:`required_precision` (default 1e-9, 1e-12).
+        """
+        default_relative, default_absolute = _PRECISION.get()
+        relative = default_relative if relative is None else relative
+        absolute = default_absolute if absolute is None else absolute
+        allowed = np.maximum(relative * np.abs(self.value), absolute)
+        return np.asarray(self.width <= allowed, dtype=np.bool_)
+
+    def complement(self) -> Bounds:
+        """``1 - x`` with outward rounding (``G phi`` from ``F !phi``)."""
+        return Bounds(1.0 - self.value, _one_minus(self.upper, round_down),
+                      _one_minus(self.lower, round_up))
+
+    def compare(self, op: str, threshold: float) -> tuple[BoolArray, BoolArray]:
+        """``value op threshold`` decided from the interval.
+
+        :return: ``(holds, undecided)``: *holds* where the comparison is true for
+            every number in the interval, *undecided* where it is true for some only.
+        """
+        compare = _COMPARISONS[op]
+        at_lower, at_upper = compare(self.lower, threshold), compare(self.upper, threshold)
+        return at_lower & at_upper, at_lower != at_upper
+
+
+def _one_minus(x: FloatArray, direction: Callable[[FloatArray], FloatArray]) -> FloatArray:
+    """``1 - x`` rounded in *direction* only where the subtraction was inexact.
+
+    Knuth's TwoSum recovers the exact rounding error of ``fl(1 - x)``.
+    """
+    with np.errstate(invalid="ignore"):
+        y = 1.0 - x
+        back = y - 1.0
+        error = (1.0 - (y - back)) + (-x - back)
+    return np.where((error == 0) | ~np.isfinite(y), y, direction(y))

@@ -1,0 +1,242 @@
+"""Rigorous enclosures: floating-point matrix-vector products with an error bound, fixed points.
+
+The argument (``docs/numerics.md``): a float64 product ``y = fl(M x)`` with a
+nonnegative sparse *M* differs from the exact ``M x`` by at most
+``gamma_k * (|M| |x|)_i + k * eta`` in row *i*, where *k* is the number of nonzero
+terms of that row, ``gamma_k = k u / (1 - k u)`` with ``u = 2**-53``, and ``eta = 2**-1074``
+covers underflow (Higham, *Accuracy and Stability of Numerical Algorithms*, §3.1
+and §3.4; the bound holds for any order of summation and with fused
+multiply-adds). :func:`product_error` evaluates a safe upper bound of that
+quantity in floating point; :class:`AffineMap` uses it to enclose
+``F(x) = offset + P x`` from below and above.
+
+For the unbounded kernels, after the 0/1 pre-pass the fixed point ``x* = F(x*)``
+on the unknown states is unique and ``F`` is monotone, so a vector *u* with
+``F(u) <= u`` is an upper bound of ``x*`` and *l* with ``F(l) >= l`` a lower
+bound (:func:`certify_fixpoint`); and from any certified pair, ``F`` applied to
+each side stays certified (:func:`interval_iteration`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker.bounds import Bounds, round_down, round_up
+
+UNIT_ROUNDOFF = 2.0**-53
+#: The smallest subnormal float64: the absolute error of one product that underflows.
+ETA = 2.0**-1074
+#: Safety factor on the computed error bound (covers the rounding of the bound itself).
+_SAFETY = 1.0 + 2.0**-30
+#: Interval-iteration sweeps tried before a result is returned as imprecise.
+INTERVAL_SWEEPS = 2_000
+#: ... unless the sweeps would cost more than this many nonzero visits in total.
+INTERVAL_WORK = 400_000_000
+
+#: Solves ``(I - P_mm) d = v`` approximately (None: not available).
+Correction = Callable[[FloatArray], FloatArray | None]
+
+
+def row_terms(M: CsrMatrix) -> FloatArray:
+    """Number of stored entries of each row of *M* (as floats, for the error bound)."""
+    return np.asarray(np.diff(M.indptr), dtype=np.float64)
+
+
+def product_error(magnitude: FloatArray, roundings: FloatArray,
+                  underflows: FloatArray) -> FloatArray:
+    """An upper bound of ``|fl(sum) - sum|`` for a row sum of products.
+
+    :param magnitude: the float64-computed ``(|M| |x|)_i`` (plus any added ``|c_i|``).
+    :param roundings: *k* in ``gamma_k``: the number of rounded operations a term
+        passes through (nonzero terms, less one when the products are exact).
+    :param underflows: the number of products that may underflow (0 when exact).
+    """
+    # gamma_k <= 2 k u while k u <= 1/2, and the computed magnitude underestimates
+    # the exact one by at most a factor (1 - gamma_k): 4 k u covers both.
+    with np.errstate(over="ignore", invalid="ignore"):
+        bound = (4.0 * UNIT_ROUNDOFF) * roundings * magnitude * _SAFETY + underflows * (2 * ETA)
+    bound = np.where(np.isnan(bound), np.inf, bound)
+    return np.where(bound > 0, round_up(bound), 0.0)
+
+
+def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = None,
+                    terms: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``offset + M x`` in floating point, with a rigorous enclosure of its exact value.
+
+    When *x* holds only zeros and ones the products are exact and only nonzero
+    terms count, so a row with a single such term has no error at all;
+    otherwise every stored entry of the row counts as a term.
+
+    :param M: a sparse matrix with nonnegative entries.
+    :param x: a float64 vector (taken as exact).
+    :param offset: an optional vector added to the product.
+    :param terms: ``row_terms(M)`` if already known.
+    :return: ``(y, lower, upper)`` with ``lower <= offset + M x <= upper`` exactly.
+    """
+    with np.errstate(invalid="ignore"):
+        y = np.asarray(M @ x, dtype=np.float64)
+    magnitude = y if _nonnegative(x) else np.asarray(M @ np.abs(x), dtype=np.float64)
+    exact = bool(np.all((x == 0) | (x == 1)))
+    if exact:
+        ones = sp.csr_matrix((np.ones(M.nnz), M.indices, M.indptr), shape=M.shape)
+        count = np.asarray(ones @ x, dtype=np.float64)
+    else:
+        count = row_terms(M) if terms is None else terms
+    if offset is not None:
+        y = y + offset
+        magnitude = magnitude + np.abs(offset)
+        count = count + (offset != 0)
+    roundings = np.maximum(count - 1.0, 0.0) if exact else count
+    error = product_error(magnitude, roundings, np.zeros_like(y) if exact else count)
+    with np.errstate(invalid="ignore"):
+        lower, upper = round_down(y - error), round_up(y + error)
+    lower = np.where(error == 0, y, lower)
+    upper = np.where(error == 0, y, upper)
+    return y, np.where(np.isnan(lower), -np.inf, lower), np.where(np.isnan(upper), np.inf, upper)
+
+
+def _nonnegative(x: FloatArray) -> bool:
+    return bool(np.all(x >= 0))
+
+
+@dataclass(frozen=True, slots=True)
+class AffineMap:
+    """The fixed-point map of the unknown *states*, self-loops divided out.
+
+    With ``o_i`` the offset (rewards), ``P'`` the rows without their diagonal and
+    ``s_i = sum_j P'_ij`` the probability of leaving state *i*, the map is
+    ``G(x)_i = (o_i + sum_j P'_ij ext(x)_j) / s_i``: each row's self-loop is read
+    as ``1 - s_i`` (exactly), as the linear solver reads it. ``ext(x)`` is the
+    full state vector holding *x* on *states* and the known values elsewhere,
+    those known as an interval ``[known_lower, known_upper]``. ``G`` is monotone
+    in ``x`` and in the known values because ``P >= 0``.
+
+    Build it with :meth:`of`.
+    """
+
+    rows: CsrMatrix
+    states: IntArray
+    known_lower: FloatArray
+    known_upper: FloatArray
+    offset: FloatArray | None
+    leave_lower: FloatArray
+    leave_upper: FloatArray
+    terms: FloatArray
+
+    @classmethod
+    def of(cls, rows: CsrMatrix, states: IntArray, known_lower: FloatArray,
+           known_upper: FloatArray, offset: FloatArray | None) -> AffineMap:
+        """The map of the rows ``P[states, :]`` (all columns).
+
+        :param offset: per-unknown constant (rewards), or None.
+        """
+        coo = rows.tocoo()
+        keep = coo.col != states[coo.row]
+        off = sp.csr_matrix((coo.data[keep], (coo.row[keep], coo.col[keep])), shape=rows.shape)
+        _, leave_lower, leave_upper = enclose_product(off, np.ones(rows.shape[1]))
+        return cls(off, states, known_lower, known_upper, offset,
+                   np.maximum(leave_lower, 0.0), leave_upper, row_terms(off))
+
+    def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
+        full = known.copy()
+        full[self.states] = x
+        _, lower, upper = enclose_product(self.rows, full, self.offset, self.terms)
+        return lower, upper
+
+    def lower(self, x: FloatArray) -> FloatArray:
+        """A certified lower bound of ``G(x)`` (with the known values at their lower bounds)."""
+        low = self._numerator(x, self.known_lower)[0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            quotient = np.where(low >= 0, low / self.leave_upper, low / self.leave_lower)
+        return np.where(np.isnan(quotient), -np.inf, round_down(quotient))
+
+    def upper(self, x: FloatArray) -> FloatArray:
+        """A certified upper bound of ``G(x)`` (with the known values at their upper bounds)."""
+        high = self._numerator(x, self.known_upper)[1]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            quotient = np.where(high >= 0, high / self.leave_lower, high / self.leave_upper)
+        return np.where(np.isnan(quotient), np.inf, round_up(quotient))
+
+
+def certify_fixpoint(F: AffineMap, x: FloatArray, correct: Correction | None,
+                     floor: FloatArray, ceiling: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Certified bounds of the unique fixed point of *F* near the approximation *x*.
+
+    The defect ``|F(x) - x|`` (enclosed rigorously) is pushed through an
+    approximate inverse of ``I - P`` (*correct*) to a margin *d*; then
+    ``u = x + c d`` and ``l = x - c d`` for growing *c* are tested for
+    ``F(u) <= u`` and ``F(l) >= l``. States where a test fails fall back to
+    *ceiling* / *floor* (trivial bounds that satisfy the tests themselves, e.g.
+    1 and 0 for probabilities) and the test is repeated.
+
+    :param F: the monotone affine map whose fixed point is sought.
+    :param x: an approximate fixed point.
+    :param correct: approximate solver of ``(I - P_mm) d = v``, or None.
+    :param floor: trivial lower bounds (``F(floor) >= floor``), e.g. zeros.
+    :param ceiling: trivial upper bounds (``F(ceiling) <= ceiling``), e.g. ones or inf.
+    :return: ``(lower, upper)``, both certified.
+    """
+    defect = round_up(np.maximum(F.upper(x) - x, x - F.lower(x)))
+    defect = np.where(np.isfinite(defect), defect, np.inf)
+    margin = correct(defect) if correct is not None and np.all(np.isfinite(defect)) else None
+    margin = defect if margin is None or not np.all(np.isfinite(margin)) else margin
+    margin = np.maximum(np.maximum(margin, defect), 0.0)
+    slack = 4.0 * UNIT_ROUNDOFF * np.abs(x) + ETA
+    upper = _first_certified(F.upper, lambda c: round_up(x + c * margin + slack), ceiling, up=True)
+    lower = _first_certified(F.lower, lambda c: round_down(x - c * margin - slack), floor,
+                             up=False)
+    return np.maximum(lower, floor), np.minimum(upper, ceiling)
+
+
+def _first_certified(image: Callable[[FloatArray], FloatArray],
+                     candidate: Callable[[float], FloatArray], trivial: FloatArray,
+                     *, up: bool) -> FloatArray:
+    """The first candidate (margin factors 2, 16, 1024) that passes the fixed-point test."""
+    for factor in (2.0, 16.0, 1024.0):
+        bound = _repair(image, candidate(factor), trivial, up=up)
+        if bound is not None:
+            return bound
+    return trivial
+
+
+def _repair(image: Callable[[FloatArray], FloatArray], bound: FloatArray,
+            trivial: FloatArray, *, up: bool, rounds: int = 4) -> FloatArray | None:
+    """*bound* with failing states set to *trivial* until the whole vector passes."""
+    for _ in range(rounds):
+        mapped = image(bound)
+        good: BoolArray = mapped <= bound if up else mapped >= bound
+        if good.all():
+            return bound
+        bound = np.where(good, bound, trivial)
+    return None
+
+
+def interval_iteration(F: AffineMap, lower: FloatArray, upper: FloatArray,
+                       value: FloatArray, precise: Callable[[Bounds], BoolArray]
+                       ) -> tuple[FloatArray, FloatArray]:
+    """Tighten certified bounds by applying *F* to each side until *precise* holds.
+
+    Sound for any certified start: ``l <= x*`` implies ``F(l) <= F(x*) = x*``.
+
+    :param precise: which states of a :class:`Bounds` meet the required precision.
+    """
+    sweeps = min(INTERVAL_SWEEPS, INTERVAL_WORK // max(1, 2 * F.rows.nnz))
+    for _ in range(sweeps):
+        if precise(Bounds.around(value, lower, upper)).all():
+            break
+        lower = np.maximum(lower, F.lower(lower))
+        upper = np.minimum(upper, F.upper(upper))
+    return lower, upper
+
+
+def spectral_cap(M: CsrMatrix) -> float:
+    """A rigorous upper bound of ``||M||_inf`` (the largest row sum, rounded up)."""
+    if M.nnz == 0:
+        return 0.0
+    ones = np.ones(M.shape[1])
+    return float(np.max(enclose_product(M, ones)[2]))
