@@ -101,8 +101,24 @@ def exact_constants(
         return values[name]
 
     for decl in decls:
-        value(decl.name)
+        if _defined(decl.name, pending, given):
+            value(decl.name)
     return values
+
+
+def _defined(name: str, pending: Mapping[str, ConstDecl], given: Mapping[str, object]) -> bool:
+    """Whether *name* has a value: given, or defined from constants that all have one.
+
+    A properties file may declare a constant it never uses and nobody gives
+    (``const int x; // unused``); the float path accepts that, and so must this one.
+    """
+    decl = pending[name]
+    if decl.value is None:
+        return name in given
+    return all(
+        _defined(node.name, pending, given)
+        for node in walk(decl.value) if isinstance(node, Ident) and node.name in pending
+    )
 
 
 def _constant(
