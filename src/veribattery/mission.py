@@ -12,9 +12,10 @@ from pathlib import Path
 from veribattery.checker import check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
-from veribattery.lang import parse_model, parse_properties, parse_property
+from veribattery.explore.reuse import structure_key
+from veribattery.lang import flatten_model, parse_model, parse_properties, parse_property
 from veribattery.lang.nodes import Value
-from veribattery.pipeline import ModelCheckRun, ProgressCallback, check_model
+from veribattery.pipeline import ModelCheckRun, ProgressCallback, ReusingBuilder, check_model
 
 MODEL_FILE = "model.prism"
 PROPERTIES_FILE = "properties.props"
@@ -43,6 +44,11 @@ class MissionReport:
     run: ModelCheckRun
     requirements: tuple[RequirementOutcome, ...]
     warnings: tuple[str, ...]
+
+    @property
+    def reused(self) -> bool:
+        """True when an earlier config's state space was re-used (see :class:`MissionChecker`)."""
+        return self.run.reused
 
     @property
     def values(self) -> dict[str, Value]:
@@ -77,33 +83,55 @@ def mission_files(cfg: MissionConfig) -> MissionFiles:
 
 def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = None) -> MissionReport:
     """Render *cfg*, parse and check the text like any PRISM file, and judge the requirements."""
+    return _check(cfg, progress, None)
+
+
+def _check(
+    cfg: MissionConfig, progress: ProgressCallback | None, builder: ReusingBuilder | None
+) -> MissionReport:
     files = mission_files(cfg)
     model = parse_model(files.model, name=MODEL_FILE)
     props = parse_properties(files.properties, name=PROPERTIES_FILE)
-    run = check_model(model, props.properties, props_file=props, progress=progress)
+    run = check_model(model, props.properties, props_file=props, progress=progress,
+                      builder=builder)
     values = {r.property.name: r.value for r in run.results}
     outcomes = tuple(_judge(req, values) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
 
 
 class MissionChecker:
-    """Checks mission configs one after another, for sweeps.
+    """Checks mission configs one after another, for sweeps, re-using state spaces.
 
-    The seam for structure reuse: a checker may keep the state space of the configs
-    it has seen and, when a new config changes only transition probabilities,
-    re-evaluate and re-solve instead of rebuilding. Configs with equal
-    :func:`reuse_key` are the ones that can share a state space; this version
-    shares none and builds every config afresh.
+    When a config's model shares the structure of the last one built in full --
+    the varied keys change only transition probabilities, not which transitions
+    exist (e.g. ``environment.p_wsp_c`` strictly inside (0, 1)) -- the state space
+    is kept and only probabilities, rewards and labels are evaluated again before
+    solving; :attr:`MissionReport.reused` says which way each config ran. Configs
+    with equal :func:`reuse_key` share one state space unless a probability
+    becomes 0 or 1 at one of them; order points by key to build each space once.
     """
 
-    def check(self, cfg: MissionConfig) -> MissionReport:
-        """Check *cfg* as :func:`check_mission` does."""
-        return check_mission(cfg)
+    def __init__(self) -> None:
+        self._builder = ReusingBuilder()
+
+    def check(
+        self, cfg: MissionConfig, *, progress: ProgressCallback | None = None
+    ) -> MissionReport:
+        """Check *cfg* as :func:`check_mission` does (the same values, to the last bit)."""
+        return _check(cfg, progress, self._builder)
 
 
 def reuse_key(cfg: MissionConfig) -> str | None:
-    """A key equal for configs that can share one state space (None: this one shares none)."""
-    return None
+    """A key equal for configs whose models may share one state space.
+
+    Decided from the rendered model itself: the key digests the flattened model's
+    variables, initial states, guards and assignments (every constant they use
+    appears by value), and leaves out update probabilities, rewards and labels.
+    Equal keys are necessary for re-use; :class:`MissionChecker` still falls back
+    to a full build where a probability becomes 0 or 1.
+    """
+    model = parse_model(mission_files(cfg).model, name=MODEL_FILE)
+    return structure_key(flatten_model(model))
 
 
 def _judge(requirement: Requirement, values: Mapping[str | None, Value]) -> RequirementOutcome:
