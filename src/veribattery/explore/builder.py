@@ -11,7 +11,8 @@ each with probability 1/n, and a state with none gets a self-loop.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -41,6 +42,7 @@ _INIT_CHUNK = 1 << 20
 #: Frontier states expanded at once.
 _CHUNK = 1 << 14
 _NONE = np.empty(0, dtype=np.int64)
+_NO_FLOATS = np.empty(0, dtype=np.float64)
 
 
 @dataclass(frozen=True, slots=True)
@@ -221,12 +223,26 @@ def _merge(
 # ---------------------------------------------------------------------------
 
 
-def assemble(model: FlatModel, states: IntArray, initial: IntArray, layers: list[Layer]) -> DTMC:
+def assemble(
+    model: FlatModel,
+    states: IntArray,
+    initial: IntArray,
+    layers: list[Layer],
+    known: tuple[dict[str, BoolArray] | None, tuple[RewardVectors, ...] | None] = (None, None),
+) -> DTMC:
+    """The DTMC of *model* from its explored layers (which are emptied as they are used).
+
+    :param known: labels and rewards already evaluated on these states and choices
+        (see ``reuse``), or None to evaluate them.
+    """
     n = states.shape[0]
-    matrix = _transition_matrix(n, layers)
     choices = np.concatenate([layer.choices for layer in layers])
-    labels = _labels(model, states, initial, choices == 0)
-    rewards = tuple(_reward_vectors(model, r, states, choices, layers) for r in model.rewards)
+    matrix = _transition_matrix(n, layers)
+    labels, rewards = known
+    if labels is None:
+        labels = _labels(model, states, initial, choices == 0)
+    if rewards is None:
+        rewards = tuple(_reward_vectors(model, r, states, choices, layers) for r in model.rewards)
     deadlocks = int(np.count_nonzero(choices == 0))
     nondeterministic = int(np.count_nonzero(choices > 1))
     return DTMC(
@@ -243,16 +259,26 @@ def assemble(model: FlatModel, states: IntArray, initial: IntArray, layers: list
 
 
 def _transition_matrix(n: int, layers: list[Layer]) -> sp.csr_matrix:
-    """CSR straight from the layers: their rows are already sorted by source state."""
-    rows = np.concatenate([layer.rows for layer in layers])
+    """CSR straight from the layers: their rows are already sorted by source state.
+
+    Each field is released from the layers as soon as it is concatenated, so the
+    peak holds the layers and one concatenated field, not two copies of everything.
+    """
+    counts = np.bincount(np.concatenate([layer.rows for layer in layers]), minlength=n)
     columns = np.concatenate([layer.columns for layer in layers])
+    _release(layers, rows=_NONE, columns=_NONE)
     data = np.concatenate([layer.probabilities for layer in layers])
+    _release(layers, probabilities=_NO_FLOATS)
     indptr = np.zeros(n + 1, dtype=columns.dtype)
-    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
-    del rows
+    np.cumsum(counts, out=indptr[1:])
     matrix = sp.csr_matrix((data, columns, indptr), shape=(n, n))
     matrix.sum_duplicates()  # sorts each row's columns and adds repeated successors
     return matrix
+
+
+def _release(layers: list[Layer], **empty: Any) -> None:
+    for i, layer in enumerate(layers):
+        layers[i] = replace(layer, **empty)
 
 
 def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:

@@ -41,7 +41,7 @@ from veribattery.explore.builder import (
 )
 from veribattery.explore.dtmc import DTMC
 from veribattery.explore.program import Program, compile_program, with_probabilities
-from veribattery.lang.nodes import Command, FlatModel
+from veribattery.lang.nodes import Command, FlatModel, LabelDecl, RewardStruct
 
 __all__ = ["Structure", "build_reusable", "reevaluate", "structure_key"]
 
@@ -59,6 +59,8 @@ class Structure:
     :param rows: source state of every kept branch, in build order.
     :param columns: target state of every kept branch, in build order.
     :param dropped: positions of the zero-probability branches among all branches.
+    :param labels: the model's labels and rewards, whose vectors a model that
+        declares them alike can take over.
     """
 
     key: str
@@ -67,6 +69,8 @@ class Structure:
     rows: IntArray
     columns: IntArray
     dropped: IntArray
+    labels: tuple[LabelDecl, ...]
+    rewards: tuple[RewardStruct, ...]
 
 
 def structure_key(model: FlatModel) -> str:
@@ -96,6 +100,8 @@ def build_reusable(
         rows=np.concatenate([layer.rows for layer in layers]),
         columns=np.concatenate([layer.columns for layer in layers]),
         dropped=_global_dropped(layers),
+        labels=model.labels,
+        rewards=model.rewards,
     )
     return assemble(model, states, initial, layers), structure
 
@@ -118,7 +124,11 @@ def reevaluate(base: DTMC, structure: Structure, model: FlatModel) -> DTMC | Non
         return None
     if layers is None:
         return None
-    return assemble(model, base.states, np.arange(rows.shape[0]), layers)
+    known = (
+        dict(base.labels) if model.labels == structure.labels else None,
+        base.rewards if model.rewards == structure.rewards else None,
+    )
+    return assemble(model, base.states, np.arange(rows.shape[0]), layers, known)
 
 
 def _relayers(model: FlatModel, states: IntArray, structure: Structure) -> list[Layer] | None:
