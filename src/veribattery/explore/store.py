@@ -3,7 +3,8 @@
 Each state is encoded by mixed radix over its variables' ranges into one int64
 *key* word (or a few words when the product of the ranges overflows 63 bits):
 the variables packed into the fewest bits their ranges need. Only the keys are
-stored; rows of values are decoded from them when a frontier is expanded.
+stored, plus the rows added since the search last asked for rows (the next
+frontier, which it asks for next); any other rows are decoded from the keys.
 Keys live in an open-addressing hash table that is probed for a whole batch at
 once: each probing round is a handful of numpy operations over the rows still
 unresolved, so lookups cost O(1) per state without a Python loop per state, and
@@ -62,14 +63,36 @@ class StateStore:
         # State index + 1 (0 = empty); int32 halves the table, the largest array here.
         self._table = np.zeros(1 << 14, dtype=np.int32)
         self.count = 0
+        self._recent: list[IntArray] = []  # rows of states recent_start.. in order
+        self._recent_start = 0
 
     @property
     def states(self) -> IntArray:
         """The known states, one row each, in numbering order (decoded: a new array)."""
-        return self.rows(0, self.count)
+        return self._decode(0, self.count)
 
     def rows(self, low: int, high: int) -> IntArray:
-        """States ``low..high-1`` as rows of variable values, decoded from their keys."""
+        """States ``low..high-1`` as rows of variable values.
+
+        Rows added since an earlier call are served as added (and forgotten once
+        the search has moved past them); others are decoded from their keys.
+        """
+        self._forget_before(low)
+        if low == self._recent_start and self._recent:
+            rows = self._recent[0] if len(self._recent) == 1 else np.concatenate(self._recent)
+            self._recent = [rows]
+            if high <= self._recent_start + rows.shape[0]:
+                return rows[: high - low]
+        return self._decode(low, high)
+
+    def _forget_before(self, low: int) -> None:
+        while self._recent and self._recent_start + self._recent[0].shape[0] <= low:
+            self._recent_start += self._recent.pop(0).shape[0]
+        if self._recent and self._recent_start < low:
+            self._recent[0] = self._recent[0][low - self._recent_start :]
+            self._recent_start = low
+
+    def _decode(self, low: int, high: int) -> IntArray:
         keys = self._keys[low:high]
         rows = np.empty((keys.shape[0], self._lows.size), dtype=np.int64)
         for i, (word, size) in enumerate(zip(self._word, self._sizes, strict=True)):
@@ -90,6 +113,10 @@ class StateStore:
         new = new[np.argsort(first[new], kind="stable")]
         index[new] = self.count + np.arange(new.size)
         self._append(unique_keys[new])
+        if new.size:
+            if not self._recent:
+                self._recent_start = self.count - new.size
+            self._recent.append(rows[first[new]])
         if not self._reserve_table():  # a rehash re-inserted everything already
             self._insert(index[new], slots[new])
         return index[inverse]
