@@ -38,6 +38,8 @@ from veribattery.mission import (
     MissionChecker,
     MissionFiles,
     MissionReport,
+    _Parsed,
+    _reparse,
     check_mission,
     mission_files,
     reuse_key,
@@ -280,3 +282,15 @@ def test_reuse_key_from_the_model() -> None:
     assert reuse_key(_small("0.73")) == key  # reaches only probabilities
     assert reuse_key(_small("0.1", "battery.capacity_ah=12")) != key  # ranges and guards
     assert reuse_key(_small("0.1", "strategy.safe_t=0.25")) != key  # guards
+
+
+def test_checker_parses_only_the_changed_constant_declarations() -> None:
+    parsed = _Parsed()
+    first, second = (mission_files(_small(p)).model for p in ("0.1", "0.37"))
+    base = parsed.model(first)
+    assert _reparse(first, base, second) is not None
+    assert parsed.model(second) == parse_model(second, name="model.prism")
+    # Anything but constant declarations and comments changed: a full parse.
+    edited = second.replace("s>=6", "s>6")
+    assert _reparse(second, parsed.model(second), edited) is None
+    assert parsed.model(edited) == parse_model(edited, name="model.prism")

@@ -6,7 +6,7 @@ import math
 import os
 import tempfile
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from veribattery.checker import check
@@ -14,7 +14,7 @@ from veribattery.config import MissionConfig, Requirement, config_to_yaml, deriv
 from veribattery.errors import VeribatteryError
 from veribattery.explore.reuse import structure_key
 from veribattery.lang import flatten_model, parse_model, parse_properties, parse_property
-from veribattery.lang.nodes import Value
+from veribattery.lang.nodes import ConstDecl, Model, PropertiesFile, Value
 from veribattery.pipeline import ModelCheckRun, ProgressCallback, ReusingBuilder, check_model
 
 MODEL_FILE = "model.prism"
@@ -87,11 +87,15 @@ def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = Non
 
 
 def _check(
-    cfg: MissionConfig, progress: ProgressCallback | None, builder: ReusingBuilder | None
+    cfg: MissionConfig,
+    progress: ProgressCallback | None,
+    builder: ReusingBuilder | None,
+    parsed: _Parsed | None = None,
 ) -> MissionReport:
     files = mission_files(cfg)
-    model = parse_model(files.model, name=MODEL_FILE)
-    props = parse_properties(files.properties, name=PROPERTIES_FILE)
+    parsed = parsed or _Parsed()
+    model = parsed.model(files.model)
+    props = parsed.properties(files.properties)
     run = check_model(model, props.properties, props_file=props, progress=progress,
                       builder=builder)
     values = {r.property.name: r.value for r in run.results}
@@ -113,12 +117,78 @@ class MissionChecker:
 
     def __init__(self) -> None:
         self._builder = ReusingBuilder()
+        self._parsed = _Parsed()
 
     def check(
         self, cfg: MissionConfig, *, progress: ProgressCallback | None = None
     ) -> MissionReport:
         """Check *cfg* as :func:`check_mission` does (the same values, to the last bit)."""
-        return _check(cfg, progress, self._builder)
+        return _check(cfg, progress, self._builder, self._parsed)
+
+
+class _Parsed:
+    """The last model and properties texts parsed, to parse only what changed.
+
+    Grid points of a sweep render texts that differ only in comments and constant
+    declarations; those declarations are parsed alone (at their own line, so
+    positions stay right) and replace the old ones. Anything else: a full parse.
+    """
+
+    def __init__(self) -> None:
+        self._model: tuple[str, Model] | None = None
+        self._props: tuple[str, PropertiesFile] | None = None
+
+    def model(self, text: str) -> Model:
+        model = None if self._model is None else _reparse(*self._model, text)
+        if model is None:
+            model = parse_model(text, name=MODEL_FILE)
+        self._model = (text, model)
+        return model
+
+    def properties(self, text: str) -> PropertiesFile:
+        if self._props is None or self._props[0] != text:
+            self._props = (text, parse_properties(text, name=PROPERTIES_FILE))
+        return self._props[1]
+
+
+def _reparse(old_text: str, old: Model, text: str) -> Model | None:
+    """*old* with the constant declarations that changed from *old_text* to *text*, or None."""
+    before, after = old_text.splitlines(), text.splitlines()
+    if len(before) != len(after):
+        return None
+    decls = {}
+    for i, (a, b) in enumerate(zip(before, after, strict=True)):
+        if a == b or (_comment(a) and _comment(b)):
+            continue
+        new, was = _declaration(b, i), _declaration(a, i)
+        if new is None or was is None or (new.name, new.type) != (was.name, was.type):
+            return None
+        decls[new.name] = new
+    if not decls.keys() <= {c.name for c in old.constants}:
+        return None
+    return replace(old, constants=tuple(decls.get(c.name, c) for c in old.constants))
+
+
+def _comment(line: str) -> bool:
+    return line.lstrip().startswith("//")
+
+
+def _declaration(line: str, index: int) -> ConstDecl | None:
+    """The constant declared by *line* (line *index* + 1 of a model), if that is all it holds."""
+    if not line.lstrip().startswith("const ") or index < 1:
+        return None
+    try:
+        small = parse_model("dtmc" + "\n" * index + line, name=MODEL_FILE)
+    except VeribatteryError:
+        return None
+    return small.constants[0] if small == _only(small.constants) else None
+
+
+def _only(constants: tuple[ConstDecl, ...]) -> Model | None:
+    """A model holding just one constant declaration (to compare a parse with)."""
+    if len(constants) != 1:
+        return None
+    return Model("dtmc", constants, (), (), (), (), (), None, MODEL_FILE)
 
 
 def reuse_key(cfg: MissionConfig) -> str | None:
