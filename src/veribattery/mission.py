@@ -151,6 +151,11 @@ class _Parsed:
         return self._props[1]
 
 
+#: reuse_key's parses: a sweep asks for the keys of many similar configs in a row.
+#: (Safe across threads: a parse is only re-used after checking its text.)
+_KEY_PARSED = _Parsed()
+
+
 def _reparse(old_text: str, old: Model, text: str) -> Model | None:
     """*old* with the constant declarations that changed from *old_text* to *text*, or None."""
     before, after = old_text.splitlines(), text.splitlines()
@@ -200,7 +205,7 @@ def reuse_key(cfg: MissionConfig) -> str | None:
     Equal keys are necessary for re-use; :class:`MissionChecker` still falls back
     to a full build where a probability becomes 0 or 1.
     """
-    model = parse_model(mission_files(cfg).model, name=MODEL_FILE)
+    model = _KEY_PARSED.model(mission_files(cfg).model)
     return structure_key(flatten_model(model))
 
 
