@@ -10,6 +10,7 @@
 5. The emitted model passes the whole-domain range check (PRISM's symbolic engines);
    a copy with one range guard removed is rejected.
 6. The recharge-cap warning.
+7. Structure reuse across p_wsp_c: values equal independent checks; fallbacks.
 
 Every mission is built and checked once per pytest process (``_mission`` caches it).
 
@@ -29,11 +30,20 @@ from pathlib import Path
 
 import pytest
 
-from veribattery.config import load_config
+from veribattery.config import MissionConfig, load_config
 from veribattery.errors import ModelError
 from veribattery.explore import check_update_ranges_over_domain
 from veribattery.lang import flatten_model, parse_model
-from veribattery.mission import MissionFiles, MissionReport, check_mission, mission_files
+from veribattery.mission import (
+    MissionChecker,
+    MissionFiles,
+    MissionReport,
+    _Parsed,
+    _reparse,
+    check_mission,
+    mission_files,
+    reuse_key,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "configs" / "paper"
@@ -230,3 +240,57 @@ def test_recharge_cap_warning(tmp_path: Path) -> None:
     assert 0 < mission.value("p_success") < 1
     assert mission.value("exp_recharges") <= 40
     _assert_agrees_with_storm(mission, tmp_path)
+
+
+# ---------------------------------------------------------------------------
+# 7. Structure reuse (a small farm keeps the independent checks cheap)
+# ---------------------------------------------------------------------------
+
+SMALL_FARM = ("farm.cols=3", "farm.rows=2", "farm.base=[0,0]")
+
+
+def _small(p_wsp_c: str, *more: str) -> MissionConfig:
+    return load_config("", (*SMALL_FARM, f"environment.p_wsp_c={p_wsp_c}", *more))
+
+
+def test_reused_values_equal_independent_checks_over_p_wsp_c() -> None:
+    checker = MissionChecker()
+    for p in ("0.1", "0.02", "0.37", "0.9"):
+        report, fresh = checker.check(_small(p)), check_mission(_small(p))
+        assert report.reused == (p != "0.1"), p
+        assert not fresh.reused
+        dtmc = report.run.dtmc
+        assert (dtmc.num_states, dtmc.num_transitions) == (
+            fresh.run.dtmc.num_states, fresh.run.dtmc.num_transitions)
+        for name in NAMES:
+            assert math.isclose(float(report.values[name]), float(fresh.values[name]),
+                                rel_tol=1e-12, abs_tol=0.0), (p, name)
+    assert checker.check(_small("0.5")).reused  # the base stays the first full build
+
+
+@pytest.mark.parametrize("p", ["0", "1"])
+def test_probability_zero_or_one_falls_back_to_a_full_build(p: str) -> None:
+    checker = MissionChecker()
+    assert not checker.check(_small("0.3")).reused
+    report = checker.check(_small(p))
+    assert not report.reused  # a wind branch has probability 0: other transitions
+    assert report.values == check_mission(_small(p)).values
+
+
+def test_reuse_key_from_the_model() -> None:
+    key = reuse_key(_small("0.1"))
+    assert reuse_key(_small("0.73")) == key  # reaches only probabilities
+    assert reuse_key(_small("0.1", "battery.capacity_ah=12")) != key  # ranges and guards
+    assert reuse_key(_small("0.1", "strategy.safe_t=0.25")) != key  # guards
+
+
+def test_checker_parses_only_the_changed_constant_declarations() -> None:
+    parsed = _Parsed()
+    first, second = (mission_files(_small(p)).model for p in ("0.1", "0.37"))
+    base = parsed.model(first)
+    assert _reparse(first, base, second) is not None
+    assert parsed.model(second) == parse_model(second, name="model.prism")
+    # Anything but constant declarations and comments changed: a full parse.
+    edited = second.replace("s>=6", "s>6")
+    assert _reparse(second, parsed.model(second), edited) is None
+    assert parsed.model(edited) == parse_model(edited, name="model.prism")

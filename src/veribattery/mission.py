@@ -7,16 +7,17 @@ import operator
 import os
 import tempfile
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path
 
 from veribattery.checker import CheckResult, check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
-from veribattery.lang import parse_model, parse_properties, parse_property
-from veribattery.lang.nodes import Value
-from veribattery.pipeline import ModelCheckRun, ProgressCallback, check_model
+from veribattery.explore.reuse import structure_key
+from veribattery.lang import flatten_model, parse_model, parse_properties, parse_property
+from veribattery.lang.nodes import ConstDecl, Model, PropertiesFile, Value
+from veribattery.pipeline import ModelCheckRun, ProgressCallback, ReusingBuilder, check_model
 
 MODEL_FILE = "model.prism"
 PROPERTIES_FILE = "properties.props"
@@ -47,6 +48,11 @@ class MissionReport:
     run: ModelCheckRun
     requirements: tuple[RequirementOutcome, ...]
     warnings: tuple[str, ...]
+
+    @property
+    def reused(self) -> bool:
+        """True when an earlier config's state space was re-used (see :class:`MissionChecker`)."""
+        return self.run.reused
 
     @property
     def values(self) -> dict[str, Value]:
@@ -86,33 +92,132 @@ def check_mission(
 
     :param exact: check in exact rational arithmetic and judge requirements exactly.
     """
+    return _check(cfg, progress, None, exact=exact)
+
+
+def _check(
+    cfg: MissionConfig,
+    progress: ProgressCallback | None,
+    builder: ReusingBuilder | None,
+    parsed: _Parsed | None = None,
+    *,
+    exact: bool = False,
+) -> MissionReport:
     files = mission_files(cfg)
-    model = parse_model(files.model, name=MODEL_FILE)
-    props = parse_properties(files.properties, name=PROPERTIES_FILE)
-    run = check_model(model, props.properties, props_file=props, progress=progress, exact=exact)
+    parsed = parsed or _Parsed()
+    model = parsed.model(files.model)
+    props = parsed.properties(files.properties)
+    run = check_model(model, props.properties, props_file=props, progress=progress,
+                      builder=builder, exact=exact)
     results = {r.property.name: r for r in run.results}
     outcomes = tuple(_judge(req, results) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
 
 
 class MissionChecker:
-    """Checks mission configs one after another, for sweeps.
+    """Checks mission configs one after another, for sweeps, re-using state spaces.
 
-    The seam for structure reuse: a checker may keep the state space of the configs
-    it has seen and, when a new config changes only transition probabilities,
-    re-evaluate and re-solve instead of rebuilding. Configs with equal
-    :func:`reuse_key` are the ones that can share a state space; this version
-    shares none and builds every config afresh.
+    When a config's model shares the structure of the last one built in full --
+    the varied keys change only transition probabilities, not which transitions
+    exist (e.g. ``environment.p_wsp_c`` strictly inside (0, 1)) -- the state space
+    is kept and only probabilities, rewards and labels are evaluated again before
+    solving; :attr:`MissionReport.reused` says which way each config ran. Configs
+    with equal :func:`reuse_key` share one state space unless a probability
+    becomes 0 or 1 at one of them; order points by key to build each space once.
     """
 
-    def check(self, cfg: MissionConfig) -> MissionReport:
-        """Check *cfg* as :func:`check_mission` does."""
-        return check_mission(cfg)
+    def __init__(self) -> None:
+        self._builder = ReusingBuilder()
+        self._parsed = _Parsed()
+
+    def check(
+        self, cfg: MissionConfig, *, progress: ProgressCallback | None = None
+    ) -> MissionReport:
+        """Check *cfg* as :func:`check_mission` does (the same values, to the last bit)."""
+        return _check(cfg, progress, self._builder, self._parsed)
+
+
+class _Parsed:
+    """The last model and properties texts parsed, to parse only what changed.
+
+    Grid points of a sweep render texts that differ only in comments and constant
+    declarations; those declarations are parsed alone (at their own line, so
+    positions stay right) and replace the old ones. Anything else: a full parse.
+    """
+
+    def __init__(self) -> None:
+        self._model: tuple[str, Model] | None = None
+        self._props: tuple[str, PropertiesFile] | None = None
+
+    def model(self, text: str) -> Model:
+        model = None if self._model is None else _reparse(*self._model, text)
+        if model is None:
+            model = parse_model(text, name=MODEL_FILE)
+        self._model = (text, model)
+        return model
+
+    def properties(self, text: str) -> PropertiesFile:
+        if self._props is None or self._props[0] != text:
+            self._props = (text, parse_properties(text, name=PROPERTIES_FILE))
+        return self._props[1]
+
+
+#: reuse_key's parses: a sweep asks for the keys of many similar configs in a row.
+#: (Safe across threads: a parse is only re-used after checking its text.)
+_KEY_PARSED = _Parsed()
+
+
+def _reparse(old_text: str, old: Model, text: str) -> Model | None:
+    """*old* with the constant declarations that changed from *old_text* to *text*, or None."""
+    before, after = old_text.splitlines(), text.splitlines()
+    if len(before) != len(after):
+        return None
+    decls = {}
+    for i, (a, b) in enumerate(zip(before, after, strict=True)):
+        if a == b or (_comment(a) and _comment(b)):
+            continue
+        new, was = _declaration(b, i), _declaration(a, i)
+        if new is None or was is None or (new.name, new.type) != (was.name, was.type):
+            return None
+        decls[new.name] = new
+    if not decls.keys() <= {c.name for c in old.constants}:
+        return None
+    return replace(old, constants=tuple(decls.get(c.name, c) for c in old.constants))
+
+
+def _comment(line: str) -> bool:
+    return line.lstrip().startswith("//")
+
+
+def _declaration(line: str, index: int) -> ConstDecl | None:
+    """The constant declared by *line* (line *index* + 1 of a model), if that is all it holds."""
+    if not line.lstrip().startswith("const ") or index < 1:
+        return None
+    try:
+        small = parse_model("dtmc" + "\n" * index + line, name=MODEL_FILE)
+    except VeribatteryError:
+        return None
+    return small.constants[0] if small == _only(small.constants) else None
+
+
+def _only(constants: tuple[ConstDecl, ...]) -> Model | None:
+    """A model holding just one constant declaration (to compare a parse with)."""
+    if len(constants) != 1:
+        return None
+    return Model("dtmc", constants, (), (), (), (), (), None, MODEL_FILE)
 
 
 def reuse_key(cfg: MissionConfig) -> str | None:
-    """A key equal for configs that can share one state space (None: this one shares none)."""
-    return None
+    """A key equal for configs whose models may share one state space.
+
+    Decided from the rendered model itself: the key digests the flattened model's
+    variables, initial states, guards and assignments (every constant they use
+    appears by value), and leaves out update probabilities, rewards and labels.
+    Equal keys are necessary for re-use; :class:`MissionChecker` still falls back
+    to a full build where a probability becomes 0 or 1.
+    """
+    model = _KEY_PARSED.model(mission_files(cfg).model)
+    return structure_key(flatten_model(model))
 
 
 _EXACT_HOLDS: dict[str, Callable[[Fraction, Fraction], bool]] = {

@@ -16,6 +16,7 @@ from pathlib import Path
 from veribattery.checker import CheckResult, check
 from veribattery.errors import PrismSemanticError
 from veribattery.explore import DTMC, build_dtmc
+from veribattery.explore.reuse import Structure, build_reusable, reevaluate
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -42,6 +43,8 @@ class ModelCheckRun:
     results: tuple[CheckResult, ...]
     timings_s: dict[str, float]
     warnings: tuple[str, ...] = field(default=())
+    #: True when the DTMC re-used an earlier model's state space (see :class:`ReusingBuilder`).
+    reused: bool = False
 
     @property
     def model_summary(self) -> dict[str, int]:
@@ -67,6 +70,29 @@ class _Stopwatch:
             yield
         finally:
             self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - start
+
+
+class ReusingBuilder:
+    """Builds DTMCs one after another, re-using the last state space where it can.
+
+    When a model shares the structure of the last model built in full (the same
+    variables, guards and assignments; see :mod:`veribattery.explore.reuse`), its
+    probabilities, rewards and labels are evaluated on the known states instead of
+    exploring them again; otherwise it is built in full and becomes the new base.
+    """
+
+    def __init__(self) -> None:
+        self._base: tuple[DTMC, Structure] | None = None
+
+    def build(self, flat: FlatModel, progress: ProgressCallback | None = None) -> tuple[DTMC, bool]:
+        """The DTMC of *flat*, and whether it re-used the base's state space."""
+        if self._base is not None:
+            dtmc = reevaluate(*self._base, flat)
+            if dtmc is not None:
+                return dtmc, True
+        dtmc, structure = build_reusable(flat, progress=progress)
+        self._base = (dtmc, structure)
+        return dtmc, False
 
 
 def select(
@@ -116,25 +142,30 @@ def check_model(
     progress: ProgressCallback | None = None,
     stopwatch: _Stopwatch | None = None,
     exact: bool = False,
+    builder: ReusingBuilder | None = None,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states.
 
     :param exact: compute in exact rational arithmetic (results are
         :class:`~veribattery.checker.exact.ExactCheckResult`).
+    :param builder: re-use the state space of earlier models where possible.
     """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
     with watch.stage("build"):
-        dtmc = build_dtmc(flat, progress=progress)
+        if builder is None:
+            dtmc, reused = build_dtmc(flat, progress=progress), False
+        else:
+            dtmc, reused = builder.build(flat, progress)
     if exact:
         results = _check_exact(model, flat, dtmc, (properties, resolved), props_file, constants,
                                watch)
     else:
         with watch.stage("check"):
             results = tuple(check(dtmc, p) for p in resolved)
-    return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings)
+    return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings, reused)
 
 
 def _check_exact(

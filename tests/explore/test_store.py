@@ -49,3 +49,35 @@ def test_growth_and_rehash(values: list[int]) -> None:
     first = {v: i for i, v in reversed(list(enumerate(dict.fromkeys(values))))}
     assert index.tolist() == [first[v] for v in values]
     assert store.add(np.array(values, dtype=np.int64)[:, None]).tolist() == index.tolist()
+
+
+@settings(max_examples=50, deadline=None)
+@given(
+    st.lists(
+        st.lists(st.tuples(st.integers(-3, 3), st.integers(0, 1 << 45), st.integers(-7, 0)),
+                 min_size=0, max_size=40),
+        min_size=1,
+        max_size=6,
+    ),
+    st.lists(st.tuples(st.integers(0, 300), st.integers(0, 60)), max_size=10),
+)
+def test_rows_served_or_decoded_equal_the_rows_added(
+    batches: list[list[tuple[int, int, int]]], ranges: list[tuple[int, int]]
+) -> None:
+    # Two key words (the middle range alone needs 46 bits), negative lows; ranges
+    # asked in search order (recent rows served as added) and out of order (decoded).
+    store = StateStore([-3, 0, -7], [3, 1 << 45, 0])
+    reference: dict[tuple[int, int, int], None] = {}
+    low = 0
+    for batch in batches:
+        store.add(np.array(batch, dtype=np.int64).reshape(-1, 3))
+        reference.update(dict.fromkeys(batch))
+        high = min(low + 7, store.count)
+        assert [tuple(r) for r in store.rows(low, high).tolist()] == list(reference)[low:high]
+        low = high
+    everything = list(reference)
+    for start, width in ranges:
+        start = min(start, store.count)
+        stop = min(start + width, store.count)
+        assert [tuple(r) for r in store.rows(start, stop).tolist()] == everything[start:stop]
+    assert [tuple(r) for r in store.states.tolist()] == everything

@@ -11,7 +11,8 @@ each with probability 1/n, and a state with none gets a self-loop.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -25,23 +26,64 @@ from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
 from veribattery.lang.nodes import FlatModel, RewardStruct
 
-__all__ = ["build_dtmc", "initial_states"]
+__all__ = [
+    "Expansion",
+    "Layer",
+    "assemble",
+    "build_dtmc",
+    "expand_frontier",
+    "explore",
+    "initial_states",
+    "rewarded_actions",
+]
 
 #: Rows of the variables' domain enumerated at once when evaluating an ``init`` block.
 _INIT_CHUNK = 1 << 20
 #: Frontier states expanded at once.
 _CHUNK = 1 << 14
+_NONE = np.empty(0, dtype=np.int64)
+_NO_FLOATS = np.empty(0, dtype=np.float64)
 
 
 @dataclass(frozen=True, slots=True)
-class _Layer:
-    """The transitions out of one frontier and its states' choice counts."""
+class Layer:
+    """The transitions out of one frontier and its states' choice counts.
+
+    *dropped* lists the positions, in the frontier's branch order before
+    zero-probability branches were dropped, of those branches; *branches* counts
+    the branches before dropping. Both let a re-evaluation (see ``reuse``) prove
+    that the same branches exist.
+    """
 
     rows: IntArray
     columns: IntArray
     probabilities: FloatArray
     choices: IntArray
     action_choices: dict[str | None, IntArray]
+    dropped: IntArray
+    branches: int
+
+
+@dataclass(frozen=True, slots=True)
+class Expansion:
+    """The branches out of a frontier, in order of source state, zero-probability ones dropped.
+
+    :param source: frontier-local source of each kept branch.
+    :param targets: successor rows of the kept branches.
+    :param probability: probability of each kept branch (1/n choice weighting applied).
+    :param choices: number of enabled choices per frontier state.
+    :param action_choices: per rewarded action, its number of choices per state.
+    :param dropped: positions of the dropped branches before dropping.
+    :param branches: number of branches before dropping.
+    """
+
+    source: IntArray
+    targets: IntArray
+    probability: FloatArray
+    choices: IntArray
+    action_choices: dict[str | None, IntArray]
+    dropped: IntArray
+    branches: int
 
 
 def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None = None) -> DTMC:
@@ -52,11 +94,18 @@ def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None 
     :raises ModelError: an update leaves a variable's range, a probability is
         negative, or a choice's probabilities do not sum to 1.
     """
-    program = compile_program(model)
+    states, initial, layers = explore(model, compile_program(model), progress)
+    return assemble(model, states, initial, layers)
+
+
+def explore(
+    model: FlatModel, program: Program, progress: Callable[[int, int], None] | None = None
+) -> tuple[IntArray, IntArray, list[Layer]]:
+    """Breadth-first search: the states in numbering order, the initial ones, the layers."""
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
-    rewarded = _rewarded_actions(model.rewards)
-    layers: list[_Layer] = []
+    rewarded = rewarded_actions(model.rewards)
+    layers: list[Layer] = []
     low = 0
     while low < store.count:
         high = store.count
@@ -68,7 +117,7 @@ def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None 
         if progress is not None:
             progress(store.count, high - low)
         low = high
-    return _assemble(model, store.states.copy(), initial, layers)
+    return store.states, initial, layers
 
 
 def initial_states(model: FlatModel) -> IntArray:
@@ -113,8 +162,23 @@ def _domain_rows(lows: IntArray, sizes: IntArray, start: int, stop: int) -> IntA
 
 def _explore_layer(
     program: Program, store: StateStore, low: int, high: int, rewarded: set[str | None]
-) -> _Layer:
-    frontier = store.states[low:high]  # a view: the store only appends
+) -> Layer:
+    found = expand_frontier(program, store.rows(low, high), rewarded)
+    columns = store.add(found.targets)
+    index_type = np.int32 if store.count < np.iinfo(np.int32).max else np.int64
+    return Layer(
+        (found.source + low).astype(index_type),
+        columns.astype(index_type),
+        found.probability,
+        found.choices,
+        found.action_choices,
+        found.dropped,
+        found.branches,
+    )
+
+
+def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | None]) -> Expansion:
+    """Every branch out of *frontier*, ordered by source state (see :class:`Expansion`)."""
     n = frontier.shape[0]
     parts = [(g.action, expand_group(program, g, frontier)) for g in program.groups]
     found = [(a, s) for a, s in parts if s is not None]
@@ -124,22 +188,16 @@ def _explore_layer(
         choices += successors.choices
         if action in rewarded:
             action_choices[action] = action_choices.get(action, 0) + successors.choices
-    source, targets, probability = _merge(found, choices, frontier)
-    columns = store.add(targets)
-    index_type = np.int32 if store.count < np.iinfo(np.int32).max else np.int64
-    return _Layer(
-        (source + low).astype(index_type),
-        columns.astype(index_type),
-        probability,
-        choices,
-        action_choices,
-    )
+    source, targets, probability, dropped, branches = _merge(found, choices, frontier)
+    return Expansion(source, targets, probability, choices, action_choices, dropped, branches)
 
 
 def _merge(
     found: list[tuple[str | None, GroupSuccessors]], choices: IntArray, frontier: IntArray
-) -> tuple[IntArray, IntArray, FloatArray]:
-    """All branches of a layer ordered by source, weighted 1/n, deadlocks self-looped."""
+) -> tuple[IntArray, IntArray, FloatArray, IntArray, int]:
+    """All branches of a layer ordered by source, weighted 1/n, deadlocks self-looped;
+    zero-probability branches dropped (their positions returned), and the branch count.
+    """
     dead = np.flatnonzero(choices == 0)
     source = np.concatenate([s.source for _, s in found] + [dead])
     targets = np.concatenate([s.targets for _, s in found] + [frontier[dead]])
@@ -148,13 +206,16 @@ def _merge(
     keep = probability > 0
     if np.all(source[1:] >= source[:-1]):  # one group, already in source order
         if keep.all():
-            return source, targets, probability
-        return source[keep], targets[keep], probability[keep]
+            return source, targets, probability, _NONE, source.size
+        return (source[keep], targets[keep], probability[keep], np.flatnonzero(~keep),
+                source.size)
     # Chunks have < 2**15 states: an int16 key lets numpy use its O(n) radix sort.
     key = source.astype(np.int16) if choices.size < 1 << 15 else source
     order = np.argsort(key, kind="stable")
-    order = order[keep[order]]
-    return source[order], targets[order], probability[order]
+    kept = keep[order]
+    dropped = _NONE if keep.all() else np.flatnonzero(~kept)
+    order = order[kept] if dropped.size else order
+    return source[order], targets[order], probability[order], dropped, source.size
 
 
 # ---------------------------------------------------------------------------
@@ -162,12 +223,26 @@ def _merge(
 # ---------------------------------------------------------------------------
 
 
-def _assemble(model: FlatModel, states: IntArray, initial: IntArray, layers: list[_Layer]) -> DTMC:
+def assemble(
+    model: FlatModel,
+    states: IntArray,
+    initial: IntArray,
+    layers: list[Layer],
+    known: tuple[dict[str, BoolArray] | None, tuple[RewardVectors, ...] | None] = (None, None),
+) -> DTMC:
+    """The DTMC of *model* from its explored layers (which are emptied as they are used).
+
+    :param known: labels and rewards already evaluated on these states and choices
+        (see ``reuse``), or None to evaluate them.
+    """
     n = states.shape[0]
-    matrix = _transition_matrix(n, layers)
     choices = np.concatenate([layer.choices for layer in layers])
-    labels = _labels(model, states, initial, choices == 0)
-    rewards = tuple(_reward_vectors(model, r, states, choices, layers) for r in model.rewards)
+    matrix = _transition_matrix(n, layers)
+    labels, rewards = known
+    if labels is None:
+        labels = _labels(model, states, initial, choices == 0)
+    if rewards is None:
+        rewards = tuple(_reward_vectors(model, r, states, choices, layers) for r in model.rewards)
     deadlocks = int(np.count_nonzero(choices == 0))
     nondeterministic = int(np.count_nonzero(choices > 1))
     return DTMC(
@@ -183,17 +258,27 @@ def _assemble(model: FlatModel, states: IntArray, initial: IntArray, layers: lis
     )
 
 
-def _transition_matrix(n: int, layers: list[_Layer]) -> sp.csr_matrix:
-    """CSR straight from the layers: their rows are already sorted by source state."""
-    rows = np.concatenate([layer.rows for layer in layers])
+def _transition_matrix(n: int, layers: list[Layer]) -> sp.csr_matrix:
+    """CSR straight from the layers: their rows are already sorted by source state.
+
+    Each field is released from the layers as soon as it is concatenated, so the
+    peak holds the layers and one concatenated field, not two copies of everything.
+    """
+    counts = np.bincount(np.concatenate([layer.rows for layer in layers]), minlength=n)
     columns = np.concatenate([layer.columns for layer in layers])
+    _release(layers, rows=_NONE, columns=_NONE)
     data = np.concatenate([layer.probabilities for layer in layers])
+    _release(layers, probabilities=_NO_FLOATS)
     indptr = np.zeros(n + 1, dtype=columns.dtype)
-    np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
-    del rows
+    np.cumsum(counts, out=indptr[1:])
     matrix = sp.csr_matrix((data, columns, indptr), shape=(n, n))
     matrix.sum_duplicates()  # sorts each row's columns and adds repeated successors
     return matrix
+
+
+def _release(layers: list[Layer], **empty: Any) -> None:
+    for i, layer in enumerate(layers):
+        layers[i] = replace(layer, **empty)
 
 
 def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
@@ -222,7 +307,7 @@ def _labels(
     return labels
 
 
-def _rewarded_actions(rewards: tuple[RewardStruct, ...]) -> set[str | None]:
+def rewarded_actions(rewards: tuple[RewardStruct, ...]) -> set[str | None]:
     return {item.action for r in rewards for item in r.items if item.is_transition}
 
 
@@ -231,7 +316,7 @@ def _reward_vectors(
     struct: RewardStruct,
     states: IntArray,
     choices: IntArray,
-    layers: list[_Layer],
+    layers: list[Layer],
 ) -> RewardVectors:
     """State rewards, and transition rewards weighted by each action's share of the choices."""
     names = model.variable_names
@@ -250,7 +335,7 @@ def _reward_vectors(
     return RewardVectors(struct.name, state, transition)
 
 
-def _action_share(action: str | None, choices: IntArray, layers: list[_Layer]) -> FloatArray:
+def _action_share(action: str | None, choices: IntArray, layers: list[Layer]) -> FloatArray:
     """Fraction of each state's choices that carry *action* (0 in deadlock states)."""
     counts = np.concatenate(
         [

@@ -8,7 +8,8 @@ choice picks one enabled command from every part.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.explore.bounds import value_bounds
@@ -20,7 +21,14 @@ from veribattery.explore.compile import (
 )
 from veribattery.lang.nodes import Command, Expr, FlatModel, FlatModule, Update
 
-__all__ = ["ChoiceGroup", "CompiledCommand", "CompiledUpdate", "Program", "compile_program"]
+__all__ = [
+    "ChoiceGroup",
+    "CompiledCommand",
+    "CompiledUpdate",
+    "Program",
+    "compile_program",
+    "with_probabilities",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -77,16 +85,41 @@ class Program:
 
 def compile_program(model: FlatModel) -> Program:
     """Compile every command of *model* and group the commands into choice groups."""
-    names = _Names(model.variable_names, {v.name: (v.low, v.high) for v in model.variables})
+    names = _names(model)
+    return _program(model, names, lambda m, c: _compile_command(m, c, names))
+
+
+def with_probabilities(program: Program, model: FlatModel) -> Program:
+    """*program* with the update probabilities of *model*, guards and assignments kept.
+
+    *model* must have the commands *program* was compiled from, in the same
+    order, up to their probabilities (as the models of one ``reuse`` key do):
+    only the probabilities are compiled again.
+    """
+    names = _names(model)
+    old = iter(c for g in program.groups for part in g.parts for c in part)
+    return _program(model, names, lambda m, c: _new_probabilities(next(old), c, names))
+
+
+def _names(model: FlatModel) -> _Names:
+    return _Names(model.variable_names, {v.name: (v.low, v.high) for v in model.variables})
+
+
+def _program(
+    model: FlatModel, names: _Names, compile_one: Callable[[FlatModule, Command], CompiledCommand]
+) -> Program:
+    """The choice groups of *model*, each command compiled by *compile_one*."""
+
+    def commands(module: FlatModule, action: str | None) -> tuple[CompiledCommand, ...]:
+        return tuple(compile_one(module, c) for c in module.commands if c.action == action)
+
     groups = [
-        ChoiceGroup(None, (_compile_commands(m, None, names),))
+        ChoiceGroup(None, (commands(m, None),))
         for m in model.modules
         if any(c.action is None for c in m.commands)
     ]
     for action in _actions(model):
-        parts = tuple(
-            _compile_commands(m, action, names) for m in model.modules if action in m.alphabet
-        )
+        parts = tuple(commands(m, action) for m in model.modules if action in m.alphabet)
         groups.append(ChoiceGroup(action, parts))
     return Program(
         variable_names=names.names,
@@ -119,28 +152,38 @@ class _Names:
         return compile_expr(expr, self.names, ranges=self.ranges, cache=self.cache)
 
 
-def _compile_commands(
-    module: FlatModule, action: str | None, names: _Names
-) -> tuple[CompiledCommand, ...]:
-    return tuple(
-        _compile_command(module, c, names) for c in module.commands if c.action == action
-    )
-
-
 def _compile_command(module: FlatModule, command: Command, names: _Names) -> CompiledCommand:
     updates = tuple(_compile_update(u, names) for u in command.updates)
-    constants = [u.constant_probability for u in updates]
     return CompiledCommand(
         module=module.name,
         command=command,
         guard=names.compile(command.guard),
         updates=updates,
         always=constant_value(command.guard, names.names, names.cache) is True,
-        constant_total=(
-            None if any(v is None for v in constants)
-            else float(sum(v for v in constants if v is not None))
-        ),
+        constant_total=_constant_total(updates),
     )
+
+
+def _new_probabilities(old: CompiledCommand, command: Command, names: _Names) -> CompiledCommand:
+    updates = tuple(
+        replace(u, probability=names.compile(new.probability),
+                constant_probability=_constant(new.probability, names), span=new.span)
+        for u, new in zip(old.updates, command.updates, strict=True)
+    )
+    return replace(old, command=command, updates=updates, constant_total=_constant_total(updates))
+
+
+def _constant_total(updates: tuple[CompiledUpdate, ...]) -> float | None:
+    """The sum of the update probabilities if they are all constants, else None."""
+    constants = [u.constant_probability for u in updates]
+    if any(v is None for v in constants):
+        return None
+    return float(sum(v for v in constants if v is not None))
+
+
+def _constant(expr: Expr, names: _Names) -> float | None:
+    value = constant_value(expr, names.names, names.cache)
+    return None if value is None else float(value)
 
 
 def _compile_update(update: Update, names: _Names) -> CompiledUpdate:
@@ -155,11 +198,10 @@ def _compile_update(update: Update, names: _Names) -> CompiledUpdate:
         interval = value_bounds(a.expr, bounds)
         if interval is not None and low <= interval[0] and interval[1] <= high:
             unchecked.add(columns[a.variable])
-    constant = constant_value(update.probability, names.names, names.cache)
     return CompiledUpdate(
         probability=names.compile(update.probability),
         assignments=tuple(assignments),
         span=update.span,
-        constant_probability=None if constant is None else float(constant),
+        constant_probability=_constant(update.probability, names),
         unchecked=frozenset(unchecked),
     )

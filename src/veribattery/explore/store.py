@@ -1,7 +1,10 @@
 """The set of known states: rows of variable values, numbered in insertion order.
 
 Each state is encoded by mixed radix over its variables' ranges into one int64
-*key* word (or a few words when the product of the ranges overflows 63 bits).
+*key* word (or a few words when the product of the ranges overflows 63 bits):
+the variables packed into the fewest bits their ranges need. Only the keys are
+stored, plus the rows added since the search last asked for rows (the next
+frontier, which it asks for next); any other rows are decoded from the keys.
 Keys live in an open-addressing hash table that is probed for a whole batch at
 once: each probing round is a handful of numpy operations over the rows still
 unresolved, so lookups cost O(1) per state without a Python loop per state, and
@@ -53,16 +56,52 @@ class StateStore:
 
     def __init__(self, lows: Sequence[int], highs: Sequence[int]) -> None:
         self._lows = np.asarray(lows, dtype=np.int64)
+        self._sizes = np.asarray(highs, dtype=np.int64) - self._lows + 1
         self._multipliers = radix_words(lows, highs)
-        self._states = np.empty((1024, len(lows)), dtype=np.int64)
+        self._word = self._multipliers.argmax(axis=1)  # each variable's key word
         self._keys = np.empty((1024, self._multipliers.shape[1]), dtype=np.int64)
-        self._table = np.zeros(1 << 14, dtype=np.int64)  # state index + 1; 0 = empty
+        # State index + 1 (0 = empty); int32 halves the table, the largest array here.
+        self._table = np.zeros(1 << 14, dtype=np.int32)
         self.count = 0
+        self._recent: list[IntArray] = []  # rows of states recent_start.. in order
+        self._recent_start = 0
 
     @property
     def states(self) -> IntArray:
-        """The known states, one row each, in numbering order (a view)."""
-        return self._states[: self.count]
+        """The known states, one row each, in numbering order (decoded: a new array)."""
+        return self._decode(0, self.count)
+
+    def rows(self, low: int, high: int) -> IntArray:
+        """States ``low..high-1`` as rows of variable values.
+
+        Rows added since an earlier call are served as added (and forgotten once
+        the search has moved past them); others are decoded from their keys.
+        """
+        self._forget_before(low)
+        if low == self._recent_start and self._recent:
+            rows = self._recent[0] if len(self._recent) == 1 else np.concatenate(self._recent)
+            self._recent = [rows]
+            if high <= self._recent_start + rows.shape[0]:
+                return rows[: high - low]
+        return self._decode(low, high)
+
+    def _forget_before(self, low: int) -> None:
+        while self._recent and self._recent_start + self._recent[0].shape[0] <= low:
+            self._recent_start += self._recent.pop(0).shape[0]
+        if self._recent and self._recent_start < low:
+            self._recent[0] = self._recent[0][low - self._recent_start :]
+            self._recent_start = low
+
+    def _decode(self, low: int, high: int) -> IntArray:
+        keys = self._keys[low:high]
+        rows = np.empty((keys.shape[0], self._lows.size), dtype=np.int64)
+        for i, (word, size) in enumerate(zip(self._word, self._sizes, strict=True)):
+            column = keys[:, word] // self._multipliers[i, word] if i else keys[:, word].copy()
+            if i + 1 < self._lows.size and self._word[i + 1] == word:
+                column %= size  # variables packed above this one are still in the word
+            rows[:, i] = column
+        rows += self._lows
+        return rows
 
     def add(self, rows: IntArray) -> IntArray:
         """Index of each row, numbering unseen rows in order of first occurrence."""
@@ -73,7 +112,11 @@ class StateStore:
         new = np.flatnonzero(index < 0)
         new = new[np.argsort(first[new], kind="stable")]
         index[new] = self.count + np.arange(new.size)
-        self._append(rows[first[new]], unique_keys[new])
+        self._append(unique_keys[new])
+        if new.size:
+            if not self._recent:
+                self._recent_start = self.count - new.size
+            self._recent.append(rows[first[new]])
         if not self._reserve_table():  # a rehash re-inserted everything already
             self._insert(index[new], slots[new])
         return index[inverse]
@@ -84,13 +127,10 @@ class StateStore:
 
     # -- internals -----------------------------------------------------------
 
-    def _append(self, rows: IntArray, keys: IntArray) -> None:
-        end = self.count + rows.shape[0]
-        if end > self._states.shape[0]:
-            capacity = max(end, 2 * self._states.shape[0])
-            self._states = _grown(self._states, capacity)
-            self._keys = _grown(self._keys, capacity)
-        self._states[self.count : end] = rows
+    def _append(self, keys: IntArray) -> None:
+        end = self.count + keys.shape[0]
+        if end > self._keys.shape[0]:
+            self._keys = _grown(self._keys, max(end, 2 * self._keys.shape[0]))
         self._keys[self.count : end] = keys
         self.count = end
 
@@ -104,7 +144,7 @@ class StateStore:
         size = self._table.size
         while 4 * self.count > size:
             size *= 4
-        self._table = np.zeros(size, dtype=np.int64)
+        self._table = np.zeros(size, dtype=np.int32)
         everything = np.arange(self.count, dtype=np.int64)
         self._insert_probing(everything, self._slots(self._keys[: self.count]))
         return True
@@ -124,7 +164,7 @@ class StateStore:
         keys that hit another key's slot go through the probing loop.
         """
         slots = self._slots(keys)
-        index = self._table[slots] - 1
+        index = self._table[slots].astype(np.int64) - 1
         clash = index >= 0
         clash &= ~_rows_equal(self._keys[np.maximum(index, 0)], keys)
         if clash.any():
@@ -139,7 +179,7 @@ class StateStore:
         index = np.full(keys.shape[0], -1, dtype=np.int64)
         active = np.arange(keys.shape[0])
         while active.size:
-            held = self._table[slots[active]]
+            held = self._table[slots[active]].astype(np.int64)
             occupied = held > 0
             match = occupied.copy()
             match[occupied] = _rows_equal(self._keys[held[occupied] - 1], keys[active[occupied]])

@@ -1,0 +1,76 @@
+"""Structure reuse on a p_wsp_c sweep: MissionChecker against independent checks.
+
+Checks the paper's baseline (configs/paper/case1.yaml) at N values of
+``environment.p_wsp_c`` strictly inside (0, 1), once with one :class:`MissionChecker`
+(the state space is built once and re-used) and once with :func:`check_mission`
+per point, in the same process; prints both totals, the speed-up, how many points
+re-used the state space, and the largest relative difference of any value.
+
+    python bench/bench_reuse.py              # 50 points
+    python bench/bench_reuse.py --points 5   # a quick look
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from fractions import Fraction
+from pathlib import Path
+
+from veribattery.config import MissionConfig, load_config
+from veribattery.mission import MissionChecker, MissionReport, check_mission
+
+CONFIG = Path(__file__).resolve().parents[1] / "configs" / "paper" / "case1.yaml"
+
+
+def grid(points: int) -> list[MissionConfig]:
+    """*points* configs with p_wsp_c = k/(points+1), k = 1..points (exact decimals)."""
+    values = [Fraction(k, points + 1) for k in range(1, points + 1)]
+    return [load_config(CONFIG, (f"environment.p_wsp_c={float(v)!r}",)) for v in values]
+
+
+def timed(
+    check: object, configs: list[MissionConfig]
+) -> tuple[float, float, list[MissionReport]]:
+    """Wall-clock and CPU seconds of *check* over *configs*, and the reports.
+
+    CPU time is the fairer figure on a shared machine; on a quiet one they agree.
+    """
+    wall, cpu = time.perf_counter(), time.process_time()
+    reports = [check(cfg) for cfg in configs]  # type: ignore[operator]
+    return time.perf_counter() - wall, time.process_time() - cpu, reports
+
+
+def largest_difference(a: list[MissionReport], b: list[MissionReport]) -> float:
+    """The largest relative difference between corresponding values."""
+    worst = 0.0
+    for x, y in zip(a, b, strict=True):
+        for name, value in x.values.items():
+            ours, theirs = float(value), float(y.values[name])
+            if ours != theirs:
+                worst = max(worst, abs(ours - theirs) / max(abs(ours), abs(theirs)))
+    return worst
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--points", type=int, default=50, help="grid points (default 50)")
+    args = parser.parse_args()
+    configs = grid(args.points)
+    checker = MissionChecker()
+    reused_s, reused_cpu, reused = timed(checker.check, configs)
+    fresh_s, fresh_cpu, fresh = timed(check_mission, configs)
+    count = sum(report.reused for report in reused)
+    print(f"points: {len(configs)}, re-used the state space: {count}")
+    print(f"MissionChecker: {reused_s:.2f} s wall, {reused_cpu:.2f} s CPU; "
+          f"independent checks: {fresh_s:.2f} s wall, {fresh_cpu:.2f} s CPU; "
+          f"speed-up {fresh_s / reused_s:.2f}x wall, {fresh_cpu / reused_cpu:.2f}x CPU")
+    difference = largest_difference(reused, fresh)
+    print(f"largest relative difference of a value: {difference:.3g}")
+    if not math.isfinite(difference) or difference > 1e-12:
+        raise SystemExit("re-used values differ from independent checks by more than 1e-12")
+
+
+if __name__ == "__main__":
+    main()
