@@ -61,13 +61,26 @@ def print_mission_table(report: MissionReport) -> None:
     out.print(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
     table = Table("property", "formula", "value", show_edge=False)
     for result in report.run.results:
-        table.add_row(result.property.name or "", result.property.text, format_value(result.value))
+        mark = " †" if is_conditional(result.property.formula) else ""
+        table.add_row((result.property.name or "") + mark, result.property.text,
+                      format_value(result.value))
     out.print(table)
+    if any(is_conditional(r.property.formula) for r in report.run.results):
+        out.print("† conditional: the expectation given the condition after || "
+                  "(e.g. given success)", style="dim")
     for outcome in report.requirements:
         verdict = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
         out.print(f"{verdict} {outcome.requirement} (value {format_value(outcome.value)})")
     timings = ", ".join(f"{k} {v:.3f}s" for k, v in report.run.timings_s.items())
     out.print(f"Time: {timings}", style="dim")
+
+
+def is_conditional(formula: object) -> bool:
+    """Whether *formula* is a conditional (``||``) P or R query."""
+    from veribattery.lang.nodes import Conditional, ConditionalReach, ProbOp, RewardOp
+
+    return isinstance(formula, ProbOp | RewardOp) and isinstance(
+        formula.path, Conditional | ConditionalReach)
 
 
 def mission_json(report: MissionReport) -> dict[str, object]:
@@ -76,6 +89,8 @@ def mission_json(report: MissionReport) -> dict[str, object]:
     return {
         "model": {"states": dtmc.num_states, "transitions": dtmc.num_transitions},
         "results": {name: json_value(value) for name, value in report.values.items()},
+        "conditional": [r.property.name or r.property.text for r in report.run.results
+                        if is_conditional(r.property.formula)],
         "requirements": [
             {**o.as_dict(), "value": json_value(o.value)} for o in report.requirements
         ],
