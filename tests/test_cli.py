@@ -135,7 +135,8 @@ def test_check_json_contract_on_a_small_farm(tmp_path: Path) -> None:
     result = run("check", str(config), *SMALL_FARM, "--format", "json")
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    assert set(doc) == {"model", "results", "requirements", "timings_s"}
+    assert set(doc) == {"model", "results", "conditional", "requirements", "timings_s"}
+    assert doc["conditional"] == ["exp_mission_time_given_success", "exp_recharges_given_success"]
     assert set(doc["results"]) == {"p_success", "exp_mission_time", "exp_recharges",
                                    "exp_mission_time_given_success", "exp_recharges_given_success"}
     assert doc["requirements"][0]["holds"] is True

@@ -12,6 +12,7 @@ from pathlib import Path
 from veribattery.checker import check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
+from veribattery.explore.dtmc import DTMC
 from veribattery.lang import parse_model, parse_properties, parse_property
 from veribattery.lang.nodes import Value
 from veribattery.pipeline import ModelCheckRun, ProgressCallback, check_model
@@ -84,6 +85,12 @@ def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = Non
     values = {r.property.name: r.value for r in run.results}
     outcomes = tuple(_judge(req, values) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
+
+
+def mission_dtmc(cfg: MissionConfig, *, progress: ProgressCallback | None = None) -> DTMC:
+    """Render *cfg* and build its DTMC, checking no property (for the analyses)."""
+    files = mission_files(cfg)
+    return check_model(parse_model(files.model, name=MODEL_FILE), (), progress=progress).dtmc
 
 
 class MissionChecker:

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import click
 
+from veribattery.cli.distribution import distribution_command
 from veribattery.cli.mission import check_command, emit_command
 from veribattery.cli.prism import prism_command
 from veribattery.cli.reproduce import reproduce_command
@@ -28,6 +29,7 @@ def cli() -> None:
 
 for _command in (check_command, emit_command, prism_command, reproduce_command, sweep_command):
     cli.add_command(_command)
+cli.add_command(distribution_command)
 
 
 def main(argv: Sequence[str] | None = None) -> None:
