@@ -252,7 +252,6 @@ def absorption_by_level(P: CsrMatrix, initial: FloatArray, absorbing: tuple[Bool
 def _forward(P: CsrMatrix, levels: _Levels, initial: FloatArray,
              absorbing: tuple[BoolArray, ...], dead: BoolArray, stop: StopRule,
              max_levels: int) -> LevelMasses:
-    n = P.shape[0]
     targets = [np.flatnonzero(mask) for mask in absorbing]
     dead_states = np.flatnonzero(dead)
     rings = [_Ring(r, states) for r, states in levels.groups]
@@ -281,7 +280,6 @@ def _forward(P: CsrMatrix, levels: _Levels, initial: FloatArray,
             ring.history[k % ring.r] = here[ring.block]
         if stop(k, done, max(0.0, total - float(done.sum()) - never)):
             break
-    assert n == initial.size
     return LevelMasses(levels.unit, np.array(absorbed).T,
                        max(0.0, total - float(done.sum()) - never), never)
 
