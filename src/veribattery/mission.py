@@ -6,15 +6,27 @@ import math
 import os
 import tempfile
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-from veribattery.checker import check
+import numpy as np
+
+from veribattery.checker import CheckResult, check
+from veribattery.checker.conditional import ConditionUnreachable
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang import parse_model, parse_properties, parse_property
-from veribattery.lang.nodes import Value
+from veribattery.lang.nodes import (
+    Conditional,
+    ConditionalReach,
+    Model,
+    ProbOp,
+    PropertiesFile,
+    Property,
+    RewardOp,
+    Value,
+)
 from veribattery.pipeline import ModelCheckRun, ProgressCallback, check_model
 
 MODEL_FILE = "model.prism"
@@ -81,10 +93,35 @@ def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = Non
     files = mission_files(cfg)
     model = parse_model(files.model, name=MODEL_FILE)
     props = parse_properties(files.properties, name=PROPERTIES_FILE)
-    run = check_model(model, props.properties, props_file=props, progress=progress)
+    run = _check_properties(model, props, progress)
     values = {r.property.name: r.value for r in run.results}
     outcomes = tuple(_judge(req, values) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
+
+
+def _check_properties(model: Model, props: PropertiesFile,
+                      progress: ProgressCallback | None) -> ModelCheckRun:
+    """Check every property; a mission that never succeeds gets NaN for its conditional
+    expectations (with a warning) instead of stopping the whole check (and a sweep)."""
+    try:
+        return check_model(model, props.properties, props_file=props, progress=progress)
+    except ConditionUnreachable as exc:
+        reason = exc.message
+    kept = [p for p in props.properties if not _conditional(p)]
+    run = check_model(model, kept, props_file=props, progress=progress)
+    checked = iter(run.results)  # in the order of *kept*
+    undefined = np.full(run.dtmc.num_states, np.nan)
+    results = tuple(CheckResult(p, undefined, math.nan, 0.0) if _conditional(p)
+                    else next(checked) for p in props.properties)
+    dropped = ", ".join(p.name or p.text for p in props.properties if _conditional(p))
+    warning = f"{dropped}: undefined (NaN): {reason}"
+    return replace(run, results=results, warnings=(*run.warnings, warning))
+
+
+def _conditional(prop: Property) -> bool:
+    formula = prop.formula
+    return isinstance(formula, ProbOp | RewardOp) and isinstance(
+        formula.path, Conditional | ConditionalReach)
 
 
 def mission_dtmc(cfg: MissionConfig, *, progress: ProgressCallback | None = None) -> DTMC:

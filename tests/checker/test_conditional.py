@@ -152,3 +152,17 @@ def test_against_storm_on_a_small_mission(tmp_path: Path) -> None:
     ours = [float(r.value) for r in run.results]
     assert 0 < storm[4] < 1 and storm[0] > 0  # the conditions are not trivial
     assert ours == pytest.approx(storm, rel=1e-8)
+
+
+def test_a_mission_that_never_succeeds_gets_nan_with_a_warning() -> None:
+    import math
+
+    from veribattery.config import load_config
+    from veribattery.mission import check_mission
+
+    report = check_mission(load_config("farm: {cols: 2, rows: 2, base: [0, 0]}\n"
+                                       "battery: {capacity_ah: 3}\n"))
+    assert report.values["p_success"] == 0.0
+    assert math.isnan(float(report.values["exp_mission_time_given_success"]))
+    assert math.isnan(float(report.values["exp_recharges_given_success"]))
+    assert any('the condition F "success" has probability 0' in w for w in report.warnings)

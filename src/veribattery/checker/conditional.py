@@ -31,6 +31,10 @@ from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
 
+class ConditionUnreachable(CheckError):
+    """The condition of a conditional property has probability 0 from the initial state."""
+
+
 @dataclass(frozen=True, slots=True)
 class ConditionedChain:
     """The conditioned DTMC of a model given ``F b``, and where each state starts in it.
@@ -160,7 +164,8 @@ def conditional_values(dtmc: DTMC, condition: BoolArray,
     chain = conditioned_chain(dtmc, condition)
     impossible = chain.start[dtmc.initial] < 0
     if impossible.any():
-        raise CheckError(f"the condition {what} has probability 0 from the initial state, "
+        raise ConditionUnreachable(f"the condition {what} has probability 0 from the initial "
+                                   "state, "
                          "so the conditional value is undefined", span)
     return chain.lift(objective(chain))
 
