@@ -38,7 +38,7 @@ def test_tidy_shape(frame: pd.DataFrame) -> None:
     assert list(frame.columns) == [
         "point", "battery.capacity_ah", "strategy.safe_t", *FIXED_COLUMNS,
     ]
-    assert len(frame) == 2 * 3  # points x properties
+    assert len(frame) == 2 * 5  # points x properties (3 of the paper, 2 conditional)
     assert list(frame["property"][:3]) == ["p_success", "exp_mission_time", "exp_recharges"]
     assert list(frame["battery.capacity_ah"].drop_duplicates()) == [10, 10.5]
 

@@ -244,25 +244,36 @@ def plot_distribution(dist: Distribution, deadlines: Sequence[Deadline],
     ax = figure.add_subplot()
     ax.step(dist.values, dist.success_cdf, where="post", label="success", color="tab:green")
     ax.step(dist.values, dist.failure_cdf, where="post", label="failure", color="tab:red")
-    for q in QUANTILES:
+    # Labels in axes-fraction heights: quantiles stacked from the bottom, deadlines
+    # from the top, so that labels at equal or near abscissae never overprint.
+    where = ax.get_xaxis_transform()
+    for i, q in enumerate(QUANTILES):
         value = dist.quantile(q)
         ax.axvline(value, color="tab:green", linestyle=":", linewidth=1)
-        ax.annotate(f"{q:.0%}: {value:g}", (value, q * dist.p_success), xytext=(4, -12),
-                    textcoords="offset points", fontsize=8, color="tab:green")
+        ax.text(value, 0.04 + 0.07 * i, f" {q:.0%} quantile: {value:g}", transform=where,
+                fontsize=8, color="tab:green")
     for i, deadline in enumerate(deadlines):
         p = dist.p_success_within(deadline.value)
         ax.axvline(deadline.value, color="tab:blue", linestyle="--", linewidth=1)
-        # Labels stacked from the top, so that near deadlines do not overprint.
-        ax.annotate(f"{deadline.text}: P(success) = {p:.4f}", (deadline.value, 0.95 - 0.07 * i),
-                    xytext=(4, 0), textcoords="offset points", fontsize=8, color="tab:blue")
+        ax.text(deadline.value, 0.93 - 0.07 * i, f" {deadline.text}: P(success) = {p:.4f}",
+                transform=where, fontsize=8, color="tab:blue")
+    ax.set_xlim(_plot_start(dist), None)
     ax.set_xlabel(f"accumulated reward {dist.reward!r}")
     ax.set_ylabel("probability (cumulative)")
     ax.set_ylim(0, 1.02)
     ax.set_title(f"P(done with {dist.reward} <= T)   E[{dist.reward} | success] = "
                  f"{dist.expected_given_success:.6g}")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="center left")
+    ax.legend(loc="upper left")
     temporary = path.with_name(f".{path.name}.tmp{path.suffix}")
     figure.savefig(temporary, dpi=120)
     temporary.replace(path)
     return path
+
+
+def _plot_start(dist: Distribution) -> float:
+    """Where the curves leave 0 (less a margin), so the plot is not mostly empty."""
+    mass = dist.success + dist.failure
+    first = int(np.argmax(np.cumsum(mass) >= 1e-4 * max(float(mass.sum()), 1e-300)))
+    span = float(dist.values[-1] - dist.values[first])
+    return max(0.0, float(dist.values[first]) - 0.05 * span)
