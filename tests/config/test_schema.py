@@ -131,7 +131,7 @@ BAD = [
     (
         "requirements: ['p_win >= 0.9']",
         "requirements[0]: unknown property 'p_win' (declared: p_success, exp_mission_time, "
-        "exp_recharges)",
+        "exp_recharges, exp_mission_time_given_success, exp_recharges_given_success)",
     ),
     ("requirements: ['p_success about 1']", "requirements[0]: must look like 'p_success >= 0.99'"),
     (
