@@ -65,7 +65,8 @@ def test_requirements_and_wide(frame: pd.DataFrame) -> None:
     table = wide(frame, ["battery.capacity_ah", "strategy.safe_t"])
     assert list(table.columns) == [
         "battery.capacity_ah", "strategy.safe_t", "states", "transitions",
-        "p_success", "exp_mission_time", "exp_recharges", "requirements",
+        "p_success", "exp_mission_time", "exp_recharges", "exp_mission_time_given_success",
+        "exp_recharges_given_success", "requirements",
     ]
     assert list(table["requirements"]) == ["FAIL", "PASS"]
     assert (frame["seconds"] > 0).all()
