@@ -135,8 +135,11 @@ def test_check_json_contract_on_a_small_farm(tmp_path: Path) -> None:
     result = run("check", str(config), *SMALL_FARM, "--format", "json")
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    assert set(doc) == {"model", "results", "bounds", "precise", "requirements", "timings_s"}
-    assert set(doc["results"]) == {"p_success", "exp_mission_time", "exp_recharges"}
+    assert set(doc) == {"model", "results", "bounds", "precise", "conditional", "requirements",
+                        "timings_s"}
+    assert doc["conditional"] == ["exp_mission_time_given_success", "exp_recharges_given_success"]
+    assert set(doc["results"]) == {"p_success", "exp_mission_time", "exp_recharges",
+                                   "exp_mission_time_given_success", "exp_recharges_given_success"}
     assert doc["requirements"][0]["holds"] is True
     assert doc["requirements"][0]["decided"] is True
     assert doc["results"]["p_success"] == pytest.approx(1.0, abs=1e-12)
@@ -159,7 +162,8 @@ def test_check_csv(baseline: str) -> None:
     lines = result.stdout.splitlines()
     assert lines[0] == "property,value"
     assert [line.split(",")[0] for line in lines[1:]] == [
-        "p_success", "exp_mission_time", "exp_recharges"]
+        "p_success", "exp_mission_time", "exp_recharges", "exp_mission_time_given_success",
+        "exp_recharges_given_success"]
 
 
 @pytest.mark.parametrize(

@@ -48,6 +48,8 @@ from veribattery.mission import (
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "configs" / "paper"
 NAMES = ("p_success", "exp_mission_time", "exp_recharges")
+#: The conditional defaults (compared with Storm in tests/checker/test_conditional.py).
+CONDITIONAL = ("exp_mission_time_given_success", "exp_recharges_given_success")
 STORM_PRECISION = "1/1000000000000"  # Storm's sound solver: 1e-12 relative
 RTOL, ATOL = 1e-8, 1e-12
 
@@ -86,7 +88,8 @@ def _storm(files: MissionFiles, directory: Path) -> tuple[int, int, dict[str, fl
     model_path.write_text(files.model, encoding="utf-8")
     (directory / "properties.props").write_text(files.properties, encoding="utf-8")
     program = stormpy.parse_prism_program(str(model_path))
-    properties = stormpy.parse_properties(files.properties, program)
+    properties = [p for p in stormpy.parse_properties(files.properties, program)
+                  if p.get_name() in NAMES]
     model = stormpy.build_model(program, properties)
     env = environments.default(model)
     assert env.solver().force_soundness
@@ -140,7 +143,11 @@ def test_paper_config(name: str, tmp_path: Path) -> None:
     states, transitions, *values = PAPER_EXPECTED[name]
     mission = _mission(name)
     assert mission.counts == (states, transitions)
-    assert tuple(mission.report.values) == NAMES
+    assert tuple(mission.report.values) == NAMES + CONDITIONAL
+    if mission.value("p_success") == 1:
+        # Given a sure success, the conditional expectations are the plain ones.
+        for plain, given in zip(NAMES[1:], CONDITIONAL, strict=True):
+            assert mission.value(given) == pytest.approx(mission.value(plain), rel=1e-9)
     for prop, expected in zip(NAMES, values, strict=True):
         assert mission.value(prop) == _to_digits(str(expected)), prop
     _assert_agrees_with_storm(mission, tmp_path)

@@ -11,12 +11,25 @@ from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path
 
+import numpy as np
+
 from veribattery.checker import CheckResult, check
+from veribattery.checker.conditional import ConditionUnreachable
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
+from veribattery.explore.dtmc import DTMC
 from veribattery.explore.reuse import structure_key
 from veribattery.lang import flatten_model, parse_model, parse_properties, parse_property
-from veribattery.lang.nodes import ConstDecl, Model, PropertiesFile, Value
+from veribattery.lang.nodes import (
+    Conditional,
+    ConditionalReach,
+    ConstDecl,
+    Model,
+    ProbOp,
+    PropertiesFile,
+    RewardOp,
+    Value,
+)
 from veribattery.pipeline import ModelCheckRun, ProgressCallback, ReusingBuilder, check_model
 
 MODEL_FILE = "model.prism"
@@ -107,11 +120,43 @@ def _check(
     parsed = parsed or _Parsed()
     model = parsed.model(files.model)
     props = parsed.properties(files.properties)
-    run = check_model(model, props.properties, props_file=props, progress=progress,
-                      builder=builder, exact=exact)
+    run = _check_properties(model, props, progress, builder, exact)
     results = {r.property.name: r for r in run.results}
     outcomes = tuple(_judge(req, results) for req in cfg.parsed_requirements)
     return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
+
+
+def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCallback | None,
+                      builder: ReusingBuilder | None, exact: bool) -> ModelCheckRun:
+    """Check every property; a mission that never succeeds gets NaN for its conditional
+    expectations (with a warning) instead of stopping the whole check (and a sweep)."""
+    try:
+        return check_model(model, props.properties, props_file=props, progress=progress,
+                           builder=builder, exact=exact)
+    except ConditionUnreachable as exc:
+        reason = exc.message
+    kept = [p for p in props.properties if not is_conditional(p.formula)]
+    run = check_model(model, kept, props_file=props, progress=progress, builder=builder,
+                      exact=exact)
+    checked = iter(run.results)  # in the order of *kept*
+    undefined = np.full(run.dtmc.num_states, np.nan)
+    results = tuple(CheckResult(p, undefined, math.nan, 0.0) if is_conditional(p.formula)
+                    else next(checked) for p in props.properties)
+    dropped = ", ".join(p.name or p.text for p in props.properties if is_conditional(p.formula))
+    warning = f"{dropped}: undefined (NaN): {reason}"
+    return replace(run, results=results, warnings=(*run.warnings, warning))
+
+
+def is_conditional(formula: object) -> bool:
+    """Whether *formula* is a conditional (``||``) P or R query."""
+    return isinstance(formula, ProbOp | RewardOp) and isinstance(
+        formula.path, Conditional | ConditionalReach)
+
+
+def mission_dtmc(cfg: MissionConfig, *, progress: ProgressCallback | None = None) -> DTMC:
+    """Render *cfg* and build its DTMC, checking no property (for the analyses)."""
+    files = mission_files(cfg)
+    return check_model(parse_model(files.model, name=MODEL_FILE), (), progress=progress).dtmc
 
 
 class MissionChecker:

@@ -26,7 +26,8 @@ def test_empty_config_is_the_papers_baseline() -> None:
     assert cfg.strategy.safe_t == Fraction(3, 10)
     assert cfg.environment.p_wsp_c == Fraction(1, 10)
     assert cfg.times_min.recharge == 90 and cfg.times_min.wait == 0
-    assert list(cfg.properties) == ["p_success", "exp_mission_time", "exp_recharges"]
+    assert list(cfg.properties) == ["p_success", "exp_mission_time", "exp_recharges",
+                                    "exp_mission_time_given_success", "exp_recharges_given_success"]
     assert cfg == MissionConfig()
 
 
@@ -130,7 +131,7 @@ BAD = [
     (
         "requirements: ['p_win >= 0.9']",
         "requirements[0]: unknown property 'p_win' (declared: p_success, exp_mission_time, "
-        "exp_recharges)",
+        "exp_recharges, exp_mission_time_given_success, exp_recharges_given_success)",
     ),
     ("requirements: ['p_success about 1']", "requirements[0]: must look like 'p_success >= 0.99'"),
     (

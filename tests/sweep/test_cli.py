@@ -34,7 +34,7 @@ def test_json_with_csv_file_and_plot(config: str, tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     assert doc["axes"] == ["battery.capacity_ah"]
-    assert len(doc["results"]) == 6
+    assert len(doc["results"]) == 2 * 5  # points x default properties (2 conditional)
     first = doc["results"][0]
     assert first["battery.capacity_ah"] == 10 and first["property"] == "p_success"
     assert first["holds"] is None

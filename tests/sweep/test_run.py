@@ -38,7 +38,7 @@ def test_tidy_shape(frame: pd.DataFrame) -> None:
     assert list(frame.columns) == [
         "point", "battery.capacity_ah", "strategy.safe_t", *FIXED_COLUMNS,
     ]
-    assert len(frame) == 2 * 3  # points x properties
+    assert len(frame) == 2 * 5  # points x properties (3 of the paper, 2 conditional)
     assert list(frame["property"][:3]) == ["p_success", "exp_mission_time", "exp_recharges"]
     assert list(frame["battery.capacity_ah"].drop_duplicates()) == [10, 10.5]
 
@@ -65,7 +65,8 @@ def test_requirements_and_wide(frame: pd.DataFrame) -> None:
     table = wide(frame, ["battery.capacity_ah", "strategy.safe_t"])
     assert list(table.columns) == [
         "battery.capacity_ah", "strategy.safe_t", "states", "transitions",
-        "p_success", "exp_mission_time", "exp_recharges", "requirements",
+        "p_success", "exp_mission_time", "exp_recharges", "exp_mission_time_given_success",
+        "exp_recharges_given_success", "requirements",
     ]
     assert list(table["requirements"]) == ["FAIL", "PASS"]
     assert (frame["seconds"] > 0).all()

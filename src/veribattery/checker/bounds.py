@@ -78,6 +78,19 @@ class Bounds:
         """Bounds whose point value is *value* moved into ``[lower, upper]``."""
         return cls(np.minimum(np.maximum(value, lower), upper), lower, upper)
 
+    @classmethod
+    def uncertified(cls, value: FloatArray, lowest: float, highest: float) -> Bounds:
+        """Values with no computed error bound: only the quantity's own range encloses them.
+
+        Used by operators whose results are not certified yet (Storm's conditional and
+        reward-bounded formulas): a probability in [0, 1], a reward in [0, inf]. The
+        interval is true but wide, so such results are reported as imprecise.
+        """
+        undefined = np.isnan(value)  # no value at all (a condition impossible there)
+        lower = np.where(undefined, value, lowest)
+        upper = np.where(undefined, value, highest)
+        return cls(value, lower, upper)
+
     @property
     def width(self) -> FloatArray:
         """``upper - lower`` (0 where both are the same infinity)."""

@@ -9,6 +9,7 @@ a node: ``F phi`` is ``true U phi``, ``G phi`` is ``1 - P(F !phi)``, ``U<k`` is
 
 from __future__ import annotations
 
+import math
 import operator
 from collections.abc import Callable, Iterator
 from typing import TypeAlias
@@ -16,7 +17,7 @@ from typing import TypeAlias
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker import kernels
+from veribattery.checker import conditional, kernels, reward_bounded
 from veribattery.checker.bounds import Bounds, required_precision
 from veribattery.errors import CheckError
 from veribattery.explore.compile import compile_expr
@@ -25,6 +26,8 @@ from veribattery.lang.nodes import (
     Binary,
     BoolLit,
     Call,
+    Conditional,
+    ConditionalReach,
     Cumulative,
     DoubleLit,
     Eventually,
@@ -38,6 +41,7 @@ from veribattery.lang.nodes import (
     PathFormula,
     ProbOp,
     Reach,
+    RewardBounded,
     RewardOp,
     RewardPath,
     TimeBound,
@@ -122,6 +126,8 @@ def path_probs(dtmc: DTMC, path: PathFormula) -> Bounds:
             return _until(dtmc, _everywhere(dtmc), state_set(dtmc, operand), bound)
         case Globally(operand=operand, bound=bound):
             return _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound).complement()
+        case RewardBounded() | Conditional():
+            return Bounds.uncertified(_storm_path_probs(dtmc, path), 0.0, 1.0)
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
 
 
@@ -141,7 +147,48 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
             return kernels.cumulative_rewards(P, structure.total, _steps(bound))
         case Instantaneous(time=time):
             return kernels.instantaneous_rewards(P, structure.state, _steps(time))
+        case ConditionalReach(target=target, condition=condition):
+            return Bounds.uncertified(conditional.conditional_reach_rewards(
+                dtmc, structure, state_set(dtmc, target), state_set(dtmc, condition),
+                _condition_name(condition), path.span), 0.0, np.inf)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
+
+
+# ---------------------------------------------------------------------------
+# Storm's reward-bounded and conditional path formulas
+# (kernels in checker/reward_bounded.py and checker/conditional.py)
+# ---------------------------------------------------------------------------
+
+
+def _storm_path_probs(dtmc: DTMC, path: RewardBounded | Conditional) -> FloatArray:
+    """``U{"r"}<=T`` / ``F{"r"}<=T``, and ``path || F b``."""
+    if isinstance(path, RewardBounded):
+        structure = _reward_structure(dtmc, path)
+        levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
+        return reward_bounded.reward_bounded_until_probs(
+            dtmc.transitions, state_set(dtmc, path.left), state_set(dtmc, path.right),
+            levels, _reward_bound(path.bound))
+    objective = path.path
+    if any(_has_operator(child) for child in _children(objective)):
+        raise CheckError("P and R operators inside a conditional formula are not supported",
+                         path.span)
+    return conditional.conditional_values(
+        dtmc, state_set(dtmc, path.condition),
+        lambda chain: path_probs(chain.dtmc, objective).value,
+        _condition_name(path.condition), path.span)
+
+
+def _reward_bound(bound: TimeBound) -> int:
+    """The largest integer total reward that ``<=T`` / ``<T`` admits."""
+    value = _number(bound.value)
+    return math.floor(value) if bound.op == "<=" else math.ceil(value) - 1
+
+
+def _condition_name(condition: Expr) -> str:
+    """The condition as an error message names it."""
+    if isinstance(condition, LabelRef):
+        return f'F "{condition.name}"'
+    return f"after || (at {condition.span})"
 
 
 # ---------------------------------------------------------------------------
@@ -207,7 +254,7 @@ def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
     raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
 
 
-def _reward_structure(dtmc: DTMC, op: RewardOp) -> RewardVectors:
+def _reward_structure(dtmc: DTMC, op: RewardOp | RewardBounded) -> RewardVectors:
     """The reward structure *op* names, or a CheckError that says where."""
     try:
         return dtmc.reward(op.reward)

@@ -12,6 +12,7 @@ from collections.abc import Sequence
 
 import click
 
+from veribattery.cli.distribution import distribution_command
 from veribattery.cli.explain import explain_command, simulate_command
 from veribattery.cli.mission import check_command, emit_command
 from veribattery.cli.phm import phm_group, recheck_command
@@ -34,6 +35,7 @@ cli.add_command(explain_command)
 cli.add_command(simulate_command)
 cli.add_command(phm_group)
 cli.add_command(recheck_command)
+cli.add_command(distribution_command)
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -71,8 +71,13 @@ def print_mission_table(report: MissionReport) -> None:
     out.print(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
     table = Table("property", "formula", Column("value", overflow="fold"), show_edge=False)
     for result in report.run.results:
-        table.add_row(result.property.name or "", result.property.text, format_result(result))
+        mark = " †" if is_conditional(result.property.formula) else ""
+        table.add_row((result.property.name or "") + mark, result.property.text,
+                      format_result(result))
     out.print(table)
+    if any(is_conditional(r.property.formula) for r in report.run.results):
+        out.print("† conditional: the expectation given the condition after || "
+                  "(e.g. given success)", style="dim")
     for outcome in report.requirements:
         verdict = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
         if not outcome.decided:
@@ -81,6 +86,13 @@ def print_mission_table(report: MissionReport) -> None:
         out.print(f"{verdict} {outcome.requirement} (value {format_value(outcome.value)})")
     timings = ", ".join(f"{k} {v:.3f}s" for k, v in report.run.timings_s.items())
     out.print(f"Time: {timings}", style="dim")
+
+
+def is_conditional(formula: object) -> bool:
+    """Whether *formula* is a conditional (``||``) P or R query."""
+    from veribattery.mission import is_conditional as conditional
+
+    return conditional(formula)
 
 
 def mission_json(report: MissionReport) -> dict[str, object]:
@@ -92,6 +104,8 @@ def mission_json(report: MissionReport) -> dict[str, object]:
         "bounds": {r.property.name or r.property.text: result_bounds(r)
                    for r in report.run.results if result_bounds(r) is not None},
         "precise": {r.property.name or r.property.text: r.precise for r in report.run.results},
+        "conditional": [r.property.name or r.property.text for r in report.run.results
+                        if is_conditional(r.property.formula)],
         "requirements": [
             {**o.as_dict(), "value": json_value(o.value)} for o in report.requirements
         ],

@@ -72,6 +72,8 @@ def build_progress() -> Iterator[ProgressCallback | None]:
 
 def json_value(value: object) -> object:
     """A result value as strict JSON: infinities become the string ``"Infinity"``."""
+    if isinstance(value, float) and math.isnan(value):
+        return None  # undefined (e.g. a conditional expectation given an impossible event)
     if isinstance(value, float) and math.isinf(value):
         return "Infinity" if value > 0 else "-Infinity"
     return value

@@ -56,6 +56,9 @@ PAPER_PROPERTIES: dict[str, str] = {
     "p_success": 'P=? [ F "success" ]',
     "exp_mission_time": 'R{"mt"}=? [ F "done" ]',
     "exp_recharges": 'R{"rc"}=? [ F "done" ]',
+    # Storm's conditional operator: the expectations given that the mission succeeds.
+    "exp_mission_time_given_success": 'R{"mt"}=? [ F "done" || F "success" ]',
+    "exp_recharges_given_success": 'R{"rc"}=? [ F "done" || F "success" ]',
 }
 
 

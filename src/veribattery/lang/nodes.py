@@ -191,8 +191,46 @@ class Reach:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-PathFormula: TypeAlias = Next | Until | Eventually | Globally
-RewardPath: TypeAlias = Cumulative | Instantaneous | Reach
+# --- Storm's reward-bounded and conditional formulas (checker/reward_bounded.py,
+# --- checker/conditional.py).
+
+
+@dataclass(frozen=True, slots=True)
+class RewardBounded:
+    """``left U{"r"}<=T right`` (``F{"r"}<=T right`` has *left* ``true``), as in Storm.
+
+    *right* is reached through *left* states with at most T of reward structure
+    *reward* accumulated, the step that enters *right* included. *reward* is a name
+    or a 0-based index, as in :class:`RewardOp`.
+    """
+
+    left: Expr
+    right: Expr
+    reward: str | int
+    bound: TimeBound
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class Conditional:
+    """``P=? [ path || F condition ]``: *path* given that *condition* is reached (Storm)."""
+
+    path: PathFormula
+    condition: Expr
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class ConditionalReach:
+    """Reward path ``F target || F condition``: reward to *target*, given ``F condition``."""
+
+    target: Expr
+    condition: Expr
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+PathFormula: TypeAlias = Next | Until | Eventually | Globally | RewardBounded | Conditional
+RewardPath: TypeAlias = Cumulative | Instantaneous | Reach | ConditionalReach
 
 
 @dataclass(frozen=True, slots=True)

@@ -20,6 +20,7 @@ from veribattery.lang.nodes import (
     ProbOp,
     PropertiesFile,
     Property,
+    RewardBounded,
     RewardOp,
     TimeBound,
     Value,
@@ -145,7 +146,7 @@ def _decl_types(decls: tuple[ConstDecl, ...]) -> dict[str, ValueType]:
     return {d.name: d.type for d in decls}
 
 
-def _check_reward(op: RewardOp, model: FlatModel) -> None:
+def _check_reward(op: RewardOp | RewardBounded, model: FlatModel) -> None:
     names = [r.name for r in model.rewards]
     if not names:
         raise PrismSemanticError(
@@ -177,7 +178,7 @@ def _check_steps(value: Expr) -> None:
 
 def _check_operators(formula: Expr, model: FlatModel) -> None:
     for node in walk(formula):
-        if isinstance(node, RewardOp):
+        if isinstance(node, RewardOp | RewardBounded):
             _check_reward(node, model)
         if isinstance(node, ProbOp | RewardOp):
             _check_bound(node)

@@ -23,6 +23,8 @@ from veribattery.lang.nodes import (
     BoolLit,
     Call,
     Command,
+    Conditional,
+    ConditionalReach,
     ConstDecl,
     Cumulative,
     DoubleLit,
@@ -47,6 +49,7 @@ from veribattery.lang.nodes import (
     QueryOp,
     Reach,
     RenamedModule,
+    RewardBounded,
     RewardItem,
     RewardOp,
     RewardPath,
@@ -62,7 +65,8 @@ from veribattery.lang.nodes import (
 
 _TimeOp: TypeAlias = Literal["<", "<=", ">", ">=", "="]
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
-_TEMPORAL_NAMES = {"X": "X (next)", "F": "F (eventually)", "G": "G (globally)", "U": "U (until)"}
+_TEMPORAL_NAMES = {"X": "X (next)", "F": "F (eventually)", "G": "G (globally)", "U": "U (until)",
+                   "RB": "a reward-bounded F or U"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -82,6 +86,8 @@ class _Temporal:
     left: Expr | None
     right: Expr
     span: Span
+    #: The reward structure of a reward bound (``F{"r"}<=T``), else None.
+    reward: str | int | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -286,6 +292,49 @@ class ToNodes(Transformer[Token, Any]):
                 return item
         return RewardOp(reward, query[0], query[1], path, self._span(meta))
 
+    # ------------------------- Storm's reward-bounded and conditional formulas
+
+    def reward_bounded_unop(self, meta: Meta, children: list[Any]) -> _Value:
+        _op, reward, bound, right = children
+        return _reward_bounded(BoolLit(True, self._span(meta)), right, reward, bound,
+                               self._span(meta))
+
+    def reward_bounded_binop(self, meta: Meta, children: list[Any]) -> _Value:
+        left, _op, reward, bound, right = children
+        return _reward_bounded(left, right, reward, bound, self._span(meta))
+
+    def conditional_prob_op(self, meta: Meta, children: list[Any]) -> _Value:
+        query, path, _cond, condition = children[:4]
+        bad = _first_bad(children[4:]) or (query if isinstance(query, _Unsupported) else None)
+        objective: PathFormula | _Unsupported
+        if bad is not None or isinstance(path, _Unsupported):
+            objective = bad or path
+        elif not isinstance(path, _Temporal):
+            objective = _Unsupported("P operator needs a path formula before ||",
+                                     self._span(meta))
+        else:
+            objective = _path_formula(path)
+        target = _condition_target(condition)
+        if isinstance(objective, _Unsupported):
+            return objective
+        if isinstance(target, _Unsupported):
+            return target
+        conditional = Conditional(objective, target, self._span(meta))
+        return ProbOp(query[0], query[1], conditional, self._span(meta))
+
+    def conditional_reach(self, meta: Meta, children: list[Any]) -> RewardPath | _Unsupported:
+        path, _cond, condition = children
+        reach = self.reach(meta, [path])
+        target = _condition_target(condition)
+        if isinstance(reach, _Unsupported):
+            return reach
+        if not isinstance(reach, Reach):
+            return _Unsupported("a conditional reward path must be F phi || F psi",
+                                self._span(meta))
+        if isinstance(target, _Unsupported):
+            return target
+        return ConditionalReach(reach.target, target, self._span(meta))
+
     def steady_op(self, meta: Meta, children: list[Any]) -> _Unsupported:
         return _Unsupported("the steady-state operator S is not supported", self._span(meta))
 
@@ -423,6 +472,9 @@ def _path_formula(path: _Temporal) -> PathFormula | _Unsupported:
         return _Unsupported("X (next) takes no time bound", path.span)
     if path.bound is not None and path.bound.op == "=":
         return _Unsupported(f"the time bound '=' on {path.op} is not supported", path.span)
+    if path.op == "RB":
+        return RewardBounded(cast(Expr, path.left), path.right, cast(str | int, path.reward),
+                             cast(TimeBound, path.bound), path.span)
     if path.op == "X":
         return Next(path.right, path.span)
     if path.op == "F":
@@ -430,6 +482,31 @@ def _path_formula(path: _Temporal) -> PathFormula | _Unsupported:
     if path.op == "G":
         return Globally(path.right, path.bound, path.span)
     return Until(cast(Expr, path.left), path.right, path.bound, path.span)
+
+
+def _reward_bounded(left: Any, right: Any, reward: Any, bound: Any, span: Span) -> _Value:
+    """``U{"r"}<=T`` / ``F{"r"}<=T``: only upper bounds (``<=``, ``<``) are supported."""
+    bad = _first_bad([left, right, bound])
+    if bad is not None:
+        return bad
+    if bound.op not in ("<=", "<"):
+        return _Unsupported(f"the reward bound '{bound.op}' is not supported (use <= or <)",
+                            span)
+    return _Temporal("RB", bound, left, right, span, reward)
+
+
+def _condition_target(condition: Any) -> Expr | _Unsupported:
+    """The *psi* of a condition ``F psi`` (the only condition Storm accepts)."""
+    if isinstance(condition, _Unsupported):
+        return condition
+    if isinstance(condition, _Temporal) and condition.op == "F" and condition.bound is None:
+        return condition.right
+    span = condition.span if isinstance(condition, _Temporal) else _node_span(condition)
+    return _Unsupported("the condition after || must be F phi (unbounded)", span)
+
+
+def _node_span(node: Any) -> Span:
+    return cast(Span, getattr(node, "span", Span(1, 1)))
 
 
 def _model_type(items: list[Any], source: str) -> None:

@@ -14,6 +14,8 @@ from veribattery.lang.nodes import (
     Binary,
     BoolLit,
     Call,
+    Conditional,
+    ConditionalReach,
     Cumulative,
     DoubleLit,
     Eventually,
@@ -27,6 +29,7 @@ from veribattery.lang.nodes import (
     Next,
     ProbOp,
     Reach,
+    RewardBounded,
     RewardOp,
     TimeBound,
     Unary,
@@ -223,6 +226,19 @@ def _check_path(path: object, env: TypeEnv) -> None:
         check_time(path.bound, env)
         expect(path.left, env, "bool", "the left operand of U")
         expect(path.right, env, "bool", "the right operand of U")
+    else:
+        _check_storm_path(path, env)
+
+
+def _check_storm_path(path: object, env: TypeEnv) -> None:
+    """Storm's reward-bounded ``F{"r"}<=T`` / ``U{"r"}<=T`` and conditional ``||``."""
+    if isinstance(path, RewardBounded):
+        expect(path.bound.value, env, "numeric", "a reward bound")
+        expect(path.left, env, "bool", "the left operand of U")
+        expect(path.right, env, "bool", "the operand of F or U")
+    elif isinstance(path, Conditional):
+        _check_path(path.path, env)
+        expect(path.condition, env, "bool", "the condition after ||")
 
 
 def _check_reward_path(path: object, env: TypeEnv) -> None:
@@ -232,3 +248,6 @@ def _check_reward_path(path: object, env: TypeEnv) -> None:
         check_time(path.time, env)
     elif isinstance(path, Reach):
         expect(path.target, env, "bool", "the target of F")
+    elif isinstance(path, ConditionalReach):
+        expect(path.target, env, "bool", "the target of F")
+        expect(path.condition, env, "bool", "the condition after ||")

@@ -1,0 +1,318 @@
+"""Reward-bounded reachability: Storm's ``F{"r"}<=T phi`` and ``psi U{"r"}<=T phi``.
+
+**Semantics** (the same as Storm's, tested against it in
+``tests/checker/test_reward_bounded_storm.py``). A path ``s0 s1 … sn`` whose first
+*target* state is ``sn`` satisfies ``remain U{"r"}<=T target`` when ``s0 … s(n-1)``
+satisfy *remain* and the reward of its *n* steps is at most T. The reward of a step
+is that of the state it leaves: the state reward plus the transition (action)
+reward, so the step that **enters** the target is counted in full and the target
+state's own reward is not (as for ``R=? [ F phi ]``). ``U{"r"}<T`` is ``<=T-1``
+for the integer rewards required here; a fractional T is rounded down.
+
+**Algorithm.** A dynamic programme over accumulated reward levels ``k = 0..T``:
+the value at level *k* of a state with reward ``r > 0`` is one sparse row product
+with the values of level ``k - r``; states with reward 0 stay on their level, so
+each level closes over them with one solve of ``(I - P_ZZ)``, factorised once.
+Rewards and T are first divided by the greatest common divisor of the rewards.
+Both directions are here: :func:`reward_bounded_until_probs` (backward, every
+state, one T) and :func:`absorption_by_level` (forward, from the initial states,
+every level up to a stopping rule: a whole distribution in one pass).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker import kernels, linsolve
+from veribattery.errors import CheckError, Span
+from veribattery.explore.dtmc import DTMC, RewardVectors
+
+#: Largest accepted distance of a reward value from the nearest integer.
+INTEGER_TOL = 1e-9
+
+
+class NonIntegerReward(ValueError):
+    """A reward value that is negative or not an integer, at state index *state*."""
+
+    def __init__(self, state: int, value: float) -> None:
+        super().__init__(f"state {state} has reward {value:g}")
+        self.state = state
+        self.value = value
+
+
+def integer_levels(rewards: FloatArray) -> IntArray:
+    """*rewards* as non-negative integers.
+
+    :raises NonIntegerReward: naming the first state whose reward is negative or not
+        within :data:`INTEGER_TOL` of an integer.
+    """
+    rounded = np.rint(rewards)
+    bad = (rounded < 0) | ~(np.abs(rewards - rounded) <= INTEGER_TOL * np.maximum(1.0, rounded))
+    if bad.any():
+        state = int(np.flatnonzero(bad)[0])
+        raise NonIntegerReward(state, float(rewards[state]))
+    return rounded.astype(np.int64)
+
+
+def integer_rewards(dtmc: DTMC, structure: RewardVectors, span: Span) -> IntArray:
+    """The rewards per step of *structure* as integers, or an error naming a bad state.
+
+    :raises CheckError: when a state's reward is negative or not an integer.
+    """
+    try:
+        return integer_levels(structure.total)
+    except NonIntegerReward as exc:
+        state = ", ".join(f"{name}={value}" for name, value in
+                          zip(dtmc.variable_names, dtmc.states[exc.state], strict=True))
+        name = f'"{structure.name}"' if structure.name else "(unnamed)"
+        raise CheckError(
+            f"a reward bound needs non-negative integer rewards, but reward structure {name} "
+            f"gives {exc.value:g} in state ({state})", span) from None
+
+
+# ---------------------------------------------------------------------------
+# The level structure shared by both directions
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class _Levels:
+    """The moving states grouped by reward (in units of *unit*), and the zero-reward closure."""
+
+    unit: int
+    #: (reward in units, the moving states with that reward) for every positive reward.
+    groups: tuple[tuple[int, IntArray], ...]
+    zero: IntArray
+    #: ``I - P_ZZ`` over the zero-reward moving states, factorised (None if there are none).
+    closure: linsolve.Factorization | None
+    #: Rows of P of the zero-reward moving states.
+    zero_rows: CsrMatrix
+
+
+def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool) -> _Levels:
+    """Group the *moving* states by reward; factorise the zero-reward closure once.
+
+    The closure is nonsingular because every moving state can leave the moving set
+    (the caller removed the states that cannot reach the target).
+    """
+    positive = np.unique(rewards[moving & (rewards > 0)])
+    unit = math.gcd(*(int(v) for v in positive)) if positive.size else 1
+    groups = tuple(
+        (int(value) // unit, np.flatnonzero(moving & (rewards == value))) for value in positive
+    )
+    zero_mask = moving & (rewards == 0)
+    zero = np.flatnonzero(zero_mask)
+    closure = None
+    if zero.size:
+        A, _rows = linsolve.restricted_matrix(P, zero_mask)
+        closure = linsolve.Factorization(sp.csr_matrix(A.T) if transpose else A)
+    return _Levels(unit, groups, zero, closure, sp.csr_matrix(P[zero]))
+
+
+def _close(levels: _Levels, b: FloatArray) -> FloatArray:
+    """Solve the zero-reward closure ``(I - P_ZZ)[^T] x = b``."""
+    assert levels.closure is not None
+    return levels.closure.solve(np.asarray(b, dtype=np.longdouble))
+
+
+# ---------------------------------------------------------------------------
+# Backward: every state, one bound
+# ---------------------------------------------------------------------------
+
+
+def reward_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                               rewards: IntArray, bound: int) -> FloatArray:
+    """Probability of ``remain U{r}<=bound target`` in every state.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param remain: states that may be passed through before *target*.
+    :param target: states to reach.
+    :param rewards: non-negative integer reward of the step leaving each state
+        (see :func:`integer_levels`).
+    :param bound: the largest total reward allowed, the entering step included.
+    :return: probabilities in [0, 1]; 0 everywhere if *bound* < 0.
+    """
+    n = P.shape[0]
+    if bound < 0:
+        return np.zeros(n)
+    moving = remain & ~target & ~kernels.prob0(P, remain, target)
+    levels = _levels(P, moving, rewards, transpose=False)
+    value = target.astype(np.float64)
+    steps = [_BackwardGroup.of(P, r, states) for r, states in levels.groups]
+    for k in range(bound // levels.unit + 1):
+        value = target.astype(np.float64)
+        for group in steps:
+            value[group.states] = group.values(k)
+        if levels.closure is not None:
+            # Zero-reward states stay on level k: the closure over them.
+            value[levels.zero] = 0.0
+            value[levels.zero] = _close(levels, levels.zero_rows @ value)
+        for group in steps:
+            group.remember(k, value)
+    return np.clip(value, 0.0, 1.0)
+
+
+@dataclass(frozen=True, slots=True)
+class _BackwardGroup:
+    """States with reward *r*: their value on level k is P_rows @ (successors' value on k-r).
+
+    Only the successors' values of the last *r* levels are kept (a ring buffer).
+    """
+
+    r: int
+    states: IntArray
+    successors: IntArray
+    block: CsrMatrix
+    history: FloatArray
+
+    @classmethod
+    def of(cls, P: CsrMatrix, r: int, states: IntArray) -> _BackwardGroup:
+        rows = sp.csr_matrix(P[states])
+        successors = np.unique(rows.indices)
+        block = sp.csr_matrix(rows[:, successors])
+        return cls(r, states, successors, block, np.zeros((r, successors.size)))
+
+    def values(self, k: int) -> FloatArray:
+        if k < self.r:
+            return np.zeros(self.states.size)
+        return np.asarray(self.block @ self.history[k % self.r], dtype=np.float64)
+
+    def remember(self, k: int, value: FloatArray) -> None:
+        self.history[k % self.r] = value[self.successors]
+
+
+# ---------------------------------------------------------------------------
+# Forward: from the initial states, every level
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class LevelMasses:
+    """Probability mass absorbed per reward level, from :func:`absorption_by_level`.
+
+    *absorbed[i, k]* is the probability of first entering absorbing set *i* with a
+    total reward of exactly ``k * unit``; *pending* the mass not yet absorbed after
+    the last level (moving, or on its way to a higher level); *never* the mass
+    that entered a state from which no absorbing set can be reached.
+    """
+
+    unit: int
+    absorbed: FloatArray
+    pending: float
+    never: float
+
+    @property
+    def rewards(self) -> FloatArray:
+        """The reward of each level."""
+        return np.arange(self.absorbed.shape[1], dtype=np.float64) * self.unit
+
+
+#: Stopping rule of the forward pass: (level, mass absorbed so far per set, pending) → stop?
+StopRule = Callable[[int, FloatArray, float], bool]
+
+
+def absorption_by_level(P: CsrMatrix, initial: FloatArray, absorbing: tuple[BoolArray, ...],
+                        rewards: IntArray, stop: StopRule, max_levels: int) -> LevelMasses:
+    """The distribution of the reward accumulated until the first absorbing state.
+
+    One forward pass over reward levels: the mass arriving on a level is closed
+    over the zero-reward states (one solve), split off where it is absorbed, and
+    sent on by one sparse product per distinct positive reward to the level it
+    reaches.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param initial: the initial distribution.
+    :param absorbing: disjoint masks of the states where the pass stops (e.g. success
+        and failure).
+    :param rewards: non-negative integer reward of the step leaving each state.
+    :param stop: called after each level; the pass ends when it returns True.
+    :param max_levels: the pass ends after this many levels in any case.
+    """
+    n = P.shape[0]
+    stopped = np.zeros(n, dtype=bool)
+    for mask in absorbing:
+        stopped |= mask
+    dead = kernels.prob0(P, np.ones(n, dtype=bool), stopped) & ~stopped
+    moving = ~stopped & ~dead
+    # Renumber the states so that each reward group is one contiguous block: the
+    # per-level copies in and out of the ring buffers are then slices, not gathers.
+    order = np.argsort(np.where(moving, rewards, -1), kind="stable")[::-1]
+    Q = sp.csr_matrix(P[order][:, order])
+    levels = _levels(Q, moving[order], rewards[order], transpose=True)
+    return _forward(Q, levels, initial[order], tuple(m[order] for m in absorbing),
+                    dead[order], stop, max_levels)
+
+
+def _forward(P: CsrMatrix, levels: _Levels, initial: FloatArray,
+             absorbing: tuple[BoolArray, ...], dead: BoolArray, stop: StopRule,
+             max_levels: int) -> LevelMasses:
+    targets = [np.flatnonzero(mask) for mask in absorbing]
+    dead_states = np.flatnonzero(dead)
+    rings = [_Ring(r, states) for r, states in levels.groups]
+    # One product per level: the mass leaving every positive-reward state, each taken
+    # from the level its reward reaches back to, moved by the transposed rows at once.
+    movers = np.concatenate([states for _, states in levels.groups] or [np.zeros(0, np.int64)])
+    moved = sp.csr_matrix(P[movers].T)
+    zero_dest, zero_moves = _columns_used(levels.zero_rows)
+    leaving = np.zeros(movers.size)
+    total = float(initial.sum())
+    absorbed: list[FloatArray] = []
+    done = np.zeros(len(absorbing))
+    never = 0.0
+    for k in range(max_levels):
+        _gather(rings, k, leaving)
+        here = np.asarray(moved @ leaving, dtype=np.float64)
+        if k == 0:
+            here += initial
+        if levels.closure is not None:
+            here[zero_dest] += zero_moves @ _close(levels, here[levels.zero])
+            here[levels.zero] = 0.0
+        absorbed.append(np.array([here[states].sum() for states in targets]))
+        done += absorbed[-1]
+        never += float(here[dead_states].sum())
+        for ring in rings:
+            ring.history[k % ring.r] = here[ring.block]
+        if stop(k, done, max(0.0, total - float(done.sum()) - never)):
+            break
+    return LevelMasses(levels.unit, np.array(absorbed).T,
+                       max(0.0, total - float(done.sum()) - never), never)
+
+
+def _columns_used(rows: CsrMatrix) -> tuple[IntArray, CsrMatrix]:
+    """The columns *rows* reach, and the transposed block over just those columns."""
+    used = np.unique(rows.indices)
+    return used, sp.csr_matrix(rows[:, used].T)
+
+
+@dataclass(frozen=True, slots=True)
+class _Ring:
+    """The mass that left the states with reward *r* on each of the last *r* levels."""
+
+    r: int
+    states: IntArray
+    history: FloatArray
+    #: The states as a slice where they are contiguous (after the renumbering).
+    block: slice | IntArray
+
+    def __init__(self, r: int, states: IntArray) -> None:
+        object.__setattr__(self, "r", r)
+        object.__setattr__(self, "states", states)
+        object.__setattr__(self, "history", np.zeros((r, states.size)))
+        contiguous = states.size > 0 and states[-1] - states[0] + 1 == states.size
+        object.__setattr__(self, "block", slice(int(states[0]), int(states[-1]) + 1)
+                           if contiguous else states)
+
+
+def _gather(rings: list[_Ring], k: int, leaving: FloatArray) -> None:
+    """The mass leaving each positive-reward state that arrives on level *k*."""
+    start = 0
+    for ring in rings:
+        end = start + ring.states.size
+        leaving[start:end] = ring.history[k % ring.r] if k >= ring.r else 0.0
+        start = end

@@ -1,0 +1,117 @@
+"""The ``distribution`` command: the whole CDF of mission time, deadlines and quantiles."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+from rich.markup import escape
+from rich.table import Table
+
+from veribattery.cli.output import build_progress, out, print_warnings, set_option, user_errors
+
+if TYPE_CHECKING:
+    from veribattery.analyses.distribution import Deadline, Distribution
+
+
+@click.command("distribution")
+@click.argument("config", type=click.Path(path_type=Path))
+@set_option
+@click.option("--reward", default="mt", show_default=True,
+              help="Reward structure to accumulate (integer-valued).")
+@click.option("--deadline", "deadlines", multiple=True, metavar="D",
+              help="P(success within D): minutes (4800, 4800m), hours (80h) or working days "
+                   "(5d); repeatable.")
+@click.option("--working-day", default="8h", show_default=True,
+              help="Length of a working day 'd' (e.g. 8h, 480, 24h).")
+@click.option("--coverage", default=0.999, show_default=True, type=click.FloatRange(0, 1),
+              help="Compute the CDF until this fraction of P(success) and P(failure).")
+@click.option("-o", "--output", "csv_path", type=click.Path(path_type=Path),
+              help="Write the CDF as CSV (one row per reward level).")
+@click.option("--plot", "plot_path", type=click.Path(path_type=Path),
+              help="Plot the CDF with quantiles and deadlines (.png, .pdf, .svg).")
+@click.option("--force", is_flag=True, help="Overwrite existing -o / --plot files.")
+@click.option("--format", "output_format", type=click.Choice(["table", "json"]),
+              default="table", show_default=True, help="Output format.")
+def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
+                         deadlines: tuple[str, ...], working_day: str, coverage: float,
+                         csv_path: Path | None, plot_path: Path | None, force: bool,
+                         output_format: str) -> None:
+    """The distribution of mission time to success and to failure for CONFIG (YAML)."""
+    from veribattery.analyses.distribution import parse_deadline, write_csv
+    from veribattery.config import load_config
+    from veribattery.errors import ConfigError
+    from veribattery.mission import mission_dtmc
+
+    with user_errors():
+        day = parse_deadline(working_day, option="--working-day").value
+        limits = tuple(parse_deadline(d, day) for d in deadlines)
+        for path in (csv_path, plot_path):
+            if path is not None and path.exists() and not force:
+                raise ConfigError(f"{path} already exists; use --force to overwrite it")
+        cfg = load_config(config, overrides)
+        with build_progress() as progress:
+            dtmc = mission_dtmc(cfg, progress=progress)
+        dist = _distribution(dtmc, reward, coverage, limits)
+        if csv_path is not None:
+            write_csv(dist, csv_path)
+        if plot_path is not None:
+            from veribattery.analyses.distribution import plot_distribution
+
+            plot_distribution(dist, limits, plot_path)
+    print_warnings(dtmc.warnings)
+    if output_format == "json":
+        click.echo(json.dumps(_json(dist, limits)))
+    else:
+        _print_table(dist, limits)
+
+
+def _distribution(dtmc: object, reward: str, coverage: float,
+                  limits: tuple[Deadline, ...]) -> Distribution:
+    from veribattery.analyses.distribution import reward_distribution
+    from veribattery.explore.dtmc import DTMC
+
+    assert isinstance(dtmc, DTMC)
+    horizon = max((d.value for d in limits), default=0.0)
+    return reward_distribution(dtmc, reward, coverage=coverage, horizon=horizon)
+
+
+def _summary(dist: Distribution, limits: tuple[Deadline, ...]) -> list[tuple[str, float]]:
+    from veribattery.analyses.distribution import QUANTILES
+
+    rows = [("P(success)", dist.p_success), ("P(failure)", dist.p_failure),
+            (f"E[{dist.reward} | success]", dist.expected_given_success)]
+    rows += [(f"{q:.0%} quantile of {dist.reward} to success", dist.quantile(q))
+             for q in QUANTILES]
+    rows += [(f"P(success within {d.text} = {d.value:g})", dist.p_success_within(d.value))
+             for d in limits]
+    rows.append(("not yet absorbed (bound on the cut-off)", dist.pending))
+    return rows
+
+
+def _print_table(dist: Distribution, limits: tuple[Deadline, ...]) -> None:
+    out.print(f"Distribution of {dist.reward!r} to success/failure: {dist.values.size:,} "
+              f"levels, up to {dist.values[-1]:g}")
+    table = Table("quantity", "value", show_edge=False)
+    for name, value in _summary(dist, limits):
+        table.add_row(escape(name), f"{value:.10g}")
+    out.print(table)
+
+
+def _json(dist: Distribution, limits: tuple[Deadline, ...]) -> dict[str, object]:
+    from veribattery.analyses.distribution import QUANTILES
+
+    return {
+        "reward": dist.reward,
+        "p_success": dist.p_success,
+        "p_failure": dist.p_failure,
+        "expected_given_success": dist.expected_given_success,
+        "quantiles": {str(q): dist.quantile(q) for q in QUANTILES},
+        "deadlines": [{"deadline": d.text, "value": d.value,
+                       "p_success_within": dist.p_success_within(d.value)} for d in limits],
+        "levels": int(dist.values.size),
+        "last_level": float(dist.values[-1]),
+        "pending": dist.pending,
+    }
