@@ -154,7 +154,7 @@ def test_check_csv(baseline: str) -> None:
     lines = result.stdout.splitlines()
     assert lines[0] == "property,value"
     assert [line.split(",")[0] for line in lines[1:]] == [
-        "p_success", "exp_mission_time", "exp_recharges"]
+        "p_success", "exp_mission_time", "exp_recharges", "recharge_cap_probability"]
 
 
 @pytest.mark.parametrize(

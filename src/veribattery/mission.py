@@ -20,6 +20,10 @@ MODEL_FILE = "model.prism"
 PROPERTIES_FILE = "properties.props"
 CONFIG_FILE = "config.resolved.yaml"
 
+#: The recharge-cap warning is given from this probability on: below it the cut cannot
+#: change a printed (6 significant digit) result (model-spec.md, Battery ``oob`` row).
+RECHARGE_CAP_WARN_AT = 1e-9
+
 
 @dataclass(frozen=True, slots=True)
 class RequirementOutcome:
@@ -43,6 +47,10 @@ class MissionReport:
     run: ModelCheckRun
     requirements: tuple[RequirementOutcome, ...]
     warnings: tuple[str, ...]
+    #: P[F rc=RC_MAX]: the probability that the recharge cap cuts the mission (model-spec,
+    #: ``oob`` row); always reported in machine-readable output, warned about from
+    #: :data:`RECHARGE_CAP_WARN_AT` on.
+    recharge_cap_probability: float
 
     @property
     def values(self) -> dict[str, Value]:
@@ -81,9 +89,15 @@ def check_mission(cfg: MissionConfig, *, progress: ProgressCallback | None = Non
     model = parse_model(files.model, name=MODEL_FILE)
     props = parse_properties(files.properties, name=PROPERTIES_FILE)
     run = check_model(model, props.properties, props_file=props, progress=progress)
+    return mission_report(cfg, run)
+
+
+def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
+    """The report of a finished *run* of *cfg*: requirements judged, recharge cap measured."""
     values = {r.property.name: r.value for r in run.results}
     outcomes = tuple(_judge(req, values) for req in cfg.parsed_requirements)
-    return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
+    cap = recharge_cap_probability(run, cfg)
+    return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(cap, cfg), cap)
 
 
 class MissionChecker:
@@ -112,15 +126,26 @@ def _judge(requirement: Requirement, values: Mapping[str | None, Value]) -> Requ
     return RequirementOutcome(requirement, value, holds)
 
 
-def _recharge_cap_warning(run: ModelCheckRun, cfg: MissionConfig) -> tuple[str, ...]:
-    """The spec's warning: missions cut by the recharge cap (P[F rc=RC_MAX] > 0)."""
+def recharge_cap_probability(run: ModelCheckRun, cfg: MissionConfig) -> float:
+    """P[F rc=RC_MAX] in *run*'s DTMC (0 without computing when no state reaches the cap)."""
     rc_max = derive_parameters(cfg).rc_max
     if run.dtmc.column("rc").max() < rc_max:
+        return 0.0
+    return float(check(run.dtmc, parse_property(f"P=? [ F rc={rc_max} ]")).value)
+
+
+def _recharge_cap_warning(probability: float, cfg: MissionConfig) -> tuple[str, ...]:
+    """The spec's warning, only when the cut can change a printed result (P >= 1e-9)."""
+    if probability < RECHARGE_CAP_WARN_AT:
         return ()
-    cut = check(run.dtmc, parse_property(f"P=? [ F rc={rc_max} ]")).value
+    return (recharge_cap_message(cfg.battery.max_recharges, probability),)
+
+
+def recharge_cap_message(rc_max: int, probability: float, where: str = "") -> str:
+    """The recharge-cap warning text (*where*: the sweep points concerned, if any)."""
     return (
         f"the recharge cap battery.max_recharges={rc_max} is reached with probability "
-        f"{float(cut):.6g}; those missions are cut (counted as failures)",
+        f"{probability:.6g}{where}; those missions are cut (counted as failures)"
     )
 
 

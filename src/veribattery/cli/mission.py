@@ -80,6 +80,7 @@ def mission_json(report: MissionReport) -> dict[str, object]:
             {**o.as_dict(), "value": json_value(o.value)} for o in report.requirements
         ],
         "timings_s": {k: round(v, 6) for k, v in report.run.timings_s.items()},
+        "recharge_cap_probability": report.recharge_cap_probability,
     }
 
 
@@ -89,10 +90,11 @@ def print_mission_json(report: MissionReport) -> None:
 
 
 def print_mission_csv(report: MissionReport) -> None:
-    """``property,value`` rows (values with full precision)."""
+    """``property,value`` rows (values with full precision), then P[F rc=RC_MAX]."""
     click.echo("property,value")
     for name, value in report.values.items():
         click.echo(f"{name},{format_value(value) if isinstance(value, bool) else repr(value)}")
+    click.echo(f"recharge_cap_probability,{report.recharge_cap_probability!r}")
 
 
 @click.command("emit")
