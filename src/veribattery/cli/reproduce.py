@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -40,11 +41,21 @@ def reproduce_command(
         return
     if what == "all" and out_dir is None:
         raise click.UsageError("reproduce all needs -o DIR")
-    from veribattery.analyses import figures
     from veribattery.sweep import default_jobs
 
     directory = out_dir or Path(".")
     options = _options(jobs or default_jobs(), scheduler)
+    try:
+        _reproduce(what, directory, options, output_format)
+    except KeyboardInterrupt:
+        err.print(f"interrupted; finished points are kept in {directory}: rerun to resume",
+                  markup=False)
+        sys.exit(130)
+
+
+def _reproduce(what: str, directory: Path, options: Any, output_format: str) -> None:
+    from veribattery.analyses import figures
+
     with user_errors():
         if what in ("table3", "all"):
             table = figures.table3_frame(figures.table3_sweep(_mkdir(directory), options))
