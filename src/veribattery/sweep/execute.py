@@ -12,7 +12,7 @@ import os
 from collections.abc import Generator, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import AbstractContextManager, ExitStack
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, Protocol
 
 from veribattery.errors import ConfigError
@@ -45,29 +45,18 @@ def default_jobs() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
 
 
-def open_executor(jobs: int, scheduler: str | None) -> AbstractContextManager[Executor]:
-    """The executor for ``-j JOBS`` and ``--scheduler``, connected (as a context manager).
+@contextmanager
+def open_executor(jobs: int, scheduler: str | None) -> Iterator[Executor]:
+    """The executor for ``-j JOBS`` and ``--scheduler``, connected, as a context manager.
 
-    :raises ConfigError: when the scheduler cannot be reached (within
-        :data:`CONNECT_TIMEOUT_S` seconds) or its address is malformed.
+    :raises ConfigError: (on entering) when the scheduler cannot be reached within
+        :data:`CONNECT_TIMEOUT_S` seconds or its address is malformed.
     """
-    stack = ExitStack()
     if scheduler is None:
-        executor: Executor = InProcess() if jobs == 1 else LocalPool(jobs)
-    else:
-        executor = DaskExecutor(stack.enter_context(_dask_client(scheduler, jobs)), scheduler)
-    return _Opened(stack, executor)
-
-
-class _Opened(AbstractContextManager[Executor]):
-    def __init__(self, stack: ExitStack, executor: Executor):
-        self._stack, self._executor = stack, executor
-
-    def __enter__(self) -> Executor:
-        return self._executor
-
-    def __exit__(self, *exc: object) -> None:
-        self._stack.close()
+        yield InProcess() if jobs == 1 else LocalPool(jobs)
+        return
+    with _dask_client(scheduler, jobs) as client:
+        yield DaskExecutor(client, scheduler)
 
 
 class InProcess:
@@ -175,35 +164,25 @@ def _gathered(future: Any, task: Task) -> Iterator[PointResult]:
     yield from results
 
 
-def _dask_client(scheduler: str, jobs: int) -> AbstractContextManager[Client]:
+@contextmanager
+def _dask_client(scheduler: str, jobs: int) -> Iterator[Client]:
     """A client of the scheduler at *scheduler*, or of a new loopback ``LocalCluster``."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:
         raise ConfigError("--scheduler needs Dask: pip install 'veribattery[dask]'") from None
     if scheduler == "local":
-        cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True,  # type: ignore[no-untyped-call]
-                               host="127.0.0.1", dashboard_address=None)
-        client = Client(cluster)  # type: ignore[no-untyped-call]
-        stack = ExitStack()
-        stack.enter_context(cluster)
-        stack.enter_context(client)
-        return _closing(stack, client)
+        with LocalCluster(  # type: ignore[no-untyped-call]
+            n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster, Client(cluster) as client:  # type: ignore[no-untyped-call]
+            yield client
+        return
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)  # type: ignore[no-untyped-call]
     except (OSError, TimeoutError, ValueError, TypeError) as exc:
         reason = " ".join(str(exc).split()) or type(exc).__name__
         raise ConfigError(f"--scheduler {scheduler}: cannot reach the Dask scheduler "
                           f"({reason})") from None
-    return client
-
-
-class _closing(AbstractContextManager["Client"]):
-    def __init__(self, stack: ExitStack, client: Client):
-        self._stack, self._client = stack, client
-
-    def __enter__(self) -> Client:
-        return self._client
-
-    def __exit__(self, *exc: object) -> None:
-        self._stack.close()
+    with client:
+        yield client
