@@ -63,3 +63,34 @@ def test_reproduce_all_needs_an_output_folder() -> None:
     result = CliRunner().invoke(cli, ["reproduce", "all"])
     assert result.exit_code == 2
     assert "-o DIR" in result.stderr
+
+
+def test_reproduce_fig6_resumes_a_finished_sweep_and_draws(tmp_path: Path) -> None:
+    # A complete capacity sweep already on disk (synthetic values): `reproduce` must
+    # resume it (checking nothing) and draw from it.
+    from veribattery.config import load_config
+    from veribattery.sweep import grid
+    from veribattery.sweep.fingerprint import fingerprint
+    from veribattery.sweep.run import FIXED_COLUMNS
+
+    axes = [parse_axis(a) for a in figures.CAPACITY_AXES]
+    sets = figures.CAPACITY_SETS
+    mark = fingerprint(load_config("", sets), sets, axes)
+    (tmp_path / f"{figures.CAPACITY_RESULTS}.sweep.json").write_text(mark.as_json())
+    rows = []
+    for index, point in enumerate(grid(axes)):
+        capacity = float(point["battery.capacity_ah"])  # type: ignore[arg-type]
+        for prop, value in (("p_success", capacity / 20), ("exp_mission_time", 100 * capacity),
+                            ("exp_recharges", capacity)):
+            rows.append({"point": index, **point, "property": prop, "value": value,
+                         "states": 1, "transitions": 1, "seconds": 0.0,
+                         "recharge_cap_probability": 0.0})
+    columns = ["point", "battery.model", "battery.capacity_ah", *FIXED_COLUMNS]
+    pd.DataFrame(rows, columns=columns).to_csv(tmp_path / figures.CAPACITY_RESULTS, index=False)
+    result = CliRunner().invoke(cli, ["reproduce", "fig6", "-o", str(tmp_path), "-j", "1"])
+    assert result.exit_code == 0, result.output
+    assert "604 of 604 points already done" in result.stderr
+    table = pd.read_csv(tmp_path / "fig6.csv", index_col="capacity_ah")
+    assert len(table) == 151
+    assert table.loc[12.3, "p_success:basic_low"] == pytest.approx(12.3 / 20, rel=1e-15)
+    assert (tmp_path / "fig6.png").stat().st_size > 10_000
