@@ -151,7 +151,8 @@ def _figure(count: int, size: tuple[float, float], *, rows: bool = False,
 def _plot_models(ax: Axes, curves: pd.DataFrame, marker_size: float = 0) -> None:
     for model in curves.columns:
         color, style = _STYLE[model]
-        ax.plot(curves.index, curves[model], color=color, linestyle=style, label=model,
+        series = curves[model].dropna()  # grids may differ between models (a zoomed run)
+        ax.plot(series.index, series, color=color, linestyle=style, label=model,
                 marker="o" if marker_size else None, markersize=marker_size, linewidth=1.4)
     ax.grid(True, alpha=0.3)
 
