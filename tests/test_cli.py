@@ -135,7 +135,7 @@ def test_check_json_contract_on_a_small_farm(tmp_path: Path) -> None:
     result = run("check", str(config), *SMALL_FARM, "--format", "json")
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
-    assert set(doc) == {"model", "results", "requirements", "timings_s"}
+    assert set(doc) == {"model", "results", "requirements", "timings_s", "recharge_cap_probability"}
     assert set(doc["results"]) == {"p_success", "exp_mission_time", "exp_recharges"}
     assert doc["requirements"][0]["holds"] is True
     assert doc["results"]["p_success"] == pytest.approx(1.0, abs=1e-12)
