@@ -11,7 +11,7 @@ $(BIN)/python:
 	$(BIN)/python -m pip install --quiet --upgrade pip
 
 $(STAMP): pyproject.toml | $(BIN)/python
-	$(BIN)/python -m pip install --quiet -e ".[dev,storm,pybamm]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,storm,dask,pybamm]"
 	touch $(STAMP)
 
 setup: $(STAMP)

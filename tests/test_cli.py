@@ -137,7 +137,7 @@ def test_check_json_contract_on_a_small_farm(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     assert set(doc) == {"model", "results", "bounds", "precise", "conditional", "requirements",
-                        "timings_s"}
+                        "timings_s", "recharge_cap_probability"}
     assert doc["conditional"] == ["exp_mission_time_given_success", "exp_recharges_given_success"]
     assert set(doc["results"]) == {"p_success", "exp_mission_time", "exp_recharges",
                                    "exp_mission_time_given_success", "exp_recharges_given_success"}
@@ -165,7 +165,7 @@ def test_check_csv(baseline: str) -> None:
     assert lines[0] == "property,value"
     assert [line.split(",")[0] for line in lines[1:]] == [
         "p_success", "exp_mission_time", "exp_recharges", "exp_mission_time_given_success",
-        "exp_recharges_given_success"]
+        "exp_recharges_given_success", "recharge_cap_probability"]
 
 
 @pytest.mark.parametrize(

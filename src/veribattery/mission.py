@@ -36,6 +36,10 @@ MODEL_FILE = "model.prism"
 PROPERTIES_FILE = "properties.props"
 CONFIG_FILE = "config.resolved.yaml"
 
+#: The recharge-cap warning is given from this probability on: below it the cut cannot
+#: change a printed (6 significant digit) result (model-spec.md, Battery ``oob`` row).
+RECHARGE_CAP_WARN_AT = 1e-9
+
 
 @dataclass(frozen=True, slots=True)
 class RequirementOutcome:
@@ -61,6 +65,10 @@ class MissionReport:
     run: ModelCheckRun
     requirements: tuple[RequirementOutcome, ...]
     warnings: tuple[str, ...]
+    #: P[F rc=RC_MAX]: the probability that the recharge cap cuts the mission (model-spec,
+    #: ``oob`` row); always reported in machine-readable output, warned about from
+    #: :data:`RECHARGE_CAP_WARN_AT` on.
+    recharge_cap_probability: float
 
     @property
     def reused(self) -> bool:
@@ -120,10 +128,15 @@ def _check(
     parsed = parsed or _Parsed()
     model = parsed.model(files.model)
     props = parsed.properties(files.properties)
-    run = _check_properties(model, props, progress, builder, exact)
+    return mission_report(cfg, _check_properties(model, props, progress, builder, exact))
+
+
+def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
+    """The report of a finished *run* of *cfg*: requirements judged, recharge cap measured."""
     results = {r.property.name: r for r in run.results}
     outcomes = tuple(_judge(req, results) for req in cfg.parsed_requirements)
-    return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(run, cfg))
+    cap = recharge_cap_probability(run, cfg)
+    return MissionReport(cfg, run, outcomes, run.warnings + _recharge_cap_warning(cap, cfg), cap)
 
 
 def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCallback | None,
@@ -295,15 +308,26 @@ def _judge(requirement: Requirement,
     return RequirementOutcome(requirement, value, decided and verdicts == {True}, decided)
 
 
-def _recharge_cap_warning(run: ModelCheckRun, cfg: MissionConfig) -> tuple[str, ...]:
-    """The spec's warning: missions cut by the recharge cap (P[F rc=RC_MAX] > 0)."""
+def recharge_cap_probability(run: ModelCheckRun, cfg: MissionConfig) -> float:
+    """P[F rc=RC_MAX] in *run*'s DTMC (0 without computing when no state reaches the cap)."""
     rc_max = derive_parameters(cfg).rc_max
     if run.dtmc.column("rc").max() < rc_max:
+        return 0.0
+    return float(check(run.dtmc, parse_property(f"P=? [ F rc={rc_max} ]")).value)
+
+
+def _recharge_cap_warning(probability: float, cfg: MissionConfig) -> tuple[str, ...]:
+    """The spec's warning, only when the cut can change a printed result (P >= 1e-9)."""
+    if probability < RECHARGE_CAP_WARN_AT:
         return ()
-    cut = check(run.dtmc, parse_property(f"P=? [ F rc={rc_max} ]")).value
+    return (recharge_cap_message(cfg.battery.max_recharges, probability),)
+
+
+def recharge_cap_message(rc_max: int, probability: float, where: str = "") -> str:
+    """The recharge-cap warning text (*where*: the sweep points concerned, if any)."""
     return (
         f"the recharge cap battery.max_recharges={rc_max} is reached with probability "
-        f"{float(cut):.6g}; those missions are cut (counted as failures)",
+        f"{probability:.6g}{where}; those missions are cut (counted as failures)"
     )
 
 

@@ -111,6 +111,7 @@ def mission_json(report: MissionReport) -> dict[str, object]:
         ],
         "timings_s": {k: round(v, 6) for k, v in report.run.timings_s.items()},
         **_exact_json(report),
+        "recharge_cap_probability": report.recharge_cap_probability,
     }
 
 
@@ -130,13 +131,17 @@ def print_mission_json(report: MissionReport) -> None:
 
 
 def print_mission_csv(report: MissionReport) -> None:
-    """``property,value`` rows (values with full precision; ``exact`` too under ``--exact``)."""
+    """``property,value`` rows (values with full precision; ``exact`` too under ``--exact``),
+    then P[F rc=RC_MAX]."""
     exact = [exact_text(r) for r in report.run.results]
     with_exact = any(e is not None for e in exact)
     click.echo("property,value,exact" if with_exact else "property,value")
     for (name, value), text in zip(report.values.items(), exact, strict=True):
         shown = format_value(value) if isinstance(value, bool) else repr(value)
         click.echo(f"{name},{shown},{text or ''}" if with_exact else f"{name},{shown}")
+    cap = repr(report.recharge_cap_probability)
+    click.echo(f"recharge_cap_probability,{cap}," if with_exact
+               else f"recharge_cap_probability,{cap}")
 
 
 @click.command("emit")

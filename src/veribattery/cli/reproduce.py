@@ -3,24 +3,74 @@
 from __future__ import annotations
 
 import json
+import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import click
 from rich.table import Table
 
-from veribattery.cli.output import err, out, user_errors
+from veribattery.cli.output import err, fail, out, user_errors
 
 if TYPE_CHECKING:
     from veribattery.analyses.table3 import Table3Comparison
 
 
 @click.command("reproduce")
-@click.argument("what", type=click.Choice(["table3"]))
+@click.argument("what", type=click.Choice(["table3", "fig6", "fig8", "all"]))
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table",
-              show_default=True)
-def reproduce_command(what: str, output_format: str) -> None:
-    """Re-run the seed paper's Table 3 and print it beside the paper's figures."""
+              show_default=True, help="How Table 3 is printed.")
+@click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path, file_okay=False),
+              help="Folder for the figures (PNG, SVG), their CSVs and the resumable sweep "
+              "results (default for fig6/fig8: the current folder; required for all).")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="Worker processes for the sweeps (default: the number of cores).")
+@click.option("--scheduler", metavar="tcp://HOST:PORT|local",
+              help="Run the sweeps on a Dask cluster.")
+def reproduce_command(
+    what: str, output_format: str, out_dir: Path | None, jobs: int | None, scheduler: str | None
+) -> None:
+    """Re-run the seed paper's Table 3, Fig. 6 and Fig. 8 (all: every one, into -o DIR).
+
+    The figures come from one sweep (four battery models x 5.0-20.0 Ah, 604 points)
+    whose rows are kept in DIR/capacity_sweep.csv: an interrupted run resumes.
+    """
+    if what == "table3" and out_dir is None:
+        _table3_in_process(output_format)
+        return
+    if what == "all" and out_dir is None:
+        raise click.UsageError("reproduce all needs -o DIR")
+    from veribattery.sweep import default_jobs
+
+    directory = out_dir or Path(".")
+    options = _options(jobs or default_jobs(), scheduler)
+    try:
+        _reproduce(what, directory, options, output_format)
+    except KeyboardInterrupt:
+        err.print(f"interrupted; finished points are kept in {directory}: rerun to resume",
+                  markup=False)
+        sys.exit(130)
+
+
+def _reproduce(what: str, directory: Path, options: Any, output_format: str) -> None:
+    from veribattery.analyses import figures
+
+    with user_errors():
+        if what in ("table3", "all"):
+            table = figures.table3_frame(figures.table3_sweep(_mkdir(directory), options))
+            _write_csv(table, directory / "table3.csv")
+            _print_table3_frame(table, output_format)
+        if what != "table3":
+            frame = figures.capacity_sweep(_mkdir(directory), options)
+            _report_failures(frame)
+            if what in ("fig6", "all"):
+                _written(figures.draw_fig6(frame, directory))
+            if what in ("fig8", "all"):
+                _written(figures.draw_fig8(frame, directory))
+
+
+def _table3_in_process(output_format: str) -> None:
     from veribattery.analyses.table3 import reproduce_table3
 
     with user_errors():
@@ -29,6 +79,57 @@ def reproduce_command(what: str, output_format: str) -> None:
         click.echo(json.dumps([row.as_dict() for row in rows]))
         return
     print_table3(rows)
+
+
+def _options(jobs: int, scheduler: str | None) -> Any:
+    from veribattery.analyses.figures import SweepOptions
+
+    def note(text: str) -> None:
+        err.print(text, markup=False, style="dim")
+
+    def progress(done: int, total: int) -> None:
+        if done and (done == total or done % 25 == 0):
+            err.print(f"{done} of {total} points", markup=False, style="dim")
+
+    return SweepOptions(jobs, scheduler, progress, note)
+
+
+def _mkdir(directory: Path) -> Path:
+    directory.mkdir(parents=True, exist_ok=True)
+    return directory
+
+
+def _write_csv(table: Any, path: Path) -> None:
+    table.to_csv(path, index=False, float_format="%.17g")
+    click.echo(str(path))
+
+
+def _written(paths: Sequence[Path]) -> None:
+    for path in paths:
+        click.echo(str(path))
+
+
+def _report_failures(frame: Any) -> None:
+    from veribattery.cli.output import print_warnings
+    from veribattery.sweep import summary_line
+
+    print_warnings(frame.attrs.get("warnings", ()))
+    if frame.attrs.get("failed"):
+        fail(f"{summary_line(frame)}; see the error column of capacity_sweep.csv")
+
+
+def _print_table3_frame(table: Any, output_format: str) -> None:
+    if output_format == "json":
+        click.echo(table.to_json(orient="records"))
+        return
+    shown = Table("case", "quantity", "paper", "veribattery", "rel. diff", show_edge=False,
+                  title="Table 3 — paper vs veribattery")
+    for row in table.to_dict("records"):
+        for q in ("p_success", "exp_mission_time", "exp_recharges"):
+            shown.add_row(row["case"], q, f"{row[q + '_paper']:g}", f"{row[q + '_ours']:.6g}",
+                          f"{row[q + '_rel_diff']:+.2%}")
+        shown.add_section()
+    out.print(shown)
 
 
 def print_table3(rows: Sequence[Table3Comparison]) -> None:

@@ -27,17 +27,25 @@ from veribattery.cli.output import (
 @click.command("sweep")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option(
-    "--vary", "specs", multiple=True, required=True, metavar="KEY=SPEC",
+    "--vary", "specs", multiple=True, metavar="KEY=SPEC",
     help="Sweep a config key over START:STOP:STEP (exact decimals, STOP included) or a,b,c "
-    "(repeatable; the grid is the product, the first --vary varying slowest).",
+    "(repeatable; the grid is the product, the first --vary varying slowest). Replaces the "
+    "config's sweep.vary list.",
 )
 @set_option
 @click.option(
     "--format", "output_format", type=click.Choice(["table", "csv", "json"]), default="table",
     show_default=True, help="Output format (csv and json are tidy: one row per point x property).",
 )
-@click.option("-o", "--output", "csv_path", type=click.Path(path_type=Path),
-              help="Also write the tidy results to this CSV file.")
+@click.option("-o", "--output", "results", type=click.Path(path_type=Path), metavar="RESULTS",
+              help="Durable results (.csv, .jsonl or .parquet): rows are written as points "
+              "finish, and rerunning the same command resumes.")
+@click.option("--force", is_flag=True,
+              help="Start RESULTS afresh even if it holds another sweep's results.")
+@click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
+              help="Worker processes (default: the number of cores; 1: in this process).")
+@click.option("--scheduler", metavar="tcp://HOST:PORT|local",
+              help="Run the points on a Dask cluster ('local': a LocalCluster of -j workers).")
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path),
               help="Also write a figure (.png, .pdf, .svg, …).")
 @click.option("--plot-property", "plot_property", metavar="NAME",
@@ -46,46 +54,104 @@ from veribattery.cli.output import (
               help="Varied key on the x axis (default: the first).")
 def sweep_command(
     config: Path, specs: tuple[str, ...], overrides: tuple[str, ...], output_format: str,
-    csv_path: Path | None, plot_path: Path | None, plot_property: str | None, plot_x: str | None,
+    results: Path | None, force: bool, jobs: int | None, scheduler: str | None,
+    plot_path: Path | None, plot_property: str | None, plot_x: str | None,
 ) -> None:
-    """Check CONFIG at every point of a parameter grid; exit 1 if a requirement fails anywhere."""
-    from veribattery.sweep import any_requirement_fails, parse_axis, plot_sweep, run_sweep
+    """Check CONFIG at every point of a parameter grid.
+
+    Exit 1 if a point failed or a requirement fails anywhere (a summary line says which).
+    """
+    from veribattery.config import load_config
+    from veribattery.sweep import any_requirement_fails, axes_from, default_jobs, summary_line
 
     with user_errors():
-        axes = [parse_axis(spec) for spec in specs]
+        axes = axes_from(specs, load_config(config, overrides).sweep.vary)
         x_key = plot_x or axes[0].key
         if plot_path is not None:
             from veribattery.sweep.plot import check_plot_target
 
             check_plot_target(plot_path, x_key, [axis.key for axis in axes])
-        with sweep_progress() as progress:
-            frame = run_sweep(config, axes, overrides, progress=progress)
-        # Everything is computed before anything is written: no partial output on error.
-        if plot_path is not None:
-            plot_sweep(frame, x_key, plot_property or str(frame["property"].iloc[0]), plot_path)
-        if csv_path is not None:
-            frame.to_csv(csv_path, index=False)
+        frame = run_with_progress(
+            config, axes, overrides, results, jobs=jobs or default_jobs(), scheduler=scheduler,
+            force=force,
+        )
+        if plot_path is not None and frame["property"].notna().any():
+            name = plot_property or str(frame["property"].dropna().iloc[0])
+            from veribattery.sweep import plot_sweep
+
+            plot_sweep(frame, x_key, name, plot_path)
     print_warnings(frame.attrs.get("warnings", ()))
     print_sweep(frame, [axis.key for axis in axes], output_format)
-    sys.exit(1 if any_requirement_fails(frame) else 0)
+    err.print(summary_line(frame), markup=False)
+    sys.exit(1 if frame.attrs.get("failed") or any_requirement_fails(frame) else 0)
+
+
+def run_with_progress(
+    config: Path, axes: Sequence[Any], overrides: Sequence[str], results: Path | None,
+    **options: Any,
+) -> Any:
+    """:func:`run_sweep` with progress on stderr; Ctrl-C says how to resume, exit 130."""
+    from veribattery.sweep import run_sweep
+
+    try:
+        with sweep_progress() as (progress, on_point):
+            return run_sweep(config, axes, overrides, progress, results=results,
+                             on_point=on_point, notes=_note, **options)
+    except KeyboardInterrupt:
+        kept = f"; finished points are kept in {results}: rerun to resume" if results else ""
+        err.print(f"interrupted{kept}", markup=False)
+        sys.exit(130)
+
+
+def _note(text: str) -> None:
+    err.print(text, markup=False, style="dim")
 
 
 @contextmanager
-def sweep_progress() -> Iterator[Callable[[int, int], None] | None]:
-    """A progress bar of grid points on stderr (TTY only)."""
+def sweep_progress() -> Iterator[tuple[Callable[[int, int], None], Callable[[Any, Any], None]]]:
+    """A rich progress bar (done, failed, ETA) on a terminal; else one line per point."""
     if not err.is_terminal:
-        yield None
+        yield from _plain_lines()
         return
-    from rich.progress import Progress
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeRemainingColumn,
+    )
 
-    with Progress(console=err, transient=True) as bar:
-        task = bar.add_task("checking grid points", total=None)
+    failed = [0]
+    columns = (TextColumn("checking grid points"), BarColumn(), MofNCompleteColumn(),
+               TextColumn("{task.fields[failed]} failed"), TimeRemainingColumn())
+    with Progress(*columns, console=err, transient=True) as bar:
+        task = bar.add_task("sweep", total=None, failed=0)
 
         def update(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total,
-                       description=f"checking grid points ({done} of {total})")
+            bar.update(task, completed=done, total=total, failed=failed[0])
 
-        yield update
+        def point(result: Any, _: Any) -> None:
+            failed[0] += result.error is not None
+
+        yield update, point
+
+
+def _plain_lines() -> Iterator[tuple[Callable[[int, int], None], Callable[[Any, Any], None]]]:
+    """For logs: ``[12/604] battery.capacity_ah=6.1: p_success=0.93, … (1.52 s)``."""
+    from veribattery.sweep import describe_point
+
+    counts = [0, 0]
+
+    def update(done: int, total: int) -> None:
+        counts[:] = [done, total]
+
+    def point(result: Any, where: Any) -> None:
+        outcome = (f"FAILED: {result.error}" if result.error is not None else
+                   ", ".join(f"{v.name}={format_value(v.value)}" for v in result.values))
+        click.echo(f"[{counts[0]}/{counts[1]}] {describe_point(where)}: {outcome} "
+                   f"({result.seconds:.2f} s)", err=True)
+
+    yield update, point
 
 
 def print_sweep(frame: Any, keys: Sequence[str], output_format: str) -> None:

@@ -44,6 +44,7 @@ __all__ = [
     "MissionConfig",
     "Requirement",
     "StrategyConfig",
+    "SweepConfig",
     "TimesConfig",
     "parse_requirement",
 ]
@@ -351,6 +352,12 @@ class TimesConfig(_Section):
         return value
 
 
+class SweepConfig(_Section):
+    """A parameter sweep (``veribattery sweep``): the ``--vary`` SPECs, first varying slowest."""
+
+    vary: tuple[str, ...] = ()
+
+
 @dataclass(frozen=True, slots=True)
 class Requirement:
     """A requirement ``<property> <op> <bound>``, e.g. ``p_success >= 0.99``."""
@@ -402,6 +409,7 @@ class MissionConfig(_Section):
     times_min: TimesConfig = TimesConfig()
     properties: dict[str, str] = Field(default_factory=lambda: dict(PAPER_PROPERTIES))
     requirements: tuple[str, ...] = ()
+    sweep: SweepConfig = SweepConfig()
 
     @field_validator("properties")
     @classmethod

@@ -5,6 +5,13 @@ module importing matplotlib, loaded on first use of :func:`plot_sweep`)::
 
     axes = [parse_axis("battery.capacity_ah=10:13:0.5"), parse_axis("strategy.safe_t=0.25,0.3")]
     frame = run_sweep("mission.yaml", axes)      # one row per point x property
+    frame = run_sweep("mission.yaml", axes, jobs=2, results="sweep.csv")  # durable, resumable
+
+Modules: :mod:`~veribattery.sweep.grid` (axes and grids), :mod:`~veribattery.sweep.tasks`
+(units of work), :mod:`~veribattery.sweep.execute` (in-process, process pool, Dask),
+:mod:`~veribattery.sweep.store` (durable RESULTS files), :mod:`~veribattery.sweep.fingerprint`
+(which sweep a RESULTS file belongs to), :mod:`~veribattery.sweep.summary` (warnings),
+:mod:`~veribattery.sweep.run` (the orchestration) and :mod:`~veribattery.sweep.plot`.
 """
 
 from __future__ import annotations
@@ -12,22 +19,39 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from veribattery.sweep.grid import Axis, grid, parse_axis, point_overrides
-from veribattery.sweep.run import SweepProgress, any_requirement_fails, records, run_sweep, wide
+from veribattery.sweep.execute import default_jobs
+from veribattery.sweep.grid import Axis, axes_from, grid, parse_axis, point_overrides
+from veribattery.sweep.run import (
+    PointCallback,
+    SweepProgress,
+    any_requirement_fails,
+    describe_point,
+    records,
+    run_sweep,
+    wide,
+)
+from veribattery.sweep.summary import summary_line
+from veribattery.sweep.tasks import PointResult
 
 if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = [
     "Axis",
+    "PointCallback",
+    "PointResult",
     "SweepProgress",
     "any_requirement_fails",
+    "axes_from",
+    "default_jobs",
+    "describe_point",
     "grid",
     "parse_axis",
     "plot_sweep",
     "point_overrides",
     "records",
     "run_sweep",
+    "summary_line",
     "wide",
 ]
 

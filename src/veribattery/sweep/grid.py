@@ -22,7 +22,16 @@ from veribattery.config import known_keys
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.errors import ConfigError
 
-__all__ = ["MAX_POINTS", "Axis", "Point", "grid", "parse_axis", "point_overrides", "yaml_text"]
+__all__ = [
+    "MAX_POINTS",
+    "Axis",
+    "Point",
+    "axes_from",
+    "grid",
+    "parse_axis",
+    "point_overrides",
+    "yaml_text",
+]
 
 #: The most points one axis, or a whole grid, may have (a typo in STEP should not hang).
 MAX_POINTS = 10_000
@@ -56,6 +65,18 @@ def parse_axis(text: str) -> Axis:
     _check_key(text, key)
     values = _range(text, spec) if _RANGE.match(spec) else _items(text, spec)
     return Axis(key, values)
+
+
+def axes_from(specs: Sequence[str], config_vary: Sequence[str]) -> list[Axis]:
+    """The axes of ``--vary`` *specs*, or else of the config's ``sweep.vary`` list.
+
+    :raises ConfigError: when there are none, or a SPEC is bad.
+    """
+    chosen = specs or config_vary
+    if not chosen:
+        raise ConfigError("nothing to sweep: give --vary KEY=SPEC, or a sweep.vary list in "
+                          "the config")
+    return [parse_axis(spec) for spec in chosen]
 
 
 def grid(axes: Sequence[Axis]) -> list[Point]:

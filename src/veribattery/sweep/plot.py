@@ -20,7 +20,7 @@ from veribattery.errors import ConfigError
 __all__ = ["check_plot_target", "plot_sweep"]
 
 _NON_AXIS = {"point", "property", "value", "states", "transitions", "seconds", "requirement",
-             "holds"}
+             "holds", "recharge_cap_probability", "error"}
 
 
 def plot_sweep(frame: pd.DataFrame, x_key: str, property: str, path: str | Path) -> Path:

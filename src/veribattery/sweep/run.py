@@ -14,15 +14,18 @@ The frame has one row per grid point x property, with columns
     wall-clock seconds for the point (load, render, parse, build, check);
 ``requirement``, ``holds``
     the config's requirements on this property (joined by `` and ``) and whether all of
-    them hold; ``None`` and ``<NA>`` when no requirement names the property.
+    them hold; ``None`` and ``<NA>`` when no requirement names the property;
+``recharge_cap_probability``
+    P[F rc=RC_MAX] at the point: the probability that the recharge cap cuts the mission;
+``error``
+    why the point could not be checked (its one row then has no property), else empty.
 
-``frame.attrs["warnings"]`` holds the model warnings of every point, each prefixed with
-the point (``battery.capacity_ah=10: …``).
+``frame.attrs["warnings"]`` holds the model warnings, each once with the points
+concerned; ``frame.attrs["failed"]`` the number of points that failed.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -30,23 +33,33 @@ import pandas as pd
 
 from veribattery.config import MissionConfig, load_config
 from veribattery.errors import VeribatteryError
-from veribattery.mission import MissionReport, check_mission
+from veribattery.sweep.execute import Executor, InProcess, open_executor
+from veribattery.sweep.fingerprint import fingerprint
 from veribattery.sweep.grid import Axis, Point, grid, point_overrides, yaml_text
+from veribattery.sweep.store import ResultsStore, Row, check_target, open_results
+from veribattery.sweep.summary import sweep_warnings
+from veribattery.sweep.tasks import PointResult, plan_tasks
 
 __all__ = [
     "FIXED_COLUMNS",
+    "PointCallback",
     "SweepProgress",
     "any_requirement_fails",
+    "describe_point",
     "records",
     "run_sweep",
     "wide",
 ]
 
-#: Called with (points done, total points): once with 0 before the first, then after each.
+#: Called with (points done, total points): once before the first, then after each.
 SweepProgress = Callable[[int, int], None]
 
+#: Called after each point with its result and its grid point (for per-point log lines).
+PointCallback = Callable[[PointResult, Point], None]
+
 #: The columns after the axis keys, in order.
-FIXED_COLUMNS = ("property", "value", "states", "transitions", "seconds", "requirement", "holds")
+FIXED_COLUMNS = ("property", "value", "states", "transitions", "seconds", "requirement", "holds",
+                 "recharge_cap_probability", "error")
 
 
 def run_sweep(
@@ -54,33 +67,138 @@ def run_sweep(
     axes: Sequence[Axis],
     overrides: Sequence[str] = (),
     progress: SweepProgress | None = None,
+    *,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    results: str | Path | None = None,
+    force: bool = False,
+    on_point: PointCallback | None = None,
+    notes: Callable[[str], None] | None = None,
 ) -> pd.DataFrame:
     """Check the mission *config* at every point of the grid of *axes*.
 
-    Every point's config is loaded and validated before any is checked, so a bad value
-    fails at once rather than after hours of checking.
+    Every point's config is loaded and validated, the RESULTS target checked and the
+    scheduler reached before any point is checked or anything written, so bad input
+    fails at once and leaves nothing behind.
 
     :param config: the config file (or YAML text, as :func:`load_config` takes).
     :param axes: the swept keys; their values override *overrides*.
     :param overrides: ``KEY=VALUE`` strings applied at every point (``--set``).
     :param progress: called with (points done, total points).
-    :raises ConfigError: when the config is invalid at some point (naming the point).
+    :param jobs: worker processes (1: in this process); Dask workers for ``"local"``.
+    :param scheduler: a Dask scheduler address ``tcp://HOST:PORT``, or ``"local"``.
+    :param results: a ``.csv``, ``.jsonl`` or ``.parquet`` file: rows are appended as
+        points finish, and a rerun resumes (the file must belong to this same sweep).
+    :param force: start *results* afresh even if it holds another sweep's rows.
+    :param on_point: called after each point checked.
+    :param notes: called with one-line notes (points already done, reuse, executor).
+    :raises ConfigError: on invalid configs (naming the point), a bad RESULTS target or
+        an unreachable scheduler.
     """
     points = grid(axes)
     configs = [_load(config, overrides, point) for point in points]
-    rows: list[dict[str, object]] = []
-    warnings: list[str] = []
-    if progress is not None:
-        progress(0, len(points))
-    for index, (point, cfg) in enumerate(zip(points, configs, strict=True)):
-        started = time.perf_counter()
-        report = check_mission(cfg)
-        seconds = time.perf_counter() - started
-        rows.extend(_rows(index, point, report, seconds))
-        warnings.extend(f"{_describe(point)}: {w}" for w in report.warnings)
+    columns = ["point", *(axis.key for axis in axes), *FIXED_COLUMNS]
+    cells = [_cells(point) for point in points]
+    if results is not None:
+        check_target(Path(results))
+    with open_executor(jobs, scheduler) as executor:
+        store, earlier = None, {}
+        if results is not None:
+            mark = fingerprint(load_config(config, overrides), overrides, axes)
+            store, rows = open_results(Path(results), columns, mark, force=force)
+            earlier = _by_point(rows, cells)
+        sweep = _Sweep(points, configs, cells, store, earlier)
+        sweep.run(executor, jobs, progress, on_point, notes or (lambda _: None))
+    return sweep.frame(columns)
+
+
+class _Sweep:
+    """One sweep's state: every point's rows so far, and the new results."""
+
+    def __init__(self, points: list[Point], configs: list[MissionConfig], cells: list[Row],
+                 store: ResultsStore | None, earlier: dict[int, list[Row]]):
+        self.points, self.configs, self.cells, self.store = points, configs, cells, store
+        self.rows = earlier
+        self.results: list[tuple[Point, PointResult]] = []
+
+    def run(self, executor: Executor, jobs: int, progress: SweepProgress | None,
+            on_point: PointCallback | None, notes: Callable[[str], None]) -> None:
+        total = len(self.points)
+        done = {i for i, rows in self.rows.items() if rows[0]["error"] is None}
+        if done:
+            retried = len(self.rows) - len(done)
+            notes(f"{len(done)} of {total} points already done"
+                  + (f"; {retried} failed points are retried" if retried else ""))
+        pending = [(i, c) for i, c in enumerate(self.configs) if i not in done]
+        tasks, plan = plan_tasks(pending, jobs)
+        if pending:
+            where = executor.description if len(tasks) > 1 else InProcess.description
+            notes(f"{plan.describe()}; running {where}")
         if progress is not None:
-            progress(index + 1, len(points))
-    return _frame(rows, [axis.key for axis in axes], warnings)
+            progress(len(done), total)
+        try:
+            for result in executor.results(tasks):
+                self._record(result)
+                if progress is not None:
+                    progress(len(done) + len(self.results), total)
+                if on_point is not None:
+                    on_point(result, self.points[result.index])
+        except BaseException:
+            if self.store is not None:
+                self.store.close()
+            raise
+        if self.store is not None:
+            self.store.finish(row for i in sorted(self.rows) for row in self.rows[i])
+
+    def _record(self, result: PointResult) -> None:
+        rows = point_rows(result, self.cells[result.index])
+        if self.store is not None:
+            self.store.append(rows)
+        self.rows[result.index] = rows
+        self.results.append((self.points[result.index], result))
+
+    def frame(self, columns: list[str]) -> pd.DataFrame:
+        rows = [row for i in sorted(self.rows) for row in self.rows[i]]
+        frame = pd.DataFrame(rows, columns=columns)
+        frame["holds"] = frame["holds"].astype("boolean")
+        frame.attrs["warnings"] = sweep_warnings(self.results, frame, self.points)
+        frame.attrs["failed"] = int(frame.loc[frame["error"].notna(), "point"].nunique())
+        return frame
+
+
+def point_rows(result: PointResult, cells: Row) -> list[Row]:
+    """The tidy rows of one point: one per property, or one carrying the point's error."""
+    common: Row = {"states": result.states, "transitions": result.transitions,
+                   "seconds": result.seconds,
+                   "recharge_cap_probability": result.recharge_cap_probability,
+                   "error": result.error}
+    if result.error is not None:
+        return [{"point": result.index, **cells, "property": None, "value": None,
+                 "requirement": None, "holds": None, **common}]
+    return [{"point": result.index, **cells, "property": v.name, "value": v.value,
+             "requirement": v.requirement, "holds": v.holds, **common} for v in result.values]
+
+
+def _by_point(rows: list[Row], cells: list[Row]) -> dict[int, list[Row]]:
+    """Earlier rows by point: a point's successful rows, else its last error row.
+
+    Axis cells are taken from the grid rather than the file, so they have their types.
+    """
+    found: dict[int, list[Row]] = {}
+    for row in rows:
+        index = int(row["point"])  # type: ignore[call-overload]
+        if not 0 <= index < len(cells):
+            continue
+        row = {**row, "point": index, **cells[index]}
+        kept = found.setdefault(index, [])
+        if row["error"] is not None or (kept and kept[0]["error"] is not None):
+            kept.clear()
+        kept.append(row)
+    return found
+
+
+def _cells(point: Point) -> Row:
+    return {key: yaml_text(v) if isinstance(v, tuple) else v for key, v in point.items()}
 
 
 def _load(config: str | Path, overrides: Sequence[str], point: Point) -> MissionConfig:
@@ -89,35 +207,12 @@ def _load(config: str | Path, overrides: Sequence[str], point: Point) -> Mission
     except VeribatteryError as exc:
         if not point:
             raise
-        raise type(exc)(f"at {_describe(point)}: {exc.message}", exc.span) from None
+        raise type(exc)(f"at {describe_point(point)}: {exc.message}", exc.span) from None
 
 
-def _describe(point: Point) -> str:
+def describe_point(point: Point) -> str:
+    """``key=value, key=value`` for messages."""
     return ", ".join(f"{key}={yaml_text(value)}" for key, value in point.items()) or "the config"
-
-
-def _rows(
-    index: int, point: Point, report: MissionReport, seconds: float
-) -> list[dict[str, object]]:
-    dtmc = report.run.dtmc
-    cells = {key: yaml_text(v) if isinstance(v, tuple) else v for key, v in point.items()}
-    rows = []
-    for name, value in report.values.items():
-        outcomes = [o for o in report.requirements if o.requirement.prop == name]
-        rows.append({
-            "point": index, **cells, "property": name, "value": value,
-            "states": dtmc.num_states, "transitions": dtmc.num_transitions, "seconds": seconds,
-            "requirement": " and ".join(str(o.requirement) for o in outcomes) or None,
-            "holds": all(o.holds for o in outcomes) if outcomes else None,
-        })
-    return rows
-
-
-def _frame(rows: list[dict[str, object]], keys: list[str], warnings: list[str]) -> pd.DataFrame:
-    frame = pd.DataFrame(rows, columns=["point", *keys, *FIXED_COLUMNS])
-    frame["holds"] = frame["holds"].astype("boolean")
-    frame.attrs["warnings"] = tuple(warnings)
-    return frame
 
 
 def any_requirement_fails(frame: pd.DataFrame) -> bool:

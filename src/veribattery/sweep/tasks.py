@@ -1,0 +1,143 @@
+"""Units of sweep work: tasks of grid points and what checking one point gives back.
+
+A task is a run of consecutive grid points checked in order by one
+:class:`~veribattery.mission.MissionChecker`, so that points with equal
+:func:`~veribattery.mission.reuse_key` can share one state space. A task is what an
+executor ships to a worker; a :class:`PointResult` is what comes back: plain numbers and
+strings only, never the DTMC, so it pickles small.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass
+
+from veribattery.config import MissionConfig
+from veribattery.mission import MissionChecker, MissionReport, reuse_key
+
+__all__ = ["PointResult", "PropertyValue", "ReusePlan", "Task", "iter_task", "plan_tasks",
+           "run_task"]
+
+
+@dataclass(frozen=True, slots=True)
+class PropertyValue:
+    """One property's value at a point, with the requirements on it and their verdict."""
+
+    name: str
+    value: float | bool
+    requirement: str | None
+    holds: bool | None
+
+
+@dataclass(frozen=True, slots=True)
+class PointResult:
+    """The outcome of checking one grid point (*error* set, and no values, if it failed)."""
+
+    index: int
+    values: tuple[PropertyValue, ...] = ()
+    states: int | None = None
+    transitions: int | None = None
+    seconds: float = 0.0
+    recharge_cap_probability: float | None = None
+    warnings: tuple[str, ...] = ()
+    error: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Task:
+    """Consecutive grid points (index, config), checked in order by one checker."""
+
+    points: tuple[tuple[int, MissionConfig], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class ReusePlan:
+    """How the pending points are built: how many share state spaces, and how many."""
+
+    shared_points: int
+    state_spaces: int
+    total_points: int
+
+    def describe(self) -> str:
+        """``structure reuse: 50 points share 1 state space`` or ``full build at every point``."""
+        if self.shared_points == 0:
+            return "full build at every point"
+        spaces = f"{self.state_spaces} state space{'s' if self.state_spaces != 1 else ''}"
+        text = f"structure reuse: {self.shared_points} points share {spaces}"
+        rest = self.total_points - self.shared_points
+        return text + (f"; full build at the other {rest}" if rest else "")
+
+
+def plan_tasks(
+    points: Sequence[tuple[int, MissionConfig]], jobs: int
+) -> tuple[list[Task], ReusePlan]:
+    """Group consecutive *points* with equal non-None reuse keys into tasks.
+
+    A run of equal keys longer than an even share of the points (``len / jobs``) is cut
+    into pieces, each building once, so that every worker has work.
+    """
+    runs = _runs(points)
+    shared = [run for run in runs if len(run) > 1]
+    plan = ReusePlan(sum(map(len, shared)), len(shared), len(points))
+    share = max(1, math.ceil(len(points) / max(jobs, 1)))
+    tasks = [Task(tuple(run[i:i + share])) for run in runs for i in range(0, len(run), share)]
+    return tasks, plan
+
+
+def _runs(points: Sequence[tuple[int, MissionConfig]]) -> list[list[tuple[int, MissionConfig]]]:
+    runs: list[list[tuple[int, MissionConfig]]] = []
+    previous: str | None = None
+    for point in points:
+        key = reuse_key(point[1])
+        if key is not None and key == previous:
+            runs[-1].append(point)
+        else:
+            runs.append([point])
+        previous = key
+    return runs
+
+
+def run_task(task: Task) -> list[PointResult]:
+    """Check every point of *task* (what a worker process runs)."""
+    return list(iter_task(task))
+
+
+def iter_task(task: Task) -> Iterator[PointResult]:
+    """Check the points of *task* in order with one checker, yielding each as it is done."""
+    checker = MissionChecker()
+    for index, cfg in task.points:
+        yield check_point(checker, index, cfg)
+
+
+def check_point(checker: MissionChecker, index: int, cfg: MissionConfig) -> PointResult:
+    """Check one point; any failure becomes the point's *error* and the sweep goes on."""
+    started = time.perf_counter()
+    try:
+        report = checker.check(cfg)
+    except MemoryError:
+        return PointResult(index, seconds=time.perf_counter() - started, error="out of memory")
+    except Exception as exc:  # a failed point is data in a sweep, whatever the cause
+        return PointResult(index, seconds=time.perf_counter() - started,
+                           error=one_line(f"{type(exc).__name__}: {exc}"))
+    return point_result(index, report, time.perf_counter() - started)
+
+
+def point_result(index: int, report: MissionReport, seconds: float) -> PointResult:
+    """The plain-data summary of *report*."""
+    values = []
+    for name, value in report.values.items():
+        outcomes = [o for o in report.requirements if o.requirement.prop == name]
+        values.append(PropertyValue(
+            name, value, " and ".join(str(o.requirement) for o in outcomes) or None,
+            all(o.holds for o in outcomes) if outcomes else None,
+        ))
+    dtmc = report.run.dtmc
+    return PointResult(index, tuple(values), dtmc.num_states, dtmc.num_transitions, seconds,
+                       report.recharge_cap_probability, report.run.warnings)
+
+
+def one_line(text: str) -> str:
+    """*text* on one line (a result cell must not break a CSV/JSONL line)."""
+    return " ".join(text.split())

@@ -1,0 +1,27 @@
+"""Sweep test helpers: a tiny mission (3x3 farm, 0.5 Ah units, 25 recharges, ~2,500 states)."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from veribattery.sweep import Axis, parse_axis
+
+SMALL_FARM = ("farm.cols=3", "farm.rows=3", "farm.base=[0,0]", "battery.resolution_ah=0.5",
+              "battery.max_recharges=25")
+
+#: Four points: two models x two capacities.
+FOUR_POINTS = ("battery.model=advanced,basic_high", "battery.capacity_ah=10:10.5:0.5")
+
+
+def four_axes() -> list[Axis]:
+    return [parse_axis(spec) for spec in FOUR_POINTS]
+
+
+def same_results(left: pd.DataFrame, right: pd.DataFrame) -> None:
+    """Equal bit for bit in every column but the timings, and in the same (grid) order."""
+    columns = [c for c in left.columns if c != "seconds"]
+    assert list(left.columns) == list(right.columns)
+    pd.testing.assert_frame_equal(
+        left[columns].reset_index(drop=True), right[columns].reset_index(drop=True),
+        check_exact=True, check_dtype=False,
+    )

@@ -1,0 +1,151 @@
+"""Durable RESULTS files: rows as points finish, resume, fingerprints, failed points."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from tests.sweep.helpers import SMALL_FARM, four_axes, same_results
+from veribattery.errors import ConfigError
+from veribattery.sweep import Axis, run_sweep
+from veribattery.sweep.fingerprint import SweepFingerprint
+from veribattery.sweep.store import _reopen
+
+
+def _read(path: Path) -> pd.DataFrame:
+    if path.suffix == ".parquet":
+        return pd.read_parquet(path)
+    if path.suffix == ".jsonl":
+        return pd.DataFrame([json.loads(line) for line in path.read_text().splitlines()])
+    return pd.read_csv(path)
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".parquet"])
+def test_results_file_holds_the_sweep(
+    serial_frame: pd.DataFrame, tmp_path: Path, suffix: str
+) -> None:
+    if suffix == ".parquet":
+        pytest.importorskip("pyarrow")
+    path = tmp_path / f"r{suffix}"
+    frame = run_sweep("", four_axes(), SMALL_FARM, results=path)
+    same_results(frame, serial_frame)
+    written = _read(path)
+    assert list(written.columns) == list(frame.columns)
+    assert list(written["point"]) == list(frame["point"])  # grid order
+    assert list(written["value"].astype(float)) == list(frame["value"].astype(float))
+    assert written["error"].isna().all()
+    assert not (tmp_path / f"r{suffix}.partial.jsonl").exists()
+    mark = SweepFingerprint.from_json((tmp_path / f"r{suffix}.sweep.json").read_text())
+    assert mark.sets == SMALL_FARM
+
+
+def test_rerun_resumes_and_checks_only_missing_points(
+    serial_frame: pd.DataFrame, tmp_path: Path
+) -> None:
+    path = tmp_path / "r.csv"
+    run_sweep("", four_axes(), SMALL_FARM, results=path)
+    lines = path.read_text().splitlines(keepends=True)
+    # Keep the header and the first point (3 properties); tear the next row in half,
+    # as a crash in the middle of a write would.
+    path.write_text("".join(lines[:4]) + lines[4][:10])
+    notes: list[str] = []
+    checked: list[int] = []
+    frame = run_sweep("", four_axes(), SMALL_FARM, results=path, notes=notes.append,
+                      on_point=lambda result, _: checked.append(result.index))
+    assert notes[0] == "1 of 4 points already done"
+    assert checked == [1, 2, 3]
+    same_results(frame, serial_frame)
+    assert list(_read(path)["point"]) == [0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3]
+    # A third run finds everything done and checks nothing.
+    notes.clear()
+    again = run_sweep("", four_axes(), SMALL_FARM, results=path, notes=notes.append,
+                      on_point=lambda *_: pytest.fail("checked a point again"))
+    assert notes == ["4 of 4 points already done"]
+    same_results(again, serial_frame)
+
+
+def test_torn_last_line_is_cut_before_appending(tmp_path: Path) -> None:
+    path = tmp_path / "r.csv"
+    path.write_text("a,b\n1,2\n3,")
+    _reopen(path, ["a", "b"]).close()
+    assert path.read_text() == "a,b\n1,2\n"
+
+
+@pytest.mark.parametrize(
+    ("change", "expected"),
+    [
+        ({"overrides": (*SMALL_FARM, "strategy.safe_t=0.25")}, "--set differs"),
+        ({"axes": four_axes()[:1]}, "the axes differ"),
+        ({"config": "strategy:\n  safe_t: 0.25\n"}, "the resolved base config differs"),
+    ],
+    ids=["set", "axes", "config"],
+)
+def test_results_of_another_sweep_are_refused(
+    tmp_path: Path, change: dict[str, object], expected: str
+) -> None:
+    path = tmp_path / "r.csv"
+    run_sweep("", four_axes(), SMALL_FARM, results=path)
+    before = path.read_bytes()
+    kwargs: dict[str, object] = {"config": "", "axes": four_axes(), "overrides": SMALL_FARM}
+    kwargs |= change
+    with pytest.raises(ConfigError, match=f"another sweep's results: {expected}"):
+        run_sweep(results=path, **kwargs)  # type: ignore[arg-type]
+    assert path.read_bytes() == before
+    # --force starts afresh.
+    frame = run_sweep(results=path, force=True, **kwargs)  # type: ignore[arg-type]
+    assert list(_read(path)["point"]) == list(frame["point"])
+
+
+def test_model_version_change_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "r.csv"
+    axes = four_axes()[:1]
+    run_sweep("", axes, SMALL_FARM, results=path)
+    meta = tmp_path / "r.csv.sweep.json"
+    data = json.loads(meta.read_text())
+    meta.write_text(json.dumps({**data, "model": "veribattery 0.0.1, templates 000"}))
+    with pytest.raises(ConfigError, match="the model version differs"):
+        run_sweep("", axes, SMALL_FARM, results=path)
+
+
+def test_a_file_that_is_not_sweep_results_is_never_overwritten(tmp_path: Path) -> None:
+    path = tmp_path / "mine.csv"
+    path.write_text("precious\n")
+    with pytest.raises(ConfigError, match="not the results of a veribattery sweep"):
+        run_sweep("", four_axes()[:1], SMALL_FARM, results=path)
+    assert path.read_text() == "precious\n"
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [("r.txt", "unsupported results type"), ("missing/r.csv", "does not exist")],
+)
+def test_bad_targets(tmp_path: Path, name: str, expected: str) -> None:
+    with pytest.raises(ConfigError, match=expected):
+        run_sweep("", four_axes(), SMALL_FARM, results=tmp_path / name,
+                  on_point=lambda *_: pytest.fail("checked a point"))
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_failed_point_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> None:
+    # A property with an undeclared label fails at the second point only.
+    axis = Axis("properties.extra", ('P=? [ F "success" ]', 'P=? [ F "nope" ]'))
+    path = tmp_path / "r.jsonl"
+    frame = run_sweep("", [axis], SMALL_FARM, results=path)
+    assert frame.attrs["failed"] == 1
+    failed = frame[frame["point"] == 1]
+    assert len(failed) == 1 and failed["property"].isna().all()
+    assert "nope" in str(failed["error"].iloc[0])
+    # Setting properties.extra replaces the default properties: one property per point.
+    good = frame[frame["point"] == 0].set_index("property")["value"]
+    assert good["extra"] == pytest.approx(0.9999999998513445, rel=1e-9)  # as `check` gives
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    assert [r["point"] for r in rows] == [0, 1]
+    assert rows[-1]["error"] == failed["error"].iloc[0]
+    # A rerun retries the failed point (it fails again, recorded once).
+    notes: list[str] = []
+    run_sweep("", [axis], SMALL_FARM, results=path, notes=notes.append)
+    assert notes[0] == "1 of 2 points already done; 1 failed points are retried"
+    assert [json.loads(line)["point"] for line in path.read_text().splitlines()] == [0, 1]

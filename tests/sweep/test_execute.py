@@ -1,0 +1,121 @@
+"""Executors: a local process pool and Dask give the in-process results, bit for bit."""
+
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from tests.sweep.helpers import SMALL_FARM, four_axes, same_results
+from veribattery.config import load_config
+from veribattery.errors import ConfigError
+from veribattery.sweep import run_sweep
+from veribattery.sweep.execute import LocalPool, open_executor
+from veribattery.sweep.tasks import ReusePlan, Task, plan_tasks
+
+
+def test_process_pool_equals_in_process(serial_frame: pd.DataFrame, tmp_path: Path) -> None:
+    order: list[int] = []
+    frame = run_sweep("", four_axes(), SMALL_FARM, jobs=2, results=tmp_path / "r.csv",
+                      on_point=lambda result, _: order.append(result.index))
+    assert sorted(order) == [0, 1, 2, 3]
+    same_results(frame, serial_frame)
+
+
+def test_pool_recovers_from_a_dead_worker(serial_frame: pd.DataFrame) -> None:
+    # The pool's worker processes are killed after the first point: the pool breaks, is
+    # restarted, and the unfinished tasks run again.
+    cfgs = [load_config("", [*SMALL_FARM, "battery.capacity_ah=10"])] * 3
+    tasks = [Task(((i, cfg),)) for i, cfg in enumerate(cfgs)]
+    pool = LocalPool(2)
+    results = pool.results(tasks)
+    first = next(results)
+    _kill_pool_workers()
+    rest = list(results)
+    indices = sorted([first.index, *(r.index for r in rest)])
+    assert indices == [0, 1, 2]  # every point once, none lost, none duplicated
+    assert all(r.error is None for r in [first, *rest])
+
+
+def _kill_pool_workers() -> None:
+    import multiprocessing
+
+    for child in multiprocessing.active_children():
+        if child.name.startswith(("SpawnProcess", "Process")):
+            os.kill(child.pid or 0, signal.SIGKILL)
+
+
+def test_plan_full_build_without_reuse_keys() -> None:
+    cfg = load_config("", SMALL_FARM)
+    tasks, plan = plan_tasks([(i, cfg) for i in range(5)], jobs=2)
+    assert [len(t.points) for t in tasks] == [1] * 5  # reuse_key is None: one point each
+    assert plan.describe() == "full build at every point"
+
+
+def test_plan_groups_equal_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
+    import veribattery.sweep.tasks as tasks_module
+
+    keys = iter(["a", "a", "a", None, "b", "b", "a"])
+    monkeypatch.setattr(tasks_module, "reuse_key", lambda cfg: next(keys))
+    cfg = load_config("", SMALL_FARM)
+    tasks, plan = plan_tasks([(i, cfg) for i in range(7)], jobs=1)
+    assert [[i for i, _ in t.points] for t in tasks] == [[0, 1, 2], [3], [4, 5], [6]]
+    assert plan == ReusePlan(5, 2, 7)
+    assert plan.describe() == ("structure reuse: 5 points share 2 state spaces; "
+                               "full build at the other 2")
+    # With two workers a run longer than an even share (4 points) is cut.
+    keys = iter(["a"] * 7)
+    tasks, _ = plan_tasks([(i, cfg) for i in range(7)], jobs=2)
+    assert [len(t.points) for t in tasks] == [4, 3]
+
+
+# --------------------------------------------------------------------------- Dask
+
+def _local_cluster() -> object:
+    distributed = pytest.importorskip("distributed")
+    return distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                    host="127.0.0.1", dashboard_address=None)
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+@pytest.mark.filterwarnings("ignore::ResourceWarning")
+def test_dask_cluster_equals_local_and_survives_a_killed_worker(
+    serial_frame: pd.DataFrame, tmp_path: Path
+) -> None:
+    from distributed import Client
+
+    with _local_cluster() as cluster, Client(cluster) as client:  # type: ignore[attr-defined]
+        pids = list(client.run(os.getpid).values())
+        killed: list[int] = []
+
+        def kill_one(done: int, total: int) -> None:
+            if done == 1 and not killed:  # mid-sweep: three points still to come
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+
+        path = tmp_path / "r.csv"
+        frame = run_sweep("", four_axes(), SMALL_FARM, kill_one, jobs=2, results=path,
+                          scheduler=cluster.scheduler_address)  # type: ignore[attr-defined]
+    assert killed
+    same_results(frame, serial_frame)
+    written = pd.read_csv(path)
+    assert list(written["point"]) == [p for p in range(4) for _ in range(3)]  # none twice
+    assert list(written["value"]) == list(serial_frame["value"].astype(float))
+
+
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+@pytest.mark.filterwarnings("ignore::ResourceWarning")
+def test_scheduler_local_equals_in_process(serial_frame: pd.DataFrame) -> None:
+    pytest.importorskip("distributed")
+    frame = run_sweep("", four_axes(), SMALL_FARM, jobs=2, scheduler="local")
+    same_results(frame, serial_frame)
+
+
+def test_unreachable_scheduler_is_one_line() -> None:
+    pytest.importorskip("distributed")
+    with pytest.raises(ConfigError, match=r"^--scheduler tcp://127.0.0.1:9: cannot reach"),\
+            open_executor(1, "tcp://127.0.0.1:9"):
+        pass

@@ -1,0 +1,96 @@
+"""The paper's figures from sweep frames: files written, CSV values equal the sweep's."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from click.testing import CliRunner
+
+from tests.sweep.helpers import SMALL_FARM
+from veribattery.analyses import figures
+from veribattery.cli import cli
+from veribattery.sweep import parse_axis, run_sweep
+
+#: The four models at two capacities inside Fig. 6's zoom window, on the tiny mission.
+AXES = (f"battery.model={','.join(figures.MODELS)}", "battery.capacity_ah=12:12.5:0.5")
+
+
+@pytest.fixture(scope="module")
+def frame() -> pd.DataFrame:
+    # A stand-in for the conditional expectation, to exercise Fig. 8's third-panel hook.
+    given = f"properties.{figures.GIVEN_SUCCESS}=" + "'R{\"mt\"}=? [ F \"done\" ]'"
+    sets = [*SMALL_FARM, "properties.p_success='P=? [ F \"success\" ]'",
+            "properties.exp_mission_time='R{\"mt\"}=? [ F \"done\" ]'", given]
+    return run_sweep("", [parse_axis(a) for a in AXES], sets, jobs=1)
+
+
+def _value(frame: pd.DataFrame, model: str, capacity: float, prop: str) -> float:
+    rows = frame[(frame["battery.model"] == model) & (frame["battery.capacity_ah"] == capacity)
+                 & (frame["property"] == prop)]
+    return float(rows["value"].iloc[0])
+
+
+def test_fig6_files_and_values(frame: pd.DataFrame, tmp_path: Path) -> None:
+    paths = figures.draw_fig6(frame, tmp_path)
+    assert [p.name for p in paths] == ["fig6.png", "fig6.svg", "fig6.csv"]
+    assert paths[0].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert b"<svg" in paths[1].read_bytes()[:500]
+    table = pd.read_csv(paths[2], index_col="capacity_ah")
+    assert list(table.columns) == [f"p_success:{m}" for m in figures.MODELS]
+    for model in figures.MODELS:
+        for capacity in (12, 12.5):
+            assert table.loc[capacity, f"p_success:{model}"] == _value(
+                frame, model, capacity, "p_success")
+
+
+def test_fig8_difference_and_third_panel_hook(frame: pd.DataFrame, tmp_path: Path) -> None:
+    paths = figures.draw_fig8(frame, tmp_path)
+    table = pd.read_csv(paths[2], index_col="capacity_ah")
+    advanced = _value(frame, "advanced", 12.5, "exp_mission_time")
+    basic_low = _value(frame, "basic_low", 12.5, "exp_mission_time")
+    assert table.loc[12.5, "exp_mission_time:basic_low"] == basic_low
+    assert table.loc[12.5, "minus_advanced:basic_low"] == basic_low - advanced
+    # The property is present, so the third panel (and its columns) is drawn.
+    assert f"{figures.GIVEN_SUCCESS}:advanced" in table.columns
+    without = frame[frame["property"] != figures.GIVEN_SUCCESS]
+    table = pd.read_csv(figures.draw_fig8(without, tmp_path / "two")[2])
+    assert not any(c.startswith(figures.GIVEN_SUCCESS) for c in table.columns)
+
+
+def test_reproduce_all_needs_an_output_folder() -> None:
+    result = CliRunner().invoke(cli, ["reproduce", "all"])
+    assert result.exit_code == 2
+    assert "-o DIR" in result.stderr
+
+
+def test_reproduce_fig6_resumes_a_finished_sweep_and_draws(tmp_path: Path) -> None:
+    # A complete capacity sweep already on disk (synthetic values): `reproduce` must
+    # resume it (checking nothing) and draw from it.
+    from veribattery.config import load_config
+    from veribattery.sweep import grid
+    from veribattery.sweep.fingerprint import fingerprint
+    from veribattery.sweep.run import FIXED_COLUMNS
+
+    axes = [parse_axis(a) for a in figures.CAPACITY_AXES]
+    sets = figures.CAPACITY_SETS
+    mark = fingerprint(load_config("", sets), sets, axes)
+    (tmp_path / f"{figures.CAPACITY_RESULTS}.sweep.json").write_text(mark.as_json())
+    rows = []
+    for index, point in enumerate(grid(axes)):
+        capacity = float(point["battery.capacity_ah"])  # type: ignore[arg-type]
+        for prop, value in (("p_success", capacity / 20), ("exp_mission_time", 100 * capacity),
+                            ("exp_recharges", capacity)):
+            rows.append({"point": index, **point, "property": prop, "value": value,
+                         "states": 1, "transitions": 1, "seconds": 0.0,
+                         "recharge_cap_probability": 0.0})
+    columns = ["point", "battery.model", "battery.capacity_ah", *FIXED_COLUMNS]
+    pd.DataFrame(rows, columns=columns).to_csv(tmp_path / figures.CAPACITY_RESULTS, index=False)
+    result = CliRunner().invoke(cli, ["reproduce", "fig6", "-o", str(tmp_path), "-j", "1"])
+    assert result.exit_code == 0, result.output
+    assert "604 of 604 points already done" in result.stderr
+    table = pd.read_csv(tmp_path / "fig6.csv", index_col="capacity_ah")
+    assert len(table) == 151
+    assert table.loc[12.3, "p_success:basic_low"] == pytest.approx(12.3 / 20, rel=1e-15)
+    assert (tmp_path / "fig6.png").stat().st_size > 10_000
