@@ -267,6 +267,21 @@ def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray
     return _step_power(_rows_in(P, remain), later, np.zeros_like(later), k)
 
 
+def interval_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                         low: int, high: int) -> FloatArray:
+    """Probability of ``remain U[low,high] target``: *remain* for the first *low* steps,
+    then *target* within ``high - low`` more steps, passing through *remain*.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param remain: states that must hold before *target* is reached.
+    :param target: states to reach, at a step in ``[low, high]``.
+    :param low: first step that counts, at least 0.
+    :param high: last step that counts, at least *low*.
+    """
+    later = bounded_until_probs(P, remain, target, high - low)
+    return _step_power(_rows_in(P, remain), later, np.zeros_like(later), low)
+
+
 def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int) -> FloatArray:
     """Expected reward of the first *k* steps (``C<=k``).
 

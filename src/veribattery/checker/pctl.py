@@ -11,15 +11,17 @@ from __future__ import annotations
 
 import operator
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import TypeAlias
 
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray
-from veribattery.checker import kernels
+from veribattery.checker import ctl, expression, filters, kernels, steady
 from veribattery.errors import CheckError
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     Binary,
     BoolLit,
@@ -28,21 +30,33 @@ from veribattery.lang.nodes import (
     DoubleLit,
     Eventually,
     Expr,
+    Filter,
     Globally,
     Instantaneous,
     IntLit,
     Ite,
     LabelRef,
+    LongRun,
     Next,
     PathFormula,
     ProbOp,
+    Quantified,
     Reach,
+    ReachUntil,
+    Release,
     RewardOp,
     RewardPath,
+    SteadyOp,
     TimeBound,
+    TimeInterval,
+    Total,
     Unary,
     Until,
+    WeakUntil,
 )
+from veribattery.lang.property_rules import STEPS_REWARD
+
+_OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
 
 Values: TypeAlias = FloatArray | BoolArray
 
@@ -77,9 +91,37 @@ def values(dtmc: DTMC, formula: Expr) -> Values:
         return path_probs(dtmc, formula.path)
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(dtmc, formula)
+    if isinstance(formula, SteadyOp) and formula.op == "=?":
+        return steady.steady_probs(dtmc.transitions, state_set(dtmc, formula.operand))
+    if isinstance(formula, Filter):
+        return _filter_values(dtmc, formula)
     if _has_operator(formula):
-        return state_set(dtmc, formula)
+        return _compound_values(dtmc, formula)
     return _leaf(dtmc, formula)
+
+
+def property_answer(dtmc: DTMC, formula: Expr) -> filters.FilterOutcome:
+    """The answer PRISM reports for a property: a filter's value, or PRISM's default
+    filter -- ``forall`` initial states for a boolean, the value of the single
+    initial state, or the ``range`` over several initial states.
+
+    :raises CheckError: when the model has no initial state, or a filter fails.
+    """
+    printed: tuple[str, ...] = ()
+    if isinstance(formula, Filter):
+        outcome = filter_outcome(dtmc, formula)
+        if outcome.value is not None:
+            return outcome
+        per_state, printed = outcome.values, outcome.printed
+    else:
+        per_state = values(dtmc, formula)
+    if len(dtmc.initial) == 0:
+        raise CheckError("the model has no initial state", formula.span)
+    default = "forall" if per_state.dtype == np.bool_ else (
+        "state" if len(dtmc.initial) == 1 else "range")
+    answer = filters.apply_filter(default, per_state, dtmc.initial_mask, dtmc.states,
+                                  dtmc.variable_names, formula.span)
+    return replace(answer, printed=printed)
 
 
 def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
@@ -90,8 +132,10 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
     :raises CheckError: when *expr* is not boolean or nests operators unsupportedly.
     """
     match expr:
-        case ProbOp() | RewardOp():
+        case ProbOp() | RewardOp() | SteadyOp():
             return _bounded_operator(dtmc, expr)
+        case Quantified(quantifier=quantifier, path=path):
+            return _ctl(dtmc, quantifier, path)
         case Unary(op="!", operand=operand):
             return ~state_set(dtmc, operand)
         case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
@@ -99,10 +143,7 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
         case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
             return np.where(state_set(dtmc, cond), state_set(dtmc, then),
                             state_set(dtmc, otherwise))
-    if _has_operator(expr):
-        raise CheckError("P and R operators may only be combined with ! & | => <=> "
-                         "and ?:", expr.span)
-    return _as_mask(_leaf(dtmc, expr), expr)
+    return _as_mask(values(dtmc, expr), expr)
 
 
 def path_probs(dtmc: DTMC, path: PathFormula) -> FloatArray:
@@ -121,6 +162,14 @@ def path_probs(dtmc: DTMC, path: PathFormula) -> FloatArray:
         case Globally(operand=operand, bound=bound):
             escape = _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound)
             return np.asarray(1.0 - escape, dtype=np.float64)
+        case WeakUntil(left=left, right=right, bound=bound):
+            # a W b = !((a & !b) U (!a & !b)), bounds kept (as PRISM rewrites it).
+            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            return np.asarray(1.0 - _until(dtmc, a & ~b, ~a & ~b, bound), dtype=np.float64)
+        case Release(left=left, right=right, bound=bound):
+            # a R b = !(!a U !b), bounds kept.
+            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            return np.asarray(1.0 - _until(dtmc, ~a, ~b, bound), dtype=np.float64)
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
 
 
@@ -140,6 +189,12 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> FloatArray:
             return kernels.cumulative_rewards(P, structure.total, _steps(bound))
         case Instantaneous(time=time):
             return kernels.instantaneous_rewards(P, structure.state, _steps(time))
+        case Total():
+            return steady.total_rewards(P, structure.total)
+        case LongRun():
+            return steady.long_run_rewards(P, structure.total)
+        case ReachUntil(left=left, right=right):
+            return _reach_until_rewards(dtmc, structure, left, right)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
 
 
@@ -148,43 +203,64 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> FloatArray:
 # ---------------------------------------------------------------------------
 
 
-def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp) -> BoolArray:
-    """``P~p [..]`` or ``R~r [..]`` as a mask: the value compared with the bound."""
+def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp) -> BoolArray:
+    """``P~p [..]``, ``R~r [..]`` or ``S~p [..]`` as a mask: the value against the bound."""
     if op.op == "=?" or op.bound is None:
         raise CheckError("a query (=?) cannot be used as a state formula", op.span)
-    numbers = path_probs(dtmc, op.path) if isinstance(op, ProbOp) else path_rewards(dtmc, op)
-    return _COMPARISONS[op.op](numbers, _number(op.bound))
+    query = replace(op, op="=?", bound=None)
+    return _COMPARISONS[op.op](np.asarray(values(dtmc, query)), _number(op.bound))
 
 
 def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
-           bound: TimeBound | None) -> FloatArray:
-    """Dispatch ``remain U target`` to the kernel for its step bound."""
+           bound: TimeBound | TimeInterval | None) -> FloatArray:
+    """Dispatch ``remain U target`` to the kernel for its step interval."""
     P = dtmc.transitions
     if bound is None:
         return kernels.until_probs(P, remain, target)
+    low, high = _interval(bound)
+    if high is not None and high < low:
+        return np.zeros(dtmc.num_states)
+    if low == 0:
+        if high is None:
+            return kernels.until_probs(P, remain, target)
+        return kernels.bounded_until_probs(P, remain, target, high)
+    if high is None:
+        return kernels.lower_bounded_until_probs(P, remain, target, low)
+    return kernels.interval_until_probs(P, remain, target, low, high)
+
+
+def _interval(bound: TimeBound | TimeInterval) -> tuple[int, int | None]:
+    """The steps ``[low, high]`` (``high`` None: unbounded) at which the target counts."""
+    if isinstance(bound, TimeInterval):
+        return _steps(bound.low), _steps(bound.high)
     k = _steps(bound.value)
     match bound.op:
         case "<=":
-            return kernels.bounded_until_probs(P, remain, target, k)
+            return 0, k
         case "<":
-            # U<0 can never be met; U<k is U<=k-1.
-            if k == 0:
-                return np.zeros(dtmc.num_states)
-            return kernels.bounded_until_probs(P, remain, target, k - 1)
+            return 0, k - 1
         case ">=":
-            return kernels.lower_bounded_until_probs(P, remain, target, k)
+            return k, None
         case ">":
-            return kernels.lower_bounded_until_probs(P, remain, target, k + 1)
-    raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
+            return k + 1, None
+    return k, k
 
 
 def _reward_structure(dtmc: DTMC, op: RewardOp) -> RewardVectors:
     """The reward structure *op* names, or a CheckError that says where."""
+    if op.reward == STEPS_REWARD:
+        ones = np.ones(dtmc.num_states)
+        return RewardVectors(None, ones, np.zeros(dtmc.num_states))
     try:
-        return dtmc.reward(op.reward)
+        structure = dtmc.reward(op.reward)
     except (KeyError, IndexError):
         key = "" if op.reward is None else f" {op.reward!r}"
         raise CheckError(f"the model has no reward structure{key}", op.span) from None
+    if np.any(structure.state < 0) or np.any(structure.transition < 0):
+        name = "" if structure.name is None else f' "{structure.name}"'
+        raise CheckError(f"the reward structure{name} has negative rewards, which PRISM "
+                         "does not allow", op.span)
+    return structure
 
 
 def _number(expr: Expr) -> float:
@@ -204,6 +280,85 @@ def _steps(expr: Expr) -> int:
         raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
                          expr.span)
     return int(value)
+
+
+# ---------------------------------------------------------------------------
+# Steady state, CTL, filters and expressions over operators
+# ---------------------------------------------------------------------------
+
+
+def _reach_until_rewards(dtmc: DTMC, structure: RewardVectors, left: Expr,
+                         right: Expr) -> FloatArray:
+    """``R [a U b]``: the reward until *b*, infinite where ``a U b`` is not almost sure."""
+    a, b = state_set(dtmc, left), state_set(dtmc, right)
+    P = dtmc.transitions
+    sure = kernels.until_probs(P, a, b) >= 1.0
+    rewards = kernels.reach_rewards(P, structure.total, b)
+    return np.where(sure, rewards, np.inf)
+
+
+def _ctl(dtmc: DTMC, quantifier: str, path: PathFormula) -> BoolArray:
+    """``A [path]`` or ``E [path]`` as a state set (unbounded operators only, as PRISM)."""
+    bound = getattr(path, "bound", None)
+    if bound is not None:
+        raise CheckError("time-bounded temporal operators are not supported in CTL "
+                         "(A [...] and E [...]), as in PRISM", path.span)
+    ops = {Next: "X", Eventually: "F", Globally: "G", Until: "U", WeakUntil: "W",
+           Release: "R"}
+    right = state_set(dtmc, _operands(path)[-1])
+    left = state_set(dtmc, _operands(path)[0]) if len(_operands(path)) == 2 else right
+    return ctl.quantified(dtmc.transitions, quantifier, ops[type(path)], left, right)
+
+
+def _operands(path: PathFormula) -> tuple[Expr, ...]:
+    if isinstance(path, Until | WeakUntil | Release):
+        return (path.left, path.right)
+    return (path.operand,)
+
+
+def filter_outcome(dtmc: DTMC, node: Filter) -> filters.FilterOutcome:
+    """The outcome of ``filter(op, prop, states)`` (value, per-state values, printout).
+
+    :raises CheckError: for a filter over no states, or ``state`` over several.
+    """
+    where = _everywhere(dtmc) if node.states is None else state_set(dtmc, node.states)
+    inner = values(dtmc, node.operand)
+    return filters.apply_filter(node.op, inner, where, dtmc.states, dtmc.variable_names,
+                                node.span)
+
+
+def _filter_values(dtmc: DTMC, node: Filter) -> Values:
+    """A filter inside an expression: its single value in every state (PRISM's semantics)."""
+    outcome = filter_outcome(dtmc, node)
+    if outcome.value is None or isinstance(outcome.value, tuple):
+        if isinstance(outcome.value, tuple):
+            raise CheckError("filter(range, ...) gives an interval, which cannot be used "
+                             "inside an expression", node.span)
+        return outcome.values
+    value = outcome.value
+    dtype = np.bool_ if isinstance(value, bool) else np.float64
+    return np.full(dtmc.num_states, value, dtype=dtype)
+
+
+def _compound_values(dtmc: DTMC, expr: Expr) -> Values:
+    """Arithmetic, comparisons and functions over operator results, state by state."""
+    match expr:
+        case Quantified() | ProbOp() | RewardOp() | SteadyOp():
+            return state_set(dtmc, expr)
+        case Unary(op="!", operand=operand):
+            return ~state_set(dtmc, operand)
+        case Unary(op=op, operand=operand):
+            return expression.unary(op, values(dtmc, operand), expr.span)
+        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
+            return expression.binary(op, state_set(dtmc, left), state_set(dtmc, right))
+        case Binary(op=op, left=left, right=right):
+            return expression.binary(op, values(dtmc, left), values(dtmc, right), expr.span)
+        case Ite(cond=cond, then=then, otherwise=otherwise):
+            return expression.choose(state_set(dtmc, cond), values(dtmc, then),
+                                     values(dtmc, otherwise))
+        case Call(func=func, args=args):
+            return expression.call(func, [values(dtmc, a) for a in args], expr.span)
+    raise CheckError(f"cannot evaluate {type(expr).__name__} here", getattr(expr, "span", None))
 
 
 # ---------------------------------------------------------------------------
@@ -244,35 +399,12 @@ def _everywhere(dtmc: DTMC) -> BoolArray:
     return np.ones(dtmc.num_states, dtype=bool)
 
 
-def _children(expr: Expr | PathFormula | RewardPath) -> Iterator[Expr]:
-    """The direct sub-expressions of a node, path operands and bounds included."""
-    match expr:
-        case Unary(operand=a) | Next(operand=a) | Reach(target=a):
-            yield a
-        case Binary(left=a, right=b):
-            yield from (a, b)
-        case Ite(cond=a, then=b, otherwise=c):
-            yield from (a, b, c)
-        case Call(args=args):
-            yield from args
-        case Until(left=a, right=b):
-            yield from (a, b)
-        case Eventually(operand=a) | Globally(operand=a):
-            yield a
-        case ProbOp(path=path) | RewardOp(path=path):
-            yield from _children(path)
-
-
 def _has_operator(expr: Expr) -> bool:
-    """Whether a ``P`` or ``R`` operator occurs anywhere in *expr*."""
-    if isinstance(expr, ProbOp | RewardOp):
-        return True
-    return any(_has_operator(child) for child in _children(expr))
+    """Whether *expr* needs the checker: an operator, a filter or ``round`` occurs in it."""
+    return any(isinstance(node, _OPERATORS) or (isinstance(node, Call) and node.func == "round")
+               for node in walk(expr))
 
 
 def _labels_in(expr: Expr) -> Iterator[LabelRef]:
     """Every label reference in *expr*."""
-    if isinstance(expr, LabelRef):
-        yield expr
-    for child in _children(expr):
-        yield from _labels_in(child)
+    return (node for node in walk(expr) if isinstance(node, LabelRef))

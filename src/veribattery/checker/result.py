@@ -21,12 +21,17 @@ class CheckResult:
         initial states (as PRISM reports it); for numbers the value at the first
         initial state.
     :param time_s: wall-clock time of the check in seconds.
+    :param value_range: for a ``range`` answer (several initial states with
+        different values) the lowest and highest value; *value* is then the lowest.
+    :param printed: the state lines of a ``print``/``printall``/``argmin``/``argmax`` filter.
     """
 
     property: Property
     values: FloatArray | BoolArray
     value: float | bool
     time_s: float
+    value_range: tuple[float, float] | None = None
+    printed: tuple[str, ...] = ()
 
     @classmethod
     def at_initial(cls, prop: Property, values: FloatArray | BoolArray, initial: IntArray,
