@@ -232,7 +232,10 @@ class PropertyRules(Transformer[Token, Any]):
         path = children[0]
         if isinstance(path, Unsupported):
             return path
-        if isinstance(path, Temporal) and path.bound is None and path.op in ("F", "U"):
+        if not isinstance(path, Temporal):
+            # A state formula is a co-safe property decided at once: false U phi.
+            return ReachUntil(BoolLit(False, path.span), path, self._span(meta))
+        if path.bound is None and path.op in ("F", "U"):
             if path.op == "F":
                 return Reach(path.right, self._span(meta))
             return ReachUntil(cast(Expr, path.left), path.right, self._span(meta))
