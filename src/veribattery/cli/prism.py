@@ -16,6 +16,7 @@ from veribattery.cli.output import (
     print_warnings,
     user_errors,
 )
+from veribattery.checker import CheckResult
 from veribattery.lang import parse_constant_assignments
 from veribattery.pipeline import ModelCheckRun, check_prism_file
 
@@ -56,11 +57,29 @@ def prism_json(run: ModelCheckRun) -> dict[str, object]:
     """The ``prism --json`` document."""
     return {
         "model": run.model_summary,
-        "results": [
-            {"property": r.property.text, "value": json_value(r.value)} for r in run.results
-        ],
+        "results": [_json_result(r) for r in run.results],
         "timings_s": {k: round(v, 6) for k, v in run.timings_s.items()},
     }
+
+
+def _json_result(result: CheckResult) -> dict[str, object]:
+    """One result: its value, plus the range over several initial states and the
+    states a print/argmin/argmax filter listed, when there are any."""
+    entry: dict[str, object] = {"property": result.property.text,
+                                "value": json_value(result.value)}
+    if result.value_range is not None:
+        entry["range"] = [json_value(v) for v in result.value_range]
+    if result.printed:
+        entry["states"] = list(result.printed)
+    return entry
+
+
+def _shown(result: CheckResult) -> str:
+    """The value as PRISM reports it: ``[low, high]`` for a range."""
+    if result.value_range is not None:
+        low, high = result.value_range
+        return f"[{format_value(low)}, {format_value(high)}]"
+    return format_value(result.value)
 
 
 def print_prism_run(run: ModelCheckRun) -> None:
@@ -72,8 +91,13 @@ def print_prism_run(run: ModelCheckRun) -> None:
     )
     table = Table("property", "value", title=None, show_edge=False)
     for result in run.results:
-        table.add_row(result.property.text, format_value(result.value))
+        table.add_row(result.property.text, _shown(result))
     out.print(table)
+    for result in run.results:
+        if result.printed:
+            out.print(f"States of {result.property.text}:", highlight=False)
+            for line in result.printed:
+                out.print(f"  {line}", highlight=False, markup=False)
     timings = ", ".join(f"{k} {v:.3f}s" for k, v in run.timings_s.items())
     out.print(f"Time: {timings}", style="dim")
 
