@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 from rich.table import Table
 
+from veribattery.checker import CheckResult
 from veribattery.cli.output import (
     build_progress,
     format_value,
@@ -16,7 +17,6 @@ from veribattery.cli.output import (
     print_warnings,
     user_errors,
 )
-from veribattery.checker import CheckResult
 from veribattery.lang import parse_constant_assignments
 from veribattery.pipeline import ModelCheckRun, check_prism_file
 
