@@ -14,6 +14,7 @@ equal to the Cesàro long-run average that PRISM reports).
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,36 +66,80 @@ def bsccs(P: CsrMatrix) -> Bsccs:
 def stationary(P: CsrMatrix, parts: Bsccs) -> FloatArray:
     """Each BSCC's stationary distribution, on its states (0 on transient states).
 
+    One representative state per BSCC gets the unnormalised weight 1; the balance
+    equations of the other states then form one sparse nonsingular system (an
+    irreducible chain's balance equations have rank n-1), and each BSCC's
+    solution is divided by its sum. A representative of tiny stationary mass
+    makes the others huge and the solve inaccurate, so the system is solved
+    again from each BSCC's heaviest state when that is another one.
+
     :param P: row-stochastic CSR transition matrix.
     :param parts: the BSCCs of *P*.
     """
-    n = P.shape[0]
-    result = np.zeros(n)
+    result = np.zeros(P.shape[0])
     states = np.flatnonzero(parts.recurrent)
     comp = parts.component[states]
-    # One representative per BSCC: its equation becomes the normalisation.
+    inner = sp.csr_matrix(P[states][:, states]).T.tocsr()
     _, first = np.unique(comp, return_index=True)
-    m = states.size
-    inner = sp.csr_matrix(P[states][:, states])
-    balance = sp.csr_matrix((inner - sp.identity(m, format="csr")).T)
-    keep = np.ones(m)
-    keep[first] = 0.0
-    normalise = sp.csr_matrix((np.ones(m), (first[comp], np.arange(m))), shape=(m, m))
-    A = sp.diags(keep, format="csr") @ balance + normalise
-    b = np.zeros(states.size)
-    b[first] = 1.0
-    pi = _solve(sp.csc_matrix(A), b)
-    pi = np.clip(pi, 0.0, None)
-    totals = np.bincount(comp, weights=pi, minlength=parts.count)
-    result[states] = pi / totals[comp]
+    weight = _weights(inner, first)
+    if not _balanced(inner, weight, comp, parts.count):
+        weight = _heaviest_first(inner, weight, comp, parts.count)
+    totals = np.bincount(comp, weights=weight, minlength=parts.count)
+    result[states] = weight / totals[comp]
     return result
 
 
-def _solve(A: sp.csc_matrix, b: FloatArray) -> FloatArray:
-    """A direct sparse solve; a single-state BSCC needs none (pi = 1)."""
-    if A.shape[0] == int(np.count_nonzero(b)):
-        return b.copy()
-    return np.asarray(spsolve(A, b), dtype=np.float64)
+def _weights(inner: sp.csr_matrix, fixed: IntArray) -> FloatArray:
+    """Unnormalised stationary weights with weight 1 in the states *fixed*.
+
+    :param inner: the transposed transition matrix of the BSCC states.
+    :param fixed: one state per BSCC.
+    """
+    m = inner.shape[0]
+    weight = np.zeros(m)
+    weight[fixed] = 1.0
+    rest = np.ones(m, dtype=bool)
+    rest[fixed] = False
+    if rest.any():
+        balance = inner - sp.identity(m, format="csr")
+        A = sp.csc_matrix(balance[rest][:, rest])
+        b = -np.asarray(inner[rest][:, fixed] @ np.ones(fixed.size)).ravel()
+        weight[rest] = np.clip(spsolve(A, b), 0.0, None)
+    return weight
+
+
+def _normalised(weight: FloatArray, comp: IntArray, count: int) -> FloatArray:
+    totals = np.bincount(comp, weights=weight, minlength=count)
+    return np.asarray(weight / np.where(totals > 0, totals, 1.0)[comp])
+
+
+def _balanced(inner: sp.csr_matrix, weight: FloatArray, comp: IntArray, count: int) -> bool:
+    """Whether the normalised weights satisfy ``pi P = pi`` to 1e-12 (absolute)."""
+    pi = _normalised(weight, comp, count)
+    return bool(np.all(np.isfinite(pi))) and float(np.max(np.abs(inner @ pi - pi))) <= 1e-12
+
+
+def _heaviest_first(inner: sp.csr_matrix, weight: FloatArray, comp: IntArray,
+                    count: int) -> FloatArray:
+    """Weights from the normalisation-row system, which needs no good representative.
+
+    Each BSCC's first equation is replaced by ``sum pi = 1`` (a dense row, so the
+    factorisation costs more); then the solve is repeated from each BSCC's
+    heaviest state, which is well scaled.
+    """
+    m = inner.shape[0]
+    _, first = np.unique(comp, return_index=True)
+    keep = np.ones(m)
+    keep[first] = 0.0
+    normalise = sp.csr_matrix((np.ones(m), (first[comp], np.arange(m))), shape=(m, m))
+    A = sp.diags(keep, format="csr") @ (inner - sp.identity(m, format="csr")) + normalise
+    b = np.zeros(m)
+    b[first] = 1.0
+    pi = np.clip(spsolve(sp.csc_matrix(A), b), 0.0, None)
+    order = np.lexsort((-pi, comp))
+    heaviest = order[np.searchsorted(comp[order], np.arange(count))]
+    better = _weights(inner, np.asarray(heaviest))
+    return better if _balanced(inner, better, comp, count) else np.asarray(pi)
 
 
 def absorbed(P: CsrMatrix, parts: Bsccs, per_bscc: FloatArray) -> FloatArray:
@@ -125,14 +170,27 @@ def absorbed(P: CsrMatrix, parts: Bsccs, per_bscc: FloatArray) -> FloatArray:
     return result
 
 
+#: The BSCCs and stationary distribution of the last matrix (properties of one model
+#: share them); keyed by identity and dropped with the matrix.
+_LAST: list[tuple[weakref.ref[CsrMatrix], Bsccs, FloatArray]] = []
+
+
+def _long_run(P: CsrMatrix) -> tuple[Bsccs, FloatArray]:
+    if _LAST and _LAST[0][0]() is P:
+        return _LAST[0][1], _LAST[0][2]
+    parts = bsccs(P)
+    pi = stationary(P, parts)
+    _LAST[:] = [(weakref.ref(P), parts, pi)]
+    return parts, pi
+
+
 def steady_probs(P: CsrMatrix, target: BoolArray) -> FloatArray:
     """Long-run probability of being in *target*, from every state (``S=? [target]``).
 
     :param P: row-stochastic CSR transition matrix.
     :param target: the states counted.
     """
-    parts = bsccs(P)
-    pi = stationary(P, parts)
+    parts, pi = _long_run(P)
     recurrent = parts.recurrent
     mass = np.bincount(parts.component[recurrent], weights=(pi * target)[recurrent],
                        minlength=parts.count).astype(np.float64)
@@ -145,8 +203,7 @@ def long_run_rewards(P: CsrMatrix, rewards: FloatArray) -> FloatArray:
     :param P: row-stochastic CSR transition matrix.
     :param rewards: expected reward per step taken from each state (state + transition).
     """
-    parts = bsccs(P)
-    pi = stationary(P, parts)
+    parts, pi = _long_run(P)
     recurrent = parts.recurrent
     average = np.bincount(parts.component[recurrent], weights=(pi * rewards)[recurrent],
                           minlength=parts.count).astype(np.float64)
