@@ -182,3 +182,18 @@ def test_unsupported_property_is_skipped_when_the_whole_file_is_checked() -> Non
     run = check_prism_file(MODEL, props_source="P=? [ G F s=1 ];\nS=? [ s=1 ];\n")
     assert [r.value for r in run.results] == pytest.approx([1 / 3])
     assert any("LTL" in w for w in run.warnings)
+
+
+def test_stationary_distribution_of_a_strongly_drifting_chain() -> None:
+    """Birth-death chain on 0..60 (up 0.9, down 0.1, reflecting): pi_k ~ 9^k, so the
+    initial state's mass is 9^-60 and a solve anchored there would be useless."""
+    model = """dtmc
+module m
+  s : [0..60] init 0;
+  [] true -> 0.9:(s'=min(s+1,60)) + 0.1:(s'=max(s-1,0));
+endmodule
+"""
+    run = check_prism_file(model, selectors=("S=? [ s=60 ]", "S=? [ s=59 ]"))
+    top = Q(8, 9) / (1 - Q(1, 9) ** 61)
+    assert run.results[0].value == pytest.approx(float(top), rel=1e-9)
+    assert run.results[1].value == pytest.approx(float(top / 9), rel=1e-9)
