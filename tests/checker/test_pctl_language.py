@@ -101,6 +101,11 @@ CASES = [
     ('R{"r"}=? [ s!=1 U s=2 ]', INF),
     ('filter(state, R{"r"}=? [ s>=2 U s=4 ], s=2)', Q(8, 3)),
     ('R{"r"}=? [ s=0 ]', 0),
+    ('R{"r"}=? [ s=1 ]', INF),
+    ('R{"r"}=? [ X s>0 ]', 1),
+    ('R{"r"}=? [ X s=2 ]', INF),
+    ('filter(state, R{"r"}=? [ X s=3 ], s=4)', 0),
+    ('filter(state, R{"r"}=? [ X s>=2 ], s=3)', 2),
     ("T=? [ F s!=0 ]", 1),
     ("T=? [ F s>=2 ]", INF),
     # properties as expressions

@@ -179,7 +179,8 @@ def test_properties_file_with_optional_semicolons() -> None:
         ("P=? [ (G x=1) & (F x=0) ]", "LTL"),
         ("filter(max, P=? [ X X x=1 ])", "LTL"),
         ("R=? [ F G x=1 ]", "LTL"),
-        ("R=? [ X x=1 ]", "co-safe"),
+        ("R=? [ X X x=1 ]", "LTL"),
+        ("R=? [ F<=3 x=1 ]", "co-safe"),
         ("F x=1", "P or R operator"),
     ],
 )

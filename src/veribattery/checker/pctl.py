@@ -42,6 +42,7 @@ from veribattery.lang.nodes import (
     ProbOp,
     Quantified,
     Reach,
+    ReachNext,
     ReachUntil,
     Release,
     RewardOp,
@@ -195,6 +196,10 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> FloatArray:
             return steady.long_run_rewards(P, structure.total)
         case ReachUntil(left=left, right=right):
             return _reach_until_rewards(dtmc, structure, left, right)
+        case ReachNext(target=target):
+            # Co-safe X phi is decided after one step: that step's reward, if sure.
+            sure = kernels.next_probs(P, state_set(dtmc, target)) >= 1.0
+            return np.where(sure, structure.total, np.inf)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
 
 

@@ -246,8 +246,18 @@ class ReachUntil:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
+@dataclass(frozen=True, slots=True)
+class ReachNext:
+    """Reward path ``X phi``: the first step's reward, infinite unless ``X phi`` is sure."""
+
+    target: Expr
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
 PathFormula: TypeAlias = Next | Until | Eventually | Globally | WeakUntil | Release
-RewardPath: TypeAlias = Cumulative | Instantaneous | Reach | Total | LongRun | ReachUntil
+RewardPath: TypeAlias = (
+    Cumulative | Instantaneous | Reach | Total | LongRun | ReachUntil | ReachNext
+)
 
 
 @dataclass(frozen=True, slots=True)

@@ -31,6 +31,7 @@ from veribattery.lang.nodes import (
     Quantified,
     QueryOp,
     Reach,
+    ReachNext,
     ReachUntil,
     Release,
     RewardOp,
@@ -235,11 +236,13 @@ class PropertyRules(Transformer[Token, Any]):
         if not isinstance(path, Temporal):
             # A state formula is a co-safe property decided at once: false U phi.
             return ReachUntil(BoolLit(False, path.span), path, self._span(meta))
+        if path.bound is None and path.op == "X":
+            return ReachNext(path.right, self._span(meta))
         if path.bound is None and path.op in ("F", "U"):
             if path.op == "F":
                 return Reach(path.right, self._span(meta))
             return ReachUntil(cast(Expr, path.left), path.right, self._span(meta))
-        return Unsupported("reward paths must be F phi, a U b, C, C<=k, I=k or S "
+        return Unsupported("reward paths must be F phi, X phi, a U b, C, C<=k, I=k or S "
                            "(co-safe LTL is not supported)", self._span(meta))
 
     def reward_op(self, meta: Meta, children: list[Any]) -> Value:

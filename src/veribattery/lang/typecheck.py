@@ -29,6 +29,7 @@ from veribattery.lang.nodes import (
     ProbOp,
     Quantified,
     Reach,
+    ReachNext,
     ReachUntil,
     Release,
     RewardOp,
@@ -273,8 +274,8 @@ def _check_reward_path(path: object, env: TypeEnv) -> None:
         check_time(path.bound, env)
     elif isinstance(path, Instantaneous):
         check_time(path.time, env)
-    elif isinstance(path, Reach):
-        expect(path.target, env, "bool", "the target of F")
+    elif isinstance(path, Reach | ReachNext):
+        expect(path.target, env, "bool", "the target of F or X")
     elif isinstance(path, ReachUntil):
         expect(path.left, env, "bool", "the left operand of U")
         expect(path.right, env, "bool", "the right operand of U")
