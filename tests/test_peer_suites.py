@@ -22,7 +22,7 @@ from click.testing import CliRunner
 from tests.conftest import PEER_TESTS, peer_harness, require_shared
 from veribattery.cli import cli
 
-SUITES = ("prism", "prism-examples")
+SUITES = ("prism", "prism-examples", "prism-extended")
 
 
 def _entries() -> list[Any]:
@@ -45,11 +45,16 @@ def test_peer_entry(suite: str | None, entry: dict[str, Any] | None) -> None:
     harness = peer_harness()
     argv = harness.entry_argv(entry, str(PEER_TESTS / suite), [])
     result = CliRunner().invoke(cli, ["prism", *argv])
+    if harness.expects_error(entry):
+        passed, message = harness.error_outcome(result.exit_code, result.stdout, result.stderr)
+        assert passed, message
+        return
     assert result.exit_code == 0, result.output
     found, got, raw = harness.extract_value(result.stdout)
     assert found, result.output
     expected = harness.parse_value(entry["expected"])
-    assert harness.values_match(expected, got, 1e-6, 1e-12), (expected, raw)
+    rtol = entry.get("rtol", 1e-6)
+    assert harness.values_match(expected, got, rtol, 1e-12), (expected, raw)
 
 
 def test_peer_entry_sizes() -> None:

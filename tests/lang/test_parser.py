@@ -175,13 +175,12 @@ def test_properties_file_with_optional_semicolons() -> None:
 @pytest.mark.parametrize(
     ("text", "reason"),
     [
-        ("filter(forall, x=1)", "filter"),
-        ("S=? [ x=1 ]", "steady-state"),
-        ("R=? [ S ]", "steady-state"),
-        ("P=? [ F=3 x=1 ]", "'='"),
-        ("P=? [ F[1,2] x=1 ]", "interval"),
         ("P=? [ F G x=1 ]", "LTL"),
-        ("P=? [ F x=1 {x=0} ]", "filter"),
+        ("P=? [ (G x=1) & (F x=0) ]", "LTL"),
+        ("filter(max, P=? [ X X x=1 ])", "LTL"),
+        ("R=? [ F G x=1 ]", "LTL"),
+        ("R=? [ X X x=1 ]", "LTL"),
+        ("R=? [ F<=3 x=1 ]", "co-safe"),
         ("F x=1", "P or R operator"),
     ],
 )

@@ -134,8 +134,8 @@ def test_properties_constant_clashing_with_model(model: FlatModel) -> None:
 
 
 def test_unsupported_property_is_reported_on_resolve(model: FlatModel) -> None:
-    message = error(model, "filter(forall, x=1)")
-    assert message.startswith("t.props:1:1: unsupported property filter(forall, x=1): filter")
+    message = error(model, "P=? [ G F x=1 ]")
+    assert message.startswith("t.props:1:1: unsupported property P=? [ G F x=1 ]: temporal")
 
 
 def props_file() -> PropertiesFile:

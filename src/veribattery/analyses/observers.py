@@ -29,6 +29,7 @@ from veribattery.lang.nodes import (
     Reach,
     RewardOp,
     TimeBound,
+    TimeInterval,
     Until,
 )
 
@@ -128,17 +129,19 @@ def _path_observer(dtmc: DTMC, op: ProbOp, runs: int) -> Observer:
     raise CheckError(f"{type(op.path).__name__} is not simulated")
 
 
-def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray, bound: TimeBound | None,
-           runs: int) -> Observer:
+def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
+           bound: TimeBound | TimeInterval | None, runs: int) -> Observer:
     never = prob0(dtmc.transitions, remain, target)
     horizon = _upper(bound)
     # A run at step `horizon` may still hit the target; after it, it cannot.
     return Observer(runs, target, never | (~remain & ~target), horizon=horizon)
 
 
-def _upper(bound: TimeBound | None) -> int:
+def _upper(bound: TimeBound | TimeInterval | None) -> int:
     if bound is None:
         return int(NO_BOUND)
+    if isinstance(bound, TimeInterval):
+        raise CheckError("step intervals U[a,b] are not simulated")
     if bound.op == "<=":
         return _steps(bound.value)
     if bound.op == "<":

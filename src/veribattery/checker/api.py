@@ -4,14 +4,15 @@ from __future__ import annotations
 
 import time
 
-from veribattery.checker.pctl import values
+from veribattery.checker.pctl import property_answer
 from veribattery.checker.result import CheckResult
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr, Property
 
 
 def check(dtmc: DTMC, prop: Property | Expr) -> CheckResult:
-    """Check *prop* on *dtmc* and report its value at the initial states.
+    """Check *prop* on *dtmc* and report PRISM's answer (at the initial states, unless
+    the property is a filter).
 
     Numeric results carry certified bounds (``result.lower``, ``result.upper``)
     and ``result.precise``; see :class:`CheckResult`.
@@ -24,5 +25,5 @@ def check(dtmc: DTMC, prop: Property | Expr) -> CheckResult:
     """
     prop = prop if isinstance(prop, Property) else Property(prop)
     start = time.perf_counter()
-    per_state = values(dtmc, prop.formula)
-    return CheckResult.at_initial(prop, per_state, dtmc.initial, time.perf_counter() - start)
+    answer = property_answer(dtmc, prop.formula)
+    return CheckResult.of_answer(prop, answer, time.perf_counter() - start)

@@ -136,3 +136,8 @@ def _one_minus(x: FloatArray, direction: Callable[[FloatArray], FloatArray]) -> 
         back = y - 1.0
         error = (1.0 - (y - back)) + (-x - back)
     return np.where((error == 0) | ~np.isfinite(y), y, direction(y))
+
+
+def escalated() -> bool:
+    """Whether kernels are already asked for exact bounds (no retry would help)."""
+    return _PRECISION.get() == (0.0, 0.0)

@@ -50,6 +50,7 @@ from veribattery.lang.nodes import (
     Reach,
     RewardOp,
     TimeBound,
+    TimeInterval,
     Unary,
     Until,
 )
@@ -267,22 +268,33 @@ def path_probs(model: ExactDTMC, path: PathFormula) -> ObjectArray:
 
 
 def _until(model: ExactDTMC, remain: BoolArray, target: BoolArray,
-           bound: TimeBound | None) -> ObjectArray:
+           bound: TimeBound | TimeInterval | None) -> ObjectArray:
     if bound is None:
         return until_probs(model, remain, target)
+    if isinstance(bound, TimeInterval):  # U[a,b]: remain for a steps, then U<=b-a
+        low, high = _steps(bound.low), _steps(bound.high)
+        if high < low:
+            return _indicator(np.zeros_like(target))
+        later = _within(model, remain, target, high - low)
+        return _power(model, remain, later, _indicator(np.zeros_like(target)), low)
     k = _steps(bound.value)
-    hit = _indicator(target)
     match bound.op:
         case "<=" | "<":
             steps = k if bound.op == "<=" else k - 1
             if steps < 0:  # U<0 can never be met
                 return _indicator(np.zeros_like(target))
-            return _power(model, remain & ~target, hit, hit, steps)
+            return _within(model, remain, target, steps)
         case ">=" | ">":
             later = until_probs(model, remain, target)
             zero = _indicator(np.zeros_like(target))
             return _power(model, remain, later, zero, k if bound.op == ">=" else k + 1)
     raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
+
+
+def _within(model: ExactDTMC, remain: BoolArray, target: BoolArray, steps: int) -> ObjectArray:
+    """Exact probability of ``remain U<=steps target``."""
+    hit = _indicator(target)
+    return _power(model, remain & ~target, hit, hit, steps)
 
 
 def until_probs(model: ExactDTMC, remain: BoolArray, target: BoolArray) -> ObjectArray:

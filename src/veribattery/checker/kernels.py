@@ -366,6 +366,22 @@ def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray
     return _probabilities(found)
 
 
+def interval_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                         low: int, high: int) -> Bounds:
+    """Probability of ``remain U[low,high] target``: *remain* for the first *low* steps,
+    then *target* within ``high - low`` more steps, passing through *remain*.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param remain: states that must hold before *target* is reached.
+    :param target: states to reach, at a step in ``[low, high]``.
+    :param low: first step that counts, at least 0.
+    :param high: last step that counts, at least *low*.
+    """
+    later = bounded_until_probs(P, remain, target, high - low)
+    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), low)
+    return _probabilities(found)
+
+
 def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int) -> Bounds:
     """Expected reward of the first *k* steps (``C<=k``).
 
@@ -386,3 +402,32 @@ def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int) -> Bo
     """
     start = np.asarray(state_rewards, dtype=np.float64)
     return _step_power(P, Bounds.exact(start), np.zeros_like(start), k)
+
+
+def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds) -> Bounds:
+    """``x = P x`` off *fixed*, ``x = known`` on it: each state's expectation of the
+    value of the *fixed* state where it is absorbed, with certified bounds.
+
+    Every state outside *fixed* must reach *fixed* almost surely (the BSCCs, for
+    long-run values), so the fixed point is unique; it is certified like
+    :func:`until_probs`, with the known values as intervals.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param fixed: the states whose values are known.
+    :param known: the values (meaningful on *fixed* only), non-negative.
+    """
+    lower = np.where(fixed, known.lower, 0.0)
+    upper = np.where(fixed, known.upper, 0.0)
+    maybe = ~fixed & ~prob0(P, np.ones(P.shape[0], dtype=bool), fixed & (upper > 0))
+    if not maybe.any():
+        return Bounds.around(np.where(fixed, known.value, 0.0), lower, upper)
+    system = _system(P, maybe)
+    F = certify.AffineMap.of(system.rows, np.flatnonzero(maybe), lower, upper, None)
+    point = np.where(fixed, known.value, 0.0)
+    x = _point(system, system.rows.astype(np.longdouble) @ point.astype(np.longdouble))
+    ceiling = float(np.max(upper))
+    x = None if x is None else np.clip(x, 0.0, ceiling)
+    found = _certified(F, x, system, 0.0, ceiling)
+    value, low, high = point.copy(), lower.copy(), upper.copy()
+    value[maybe], low[maybe], high[maybe] = found.value, found.lower, found.upper
+    return Bounds.around(value, low, high)

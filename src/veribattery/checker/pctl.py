@@ -12,16 +12,26 @@ from __future__ import annotations
 import math
 import operator
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import TypeAlias
 
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker import conditional, kernels, reward_bounded
-from veribattery.checker.bounds import Bounds, required_precision
+from veribattery.checker import (
+    conditional,
+    ctl,
+    filters,
+    intervals,
+    kernels,
+    reward_bounded,
+    steady,
+)
+from veribattery.checker.bounds import Bounds, escalated, required_precision
 from veribattery.errors import CheckError
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     Binary,
     BoolLit,
@@ -32,22 +42,35 @@ from veribattery.lang.nodes import (
     DoubleLit,
     Eventually,
     Expr,
+    Filter,
     Globally,
     Instantaneous,
     IntLit,
     Ite,
     LabelRef,
+    LongRun,
     Next,
     PathFormula,
     ProbOp,
+    Quantified,
     Reach,
+    ReachNext,
+    ReachUntil,
+    Release,
     RewardBounded,
     RewardOp,
     RewardPath,
+    SteadyOp,
     TimeBound,
+    TimeInterval,
+    Total,
     Unary,
     Until,
+    WeakUntil,
 )
+from veribattery.lang.property_rules import STEPS_REWARD
+
+_OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
 
 Values: TypeAlias = FloatArray | BoolArray
 #: What :func:`values` returns: certified numbers, or a state set.
@@ -66,7 +89,8 @@ _CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
 
 
 def values(dtmc: DTMC, formula: Expr) -> Result:
-    """Per-state value of *formula*: certified numbers for ``P=?``/``R=?``, booleans otherwise.
+    """Per-state value of *formula*: certified numbers for ``P=?``/``R=?``/``S=?``
+    and expressions over them, booleans otherwise.
 
     :param dtmc: the model.
     :param formula: a property formula (constants substituted, labels inlined).
@@ -76,16 +100,44 @@ def values(dtmc: DTMC, formula: Expr) -> Result:
         return path_probs(dtmc, formula.path)
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(dtmc, formula)
-    if isinstance(formula, ProbOp | RewardOp):
-        # Only the initial states' answers are reported: decide those, and mark
-        # the other states true only where certified.
-        return _bounded_operator(dtmc, formula, must_decide=dtmc.initial)
+    if isinstance(formula, SteadyOp) and formula.op == "=?":
+        return steady.steady_probs(dtmc.transitions, state_set(dtmc, formula.operand))
+    if isinstance(formula, Filter):
+        return _filter_values(dtmc, formula)
     if _has_operator(formula):
-        return state_set(dtmc, formula)
+        return _compound(dtmc, formula)
     leaf = _leaf(dtmc, formula)
     if leaf.dtype == np.bool_:
         return np.asarray(leaf, dtype=np.bool_)
     return Bounds.exact(np.asarray(leaf, dtype=np.float64))
+
+
+def property_answer(dtmc: DTMC, formula: Expr) -> filters.FilterOutcome:
+    """The answer PRISM reports for a property: a filter's value, or PRISM's default
+    filter -- ``forall`` initial states for a boolean, the value of the single
+    initial state, or the ``range`` over several initial states.
+
+    :raises CheckError: when the model has no initial state, or a filter fails.
+    """
+    printed: tuple[str, ...] = ()
+    if isinstance(formula, Filter):
+        outcome = filter_outcome(dtmc, formula)
+        if outcome.value is not None:
+            return outcome
+        per_state, printed = _as_result(outcome.values), outcome.printed
+    elif isinstance(formula, ProbOp | RewardOp | SteadyOp) and formula.op != "=?":
+        # Only the initial states' answers are reported: decide those, and mark
+        # the other states true only where certified.
+        per_state = _bounded_operator(dtmc, formula, must_decide=dtmc.initial)
+    else:
+        per_state = values(dtmc, formula)
+    if len(dtmc.initial) == 0:
+        raise CheckError("the model has no initial state", formula.span)
+    default = "forall" if not isinstance(per_state, Bounds) else (
+        "state" if len(dtmc.initial) == 1 else "range")
+    answer = filters.apply_filter(default, per_state, dtmc.initial_mask, dtmc.states,
+                                  dtmc.variable_names, formula.span)
+    return replace(answer, printed=printed)
 
 
 def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
@@ -96,8 +148,10 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
     :raises CheckError: when *expr* is not boolean or nests operators unsupportedly.
     """
     match expr:
-        case ProbOp() | RewardOp():
+        case ProbOp() | RewardOp() | SteadyOp():
             return _bounded_operator(dtmc, expr)
+        case Quantified(quantifier=quantifier, path=path):
+            return _ctl(dtmc, quantifier, path)
         case Unary(op="!", operand=operand):
             return ~state_set(dtmc, operand)
         case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
@@ -105,14 +159,13 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
         case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
             return np.where(state_set(dtmc, cond), state_set(dtmc, then),
                             state_set(dtmc, otherwise))
-    if _has_operator(expr):
-        raise CheckError("P and R operators may only be combined with ! & | => <=> "
-                         "and ?:", expr.span)
-    return _as_mask(_leaf(dtmc, expr), expr)
+    return _as_mask(_point(values(dtmc, expr)), expr)
 
 
 def path_probs(dtmc: DTMC, path: PathFormula) -> Bounds:
     """Per-state probability of the path formula *path*, with certified bounds.
+
+    ``G``, ``W`` and ``R`` are complements of an until (:meth:`Bounds.complement`).
 
     :param dtmc: the model.
     :param path: ``X``, ``U``, ``F`` or ``G``, optionally step-bounded.
@@ -126,6 +179,14 @@ def path_probs(dtmc: DTMC, path: PathFormula) -> Bounds:
             return _until(dtmc, _everywhere(dtmc), state_set(dtmc, operand), bound)
         case Globally(operand=operand, bound=bound):
             return _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound).complement()
+        case WeakUntil(left=left, right=right, bound=bound):
+            # a W b = !((a & !b) U (!a & !b)), bounds kept (as PRISM rewrites it).
+            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            return _until(dtmc, a & ~b, ~a & ~b, bound).complement()
+        case Release(left=left, right=right, bound=bound):
+            # a R b = !(!a U !b), bounds kept.
+            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            return _until(dtmc, ~a, ~b, bound).complement()
         case RewardBounded() | Conditional():
             return Bounds.uncertified(_storm_path_probs(dtmc, path), 0.0, 1.0)
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
@@ -147,6 +208,18 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
             return kernels.cumulative_rewards(P, structure.total, _steps(bound))
         case Instantaneous(time=time):
             return kernels.instantaneous_rewards(P, structure.state, _steps(time))
+        case Total():
+            return steady.total_rewards(P, structure.total)
+        case LongRun():
+            return steady.long_run_rewards(P, structure.total)
+        case ReachUntil(left=left, right=right):
+            return _reach_until_rewards(dtmc, structure, left, right)
+        case ReachNext(target=target):
+            # Co-safe X phi is decided after one step: that step's reward, if sure.
+            # Sure is graph analysis: no successor outside the target (positive
+            # entries make the sum below 0 exactly where none is).
+            sure = P @ (~state_set(dtmc, target)).astype(np.float64) == 0
+            return Bounds.exact(np.where(sure, structure.total, np.inf))
         case ConditionalReach(target=target, condition=condition):
             return Bounds.uncertified(conditional.conditional_reach_rewards(
                 dtmc, structure, state_set(dtmc, target), state_set(dtmc, condition),
@@ -169,7 +242,7 @@ def _storm_path_probs(dtmc: DTMC, path: RewardBounded | Conditional) -> FloatArr
             dtmc.transitions, state_set(dtmc, path.left), state_set(dtmc, path.right),
             levels, _reward_bound(path.bound))
     objective = path.path
-    if any(_has_operator(child) for child in _children(objective)):
+    if any(_has_operator(operand) for operand in _operands(objective)):
         raise CheckError("P and R operators inside a conditional formula are not supported",
                          path.span)
     return conditional.conditional_values(
@@ -196,9 +269,9 @@ def _condition_name(condition: Expr) -> str:
 # ---------------------------------------------------------------------------
 
 
-def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp,
+def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp,
                       must_decide: IntArray | None = None) -> BoolArray:
-    """``P~p [..]`` or ``R~r [..]`` as a mask: the value compared with the bound.
+    """``P~p [..]``, ``R~r [..]`` or ``S~p [..]`` as a mask: the value against the bound.
 
     Decided from the certified interval: a state whose interval straddles the
     bound is undecided. The property is refused rather than guessed when a state
@@ -222,10 +295,11 @@ def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp,
     return holds
 
 
-def _decide(dtmc: DTMC, op: ProbOp | RewardOp, threshold: float,
+def _decide(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp, threshold: float,
             must_decide: IntArray | None) -> tuple[Bounds, BoolArray, BoolArray]:
     """The operator's numbers, where the bound certainly holds, and where it is undecided."""
-    numbers = path_probs(dtmc, op.path) if isinstance(op, ProbOp) else path_rewards(dtmc, op)
+    numbers = values(dtmc, replace(op, op="=?", bound=None))
+    assert isinstance(numbers, Bounds)  # a query always gives numbers
     holds, undecided = numbers.compare(op.op, threshold)
     if must_decide is not None:
         undecided = undecided & np.isin(np.arange(dtmc.num_states), must_decide)
@@ -233,34 +307,55 @@ def _decide(dtmc: DTMC, op: ProbOp | RewardOp, threshold: float,
 
 
 def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
-           bound: TimeBound | None) -> Bounds:
-    """Dispatch ``remain U target`` to the kernel for its step bound."""
+           bound: TimeBound | TimeInterval | None) -> Bounds:
+    """Dispatch ``remain U target`` to the kernel for its step interval."""
     P = dtmc.transitions
     if bound is None:
         return kernels.until_probs(P, remain, target)
+    low, high = _interval(bound)
+    if high is not None and high < low:
+        return Bounds.exact(np.zeros(dtmc.num_states))
+    if low == 0:
+        if high is None:
+            return kernels.until_probs(P, remain, target)
+        return kernels.bounded_until_probs(P, remain, target, high)
+    if high is None:
+        return kernels.lower_bounded_until_probs(P, remain, target, low)
+    return kernels.interval_until_probs(P, remain, target, low, high)
+
+
+def _interval(bound: TimeBound | TimeInterval) -> tuple[int, int | None]:
+    """The steps ``[low, high]`` (``high`` None: unbounded) at which the target counts."""
+    if isinstance(bound, TimeInterval):
+        return _steps(bound.low), _steps(bound.high)
     k = _steps(bound.value)
     match bound.op:
         case "<=":
-            return kernels.bounded_until_probs(P, remain, target, k)
+            return 0, k
         case "<":
-            # U<0 can never be met; U<k is U<=k-1.
-            if k == 0:
-                return Bounds.exact(np.zeros(dtmc.num_states))
-            return kernels.bounded_until_probs(P, remain, target, k - 1)
+            return 0, k - 1
         case ">=":
-            return kernels.lower_bounded_until_probs(P, remain, target, k)
+            return k, None
         case ">":
-            return kernels.lower_bounded_until_probs(P, remain, target, k + 1)
-    raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
+            return k + 1, None
+    return k, k
 
 
 def _reward_structure(dtmc: DTMC, op: RewardOp | RewardBounded) -> RewardVectors:
     """The reward structure *op* names, or a CheckError that says where."""
+    if op.reward == STEPS_REWARD:
+        ones = np.ones(dtmc.num_states)
+        return RewardVectors(None, ones, np.zeros(dtmc.num_states))
     try:
-        return dtmc.reward(op.reward)
+        structure = dtmc.reward(op.reward)
     except (KeyError, IndexError):
         key = "" if op.reward is None else f" {op.reward!r}"
         raise CheckError(f"the model has no reward structure{key}", op.span) from None
+    if np.any(structure.state < 0) or np.any(structure.transition < 0):
+        name = "" if structure.name is None else f' "{structure.name}"'
+        raise CheckError(f"the reward structure{name} has negative rewards, which PRISM "
+                         "does not allow", op.span)
+    return structure
 
 
 def _number(expr: Expr) -> float:
@@ -280,6 +375,108 @@ def _steps(expr: Expr) -> int:
         raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
                          expr.span)
     return int(value)
+
+
+# ---------------------------------------------------------------------------
+# Steady state, CTL, filters and expressions over operators
+# ---------------------------------------------------------------------------
+
+
+def _reach_until_rewards(dtmc: DTMC, structure: RewardVectors, left: Expr,
+                         right: Expr) -> Bounds:
+    """``R [a U b]``: the reward until *b*, infinite where ``a U b`` is not almost sure."""
+    a, b = state_set(dtmc, left), state_set(dtmc, right)
+    P = dtmc.transitions
+    # Almost-sure is graph analysis (prob1), so the certified lower bound is exactly 1.
+    sure = kernels.until_probs(P, a, b).lower >= 1.0
+    rewards = kernels.reach_rewards(P, structure.total, b)
+    infinite = np.full(dtmc.num_states, np.inf)
+    return Bounds(np.where(sure, rewards.value, infinite), np.where(sure, rewards.lower, infinite),
+                  np.where(sure, rewards.upper, infinite))
+
+
+def _ctl(dtmc: DTMC, quantifier: str, path: PathFormula) -> BoolArray:
+    """``A [path]`` or ``E [path]`` as a state set (unbounded operators only, as PRISM)."""
+    bound = getattr(path, "bound", None)
+    if bound is not None:
+        raise CheckError("time-bounded temporal operators are not supported in CTL "
+                         "(A [...] and E [...]), as in PRISM", path.span)
+    ops = {Next: "X", Eventually: "F", Globally: "G", Until: "U", WeakUntil: "W",
+           Release: "R"}
+    if type(path) not in ops:
+        raise CheckError("A [...] and E [...] take X, F, G, U, W or R, not a conditional (||) "
+                         "formula", path.span)
+    right = state_set(dtmc, _operands(path)[-1])
+    left = state_set(dtmc, _operands(path)[0]) if len(_operands(path)) == 2 else right
+    return ctl.quantified(dtmc.transitions, quantifier, ops[type(path)], left, right)
+
+
+def _operands(path: PathFormula) -> tuple[Expr, ...]:
+    if isinstance(path, Until | WeakUntil | Release | RewardBounded):
+        return (path.left, path.right)
+    if isinstance(path, Conditional):
+        return (path.condition,)
+    return (path.operand,)
+
+
+def filter_outcome(dtmc: DTMC, node: Filter) -> filters.FilterOutcome:
+    """The outcome of ``filter(op, prop, states)`` (value, per-state values, printout).
+
+    :raises CheckError: for a filter over no states, or ``state`` over several.
+    """
+    where = _everywhere(dtmc) if node.states is None else state_set(dtmc, node.states)
+    inner = values(dtmc, node.operand)
+    return filters.apply_filter(node.op, inner, where, dtmc.states, dtmc.variable_names,
+                                node.span)
+
+
+def _filter_values(dtmc: DTMC, node: Filter) -> Result:
+    """A filter inside an expression: its single value in every state (PRISM's semantics)."""
+    outcome = filter_outcome(dtmc, node)
+    if outcome.value is None or isinstance(outcome.value, tuple):
+        if isinstance(outcome.value, tuple):
+            raise CheckError("filter(range, ...) gives an interval, which cannot be used "
+                             "inside an expression", node.span)
+        return _as_result(outcome.values)
+    value = outcome.value
+    if isinstance(value, bool):
+        return np.full(dtmc.num_states, value, dtype=np.bool_)
+    low, high = outcome.interval or (value, value)
+    return Bounds(*(np.full(dtmc.num_states, float(v)) for v in (value, low, high)))
+
+
+def _compound(dtmc: DTMC, expr: Expr) -> Result:
+    """:func:`_compound_values`, retried at exact precision when a comparison of
+    numbers is undecided by the intervals."""
+    try:
+        return _compound_values(dtmc, expr)
+    except intervals.Undecided:
+        if escalated():
+            raise
+    with required_precision(0.0, 0.0):
+        return _compound_values(dtmc, expr)
+
+
+def _compound_values(dtmc: DTMC, expr: Expr) -> Result:
+    """Arithmetic, comparisons and functions over operator results, state by state,
+    in interval arithmetic (:mod:`~veribattery.checker.intervals`)."""
+    match expr:
+        case Quantified() | ProbOp() | RewardOp() | SteadyOp():
+            return state_set(dtmc, expr)
+        case Unary(op="!", operand=operand):
+            return ~state_set(dtmc, operand)
+        case Unary(op=op, operand=operand):
+            return intervals.unary(op, values(dtmc, operand), expr.span)
+        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
+            return intervals.binary(op, state_set(dtmc, left), state_set(dtmc, right))
+        case Binary(op=op, left=left, right=right):
+            return intervals.binary(op, values(dtmc, left), values(dtmc, right), expr.span)
+        case Ite(cond=cond, then=then, otherwise=otherwise):
+            return intervals.choose(state_set(dtmc, cond), values(dtmc, then),
+                                     values(dtmc, otherwise))
+        case Call(func=func, args=args):
+            return intervals.call(func, [values(dtmc, a) for a in args], expr.span)
+    raise CheckError(f"cannot evaluate {type(expr).__name__} here", getattr(expr, "span", None))
 
 
 # ---------------------------------------------------------------------------
@@ -316,39 +513,30 @@ def _as_mask(result: Values, expr: Expr) -> BoolArray:
     raise CheckError("expected a boolean state formula", expr.span)
 
 
+def _as_result(per_state: Bounds | Values) -> Result:
+    """A filter's per-state values as a result (numbers without bounds: exact)."""
+    if isinstance(per_state, Bounds):
+        return per_state
+    if per_state.dtype == np.bool_:
+        return np.asarray(per_state, dtype=np.bool_)
+    return Bounds.exact(np.asarray(per_state, dtype=np.float64))
+
+
+def _point(result: Result) -> Values:
+    """The point values of a result (a mask stays a mask)."""
+    return result.value if isinstance(result, Bounds) else result
+
+
 def _everywhere(dtmc: DTMC) -> BoolArray:
     return np.ones(dtmc.num_states, dtype=bool)
 
 
-def _children(expr: Expr | PathFormula | RewardPath) -> Iterator[Expr]:
-    """The direct sub-expressions of a node, path operands and bounds included."""
-    match expr:
-        case Unary(operand=a) | Next(operand=a) | Reach(target=a):
-            yield a
-        case Binary(left=a, right=b):
-            yield from (a, b)
-        case Ite(cond=a, then=b, otherwise=c):
-            yield from (a, b, c)
-        case Call(args=args):
-            yield from args
-        case Until(left=a, right=b):
-            yield from (a, b)
-        case Eventually(operand=a) | Globally(operand=a):
-            yield a
-        case ProbOp(path=path) | RewardOp(path=path):
-            yield from _children(path)
-
-
 def _has_operator(expr: Expr) -> bool:
-    """Whether a ``P`` or ``R`` operator occurs anywhere in *expr*."""
-    if isinstance(expr, ProbOp | RewardOp):
-        return True
-    return any(_has_operator(child) for child in _children(expr))
+    """Whether *expr* needs the checker: an operator, a filter or ``round`` occurs in it."""
+    return any(isinstance(node, _OPERATORS) or (isinstance(node, Call) and node.func == "round")
+               for node in walk(expr))
 
 
 def _labels_in(expr: Expr) -> Iterator[LabelRef]:
     """Every label reference in *expr*."""
-    if isinstance(expr, LabelRef):
-        yield expr
-    for child in _children(expr):
-        yield from _labels_in(child)
+    return (node for node in walk(expr) if isinstance(node, LabelRef))

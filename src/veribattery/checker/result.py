@@ -9,6 +9,7 @@ import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
+from veribattery.checker.filters import FilterOutcome
 from veribattery.errors import CheckError
 from veribattery.lang.nodes import Property
 
@@ -31,6 +32,10 @@ class CheckResult:
     :param precise: False when the interval is wider than the default precision
         (1e-9 relative or 1e-12 absolute) could be reached.
     :param bounds: the per-state certified bounds of a numeric result.
+    :param value_range: for a ``range`` answer (several initial states with
+        different values) the lowest and highest value; *value* is then the lowest
+        (*lower*/*upper* then enclose the whole range).
+    :param printed: the state lines of a ``print``/``printall``/``argmin``/``argmax`` filter.
     """
 
     property: Property
@@ -41,6 +46,8 @@ class CheckResult:
     upper: float | None = None
     precise: bool = True
     bounds: Bounds | None = None
+    value_range: tuple[float, float] | None = None
+    printed: tuple[str, ...] = ()
 
     @classmethod
     def at_initial(cls, prop: Property, values: Bounds | BoolArray, initial: IntArray,
@@ -57,6 +64,29 @@ class CheckResult:
         precise = bool(values.precise_states(RELATIVE_PRECISION, ABSOLUTE_PRECISION)[first])
         return cls(prop, values.value, float(values.value[first]), time_s,
                    float(values.lower[first]), float(values.upper[first]), precise, values)
+
+    @classmethod
+    def of_answer(cls, prop: Property, answer: FilterOutcome, time_s: float) -> CheckResult:
+        """Build a result from a filter's answer (PRISM's default filter included).
+
+        For a numeric answer *lower*/*upper* are the filter's certified interval
+        (for a ``range`` it encloses the whole range).
+        """
+        value, spread = answer.value, None
+        if isinstance(value, tuple):
+            spread = None if value[0] == value[1] else value
+            value = value[0]
+        if value is None:  # pragma: no cover - the default filter always gives a value
+            raise AssertionError("no answer")
+        per_state = answer.values
+        bounds = per_state if isinstance(per_state, Bounds) else None
+        points = per_state.value if isinstance(per_state, Bounds) else per_state
+        if isinstance(value, bool):
+            return cls(prop, points, value, time_s, value_range=spread, printed=answer.printed)
+        number = float(value)
+        low, high = answer.interval or (number, number)
+        return cls(prop, points, number, time_s, low, high, answer.precise, bounds, spread,
+                   answer.printed)
 
     @builtins.property
     def error(self) -> float:

@@ -15,6 +15,7 @@ from veribattery.cli.output import (
     build_progress,
     exact_text,
     format_result,
+    format_value,
     json_value,
     out,
     print_imprecise,
@@ -87,8 +88,9 @@ def prism_json(run: ModelCheckRun) -> dict[str, object]:
 
 
 def _result_json(result: CheckResult) -> dict[str, object]:
-    """One result: property, value, ``exact`` under ``--exact``, and for numbers the
-    certified bounds and whether they meet the precision."""
+    """One result: property, value, ``exact`` under ``--exact``, for numbers the
+    certified bounds and whether they meet the precision, plus the range over
+    several initial states and the states a print/argmin/argmax filter listed."""
     entry: dict[str, object] = {"property": result.property.text,
                                 "value": json_value(result.value)}
     exact = exact_text(result)
@@ -98,7 +100,20 @@ def _result_json(result: CheckResult) -> dict[str, object]:
     if bounds is not None:
         entry["bounds"] = bounds
         entry["precise"] = result.precise
+    if result.value_range is not None:
+        entry["range"] = [json_value(v) for v in result.value_range]
+    if result.printed:
+        entry["states"] = list(result.printed)
     return entry
+
+
+def _shown(result: CheckResult) -> str:
+    """The value as PRISM reports it: ``[low, high]`` for a range, else
+    :func:`format_result` (``value ± error`` or ``p/q ≈ value``)."""
+    if result.value_range is not None:
+        low, high = result.value_range
+        return f"[{format_value(low)}, {format_value(high)}]"
+    return format_result(result)
 
 
 def print_prism_run(run: ModelCheckRun) -> None:
@@ -110,8 +125,13 @@ def print_prism_run(run: ModelCheckRun) -> None:
     )
     table = Table("property", Column("value", overflow="fold"), title=None, show_edge=False)
     for result in run.results:
-        table.add_row(result.property.text, format_result(result))
+        table.add_row(result.property.text, _shown(result))
     out.print(table)
+    for result in run.results:
+        if result.printed:
+            out.print(f"States of {result.property.text}:", highlight=False)
+            for line in result.printed:
+                out.print(f"  {line}", highlight=False, markup=False)
     timings = ", ".join(f"{k} {v:.3f}s" for k, v in run.timings_s.items())
     out.print(f"Time: {timings}", style="dim")
 

@@ -101,12 +101,12 @@ class Ite:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-FunctionName: TypeAlias = Literal["min", "max", "floor", "ceil", "pow", "mod", "log"]
+FunctionName: TypeAlias = Literal["min", "max", "floor", "ceil", "pow", "mod", "log", "round"]
 
 
 @dataclass(frozen=True, slots=True)
 class Call:
-    """A built-in function: ``min max floor ceil pow mod log`` (``func(f, ...)`` too)."""
+    """A built-in function: ``min max floor ceil pow mod log round`` (``func(f, ...)`` too)."""
 
     func: FunctionName
     args: tuple[Expr, ...]
@@ -132,6 +132,18 @@ class TimeBound:
 
 
 @dataclass(frozen=True, slots=True)
+class TimeInterval:
+    """A step interval ``[low,high]`` on a temporal operator (both ends included)."""
+
+    low: Expr
+    high: Expr
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+Bound: TypeAlias = TimeBound | TimeInterval
+
+
+@dataclass(frozen=True, slots=True)
 class Next:
     """``X phi``."""
 
@@ -145,7 +157,27 @@ class Until:
 
     left: Expr
     right: Expr
-    bound: TimeBound | None = None
+    bound: Bound | None = None
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class WeakUntil:
+    """``left W right``: ``left U right`` or ``G left``, optionally step-bounded."""
+
+    left: Expr
+    right: Expr
+    bound: Bound | None = None
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class Release:
+    """``left R right``: *right* holds up to and including the first *left* state."""
+
+    left: Expr
+    right: Expr
+    bound: Bound | None = None
     span: Span = field(default=NO_SPAN, compare=False)
 
 
@@ -154,7 +186,7 @@ class Eventually:
     """``F phi``, optionally step-bounded (equivalent to ``true U phi``)."""
 
     operand: Expr
-    bound: TimeBound | None = None
+    bound: Bound | None = None
     span: Span = field(default=NO_SPAN, compare=False)
 
 
@@ -163,7 +195,7 @@ class Globally:
     """``G phi``, optionally step-bounded."""
 
     operand: Expr
-    bound: TimeBound | None = None
+    bound: Bound | None = None
     span: Span = field(default=NO_SPAN, compare=False)
 
 
@@ -191,6 +223,29 @@ class Reach:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
+@dataclass(frozen=True, slots=True)
+class Total:
+    """Reward path ``C``: the total reward accumulated along the whole path."""
+
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class LongRun:
+    """Reward path ``S``: the long-run average reward per step."""
+
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class ReachUntil:
+    """Reward path ``left U right``: reward until *right*, infinite unless it is sure."""
+
+    left: Expr
+    right: Expr
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
 # --- Storm's reward-bounded and conditional formulas (checker/reward_bounded.py,
 # --- checker/conditional.py).
 
@@ -212,6 +267,14 @@ class RewardBounded:
 
 
 @dataclass(frozen=True, slots=True)
+class ReachNext:
+    """Reward path ``X phi``: the first step's reward, infinite unless ``X phi`` is sure."""
+
+    target: Expr
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
 class Conditional:
     """``P=? [ path || F condition ]``: *path* given that *condition* is reached (Storm)."""
 
@@ -229,8 +292,13 @@ class ConditionalReach:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-PathFormula: TypeAlias = Next | Until | Eventually | Globally | RewardBounded | Conditional
-RewardPath: TypeAlias = Cumulative | Instantaneous | Reach | ConditionalReach
+PathFormula: TypeAlias = (
+    Next | Until | Eventually | Globally | WeakUntil | Release | RewardBounded | Conditional
+)
+RewardPath: TypeAlias = (
+    Cumulative | Instantaneous | Reach | Total | LongRun | ReachUntil | ReachNext
+    | ConditionalReach
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -258,6 +326,41 @@ class RewardOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
+@dataclass(frozen=True, slots=True)
+class SteadyOp:
+    """``S=? [phi]`` or ``S~p [phi]``: the long-run probability of being in *phi*."""
+
+    op: QueryOp
+    bound: Expr | None
+    operand: Expr
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+@dataclass(frozen=True, slots=True)
+class Quantified:
+    """CTL: ``A [path]`` (on all paths) or ``E [path]`` (on some path)."""
+
+    quantifier: Literal["A", "E"]
+    path: PathFormula
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
+FilterOp: TypeAlias = Literal[
+    "min", "max", "argmin", "argmax", "count", "sum", "avg", "first", "range",
+    "forall", "exists", "print", "printall", "state",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class Filter:
+    """``filter(op, operand, states)``; *states* None means all states."""
+
+    op: FilterOp
+    operand: Expr
+    states: Expr | None = None
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
 Expr: TypeAlias = (
     IntLit
     | DoubleLit
@@ -270,6 +373,9 @@ Expr: TypeAlias = (
     | Call
     | ProbOp
     | RewardOp
+    | SteadyOp
+    | Quantified
+    | Filter
 )
 
 # ---------------------------------------------------------------------------

@@ -22,10 +22,13 @@ from veribattery.lang.nodes import (
     Property,
     RewardBounded,
     RewardOp,
+    SteadyOp,
     TimeBound,
+    TimeInterval,
     Value,
     ValueType,
 )
+from veribattery.lang.property_rules import STEPS_REWARD
 from veribattery.lang.semantics import BUILTIN_LABELS, check_unique
 from veribattery.lang.typecheck import TypeEnv, type_of
 
@@ -147,6 +150,8 @@ def _decl_types(decls: tuple[ConstDecl, ...]) -> dict[str, ValueType]:
 
 
 def _check_reward(op: RewardOp | RewardBounded, model: FlatModel) -> None:
+    if op.reward == STEPS_REWARD:
+        return
     names = [r.name for r in model.rewards]
     if not names:
         raise PrismSemanticError(
@@ -163,11 +168,11 @@ def _check_reward(op: RewardOp | RewardBounded, model: FlatModel) -> None:
         )
 
 
-def _check_bound(op: ProbOp | RewardOp) -> None:
+def _check_bound(op: ProbOp | RewardOp | SteadyOp) -> None:
     if op.bound is None:
         return
     value = evaluate(op.bound, {})
-    if isinstance(op, ProbOp) and not 0 <= value <= 1:
+    if isinstance(op, ProbOp | SteadyOp) and not 0 <= value <= 1:
         raise PrismSemanticError(f"the probability bound {value} is not in [0, 1]", op.bound.span)
 
 
@@ -176,14 +181,34 @@ def _check_steps(value: Expr) -> None:
         raise PrismSemanticError("a step bound cannot be negative", value.span)
 
 
+def _check_interval(node: TimeBound | TimeInterval) -> None:
+    """PRISM rejects a step interval that holds no step (``F<0``, ``G[1,0]``)."""
+    for value in (node.low, node.high) if isinstance(node, TimeInterval) else (node.value,):
+        _check_steps(value)
+    if isinstance(node, TimeInterval):
+        low, high = evaluate(node.low, {}), evaluate(node.high, {})
+    elif node.op == "=":
+        low = high = evaluate(node.value, {})
+    elif node.op in ("<", "<="):
+        low, high = 0, evaluate(node.value, {}) - (node.op == "<")
+    else:
+        low, high = evaluate(node.value, {}) + (node.op == ">"), None
+    if high is not None and high < low:
+        raise PrismSemanticError(
+            f"the step bound holds for no step (the interval [{low},{high}] is empty)",
+            node.span)
+
+
 def _check_operators(formula: Expr, model: FlatModel) -> None:
     for node in walk(formula):
         if isinstance(node, RewardOp | RewardBounded):
             _check_reward(node, model)
-        if isinstance(node, ProbOp | RewardOp):
+        if isinstance(node, ProbOp | RewardOp | SteadyOp):
             _check_bound(node)
-        elif isinstance(node, TimeBound | Cumulative):
-            _check_steps(node.value if isinstance(node, TimeBound) else node.bound)
+        elif isinstance(node, TimeBound | TimeInterval):
+            _check_interval(node)
+        elif isinstance(node, Cumulative):
+            _check_steps(node.bound)
         elif isinstance(node, Instantaneous):
             _check_steps(node.time)
 

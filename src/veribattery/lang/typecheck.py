@@ -20,6 +20,7 @@ from veribattery.lang.nodes import (
     DoubleLit,
     Eventually,
     Expr,
+    Filter,
     Globally,
     Ident,
     Instantaneous,
@@ -28,18 +29,27 @@ from veribattery.lang.nodes import (
     LabelRef,
     Next,
     ProbOp,
+    Quantified,
     Reach,
+    ReachNext,
+    ReachUntil,
+    Release,
     RewardBounded,
     RewardOp,
+    SteadyOp,
     TimeBound,
+    TimeInterval,
     Unary,
     Until,
     ValueType,
+    WeakUntil,
 )
 
 _BOOL_OPS = frozenset({"&", "|", "=>", "<=>"})
 _ORDER_OPS = frozenset({"<", "<=", ">", ">="})
-_ARITY = {"floor": (1, 1), "ceil": (1, 1), "pow": (2, 2), "mod": (2, 2), "log": (2, 2)}
+_ARITY = {
+    "floor": (1, 1), "ceil": (1, 1), "round": (1, 1), "pow": (2, 2), "mod": (2, 2), "log": (2, 2)
+}
 
 
 def _numeric(kind: ValueType) -> bool:
@@ -162,7 +172,7 @@ def _call(expr: Call, env: TypeEnv) -> ValueType:
             f"{expr.func}(...) takes {count} arguments, not {len(expr.args)}", expr.span
         )
     kinds = [expect(a, env, "numeric", f"an argument of {expr.func}") for a in expr.args]
-    if expr.func in ("floor", "ceil"):
+    if expr.func in ("floor", "ceil", "round"):
         return "int"
     if expr.func == "mod":
         for arg, kind in zip(expr.args, kinds, strict=True):
@@ -201,7 +211,37 @@ def _property_type(expr: Expr, env: TypeEnv) -> ValueType:
         _check_query_bound(expr.bound, env)
         _check_reward_path(expr.path, env)
         return "double" if expr.op == "=?" else "bool"
+    return _extended_type(expr, env)
+
+
+def _extended_type(expr: Expr, env: TypeEnv) -> ValueType:
+    if isinstance(expr, SteadyOp):
+        _not_in_model(expr, env, "the S operator")
+        _check_query_bound(expr.bound, env)
+        expect(expr.operand, env, "bool", "the operand of S")
+        return "double" if expr.op == "=?" else "bool"
+    if isinstance(expr, Quantified):
+        _not_in_model(expr, env, f"the CTL operator {expr.quantifier}")
+        _check_path(expr.path, env)
+        return "bool"
+    if isinstance(expr, Filter):
+        _not_in_model(expr, env, "filter(...)")
+        return _filter_type(expr, env)
     raise PrismSemanticError(f"unexpected expression {type(expr).__name__}", _span(expr))
+
+
+def _filter_type(expr: Filter, env: TypeEnv) -> ValueType:
+    if expr.states is not None:
+        expect(expr.states, env, "bool", "the states of a filter")
+    if expr.op in ("forall", "exists", "count", "argmin", "argmax"):
+        wanted = "bool" if expr.op in ("forall", "exists", "count") else "numeric"
+        expect(expr.operand, env, wanted, f"the property of filter({expr.op}, ...)")
+        return "int" if expr.op == "count" else "bool"
+    kind = type_of(expr.operand, env)
+    if expr.op in ("min", "max", "sum", "avg", "range") and not _numeric(kind):
+        raise PrismSemanticError(
+            f"type error: filter({expr.op}, ...) needs a numeric property, not {kind}", expr.span)
+    return "double" if expr.op == "avg" else kind
 
 
 def _check_query_bound(bound: Expr | None, env: TypeEnv) -> None:
@@ -209,8 +249,12 @@ def _check_query_bound(bound: Expr | None, env: TypeEnv) -> None:
         expect(bound, env, "numeric", "the bound of a P or R operator")
 
 
-def check_time(bound: TimeBound | Expr | None, env: TypeEnv) -> None:
+def check_time(bound: TimeBound | TimeInterval | Expr | None, env: TypeEnv) -> None:
     """A step bound must be an int."""
+    if isinstance(bound, TimeInterval):
+        check_time(bound.low, env)
+        check_time(bound.high, env)
+        return
     value = bound.value if isinstance(bound, TimeBound) else bound
     if value is not None and type_of(value, env) != "int":
         raise PrismSemanticError("type error: a step bound must be an int", value.span)
@@ -222,10 +266,10 @@ def _check_path(path: object, env: TypeEnv) -> None:
     elif isinstance(path, Eventually | Globally):
         check_time(path.bound, env)
         expect(path.operand, env, "bool", "the operand of F or G")
-    elif isinstance(path, Until):
+    elif isinstance(path, Until | WeakUntil | Release):
         check_time(path.bound, env)
-        expect(path.left, env, "bool", "the left operand of U")
-        expect(path.right, env, "bool", "the right operand of U")
+        expect(path.left, env, "bool", "the left operand of U, W or R")
+        expect(path.right, env, "bool", "the right operand of U, W or R")
     else:
         _check_storm_path(path, env)
 
@@ -246,8 +290,11 @@ def _check_reward_path(path: object, env: TypeEnv) -> None:
         check_time(path.bound, env)
     elif isinstance(path, Instantaneous):
         check_time(path.time, env)
-    elif isinstance(path, Reach):
-        expect(path.target, env, "bool", "the target of F")
+    elif isinstance(path, Reach | ReachNext):
+        expect(path.target, env, "bool", "the target of F or X")
+    elif isinstance(path, ReachUntil):
+        expect(path.left, env, "bool", "the left operand of U")
+        expect(path.right, env, "bool", "the right operand of U")
     elif isinstance(path, ConditionalReach):
         expect(path.target, env, "bool", "the target of F")
         expect(path.condition, env, "bool", "the condition after ||")

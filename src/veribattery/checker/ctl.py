@@ -1,0 +1,89 @@
+"""CTL on the graph of a DTMC: ``E``/``A`` over ``X F G U W R`` as graph algorithms.
+
+Paths are the infinite paths through transitions of positive probability
+(deadlocks carry a self-loop, so every state has one). The kernels are the
+existential ones -- ``EX``, ``E[a U b]`` (backward reachability) and ``EG a``
+(reach, inside *a*, a strongly connected part of *a* with an internal edge) --
+and everything else reduces to them by PRISM's identities:
+``a W b = !((a&!b) U (!a&!b))``, ``a R b = !(!a U !b)``, ``A phi = !E !phi``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from veribattery._types import BoolArray, CsrMatrix
+from veribattery.checker import kernels
+
+
+def _graph(P: CsrMatrix, rows: BoolArray, cols: BoolArray) -> sp.csr_matrix:
+    """The edges of *P* with positive probability from *rows* to *cols*, as 0/1."""
+    coo = P.tocoo()
+    keep = (coo.data > 0) & rows[coo.row] & cols[coo.col]
+    return sp.csr_matrix((np.ones(int(keep.sum())), (coo.row[keep], coo.col[keep])),
+                         shape=P.shape)
+
+
+def exists_next(P: CsrMatrix, target: BoolArray) -> BoolArray:
+    """States with a successor in *target* (``E [X target]``)."""
+    return np.asarray(_graph(P, np.ones_like(target), target) @ target.astype(np.float64) > 0)
+
+
+def exists_until(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> BoolArray:
+    """States with a path through *remain* to *target* (``E [remain U target]``)."""
+    return ~kernels.prob0(P, remain, target)
+
+
+def exists_globally(P: CsrMatrix, inside: BoolArray) -> BoolArray:
+    """States with an infinite path that stays in *inside* (``E [G inside]``)."""
+    graph = _graph(P, inside, inside)
+    _, scc = csgraph.connected_components(graph, directed=True, connection="strong")
+    coo = graph.tocoo()
+    # An SCC holds an infinite path iff it has an edge inside it (a self-loop counts).
+    internal = scc[coo.row] == scc[coo.col]
+    cyclic_scc = np.zeros(int(scc.max()) + 1 if scc.size else 0, dtype=bool)
+    cyclic_scc[scc[coo.row[internal]]] = True
+    cyclic = inside & cyclic_scc[scc]
+    return exists_until(P, inside, cyclic)
+
+
+def _exists(P: CsrMatrix, op: str, left: BoolArray, right: BoolArray) -> BoolArray:
+    """``E [left op right]`` for op in X F G U W R (unary operators use *right*)."""
+    if op == "X":
+        return exists_next(P, right)
+    if op == "F":
+        return exists_until(P, np.ones_like(right), right)
+    if op == "G":
+        return exists_globally(P, right)
+    if op == "U":
+        return exists_until(P, left, right)
+    if op == "W":
+        return exists_until(P, left, right) | exists_globally(P, left)
+    # a R b: b holds until and including the first a, or forever.
+    return exists_until(P, right, left & right) | exists_globally(P, right)
+
+
+def quantified(P: CsrMatrix, quantifier: str, op: str, left: BoolArray,
+               right: BoolArray) -> BoolArray:
+    """``A``/``E`` applied to the path ``left op right`` (``op`` in X F G U W R).
+
+    :param P: row-stochastic CSR transition matrix.
+    :param quantifier: ``"A"`` (all paths) or ``"E"`` (some path).
+    :param op: the temporal operator; for X, F and G only *right* is used.
+    :param left: the left operand's states (ignored by unary operators).
+    :param right: the (right) operand's states.
+    """
+    if quantifier == "E":
+        return _exists(P, op, left, right)
+    # A phi = !E !phi, with the negated path in the same operator family.
+    dual = {
+        "X": lambda: _exists(P, "X", left, ~right),
+        "F": lambda: _exists(P, "G", left, ~right),
+        "G": lambda: _exists(P, "F", left, ~right),
+        "U": lambda: _exists(P, "W", ~right, ~left & ~right),
+        "W": lambda: _exists(P, "U", left & ~right, ~left & ~right),
+        "R": lambda: _exists(P, "U", ~left, ~right),
+    }
+    return ~dual[op]()

@@ -1,0 +1,375 @@
+"""Parse tree → AST for the property language: temporal operators, P/R/S, CTL, filters.
+
+Constructs that parse but cannot be checked (LTL: a temporal operator nested in
+another one) become an :class:`Unsupported` marker that propagates up to the
+enclosing property, which is then kept with its reason, so that a properties
+file always parses as a whole and ``--property`` can pick the others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Literal, TypeAlias, cast
+
+from lark import Token, Transformer, v_args
+from lark.tree import Meta
+
+from veribattery.errors import PrismSemanticError, PrismSyntaxError, Span
+from veribattery.lang.nodes import (
+    BoolLit,
+    Conditional,
+    ConditionalReach,
+    Cumulative,
+    Eventually,
+    Expr,
+    Filter,
+    FilterOp,
+    Globally,
+    Instantaneous,
+    LongRun,
+    Next,
+    PathFormula,
+    ProbOp,
+    Quantified,
+    QueryOp,
+    Reach,
+    ReachNext,
+    ReachUntil,
+    Release,
+    RewardBounded,
+    RewardOp,
+    RewardPath,
+    SteadyOp,
+    TimeBound,
+    TimeInterval,
+    Total,
+    Until,
+    WeakUntil,
+)
+
+_TimeOp: TypeAlias = Literal["<", "<=", ">", ">=", "="]
+_TEMPORAL_NAMES = {
+    "X": "X (next)", "F": "F (eventually)", "G": "G (globally)", "U": "U (until)",
+    "W": "W (weak until)", "R": "R (release)", "RB": "a reward-bounded F or U",
+}
+_FILTER_OPS = frozenset({
+    "min", "max", "argmin", "argmax", "count", "sum", "avg", "first", "range",
+    "forall", "exists", "print", "printall", "state",
+})
+_FILTER_ALIASES = {"+": "sum", "&": "forall", "|": "exists"}
+#: The Storm operator ``T=? [F phi]`` is ``R=? [F phi]`` for this reward structure name.
+STEPS_REWARD = "\0steps"
+
+
+@dataclass(frozen=True, slots=True)
+class Unsupported:
+    """A construct that parses but is outside the supported language."""
+
+    reason: str
+    span: Span
+
+
+@dataclass(frozen=True, slots=True)
+class Temporal:
+    """A temporal operator, valid only as the whole path of a P, R, A or E operator."""
+
+    op: str
+    bound: TimeBound | TimeInterval | None
+    left: Expr | None
+    right: Expr
+    span: Span
+    #: The reward structure of a reward bound (Storm's ``F{"r"}<=T``), else None.
+    reward: str | int | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class _Legacy:
+    """An old-style filter suffix ``{states}{min}{max}`` inside P, R or S."""
+
+    states: Expr
+    ops: tuple[str, ...]
+    span: Span
+
+
+Value = Expr | Temporal | Unsupported
+
+
+def first_bad(values: list[Any]) -> Unsupported | None:
+    """The first unsupported operand; a temporal operand nested in an operator is LTL."""
+    for value in values:
+        if isinstance(value, Unsupported):
+            return value
+        if isinstance(value, Temporal):
+            return Unsupported(
+                f"temporal operator {_TEMPORAL_NAMES[value.op]} inside another operator "
+                "(LTL path formulas need automata and are not supported)",
+                value.span,
+            )
+    return None
+
+
+def _path_formula(path: Value) -> PathFormula | Unsupported:
+    """The path formula of a P, A or E operator; a state formula ``phi`` is ``false U phi``."""
+    if isinstance(path, Unsupported):
+        return path
+    if not isinstance(path, Temporal):
+        return Until(BoolLit(False, path.span), path, None, path.span)
+    if path.op == "X":
+        if path.bound is not None:
+            return Unsupported("X (next) takes no time bound", path.span)
+        return Next(path.right, path.span)
+    if path.op == "RB":
+        return RewardBounded(cast(Expr, path.left), path.right, cast(str | int, path.reward),
+                             cast(TimeBound, path.bound), path.span)
+    if path.op == "F":
+        return Eventually(path.right, path.bound, path.span)
+    if path.op == "G":
+        return Globally(path.right, path.bound, path.span)
+    kinds: dict[str, type[Until | WeakUntil | Release]] = {
+        "U": Until, "W": WeakUntil, "R": Release,
+    }
+    return kinds[path.op](cast(Expr, path.left), path.right, path.bound, path.span)
+
+
+def _legacy_filter(legacy: _Legacy, operand: Expr, span: Span) -> Filter:
+    """``{states}`` is the value in that one state, ``{min}``/``{max}`` the extreme over
+    them and both the range, as PRISM converts its old-style filters."""
+    ops = set(legacy.ops)
+    op: FilterOp = "range" if len(ops) == 2 else cast(FilterOp, ops.pop()) if ops else "state"
+    return Filter(op, operand, legacy.states, span)
+
+
+def _split_legacy(children: list[Any]) -> tuple[list[Any], _Legacy | None]:
+    if children and isinstance(children[-1], _Legacy):
+        return children[:-1], children[-1]
+    return children, None
+
+
+@v_args(meta=True)
+class PropertyRules(Transformer[Token, Any]):
+    """Transformer methods for the property grammar; mixed into the parse-tree transformer."""
+
+    _source: str
+
+    def _span(self, meta: Meta) -> Span:
+        return Span(meta.line, meta.column, self._source)
+
+    def _wrap(self, node: Expr, legacy: _Legacy | None, meta: Meta) -> Expr:
+        return node if legacy is None else _legacy_filter(legacy, node, self._span(meta))
+
+    def time_bound(self, meta: Meta, children: list[Any]) -> TimeBound | Unsupported:
+        op, value = children
+        bad = first_bad([value])
+        return bad or TimeBound(cast(_TimeOp, str(op)), value, self._span(meta))
+
+    def time_interval(self, meta: Meta, children: list[Any]) -> TimeInterval | Unsupported:
+        bad = first_bad(children)
+        return bad or TimeInterval(children[0], children[1], self._span(meta))
+
+    def temporal_unop(self, meta: Meta, children: list[Any]) -> Value:
+        op, *rest = children
+        bad = first_bad(rest)
+        if bad is not None:
+            return bad
+        bound = rest[0] if len(rest) == 2 else None
+        return Temporal(str(op), bound, None, rest[-1], self._span(meta))
+
+    def temporal_binop(self, meta: Meta, children: list[Any]) -> Value:
+        left, op, *rest = children
+        bad = first_bad([left, *rest])
+        if bad is not None:
+            return bad
+        bound = rest[0] if len(rest) == 2 else None
+        return Temporal(str(op), bound, left, rest[-1], self._span(meta))
+
+    def query_value(self, meta: Meta, children: list[Any]) -> tuple[QueryOp, Expr | None]:
+        return "=?", None
+
+    def query_bound(self, meta: Meta, children: list[Any]) -> Any:
+        op, bound = children
+        bad = first_bad([bound])
+        return bad or (str(op), bound)
+
+    def legacy_op(self, meta: Meta, children: list[Token]) -> str:
+        return str(children[1])
+
+    def state_filter(self, meta: Meta, children: list[Any]) -> _Legacy | Unsupported:
+        states, *ops = children
+        bad = first_bad([states])
+        return bad or _Legacy(states, tuple(ops), self._span(meta))
+
+    def prob_op(self, meta: Meta, children: list[Any]) -> Value:
+        children, legacy = _split_legacy(children)
+        query, path = children
+        for item in (query, path, legacy):
+            if isinstance(item, Unsupported):
+                return item
+        formula = _path_formula(path)
+        if isinstance(formula, Unsupported):
+            return formula
+        return self._wrap(ProbOp(query[0], query[1], formula, self._span(meta)), legacy, meta)
+
+    def reward_by_name(self, meta: Meta, children: list[Token]) -> str:
+        return str(children[0])[1:-1]
+
+    def reward_by_index(self, meta: Meta, children: list[Token]) -> int:
+        # R{2} is the second structure; nodes store 0-based indices.
+        return int(children[0]) - 1
+
+    def cumulative(self, meta: Meta, children: list[Any]) -> RewardPath | Unsupported:
+        bound = children[0] if children else None
+        if bound is None:
+            return Total(self._span(meta))
+        if isinstance(bound, Unsupported):
+            return bound
+        if isinstance(bound, TimeBound) and bound.op == "<=":
+            return Cumulative(bound.value, self._span(meta))
+        return Unsupported("cumulative rewards take C or C<=k", self._span(meta))
+
+    def instantaneous(self, meta: Meta, children: list[Any]) -> RewardPath | Unsupported:
+        bound = children[0]
+        if isinstance(bound, Unsupported):
+            return bound
+        if not isinstance(bound, TimeBound) or bound.op != "=":
+            return Unsupported("instantaneous rewards need I=k", self._span(meta))
+        return Instantaneous(bound.value, self._span(meta))
+
+    def steady_reward(self, meta: Meta, children: list[Any]) -> RewardPath:
+        return LongRun(self._span(meta))
+
+    def reach(self, meta: Meta, children: list[Any]) -> RewardPath | Unsupported:
+        path = children[0]
+        if isinstance(path, Unsupported):
+            return path
+        if not isinstance(path, Temporal):
+            # A state formula is a co-safe property decided at once: false U phi.
+            return ReachUntil(BoolLit(False, path.span), path, self._span(meta))
+        if path.bound is None and path.op == "X":
+            return ReachNext(path.right, self._span(meta))
+        if path.bound is None and path.op in ("F", "U"):
+            if path.op == "F":
+                return Reach(path.right, self._span(meta))
+            return ReachUntil(cast(Expr, path.left), path.right, self._span(meta))
+        return Unsupported("reward paths must be F phi, X phi, a U b, C, C<=k, I=k or S "
+                           "(co-safe LTL is not supported)", self._span(meta))
+
+    def reward_op(self, meta: Meta, children: list[Any]) -> Value:
+        children, legacy = _split_legacy(children)
+        reward = children[0] if isinstance(children[0], str | int) else None
+        query, path = children[-2], children[-1]
+        for item in (query, path, legacy):
+            if isinstance(item, Unsupported):
+                return item
+        node = RewardOp(reward, query[0], query[1], path, self._span(meta))
+        return self._wrap(node, legacy, meta)
+
+    def steps_op(self, meta: Meta, children: list[Any]) -> Value:
+        name, _query, *rest = children
+        if str(name) != "T":
+            raise PrismSyntaxError(f"unknown operator '{name}' (expected P, R, S or T)",
+                                   self._span(meta))
+        rest, legacy = _split_legacy(rest)
+        for item in (rest[0], legacy):
+            if isinstance(item, Unsupported):
+                return item
+        if not isinstance(rest[0], Reach):
+            return Unsupported("T=? takes F phi", self._span(meta))
+        node = RewardOp(STEPS_REWARD, "=?", None, rest[0], self._span(meta))
+        return self._wrap(node, legacy, meta)
+
+    def steady_op(self, meta: Meta, children: list[Any]) -> Value:
+        children, legacy = _split_legacy(children)
+        query, operand = children
+        bad = first_bad([operand, legacy]) or (query if isinstance(query, Unsupported) else None)
+        if bad is not None:
+            return bad
+        return self._wrap(SteadyOp(query[0], query[1], operand, self._span(meta)), legacy, meta)
+
+    def quantified(self, meta: Meta, children: list[Any]) -> Value:
+        name, path = str(children[0]), children[1]
+        if name not in ("A", "E"):
+            raise PrismSyntaxError(f"unknown operator '{name}' (expected A or E)",
+                                   self._span(meta))
+        formula = _path_formula(path)
+        if isinstance(formula, Unsupported):
+            return formula
+        return Quantified(cast(Literal["A", "E"], name), formula, self._span(meta))
+
+    def filter_op(self, meta: Meta, children: list[Token]) -> str:
+        return str(children[0])
+
+    def filter(self, meta: Meta, children: list[Any]) -> Value:
+        name, operand, *states = children
+        op = _FILTER_ALIASES.get(name, name)
+        if op not in _FILTER_OPS:
+            raise PrismSemanticError(
+                f"unknown filter operator '{name}' (expected one of "
+                f"{', '.join(sorted(_FILTER_OPS))})", self._span(meta))
+        bad = first_bad([operand, *states])
+        if bad is not None:
+            return bad
+        return Filter(cast(FilterOp, op), operand, states[0] if states else None,
+                      self._span(meta))
+
+    # ------------------------- Storm's reward-bounded and conditional formulas
+
+    def reward_bounded_unop(self, meta: Meta, children: list[Any]) -> Value:
+        _op, reward, bound, right = children
+        return _reward_bounded(BoolLit(True, self._span(meta)), right, reward, bound,
+                               self._span(meta))
+
+    def reward_bounded_binop(self, meta: Meta, children: list[Any]) -> Value:
+        left, _op, reward, bound, right = children
+        return _reward_bounded(left, right, reward, bound, self._span(meta))
+
+    def conditional_prob_op(self, meta: Meta, children: list[Any]) -> Value:
+        children, legacy = _split_legacy(children)
+        query, path, _cond, condition = children
+        for item in (query, path, legacy):
+            if isinstance(item, Unsupported):
+                return item
+        if not isinstance(path, Temporal):
+            return Unsupported("P operator needs a path formula before ||", self._span(meta))
+        objective = _path_formula(path)
+        target = _condition_target(condition)
+        if isinstance(objective, Unsupported):
+            return objective
+        if isinstance(target, Unsupported):
+            return target
+        node = ProbOp(query[0], query[1], Conditional(objective, target, self._span(meta)),
+                      self._span(meta))
+        return self._wrap(node, legacy, meta)
+
+    def conditional_reach(self, meta: Meta, children: list[Any]) -> RewardPath | Unsupported:
+        path, _cond, condition = children
+        reach = self.reach(meta, [path])
+        target = _condition_target(condition)
+        if isinstance(reach, Unsupported):
+            return reach
+        if not isinstance(reach, Reach):
+            return Unsupported("a conditional reward path must be F phi || F psi",
+                               self._span(meta))
+        if isinstance(target, Unsupported):
+            return target
+        return ConditionalReach(reach.target, target, self._span(meta))
+
+
+def _reward_bounded(left: Any, right: Any, reward: Any, bound: Any, span: Span) -> Value:
+    """``U{"r"}<=T`` / ``F{"r"}<=T``: only upper bounds (``<=``, ``<``) are supported."""
+    bad = first_bad([left, right, bound])
+    if bad is not None:
+        return bad
+    if not isinstance(bound, TimeBound) or bound.op not in ("<=", "<"):
+        return Unsupported("a reward bound must be <=T or <T", span)
+    return Temporal("RB", bound, left, right, span, reward)
+
+
+def _condition_target(condition: Any) -> Expr | Unsupported:
+    """The *psi* of a condition ``F psi`` (the only condition Storm accepts)."""
+    if isinstance(condition, Unsupported):
+        return condition
+    if isinstance(condition, Temporal) and condition.op == "F" and condition.bound is None:
+        return condition.right
+    span = condition.span if isinstance(condition, Temporal) else cast(
+        Span, getattr(condition, "span", Span(1, 1)))
+    return Unsupported("the condition after || must be F phi (unbounded)", span)
