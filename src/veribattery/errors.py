@@ -54,3 +54,10 @@ class ModelError(VeribatteryError):
 
 class CheckError(VeribatteryError):
     """A property cannot be checked on a built model."""
+
+
+class UndefinedResult(CheckError):
+    """A property has no value on this model: a condition that is never met, or an
+    operator the exact engine does not compute. A caller checking a fixed set of
+    properties (the mission's defaults) may report it as undefined (NaN) with a
+    warning instead of failing the whole check."""

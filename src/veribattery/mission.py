@@ -11,10 +11,7 @@ from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path
 
-import numpy as np
-
 from veribattery.checker import CheckResult, check
-from veribattery.checker.conditional import ConditionUnreachable
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
 from veribattery.explore.dtmc import DTMC
@@ -141,23 +138,11 @@ def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
 
 def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCallback | None,
                       builder: ReusingBuilder | None, exact: bool) -> ModelCheckRun:
-    """Check every property; a mission that never succeeds gets NaN for its conditional
-    expectations (with a warning) instead of stopping the whole check (and a sweep)."""
-    try:
-        return check_model(model, props.properties, props_file=props, progress=progress,
-                           builder=builder, exact=exact)
-    except ConditionUnreachable as exc:
-        reason = exc.message
-    kept = [p for p in props.properties if not is_conditional(p.formula)]
-    run = check_model(model, kept, props_file=props, progress=progress, builder=builder,
-                      exact=exact)
-    checked = iter(run.results)  # in the order of *kept*
-    undefined = np.full(run.dtmc.num_states, np.nan)
-    results = tuple(CheckResult(p, undefined, math.nan, 0.0) if is_conditional(p.formula)
-                    else next(checked) for p in props.properties)
-    dropped = ", ".join(p.name or p.text for p in props.properties if is_conditional(p.formula))
-    warning = f"{dropped}: undefined (NaN): {reason}"
-    return replace(run, results=results, warnings=(*run.warnings, warning))
+    """Check every property; a property without a value here (the conditional defaults
+    of a mission that never succeeds, or under ``--exact``) is NaN with a warning
+    instead of stopping the whole check (and a sweep)."""
+    return check_model(model, props.properties, props_file=props, progress=progress,
+                       builder=builder, exact=exact, undefined_ok=True)
 
 
 def is_conditional(formula: object) -> bool:

@@ -7,14 +7,18 @@ takes exactly the path a user's own PRISM file takes.
 
 from __future__ import annotations
 
+import functools
+import math
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
+
 from veribattery.checker import CheckResult, check
-from veribattery.errors import PrismSemanticError
+from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
 from veribattery.explore.reuse import Structure, build_reusable, reevaluate
 from veribattery.lang import (
@@ -143,12 +147,16 @@ def check_model(
     stopwatch: _Stopwatch | None = None,
     exact: bool = False,
     builder: ReusingBuilder | None = None,
+    undefined_ok: bool = False,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states.
 
     :param exact: compute in exact rational arithmetic (results are
         :class:`~veribattery.checker.exact.ExactCheckResult`).
     :param builder: re-use the state space of earlier models where possible.
+    :param undefined_ok: report a property that has no value on this model
+        (:class:`~veribattery.errors.UndefinedResult`) as NaN with a warning,
+        instead of failing the run.
     """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
@@ -160,15 +168,34 @@ def check_model(
         else:
             dtmc, reused = builder.build(flat, progress)
     if exact:
-        results = _check_exact(model, flat, dtmc, (properties, resolved), props_file, constants,
+        checks = _exact_checks(model, flat, dtmc, (properties, resolved), props_file, constants,
                                watch)
     else:
-        with watch.stage("check"):
-            results = tuple(check(dtmc, p) for p in resolved)
-    return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings, reused)
+        checks = [functools.partial(check, dtmc, p) for p in resolved]
+    with watch.stage("check"):
+        results, undefined = _run_checks(checks, resolved, dtmc, undefined_ok)
+    return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
 
 
-def _check_exact(
+def _run_checks(
+    checks: Sequence[Callable[[], CheckResult]], resolved: Sequence[Property], dtmc: DTMC,
+    undefined_ok: bool,
+) -> tuple[tuple[CheckResult, ...], tuple[str, ...]]:
+    """Run each property's check; with *undefined_ok*, a property without a value is NaN."""
+    results: list[CheckResult] = []
+    warnings: list[str] = []
+    for run_one, prop in zip(checks, resolved, strict=True):
+        try:
+            results.append(run_one())
+        except UndefinedResult as exc:
+            if not undefined_ok:
+                raise
+            results.append(CheckResult(prop, np.full(dtmc.num_states, np.nan), math.nan, 0.0))
+            warnings.append(f"{prop.name or prop.text}: undefined (NaN): {exc.message}")
+    return tuple(results), tuple(warnings)
+
+
+def _exact_checks(
     model: Model,
     flat: FlatModel,
     dtmc: DTMC,
@@ -176,8 +203,8 @@ def _check_exact(
     props_file: PropertiesFile | None,
     constants: Mapping[str, Value | str] | None,
     watch: _Stopwatch,
-) -> tuple[CheckResult, ...]:
-    """Exact probabilities and rewards (timed as part of the build), then exact checking.
+) -> list[Callable[[], CheckResult]]:
+    """Exact probabilities and rewards (timed as part of the build), and a check per property.
 
     *properties* are the properties as written and as resolved: bounds such as
     ``P<=1/3`` are evaluated exactly from the former.
@@ -188,15 +215,14 @@ def _check_exact(
 
     with watch.stage("build"):
         exact = exact_dtmc(model, flat, dtmc, constants)
-    with watch.stage("check"):
-        given = dict(constants or {})
-        decls = props_file.constants if props_file is not None else ()
-        values = exact_constants(decls, given, outer=exact.constants)
-        originals, resolved = properties
-        return tuple(
-            check_exact(exact, p, exact_bounds(o.formula, values))
-            for o, p in zip(originals, resolved, strict=True)
-        )
+    given = dict(constants or {})
+    decls = props_file.constants if props_file is not None else ()
+    values = exact_constants(decls, given, outer=exact.constants)
+    originals, resolved = properties
+    return [
+        functools.partial(check_exact, exact, p, exact_bounds(o.formula, values))
+        for o, p in zip(originals, resolved, strict=True)
+    ]
 
 
 def check_prism_file(

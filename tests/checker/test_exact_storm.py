@@ -10,6 +10,7 @@ about a minute apiece for both tools) run when ``VERIBATTERY_SLOW_TESTS=1``.
 from __future__ import annotations
 
 import json
+import math
 import os
 from fractions import Fraction
 from pathlib import Path
@@ -22,7 +23,7 @@ stormpy = pytest.importorskip("stormpy")
 from tests.conftest import PEER_TESTS, peer_harness, require_shared  # noqa: E402
 from veribattery.checker.exact import ExactCheckResult  # noqa: E402
 from veribattery.config import load_config  # noqa: E402
-from veribattery.mission import check_mission, mission_files  # noqa: E402
+from veribattery.mission import check_mission, is_conditional, mission_files  # noqa: E402
 from veribattery.pipeline import check_prism_file  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -112,6 +113,11 @@ def _mission_case(config: Path | None, overrides: tuple[str, ...], tmp_path: Pat
     model = tmp_path / "model.prism"
     model.write_text(files.model)
     for result in report.run.results:
+        if is_conditional(result.property.formula):
+            # Not computed exactly (yet): undefined, with a warning naming it.
+            assert math.isnan(result.value)
+            assert any(str(result.property.name) in w for w in report.warnings)
+            continue
         assert isinstance(result, ExactCheckResult)
         assert ours(result) == storm_exact(model, result.property.text, {}), result.property.text
 

@@ -51,7 +51,8 @@ def test_paper_config_in_storm(name: str, tmp_path: Path) -> None:
     states, transitions, *expected = PAPER_RESULTS[name]
     model, values = _check(REPO / "configs" / "paper" / f"{name}.yaml", tmp_path)
     assert (model.nr_states, model.nr_transitions) == (states, transitions)
-    assert values == pytest.approx(expected, rel=1e-6)
+    # The paper's three properties come first (the conditional defaults follow).
+    assert values[:len(expected)] == pytest.approx(expected, rel=1e-6)
 
 
 def test_calibration_against_the_paper(tmp_path: Path) -> None:

@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import pandas as pd
 
+from veribattery.config.schema import PAPER_PROPERTIES
 from veribattery.sweep import Axis, parse_axis
 
 SMALL_FARM = ("farm.cols=3", "farm.rows=3", "farm.base=[0,0]", "battery.resolution_ah=0.5",
               "battery.max_recharges=25")
+
+#: Rows per grid point: one per default property.
+PER_POINT = len(PAPER_PROPERTIES)
 
 #: Four points: two models x two capacities.
 FOUR_POINTS = ("battery.model=advanced,basic_high", "battery.capacity_ah=10:10.5:0.5")

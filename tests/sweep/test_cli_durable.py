@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner, Result
 
+from tests.sweep.helpers import PER_POINT
 from tests.sweep.helpers import SMALL_FARM as TINY
 from veribattery.cli import cli
 
@@ -38,11 +39,12 @@ def test_results_resume_and_plain_progress_lines(config: str, tmp_path: Path) ->
     assert lines[2].startswith("[2/2] battery.capacity_ah=10.5: ")
     assert lines[-1] == "2 points: 2 checked, 0 failed"
     with out.open() as stream:
-        assert [row["point"] for row in csv.DictReader(stream)] == ["0"] * 3 + ["1"] * 3
+        points = [row["point"] for row in csv.DictReader(stream)]
+        assert points == ["0"] * PER_POINT + ["1"] * PER_POINT
     again = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-o", str(out), "--format", "csv")
     assert again.exit_code == 0, again.output
     assert "2 of 2 points already done" in again.stderr
-    assert again.stdout.count("\n") == 1 + 6
+    assert again.stdout.count("\n") == 1 + 2 * PER_POINT
 
 
 def test_sweep_section_in_config_and_vary_overrides_it(tmp_path: Path) -> None:
@@ -51,7 +53,7 @@ def test_sweep_section_in_config_and_vary_overrides_it(tmp_path: Path) -> None:
     result = run("sweep", str(path), *SMALL_FARM, "--format", "csv")
     assert result.exit_code == 0, result.output
     rows = list(csv.DictReader(result.stdout.splitlines()))
-    assert [float(row["battery.capacity_ah"]) for row in rows][::3] == [10, 10.5]
+    assert [float(row["battery.capacity_ah"]) for row in rows][::PER_POINT] == [10, 10.5]
     result = run("sweep", str(path), *SMALL_FARM, "--vary", "strategy.safe_t=0.3",
                  "--format", "csv")
     assert result.exit_code == 0, result.output

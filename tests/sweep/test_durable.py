@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from tests.sweep.helpers import SMALL_FARM, four_axes, same_results
+from tests.sweep.helpers import PER_POINT, SMALL_FARM, four_axes, same_results
 from veribattery.errors import ConfigError
 from veribattery.sweep import Axis, run_sweep
 from veribattery.sweep.fingerprint import SweepFingerprint
@@ -48,9 +48,10 @@ def test_rerun_resumes_and_checks_only_missing_points(
     path = tmp_path / "r.csv"
     run_sweep("", four_axes(), SMALL_FARM, results=path)
     lines = path.read_text().splitlines(keepends=True)
-    # Keep the header and the first point (3 properties); tear the next row in half,
-    # as a crash in the middle of a write would.
-    path.write_text("".join(lines[:4]) + lines[4][:10])
+    # Keep the header and the first point (a row per property); tear the next row in
+    # half, as a crash in the middle of a write would.
+    first = 1 + PER_POINT
+    path.write_text("".join(lines[:first]) + lines[first][:10])
     notes: list[str] = []
     checked: list[int] = []
     frame = run_sweep("", four_axes(), SMALL_FARM, results=path, notes=notes.append,
@@ -58,7 +59,7 @@ def test_rerun_resumes_and_checks_only_missing_points(
     assert notes[0] == "1 of 4 points already done"
     assert checked == [1, 2, 3]
     same_results(frame, serial_frame)
-    assert list(_read(path)["point"]) == [0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3]
+    assert list(_read(path)["point"]) == [p for p in range(4) for _ in range(PER_POINT)]
     # A third run finds everything done and checks nothing.
     notes.clear()
     again = run_sweep("", four_axes(), SMALL_FARM, results=path, notes=notes.append,

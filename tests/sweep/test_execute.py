@@ -9,7 +9,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from tests.sweep.helpers import SMALL_FARM, four_axes, same_results
+from tests.sweep.helpers import PER_POINT, SMALL_FARM, four_axes, same_results
 from veribattery.config import load_config
 from veribattery.errors import ConfigError
 from veribattery.sweep import run_sweep
@@ -48,11 +48,21 @@ def _kill_pool_workers() -> None:
             os.kill(child.pid or 0, signal.SIGKILL)
 
 
-def test_plan_full_build_without_reuse_keys() -> None:
+def test_plan_full_build_without_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
+    import veribattery.sweep.tasks as tasks_module
+
+    monkeypatch.setattr(tasks_module, "reuse_key", lambda cfg: None)
     cfg = load_config("", SMALL_FARM)
     tasks, plan = plan_tasks([(i, cfg) for i in range(5)], jobs=2)
-    assert [len(t.points) for t in tasks] == [1] * 5  # reuse_key is None: one point each
+    assert [len(t.points) for t in tasks] == [1] * 5  # no reuse key: one point each
     assert plan.describe() == "full build at every point"
+
+
+def test_plan_shares_the_state_space_of_equal_configs() -> None:
+    cfg = load_config("", SMALL_FARM)
+    tasks, plan = plan_tasks([(i, cfg) for i in range(5)], jobs=1)
+    assert [len(t.points) for t in tasks] == [5]
+    assert plan.describe() == "structure reuse: 5 points share 1 state space"
 
 
 def test_plan_groups_equal_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
@@ -102,7 +112,7 @@ def test_dask_cluster_equals_local_and_survives_a_killed_worker(
     assert killed
     same_results(frame, serial_frame)
     written = pd.read_csv(path)
-    assert list(written["point"]) == [p for p in range(4) for _ in range(3)]  # none twice
+    assert list(written["point"]) == [p for p in range(4) for _ in range(PER_POINT)]  # none twice
     assert list(written["value"]) == list(serial_frame["value"].astype(float))
 
 

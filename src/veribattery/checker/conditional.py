@@ -27,11 +27,11 @@ from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import kernels
-from veribattery.errors import CheckError, Span
+from veribattery.errors import Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
 
-class ConditionUnreachable(CheckError):
+class ConditionUnreachable(UndefinedResult):
     """The condition of a conditional property has probability 0 from the initial state."""
 
 

@@ -29,7 +29,7 @@ from veribattery.checker.bounds import Bounds
 from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
 from veribattery.checker.pctl import _as_mask, _has_operator, _leaf, _steps
 from veribattery.checker.result import CheckResult
-from veribattery.errors import CheckError, Span, VeribatteryError
+from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
 from veribattery.explore.exact import ExactDTMC, ExactRewards
 from veribattery.explore.rational import ExactScalar, ObjectArray, evaluate_rational, rational
 from veribattery.lang.expressions import walk
@@ -264,7 +264,8 @@ def path_probs(model: ExactDTMC, path: PathFormula) -> ObjectArray:
         case Globally(operand=operand, bound=bound):
             escape = _until(model, everywhere, ~state_set(model, operand), bound)
             return np.asarray(_ONE - escape, dtype=object)
-    raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
+    raise UndefinedResult(
+        f"{type(path).__name__} formulas are not supported in exact arithmetic", path.span)
 
 
 def _until(model: ExactDTMC, remain: BoolArray, target: BoolArray,
@@ -366,7 +367,9 @@ def path_rewards(model: ExactDTMC, op: RewardOp) -> ExactValues:
         case Instantaneous(time=time_):
             state = structure.state
             return ExactValues.finite(_power(model, everywhere, state, zero, _steps(time_)))
-    raise CheckError(f"unsupported reward path {type(op.path).__name__}", op.path.span)
+    raise UndefinedResult(
+        f"{type(op.path).__name__} reward paths are not supported in exact arithmetic",
+        op.path.span)
 
 
 def reach_rewards(model: ExactDTMC, rewards: ObjectArray, target: BoolArray) -> ExactValues:
