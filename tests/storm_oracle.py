@@ -186,7 +186,8 @@ def compare(
         if isinstance(result.value, bool):
             expected: Value = all(bool(storm_values[mapping[i]]) for i in dtmc.initial)
         else:
-            expected = storm_values[mapping[int(dtmc.initial[0])]]
+            # PRISM's default filter: the range over the initial states (value = its low end).
+            expected = min(float(storm_values[mapping[int(i)]]) for i in dtmc.initial)
         if not close(result.value, expected, rtol, atol):
             problems.append(f"{label}: value veribattery {result.value!r} Storm {expected!r}")
     return problems

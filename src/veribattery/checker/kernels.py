@@ -36,7 +36,7 @@ from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import certify, linsolve, rational
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.bounds import Bounds, escalated, round_down, round_up
 from veribattery.errors import CheckError
 
 # ---------------------------------------------------------------------------
@@ -285,6 +285,11 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Boun
     The iteration stops early at an exact fixpoint of the float map; the
     remaining steps are accounted normwise with ``||M||_inf`` (rounded up).
     """
+    if escalated() and np.array_equal(start.lower, start.upper):
+        # Asked for exact bounds: iterate in rational arithmetic when small enough.
+        exact = rational.power_exact(M, start.value, offset, k)
+        if exact is not None:
+            return Bounds(*exact)
     x = start.value
     radius = np.maximum(round_up(x - start.lower), round_up(start.upper - x))
     terms = certify.row_terms(M)

@@ -143,3 +143,33 @@ def _rounded(solution: list[Fraction]) -> tuple[FloatArray, FloatArray, FloatArr
     lower = np.where(above, round_down(value), value)
     upper = np.where(below, round_up(value), value)
     return value, lower, upper
+
+
+#: Largest ``steps * stored entries`` of a step-bounded iteration done exactly.
+POWER_LIMIT = 1_000_000
+
+
+def power_exact(M: sp.csr_matrix, start: FloatArray, offset: FloatArray,
+                k: int) -> tuple[FloatArray, FloatArray, FloatArray] | None:
+    """``k`` steps of ``x <- offset + M x`` from *start* in exact arithmetic, rounded
+    to ``(value, lower, upper)``; None when ``k * nnz`` exceeds :data:`POWER_LIMIT`.
+
+    The step-bounded kernels' last resort when a bound must be decided at a value
+    the float iteration's error bar straddles (``P>0.98`` where it is exactly 0.98).
+    Entries are dyadic rationals (:class:`gmpy2.mpq`); the products are vectorised
+    over object arrays, and the iteration stops at an exact fixpoint.
+    """
+    from gmpy2 import mpq
+
+    if k * max(M.nnz, 1) > POWER_LIMIT or M.shape[0] > EXACT_LIMIT:
+        return None
+    exact = np.frompyfunc(mpq, 1, 1)
+    data, x, base = exact(M.data), exact(start), exact(offset)
+    rows = np.repeat(np.arange(M.shape[0]), np.diff(M.indptr))
+    for _ in range(k):
+        following = base.copy()
+        np.add.at(following, rows, data * x[M.indices])
+        if np.array_equal(following, x):
+            break
+        x = following
+    return _rounded([Fraction(int(v.numerator), int(v.denominator)) for v in x])
