@@ -53,18 +53,7 @@ for prop in props:
     print(str(stormpy.model_checking(model, prop).get_value_vector()[init]))
 """
 
-HADDAD_MONMEGE = """dtmc
-const int N;
-const double p;
-const double q = 0.5;
-module hm
-  x : [0..2*N] init N;
-  [] x=N -> p:(x'=N-1) + (1-p):(x'=N+1);
-  [] x>0 & x<N -> q:(x'=x-1) + (1-q):(x'=N);
-  [] x>N & x<2*N -> q:(x'=x+1) + (1-q):(x'=N);
-  [] x=0 | x=2*N -> true;
-endmodule
-"""
+HADDAD_MONMEGE = (Path(__file__).parents[1] / "tests" / "data" / "haddad_monmege.prism").read_text()
 
 
 def measured(argv: list[str]) -> tuple[dict[str, float], str]:

@@ -13,6 +13,7 @@ import math
 import random
 from collections.abc import Sequence
 from fractions import Fraction
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -23,18 +24,8 @@ from veribattery.cli import cli
 from veribattery.errors import ModelError
 from veribattery.pipeline import check_prism_file
 
-HADDAD_MONMEGE = """dtmc
-const int N;
-const double p;
-const double q = 0.5;
-module hm
-  x : [0..2*N] init N;
-  [] x=N -> p:(x'=N-1) + (1-p):(x'=N+1);
-  [] x>0 & x<N -> q:(x'=x-1) + (1-q):(x'=N);
-  [] x>N & x<2*N -> q:(x'=x+1) + (1-q):(x'=N);
-  [] x=0 | x=2*N -> true;
-endmodule
-"""
+#: The chain built to defeat floating-point solvers (one copy, shared with bench/).
+HADDAD_MONMEGE = (Path(__file__).parents[1] / "data" / "haddad_monmege.prism").read_text()
 
 
 def exact_run(model: str, *properties: str, **constants: str) -> list[ExactCheckResult]:
