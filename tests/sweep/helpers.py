@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import pandas as pd
+from click.testing import CliRunner, Result
 
+from veribattery.cli import cli
 from veribattery.config.schema import PAPER_PROPERTIES
 from veribattery.sweep import Axis, parse_axis
 
@@ -13,8 +15,16 @@ SMALL_FARM = ("farm.cols=3", "farm.rows=3", "farm.base=[0,0]", "battery.resoluti
 #: Rows per grid point: one per default property.
 PER_POINT = len(PAPER_PROPERTIES)
 
+#: ``--vary`` for two points: two capacities.
+TWO_POINTS = ("--vary", "battery.capacity_ah=10:10.5:0.5")
+
 #: Four points: two models x two capacities.
 FOUR_POINTS = ("battery.model=advanced,basic_high", "battery.capacity_ah=10:10.5:0.5")
+
+
+def run(*args: str) -> Result:
+    """``veribattery ARGS`` through click's test runner."""
+    return CliRunner().invoke(cli, list(args))
 
 
 def four_axes() -> list[Axis]:

@@ -8,23 +8,10 @@ import json
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner, Result
 
-from veribattery.cli import cli
+from tests.sweep.helpers import TWO_POINTS, run
 
 SMALL_FARM = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]")
-TWO_POINTS = ("--vary", "battery.capacity_ah=10:10.5:0.5")
-
-
-def run(*args: str) -> Result:
-    return CliRunner().invoke(cli, list(args))
-
-
-@pytest.fixture
-def config(tmp_path: Path) -> str:
-    path = tmp_path / "mission.yaml"
-    path.write_text("strategy:\n  safe_t: 0.3\n")
-    return str(path)
 
 
 def test_json_with_csv_file_and_plot(config: str, tmp_path: Path) -> None:

@@ -8,25 +8,11 @@ import time
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner, Result
 
-from tests.sweep.helpers import PER_POINT
+from tests.sweep.helpers import PER_POINT, TWO_POINTS, run
 from tests.sweep.helpers import SMALL_FARM as TINY
-from veribattery.cli import cli
 
 SMALL_FARM = tuple(arg for item in TINY for arg in ("--set", item))
-TWO_POINTS = ("--vary", "battery.capacity_ah=10:10.5:0.5")
-
-
-def run(*args: str) -> Result:
-    return CliRunner().invoke(cli, list(args))
-
-
-@pytest.fixture
-def config(tmp_path: Path) -> str:
-    path = tmp_path / "mission.yaml"
-    path.write_text("strategy:\n  safe_t: 0.3\n")
-    return str(path)
 
 
 def test_results_resume_and_plain_progress_lines(config: str, tmp_path: Path) -> None:
