@@ -7,10 +7,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
-from rich.markup import escape
-from rich.table import Table
 
-from veribattery.cli.output import build_progress, out, print_warnings, set_option, user_errors
+from veribattery.cli.output import (
+    build_progress,
+    escape,
+    out,
+    print_warnings,
+    set_option,
+    user_errors,
+)
 
 if TYPE_CHECKING:
     from veribattery.analyses.distribution import Deadline, Distribution
@@ -92,6 +97,8 @@ def _summary(dist: Distribution, limits: tuple[Deadline, ...]) -> list[tuple[str
 
 
 def _print_table(dist: Distribution, limits: tuple[Deadline, ...]) -> None:
+    from rich.table import Table
+
     out.print(f"Distribution of {dist.reward!r} to success/failure: {dist.values.size:,} "
               f"levels, up to {dist.values[-1]:g}")
     table = Table("quantity", "value", show_edge=False)

@@ -13,11 +13,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
-from rich.markup import escape
-from rich.table import Table
 
 from veribattery.cli.output import (
     build_progress,
+    escape,
     fail,
     format_value,
     json_value,
@@ -174,6 +173,8 @@ def _print_explanation(
 
 
 def _print_grouping(grouping: Grouping, total: float) -> None:
+    from rich.table import Table
+
     table = Table(*grouping.keys, "probability", "share", "", show_edge=False,
                   title=f"by {', '.join(grouping.keys)}", title_justify="left")
     for values, p in grouping.groups[:GROUP_ROWS]:
@@ -288,6 +289,8 @@ def _write_simulated_paths(path: Path, dtmc: DTMC, simulation: Simulation,
 
 
 def _show_simulation(simulation: Simulation, output_format: str) -> None:
+    from rich.table import Table
+
     print_warnings(simulation.warnings())
     if output_format == "json":
         click.echo(json.dumps(_simulation_json(simulation)))

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
-from rich.table import Column, Table
 
 from veribattery.cli.output import (
     build_progress,
@@ -67,6 +66,8 @@ def check_command(
 
 def print_mission_table(report: MissionReport) -> None:
     """Model size, named results, requirements, timings."""
+    from rich.table import Column, Table
+
     dtmc = report.run.dtmc
     out.print(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
     table = Table("property", "formula", Column("value", overflow="fold"), show_edge=False)

@@ -10,26 +10,50 @@ import math
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import click
-from rich.console import Console
-from rich.markup import escape
 
 from veribattery.errors import VeribatteryError
 
 if TYPE_CHECKING:
+    from rich.console import Console
+
     from veribattery.checker import CheckResult
 
 ProgressCallback = Callable[[int, int], None]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
-out = Console(highlight=False, soft_wrap=True)
-err = Console(stderr=True, highlight=False, soft_wrap=True)
 
-out = Console(highlight=False, soft_wrap=True)
-err = Console(stderr=True, highlight=False, soft_wrap=True)
+class _LazyConsole:
+    """A rich ``Console`` made on first use: ``--help`` and commands that print no rich
+    output never import rich (its import is a noticeable part of start-up)."""
+
+    def __init__(self, **options: Any):
+        self._options = options
+        self._console: Console | None = None
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("__"):  # copy/pickle probes: not the console's business
+            raise AttributeError(name)
+        console = self.__dict__.get("_console")
+        if console is None:
+            from rich.console import Console
+
+            console = self._console = Console(**self.__dict__.get("_options", {}))
+        return getattr(console, name)
+
+
+out: Console = cast("Console", _LazyConsole(highlight=False, soft_wrap=True))
+err: Console = cast("Console", _LazyConsole(stderr=True, highlight=False, soft_wrap=True))
+
+
+def escape(text: str) -> str:
+    """Escape rich markup in *text* (rich imported on first use, as for the consoles)."""
+    from rich.markup import escape as rich_escape
+
+    return rich_escape(text)
 
 
 def fail(message: str) -> None:

@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
-from rich.table import Table
 
 from veribattery.cli.output import format_value, out, print_warnings, set_option, user_errors
 
@@ -103,6 +102,8 @@ def fade_command(cycles: Path, at_cycle: float | None, config: Path | None, writ
 
 
 def _print_fits(report: FadeReport) -> None:
+    from rich.table import Table
+
     table = Table("model", "AIC", "RMSE (Ah)", "max |resid| (Ah)", show_edge=False)
     for fit in report.fits:
         table.add_row(fit.name, f"{fit.aic:.2f}", f"{fit.rmse:.4g}",
@@ -184,6 +185,8 @@ def _soc_step(text: str) -> Any:
 
 
 def _print_levels(params: LevelParameters) -> None:
+    from rich.table import Table
+
     steps = params.steps
     low, high = _show(steps.low), _show(steps.high)
     out.print(f"thresholds: low SOC < {low}, medium {low}..{high}, high SOC > {high}")
@@ -281,6 +284,8 @@ def forecast_command(config: Path, cycles_path: Path, horizon: int, step: int | 
 
 
 def _print_forecast(result: Forecast, time_property: str) -> None:
+    from rich.table import Table
+
     req = result.requirement
     columns = ["ahead", "cycle", "capacity_ah", "fade", req.prop]
     shown = time_property if time_property and time_property != req.prop else ""
@@ -323,6 +328,8 @@ def recheck_command(config: Path, cycles_path: Path, discharge_path: Path | None
 
 
 def _print_recheck(result: Recheck) -> None:
+    from rich.table import Table
+
     out.print("parameters moved by the refit ('-': not set that way before):", style="bold")
     for moved in result.moved:
         before = "-" if moved.before is None else _show(moved.before)

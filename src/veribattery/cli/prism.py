@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import click
-from rich.table import Column, Table
 
-from veribattery.checker import CheckResult
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
 from veribattery.cli.output import (
     build_progress,
@@ -23,8 +21,10 @@ from veribattery.cli.output import (
     result_bounds,
     user_errors,
 )
-from veribattery.lang import parse_constant_assignments
-from veribattery.pipeline import ModelCheckRun, check_prism_file
+
+if TYPE_CHECKING:
+    from veribattery.checker import CheckResult
+    from veribattery.pipeline import ModelCheckRun
 
 
 @click.command("prism")
@@ -54,6 +54,9 @@ def prism_command(
     **analysis: Any,
 ) -> None:
     """Check PCTL properties of a PRISM DTMC MODEL file."""
+    from veribattery.lang import parse_constant_assignments
+    from veribattery.pipeline import check_prism_file
+
     if analysis["explain"] is not None:
         with user_errors():
             constants = parse_constant_assignments(consts)
@@ -118,6 +121,8 @@ def _shown(result: CheckResult) -> str:
 
 def print_prism_run(run: ModelCheckRun) -> None:
     """Model size, then one table row per property."""
+    from rich.table import Column, Table
+
     size = run.model_summary
     out.print(
         f"Model: {size['states']:,} states, {size['transitions']:,} transitions, "

@@ -9,7 +9,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
-from rich.table import Table
 
 from veribattery.cli.output import err, fail, out, user_errors
 
@@ -119,6 +118,8 @@ def _report_failures(frame: Any) -> None:
 
 
 def _print_table3_frame(table: Any, output_format: str) -> None:
+    from rich.table import Table
+
     if output_format == "json":
         click.echo(table.to_json(orient="records"))
         return
@@ -134,6 +135,8 @@ def _print_table3_frame(table: Any, output_format: str) -> None:
 
 def print_table3(rows: Sequence[Table3Comparison]) -> None:
     """Paper vs veribattery, with relative differences."""
+    from rich.table import Table
+
     from veribattery.analyses.paper import SOURCE
 
     table = Table("case", "quantity", "paper", "veribattery", "rel. diff", show_edge=False,

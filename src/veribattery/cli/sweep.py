@@ -10,8 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import click
-from rich.console import Console
-from rich.table import Table
 
 from veribattery.cli.output import (
     err,
@@ -156,6 +154,9 @@ def _plain_lines() -> Iterator[tuple[Callable[[int, int], None], Callable[[Any, 
 
 def print_sweep(frame: Any, keys: Sequence[str], output_format: str) -> None:
     """Table: one row per point, a column per property; csv/json: the tidy rows."""
+    from rich.console import Console
+    from rich.table import Table
+
     from veribattery.sweep import records, wide
 
     if output_format == "csv":

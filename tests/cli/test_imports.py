@@ -1,0 +1,58 @@
+"""Start-up: a command imports only what it needs (a regression guard for lazy imports).
+
+Each case runs in a fresh interpreter (``sys.modules`` of the test process is shared by
+every test) and lists the top-level packages it ended up importing.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+#: Never needed to start the CLI, print help or check a mission.
+HEAVY = ("pandas", "matplotlib", "dask", "distributed", "pyarrow", "pybamm", "stormpy")
+#: Needed by checking, but not to start the CLI or print its help.
+ENGINE = ("numpy", "scipy", "lark", "jinja2", "pydantic", "yaml", "rich")
+
+_LIST_MODULES = """
+import json, sys
+{body}
+print(json.dumps(sorted({{name.partition('.')[0] for name in sys.modules}})))
+"""
+
+
+def _imported(body: str) -> set[str]:
+    """The top-level packages imported by running *body* in a fresh interpreter."""
+    script = _LIST_MODULES.format(body=body)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          check=True)
+    return set(json.loads(done.stdout.splitlines()[-1]))
+
+
+def _run_cli(*args: str) -> str:
+    return ("from veribattery.cli import main\n"
+            f"try:\n    main({list(args)!r})\nexcept SystemExit:\n    pass\n")
+
+
+def test_importing_the_cli_imports_no_library() -> None:
+    imported = _imported("import veribattery.cli")
+    assert "click" in imported  # the case is real: the CLI was imported
+    assert imported.isdisjoint(HEAVY + ENGINE), sorted(imported & {*HEAVY, *ENGINE})
+
+
+@pytest.mark.parametrize("args", [("--help",), ("check", "--help"), ("sweep", "--help")])
+def test_help_imports_no_library(args: tuple[str, ...]) -> None:
+    imported = _imported(_run_cli(*args))
+    assert imported.isdisjoint(HEAVY + ENGINE), sorted(imported & {*HEAVY, *ENGINE})
+
+
+def test_check_imports_no_dataframe_plotting_or_cluster_library(tmp_path: Path) -> None:
+    config = tmp_path / "small.yaml"  # a 2x2 farm: checked in well under a second
+    config.write_text("farm: {cols: 2, rows: 2, base: [0, 0]}\nbattery: {resolution_ah: 0.5}\n")
+    imported = _imported(_run_cli("check", str(config), "--format", "json"))
+    assert {"numpy", "scipy", "pydantic"} <= imported  # the case is real: it checked
+    assert imported.isdisjoint(HEAVY), sorted(imported & set(HEAVY))
