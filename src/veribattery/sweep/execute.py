@@ -9,16 +9,19 @@ writes nothing.
 from __future__ import annotations
 
 import os
-from collections.abc import Generator, Iterator, Sequence
-from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+import pickle
+from collections.abc import Generator, Iterable, Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 from typing import TYPE_CHECKING, Any, Protocol
 
 from veribattery.errors import ConfigError
-from veribattery.sweep.tasks import PointResult, Task, iter_task, run_task
+from veribattery.sweep.tasks import PointCheck, PointResult, Task, iter_task, run_task, stream_to
 
 if TYPE_CHECKING:
+    from multiprocessing.queues import SimpleQueue
+
     from distributed import Client
 
 __all__ = ["CONNECT_TIMEOUT_S", "Executor", "default_jobs", "open_executor"]
@@ -73,68 +76,127 @@ class InProcess:
 class LocalPool:
     """``-j N``: a pool of N worker processes on this machine (spawned: no forked threads).
 
-    A worker that dies (killed, out of memory) breaks the pool; the pool is restarted
-    and the unfinished tasks resubmitted. A task that was in flight at
-    :data:`_MAX_BREAKS` breaks is recorded as failed, so one bad point cannot stop the
-    sweep.
+    Workers send each point's result through a queue the moment it is checked, so the
+    points of a long structure-reuse task are recorded one by one, and a task cut short
+    by a dead worker keeps its finished points. A worker that dies (killed, out of
+    memory) breaks the pool; the pool is restarted and the unfinished points run again.
+    A point that was in flight at :data:`_MAX_BREAKS` breaks is recorded as failed, so
+    one bad point cannot stop the sweep.
+
+    :param check: what checks one point in a worker (tests pass a stand-in).
     """
 
-    def __init__(self, jobs: int):
+    def __init__(self, jobs: int, check: PointCheck | None = None):
         self.jobs = jobs
+        self.check = check
         self.description = f"on {jobs} local worker processes"
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
-        """Run the tasks in the pool, yielding each task's points when it finishes."""
+        """Run the tasks in the pool, yielding each point's result as it is checked."""
         if len(tasks) <= 1:
-            yield from InProcess().results(tasks)
+            yield from (r for task in tasks for r in iter_task(task, self.check))
             return
-        pending, breaks = list(tasks), [0] * len(tasks)
-        order = {id(task): i for i, task in enumerate(tasks)}
+        pending, seen = list(tasks), _Seen()
+        breaks = {index: 0 for task in tasks for index, _ in task.points}
         while pending:
-            pending = yield from self._round(pending, breaks, order)
+            pending = yield from self._round(pending, seen, breaks)
 
     def _round(
-        self, pending: list[Task], breaks: list[int], order: dict[int, int]
+        self, pending: list[Task], seen: _Seen, breaks: dict[int, int]
     ) -> Generator[PointResult, None, list[Task]]:
         """One pool's life: run until done or broken; return the tasks still to run."""
         import multiprocessing
 
         context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(min(self.jobs, len(pending)), mp_context=context) as pool:
+        stream: SimpleQueue[int | PointResult] = context.SimpleQueue()
+        started: set[int] = set()
+        with ProcessPoolExecutor(min(self.jobs, len(pending)), mp_context=context,
+                                 initializer=stream_to, initargs=(stream,)) as pool:
             futures: dict[Future[list[PointResult]], Task] = {
-                pool.submit(run_task, task): task for task in pending}
+                pool.submit(run_task, task, self.check): task for task in pending}
             try:
                 while futures:
-                    done, _ = wait(futures, return_when=FIRST_COMPLETED)
-                    for future in done:
+                    yield from seen.fresh(_drained(stream, _POLL_S, started))
+                    for future in [f for f in futures if f.done()]:
                         results = future.result()  # raises if the pool broke: keep the task
                         futures.pop(future)
-                        yield from results
+                        yield from seen.fresh(results)
             except BrokenProcessPool:
-                return (yield from _after_break(list(futures.values()), breaks, order))
+                yield from seen.fresh(_drained(stream, 0, started))  # sent before the death
+                return (yield from _after_break(list(futures.values()), seen, started, breaks))
             except BaseException:
                 pool.shutdown(wait=False, cancel_futures=True)
                 raise
+            finally:
+                stream.close()
         return []
 
 
+#: How long the pool's and Dask's result loops wait for a point before looking at tasks.
+_POLL_S = 0.2
+
+
+class _Seen:
+    """The points already yielded: each point's result goes out once, whichever way
+    (stream or task result, first run or rerun) it arrives first."""
+
+    def __init__(self) -> None:
+        self.indices: set[int] = set()
+
+    def fresh(self, results: Iterable[PointResult]) -> Iterator[PointResult]:
+        """The results of points not yielded before."""
+        for result in results:
+            if result.index not in self.indices:
+                self.indices.add(result.index)
+                yield result
+
+
+def _drained(
+    stream: SimpleQueue[int | PointResult], wait_s: float, started: set[int]
+) -> Iterator[PointResult]:
+    """The results waiting in *stream* (after waiting up to *wait_s* for a message);
+    indices of points whose check started go to *started*."""
+    reader = stream._reader  # type: ignore[attr-defined]  # SimpleQueue.get has no timeout
+    try:
+        while reader.poll(wait_s):
+            wait_s = 0
+            message = stream.get()
+            if isinstance(message, int):
+                started.add(message)
+            else:
+                yield message
+    except (EOFError, OSError):  # a worker killed mid-message: nothing more to read
+        return
+
+
 def _after_break(
-    unfinished: list[Task], breaks: list[int], order: dict[int, int]
+    unfinished: list[Task], seen: _Seen, started: set[int], breaks: dict[int, int]
 ) -> Generator[PointResult, None, list[Task]]:
-    """Tasks to retry after a worker died; those in flight too often are recorded failed."""
-    retry = []
-    for task in unfinished:
-        breaks[order[id(task)]] += 1
-        if breaks[order[id(task)]] < _MAX_BREAKS:
-            retry.append(task)
-        else:
-            yield from (PointResult(index, error="a worker process died on this point "
-                                    "(killed, or out of memory)") for index, _ in task.points)
-    return retry
+    """The tasks to retry after a worker died, less their finished points.
+
+    The death is blamed on the points being checked then (started, not finished), or,
+    if none was seen starting, on the first open point of every unfinished task; a
+    point blamed :data:`_MAX_BREAKS` times is recorded as failed.
+    """
+    open_points = [[p for p in task.points if p[0] not in seen.indices] for task in unfinished]
+    blamed = {i for points in open_points for i, _ in points if i in started} or {
+        points[0][0] for points in open_points if points}
+    for index in blamed:
+        breaks[index] += 1
+    failed = {i for i in blamed if breaks[i] >= _MAX_BREAKS}
+    yield from seen.fresh(PointResult(i, error="a worker process died on this point "
+                                      "(killed, or out of memory)") for i in sorted(failed))
+    return [Task(tuple(p for p in points if p[0] not in failed))
+            for points in open_points if any(p[0] not in failed for p in points)]
 
 
 class DaskExecutor:
-    """``--scheduler``: tasks on a Dask distributed cluster, resubmitted if a worker dies."""
+    """``--scheduler``: tasks on a Dask distributed cluster, resubmitted if a worker dies.
+
+    Workers put each point's result on a Dask queue the moment it is checked, so the
+    points of a long task are recorded one by one; a task rerun after a worker died
+    yields only the points not already recorded.
+    """
 
     def __init__(self, client: Client, scheduler: str):
         self.client = client
@@ -142,15 +204,39 @@ class DaskExecutor:
         self.description = f"on Dask scheduler {scheduler} ({workers} workers)"
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
-        """Submit every task; yield each one's points as it completes."""
-        from distributed import as_completed
+        """Submit every task; yield each point's result as it is checked."""
+        from distributed import Queue as DaskQueue
+        from distributed import wait as dask_wait
 
-        futures = {self.client.submit(run_task, task, pure=False): task for task in tasks}
+        stream = DaskQueue(client=self.client)  # type: ignore[no-untyped-call]
+        futures = {self.client.submit(run_dask_task, task, stream.name, pure=False): task
+                   for task in tasks}
+        seen = _Seen()
         try:
-            for future in as_completed(futures):  # type: ignore[no-untyped-call]
-                yield from _gathered(future, futures[future])
+            while futures:
+                with suppress(TimeoutError):
+                    dask_wait(list(futures), timeout=_POLL_S,  # type: ignore[no-untyped-call]
+                              return_when="FIRST_COMPLETED")
+                sent = stream.get(batch=True)  # type: ignore[no-untyped-call]
+                yield from seen.fresh(pickle.loads(data) for data in sent)
+                for future in [f for f in futures if f.done()]:  # type: ignore[no-untyped-call]
+                    yield from seen.fresh(_gathered(future, futures.pop(future)))
         finally:
             self.client.cancel(list(futures))  # type: ignore[no-untyped-call]
+            stream.close()  # type: ignore[no-untyped-call]
+
+
+def run_dask_task(task: Task, stream_name: str) -> list[PointResult]:
+    """:func:`run_task` on a Dask worker, each point's result also put on the Dask queue
+    *stream_name* (pickled: Dask queues carry msgpack data) as soon as it is checked."""
+    from distributed import Queue as DaskQueue
+
+    stream = DaskQueue(stream_name)  # type: ignore[no-untyped-call]
+    results = []
+    for result in iter_task(task):
+        stream.put(pickle.dumps(result))  # type: ignore[no-untyped-call]
+        results.append(result)
+    return results
 
 
 def _gathered(future: Any, task: Task) -> Iterator[PointResult]:

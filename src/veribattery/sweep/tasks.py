@@ -11,14 +11,18 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from veribattery.config import MissionConfig
 from veribattery.mission import MissionChecker, MissionReport, reuse_key
 
-__all__ = ["PointResult", "PropertyValue", "ReusePlan", "Task", "iter_task", "plan_tasks",
-           "run_task"]
+if TYPE_CHECKING:
+    from multiprocessing.queues import SimpleQueue
+
+__all__ = ["PointCheck", "PointResult", "PropertyValue", "ReusePlan", "Task", "iter_task",
+           "plan_tasks", "run_task", "stream_to"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -99,16 +103,43 @@ def _runs(points: Sequence[tuple[int, MissionConfig]]) -> list[list[tuple[int, M
     return runs
 
 
-def run_task(task: Task) -> list[PointResult]:
-    """Check every point of *task* (what a worker process runs)."""
-    return list(iter_task(task))
+#: Checks one point: :func:`check_point`, or a stand-in (tests) importable by workers.
+PointCheck = Callable[["MissionChecker", int, MissionConfig], "PointResult"]
+
+#: Where this worker process reports each point: its index when its check starts, its
+#: result the moment it is done (set by :func:`stream_to` when a local pool starts the
+#: process; a SimpleQueue, whose ``put`` has written the pipe when it returns).
+_STREAM: SimpleQueue[int | PointResult] | None = None
 
 
-def iter_task(task: Task) -> Iterator[PointResult]:
+def stream_to(queue: SimpleQueue[int | PointResult] | None) -> None:
+    """Report every point to *queue* as it starts and ends (a pool's initializer)."""
+    global _STREAM
+    _STREAM = queue
+
+
+def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
+    """Check every point of *task* (what a worker process runs).
+
+    With a stream (see :func:`stream_to`) each point is reported when it starts and
+    when it is done, so that finished points are kept even if the task never finishes,
+    and a worker's death is blamed on the point it was checking.
+    """
+    checker, results = MissionChecker(), []
+    for index, cfg in task.points:
+        if _STREAM is not None:
+            _STREAM.put(index)
+        results.append((check or check_point)(checker, index, cfg))
+        if _STREAM is not None:
+            _STREAM.put(results[-1])
+    return results
+
+
+def iter_task(task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
     """Check the points of *task* in order with one checker, yielding each as it is done."""
     checker = MissionChecker()
     for index, cfg in task.points:
-        yield check_point(checker, index, cfg)
+        yield (check or check_point)(checker, index, cfg)
 
 
 def check_point(checker: MissionChecker, index: int, cfg: MissionConfig) -> PointResult:
