@@ -121,10 +121,11 @@ def _check(
     *,
     exact: bool = False,
 ) -> MissionReport:
-    files = mission_files(cfg)
+    from veribattery.render import render_model, render_properties
+
     parsed = parsed or _Parsed()
-    model = parsed.model(files.model)
-    props = parsed.properties(files.properties)
+    model = parsed.model(render_model(cfg))  # not mission_files: no config YAML needed
+    props = parsed.properties(render_properties(cfg))
     return mission_report(cfg, _check_properties(model, props, progress, builder, exact))
 
 
@@ -171,7 +172,9 @@ class MissionChecker:
 
     def __init__(self) -> None:
         self._builder = ReusingBuilder()
-        self._parsed = _Parsed()
+        # One parse cache per process: a sweep's workers check one task after another,
+        # and consecutive points' texts differ in a constant or two (see _Parsed).
+        self._parsed = _PARSES
 
     def check(
         self, cfg: MissionConfig, *, progress: ProgressCallback | None = None
@@ -205,9 +208,10 @@ class _Parsed:
         return self._props[1]
 
 
-#: reuse_key's parses: a sweep asks for the keys of many similar configs in a row.
+#: The process's last parses, for reuse_key and every MissionChecker: a sweep asks for
+#: the keys of, and checks, many similar configs in a row.
 #: (Safe across threads: a parse is only re-used after checking its text.)
-_KEY_PARSED = _Parsed()
+_PARSES = _Parsed()
 
 
 def _reparse(old_text: str, old: Model, text: str) -> Model | None:
@@ -259,7 +263,9 @@ def reuse_key(cfg: MissionConfig) -> str | None:
     Equal keys are necessary for re-use; :class:`MissionChecker` still falls back
     to a full build where a probability becomes 0 or 1.
     """
-    model = _KEY_PARSED.model(mission_files(cfg).model)
+    from veribattery.render import render_model
+
+    model = _PARSES.model(render_model(cfg))
     return structure_key(flatten_model(model))
 
 
