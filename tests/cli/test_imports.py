@@ -56,3 +56,10 @@ def test_check_imports_no_dataframe_plotting_or_cluster_library(tmp_path: Path) 
     imported = _imported(_run_cli("check", str(config), "--format", "json"))
     assert {"numpy", "scipy", "pydantic"} <= imported  # the case is real: it checked
     assert imported.isdisjoint(HEAVY), sorted(imported & set(HEAVY))
+
+
+def test_a_sweep_worker_imports_no_dataframe_library() -> None:
+    # What a worker process imports to unpickle and run a task.
+    imported = _imported("import veribattery.sweep.execute, veribattery.sweep.tasks")
+    assert "numpy" in imported  # the case is real: the checker was imported
+    assert imported.isdisjoint(HEAVY), sorted(imported & set(HEAVY))

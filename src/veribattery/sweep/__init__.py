@@ -16,25 +16,45 @@ Modules: :mod:`~veribattery.sweep.grid` (axes and grids), :mod:`~veribattery.swe
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-from veribattery.sweep.execute import default_jobs
-from veribattery.sweep.grid import Axis, axes_from, grid, parse_axis, point_overrides
-from veribattery.sweep.run import (
-    PointCallback,
-    SweepProgress,
-    any_requirement_fails,
-    describe_point,
-    records,
-    run_sweep,
-    wide,
-)
-from veribattery.sweep.summary import summary_line
-from veribattery.sweep.tasks import PointResult
+from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import pandas as pd
+
+    from veribattery.sweep.execute import default_jobs
+    from veribattery.sweep.grid import Axis, axes_from, grid, parse_axis, point_overrides
+    from veribattery.sweep.run import (
+        PointCallback,
+        SweepProgress,
+        any_requirement_fails,
+        describe_point,
+        records,
+        run_sweep,
+        wide,
+    )
+    from veribattery.sweep.summary import summary_line
+    from veribattery.sweep.tasks import PointResult
+
+# Exports are imported on first use: a worker process unpickling a task imports
+# veribattery.sweep.tasks, and with it this package, and should not pay for pandas.
+_EXPORTS = {
+    "veribattery.sweep.execute": ("default_jobs",),
+    "veribattery.sweep.grid": ("Axis", "axes_from", "grid", "parse_axis", "point_overrides"),
+    "veribattery.sweep.run": ("PointCallback", "SweepProgress", "any_requirement_fails",
+                              "describe_point", "records", "run_sweep", "wide"),
+    "veribattery.sweep.summary": ("summary_line",),
+    "veribattery.sweep.tasks": ("PointResult",),
+}
+_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'veribattery.sweep' has no attribute {name!r}")
+    return getattr(importlib.import_module(_HOME[name]), name)
+
 
 __all__ = [
     "Axis",
