@@ -74,19 +74,20 @@ def test_reproduce_fig6_resumes_a_finished_sweep_and_draws(tmp_path: Path) -> No
     from veribattery.sweep.run import FIXED_COLUMNS
 
     axes = [parse_axis(a) for a in figures.CAPACITY_AXES]
-    sets = figures.CAPACITY_SETS
+    sets = figures.capacity_sets(["fig6"])  # Fig. 6 alone checks P(success) alone
+    assert load_config("", sets).properties == {"p_success": 'P=? [ F "success" ]'}
+    results = tmp_path / figures.capacity_results(["fig6"])
     mark = fingerprint(load_config("", sets), sets, axes)
-    (tmp_path / f"{figures.CAPACITY_RESULTS}.sweep.json").write_text(mark.as_json())
+    results.with_name(results.name + ".sweep.json").write_text(mark.as_json())
     rows = []
     for index, point in enumerate(grid(axes)):
         capacity = float(point["battery.capacity_ah"])  # type: ignore[arg-type]
-        for prop, value in (("p_success", capacity / 20), ("exp_mission_time", 100 * capacity),
-                            ("exp_recharges", capacity)):
+        for prop, value in (("p_success", capacity / 20),):
             rows.append({"point": index, **point, "property": prop, "value": value,
                          "states": 1, "transitions": 1, "seconds": 0.0,
                          "recharge_cap_probability": 0.0})
     columns = ["point", "battery.model", "battery.capacity_ah", *FIXED_COLUMNS]
-    pd.DataFrame(rows, columns=columns).to_csv(tmp_path / figures.CAPACITY_RESULTS, index=False)
+    pd.DataFrame(rows, columns=columns).to_csv(results, index=False)
     result = CliRunner().invoke(cli, ["reproduce", "fig6", "-o", str(tmp_path), "-j", "1"])
     assert result.exit_code == 0, result.output
     assert "604 of 604 points already done" in result.stderr
@@ -94,3 +95,17 @@ def test_reproduce_fig6_resumes_a_finished_sweep_and_draws(tmp_path: Path) -> No
     assert len(table) == 151
     assert table.loc[12.3, "p_success:basic_low"] == pytest.approx(12.3 / 20, rel=1e-15)
     assert (tmp_path / "fig6.png").stat().st_size > 10_000
+
+
+def test_each_figure_checks_only_the_properties_it_draws() -> None:
+    from veribattery.config import load_config
+
+    def checked(drawn: list[str]) -> list[str]:
+        return list(load_config("", figures.capacity_sets(drawn)).properties)
+
+    assert checked(["fig6"]) == ["p_success"]
+    assert checked(["fig8"]) == ["exp_mission_time", figures.GIVEN_SUCCESS]
+    assert checked(["fig8", "fig6"]) == ["p_success", "exp_mission_time",
+                                         figures.GIVEN_SUCCESS]
+    assert figures.capacity_results(["fig6", "fig8"]) == figures.CAPACITY_RESULTS
+    assert figures.capacity_results(["fig8"]) == "fig8_sweep.csv"

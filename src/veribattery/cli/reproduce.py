@@ -33,7 +33,9 @@ def reproduce_command(
     """Re-run the seed paper's Table 3, Fig. 6 and Fig. 8 (all: every one, into -o DIR).
 
     The figures come from one sweep (four battery models x 5.0-20.0 Ah, 604 points)
-    whose rows are kept in DIR/capacity_sweep.csv: an interrupted run resumes.
+    checking only the properties drawn, whose rows are kept in DIR/capacity_sweep.csv
+    (fig6 or fig8 alone: DIR/fig6_sweep.csv, DIR/fig8_sweep.csv): an interrupted run
+    resumes.
     """
     if what == "table3" and out_dir is None:
         _table3_in_process(output_format)
@@ -61,8 +63,9 @@ def _reproduce(what: str, directory: Path, options: Any, output_format: str) -> 
             _write_csv(table, directory / "table3.csv")
             _print_table3_frame(table, output_format)
         if what != "table3":
-            frame = figures.capacity_sweep(_mkdir(directory), options)
-            _report_failures(frame)
+            drawn = figures.FIGURES if what == "all" else (what,)
+            frame = figures.capacity_sweep(_mkdir(directory), options, drawn)
+            _report_failures(frame, figures.capacity_results(drawn))
             if what in ("fig6", "all"):
                 _written(figures.draw_fig6(frame, directory))
             if what in ("fig8", "all"):
@@ -108,13 +111,13 @@ def _written(paths: Sequence[Path]) -> None:
         click.echo(str(path))
 
 
-def _report_failures(frame: Any) -> None:
+def _report_failures(frame: Any, results: str) -> None:
     from veribattery.cli.output import print_warnings
     from veribattery.sweep import summary_line
 
     print_warnings(frame.attrs.get("warnings", ()))
     if frame.attrs.get("failed"):
-        fail(f"{summary_line(frame)}; see the error column of capacity_sweep.csv")
+        fail(f"{summary_line(frame)}; see the error column of {results}")
 
 
 def _print_table3_frame(table: Any, output_format: str) -> None:
