@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -65,29 +66,36 @@ def test_reproduce_all_needs_an_output_folder() -> None:
     assert "-o DIR" in result.stderr
 
 
-def test_reproduce_fig6_resumes_a_finished_sweep_and_draws(tmp_path: Path) -> None:
-    # A complete capacity sweep already on disk (synthetic values): `reproduce` must
-    # resume it (checking nothing) and draw from it.
+def _finished_sweep(folder: Path, name: str, axes: Sequence[str], sets: Sequence[str],
+                    skip: int | None = None) -> None:
+    """A sweep's results on disk as `reproduce` writes them, with synthetic values
+    (``value`` = capacity / 20, or 0.5 without a capacity), every point but *skip*."""
     from veribattery.config import load_config
     from veribattery.sweep import grid
     from veribattery.sweep.fingerprint import fingerprint
     from veribattery.sweep.run import FIXED_COLUMNS
 
-    axes = [parse_axis(a) for a in figures.CAPACITY_AXES]
+    parsed = [parse_axis(a) for a in axes]
+    cfg = load_config("", sets)
+    (folder / f"{name}.sweep.json").write_text(fingerprint(cfg, sets, parsed).as_json())
+    rows = []
+    for index, point in enumerate(grid(parsed)):
+        value = float(point.get("battery.capacity_ah", 10)) / 20  # type: ignore[arg-type]
+        rows += [{"point": index, **point, "property": prop, "value": value, "states": 1,
+                  "transitions": 1, "seconds": 0.0, "recharge_cap_probability": 0.0}
+                 for prop in cfg.properties if index != skip]
+    columns = ["point", *(a.key for a in parsed), *FIXED_COLUMNS]
+    pd.DataFrame(rows, columns=columns).to_csv(folder / name, index=False)
+
+
+def test_reproduce_fig6_resumes_a_finished_sweep_and_draws(tmp_path: Path) -> None:
+    # A complete capacity sweep already on disk (synthetic values): `reproduce` must
+    # resume it (checking nothing) and draw from it.
+    from veribattery.config import load_config
+
     sets = figures.capacity_sets(["fig6"])  # Fig. 6 alone checks P(success) alone
     assert load_config("", sets).properties == {"p_success": 'P=? [ F "success" ]'}
-    results = tmp_path / figures.capacity_results(["fig6"])
-    mark = fingerprint(load_config("", sets), sets, axes)
-    results.with_name(results.name + ".sweep.json").write_text(mark.as_json())
-    rows = []
-    for index, point in enumerate(grid(axes)):
-        capacity = float(point["battery.capacity_ah"])  # type: ignore[arg-type]
-        for prop, value in (("p_success", capacity / 20),):
-            rows.append({"point": index, **point, "property": prop, "value": value,
-                         "states": 1, "transitions": 1, "seconds": 0.0,
-                         "recharge_cap_probability": 0.0})
-    columns = ["point", "battery.model", "battery.capacity_ah", *FIXED_COLUMNS]
-    pd.DataFrame(rows, columns=columns).to_csv(results, index=False)
+    _finished_sweep(tmp_path, figures.capacity_results(["fig6"]), figures.CAPACITY_AXES, sets)
     result = CliRunner().invoke(cli, ["reproduce", "fig6", "-o", str(tmp_path), "-j", "1"])
     assert result.exit_code == 0, result.output
     assert "604 of 604 points already done" in result.stderr
@@ -95,6 +103,25 @@ def test_reproduce_fig6_resumes_a_finished_sweep_and_draws(tmp_path: Path) -> No
     assert len(table) == 151
     assert table.loc[12.3, "p_success:basic_low"] == pytest.approx(12.3 / 20, rel=1e-15)
     assert (tmp_path / "fig6.png").stat().st_size > 10_000
+
+
+def test_reproduce_all_resumes_and_checks_only_what_is_missing(tmp_path: Path) -> None:
+    # Table 3's sweep finished, the capacity sweep interrupted one point short (the
+    # advanced model at 5.0 Ah: a 3-state model, checked for real here): `all` resumes.
+    _finished_sweep(tmp_path, figures.TABLE3_RESULTS, figures.TABLE3_AXES, ())
+    _finished_sweep(tmp_path, figures.CAPACITY_RESULTS, figures.CAPACITY_AXES,
+                    figures.capacity_sets(figures.FIGURES), skip=0)
+    result = CliRunner().invoke(cli, ["reproduce", "all", "-o", str(tmp_path), "-j", "1"])
+    assert result.exit_code == 0, result.output
+    assert "4 of 4 points already done" in result.stderr
+    assert "603 of 604 points already done" in result.stderr
+    done = pd.read_csv(tmp_path / figures.CAPACITY_RESULTS)
+    first = done[done["point"] == 0].set_index("property")
+    assert list(first.index) == ["p_success", "exp_mission_time", figures.GIVEN_SUCCESS]
+    assert (first["states"] > 1).all()  # really checked (the synthetic rows say 1 state)
+    assert first.loc["p_success", "value"] == 0.0  # 5.0 Ah cannot fly the mission
+    for name in ("table3.csv", "fig6.png", "fig6.svg", "fig6.csv", "fig8.png", "fig8.csv"):
+        assert (tmp_path / name).stat().st_size > 0
 
 
 def test_each_figure_checks_only_the_properties_it_draws() -> None:

@@ -20,11 +20,14 @@ import importlib
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+# Imported now: the function grid shares its name with the module veribattery.sweep.grid,
+# which would otherwise shadow it once imported.
+from veribattery.sweep.grid import Axis, axes_from, grid, parse_axis, point_overrides
+
 if TYPE_CHECKING:
     import pandas as pd
 
     from veribattery.sweep.execute import default_jobs
-    from veribattery.sweep.grid import Axis, axes_from, grid, parse_axis, point_overrides
     from veribattery.sweep.run import (
         PointCallback,
         SweepProgress,
@@ -41,7 +44,6 @@ if TYPE_CHECKING:
 # veribattery.sweep.tasks, and with it this package, and should not pay for pandas.
 _EXPORTS = {
     "veribattery.sweep.execute": ("default_jobs",),
-    "veribattery.sweep.grid": ("Axis", "axes_from", "grid", "parse_axis", "point_overrides"),
     "veribattery.sweep.run": ("PointCallback", "SweepProgress", "any_requirement_fails",
                               "describe_point", "records", "run_sweep", "wide"),
     "veribattery.sweep.summary": ("summary_line",),
