@@ -124,12 +124,20 @@ class LocalPool:
             except BrokenProcessPool:
                 yield from seen.fresh(_drained(stream, 0, started))  # sent before the death
                 return (yield from _after_break(list(futures.values()), seen, started, breaks))
-            except BaseException:
-                pool.shutdown(wait=False, cancel_futures=True)
+            except BaseException:  # Ctrl-C, or the caller stopped: every finished point
+                pool.shutdown(wait=False, cancel_futures=True)  # is recorded already, so
+                _terminate_workers(pool)  # stop now rather than finish the running tasks
                 raise
             finally:
                 stream.close()
         return []
+
+
+def _terminate_workers(pool: ProcessPoolExecutor) -> None:
+    """Stop *pool*'s worker processes (ProcessPoolExecutor has no public way before 3.14)."""
+    processes: dict[int, Any] = getattr(pool, "_processes", None) or {}
+    for process in list(processes.values()):
+        process.terminate()
 
 
 #: How long the pool's and Dask's result loops wait for a point before looking at tasks.
