@@ -4,7 +4,6 @@ task cut short (its worker killed) keeps its finished points, in the pool and on
 from __future__ import annotations
 
 import os
-import signal
 from pathlib import Path
 
 import pandas as pd
@@ -77,25 +76,22 @@ def test_pool_writes_each_point_of_a_reuse_task_as_it_finishes(
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")
 @pytest.mark.filterwarnings("ignore::ResourceWarning")
-def test_dask_streams_points_of_a_task_and_survives_a_killed_worker(
-    reuse_serial: pd.DataFrame, tmp_path: Path
-) -> None:
+def test_dask_keeps_finished_points_of_a_task_whose_worker_dies() -> None:
+    dask = pytest.importorskip("dask")
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                  host="127.0.0.1", dashboard_address=None) as cluster, \
+    from veribattery.sweep.execute import DaskExecutor
+
+    cfg = load_config("", SMALL_FARM)
+    tasks = [Task(((0, cfg), (1, cfg), (2, cfg))), Task(((3, cfg),))]
+    # No retries: the first worker death gives the task up (KilledWorker).
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                     host="127.0.0.1", dashboard_address=None) as cluster, \
             distributed.Client(cluster) as client:
-        pids = list(client.run(os.getpid).values())
-        killed: list[int] = []
-
-        def kill_one(result: PointResult, _: object) -> None:
-            if not killed:  # first point of a two-point task: the worker may be mid-task
-                os.kill(pids[0], signal.SIGKILL)
-                killed.append(pids[0])
-
-        path = tmp_path / "r.csv"
-        frame = _reuse_sweep(jobs=2, results=path, on_point=kill_one,
-                             scheduler=cluster.scheduler_address)
-    assert killed
-    assert list(frame["value"]) == list(reuse_serial["value"])
-    written = pd.read_csv(path)
-    assert list(written["point"]) == [p for p in range(4) for _ in range(PER_POINT)]  # once
+        executor = DaskExecutor(client, "test", check=dies_at_point_one)
+        results = list(executor.results(tasks))
+    by_index = {r.index: r for r in results}
+    assert sorted(r.index for r in results) == [0, 1, 2, 3]  # each point once
+    # Point 0 was streamed before the worker died at point 1: kept, not failed.
+    assert by_index[0].error is None and by_index[0].values == by_index[3].values
+    assert by_index[1].error is not None and "KilledWorker" in by_index[1].error

@@ -204,10 +204,13 @@ class DaskExecutor:
     Workers put each point's result on a Dask queue the moment it is checked, so the
     points of a long task are recorded one by one; a task rerun after a worker died
     yields only the points not already recorded.
+
+    :param check: what checks one point on a worker (tests pass a stand-in).
     """
 
-    def __init__(self, client: Client, scheduler: str):
+    def __init__(self, client: Client, scheduler: str, check: PointCheck | None = None):
         self.client = client
+        self.check = check
         workers = len(client.scheduler_info().get("workers", {}))
         self.description = f"on Dask scheduler {scheduler} ({workers} workers)"
 
@@ -217,8 +220,8 @@ class DaskExecutor:
         from distributed import wait as dask_wait
 
         stream = DaskQueue(client=self.client)  # type: ignore[no-untyped-call]
-        futures = {self.client.submit(run_dask_task, task, stream.name, pure=False): task
-                   for task in tasks}
+        futures = {self.client.submit(run_dask_task, task, stream.name, self.check,
+                                      pure=False): task for task in tasks}
         seen = _Seen()
         try:
             while futures:
@@ -234,14 +237,16 @@ class DaskExecutor:
             stream.close()  # type: ignore[no-untyped-call]
 
 
-def run_dask_task(task: Task, stream_name: str) -> list[PointResult]:
+def run_dask_task(
+    task: Task, stream_name: str, check: PointCheck | None = None
+) -> list[PointResult]:
     """:func:`run_task` on a Dask worker, each point's result also put on the Dask queue
     *stream_name* (pickled: Dask queues carry msgpack data) as soon as it is checked."""
     from distributed import Queue as DaskQueue
 
     stream = DaskQueue(stream_name)  # type: ignore[no-untyped-call]
     results = []
-    for result in iter_task(task):
+    for result in iter_task(task, check):
         stream.put(pickle.dumps(result))  # type: ignore[no-untyped-call]
         results.append(result)
     return results
