@@ -317,16 +317,28 @@ def _rewards(
         guard = np.broadcast_to(compile_expr(item.guard, dtmc.variable_names)(states),
                                 (dtmc.num_states,)).astype(bool)
         at = np.flatnonzero(guard)
-        if at.size == 0:
+        share = counts.get(item.action) if item.is_transition else None
+        if share is not None:
+            at = at[share[at] > 0]  # only where the action is among the choices
+        if at.size == 0 or (item.is_transition and share is None):
             continue
         value = tabulate(exact.value, context.constants, context.columns, states[at])
-        if not item.is_transition:
-            state[at] = state[at] + value
+        if share is None:
+            _accumulate(state, at, value)
             continue
-        share = np.asarray(counts.get(item.action, np.zeros(dtmc.num_states, np.int64)))
-        weight = _shares(share[at], choices[at])
-        transition[at] = transition[at] + weight * value
+        whole = share[at] == choices[at]  # the only action: weight 1, no product needed
+        if not whole.all():
+            value[~whole] = value[~whole] * _shares(share[at][~whole], choices[at][~whole])
+        _accumulate(transition, at, value)
     return ExactRewards(source.name, state, transition)
+
+
+def _accumulate(total: ObjectArray, at: IntArray, value: ObjectArray) -> None:
+    """``total[at] += value``, adding only where *total* is not still exactly zero."""
+    fresh = total[at] == _ZERO
+    total[at[fresh]] = value[fresh]
+    if not fresh.all():
+        total[at[~fresh]] = total[at[~fresh]] + value[~fresh]
 
 
 def _shares(count: IntArray, choices: IntArray) -> ObjectArray:
