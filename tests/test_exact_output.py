@@ -28,7 +28,8 @@ def test_long_fractions_print_their_digit_counts() -> None:
     assert format_exact(text, "0.999") == (
         "≈ 0.999 (exact p/q: 29-digit numerator, 29-digit denominator; "
         "every digit in JSON and CSV output)")
-    assert format_exact("-" + "9" * 50, "-1e50").startswith("≈ -1e50 (exact p/q: 50-digit numerator;")
+    integer = format_exact("-" + "9" * 50, "-1e50")
+    assert integer.startswith("≈ -1e50 (exact p/q: 50-digit numerator;")
 
 
 def test_cli_table_is_compact_and_json_is_complete(tmp_path) -> None:
