@@ -79,11 +79,15 @@ def test_storm_exact_decides_guards_in_doubles(tmp_path) -> None:
 @pytest.mark.parametrize(
     ("text", "rounds"),
     [("x*0.1 <= 0.3", True), ("x/2 > 1", True), ("pow(x, 2) > 3", True),
-     ("2*x + 1 >= 3 & !(x = 4)", False), ("x >= 3", False)],
+     ("2*x + 1 >= 3 & !(x = 4)", False), ("x >= 3", False),
+     # a floor or ceiling of a bounded integer quotient is exact in doubles ...
+     ("floor(110*(500 - x)/500) > 3", False), ("ceil(x/3) = 1", False),
+     # ... but not of a double, nor of an unbounded operand, nor a bare quotient
+     ("floor(x/0.5) > 1", True), ("floor(y/3) > 1", True), ("floor(x/3) + x/3 > 1", True)],
 )
 def test_which_expressions_are_decided_exactly(text: str, rounds: bool) -> None:
     expr = parse_property(f"P=? [ F {text} ]").formula.path.operand  # type: ignore[attr-defined]
-    assert needs_exact(expr) is rounds
+    assert needs_exact(expr, {"x": (0, 10)}) is rounds
 
 
 def test_log_in_a_guard_under_exact_is_one_line_exit_2(tmp_path) -> None:

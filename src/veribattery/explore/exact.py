@@ -94,6 +94,7 @@ class _Context:
     constants: Mapping[str, ExactScalar]
     columns: Mapping[str, tuple[int, bool]]
     updates: dict[int, tuple[Expr, ...]]  # id(flat command) -> exact update probabilities
+    ranges: Mapping[str, tuple[int, int]]  # each variable's range
 
 
 @dataclass(frozen=True, slots=True)
@@ -146,7 +147,7 @@ def exact_dtmc(
     source = source or _source(model, flat, constants)
     program = program or compile_program(flat)
     updates = {k: tuple(u.probability for u in c.updates) for k, c in source.commands.items()}
-    context = _Context(source.constants, source.columns, updates)
+    context = _Context(source.constants, source.columns, updates, source.ranges)
     states = dtmc.states
     counts: dict[str | None, IntArray] = {}
     parts: list[_Branches] = []
@@ -174,7 +175,9 @@ def _source(
     exact = exact_constants(model.constants, dict(constants or {}))
     formulas = expand_formulas(model.formulas)
     labels = {lab.name: _inline(lab.expr, formulas) for lab in model.labels}
-    return ExactSource(exact, _columns(flat), _source_commands(model, flat, formulas), labels)
+    ranges = {v.name: (v.low, v.high) for v in flat.variables}
+    return ExactSource(exact, _columns(flat), _source_commands(model, flat, formulas), labels,
+                       ranges)
 
 
 def _columns(flat: FlatModel) -> dict[str, tuple[int, bool]]:
@@ -375,7 +378,7 @@ def _rewards(
 
 def _guard(flat: Expr, written: Expr, dtmc: DTMC, context: _Context) -> np.ndarray:
     """A reward guard in every state: exactly from *written* where doubles may round."""
-    if needs_exact(flat):
+    if needs_exact(flat, context.ranges):
         return tabulate(written, context.constants, context.columns, dtmc.states, as_bools)
     value = compile_expr(flat, dtmc.variable_names)(dtmc.states)
     return np.broadcast_to(value, (dtmc.num_states,)).astype(bool)

@@ -8,7 +8,11 @@ a division, ``pow``, ``log``) is evaluated instead from the model's *source*
 expression in rationals -- formulas inlined, constants exact (``const double
 step = 0.1`` is 1/10) -- once per distinct valuation of the variables it reads.
 Integer-only expressions are exact in their compiled form already and are kept
-as they are (the whole mission model is of that kind, so its build is unchanged).
+as they are, and so is ``floor(a/b)``/``ceil(a/b)`` of integer expressions whose
+magnitudes interval analysis bounds by 2^50: a quotient of integers that is not
+itself an integer lies at least ``1/|b|`` from every integer, farther than the
+double division's rounding error, so its floor and ceiling are exact (the
+mission's ``floor(C_NEW*(500 - rc)/500)``; its build is unchanged).
 
 This is PRISM's and the issue's semantics of ``-exact``. Storm's exact engine
 differs: it evaluates probabilities in rationals but guards in doubles, so on
@@ -23,11 +27,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from veribattery._types import IntArray
+from veribattery.explore.bounds import value_bounds
 from veribattery.explore.compile import CompiledExpr
 from veribattery.explore.dtmc import DTMC
 from veribattery.explore.program import CompiledCommand, CompiledUpdate, Program
 from veribattery.explore.rational import ExactScalar, tabulate
-from veribattery.lang.expressions import walk
+from veribattery.lang.expressions import children
 from veribattery.lang.nodes import Binary, Call, Command, DoubleLit, Expr, FlatModel, Update
 
 __all__ = ["ExactSource", "exact_labels", "exact_program", "needs_exact"]
@@ -36,14 +41,43 @@ __all__ = ["ExactSource", "exact_labels", "exact_program", "needs_exact"]
 _ROUNDING_CALLS = frozenset({"pow", "log"})
 
 
-def needs_exact(expr: Expr) -> bool:
-    """Whether evaluating *expr* (a flat expression) in doubles may round."""
-    return any(
-        isinstance(node, DoubleLit)
-        or (isinstance(node, Binary) and node.op == "/")
-        or (isinstance(node, Call) and node.func in _ROUNDING_CALLS)
-        for node in walk(expr)
-    )
+#: Integers up to this magnitude divide exactly enough for floor/ceil in doubles.
+_SAFE_MAGNITUDE = 2.0**50
+
+
+def needs_exact(expr: Expr, ranges: Mapping[str, tuple[int, int]] | None = None) -> bool:
+    """Whether evaluating *expr* (a flat expression) in doubles may round.
+
+    :param ranges: the variables' ranges, to bound the operands of ``floor(a/b)``.
+    """
+    bounds = {name: (float(low), float(high)) for name, (low, high) in (ranges or {}).items()}
+    return _rounds(expr, bounds)
+
+
+def _rounds(expr: Expr, bounds: Mapping[str, tuple[float, float]]) -> bool:
+    if isinstance(expr, DoubleLit):
+        return True
+    if isinstance(expr, Binary) and expr.op == "/":
+        return True
+    if isinstance(expr, Call):
+        if expr.func in _ROUNDING_CALLS:
+            return True
+        if expr.func in ("floor", "ceil") and _exact_quotient(expr.args[0], bounds):
+            return False
+    return any(_rounds(child, bounds) for child in children(expr))
+
+
+def _exact_quotient(expr: Expr, bounds: Mapping[str, tuple[float, float]]) -> bool:
+    """*expr* is ``a/b`` of bounded integer expressions (its floor is exact in doubles)."""
+    if not (isinstance(expr, Binary) and expr.op == "/"):
+        return False
+    for operand in (expr.left, expr.right):
+        interval = value_bounds(operand, bounds)
+        if _rounds(operand, bounds) or interval is None:
+            return False
+        if max(abs(interval[0]), abs(interval[1])) > _SAFE_MAGNITUDE:
+            return False
+    return True
 
 
 @dataclass(frozen=True, slots=True)
@@ -58,6 +92,11 @@ class ExactSource:
     columns: Mapping[str, tuple[int, bool]]
     commands: Mapping[int, Command]
     labels: Mapping[str, Expr]
+    ranges: Mapping[str, tuple[int, int]]
+
+    def rounds(self, expr: Expr) -> bool:
+        """Whether the flat *expr* may round in doubles (see :func:`needs_exact`)."""
+        return needs_exact(expr, self.ranges)
 
     def function(self, expr: Expr, convert: Callable[[np.ndarray], np.ndarray]) -> CompiledExpr:
         """*expr* as a function of the state rows, evaluated exactly (see :func:`tabulate`)."""
@@ -105,7 +144,7 @@ def _exact_command(
 ) -> CompiledCommand:
     written = source.commands[id(compiled.command)]
     changed = compiled
-    if needs_exact(compiled.command.guard):
+    if source.rounds(compiled.command.guard):
         guard = source.function(written.guard, as_bools)
         changed = replace(changed, guard=guard, always=False)
     updates = tuple(
@@ -123,7 +162,7 @@ def _exact_update(
     unchecked = set(compiled.unchecked)
     pairs = zip(compiled.assignments, flat.assignments, written.assignments, strict=True)
     for (column, rhs), flat_assignment, assignment in pairs:
-        if needs_exact(flat_assignment.expr):
+        if source.rounds(flat_assignment.expr):
             rhs = source.function(assignment.expr, as_numbers)
             unchecked.discard(column)  # interval analysis ran on the rounded form
         assignments.append((column, rhs))
@@ -134,6 +173,6 @@ def exact_labels(dtmc: DTMC, flat: FlatModel, source: ExactSource) -> DTMC:
     """*dtmc* with each rounding-prone label recomputed exactly over its states."""
     labels = dict(dtmc.labels)
     for label in flat.labels:
-        if needs_exact(label.expr):
+        if source.rounds(label.expr):
             labels[label.name] = source.function(source.labels[label.name], as_bools)(dtmc.states)
     return replace(dtmc, labels=labels)
