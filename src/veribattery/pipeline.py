@@ -14,6 +14,7 @@ from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -35,6 +36,9 @@ from veribattery.lang import (
     undefined_constants,
 )
 from veribattery.lang.nodes import Value
+
+if TYPE_CHECKING:
+    from veribattery.explore.exact import ExactDTMC
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -162,14 +166,17 @@ def check_model(
     with watch.stage("parse"):
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+    exact_model = None
     with watch.stage("build"):
-        if builder is None:
+        if exact:  # guards decided exactly: its own exploration, never a re-used one
+            exact_model = _build_exact(model, flat, constants, progress)
+            dtmc, reused = exact_model.dtmc, False
+        elif builder is None:
             dtmc, reused = build_dtmc(flat, progress=progress), False
         else:
             dtmc, reused = builder.build(flat, progress)
-    if exact:
-        checks = _exact_checks(model, flat, dtmc, (properties, resolved), props_file, constants,
-                               watch)
+    if exact_model is not None:
+        checks = _exact_checks(exact_model, (properties, resolved), props_file, constants)
     else:
         checks = [functools.partial(check, dtmc, p) for p in resolved]
     with watch.stage("check"):
@@ -195,26 +202,29 @@ def _run_checks(
     return tuple(results), tuple(warnings)
 
 
+def _build_exact(
+    model: Model, flat: FlatModel, constants: Mapping[str, Value | str] | None,
+    progress: ProgressCallback | None,
+) -> ExactDTMC:
+    from veribattery.explore.exact import build_exact  # gmpy2 only when asked
+
+    return build_exact(model, flat, constants, progress)
+
+
 def _exact_checks(
-    model: Model,
-    flat: FlatModel,
-    dtmc: DTMC,
+    exact: ExactDTMC,
     properties: tuple[Sequence[Property], Sequence[Property]],
     props_file: PropertiesFile | None,
     constants: Mapping[str, Value | str] | None,
-    watch: _Stopwatch,
 ) -> list[Callable[[], CheckResult]]:
-    """Exact probabilities and rewards (timed as part of the build), and a check per property.
+    """A check per property on the exactly built *exact* model.
 
     *properties* are the properties as written and as resolved: bounds such as
     ``P<=1/3`` are evaluated exactly from the former.
     """
     from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
-    from veribattery.explore.exact import exact_dtmc
     from veribattery.explore.rational import exact_constants
 
-    with watch.stage("build"):
-        exact = exact_dtmc(model, flat, dtmc, constants)
     given = dict(constants or {})
     decls = props_file.constants if props_file is not None else ()
     values = exact_constants(decls, given, outer=exact.constants)

@@ -78,9 +78,15 @@ class ExactValues:
 
     def floats(self) -> FloatArray:
         """The nearest doubles (``inf`` where infinite)."""
-        result = np.array([float(v) for v in self.values], dtype=np.float64)
+        result = np.asarray(_TO_FLOAT(self.values), dtype=np.float64).reshape(-1)
         result[self.infinite] = np.inf
         return result
+
+
+#: Elementwise ``float``/``mpq``/power-of-two-denominator over object arrays (C loops).
+_TO_FLOAT = np.frompyfunc(float, 1, 1)
+_TO_MPQ = np.frompyfunc(mpq, 1, 1)
+_DYADIC = np.frompyfunc(lambda q: q.denominator.bit_count() == 1, 1, 1)
 
 
 @dataclass(frozen=True, slots=True)
@@ -128,10 +134,10 @@ def _enclosure(values: ExactValues) -> Bounds:
     that a float represents exactly (0, 1, halves, infinities) are their own bounds.
     """
     floats = values.floats()
-    represented = np.fromiter(
-        (bool(inf) or v == mpq(f)
-         for v, f, inf in zip(values.values, floats, values.infinite, strict=True)),
-        dtype=bool, count=floats.size)
+    # Only a rational with a power-of-two denominator can be a double: test those exactly.
+    candidates = np.flatnonzero(~values.infinite & _DYADIC(values.values).astype(bool))
+    represented = values.infinite.copy()
+    represented[candidates] = _TO_MPQ(floats[candidates]) == values.values[candidates]
     lower = np.where(represented, floats, np.nextafter(floats, -np.inf))
     upper = np.where(represented, floats, np.nextafter(floats, np.inf))
     return Bounds(floats, lower, upper)

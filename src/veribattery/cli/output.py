@@ -125,11 +125,31 @@ def exact_text(result: object) -> str | None:
 
 
 def format_result(result: CheckResult) -> str:
-    """A result for a table: ``p/q ≈ value`` for an exact result, else ``value ± error``."""
+    """A result for a table: ``p/q ≈ value`` for an exact result, else ``value ± error``.
+
+    An exact ``p/q`` longer than :data:`EXACT_TABLE_CHARS` (hundreds of digits
+    on a long mission) is summarised by its digit counts; JSON and CSV output
+    carry every digit.
+    """
     exact = exact_text(result)
     if exact is not None and exact != "Infinity":
-        return f"{exact} ≈ {format_value(result.value)}"
+        return format_exact(exact, format_value(result.value))
     return _certified_text(result)
+
+
+#: Longest exact ``p/q`` printed in full in a table.
+EXACT_TABLE_CHARS = 40
+
+
+def format_exact(exact: str, approximate: str) -> str:
+    """``p/q ≈ value`` when short, else ``≈ value (exact p/q: N-digit numerator, ...)``."""
+    if len(exact) <= EXACT_TABLE_CHARS:
+        return f"{exact} ≈ {approximate}"
+    numerator, _, denominator = exact.lstrip("-").partition("/")
+    digits = f"{len(numerator)}-digit numerator"
+    if denominator:
+        digits += f", {len(denominator)}-digit denominator"
+    return f"≈ {approximate} (exact p/q: {digits}; every digit in JSON and CSV output)"
 
 
 #: Significant digits of numbers in tables.

@@ -15,7 +15,7 @@ recomputed the same way.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -23,16 +23,24 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError
+from veribattery.explore.builder import assemble, explore
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.program import ChoiceGroup, CompiledCommand, compile_program
+from veribattery.explore.exact_program import (
+    ExactSource,
+    as_bools,
+    exact_labels,
+    exact_program,
+    needs_exact,
+)
+from veribattery.explore.program import ChoiceGroup, CompiledCommand, Program, compile_program
 from veribattery.explore.rational import ExactScalar, ObjectArray, exact_constants, tabulate
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import format_state
-from veribattery.lang.nodes import Expr, FlatModel, Model, RewardStruct, Value
+from veribattery.lang.nodes import Command, Expr, FlatModel, Model, RewardStruct, Value
 from veribattery.lang.semantics import _inline, _modules, expand_formulas
 
-__all__ = ["ExactDTMC", "ExactRewards", "exact_dtmc"]
+__all__ = ["ExactDTMC", "ExactRewards", "build_exact", "exact_dtmc"]
 
 _ONE = mpq(1)
 _ZERO = mpq(0)
@@ -84,8 +92,9 @@ class _Context:
     """What the expansion needs besides the states."""
 
     constants: Mapping[str, ExactScalar]
-    columns: dict[str, tuple[int, bool]]
+    columns: Mapping[str, tuple[int, bool]]
     updates: dict[int, tuple[Expr, ...]]  # id(flat command) -> exact update probabilities
+    ranges: Mapping[str, tuple[int, int]]  # each variable's range
 
 
 @dataclass(frozen=True, slots=True)
@@ -95,26 +104,50 @@ class _Branches:
     probability: ObjectArray
 
 
+def build_exact(
+    model: Model,
+    flat: FlatModel,
+    constants: Mapping[str, Value | str] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> ExactDTMC:
+    """Build *flat*'s DTMC with rounding-prone guards, assignments and labels decided
+    exactly (:mod:`~veribattery.explore.exact_program`), then its exact probabilities.
+
+    :param model: the parsed model; *flat* is ``flatten_model(model, constants)``.
+    :param constants: the values given for undefined constants (decimals are exact).
+    :raises ModelError: as :func:`exact_dtmc`, and as the float builder.
+    """
+    source = _source(model, flat, constants)
+    program = exact_program(compile_program(flat), flat, source)
+    states, initial, layers = explore(flat, program, progress)
+    dtmc = exact_labels(assemble(flat, states, initial, layers), flat, source)
+    return exact_dtmc(model, flat, dtmc, constants, program=program, source=source)
+
+
 def exact_dtmc(
     model: Model,
     flat: FlatModel,
     dtmc: DTMC,
     constants: Mapping[str, Value | str] | None = None,
+    *,
+    program: Program | None = None,
+    source: ExactSource | None = None,
 ) -> ExactDTMC:
     """Exact probabilities and rewards for *dtmc*, built from *flat* (flattened *model*).
 
     :param model: the parsed model (its unfolded expressions are evaluated).
     :param flat: ``flatten_model(model, constants)``.
-    :param dtmc: ``build_dtmc(flat)``.
+    :param dtmc: ``build_dtmc(flat)``, or the DTMC :func:`build_exact` explored.
     :param constants: the values given for undefined constants (decimals are exact).
+    :param program: the program *dtmc* was explored with (default: ``compile_program(flat)``).
+    :param source: the exact constants and source expressions (computed if not given).
     :raises ModelError: for an expression without an exact rational value, or a
         state whose probabilities do not sum to exactly 1.
     """
-    given = {k: v for k, v in (constants or {}).items()}
-    exact = exact_constants(model.constants, given)
-    formulas = expand_formulas(model.formulas)
-    context = _Context(exact, _columns(flat), _update_map(model, flat, formulas))
-    program = compile_program(flat)
+    source = source or _source(model, flat, constants)
+    program = program or compile_program(flat)
+    updates = {k: tuple(u.probability for u in c.updates) for k, c in source.commands.items()}
+    context = _Context(source.constants, source.columns, updates, source.ranges)
     states = dtmc.states
     counts: dict[str | None, IntArray] = {}
     parts: list[_Branches] = []
@@ -127,30 +160,42 @@ def exact_dtmc(
     total = sum(counts.values(), np.zeros(dtmc.num_states, dtype=np.int64))
     probabilities = _aligned(program.lows, program.highs, dtmc, parts, total)
     _check_sums(dtmc, probabilities, flat.variable_names)
+    formulas = expand_formulas(model.formulas)
     sources = [_inline(r, formulas) for r in model.rewards]
     rewards = tuple(
         _rewards(f, s, dtmc, context, counts, total)
         for f, s in zip(flat.rewards, sources, strict=True)
     )
-    return ExactDTMC(dtmc, probabilities, rewards, exact)
+    return ExactDTMC(dtmc, probabilities, rewards, source.constants)
+
+
+def _source(
+    model: Model, flat: FlatModel, constants: Mapping[str, Value | str] | None
+) -> ExactSource:
+    exact = exact_constants(model.constants, dict(constants or {}))
+    formulas = expand_formulas(model.formulas)
+    labels = {lab.name: _inline(lab.expr, formulas) for lab in model.labels}
+    ranges = {v.name: (v.low, v.high) for v in flat.variables}
+    return ExactSource(exact, _columns(flat), _source_commands(model, flat, formulas), labels,
+                       ranges)
 
 
 def _columns(flat: FlatModel) -> dict[str, tuple[int, bool]]:
     return {v.name: (i, v.is_bool) for i, v in enumerate(flat.variables)}
 
 
-def _update_map(
+def _source_commands(
     model: Model, flat: FlatModel, formulas: Mapping[str, Expr]
-) -> dict[int, tuple[Expr, ...]]:
-    """Each flat command's update probabilities as written (formulas inlined, renamed).
+) -> dict[int, Command]:
+    """Each flat command (by ``id``) and the command as written (formulas inlined, renamed).
 
     Flattening keeps modules, commands and updates in source order, so the
     unfolded modules line up with the flat ones position by position.
     """
-    found: dict[int, tuple[Expr, ...]] = {}
+    found: dict[int, Command] = {}
     for flat_module, module in zip(flat.modules, _modules(model, formulas), strict=True):
         for flat_command, command in zip(flat_module.commands, module.commands, strict=True):
-            found[id(flat_command)] = tuple(u.probability for u in command.updates)
+            found[id(flat_command)] = command
     return found
 
 
@@ -314,19 +359,37 @@ def _rewards(
     state = np.full(dtmc.num_states, _ZERO, dtype=object)
     transition = np.full(dtmc.num_states, _ZERO, dtype=object)
     for item, exact in zip(flat.items, source.items, strict=True):
-        guard = np.broadcast_to(compile_expr(item.guard, dtmc.variable_names)(states),
-                                (dtmc.num_states,)).astype(bool)
-        at = np.flatnonzero(guard)
-        if at.size == 0:
+        at = np.flatnonzero(_guard(item.guard, exact.guard, dtmc, context))
+        share = counts.get(item.action) if item.is_transition else None
+        if share is not None:
+            at = at[share[at] > 0]  # only where the action is among the choices
+        if at.size == 0 or (item.is_transition and share is None):
             continue
         value = tabulate(exact.value, context.constants, context.columns, states[at])
-        if not item.is_transition:
-            state[at] = state[at] + value
+        if share is None:
+            _accumulate(state, at, value)
             continue
-        share = np.asarray(counts.get(item.action, np.zeros(dtmc.num_states, np.int64)))
-        weight = _shares(share[at], choices[at])
-        transition[at] = transition[at] + weight * value
+        whole = share[at] == choices[at]  # the only action: weight 1, no product needed
+        if not whole.all():
+            value[~whole] = value[~whole] * _shares(share[at][~whole], choices[at][~whole])
+        _accumulate(transition, at, value)
     return ExactRewards(source.name, state, transition)
+
+
+def _guard(flat: Expr, written: Expr, dtmc: DTMC, context: _Context) -> np.ndarray:
+    """A reward guard in every state: exactly from *written* where doubles may round."""
+    if needs_exact(flat, context.ranges):
+        return tabulate(written, context.constants, context.columns, dtmc.states, as_bools)
+    value = compile_expr(flat, dtmc.variable_names)(dtmc.states)
+    return np.broadcast_to(value, (dtmc.num_states,)).astype(bool)
+
+
+def _accumulate(total: ObjectArray, at: IntArray, value: ObjectArray) -> None:
+    """``total[at] += value``, adding only where *total* is not still exactly zero."""
+    fresh = total[at] == _ZERO
+    total[at[fresh]] = value[fresh]
+    if not fresh.all():
+        total[at[~fresh]] = total[at[~fresh]] + value[~fresh]
 
 
 def _shares(count: IntArray, choices: IntArray) -> ObjectArray:

@@ -143,17 +143,22 @@ def tabulate(
     constants: Mapping[str, ExactScalar],
     columns: Mapping[str, tuple[int, bool]],
     states: IntArray,
-) -> ObjectArray:
+    convert: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> np.ndarray:
     """Exact value of *expr* in each row of *states*, evaluated once per distinct valuation.
 
     :param constants: exact values of the model's constants.
     :param columns: each variable's column in *states* and whether it is a bool.
     :param states: one row per state.
+    :param convert: applied to the table of distinct values before it is spread
+        over the rows (e.g. to bools or machine integers); None keeps the
+        object array of rationals.
     """
     names = sorted({n.name for n in walk(expr) if isinstance(n, Ident)} - constants.keys())
     if not names:
         scalar = evaluate_rational(expr, constants, {}, 1)
-        return np.full(states.shape[0], scalar[0], dtype=object)
+        table = scalar if convert is None else convert(scalar)
+        return np.repeat(table, states.shape[0])
     unknown = [n for n in names if n not in columns]
     if unknown:
         raise PrismSemanticError(f"unknown identifier '{unknown[0]}'", expr.span)
@@ -162,7 +167,7 @@ def tabulate(
     distinct = picked[first]
     env = {n: _column(distinct[:, i], columns[n][1]) for i, n in enumerate(names)}
     table = evaluate_rational(expr, constants, env, distinct.shape[0])
-    return np.asarray(table[inverse], dtype=object)
+    return (table if convert is None else convert(table))[inverse]
 
 
 def _distinct_rows(rows: IntArray) -> tuple[IntArray, IntArray]:
