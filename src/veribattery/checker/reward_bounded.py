@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import kernels, linsolve
+from veribattery.checker import certify, kernels, linsolve
+from veribattery.checker.bounds import Bounds
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -128,7 +129,19 @@ def _close(levels: _Levels, b: FloatArray) -> FloatArray:
 
 def reward_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
                                rewards: IntArray, bound: int) -> FloatArray:
-    """Probability of ``remain U{r}<=bound target`` in every state.
+    """The point values of :func:`reward_bounded_until_bounds`."""
+    return reward_bounded_until_bounds(P, remain, target, rewards, bound).value
+
+
+def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                                rewards: IntArray, bound: int) -> Bounds:
+    """Probability of ``remain U{r}<=bound target`` in every state, with certified bounds.
+
+    Each level carries a point value and a certified interval: the positive-reward
+    states' values are enclosed products of the interval of the level they reach
+    back to (:func:`certify.enclose_product`, monotone since ``P >= 0``), and the
+    zero-reward closure's fixed point is certified around its LU solution
+    (:func:`certify.certify_fixpoint`) with the level's other values as intervals.
 
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that may be passed through before *target*.
@@ -140,29 +153,31 @@ def reward_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArra
     """
     n = P.shape[0]
     if bound < 0:
-        return np.zeros(n)
+        return Bounds.exact(np.zeros(n))
     moving = remain & ~target & ~kernels.prob0(P, remain, target)
     levels = _levels(P, moving, rewards, transpose=False)
-    value = target.astype(np.float64)
     steps = [_BackwardGroup.of(P, r, states) for r, states in levels.groups]
+    closure = _Closure.of(levels, n) if levels.closure is not None else None
+    hit = target.astype(np.float64)
+    found = Bounds.exact(hit)
     for k in range(bound // levels.unit + 1):
-        value = target.astype(np.float64)
+        found = Bounds.exact(hit)
         for group in steps:
-            value[group.states] = group.values(k)
-        if levels.closure is not None:
-            # Zero-reward states stay on level k: the closure over them.
-            value[levels.zero] = 0.0
-            value[levels.zero] = _close(levels, levels.zero_rows @ value)
+            group.fill(k, found)
+        if closure is not None:
+            closure.close(levels, found)
         for group in steps:
-            group.remember(k, value)
-    return np.clip(value, 0.0, 1.0)
+            group.remember(k, found)
+    return Bounds.around(np.clip(found.value, 0.0, 1.0), np.maximum(found.lower, 0.0),
+                         np.minimum(found.upper, 1.0))
 
 
 @dataclass(frozen=True, slots=True)
 class _BackwardGroup:
     """States with reward *r*: their value on level k is P_rows @ (successors' value on k-r).
 
-    Only the successors' values of the last *r* levels are kept (a ring buffer).
+    Only the successors' values of the last *r* levels are kept (a ring buffer), as
+    point value, certified lower and upper bound.
     """
 
     r: int
@@ -176,15 +191,51 @@ class _BackwardGroup:
         rows = sp.csr_matrix(P[states])
         successors = np.unique(rows.indices)
         block = sp.csr_matrix(rows[:, successors])
-        return cls(r, states, successors, block, np.zeros((r, successors.size)))
+        return cls(r, states, successors, block, np.zeros((3, r, successors.size)))
 
-    def values(self, k: int) -> FloatArray:
+    def fill(self, k: int, found: Bounds) -> None:
+        """Write this group's value on level *k* into *found* (0 below level r)."""
         if k < self.r:
-            return np.zeros(self.states.size)
-        return np.asarray(self.block @ self.history[k % self.r], dtype=np.float64)
+            found.value[self.states] = found.lower[self.states] = found.upper[self.states] = 0.0
+            return
+        value, low, high = self.history[:, k % self.r]
+        found.value[self.states] = self.block @ value
+        found.lower[self.states] = certify.enclose_product(self.block, low)[1]
+        found.upper[self.states] = certify.enclose_product(self.block, high)[2]
 
-    def remember(self, k: int, value: FloatArray) -> None:
-        self.history[k % self.r] = value[self.successors]
+    def remember(self, k: int, found: Bounds) -> None:
+        slot = k % self.r
+        for i, vector in enumerate((found.value, found.lower, found.upper)):
+            self.history[i, slot] = vector[self.successors]
+
+
+@dataclass(frozen=True, slots=True)
+class _Closure:
+    """The certified zero-reward closure of one level, over the columns its rows use."""
+
+    used: IntArray
+    template: certify.AffineMap
+
+    @classmethod
+    def of(cls, levels: _Levels, n: int) -> _Closure:
+        used = np.union1d(np.unique(levels.zero_rows.indices), levels.zero)
+        local = np.searchsorted(used, levels.zero)
+        rows = sp.csr_matrix(levels.zero_rows[:, used])
+        empty = np.zeros(used.size)
+        return cls(used, certify.AffineMap.of(rows, local, empty, empty, None))
+
+    def close(self, levels: _Levels, found: Bounds) -> None:
+        """Solve the closure in *found* (values of the other states already in place)."""
+        zero = levels.zero
+        found.value[zero] = 0.0
+        found.value[zero] = np.clip(_close(levels, levels.zero_rows @ found.value), 0.0, 1.0)
+        F = replace(self.template, known_lower=found.lower[self.used],
+                    known_upper=found.upper[self.used])
+        assert levels.closure is not None
+        lower, upper = certify.certify_fixpoint(
+            F, found.value[zero], levels.closure.correction, np.zeros(zero.size),
+            np.ones(zero.size))
+        found.lower[zero], found.upper[zero] = lower, upper
 
 
 # ---------------------------------------------------------------------------
