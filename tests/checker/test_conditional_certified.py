@@ -14,10 +14,11 @@ import math
 import random
 from collections.abc import Sequence
 from fractions import Fraction
+from pathlib import Path
 
 import pytest
 
-from tests.checker.test_conditional import CHAIN
+from tests.checker.test_conditional import CHAIN, REPO, SMALL_MISSION
 from veribattery.checker.exact import ExactCheckResult
 from veribattery.checker.result import CheckResult
 from veribattery.errors import CheckError
@@ -224,3 +225,108 @@ label "a" = s=2; label "b" = s=1;
                                'P=? [ F "a" || F "b" ]').results
     assert [r.value for r in results] == [INF, 1.0, 0.0]
     assert all(r.precise for r in results)
+
+
+# ---------------------------------------------------------------------------
+# Reward-bounded reachability on random dyadic chains: a path recursion in rationals
+# ---------------------------------------------------------------------------
+
+
+def _bounded_oracle(rows: Rows, rewards: Sequence[int], remain: Sequence[bool],
+                    target: Sequence[bool], state: int, budget: int) -> Fraction:
+    """P(remain U{r}<=budget target) by recursion over path prefixes (every state that
+    can move has a positive reward, so the recursion ends)."""
+    memo: dict[tuple[int, int], Fraction] = {}
+
+    def go(s: int, left: int) -> Fraction:
+        if target[s]:
+            return Fraction(1)
+        if not remain[s] or left - rewards[s] < 0 or rows[s] == {s: Fraction(1)}:
+            return Fraction(0)
+        key = (s, left)
+        if key not in memo:
+            memo[key] = sum((p * go(t, left - rewards[s]) for t, p in rows[s].items()),
+                            Fraction(0))
+        return memo[key]
+
+    return go(state, budget)
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_reward_bounded_random_chains_certified_and_exact(seed: int) -> None:
+    rows, _, a, b = _random_chain(100 + seed)
+    rng = random.Random(seed)
+    rewards = [Fraction(rng.randint(1, 3)) for _ in rows]
+    model = _prism(rows, rewards, a, b)
+    remain = [s != 2 for s in range(len(rows))]
+    props = [f'P=? [ F{{"r"}}<={t} "a" ]' for t in (0, 3, 7, 12)] + ['P=? [ s!=2 U{"r"}<9 "a" ]']
+    expected = [_bounded_oracle(rows, [int(r) for r in rewards], [True] * len(rows), a, 0, t)
+                for t in (0, 3, 7, 12)]
+    expected.append(_bounded_oracle(rows, [int(r) for r in rewards], remain, a, 0, 8))
+    floats = check_prism_file(model, props_source=";\n".join(props)).results
+    exact = check_prism_file(model, props_source=";\n".join(props), exact=True).results
+    for prop, plain, rational, value in zip(props, floats, exact, expected, strict=True):
+        assert _contains(plain, value) and plain.precise, (prop, plain.lower, plain.upper, value)
+        assert isinstance(rational, ExactCheckResult) and rational.exact == value, prop
+
+
+def test_reward_bounded_zero_reward_loop_is_certified() -> None:
+    # s0 loops with reward 0 (1/2) or moves to s1 (reward 1), which wins w.p. 1/4 or
+    # returns: P(F{r}<=k goal) = 1 - (3/4)^k, with a zero-reward closure on every level.
+    model = """dtmc
+module m
+  s : [0..2] init 0;
+  [] s=0 -> 1/2:(s'=0) + 1/2:(s'=1);
+  [] s=1 -> 1/4:(s'=2) + 3/4:(s'=0);
+  [] s=2 -> true;
+endmodule
+rewards "r" s=1 : 1; endrewards
+label "goal" = s=2;
+"""
+    for k in (1, 5, 40):
+        (plain,) = check_prism_file(model, props_source=f'P=? [ F{{"r"}}<={k} "goal" ]').results
+        assert plain.precise and _contains(plain, 1 - Fraction(3, 4) ** k)
+        (rational,) = check_prism_file(model, props_source=f'P=? [ F{{"r"}}<={k} "goal" ]',
+                                       exact=True).results
+        assert isinstance(rational, ExactCheckResult)
+        assert rational.exact == 1 - Fraction(3, 4) ** k
+
+
+# ---------------------------------------------------------------------------
+# Storm's exact engine on a small emitted mission (conditional and reward-bounded)
+# ---------------------------------------------------------------------------
+
+STORM_PROPS = (
+    'R{"mt"}=? [ F "done" || F "success" ]',
+    'R{"rc"}=? [ F "done" || F "success" ]',
+    'P=? [ F rc=1 || F "success" ]',
+    'P=? [ F "success" || F rc=2 ]',
+    'P=? [ F{"mt"}<=246 "success" ]',
+    'P=? [ F{"rc"}<=1 "success" ]',
+)
+
+
+def test_small_mission_against_storm_exact(tmp_path: Path) -> None:
+    stormpy = pytest.importorskip("stormpy")
+    from veribattery.config import load_config
+    from veribattery.render import render_model
+
+    text = render_model(load_config(REPO / "configs/paper/case3.yaml", SMALL_MISSION))
+    path = tmp_path / "model.prism"
+    path.write_text(text)
+    program = stormpy.parse_prism_program(str(path))
+    props = stormpy.parse_properties(";".join(STORM_PROPS), program)
+    model = stormpy.build_model[stormpy.Rational](program, props)
+    init = model.initial_states[0]
+    storm = [Fraction(str(stormpy.model_checking(model, p, only_initial_states=True)
+                          .get_value_vector()[init])) for p in props]
+    assert 0 < storm[3] < 1 and 0 < storm[4] < 1  # not trivial
+    source = ";\n".join(STORM_PROPS)
+    exact = check_prism_file(text, props_source=source, exact=True).results
+    assert [r.exact for r in exact if isinstance(r, ExactCheckResult)] == storm
+    floats = check_prism_file(text, props_source=source).results
+    for plain, value in zip(floats, storm, strict=True):
+        # The float model's entries are the decimals rounded, so its exact value may
+        # differ from the rational model's by a few ulps: allow 1e-14 relative.
+        assert plain.precise and plain.lower is not None and plain.upper is not None
+        assert plain.lower * (1 - 1e-14) <= value <= plain.upper * (1 + 1e-14)

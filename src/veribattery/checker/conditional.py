@@ -28,7 +28,8 @@ from __future__ import annotations
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -315,7 +316,8 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
                     round_up(np.maximum(offsets[1], offsets[2])))
     rows, solver = kernels.linear_system(P, maybe)
     below = certify.AffineMap.of(rows, np.flatnonzero(maybe), known.lower, known.lower, low)
-    above = replace(below, known_lower=known.upper, known_upper=known.upper, offset=high)
+    F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
+                          offset=high), below)
     rhs = offsets[0].astype(np.longdouble) + rows.astype(np.longdouble) @ known.value
     point = _solve(solver, rhs)
     floor = np.zeros(r.size) if np.all(low >= 0) else np.full(r.size, -np.inf)
@@ -323,16 +325,30 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     if point is None:
         point, lower, upper = floor.copy(), floor, ceiling
     else:
-        lower = certify.certify_fixpoint(below, point, solver.correction, floor, ceiling)[0]
-        upper = certify.certify_fixpoint(above, point, solver.correction, floor, ceiling)[1]
+        lower, upper = certify.certify_fixpoint(F, point, solver.correction, floor, ceiling)
     found = Bounds.around(point, lower, upper)
     if not found.precise_states().all():
-        lower = certify.interval_iteration(below, lower, upper, point,
-                                           lambda b: b.precise_states())[0]
-        upper = certify.interval_iteration(above, lower, upper, point,
-                                           lambda b: b.precise_states())[1]
+        lower, upper = certify.interval_iteration(F, lower, upper, point,
+                                                  lambda b: b.precise_states())
         found = Bounds.around(point, lower, upper)
     return found
+
+
+@dataclass(frozen=True, slots=True)
+class _Split(certify.AffineMap):
+    """Two monotone maps that enclose the exact one: upper bounds from this one
+    (largest offset and known values), lower bounds from *below* (smallest)."""
+
+    below: certify.AffineMap | None = None
+
+    @classmethod
+    def pair(cls, above: certify.AffineMap, below: certify.AffineMap) -> _Split:
+        parts: dict[str, Any] = {f.name: getattr(above, f.name) for f in fields(certify.AffineMap)}
+        return cls(**parts, below=below)
+
+    def lower(self, x: FloatArray) -> FloatArray:
+        assert self.below is not None
+        return self.below.lower(x)
 
 
 def _solve(solver: linsolve.Factorization, b: FloatArray) -> FloatArray | None:

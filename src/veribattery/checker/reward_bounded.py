@@ -225,17 +225,26 @@ class _Closure:
         return cls(used, certify.AffineMap.of(rows, local, empty, empty, None))
 
     def close(self, levels: _Levels, found: Bounds) -> None:
-        """Solve the closure in *found* (values of the other states already in place)."""
+        """Solve the closure in *found* (values of the other states already in place).
+
+        The point value, and each bound from its own solve (the other states at their
+        lower, resp. upper bounds), certified one side at a time: so the widths carry
+        over from level to level as the values do, without a growing margin.
+        """
         zero = levels.zero
-        found.value[zero] = 0.0
-        found.value[zero] = np.clip(_close(levels, levels.zero_rows @ found.value), 0.0, 1.0)
+        assert levels.closure is not None
+        solved = []
+        for vector in (found.value, found.lower, found.upper):
+            vector[zero] = 0.0
+            solved.append(np.clip(_close(levels, levels.zero_rows @ vector), 0.0, 1.0))
+        found.value[zero] = solved[0]
         F = replace(self.template, known_lower=found.lower[self.used],
                     known_upper=found.upper[self.used])
-        assert levels.closure is not None
-        lower, upper = certify.certify_fixpoint(
-            F, found.value[zero], levels.closure.correction, np.zeros(zero.size),
-            np.ones(zero.size))
-        found.lower[zero], found.upper[zero] = lower, upper
+        correct = levels.closure.correction
+        found.lower[zero] = certify.certify_side(F, solved[1], correct, np.zeros(zero.size),
+                                                 up=False)
+        found.upper[zero] = certify.certify_side(F, solved[2], correct, np.ones(zero.size),
+                                                 up=True)
 
 
 # ---------------------------------------------------------------------------
