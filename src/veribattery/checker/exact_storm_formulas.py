@@ -90,10 +90,13 @@ def conditional_reach_rewards(model: ExactDTMC, rewards: ExactRewards,
     target = exact.state_set(model, path.target)
     b = exact.state_set(model, path.condition)
     b = b & ~target
-    plain = exact.reach_rewards(model, rewards.total, target)  # the value once on b
-    infinite = ~kernels.prob0(P, ~target, b & plain.infinite)
+    numerator = exact._indicator(np.zeros_like(target))
+    infinite = np.zeros_like(target)
+    if b.any():  # the unconditional value once on b (none when b lies inside the target)
+        plain = exact.reach_rewards(model, rewards.total, target)
+        infinite = ~kernels.prob0(P, ~target, b & plain.infinite)
+        numerator = np.where(b & ~infinite, plain.values, _ZERO).astype(object)
     maybe = ~infinite & ~target & ~b & possible
-    numerator = np.where(b & ~infinite, plain.values, _ZERO).astype(object)
     if maybe.any():
         rows = np.flatnonzero(maybe)
         offsets = np.asarray(rewards.total[rows] * x[rows], dtype=object)
@@ -112,7 +115,12 @@ def _condition(model: ExactDTMC, condition: Expr, span: Span) -> tuple[ObjectArr
                 else f"after || (at {span})")
         raise ConditionUnreachable(f"the condition {what} has probability 0 from the initial "
                                    "state, so the conditional value is undefined", span)
-    return exact.until_probs(model, everywhere, b), possible
+    key = b"condition:" + np.packbits(b).tobytes()  # shared by the conditional properties
+    x = model.cache.get(key)
+    if not isinstance(x, np.ndarray):
+        x = exact.until_probs(model, everywhere, b)
+        model.cache[key] = x
+    return x, possible
 
 
 def _until_and_condition(model: ExactDTMC, remain: BoolArray, target: BoolArray,

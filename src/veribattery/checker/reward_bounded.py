@@ -30,7 +30,7 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels, linsolve
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -185,13 +185,15 @@ class _BackwardGroup:
     successors: IntArray
     block: CsrMatrix
     history: FloatArray
+    terms: FloatArray
 
     @classmethod
     def of(cls, P: CsrMatrix, r: int, states: IntArray) -> _BackwardGroup:
         rows = sp.csr_matrix(P[states])
         successors = np.unique(rows.indices)
         block = sp.csr_matrix(rows[:, successors])
-        return cls(r, states, successors, block, np.zeros((3, r, successors.size)))
+        return cls(r, states, successors, block, np.zeros((3, r, successors.size)),
+                   certify.row_terms(block))
 
     def fill(self, k: int, found: Bounds) -> None:
         """Write this group's value on level *k* into *found* (0 below level r)."""
@@ -200,8 +202,13 @@ class _BackwardGroup:
             return
         value, low, high = self.history[:, k % self.r]
         found.value[self.states] = self.block @ value
-        found.lower[self.states] = certify.enclose_product(self.block, low)[1]
-        found.upper[self.states] = certify.enclose_product(self.block, high)[2]
+        # 0 <= low <= high, so the rounding bound of the larger product covers both.
+        above = np.asarray(self.block @ high, dtype=np.float64)
+        error = certify.product_error(above, self.terms, self.terms)
+        with np.errstate(invalid="ignore"):
+            found.lower[self.states] = np.maximum(
+                round_down(np.asarray(self.block @ low, dtype=np.float64) - error), 0.0)
+            found.upper[self.states] = round_up(above + error)
 
     def remember(self, k: int, found: Bounds) -> None:
         slot = k % self.r
@@ -233,17 +240,21 @@ class _Closure:
         """
         zero = levels.zero
         assert levels.closure is not None
+        found.value[zero] = 0.0
+        found.value[zero] = np.clip(_close(levels, levels.zero_rows @ found.value), 0.0, 1.0)
+        correct = levels.closure.correction
         solved = []
-        for vector in (found.value, found.lower, found.upper):
+        for vector in (found.lower, found.upper):
+            # One substitution with the factors is enough: its accuracy only affects
+            # how tight the certified side comes out.
             vector[zero] = 0.0
-            solved.append(np.clip(_close(levels, levels.zero_rows @ vector), 0.0, 1.0))
-        found.value[zero] = solved[0]
+            guess = correct(np.asarray(levels.zero_rows @ vector, dtype=np.float64))
+            solved.append(found.value[zero] if guess is None else np.clip(guess, 0.0, 1.0))
         F = replace(self.template, known_lower=found.lower[self.used],
                     known_upper=found.upper[self.used])
-        correct = levels.closure.correction
-        found.lower[zero] = certify.certify_side(F, solved[1], correct, np.zeros(zero.size),
+        found.lower[zero] = certify.certify_side(F, solved[0], correct, np.zeros(zero.size),
                                                  up=False)
-        found.upper[zero] = certify.certify_side(F, solved[2], correct, np.ones(zero.size),
+        found.upper[zero] = certify.certify_side(F, solved[1], correct, np.ones(zero.size),
                                                  up=True)
 
 
