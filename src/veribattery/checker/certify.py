@@ -64,6 +64,12 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
     return np.where(bound > 0, round_up(bound), 0.0)
 
 
+def error_coefficient(roundings: FloatArray) -> FloatArray:
+    """The factor of the magnitude in :func:`product_error` (``4 k u`` with its safety
+    margin, rounded up), for callers that bound many products of the same rows."""
+    return np.asarray(round_up((4.0 * UNIT_ROUNDOFF) * roundings * _SAFETY), dtype=np.float64)
+
+
 def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = None,
                     terms: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``offset + M x`` in floating point, with a rigorous enclosure of its exact value.

@@ -185,15 +185,18 @@ class _BackwardGroup:
     successors: IntArray
     block: CsrMatrix
     history: FloatArray
-    terms: FloatArray
+    #: The rounding bound of a row product is ``coefficient * magnitude + underflow``.
+    coefficient: FloatArray
+    underflow: FloatArray
 
     @classmethod
     def of(cls, P: CsrMatrix, r: int, states: IntArray) -> _BackwardGroup:
         rows = sp.csr_matrix(P[states])
         successors = np.unique(rows.indices)
         block = sp.csr_matrix(rows[:, successors])
+        terms = certify.row_terms(block)
         return cls(r, states, successors, block, np.zeros((3, r, successors.size)),
-                   certify.row_terms(block))
+                   certify.error_coefficient(terms), terms * (2 * certify.ETA))
 
     def fill(self, k: int, found: Bounds) -> None:
         """Write this group's value on level *k* into *found* (0 below level r)."""
@@ -203,12 +206,12 @@ class _BackwardGroup:
         value, low, high = self.history[:, k % self.r]
         found.value[self.states] = self.block @ value
         # 0 <= low <= high, so the rounding bound of the larger product covers both.
-        above = np.asarray(self.block @ high, dtype=np.float64)
-        error = certify.product_error(above, self.terms, self.terms)
-        with np.errstate(invalid="ignore"):
-            found.lower[self.states] = np.maximum(
-                round_down(np.asarray(self.block @ low, dtype=np.float64) - error), 0.0)
-            found.upper[self.states] = round_up(above + error)
+        above = self.block @ high
+        # certify.product_error for nonnegative terms, its constant parts precomputed
+        # (coefficient * magnitude + underflow), rounded up once.
+        error = round_up(self.coefficient * above + self.underflow)
+        found.lower[self.states] = np.maximum(round_down(self.block @ low - error), 0.0)
+        found.upper[self.states] = round_up(above + error)
 
     def remember(self, k: int, found: Bounds) -> None:
         slot = k % self.r
