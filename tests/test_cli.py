@@ -147,8 +147,8 @@ def test_check_json_contract_on_a_small_farm(tmp_path: Path) -> None:
     for name, value in doc["results"].items():
         lower, upper = (math.inf if end == "Infinity" else end for end in doc["bounds"][name])
         assert lower <= value <= upper
-        # Conditional results carry no computed error bound yet: reported imprecise.
-        assert doc["precise"][name] is (name not in doc["conditional"])
+        # Conditional results are certified too (ratio of certified quantities).
+        assert doc["precise"][name] is True
 
 
 def test_check_failing_requirement_exits_1(tmp_path: Path) -> None:

@@ -64,6 +64,12 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
     return np.where(bound > 0, round_up(bound), 0.0)
 
 
+def error_coefficient(roundings: FloatArray) -> FloatArray:
+    """The factor of the magnitude in :func:`product_error` (``4 k u`` with its safety
+    margin, rounded up), for callers that bound many products of the same rows."""
+    return np.asarray(round_up((4.0 * UNIT_ROUNDOFF) * roundings * _SAFETY), dtype=np.float64)
+
+
 def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = None,
                     terms: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """``offset + M x`` in floating point, with a rigorous enclosure of its exact value.
@@ -191,6 +197,35 @@ def certify_fixpoint(F: AffineMap, x: FloatArray, correct: Correction | None,
     lower = _first_certified(F.lower, lambda c: round_down(x - c * margin - slack), floor,
                              up=False)
     return np.maximum(lower, floor), np.minimum(upper, ceiling)
+
+
+def certify_side(F: AffineMap, x: FloatArray, correct: Correction | None,
+                 trivial: FloatArray, *, up: bool) -> FloatArray:
+    """One certified bound of the fixed point of *F*: an upper bound if *up*, else a lower.
+
+    For maps whose two sides have different fixed points (known values or offsets
+    given as intervals), *x* should approximate the fixed point of that side
+    (``F.upper`` or ``F.lower``): the margin then only covers *x*'s own defect, not
+    the distance between the two sides, as :func:`certify_fixpoint` would.
+
+    :param trivial: the bound used where the test fails (it must pass the test itself).
+    """
+    image = F.upper if up else F.lower
+    with np.errstate(invalid="ignore"):
+        gap = image(x) - x if up else x - image(x)
+    defect = round_up(np.maximum(gap, 0.0))
+    defect = np.where(np.isfinite(defect), defect, np.inf)
+    margin = correct(defect) if correct is not None and np.all(np.isfinite(defect)) else None
+    margin = defect if margin is None or not np.all(np.isfinite(margin)) else margin
+    margin = np.maximum(np.maximum(margin, defect), 0.0)
+    slack = 4.0 * UNIT_ROUNDOFF * np.abs(x) + ETA
+    if up:
+        bound = _first_certified(image, lambda c: round_up(x + c * margin + slack), trivial,
+                                 up=True)
+        return np.minimum(bound, trivial)
+    bound = _first_certified(image, lambda c: round_down(x - c * margin - slack), trivial,
+                             up=False)
+    return np.maximum(bound, trivial)
 
 
 def _first_certified(image: Callable[[FloatArray], FloatArray],

@@ -1,33 +1,44 @@
 """Conditional properties: Storm's ``P=? [ phi || F b ]`` and ``R=? [ F a || F b ]``.
 
-Both are computed on the **conditioned DTMC**, the chain whose path distribution
-is the original one given ``F b`` (Doob's h-transform). With ``x = P(F b)``:
+The value is that of the objective on the chain conditioned on ``F b`` (Doob's
+h-transform), computed without building that chain as a ratio of two certified
+quantities of the original chain (``docs/numerics.md``, "Conditional results"):
 
-* before *b* is reached (copy 0, the states with ``x > 0`` outside *b*),
-  ``P'(s, t) = P(s, t) · x(t) / x(s)``, so that every path heads for *b*;
-* from the first *b* state on (copy 1, the states reachable from *b*), the
-  condition holds and the chain moves as before, ``P' = P``.
+* ``P(phi | F b) = P(phi ∧ F b) / P(F b)``; for ``phi = c U a`` the numerator is
+  an absorption problem with known values on ``a`` (``P(F b)``), on ``b`` (``P(c U a)``)
+  and 0 on ``!c``; ``G``, ``W``, ``R`` are complements of an until given ``F b``,
+  and ``X`` is one enclosed product;
+* ``E[R_a | F b] = E[R_a · 1{F b}] / P(F b)``, the numerator a reach-reward system
+  with reward ``r · P(F b)`` per state, infinite where a path may reach *b* and
+  then avoid *a* forever with positive probability (PRISM's convention, on the
+  conditioned chain).
 
-The objective is then an ordinary property of this product chain, evaluated
-from the copy each state starts in (copy 1 for states in *b*, else copy 0). So
-``P=? [ F a || F b ] = P(F a ∧ F b) / P(F b)`` and ``R=? [ F a || F b ]`` is the
-expected reward to reach *a* given ``F b`` — infinite, as in PRISM's ``R=? [ F a ]``,
-where *a* is not reached almost surely in the conditioned chain. States from
-which *b* is unreachable have no conditioned chain; their value is NaN.
+``x = P(F b)`` is the unconditional until (memoised per matrix and condition, so
+the two conditional mission defaults solve it once), and the reward numerator
+solves on the same states as ``R=? [ F a ]`` (sharing its factorisation) — one
+extra solve of size *n*, not a product chain of size 2n. Objectives with step
+or reward bounds still use the product chain (:func:`conditioned_chain`), whose
+results are reported with their range only (not certified).
+
+States from which *b* is unreachable have no conditioned chain; their value is NaN.
 """
 
 from __future__ import annotations
 
+import weakref
+from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import kernels
-from veribattery.errors import Span, UndefinedResult
+from veribattery.checker import certify, kernels, linsolve
+from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
 
@@ -144,6 +155,218 @@ def _carry_over(dtmc: DTMC, matrix: CsrMatrix, origin: IntArray, start: IntArray
 
 
 # ---------------------------------------------------------------------------
+# The condition: P(F b), certified and memoised
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class Condition:
+    """``x = P(F b)`` per state with certified bounds, and where it is positive.
+
+    :param states: the states *b*.
+    :param probs: ``P(F b)`` per state.
+    :param possible: ``P(F b) > 0`` (a graph search, exact).
+    """
+
+    states: BoolArray
+    probs: Bounds
+    possible: BoolArray
+
+
+#: Conditions kept per process: (matrix, mask) → Condition, the matrix held weakly.
+_KEPT = 4
+_CONDITIONS: OrderedDict[tuple[int, bytes], tuple[weakref.ref[CsrMatrix], Condition]] = (
+    OrderedDict())
+
+
+def condition_probs(P: CsrMatrix, states: BoolArray) -> Condition:
+    """``P(F states)`` on *P*, computed once per matrix and condition.
+
+    :param P: row-stochastic CSR transition matrix (not modified afterwards).
+    :param states: the states *b* of the condition ``F b``.
+    """
+    key = (id(P), np.packbits(states).tobytes() + states.size.to_bytes(8, "little"))
+    kept = _CONDITIONS.get(key)
+    if kept is not None and kept[0]() is P:
+        _CONDITIONS.move_to_end(key)
+        return kept[1]
+    everywhere = np.ones(P.shape[0], dtype=bool)
+    found = Condition(states.copy(), kernels.until_probs(P, everywhere, states),
+                      ~kernels.prob0(P, everywhere, states))
+    _CONDITIONS[key] = (weakref.ref(P), found)
+    while len(_CONDITIONS) > _KEPT:
+        _CONDITIONS.popitem(last=False)
+    return found
+
+
+def require_possible(condition: Condition, initial: IntArray, what: str, span: Span) -> None:
+    """:raises ConditionUnreachable: when the condition has probability 0 from an initial state."""
+    if not condition.possible[initial].all():
+        raise ConditionUnreachable(f"the condition {what} has probability 0 from the initial "
+                                   "state, so the conditional value is undefined", span)
+
+
+def divide(numerator: Bounds, condition: Condition, ceiling: float) -> Bounds:
+    """``numerator / P(F b)`` with outward rounding, clipped to ``[0, ceiling]``; NaN where
+    the condition is impossible.
+
+    ``[a, b] / [c, d]`` with ``0 <= a`` and ``0 < c`` is ``[a/d, b/c]``; each quotient
+    is rounded once (to nearest), so one ulp outward covers it. Infinite numerators
+    stay infinite.
+    """
+    x = condition.probs
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        value = numerator.value / x.value
+        lower = np.where(np.isinf(numerator.lower), numerator.lower,
+                         round_down(numerator.lower / x.upper))
+        upper = np.where(np.isinf(numerator.upper) | (numerator.upper == 0), numerator.upper,
+                         round_up(numerator.upper / x.lower))
+    upper = np.where(np.isnan(upper), np.inf, upper)  # a lower bound of x of 0
+    lower, upper = np.maximum(lower, 0.0), np.minimum(upper, ceiling)
+    undefined = ~condition.possible
+    found = Bounds.around(np.where(np.isnan(value), lower, value), lower, upper)
+    return Bounds(*(np.where(undefined, np.nan, v) for v in
+                    (found.value, found.lower, found.upper)))
+
+
+# ---------------------------------------------------------------------------
+# Numerators: P(phi ∧ F b) and E[R · 1{F b}]
+# ---------------------------------------------------------------------------
+
+
+def until_given(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                condition: Condition) -> Bounds:
+    """``P(remain U target | F b)`` per state, certified (NaN where ``F b`` is impossible).
+
+    The numerator ``z = P(remain U target ∧ F b)`` is 0 or known once the path meets
+    *target* (then ``z = x``), leaves *remain* (0) or meets *b* (then ``z = P(remain U
+    target)``): an absorption problem on the other states (:func:`kernels.absorption`).
+    """
+    until = kernels.until_probs(P, remain, target)
+    b = condition.states
+    x = condition.probs
+    fixed = target | b | ~remain
+    known = tuple(np.where(target, xv, np.where(b, uv, 0.0)) for xv, uv in
+                  ((x.value, until.value), (x.lower, until.lower), (x.upper, until.upper)))
+    numerator = kernels.absorption(P, fixed, Bounds(*known))
+    return divide(numerator, condition, 1.0)
+
+
+def next_given(P: CsrMatrix, target: BoolArray, condition: Condition) -> Bounds:
+    """``P(X target | F b)``: ``sum_t P(s,t) [t in target] x(t)`` outside *b*, ``P(X target)``
+    on *b* (there the condition already holds), divided by ``x``."""
+    x = condition.probs
+    hits = target.astype(np.float64)
+    value = np.asarray(P @ (hits * x.value), dtype=np.float64)
+    lower = certify.enclose_product(P, hits * x.lower)[1]
+    upper = certify.enclose_product(P, hits * x.upper)[2]
+    on_b = kernels.next_probs(P, target)
+    b = condition.states
+    numerator = Bounds.around(np.where(b, on_b.value, value), np.where(b, on_b.lower, lower),
+                              np.where(b, on_b.upper, upper))
+    return divide(Bounds(*(np.maximum(v, 0.0) for v in
+                           (numerator.value, numerator.lower, numerator.upper))),
+                  condition, 1.0)
+
+
+def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
+                        condition: Condition) -> Bounds:
+    """``E[reward until target | F b]`` per state, certified (``R=? [ F a || F b ]``).
+
+    The numerator ``y = E[R · 1{F b}]`` is 0 on *target*; on *b* the condition holds
+    already, so ``y = R=? [ F target ]`` there (infinite where *target* is not almost
+    sure); it is infinite where a path outside *target* reaches such a *b* state;
+    elsewhere it solves ``y = r x + P y`` (the reward of a step from a state before
+    *b* counts on the paths that go on to meet *b*: a fraction ``x`` of them).
+    """
+    b = condition.states & ~target
+    # On b the unconditional value (not needed when b lies inside the target, as
+    # the mission's success inside done).
+    plain = (kernels.reach_rewards(P, rewards, target) if b.any()
+             else Bounds.exact(np.zeros(P.shape[0])))
+    infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value))
+    known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
+                     (plain.value, plain.lower, plain.upper)))
+    maybe = ~infinite & ~target & ~b & condition.possible
+    value = np.where(infinite, np.inf, known.value)
+    numerator = Bounds(value, np.where(infinite, np.inf, known.lower),
+                       np.where(infinite, np.inf, known.upper))
+    if maybe.any():
+        numerator = _spread(numerator, maybe,
+                            _reward_system(P, rewards, maybe, condition.probs, known))
+    return divide(numerator, condition, np.inf)
+
+
+def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bounds,
+                   known: Bounds) -> Bounds:
+    """The certified solution of ``y = r x + P y`` on *maybe*, *known* elsewhere.
+
+    The offset ``r x`` is only known as an interval, so the lower bound is certified
+    for the map with offset ``round_down(r x_lower)`` (and the known values' lower
+    bounds) and the upper for ``round_up(r x_upper)``: the fixed point is monotone in
+    both. Every state of *maybe* leaves it almost surely (a bottom component inside
+    it would hold a *b* state), so the fixed point is unique.
+    """
+    r = np.asarray(rewards[maybe], dtype=np.float64)
+    offsets = [r * x.value[maybe], r * x.lower[maybe], r * x.upper[maybe]]
+    exact = (x.lower[maybe] == 1.0) | (r == 0)
+    low = np.where(exact, np.minimum(offsets[1], offsets[2]),
+                   round_down(np.minimum(offsets[1], offsets[2])))
+    high = np.where(exact, np.maximum(offsets[1], offsets[2]),
+                    round_up(np.maximum(offsets[1], offsets[2])))
+    rows, solver = kernels.linear_system(P, maybe)
+    below = certify.AffineMap.of(rows, np.flatnonzero(maybe), known.lower, known.lower, low)
+    F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
+                          offset=high), below)
+    rhs = offsets[0].astype(np.longdouble) + rows.astype(np.longdouble) @ known.value
+    point = _solve(solver, rhs)
+    floor = np.zeros(r.size) if np.all(low >= 0) else np.full(r.size, -np.inf)
+    ceiling = np.full(r.size, np.inf)
+    if point is None:
+        point, lower, upper = floor.copy(), floor, ceiling
+    else:
+        lower, upper = certify.certify_fixpoint(F, point, solver.correction, floor, ceiling)
+    found = Bounds.around(point, lower, upper)
+    if not found.precise_states().all():
+        lower, upper = certify.interval_iteration(F, lower, upper, point,
+                                                  lambda b: b.precise_states())
+        found = Bounds.around(point, lower, upper)
+    return found
+
+
+@dataclass(frozen=True, slots=True)
+class _Split(certify.AffineMap):
+    """Two monotone maps that enclose the exact one: upper bounds from this one
+    (largest offset and known values), lower bounds from *below* (smallest)."""
+
+    below: certify.AffineMap | None = None
+
+    @classmethod
+    def pair(cls, above: certify.AffineMap, below: certify.AffineMap) -> _Split:
+        parts: dict[str, Any] = {f.name: getattr(above, f.name) for f in fields(certify.AffineMap)}
+        return cls(**parts, below=below)
+
+    def lower(self, x: FloatArray) -> FloatArray:
+        assert self.below is not None
+        return self.below.lower(x)
+
+
+def _solve(solver: linsolve.Factorization, b: FloatArray) -> FloatArray | None:
+    """The fast path's approximate solution (None when no solver was accepted)."""
+    try:
+        return solver.solve(b.astype(np.longdouble))
+    except CheckError:
+        return None
+
+
+def _spread(known: Bounds, unknown: BoolArray, found: Bounds) -> Bounds:
+    """Full-length bounds: *known* outside *unknown*, *found* inside."""
+    value, lower, upper = known.value.copy(), known.lower.copy(), known.upper.copy()
+    value[unknown], lower[unknown], upper[unknown] = found.value, found.lower, found.upper
+    return Bounds(value, lower, upper)
+
+
+# ---------------------------------------------------------------------------
 # Entry points for the PCTL recursion (it passes masks and a callback, no nodes)
 # ---------------------------------------------------------------------------
 
@@ -151,7 +374,8 @@ def _carry_over(dtmc: DTMC, matrix: CsrMatrix, origin: IntArray, start: IntArray
 def conditional_values(dtmc: DTMC, condition: BoolArray,
                        objective: Callable[[ConditionedChain], FloatArray],
                        what: str, span: Span) -> FloatArray:
-    """Per-state value of *objective* given ``F condition``, NaN where that is impossible.
+    """Per-state value of *objective* given ``F condition`` on the product chain, NaN where
+    that is impossible (the fallback for objectives with step or reward bounds).
 
     :param dtmc: the model.
     :param condition: the states of the condition ``F b``.
@@ -159,20 +383,16 @@ def conditional_values(dtmc: DTMC, condition: BoolArray,
         chain (``chain.dtmc``).
     :param what: how to name the condition in an error, e.g. ``F "success"``.
     :param span: where the conditional formula is.
-    :raises CheckError: when the condition has probability 0 from an initial state.
+    :raises ConditionUnreachable: when the condition has probability 0 from an initial state.
     """
+    require_possible(condition_probs(dtmc.transitions, condition), dtmc.initial, what, span)
     chain = conditioned_chain(dtmc, condition)
-    impossible = chain.start[dtmc.initial] < 0
-    if impossible.any():
-        raise ConditionUnreachable(f"the condition {what} has probability 0 from the initial "
-                                   "state, "
-                         "so the conditional value is undefined", span)
     return chain.lift(objective(chain))
 
 
-def conditional_reach_rewards(dtmc: DTMC, rewards: RewardVectors, target: BoolArray,
-                              condition: BoolArray, what: str, span: Span) -> FloatArray:
-    """``R=? [ F target || F condition ]``: expected reward to *target* given ``F condition``.
+def conditional_reach_reward_bounds(dtmc: DTMC, rewards: RewardVectors, target: BoolArray,
+                                    condition: BoolArray, what: str, span: Span) -> Bounds:
+    """``R=? [ F target || F condition ]`` per state, certified (NaN where impossible).
 
     :param dtmc: the model.
     :param rewards: the reward structure.
@@ -180,12 +400,14 @@ def conditional_reach_rewards(dtmc: DTMC, rewards: RewardVectors, target: BoolAr
     :param condition: the states of the condition.
     :param what: how to name the condition in an error.
     :param span: where the formula is.
-    :raises CheckError: when the condition has probability 0 from an initial state.
+    :raises ConditionUnreachable: when the condition has probability 0 from an initial state.
     """
-    index = next(i for i, structure in enumerate(dtmc.rewards) if structure is rewards)
+    found = condition_probs(dtmc.transitions, condition)
+    require_possible(found, dtmc.initial, what, span)
+    return reach_rewards_given(dtmc.transitions, rewards.total, target, found)
 
-    def objective(chain: ConditionedChain) -> FloatArray:
-        return kernels.reach_rewards(chain.dtmc.transitions, chain.dtmc.rewards[index].total,
-                                     target[chain.origin]).value
 
-    return conditional_values(dtmc, condition, objective, what, span)
+def conditional_reach_rewards(dtmc: DTMC, rewards: RewardVectors, target: BoolArray,
+                              condition: BoolArray, what: str, span: Span) -> FloatArray:
+    """The point values of :func:`conditional_reach_reward_bounds`."""
+    return conditional_reach_reward_bounds(dtmc, rewards, target, condition, what, span).value

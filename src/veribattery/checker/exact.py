@@ -35,6 +35,8 @@ from veribattery.explore.rational import ExactScalar, ObjectArray, evaluate_rati
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     Binary,
+    Conditional,
+    ConditionalReach,
     Cumulative,
     DoubleLit,
     Eventually,
@@ -48,6 +50,7 @@ from veribattery.lang.nodes import (
     ProbOp,
     Property,
     Reach,
+    RewardBounded,
     RewardOp,
     TimeBound,
     TimeInterval,
@@ -135,8 +138,11 @@ def _enclosure(values: ExactValues) -> Bounds:
     """
     floats = values.floats()
     # Only a rational with a power-of-two denominator can be a double: test those exactly.
-    candidates = np.flatnonzero(~values.infinite & _DYADIC(values.values).astype(bool))
-    represented = values.infinite.copy()
+    # A NaN float is an undefined (conditional) value: it stands for itself.
+    undefined = np.isnan(floats)
+    defined = np.flatnonzero(~values.infinite & ~undefined)
+    candidates = defined[_DYADIC(values.values[defined]).astype(bool)]
+    represented = values.infinite | undefined
     represented[candidates] = _TO_MPQ(floats[candidates]) == values.values[candidates]
     lower = np.where(represented, floats, np.nextafter(floats, -np.inf))
     upper = np.where(represented, floats, np.nextafter(floats, np.inf))
@@ -270,8 +276,19 @@ def path_probs(model: ExactDTMC, path: PathFormula) -> ObjectArray:
         case Globally(operand=operand, bound=bound):
             escape = _until(model, everywhere, ~state_set(model, operand), bound)
             return np.asarray(_ONE - escape, dtype=object)
+        case RewardBounded() | Conditional():
+            return _storm_formula(model, path)
     raise UndefinedResult(
         f"{type(path).__name__} formulas are not supported in exact arithmetic", path.span)
+
+
+def _storm_formula(model: ExactDTMC, path: RewardBounded | Conditional) -> ObjectArray:
+    """Storm's reward-bounded and conditional formulas (checker/exact_storm_formulas.py)."""
+    from veribattery.checker import exact_storm_formulas as storm
+
+    if isinstance(path, RewardBounded):
+        return storm.reward_bounded_probs(model, path)
+    return storm.conditional_probs(model, path)
 
 
 def _until(model: ExactDTMC, remain: BoolArray, target: BoolArray,
@@ -373,6 +390,10 @@ def path_rewards(model: ExactDTMC, op: RewardOp) -> ExactValues:
         case Instantaneous(time=time_):
             state = structure.state
             return ExactValues.finite(_power(model, everywhere, state, zero, _steps(time_)))
+        case ConditionalReach():
+            from veribattery.checker import exact_storm_formulas as storm
+
+            return storm.conditional_reach_rewards(model, structure, op.path)
     raise UndefinedResult(
         f"{type(op.path).__name__} reward paths are not supported in exact arithmetic",
         op.path.span)

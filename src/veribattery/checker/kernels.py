@@ -112,6 +112,16 @@ def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
     return found
 
 
+def linear_system(P: CsrMatrix, maybe: BoolArray) -> tuple[CsrMatrix, linsolve.Factorization]:
+    """The rows ``P[maybe, :]`` and the prepared solver of ``I - P_mm``, memoised per matrix.
+
+    For kernels outside this module (conditional numerators) that solve on the same
+    states as an unconditional property, so they share its factorisation.
+    """
+    system = _system(P, maybe)
+    return system.rows, system.factorization
+
+
 # ---------------------------------------------------------------------------
 # Qualitative pre-pass: graph searches
 # ---------------------------------------------------------------------------

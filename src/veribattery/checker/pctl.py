@@ -187,8 +187,10 @@ def path_probs(dtmc: DTMC, path: PathFormula) -> Bounds:
             # a R b = !(!a U !b), bounds kept.
             a, b = state_set(dtmc, left), state_set(dtmc, right)
             return _until(dtmc, ~a, ~b, bound).complement()
-        case RewardBounded() | Conditional():
-            return Bounds.uncertified(_storm_path_probs(dtmc, path), 0.0, 1.0)
+        case RewardBounded():
+            return _reward_bounded_probs(dtmc, path)
+        case Conditional():
+            return _conditional_probs(dtmc, path)
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
 
 
@@ -221,9 +223,9 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
             sure = P @ (~state_set(dtmc, target)).astype(np.float64) == 0
             return Bounds.exact(np.where(sure, structure.total, np.inf))
         case ConditionalReach(target=target, condition=condition):
-            return Bounds.uncertified(conditional.conditional_reach_rewards(
+            return conditional.conditional_reach_reward_bounds(
                 dtmc, structure, state_set(dtmc, target), state_set(dtmc, condition),
-                _condition_name(condition), path.span), 0.0, np.inf)
+                _condition_name(condition), path.span)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
 
 
@@ -233,22 +235,54 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
 # ---------------------------------------------------------------------------
 
 
-def _storm_path_probs(dtmc: DTMC, path: RewardBounded | Conditional) -> FloatArray:
-    """``U{"r"}<=T`` / ``F{"r"}<=T``, and ``path || F b``."""
-    if isinstance(path, RewardBounded):
-        structure = _reward_structure(dtmc, path)
-        levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
-        return reward_bounded.reward_bounded_until_probs(
-            dtmc.transitions, state_set(dtmc, path.left), state_set(dtmc, path.right),
-            levels, _reward_bound(path.bound))
+def _reward_bounded_probs(dtmc: DTMC, path: RewardBounded) -> Bounds:
+    """``U{"r"}<=T`` / ``F{"r"}<=T``, certified."""
+    structure = _reward_structure(dtmc, path)
+    levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
+    return reward_bounded.reward_bounded_until_bounds(
+        dtmc.transitions, state_set(dtmc, path.left), state_set(dtmc, path.right),
+        levels, _reward_bound(path.bound))
+
+
+def _conditional_probs(dtmc: DTMC, path: Conditional) -> Bounds:
+    """``path || F b``: certified ratios for unbounded ``X F G U W R`` objectives, the
+    product chain (range only, not certified) for step- and reward-bounded ones."""
     objective = path.path
     if any(_has_operator(operand) for operand in _operands(objective)):
         raise CheckError("P and R operators inside a conditional formula are not supported",
                          path.span)
-    return conditional.conditional_values(
-        dtmc, state_set(dtmc, path.condition),
-        lambda chain: path_probs(chain.dtmc, objective).value,
-        _condition_name(path.condition), path.span)
+    what = _condition_name(path.condition)
+    given = conditional.condition_probs(dtmc.transitions, state_set(dtmc, path.condition))
+    conditional.require_possible(given, dtmc.initial, what, path.span)
+    reduced = _as_until(dtmc, objective)
+    if reduced is not None:
+        remain, target, negated = reduced
+        found = conditional.until_given(dtmc.transitions, remain, target, given)
+        return found.complement() if negated else found
+    if isinstance(objective, Next):
+        return conditional.next_given(dtmc.transitions, state_set(dtmc, objective.operand),
+                                      given)
+    return Bounds.uncertified(conditional.conditional_values(
+        dtmc, given.states, lambda chain: path_probs(chain.dtmc, objective).value,
+        what, path.span), 0.0, 1.0)
+
+
+def _as_until(dtmc: DTMC, path: PathFormula) -> tuple[BoolArray, BoolArray, bool] | None:
+    """An unbounded path formula as ``remain U target`` or its negation (None otherwise)."""
+    match path:
+        case Until(left=left, right=right, bound=None):
+            return state_set(dtmc, left), state_set(dtmc, right), False
+        case Eventually(operand=operand, bound=None):
+            return _everywhere(dtmc), state_set(dtmc, operand), False
+        case Globally(operand=operand, bound=None):
+            return _everywhere(dtmc), ~state_set(dtmc, operand), True
+        case WeakUntil(left=left, right=right, bound=None):
+            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            return a & ~b, ~a & ~b, True
+        case Release(left=left, right=right, bound=None):
+            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            return ~a, ~b, True
+    return None
 
 
 def _reward_bound(bound: TimeBound) -> int:

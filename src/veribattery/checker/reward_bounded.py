@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import kernels, linsolve
+from veribattery.checker import certify, kernels, linsolve
+from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -128,7 +129,19 @@ def _close(levels: _Levels, b: FloatArray) -> FloatArray:
 
 def reward_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
                                rewards: IntArray, bound: int) -> FloatArray:
-    """Probability of ``remain U{r}<=bound target`` in every state.
+    """The point values of :func:`reward_bounded_until_bounds`."""
+    return reward_bounded_until_bounds(P, remain, target, rewards, bound).value
+
+
+def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                                rewards: IntArray, bound: int) -> Bounds:
+    """Probability of ``remain U{r}<=bound target`` in every state, with certified bounds.
+
+    Each level carries a point value and a certified interval: the positive-reward
+    states' values are enclosed products of the interval of the level they reach
+    back to (:func:`certify.enclose_product`, monotone since ``P >= 0``), and the
+    zero-reward closure's fixed point is certified around its LU solution
+    (:func:`certify.certify_fixpoint`) with the level's other values as intervals.
 
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that may be passed through before *target*.
@@ -140,29 +153,31 @@ def reward_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArra
     """
     n = P.shape[0]
     if bound < 0:
-        return np.zeros(n)
+        return Bounds.exact(np.zeros(n))
     moving = remain & ~target & ~kernels.prob0(P, remain, target)
     levels = _levels(P, moving, rewards, transpose=False)
-    value = target.astype(np.float64)
     steps = [_BackwardGroup.of(P, r, states) for r, states in levels.groups]
+    closure = _Closure.of(levels, n) if levels.closure is not None else None
+    hit = target.astype(np.float64)
+    found = Bounds.exact(hit)
     for k in range(bound // levels.unit + 1):
-        value = target.astype(np.float64)
+        found = Bounds.exact(hit)
         for group in steps:
-            value[group.states] = group.values(k)
-        if levels.closure is not None:
-            # Zero-reward states stay on level k: the closure over them.
-            value[levels.zero] = 0.0
-            value[levels.zero] = _close(levels, levels.zero_rows @ value)
+            group.fill(k, found)
+        if closure is not None:
+            closure.close(levels, found)
         for group in steps:
-            group.remember(k, value)
-    return np.clip(value, 0.0, 1.0)
+            group.remember(k, found)
+    return Bounds.around(np.clip(found.value, 0.0, 1.0), np.maximum(found.lower, 0.0),
+                         np.minimum(found.upper, 1.0))
 
 
 @dataclass(frozen=True, slots=True)
 class _BackwardGroup:
     """States with reward *r*: their value on level k is P_rows @ (successors' value on k-r).
 
-    Only the successors' values of the last *r* levels are kept (a ring buffer).
+    Only the successors' values of the last *r* levels are kept (a ring buffer), as
+    point value, certified lower and upper bound.
     """
 
     r: int
@@ -170,21 +185,80 @@ class _BackwardGroup:
     successors: IntArray
     block: CsrMatrix
     history: FloatArray
+    #: The rounding bound of a row product is ``coefficient * magnitude + underflow``.
+    coefficient: FloatArray
+    underflow: FloatArray
 
     @classmethod
     def of(cls, P: CsrMatrix, r: int, states: IntArray) -> _BackwardGroup:
         rows = sp.csr_matrix(P[states])
         successors = np.unique(rows.indices)
         block = sp.csr_matrix(rows[:, successors])
-        return cls(r, states, successors, block, np.zeros((r, successors.size)))
+        terms = certify.row_terms(block)
+        return cls(r, states, successors, block, np.zeros((3, r, successors.size)),
+                   certify.error_coefficient(terms), terms * (2 * certify.ETA))
 
-    def values(self, k: int) -> FloatArray:
+    def fill(self, k: int, found: Bounds) -> None:
+        """Write this group's value on level *k* into *found* (0 below level r)."""
         if k < self.r:
-            return np.zeros(self.states.size)
-        return np.asarray(self.block @ self.history[k % self.r], dtype=np.float64)
+            found.value[self.states] = found.lower[self.states] = found.upper[self.states] = 0.0
+            return
+        value, low, high = self.history[:, k % self.r]
+        found.value[self.states] = self.block @ value
+        # 0 <= low <= high, so the rounding bound of the larger product covers both.
+        above = self.block @ high
+        # certify.product_error for nonnegative terms, its constant parts precomputed
+        # (coefficient * magnitude + underflow), rounded up once.
+        error = round_up(self.coefficient * above + self.underflow)
+        found.lower[self.states] = np.maximum(round_down(self.block @ low - error), 0.0)
+        found.upper[self.states] = round_up(above + error)
 
-    def remember(self, k: int, value: FloatArray) -> None:
-        self.history[k % self.r] = value[self.successors]
+    def remember(self, k: int, found: Bounds) -> None:
+        slot = k % self.r
+        for i, vector in enumerate((found.value, found.lower, found.upper)):
+            self.history[i, slot] = vector[self.successors]
+
+
+@dataclass(frozen=True, slots=True)
+class _Closure:
+    """The certified zero-reward closure of one level, over the columns its rows use."""
+
+    used: IntArray
+    template: certify.AffineMap
+
+    @classmethod
+    def of(cls, levels: _Levels, n: int) -> _Closure:
+        used = np.union1d(np.unique(levels.zero_rows.indices), levels.zero)
+        local = np.searchsorted(used, levels.zero)
+        rows = sp.csr_matrix(levels.zero_rows[:, used])
+        empty = np.zeros(used.size)
+        return cls(used, certify.AffineMap.of(rows, local, empty, empty, None))
+
+    def close(self, levels: _Levels, found: Bounds) -> None:
+        """Solve the closure in *found* (values of the other states already in place).
+
+        The point value, and each bound from its own solve (the other states at their
+        lower, resp. upper bounds), certified one side at a time: so the widths carry
+        over from level to level as the values do, without a growing margin.
+        """
+        zero = levels.zero
+        assert levels.closure is not None
+        found.value[zero] = 0.0
+        found.value[zero] = np.clip(_close(levels, levels.zero_rows @ found.value), 0.0, 1.0)
+        correct = levels.closure.correction
+        solved = []
+        for vector in (found.lower, found.upper):
+            # One substitution with the factors is enough: its accuracy only affects
+            # how tight the certified side comes out.
+            vector[zero] = 0.0
+            guess = correct(np.asarray(levels.zero_rows @ vector, dtype=np.float64))
+            solved.append(found.value[zero] if guess is None else np.clip(guess, 0.0, 1.0))
+        F = replace(self.template, known_lower=found.lower[self.used],
+                    known_upper=found.upper[self.used])
+        found.lower[zero] = certify.certify_side(F, solved[0], correct, np.zeros(zero.size),
+                                                 up=False)
+        found.upper[zero] = certify.certify_side(F, solved[1], correct, np.ones(zero.size),
+                                                 up=True)
 
 
 # ---------------------------------------------------------------------------

@@ -1,0 +1,233 @@
+"""Storm's conditional and reward-bounded formulas in exact rational arithmetic (``--exact``).
+
+The same constructions as the float checker (:mod:`~veribattery.checker.conditional`,
+:mod:`~veribattery.checker.reward_bounded`), on the rational transition matrix:
+
+* ``P(phi | F b) = P(phi ∧ F b) / P(F b)`` and ``E[R_a | F b] = E[R_a · 1{F b}] / P(F b)``,
+  the numerators solved exactly SCC by SCC; states where ``F b`` is impossible hold
+  NaN (undefined), and an initial one is :class:`ConditionUnreachable`;
+* ``U{"r"}<=T``: the backward programme over reward levels, each level's
+  zero-reward closure solved exactly.
+
+Objectives of a conditional with a step or reward bound are not supported here.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gmpy2 import mpq
+
+from veribattery._types import BoolArray, IntArray
+from veribattery.checker import exact, kernels
+from veribattery.checker.conditional import ConditionUnreachable
+from veribattery.checker.exact_solve import row_products, solve
+from veribattery.errors import CheckError, Span, UndefinedResult
+from veribattery.explore.exact import ExactDTMC, ExactRewards
+from veribattery.explore.rational import ObjectArray
+from veribattery.lang.nodes import (
+    Conditional,
+    ConditionalReach,
+    Eventually,
+    Expr,
+    Globally,
+    LabelRef,
+    Next,
+    Release,
+    RewardBounded,
+    TimeBound,
+    Until,
+    WeakUntil,
+)
+from veribattery.lang.property_rules import STEPS_REWARD
+
+_ZERO = mpq(0)
+_ONE = mpq(1)
+_UNDEFINED = float("nan")
+
+
+# ---------------------------------------------------------------------------
+# Conditional formulas
+# ---------------------------------------------------------------------------
+
+
+def conditional_probs(model: ExactDTMC, path: Conditional) -> ObjectArray:
+    """``P=? [ phi || F b ]`` per state: exact rationals, NaN where ``F b`` is impossible.
+
+    :raises ConditionUnreachable: when ``F b`` has probability 0 from an initial state.
+    :raises UndefinedResult: for an objective with a step or reward bound.
+    """
+    x, possible = _condition(model, path.condition, path.span)
+    P, probabilities = model.dtmc.transitions, model.probabilities
+    objective = path.path
+    if isinstance(objective, Next):
+        hits = exact._indicator(exact.state_set(model, objective.operand))
+        everything = np.arange(model.dtmc.num_states)
+        weighted = np.asarray(hits * x, dtype=object)
+        numerator = row_products(P, probabilities, everything, weighted)
+        on_b = row_products(P, probabilities, everything, hits)
+        b = exact.state_set(model, path.condition)
+        return _divide(np.where(b, on_b, numerator), x, possible)
+    reduced = _as_until(model, objective)
+    if reduced is None:
+        raise UndefinedResult("a conditional objective with a step or reward bound is not "
+                              "supported in exact arithmetic", objective.span)
+    remain, target, negated = reduced
+    b = exact.state_set(model, path.condition)
+    ratio = _divide(_until_and_condition(model, remain, target, b, x), x, possible)
+    if negated:
+        ratio = np.asarray([_ONE - v if possible[i] else v for i, v in enumerate(ratio)],
+                           dtype=object)
+    return ratio
+
+
+def conditional_reach_rewards(model: ExactDTMC, rewards: ExactRewards,
+                              path: ConditionalReach) -> exact.ExactValues:
+    """``R=? [ F a || F b ]`` per state exactly (infinite and NaN as the float checker)."""
+    x, possible = _condition(model, path.condition, path.span)
+    P = model.dtmc.transitions
+    target = exact.state_set(model, path.target)
+    b = exact.state_set(model, path.condition)
+    b = b & ~target
+    numerator = exact._indicator(np.zeros_like(target))
+    infinite = np.zeros_like(target)
+    if b.any():  # the unconditional value once on b (none when b lies inside the target)
+        plain = exact.reach_rewards(model, rewards.total, target)
+        infinite = ~kernels.prob0(P, ~target, b & plain.infinite)
+        numerator = np.where(b & ~infinite, plain.values, _ZERO).astype(object)
+    maybe = ~infinite & ~target & ~b & possible
+    if maybe.any():
+        rows = np.flatnonzero(maybe)
+        offsets = np.asarray(rewards.total[rows] * x[rows], dtype=object)
+        offsets = offsets + row_products(P, model.probabilities, rows, numerator)
+        numerator[rows] = solve(exact._system(model, maybe), offsets)
+    return exact.ExactValues(_divide(numerator, x, possible), infinite & possible)
+
+
+def _condition(model: ExactDTMC, condition: Expr, span: Span) -> tuple[ObjectArray, BoolArray]:
+    """``P(F b)`` exactly and where it is positive; an error if not from an initial state."""
+    b = exact.state_set(model, condition)
+    everywhere = np.ones(b.size, dtype=bool)
+    possible = ~kernels.prob0(model.dtmc.transitions, everywhere, b)
+    if not possible[model.dtmc.initial].all():
+        what = (f'F "{condition.name}"' if isinstance(condition, LabelRef)
+                else f"after || (at {span})")
+        raise ConditionUnreachable(f"the condition {what} has probability 0 from the initial "
+                                   "state, so the conditional value is undefined", span)
+    key = b"condition:" + np.packbits(b).tobytes()  # shared by the conditional properties
+    x = model.cache.get(key)
+    if not isinstance(x, np.ndarray):
+        x = exact.until_probs(model, everywhere, b)
+        model.cache[key] = x
+    return x, possible
+
+
+def _until_and_condition(model: ExactDTMC, remain: BoolArray, target: BoolArray,
+                         b: BoolArray, x: ObjectArray) -> ObjectArray:
+    """``P(remain U target ∧ F b)``: known on *target* (x), *b* (the until) and ``!remain`` (0)."""
+    P = model.dtmc.transitions
+    until = exact.until_probs(model, remain, target)
+    fixed = target | b | ~remain
+    known = np.where(target, x, np.where(b, until, _ZERO)).astype(object)
+    positive = fixed & np.fromiter((v != 0 for v in known), dtype=bool, count=known.size)
+    maybe = ~fixed & ~kernels.prob0(P, np.ones_like(b), positive)
+    result = np.where(fixed, known, _ZERO).astype(object)
+    if maybe.any():
+        rows = np.flatnonzero(maybe)
+        rhs = row_products(P, model.probabilities, rows, result)
+        result[rows] = solve(exact._system(model, maybe), rhs)
+    return result
+
+
+def _as_until(model: ExactDTMC, path: object) -> tuple[BoolArray, BoolArray, bool] | None:
+    """An unbounded path formula as ``remain U target`` or its negation (None otherwise)."""
+    everywhere = np.ones(model.dtmc.num_states, dtype=bool)
+    match path:
+        case Until(left=left, right=right, bound=None):
+            return exact.state_set(model, left), exact.state_set(model, right), False
+        case Eventually(operand=operand, bound=None):
+            return everywhere, exact.state_set(model, operand), False
+        case Globally(operand=operand, bound=None):
+            return everywhere, ~exact.state_set(model, operand), True
+        case WeakUntil(left=left, right=right, bound=None):
+            a, c = exact.state_set(model, left), exact.state_set(model, right)
+            return a & ~c, ~a & ~c, True
+        case Release(left=left, right=right, bound=None):
+            a, c = exact.state_set(model, left), exact.state_set(model, right)
+            return ~a, ~c, True
+    return None
+
+
+def _divide(numerator: ObjectArray, x: ObjectArray, possible: BoolArray) -> ObjectArray:
+    """``numerator / x`` where the condition is possible, NaN elsewhere."""
+    return np.asarray([n / d if ok else _UNDEFINED
+                       for n, d, ok in zip(numerator, x, possible, strict=True)], dtype=object)
+
+
+# ---------------------------------------------------------------------------
+# Reward-bounded reachability
+# ---------------------------------------------------------------------------
+
+
+def reward_bounded_probs(model: ExactDTMC, path: RewardBounded) -> ObjectArray:
+    """``remain U{"r"}<=T target`` per state exactly (Storm's semantics, see reward_bounded)."""
+    rewards = _integer_rewards(model, path)
+    bound = _reward_bound(path.bound)
+    remain = exact.state_set(model, path.left)
+    target = exact.state_set(model, path.right)
+    n = model.dtmc.num_states
+    if bound < 0:
+        return exact._indicator(np.zeros(n, dtype=bool))
+    P, probabilities = model.dtmc.transitions, model.probabilities
+    moving = remain & ~target & ~kernels.prob0(P, remain, target)
+    positive = [int(v) for v in np.unique(rewards[moving & (rewards > 0)])]
+    unit = math.gcd(*positive) if positive else 1
+    groups = [(value // unit, np.flatnonzero(moving & (rewards == value))) for value in positive]
+    zero_mask = moving & (rewards == 0)
+    zero = np.flatnonzero(zero_mask)
+    history: list[ObjectArray] = []
+    keep = max((r for r, _ in groups), default=1)
+    value = exact._indicator(target)
+    for k in range(bound // unit + 1):
+        value = exact._indicator(target)
+        for r, states in groups:
+            if k >= r:
+                value[states] = row_products(P, probabilities, states, history[-r])
+        if zero.size:
+            value[zero] = solve(exact._system(model, zero_mask),
+                                row_products(P, probabilities, zero, value))
+        history = [*history[-(keep - 1):], value] if keep > 1 else [value]
+    return value
+
+
+def _integer_rewards(model: ExactDTMC, path: RewardBounded) -> IntArray:
+    """The exact rewards per step as non-negative integers, or an error naming a state."""
+    if path.reward == STEPS_REWARD:
+        return np.ones(model.dtmc.num_states, dtype=np.int64)
+    structure = model_reward(model, path)
+    total = structure.total
+    for state, v in enumerate(total):
+        if v < 0 or mpq(v).denominator != 1:
+            name = f'"{structure.name}"' if structure.name else "(unnamed)"
+            values = ", ".join(f"{var}={val}" for var, val in zip(
+                model.dtmc.variable_names, model.dtmc.states[state], strict=True))
+            raise CheckError(f"a reward bound needs non-negative integer rewards, but reward "
+                             f"structure {name} gives {float(v):g} in state ({values})",
+                             path.span)
+    return np.array([int(v) for v in total], dtype=np.int64)
+
+
+def model_reward(model: ExactDTMC, path: RewardBounded) -> ExactRewards:
+    """The reward structure *path* names, or a CheckError that says where."""
+    try:
+        return model.reward(path.reward)
+    except (KeyError, IndexError):
+        raise CheckError(f"the model has no reward structure {path.reward!r}",
+                         path.span) from None
+
+
+def _reward_bound(bound: TimeBound) -> int:
+    """The largest integer total reward that ``<=T`` / ``<T`` admits (T read exactly)."""
+    value = exact._bound(bound.value)
+    return int(math.floor(value) if bound.op == "<=" else math.ceil(value) - 1)
