@@ -304,3 +304,43 @@ def test_one_command_per_part_reports_bad_sums() -> None:
     )
     with pytest.raises(ModelError, match=r"sum to 0\.5"):
         build_dtmc(model)
+
+
+# --- range checks are made once per layer; errors stay those of the command order ---
+
+
+def test_out_of_range_on_a_zero_probability_branch_is_reported() -> None:
+    model = flat_model(
+        [var("x", 0, 2)],
+        [module("M", ["x"], [command("true", [("1", {"x": "0"}), ("0", {"x": "x+3"})], line=5)])],
+    )
+    with pytest.raises(ModelError, match=r"update sets x to 3, outside its range 0\.\.2") as info:
+        build_dtmc(model)
+    assert info.value.span == Span(5, 3, "test.pm")
+
+
+def test_first_error_in_command_order_is_reported() -> None:
+    # Module A's command leaves x's range; module B's later command has a bad sum.
+    model = flat_model(
+        [var("x", 0, 1, module="A"), var("y", 0, 1, module="B")],
+        [
+            module("A", ["x"], [command("true", [("1", {"x": "x+2"})], line=3)]),
+            module("B", ["y"], [command("true", [("0.5", {"y": "1"})], line=8)]),
+        ],
+    )
+    with pytest.raises(ModelError, match=r"module A, command: update sets x to 2") as info:
+        build_dtmc(model)
+    assert info.value.span == Span(3, 3, "test.pm")
+
+
+@pytest.mark.parametrize("synchronised", [False, True])
+def test_range_error_located_in_a_later_layer(synchronised: bool) -> None:
+    # x climbs one per step: the error appears only in the layer where x = 3.
+    action = "a" if synchronised else None
+    cmds = [command("true", [("0.5", {"x": "x+1"}), ("0.5", {})], action=action, line=4)]
+    modules = [module("M", ["x"], cmds)]
+    if synchronised:
+        modules.append(module("N", [], [command("true", [("1", {})], action="a", line=9)]))
+    model = flat_model([var("x", -2, 3, init=-2)], modules)
+    with pytest.raises(ModelError, match=r"sets x to 4, outside its range -2\.\.3, in state \(x=3\)"):
+        build_dtmc(model)

@@ -10,6 +10,7 @@ each with probability 1/n, and a state with none gets a self-loop.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -43,6 +44,7 @@ _INIT_CHUNK = 1 << 20
 _CHUNK = 1 << 14
 _NONE = np.empty(0, dtype=np.int64)
 _NO_FLOATS = np.empty(0, dtype=np.float64)
+_INT32_MAX = int(np.iinfo(np.int32).max)
 
 
 @dataclass(frozen=True, slots=True)
@@ -165,7 +167,7 @@ def _explore_layer(
 ) -> Layer:
     found = expand_frontier(program, store.rows(low, high), rewarded)
     columns = store.add(found.targets)
-    index_type = np.int32 if store.count < np.iinfo(np.int32).max else np.int64
+    index_type = np.int32 if store.count < _INT32_MAX else np.int64
     return Layer(
         (found.source + low).astype(index_type),
         columns.astype(index_type),
@@ -178,29 +180,79 @@ def _explore_layer(
 
 
 def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | None]) -> Expansion:
-    """Every branch out of *frontier*, ordered by source state (see :class:`Expansion`)."""
+    """Every branch out of *frontier*, ordered by source state (see :class:`Expansion`).
+
+    Update ranges are checked once over all the layer's targets (two numpy calls
+    instead of two per assignment); only if one is out of range is the frontier
+    expanded again with per-update checks, which raise the located error.
+    """
+    try:
+        found = _expand_groups(program, frontier, bounds=False)
+        expansion = _combine(program, found, frontier, rewarded)
+    except (ModelError, _OutOfRange):
+        # Expand again checking each update as it is made, so that the first error
+        # in command order is the one reported, located at its command.
+        _expand_groups(program, frontier, bounds=True)
+        raise
+    return expansion
+
+
+class _OutOfRange(Exception):
+    """Some branch of a layer leaves its variable's range (located by a re-expansion)."""
+
+
+def _expand_groups(
+    program: Program, frontier: IntArray, bounds: bool
+) -> list[tuple[str | None, GroupSuccessors]]:
+    parts = [(g.action, expand_group(program, g, frontier, bounds)) for g in program.groups]
+    return [(a, s) for a, s in parts if s is not None]
+
+
+def _check_in_range(program: Program, targets: IntArray) -> None:
+    if targets.shape[0] == 0:
+        return
+    lows, highs = _bounds(program.lows, program.highs)
+    if (targets.min(axis=0) < lows).any() or (targets.max(axis=0) > highs).any():
+        raise _OutOfRange
+
+
+@functools.lru_cache(maxsize=64)
+def _bounds(lows: tuple[int, ...], highs: tuple[int, ...]) -> tuple[IntArray, IntArray]:
+    return np.array(lows, dtype=np.int64), np.array(highs, dtype=np.int64)
+
+
+def _combine(
+    program: Program,
+    found: list[tuple[str | None, GroupSuccessors]],
+    frontier: IntArray,
+    rewarded: set[str | None],
+) -> Expansion:
     n = frontier.shape[0]
-    parts = [(g.action, expand_group(program, g, frontier)) for g in program.groups]
-    found = [(a, s) for a, s in parts if s is not None]
     choices = np.zeros(n, dtype=np.int64)
     action_choices: dict[str | None, IntArray] = {}
     for action, successors in found:
         choices += successors.choices
         if action in rewarded:
             action_choices[action] = action_choices.get(action, 0) + successors.choices
-    source, targets, probability, dropped, branches = _merge(found, choices, frontier)
+    source, targets, probability, dropped, branches = _merge(program, found, choices, frontier)
     return Expansion(source, targets, probability, choices, action_choices, dropped, branches)
 
 
 def _merge(
-    found: list[tuple[str | None, GroupSuccessors]], choices: IntArray, frontier: IntArray
+    program: Program,
+    found: list[tuple[str | None, GroupSuccessors]],
+    choices: IntArray,
+    frontier: IntArray,
 ) -> tuple[IntArray, IntArray, FloatArray, IntArray, int]:
     """All branches of a layer ordered by source, weighted 1/n, deadlocks self-looped;
     zero-probability branches dropped (their positions returned), and the branch count.
+
+    :raises _OutOfRange: a branch (even of probability 0) leaves a variable's range.
     """
     dead = np.flatnonzero(choices == 0)
     source = np.concatenate([s.source for _, s in found] + [dead])
     targets = np.concatenate([s.targets for _, s in found] + [frontier[dead]])
+    _check_in_range(program, targets)
     probability = np.concatenate([s.probability for _, s in found] + [np.ones(dead.size)])
     probability /= np.maximum(choices, 1)[source]
     keep = probability > 0
