@@ -342,5 +342,35 @@ def test_range_error_located_in_a_later_layer(synchronised: bool) -> None:
     if synchronised:
         modules.append(module("N", [], [command("true", [("1", {})], action="a", line=9)]))
     model = flat_model([var("x", -2, 3, init=-2)], modules)
-    with pytest.raises(ModelError, match=r"sets x to 4, outside its range -2\.\.3, in state \(x=3\)"):
+    message = r"sets x to 4, outside its range -2\.\.3, in state \(x=3\)"
+    with pytest.raises(ModelError, match=message):
         build_dtmc(model)
+
+
+def test_labels_and_rewards_evaluated_in_chunks_equal_the_formulas(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from veribattery.explore import builder
+
+    # A 7x5 grid walk; chunks of 4 states split it mid-layer and mid-row.
+    monkeypatch.setattr(builder, "_EVAL_CHUNK", 4)
+    model = flat_model(
+        [var("x", 0, 6), var("y", -2, 2, init=-2)],
+        [
+            module(
+                "M",
+                ["x", "y"],
+                [command("true", [("0.5", {"x": "min(x+1, 6)"}), ("0.5", {"y": "min(y+1, 2)"})])],
+            )
+        ],
+        labels={"odd": "mod(x, 2) = 1", "safe": "y > 0 & x/y >= 2"},
+        reward_structs=[rewards("r", ("y != 0", "x / (y + 3)"), ("x >= 3", "x * x"))],
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.num_states == 35
+    x, y = dtmc.column("x"), dtmc.column("y")
+    assert dtmc.labels["odd"].tolist() == [v % 2 == 1 for v in x]
+    pairs = list(zip(x.tolist(), y.tolist(), strict=True))
+    assert dtmc.labels["safe"].tolist() == [b > 0 and a / b >= 2 for a, b in pairs]
+    expected = [(a / (b + 3) if b != 0 else 0.0) + (a * a if a >= 3 else 0.0) for a, b in pairs]
+    assert dtmc.reward("r").state.tolist() == expected

@@ -25,7 +25,7 @@ from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
-from veribattery.lang.nodes import FlatModel, RewardStruct
+from veribattery.lang.nodes import Expr, FlatModel, RewardStruct
 
 __all__ = [
     "Expansion",
@@ -172,11 +172,21 @@ def _explore_layer(
         (found.source + low).astype(index_type),
         columns.astype(index_type),
         found.probability,
-        found.choices,
-        found.action_choices,
+        _narrow(found.choices),
+        {action: _narrow(counts) for action, counts in found.action_choices.items()},
         found.dropped,
         found.branches,
     )
+
+
+def _narrow(counts: IntArray) -> IntArray:
+    """Choice counts in the smallest unsigned dtype that holds them (usually one byte).
+
+    The layers keep a count per state and per rewarded action until the DTMC is
+    assembled: at int64 those arrays would outweigh the transitions themselves.
+    """
+    top = int(counts.max()) if counts.size else 0
+    return counts.astype(np.min_scalar_type(top), copy=False)
 
 
 def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | None]) -> Expansion:
@@ -349,14 +359,31 @@ def _labels(
     model: FlatModel, states: IntArray, initial: IntArray, dead: BoolArray
 ) -> dict[str, BoolArray]:
     labels = {
-        label.name: compile_expr(label.expr, model.variable_names)(states).astype(bool)
-        for label in model.labels
+        label.name: _over_states(model, label.expr, states, bool) for label in model.labels
     }
     init = np.zeros(states.shape[0], dtype=bool)
     init[initial] = True
     labels["init"] = init
     labels["deadlock"] = dead
     return labels
+
+
+#: States evaluated at once by labels and rewards: bounds the temporaries (a
+#: ``? :`` with a risky branch copies the rows it selects) to a few MB.
+_EVAL_CHUNK = 1 << 16
+
+
+def _over_states(model: FlatModel, expr: Expr, states: IntArray, dtype: Any) -> np.ndarray:
+    """*expr* in every state, as *dtype*, evaluated chunk by chunk; sub-expressions
+    over small domains are tabulated (as for the commands).
+    """
+    ranges = {v.name: (v.low, v.high) for v in model.variables}
+    evaluate = compile_expr(expr, model.variable_names, ranges=ranges)
+    out = np.empty(states.shape[0], dtype=dtype)
+    for start in range(0, states.shape[0], _EVAL_CHUNK):
+        chunk = states[start : start + _EVAL_CHUNK]
+        out[start : start + chunk.shape[0]] = evaluate(chunk)
+    return out
 
 
 def rewarded_actions(rewards: tuple[RewardStruct, ...]) -> set[str | None]:
@@ -371,13 +398,12 @@ def _reward_vectors(
     layers: list[Layer],
 ) -> RewardVectors:
     """State rewards, and transition rewards weighted by each action's share of the choices."""
-    names = model.variable_names
     state = np.zeros(states.shape[0], dtype=np.float64)
     transition = np.zeros(states.shape[0], dtype=np.float64)
     share: dict[str | None, FloatArray] = {}
     for item in struct.items:
-        guard = compile_expr(item.guard, names)(states).astype(bool)
-        value = np.where(guard, compile_expr(item.value, names)(states), 0.0)
+        guard = _over_states(model, item.guard, states, bool)
+        value = np.where(guard, _over_states(model, item.value, states, np.float64), 0.0)
         if not item.is_transition:
             state += value
             continue
