@@ -11,6 +11,7 @@ each with probability 1/n, and a state with none gets a self-loop.
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -108,6 +109,7 @@ def explore(
     initial = store.add(initial_states(model))
     rewarded = rewarded_actions(model.rewards)
     layers: list[Layer] = []
+    counts = _count_dtype(program)
     low = 0
     while low < store.count:
         high = store.count
@@ -115,7 +117,7 @@ def explore(
         # numbering is the same as for the whole layer at once.
         for start in range(low, high, _CHUNK):
             stop = min(start + _CHUNK, high)
-            layers.append(_explore_layer(program, store, start, stop, rewarded))
+            layers.append(_explore_layer(program, store, start, stop, rewarded, counts))
         if progress is not None:
             progress(store.count, high - low)
         low = high
@@ -163,7 +165,12 @@ def _domain_rows(lows: IntArray, sizes: IntArray, start: int, stop: int) -> IntA
 
 
 def _explore_layer(
-    program: Program, store: StateStore, low: int, high: int, rewarded: set[str | None]
+    program: Program,
+    store: StateStore,
+    low: int,
+    high: int,
+    rewarded: set[str | None],
+    counts: np.dtype[Any],
 ) -> Layer:
     found = expand_frontier(program, store.rows(low, high), rewarded)
     columns = store.add(found.targets)
@@ -172,21 +179,20 @@ def _explore_layer(
         (found.source + low).astype(index_type),
         columns.astype(index_type),
         found.probability,
-        _narrow(found.choices),
-        {action: _narrow(counts) for action, counts in found.action_choices.items()},
+        found.choices.astype(counts),
+        {action: c.astype(counts) for action, c in found.action_choices.items()},
         found.dropped,
         found.branches,
     )
 
 
-def _narrow(counts: IntArray) -> IntArray:
-    """Choice counts in the smallest unsigned dtype that holds them (usually one byte).
-
-    The layers keep a count per state and per rewarded action until the DTMC is
-    assembled: at int64 those arrays would outweigh the transitions themselves.
+def _count_dtype(program: Program) -> np.dtype[Any]:
+    """The smallest unsigned dtype that holds any state's number of choices (usually
+    one byte): the layers keep a count per state and per rewarded action until the
+    DTMC is assembled, and at int64 those arrays would outweigh the transitions.
     """
-    top = int(counts.max()) if counts.size else 0
-    return counts.astype(np.min_scalar_type(top), copy=False)
+    bound = sum(math.prod(len(part) for part in group.parts) for group in program.groups)
+    return np.min_scalar_type(bound)
 
 
 def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | None]) -> Expansion:
@@ -219,10 +225,8 @@ def _expand_groups(
 
 
 def _check_in_range(program: Program, targets: IntArray) -> None:
-    if targets.shape[0] == 0:
-        return
     lows, highs = _bounds(program.lows, program.highs)
-    if (targets.min(axis=0) < lows).any() or (targets.max(axis=0) > highs).any():
+    if (targets < lows).any() or (targets > highs).any():
         raise _OutOfRange
 
 

@@ -119,7 +119,8 @@ def _expand_one_each(
     total: FloatArray | float
     if constants is not None:  # every probability folded: one row for all choices
         row, total = constants
-        probability = np.tile(row, n).reshape(n, width)
+        probability = np.empty((n, width), dtype=np.float64)
+        probability[:] = row
         for command, part_branches in zip(commands, layout.branches, strict=True):
             _assign_grid(program, command, part_branches, sources, grid, bounds)
     else:
