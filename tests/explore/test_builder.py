@@ -374,3 +374,43 @@ def test_labels_and_rewards_evaluated_in_chunks_equal_the_formulas(
     assert dtmc.labels["safe"].tolist() == [b > 0 and a / b >= 2 for a, b in pairs]
     expected = [(a / (b + 3) if b != 0 else 0.0) + (a * a if a >= 3 else 0.0) for a, b in pairs]
     assert dtmc.reward("r").state.tolist() == expected
+
+
+# --- packed keys: the multi-word fallback gives the same DTMC as one word ---------
+
+
+def _clamped_walk(wide: int) -> FlatModel:
+    """A walk on x in -3..3 and y in -5..-1 with a boolean flag; *wide* widens the
+    declared ranges (the values reached stay the same) past what one key word packs.
+    """
+    return flat_model(
+        [boolean("f"), var("x", -3 - wide, 3 + wide, init=0), var("y", -5 - wide, -1, init=-1)],
+        [
+            module(
+                "M",
+                ["f", "x", "y"],
+                [
+                    command("!f", [("0.25", {"x": "max(x-1, -3)"}), ("0.25", {"x": "min(x+1, 3)"}),
+                                   ("0.5", {"f": "true", "y": "max(y-1, -5)"})]),
+                    command("f", [("0.5", {"f": "false"}), ("0.5", {"y": "min(y+1, -1)"})]),
+                ],
+            )
+        ],
+        labels={"low": "y = -5 & f"},
+    )
+
+
+def test_multi_word_keys_give_the_same_dtmc_as_one_word() -> None:
+    from veribattery.explore.store import radix_words
+
+    narrow, wide = _clamped_walk(0), _clamped_walk(1 << 40)
+    assert radix_words([0, -3, -5], [1, 3, -1]).shape[1] == 1
+    wide_ranges = [(v.low, v.high) for v in wide.variables]
+    assert radix_words(*zip(*wide_ranges, strict=True)).shape[1] == 2  # 1 + 41 + 41 bits > 63
+    a, b = build_dtmc(narrow), build_dtmc(wide)
+    assert a.num_states == b.num_states == 2 * 7 * 5
+    assert a.states.tolist() == b.states.tolist()  # same numbering
+    assert (a.transitions != b.transitions).nnz == 0
+    assert a.labels["low"].tolist() == b.labels["low"].tolist()
+    assert set(a.column("f").tolist()) == {0, 1}
+    assert a.column("x").min() == -3 and a.column("y").min() == -5
