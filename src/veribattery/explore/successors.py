@@ -176,9 +176,18 @@ def _assign_grid(
     grid: IntArray,
     bounds: bool,
 ) -> None:
-    """Write each update's assignments into the branches (columns of *grid*) taking it."""
+    """Write each update's assignments into the branches (columns of *grid*) taking it.
+
+    Without *bounds* (the caller checks the whole layer), an integer constant is
+    written as it is, with no array evaluated for it.
+    """
     for update, branches in zip(command.updates, part_branches, strict=True):
-        for column, rhs in update.assignments:
+        constants = update.constants if not bounds else ()
+        for i, (column, rhs) in enumerate(update.assignments):
+            constant = constants[i] if constants else None
+            if constant is not None:
+                grid[:, branches, column] = constant
+                continue
             values = rhs(sources)
             _check_range(program, command, column, values, sources,
                          bounds and column not in update.unchecked)
