@@ -304,3 +304,113 @@ def test_one_command_per_part_reports_bad_sums() -> None:
     )
     with pytest.raises(ModelError, match=r"sum to 0\.5"):
         build_dtmc(model)
+
+
+# --- range checks are made once per layer; errors stay those of the command order ---
+
+
+def test_out_of_range_on_a_zero_probability_branch_is_reported() -> None:
+    model = flat_model(
+        [var("x", 0, 2)],
+        [module("M", ["x"], [command("true", [("1", {"x": "0"}), ("0", {"x": "x+3"})], line=5)])],
+    )
+    with pytest.raises(ModelError, match=r"update sets x to 3, outside its range 0\.\.2") as info:
+        build_dtmc(model)
+    assert info.value.span == Span(5, 3, "test.pm")
+
+
+def test_first_error_in_command_order_is_reported() -> None:
+    # Module A's command leaves x's range; module B's later command has a bad sum.
+    model = flat_model(
+        [var("x", 0, 1, module="A"), var("y", 0, 1, module="B")],
+        [
+            module("A", ["x"], [command("true", [("1", {"x": "x+2"})], line=3)]),
+            module("B", ["y"], [command("true", [("0.5", {"y": "1"})], line=8)]),
+        ],
+    )
+    with pytest.raises(ModelError, match=r"module A, command: update sets x to 2") as info:
+        build_dtmc(model)
+    assert info.value.span == Span(3, 3, "test.pm")
+
+
+@pytest.mark.parametrize("synchronised", [False, True])
+def test_range_error_located_in_a_later_layer(synchronised: bool) -> None:
+    # x climbs one per step: the error appears only in the layer where x = 3.
+    action = "a" if synchronised else None
+    cmds = [command("true", [("0.5", {"x": "x+1"}), ("0.5", {})], action=action, line=4)]
+    modules = [module("M", ["x"], cmds)]
+    if synchronised:
+        modules.append(module("N", [], [command("true", [("1", {})], action="a", line=9)]))
+    model = flat_model([var("x", -2, 3, init=-2)], modules)
+    message = r"sets x to 4, outside its range -2\.\.3, in state \(x=3\)"
+    with pytest.raises(ModelError, match=message):
+        build_dtmc(model)
+
+
+def test_labels_and_rewards_evaluated_in_chunks_equal_the_formulas(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from veribattery.explore import builder
+
+    # A 7x5 grid walk; chunks of 4 states split it mid-layer and mid-row.
+    monkeypatch.setattr(builder, "_EVAL_CHUNK", 4)
+    model = flat_model(
+        [var("x", 0, 6), var("y", -2, 2, init=-2)],
+        [
+            module(
+                "M",
+                ["x", "y"],
+                [command("true", [("0.5", {"x": "min(x+1, 6)"}), ("0.5", {"y": "min(y+1, 2)"})])],
+            )
+        ],
+        labels={"odd": "mod(x, 2) = 1", "safe": "y > 0 & x/y >= 2"},
+        reward_structs=[rewards("r", ("y != 0", "x / (y + 3)"), ("x >= 3", "x * x"))],
+    )
+    dtmc = build_dtmc(model)
+    assert dtmc.num_states == 35
+    x, y = dtmc.column("x"), dtmc.column("y")
+    assert dtmc.labels["odd"].tolist() == [v % 2 == 1 for v in x]
+    pairs = list(zip(x.tolist(), y.tolist(), strict=True))
+    assert dtmc.labels["safe"].tolist() == [b > 0 and a / b >= 2 for a, b in pairs]
+    expected = [(a / (b + 3) if b != 0 else 0.0) + (a * a if a >= 3 else 0.0) for a, b in pairs]
+    assert dtmc.reward("r").state.tolist() == expected
+
+
+# --- packed keys: the multi-word fallback gives the same DTMC as one word ---------
+
+
+def _clamped_walk(wide: int) -> FlatModel:
+    """A walk on x in -3..3 and y in -5..-1 with a boolean flag; *wide* widens the
+    declared ranges (the values reached stay the same) past what one key word packs.
+    """
+    return flat_model(
+        [boolean("f"), var("x", -3 - wide, 3 + wide, init=0), var("y", -5 - wide, -1, init=-1)],
+        [
+            module(
+                "M",
+                ["f", "x", "y"],
+                [
+                    command("!f", [("0.25", {"x": "max(x-1, -3)"}), ("0.25", {"x": "min(x+1, 3)"}),
+                                   ("0.5", {"f": "true", "y": "max(y-1, -5)"})]),
+                    command("f", [("0.5", {"f": "false"}), ("0.5", {"y": "min(y+1, -1)"})]),
+                ],
+            )
+        ],
+        labels={"low": "y = -5 & f"},
+    )
+
+
+def test_multi_word_keys_give_the_same_dtmc_as_one_word() -> None:
+    from veribattery.explore.store import radix_words
+
+    narrow, wide = _clamped_walk(0), _clamped_walk(1 << 40)
+    assert radix_words([0, -3, -5], [1, 3, -1]).shape[1] == 1
+    wide_ranges = [(v.low, v.high) for v in wide.variables]
+    assert radix_words(*zip(*wide_ranges, strict=True)).shape[1] == 2  # 1 + 41 + 41 bits > 63
+    a, b = build_dtmc(narrow), build_dtmc(wide)
+    assert a.num_states == b.num_states == 2 * 7 * 5
+    assert a.states.tolist() == b.states.tolist()  # same numbering
+    assert (a.transitions != b.transitions).nnz == 0
+    assert a.labels["low"].tolist() == b.labels["low"].tolist()
+    assert set(a.column("f").tolist()) == {0, 1}
+    assert a.column("x").min() == -3 and a.column("y").min() == -5

@@ -10,6 +10,8 @@ each with probability 1/n, and a state with none gets a self-loop.
 
 from __future__ import annotations
 
+import functools
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -24,7 +26,7 @@ from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
-from veribattery.lang.nodes import FlatModel, RewardStruct
+from veribattery.lang.nodes import Expr, FlatModel, RewardStruct
 
 __all__ = [
     "Expansion",
@@ -43,6 +45,7 @@ _INIT_CHUNK = 1 << 20
 _CHUNK = 1 << 14
 _NONE = np.empty(0, dtype=np.int64)
 _NO_FLOATS = np.empty(0, dtype=np.float64)
+_INT32_MAX = int(np.iinfo(np.int32).max)
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,6 +109,7 @@ def explore(
     initial = store.add(initial_states(model))
     rewarded = rewarded_actions(model.rewards)
     layers: list[Layer] = []
+    counts = _count_dtype(program)
     low = 0
     while low < store.count:
         high = store.count
@@ -113,7 +117,7 @@ def explore(
         # numbering is the same as for the whole layer at once.
         for start in range(low, high, _CHUNK):
             stop = min(start + _CHUNK, high)
-            layers.append(_explore_layer(program, store, start, stop, rewarded))
+            layers.append(_explore_layer(program, store, start, stop, rewarded, counts))
         if progress is not None:
             progress(store.count, high - low)
         low = high
@@ -161,46 +165,108 @@ def _domain_rows(lows: IntArray, sizes: IntArray, start: int, stop: int) -> IntA
 
 
 def _explore_layer(
-    program: Program, store: StateStore, low: int, high: int, rewarded: set[str | None]
+    program: Program,
+    store: StateStore,
+    low: int,
+    high: int,
+    rewarded: set[str | None],
+    counts: np.dtype[Any],
 ) -> Layer:
     found = expand_frontier(program, store.rows(low, high), rewarded)
     columns = store.add(found.targets)
-    index_type = np.int32 if store.count < np.iinfo(np.int32).max else np.int64
+    index_type = np.int32 if store.count < _INT32_MAX else np.int64
     return Layer(
         (found.source + low).astype(index_type),
         columns.astype(index_type),
         found.probability,
-        found.choices,
-        found.action_choices,
+        found.choices.astype(counts),
+        {action: c.astype(counts) for action, c in found.action_choices.items()},
         found.dropped,
         found.branches,
     )
 
 
+def _count_dtype(program: Program) -> np.dtype[Any]:
+    """The smallest unsigned dtype that holds any state's number of choices (usually
+    one byte): the layers keep a count per state and per rewarded action until the
+    DTMC is assembled, and at int64 those arrays would outweigh the transitions.
+    """
+    bound = sum(math.prod(len(part) for part in group.parts) for group in program.groups)
+    return np.min_scalar_type(bound)
+
+
 def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | None]) -> Expansion:
-    """Every branch out of *frontier*, ordered by source state (see :class:`Expansion`)."""
+    """Every branch out of *frontier*, ordered by source state (see :class:`Expansion`).
+
+    Update ranges are checked once over all the layer's targets (two numpy calls
+    instead of two per assignment); only if one is out of range is the frontier
+    expanded again with per-update checks, which raise the located error.
+    """
+    try:
+        found = _expand_groups(program, frontier, bounds=False)
+        expansion = _combine(program, found, frontier, rewarded)
+    except (ModelError, _OutOfRange):
+        # Expand again checking each update as it is made, so that the first error
+        # in command order is the one reported, located at its command.
+        _expand_groups(program, frontier, bounds=True)
+        raise
+    return expansion
+
+
+class _OutOfRange(Exception):
+    """Some branch of a layer leaves its variable's range (located by a re-expansion)."""
+
+
+def _expand_groups(
+    program: Program, frontier: IntArray, bounds: bool
+) -> list[tuple[str | None, GroupSuccessors]]:
+    parts = [(g.action, expand_group(program, g, frontier, bounds)) for g in program.groups]
+    return [(a, s) for a, s in parts if s is not None]
+
+
+def _check_in_range(program: Program, targets: IntArray) -> None:
+    lows, highs = _bounds(program.lows, program.highs)
+    if (targets < lows).any() or (targets > highs).any():
+        raise _OutOfRange
+
+
+@functools.lru_cache(maxsize=64)
+def _bounds(lows: tuple[int, ...], highs: tuple[int, ...]) -> tuple[IntArray, IntArray]:
+    return np.array(lows, dtype=np.int64), np.array(highs, dtype=np.int64)
+
+
+def _combine(
+    program: Program,
+    found: list[tuple[str | None, GroupSuccessors]],
+    frontier: IntArray,
+    rewarded: set[str | None],
+) -> Expansion:
     n = frontier.shape[0]
-    parts = [(g.action, expand_group(program, g, frontier)) for g in program.groups]
-    found = [(a, s) for a, s in parts if s is not None]
     choices = np.zeros(n, dtype=np.int64)
     action_choices: dict[str | None, IntArray] = {}
     for action, successors in found:
         choices += successors.choices
         if action in rewarded:
             action_choices[action] = action_choices.get(action, 0) + successors.choices
-    source, targets, probability, dropped, branches = _merge(found, choices, frontier)
+    source, targets, probability, dropped, branches = _merge(program, found, choices, frontier)
     return Expansion(source, targets, probability, choices, action_choices, dropped, branches)
 
 
 def _merge(
-    found: list[tuple[str | None, GroupSuccessors]], choices: IntArray, frontier: IntArray
+    program: Program,
+    found: list[tuple[str | None, GroupSuccessors]],
+    choices: IntArray,
+    frontier: IntArray,
 ) -> tuple[IntArray, IntArray, FloatArray, IntArray, int]:
     """All branches of a layer ordered by source, weighted 1/n, deadlocks self-looped;
     zero-probability branches dropped (their positions returned), and the branch count.
+
+    :raises _OutOfRange: a branch (even of probability 0) leaves a variable's range.
     """
     dead = np.flatnonzero(choices == 0)
     source = np.concatenate([s.source for _, s in found] + [dead])
     targets = np.concatenate([s.targets for _, s in found] + [frontier[dead]])
+    _check_in_range(program, targets)
     probability = np.concatenate([s.probability for _, s in found] + [np.ones(dead.size)])
     probability /= np.maximum(choices, 1)[source]
     keep = probability > 0
@@ -297,14 +363,31 @@ def _labels(
     model: FlatModel, states: IntArray, initial: IntArray, dead: BoolArray
 ) -> dict[str, BoolArray]:
     labels = {
-        label.name: compile_expr(label.expr, model.variable_names)(states).astype(bool)
-        for label in model.labels
+        label.name: _over_states(model, label.expr, states, bool) for label in model.labels
     }
     init = np.zeros(states.shape[0], dtype=bool)
     init[initial] = True
     labels["init"] = init
     labels["deadlock"] = dead
     return labels
+
+
+#: States evaluated at once by labels and rewards: bounds the temporaries (a
+#: ``? :`` with a risky branch copies the rows it selects) to a few MB.
+_EVAL_CHUNK = 1 << 16
+
+
+def _over_states(model: FlatModel, expr: Expr, states: IntArray, dtype: Any) -> np.ndarray:
+    """*expr* in every state, as *dtype*, evaluated chunk by chunk; sub-expressions
+    over small domains are tabulated (as for the commands).
+    """
+    ranges = {v.name: (v.low, v.high) for v in model.variables}
+    evaluate = compile_expr(expr, model.variable_names, ranges=ranges)
+    out = np.empty(states.shape[0], dtype=dtype)
+    for start in range(0, states.shape[0], _EVAL_CHUNK):
+        chunk = states[start : start + _EVAL_CHUNK]
+        out[start : start + chunk.shape[0]] = evaluate(chunk)
+    return out
 
 
 def rewarded_actions(rewards: tuple[RewardStruct, ...]) -> set[str | None]:
@@ -319,13 +402,12 @@ def _reward_vectors(
     layers: list[Layer],
 ) -> RewardVectors:
     """State rewards, and transition rewards weighted by each action's share of the choices."""
-    names = model.variable_names
     state = np.zeros(states.shape[0], dtype=np.float64)
     transition = np.zeros(states.shape[0], dtype=np.float64)
     share: dict[str | None, FloatArray] = {}
     for item in struct.items:
-        guard = compile_expr(item.guard, names)(states).astype(bool)
-        value = np.where(guard, compile_expr(item.value, names)(states), 0.0)
+        guard = _over_states(model, item.guard, states, bool)
+        value = np.where(guard, _over_states(model, item.value, states, np.float64), 0.0)
         if not item.is_transition:
             state += value
             continue

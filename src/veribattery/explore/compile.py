@@ -163,8 +163,13 @@ def compile_expr(
     columns = {name: i for i, name in enumerate(variable_names)}
     node = _compile(expr, _Scope(columns, label_masks, ranges, cache))
 
+    fn = node.fn
+
     def evaluate(states: IntArray) -> np.ndarray:
-        value = np.asarray(node.fn(states))
+        value = fn(states)
+        if type(value) is np.ndarray and value.ndim:  # the common case, checked cheaply
+            return value
+        value = np.asarray(value)
         if value.ndim == 0:
             return np.full(states.shape[0], value, dtype=value.dtype)
         return value
@@ -363,12 +368,15 @@ def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
     if len(cols) == 1:
         (col,) = cols
         return lambda states: states[:, col] - offset
-    terms = list(zip(cols, strides, strict=True))
+    width = max(cols) + 1
+    weights = np.zeros(width, dtype=np.int64)
+    weights[cols] = strides
 
     def evaluate(states: IntArray) -> Any:
-        index = states[:, cols[0]] * strides[0] - offset
-        for col, stride in terms[1:]:
-            index += states[:, col] * stride
+        # One product with the strides (zero for the other columns) instead of
+        # a multiply and an add per column: this runs for every table, every layer.
+        index = states[:, :width] @ weights
+        index -= offset
         return index
 
     return evaluate

@@ -19,7 +19,7 @@ from veribattery.explore.compile import (
     compile_expr,
     constant_value,
 )
-from veribattery.lang.nodes import Command, Expr, FlatModel, FlatModule, Update
+from veribattery.lang.nodes import Command, Expr, FlatModel, FlatModule, Ident, Update
 
 __all__ = [
     "ChoiceGroup",
@@ -45,6 +45,9 @@ class CompiledUpdate:
     span: Span
     constant_probability: float | None = None
     unchecked: frozenset[int] = frozenset()
+    #: Per assignment, its value if it folds to an integer constant (else None);
+    #: empty when none was computed.
+    constants: tuple[int | None, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -189,11 +192,15 @@ def _constant(expr: Expr, names: _Names) -> float | None:
 def _compile_update(update: Update, names: _Names) -> CompiledUpdate:
     columns = {name: i for i, name in enumerate(names.names)}
     bounds = {n: (float(lo), float(hi)) for n, (lo, hi) in names.ranges.items()}
-    assignments, unchecked = [], set()
+    assignments, unchecked, constants = [], set(), []
     for a in update.assignments:
         if a.variable not in columns:
             raise PrismSemanticError(f"assignment to unknown variable '{a.variable}'", a.span)
+        if isinstance(a.expr, Ident) and a.expr.name == a.variable:
+            continue  # (x'=x) leaves the copied source value as it is
         assignments.append((columns[a.variable], names.compile(a.expr)))
+        value = constant_value(a.expr, names.names, names.cache)
+        constants.append(int(value) if isinstance(value, int) else None)  # bool is an int
         low, high = names.ranges[a.variable]
         interval = value_bounds(a.expr, bounds)
         if interval is not None and low <= interval[0] and interval[1] <= high:
@@ -204,4 +211,5 @@ def _compile_update(update: Update, names: _Names) -> CompiledUpdate:
         span=update.span,
         constant_probability=_constant(update.probability, names),
         unchecked=frozenset(unchecked),
+        constants=tuple(constants),
     )

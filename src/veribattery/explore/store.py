@@ -137,13 +137,17 @@ class StateStore:
     def _reserve_table(self) -> bool:
         """Keep the load factor at most 1/4 (short probe chains mean few rounds).
 
+        The table doubles (rather than growing fourfold) so that it never holds
+        more than 8 slots per state: at 4 bytes a slot it would otherwise be the
+        largest array of a search of millions of states.
+
         :returns: whether the table was rebuilt (with every known key inserted).
         """
         if 4 * self.count <= self._table.size:
             return False
         size = self._table.size
         while 4 * self.count > size:
-            size *= 4
+            size *= 2
         self._table = np.zeros(size, dtype=np.int32)
         everything = np.arange(self.count, dtype=np.int64)
         self._insert_probing(everything, self._slots(self._keys[: self.count]))

@@ -49,21 +49,25 @@ class _Choices:
     picks: tuple[IntArray, ...]
 
 
-def expand_group(program: Program, group: ChoiceGroup, states: IntArray) -> GroupSuccessors | None:
+def expand_group(
+    program: Program, group: ChoiceGroup, states: IntArray, bounds: bool = True
+) -> GroupSuccessors | None:
     """All branches of *group* from the frontier *states*; None when nothing is enabled.
 
+    :param bounds: check that updates stay in their variables' ranges; a caller
+        that checks all the targets of a layer at once passes False.
     :raises ModelError: for an out-of-range update, a negative probability or a
         choice whose probabilities do not sum to 1.
     """
     if len(group.parts) == 1:
-        return _expand_single(program, group.parts[0], states)
+        return _expand_single(program, group.parts[0], states, bounds)
     if all(len(part) == 1 for part in group.parts):
-        return _expand_one_each(program, [part[0] for part in group.parts], states)
-    return _expand_product(program, group, states)
+        return _expand_one_each(program, [part[0] for part in group.parts], states, bounds)
+    return _expand_product(program, group, states, bounds)
 
 
 def _expand_product(
-    program: Program, group: ChoiceGroup, states: IntArray
+    program: Program, group: ChoiceGroup, states: IntArray, bounds: bool = True
 ) -> GroupSuccessors | None:
     """The general case: every combination of one enabled command per part."""
     choices = _enumerate_choices(group, states)
@@ -71,7 +75,7 @@ def _expand_product(
         return None
     sources = states[choices.source]
     tables = [
-        _part_table(program, part, pick, sources)
+        _part_table(program, part, pick, sources, bounds)
         for part, pick in zip(group.parts, choices.picks, strict=True)
     ]
     _check_sums(program, group, choices, tables, sources)
@@ -88,7 +92,7 @@ def _expand_product(
 
 
 def _expand_one_each(
-    program: Program, commands: Sequence[CompiledCommand], states: IntArray
+    program: Program, commands: Sequence[CompiledCommand], states: IntArray, bounds: bool = True
 ) -> GroupSuccessors | None:
     """:func:`expand_group` when every part has one command: at most one choice per state.
 
@@ -110,8 +114,43 @@ def _expand_one_each(
     width = layout.width
     targets = np.repeat(sources, width, axis=0) if width > 1 else sources.copy()
     grid = targets.reshape(n, width, states.shape[1])
-    probability = np.ones((n, width), dtype=np.float64)
-    total: FloatArray | float = 1.0  # the product of the parts' sums, as in _check_sums
+    constants = _constant_row(tuple(tuple(u.constant_probability for u in c.updates)
+                                    for c in commands))
+    total: FloatArray | float
+    if constants is not None:  # every probability folded: one row for all choices
+        row, total = constants
+        probability = np.empty((n, width), dtype=np.float64)
+        probability[:] = row
+        for command, part_branches in zip(commands, layout.branches, strict=True):
+            _assign_grid(program, command, part_branches, sources, grid, bounds)
+    else:
+        probability, total = _grid_probabilities(program, commands, layout, sources, grid, bounds)
+    if isinstance(total, float):
+        if not abs(total - 1.0) <= _TOLERANCE:  # also catches NaN
+            raise _sum_error(program, commands, total, sources[0])
+    else:
+        wrong = ~(np.abs(total - 1.0) <= _TOLERANCE)
+        if wrong.any():
+            bad = int(np.argmax(wrong))
+            raise _sum_error(program, commands, float(total[bad]), sources[bad])
+    counts = np.zeros(states.shape[0], dtype=np.int64)
+    counts[source] = 1
+    return GroupSuccessors(np.repeat(source, width), targets, probability.ravel(), counts)
+
+
+def _grid_probabilities(
+    program: Program,
+    commands: Sequence[CompiledCommand],
+    layout: _BranchLayout,
+    sources: IntArray,
+    grid: IntArray,
+    bounds: bool,
+) -> tuple[FloatArray, FloatArray | float]:
+    """Branch probabilities ``(choices, branches)`` and the product of the parts' sums
+    (as in ``_check_sums``), with each part's assignments written into *grid*.
+    """
+    probability = np.ones((sources.shape[0], layout.width), dtype=np.float64)
+    total: FloatArray | float = 1.0
     for command, part_branches in zip(commands, layout.branches, strict=True):
         sums: FloatArray | float = 0.0
         for update, branches in zip(command.updates, part_branches, strict=True):
@@ -124,23 +163,59 @@ def _expand_one_each(
                 p = _probability(program, command, update, sources)
                 probability[:, branches] *= p[:, None]
                 sums = sums + p
-            for column, rhs in update.assignments:
-                values = rhs(sources)
-                _check_range(program, command, column, values, sources,
-                             column not in update.unchecked)
-                grid[:, branches, column] = values[:, None]
+        _assign_grid(program, command, part_branches, sources, grid, bounds)
         total = total * (sums if command.constant_total is None else command.constant_total)
-    if isinstance(total, float):
-        if not abs(total - 1.0) <= _TOLERANCE:  # also catches NaN
-            raise _sum_error(program, commands, total, sources[0])
-    else:
-        wrong = ~(np.abs(total - 1.0) <= _TOLERANCE)
-        if wrong.any():
-            bad = int(np.argmax(wrong))
-            raise _sum_error(program, commands, float(total[bad]), sources[bad])
-    counts = np.zeros(states.shape[0], dtype=np.int64)
-    counts[source] = 1
-    return GroupSuccessors(np.repeat(source, width), targets, probability.ravel(), counts)
+    return probability, total
+
+
+def _assign_grid(
+    program: Program,
+    command: CompiledCommand,
+    part_branches: tuple[slice | IntArray, ...],
+    sources: IntArray,
+    grid: IntArray,
+    bounds: bool,
+) -> None:
+    """Write each update's assignments into the branches (columns of *grid*) taking it.
+
+    Without *bounds* (the caller checks the whole layer), an integer constant is
+    written as it is, with no array evaluated for it.
+    """
+    for update, branches in zip(command.updates, part_branches, strict=True):
+        constants = update.constants if not bounds else ()
+        for i, (column, rhs) in enumerate(update.assignments):
+            constant = constants[i] if constants else None
+            if constant is not None:
+                grid[:, branches, column] = constant
+                continue
+            values = rhs(sources)
+            _check_range(program, command, column, values, sources,
+                         bounds and column not in update.unchecked)
+            grid[:, branches, column] = values[:, None]
+
+
+@functools.lru_cache(maxsize=1024)
+def _constant_row(
+    probabilities: tuple[tuple[float | None, ...], ...],
+) -> tuple[FloatArray, float] | None:
+    """The branch probabilities of a choice whose parts' probabilities are all
+    constants (non-negative), multiplied in the order of the general product, and
+    the product of the parts' sums; None if any is not a constant.
+    """
+    known = [p for part in probabilities for p in part]
+    if any(p is None or p < 0 for p in known):
+        return None
+    layout = _branch_layout(tuple(len(part) for part in probabilities))
+    row = np.ones((1, layout.width), dtype=np.float64)
+    total = 1.0
+    for part, part_branches in zip(probabilities, layout.branches, strict=True):
+        for p, branches in zip(part, part_branches, strict=True):
+            assert p is not None
+            if p != 1.0:
+                row[:, branches] *= p
+        total *= float(sum(p for p in part if p is not None))
+    row.flags.writeable = False
+    return row[0], total
 
 
 @dataclass(frozen=True, slots=True)
@@ -180,7 +255,7 @@ def format_state(names: Sequence[str], row: IntArray) -> str:
 
 
 def _expand_single(
-    program: Program, part: Sequence[CompiledCommand], states: IntArray
+    program: Program, part: Sequence[CompiledCommand], states: IntArray, bounds: bool = True
 ) -> GroupSuccessors | None:
     """Branches in blocks, one per (command, update); the caller orders them by source."""
     enabled = _guards(part, states)
@@ -188,7 +263,7 @@ def _expand_single(
     for j, command in enumerate(part):
         rows = np.flatnonzero(enabled[:, j])
         if rows.size:
-            blocks.extend(_command_branches(program, command, rows, states[rows]))
+            blocks.extend(_command_branches(program, command, rows, states[rows], bounds))
     if not blocks:
         return None
     source, targets, probability = (np.concatenate(b) for b in zip(*blocks, strict=True))
@@ -197,7 +272,7 @@ def _expand_single(
 
 
 def _command_branches(
-    program: Program, command: CompiledCommand, rows: IntArray, sources: IntArray
+    program: Program, command: CompiledCommand, rows: IntArray, sources: IntArray, bounds: bool
 ) -> list[tuple[IntArray, IntArray, FloatArray]]:
     blocks = []
     total = np.zeros(rows.size, dtype=np.float64)
@@ -205,7 +280,7 @@ def _command_branches(
         p = _probability(program, command, update, sources)
         total += p
         targets = sources.copy()
-        _assign(program, command, update, sources, targets, slice(None))
+        _assign(program, command, update, sources, targets, bounds)
         blocks.append((rows, targets, p))
     constant = command.constant_total
     if constant is not None and abs(constant - 1.0) <= _TOLERANCE:
@@ -276,7 +351,11 @@ class _PartTable:
 
 
 def _part_table(
-    program: Program, part: Sequence[CompiledCommand], pick: IntArray, sources: IntArray
+    program: Program,
+    part: Sequence[CompiledCommand],
+    pick: IntArray,
+    sources: IntArray,
+    bounds: bool = True,
 ) -> _PartTable:
     width = max(len(c.updates) for c in part)
     probability = np.zeros((width, pick.size), dtype=np.float64)
@@ -295,7 +374,8 @@ def _part_table(
                 probability[u][rows] = _probability(program, command, update, sub)
             for column, rhs in update.assignments:
                 new = rhs(sub)
-                _check_range(program, command, column, new, sub, column not in update.unchecked)
+                _check_range(program, command, column, new, sub,
+                             bounds and column not in update.unchecked)
                 values[column][u][rows] = new
     return _PartTable(probability, values)
 
@@ -320,13 +400,14 @@ def _assign(
     update: CompiledUpdate,
     sources: IntArray,
     targets: IntArray,
-    rows: IntArray | slice,
+    bounds: bool,
 ) -> None:
-    """Write the update's assignments (evaluated in *sources*) into ``targets[rows]``."""
+    """Write the update's assignments (evaluated in *sources*) into *targets*."""
     for column, rhs in update.assignments:
         values = rhs(sources)
-        _check_range(program, command, column, values, sources, column not in update.unchecked)
-        targets[rows, column] = values
+        _check_range(program, command, column, values, sources,
+                     bounds and column not in update.unchecked)
+        targets[:, column] = values
 
 
 def check_update_ranges(program: Program, command: CompiledCommand, sources: IntArray) -> None:
