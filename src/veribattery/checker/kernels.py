@@ -102,8 +102,8 @@ def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
     key = _mask_key(maybe)
     found = systems.get(key)
     if found is None:
-        A, rows = linsolve.restricted_matrix(P, maybe)
-        found = _System(rows, linsolve.Factorization(A))
+        A64, residue, rows = linsolve.restricted_parts(P, maybe)
+        found = _System(rows, linsolve.Factorization(A64, residue))
         systems[key] = found
         while len(systems) > SYSTEMS_KEPT:
             systems.popitem(last=False)
