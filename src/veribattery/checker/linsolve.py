@@ -8,10 +8,11 @@ A plain LU solve there loses digits (1e-6 relative error at n = 10⁶), so:
 1. **Direct.** A substitution (acyclic systems) or the SCC-wise solve of
    :mod:`~veribattery.checker.scc` (LU per segment, or preconditioned Krylov
    inside components too large to factorise), on the float64 matrix; then
-   *mixed-precision iterative refinement* computes each residual ``b - A x`` in extended precision
-   (``numpy.longdouble``, 64-bit mantissa on x86-64; elsewhere it may be float64
-   and refinement only tightens the backward error) and corrects *x* with the
-   same solver, at most ``REFINE_STEPS`` times (2 with a Krylov segment), stopping once every component's
+   *mixed-precision iterative refinement* computes each residual ``b - A x``
+   in extended precision (``numpy.longdouble``, 64-bit mantissa on x86-64;
+   elsewhere it may be float64 and refinement only tightens the backward
+   error) and corrects *x* with the same solver, at most ``REFINE_STEPS``
+   times (2 with a Krylov segment), stopping once every component's
    correction is below ``REFINE_TOL`` relative. This recovers full float64
    accuracy while ``cond(A) * 1e-16 < 1``.
 2. **Iterative fallback**, when the LU factorisation fails (out of memory,
