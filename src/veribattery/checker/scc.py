@@ -48,8 +48,8 @@ LU_LIMIT = 150_000
 ILU_DROP = 1e-4
 ILU_FILL = 4.0
 #: Krylov tolerance and iteration cap inside a large component.
-KRYLOV_RTOL = 1e-14
-KRYLOV_MAXITER = 5_000
+KRYLOV_RTOL = 1e-12
+KRYLOV_MAXITER = 2_000
 
 #: Applies an approximate inverse of a matrix to a float64 vector.
 Inverse = Callable[[FloatArray], FloatArray]
