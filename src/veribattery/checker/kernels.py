@@ -24,6 +24,7 @@ map (the next iterate equal to the current one in every bit).
 
 from __future__ import annotations
 
+import hashlib
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
@@ -58,14 +59,50 @@ class _System:
     factorization: linsolve.Factorization
 
 
+_MaskMemo = dict[tuple[str, bytes, bytes], BoolArray]
+
+
 @dataclass(slots=True)
 class _Memo:
     matrix: weakref.ref[CsrMatrix]
-    masks: dict[tuple[str, bytes, bytes], BoolArray] = field(default_factory=dict)
+    masks: _MaskMemo | None = None
     systems: OrderedDict[bytes, _System] = field(default_factory=OrderedDict)
 
 
 _MEMOS: dict[int, _Memo] = {}
+
+#: Graph-search results per sparsity pattern: the 0/1 pre-pass depends only on
+#: which transitions exist, so matrices that differ only in their probabilities
+#: (a sweep re-using one state space) share them. A few patterns are kept.
+PATTERNS_KEPT = 4
+_PATTERN_MASKS: OrderedDict[bytes, _MaskMemo] = OrderedDict()
+
+
+def _pattern_key(P: CsrMatrix) -> bytes:
+    """A digest of the positive entries' positions (not their values)."""
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
+    # Buffers, not .tobytes(): no copy of the index arrays.
+    digest.update(np.ascontiguousarray(P.indptr).data)
+    digest.update(np.ascontiguousarray(P.indices).data)
+    digest.update(np.packbits(P.data > 0).data)
+    return digest.digest()
+
+
+def _pattern_masks(P: CsrMatrix) -> _MaskMemo:
+    """The pre-pass memo shared by every matrix with *P*'s pattern."""
+    memo = _memo(P)
+    if memo.masks is None:
+        key = _pattern_key(P)
+        masks = _PATTERN_MASKS.get(key)
+        if masks is None:
+            masks = _PATTERN_MASKS[key] = {}
+            while len(_PATTERN_MASKS) > PATTERNS_KEPT:
+                _PATTERN_MASKS.popitem(last=False)
+        else:
+            _PATTERN_MASKS.move_to_end(key)
+        memo.masks = masks
+    return memo.masks
 
 
 def _memo(P: CsrMatrix) -> _Memo:
@@ -89,7 +126,7 @@ def _mask_key(mask: BoolArray) -> bytes:
 
 def _memoised_mask(P: CsrMatrix, kind: str, a: BoolArray, b: BoolArray,
                    compute: Callable[[], BoolArray]) -> BoolArray:
-    masks = _memo(P).masks
+    masks = _pattern_masks(P)
     key = (kind, _mask_key(a), _mask_key(b))
     if key not in masks:
         masks[key] = compute()
@@ -102,8 +139,8 @@ def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
     key = _mask_key(maybe)
     found = systems.get(key)
     if found is None:
-        A, rows = linsolve.restricted_matrix(P, maybe)
-        found = _System(rows, linsolve.Factorization(A))
+        A64, residue, rows = linsolve.restricted_parts(P, maybe)
+        found = _System(rows, linsolve.Factorization(A64, residue))
         systems[key] = found
         while len(systems) > SYSTEMS_KEPT:
             systems.popitem(last=False)

@@ -5,11 +5,14 @@ state that cannot leave the restricted set), but on long chains they are badly
 conditioned: a symmetric random walk over n states has condition number ~n².
 A plain LU solve there loses digits (1e-6 relative error at n = 10⁶), so:
 
-1. **Direct.** SuperLU factorises the float64 matrix; then *mixed-precision
-   iterative refinement* computes each residual ``b - A x`` in extended precision
-   (``numpy.longdouble``, 64-bit mantissa on x86-64; elsewhere it may be float64
-   and refinement only tightens the backward error) and corrects *x* with the
-   LU factors, at most ``REFINE_STEPS`` times, stopping once every component's
+1. **Direct.** A substitution (acyclic systems) or the SCC-wise solve of
+   :mod:`~veribattery.checker.scc` (LU per segment, or preconditioned Krylov
+   inside components too large to factorise), on the float64 matrix; then
+   *mixed-precision iterative refinement* computes each residual ``b - A x``
+   in extended precision (``numpy.longdouble``, 64-bit mantissa on x86-64;
+   elsewhere it may be float64 and refinement only tightens the backward
+   error) and corrects *x* with the same solver, at most ``REFINE_STEPS``
+   times (2 with a Krylov segment), stopping once every component's
    correction is below ``REFINE_TOL`` relative. This recovers full float64
    accuracy while ``cond(A) * 1e-16 < 1``.
 2. **Iterative fallback**, when the LU factorisation fails (out of memory,
@@ -40,6 +43,7 @@ except ImportError:  # pragma: no cover -- scipy moved it: the public path is us
     _superlu = None
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
+from veribattery.checker import scc
 from veribattery.errors import CheckError
 
 ExtArray = npt.NDArray[np.longdouble]
@@ -64,18 +68,41 @@ def restricted_matrix(P: CsrMatrix, maybe: BoolArray) -> tuple[sp.csr_matrix, Cs
     The diagonal is the probability of leaving each state, summed from the
     off-diagonal entries, rather than ``1 - P_ii``: that cancels
     catastrophically for self-loops close to 1, and rows that do not sum to
-    exactly 1 in float64 would leak or gain mass.
+    exactly 1 in float64 would leak or gain mass. (Kernels use
+    :func:`restricted_parts`, which stores the same matrix in float64.)
+    """
+    A64, residue, rows = restricted_parts(P, maybe)
+    A = A64.astype(np.longdouble) + residue
+    return sp.csr_matrix(A), rows
+
+
+def restricted_parts(P: CsrMatrix, maybe: BoolArray
+                     ) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix]:
+    """:func:`restricted_matrix` as ``A64 + residue``: the float64 matrix (diagonal
+    rounded to nearest) and the extended-precision rounding residue of the diagonal.
+
+    The off-diagonal entries are stored probabilities, exact in float64, so only
+    the diagonal needs more: 8 bytes per state instead of 16 per nonzero.
     """
     idx = np.flatnonzero(maybe)
     rows = sp.csr_matrix(P[idx])
     row_of = np.repeat(np.arange(idx.size), np.diff(rows.indptr))
     moves = rows.indices != idx[row_of]
     leave = _row_sums(row_of[moves], rows.data[moves].astype(np.longdouble), idx.size)
+    leave64 = leave.astype(np.float64)
     inner = sp.csr_matrix(rows[:, idx])
     off = sp.csr_matrix(inner - sp.diags(inner.diagonal(), format="csr"))
     off.eliminate_zeros()
-    A = sp.diags(leave, format="csr") - off.astype(np.longdouble)
-    return sp.csr_matrix(A), rows
+    A64 = sp.csr_matrix(sp.diags(leave64, format="csr") - off)
+    A64.sort_indices()
+    return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+
+
+def _diagonal_residue(residue: ExtArray) -> sp.csr_matrix:
+    """The diagonal matrix of *residue*, its zeros not stored."""
+    where = np.flatnonzero(residue)
+    n = residue.size
+    return sp.csr_matrix((residue[where], (where, where)), shape=(n, n), dtype=np.longdouble)
 
 
 def _row_sums(row_of: npt.NDArray[np.int64], data: ExtArray, n: int) -> ExtArray:
@@ -102,28 +129,37 @@ def solve(A: sp.csr_matrix, b: ExtArray) -> FloatArray:
 class Factorization:
     """A system matrix prepared once for any number of right-hand sides.
 
+    The matrix is kept as float64 ``A64`` plus a sparse extended-precision
+    ``residue`` (``A = A64 + residue`` exactly; for :func:`restricted_parts` the
+    residue is the rounding of the diagonal), so no extended copy of the whole
+    matrix is kept; residuals are computed in extended precision a block of
+    rows at a time.
+
     The direct solver is built on the first non-trivial solve and kept: when the
     off-diagonal graph of *A* is acyclic (every strongly connected component a
     single state, as in a mission that only moves forward), *A* is triangular in
     a topological order and the "factorisation" is that permutation, so each
-    solve is one sparse substitution; otherwise SuperLU factorises *A*.
+    solve is one sparse substitution; otherwise the system is solved SCC by SCC
+    (:mod:`~veribattery.checker.scc`), each component by a method chosen by its size.
 
-    :param A: the system matrix from :func:`restricted_matrix` (extended precision).
+    :param A: the system matrix (extended precision or float64).
+    :param residue: with a float64 *A*, the extended-precision part ``A_exact - A``.
     """
 
-    def __init__(self, A: sp.csr_matrix) -> None:
-        self.A = A
-        self._A64: sp.csr_matrix | None = None
+    def __init__(self, A: sp.csr_matrix, residue: sp.csr_matrix | None = None) -> None:
+        if residue is None:
+            A, residue = _split(A)
+        self.A64 = sp.csr_matrix(A)
+        self.residue = residue
         self._direct: _Inverse | None = None
         self._direct_tried = False
         self._norm_a: float | None = None
+        self._iterative = False
 
     @property
-    def A64(self) -> sp.csr_matrix:
-        """*A* rounded to float64."""
-        if self._A64 is None:
-            self._A64 = sp.csr_matrix(self.A.astype(np.float64))
-        return self._A64
+    def A(self) -> sp.csr_matrix:
+        """The exact system matrix in extended precision (a new copy: tests, small systems)."""
+        return sp.csr_matrix(self.A64.astype(np.longdouble) + self.residue)
 
     def solve(self, b: ExtArray) -> FloatArray:
         """Solve ``A x = b`` under the module's rule.
@@ -131,19 +167,45 @@ class Factorization:
         :param b: the right-hand side, in extended precision.
         :raises CheckError: when neither the direct nor the iterative path is accepted.
         """
-        A = self.A
+        n = self.A64.shape[0]
         if not b.any():
             return np.zeros(b.shape, dtype=np.float64)
-        inverse = self._inverse() if A.shape[0] <= DIRECT_LIMIT else None
+        inverse = self._inverse() if n <= DIRECT_LIMIT else None
         if self._norm_a is None:
-            self._norm_a = matrix_norm(A)
-        x = _refined(A, inverse, b) if inverse is not None else None
-        if x is not None and backward_error(A, x, b, self._norm_a) <= RESIDUAL_TOL:
+            self._norm_a = matrix_norm(self.A64) + matrix_norm(self.residue)
+        steps = 2 if self._iterative else REFINE_STEPS
+        x = self._refined(inverse, b, steps) if inverse is not None else None
+        if x is not None and self.backward_error(x, b) <= RESIDUAL_TOL:
             return x
         x = _solve_iterative(self.A64, b.astype(np.float64), x)
-        if not backward_error(A, x, b, self._norm_a) <= RESIDUAL_TOL:
+        if not self.backward_error(x, b) <= RESIDUAL_TOL:
             raise CheckError(f"linear solver did not reach backward error {RESIDUAL_TOL:g} "
-                             f"on {A.shape[0]} states")
+                             f"on {n} states")
+        return x
+
+    def residual(self, x: FloatArray, b: ExtArray) -> ExtArray:
+        """``b - A x`` in extended precision, a block of rows at a time."""
+        return b - _extended_product(self.A64, self.residue, x)
+
+    def backward_error(self, x: FloatArray, b: ExtArray) -> float:
+        """The normwise backward error of *x* (see :func:`backward_error`)."""
+        if not np.all(np.isfinite(x)):
+            return float("inf")
+        if self._norm_a is None:
+            self._norm_a = matrix_norm(self.A64) + matrix_norm(self.residue)
+        scale = self._norm_a * _norm(x) + _norm(b)
+        residual = _norm(self.residual(x, b))
+        return residual / scale if scale > 0 else residual
+
+
+    def _refined(self, inverse: _Inverse, b: ExtArray, steps: int) -> FloatArray:
+        """``inverse(b)``, refined with extended-precision residuals."""
+        x: FloatArray = inverse(b.astype(np.float64))
+        for _ in range(steps):
+            correction: FloatArray = inverse(self.residual(x, b).astype(np.float64))
+            x = x + correction
+            if not np.all(np.isfinite(x)) or _converged(correction, x):
+                break
         return x
 
     def correction(self, v: FloatArray) -> FloatArray | None:
@@ -155,7 +217,7 @@ class Factorization:
         """
         if not v.any():
             return np.zeros_like(v)
-        inverse = self._inverse() if self.A.shape[0] <= DIRECT_LIMIT else None
+        inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
         try:
             if inverse is not None:
                 return np.asarray(inverse(np.ascontiguousarray(v, dtype=np.float64)))
@@ -166,9 +228,49 @@ class Factorization:
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
             self._direct_tried = True
-            self._direct = (_triangular_inverse(self.A64) or _block_inverse(self.A64)
-                            or _lu_inverse(self.A64))
+            self._direct = _triangular_inverse(self.A64)
+            if self._direct is None:
+                found = scc.components(self.A64)
+                if found is not None:
+                    self._iterative = found.largest > scc.LU_LIMIT
+                    self._direct = scc.segmented_inverse(self.A64, found)
+            if self._direct is None:
+                self._direct = _lu_inverse(self.A64)
         return self._direct
+
+
+def _split(A: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """*A* as float64 plus its extended-precision rounding residue (zeros not stored)."""
+    A = sp.csr_matrix(A)
+    A64 = sp.csr_matrix(A.astype(np.float64))
+    A64.sort_indices()
+    if A.dtype != np.longdouble:
+        return A64, sp.csr_matrix(A.shape, dtype=np.longdouble)
+    residue = sp.csr_matrix(A - A64.astype(np.longdouble))
+    residue.eliminate_zeros()
+    return A64, residue
+
+
+#: Nonzeros per block of the extended-precision product (bounds its temporary copy).
+_PRODUCT_BLOCK = 1 << 20
+
+
+def _extended_product(A64: sp.csr_matrix, residue: sp.csr_matrix, x: FloatArray) -> ExtArray:
+    """``(A64 + residue) x`` in extended precision, *A64* converted a block at a time."""
+    n = A64.shape[0]
+    x_ext = np.asarray(x, dtype=np.longdouble)
+    out = np.empty(n, dtype=np.longdouble)
+    step = max(1, _PRODUCT_BLOCK * n // max(A64.nnz, 1))
+    for lo in range(0, n, step):
+        hi = min(n, lo + step)
+        start, stop = A64.indptr[lo], A64.indptr[hi]
+        block = sp.csr_matrix((A64.data[start:stop].astype(np.longdouble),
+                               A64.indices[start:stop], A64.indptr[lo:hi + 1] - start),
+                              shape=(hi - lo, A64.shape[1]))
+        out[lo:hi] = block @ x_ext
+    if residue.nnz:
+        out += residue @ x_ext
+    return out
 
 
 #: Applies an approximate inverse of the system matrix to a float64 vector.
@@ -184,57 +286,21 @@ def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     return lu.solve  # type: ignore[no-any-return]
 
 
-#: SCC-wise LU is used when no strongly connected component is larger than this.
-BLOCK_LIMIT = 4_096
-
-
-def _component_order(A64: sp.csr_matrix) -> tuple[npt.NDArray[np.int64], int] | None:
-    """States sorted so that every state's successors in other SCCs come first.
-
-    Returns the permutation and the size of the largest SCC, or None when the
-    labelling is not in a topological order of the condensation either way.
-    """
-    n = A64.shape[0]
-    count, labels = csgraph.connected_components(A64, directed=True, connection="strong")
-    coo = A64.tocoo()
-    src, dst = labels[coo.row], labels[coo.col]
-    across = src != dst
-    if np.all(dst[across] < src[across]):
-        key = labels
-    elif np.all(dst[across] > src[across]):
-        key = count - 1 - labels
-    else:
-        return None
-    largest = int(np.bincount(labels, minlength=count).max()) if n else 0
-    return np.argsort(key, kind="stable").astype(np.int64), largest
+#: Runs of components up to this size are factorised together (see :mod:`scc`).
+BLOCK_LIMIT = scc.BLOCK_LIMIT
 
 
 def _block_inverse(A64: sp.csr_matrix) -> _Inverse | None:
-    """SCC-wise LU: the matrix in a topological order of its SCCs, factorised in that order.
+    """SCC-wise solve when no component is larger than BLOCK_LIMIT (None otherwise).
 
-    In that order the matrix is block lower triangular, and SuperLU with the
-    natural column order and diagonal pivots keeps the fill-in inside the
-    strongly connected components (each no larger than BLOCK_LIMIT): the
-    factorisation is the component-by-component solve, done in C. The diagonal
-    pivots are safe because ``A`` is a nonsingular M-matrix.
+    In a topological order of its SCCs the matrix is block lower triangular, and
+    SuperLU with the natural column order and diagonal pivots keeps the fill-in
+    inside the components: the component-by-component solve, done in C.
     """
-    found = _component_order(A64)
-    if found is None or found[1] > BLOCK_LIMIT:
+    found = scc.components(A64)
+    if found is None or found.largest > BLOCK_LIMIT:
         return None
-    order = found[0]
-    permuted = sp.csc_matrix(A64[order][:, order])
-    try:
-        lu = spla.splu(permuted, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
-    except (RuntimeError, MemoryError):
-        return None
-
-    def apply(b: FloatArray) -> FloatArray:
-        x = np.empty_like(b, dtype=np.float64)
-        x[order] = lu.solve(np.ascontiguousarray(b[order], dtype=np.float64))
-        return x
-
-    return apply
+    return scc.segmented_inverse(A64, found)
 
 
 def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
@@ -338,18 +404,6 @@ def matrix_norm(A: sp.csr_matrix) -> float:
 
 def _norm(v: npt.NDArray[np.floating]) -> float:
     return float(np.max(np.abs(v), initial=0.0))
-
-
-def _refined(A: sp.csr_matrix, inverse: _Inverse, b: ExtArray) -> FloatArray:
-    """``inverse(b)``, refined with extended-precision residuals."""
-    x: FloatArray = inverse(b.astype(np.float64))
-    for _ in range(REFINE_STEPS):
-        residual = (b - A @ x.astype(np.longdouble)).astype(np.float64)
-        correction: FloatArray = inverse(residual)
-        x = x + correction
-        if not np.all(np.isfinite(x)) or _converged(correction, x):
-            break
-    return x
 
 
 def _converged(correction: FloatArray, x: FloatArray) -> bool:

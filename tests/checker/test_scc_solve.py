@@ -1,0 +1,146 @@
+"""SCC-wise solving for any component size (checker/scc.py), certified.
+
+The size thresholds are lowered with monkeypatch so that small models (whose
+exact answers are computed independently in Fraction arithmetic) take the
+large-component paths: sparse LU with a fill-reducing order, and the
+ILU-preconditioned Krylov method.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from tests.checker import exact_reference as ref
+from tests.checker.chains import matrix
+from veribattery.checker import kernels, linsolve, scc
+from veribattery.checker.bounds import Bounds
+
+
+def contains(found: Bounds, exact: list[Fraction]) -> bool:
+    """Every exact value inside its state's certified interval (compared exactly)."""
+    return all(Fraction(float(lo)) <= v <= Fraction(float(hi))
+               for lo, hi, v in zip(found.lower, found.upper, exact, strict=True))
+
+
+def ring_then_walk(ring: int, walk: int, seed: int) -> sp.csr_matrix:
+    """A ring of *ring* states feeding a random walk of *walk* states, then a goal.
+
+    Both are single SCCs (the ring is left with small probability at each state;
+    the walk moves both ways and leaves from its right end), joined in series,
+    with a few trivial states in between: three segments of every kind.
+    """
+    rng = np.random.default_rng(seed)
+    n = ring + 3 + walk + 1
+    goal = n - 1
+    rows: dict[int, dict[int, float]] = {}
+    for s in range(ring):
+        leave = int(rng.integers(1, 4)) / 8  # dyadic: small exact references
+        rows[s] = {(s + 1) % ring: 1 - leave, ring: leave}
+    rows[ring] = {ring + 1: 0.5, ring + 2: 0.5}
+    rows[ring + 1] = {ring + 2: 0.75, ring + 1: 0.25}
+    rows[ring + 2] = {ring + 3: 1.0}
+    first = ring + 3
+    for k in range(walk):
+        s = first + k
+        up = int(rng.integers(1, 4)) / 4
+        rows[s] = {s + 1 if k < walk - 1 else goal: up, max(s - 1, first): 1 - up}
+    return matrix(rows, n)
+
+
+@pytest.fixture
+def small_limits(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Components above 4 states are 'large'; above 14 they go to the Krylov method."""
+    monkeypatch.setattr(scc, "BLOCK_LIMIT", 4)
+    monkeypatch.setattr(scc, "LU_LIMIT", 14)
+
+
+def test_segments_isolate_large_components(small_limits: None) -> None:
+    P = ring_then_walk(10, 20, seed=0)
+    maybe = np.ones(P.shape[0], dtype=bool)
+    maybe[-1] = False
+    A64, _, _ = linsolve.restricted_parts(P, maybe)
+    found = scc.components(A64)
+    assert found is not None
+    assert found.largest == 20
+    parts = scc.segments(found)
+    large = [(hi - lo) for lo, hi, alone in parts if alone]
+    assert sorted(large) == [10, 20]
+    assert sum(hi - lo for lo, hi, _ in parts) == A64.shape[0]
+    # The walk (successor of everything) comes first: successors precede.
+    assert parts[0][2] and parts[0][1] - parts[0][0] == 20
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_large_components_against_fractions(small_limits: None, seed: int) -> None:
+    P = ring_then_walk(10, 20, seed=seed)
+    n = P.shape[0]
+    target = np.zeros(n, dtype=bool)
+    target[-1] = True
+    everywhere = np.ones(n, dtype=bool)
+    rewards = (np.arange(n) % 4 + 1) / 2
+    found = kernels.reach_rewards(P, rewards, target)
+    assert contains(found, ref.reach_rewards(P, rewards, target))
+    assert found.precise_states().all()
+    # Through the walk's right part only (16 states): probabilities strictly in (0, 1).
+    avoid = np.ones(n, dtype=bool)
+    avoid[16] = False
+    reach = kernels.until_probs(P, avoid, target)
+    assert contains(reach, ref.until(P, avoid, target))
+    assert reach.precise_states().all()
+    assert contains(kernels.until_probs(P, everywhere, target), ref.until(P, everywhere, target))
+
+
+def _grid(n: int) -> sp.csr_matrix:
+    """The bench's drifting walk on an n-by-n grid (one big SCC), goal at the corner."""
+    x, y = np.divmod(np.arange(n * n), n)
+    moves = ((0.4, np.minimum(x + 1, n - 1), y), (0.3, x, np.minimum(y + 1, n - 1)),
+             (0.2, np.maximum(x - 1, 0), y), (0.1, x, np.maximum(y - 1, 0)))
+    rows = np.concatenate([np.arange(n * n)] * 4)
+    cols = np.concatenate([nx * n + ny for _, nx, ny in moves])
+    data = np.concatenate([np.full(n * n, p) for p, _, _ in moves])
+    P = sp.lil_matrix(sp.csr_matrix((data, (rows, cols)), shape=(n * n, n * n)))
+    P[n * n - 1] = 0
+    P[n * n - 1, n * n - 1] = 1.0
+    return sp.csr_matrix(P)
+
+
+@pytest.mark.parametrize("limit", [10**6, 30])
+def test_grid_walk_by_lu_and_by_krylov(monkeypatch: pytest.MonkeyPatch, limit: int) -> None:
+    """Both large-component methods agree with a dense solve and certify it."""
+    monkeypatch.setattr(scc, "BLOCK_LIMIT", 8)
+    monkeypatch.setattr(scc, "LU_LIMIT", limit)
+    P = _grid(12)
+    n = P.shape[0]
+    target = np.zeros(n, dtype=bool)
+    target[-1] = True
+    found = kernels.reach_rewards(P, np.ones(n), target)
+    dense = np.eye(n - 1) - P.toarray()[:-1, :-1]
+    expected = np.linalg.solve(dense, np.ones(n - 1))
+    assert np.allclose(found.value[:-1], expected, rtol=1e-12)
+    assert np.all(found.lower <= found.value) and np.all(found.value <= found.upper)
+    assert found.precise_states().all()
+
+
+def test_krylov_solver_solves_a_large_block(monkeypatch: pytest.MonkeyPatch) -> None:
+    P = _grid(15)
+    A = sp.csc_matrix(sp.eye(P.shape[0] - 1) - P[:-1, :-1])
+    b = np.linspace(1.0, 3.0, A.shape[0])
+    x = scc.krylov_solver(A)(b)
+    assert np.max(np.abs(A @ x - b)) <= 1e-11 * np.max(np.abs(b))
+
+
+def test_factorization_keeps_float64_and_residue() -> None:
+    """The extended diagonal survives in the residue: a self-loop of 1 - 1e-17 is
+    1 in float64, yet the stored system is the exact one."""
+    P = matrix({0: {0: 1 - 2.0**-60, 1: 2.0**-60}}, 2)
+    A64, residue, _ = linsolve.restricted_parts(P, np.array([True, False]))
+    assert A64.dtype == np.float64 and residue.dtype == np.longdouble
+    # 1 - P_00 is read as the leaving probability 2^-60: exact in float64 already.
+    assert A64[0, 0] == 2.0**-60 and residue.nnz == 0
+    system = linsolve.Factorization(A64, residue)
+    x = system.solve(np.array([2.0**-60], dtype=np.longdouble))
+    assert x[0] == 1.0
