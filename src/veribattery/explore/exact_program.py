@@ -33,7 +33,16 @@ from veribattery.explore.dtmc import DTMC
 from veribattery.explore.program import CompiledCommand, CompiledUpdate, Program
 from veribattery.explore.rational import ExactScalar, tabulate
 from veribattery.lang.expressions import children
-from veribattery.lang.nodes import Binary, Call, Command, DoubleLit, Expr, FlatModel, Update
+from veribattery.lang.nodes import (
+    Binary,
+    Call,
+    Command,
+    DoubleLit,
+    Expr,
+    FlatModel,
+    Ident,
+    Update,
+)
 
 __all__ = ["ExactSource", "exact_labels", "exact_program", "needs_exact"]
 
@@ -160,7 +169,10 @@ def _exact_update(
     """Exact right-hand sides where rounding could change the successor (range checked)."""
     assignments = []
     unchecked = set(compiled.unchecked)
-    pairs = zip(compiled.assignments, flat.assignments, written.assignments, strict=True)
+    # The compiler drops identity assignments (x'=x): pair the rest in order.
+    kept = [(f, w) for f, w in zip(flat.assignments, written.assignments, strict=True)
+            if not (isinstance(f.expr, Ident) and f.expr.name == f.variable)]
+    pairs = ((c, f, w) for c, (f, w) in zip(compiled.assignments, kept, strict=True))
     for (column, rhs), flat_assignment, assignment in pairs:
         if source.rounds(flat_assignment.expr):
             rhs = source.function(assignment.expr, as_numbers)
