@@ -225,7 +225,7 @@ def write_csv(dist: Distribution, path: str | Path) -> Path:
         "cdf_failure": dist.failure_cdf,
     })
     temporary = path.with_name(f".{path.name}.tmp")
-    frame.to_csv(temporary, index=False, float_format="%.17g")
+    frame.to_csv(temporary, index=False)  # shortest round-trip repr
     temporary.replace(path)
     return path
 

@@ -203,7 +203,7 @@ def _save(figure: Any, table: pd.DataFrame, directory: Path, name: str,
     out = table.rename_axis("capacity_ah")
     if value is not None:
         out = out.add_prefix(f"{value}:")
-    out.to_csv(paths[2], float_format="%.17g")
+    out.to_csv(paths[2])  # shortest round-trip repr: 12.2, not 12.199999999999999
     return paths
 
 
