@@ -3,6 +3,7 @@ and Storm's conditional operator on a small emitted mission model."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from fractions import Fraction
 from pathlib import Path
 
@@ -129,7 +130,8 @@ CONDITIONAL_PROPS = (
 )
 
 
-def test_against_storm_on_a_small_mission(tmp_path: Path) -> None:
+def small_mission_storm_exact(tmp_path: Path, props: Sequence[str]) -> tuple[str, list[Fraction]]:
+    """SMALL_MISSION's PRISM text and Storm's exact value of each of *props* initially."""
     stormpy = pytest.importorskip("stormpy")
     from veribattery.config import load_config
     from veribattery.render import render_model
@@ -138,13 +140,16 @@ def test_against_storm_on_a_small_mission(tmp_path: Path) -> None:
     path = tmp_path / "model.prism"
     path.write_text(text)
     program = stormpy.parse_prism_program(str(path))
-    props = stormpy.parse_properties(";".join(CONDITIONAL_PROPS), program)
-    model = stormpy.build_model[stormpy.Rational](program, props)
+    parsed = stormpy.parse_properties(";".join(props), program)
+    model = stormpy.build_model[stormpy.Rational](program, parsed)
     init = model.initial_states[0]
-    from tests.storm_oracle import storm_number
+    return text, [Fraction(str(stormpy.model_checking(model, p, only_initial_states=True)
+                                .get_value_vector()[init])) for p in parsed]
 
-    storm = [float(storm_number(stormpy.model_checking(model, p, only_initial_states=True)
-                                .get_value_vector()[init])) for p in props]
+
+def test_against_storm_on_a_small_mission(tmp_path: Path) -> None:
+    text, exact = small_mission_storm_exact(tmp_path, CONDITIONAL_PROPS)
+    storm = [float(value) for value in exact]
     from veribattery.lang import parse_properties
 
     parsed = parse_properties(";".join(CONDITIONAL_PROPS), name="props")

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.checker.test_conditional import CHAIN, REPO, SMALL_MISSION
+from tests.checker.test_conditional import CHAIN, small_mission_storm_exact
 from veribattery.checker.exact import ExactCheckResult
 from veribattery.checker.result import CheckResult
 from veribattery.errors import CheckError
@@ -307,19 +307,7 @@ STORM_PROPS = (
 
 
 def test_small_mission_against_storm_exact(tmp_path: Path) -> None:
-    stormpy = pytest.importorskip("stormpy")
-    from veribattery.config import load_config
-    from veribattery.render import render_model
-
-    text = render_model(load_config(REPO / "configs/paper/case3.yaml", SMALL_MISSION))
-    path = tmp_path / "model.prism"
-    path.write_text(text)
-    program = stormpy.parse_prism_program(str(path))
-    props = stormpy.parse_properties(";".join(STORM_PROPS), program)
-    model = stormpy.build_model[stormpy.Rational](program, props)
-    init = model.initial_states[0]
-    storm = [Fraction(str(stormpy.model_checking(model, p, only_initial_states=True)
-                          .get_value_vector()[init])) for p in props]
+    text, storm = small_mission_storm_exact(tmp_path, STORM_PROPS)
     assert 0 < storm[3] < 1 and 0 < storm[4] < 1  # not trivial
     source = ";\n".join(STORM_PROPS)
     exact = check_prism_file(text, props_source=source, exact=True).results
