@@ -27,7 +27,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.pctl import _as_mask, _has_operator, _leaf, _steps
+from veribattery.checker.pctl import _CONNECTIVES, _as_mask, _has_operator, _leaf, _steps
 from veribattery.checker.result import CheckResult
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
 from veribattery.explore.exact import ExactDTMC, ExactRewards
@@ -198,14 +198,6 @@ def exact_values(
 # ---------------------------------------------------------------------------
 # State formulas
 # ---------------------------------------------------------------------------
-
-_CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
-    "&": operator.and_,
-    "|": operator.or_,
-    "=>": lambda a, b: ~a | b,
-    "<=>": operator.eq,
-}
-
 
 def state_set(model: ExactDTMC, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
