@@ -137,26 +137,20 @@ def segmented_inverse(A64: sp.csr_matrix, found: Components) -> Inverse | None:
 def _block_solver(block: sp.csc_matrix, *, large: bool) -> Inverse | None:
     """The solver of one segment's diagonal block, chosen by its size."""
     if not large:
-        return _natural_lu(block)
+        return _lu(block, "NATURAL")
     if block.shape[0] <= LU_LIMIT:
-        return _ordered_lu(block) or krylov_solver(block)
+        return _lu(block, "MMD_AT_PLUS_A") or krylov_solver(block)
     return krylov_solver(block)
 
 
-def _natural_lu(block: sp.csc_matrix) -> Inverse | None:
-    """SuperLU in the given (topological) order: fill-in stays inside each component."""
-    try:
-        lu = spla.splu(block, permc_spec="NATURAL", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
-    except (RuntimeError, MemoryError):
-        return None
-    return lu.solve  # type: ignore[no-any-return]
+def _lu(block: sp.csc_matrix, order: str) -> Inverse | None:
+    """SuperLU with column order *order* and diagonal pivots (None if it fails).
 
-
-def _ordered_lu(block: sp.csc_matrix) -> Inverse | None:
-    """SuperLU with minimum degree on ``A + A^T`` and diagonal pivots."""
+    "NATURAL" keeps a topologically ordered run's fill-in inside each component;
+    "MMD_AT_PLUS_A" (minimum degree on ``A + A^T``) limits it in one large component.
+    """
     try:
-        lu = spla.splu(block, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+        lu = spla.splu(block, permc_spec=order, diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
     except (RuntimeError, MemoryError):
         return None
