@@ -286,23 +286,6 @@ def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     return lu.solve  # type: ignore[no-any-return]
 
 
-#: Runs of components up to this size are factorised together (see :mod:`scc`).
-BLOCK_LIMIT = scc.BLOCK_LIMIT
-
-
-def _block_inverse(A64: sp.csr_matrix) -> _Inverse | None:
-    """SCC-wise solve when no component is larger than BLOCK_LIMIT (None otherwise).
-
-    In a topological order of its SCCs the matrix is block lower triangular, and
-    SuperLU with the natural column order and diagonal pivots keeps the fill-in
-    inside the components: the component-by-component solve, done in C.
-    """
-    found = scc.components(A64)
-    if found is None or found.largest > BLOCK_LIMIT:
-        return None
-    return scc.segmented_inverse(A64, found)
-
-
 def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
 
