@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import math
-import operator
 import os
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path
@@ -18,6 +17,7 @@ from veribattery.explore.dtmc import DTMC
 from veribattery.explore.reuse import structure_key
 from veribattery.lang import flatten_model, parse_model, parse_properties, parse_property
 from veribattery.lang.nodes import (
+    BOUND_RELATIONS,
     Conditional,
     ConditionalReach,
     ConstDecl,
@@ -269,11 +269,6 @@ def reuse_key(cfg: MissionConfig) -> str | None:
     return structure_key(flatten_model(model))
 
 
-_EXACT_HOLDS: dict[str, Callable[[Fraction, Fraction], bool]] = {
-    "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
-}
-
-
 def _judge(requirement: Requirement,
            results: Mapping[str | None, CheckResult]) -> RequirementOutcome:
     """Decide *requirement* from the exact value or the certified interval, never from a
@@ -288,7 +283,7 @@ def _judge(requirement: Requirement,
     value = result.value
     exact = getattr(result, "exact", None)
     if isinstance(exact, Fraction):
-        return RequirementOutcome(requirement, value, _EXACT_HOLDS[requirement.op](
+        return RequirementOutcome(requirement, value, BOUND_RELATIONS[requirement.op](
             exact, requirement.bound))
     if isinstance(value, bool) or math.isnan(value):
         return RequirementOutcome(requirement, value, False)

@@ -7,7 +7,6 @@ taken as exact numbers); ``docs/numerics.md`` gives the argument for each kernel
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -16,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray
+from veribattery.lang.nodes import BOUND_RELATIONS
 
 #: Default precision: an interval is *precise* when its width is at most this,
 #: relative to the value ...
@@ -35,14 +35,6 @@ def required_precision(relative: float, absolute: float) -> Iterator[None]:
         yield
     finally:
         _PRECISION.reset(token)
-
-
-_COMPARISONS: dict[str, Callable[[FloatArray, float], BoolArray]] = {
-    "<": operator.lt,
-    "<=": operator.le,
-    ">": operator.gt,
-    ">=": operator.ge,
-}
 
 
 def round_down(x: FloatArray) -> FloatArray:
@@ -121,7 +113,7 @@ class Bounds:
         :return: ``(holds, undecided)``: *holds* where the comparison is true for
             every number in the interval, *undecided* where it is true for some only.
         """
-        compare = _COMPARISONS[op]
+        compare = BOUND_RELATIONS[op]
         at_lower, at_upper = compare(self.lower, threshold), compare(self.upper, threshold)
         return at_lower & at_upper, at_lower != at_upper
 

@@ -13,9 +13,8 @@ kept in a separate mask.
 
 from __future__ import annotations
 
-import operator
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from contextvars import ContextVar
 from dataclasses import dataclass
 from fractions import Fraction
@@ -34,6 +33,7 @@ from veribattery.explore.exact import ExactDTMC, ExactRewards
 from veribattery.explore.rational import ExactScalar, ObjectArray, evaluate_rational, rational
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
+    BOUND_RELATIONS,
     Binary,
     Conditional,
     ConditionalReach,
@@ -226,16 +226,8 @@ def _bounded_operator(model: ExactDTMC, op: ProbOp | RewardOp) -> BoolArray:
         numbers = path_rewards(model, op)
     exact = (_BOUNDS.get() or {}).get(op.bound.span)
     bound = _bound(op.bound) if exact is None else exact
-    holds = np.asarray(_COMPARE[op.op](numbers.values, bound), dtype=bool)
+    holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, bound), dtype=bool)
     return np.where(numbers.infinite, op.op in (">", ">="), holds)
-
-
-_COMPARE: dict[str, Callable[[ObjectArray, mpq], object]] = {
-    "<": operator.lt,
-    "<=": operator.le,
-    ">": operator.gt,
-    ">=": operator.ge,
-}
 
 
 def _bound(expr: Expr) -> mpq:

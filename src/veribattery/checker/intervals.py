@@ -11,7 +11,6 @@ refused when still undecided (as bounded operators are).
 
 from __future__ import annotations
 
-import operator
 from collections.abc import Callable, Sequence
 from typing import Any, TypeAlias
 
@@ -22,13 +21,10 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import expression
 from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.errors import CheckError, Span
+from veribattery.lang.nodes import BOUND_RELATIONS
 
 Result: TypeAlias = Bounds | BoolArray
 Values = npt.NDArray[Any]
-
-_ORDER: dict[str, Callable[[Values, Values], Values]] = {
-    "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
-}
 
 
 class Undecided(CheckError):
@@ -113,9 +109,9 @@ def binary(op: str, left: Result, right: Result, span: Span | None = None) -> Re
 
 def _compare(op: str, a: Bounds, b: Bounds, value: Values, span: Span | None) -> BoolArray:
     """A comparison of numbers decided from their intervals (refused where they overlap)."""
-    if op in _ORDER:
-        holds = _ORDER[op](a.lower, b.upper) & _ORDER[op](a.upper, b.lower)
-        fails = ~_ORDER[op](a.upper, b.lower) & ~_ORDER[op](a.lower, b.upper)
+    if op in BOUND_RELATIONS:
+        holds = BOUND_RELATIONS[op](a.lower, b.upper) & BOUND_RELATIONS[op](a.upper, b.lower)
+        fails = ~BOUND_RELATIONS[op](a.upper, b.lower) & ~BOUND_RELATIONS[op](a.lower, b.upper)
     else:
         point = (a.lower == a.upper) & (b.lower == b.upper) & (a.lower == b.lower)
         apart = (a.upper < b.lower) | (b.upper < a.lower)

@@ -11,8 +11,10 @@ Nothing here imports numpy: the language layer is pure Python.
 
 from __future__ import annotations
 
+import operator
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Literal, TypeAlias
+from typing import Any, Literal, TypeAlias
 
 from veribattery.errors import NO_SPAN, Span
 
@@ -118,6 +120,10 @@ class Call:
 # ---------------------------------------------------------------------------
 
 BoundOp: TypeAlias = Literal["<", "<=", ">", ">="]
+#: What each bound operator means, for any ordered values: floats, arrays, rationals.
+BOUND_RELATIONS: Mapping[str, Callable[[Any, Any], Any]] = {
+    "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge,
+}
 #: ``"=?"`` asks for the value; the others compare it with a bound.
 QueryOp: TypeAlias = Literal["=?", "<", "<=", ">", ">="]
 
