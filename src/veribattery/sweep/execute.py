@@ -17,11 +17,17 @@ from contextlib import contextmanager, suppress
 from typing import TYPE_CHECKING, Any, Protocol
 
 from veribattery.errors import ConfigError
-from veribattery.sweep.tasks import PointCheck, PointResult, Task, iter_task, run_task, stream_to
+from veribattery.sweep.tasks import (
+    PointCheck,
+    PointResult,
+    PointStream,
+    Task,
+    iter_task,
+    run_task,
+    stream_to,
+)
 
 if TYPE_CHECKING:
-    from multiprocessing.queues import SimpleQueue
-
     from distributed import Client
 
 __all__ = ["CONNECT_TIMEOUT_S", "Executor", "default_jobs", "open_executor"]
@@ -108,7 +114,7 @@ class LocalPool:
         import multiprocessing
 
         context = multiprocessing.get_context("spawn")
-        stream: SimpleQueue[int | PointResult] = context.SimpleQueue()
+        stream = PointStream.open(context)
         started: set[int] = set()
         with ProcessPoolExecutor(min(self.jobs, len(pending)), mp_context=context,
                                  initializer=stream_to, initargs=(stream,)) as pool:
@@ -160,13 +166,12 @@ class _Seen:
 
 
 def _drained(
-    stream: SimpleQueue[int | PointResult], wait_s: float, started: set[int]
+    stream: PointStream, wait_s: float, started: set[int]
 ) -> Iterator[PointResult]:
     """The results waiting in *stream* (after waiting up to *wait_s* for a message);
     indices of points whose check started go to *started*."""
-    reader = stream._reader  # type: ignore[attr-defined]  # SimpleQueue.get has no timeout
     try:
-        while reader.poll(wait_s):
+        while stream.poll(wait_s):
             wait_s = 0
             message = stream.get()
             if isinstance(message, int):

@@ -13,16 +13,17 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from veribattery.config import MissionConfig
 from veribattery.mission import MissionChecker, MissionReport, reuse_key
 
 if TYPE_CHECKING:
-    from multiprocessing.queues import SimpleQueue
+    from multiprocessing.connection import Connection
+    from multiprocessing.context import BaseContext
 
-__all__ = ["PointCheck", "PointResult", "PropertyValue", "ReusePlan", "Task", "iter_task",
-           "plan_tasks", "run_task", "stream_to"]
+__all__ = ["PointCheck", "PointResult", "PointStream", "PropertyValue", "ReusePlan", "Task",
+           "iter_task", "plan_tasks", "run_task", "stream_to"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,16 +107,56 @@ def _runs(points: Sequence[tuple[int, MissionConfig]]) -> list[list[tuple[int, M
 #: Checks one point: :func:`check_point`, or a stand-in (tests) importable by workers.
 PointCheck = Callable[["MissionChecker", int, MissionConfig], "PointResult"]
 
+@dataclass(frozen=True, slots=True)
+class PointStream:
+    """A one-way pipe from pool workers to the sweep: point indices and results.
+
+    ``put`` has written the whole message when it returns (no feeder thread, unlike
+    ``multiprocessing.Queue``), so a worker killed after it loses nothing; the lock
+    keeps messages of concurrent workers whole. Unlike ``SimpleQueue``, the reading
+    end can wait with a timeout through public API.
+    """
+
+    reader: Connection
+    writer: Connection
+    lock: Any
+
+    @classmethod
+    def open(cls, context: BaseContext) -> PointStream:
+        """A new stream whose ends and lock can be handed to processes of *context*."""
+        reader, writer = context.Pipe(duplex=False)
+        return cls(reader, writer, context.Lock())
+
+    def put(self, message: int | PointResult) -> None:
+        """Send *message* whole (workers)."""
+        with self.lock:
+            self.writer.send(message)
+
+    def poll(self, timeout: float) -> bool:
+        """Whether a message arrives within *timeout* seconds (the sweep)."""
+        return self.reader.poll(timeout)
+
+    def get(self) -> int | PointResult:
+        """The next message (the sweep; call after :meth:`poll`)."""
+        message: int | PointResult = self.reader.recv()
+        return message
+
+    def close(self) -> None:
+        """Close both ends in this process."""
+        self.reader.close()
+        self.writer.close()
+
+
 #: Where this worker process reports each point: its index when its check starts, its
 #: result the moment it is done (set by :func:`stream_to` when a local pool starts the
-#: process; a SimpleQueue, whose ``put`` has written the pipe when it returns).
-_STREAM: SimpleQueue[int | PointResult] | None = None
+#: process).
+_STREAM: PointStream | None = None
 
 
-def stream_to(queue: SimpleQueue[int | PointResult] | None) -> None:
-    """Report every point to *queue* as it starts and ends (a pool's initializer)."""
+def stream_to(stream: PointStream | None) -> None:
+    """Report every point to *stream* as it starts and ends (a pool's initializer)."""
     global _STREAM
-    _STREAM = queue
+    _STREAM = stream
 
 
 def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
