@@ -140,7 +140,12 @@ class LocalPool:
 
 
 def _terminate_workers(pool: ProcessPoolExecutor) -> None:
-    """Stop *pool*'s worker processes (ProcessPoolExecutor has no public way before 3.14)."""
+    """Stop *pool*'s worker processes (public from Python 3.14; before, through the
+    executor's table of processes)."""
+    terminate = getattr(pool, "terminate_workers", None)
+    if terminate is not None:
+        terminate()
+        return
     processes: dict[int, Any] = getattr(pool, "_processes", None) or {}
     for process in list(processes.values()):
         process.terminate()
