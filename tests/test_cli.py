@@ -60,6 +60,7 @@ def test_prism_json_contract(die: Path) -> None:
     assert set(doc) == {"model", "results", "timings_s"}
     assert doc["model"] == {"states": 13, "transitions": 20, "initial_states": 1, "deadlocks": 0}
     assert [r["property"] for r in doc["results"]] == ['P=? [ F "six" ]', 'R{"flips"}=? [ F s=7 ]']
+    assert [r.get("name") for r in doc["results"]] == ["six", None]
     assert doc["results"][0]["value"] == pytest.approx(1 / 6, rel=1e-12)
     assert doc["results"][1]["value"] == pytest.approx(11 / 3, rel=1e-12)
     assert set(doc["timings_s"]) == {"parse", "build", "check"}

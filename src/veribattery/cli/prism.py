@@ -91,11 +91,14 @@ def prism_json(run: ModelCheckRun) -> dict[str, object]:
 
 
 def _result_json(result: CheckResult) -> dict[str, object]:
-    """One result: property, value, ``exact`` under ``--exact``, for numbers the
-    certified bounds and whether they meet the precision, plus the range over
-    several initial states and the states a print/argmin/argmax filter listed."""
-    entry: dict[str, object] = {"property": result.property.text,
-                                "value": json_value(result.value)}
+    """One result: property (and its name, if it has one), value, ``exact`` under
+    ``--exact``, for numbers the certified bounds and whether they meet the
+    precision, plus the range over several initial states and the states a
+    print/argmin/argmax filter listed."""
+    entry: dict[str, object] = {"property": result.property.text}
+    if result.property.name is not None:
+        entry["name"] = result.property.name
+    entry["value"] = json_value(result.value)
     exact = exact_text(result)
     if exact is not None:
         entry["exact"] = exact
@@ -119,6 +122,12 @@ def _shown(result: CheckResult) -> str:
     return format_result(result)
 
 
+def _labelled(result: CheckResult) -> str:
+    """The property as written in a properties file: ``"name": formula``."""
+    name = result.property.name
+    return result.property.text if name is None else f'"{name}": {result.property.text}'
+
+
 def print_prism_run(run: ModelCheckRun) -> None:
     """Model size, then one table row per property."""
     from rich.table import Column, Table
@@ -130,7 +139,7 @@ def print_prism_run(run: ModelCheckRun) -> None:
     )
     table = Table("property", Column("value", overflow="fold"), title=None, show_edge=False)
     for result in run.results:
-        table.add_row(result.property.text, _shown(result))
+        table.add_row(_labelled(result), _shown(result))
     out.print(table)
     for result in run.results:
         if result.printed:
