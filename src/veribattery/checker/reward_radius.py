@@ -25,7 +25,6 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
@@ -40,9 +39,10 @@ if TYPE_CHECKING:
 #: the exact value from above: ``(1 + u)^8 < 1 + 2^-50`` with ``u = 2^-53``.
 _UP = 1.0 + 2.0**-50
 #: Added once per term of a row: covers underflow of each product (at most
-#: ``2^-1074``) and of the rounding-bound arithmetic, and keeps every radius a normal
-#: number.
-_FLOOR = 2.0**-1021
+#: ``2^-1074``) and of the rounding-bound arithmetic, and keeps every radius, and its
+#: product with a rounding coefficient (``>= 2^-53``), a normal number: subnormal
+#: arithmetic is ~100x slower on x86. Negligible against any precision asked for.
+_FLOOR = 2.0**-900
 #: A closure solved by one substitution is re-solved with refinement when its
 #: defect times ``tau`` exceeds this, relative to its largest value.
 _REFINE_AT = 2.0**-44
@@ -52,10 +52,8 @@ def radius_programme(P: CsrMatrix, moving: BoolArray, target: BoolArray, rewards
                      levels: Levels, last: int) -> Bounds | None:
     """Levels ``0..last`` in float64 with a certified radius per state.
 
-    The level is one ``(n, 2)`` array, values in column 0 and radii in column 1, so
-    that each group's two products are one pass over its rows and each copy in or
-    out of a ring buffer is one gather. Targets (1) and the states that are neither
-    moving nor targets (0) are exact and never written again.
+    Targets (1) and the states that are neither moving nor targets (0) are exact and
+    never written again, so the two level vectors are reused from level to level.
 
     :param moving: the states that are neither targets nor unable to reach them.
     :param rewards: the reward of each state, a multiple of ``levels.unit`` where moving.
@@ -68,26 +66,17 @@ def radius_programme(P: CsrMatrix, moving: BoolArray, target: BoolArray, rewards
         if closure is None:
             return None
     steps = [_RadiusGroup.of(P, r, states) for r, states in levels.groups]
-    level = np.zeros((P.shape[0], 2))
-    level[target, 0] = 1.0
-    pairs = _pairs(level)
+    value, radius = target.astype(np.float64), np.zeros(P.shape[0])
     for k in range(last + 1):
         for group in steps:
-            group.fill(k, level)
+            group.fill(k, value, radius)
         if closure is not None:
-            closure.close(levels, level)
+            closure.close(levels, value, radius)
         for group in steps:
-            group.remember(k, pairs)
-    value, radius = level[:, 0].copy(), level[:, 1].copy()
+            group.remember(k, value, radius)
     beyond = _minimal_rewards(P, moving, target, rewards // levels.unit) > last
     value[beyond] = radius[beyond] = 0.0
     return _bounds(value, radius)
-
-
-def _pairs(level: FloatArray) -> npt.NDArray[np.complex128]:
-    """An ``(n, 2)`` float64 array seen as ``n`` complex numbers (no copy): one gather
-    moves a state's value and radius together, much faster than a 2-D fancy index."""
-    return level.view(np.complex128).reshape(level.shape[:-1])
 
 
 def _as_slice(states: IntArray) -> slice | IntArray:
@@ -129,7 +118,8 @@ class _RadiusGroup:
     """States with reward *r*: value ``B v_{k-r}``, radius ``B e_{k-r}`` plus rounding.
 
     *history* holds the successors' values and radii of the last *r* levels, a ring
-    buffer of ``(successors, 2)`` arrays.
+    buffer of ``(2, successors)`` arrays (two one-column products are much faster than
+    one two-column product in scipy).
     """
 
     r: int
@@ -151,27 +141,35 @@ class _RadiusGroup:
         weights = _widen(round_up(np.array([c, 1.0 + c])))
         floor = float(_widen(np.array([certify.row_terms(block).max(initial=0.0)
                                        * (2 * _FLOOR)]))[0])
-        return cls(r, _as_slice(states), successors, block, np.zeros((r, successors.size, 2)),
+        return cls(r, _as_slice(states), successors, block, np.zeros((r, 2, successors.size)),
                    weights, floor)
 
-    def fill(self, k: int, level: FloatArray) -> None:
+    def fill(self, k: int, value: FloatArray, radius: FloatArray) -> None:
         """Write this group's values and radii on level *k* (exactly 0 below level r).
 
         ``|fl(B v) - B v_exact| <= rounding of fl(B v) + B e``, and ``B e <= fl(B e)``
         plus its own rounding; each rounding is at most ``c * magnitude + floor``.
         The values are not clipped to 1 here (the radius bounds them as computed).
         """
+        where = self.states
         if k < self.r:
-            level[self.states] = 0.0
+            value[where] = radius[where] = 0.0
             return
-        both = np.asarray(self.block @ self.history[k % self.r], dtype=np.float64)
-        radius = both @ self.weights
-        radius += self.floor
-        both[:, 1] = radius
-        level[self.states] = both
+        before, spread = self.history[k % self.r]
+        found = np.asarray(self.block @ before, dtype=np.float64)
+        carried = np.asarray(self.block @ spread, dtype=np.float64)
+        carried *= self.weights[1]
+        found_part = found * self.weights[0]
+        carried += found_part
+        carried += self.floor
+        value[where] = found
+        radius[where] = carried
 
-    def remember(self, k: int, pairs: npt.NDArray[np.complex128]) -> None:
-        np.take(pairs, self.successors, out=_pairs(self.history[k % self.r]))
+    def remember(self, k: int, value: FloatArray, radius: FloatArray) -> None:
+        slot = self.history[k % self.r]
+        # mode="clip": with the default, numpy buffers *out* (the indices are valid).
+        np.take(value, self.successors, out=slot[0], mode="clip")
+        np.take(radius, self.successors, out=slot[1], mode="clip")
 
 
 @dataclass(frozen=True, slots=True)
@@ -213,29 +211,29 @@ class _RadiusClosure:
                    certify.error_coefficient(shape.terms),
                    shape.terms * _FLOOR + _FLOOR, tau, float(tau.max(initial=1.0)))
 
-    def close(self, levels: Levels, level: FloatArray) -> None:
-        """Solve the closure into ``level[zero, 0]`` and bound its error in ``level[zero, 1]``."""
+    def close(self, levels: Levels, value: FloatArray, radius: FloatArray) -> None:
+        """Solve the closure into ``value[zero]`` and bound its error in ``radius[zero]``."""
         assert levels.closure is not None
         local = self.local
-        known = np.take(_pairs(level), self.used).view(np.float64).reshape(-1, 2)
-        known[local] = 0.0
-        right = np.asarray(self.shape.rows @ known[:, 0], dtype=np.float64)
-        values = known[:, 0].copy()
+        values = value[self.used]
+        values[local] = 0.0
+        right = np.asarray(self.shape.rows @ values, dtype=np.float64)
         values[local] = solved = _solve(levels.closure, right, refine=False)
         defect = self._gap(values, solved, both=True)
         if float(defect.max(initial=0.0)) * self.tau_max > (
                 _REFINE_AT * max(float(solved.max(initial=0.0)), 2.0**-900)):
             values[local] = solved = _solve(levels.closure, right, refine=True)
             defect = self._gap(values, solved, both=True)
-        level[self.zero, 0] = solved
+        value[self.zero] = solved
         # The error: at most the fixed point w of w = D^-1 (P_out e_out + D defect + P' w).
-        spread = known[:, 1].copy()
+        spread = radius[self.used]
+        spread[local] = 0.0
         carried = np.asarray(self.shape.rows @ spread, dtype=np.float64)
         offset = (carried + self.coefficient * carried + self.floor) * _UP
         offset = (offset + self.shape.leave_upper * defect) * _UP
         spread[local] = bound = _solve(levels.closure, offset, refine=False, clip=False)
         overshoot = self._gap(spread, bound, both=False, extra=defect)
-        level[self.zero, 1] = (bound + float(overshoot.max(initial=0.0)) * self.tau) * _UP
+        radius[self.zero] = (bound + float(overshoot.max(initial=0.0)) * self.tau) * _UP
 
     def _gap(self, known: FloatArray, solved: FloatArray, *, both: bool,
              extra: FloatArray | None = None) -> FloatArray:
