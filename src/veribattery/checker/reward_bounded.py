@@ -17,6 +17,12 @@ Rewards and T are first divided by the greatest common divisor of the rewards.
 Both directions are here: :func:`reward_bounded_until_probs` (backward, every
 state, one T) and :func:`absorption_by_level` (forward, from the initial states,
 every level up to a stopping rule: a whole distribution in one pass).
+
+**Certification** (backward; ``docs/numerics.md``). The levels are computed once in
+float64 with a rigorous forward-error radius per state
+(:mod:`~veribattery.checker.reward_radius`); only where that interval misses the
+required precision is every level certified on its own (:func:`_certified_programme`,
+about ten times slower), and the two intervals are intersected.
 """
 
 from __future__ import annotations
