@@ -17,6 +17,12 @@ Rewards and T are first divided by the greatest common divisor of the rewards.
 Both directions are here: :func:`reward_bounded_until_probs` (backward, every
 state, one T) and :func:`absorption_by_level` (forward, from the initial states,
 every level up to a stopping rule: a whole distribution in one pass).
+
+**Certification** (backward; ``docs/numerics.md``). The levels are computed once in
+float64 with a rigorous forward-error radius per state
+(:mod:`~veribattery.checker.reward_radius`); only where that interval misses the
+required precision is every level certified on its own (:func:`_certified_programme`,
+about ten times slower), and the two intervals are intersected.
 """
 
 from __future__ import annotations
@@ -29,7 +35,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, kernels, linsolve
+from veribattery.checker import certify, kernels, linsolve, reward_radius
 from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -83,7 +89,7 @@ def integer_rewards(dtmc: DTMC, structure: RewardVectors, span: Span) -> IntArra
 
 
 @dataclass(frozen=True, slots=True)
-class _Levels:
+class Levels:
     """The moving states grouped by reward (in units of *unit*), and the zero-reward closure."""
 
     unit: int
@@ -96,7 +102,7 @@ class _Levels:
     zero_rows: CsrMatrix
 
 
-def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool) -> _Levels:
+def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool) -> Levels:
     """Group the *moving* states by reward; factorise the zero-reward closure once.
 
     The closure is nonsingular because every moving state can leave the moving set
@@ -113,10 +119,10 @@ def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool)
     if zero.size:
         A, _rows = linsolve.restricted_matrix(P, zero_mask)
         closure = linsolve.Factorization(sp.csr_matrix(A.T) if transpose else A)
-    return _Levels(unit, groups, zero, closure, sp.csr_matrix(P[zero]))
+    return Levels(unit, groups, zero, closure, sp.csr_matrix(P[zero]))
 
 
-def _close(levels: _Levels, b: FloatArray) -> FloatArray:
+def _close(levels: Levels, b: FloatArray) -> FloatArray:
     """Solve the zero-reward closure ``(I - P_ZZ)[^T] x = b``."""
     assert levels.closure is not None
     return levels.closure.solve(np.asarray(b, dtype=np.longdouble))
@@ -137,11 +143,11 @@ def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArr
                                 rewards: IntArray, bound: int) -> Bounds:
     """Probability of ``remain U{r}<=bound target`` in every state, with certified bounds.
 
-    Each level carries a point value and a certified interval: the positive-reward
-    states' values are enclosed products of the interval of the level they reach
-    back to (:func:`certify.enclose_product`, monotone since ``P >= 0``), and the
-    zero-reward closure's fixed point is certified around its LU solution
-    (:func:`certify.certify_fixpoint`) with the level's other values as intervals.
+    First the point values with a forward-error radius per state
+    (:func:`~veribattery.checker.reward_radius.radius_programme`: per level two
+    products per reward group and two substitutions for the closure); where that
+    interval misses the required precision, the programme is run again with every level certified
+    (:func:`_certified_programme`) and the two certified intervals are intersected.
 
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that may be passed through before *target*.
@@ -155,12 +161,47 @@ def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArr
     if bound < 0:
         return Bounds.exact(np.zeros(n))
     moving = remain & ~target & ~kernels.prob0(P, remain, target)
+    order = _grouped_order(moving, rewards)
+    P, moving, target, rewards = (sp.csr_matrix(P[order][:, order]), moving[order],
+                                  target[order], rewards[order])
     levels = _levels(P, moving, rewards, transpose=False)
+    last = bound // levels.unit
+    found = reward_radius.radius_programme(P, moving, target, rewards, levels, last)
+    if found is None or not found.precise_states().all():
+        slow = _certified_programme(P, target, levels, last)
+        found = slow if found is None else Bounds.around(
+            slow.value, np.maximum(found.lower, slow.lower), np.minimum(found.upper, slow.upper))
+    back = np.argsort(order)
+    return Bounds(found.value[back], found.lower[back], found.upper[back])
+
+
+def _grouped_order(moving: BoolArray, rewards: IntArray) -> IntArray:
+    """A renumbering of the states that makes each reward group one contiguous block
+    (higher rewards first, the states that do not move last): the per-level copies in
+    and out of the groups are then slices, not gathers."""
+    return np.argsort(np.where(moving, rewards, -1), kind="stable")[::-1]
+
+
+# ---------------------------------------------------------------------------
+# Backward, escalation: every level certified
+# ---------------------------------------------------------------------------
+
+
+def _certified_programme(P: CsrMatrix, target: BoolArray, levels: Levels, last: int) -> Bounds:
+    """The levels with certified intervals carried from level to level.
+
+    The positive-reward states' values are enclosed products of the interval of the
+    level they reach back to (monotone since ``P >= 0``), and the zero-reward
+    closure's fixed point is certified around its LU solution
+    (:func:`certify.certify_side`) with the level's other values as intervals: the
+    widths are transported state by state, at the cost of two certifications per level.
+    """
+    n = P.shape[0]
     steps = [_BackwardGroup.of(P, r, states) for r, states in levels.groups]
     closure = _Closure.of(levels, n) if levels.closure is not None else None
     hit = target.astype(np.float64)
     found = Bounds.exact(hit)
-    for k in range(bound // levels.unit + 1):
+    for k in range(last + 1):
         found = Bounds.exact(hit)
         for group in steps:
             group.fill(k, found)
@@ -191,12 +232,9 @@ class _BackwardGroup:
 
     @classmethod
     def of(cls, P: CsrMatrix, r: int, states: IntArray) -> _BackwardGroup:
-        rows = sp.csr_matrix(P[states])
-        successors = np.unique(rows.indices)
-        block = sp.csr_matrix(rows[:, successors])
-        terms = certify.row_terms(block)
+        successors, block, coefficient, underflow = reward_radius.group_rows(P, states)
         return cls(r, states, successors, block, np.zeros((3, r, successors.size)),
-                   certify.error_coefficient(terms), terms * (2 * certify.ETA))
+                   coefficient, underflow)
 
     def fill(self, k: int, found: Bounds) -> None:
         """Write this group's value on level *k* into *found* (0 below level r)."""
@@ -227,14 +265,14 @@ class _Closure:
     template: certify.AffineMap
 
     @classmethod
-    def of(cls, levels: _Levels, n: int) -> _Closure:
+    def of(cls, levels: Levels, n: int) -> _Closure:
         used = np.union1d(np.unique(levels.zero_rows.indices), levels.zero)
         local = np.searchsorted(used, levels.zero)
         rows = sp.csr_matrix(levels.zero_rows[:, used])
         empty = np.zeros(used.size)
         return cls(used, certify.AffineMap.of(rows, local, empty, empty, None))
 
-    def close(self, levels: _Levels, found: Bounds) -> None:
+    def close(self, levels: Levels, found: Bounds) -> None:
         """Solve the closure in *found* (values of the other states already in place).
 
         The point value, and each bound from its own solve (the other states at their
@@ -314,16 +352,14 @@ def absorption_by_level(P: CsrMatrix, initial: FloatArray, absorbing: tuple[Bool
         stopped |= mask
     dead = kernels.prob0(P, np.ones(n, dtype=bool), stopped) & ~stopped
     moving = ~stopped & ~dead
-    # Renumber the states so that each reward group is one contiguous block: the
-    # per-level copies in and out of the ring buffers are then slices, not gathers.
-    order = np.argsort(np.where(moving, rewards, -1), kind="stable")[::-1]
+    order = _grouped_order(moving, rewards)
     Q = sp.csr_matrix(P[order][:, order])
     levels = _levels(Q, moving[order], rewards[order], transpose=True)
     return _forward(Q, levels, initial[order], tuple(m[order] for m in absorbing),
                     dead[order], stop, max_levels)
 
 
-def _forward(P: CsrMatrix, levels: _Levels, initial: FloatArray,
+def _forward(P: CsrMatrix, levels: Levels, initial: FloatArray,
              absorbing: tuple[BoolArray, ...], dead: BoolArray, stop: StopRule,
              max_levels: int) -> LevelMasses:
     targets = [np.flatnonzero(mask) for mask in absorbing]
