@@ -23,6 +23,7 @@ from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.explore.fused import LayerPlan, plan_layers
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
@@ -198,10 +199,19 @@ def _count_dtype(program: Program) -> np.dtype[Any]:
 def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | None]) -> Expansion:
     """Every branch out of *frontier*, ordered by source state (see :class:`Expansion`).
 
-    Update ranges are checked once over all the layer's targets (two numpy calls
-    instead of two per assignment); only if one is out of range is the frontier
-    expanded again with per-update checks, which raise the located error.
+    The layer is expanded in one pass over all groups (see ``fused``) when the
+    program allows it; otherwise, or when that pass finds anything unusual, group
+    by group. Update ranges are checked once over all the layer's targets (two
+    numpy calls instead of two per assignment); only if one is out of range is
+    the frontier expanded again with per-update checks, which raise the located
+    error.
     """
+    plan = _plan(program)
+    if plan is not None:
+        fused = plan.expand(frontier, rewarded)
+        if fused is not None:
+            return Expansion(fused.source, fused.targets, fused.probability, fused.choices,
+                             fused.action_choices, fused.dropped, fused.branches)
     try:
         found = _expand_groups(program, frontier, bounds=False)
         expansion = _combine(program, found, frontier, rewarded)
@@ -211,6 +221,19 @@ def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | No
         _expand_groups(program, frontier, bounds=True)
         raise
     return expansion
+
+
+#: Plans of the programs explored last, by identity (a program holds no weak references).
+_PLANS: list[tuple[Program, LayerPlan | None]] = []
+
+
+def _plan(program: Program) -> LayerPlan | None:
+    for known, plan in _PLANS:
+        if known is program:
+            return plan
+    plan = plan_layers(program)
+    _PLANS[:] = [*_PLANS[-3:], (program, plan)]
+    return plan
 
 
 class _OutOfRange(Exception):
