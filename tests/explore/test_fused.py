@@ -43,6 +43,10 @@ module b
   [s] y=2 -> (y'=0);
   [s] y>=1 -> 1/(y+1):(y'=y-1) + 1-1/(y+1):true;
 endmodule
+rewards "r"
+  [s] true : 1;
+  [] x=3 : 2;
+endrewards
 """,
     # state-dependent probabilities, a division guarded by its command, booleans,
     # a zero-probability branch (dropped) and an assignment from another module's variable

@@ -75,17 +75,19 @@ class _Expr:
 
 
 @dataclass(frozen=True, slots=True)
-class _Column:
-    """How one variable is set: per branch kind, a row of the layer's value table.
+class _Values:
+    """Where each branch kind's new variable values come from: rows of a per-layer table.
 
-    Row 0 is the source value; then one row per entry of *sources*, an ``int``
-    constant or an index into the plan's expressions.
+    The table has one row per variable (its source value), then one per integer
+    constant in *constants*, then one per expression in *exprs*; *rows* is
+    ``(branch kinds, variables)``: each variable's row for each branch kind, so
+    that all the targets of a layer are one gather.
     """
 
-    column: int
     rows: IntArray
-    sources: tuple[int | tuple[int], ...]
-    kinds: frozenset[int]  # the choice kinds that assign this column
+    constants: IntArray
+    exprs: tuple[_Expr, ...]
+    kind_exprs: tuple[frozenset[int], ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,13 +95,16 @@ class _Factors:
     """Branch probabilities: constants per branch kind, or per-part factor rows.
 
     *constant* is set when every factor of every branch kind is a constant.
-    Otherwise *rows* holds, per part position, each branch kind's row in a table
-    whose row 0 is 1.0, then *sources* (float constants or expression indices).
+    Otherwise *rows* is ``(branch kinds, parts)``: each part's factor as a row of a
+    per-layer table whose row 0 is 1.0, then *constants*, then *exprs* (part
+    positions where every factor is 1.0 are left out).
     """
 
     constant: FloatArray | None
-    rows: tuple[IntArray, ...]
-    sources: tuple[float | tuple[int], ...]
+    rows: IntArray
+    constants: FloatArray
+    exprs: tuple[_Expr, ...]
+    kind_exprs: tuple[frozenset[int], ...]
 
 
 @dataclass(frozen=True, slots=True)
@@ -111,16 +116,15 @@ class LayerPlan:
     kind_commands: IntArray  # (kinds + 1, parts): command per part, ``commands`` = none
     widths: IntArray  # branches per kind; the last kind is the deadlock self-loop
     starts: IntArray  # first branch kind of each kind
-    exprs: tuple[_Expr, ...]
-    kind_exprs: tuple[frozenset[int], ...]
-    columns: tuple[_Column, ...]
+    values: _Values
     factors: _Factors
     unchecked_sums: frozenset[int]  # kinds whose probabilities need a run-time sum check
     action_kinds: dict[str | None, IntArray]
     lows: IntArray
     highs: IntArray
-    #: Per set of rewarded actions, those with kinds and their kind membership matrix.
-    members: dict[frozenset[str | None], tuple[list[str | None], IntArray]] = field(
+    #: Per set of rewarded actions: those with kinds, their kinds in action order and
+    #: where each action's kinds start (see ``_action_choices``).
+    members: dict[frozenset[str | None], tuple[list[str | None], IntArray, IntArray]] = field(
         default_factory=dict, compare=False
     )
 
@@ -157,19 +161,14 @@ def plan_layers(program: Program) -> LayerPlan | None:
     if len(kinds) > MAX_KINDS or sum(widths) > MAX_BRANCH_KINDS:
         return None
     branches = _branch_updates(commands, kinds)
-    registry = _Registry()
-    columns = _columns(program, commands, kinds, branches, registry)
-    factors = _factors(commands, kinds, branches, registry)
     return LayerPlan(
         guards=tuple((i, c.guard) for i, c in enumerate(commands) if not c.always),
         commands=len(commands),
         kind_commands=_kind_commands(kinds, len(commands)),
         widths=np.array(widths, dtype=np.int64),
         starts=np.cumsum([0, *widths[:-1]]).astype(np.int64),
-        exprs=registry.finish(),
-        kind_exprs=registry.kind_exprs(len(kinds) + 1),
-        columns=columns,
-        factors=factors,
+        values=_values(program.variable_names, commands, kinds, branches),
+        factors=_factors(commands, kinds, branches),
         unchecked_sums=_unchecked_sums(commands, kinds),
         action_kinds=_action_kinds(kinds),
         lows=np.array(program.lows, dtype=np.int64),
@@ -251,29 +250,32 @@ def _risky(expr: Expr) -> bool:
     )
 
 
-def _columns(
-    program: Program,
+def _values(
+    names: Sequence[str],
     commands: Sequence[CompiledCommand],
     kinds: Sequence[_Kind],
     branches: Sequence[Sequence[tuple[int, ...]]],
-    registry: _Registry,
-) -> tuple[_Column, ...]:
-    """Per variable, each branch kind's source of its new value (later parts win)."""
-    total = sum(len(b) for b in branches) + 1
-    rows = {c: np.zeros(total, dtype=np.int64) for c in range(len(program.variable_names))}
-    sources: dict[int, dict[int | tuple[int], int]] = {c: {} for c in rows}
-    users: dict[int, set[int]] = {c: set() for c in rows}
-    b = 0
-    for k, (kind, updates) in enumerate(zip(kinds, branches, strict=True)):
-        for picks in updates:
-            assigned = _assigned(program.variable_names, commands, kind, picks, (registry, k))
-            for c, source in assigned.items():
-                rows[c][b] = sources[c].setdefault(source, len(sources[c]) + 1)
-                users[c].add(k)
-            b += 1
-    return tuple(
-        _Column(c, rows[c], tuple(sources[c]), frozenset(users[c])) for c in rows if sources[c]
-    )
+) -> _Values:
+    """Each branch kind's source row per variable (later parts' assignments win)."""
+    registry = _Registry()
+    assigned = [
+        _assigned(names, commands, kind, picks, (registry, k))
+        for k, (kind, updates) in enumerate(zip(kinds, branches, strict=True))
+        for picks in updates
+    ]
+    assigned.append({})  # the deadlock self-loop
+    rows = np.tile(np.arange(len(names), dtype=np.int64), (len(assigned), 1))
+    constants: dict[int, int] = {}
+    for b, found in enumerate(assigned):
+        for column, source in found.items():
+            if isinstance(source, tuple):
+                rows[b, column] = -1 - source[0]  # placed after the constants below
+            else:
+                rows[b, column] = len(names) + constants.setdefault(source, len(constants))
+    exprs = rows < 0
+    rows[exprs] = len(names) + len(constants) - 1 - rows[exprs]
+    return _Values(rows, np.array(list(constants), dtype=np.int64), registry.finish(),
+                   registry.kind_exprs(len(kinds) + 1))
 
 
 def _assigned(
@@ -302,26 +304,36 @@ def _factors(
     commands: Sequence[CompiledCommand],
     kinds: Sequence[_Kind],
     branches: Sequence[Sequence[tuple[int, ...]]],
-    registry: _Registry,
 ) -> _Factors:
-    parts = max((len(k.commands) for k in kinds), default=1)
-    per_branch: list[list[float | tuple[int]]] = []
-    for k, (kind, updates) in enumerate(zip(kinds, branches, strict=True)):
-        for picks in updates:
-            per_branch.append([_factor(commands[c], u, registry, k)
-                               for c, u in zip(kind.commands, picks, strict=True)])
+    registry = _Registry()
+    per_branch = [
+        [_factor(commands[c], u, (registry, k)) for c, u in zip(kind.commands, picks, strict=True)]
+        for k, (kind, updates) in enumerate(zip(kinds, branches, strict=True))
+        for picks in updates
+    ]
     per_branch.append([1.0])  # the deadlock self-loop
+    exprs, kind_exprs = registry.finish(), registry.kind_exprs(len(kinds) + 1)
     if all(isinstance(f, float) for fs in per_branch for f in fs):
-        return _Factors(np.array([_product(fs) for fs in per_branch]), (), ())
-    sources: dict[float | tuple[int], int] = {1.0: 0}
-    rows = [np.zeros(len(per_branch), dtype=np.int64) for _ in range(parts)]
+        constant = np.array([_product(fs) for fs in per_branch])
+        return _Factors(constant, np.empty((0, 0), dtype=np.int64), np.empty(0), exprs, kind_exprs)
+    parts = max(len(fs) for fs in per_branch)
+    rows = np.zeros((len(per_branch), parts), dtype=np.int64)
+    constants: dict[float, int] = {1.0: 0}
     for b, fs in enumerate(per_branch):
         for p, f in enumerate(fs):
-            rows[p][b] = sources.setdefault(f, len(sources))
-    return _Factors(None, tuple(r for r in rows if r.any()), tuple(sources)[1:])
+            if isinstance(f, tuple):
+                rows[b, p] = -1 - f[0]
+            else:
+                rows[b, p] = constants.setdefault(f, len(constants))
+    negative = rows < 0
+    rows[negative] = len(constants) - 1 - rows[negative]
+    rows = rows[:, rows.any(axis=0)]  # a factor of 1.0 everywhere: nothing to multiply
+    return _Factors(None, rows, np.array(list(constants)[1:], dtype=np.float64), exprs,
+                    kind_exprs)
 
 
-def _factor(command: CompiledCommand, u: int, registry: _Registry, k: int) -> float | tuple[int]:
+def _factor(command: CompiledCommand, u: int, user: tuple[_Registry, int]) -> float | tuple[int]:
+    registry, k = user
     update = command.updates[u]
     constant = update.constant_probability
     if constant is not None and constant >= 0:
@@ -376,11 +388,8 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Fus
         firsts = np.cumsum(widths) - widths
         branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(total)
         source = np.repeat(src, widths)
-    values = _evaluate(plan, states, enabled, present)
-    if values is None:
-        return None
-    targets = _targets(plan, states, values, present, branch, source)
-    probability = _probabilities(plan, states, values, branch, source)
+    targets = _targets(plan.values, states, enabled, present, (branch, source))
+    probability = _probabilities(plan.factors, states, enabled, present, (branch, source))
     if probability is None or not _sums_ok(plan, present, probability, firsts, kind):
         return None
     if (targets < plan.lows).any() or (targets > plan.highs).any():
@@ -410,87 +419,85 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
     return enabled, choices
 
 
-def _evaluate(
-    plan: LayerPlan, states: IntArray, enabled: BoolArray, present: list[int]
-) -> dict[int, np.ndarray] | None:
-    """The expressions the present kinds need; None if an assignment yields floats."""
-    needed = frozenset().union(*(plan.kind_exprs[k] for k in present))
-    values: dict[int, np.ndarray] = {}
+def _fill(
+    table: np.ndarray,
+    base: int,
+    exprs: tuple[tuple[_Expr, ...], tuple[frozenset[int], ...]],
+    states: IntArray,
+    enabled: BoolArray,
+    present: list[int],
+) -> None:
+    """Evaluate the expressions the present kinds need into rows ``base + e`` of *table*.
+
+    :raises ModelError: an integer table receives floats (the slow path reports it).
+    """
+    found, kind_exprs = exprs
+    needed = frozenset().union(*(kind_exprs[k] for k in present))
+    integer = table.dtype.kind == "i"
     for e in needed:
-        expr = plan.exprs[e]
-        if not expr.risky:
-            values[e] = np.asarray(expr.fn(states))
-            continue
-        rows = np.flatnonzero(enabled[:, expr.kinds].any(axis=1))
-        part = np.asarray(expr.fn(states[rows]))
-        full = np.zeros(states.shape[0], dtype=part.dtype)
-        full[rows] = part
-        values[e] = full
-    return values
+        expr = found[e]
+        if expr.risky:  # only where a kind using it is enabled
+            rows = np.flatnonzero(enabled[:, expr.kinds].any(axis=1))
+            value = np.asarray(expr.fn(states[rows]))
+        else:
+            rows, value = None, np.asarray(expr.fn(states))
+        if integer and value.dtype.kind == "f":
+            raise ModelError("non-integer assignment")
+        if rows is None:
+            table[base + e] = value
+        else:
+            table[base + e, rows] = value
+
+
+def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) -> np.ndarray:
+    """``table[rows[branch, j], source]`` for every branch and column *j*, in one take."""
+    branch, source = at
+    index = rows[branch]
+    index *= table.shape[1]
+    index += source[:, None]
+    return table.ravel().take(index)
 
 
 def _targets(
-    plan: LayerPlan,
+    values: _Values,
     states: IntArray,
-    values: dict[int, np.ndarray],
+    enabled: BoolArray,
     present: list[int],
-    branch: IntArray,
-    source: IntArray,
+    at: tuple[IntArray, IntArray],
 ) -> IntArray:
-    targets = states[source]
-    n = states.shape[0]
-    kinds = set(present)
-    for column in plan.columns:
-        if kinds.isdisjoint(column.kinds):
-            continue
-        table = np.empty((len(column.sources) + 1, n), dtype=np.int64)
-        table[0] = states[:, column.column]
-        for r, value in enumerate(column.sources, start=1):
-            if isinstance(value, tuple):
-                evaluated = values.get(value[0])
-                if evaluated is None:
-                    continue  # no present kind uses it: the row is never gathered
-                if evaluated.dtype.kind == "f":
-                    raise ModelError("non-integer assignment")  # the slow path locates it
-                table[r] = evaluated
-            else:
-                table[r] = value
-        index = column.rows[branch] * n
-        index += source
-        targets[:, column.column] = table.ravel().take(index)
+    n, width = states.shape
+    base = width + values.constants.size
+    table = np.empty((base + len(values.exprs), n), dtype=np.int64)
+    table[:width] = states.T
+    table[width:base] = values.constants[:, None]
+    _fill(table, base, (values.exprs, values.kind_exprs), states, enabled, present)
+    targets: IntArray = _gather(table, values.rows, at)
     return targets
 
 
 def _probabilities(
-    plan: LayerPlan,
+    factors: _Factors,
     states: IntArray,
-    values: dict[int, np.ndarray],
-    branch: IntArray,
-    source: IntArray,
+    enabled: BoolArray,
+    present: list[int],
+    at: tuple[IntArray, IntArray],
 ) -> FloatArray | None:
     """Branch probabilities before the 1/n weighting; None if a factor is negative."""
-    factors = plan.factors
     if factors.constant is not None:
-        return factors.constant[branch]
-    n = states.shape[0]
-    table = np.ones((len(factors.sources) + 1, n), dtype=np.float64)
-    for r, value in enumerate(factors.sources, start=1):
-        if isinstance(value, tuple):
-            evaluated = values.get(value[0])
-            if evaluated is not None:
-                table[r] = evaluated
-        else:
-            table[r] = value
-    flat = table.ravel()
-    probability: FloatArray | None = None
-    for rows in factors.rows:
-        index = rows[branch] * n
-        index += source
-        factor = flat.take(index)
-        if factor.min(initial=0.0) < 0:
-            return None
-        probability = factor if probability is None else probability * factor
-    return np.ones(branch.size) if probability is None else probability
+        constant: FloatArray = factors.constant[at[0]]
+        return constant
+    base = 1 + factors.constants.size
+    table = np.empty((base + len(factors.exprs), states.shape[0]), dtype=np.float64)
+    table[0] = 1.0
+    table[1:base] = factors.constants[:, None]
+    _fill(table, base, (factors.exprs, factors.kind_exprs), states, enabled, present)
+    gathered = _gather(table, factors.rows, at)
+    if gathered.min(initial=0.0) < 0:
+        return None
+    probability: FloatArray = gathered[:, 0].copy()
+    for p in range(1, gathered.shape[1]):  # in part order, as the group-by-group path
+        probability *= gathered[:, p]
+    return probability
 
 
 def _sums_ok(
@@ -507,23 +514,23 @@ def _action_choices(
     plan: LayerPlan, enabled: BoolArray, rewarded: set[str | None]
 ) -> dict[str | None, IntArray]:
     """Per rewarded action with a choice in this layer, its number of choices per state."""
-    actions, members = _members(plan, frozenset(rewarded))
+    actions, order, starts = _members(plan, frozenset(rewarded))
     if not actions:
         return {}
-    counts: IntArray = enabled.view(np.uint8) @ members  # one product for every action
+    counts = np.add.reduceat(enabled[:, order], starts, axis=1, dtype=np.int64)
     present = np.count_nonzero(counts, axis=0) > 0
     return {a: counts[:, i] for i, a in enumerate(actions) if present[i]}
 
 
 def _members(
     plan: LayerPlan, rewarded: frozenset[str | None]
-) -> tuple[list[str | None], IntArray]:
-    """The rewarded actions that have kinds, and a ``(kinds + 1, actions)`` 0/1 matrix."""
+) -> tuple[list[str | None], IntArray, IntArray]:
+    """The rewarded actions that have kinds, their kinds in that order, and where each starts."""
     found = plan.members.get(rewarded)
     if found is None:
         actions = [a for a in plan.action_kinds if a in rewarded]
-        matrix = np.zeros((plan.kinds + 1, len(actions)), dtype=np.int64)
-        for i, action in enumerate(actions):
-            matrix[plan.action_kinds[action], i] = 1
-        found = plan.members[rewarded] = (actions, matrix)
+        groups = [plan.action_kinds[a] for a in actions]
+        order = np.concatenate(groups) if groups else np.empty(0, dtype=np.int64)
+        sizes = np.array([g.size for g in groups], dtype=np.int64)
+        found = plan.members[rewarded] = (actions, order, np.cumsum(sizes) - sizes)
     return found
