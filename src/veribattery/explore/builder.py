@@ -350,14 +350,19 @@ def assemble(
 def _transition_matrix(n: int, layers: list[Layer]) -> sp.csr_matrix:
     """CSR straight from the layers: their rows are already sorted by source state.
 
-    Each field is released from the layers as soon as it is concatenated, so the
-    peak holds the layers and one concatenated field, not two copies of everything.
+    Each field is moved out of the layers layer by layer into its concatenation
+    (see ``_drain``), so the peak holds about one copy of the transitions, not two.
     """
-    counts = np.bincount(np.concatenate([layer.rows for layer in layers]), minlength=n)
-    columns = np.concatenate([layer.columns for layer in layers])
-    _release(layers, rows=_NONE, columns=_NONE)
-    data = np.concatenate([layer.probabilities for layer in layers])
-    _release(layers, probabilities=_NO_FLOATS)
+    counts = np.zeros(n, dtype=np.int64)
+    for layer in layers:
+        if layer.rows.size:
+            first = int(layer.rows[0])
+            found = np.bincount(layer.rows - first)
+            counts[first : first + found.size] += found
+    for i, layer in enumerate(layers):
+        layers[i] = replace(layer, rows=_NONE)
+    columns = _drain(layers, "columns", _NONE)
+    data = _drain(layers, "probabilities", _NO_FLOATS)
     indptr = np.zeros(n + 1, dtype=columns.dtype)
     np.cumsum(counts, out=indptr[1:])
     matrix = sp.csr_matrix((data, columns, indptr), shape=(n, n))
@@ -365,9 +370,56 @@ def _transition_matrix(n: int, layers: list[Layer]) -> sp.csr_matrix:
     return matrix
 
 
-def _release(layers: list[Layer], **empty: Any) -> None:
+def _drain(layers: list[Layer], name: str, empty: np.ndarray) -> np.ndarray:
+    """The concatenation of field *name* over *layers*, each layer's array released as
+    soon as it is copied: the output's pages are touched as the inputs are freed.
+    """
+    parts = [getattr(layer, name) for layer in layers]
+    dtype = np.result_type(*parts) if parts else empty.dtype
+    out = np.empty(sum(p.size for p in parts), dtype=dtype)
+    del parts
+    start = freed = 0
     for i, layer in enumerate(layers):
-        layers[i] = replace(layer, **empty)
+        part = getattr(layer, name)
+        out[start : start + part.size] = part
+        start += part.size
+        freed += part.nbytes
+        released: dict[str, Any] = {name: empty}
+        layers[i] = replace(layer, **released)
+        if freed >= _TRIM_BYTES:
+            # Freed layers of a few MB stay in the C heap (glibc raises its mmap
+            # threshold after the first frees), so the copy would add to the peak
+            # instead of replacing them: hand the memory back as it is freed.
+            del part
+            _trim_heap()
+            freed = 0
+    return out
+
+
+#: Bytes of layers released between two returns of free heap memory to the system.
+_TRIM_BYTES = 32 << 20
+
+
+@functools.cache
+def _malloc_trim() -> Callable[[int], int] | None:
+    """glibc's ``malloc_trim``, or None elsewhere (other allocators return memory themselves)."""
+    import ctypes
+    import ctypes.util
+
+    name = ctypes.util.find_library("c")
+    if name is None:
+        return None
+    try:
+        trim: Callable[[int], int] = ctypes.CDLL(name).malloc_trim
+    except (OSError, AttributeError):
+        return None
+    return trim
+
+
+def _trim_heap() -> None:
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
 
 
 def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
