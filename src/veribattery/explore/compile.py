@@ -458,7 +458,7 @@ _SIMPLE_BINARY: dict[str, Callable[[Any, Any], Any]] = {
 def _binary(expr: Binary, left: _Node, right: _Node) -> _Node:
     op = expr.op
     if op in ("&", "|", "=>"):
-        return _logical(op, left, right)
+        return _logical(op, left, right, _shape_of(expr.right)[1] >= _SKIP_SIZE)
     if op == "<=>":
         return _lift(lambda a, b: np.equal(np.asarray(a, bool), np.asarray(b, bool)), [left, right])
     if op == "/":
@@ -466,12 +466,19 @@ def _binary(expr: Binary, left: _Node, right: _Node) -> _Node:
     return _lift(_SIMPLE_BINARY[op], [left, right])
 
 
-def _logical(op: str, left: _Node, right: _Node) -> _Node:
+#: Right operands of ``&``/``|`` with at least this many nodes are skipped when the
+#: left operand alone decides every row (see ``_skipping``).
+_SKIP_SIZE = 4
+
+
+def _logical(op: str, left: _Node, right: _Node, big: bool = False) -> _Node:
     """``&``, ``|`` and ``=>``; a risky right operand is evaluated only where needed."""
     if op == "=>":
         left = _lift(np.logical_not, [left])
     combine = np.logical_and if op == "&" else np.logical_or
     if not right.subsettable or left.is_const:
+        if big and not (left.is_const or right.is_const):
+            return _skipping(combine, op != "&", left, right)
         return _lift(combine, [left, right])
     # Rows where the left operand alone decides: false for ``&``, true for ``|``/``=>``.
     decided_value = op != "&"
@@ -485,6 +492,22 @@ def _logical(op: str, left: _Node, right: _Node) -> _Node:
         return result
 
     return _Node(fn=evaluate, risky=True, labels=left.labels)
+
+
+def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, right: _Node) -> _Node:
+    """*combine* of the operands, the right one not evaluated when the left alone
+    gives *decided_value* in every row: a guard ``s=3 & <a long battery condition>``
+    costs one comparison in a BFS layer with no state at ``s=3``.
+    """
+    lfn, rfn = left.fn, right.fn
+
+    def evaluate(states: IntArray) -> Any:
+        first = np.asarray(lfn(states), dtype=bool)
+        if first.ndim and (first.all() if decided_value else not first.any()):
+            return first
+        return combine(first, rfn(states))
+
+    return _Node(fn=evaluate, risky=left.risky or right.risky, labels=left.labels or right.labels)
 
 
 def _ite(cond: _Node, then: _Node, otherwise: _Node) -> _Node:
