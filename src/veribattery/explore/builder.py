@@ -23,6 +23,7 @@ from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.explore.fused import LayerPlan, plan_layers
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
@@ -198,10 +199,19 @@ def _count_dtype(program: Program) -> np.dtype[Any]:
 def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | None]) -> Expansion:
     """Every branch out of *frontier*, ordered by source state (see :class:`Expansion`).
 
-    Update ranges are checked once over all the layer's targets (two numpy calls
-    instead of two per assignment); only if one is out of range is the frontier
-    expanded again with per-update checks, which raise the located error.
+    The layer is expanded in one pass over all groups (see ``fused``) when the
+    program allows it; otherwise, or when that pass finds anything unusual, group
+    by group. Update ranges are checked once over all the layer's targets (two
+    numpy calls instead of two per assignment); only if one is out of range is
+    the frontier expanded again with per-update checks, which raise the located
+    error.
     """
+    plan = _plan(program)
+    if plan is not None:
+        fused = plan.expand(frontier, rewarded)
+        if fused is not None:
+            return Expansion(fused.source, fused.targets, fused.probability, fused.choices,
+                             fused.action_choices, fused.dropped, fused.branches)
     try:
         found = _expand_groups(program, frontier, bounds=False)
         expansion = _combine(program, found, frontier, rewarded)
@@ -211,6 +221,19 @@ def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | No
         _expand_groups(program, frontier, bounds=True)
         raise
     return expansion
+
+
+#: Plans of the programs explored last, by identity (a program holds no weak references).
+_PLANS: list[tuple[Program, LayerPlan | None]] = []
+
+
+def _plan(program: Program) -> LayerPlan | None:
+    for known, plan in _PLANS:
+        if known is program:
+            return plan
+    plan = plan_layers(program)
+    _PLANS[:] = [*_PLANS[-3:], (program, plan)]
+    return plan
 
 
 class _OutOfRange(Exception):
@@ -327,14 +350,19 @@ def assemble(
 def _transition_matrix(n: int, layers: list[Layer]) -> sp.csr_matrix:
     """CSR straight from the layers: their rows are already sorted by source state.
 
-    Each field is released from the layers as soon as it is concatenated, so the
-    peak holds the layers and one concatenated field, not two copies of everything.
+    Each field is moved out of the layers layer by layer into its concatenation
+    (see ``_drain``), so the peak holds about one copy of the transitions, not two.
     """
-    counts = np.bincount(np.concatenate([layer.rows for layer in layers]), minlength=n)
-    columns = np.concatenate([layer.columns for layer in layers])
-    _release(layers, rows=_NONE, columns=_NONE)
-    data = np.concatenate([layer.probabilities for layer in layers])
-    _release(layers, probabilities=_NO_FLOATS)
+    counts = np.zeros(n, dtype=np.int64)
+    for layer in layers:
+        if layer.rows.size:
+            first = int(layer.rows[0])
+            found = np.bincount(layer.rows - first)
+            counts[first : first + found.size] += found
+    for i, layer in enumerate(layers):
+        layers[i] = replace(layer, rows=_NONE)
+    columns = _drain(layers, "columns", _NONE)
+    data = _drain(layers, "probabilities", _NO_FLOATS)
     indptr = np.zeros(n + 1, dtype=columns.dtype)
     np.cumsum(counts, out=indptr[1:])
     matrix = sp.csr_matrix((data, columns, indptr), shape=(n, n))
@@ -342,9 +370,52 @@ def _transition_matrix(n: int, layers: list[Layer]) -> sp.csr_matrix:
     return matrix
 
 
-def _release(layers: list[Layer], **empty: Any) -> None:
+def _drain(layers: list[Layer], name: str, empty: np.ndarray) -> np.ndarray:
+    """The concatenation of field *name* over *layers*, each layer's array released as
+    soon as it is copied: the output's pages are touched as the inputs are freed.
+    """
+    parts = [getattr(layer, name) for layer in layers]
+    dtype = np.result_type(*parts) if parts else empty.dtype
+    out = np.empty(sum(p.size for p in parts), dtype=dtype)
+    del parts
+    start = freed = 0
     for i, layer in enumerate(layers):
-        layers[i] = replace(layer, **empty)
+        part = getattr(layer, name)
+        out[start : start + part.size] = part
+        start += part.size
+        freed += part.nbytes
+        released: dict[str, Any] = {name: empty}
+        layers[i] = replace(layer, **released)
+        if freed >= _TRIM_BYTES:
+            # Freed layers of a few MB stay in the C heap (glibc raises its mmap
+            # threshold after the first frees), so the copy would add to the peak
+            # instead of replacing them: hand the memory back as it is freed.
+            del part
+            _trim_heap()
+            freed = 0
+    return out
+
+
+#: Bytes of layers released between two returns of free heap memory to the system.
+_TRIM_BYTES = 32 << 20
+
+
+@functools.cache
+def _malloc_trim() -> Callable[[int], int] | None:
+    """glibc's ``malloc_trim``, or None elsewhere (other allocators return memory themselves)."""
+    import ctypes
+
+    try:  # the soname itself: ctypes.util.find_library would spawn ldconfig
+        trim: Callable[[int], int] = ctypes.CDLL("libc.so.6").malloc_trim
+    except (OSError, AttributeError):
+        return None
+    return trim
+
+
+def _trim_heap() -> None:
+    trim = _malloc_trim()
+    if trim is not None:
+        trim(0)
 
 
 def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:

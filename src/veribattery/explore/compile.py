@@ -99,6 +99,8 @@ class CompileCache:
         self.plain: dict[int, _Node] = {}  # row-wise nodes (tables' contents), no memo
         self.indices: dict[tuple[tuple[int, ...], tuple[int, ...], int], _Fn] = {}
         self.shapes: dict[int, tuple[frozenset[str], int]] = {}
+        #: Valuation grids of the tables, by (columns, lows, shape): see ``_grid``.
+        self.grids: dict[tuple[tuple[int, ...], tuple[int, ...], tuple[int, ...]], IntArray] = {}
         self._keys: dict[tuple[Any, ...], int] = {}
         self._by_id: dict[int, tuple[Expr, int]] = {}
 
@@ -276,6 +278,9 @@ def _label(expr: LabelRef, labels: Mapping[str, BoolArray] | None) -> _Node:
 
 #: Largest number of valuations a tabulated sub-expression may range over.
 TABLE_LIMIT = 1 << 17
+#: Largest valuation grid kept for the tables that follow (models with many variables
+#: have wide grids; those are rebuilt per table rather than held).
+_GRID_KEEP_BYTES = 16 << 20
 
 
 def _worth_tabulating(
@@ -330,18 +335,36 @@ def _children(expr: Expr) -> tuple[Expr, ...]:
 def _tabulated(expr: Expr, scope: _Scope) -> _Node:
     """*expr* as a lookup table over its variables' domain (row-wise if that fails)."""
     assert scope.ranges is not None
-    direct = _compile_node(expr, _Scope(scope.columns, scope.labels, cache=scope.cache))
+    # The children keep their own tables and memos: a sub-expression shared by many
+    # tables over the same variables (a voltage level inside every cost) is
+    # evaluated once on their common grid, not once per table.
+    direct = _compile_node(expr, scope)
     names = sorted(_shape(expr, scope.cache)[0], key=lambda n: scope.columns[n])
     lows = [scope.ranges[n][0] for n in names]
     shape = [scope.ranges[n][1] - low + 1 for n, low in zip(names, lows, strict=True)]
-    grid = np.zeros((math.prod(shape), len(scope.columns)), dtype=np.int64)
     cols = [scope.columns[n] for n in names]
-    grid[:, cols] = np.indices(shape).reshape(len(shape), -1).T + np.array(lows)
+    grid = _grid(cols, lows, shape, len(scope.columns), scope.cache)
     try:
         table = np.broadcast_to(np.asarray(direct.fn(grid)), grid.shape[:1]).copy()
     except ModelError:  # fails on some valuation (e.g. x/y at y=0): evaluate per row
         return direct
     return _Node(fn=_lookup(table, cols, lows, shape, scope.cache))
+
+
+def _grid(
+    cols: list[int], lows: list[int], shape: list[int], width: int, cache: CompileCache | None
+) -> IntArray:
+    """Every valuation of the variables *cols* (the other columns 0), shared via *cache*
+    so that the memos of common sub-expressions recognise it.
+    """
+    key = (tuple(cols), tuple(lows), tuple(shape))
+    found = cache.grids.get(key) if cache is not None else None
+    if found is None:
+        found = np.zeros((math.prod(shape), width), dtype=np.int64)
+        found[:, cols] = np.indices(shape).reshape(len(shape), -1).T + np.array(lows)
+        if cache is not None and found.nbytes <= _GRID_KEEP_BYTES:
+            cache.grids[key] = found
+    return found
 
 
 def _lookup(
@@ -435,7 +458,7 @@ _SIMPLE_BINARY: dict[str, Callable[[Any, Any], Any]] = {
 def _binary(expr: Binary, left: _Node, right: _Node) -> _Node:
     op = expr.op
     if op in ("&", "|", "=>"):
-        return _logical(op, left, right)
+        return _logical(op, left, right, _shape_of(expr.right)[1] >= _SKIP_SIZE)
     if op == "<=>":
         return _lift(lambda a, b: np.equal(np.asarray(a, bool), np.asarray(b, bool)), [left, right])
     if op == "/":
@@ -443,12 +466,19 @@ def _binary(expr: Binary, left: _Node, right: _Node) -> _Node:
     return _lift(_SIMPLE_BINARY[op], [left, right])
 
 
-def _logical(op: str, left: _Node, right: _Node) -> _Node:
+#: Right operands of ``&``/``|`` with at least this many nodes are skipped when the
+#: left operand alone decides every row (see ``_skipping``).
+_SKIP_SIZE = 4
+
+
+def _logical(op: str, left: _Node, right: _Node, big: bool = False) -> _Node:
     """``&``, ``|`` and ``=>``; a risky right operand is evaluated only where needed."""
     if op == "=>":
         left = _lift(np.logical_not, [left])
     combine = np.logical_and if op == "&" else np.logical_or
     if not right.subsettable or left.is_const:
+        if big and not (left.is_const or right.is_const):
+            return _skipping(combine, op != "&", left, right)
         return _lift(combine, [left, right])
     # Rows where the left operand alone decides: false for ``&``, true for ``|``/``=>``.
     decided_value = op != "&"
@@ -462,6 +492,22 @@ def _logical(op: str, left: _Node, right: _Node) -> _Node:
         return result
 
     return _Node(fn=evaluate, risky=True, labels=left.labels)
+
+
+def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, right: _Node) -> _Node:
+    """*combine* of the operands, the right one not evaluated when the left alone
+    gives *decided_value* in every row: a guard ``s=3 & <a long battery condition>``
+    costs one comparison in a BFS layer with no state at ``s=3``.
+    """
+    lfn, rfn = left.fn, right.fn
+
+    def evaluate(states: IntArray) -> Any:
+        first = np.asarray(lfn(states), dtype=bool)
+        if first.ndim and (first.all() if decided_value else not first.any()):
+            return first
+        return combine(first, rfn(states))
+
+    return _Node(fn=evaluate, risky=left.risky or right.risky, labels=left.labels or right.labels)
 
 
 def _ite(cond: _Node, then: _Node, otherwise: _Node) -> _Node:

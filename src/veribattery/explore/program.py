@@ -89,7 +89,9 @@ class Program:
 def compile_program(model: FlatModel) -> Program:
     """Compile every command of *model* and group the commands into choice groups."""
     names = _names(model)
-    return _program(model, names, lambda m, c: _compile_command(m, c, names))
+    program = _program(model, names, lambda m, c: _compile_command(m, c, names))
+    names.cache.grids.clear()  # only the tables needed them
+    return program
 
 
 def with_probabilities(program: Program, model: FlatModel) -> Program:

@@ -1,0 +1,536 @@
+"""A whole BFS layer expanded over every choice group at once.
+
+The group-by-group expansion (``successors``) costs a few dozen numpy calls per
+group and layer; a model whose search is deep and narrow (the mission: 709
+layers of ~250 states, 13 groups) spends most of its build in that per-call
+overhead. A :class:`LayerPlan` instead enumerates the program's *choice kinds*
+once (per group: one per command, or one per combination of one command per
+synchronising module) and their *branch kinds* (one per combination of
+updates), and tabulates statically, per branch kind, its probability factors
+and which expression each variable takes. A layer then costs one pass:
+
+1. every command guard on the frontier, combined into an ``(n, kinds)``
+   enabledness matrix, whose row-major nonzeros are the choices already in the
+   builder's order (source state, group, command combination);
+2. each branch's kind id by ``repeat``;
+3. per assigned variable, one gather from a small table whose rows are the
+   evaluated right-hand sides (on the whole frontier, so shared sub-expressions
+   hit the compile cache's memo) and the constants.
+
+Expressions that may fail on some rows (division, ``mod``, ``pow``) are
+evaluated only on the rows where a kind using them is enabled. Whenever
+anything is unusual (an out-of-range target, a bad probability sum, a negative
+probability, a float assigned to an integer, an evaluation error) the plan
+gives up on the layer and the caller expands it group by group, which raises
+the located error or decides the case exactly as before. The result is the
+same :class:`~veribattery.explore.builder.Expansion`, bit for bit: the same
+branches in the same order, probabilities multiplied in the same order.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.errors import ModelError
+from veribattery.explore.compile import CompiledExpr
+from veribattery.explore.program import CompiledCommand, Program
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import Binary, Call, Expr
+
+__all__ = ["FusedExpansion", "LayerPlan", "plan_layers"]
+
+#: Plans with more choice or branch kinds than this are not built (the enabledness
+#: matrix has one column per choice kind): such programs expand group by group.
+MAX_KINDS = 512
+MAX_BRANCH_KINDS = 4096
+_TOLERANCE = 0.5e-6  # half the builder's: a borderline sum is left to the exact check
+
+
+@dataclass(frozen=True, slots=True)
+class FusedExpansion:
+    """The branches out of a frontier (fields as the builder's ``Expansion``)."""
+
+    source: IntArray
+    targets: IntArray
+    probability: FloatArray
+    choices: IntArray
+    action_choices: dict[str | None, IntArray]
+    dropped: IntArray
+    branches: int
+
+
+@dataclass(frozen=True, slots=True)
+class _Expr:
+    """An expression evaluated per layer: on the frontier, or on *kinds*' rows if risky."""
+
+    fn: CompiledExpr
+    risky: bool
+    kinds: IntArray
+
+
+@dataclass(frozen=True, slots=True)
+class _Values:
+    """Where each branch kind's new variable values come from: rows of a per-layer table.
+
+    The table has one row per variable (its source value), then one per integer
+    constant in *constants*, then one per expression in *exprs*; *rows* is
+    ``(branch kinds, variables)``: each variable's row for each branch kind, so
+    that all the targets of a layer are one gather.
+    """
+
+    rows: IntArray
+    constants: IntArray
+    exprs: tuple[_Expr, ...]
+    kind_exprs: tuple[frozenset[int], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class _Factors:
+    """Branch probabilities: constants per branch kind, or per-part factor rows.
+
+    *constant* is set when every factor of every branch kind is a constant.
+    Otherwise *rows* is ``(branch kinds, parts)``: each part's factor as a row of a
+    per-layer table whose row 0 is 1.0, then *constants*, then *exprs* (part
+    positions where every factor is 1.0 are left out).
+    """
+
+    constant: FloatArray | None
+    rows: IntArray
+    constants: FloatArray
+    exprs: tuple[_Expr, ...]
+    kind_exprs: tuple[frozenset[int], ...]
+
+
+@dataclass(frozen=True, slots=True)
+class LayerPlan:
+    """The static tables of a program's fused layer expansion (see the module doc)."""
+
+    guards: tuple[tuple[int, CompiledExpr], ...]  # (command index, guard), non-trivial ones
+    commands: int
+    kind_commands: IntArray  # (kinds + 1, parts): command per part, ``commands`` = none
+    widths: IntArray  # branches per kind; the last kind is the deadlock self-loop
+    starts: IntArray  # first branch kind of each kind
+    values: _Values
+    factors: _Factors
+    unchecked_sums: frozenset[int]  # kinds whose probabilities need a run-time sum check
+    action_kinds: dict[str | None, IntArray]
+    lows: IntArray
+    highs: IntArray
+    #: Per set of rewarded actions: those with kinds, their kinds in action order and
+    #: where each action's kinds start (see ``_action_choices``).
+    members: dict[frozenset[str | None], tuple[list[str | None], IntArray, IntArray]] = field(
+        default_factory=dict, compare=False
+    )
+
+    @property
+    def kinds(self) -> int:
+        """Choice kinds, the deadlock self-loop excluded."""
+        return int(self.widths.size) - 1
+
+    def expand(self, states: IntArray, rewarded: set[str | None]) -> FusedExpansion | None:
+        """Every branch out of *states*, or None if the layer needs the group-by-group path."""
+        try:
+            return _expand(self, states, rewarded)
+        except ModelError:
+            return None
+
+
+# ---------------------------------------------------------------------------
+# Building the plan
+# ---------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, slots=True)
+class _Kind:
+    action: str | None
+    commands: tuple[int, ...]  # global command indices, one per part
+
+
+def plan_layers(program: Program) -> LayerPlan | None:
+    """The fused plan of *program*, or None if it has too many choice or branch kinds."""
+    commands, kinds = _enumerate_kinds(program)
+    if kinds is None:
+        return None
+    widths = [math.prod(len(commands[c].updates) for c in k.commands) for k in kinds] + [1]
+    if len(kinds) > MAX_KINDS or sum(widths) > MAX_BRANCH_KINDS:
+        return None
+    branches = _branch_updates(commands, kinds)
+    return LayerPlan(
+        guards=tuple((i, c.guard) for i, c in enumerate(commands) if not c.always),
+        commands=len(commands),
+        kind_commands=_kind_commands(kinds, len(commands)),
+        widths=np.array(widths, dtype=np.int64),
+        starts=np.cumsum([0, *widths[:-1]]).astype(np.int64),
+        values=_values(program.variable_names, commands, kinds, branches),
+        factors=_factors(commands, kinds, branches),
+        unchecked_sums=_unchecked_sums(commands, kinds),
+        action_kinds=_action_kinds(kinds),
+        lows=np.array(program.lows, dtype=np.int64),
+        highs=np.array(program.highs, dtype=np.int64),
+    )
+
+
+def _enumerate_kinds(program: Program) -> tuple[list[CompiledCommand], list[_Kind] | None]:
+    """All commands, and the choice kinds in the builder's order (None if too many)."""
+    commands: list[CompiledCommand] = []
+    kinds: list[_Kind] = []
+    for group in program.groups:
+        parts = []
+        for part in group.parts:
+            parts.append(tuple(range(len(commands), len(commands) + len(part))))
+            commands.extend(part)
+        if len(parts) == 1:
+            kinds.extend(_Kind(group.action, (c,)) for c in parts[0])
+            continue
+        if math.prod(len(p) for p in parts) > MAX_KINDS:
+            return commands, None
+        kinds.extend(_Kind(group.action, combo) for combo in itertools.product(*parts))
+    return commands, kinds
+
+
+def _kind_commands(kinds: Sequence[_Kind], none: int) -> IntArray:
+    parts = max((len(k.commands) for k in kinds), default=1)
+    table = np.full((len(kinds) + 1, parts), none, dtype=np.int64)
+    for i, kind in enumerate(kinds):
+        table[i, : len(kind.commands)] = kind.commands
+    return table
+
+
+def _branch_updates(
+    commands: Sequence[CompiledCommand], kinds: Sequence[_Kind]
+) -> list[list[tuple[int, ...]]]:
+    """Per kind, each branch's update index per part (mixed radix, first part outermost)."""
+    return [
+        list(itertools.product(*(range(len(commands[c].updates)) for c in k.commands)))
+        for k in kinds
+    ]
+
+
+class _Registry:
+    """Distinct expressions (by compiled function) and the kinds that use each."""
+
+    def __init__(self) -> None:
+        self._index: dict[int, int] = {}
+        self._exprs: list[tuple[CompiledExpr, bool]] = []
+        self._users: list[set[int]] = []
+        self._by_kind: dict[int, set[int]] = {}
+
+    def add(self, fn: CompiledExpr, expr: Expr, kind: int) -> int:
+        index = self._index.get(id(fn))
+        if index is None:
+            index = self._index[id(fn)] = len(self._exprs)
+            self._exprs.append((fn, _risky(expr)))
+            self._users.append(set())
+        self._users[index].add(kind)
+        self._by_kind.setdefault(kind, set()).add(index)
+        return index
+
+    def finish(self) -> tuple[_Expr, ...]:
+        return tuple(
+            _Expr(fn, risky, np.array(sorted(users), dtype=np.int64))
+            for (fn, risky), users in zip(self._exprs, self._users, strict=True)
+        )
+
+    def kind_exprs(self, kinds: int) -> tuple[frozenset[int], ...]:
+        return tuple(frozenset(self._by_kind.get(k, ())) for k in range(kinds))
+
+
+def _risky(expr: Expr) -> bool:
+    """Whether evaluating *expr* may raise on some rows (as ``compile`` marks it)."""
+    return any(
+        (isinstance(node, Binary) and node.op == "/")
+        or (isinstance(node, Call) and node.func in ("pow", "mod"))
+        for node in walk(expr)
+    )
+
+
+def _values(
+    names: Sequence[str],
+    commands: Sequence[CompiledCommand],
+    kinds: Sequence[_Kind],
+    branches: Sequence[Sequence[tuple[int, ...]]],
+) -> _Values:
+    """Each branch kind's source row per variable (later parts' assignments win)."""
+    registry = _Registry()
+    assigned = [
+        _assigned(names, commands, kind, picks, (registry, k))
+        for k, (kind, updates) in enumerate(zip(kinds, branches, strict=True))
+        for picks in updates
+    ]
+    assigned.append({})  # the deadlock self-loop
+    rows = np.tile(np.arange(len(names), dtype=np.int64), (len(assigned), 1))
+    constants: dict[int, int] = {}
+    for b, found in enumerate(assigned):
+        for column, source in found.items():
+            if isinstance(source, tuple):
+                rows[b, column] = -1 - source[0]  # placed after the constants below
+            else:
+                rows[b, column] = len(names) + constants.setdefault(source, len(constants))
+    exprs = rows < 0
+    rows[exprs] = len(names) + len(constants) - 1 - rows[exprs]
+    return _Values(rows, np.array(list(constants), dtype=np.int64), registry.finish(),
+                   registry.kind_exprs(len(kinds) + 1))
+
+
+def _assigned(
+    names: Sequence[str],
+    commands: Sequence[CompiledCommand],
+    kind: _Kind,
+    picks: tuple[int, ...],
+    user: tuple[_Registry, int],
+) -> dict[int, int | tuple[int]]:
+    """Column → constant or ``(expression index,)`` for one branch kind."""
+    registry, k = user
+    found: dict[int, int | tuple[int]] = {}
+    for c, u in zip(kind.commands, picks, strict=True):
+        update = commands[c].updates[u]
+        exprs = {a.variable: a.expr for a in commands[c].command.updates[u].assignments}
+        for i, (column, rhs) in enumerate(update.assignments):
+            constant = update.constants[i] if update.constants else None
+            if constant is not None:
+                found[column] = int(constant)
+            else:
+                found[column] = (registry.add(rhs, exprs[names[column]], k),)
+    return found
+
+
+def _factors(
+    commands: Sequence[CompiledCommand],
+    kinds: Sequence[_Kind],
+    branches: Sequence[Sequence[tuple[int, ...]]],
+) -> _Factors:
+    registry = _Registry()
+    per_branch = [
+        [_factor(commands[c], u, (registry, k)) for c, u in zip(kind.commands, picks, strict=True)]
+        for k, (kind, updates) in enumerate(zip(kinds, branches, strict=True))
+        for picks in updates
+    ]
+    per_branch.append([1.0])  # the deadlock self-loop
+    exprs, kind_exprs = registry.finish(), registry.kind_exprs(len(kinds) + 1)
+    if all(isinstance(f, float) for fs in per_branch for f in fs):
+        constant = np.array([_product(fs) for fs in per_branch])
+        return _Factors(constant, np.empty((0, 0), dtype=np.int64), np.empty(0), exprs, kind_exprs)
+    parts = max(len(fs) for fs in per_branch)
+    rows = np.zeros((len(per_branch), parts), dtype=np.int64)
+    constants: dict[float, int] = {1.0: 0}
+    for b, fs in enumerate(per_branch):
+        for p, f in enumerate(fs):
+            if isinstance(f, tuple):
+                rows[b, p] = -1 - f[0]
+            else:
+                rows[b, p] = constants.setdefault(f, len(constants))
+    negative = rows < 0
+    rows[negative] = len(constants) - 1 - rows[negative]
+    rows = rows[:, rows.any(axis=0)]  # a factor of 1.0 everywhere: nothing to multiply
+    return _Factors(None, rows, np.array(list(constants)[1:], dtype=np.float64), exprs,
+                    kind_exprs)
+
+
+def _factor(command: CompiledCommand, u: int, user: tuple[_Registry, int]) -> float | tuple[int]:
+    registry, k = user
+    update = command.updates[u]
+    constant = update.constant_probability
+    if constant is not None and constant >= 0:
+        return float(constant)
+    return (registry.add(update.probability, command.command.updates[u].probability, k),)
+
+
+def _product(factors: Sequence[float | tuple[int]]) -> float:
+    """The factors multiplied in part order from 1.0, as the group-by-group path does."""
+    result = 1.0
+    for f in factors:
+        assert isinstance(f, float)
+        result *= f
+    return result
+
+
+def _unchecked_sums(commands: Sequence[CompiledCommand], kinds: Sequence[_Kind]) -> frozenset[int]:
+    """Kinds whose choice's probabilities are not statically known to sum to 1."""
+    found = set()
+    for k, kind in enumerate(kinds):
+        totals = [commands[c].constant_total for c in kind.commands]
+        if any(t is None for t in totals) or not abs(_product_of(totals) - 1.0) <= _TOLERANCE:
+            found.add(k)
+    return frozenset(found)
+
+
+def _product_of(values: Sequence[float | None]) -> float:
+    return math.prod(v for v in values if v is not None)
+
+
+def _action_kinds(kinds: Sequence[_Kind]) -> dict[str | None, IntArray]:
+    found: dict[str | None, list[int]] = {}
+    for k, kind in enumerate(kinds):
+        found.setdefault(kind.action, []).append(k)
+    return {a: np.array(ks, dtype=np.int64) for a, ks in found.items()}
+
+
+# ---------------------------------------------------------------------------
+# Expanding a layer
+# ---------------------------------------------------------------------------
+
+
+def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> FusedExpansion | None:
+    enabled, choices = _enabled(plan, states)
+    src, kind = np.nonzero(enabled)
+    present = np.flatnonzero(enabled.any(axis=0)).tolist()
+    widths = plan.widths[kind]
+    total = int(widths.sum())
+    if total == src.size:  # one branch per choice
+        branch, source, firsts = plan.starts[kind], src, np.arange(total)
+    else:
+        firsts = np.cumsum(widths) - widths
+        branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(total)
+        source = np.repeat(src, widths)
+    targets = _targets(plan.values, states, enabled, present, (branch, source))
+    probability = _probabilities(plan.factors, states, enabled, present, (branch, source))
+    if probability is None or not _sums_ok(plan, present, probability, firsts, kind):
+        return None
+    if (targets < plan.lows).any() or (targets > plan.highs).any():
+        return None
+    if choices.max(initial=0) > 1:
+        probability /= np.maximum(choices, 1)[source]
+    keep = probability > 0
+    dropped = np.empty(0, dtype=np.int64)
+    if not keep.all():
+        dropped = np.flatnonzero(~keep)
+        source, targets, probability = source[keep], targets[keep], probability[keep]
+    actions = _action_choices(plan, enabled, rewarded)
+    return FusedExpansion(source, targets, probability, choices, actions, dropped, total)
+
+
+def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
+    """Enabledness ``(n, kinds + 1)`` (the last column: deadlock) and choices per state."""
+    guards = np.ones((states.shape[0], plan.commands + 1), dtype=bool)  # always-true ones stay
+    for i, guard in plan.guards:
+        guards[:, i] = guard(states)
+    table = plan.kind_commands
+    enabled = guards[:, table[:, 0]]
+    for p in range(1, table.shape[1]):
+        enabled &= guards[:, table[:, p]]
+    choices = np.count_nonzero(enabled[:, : plan.kinds], axis=1).astype(np.int64)
+    enabled[:, plan.kinds] = choices == 0
+    return enabled, choices
+
+
+def _fill(
+    table: np.ndarray,
+    base: int,
+    exprs: tuple[tuple[_Expr, ...], tuple[frozenset[int], ...]],
+    states: IntArray,
+    enabled: BoolArray,
+    present: list[int],
+) -> None:
+    """Evaluate the expressions the present kinds need into rows ``base + e`` of *table*.
+
+    :raises ModelError: an integer table receives floats (the slow path reports it).
+    """
+    found, kind_exprs = exprs
+    needed = frozenset().union(*(kind_exprs[k] for k in present))
+    integer = table.dtype.kind == "i"
+    for e in needed:
+        expr = found[e]
+        if expr.risky:  # only where a kind using it is enabled
+            rows = np.flatnonzero(enabled[:, expr.kinds].any(axis=1))
+            value = np.asarray(expr.fn(states[rows]))
+        else:
+            rows, value = None, np.asarray(expr.fn(states))
+        if integer and value.dtype.kind == "f":
+            raise ModelError("non-integer assignment")
+        if rows is None:
+            table[base + e] = value
+        else:
+            table[base + e, rows] = value
+
+
+def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) -> np.ndarray:
+    """``table[rows[branch, j], source]`` for every branch and column *j*, in one take."""
+    branch, source = at
+    index = rows[branch]
+    index *= table.shape[1]
+    index += source[:, None]
+    return table.ravel().take(index)
+
+
+def _targets(
+    values: _Values,
+    states: IntArray,
+    enabled: BoolArray,
+    present: list[int],
+    at: tuple[IntArray, IntArray],
+) -> IntArray:
+    n, width = states.shape
+    base = width + values.constants.size
+    table = np.empty((base + len(values.exprs), n), dtype=np.int64)
+    table[:width] = states.T
+    table[width:base] = values.constants[:, None]
+    _fill(table, base, (values.exprs, values.kind_exprs), states, enabled, present)
+    targets: IntArray = _gather(table, values.rows, at)
+    return targets
+
+
+def _probabilities(
+    factors: _Factors,
+    states: IntArray,
+    enabled: BoolArray,
+    present: list[int],
+    at: tuple[IntArray, IntArray],
+) -> FloatArray | None:
+    """Branch probabilities before the 1/n weighting; None if a factor is negative."""
+    if factors.constant is not None:
+        constant: FloatArray = factors.constant[at[0]]
+        return constant
+    base = 1 + factors.constants.size
+    table = np.empty((base + len(factors.exprs), states.shape[0]), dtype=np.float64)
+    table[0] = 1.0
+    table[1:base] = factors.constants[:, None]
+    _fill(table, base, (factors.exprs, factors.kind_exprs), states, enabled, present)
+    gathered = _gather(table, factors.rows, at)
+    if gathered.min(initial=0.0) < 0:
+        return None
+    probability: FloatArray = gathered[:, 0].copy()
+    for p in range(1, gathered.shape[1]):  # in part order, as the group-by-group path
+        probability *= gathered[:, p]
+    return probability
+
+
+def _sums_ok(
+    plan: LayerPlan, present: list[int], probability: FloatArray, firsts: IntArray, kind: IntArray
+) -> bool:
+    if plan.unchecked_sums.isdisjoint(present) or probability.size == 0:
+        return True
+    sums = np.add.reduceat(probability, firsts)
+    live = kind < plan.kinds
+    return bool(np.all(np.abs(sums[live] - 1.0) <= _TOLERANCE))
+
+
+def _action_choices(
+    plan: LayerPlan, enabled: BoolArray, rewarded: set[str | None]
+) -> dict[str | None, IntArray]:
+    """Per rewarded action with a choice in this layer, its number of choices per state."""
+    actions, order, starts = _members(plan, frozenset(rewarded))
+    if not actions:
+        return {}
+    counts = np.add.reduceat(enabled[:, order], starts, axis=1, dtype=np.int64)
+    present = np.count_nonzero(counts, axis=0) > 0
+    return {a: counts[:, i] for i, a in enumerate(actions) if present[i]}
+
+
+def _members(
+    plan: LayerPlan, rewarded: frozenset[str | None]
+) -> tuple[list[str | None], IntArray, IntArray]:
+    """The rewarded actions that have kinds, their kinds in that order, and where each starts."""
+    found = plan.members.get(rewarded)
+    if found is None:
+        actions = [a for a in plan.action_kinds if a in rewarded]
+        groups = [plan.action_kinds[a] for a in actions]
+        order = np.concatenate(groups) if groups else np.empty(0, dtype=np.int64)
+        sizes = np.array([g.size for g in groups], dtype=np.int64)
+        found = plan.members[rewarded] = (actions, order, np.cumsum(sizes) - sizes)
+    return found

@@ -1,0 +1,162 @@
+"""The fused layer expansion equals the group-by-group one, bit for bit, layer by layer."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import PEER_TESTS
+from veribattery.errors import ModelError
+from veribattery.explore import build_dtmc
+from veribattery.explore import builder as builder_module
+from veribattery.explore.builder import Layer, explore
+from veribattery.explore.fused import plan_layers
+from veribattery.explore.program import compile_program
+from veribattery.lang.nodes import FlatModel
+from veribattery.lang.parser import parse_model
+from veribattery.lang.semantics import flatten_model
+
+MODELS = {
+    # several commands in one module, some overlapping (1/n weighting), a deadlock
+    "nondeterministic": """dtmc
+module m
+  x : [0..5] init 0;
+  [] x<3 -> 0.5:(x'=x+1) + 0.5:(x'=0);
+  [] x=1 -> (x'=4);
+  [] x=2 -> 0.25:(x'=5) + 0.75:true;
+endmodule
+""",
+    # synchronisation with several commands per part: a product of choices
+    "product": """dtmc
+module a
+  x : [0..3] init 0;
+  [s] x<3 -> 0.3:(x'=x+1) + 0.7:true;
+  [s] x>0 -> (x'=x-1);
+  [] x=3 -> (x'=0);
+endmodule
+module b
+  y : [0..2] init 0;
+  [s] y<2 -> 0.6:(y'=y+1) + 0.4:(y'=0);
+  [s] y=2 -> (y'=0);
+  [s] y>=1 -> 1/(y+1):(y'=y-1) + 1-1/(y+1):true;
+endmodule
+rewards "r"
+  [s] true : 1;
+  [] x=3 : 2;
+endrewards
+""",
+    # state-dependent probabilities, a division guarded by its command, booleans,
+    # a zero-probability branch (dropped) and an assignment from another module's variable
+    "expressions": """dtmc
+const int N = 6;
+module c
+  n : [0..N] init 0;
+  f : bool init false;
+  [go] n<N -> n/N:(n'=n+1) + 1-n/N:(n'=n+1)&(f'=!f) + 0:(n'=0);
+  [go] n=N -> (n'=floor(N/(n-N+1)) - N);
+  [] f & n=N -> (f'=false);
+endmodule
+module d
+  m : [0..N] init 1;
+  [go] m>0 -> (m'=min(N, floor(12/m)));
+  [go] m=0 -> (m'=n);
+endmodule
+""",
+}
+
+
+def _layers(model: FlatModel, fused: bool) -> tuple[np.ndarray, np.ndarray, list[Layer]]:
+    saved = builder_module._plan
+    if not fused:
+        builder_module._plan = lambda program: None  # type: ignore[assignment]
+    try:
+        return explore(model, compile_program(model))
+    finally:
+        builder_module._plan = saved
+
+
+def _assert_same_exploration(model: FlatModel) -> None:
+    states, initial, layers = _layers(model, fused=True)
+    expected_states, expected_initial, expected = _layers(model, fused=False)
+    np.testing.assert_array_equal(states, expected_states)
+    np.testing.assert_array_equal(initial, expected_initial)
+    assert len(layers) == len(expected)
+    for got, want in zip(layers, expected, strict=True):
+        for name in ("rows", "columns", "probabilities", "choices", "dropped"):
+            np.testing.assert_array_equal(getattr(got, name), getattr(want, name), err_msg=name)
+        assert got.probabilities.tobytes() == want.probabilities.tobytes()  # bit for bit
+        assert got.branches == want.branches
+        assert got.action_choices.keys() == want.action_choices.keys()
+        for action, counts in want.action_choices.items():
+            np.testing.assert_array_equal(got.action_choices[action], counts)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_fused_equals_group_by_group(name: str) -> None:
+    model = flatten_model(parse_model(MODELS[name]), {})
+    assert plan_layers(compile_program(model)) is not None  # the fused path is exercised
+    _assert_same_exploration(model)
+
+
+def test_hand_solved_product_chain() -> None:
+    """Counts and probabilities of the product model, worked out by hand from the start."""
+    dtmc = build_dtmc(flatten_model(parse_model(MODELS["product"]), {}))
+    matrix = dtmc.transitions.toarray()
+    start = int(dtmc.initial[0])
+    row = {tuple(int(v) for v in dtmc.states[j]): matrix[start, j] for j in range(dtmc.num_states)
+           if matrix[start, j]}
+    # From (0,0): a's first [s] (x<3) with b's first [s] (y<2); one choice.
+    assert row == pytest.approx({(1, 1): 0.18, (1, 0): 0.12, (0, 1): 0.42, (0, 0): 0.28})
+    np.testing.assert_allclose(matrix.sum(axis=1), 1.0)
+
+
+def test_layer_with_an_error_is_located_by_the_slow_path() -> None:
+    text = """dtmc
+module m
+  x : [0..3] init 0;
+  [] x<3 -> (x'=x+2);
+  [] x=3 -> true;
+endmodule
+"""
+    with pytest.raises(ModelError, match=r"update sets x to 4, outside its range 0\.\.3"):
+        build_dtmc(flatten_model(parse_model(text), {}))
+
+
+def test_bad_probability_sum_is_reported() -> None:
+    text = """dtmc
+module m
+  x : [0..3] init 0;
+  [] x<3 -> x/10:(x'=x+1) + 0.5:true;
+  [] x=3 -> true;
+endmodule
+"""
+    with pytest.raises(ModelError, match=r"probabilities sum to 0\.5, not 1, in state"):
+        build_dtmc(flatten_model(parse_model(text), {}))
+
+
+def _peer_cases(limit: int) -> list[tuple[str, dict[str, str]]]:
+    manifest = PEER_TESTS / "prism-examples" / "manifest.json"
+    if not manifest.is_file():
+        return []
+    data = json.loads(manifest.read_text())
+    return [
+        (m["model"], s["constants"])
+        for m in data["models"]
+        for s in m["settings"]
+        if s["states"] <= limit
+    ]
+
+
+PEER = _peer_cases(20_000)
+
+
+@pytest.mark.skipif(not PEER, reason="peer suite manifest not found (../shared is absent)")
+@pytest.mark.parametrize(
+    "case", PEER, ids=[f"{Path(m).stem}{sorted(c.items())}" for m, c in PEER]
+)
+def test_fused_equals_group_by_group_on_peer_models(case: tuple[str, dict[str, str]]) -> None:
+    path = PEER_TESTS / "prism-examples" / case[0]
+    _assert_same_exploration(flatten_model(parse_model(path), case[1]))
