@@ -208,6 +208,24 @@ class Factorization:
                 break
         return x
 
+    def approximate(self, b: FloatArray) -> FloatArray | None:
+        """One application of the direct solver to *b*: no refinement, no acceptance test
+        (None when there is no direct solver or the result is not finite).
+
+        For callers that certify the answer anyway and only need the full rule of
+        :meth:`solve` when the certified interval comes out too wide.
+        """
+        if not b.any():
+            return np.zeros(b.shape, dtype=np.float64)
+        inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
+        if inverse is None or self._iterative:
+            return None
+        try:
+            x = np.asarray(inverse(np.ascontiguousarray(b, dtype=np.float64)), dtype=np.float64)
+        except RuntimeError:
+            return None
+        return x if np.all(np.isfinite(x)) else None
+
     def correction(self, v: FloatArray) -> FloatArray | None:
         """An approximate ``A^{-1} v`` for certification margins (None if unavailable).
 
