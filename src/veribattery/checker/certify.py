@@ -84,7 +84,7 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
     with np.errstate(over="ignore", invalid="ignore"):
         bound = (4.0 * UNIT_ROUNDOFF) * roundings * magnitude * _SAFETY + underflows * (2 * ETA)
     bound = np.where(np.isnan(bound), np.inf, bound)
-    return np.where(bound > 0, round_up(bound), 0.0)
+    return np.where(bound > 0, step_up(bound), 0.0)
 
 
 def error_coefficient(roundings: FloatArray) -> FloatArray:
@@ -123,8 +123,8 @@ def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = Non
         count = count + (offset != 0)
     roundings = np.maximum(count - 1.0, 0.0) if exact else count
     error = product_error(magnitude, roundings, np.zeros_like(y) if exact else count)
-    with np.errstate(invalid="ignore"):
-        lower, upper = round_down(y - error), round_up(y + error)
+    with np.errstate(invalid="ignore"):  # (+inf stepped down or -inf up: NaN, mapped below)
+        lower, upper = step_down(y - error), step_up(y + error)
     lower = np.where(error == 0, y, lower)
     upper = np.where(error == 0, y, upper)
     return y, np.where(np.isnan(lower), -np.inf, lower), np.where(np.isnan(upper), np.inf, upper)
@@ -258,35 +258,47 @@ def _off_diagonal(rows: CsrMatrix, states: IntArray) -> sp.csr_matrix:
     return sp.csr_matrix((rows.data[keep], rows.indices[keep], indptr), shape=rows.shape)
 
 
+def _fast_images(F: AffineMap) -> bool:
+    """Whether ``F.images`` agrees with ``F.lower``/``F.upper``: a subclass that
+    overrides those must override :meth:`AffineMap.images` too to get the fast path."""
+    kind = type(F)
+    own = kind.lower is AffineMap.lower and kind.upper is AffineMap.upper
+    return own or kind.images is not AffineMap.images
+
+
 def quick_certificate(F: AffineMap, x: FloatArray, correct: Correction | None,
                       floor: FloatArray, ceiling: FloatArray
                       ) -> tuple[FloatArray, FloatArray] | None:
-    """:func:`certify_fixpoint`'s first candidate pair, tested in two products, or None.
+    """:func:`certify_fixpoint`'s first candidate pair, tested once, or None.
 
-    The common case of a nonnegative map and a good approximation *x*: the defect
+    The common case of a good approximation *x*: the defect
     of *x* (one product), the margin ``d`` from one substitution (*correct*), then
     ``u = x + 2 d + slack`` and ``l = x - 2 d - slack`` tested together (one
-    two-column product). Valid exactly as :func:`certify_fixpoint`: a vector that
+    pass over both vectors; for a nonnegative :class:`AffineMap` with the cheap
+    rounding of :func:`step_up`, otherwise with the map's own ``lower``/``upper``).
+    Valid exactly as :func:`certify_fixpoint`: a vector that
     passes ``F(u) <= u`` bounds the fixed point from above, whatever produced it.
     None when any state fails or the data are outside this case; the caller then
     runs :func:`certify_fixpoint`.
     """
-    if (type(F) is not AffineMap or correct is None or not F.nonnegative
-            or not (np.all(np.isfinite(x)) and np.all(x >= 0))):
+    if correct is None or not np.all(np.isfinite(x)):
         return None
-    low, high = F.images(x, x)
+    fast = _fast_images(F) and F.nonnegative and bool(np.all(x >= 0))
+    images = F.images if fast else (lambda lo, hi: (F.lower(lo), F.upper(hi)))
+    low, high = images(x, x)
     defect = step_up(np.maximum(np.maximum(high - x, x - low), 0.0))
     margin = correct(defect) if np.all(np.isfinite(defect)) else None
     if margin is None or not np.all(np.isfinite(margin)):
         return None
     margin = np.maximum(margin, defect)
-    slack = 4.0 * UNIT_ROUNDOFF * x + ETA
-    bottom = np.maximum(floor, 0.0)  # 0 passes the lower test itself: the map is >= 0
+    slack = 4.0 * UNIT_ROUNDOFF * np.abs(x) + ETA
+    # With a nonnegative map 0 passes the lower test itself: F(0) >= 0.
+    bottom = np.maximum(floor, 0.0) if fast else floor
     upper = np.minimum(step_up(x + 2.0 * margin + slack), ceiling)
     lower = np.maximum(step_down(x - 2.0 * margin - slack), bottom)
     if not np.all(np.isfinite(upper)):
         return None
-    image_low, image_high = F.images(lower, upper)
+    image_low, image_high = images(lower, upper)
     # Where a bound sits at the trivial one it needs no test: l >= bottom gives
     # F(l) >= F(bottom) >= bottom exactly (and u <= ceiling likewise), whereas the
     # enclosure of F(ceiling) is a few ulps above it.

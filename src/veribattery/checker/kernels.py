@@ -320,14 +320,27 @@ def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
     """
     if F.states.size < QUICK_MIN_STATES:
         return None
-    b = np.asarray(_right_side(system, known, offset, np.float64), dtype=np.float64)
-    x = system.factorization.approximate(b)
+    n = F.states.size
+    return quick_bounds(F, system.factorization, _right_side(system, known, offset, np.float64),
+                        np.full(n, floor), np.full(n, ceiling))
+
+
+def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
+                 b: npt.NDArray[np.floating], floor: FloatArray, ceiling: FloatArray
+                 ) -> Bounds | None:
+    """The fixed point of *F* (system ``solver.A x = b``) from one unrefined substitution,
+    certified by :func:`certify.quick_certificate` -- or None when the system is
+    below ``QUICK_MIN_STATES``, the pair fails its test or is not precise enough.
+
+    For the kernels here and in :mod:`~veribattery.checker.conditional`.
+    """
+    if F.states.size < QUICK_MIN_STATES:
+        return None
+    x = solver.approximate(np.asarray(b, dtype=np.float64))
     if x is None:
         return None
     x = np.clip(x, floor, ceiling)
-    n = F.states.size
-    pair = certify.quick_certificate(F, x, system.factorization.correction,
-                                     np.full(n, floor), np.full(n, ceiling))
+    pair = certify.quick_certificate(F, x, solver.correction, floor, ceiling)
     if pair is None:
         return None
     found = Bounds.around(x, *pair)

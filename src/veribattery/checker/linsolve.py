@@ -29,7 +29,10 @@ meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -304,37 +307,105 @@ def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     return lu.solve  # type: ignore[no-any-return]
 
 
-def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
-    """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
+@dataclass(frozen=True, slots=True)
+class _TriangularPlan:
+    """What :func:`_triangular_inverse` derives from *A64*'s sparsity pattern alone.
 
-    The strongly connected components come numbered in reverse topological order
-    (Tarjan/Pearce), which the permuted pattern is checked against: a state's
-    successors precede it, so the permuted matrix is lower triangular.
+    Matrices of one pattern (a structure-reusing sweep: same states and transitions,
+    other probabilities) share it, so only the values are gathered anew.
+
+    :param order: ``order[k]`` is the state at topological position *k*.
+    :param diagonal_at: per position, the index of its diagonal entry in ``A64.data``.
+    :param gather: ``A64.data`` indices in the order of the CSC data of the
+        permuted lower-triangular matrix.
+    :param columns: the (permuted) column of each entry of that CSC data.
     """
+
+    order: npt.NDArray[np.int64]
+    diagonal_at: npt.NDArray[np.int64]
+    gather: npt.NDArray[np.int64]
+    columns: npt.NDArray[np.int64]
+    indices: npt.NDArray[np.intc]
+    indptr: npt.NDArray[np.intc]
+
+
+#: Plans of the last few patterns, by digest (see :func:`_pattern_digest`).
+PLANS_KEPT = 4
+_PLANS: OrderedDict[bytes, _TriangularPlan | None] = OrderedDict()
+
+
+def _pattern_digest(A64: sp.csr_matrix) -> bytes:
+    """A digest of *A64*'s shape and stored positions (not its values)."""
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.asarray(A64.shape, dtype=np.int64).tobytes())
+    digest.update(np.ascontiguousarray(A64.indptr).data)
+    digest.update(np.ascontiguousarray(A64.indices).data)
+    return digest.digest()
+
+
+def _triangular_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
+    """The plan of *A64*'s pattern (None if its graph has a cycle), memoised by pattern."""
+    A64.sum_duplicates()  # canonical: one stored entry per position
+    key = _pattern_digest(A64)
+    if key in _PLANS:
+        _PLANS.move_to_end(key)
+        return _PLANS[key]
+    plan = _new_plan(A64)
+    _PLANS[key] = plan
+    while len(_PLANS) > PLANS_KEPT:
+        _PLANS.popitem(last=False)
+    return plan
+
+
+def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
+    """Topological positions from the SCC labelling (Tarjan/Pearce numbers them in
+    reverse topological order), checked against the pattern: lower triangular."""
     n = A64.shape[0]
     count, labels = csgraph.connected_components(A64, directed=True, connection="strong")
     if count != n:
         return None
-    coo = A64.tocoo()
+    row_of = np.repeat(np.arange(n, dtype=np.int64), np.diff(A64.indptr))
     position = labels.astype(np.int64)
-    rows, cols = position[coo.row], position[coo.col]
+    rows, cols = position[row_of], position[A64.indices]
     if np.any(cols > rows):  # not the order expected: try the opposite one
         position = n - 1 - position
         rows, cols = n - 1 - rows, n - 1 - cols
         if np.any(cols > rows):
             return None
-    diagonal = np.zeros(n, dtype=np.float64)
-    on_diagonal = rows == cols
-    np.add.at(diagonal, rows[on_diagonal], coo.data[on_diagonal])
+    on_diagonal = np.flatnonzero(rows == cols)
+    if on_diagonal.size != n:
+        return None
+    diagonal_at = np.empty(n, dtype=np.int64)
+    diagonal_at[rows[on_diagonal]] = on_diagonal
+    gather = np.lexsort((rows, cols))
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))])
+    order = np.empty(n, dtype=np.int64)
+    order[position] = np.arange(n)
+    return _TriangularPlan(order, diagonal_at, gather, cols[gather],
+                           rows[gather].astype(np.intc), indptr.astype(np.intc))
+
+
+def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
+    """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
+
+    The permutation and the triangular matrix's structure come from the pattern's
+    plan (:func:`_triangular_plan`, shared by matrices of one pattern); the values
+    are gathered from *A64*: a state's successors precede it, so the permuted
+    matrix is lower triangular.
+    """
+    n = A64.shape[0]
+    plan = _triangular_plan(A64)
+    if plan is None:
+        return None
+    diagonal = np.asarray(A64.data[plan.diagonal_at], dtype=np.float64)
     if not np.all(diagonal > 0):
         return None
     scale = 1.0 / diagonal
     # Columns scaled to a unit diagonal: L y = b, then x = y / diagonal.
-    lower = sp.csc_matrix((coo.data * scale[cols], (rows, cols)), shape=(n, n))
-    lower.sum_duplicates()
+    data = A64.data[plan.gather] * scale[plan.columns]
+    lower = sp.csc_matrix((data, plan.indices, plan.indptr), shape=(n, n))
     substitute = _substitution(lower)
-    order = np.empty(n, dtype=np.int64)
-    order[position] = np.arange(n)
+    order = plan.order
 
     def apply(b: FloatArray) -> FloatArray:
         x = np.empty(n, dtype=np.float64)
@@ -373,12 +444,20 @@ def _substitution(lower: sp.csc_matrix) -> _Inverse:
     try:
         if _superlu is None:
             return public
+        if _PRIVATE_CHECKED:
+            return private
         probe = private(np.ones(n, dtype=np.float64))
         if np.all(np.isfinite(probe)) and np.allclose(lower @ probe, 1.0):
+            _PRIVATE_CHECKED.append(True)
             return private
     except Exception:
         pass
     return public
+
+
+#: Non-empty once the private triangular solve has been seen to solve ``L y = 1``
+#: (a property of the installed scipy, so probed once per process).
+_PRIVATE_CHECKED: list[bool] = []
 
 
 def backward_error(A: sp.csr_matrix, x: FloatArray, b: ExtArray,
