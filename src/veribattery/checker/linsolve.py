@@ -85,8 +85,20 @@ def restricted_parts(P: CsrMatrix, maybe: BoolArray
     rounded to nearest) and the extended-precision rounding residue of the diagonal.
 
     The off-diagonal entries are stored probabilities, exact in float64, so only
-    the diagonal needs more: 8 bytes per state instead of 16 per nonzero.
+    the diagonal needs more: 8 bytes per state instead of 16 per nonzero. Index
+    work depends only on *P*'s pattern and *maybe*, so it is memoised by them
+    (:class:`_RestrictionPlan`); the values are then gathered.
     """
+    plan = _restriction_plan(P, maybe)
+    if plan is not None:
+        found = plan.apply(P)
+        if found is not None:
+            return found
+    return _restricted_parts(P, maybe)
+
+
+def _restricted_parts(P: CsrMatrix, maybe: BoolArray
+                      ) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix]:
     idx = np.flatnonzero(maybe)
     rows = sp.csr_matrix(P[idx])
     row_of = np.repeat(np.arange(idx.size), np.diff(rows.indptr))
@@ -99,6 +111,98 @@ def restricted_parts(P: CsrMatrix, maybe: BoolArray
     A64 = sp.csr_matrix(sp.diags(leave64, format="csr") - off)
     A64.sort_indices()
     return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+
+
+@dataclass(frozen=True, slots=True)
+class _RestrictionPlan:
+    """The index work of :func:`restricted_parts` for one pattern of *P* and *maybe*.
+
+    :param gather: positions in ``P.data`` of the entries of ``P[maybe]``, in order.
+    :param movers: positions, among those, of the entries that leave their row's state.
+    :param mover_rows: the row of each mover.
+    :param source: per entry of ``A64``: ``-1 - i`` for row *i*'s diagonal (the
+        leaving probability), else the position in the gathered data (negated).
+    """
+
+    shape: tuple[int, int]
+    gather: npt.NDArray[np.int64]
+    rows_indices: npt.NDArray[np.int32]
+    rows_indptr: npt.NDArray[np.int64]
+    movers: npt.NDArray[np.int64]
+    mover_rows: npt.NDArray[np.int64]
+    source: npt.NDArray[np.int64]
+    a_indices: npt.NDArray[np.int32]
+    a_indptr: npt.NDArray[np.int32]
+
+    def apply(self, P: CsrMatrix) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix] | None:
+        """The parts for *P* (of the plan's pattern), equal bit for bit to a fresh
+        computation; None when a leaving probability is 0 (the plan assumed not)."""
+        m = self.shape[0]
+        data = np.asarray(P.data[self.gather], dtype=np.float64)
+        rows = sp.csr_matrix((data, self.rows_indices, self.rows_indptr), shape=(m, P.shape[1]))
+        leave = _row_sums(self.mover_rows, data[self.movers].astype(np.longdouble), m)
+        leave64 = leave.astype(np.float64)
+        if not np.all(leave64 != 0):
+            return None
+        diagonal = self.source < 0
+        a_data = np.where(diagonal, leave64[np.where(diagonal, -1 - self.source, 0)],
+                          -data[np.where(diagonal, 0, self.source)])
+        A64 = sp.csr_matrix((a_data, self.a_indices, self.a_indptr), shape=self.shape)
+        return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+
+
+#: Restriction plans of the last few (pattern, unknown states) pairs.
+RESTRICTIONS_KEPT = 8
+_RESTRICTIONS: OrderedDict[bytes, _RestrictionPlan | None] = OrderedDict()
+
+
+def _restriction_plan(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
+    """The memoised plan of *P*'s pattern (positions and positive entries) and *maybe*."""
+    if not P.has_canonical_format:
+        return None
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
+    digest.update(np.ascontiguousarray(P.indptr).data)
+    digest.update(np.ascontiguousarray(P.indices).data)
+    digest.update(np.packbits(P.data != 0).data)
+    digest.update(np.packbits(maybe).data)
+    key = digest.digest()
+    if key in _RESTRICTIONS:
+        _RESTRICTIONS.move_to_end(key)
+        return _RESTRICTIONS[key]
+    plan = _new_restriction(P, maybe)
+    _RESTRICTIONS[key] = plan
+    while len(_RESTRICTIONS) > RESTRICTIONS_KEPT:
+        _RESTRICTIONS.popitem(last=False)
+    return plan
+
+
+def _new_restriction(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
+    """Run :func:`_restricted_parts` once on tags instead of values to learn where
+    every entry goes: a stored value ``v`` is tagged ``k + 1`` (its gathered
+    position), a leaving probability ``i + 1`` (its row), so that each entry of
+    ``A64`` (``leave`` on the diagonal, ``-v`` off it) names its source."""
+    idx = np.flatnonzero(maybe)
+    lengths = np.diff(P.indptr)[idx]
+    starts = np.asarray(P.indptr[idx], dtype=np.int64)
+    offsets = np.repeat(starts - (np.cumsum(lengths) - lengths), lengths)
+    gather = offsets + np.arange(int(lengths.sum()), dtype=np.int64)
+    tags = np.where(P.data[gather] != 0, np.arange(1, gather.size + 1, dtype=np.float64), 0.0)
+    rows = sp.csr_matrix((tags, P.indices[gather],
+                          np.concatenate([[0], np.cumsum(lengths)])), shape=(idx.size, P.shape[1]))
+    row_of = np.repeat(np.arange(idx.size), lengths)
+    moves = rows.indices != idx[row_of]
+    inner = sp.csr_matrix(rows[:, idx])
+    off = sp.csr_matrix(inner - sp.diags(inner.diagonal(), format="csr"))
+    off.eliminate_zeros()
+    tagged = sp.csr_matrix(sp.diags(np.arange(1, idx.size + 1, dtype=np.float64),
+                                    format="csr") - off)
+    tagged.sort_indices()
+    # On the diagonal: i + 1 -> -1 - i; off it: -(k + 1) -> k.
+    source = np.where(tagged.data > 0, -tagged.data, -tagged.data - 1).astype(np.int64)
+    return _RestrictionPlan((idx.size, idx.size), gather, rows.indices.copy(),
+                            rows.indptr.astype(np.int64), np.flatnonzero(moves),
+                            row_of[moves], source, tagged.indices.copy(), tagged.indptr.copy())
 
 
 def _diagonal_residue(residue: ExtArray) -> sp.csr_matrix:
