@@ -315,7 +315,7 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     high = np.where(exact, np.maximum(offsets[1], offsets[2]),
                     round_up(np.maximum(offsets[1], offsets[2])))
     rows, solver = kernels.linear_system(P, maybe)
-    below = certify.AffineMap.of(rows, np.flatnonzero(maybe), known.lower, known.lower, low)
+    below = kernels.affine_map(P, maybe, known.lower, known.lower, low)
     F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
                           offset=high), below)
     rhs = offsets[0].astype(np.longdouble) + rows.astype(np.longdouble) @ known.value

@@ -166,6 +166,13 @@ def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
     return found
 
 
+def affine_map(P: CsrMatrix, maybe: BoolArray, known_lower: FloatArray,
+               known_upper: FloatArray, offset: FloatArray | None) -> certify.AffineMap:
+    """The fixed-point map on *maybe* (see :class:`certify.AffineMap`), its row data
+    shared with every other map of this matrix on the same states."""
+    return _system(P, maybe).affine(maybe, known_lower, known_upper, offset)
+
+
 def linear_system(P: CsrMatrix, maybe: BoolArray) -> tuple[CsrMatrix, linsolve.Factorization]:
     """The rows ``P[maybe, :]`` and the prepared solver of ``I - P_mm``, memoised per matrix.
 
