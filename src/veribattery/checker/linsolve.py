@@ -151,13 +151,14 @@ class _RestrictionPlan:
         return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
 
 
-#: Restriction plans of the last few (pattern, unknown states) pairs.
+#: Restriction plans of the last few (pattern, unknown states) pairs (None: seen once).
 RESTRICTIONS_KEPT = 8
 _RESTRICTIONS: OrderedDict[bytes, _RestrictionPlan | None] = OrderedDict()
 
 
 def _restriction_plan(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
-    """The memoised plan of *P*'s pattern (positions and positive entries) and *maybe*."""
+    """The memoised plan of *P*'s pattern (positions and positive entries) and *maybe*,
+    made the second time they are seen (None the first time)."""
     if not P.has_canonical_format:
         return None
     digest = hashlib.blake2b(digest_size=20)
@@ -167,10 +168,11 @@ def _restriction_plan(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None
     digest.update(np.packbits(P.data != 0).data)
     digest.update(np.packbits(maybe).data)
     key = digest.digest()
-    if key in _RESTRICTIONS:
+    plan = None
+    if key in _RESTRICTIONS:  # seen before: a sweep re-uses the pattern, worth a plan
         _RESTRICTIONS.move_to_end(key)
-        return _RESTRICTIONS[key]
-    plan = _new_restriction(P, maybe)
+        plan = _RESTRICTIONS[key] or _new_restriction(P, maybe)
+    # A pattern seen once is only remembered (a single check never pays for a plan).
     _RESTRICTIONS[key] = plan
     while len(_RESTRICTIONS) > RESTRICTIONS_KEPT:
         _RESTRICTIONS.popitem(last=False)
