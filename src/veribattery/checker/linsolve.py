@@ -424,15 +424,18 @@ class _TriangularPlan:
     :param diagonal_at: per position, the index of its diagonal entry in ``A64.data``.
     :param gather: ``A64.data`` indices in the order of the CSC data of the
         permuted lower-triangular matrix.
-    :param columns: the (permuted) column of each entry of that CSC data.
+    (Index arrays are stored as int32, as scipy's own for these sizes.)
     """
 
-    order: npt.NDArray[np.int64]
-    diagonal_at: npt.NDArray[np.int64]
-    gather: npt.NDArray[np.int64]
-    columns: npt.NDArray[np.int64]
+    order: npt.NDArray[np.int32]
+    diagonal_at: npt.NDArray[np.int32]
+    gather: npt.NDArray[np.int32]
     indices: npt.NDArray[np.intc]
     indptr: npt.NDArray[np.intc]
+
+    def columns(self) -> npt.NDArray[np.int64]:
+        """The (permuted) column of each entry of the CSC data."""
+        return np.repeat(np.arange(self.indptr.size - 1), np.diff(self.indptr))
 
 
 #: Plans of the last few patterns, by digest (see :func:`_pattern_digest`).
@@ -487,7 +490,8 @@ def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
     indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))])
     order = np.empty(n, dtype=np.int64)
     order[position] = np.arange(n)
-    return _TriangularPlan(order, diagonal_at, gather, cols[gather],
+    small = np.int32 if A64.nnz < 2**31 else np.int64
+    return _TriangularPlan(order.astype(small), diagonal_at.astype(small), gather.astype(small),
                            rows[gather].astype(np.intc), indptr.astype(np.intc))
 
 
@@ -508,7 +512,7 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
         return None
     scale = 1.0 / diagonal
     # Columns scaled to a unit diagonal: L y = b, then x = y / diagonal.
-    data = A64.data[plan.gather] * scale[plan.columns]
+    data = A64.data[plan.gather] * scale[plan.columns()]
     lower = sp.csc_matrix((data, plan.indices, plan.indptr), shape=(n, n))
     substitute = _substitution(lower)
     order = plan.order
