@@ -19,6 +19,7 @@ each side stays certified (:func:`interval_iteration`).
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -41,6 +42,28 @@ INTERVAL_WORK = 400_000_000
 #: Solves ``(I - P_mm) d = v`` approximately (None: not available).
 Correction = Callable[[FloatArray], FloatArray | None]
 
+#: ``u (1 + 2u)``, exact in float64: ``fl(c + fl(PHI |c| + ETA))`` is at least the
+#: successor of *c* (Rump, Zimmermann, Boldo, Melquiond, BIT 49 (2009), Algorithm 2).
+_PHI = 2.0**-53 + 2.0**-105
+
+
+def step_up(c: FloatArray) -> FloatArray:
+    """An upper bound of the successor of each entry, in three vectorised operations.
+
+    :func:`~veribattery.checker.bounds.round_up` (``nextafter``) is exact but costs
+    a libm call per entry; this is the same bound, at most one float further out.
+    Valid for finite entries and ``+inf``; ``-inf`` gives NaN (callers exclude it).
+    """
+    return np.asarray(c + (_PHI * np.abs(c) + ETA), dtype=np.float64)
+
+
+def step_down(c: FloatArray) -> FloatArray:
+    """A lower bound of the predecessor of each entry (see :func:`step_up`).
+
+    Valid for finite entries and ``-inf``; ``+inf`` gives NaN.
+    """
+    return np.asarray(c - (_PHI * np.abs(c) + ETA), dtype=np.float64)
+
 
 def row_terms(M: CsrMatrix) -> FloatArray:
     """Number of stored entries of each row of *M* (as floats, for the error bound)."""
@@ -61,7 +84,7 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
     with np.errstate(over="ignore", invalid="ignore"):
         bound = (4.0 * UNIT_ROUNDOFF) * roundings * magnitude * _SAFETY + underflows * (2 * ETA)
     bound = np.where(np.isnan(bound), np.inf, bound)
-    return np.where(bound > 0, round_up(bound), 0.0)
+    return np.where(bound > 0, step_up(bound), 0.0)
 
 
 def error_coefficient(roundings: FloatArray) -> FloatArray:
@@ -100,8 +123,8 @@ def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = Non
         count = count + (offset != 0)
     roundings = np.maximum(count - 1.0, 0.0) if exact else count
     error = product_error(magnitude, roundings, np.zeros_like(y) if exact else count)
-    with np.errstate(invalid="ignore"):
-        lower, upper = round_down(y - error), round_up(y + error)
+    with np.errstate(invalid="ignore"):  # (+inf stepped down or -inf up: NaN, mapped below)
+        lower, upper = step_down(y - error), step_up(y + error)
     lower = np.where(error == 0, y, lower)
     upper = np.where(error == 0, y, upper)
     return y, np.where(np.isnan(lower), -np.inf, lower), np.where(np.isnan(upper), np.inf, upper)
@@ -149,20 +172,61 @@ class AffineMap:
     leave_lower: FloatArray
     leave_upper: FloatArray
     terms: FloatArray
+    #: Per row, ``coefficient * magnitude + underflow`` bounds the rounding of the
+    #: numerator (:func:`product_error` with the offset always counted as a term,
+    #: so it stays valid for any offset and known values a copy is given).
+    coefficient: FloatArray
+    underflow: FloatArray
 
     @classmethod
     def of(cls, rows: CsrMatrix, states: IntArray, known_lower: FloatArray,
-           known_upper: FloatArray, offset: FloatArray | None) -> AffineMap:
+           known_upper: FloatArray, offset: FloatArray | None,
+           shared: AffineMap | None = None) -> AffineMap:
         """The map of the rows ``P[states, :]`` (all columns).
 
         :param offset: per-unknown constant (rewards), or None.
+        :param shared: a map of the same *rows* and *states* whose row data (the
+            off-diagonal matrix, leaving probabilities, error constants) to re-use.
         """
-        coo = rows.tocoo()
-        keep = coo.col != states[coo.row]
-        off = sp.csr_matrix((coo.data[keep], (coo.row[keep], coo.col[keep])), shape=rows.shape)
+        if shared is not None:
+            return dataclasses.replace(shared, known_lower=known_lower,
+                                       known_upper=known_upper, offset=offset)
+        off = _off_diagonal(rows, states)
         _, leave_lower, leave_upper = enclose_product(off, np.ones(rows.shape[1]))
+        terms = row_terms(off)
         return cls(off, states, known_lower, known_upper, offset,
-                   np.maximum(leave_lower, 0.0), leave_upper, row_terms(off))
+                   np.maximum(leave_lower, 0.0), leave_upper, terms,
+                   error_coefficient(terms + 1.0), (terms + 1.0) * (2 * ETA))
+
+    @property
+    def nonnegative(self) -> bool:
+        """Whether the offset and known values are >= 0 (then so is every image of x >= 0)."""
+        offset_ok = self.offset is None or bool(np.all(self.offset >= 0))
+        return offset_ok and bool(np.all(self.known_lower >= 0))
+
+    def images(self, low: FloatArray, high: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """``(lower(low), upper(high))`` for finite ``0 <= low, high`` and a
+        :attr:`nonnegative` map, with the cheap rounding of :func:`step_up`.
+
+        Every term is nonnegative, so the magnitude of the numerator is the
+        numerator itself and the exact quotient is at least 0.
+        """
+        return self._image(low, self.known_lower, up=False), self._image(
+            high, self.known_upper, up=True)
+
+    def _image(self, x: FloatArray, known: FloatArray, *, up: bool) -> FloatArray:
+        full = known.copy()
+        full[self.states] = x
+        numerator = np.asarray(self.rows @ full, dtype=np.float64)
+        if self.offset is not None:
+            numerator += self.offset
+        error = step_up(self.coefficient * numerator + self.underflow)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            if up:
+                above = step_up(step_up(numerator + error) / self.leave_lower)
+                return np.where(np.isnan(above), np.inf, above)
+            below = step_down(step_down(numerator - error) / self.leave_upper)
+        return np.where(np.isnan(below), -np.inf, np.maximum(below, 0.0))
 
     def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
         full = known.copy()
@@ -185,6 +249,65 @@ class AffineMap:
         return np.where(np.isnan(quotient), np.inf, round_up(quotient))
 
 
+def _off_diagonal(rows: CsrMatrix, states: IntArray) -> sp.csr_matrix:
+    """*rows* without each row's entry in its own state's column (no re-sorting)."""
+    row_of = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))
+    keep = rows.indices != states[row_of]
+    counts = np.bincount(row_of[keep], minlength=rows.shape[0])
+    indptr = np.concatenate([[0], np.cumsum(counts)]).astype(rows.indptr.dtype)
+    return sp.csr_matrix((rows.data[keep], rows.indices[keep], indptr), shape=rows.shape)
+
+
+def _fast_images(F: AffineMap) -> bool:
+    """Whether ``F.images`` agrees with ``F.lower``/``F.upper``: a subclass that
+    overrides those must override :meth:`AffineMap.images` too to get the fast path."""
+    kind = type(F)
+    own = kind.lower is AffineMap.lower and kind.upper is AffineMap.upper
+    return own or kind.images is not AffineMap.images
+
+
+def quick_certificate(F: AffineMap, x: FloatArray, correct: Correction | None,
+                      floor: FloatArray, ceiling: FloatArray
+                      ) -> tuple[FloatArray, FloatArray] | None:
+    """:func:`certify_fixpoint`'s first candidate pair, tested once, or None.
+
+    The common case of a good approximation *x*: the defect
+    of *x* (one product), the margin ``d`` from one substitution (*correct*), then
+    ``u = x + 2 d + slack`` and ``l = x - 2 d - slack`` tested together (one
+    pass over both vectors; for a nonnegative :class:`AffineMap` with the cheap
+    rounding of :func:`step_up`, otherwise with the map's own ``lower``/``upper``).
+    Valid exactly as :func:`certify_fixpoint`: a vector that
+    passes ``F(u) <= u`` bounds the fixed point from above, whatever produced it.
+    None when any state fails or the data are outside this case; the caller then
+    runs :func:`certify_fixpoint`.
+    """
+    if correct is None or not np.all(np.isfinite(x)):
+        return None
+    fast = _fast_images(F) and F.nonnegative and bool(np.all(x >= 0))
+    images = F.images if fast else (lambda lo, hi: (F.lower(lo), F.upper(hi)))
+    low, high = images(x, x)
+    defect = step_up(np.maximum(np.maximum(high - x, x - low), 0.0))
+    margin = correct(defect) if np.all(np.isfinite(defect)) else None
+    if margin is None or not np.all(np.isfinite(margin)):
+        return None
+    margin = np.maximum(margin, defect)
+    slack = 4.0 * UNIT_ROUNDOFF * np.abs(x) + ETA
+    # With a nonnegative map 0 passes the lower test itself: F(0) >= 0.
+    bottom = np.maximum(floor, 0.0) if fast else floor
+    upper = np.minimum(step_up(x + 2.0 * margin + slack), ceiling)
+    lower = np.maximum(step_down(x - 2.0 * margin - slack), bottom)
+    if not np.all(np.isfinite(upper)):
+        return None
+    image_low, image_high = images(lower, upper)
+    # Where a bound sits at the trivial one it needs no test: l >= bottom gives
+    # F(l) >= F(bottom) >= bottom exactly (and u <= ceiling likewise), whereas the
+    # enclosure of F(ceiling) is a few ulps above it.
+    if (np.all((image_high <= upper) | (upper == ceiling))
+            and np.all((image_low >= lower) | (lower == bottom))):
+        return lower, upper
+    return None
+
+
 def certify_fixpoint(F: AffineMap, x: FloatArray, correct: Correction | None,
                      floor: FloatArray, ceiling: FloatArray) -> tuple[FloatArray, FloatArray]:
     """Certified bounds of the unique fixed point of *F* near the approximation *x*.
@@ -203,6 +326,9 @@ def certify_fixpoint(F: AffineMap, x: FloatArray, correct: Correction | None,
     :param ceiling: trivial upper bounds (``F(ceiling) <= ceiling``), e.g. ones or inf.
     :return: ``(lower, upper)``, both certified.
     """
+    quick = quick_certificate(F, x, correct, floor, ceiling)
+    if quick is not None:
+        return quick
     defect = round_up(np.maximum(F.upper(x) - x, x - F.lower(x)))
     defect = np.where(np.isfinite(defect), defect, np.inf)
     margin = correct(defect) if correct is not None and np.all(np.isfinite(defect)) else None

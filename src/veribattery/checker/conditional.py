@@ -315,13 +315,16 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     high = np.where(exact, np.maximum(offsets[1], offsets[2]),
                     round_up(np.maximum(offsets[1], offsets[2])))
     rows, solver = kernels.linear_system(P, maybe)
-    below = certify.AffineMap.of(rows, np.flatnonzero(maybe), known.lower, known.lower, low)
+    below = kernels.affine_map(P, maybe, known.lower, known.lower, low)
     F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
                           offset=high), below)
     rhs = offsets[0].astype(np.longdouble) + rows.astype(np.longdouble) @ known.value
-    point = _solve(solver, rhs)
     floor = np.zeros(r.size) if np.all(low >= 0) else np.full(r.size, -np.inf)
     ceiling = np.full(r.size, np.inf)
+    quick = kernels.quick_bounds(F, solver, rhs, floor, ceiling)
+    if quick is not None:
+        return quick
+    point = _solve(solver, rhs)
     if point is None:
         point, lower, upper = floor.copy(), floor, ceiling
     else:
@@ -349,6 +352,15 @@ class _Split(certify.AffineMap):
     def lower(self, x: FloatArray) -> FloatArray:
         assert self.below is not None
         return self.below.lower(x)
+
+    @property
+    def nonnegative(self) -> bool:
+        assert self.below is not None
+        return certify.AffineMap.nonnegative.fget(self) and self.below.nonnegative  # type: ignore[attr-defined]
+
+    def images(self, low: FloatArray, high: FloatArray) -> tuple[FloatArray, FloatArray]:
+        assert self.below is not None
+        return self.below.images(low, high)[0], certify.AffineMap.images(self, low, high)[1]
 
 
 def _solve(solver: linsolve.Factorization, b: FloatArray) -> FloatArray | None:

@@ -49,14 +49,31 @@ from veribattery.errors import CheckError
 
 #: Linear systems kept per matrix (each holds its matrix and direct solver).
 SYSTEMS_KEPT = 4
+#: Systems with at least this many unknowns try one unrefined substitution first.
+QUICK_MIN_STATES = 10_000
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class _System:
-    """``I - P_mm``, the rows ``P[maybe, :]`` and the prepared solver."""
+    """``I - P_mm``, the rows ``P[maybe, :]`` and the prepared solver.
+
+    *template* is the first fixed-point map built on these rows: properties on the
+    same unknown states (``R{"mt"}`` and ``R{"rc"}`` until ``"done"``) share its
+    off-diagonal matrix and per-row constants.
+    """
 
     rows: CsrMatrix
     factorization: linsolve.Factorization
+    template: certify.AffineMap | None = None
+
+    def affine(self, maybe: BoolArray, known_lower: FloatArray, known_upper: FloatArray,
+               offset: FloatArray | None) -> certify.AffineMap:
+        """The fixed-point map on these rows with the given known values and offset."""
+        F = certify.AffineMap.of(self.rows, np.flatnonzero(maybe), known_lower, known_upper,
+                                 offset, self.template)
+        if self.template is None:
+            self.template = F
+        return F
 
 
 _MaskMemo = dict[tuple[str, bytes, bytes], BoolArray]
@@ -149,6 +166,13 @@ def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
     return found
 
 
+def affine_map(P: CsrMatrix, maybe: BoolArray, known_lower: FloatArray,
+               known_upper: FloatArray, offset: FloatArray | None) -> certify.AffineMap:
+    """The fixed-point map on *maybe* (see :class:`certify.AffineMap`), its row data
+    shared with every other map of this matrix on the same states."""
+    return _system(P, maybe).affine(maybe, known_lower, known_upper, offset)
+
+
 def linear_system(P: CsrMatrix, maybe: BoolArray) -> tuple[CsrMatrix, linsolve.Factorization]:
     """The rows ``P[maybe, :]`` and the prepared solver of ``I - P_mm``, memoised per matrix.
 
@@ -239,11 +263,8 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
     if not maybe.any():
         return Bounds.exact(result)
     system = _system(P, maybe)
-    F = certify.AffineMap.of(system.rows, np.flatnonzero(maybe), result, result, None)
-    b = system.rows.astype(np.longdouble) @ yes.astype(np.longdouble)
-    x = _point(system, b)
-    x = None if x is None else np.clip(x, 0.0, 1.0)
-    found = _certified(F, x, system, 0.0, 1.0)
+    F = system.affine(maybe, result, result, None)
+    found = _certified(F, system, yes.astype(np.float64), None, 0.0, 1.0)
     return _spread(result, maybe, found)
 
 
@@ -270,10 +291,9 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bound
     system = _system(P, maybe)
     offset = np.asarray(rewards[maybe], dtype=np.float64)
     zeros = np.zeros(P.shape[0])
-    F = certify.AffineMap.of(system.rows, np.flatnonzero(maybe), zeros, zeros, offset)
-    x = _point(system, offset.astype(np.longdouble))
+    F = system.affine(maybe, zeros, zeros, offset)
     floor = 0.0 if np.all(offset >= 0) else -np.inf
-    return _spread(result, maybe, _certified(F, x, system, floor, np.inf))
+    return _spread(result, maybe, _certified(F, system, None, offset, floor, np.inf))
 
 
 def _point(system: _System, b: npt.NDArray[np.longdouble]) -> FloatArray | None:
@@ -284,14 +304,71 @@ def _point(system: _System, b: npt.NDArray[np.longdouble]) -> FloatArray | None:
         return None
 
 
-def _certified(F: certify.AffineMap, x: FloatArray | None, system: _System,
-               floor: float, ceiling: float) -> Bounds:
-    """Certified bounds of the fixed point of *F*, escalating until precise.
+def _right_side(system: _System, known: FloatArray | None, offset: FloatArray | None,
+                dtype: type[np.floating]) -> npt.NDArray[np.floating]:
+    """``offset + P_m,known known`` (the system's right-hand side) in *dtype*."""
+    b = np.zeros(system.rows.shape[0], dtype=dtype)
+    if known is not None:
+        b += system.rows.astype(dtype) @ known.astype(dtype)
+    if offset is not None:
+        b += offset.astype(dtype)
+    return b
 
-    1. certify the fast path's *x* (:func:`certify.certify_fixpoint`);
+
+def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
+           offset: FloatArray | None, floor: float, ceiling: float) -> Bounds | None:
+    """One substitution with the direct solver, certified by two products -- or None.
+
+    No extended-precision refinement: when the certified interval already meets
+    the precision it is the answer; otherwise :func:`_certified` goes the long way.
+    Systems below ``QUICK_MIN_STATES`` unknowns always go that way: there the
+    refinement costs next to nothing and makes the point value correct to the last
+    bit wherever ``cond(A) * 1e-16 < 1`` (the interval is certified either way).
+    """
+    if F.states.size < QUICK_MIN_STATES:
+        return None
+    n = F.states.size
+    return quick_bounds(F, system.factorization, _right_side(system, known, offset, np.float64),
+                        np.full(n, floor), np.full(n, ceiling))
+
+
+def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
+                 b: npt.NDArray[np.floating], floor: FloatArray, ceiling: FloatArray
+                 ) -> Bounds | None:
+    """The fixed point of *F* (system ``solver.A x = b``) from one unrefined substitution,
+    certified by :func:`certify.quick_certificate` -- or None when the system is
+    below ``QUICK_MIN_STATES``, the pair fails its test or is not precise enough.
+
+    For the kernels here and in :mod:`~veribattery.checker.conditional`.
+    """
+    if F.states.size < QUICK_MIN_STATES:
+        return None
+    x = solver.approximate(np.asarray(b, dtype=np.float64))
+    if x is None:
+        return None
+    x = np.clip(x, floor, ceiling)
+    pair = certify.quick_certificate(F, x, solver.correction, floor, ceiling)
+    if pair is None:
+        return None
+    found = Bounds.around(x, *pair)
+    return found if found.precise_states().all() else None
+
+
+def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
+               offset: FloatArray | None, floor: float, ceiling: float) -> Bounds:
+    """Certified bounds of the fixed point of *F* (right-hand side ``offset + P known``),
+    escalating until precise.
+
+    0. one unrefined substitution, certified cheaply (:func:`_quick`);
+    1. the refined solution, certified (:func:`certify.certify_fixpoint`);
     2. if too wide, solve the system exactly when it is small (:mod:`rational`);
     3. otherwise tighten by interval iteration, and return what it reached.
     """
+    quick = _quick(F, system, known, offset, floor, ceiling)
+    if quick is not None:
+        return quick
+    x = _point(system, _right_side(system, known, offset, np.longdouble))
+    x = None if x is None else np.clip(x, floor, ceiling)
     n = F.states.size
     low, high = np.full(n, floor), np.full(n, ceiling)
     if x is not None:
@@ -474,12 +551,9 @@ def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds) -> Bounds:
     if not maybe.any():
         return Bounds.around(np.where(fixed, known.value, 0.0), lower, upper)
     system = _system(P, maybe)
-    F = certify.AffineMap.of(system.rows, np.flatnonzero(maybe), lower, upper, None)
+    F = system.affine(maybe, lower, upper, None)
     point = np.where(fixed, known.value, 0.0)
-    x = _point(system, system.rows.astype(np.longdouble) @ point.astype(np.longdouble))
-    ceiling = float(np.max(upper))
-    x = None if x is None else np.clip(x, 0.0, ceiling)
-    found = _certified(F, x, system, 0.0, ceiling)
+    found = _certified(F, system, point, None, 0.0, float(np.max(upper)))
     value, low, high = point.copy(), lower.copy(), upper.copy()
     value[maybe], low[maybe], high[maybe] = found.value, found.lower, found.upper
     return Bounds.around(value, low, high)

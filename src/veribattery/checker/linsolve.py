@@ -29,7 +29,10 @@ meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
 
 from __future__ import annotations
 
+import hashlib
+from collections import OrderedDict
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -82,8 +85,20 @@ def restricted_parts(P: CsrMatrix, maybe: BoolArray
     rounded to nearest) and the extended-precision rounding residue of the diagonal.
 
     The off-diagonal entries are stored probabilities, exact in float64, so only
-    the diagonal needs more: 8 bytes per state instead of 16 per nonzero.
+    the diagonal needs more: 8 bytes per state instead of 16 per nonzero. Index
+    work depends only on *P*'s pattern and *maybe*, so it is memoised by them
+    (:class:`_RestrictionPlan`); the values are then gathered.
     """
+    plan = _restriction_plan(P, maybe)
+    if plan is not None:
+        found = plan.apply(P)
+        if found is not None:
+            return found
+    return _restricted_parts(P, maybe)
+
+
+def _restricted_parts(P: CsrMatrix, maybe: BoolArray
+                      ) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix]:
     idx = np.flatnonzero(maybe)
     rows = sp.csr_matrix(P[idx])
     row_of = np.repeat(np.arange(idx.size), np.diff(rows.indptr))
@@ -96,6 +111,100 @@ def restricted_parts(P: CsrMatrix, maybe: BoolArray
     A64 = sp.csr_matrix(sp.diags(leave64, format="csr") - off)
     A64.sort_indices()
     return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+
+
+@dataclass(frozen=True, slots=True)
+class _RestrictionPlan:
+    """The index work of :func:`restricted_parts` for one pattern of *P* and *maybe*.
+
+    :param gather: positions in ``P.data`` of the entries of ``P[maybe]``, in order.
+    :param movers: positions, among those, of the entries that leave their row's state.
+    :param mover_rows: the row of each mover.
+    :param source: per entry of ``A64``: ``-1 - i`` for row *i*'s diagonal (the
+        leaving probability), else the position in the gathered data (negated).
+    """
+
+    shape: tuple[int, int]
+    gather: npt.NDArray[np.int64]
+    rows_indices: npt.NDArray[np.int32]
+    rows_indptr: npt.NDArray[np.int64]
+    movers: npt.NDArray[np.int64]
+    mover_rows: npt.NDArray[np.int64]
+    source: npt.NDArray[np.int64]
+    a_indices: npt.NDArray[np.int32]
+    a_indptr: npt.NDArray[np.int32]
+
+    def apply(self, P: CsrMatrix) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix] | None:
+        """The parts for *P* (of the plan's pattern), equal bit for bit to a fresh
+        computation; None when a leaving probability is 0 (the plan assumed not)."""
+        m = self.shape[0]
+        data = np.asarray(P.data[self.gather], dtype=np.float64)
+        rows = sp.csr_matrix((data, self.rows_indices, self.rows_indptr), shape=(m, P.shape[1]))
+        leave = _row_sums(self.mover_rows, data[self.movers].astype(np.longdouble), m)
+        leave64 = leave.astype(np.float64)
+        if not np.all(leave64 != 0):
+            return None
+        diagonal = self.source < 0
+        a_data = np.where(diagonal, leave64[np.where(diagonal, -1 - self.source, 0)],
+                          -data[np.where(diagonal, 0, self.source)])
+        A64 = sp.csr_matrix((a_data, self.a_indices, self.a_indptr), shape=self.shape)
+        return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+
+
+#: Restriction plans of the last few (pattern, unknown states) pairs (None: seen once).
+RESTRICTIONS_KEPT = 8
+_RESTRICTIONS: OrderedDict[bytes, _RestrictionPlan | None] = OrderedDict()
+
+
+def _restriction_plan(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
+    """The memoised plan of *P*'s pattern (positions and positive entries) and *maybe*,
+    made the second time they are seen (None the first time)."""
+    if not P.has_canonical_format:
+        return None
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
+    digest.update(np.ascontiguousarray(P.indptr).data)
+    digest.update(np.ascontiguousarray(P.indices).data)
+    digest.update(np.packbits(P.data != 0).data)
+    digest.update(np.packbits(maybe).data)
+    key = digest.digest()
+    plan = None
+    if key in _RESTRICTIONS:  # seen before: a sweep re-uses the pattern, worth a plan
+        _RESTRICTIONS.move_to_end(key)
+        plan = _RESTRICTIONS[key] or _new_restriction(P, maybe)
+    # A pattern seen once is only remembered (a single check never pays for a plan).
+    _RESTRICTIONS[key] = plan
+    while len(_RESTRICTIONS) > RESTRICTIONS_KEPT:
+        _RESTRICTIONS.popitem(last=False)
+    return plan
+
+
+def _new_restriction(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
+    """Run :func:`_restricted_parts` once on tags instead of values to learn where
+    every entry goes: a stored value ``v`` is tagged ``k + 1`` (its gathered
+    position), a leaving probability ``i + 1`` (its row), so that each entry of
+    ``A64`` (``leave`` on the diagonal, ``-v`` off it) names its source."""
+    idx = np.flatnonzero(maybe)
+    lengths = np.diff(P.indptr)[idx]
+    starts = np.asarray(P.indptr[idx], dtype=np.int64)
+    offsets = np.repeat(starts - (np.cumsum(lengths) - lengths), lengths)
+    gather = offsets + np.arange(int(lengths.sum()), dtype=np.int64)
+    tags = np.where(P.data[gather] != 0, np.arange(1, gather.size + 1, dtype=np.float64), 0.0)
+    rows = sp.csr_matrix((tags, P.indices[gather],
+                          np.concatenate([[0], np.cumsum(lengths)])), shape=(idx.size, P.shape[1]))
+    row_of = np.repeat(np.arange(idx.size), lengths)
+    moves = rows.indices != idx[row_of]
+    inner = sp.csr_matrix(rows[:, idx])
+    off = sp.csr_matrix(inner - sp.diags(inner.diagonal(), format="csr"))
+    off.eliminate_zeros()
+    tagged = sp.csr_matrix(sp.diags(np.arange(1, idx.size + 1, dtype=np.float64),
+                                    format="csr") - off)
+    tagged.sort_indices()
+    # On the diagonal: i + 1 -> -1 - i; off it: -(k + 1) -> k.
+    source = np.where(tagged.data > 0, -tagged.data, -tagged.data - 1).astype(np.int64)
+    return _RestrictionPlan((idx.size, idx.size), gather, rows.indices.copy(),
+                            rows.indptr.astype(np.int64), np.flatnonzero(moves),
+                            row_of[moves], source, tagged.indices.copy(), tagged.indptr.copy())
 
 
 def _diagonal_residue(residue: ExtArray) -> sp.csr_matrix:
@@ -208,6 +317,24 @@ class Factorization:
                 break
         return x
 
+    def approximate(self, b: FloatArray) -> FloatArray | None:
+        """One application of the direct solver to *b*: no refinement, no acceptance test
+        (None when there is no direct solver or the result is not finite).
+
+        For callers that certify the answer anyway and only need the full rule of
+        :meth:`solve` when the certified interval comes out too wide.
+        """
+        if not b.any():
+            return np.zeros(b.shape, dtype=np.float64)
+        inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
+        if inverse is None or self._iterative:
+            return None
+        try:
+            x = np.asarray(inverse(np.ascontiguousarray(b, dtype=np.float64)), dtype=np.float64)
+        except RuntimeError:
+            return None
+        return x if np.all(np.isfinite(x)) else None
+
     def correction(self, v: FloatArray) -> FloatArray | None:
         """An approximate ``A^{-1} v`` for certification margins (None if unavailable).
 
@@ -286,37 +413,109 @@ def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     return lu.solve  # type: ignore[no-any-return]
 
 
-def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
-    """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
+@dataclass(frozen=True, slots=True)
+class _TriangularPlan:
+    """What :func:`_triangular_inverse` derives from *A64*'s sparsity pattern alone.
 
-    The strongly connected components come numbered in reverse topological order
-    (Tarjan/Pearce), which the permuted pattern is checked against: a state's
-    successors precede it, so the permuted matrix is lower triangular.
+    Matrices of one pattern (a structure-reusing sweep: same states and transitions,
+    other probabilities) share it, so only the values are gathered anew.
+
+    :param order: ``order[k]`` is the state at topological position *k*.
+    :param diagonal_at: per position, the index of its diagonal entry in ``A64.data``.
+    :param gather: ``A64.data`` indices in the order of the CSC data of the
+        permuted lower-triangular matrix.
+    (Index arrays are stored as int32, as scipy's own for these sizes.)
     """
+
+    order: npt.NDArray[np.int32]
+    diagonal_at: npt.NDArray[np.int32]
+    gather: npt.NDArray[np.int32]
+    indices: npt.NDArray[np.intc]
+    indptr: npt.NDArray[np.intc]
+
+    def columns(self) -> npt.NDArray[np.int64]:
+        """The (permuted) column of each entry of the CSC data."""
+        return np.repeat(np.arange(self.indptr.size - 1), np.diff(self.indptr))
+
+
+#: Plans of the last few patterns, by digest (see :func:`_pattern_digest`).
+PLANS_KEPT = 4
+_PLANS: OrderedDict[bytes, _TriangularPlan | None] = OrderedDict()
+
+
+def _pattern_digest(A64: sp.csr_matrix) -> bytes:
+    """A digest of *A64*'s shape and stored positions (not its values)."""
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.asarray(A64.shape, dtype=np.int64).tobytes())
+    digest.update(np.ascontiguousarray(A64.indptr).data)
+    digest.update(np.ascontiguousarray(A64.indices).data)
+    return digest.digest()
+
+
+def _triangular_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
+    """The plan of *A64*'s pattern (None if its graph has a cycle), memoised by pattern."""
+    A64.sum_duplicates()  # canonical: one stored entry per position
+    key = _pattern_digest(A64)
+    if key in _PLANS:
+        _PLANS.move_to_end(key)
+        return _PLANS[key]
+    plan = _new_plan(A64)
+    _PLANS[key] = plan
+    while len(_PLANS) > PLANS_KEPT:
+        _PLANS.popitem(last=False)
+    return plan
+
+
+def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
+    """Topological positions from the SCC labelling (Tarjan/Pearce numbers them in
+    reverse topological order), checked against the pattern: lower triangular."""
     n = A64.shape[0]
     count, labels = csgraph.connected_components(A64, directed=True, connection="strong")
     if count != n:
         return None
-    coo = A64.tocoo()
+    row_of = np.repeat(np.arange(n, dtype=np.int64), np.diff(A64.indptr))
     position = labels.astype(np.int64)
-    rows, cols = position[coo.row], position[coo.col]
+    rows, cols = position[row_of], position[A64.indices]
     if np.any(cols > rows):  # not the order expected: try the opposite one
         position = n - 1 - position
         rows, cols = n - 1 - rows, n - 1 - cols
         if np.any(cols > rows):
             return None
-    diagonal = np.zeros(n, dtype=np.float64)
-    on_diagonal = rows == cols
-    np.add.at(diagonal, rows[on_diagonal], coo.data[on_diagonal])
+    on_diagonal = np.flatnonzero(rows == cols)
+    if on_diagonal.size != n:
+        return None
+    diagonal_at = np.empty(n, dtype=np.int64)
+    diagonal_at[rows[on_diagonal]] = on_diagonal
+    gather = np.lexsort((rows, cols))
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))])
+    order = np.empty(n, dtype=np.int64)
+    order[position] = np.arange(n)
+    small = np.int32 if A64.nnz < 2**31 else np.int64
+    return _TriangularPlan(order.astype(small), diagonal_at.astype(small), gather.astype(small),
+                           rows[gather].astype(np.intc), indptr.astype(np.intc))
+
+
+def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
+    """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
+
+    The permutation and the triangular matrix's structure come from the pattern's
+    plan (:func:`_triangular_plan`, shared by matrices of one pattern); the values
+    are gathered from *A64*: a state's successors precede it, so the permuted
+    matrix is lower triangular.
+    """
+    n = A64.shape[0]
+    plan = _triangular_plan(A64)
+    if plan is None:
+        return None
+    diagonal = np.asarray(A64.data[plan.diagonal_at], dtype=np.float64)
     if not np.all(diagonal > 0):
         return None
     scale = 1.0 / diagonal
     # Columns scaled to a unit diagonal: L y = b, then x = y / diagonal.
-    lower = sp.csc_matrix((coo.data * scale[cols], (rows, cols)), shape=(n, n))
-    lower.sum_duplicates()
+    data = A64.data[plan.gather] * scale[plan.columns()]
+    lower = sp.csc_matrix((data, plan.indices, plan.indptr), shape=(n, n))
     substitute = _substitution(lower)
-    order = np.empty(n, dtype=np.int64)
-    order[position] = np.arange(n)
+    order = plan.order
 
     def apply(b: FloatArray) -> FloatArray:
         x = np.empty(n, dtype=np.float64)
@@ -355,12 +554,20 @@ def _substitution(lower: sp.csc_matrix) -> _Inverse:
     try:
         if _superlu is None:
             return public
+        if _PRIVATE_CHECKED:
+            return private
         probe = private(np.ones(n, dtype=np.float64))
         if np.all(np.isfinite(probe)) and np.allclose(lower @ probe, 1.0):
+            _PRIVATE_CHECKED.append(True)
             return private
     except Exception:
         pass
     return public
+
+
+#: Non-empty once the private triangular solve has been seen to solve ``L y = 1``
+#: (a property of the installed scipy, so probed once per process).
+_PRIVATE_CHECKED: list[bool] = []
 
 
 def backward_error(A: sp.csr_matrix, x: FloatArray, b: ExtArray,

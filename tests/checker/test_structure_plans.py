@@ -1,0 +1,77 @@
+"""Index work memoised by sparsity pattern (linsolve._RestrictionPlan, _TriangularPlan).
+
+A matrix with the pattern of an earlier one (other probabilities, same transitions)
+must get exactly -- bit for bit -- what a fresh computation gives, and the solutions
+must match an independent dense solve.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from veribattery.checker import kernels, linsolve
+
+
+def _random_chain(rng: np.random.Generator, n: int, acyclic: bool) -> sp.csr_matrix:
+    dense = (rng.random((n, n)) < 0.3) * rng.random((n, n))
+    if acyclic:  # only moves to higher states, plus self-loops
+        dense = np.triu(dense)
+    dense[rng.random(n) < 0.2] = 0
+    for i in range(n):
+        if dense[i].sum() == 0:
+            dense[i, i] = 1.0
+    dense /= dense.sum(axis=1, keepdims=True)
+    return sp.csr_matrix(dense)
+
+
+def _same(a: sp.spmatrix, b: sp.spmatrix) -> bool:
+    a, b = sp.csr_matrix(a), sp.csr_matrix(b)
+    return (a.shape == b.shape and np.array_equal(a.indptr, b.indptr)
+            and np.array_equal(a.indices, b.indices) and np.array_equal(a.data, b.data))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_restriction_plan_equals_a_fresh_computation(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 40))
+    P = _random_chain(rng, n, acyclic=bool(seed % 2))
+    maybe = rng.random(n) < 0.7
+    linsolve._RESTRICTIONS.clear()
+    for matrix in (P, _reweighted(P, rng), _reweighted(P, rng)):
+        planned = linsolve.restricted_parts(matrix, maybe)
+        fresh = linsolve._restricted_parts(matrix, maybe)
+        assert all(_same(a, b) for a, b in zip(planned, fresh, strict=True))
+    # One pattern: remembered at the first matrix, planned at the second, re-used after.
+    assert len(linsolve._RESTRICTIONS) == 1
+    assert next(iter(linsolve._RESTRICTIONS.values())) is not None
+
+
+def _reweighted(P: sp.csr_matrix, rng: np.random.Generator) -> sp.csr_matrix:
+    """Same positions, other probabilities (rows renormalised)."""
+    Q = P.copy()
+    Q.data = Q.data * rng.uniform(0.5, 1.5, Q.data.size)
+    sums = np.asarray(Q.sum(axis=1)).ravel()
+    R = sp.csr_matrix(sp.diags(1.0 / sums) @ Q)
+    R.sum_duplicates()  # canonical, as the builder's matrices are
+    return R
+
+
+@pytest.mark.parametrize("seed", range(12))
+def test_triangular_plan_solves_reweighted_matrices(seed: int) -> None:
+    rng = np.random.default_rng(100 + seed)
+    n = int(rng.integers(3, 30))
+    P = _random_chain(rng, n, acyclic=True)
+    target = np.zeros(n, dtype=bool)
+    target[n - 1] = True
+    for matrix in (P, _reweighted(P, rng)):
+        maybe = ~target & ~kernels.prob0(matrix, np.ones(n, dtype=bool), target)
+        if not maybe.any():
+            continue
+        A64, _, rows = linsolve.restricted_parts(matrix, maybe)
+        inverse = linsolve._triangular_inverse(A64)
+        assert inverse is not None
+        b = np.asarray(rows @ target.astype(np.float64))
+        exact = np.linalg.solve(A64.toarray(), b)
+        assert np.allclose(inverse(b), exact, rtol=1e-12, atol=1e-15)
