@@ -157,9 +157,14 @@ class AffineMap:
 
         :param offset: per-unknown constant (rewards), or None.
         """
-        coo = rows.tocoo()
-        keep = coo.col != states[coo.row]
-        off = sp.csr_matrix((coo.data[keep], (coo.row[keep], coo.col[keep])), shape=rows.shape)
+        # Filtered from the CSR arrays directly: no COO copy, no re-sort.
+        row_of = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype),
+                           np.diff(rows.indptr))
+        keep = rows.indices != states[row_of]
+        indptr = np.zeros(rows.shape[0] + 1, dtype=rows.indptr.dtype)
+        np.cumsum(np.bincount(row_of[keep], minlength=rows.shape[0]), out=indptr[1:])
+        del row_of
+        off = sp.csr_matrix((rows.data[keep], rows.indices[keep], indptr), shape=rows.shape)
         _, leave_lower, leave_upper = enclose_product(off, np.ones(rows.shape[1]))
         return cls(off, states, known_lower, known_upper, offset,
                    np.maximum(leave_lower, 0.0), leave_upper, row_terms(off))
