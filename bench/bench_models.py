@@ -69,11 +69,12 @@ def bench_model(bench: BenchModel, workdir: Path) -> list[str]:
     ]
 
 
-def whole_process(argv: list[str]) -> float:
-    """Wall-clock seconds of a whole command, interpreter start-up included."""
+def whole_process(argv: list[str]) -> tuple[float, float]:
+    """Wall-clock seconds and peak RSS (MB) of a whole command, start-up included."""
     start = time.perf_counter()
-    subprocess.run(argv, check=True, capture_output=True)
-    return time.perf_counter() - start
+    proc = subprocess.run(["/usr/bin/time", "-f", "%M", *argv], check=True,
+                          capture_output=True, text=True)
+    return time.perf_counter() - start, int(proc.stderr.strip().splitlines()[-1]) / 1024
 
 
 STORM_SCRIPT = """
@@ -91,11 +92,12 @@ def bench_mission(config: str, workdir: Path) -> list[str]:
     exe = str(Path(sys.executable).parent / "veribattery")
     emitted = workdir / "mission"
     subprocess.run([exe, "emit", config, "-o", str(emitted)], check=True, capture_output=True)
-    ours = whole_process([exe, "check", config, "--format", "json"])
-    storm = whole_process([sys.executable, "-c", STORM_SCRIPT,
-                           str(emitted / "model.prism"), str(emitted / "properties.props")])
+    ours, our_mb = whole_process([exe, "check", config, "--format", "json"])
+    storm, storm_mb = whole_process([sys.executable, "-c", STORM_SCRIPT,
+                                     str(emitted / "model.prism"),
+                                     str(emitted / "properties.props")])
     return ["mission", Path(config).stem, "", "", "", f"{ours:.2f} (whole)", "",
-            f"{storm:.2f} (whole)", f"{ours / storm:.2f}", "", "", ""]
+            f"{storm:.2f} (whole)", f"{ours / storm:.2f}", f"{our_mb:.0f}", f"{storm_mb:.0f}", ""]
 
 
 def haddad_monmege(n: int) -> str:

@@ -3,7 +3,7 @@
 The size thresholds are lowered with monkeypatch so that small models (whose
 exact answers are computed independently in Fraction arithmetic) take the
 large-component paths: sparse LU with a fill-reducing order, and the
-ILU-preconditioned Krylov method.
+multigrid-preconditioned Krylov method.
 """
 
 from __future__ import annotations
@@ -56,6 +56,7 @@ def small_limits(monkeypatch: pytest.MonkeyPatch) -> None:
     """Components above 4 states are 'large'; above 14 they go to the Krylov method."""
     monkeypatch.setattr(scc, "BLOCK_LIMIT", 4)
     monkeypatch.setattr(scc, "LU_LIMIT", 14)
+    monkeypatch.setattr(scc, "ENVELOPE_LIMIT", 0)  # the 20-state walk is thin: no LU
 
 
 def test_segments_isolate_large_components(small_limits: None) -> None:
@@ -113,6 +114,7 @@ def test_grid_walk_by_lu_and_by_krylov(monkeypatch: pytest.MonkeyPatch, limit: i
     """Both large-component methods agree with a dense solve and certify it."""
     monkeypatch.setattr(scc, "BLOCK_LIMIT", 8)
     monkeypatch.setattr(scc, "LU_LIMIT", limit)
+    monkeypatch.setattr(scc, "ENVELOPE_LIMIT", 0)
     P = _grid(12)
     n = P.shape[0]
     target = np.zeros(n, dtype=bool)

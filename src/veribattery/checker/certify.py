@@ -251,10 +251,12 @@ class AffineMap:
 
 def _off_diagonal(rows: CsrMatrix, states: IntArray) -> sp.csr_matrix:
     """*rows* without each row's entry in its own state's column (no re-sorting)."""
-    row_of = np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))
+    row_of = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype),
+                       np.diff(rows.indptr))
     keep = rows.indices != states[row_of]
-    counts = np.bincount(row_of[keep], minlength=rows.shape[0])
-    indptr = np.concatenate([[0], np.cumsum(counts)]).astype(rows.indptr.dtype)
+    indptr = np.zeros(rows.shape[0] + 1, dtype=rows.indptr.dtype)
+    np.cumsum(np.bincount(row_of[keep], minlength=rows.shape[0]), out=indptr[1:])
+    del row_of
     return sp.csr_matrix((rows.data[keep], rows.indices[keep], indptr), shape=rows.shape)
 
 

@@ -101,15 +101,21 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
                       ) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix]:
     idx = np.flatnonzero(maybe)
     rows = sp.csr_matrix(P[idx])
-    row_of = np.repeat(np.arange(idx.size), np.diff(rows.indptr))
-    moves = rows.indices != idx[row_of]
-    leave = _row_sums(row_of[moves], rows.data[moves].astype(np.longdouble), idx.size)
+    n = idx.size
+    # Built straight from the rows' arrays (column renumbering, diagonal slot per
+    # row), not by sparse column slicing and subtraction: each of those allocates
+    # a whole new matrix, several times the final one at 10^6 states.
+    index = np.int32 if max(P.shape[1], rows.nnz + n) < 2**31 else np.int64
+    position = np.full(P.shape[1], -1, dtype=index)
+    position[idx] = np.arange(n, dtype=index)
+    row_of = np.repeat(np.arange(n, dtype=index), np.diff(rows.indptr))
+    column = position[rows.indices]
+    moves = column != row_of
+    leave = _row_sums(row_of[moves], rows.data[moves], n)
     leave64 = leave.astype(np.float64)
-    inner = sp.csr_matrix(rows[:, idx])
-    off = sp.csr_matrix(inner - sp.diags(inner.diagonal(), format="csr"))
-    off.eliminate_zeros()
-    A64 = sp.csr_matrix(sp.diags(leave64, format="csr") - off)
-    A64.sort_indices()
+    keep = moves & (column >= 0) & (rows.data != 0)
+    del moves
+    A64 = _with_diagonal(row_of[keep], column[keep], -rows.data[keep], leave64)
     return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
 
 
@@ -140,7 +146,7 @@ class _RestrictionPlan:
         m = self.shape[0]
         data = np.asarray(P.data[self.gather], dtype=np.float64)
         rows = sp.csr_matrix((data, self.rows_indices, self.rows_indptr), shape=(m, P.shape[1]))
-        leave = _row_sums(self.mover_rows, data[self.movers].astype(np.longdouble), m)
+        leave = _row_sums(self.mover_rows, data[self.movers], m)
         leave64 = leave.astype(np.float64)
         if not np.all(leave64 != 0):
             return None
@@ -207,6 +213,27 @@ def _new_restriction(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
                             row_of[moves], source, tagged.indices.copy(), tagged.indptr.copy())
 
 
+def _with_diagonal(row: npt.NDArray[np.integer], col: npt.NDArray[np.integer],
+                   data: FloatArray, diagonal: FloatArray) -> sp.csr_matrix:
+    """The CSR matrix of the row-sorted entries *(row, col, data)* plus *diagonal*
+    (zeros not stored), indices sorted in place."""
+    n = diagonal.size
+    counts = np.bincount(row, minlength=n) + 1
+    indptr = np.zeros(n + 1, dtype=col.dtype)
+    np.cumsum(counts, out=indptr[1:])
+    # Entry k of row r goes to k + r (one diagonal slot at the end of each earlier row).
+    slots = np.arange(row.size, dtype=col.dtype) + row
+    indices = np.empty(indptr[-1], dtype=col.dtype)
+    values = np.empty(indptr[-1], dtype=np.float64)
+    indices[slots], values[slots] = col, data
+    indices[indptr[1:] - 1] = np.arange(n, dtype=col.dtype)
+    values[indptr[1:] - 1] = diagonal
+    matrix = sp.csr_matrix((values, indices, indptr), shape=(n, n))
+    matrix.sort_indices()
+    matrix.eliminate_zeros()
+    return matrix
+
+
 def _diagonal_residue(residue: ExtArray) -> sp.csr_matrix:
     """The diagonal matrix of *residue*, its zeros not stored."""
     where = np.flatnonzero(residue)
@@ -214,14 +241,30 @@ def _diagonal_residue(residue: ExtArray) -> sp.csr_matrix:
     return sp.csr_matrix((residue[where], (where, where)), shape=(n, n), dtype=np.longdouble)
 
 
-def _row_sums(row_of: npt.NDArray[np.int64], data: ExtArray, n: int) -> ExtArray:
-    """Per-row sums of sorted (row, value) pairs, in extended precision."""
+#: Entries per block of an extended-precision reduction (bounds its 16-byte copy).
+_SUM_BLOCK = 1 << 20
+
+
+def _row_sums(row_of: npt.NDArray[np.integer], data: FloatArray, n: int) -> ExtArray:
+    """Per-row sums of sorted (row, value) pairs, in extended precision.
+
+    The values are widened a block of whole rows at a time; the sums are those
+    of one ``np.add.reduceat`` over all of them (the same segments, same order).
+    """
     counts = np.bincount(row_of, minlength=n)
     sums = np.zeros(n, dtype=np.longdouble)
-    present = counts > 0
-    if data.size:
-        starts = np.cumsum(counts) - counts
-        sums[present] = np.add.reduceat(data, starts[present])
+    ends = np.cumsum(counts)
+    present = np.flatnonzero(counts)
+    lo = 0
+    while lo < present.size:
+        # Whole rows, about _SUM_BLOCK entries (at least one row).
+        first = ends[present[lo]] - counts[present[lo]]
+        hi = max(lo + 1, int(np.searchsorted(ends[present], first + _SUM_BLOCK, "right")))
+        chosen = present[lo:hi]
+        stop = ends[chosen[-1]]
+        block = data[first:stop].astype(np.longdouble)
+        sums[chosen] = np.add.reduceat(block, ends[chosen] - counts[chosen] - first)
+        lo = hi
     return sums
 
 
@@ -307,11 +350,22 @@ class Factorization:
         return residual / scale if scale > 0 else residual
 
 
+    def _accepted(self, x: FloatArray, b: ExtArray, residual: ExtArray) -> bool:
+        """The backward-error rule for *x*, given its residual."""
+        if not np.all(np.isfinite(x)) or self._norm_a is None:
+            return False
+        scale = self._norm_a * _norm(x) + _norm(b)
+        error = _norm(residual)
+        return (error / scale if scale > 0 else error) <= RESIDUAL_TOL
+
     def _refined(self, inverse: _Inverse, b: ExtArray, steps: int) -> FloatArray:
         """``inverse(b)``, refined with extended-precision residuals."""
         x: FloatArray = inverse(b.astype(np.float64))
         for _ in range(steps):
-            correction: FloatArray = inverse(self.residual(x, b).astype(np.float64))
+            residual = self.residual(x, b)
+            if self._iterative and self._accepted(x, b, residual):
+                break  # each correction would be a whole Krylov solve: only when needed
+            correction: FloatArray = inverse(residual.astype(np.float64))
             x = x + correction
             if not np.all(np.isfinite(x)) or _converged(correction, x):
                 break
@@ -359,8 +413,9 @@ class Factorization:
             if self._direct is None:
                 found = scc.components(self.A64)
                 if found is not None:
-                    self._iterative = found.largest > scc.LU_LIMIT
-                    self._direct = scc.segmented_inverse(self.A64, found)
+                    segmented = scc.segmented_inverse(self.A64, found)
+                    self._iterative = segmented is not None and segmented.iterative
+                    self._direct = segmented
             if self._direct is None:
                 self._direct = _lu_inverse(self.A64)
         return self._direct
@@ -382,7 +437,14 @@ def _split(A: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
 _PRODUCT_BLOCK = 1 << 20
 
 
-def _extended_product(A64: sp.csr_matrix, residue: sp.csr_matrix, x: FloatArray) -> ExtArray:
+def extended_product(M: CsrMatrix, x: FloatArray) -> ExtArray:
+    """``M x`` in extended precision, as ``M.astype(longdouble) @ x`` computes it (same
+    order of summation) but widening *M* a block of rows at a time."""
+    return _extended_product(M, None, x)
+
+
+def _extended_product(A64: sp.csr_matrix, residue: sp.csr_matrix | None,
+                      x: FloatArray) -> ExtArray:
     """``(A64 + residue) x`` in extended precision, *A64* converted a block at a time."""
     n = A64.shape[0]
     x_ext = np.asarray(x, dtype=np.longdouble)
@@ -395,7 +457,7 @@ def _extended_product(A64: sp.csr_matrix, residue: sp.csr_matrix, x: FloatArray)
                                A64.indices[start:stop], A64.indptr[lo:hi + 1] - start),
                               shape=(hi - lo, A64.shape[1]))
         out[lo:hi] = block @ x_ext
-    if residue.nnz:
+    if residue is not None and residue.nnz:
         out += residue @ x_ext
     return out
 

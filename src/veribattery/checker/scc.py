@@ -13,13 +13,18 @@ once every earlier segment is known. The method per segment is chosen by its siz
 * a run of small components: SuperLU in the natural (topological) order with
   diagonal pivots, so the fill-in stays inside each component (the component
   by component solve, done in C);
-* a component of at most ``LU_LIMIT`` states: SuperLU with a fill-reducing
-  ordering (minimum degree on ``A + A^T``), diagonal pivots (safe: ``A`` is a
-  nonsingular M-matrix);
-* a larger one: BiCGSTAB, then restarted GMRES, preconditioned by an incomplete
-  LU factorisation whose fill is capped at ``ILU_FILL`` times the component's
-  nonzeros (Jacobi when even that fails), so memory stays linear in the size
-  of the component.
+* a larger component whose LU factors are cheap -- at most ``LU_LIMIT`` states,
+  or any size when the envelope of its reverse Cuthill-McKee order (an upper
+  bound of the factors of a profile factorisation) has at most ``ENVELOPE_LIMIT``
+  entries, as on chains, rings and thin bands: SuperLU with a
+  fill-reducing ordering (minimum degree on ``A + A^T``), diagonal pivots (safe:
+  ``A`` is a nonsingular M-matrix);
+* any other component (a 2-D or 3-D mesh of 10^5 states or more, whose LU fill
+  grows like ``n log n`` or ``n^(4/3)`` with a large constant: 2 GB at 10^6
+  states): BiCGSTAB, then restarted GMRES, preconditioned by one V-cycle of
+  classical (Ruge-Stueben) algebraic multigrid (pyamg), which suits M-matrices
+  and keeps memory linear in the component (about three times its nonzeros);
+  an incomplete LU with capped fill, then Jacobi, when the multigrid set-up fails.
 
 The result is only an approximate inverse: :mod:`~veribattery.checker.linsolve`
 judges every solution by its backward-error rule and ``certify`` bounds the
@@ -42,10 +47,15 @@ from veribattery._types import FloatArray
 
 #: Components up to this size are solved together with their neighbours in runs.
 BLOCK_LIMIT = 4_096
-#: Components up to this size get a sparse LU with a fill-reducing order. The Krylov
-#: path's memory is linear but on the 10^6-state grid walk it took 287 s against
-#: 101 s for this LU (2.0 GB peak against 1.4 GB): time wins below 4M unknowns.
-LU_LIMIT = 4_000_000
+#: Components up to this size get a sparse LU with a fill-reducing order; larger
+#: ones only when their envelope is small (below). On the 10^6-state grid walk
+#: (one component) the LU took 101 s and 2.0 GB, multigrid-preconditioned
+#: BiCGSTAB a few times less of both (bench/RESULTS.md).
+LU_LIMIT = 200_000
+#: A larger component still gets the LU when the envelope of its reverse
+#: Cuthill-McKee order (which bounds the factors' entries in that order) is at
+#: most this: about 300 MB of factors at 12 bytes an entry.
+ENVELOPE_LIMIT = 25_000_000
 #: Incomplete LU of a larger component: drop tolerance and fill cap (x its nonzeros).
 ILU_DROP = 1e-4
 ILU_FILL = 4.0
@@ -106,12 +116,40 @@ def segments(found: Components) -> list[tuple[int, int, bool]]:
             for lo, hi in itertools.pairwise(cuts)]
 
 
-def segmented_inverse(A64: sp.csr_matrix, found: Components) -> Inverse | None:
+@dataclass(frozen=True, slots=True)
+class Segmented:
+    """Block forward substitution over the segments (see :func:`segmented_inverse`).
+
+    :param order: the states in topological order of their components.
+    :param parts: per segment ``(lo, hi, rows, solver)``: its positions, its rows
+        of the permuted matrix (columns renumbered) and its diagonal block's solver.
+    :param iterative: whether some segment is solved by a Krylov method (each
+        application is then a full iterative solve, not a pair of substitutions).
+    """
+
+    order: IntArray
+    parts: tuple[tuple[int, int, sp.csr_matrix, Inverse], ...]
+    iterative: bool
+
+    def __call__(self, b: FloatArray) -> FloatArray:
+        order = self.order
+        y = np.zeros(order.size, dtype=np.float64)
+        permuted_b = np.asarray(b, dtype=np.float64)[order]
+        for lo, hi, rows, solver in self.parts:
+            rhs = permuted_b[lo:hi] - rows @ y if lo else permuted_b[lo:hi]
+            y[lo:hi] = solver(np.ascontiguousarray(rhs))
+        x = np.empty_like(y)
+        x[order] = y
+        return x
+
+
+def segmented_inverse(A64: sp.csr_matrix, found: Components) -> Segmented | None:
     """Block forward substitution over the segments of *found* (None if a block fails)."""
     order = found.order
     position = np.empty_like(order)
     position[order] = np.arange(order.size)
     parts: list[tuple[int, int, sp.csr_matrix, Inverse]] = []
+    iterative = False
     for lo, hi, large in segments(found):
         rows = sp.csr_matrix(A64[order[lo:hi]])  # a copy: renumbering its columns is safe
         rows.indices = position[rows.indices].astype(rows.indices.dtype)
@@ -119,28 +157,36 @@ def segmented_inverse(A64: sp.csr_matrix, found: Components) -> Inverse | None:
         solver = _block_solver(sp.csc_matrix(rows[:, lo:hi]), large=large)
         if solver is None:
             return None
+        iterative = iterative or isinstance(solver, _Krylov)
         parts.append((lo, hi, rows, solver))
-
-    def apply(b: FloatArray) -> FloatArray:
-        y = np.zeros(order.size, dtype=np.float64)
-        permuted_b = np.asarray(b, dtype=np.float64)[order]
-        for lo, hi, rows, solver in parts:
-            rhs = permuted_b[lo:hi] - rows @ y if lo else permuted_b[lo:hi]
-            y[lo:hi] = solver(np.ascontiguousarray(rhs))
-        x = np.empty_like(y)
-        x[order] = y
-        return x
-
-    return apply
+    return Segmented(order, tuple(parts), iterative)
 
 
 def _block_solver(block: sp.csc_matrix, *, large: bool) -> Inverse | None:
-    """The solver of one segment's diagonal block, chosen by its size."""
+    """The solver of one segment's diagonal block, chosen by its estimated LU memory."""
     if not large:
         return _lu(block, "NATURAL")
-    if block.shape[0] <= LU_LIMIT:
+    if block.shape[0] <= LU_LIMIT or _thin(block):
         return _lu(block, "MMD_AT_PLUS_A") or krylov_solver(block)
     return krylov_solver(block)
+
+
+def _thin(block: sp.csc_matrix) -> bool:
+    """Whether *block*'s LU factors are small for sure: the envelope (profile) of
+    its reverse Cuthill-McKee order, which bounds the entries of an LU in that
+    order, is at most ``ENVELOPE_LIMIT`` (the minimum-degree order does no worse
+    in practice). Linear in the size of the block."""
+    pattern = sp.csr_matrix(block, copy=True)
+    pattern.data = np.ones_like(pattern.data)
+    symmetric = sp.csr_matrix(pattern + pattern.T)
+    del pattern
+    order = csgraph.reverse_cuthill_mckee(symmetric, symmetric_mode=True)
+    position = np.empty_like(order)
+    position[order] = np.arange(order.size, dtype=order.dtype)
+    # Every row holds its diagonal (A is an M-matrix), so no row is empty.
+    lowest = np.minimum.reduceat(position[symmetric.indices], symmetric.indptr[:-1])
+    envelope = int(np.sum(position - lowest, dtype=np.int64))
+    return bool(2 * envelope + block.shape[0] <= ENVELOPE_LIMIT)
 
 
 def _lu(block: sp.csc_matrix, order: str) -> Inverse | None:
@@ -158,7 +204,15 @@ def _lu(block: sp.csc_matrix, order: str) -> Inverse | None:
 
 
 def _preconditioner(block: sp.csc_matrix) -> spla.LinearOperator:
-    """Incomplete LU with capped fill, or Jacobi when it cannot be computed."""
+    """One V-cycle of classical AMG; incomplete LU with capped fill if that cannot be
+    set up; Jacobi when neither can."""
+    try:
+        import pyamg  # a second or so to import: only for components this large
+
+        hierarchy = pyamg.ruge_stuben_solver(sp.csr_matrix(block))
+        return hierarchy.aspreconditioner(cycle="V")
+    except (ValueError, RuntimeError, MemoryError, np.linalg.LinAlgError):
+        pass
     try:
         ilu = spla.spilu(block, drop_tol=ILU_DROP, fill_factor=ILU_FILL,
                          permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0)
@@ -168,19 +222,22 @@ def _preconditioner(block: sp.csc_matrix) -> spla.LinearOperator:
         return spla.LinearOperator(block.shape, matvec=lambda v: inverse_diagonal * v)
 
 
-def krylov_solver(block: sp.csc_matrix) -> Inverse:
+@dataclass(frozen=True, slots=True)
+class _Krylov:
     """Preconditioned BiCGSTAB, then restarted GMRES when BiCGSTAB stalls.
 
     Each call solves to ``KRYLOV_RTOL``; a failure shows as a poor answer, which
     the caller's backward-error rule rejects.
     """
-    A = sp.csr_matrix(block)
-    M = _preconditioner(block)
 
-    def solve(b: FloatArray) -> FloatArray:
+    A: sp.csr_matrix
+    M: spla.LinearOperator
+
+    def __call__(self, b: FloatArray) -> FloatArray:
         if not b.any():
             return np.zeros_like(b)
-        options = {"rtol": KRYLOV_RTOL, "atol": 0.0, "M": M}
+        A = self.A
+        options = {"rtol": KRYLOV_RTOL, "atol": 0.0, "M": self.M}
         with np.errstate(all="ignore"):
             x, info = spla.bicgstab(A, b, maxiter=KRYLOV_MAXITER, **options)
             if info != 0 or not np.all(np.isfinite(x)):
@@ -189,4 +246,7 @@ def krylov_solver(block: sp.csc_matrix) -> Inverse:
                                   maxiter=max(1, KRYLOV_MAXITER // 60), **options)
         return np.asarray(x, dtype=np.float64)
 
-    return solve
+
+def krylov_solver(block: sp.csc_matrix) -> Inverse:
+    """The Krylov solver of *block* (see :class:`_Krylov`), its preconditioner set up."""
+    return _Krylov(sp.csr_matrix(block), _preconditioner(block))
