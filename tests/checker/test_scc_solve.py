@@ -146,3 +146,56 @@ def test_factorization_keeps_float64_and_residue() -> None:
     system = linsolve.Factorization(A64, residue)
     x = system.solve(np.array([2.0**-60], dtype=np.longdouble))
     assert x[0] == 1.0
+
+
+def _well_mixed(n: int, degree: int, seed: int) -> sp.csr_matrix:
+    """A dense component: every state moves to *degree* random states (dyadic
+    weights) and to the goal (state *n*) with probability 1/64, as Herman's ring does."""
+    rng = np.random.default_rng(seed)
+    rows: dict[int, dict[int, float]] = {n: {n: 1.0}}
+    for s in range(n):
+        row: dict[int, float] = {n: 1 / 64}
+        for t in rng.choice(n, size=degree, replace=False):
+            row[int(t)] = row.get(int(t), 0.0) + (63 / 64) / degree
+        rows[s] = row
+    return matrix(rows, n + 1)
+
+
+def _dense_reference(P: sp.csr_matrix, rewards: np.ndarray, n: int) -> np.ndarray:
+    """Expected rewards to the goal by LAPACK on the dense system (an independent solver)."""
+    A = np.eye(n) - P[:n, :n].toarray()
+    return np.asarray(np.linalg.solve(A, rewards[:n]))
+
+
+@pytest.mark.parametrize("krylov_fails", [False, True])
+def test_dense_components_go_to_krylov_first(monkeypatch: pytest.MonkeyPatch,
+                                             krylov_fails: bool) -> None:
+    """A 600-state component with 32 successors per state is solved by Jacobi
+    Krylov (its LU would fill in densely); where Krylov falls short, by the LU."""
+    n = 600
+    P = _well_mixed(n, 32, seed=1)
+    if krylov_fails:  # a tolerance no iteration reaches, and few iterations
+        monkeypatch.setattr(scc, "KRYLOV_MAXITER", 1)
+        monkeypatch.setattr(scc, "KRYLOV_RTOL", 1e-30)
+    chosen: list[object] = []
+    original = scc._block_solver
+
+    def spy(block: sp.csc_matrix, *, large: bool) -> scc.Inverse | None:
+        solver = original(block, large=large)
+        chosen.append(solver)
+        return solver
+
+    monkeypatch.setattr(scc, "_block_solver", spy)
+    rewards = (np.arange(n + 1) % 3 + 1).astype(np.float64)
+    target = np.zeros(n + 1, dtype=bool)
+    target[n] = True
+    found = kernels.reach_rewards(P, rewards, target)
+    reference = _dense_reference(P, rewards, n)
+    dense = [s for s in chosen if isinstance(s, scc._KrylovFirst)]
+    assert dense
+    assert bool(dense[0].lu) == krylov_fails  # the LU is made only when needed
+    assert found.precise_states().all()
+    assert np.allclose(found.value[:n], reference, rtol=1e-11, atol=0)
+    slack = 1e-12 * np.abs(reference)  # the dense reference's own rounding
+    assert np.all(found.lower[:n] <= reference + slack)
+    assert np.all(reference - slack <= found.upper[:n])

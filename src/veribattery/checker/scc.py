@@ -3,13 +3,18 @@
 ``A = I - P_mm`` restricted to the unknown states. Permuted into a topological
 order of its strongly connected components (successors first), *A* is block
 lower triangular, so the system is solved segment by segment: a *segment* is
-either one large component (more than ``BLOCK_LIMIT`` states) or a maximal run
-of small ones. Segment ``s`` on positions ``[lo, hi)`` solves
+either one large component (more than ``BLOCK_LIMIT`` states, or dense) or a
+maximal run of small ones. Segment ``s`` on positions ``[lo, hi)`` solves
 
     A[s, s] x_s = b_s - A[s, :lo] x[:lo]
 
 once every earlier segment is known. The method per segment is chosen by its size:
 
+* a *dense* component (``DENSE_MIN`` states or more, on average ``DENSE_DEGREE``
+  or more entries per row inside it, as in Herman's self-stabilising ring):
+  Jacobi-preconditioned BiCGSTAB/GMRES, whose few dozen steps cost far less
+  than an LU that fills in like a dense matrix; its LU only where the
+  iteration falls short;
 * a run of small components: SuperLU in the natural (topological) order with
   diagonal pivots, so the fill-in stays inside each component (the component
   by component solve, done in C);
@@ -35,7 +40,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -56,6 +61,13 @@ LU_LIMIT = 200_000
 #: Cuthill-McKee order (which bounds the factors' entries in that order) is at
 #: most this: about 300 MB of factors at 12 bytes an entry.
 ENVELOPE_LIMIT = 25_000_000
+#: A component of at least DENSE_MIN states whose states have on average at least
+#: DENSE_DEGREE successors inside it (Herman's ring: hundreds) is dense: its LU
+#: fills in like a dense matrix (minutes and gigabytes at 10^4 states), while
+#: such well-mixing chains converge in tens of Jacobi-preconditioned Krylov steps
+#: (with the LU as the fallback should they not).
+DENSE_MIN = 512
+DENSE_DEGREE = 16
 #: Incomplete LU of a larger component: drop tolerance and fill cap (x its nonzeros).
 ILU_DROP = 1e-4
 ILU_FILL = 4.0
@@ -74,10 +86,12 @@ class Components:
 
     :param order: ``order[k]`` is the state at position *k*.
     :param starts: the first position of every component, then ``n``.
+    :param inner: the number of matrix entries inside each component.
     """
 
     order: IntArray
     starts: IntArray
+    inner: IntArray
 
     @property
     def largest(self) -> int:
@@ -102,13 +116,15 @@ def components(A64: sp.csr_matrix) -> Components | None:
     order = np.argsort(key, kind="stable").astype(np.int64)
     sizes = np.bincount(key, minlength=count)
     starts = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
-    return Components(order, starts)
+    inner = np.bincount(key[coo.row[~across]], minlength=count).astype(np.int64)
+    return Components(order, starts, inner)
 
 
 def segments(found: Components) -> list[tuple[int, int, bool]]:
-    """``(lo, hi, large)`` position ranges: each large component alone, small ones in runs."""
+    """``(lo, hi, large)`` position ranges: each large (or :func:`dense`) component
+    alone, small ones in runs."""
     sizes = np.diff(found.starts)
-    large = np.flatnonzero(sizes > BLOCK_LIMIT)
+    large = np.flatnonzero((sizes > BLOCK_LIMIT) | dense(sizes, found.inner))
     cuts = np.unique(np.concatenate([found.starts[[0, -1]], found.starts[large],
                                      found.starts[large + 1]]))
     alone = set(found.starts[large].tolist())
@@ -162,10 +178,18 @@ def segmented_inverse(A64: sp.csr_matrix, found: Components) -> Segmented | None
     return Segmented(order, tuple(parts), iterative)
 
 
+def dense(sizes: IntArray, inner: IntArray) -> npt.NDArray[np.bool_]:
+    """Which components (of *sizes* states and *inner* entries) are dense."""
+    return (sizes >= DENSE_MIN) & (inner >= DENSE_DEGREE * sizes)
+
+
 def _block_solver(block: sp.csc_matrix, *, large: bool) -> Inverse | None:
     """The solver of one segment's diagonal block, chosen by its estimated LU memory."""
     if not large:
         return _lu(block, "NATURAL")
+    size = np.array([block.shape[0]])
+    if dense(size, np.array([block.nnz]))[0]:
+        return _KrylovFirst(krylov_solver(block, _jacobi(block)), block)
     if block.shape[0] <= LU_LIMIT or _thin(block):
         return _lu(block, "MMD_AT_PLUS_A") or krylov_solver(block)
     return krylov_solver(block)
@@ -218,8 +242,13 @@ def _preconditioner(block: sp.csc_matrix) -> spla.LinearOperator:
                          permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0)
         return spla.LinearOperator(block.shape, matvec=ilu.solve)
     except (RuntimeError, MemoryError):
-        inverse_diagonal = 1.0 / block.diagonal()
-        return spla.LinearOperator(block.shape, matvec=lambda v: inverse_diagonal * v)
+        return _jacobi(block)
+
+
+def _jacobi(block: sp.csc_matrix) -> spla.LinearOperator:
+    """Division by the diagonal (positive: *block* is an M-matrix)."""
+    inverse_diagonal = 1.0 / block.diagonal()
+    return spla.LinearOperator(block.shape, matvec=lambda v: inverse_diagonal * v)
 
 
 @dataclass(frozen=True, slots=True)
@@ -247,6 +276,29 @@ class _Krylov:
         return np.asarray(x, dtype=np.float64)
 
 
-def krylov_solver(block: sp.csc_matrix) -> Inverse:
-    """The Krylov solver of *block* (see :class:`_Krylov`), its preconditioner set up."""
-    return _Krylov(sp.csr_matrix(block), _preconditioner(block))
+@dataclass(frozen=True, slots=True)
+class _KrylovFirst:
+    """Krylov iteration on a dense component, and its LU (made once) wherever the
+    iteration does not reach ``KRYLOV_RTOL``."""
+
+    krylov: Inverse
+    block: sp.csc_matrix
+    lu: list[Inverse | None] = field(default_factory=list)
+
+    def __call__(self, b: FloatArray) -> FloatArray:
+        x = self.krylov(b)
+        scale = float(np.max(np.abs(b), initial=0.0))
+        residual = float(np.max(np.abs(b - self.block @ x), initial=0.0))
+        if np.all(np.isfinite(x)) and residual <= 100 * KRYLOV_RTOL * scale:
+            return x
+        if not self.lu:
+            self.lu.append(_lu(self.block, "MMD_AT_PLUS_A"))
+        solve = self.lu[0]
+        return x if solve is None else np.asarray(solve(b), dtype=np.float64)
+
+
+def krylov_solver(block: sp.csc_matrix,
+                  preconditioner: spla.LinearOperator | None = None) -> Inverse:
+    """The Krylov solver of *block* (see :class:`_Krylov`) with *preconditioner*
+    (default: :func:`_preconditioner`'s multigrid)."""
+    return _Krylov(sp.csr_matrix(block), preconditioner or _preconditioner(block))
