@@ -23,7 +23,7 @@ from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
-from veribattery.explore.fused import LayerPlan, plan_layers
+from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
@@ -62,28 +62,6 @@ class Layer:
     rows: IntArray
     columns: IntArray
     probabilities: FloatArray
-    choices: IntArray
-    action_choices: dict[str | None, IntArray]
-    dropped: IntArray
-    branches: int
-
-
-@dataclass(frozen=True, slots=True)
-class Expansion:
-    """The branches out of a frontier, in order of source state, zero-probability ones dropped.
-
-    :param source: frontier-local source of each kept branch.
-    :param targets: successor rows of the kept branches.
-    :param probability: probability of each kept branch (1/n choice weighting applied).
-    :param choices: number of enabled choices per frontier state.
-    :param action_choices: per rewarded action, its number of choices per state.
-    :param dropped: positions of the dropped branches before dropping.
-    :param branches: number of branches before dropping.
-    """
-
-    source: IntArray
-    targets: IntArray
-    probability: FloatArray
     choices: IntArray
     action_choices: dict[str | None, IntArray]
     dropped: IntArray
@@ -210,8 +188,7 @@ def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | No
     if plan is not None:
         fused = plan.expand(frontier, rewarded)
         if fused is not None:
-            return Expansion(fused.source, fused.targets, fused.probability, fused.choices,
-                             fused.action_choices, fused.dropped, fused.branches)
+            return fused
     try:
         found = _expand_groups(program, frontier, bounds=False)
         expansion = _combine(program, found, frontier, rewarded)

@@ -22,9 +22,10 @@ evaluated only on the rows where a kind using them is enabled. Whenever
 anything is unusual (an out-of-range target, a bad probability sum, a negative
 probability, a float assigned to an integer, an evaluation error) the plan
 gives up on the layer and the caller expands it group by group, which raises
-the located error or decides the case exactly as before. The result is the
-same :class:`~veribattery.explore.builder.Expansion`, bit for bit: the same
-branches in the same order, probabilities multiplied in the same order.
+the located error or decides the case exactly as before. Both give an
+:class:`Expansion` (defined here, used by the builder for either path), bit for
+bit the same: the same branches in the same order, probabilities multiplied in
+the same order.
 """
 
 from __future__ import annotations
@@ -43,7 +44,7 @@ from veribattery.explore.program import CompiledCommand, Program
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import Binary, Call, Expr
 
-__all__ = ["FusedExpansion", "LayerPlan", "plan_layers"]
+__all__ = ["Expansion", "LayerPlan", "plan_layers"]
 
 #: Plans with more choice or branch kinds than this are not built (the enabledness
 #: matrix has one column per choice kind): such programs expand group by group.
@@ -53,8 +54,17 @@ _TOLERANCE = 0.5e-6  # half the builder's: a borderline sum is left to the exact
 
 
 @dataclass(frozen=True, slots=True)
-class FusedExpansion:
-    """The branches out of a frontier (fields as the builder's ``Expansion``)."""
+class Expansion:
+    """The branches out of a frontier, in order of source state, zero-probability ones dropped.
+
+    :param source: frontier-local source of each kept branch.
+    :param targets: successor rows of the kept branches.
+    :param probability: probability of each kept branch (1/n choice weighting applied).
+    :param choices: number of enabled choices per frontier state.
+    :param action_choices: per rewarded action, its number of choices per state.
+    :param dropped: positions of the dropped branches before dropping.
+    :param branches: number of branches before dropping.
+    """
 
     source: IntArray
     targets: IntArray
@@ -133,7 +143,7 @@ class LayerPlan:
         """Choice kinds, the deadlock self-loop excluded."""
         return int(self.widths.size) - 1
 
-    def expand(self, states: IntArray, rewarded: set[str | None]) -> FusedExpansion | None:
+    def expand(self, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
         """Every branch out of *states*, or None if the layer needs the group-by-group path."""
         try:
             return _expand(self, states, rewarded)
@@ -376,7 +386,7 @@ def _action_kinds(kinds: Sequence[_Kind]) -> dict[str | None, IntArray]:
 # ---------------------------------------------------------------------------
 
 
-def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> FusedExpansion | None:
+def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
     enabled, choices = _enabled(plan, states)
     src, kind = np.nonzero(enabled)
     present = np.flatnonzero(enabled.any(axis=0)).tolist()
@@ -402,7 +412,7 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Fus
         dropped = np.flatnonzero(~keep)
         source, targets, probability = source[keep], targets[keep], probability[keep]
     actions = _action_choices(plan, enabled, rewarded)
-    return FusedExpansion(source, targets, probability, choices, actions, dropped, total)
+    return Expansion(source, targets, probability, choices, actions, dropped, total)
 
 
 def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
