@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
 from veribattery.checker import kernels, reward_radius
 from veribattery.checker.bounds import Bounds
@@ -22,20 +23,6 @@ Rows = dict[int, dict[int, float]]
 # ---------------------------------------------------------------------------
 # An exact oracle: the level programme in rationals, closures by Gaussian elimination
 # ---------------------------------------------------------------------------
-
-
-def _solve_exact(A: list[list[Fraction]], b: list[Fraction]) -> list[Fraction]:
-    """Gauss-Jordan elimination (A nonsingular, small)."""
-    n = len(b)
-    M = [[*row, b[i]] for i, row in enumerate(A)]
-    for c in range(n):
-        pivot = next(r for r in range(c, n) if M[r][c] != 0)
-        M[c], M[pivot] = M[pivot], M[c]
-        for r in range(n):
-            if r != c and M[r][c] != 0:
-                f = M[r][c] / M[c][c]
-                M[r] = [x - f * y for x, y in zip(M[r], M[c], strict=True)]
-    return [M[i][n] / M[i][i] for i in range(n)]
 
 
 def _exact(rows: Rows, rewards: list[int], target: set[int], bound: int) -> list[Fraction]:
@@ -73,7 +60,7 @@ def _exact(rows: Rows, rewards: list[int], target: set[int], bound: int) -> list
                         A[i][where[t]] -= p
                     else:
                         b[i] += p * v[t]
-            for s, value in zip(zero, _solve_exact(A, b), strict=True):
+            for s, value in zip(zero, ref.solve(A, b), strict=True):
                 v[s] = value
         history.append(v)
     return history[-1]
