@@ -63,3 +63,37 @@ def test_a_sweep_worker_imports_no_dataframe_library() -> None:
     imported = _imported("import veribattery.sweep.execute, veribattery.sweep.tasks")
     assert "numpy" in imported  # the case is real: the checker was imported
     assert imported.isdisjoint(HEAVY), sorted(imported & set(HEAVY))
+
+
+_TINY = """dtmc
+module m
+ x : [0..2] init 0;
+ [] x=0 -> 0.5:(x'=1) + 0.5:(x'=2);
+ [] x>0 -> true;
+endmodule
+"""
+
+
+def test_checking_a_prism_file_as_json_needs_no_parser_generator_tables_or_configs(
+    tmp_path: Path,
+) -> None:
+    # Small models are most of the public benchmarks: start-up is their cost.
+    model = tmp_path / "tiny.prism"
+    model.write_text(_TINY)
+    body = _run_cli("prism", str(model), "--property", "P=? [ F x=1 ]", "--json")
+    imported = _imported(body)
+    assert {"numpy", "scipy"} <= imported  # the case is real: it checked
+    unneeded = {"lark", "rich", "pydantic", "yaml", "jinja2", "pyamg", "gmpy2", *HEAVY}
+    assert imported.isdisjoint(unneeded), sorted(imported & unneeded)
+
+
+def test_the_cli_defers_numpy_modules_that_scipy_drags_in(tmp_path: Path) -> None:
+    model = tmp_path / "tiny.prism"
+    model.write_text(_TINY)
+    body = _run_cli("prism", str(model), "--property", "P=? [ F x=1 ]", "--json")
+    script = body + "import sys\nprint(sorted(m for m in sys.modules if m.startswith(" \
+        "('numpy.f2py.', 'numpy.testing.'))))\n"
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          check=True)
+    assert '"value": 0.5' in done.stdout  # the case is real: it checked
+    assert done.stdout.splitlines()[-1] == "[]"

@@ -1,43 +1,61 @@
 """The ``veribattery`` command line: parse options, call the library, print, set the exit code.
 
-Each command lives in its own module and imports what it needs late, so that a
-command pays only for its own imports. Exit status: 0 success (and every
-requirement holds), 1 a requirement fails, 2 bad input (any
-:class:`~veribattery.errors.VeribatteryError`, or a usage error).
+Each command lives in its own module, imported only when that command runs (or when
+``--help`` lists them all), and imports what it needs late, so that a command pays
+only for its own imports. Exit status: 0 success (and every requirement holds), 1 a
+requirement fails, 2 bad input (any :class:`~veribattery.errors.VeribatteryError`,
+or a usage error).
 """
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Sequence
 
 import click
 
-from veribattery.cli.distribution import distribution_command
-from veribattery.cli.explain import explain_command, simulate_command
-from veribattery.cli.mission import check_command, emit_command
-from veribattery.cli.phm import phm_group, recheck_command
-from veribattery.cli.prism import prism_command
-from veribattery.cli.reproduce import reproduce_command
-from veribattery.cli.sweep import sweep_command
-
 __all__ = ["cli", "main"]
 
+#: Command name -> (module, attribute): imported on first use by :class:`_LazyGroup`.
+_COMMANDS = {
+    "check": ("veribattery.cli.mission", "check_command"),
+    "emit": ("veribattery.cli.mission", "emit_command"),
+    "prism": ("veribattery.cli.prism", "prism_command"),
+    "reproduce": ("veribattery.cli.reproduce", "reproduce_command"),
+    "sweep": ("veribattery.cli.sweep", "sweep_command"),
+    "explain": ("veribattery.cli.explain", "explain_command"),
+    "simulate": ("veribattery.cli.explain", "simulate_command"),
+    "phm": ("veribattery.cli.phm", "phm_group"),
+    "recheck": ("veribattery.cli.phm", "recheck_command"),
+    "distribution": ("veribattery.cli.distribution", "distribution_command"),
+}
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+
+class _LazyGroup(click.Group):
+    """A group whose commands in :data:`_COMMANDS` are imported when first asked for
+    (commands added with :meth:`add_command` work as usual)."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted({*super().list_commands(ctx), *_COMMANDS})
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        command = super().get_command(ctx, cmd_name)
+        if command is None and cmd_name in _COMMANDS:
+            module, attribute = _COMMANDS[cmd_name]
+            command = getattr(importlib.import_module(module), attribute)
+            self.add_command(command, cmd_name)
+        return command
+
+
+@click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="veribattery")
 def cli() -> None:
     """Verify battery-powered robot missions with probabilistic model checking."""
 
 
-for _command in (check_command, emit_command, prism_command, reproduce_command, sweep_command):
-    cli.add_command(_command)
-cli.add_command(explain_command)
-cli.add_command(simulate_command)
-cli.add_command(phm_group)
-cli.add_command(recheck_command)
-cli.add_command(distribution_command)
-
-
 def main(argv: Sequence[str] | None = None) -> None:
     """Console-script entry point."""
+    from veribattery._startup import defer_unused_numpy_modules
+
+    defer_unused_numpy_modules()
     cli.main(args=list(argv) if argv is not None else None, prog_name="veribattery")

@@ -7,6 +7,7 @@ Exit status: 0 success (and every requirement holds), 1 a requirement fails,
 from __future__ import annotations
 
 import math
+import os
 import sys
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -80,10 +81,19 @@ def user_errors() -> Iterator[None]:
         fail(f"{exc.filename or ''}: {exc.strerror or exc}")
 
 
+def _may_be_terminal() -> bool:
+    """False when rich would certainly not take stderr for a terminal: then rich need
+    not be imported (``--json`` and CI runs do not need it)."""
+    if {"FORCE_TERMINAL", "TTY_COMPATIBLE", "FORCE_COLOR"} & os.environ.keys():
+        return True
+    isatty = getattr(sys.stderr, "isatty", None)
+    return isatty is not None and bool(isatty())
+
+
 @contextmanager
 def build_progress() -> Iterator[ProgressCallback | None]:
     """A live state counter on stderr while the state space is explored (TTY only)."""
-    if not err.is_terminal:
+    if not _may_be_terminal() or not err.is_terminal:
         yield None
         return
     with err.status("exploring states…") as status:
