@@ -1,20 +1,25 @@
 """The parser facade: PRISM text or file → AST nodes, lark errors → ``PrismSyntaxError``.
 
-The LALR parser is built once from ``prism.lark`` (next to this module) and shared.
+Text is parsed by the fast path (:mod:`veribattery.lang.fastparse`) first; whatever
+it does not vouch for -- every error among it -- is parsed again by the LALR parser
+built once from ``prism.lark`` (next to this module), the grammar of record, which
+gives the result or the ``file:line:col`` message with a caret. lark is imported
+only then.
 """
 
 from __future__ import annotations
 
 import functools
 from pathlib import Path
-from typing import Any
-
-from lark import Lark, UnexpectedCharacters, UnexpectedInput, UnexpectedToken
-from lark.exceptions import VisitError
+from typing import TYPE_CHECKING, Any
 
 from veribattery.errors import PrismSyntaxError, Span, VeribatteryError
+from veribattery.lang.fastparse import Fallback, parse_fast
 from veribattery.lang.nodes import Model, PropertiesFile, Property
 from veribattery.lang.transform import ToNodes
+
+if TYPE_CHECKING:
+    from lark import Lark, UnexpectedInput
 
 __all__ = ["parse_model", "parse_properties", "parse_property"]
 
@@ -60,6 +65,8 @@ _MAX_EXPECTED = 6
 
 @functools.cache
 def _lark() -> Lark:
+    from lark import Lark
+
     return Lark(
         _GRAMMAR.read_text(encoding="utf-8"),
         parser="lalr",
@@ -111,6 +118,8 @@ def _caret(text: str, line: int, col: int) -> str:
 
 
 def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxError:
+    from lark import UnexpectedCharacters, UnexpectedToken
+
     line, col = exc.line, exc.column
     if isinstance(exc, UnexpectedCharacters):
         message = f"unexpected character '{exc.char}'"
@@ -132,10 +141,34 @@ def _end_position(text: str) -> tuple[int, int]:
     return len(lines), len(lines[-1]) + 1
 
 
+@functools.cache
+def _transformer() -> Any:
+    """:class:`ToNodes` as a lark transformer: each rule method called with its meta."""
+    from lark import Transformer, v_args
+
+    rules = {
+        name: v_args(meta=True)(getattr(ToNodes, name))
+        for name in dir(ToNodes)
+        if not name.startswith("_") and callable(getattr(ToNodes, name))
+    }
+    return type("LarkToNodes", (ToNodes, Transformer), rules)
+
+
 def _parse(text: str, source: str, start: str) -> Any:
     try:
+        return parse_fast(text, source, start)
+    except Fallback:
+        return _parse_with_lark(text, source, start)
+
+
+def _parse_with_lark(text: str, source: str, start: str) -> Any:
+    """Parse with lark (the grammar of record): the result, or the error message."""
+    from lark import UnexpectedInput
+    from lark.exceptions import VisitError
+
+    try:
         tree = _lark().parse(text, start=start)
-        return ToNodes(text, source).transform(tree)
+        return _transformer()(text, source).transform(tree)
     except UnexpectedInput as exc:
         raise _syntax_error(exc, text, source) from None
     except VisitError as exc:

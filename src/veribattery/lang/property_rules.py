@@ -9,10 +9,7 @@ file always parses as a whole and ``--property`` can pick the others.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Literal, TypeAlias, cast
-
-from lark import Token, Transformer, v_args
-from lark.tree import Meta
+from typing import Any, Literal, Protocol, TypeAlias, cast
 
 from veribattery.errors import PrismSemanticError, PrismSyntaxError, Span
 from veribattery.lang.nodes import (
@@ -94,6 +91,15 @@ class _Legacy:
 Value = Expr | Temporal | Unsupported
 
 
+class Meta(Protocol):
+    """Where a rule's text starts and ends (lark's ``Meta`` or the fast parser's)."""
+
+    line: int
+    column: int
+    start_pos: int
+    end_pos: int
+
+
 def first_bad(values: list[Any]) -> Unsupported | None:
     """The first unsupported operand; a temporal operand nested in an operator is LTL."""
     for value in values:
@@ -145,9 +151,12 @@ def _split_legacy(children: list[Any]) -> tuple[list[Any], _Legacy | None]:
     return children, None
 
 
-@v_args(meta=True)
-class PropertyRules(Transformer[Token, Any]):
-    """Transformer methods for the property grammar; mixed into the parse-tree transformer."""
+class PropertyRules:
+    """One method per rule of the property grammar, ``rule(meta, children) -> value``.
+
+    Plain Python (no lark): the lark transformer and the fast parser
+    (:mod:`veribattery.lang.fastparse`) both call these, so both build the same nodes.
+    """
 
     _source: str
 
@@ -190,7 +199,7 @@ class PropertyRules(Transformer[Token, Any]):
         bad = first_bad([bound])
         return bad or (str(op), bound)
 
-    def legacy_op(self, meta: Meta, children: list[Token]) -> str:
+    def legacy_op(self, meta: Meta, children: list[str]) -> str:
         return str(children[1])
 
     def state_filter(self, meta: Meta, children: list[Any]) -> _Legacy | Unsupported:
@@ -209,10 +218,10 @@ class PropertyRules(Transformer[Token, Any]):
             return formula
         return self._wrap(ProbOp(query[0], query[1], formula, self._span(meta)), legacy, meta)
 
-    def reward_by_name(self, meta: Meta, children: list[Token]) -> str:
+    def reward_by_name(self, meta: Meta, children: list[str]) -> str:
         return str(children[0])[1:-1]
 
-    def reward_by_index(self, meta: Meta, children: list[Token]) -> int:
+    def reward_by_index(self, meta: Meta, children: list[str]) -> int:
         # R{2} is the second structure; nodes store 0-based indices.
         return int(children[0]) - 1
 
@@ -295,7 +304,7 @@ class PropertyRules(Transformer[Token, Any]):
             return formula
         return Quantified(cast(Literal["A", "E"], name), formula, self._span(meta))
 
-    def filter_op(self, meta: Meta, children: list[Token]) -> str:
+    def filter_op(self, meta: Meta, children: list[str]) -> str:
         return str(children[0])
 
     def filter(self, meta: Meta, children: list[Any]) -> Value:

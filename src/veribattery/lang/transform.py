@@ -1,4 +1,9 @@
-"""Parse tree → AST nodes: one method per grammar rule, a span on every node.
+"""Grammar rules → AST nodes: one method per rule of ``prism.lark``, a span on every node.
+
+Plain Python (no lark): :mod:`veribattery.lang.parser` wraps :class:`ToNodes` as a
+lark transformer, and the fast parser (:mod:`veribattery.lang.fastparse`) calls the
+same methods (and the expression builders below) with the same children, so both
+paths build identical nodes.
 
 The grammar accepts more of PRISM's property language than we check (filters,
 steady state, LTL-style path formulas, time intervals), so that whole PRISM
@@ -11,9 +16,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Any, cast
-
-from lark import Token, v_args
-from lark.tree import Meta
 
 from veribattery.errors import PrismSemanticError, PrismSyntaxError, Span
 from veribattery.lang.nodes import (
@@ -46,7 +48,14 @@ from veribattery.lang.nodes import (
     ValueType,
     VarDecl,
 )
-from veribattery.lang.property_rules import PropertyRules, Temporal, Unsupported, Value, first_bad
+from veribattery.lang.property_rules import (
+    Meta,
+    PropertyRules,
+    Temporal,
+    Unsupported,
+    Value,
+    first_bad,
+)
 
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
 
@@ -68,13 +77,46 @@ class _ModelType:
     span: Span
 
 
-def _unquote(token: Token) -> str:
+def _unquote(token: str) -> str:
     return str(token)[1:-1]
 
 
-@v_args(meta=True)
+def binary(left: Any, op: str, right: Any, span: Span) -> Value:
+    """``left op right`` (``^`` is ``pow``); an unsupported operand makes it unsupported."""
+    bad = first_bad([left, right])
+    if bad is not None:
+        return bad
+    if op == "^":
+        return Call("pow", (left, right), span)
+    return Binary(cast(BinaryOp, op), left, right, span)
+
+
+def unary(op: str, operand: Any, span: Span) -> Value:
+    """``!a`` or ``-a``."""
+    bad = first_bad([operand])
+    return bad or Unary(cast(UnaryOp, op), operand, span)
+
+
+def ite(cond: Any, then: Any, otherwise: Any, span: Span) -> Value:
+    """``cond ? then : otherwise``."""
+    bad = first_bad([cond, then, otherwise])
+    return bad or Ite(cond, then, otherwise, span)
+
+
+def call(name: str, args: list[Any], span: Span) -> Value:
+    """A built-in function call."""
+    bad = first_bad(args)
+    if bad is not None:
+        return bad
+    return Call(cast(FunctionName, name), tuple(args), span)
+
+
 class ToNodes(PropertyRules):
-    """Build :mod:`veribattery.lang.nodes` objects from a parse tree of ``prism.lark``."""
+    """Build :mod:`veribattery.lang.nodes` objects, rule by rule, for ``prism.lark``.
+
+    Tokens are ``str`` subclasses (lark's ``Token`` or the fast parser's word), so a
+    plain ``str`` child is a value a rule returned (``const_type``), never a token.
+    """
 
     def __init__(self, text: str, source: str) -> None:
         super().__init__()
@@ -92,58 +134,47 @@ class ToNodes(PropertyRules):
 
     # ---------------------------------------------------------- expressions
 
-    def int_lit(self, meta: Meta, children: list[Token]) -> Expr:
+    def int_lit(self, meta: Meta, children: list[str]) -> Expr:
         return IntLit(int(children[0]), self._span(meta))
 
-    def double_lit(self, meta: Meta, children: list[Token]) -> Expr:
+    def double_lit(self, meta: Meta, children: list[str]) -> Expr:
         return DoubleLit(float(children[0]), str(children[0]), self._span(meta))
 
-    def true_lit(self, meta: Meta, children: list[Token]) -> Expr:
+    def true_lit(self, meta: Meta, children: list[str]) -> Expr:
         return BoolLit(True, self._span(meta))
 
-    def false_lit(self, meta: Meta, children: list[Token]) -> Expr:
+    def false_lit(self, meta: Meta, children: list[str]) -> Expr:
         return BoolLit(False, self._span(meta))
 
-    def ident(self, meta: Meta, children: list[Token]) -> Expr:
+    def ident(self, meta: Meta, children: list[str]) -> Expr:
         return Ident(str(children[0]), self._span(meta))
 
-    def label_ref(self, meta: Meta, children: list[Token]) -> Expr:
+    def label_ref(self, meta: Meta, children: list[str]) -> Expr:
         return LabelRef(_unquote(children[0]), self._span(meta))
 
     def binop(self, meta: Meta, children: list[Any]) -> Value:
         left, op, right = children
-        bad = first_bad([left, right])
-        if bad is not None:
-            return bad
-        if str(op) == "^":
-            return Call("pow", (left, right), self._span(meta))
-        return Binary(cast(BinaryOp, str(op)), left, right, self._span(meta))
+        return binary(left, str(op), right, self._span(meta))
 
     def unop(self, meta: Meta, children: list[Any]) -> Value:
         op, operand = children
-        bad = first_bad([operand])
-        return bad or Unary(cast(UnaryOp, str(op)), operand, self._span(meta))
+        return unary(str(op), operand, self._span(meta))
 
     def ite(self, meta: Meta, children: list[Any]) -> Value:
-        bad = first_bad(children)
-        return bad or Ite(children[0], children[1], children[2], self._span(meta))
+        return ite(children[0], children[1], children[2], self._span(meta))
 
-    def func_name(self, meta: Meta, children: list[Token]) -> Token:
+    def func_name(self, meta: Meta, children: list[str]) -> str:
         return children[0]
 
     def call(self, meta: Meta, children: list[Any]) -> Value:
-        name, args = str(children[0]), children[1:]
-        bad = first_bad(args)
-        if bad is not None:
-            return bad
-        return Call(cast(FunctionName, name), tuple(args), self._span(meta))
+        return call(str(children[0]), children[1:], self._span(meta))
 
     # ------------------------------------------------------------ model items
 
-    def model_type(self, meta: Meta, children: list[Token]) -> _ModelType:
+    def model_type(self, meta: Meta, children: list[str]) -> _ModelType:
         return _ModelType(str(children[0]), self._span(meta))
 
-    def const_type(self, meta: Meta, children: list[Token]) -> ValueType:
+    def const_type(self, meta: Meta, children: list[str]) -> ValueType:
         name = str(children[0])
         # "rate" and "prob" are PRISM's old spellings of double.
         return "double" if name in ("rate", "prob") else cast(ValueType, name)
@@ -151,7 +182,7 @@ class ToNodes(PropertyRules):
     def const_decl(self, meta: Meta, children: list[Any]) -> ConstDecl:
         kind: ValueType = (
             children.pop(0)
-            if isinstance(children[0], str) and not isinstance(children[0], Token)
+            if type(children[0]) is str  # const_type's value; a token is a str subclass
             else "int"
         )
         name, value = children[0], children[1] if len(children) > 1 else None
@@ -200,7 +231,7 @@ class ToNodes(PropertyRules):
         return tuple(children)
 
     def command(self, meta: Meta, children: list[Any]) -> Command:
-        action = str(children.pop(0)) if isinstance(children[0], Token) else None
+        action = str(children.pop(0)) if isinstance(children[0], str) else None
         guard = self._model_expr(children[0])
         return Command(action, guard, children[1], self._span(meta))
 
@@ -210,7 +241,7 @@ class ToNodes(PropertyRules):
         commands = tuple(b for b in body if isinstance(b, Command))
         return Module(str(name), variables, commands, self._span(meta))
 
-    def rename(self, meta: Meta, children: list[Token]) -> tuple[str, str]:
+    def rename(self, meta: Meta, children: list[str]) -> tuple[str, str]:
         return str(children[0]), str(children[1])
 
     def renamed_module(self, meta: Meta, children: list[Any]) -> RenamedModule:
@@ -218,7 +249,7 @@ class ToNodes(PropertyRules):
         return RenamedModule(str(name), str(base), tuple(renames), self._span(meta))
 
     def transition_reward(self, meta: Meta, children: list[Any]) -> RewardItem:
-        action = str(children.pop(0)) if isinstance(children[0], Token) else None
+        action = str(children.pop(0)) if isinstance(children[0], str) else None
         guard, value = self._model_expr(children[0]), self._model_expr(children[1])
         return RewardItem(True, action, guard, value, self._span(meta))
 
@@ -227,7 +258,7 @@ class ToNodes(PropertyRules):
         return RewardItem(False, None, guard, value, self._span(meta))
 
     def rewards(self, meta: Meta, children: list[Any]) -> RewardStruct:
-        name = _unquote(children.pop(0)) if children and isinstance(children[0], Token) else None
+        name = _unquote(children.pop(0)) if children and isinstance(children[0], str) else None
         return RewardStruct(name, tuple(children), self._span(meta))
 
     def init_block(self, meta: Meta, children: list[Any]) -> _Init:
