@@ -160,11 +160,13 @@ def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
     key = _mask_key(maybe)
     found = systems.get(key)
     if found is None:
+        # Make room first: the old system is freed before the new one is built, not
+        # after (on the 11x11 mission each takes ~250 MB).
+        while systems and len(systems) >= SYSTEMS_KEPT:
+            systems.popitem(last=False)
         A64, residue, rows = linsolve.restricted_parts(P, maybe)
         found = _System(rows, linsolve.Factorization(A64, residue))
         systems[key] = found
-        while len(systems) > SYSTEMS_KEPT:
-            systems.popitem(last=False)
     else:
         systems.move_to_end(key)
     return found
