@@ -102,3 +102,29 @@ def test_triangular_plans_are_kept_only_for_patterns_seen_again() -> None:
     b = np.array([1.0, 2.0, 3.0])
     assert np.allclose(first(b), np.linalg.solve(A.toarray(), b), rtol=1e-15)
     assert np.allclose(second(b), np.linalg.solve(B.toarray(), b), rtol=1e-15)
+
+
+def _reach_reference(P: sp.csr_matrix, through: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """Backward search one state at a time over the positive entries."""
+    dense = P.toarray()
+    reached = seeds.copy()
+    changed = True
+    while changed:
+        changed = False
+        for i in range(dense.shape[0]):
+            if not reached[i] and through[i] and np.any(reached[dense[i] > 0]):
+                reached[i] = changed = True
+    return reached
+
+
+@pytest.mark.parametrize("seed", range(30))
+def test_backward_reach_matches_a_plain_search(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 30))
+    dense = (rng.random((n, n)) < 0.15) * rng.random((n, n))
+    P = sp.csr_matrix(dense)
+    if seed % 2:  # stored zeros are not transitions
+        P.data[rng.random(P.nnz) < 0.3] = 0.0
+    through, seeds = rng.random(n) < 0.7, rng.random(n) < 0.15
+    found = kernels._backward_reach(P, through, seeds)
+    assert np.array_equal(found, _reach_reference(P, through, seeds))
