@@ -40,4 +40,7 @@ cli.add_command(distribution_command)
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Console-script entry point."""
+    from veribattery._memory import map_large_blocks
+
+    map_large_blocks()  # freed arrays leave the process at once (see _memory)
     cli.main(args=list(argv) if argv is not None else None, prog_name="veribattery")
