@@ -104,13 +104,16 @@ def mission_files(cfg: MissionConfig) -> MissionFiles:
 
 
 def check_mission(
-    cfg: MissionConfig, *, progress: ProgressCallback | None = None, exact: bool = False
+    cfg: MissionConfig, *, progress: ProgressCallback | None = None, exact: bool = False,
+    keep_states: bool = True,
 ) -> MissionReport:
     """Render *cfg*, parse and check the text like any PRISM file, and judge the requirements.
 
     :param exact: check in exact rational arithmetic and judge requirements exactly.
+    :param keep_states: keep each result's per-state values and bounds (False: only the
+        answers, see :meth:`CheckResult.without_states`; the CLI needs no more).
     """
-    return _check(cfg, progress, None, exact=exact)
+    return _check(cfg, progress, None, exact=exact, keep_states=keep_states)
 
 
 def _check(
@@ -120,13 +123,15 @@ def _check(
     parsed: _Parsed | None = None,
     *,
     exact: bool = False,
+    keep_states: bool = True,
 ) -> MissionReport:
     from veribattery.render import render_model, render_properties
 
     parsed = parsed or _Parsed()
     model = parsed.model(render_model(cfg))  # not mission_files: no config YAML needed
     props = parsed.properties(render_properties(cfg))
-    return mission_report(cfg, _check_properties(model, props, progress, builder, exact))
+    run = _check_properties(model, props, progress, builder, (exact, keep_states))
+    return mission_report(cfg, run)
 
 
 def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
@@ -138,12 +143,13 @@ def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
 
 
 def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCallback | None,
-                      builder: ReusingBuilder | None, exact: bool) -> ModelCheckRun:
+                      builder: ReusingBuilder | None, modes: tuple[bool, bool]) -> ModelCheckRun:
     """Check every property; a property without a value here (the conditional defaults
     of a mission that never succeeds, or under ``--exact``) is NaN with a warning
-    instead of stopping the whole check (and a sweep)."""
+    instead of stopping the whole check (and a sweep). *modes*: exact, keep_states."""
+    exact, keep_states = modes
     return check_model(model, props.properties, props_file=props, progress=progress,
-                       builder=builder, exact=exact, undefined_ok=True)
+                       builder=builder, exact=exact, undefined_ok=True, keep_states=keep_states)
 
 
 def is_conditional(formula: object) -> bool:

@@ -152,6 +152,7 @@ def check_model(
     exact: bool = False,
     builder: ReusingBuilder | None = None,
     undefined_ok: bool = False,
+    keep_states: bool = True,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states.
 
@@ -161,6 +162,9 @@ def check_model(
     :param undefined_ok: report a property that has no value on this model
         (:class:`~veribattery.errors.UndefinedResult`) as NaN with a warning,
         instead of failing the run.
+    :param keep_states: keep each result's per-state values and bounds; False keeps
+        only the answers (:meth:`CheckResult.without_states`), so that one property's
+        per-state vectors are alive at a time (what the CLI prints needs no more).
     """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
@@ -180,24 +184,29 @@ def check_model(
     else:
         checks = [functools.partial(check, dtmc, p) for p in resolved]
     with watch.stage("check"):
-        results, undefined = _run_checks(checks, resolved, dtmc, undefined_ok)
+        results, undefined = _run_checks(checks, resolved, dtmc, (undefined_ok, keep_states))
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
 
 
 def _run_checks(
     checks: Sequence[Callable[[], CheckResult]], resolved: Sequence[Property], dtmc: DTMC,
-    undefined_ok: bool,
+    options: tuple[bool, bool],
 ) -> tuple[tuple[CheckResult, ...], tuple[str, ...]]:
-    """Run each property's check; with *undefined_ok*, a property without a value is NaN."""
+    """Run each property's check; with *undefined_ok*, a property without a value is NaN;
+    without *keep_states*, each result is reduced to its answer as soon as it is made."""
+    undefined_ok, keep_states = options
     results: list[CheckResult] = []
     warnings: list[str] = []
     for run_one, prop in zip(checks, resolved, strict=True):
         try:
-            results.append(run_one())
+            result = run_one()
+            results.append(result if keep_states else result.without_states())
+            del result  # before the next property: its per-state arrays can go now
         except UndefinedResult as exc:
             if not undefined_ok:
                 raise
-            results.append(CheckResult(prop, np.full(dtmc.num_states, np.nan), math.nan, 0.0))
+            size = dtmc.num_states if keep_states else 0
+            results.append(CheckResult(prop, np.full(size, np.nan), math.nan, 0.0))
             warnings.append(f"{prop.name or prop.text}: undefined (NaN): {exc.message}")
     return tuple(results), tuple(warnings)
 
@@ -243,6 +252,7 @@ def check_prism_file(
     constants: Mapping[str, Value | str] | None = None,
     progress: ProgressCallback | None = None,
     exact: bool = False,
+    keep_states: bool = True,
 ) -> ModelCheckRun:
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
@@ -251,6 +261,7 @@ def check_prism_file(
     :param selectors: properties to check, by 1-based index, name or text.
     :param constants: values of undefined constants.
     :param exact: check in exact rational arithmetic (``--exact``).
+    :param keep_states: keep per-state values and bounds (see :func:`check_model`).
     """
     watch = _Stopwatch()
     with watch.stage("parse"):
@@ -263,7 +274,7 @@ def check_prism_file(
             chosen, skipped = _supported(chosen)
     run = check_model(
         model, chosen, props_file=props, constants=constants, progress=progress, stopwatch=watch,
-        exact=exact,
+        exact=exact, keep_states=keep_states,
     )
     return replace(run, warnings=skipped + run.warnings) if skipped else run
 

@@ -503,6 +503,9 @@ class _TriangularPlan:
 #: Plans of the last few patterns, by digest (see :func:`_pattern_digest`).
 PLANS_KEPT = 4
 _PLANS: OrderedDict[bytes, _TriangularPlan | None] = OrderedDict()
+#: Patterns whose plan was made once and not kept: a plan (~40 MB at 1.4M states) is
+#: kept only for a pattern seen again (a structure-reusing sweep), as restrictions are.
+_PLANS_SEEN: OrderedDict[bytes, None] = OrderedDict()
 
 
 def _pattern_digest(A64: sp.csr_matrix) -> bytes:
@@ -522,6 +525,12 @@ def _triangular_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
         _PLANS.move_to_end(key)
         return _PLANS[key]
     plan = _new_plan(A64)
+    if plan is not None and key not in _PLANS_SEEN:
+        _PLANS_SEEN[key] = None
+        while len(_PLANS_SEEN) > RESTRICTIONS_KEPT:
+            _PLANS_SEEN.popitem(last=False)
+        return plan
+    _PLANS_SEEN.pop(key, None)
     _PLANS[key] = plan
     while len(_PLANS) > PLANS_KEPT:
         _PLANS.popitem(last=False)

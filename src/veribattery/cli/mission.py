@@ -53,7 +53,7 @@ def check_command(
     with user_errors():
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            report = check_mission(cfg, progress=progress, exact=exact)
+            report = check_mission(cfg, progress=progress, exact=exact, keep_states=False)
         if emit_dir is not None:
             write_files(mission_files(cfg), emit_dir, force=force)
     print_warnings(report.warnings)

@@ -42,8 +42,14 @@ __all__ = [
 
 #: Rows of the variables' domain enumerated at once when evaluating an ``init`` block.
 _INIT_CHUNK = 1 << 20
-#: Frontier states expanded at once.
+#: Frontier states expanded at once, at most.
 _CHUNK = 1 << 14
+#: The first chunk of a search: its branches per state are not known yet.
+_FIRST_CHUNK = 1 << 8
+#: Words (int64) of successor rows a chunk may produce, estimated from the chunk before:
+#: a heavily synchronised model (Herman's ring: ~440 branches of 15 variables per state)
+#: would otherwise hold gigabytes of successor rows for one chunk of _CHUNK states.
+_BRANCH_WORDS = 1 << 22
 _NONE = np.empty(0, dtype=np.int64)
 _NO_FLOATS = np.empty(0, dtype=np.float64)
 _INT32_MAX = int(np.iinfo(np.int32).max)
@@ -89,18 +95,29 @@ def explore(
     rewarded = rewarded_actions(model.rewards)
     layers: list[Layer] = []
     counts = _count_dtype(program)
-    low = 0
+    low, size = 0, _FIRST_CHUNK
     while low < store.count:
         high = store.count
         # Chunks bound the memory of wide layers; sources stay in order, so the
         # numbering is the same as for the whole layer at once.
-        for start in range(low, high, _CHUNK):
-            stop = min(start + _CHUNK, high)
+        start = low
+        while start < high:
+            stop = min(start + size, high)
             layers.append(_explore_layer(program, store, start, stop, rewarded, counts))
+            size = _next_chunk(size, layers[-1].branches, stop - start, len(program.lows))
+            start = stop
         if progress is not None:
             progress(store.count, high - low)
         low = high
     return store.states, initial, layers
+
+
+def _next_chunk(size: int, branches: int, states: int, width: int) -> int:
+    """The next chunk's size: at most four times this one's (the branching may grow),
+    at most ``_CHUNK``, and about ``_BRANCH_WORDS`` words of successor rows at this
+    chunk's branches per state."""
+    words = max(branches, 1) * (width + 2) / states  # rows, plus source and probability
+    return max(1, min(_CHUNK, 4 * size, int(_BRANCH_WORDS / words)))
 
 
 def initial_states(model: FlatModel) -> IntArray:
