@@ -353,11 +353,12 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
     if x is None:
         return None
     x = np.clip(x, floor, ceiling)
-    pair = certify.quick_certificate(F, x, solver.correction, floor, ceiling)
-    if pair is None:
-        return None
-    found = Bounds.around(x, *pair)
-    return found if found.precise_states().all() else None
+    for margin in solver.margins_for(b, x):
+        pair = certify.quick_certificate(F, x, margin, floor, ceiling)
+        found = None if pair is None else Bounds.around(x, *pair)
+        if found is not None and found.precise_states().all():
+            return found
+    return None
 
 
 def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
