@@ -47,7 +47,7 @@ def test_near_iteration_matches_the_whole_one_bit_for_bit(monkeypatch: pytest.Mo
     remain = np.ones(n, dtype=bool)
     near = kernels.bounded_until_probs(P, remain, target, 9)
     monkeypatch.setattr(kernels, "_within_steps",
-                        lambda P, through, target, k: np.ones(P.shape[0], dtype=bool))
+                        lambda moving, target, k: np.ones(moving.shape[0], dtype=bool))
     whole = kernels.bounded_until_probs(P, remain, target, 9)
     assert np.array_equal(near.value, whole.value)
     assert np.all(near.lower >= whole.lower) and np.all(near.upper <= whole.upper)

@@ -483,40 +483,34 @@ def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param target: states to reach.
     :param k: step bound (``U<=k``), at least 0.
     """
-    near = _within_steps(P, remain & ~target, target, k)
+    moving = _rows_in(P, remain & ~target)
+    near = _within_steps(moving, target, k)
     if not near.any():
         return Bounds.exact(np.zeros(P.shape[0]))
+    hit = target.astype(np.float64)
     if near.all():
-        hit = target.astype(np.float64)
-        return _probabilities(_step_power(_rows_in(P, remain & ~target), Bounds.exact(hit),
-                                          hit, k))
+        return _probabilities(_step_power(moving, Bounds.exact(hit), hit, k))
     # States farther than k steps from the target have probability exactly 0, and
     # so has every such successor of a nearer state at each of the k iterations:
     # iterating on the near states alone gives the same values (Storm does the same).
     index = np.flatnonzero(near)
-    sub = _rows_in(sp.csr_matrix(P[index][:, index]), (remain & ~target)[index])
-    hit = target[index].astype(np.float64)
-    found = _step_power(sub, Bounds.exact(hit), hit, k)
+    sub = sp.csr_matrix(moving[index][:, index])
+    del moving
+    found = _step_power(sub, Bounds.exact(hit[index]), hit[index], k)
     return _probabilities(_spread(np.zeros(P.shape[0]), near, found))
 
 
-def _within_steps(P: CsrMatrix, through: BoolArray, target: BoolArray, k: int) -> BoolArray:
-    """States with a path of at most *k* steps to *target* whose states before the last
-    lie in *through* (a breadth-first search cut at depth *k*, in C)."""
-    n = P.shape[0]
+def _within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
+    """States with a path of at most *k* steps of *moving* (rows of the states that
+    may move) to *target*: a breadth-first search over the reversed graph cut at
+    depth *k* (in C; any superset would do, so stored zeros may count as edges)."""
+    n = moving.shape[0]
     if not target.any():
         return np.zeros(n, dtype=bool)
-    rows = np.repeat(np.arange(n), np.diff(P.indptr))
-    keep = (P.data > 0) & through[rows] & ~target[rows]
-    seeds = np.flatnonzero(target)
-    src = np.concatenate([P.indices[keep], np.full(seeds.size, n)])
-    dst = np.concatenate([rows[keep], seeds])
-    del rows, keep
-    graph = sp.csr_matrix((np.ones(src.size), (src, dst)), shape=(n + 1, n + 1))
-    # Hop 1 is the virtual source's edge to the targets, so depth k is distance k + 1.
-    distance = csgraph.dijkstra(graph, directed=True, indices=n, unweighted=True,
-                                limit=k + 1.5)
-    return np.asarray(np.isfinite(distance[:n]), dtype=bool)
+    # The transpose is a CSC view of the same arrays; csgraph makes one CSR copy.
+    distance = csgraph.dijkstra(moving.T, directed=True, indices=np.flatnonzero(target),
+                                unweighted=True, min_only=True, limit=k + 0.5)
+    return np.asarray(np.isfinite(distance), dtype=bool)
 
 
 def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
