@@ -7,15 +7,17 @@ path that 10^6-state meshes take by default.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from fractions import Fraction
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
+import scipy.sparse.linalg  # noqa: F401 -- sp.linalg below
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid, ring_then_walk
-from veribattery.checker import kernels, linsolve, scc
+from veribattery.checker import certify, kernels, linsolve, scc
 from veribattery.checker.bounds import Bounds
 
 GRID = """dtmc
@@ -146,3 +148,93 @@ def test_restricted_parts_match_the_dense_reference() -> None:
         assert all(abs(Fraction(*e.as_integer_ratio()) - x) <= Fraction(1, 2**55) for e, x in
                    zip(extended, exact, strict=True))
         assert A64.has_sorted_indices and A64.dtype == np.float64
+
+
+@pytest.fixture
+def quick_only(krylov_calls: list[int], monkeypatch: pytest.MonkeyPatch) -> list[str]:
+    """The Krylov path with the quick certificate on every system; the long way fails
+    the test. Returns which margin each certificate used ("solve" or "proportional")."""
+    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
+
+    def no_long_way(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the quick certificate should have been enough")
+
+    monkeypatch.setattr(certify, "certify_fixpoint", no_long_way)
+    used: list[str] = []
+    original_margin = scc.Segmented.margin
+    original_for = linsolve.Factorization.margins_for
+
+    def margin(self: scc.Segmented, v: np.ndarray) -> np.ndarray:
+        used.append("solve")
+        return original_margin(self, v)
+
+    def margins_for(self: linsolve.Factorization, b: np.ndarray, x: np.ndarray
+                    ) -> list[Callable[[np.ndarray], np.ndarray | None]]:
+        chosen = original_for(self, b, x)
+        if chosen[0].__name__ == "proportional":
+            used.append("proportional")
+        return chosen
+
+    monkeypatch.setattr(scc.Segmented, "margin", margin)
+    monkeypatch.setattr(linsolve.Factorization, "margins_for", margins_for)
+    return used
+
+
+@pytest.mark.parametrize("side", [5, 6])
+def test_quick_certificate_on_the_krylov_path(quick_only: list[str], side: int) -> None:
+    """One Krylov solve and the quick certificate: positive rewards take the margin
+    proportional to the solution (no second solve), probabilities a loose solve of
+    the lifted defect; the intervals contain the exact rationals either way."""
+    P = _grid(side)
+    n = P.shape[0]
+    target = np.zeros(n, dtype=bool)
+    target[-1] = True
+    rewards = (np.arange(n) % 3 + 1) / 4
+    found = kernels.reach_rewards(P, rewards, target)
+    assert contains(found, ref.reach_rewards(P, rewards, target))
+    assert found.precise_states().all()
+    assert quick_only == ["proportional"]
+    used = len(quick_only)
+    avoid = np.ones(n, dtype=bool)
+    avoid[n // 2] = False
+    reach = kernels.until_probs(P, avoid, target)
+    assert contains(reach, ref.until(P, avoid, target))
+    assert reach.precise_states().all()
+    assert quick_only[used:] == ["solve"]
+
+
+def test_grid_quick_path_against_exact_storm(quick_only: list[str]) -> None:
+    """The bench's drifting grid (one component, 144 states) through the quick Krylov
+    path: Storm's exact answers lie inside the intervals."""
+    pytest.importorskip("stormpy")
+    from tests.storm_oracle import run_storm
+    from veribattery.pipeline import check_prism_file
+
+    model = GRID.format(n=12)
+    props = 'R{"steps"}=? [ F "goal" ];\nP=? [ !"corner" U "goal" ];\n'
+    run = check_prism_file(model, props_source=props)
+    storm = run_storm(model, props, exact=True)
+    assert quick_only == ["proportional", "solve"]
+    for result, values in zip(run.results, storm.values, strict=True):
+        exact = Fraction(values[storm.initial[0]])
+        assert result.precise
+        assert Fraction(result.lower) <= exact <= Fraction(result.upper)
+
+
+def test_lifted_loose_margin_covers_a_defect_with_zeros(krylov_calls: list[int]) -> None:
+    """Segmented.margin solves loosely for a lifted right-hand side: the result is
+    at least the exact A^-1 v (up to the loose tolerance) even where v is 0."""
+    P = _grid(10)
+    maybe = np.ones(P.shape[0], dtype=bool)
+    maybe[-1] = False
+    A64, _, _ = linsolve.restricted_parts(P, maybe)
+    found = scc.components(A64)
+    assert found is not None
+    inverse = scc.segmented_inverse(A64, found)
+    assert inverse is not None and inverse.iterative
+    v = np.zeros(A64.shape[0])
+    v[::7] = 1e-9
+    margin = inverse.margin(v)
+    exact = sp.linalg.spsolve(sp.csc_matrix(A64), v)
+    assert np.all(margin >= exact)
+    assert np.all(margin > 0)

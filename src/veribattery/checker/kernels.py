@@ -371,11 +371,12 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
     if x is None:
         return None
     x = np.clip(x, floor, ceiling)
-    pair = certify.quick_certificate(F, x, solver.correction, floor, ceiling)
-    if pair is None:
-        return None
-    found = Bounds.around(x, *pair)
-    return found if found.precise_states().all() else None
+    for margin in solver.margins_for(b, x):
+        pair = certify.quick_certificate(F, x, margin, floor, ceiling)
+        found = None if pair is None else Bounds.around(x, *pair)
+        if found is not None and found.precise_states().all():
+            return found
+    return None
 
 
 def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
@@ -500,9 +501,34 @@ def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param target: states to reach.
     :param k: step bound (``U<=k``), at least 0.
     """
+    moving = _rows_in(P, remain & ~target)
+    near = _within_steps(moving, target, k)
+    if not near.any():
+        return Bounds.exact(np.zeros(P.shape[0]))
     hit = target.astype(np.float64)
-    found = _step_power(_rows_in(P, remain & ~target), Bounds.exact(hit), hit, k)
-    return _probabilities(found)
+    if near.all():
+        return _probabilities(_step_power(moving, Bounds.exact(hit), hit, k))
+    # States farther than k steps from the target have probability exactly 0, and
+    # so has every such successor of a nearer state at each of the k iterations:
+    # iterating on the near states alone gives the same values (Storm does the same).
+    index = np.flatnonzero(near)
+    sub = sp.csr_matrix(moving[index][:, index])
+    del moving
+    found = _step_power(sub, Bounds.exact(hit[index]), hit[index], k)
+    return _probabilities(_spread(np.zeros(P.shape[0]), near, found))
+
+
+def _within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
+    """States with a path of at most *k* steps of *moving* (rows of the states that
+    may move) to *target*: a breadth-first search over the reversed graph cut at
+    depth *k* (in C; any superset would do, so stored zeros may count as edges)."""
+    n = moving.shape[0]
+    if not target.any():
+        return np.zeros(n, dtype=bool)
+    # The transpose is a CSC view of the same arrays; csgraph makes one CSR copy.
+    distance = csgraph.dijkstra(moving.T, directed=True, indices=np.flatnonzero(target),
+                                unweighted=True, min_only=True, limit=k + 0.5)
+    return np.asarray(np.isfinite(distance), dtype=bool)
 
 
 def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,

@@ -381,7 +381,7 @@ class Factorization:
         if not b.any():
             return np.zeros(b.shape, dtype=np.float64)
         inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
-        if inverse is None or self._iterative:
+        if inverse is None:
             return None
         try:
             x = np.asarray(inverse(np.ascontiguousarray(b, dtype=np.float64)), dtype=np.float64)
@@ -405,6 +405,40 @@ class Factorization:
             return self.solve(v.astype(np.longdouble))
         except (CheckError, RuntimeError):
             return None
+
+    @property
+    def iterative(self) -> bool:
+        """Whether the direct solver has a Krylov segment (known once it is built)."""
+        return self._iterative
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]:
+        """The margin solvers to try, in turn, for the quick certificate of ``x ~ A^-1 b``.
+
+        With a Krylov segment and ``b > 0``, first one without any solve: ``A^-1 >= 0``
+        (an M-matrix), so ``A^-1 v <= max(v / b) A^-1 b``, and *x* stands for
+        ``A^-1 b`` (the certificate's test decides whether it does well enough;
+        the interval is wider than with :meth:`margin` where the defect is uneven).
+        Then :meth:`margin`.
+        """
+        if self._iterative and bool(np.all(b > 0)) and bool(np.all(x > 0)):
+            positive = np.asarray(b, dtype=np.float64)
+
+            def proportional(v: FloatArray) -> FloatArray:
+                return float(np.max(v / positive, initial=0.0)) * x
+
+            return [proportional, self.margin]
+        return [self.margin]
+
+    def margin(self, v: FloatArray) -> FloatArray | None:
+        """:meth:`correction` for the quick certificate: with a Krylov segment, a
+        loose solve of a lifted *v* (:meth:`scc.Segmented.margin`), else the same."""
+        inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
+        if not isinstance(inverse, scc.Segmented) or not inverse.iterative:
+            return self.correction(v)
+        if not v.any():
+            return np.zeros_like(v)
+        return np.asarray(inverse.margin(np.ascontiguousarray(v, dtype=np.float64)))
 
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
