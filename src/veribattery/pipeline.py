@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from veribattery.checker import CheckResult, check
+from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
 from veribattery.explore.reuse import Structure, build_reusable, reevaluate
@@ -180,6 +181,8 @@ def check_model(
     else:
         checks = [functools.partial(check, dtmc, p) for p in resolved]
     with watch.stage("check"):
+        if exact_model is None:  # linear systems shared between the properties
+            prepare(dtmc, [p.formula for p in resolved])
         results, undefined = _run_checks(checks, resolved, dtmc, undefined_ok)
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
 
