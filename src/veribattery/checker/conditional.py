@@ -377,7 +377,7 @@ class _Split(certify.AffineMap):
 
     def images(self, low: FloatArray, high: FloatArray) -> tuple[FloatArray, FloatArray]:
         assert self.below is not None
-        return self.below.images(low, high)[0], certify.AffineMap.images(self, low, high)[1]
+        return self.below.image(low, up=False), certify.AffineMap.image(self, high, up=True)
 
 
 def _solve(solver: linsolve.Factorization, b: FloatArray) -> FloatArray | None:
