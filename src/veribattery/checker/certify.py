@@ -218,15 +218,23 @@ class AffineMap:
         Every term is nonnegative, so the magnitude of the numerator is the
         numerator itself and the exact quotient is at least 0.
         """
+        if low is high and self.known_lower is self.known_upper:
+            numerator, error = self._numerator_bound(low, self.known_lower)
+            return self._below(numerator, error), self._above(numerator, error)
         return self.image(low, up=False), self.image(high, up=True)
 
     def image(self, x: FloatArray, *, up: bool) -> FloatArray:
-        """One side of :meth:`images`: the upper image of *x* if *up*, else the lower.
+        """One side of :meth:`images`: the upper image of *x* if *up*, else the lower."""
+        numerator, error = self._numerator_bound(x, self.known_upper if up else self.known_lower)
+        return self._above(numerator, error) if up else self._below(numerator, error)
 
-        The same operations as :func:`step_up` / :func:`step_down` on the same operands,
-        in place (the numerator and its error bound are >= 0, so ``|c| = c``).
+    def _numerator_bound(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The float numerator at *x* and the bound of its rounding (both >= 0).
+
+        The same operations as :func:`step_up` on the same operands, in place (the
+        numerator and its error bound are >= 0, so ``|c| = c``).
         """
-        full = (self.known_upper if up else self.known_lower).copy()
+        full = known.copy()
         full[self.states] = x
         numerator = np.asarray(self.rows @ full, dtype=np.float64)
         if self.offset is not None:
@@ -234,14 +242,19 @@ class AffineMap:
         error = self.coefficient * numerator
         error += self.underflow
         _step_up_in_place(error)
+        return numerator, error
+
+    def _above(self, numerator: FloatArray, error: FloatArray) -> FloatArray:
+        above = numerator + error
         with np.errstate(divide="ignore", invalid="ignore"):
-            if up:
-                error += numerator
-                _step_up_in_place(error)
-                error /= self.leave_lower
-                _step_up_in_place(error)
-                error[np.isnan(error)] = np.inf
-                return error
+            _step_up_in_place(above)
+            above /= self.leave_lower
+            _step_up_in_place(above)
+        above[np.isnan(above)] = np.inf
+        return above
+
+    def _below(self, numerator: FloatArray, error: FloatArray) -> FloatArray:
+        with np.errstate(divide="ignore", invalid="ignore"):
             below = step_down(numerator - error)
             below /= self.leave_upper
             below = step_down(below)

@@ -98,6 +98,7 @@ class _Memo:
     systems: OrderedDict[bytes, _System] = field(default_factory=OrderedDict)
     results: OrderedDict[tuple[bytes, bytes, bool], Bounds] = field(
         default_factory=OrderedDict)
+    reversed: tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]] | None = None
 
 
 _MEMOS: dict[int, _Memo] = {}
@@ -254,23 +255,42 @@ def _restrict(found: Bounds, unknowns: BoolArray, maybe: BoolArray) -> Bounds:
 def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray) -> BoolArray:
     """States with a path to *seeds* whose states before the last lie in *through*.
 
-    One breadth-first search over the reversed graph, from a virtual source
-    joined to every seed: O(n + m) in C, whatever the depth of the chain.
+    One breadth-first search over the reversed graph from a virtual source joined to
+    every seed, O(n + m) in C whatever the depth of the chain. Only the states of
+    *seeds* or *through* are expanded (their predecessors kept); a state outside both
+    may be reached as a leaf, so the answer is the reached states among those two (a
+    reached state of *through* was entered from an expanded, truly reached state).
     """
     n = P.shape[0]
     if not seeds.any():
         return np.zeros(n, dtype=bool)
-    rows = np.repeat(np.arange(n), np.diff(P.indptr))
-    # A predecessor is only expanded when it may be passed through.
-    keep = (P.data > 0) & through[rows] & ~seeds[rows]
-    seed_idx = np.flatnonzero(seeds)
-    src = np.concatenate([P.indices[keep], np.full(seed_idx.size, n)])
-    dst = np.concatenate([rows[keep], seed_idx])
-    graph = sp.csr_matrix((np.ones(src.size), (src, dst)), shape=(n + 1, n + 1))
+    indptr, indices = _reversed(P)
+    expand = seeds | through
+    lengths = np.diff(indptr)
+    kept = indices[np.repeat(expand, lengths)]
+    seed_idx = np.flatnonzero(seeds).astype(kept.dtype)
+    pointer = np.zeros(n + 2, dtype=np.int64)
+    np.cumsum(np.where(expand, lengths, 0), out=pointer[1 : n + 1])
+    pointer[n + 1] = pointer[n] + seed_idx.size
+    graph = sp.csr_matrix((np.ones(pointer[-1]), np.concatenate([kept, seed_idx]), pointer),
+                          shape=(n + 1, n + 1))
     order = csgraph.breadth_first_order(graph, n, directed=True, return_predecessors=False)
     reached = np.zeros(n + 1, dtype=bool)
     reached[order] = True
-    return reached[:n]
+    return reached[:n] & expand
+
+
+def _reversed(P: CsrMatrix) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]]:
+    """The predecessors of every state along positive entries (CSR of the transposed
+    pattern), built once per matrix."""
+    memo = _memo(P)
+    if memo.reversed is None:
+        pattern = sp.csr_matrix((np.asarray(P.data > 0, dtype=np.int8), P.indices, P.indptr),
+                                shape=P.shape)
+        pattern.eliminate_zeros()
+        transposed = pattern.T.tocsr()
+        memo.reversed = (transposed.indptr.astype(np.int64), transposed.indices)
+    return memo.reversed
 
 
 def prob0(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> BoolArray:
