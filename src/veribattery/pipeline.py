@@ -36,7 +36,8 @@ from veribattery.lang import (
     select_properties,
     undefined_constants,
 )
-from veribattery.lang.nodes import Value
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import RewardBounded, RewardOp, Value
 
 if TYPE_CHECKING:
     from veribattery.explore.exact import ExactDTMC
@@ -153,6 +154,7 @@ def check_model(
     exact: bool = False,
     builder: ReusingBuilder | None = None,
     undefined_ok: bool = False,
+    values_only: bool = False,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states.
 
@@ -162,11 +164,15 @@ def check_model(
     :param undefined_ok: report a property that has no value on this model
         (:class:`~veribattery.errors.UndefinedResult`) as NaN with a warning,
         instead of failing the run.
+    :param values_only: the caller needs the results, not the DTMC's other reward
+        structures: those no property names are not built (a sweep point).
     """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+        if values_only and not exact:
+            flat = _named_rewards_only(flat, resolved)
     exact_model = None
     with watch.stage("build"):
         if exact:  # guards decided exactly: its own exploration, never a re-used one
@@ -185,6 +191,20 @@ def check_model(
             prepare(dtmc, [p.formula for p in resolved])
         results, undefined = _run_checks(checks, resolved, dtmc, undefined_ok)
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
+
+
+def _named_rewards_only(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:
+    """*flat* without the reward structures no property uses (all of them kept when a
+    property refers to one by index or by default)."""
+    names: set[str] = set()
+    for prop in properties:
+        for node in walk(prop.formula):
+            if isinstance(node, RewardOp | RewardBounded):
+                if not isinstance(node.reward, str):
+                    return flat
+                names.add(node.reward)
+    kept = tuple(r for r in flat.rewards if r.name in names)
+    return flat if len(kept) == len(flat.rewards) else replace(flat, rewards=kept)
 
 
 def _run_checks(
