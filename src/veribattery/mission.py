@@ -124,13 +124,15 @@ def _check(
     *,
     exact: bool = False,
     keep_states: bool = True,
+    values_only: bool = False,
 ) -> MissionReport:
     from veribattery.render import render_model, render_properties
 
     parsed = parsed or _Parsed()
     model = parsed.model(render_model(cfg))  # not mission_files: no config YAML needed
     props = parsed.properties(render_properties(cfg))
-    run = _check_properties(model, props, progress, builder, (exact, keep_states))
+    modes = (exact, keep_states, values_only)
+    run = _check_properties(model, props, progress, builder, modes)
     return mission_report(cfg, run)
 
 
@@ -143,13 +145,16 @@ def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
 
 
 def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCallback | None,
-                      builder: ReusingBuilder | None, modes: tuple[bool, bool]) -> ModelCheckRun:
+                      builder: ReusingBuilder | None,
+                      modes: tuple[bool, bool, bool]) -> ModelCheckRun:
     """Check every property; a property without a value here (the conditional defaults
     of a mission that never succeeds, or under ``--exact``) is NaN with a warning
-    instead of stopping the whole check (and a sweep). *modes*: exact, keep_states."""
-    exact, keep_states = modes
+    instead of stopping the whole check (and a sweep). *modes*: exact, keep_states,
+    values_only."""
+    exact, keep_states, values_only = modes
     return check_model(model, props.properties, props_file=props, progress=progress,
-                       builder=builder, exact=exact, undefined_ok=True, keep_states=keep_states)
+                       builder=builder, exact=exact, undefined_ok=True, keep_states=keep_states,
+                       values_only=values_only)
 
 
 def is_conditional(formula: object) -> bool:
@@ -176,7 +181,11 @@ class MissionChecker:
     becomes 0 or 1 at one of them; order points by key to build each space once.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, values_only: bool = False) -> None:
+        """:param values_only: the reports' DTMCs need only the reward structures the
+            properties use (a sweep keeps values, not models): the others are not built.
+        """
+        self._values_only = values_only
         self._builder = ReusingBuilder()
         # One parse cache per process: a sweep's workers check one task after another,
         # and consecutive points' texts differ in a constant or two (see _Parsed).
@@ -186,7 +195,8 @@ class MissionChecker:
         self, cfg: MissionConfig, *, progress: ProgressCallback | None = None
     ) -> MissionReport:
         """Check *cfg* as :func:`check_mission` does (the same values, to the last bit)."""
-        return _check(cfg, progress, self._builder, self._parsed)
+        return _check(cfg, progress, self._builder, self._parsed,
+                      keep_states=not self._values_only, values_only=self._values_only)
 
 
 class _Parsed:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from veribattery.checker import CheckResult, check
+from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
 from veribattery.explore.reuse import Structure, build_reusable, reevaluate
@@ -35,7 +36,8 @@ from veribattery.lang import (
     select_properties,
     undefined_constants,
 )
-from veribattery.lang.nodes import Value
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import RewardBounded, RewardOp, Value
 
 if TYPE_CHECKING:
     from veribattery.explore.exact import ExactDTMC
@@ -153,6 +155,7 @@ def check_model(
     builder: ReusingBuilder | None = None,
     undefined_ok: bool = False,
     keep_states: bool = True,
+    values_only: bool = False,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states.
 
@@ -165,11 +168,15 @@ def check_model(
     :param keep_states: keep each result's per-state values and bounds; False keeps
         only the answers (:meth:`CheckResult.without_states`), so that one property's
         per-state vectors are alive at a time (what the CLI prints needs no more).
+    :param values_only: the caller needs the results, not the DTMC's other reward
+        structures: those no property names are not built (a sweep point).
     """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+        if values_only and not exact:
+            flat = _named_rewards_only(flat, resolved)
     exact_model = None
     with watch.stage("build"):
         if exact:  # guards decided exactly: its own exploration, never a re-used one
@@ -184,8 +191,24 @@ def check_model(
     else:
         checks = [functools.partial(check, dtmc, p) for p in resolved]
     with watch.stage("check"):
+        if exact_model is None:  # linear systems shared between the properties
+            prepare(dtmc, [p.formula for p in resolved])
         results, undefined = _run_checks(checks, resolved, dtmc, (undefined_ok, keep_states))
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
+
+
+def _named_rewards_only(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:
+    """*flat* without the reward structures no property uses (all of them kept when a
+    property refers to one by index or by default)."""
+    names: set[str] = set()
+    for prop in properties:
+        for node in walk(prop.formula):
+            if isinstance(node, RewardOp | RewardBounded):
+                if not isinstance(node.reward, str):
+                    return flat
+                names.add(node.reward)
+    kept = tuple(r for r in flat.rewards if r.name in names)
+    return flat if len(kept) == len(flat.rewards) else replace(flat, rewards=kept)
 
 
 def _run_checks(

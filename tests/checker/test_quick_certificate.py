@@ -137,8 +137,8 @@ def test_properties_on_one_state_set_share_the_row_data() -> None:
     maybe = ~target
     system = kernels._system(P, maybe)
     zeros = np.zeros(n)
-    first = system.affine(maybe, zeros, zeros, np.ones(n - 1))
-    second = system.affine(maybe, zeros, zeros, np.arange(n - 1, dtype=np.float64))
+    first = system.affine(zeros, zeros, np.ones(n - 1))
+    second = system.affine(zeros, zeros, np.arange(n - 1, dtype=np.float64))
     assert second.rows is first.rows and second.leave_lower is first.leave_lower
     assert second.offset is not None and second.offset[1] == 1.0
 

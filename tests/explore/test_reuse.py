@@ -16,7 +16,7 @@ import pytest
 
 from veribattery.checker import check
 from veribattery.errors import ModelError
-from veribattery.explore import DTMC, build_dtmc
+from veribattery.explore import DTMC, build_dtmc, reuse
 from veribattery.explore.reuse import build_reusable, reevaluate, structure_key
 from veribattery.lang import flatten_model, parse_model, parse_property
 from veribattery.lang.nodes import FlatModel, Value
@@ -202,3 +202,76 @@ def test_reusing_builder_reports_which_way_each_model_ran() -> None:
         ways.append(reused)
     # p=0 drops branches: built in full; it becomes the base, so p=0.5 is built again.
     assert ways == [False, True, False, False, False, True]
+
+
+# --- the re-pricing way (branch kinds of the fused plan) ---------------------------
+
+# A probability that depends on the state as well as on p (no division: not risky).
+STATEFUL = GAMBLER.replace("p : (x'=x+1) + 1-p : (x'=x-1)",
+                           "(x>2 ? p : p*p) : (x'=x+1) + (x>2 ? 1-p : 1-p*p) : (x'=x-1)")
+
+
+@pytest.mark.parametrize("text", [GAMBLER, PRODUCT, INIT_BLOCK, STATEFUL])
+def test_repricing_equals_fresh_build_without_expanding(
+        text: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    base, structure = build_reusable(flat(text, p=0.3))
+    assert structure.kinds is not None  # recorded, and checked against the build
+
+    def no_expansion(*args: object) -> None:
+        raise AssertionError("expanded the states again")
+
+    monkeypatch.setattr(reuse, "_relayers", no_expansion)
+    for p in (0.1, 0.65):
+        model = flat(text, p=p)
+        got = reevaluate(base, structure, model)
+        assert got is not None
+        assert_same_dtmc(got, build_dtmc(model))
+
+
+def test_stateful_probability_value_is_exact() -> None:
+    base, structure = build_reusable(flat(STATEFUL, p=0.5))
+    got = reevaluate(base, structure, flat(STATEFUL, p=0.25))
+    assert got is not None
+    # From 2 the step up has probability 1/16, from 3..5 it is 1/4: solve exactly.
+    value = check(got, parse_property('P=? [ F "win" ]'))
+    x = _stateful_exact(Fraction(1, 4))
+    assert value.lower is not None and value.upper is not None
+    assert Fraction(value.lower) <= x <= Fraction(value.upper)
+
+
+def _stateful_exact(p: Fraction) -> Fraction:
+    """P(reach 6 before 0 from 2) with up-probability p*p below 3 and p from 3 on."""
+    from tests.checker.exact_reference import solve
+
+    up = {x: (p if x > 2 else p * p) for x in range(1, 6)}
+    matrix = [[Fraction(int(i == j)) for j in range(5)] for i in range(5)]
+    rhs = [Fraction(0)] * 5
+    for x in range(1, 6):
+        i = x - 1
+        if x + 1 < 6:
+            matrix[i][x] -= up[x]
+        else:
+            rhs[i] += up[x]
+        if x - 1 > 0:
+            matrix[i][x - 2] -= 1 - up[x]
+    return solve(matrix, rhs)[1]
+
+
+def test_risky_probability_takes_the_expansion_way(monkeypatch: pytest.MonkeyPatch) -> None:
+    # A division by a state expression may fail on some states: re-pricing would need
+    # the guards to know where it is evaluated, so the states are expanded again.
+    text = GAMBLER.replace("p : (x'=x+1) + 1-p : (x'=x-1)",
+                           "p/(x+1) : (x'=x+1) + 1-p/(x+1) : (x'=x-1)")
+    base, structure = build_reusable(flat(text, p=0.3))
+    calls = []
+    original = reuse._relayers
+
+    def counted(*args: object) -> object:
+        calls.append(1)
+        return original(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(reuse, "_relayers", counted)
+    model = flat(text, p=0.6)
+    got = reevaluate(base, structure, model)
+    assert got is not None and calls == [1]
+    assert_same_dtmc(got, build_dtmc(model))

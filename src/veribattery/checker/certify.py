@@ -57,6 +57,13 @@ def step_up(c: FloatArray) -> FloatArray:
     return np.asarray(c + (_PHI * np.abs(c) + ETA), dtype=np.float64)
 
 
+def _step_up_in_place(c: FloatArray) -> None:
+    """:func:`step_up` of *c* >= 0 (or NaN, +inf) into *c*: the same operations."""
+    bump = c * _PHI
+    bump += ETA
+    c += bump
+
+
 def step_down(c: FloatArray) -> FloatArray:
     """A lower bound of the predecessor of each entry (see :func:`step_up`).
 
@@ -211,21 +218,46 @@ class AffineMap:
         Every term is nonnegative, so the magnitude of the numerator is the
         numerator itself and the exact quotient is at least 0.
         """
-        return self._image(low, self.known_lower, up=False), self._image(
-            high, self.known_upper, up=True)
+        if low is high and self.known_lower is self.known_upper:
+            numerator, error = self._numerator_bound(low, self.known_lower)
+            return self._below(numerator, error), self._above(numerator, error)
+        return self.image(low, up=False), self.image(high, up=True)
 
-    def _image(self, x: FloatArray, known: FloatArray, *, up: bool) -> FloatArray:
+    def image(self, x: FloatArray, *, up: bool) -> FloatArray:
+        """One side of :meth:`images`: the upper image of *x* if *up*, else the lower."""
+        numerator, error = self._numerator_bound(x, self.known_upper if up else self.known_lower)
+        return self._above(numerator, error) if up else self._below(numerator, error)
+
+    def _numerator_bound(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """The float numerator at *x* and the bound of its rounding (both >= 0).
+
+        The same operations as :func:`step_up` on the same operands, in place (the
+        numerator and its error bound are >= 0, so ``|c| = c``).
+        """
         full = known.copy()
         full[self.states] = x
         numerator = np.asarray(self.rows @ full, dtype=np.float64)
         if self.offset is not None:
             numerator += self.offset
-        error = step_up(self.coefficient * numerator + self.underflow)
+        error = self.coefficient * numerator
+        error += self.underflow
+        _step_up_in_place(error)
+        return numerator, error
+
+    def _above(self, numerator: FloatArray, error: FloatArray) -> FloatArray:
+        above = numerator + error
         with np.errstate(divide="ignore", invalid="ignore"):
-            if up:
-                above = step_up(step_up(numerator + error) / self.leave_lower)
-                return np.where(np.isnan(above), np.inf, above)
-            below = step_down(step_down(numerator - error) / self.leave_upper)
+            _step_up_in_place(above)
+            above /= self.leave_lower
+            _step_up_in_place(above)
+        above[np.isnan(above)] = np.inf
+        return above
+
+    def _below(self, numerator: FloatArray, error: FloatArray) -> FloatArray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            below = step_down(numerator - error)
+            below /= self.leave_upper
+            below = step_down(below)
         return np.where(np.isnan(below), -np.inf, np.maximum(below, 0.0))
 
     def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:

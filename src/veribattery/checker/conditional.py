@@ -287,18 +287,19 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value))
     known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
                      (plain.value, plain.lower, plain.upper)))
-    maybe = ~infinite & ~target & ~b & condition.possible
+    allowed = ~infinite & ~target & ~b
+    maybe = allowed & condition.possible
     value = np.where(infinite, np.inf, known.value)
     numerator = Bounds(value, np.where(infinite, np.inf, known.lower),
                        np.where(infinite, np.inf, known.upper))
     if maybe.any():
-        numerator = _spread(numerator, maybe,
-                            _reward_system(P, rewards, maybe, condition.probs, known))
+        numerator = _spread(numerator, maybe, _reward_system(
+            P, rewards, maybe, condition.probs, known, allowed))
     return divide(numerator, condition, np.inf)
 
 
 def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bounds,
-                   known: Bounds) -> Bounds:
+                   known: Bounds, allowed: BoolArray) -> Bounds:
     """The certified solution of ``y = r x + P y`` on *maybe*, *known* elsewhere.
 
     The offset ``r x`` is only known as an interval, so the lower bound is certified
@@ -306,24 +307,40 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     bounds) and the upper for ``round_up(r x_upper)``: the fixed point is monotone in
     both. Every state of *maybe* leaves it almost surely (a bottom component inside
     it would hold a *b* state), so the fixed point is unique.
+
+    The equation also holds, with ``y = 0``, on the states of *allowed* where the
+    condition is impossible (``x = 0`` there and on every successor), so a kept system
+    on a superset of *maybe* inside *allowed* (``R=? [ F a ]``'s) is solved instead.
     """
-    r = np.asarray(rewards[maybe], dtype=np.float64)
-    offsets = [r * x.value[maybe], r * x.lower[maybe], r * x.upper[maybe]]
-    exact = (x.lower[maybe] == 1.0) | (r == 0)
+    system = kernels.shared_system(P, maybe, allowed)
+    unknowns = system.unknowns
+    r = np.asarray(rewards[unknowns], dtype=np.float64)
+    offsets = [r * x.value[unknowns], r * x.lower[unknowns], r * x.upper[unknowns]]
+    exact = (x.lower[unknowns] == 1.0) | (r == 0)
     low = np.where(exact, np.minimum(offsets[1], offsets[2]),
                    round_down(np.minimum(offsets[1], offsets[2])))
+    # r x >= 0 exactly where both are: rounding down must not leave 0 (x = 0 where the
+    # condition is impossible), or the map looks signed and loses its fast images.
+    low = np.where((r >= 0) & (x.lower[unknowns] >= 0), np.maximum(low, 0.0), low)
     high = np.where(exact, np.maximum(offsets[1], offsets[2]),
                     round_up(np.maximum(offsets[1], offsets[2])))
-    rows, solver = kernels.linear_system(P, maybe)
-    below = kernels.affine_map(P, maybe, known.lower, known.lower, low)
+    rows, solver = system.rows, system.factorization
+    below = system.affine(known.lower, known.lower, low)
     F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
                           offset=high), below)
     rhs = offsets[0].astype(np.longdouble) + rows.astype(np.longdouble) @ known.value
     floor = np.zeros(r.size) if np.all(low >= 0) else np.full(r.size, -np.inf)
     ceiling = np.full(r.size, np.inf)
-    quick = kernels.quick_bounds(F, solver, rhs, floor, ceiling)
-    if quick is not None:
-        return quick
+    found = kernels.quick_bounds(F, solver, rhs, floor, ceiling)
+    if found is None:
+        found = _long_way(F, solver, rhs, floor, ceiling)
+    where = np.flatnonzero(maybe[unknowns])
+    return Bounds(found.value[where], found.lower[where], found.upper[where])
+
+
+def _long_way(F: certify.AffineMap, solver: linsolve.Factorization, rhs: FloatArray,
+              floor: FloatArray, ceiling: FloatArray) -> Bounds:
+    """The refined solve, certified, then interval iteration if still too wide."""
     point = _solve(solver, rhs)
     if point is None:
         point, lower, upper = floor.copy(), floor, ceiling
@@ -360,7 +377,7 @@ class _Split(certify.AffineMap):
 
     def images(self, low: FloatArray, high: FloatArray) -> tuple[FloatArray, FloatArray]:
         assert self.below is not None
-        return self.below.images(low, high)[0], certify.AffineMap.images(self, low, high)[1]
+        return self.below.image(low, up=False), certify.AffineMap.image(self, high, up=True)
 
 
 def _solve(solver: linsolve.Factorization, b: FloatArray) -> FloatArray | None:

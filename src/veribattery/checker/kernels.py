@@ -27,7 +27,7 @@ from __future__ import annotations
 import hashlib
 import weakref
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,6 +55,12 @@ from veribattery.errors import CheckError
 SYSTEMS_KEPT = 1
 #: Systems with at least this many unknowns try one unrefined substitution first.
 QUICK_MIN_STATES = 10_000
+#: A kept system on a superset of a query's unknown states is re-used when the query
+#: has at least this share of its states (a solve on it costs less than a new system).
+SUPERSET_SHARE = 0.25
+#: Results of ``until_probs`` kept per matrix: ``P=? [ F "success" ]`` and the
+#: condition ``F "success"`` of the conditional properties are one computation.
+RESULTS_KEPT = 2
 
 
 @dataclass(slots=True)
@@ -68,13 +74,15 @@ class _System:
 
     rows: CsrMatrix
     factorization: linsolve.Factorization
+    #: The unknown states of the system (a mask over all states).
+    unknowns: BoolArray
     template: certify.AffineMap | None = None
 
-    def affine(self, maybe: BoolArray, known_lower: FloatArray, known_upper: FloatArray,
+    def affine(self, known_lower: FloatArray, known_upper: FloatArray,
                offset: FloatArray | None) -> certify.AffineMap:
         """The fixed-point map on these rows with the given known values and offset."""
-        F = certify.AffineMap.of(self.rows, np.flatnonzero(maybe), known_lower, known_upper,
-                                 offset, self.template)
+        F = certify.AffineMap.of(self.rows, np.flatnonzero(self.unknowns), known_lower,
+                                 known_upper, offset, self.template)
         if self.template is None:
             self.template = F
         return F
@@ -88,6 +96,9 @@ class _Memo:
     matrix: weakref.ref[CsrMatrix]
     masks: _MaskMemo | None = None
     systems: OrderedDict[bytes, _System] = field(default_factory=OrderedDict)
+    results: OrderedDict[tuple[bytes, bytes, bool], Bounds] = field(
+        default_factory=OrderedDict)
+    reversed: tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]] | None = None
 
 
 _MEMOS: dict[int, _Memo] = {}
@@ -154,39 +165,88 @@ def _memoised_mask(P: CsrMatrix, kind: str, a: BoolArray, b: BoolArray,
     return masks[key].copy()
 
 
-def _system(P: CsrMatrix, maybe: BoolArray) -> _System:
-    """The restricted system on *maybe*, built (and its solver prepared) once per matrix."""
+def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) -> _System:
+    """The restricted system on *maybe*, built (and its solver prepared) once per matrix.
+
+    With *allowed*, a kept system whose unknowns *M* satisfy ``maybe <= M <= allowed``
+    (and hold not many more states, :data:`SUPERSET_SHARE`) is returned instead: the
+    caller guarantees that the exact values satisfy the system's equations on every
+    state of *allowed* (docs/numerics.md, "Shared systems"), so solving on *M* with the
+    values outside *M* known gives the same fixed point on *maybe*.
+    """
     systems = _memo(P).systems
     key = _mask_key(maybe)
     found = systems.get(key)
+    if found is None and allowed is not None:
+        found = _superset(systems.values(), maybe, allowed)
     if found is None:
         # Make room first: the old system is freed before the new one is built, not
         # after (on the 11x11 mission each takes ~250 MB).
         while systems and len(systems) >= SYSTEMS_KEPT:
             systems.popitem(last=False)
         A64, residue, rows = linsolve.restricted_parts(P, maybe)
-        found = _System(rows, linsolve.Factorization(A64, residue))
+        found = _System(rows, linsolve.Factorization(A64, residue), maybe.copy())
         systems[key] = found
     else:
-        systems.move_to_end(key)
+        systems.move_to_end(_mask_key(found.unknowns))
     return found
 
 
-def affine_map(P: CsrMatrix, maybe: BoolArray, known_lower: FloatArray,
-               known_upper: FloatArray, offset: FloatArray | None) -> certify.AffineMap:
-    """The fixed-point map on *maybe* (see :class:`certify.AffineMap`), its row data
-    shared with every other map of this matrix on the same states."""
-    return _system(P, maybe).affine(maybe, known_lower, known_upper, offset)
+def _superset(systems: Iterable[_System], maybe: BoolArray,
+              allowed: BoolArray) -> _System | None:
+    """A kept system whose unknowns lie between *maybe* and *allowed* (None if none)."""
+    wanted = int(np.count_nonzero(maybe))
+    for system in systems:
+        unknowns = system.unknowns
+        if (unknowns.size == maybe.size
+                and wanted >= SUPERSET_SHARE * np.count_nonzero(unknowns)
+                and not np.any(maybe & ~unknowns) and not np.any(unknowns & ~allowed)):
+            return system
+    return None
 
 
-def linear_system(P: CsrMatrix, maybe: BoolArray) -> tuple[CsrMatrix, linsolve.Factorization]:
-    """The rows ``P[maybe, :]`` and the prepared solver of ``I - P_mm``, memoised per matrix.
+def shared_system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray) -> _System:
+    """The linear system to solve the unknowns *maybe* on: a kept one on a superset
+    *M* of them inside *allowed*, or a new one on *maybe* (see :func:`_system`).
 
-    For kernels outside this module (conditional numerators) that solve on the same
-    states as an unconditional property, so they share its factorisation.
+    For kernels outside this module (conditional numerators), so that they share the
+    factorisation of an unconditional property. ``.unknowns`` is *M*; ``.rows`` the
+    rows ``P[M, :]``; ``.factorization`` the solver of ``I - P_MM``; ``.affine`` its maps.
     """
-    system = _system(P, maybe)
-    return system.rows, system.factorization
+    return _system(P, maybe, allowed)
+
+
+def prepare_reach(P: CsrMatrix, target: BoolArray) -> BoolArray:
+    """Build (and keep) the system of ``R=? [ F target ]`` now, so that queries checked
+    before it can be solved on it; returns its unknowns (empty: nothing to solve)."""
+    maybe = reach_unknowns(P, target)
+    if maybe.any():
+        _system(P, maybe)
+    return maybe
+
+
+def until_unknowns(P: CsrMatrix, remain: BoolArray,
+                   target: BoolArray) -> tuple[BoolArray, BoolArray]:
+    """The unknowns of ``remain U target`` and the states whose exact values satisfy its
+    equations (``remain & !target``), from the memoised pre-pass."""
+    no = prob0(P, remain, target)
+    yes = prob1(P, remain, target, no)
+    return ~(no | yes), remain & ~target
+
+
+def reach_unknowns(P: CsrMatrix, target: BoolArray) -> BoolArray:
+    """The states of ``R=? [ F target ]``'s linear system: target almost sure, not in it."""
+    everywhere = np.ones(P.shape[0], dtype=bool)
+    sure = prob1(P, everywhere, target, prob0(P, everywhere, target))
+    return sure & ~target
+
+
+def _restrict(found: Bounds, unknowns: BoolArray, maybe: BoolArray) -> Bounds:
+    """*found* (over the states of *unknowns*) at the states of *maybe* only."""
+    if found.value.size == np.count_nonzero(maybe):
+        return found
+    where = np.flatnonzero(maybe[unknowns])
+    return Bounds(found.value[where], found.lower[where], found.upper[where])
 
 
 # ---------------------------------------------------------------------------
@@ -197,39 +257,42 @@ def linear_system(P: CsrMatrix, maybe: BoolArray) -> tuple[CsrMatrix, linsolve.F
 def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray) -> BoolArray:
     """States with a path to *seeds* whose states before the last lie in *through*.
 
-    One breadth-first search over the reversed graph, from a virtual source
-    joined to every seed: O(n + m) in C, whatever the depth of the chain.
+    One breadth-first search over the reversed graph from a virtual source joined to
+    every seed, O(n + m) in C whatever the depth of the chain. Only the states of
+    *seeds* or *through* are expanded (their predecessors kept); a state outside both
+    may be reached as a leaf, so the answer is the reached states among those two (a
+    reached state of *through* was entered from an expanded, truly reached state).
     """
     n = P.shape[0]
     if not seeds.any():
         return np.zeros(n, dtype=bool)
-    graph = _reversed_graph(P, through & ~seeds, seeds)
+    indptr, indices = _reversed(P)
+    expand = seeds | through
+    lengths = np.diff(indptr)
+    kept = indices[np.repeat(expand, lengths)]
+    seed_idx = np.flatnonzero(seeds).astype(kept.dtype)
+    pointer = np.zeros(n + 2, dtype=np.int64)
+    np.cumsum(np.where(expand, lengths, 0), out=pointer[1 : n + 1])
+    pointer[n + 1] = pointer[n] + seed_idx.size
+    graph = sp.csr_matrix((np.ones(pointer[-1]), np.concatenate([kept, seed_idx]), pointer),
+                          shape=(n + 1, n + 1))
     order = csgraph.breadth_first_order(graph, n, directed=True, return_predecessors=False)
     reached = np.zeros(n + 1, dtype=bool)
     reached[order] = True
-    return reached[:n]
+    return reached[:n] & expand
 
 
-def _reversed_graph(P: CsrMatrix, expand: BoolArray, seeds: BoolArray) -> sp.csr_matrix:
-    """The graph ``j -> i`` for ``P[i, j] > 0`` with *i* in *expand*, plus ``n -> seed``.
-
-    P's own index arrays with a one-byte mark per entry, turned around by scipy's
-    CSR -> CSC conversion (a counting sort in C), unmarked entries then dropped in
-    place: at 16M transitions the coordinate route this replaces held ~800 MB of
-    index copies, this one about a third of that.
-    """
-    n = P.shape[0]
-    marked = np.repeat(expand, np.diff(P.indptr))
-    marked &= P.data > 0
-    backward = sp.csr_matrix((marked, P.indices, P.indptr), shape=(n, n)).tocsc()
-    del marked
-    backward.eliminate_zeros()  # column j now lists the predecessors i of j
-    seed_idx = np.flatnonzero(seeds).astype(backward.indices.dtype)
-    indices = np.concatenate([backward.indices, seed_idx])
-    indptr = np.append(backward.indptr, backward.indptr[-1] + seed_idx.size)
-    del backward
-    # csgraph works on float64 weights (a copy of anything else); the search ignores them.
-    return sp.csr_matrix((np.ones(indices.size), indices, indptr), shape=(n + 1, n + 1))
+def _reversed(P: CsrMatrix) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]]:
+    """The predecessors of every state along positive entries (CSR of the transposed
+    pattern), built once per matrix."""
+    memo = _memo(P)
+    if memo.reversed is None:
+        pattern = sp.csr_matrix((np.asarray(P.data > 0, dtype=np.int8), P.indices, P.indptr),
+                                shape=P.shape)
+        pattern.eliminate_zeros()
+        transposed = pattern.T.tocsr()
+        memo.reversed = (transposed.indptr.astype(np.int64), transposed.indices)
+    return memo.reversed
 
 
 def prob0(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> BoolArray:
@@ -278,16 +341,31 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
     :param target: states to reach.
     :return: probabilities in [0, 1] and their certified enclosures.
     """
+    memo = _memo(P).results
+    key = (_mask_key(remain), _mask_key(target), escalated())
+    found = memo.get(key)
+    if found is None:
+        found = memo[key] = _until_probs(P, remain, target)
+        while len(memo) > RESULTS_KEPT:
+            memo.popitem(last=False)
+    else:
+        memo.move_to_end(key)
+    return found
+
+
+def _until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
     no = prob0(P, remain, target)
     yes = prob1(P, remain, target, no)
     result = yes.astype(np.float64)
     maybe = ~(no | yes)
     if not maybe.any():
         return Bounds.exact(result)
-    system = _system(P, maybe)
-    F = system.affine(maybe, result, result, None)
-    found = _certified(F, system, yes.astype(np.float64), None, 0.0, 1.0)
-    return _spread(result, maybe, found)
+    # Every state of remain & !target satisfies x = P x, its yes and no states included.
+    system = _system(P, maybe, remain & ~target)
+    known = np.where(system.unknowns, 0.0, result)
+    F = system.affine(known, known, None)
+    found = _certified(F, system, known, None, 0.0, 1.0)
+    return _spread(result, maybe, _restrict(found, system.unknowns, maybe))
 
 
 def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bounds:
@@ -302,10 +380,8 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bound
     :param target: states to reach.
     :return: expected rewards, ``inf`` where *target* is not almost sure, with bounds.
     """
-    everywhere = np.ones(P.shape[0], dtype=bool)
-    sure = prob1(P, everywhere, target, prob0(P, everywhere, target))
-    result = np.where(sure, 0.0, np.inf)
-    maybe = sure & ~target
+    maybe = reach_unknowns(P, target)
+    result = np.where(maybe | target, 0.0, np.inf)
     if not maybe.any():
         return Bounds.exact(result)
     # Successors of almost-sure states are almost sure, so the system is closed
@@ -313,7 +389,7 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bound
     system = _system(P, maybe)
     offset = np.asarray(rewards[maybe], dtype=np.float64)
     zeros = np.zeros(P.shape[0])
-    F = system.affine(maybe, zeros, zeros, offset)
+    F = system.affine(zeros, zeros, offset)
     floor = 0.0 if np.all(offset >= 0) else -np.inf
     return _spread(result, maybe, _certified(F, system, None, offset, floor, np.inf))
 
@@ -600,10 +676,12 @@ def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds) -> Bounds:
     maybe = ~fixed & ~prob0(P, np.ones(P.shape[0], dtype=bool), fixed & (upper > 0))
     if not maybe.any():
         return Bounds.around(np.where(fixed, known.value, 0.0), lower, upper)
-    system = _system(P, maybe)
-    F = system.affine(maybe, lower, upper, None)
+    # x = P x holds on every state outside fixed (0 where no positive value is reachable).
+    system = _system(P, maybe, ~fixed)
+    F = system.affine(lower, upper, None)
     point = np.where(fixed, known.value, 0.0)
     found = _certified(F, system, point, None, 0.0, float(np.max(upper)))
+    found = _restrict(found, system.unknowns, maybe)
     value, low, high = point.copy(), lower.copy(), upper.copy()
     value[maybe], low[maybe], high[maybe] = found.value, found.lower, found.upper
     return Bounds.around(value, low, high)

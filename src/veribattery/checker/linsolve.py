@@ -591,13 +591,16 @@ def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
         return None
     diagonal_at = np.empty(n, dtype=np.int64)
     diagonal_at[rows[on_diagonal]] = on_diagonal
-    gather = np.lexsort((rows, cols))
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(cols, minlength=n))])
+    # The entries in (column, row) order: scipy's two counting passes (COO -> CSR ->
+    # CSC, rows ascending within each column) on tags 1..nnz, exact in float64.
+    tags = np.arange(1, A64.nnz + 1, dtype=np.float64)
+    by_column = sp.csr_matrix((tags, (rows, cols)), shape=(n, n)).tocsc()
+    gather = by_column.data.astype(np.int64) - 1
     order = np.empty(n, dtype=np.int64)
     order[position] = np.arange(n)
     small = np.int32 if A64.nnz < 2**31 else np.int64
     return _TriangularPlan(order.astype(small), diagonal_at.astype(small), gather.astype(small),
-                           rows[gather].astype(np.intc), indptr.astype(np.intc))
+                           by_column.indices.astype(np.intc), by_column.indptr.astype(np.intc))
 
 
 def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 import operator
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from typing import TypeAlias
 
@@ -28,7 +28,7 @@ from veribattery.checker import (
     steady,
 )
 from veribattery.checker.bounds import Bounds, escalated, required_precision
-from veribattery.errors import CheckError
+from veribattery.errors import CheckError, VeribatteryError
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.expressions import walk
@@ -227,6 +227,67 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
                 dtmc, structure, state_set(dtmc, target), state_set(dtmc, condition),
                 _condition_name(condition), path.span)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
+
+
+def prepare(dtmc: DTMC, formulas: Sequence[Expr]) -> None:
+    """Let the unbounded queries among *formulas* share one linear system, whatever
+    the order they are checked in.
+
+    A ``P=? [ a U b ]`` whose unknown states lie inside those of an ``R=? [ F c ]``
+    (and outside ``b``, inside ``a``) is solved on the latter's system (see
+    :func:`kernels.shared_system`); when such a pair exists, the reward query's system
+    is built first. Only operator-free operands are looked at (their masks are cheap);
+    the pre-pass results are memoised, so checking repeats none of this work.
+    """
+    P = dtmc.transitions
+    reach = [m for m in (_reach_target(dtmc, f) for f in formulas) if m is not None]
+    untils = [u for u in (_until_operands(dtmc, f) for f in formulas) if u is not None]
+    for target in reach if untils else ():
+        unknowns = kernels.reach_unknowns(P, target)
+        if any(_inside(kernels.until_unknowns(P, *until), unknowns) for until in untils):
+            kernels.prepare_reach(P, target)
+            return
+
+
+def _inside(query: tuple[BoolArray, BoolArray], unknowns: BoolArray) -> bool:
+    """Whether a query's unknowns lie in *unknowns*, all of which satisfy its equations."""
+    maybe, allowed = query
+    return bool(maybe.any() and not np.any(maybe & ~unknowns)
+                and not np.any(unknowns & ~allowed))
+
+
+def _reach_target(dtmc: DTMC, formula: Expr) -> BoolArray | None:
+    """The target of an ``R=? [ F a ]`` (or ``[ F a || F b ]``) with an operator-free *a*."""
+    if not (isinstance(formula, RewardOp) and formula.op == "=?"):
+        return None
+    path = formula.path
+    if isinstance(path, Reach | ConditionalReach) and not _has_operator(path.target):
+        return _quiet_set(dtmc, path.target)
+    return None
+
+
+def _until_operands(dtmc: DTMC, formula: Expr) -> tuple[BoolArray, BoolArray] | None:
+    """``(remain, target)`` of an unbounded ``P=? [ F b ]`` / ``[ a U b ]``, operator-free."""
+    if not (isinstance(formula, ProbOp) and formula.op == "=?"):
+        return None
+    match formula.path:
+        case Eventually(operand=operand, bound=None) if not _has_operator(operand):
+            target = _quiet_set(dtmc, operand)
+            return None if target is None else (_everywhere(dtmc), target)
+        case Until(left=left, right=right, bound=None) if not (
+                _has_operator(left) or _has_operator(right)):
+            a, b = _quiet_set(dtmc, left), _quiet_set(dtmc, right)
+            return None if a is None or b is None else (a, b)
+    return None
+
+
+def _quiet_set(dtmc: DTMC, expr: Expr) -> BoolArray | None:
+    """:func:`state_set` of an operator-free *expr*, or None where it would fail
+    (the check itself then reports the error)."""
+    try:
+        return state_set(dtmc, expr)
+    except VeribatteryError:
+        return None
 
 
 # ---------------------------------------------------------------------------

@@ -44,7 +44,7 @@ from veribattery.explore.program import CompiledCommand, Program
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import Binary, Call, Expr
 
-__all__ = ["Expansion", "LayerPlan", "plan_layers"]
+__all__ = ["Expansion", "LayerPlan", "branch_kinds", "plan_layers", "reprice"]
 
 #: Plans with more choice or branch kinds than this are not built (the enabledness
 #: matrix has one column per choice kind): such programs expand group by group.
@@ -544,3 +544,38 @@ def _members(
         sizes = np.array([g.size for g in groups], dtype=np.int64)
         found = plan.members[rewarded] = (actions, order, np.cumsum(sizes) - sizes)
     return found
+
+
+# ---------------------------------------------------------------------------
+# Re-pricing known branches (structure reuse, see ``reuse``)
+# ---------------------------------------------------------------------------
+
+
+def branch_kinds(plan: LayerPlan, states: IntArray) -> tuple[IntArray, IntArray]:
+    """The branch kind and the *states*-local source of every branch out of *states*,
+    in the builder's order, zero-probability branches included."""
+    enabled, _ = _enabled(plan, states)
+    src, kind = np.nonzero(enabled)
+    widths = plan.widths[kind]
+    firsts = np.cumsum(widths) - widths
+    branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(int(widths.sum()))
+    return branch, np.repeat(src, widths)
+
+
+def reprice(plan: LayerPlan, states: IntArray, branch: IntArray,
+            source: IntArray) -> FloatArray | None:
+    """The probabilities (before the 1/n weighting) of the branches of kinds *branch*
+    out of ``states[source]`` under *plan*'s factors, multiplied as :func:`_expand`
+    does; None if a factor is a risky expression (it would need the guards), a factor
+    is negative or a choice's sum is off (the builder then decides).
+    """
+    if any(e.risky for e in plan.factors.exprs):
+        return None
+    present = list(range(plan.kinds + 1))
+    none = np.empty((0, 0), dtype=bool)
+    probability = _probabilities(plan.factors, states, none, present, (branch, source))
+    if probability is None or plan.unchecked_sums.isdisjoint(present):
+        return probability
+    kind = np.repeat(np.arange(plan.widths.size), plan.widths)[branch]
+    firsts = np.flatnonzero(branch == plan.starts[kind])
+    return probability if _sums_ok(plan, present, probability, firsts, kind[firsts]) else None

@@ -11,12 +11,21 @@ reaches only probability expressions does not.
 
 Sharing a key is necessary but not sufficient: a probability that becomes 0
 drops a branch, and so can remove states (a probability of 1 makes its siblings
-0). :func:`reevaluate` therefore expands every known state again in one
-vectorised pass per chunk -- no breadth-first search, no state lookup -- and
-accepts the result only if exactly the same branches survive and lead to the
-same successors; otherwise it returns None and the caller builds afresh. An
-accepted re-evaluation yields the very DTMC a fresh build would (same numbering,
-same matrix entries summed in the same order).
+0). :func:`reevaluate` accepts a re-evaluation only if exactly the same branches
+survive; otherwise it returns None and the caller builds afresh. An accepted
+re-evaluation yields the very DTMC a fresh build would (same numbering, same
+matrix entries summed in the same order).
+
+It takes one of two ways. When the program has a fused plan (``fused``), the
+build records the *branch kind* of every branch (which commands and updates it
+combines); equal keys mean equal guards and assignments, hence the same enabled
+choices and the same successors, so only the probabilities are computed again --
+one gather per constant factor, one evaluation over the states per probability
+expression -- and weighted as the builder does (:func:`fused.reprice`). The
+recorded kinds are checked once at build time (they must reproduce the built
+probabilities bit for bit), else this way is off for that structure. Otherwise
+every known state is expanded again in one vectorised pass per chunk -- no
+breadth-first search, no state lookup -- and the successors compared too.
 """
 
 from __future__ import annotations
@@ -29,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from veribattery._types import IntArray
+from veribattery._types import FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.builder import (
     Layer,
@@ -40,6 +49,7 @@ from veribattery.explore.builder import (
     rewarded_actions,
 )
 from veribattery.explore.dtmc import DTMC
+from veribattery.explore.fused import branch_kinds, plan_layers, reprice
 from veribattery.explore.program import Program, compile_program, with_probabilities
 from veribattery.lang.nodes import Command, FlatModel, LabelDecl, RewardStruct
 
@@ -61,6 +71,11 @@ class Structure:
     :param dropped: positions of the zero-probability branches among all branches.
     :param labels: the model's labels and rewards, whose vectors a model that
         declares them alike can take over.
+    :param kinds: the fused plan's branch kind of every branch (dropped ones
+        included), or None when there is no plan or it did not reproduce the build.
+    :param sources: the source state of every branch (dropped ones included).
+    :param choices: the number of enabled choices per state.
+    :param action_choices: per rewarded action, its number of choices per state.
     """
 
     key: str
@@ -71,6 +86,10 @@ class Structure:
     dropped: IntArray
     labels: tuple[LabelDecl, ...]
     rewards: tuple[RewardStruct, ...]
+    kinds: IntArray | None = None
+    sources: IntArray | None = None
+    choices: IntArray | None = None
+    action_choices: dict[str | None, IntArray] | None = None
 
 
 def structure_key(model: FlatModel) -> str:
@@ -103,7 +122,54 @@ def build_reusable(
         labels=model.labels,
         rewards=model.rewards,
     )
+    structure = _with_kinds(structure, states, layers)
     return assemble(model, states, initial, layers), structure
+
+
+def _with_kinds(structure: Structure, states: IntArray, layers: list[Layer]) -> Structure:
+    """*structure* with the branch kinds of the fused plan, if they reproduce *layers*."""
+    plan = plan_layers(structure.program)
+    if plan is None:
+        return structure
+    found = [branch_kinds(plan, states[start : start + _CHUNK])
+             for start in range(0, states.shape[0], _CHUNK)]
+    kinds = np.concatenate([k for k, _ in found]) if found else np.empty(0, dtype=np.int64)
+    sources = np.concatenate([s + i * _CHUNK for i, (_, s) in enumerate(found)]
+                             ) if found else np.empty(0, dtype=np.int64)
+    choices = np.concatenate([layer.choices for layer in layers])
+    actions = {a for layer in layers for a in layer.action_choices}
+    action_choices = {a: np.concatenate([_counts(layer, a) for layer in layers])
+                      for a in actions}
+    small = np.int32 if states.shape[0] < 2**31 else np.int64
+    candidate = dataclasses.replace(
+        structure, kinds=kinds.astype(np.int32), sources=sources.astype(small),
+        choices=choices, action_choices=action_choices)
+    built = np.concatenate([layer.probabilities for layer in layers])
+    again = _repriced(plan, states, candidate)
+    return candidate if again is not None and np.array_equal(again[0], built) else structure
+
+
+def _counts(layer: Layer, action: str | None) -> IntArray:
+    found = layer.action_choices.get(action)
+    return np.zeros(layer.choices.size, dtype=layer.choices.dtype) if found is None else found
+
+
+def _repriced(plan: Any, states: IntArray,
+              structure: Structure) -> tuple[FloatArray, IntArray] | None:
+    """The kept branches' probabilities under *plan*, and the dropped positions; None
+    when they cannot be computed this way or other branches are dropped."""
+    kinds, sources, choices = structure.kinds, structure.sources, structure.choices
+    if kinds is None or sources is None or choices is None:
+        return None
+    probability = reprice(plan, states, kinds, sources)
+    if probability is None:
+        return None
+    probability /= np.maximum(choices, 1)[sources]
+    keep = probability > 0
+    dropped = np.flatnonzero(~keep)
+    if not np.array_equal(dropped, structure.dropped):
+        return None
+    return probability[keep], dropped
 
 
 def reevaluate(base: DTMC, structure: Structure, model: FlatModel) -> DTMC | None:
@@ -119,7 +185,9 @@ def reevaluate(base: DTMC, structure: Structure, model: FlatModel) -> DTMC | Non
     if not np.array_equal(rows, structure.initial_rows):
         return None
     try:
-        layers = _relayers(model, base.states, structure)
+        layers = _fast_layers(model, base.states, structure)
+        if layers is None:
+            layers = _relayers(model, base.states, structure)
     except ModelError:  # let a fresh build report it, located as it always is
         return None
     if layers is None:
@@ -129,6 +197,21 @@ def reevaluate(base: DTMC, structure: Structure, model: FlatModel) -> DTMC | Non
         base.rewards if model.rewards == structure.rewards else None,
     )
     return assemble(model, base.states, np.arange(rows.shape[0]), layers, known)
+
+
+def _fast_layers(model: FlatModel, states: IntArray,
+                 structure: Structure) -> list[Layer] | None:
+    """One layer over all known states with the probabilities of *model* re-priced by
+    branch kind (guards and successors are those of the build), or None."""
+    if structure.kinds is None or structure.choices is None:
+        return None
+    plan = plan_layers(with_probabilities(structure.program, model))
+    found = None if plan is None else _repriced(plan, states, structure)
+    if found is None:
+        return None
+    probability, dropped = found
+    return [Layer(structure.rows, structure.columns, probability, structure.choices,
+                  structure.action_choices or {}, dropped, structure.kinds.size)]
 
 
 def _relayers(model: FlatModel, states: IntArray, structure: Structure) -> list[Layer] | None:

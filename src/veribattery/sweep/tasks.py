@@ -166,7 +166,7 @@ def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
     when it is done, so that finished points are kept even if the task never finishes,
     and a worker's death is blamed on the point it was checking.
     """
-    checker, results = MissionChecker(), []
+    checker, results = MissionChecker(values_only=True), []
     for index, cfg in task.points:
         if _STREAM is not None:
             _STREAM.put(index)
@@ -178,7 +178,7 @@ def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
 
 def iter_task(task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
     """Check the points of *task* in order with one checker, yielding each as it is done."""
-    checker = MissionChecker()
+    checker = MissionChecker(values_only=True)
     for index, cfg in task.points:
         yield (check or check_point)(checker, index, cfg)
 
