@@ -126,5 +126,8 @@ def test_backward_reach_matches_a_plain_search(seed: int) -> None:
     if seed % 2:  # stored zeros are not transitions
         P.data[rng.random(P.nnz) < 0.3] = 0.0
     through, seeds = rng.random(n) < 0.7, rng.random(n) < 0.15
+    before = P.copy()
     found = kernels._backward_reach(P, through, seeds)
-    assert np.array_equal(found, _reach_reference(P, through, seeds))
+    assert np.array_equal(found, _reach_reference(before, through, seeds))
+    # the search must leave P as it was, stored zeros included
+    assert np.array_equal(P.indptr, before.indptr) and np.array_equal(P.indices, before.indices)

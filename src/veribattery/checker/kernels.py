@@ -288,10 +288,10 @@ def _reversed(P: CsrMatrix) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.integ
     memo = _memo(P)
     if memo.reversed is None:
         pattern = sp.csr_matrix((np.asarray(P.data > 0, dtype=np.int8), P.indices, P.indptr),
-                                shape=P.shape)
-        pattern.eliminate_zeros()
-        transposed = pattern.T.tocsr()
-        memo.reversed = (transposed.indptr.astype(np.int64), transposed.indices)
+                                shape=P.shape)  # shares P's index arrays: not edited
+        by_column = pattern.tocsc()  # new arrays: column j lists the i with P[i, j] stored
+        by_column.eliminate_zeros()  # then only the positive ones
+        memo.reversed = (by_column.indptr.astype(np.int64), by_column.indices)
     return memo.reversed
 
 
