@@ -13,10 +13,7 @@ from pathlib import Path
 
 
 def run_veribattery(model: Path, props: Path) -> dict[str, object]:
-    from veribattery._memory import map_large_blocks
     from veribattery.pipeline import check_prism_file
-
-    map_large_blocks()  # as the command line does
 
     start = time.perf_counter()
     run = check_prism_file(model, props_source=props, keep_states=False)  # as the CLI

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from veribattery._memory import trim_heap
 from veribattery.checker import CheckResult, check
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
@@ -225,6 +226,8 @@ def _run_checks(
             result = run_one()
             results.append(result if keep_states else result.without_states())
             del result  # before the next property: its per-state arrays can go now
+            if not keep_states:
+                trim_heap()
         except UndefinedResult as exc:
             if not undefined_ok:
                 raise

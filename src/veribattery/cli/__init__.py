@@ -55,9 +55,7 @@ def cli() -> None:
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Console-script entry point."""
-    from veribattery._memory import map_large_blocks
     from veribattery._startup import defer_unused_numpy_modules
 
     defer_unused_numpy_modules()
-    map_large_blocks()  # freed arrays leave the process at once (see _memory)
     cli.main(args=list(argv) if argv is not None else None, prog_name="veribattery")

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
+from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import compile_expr
@@ -385,31 +386,13 @@ def _drain(layers: list[Layer], name: str, empty: np.ndarray) -> np.ndarray:
             # threshold after the first frees), so the copy would add to the peak
             # instead of replacing them: hand the memory back as it is freed.
             del part
-            _trim_heap()
+            trim_heap()
             freed = 0
     return out
 
 
 #: Bytes of layers released between two returns of free heap memory to the system.
 _TRIM_BYTES = 32 << 20
-
-
-@functools.cache
-def _malloc_trim() -> Callable[[int], int] | None:
-    """glibc's ``malloc_trim``, or None elsewhere (other allocators return memory themselves)."""
-    import ctypes
-
-    try:  # the soname itself: ctypes.util.find_library would spawn ldconfig
-        trim: Callable[[int], int] = ctypes.CDLL("libc.so.6").malloc_trim
-    except (OSError, AttributeError):
-        return None
-    return trim
-
-
-def _trim_heap() -> None:
-    trim = _malloc_trim()
-    if trim is not None:
-        trim(0)
 
 
 def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
