@@ -37,6 +37,11 @@ def required_precision(relative: float, absolute: float) -> Iterator[None]:
         _PRECISION.reset(token)
 
 
+def current_precision() -> tuple[float, float]:
+    """The (relative, absolute) width kernels are asked for now (see :func:`required_precision`)."""
+    return _PRECISION.get()
+
+
 def round_down(x: FloatArray) -> FloatArray:
     """The next float below each entry (covers one rounding to nearest)."""
     return np.nextafter(x, -np.inf)
