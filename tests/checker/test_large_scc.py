@@ -77,7 +77,8 @@ def test_krylov_path_contains_the_exact_values(krylov_calls: list[int], seed: in
     assert reach.precise_states().all()
 
 
-def test_krylov_path_marks_the_factorization_iterative(krylov_calls: list[int]) -> None:
+def _grid_system_on_krylov() -> tuple[sp.csr_matrix, scc.Segmented]:
+    """The 10x10 grid's system (all but the corner unknown) and its Krylov inverse."""
     P = _grid(10)
     maybe = np.ones(P.shape[0], dtype=bool)
     maybe[-1] = False
@@ -86,6 +87,11 @@ def test_krylov_path_marks_the_factorization_iterative(krylov_calls: list[int]) 
     assert found is not None
     inverse = scc.segmented_inverse(A64, found)
     assert inverse is not None and inverse.iterative
+    return A64, inverse
+
+
+def test_krylov_path_marks_the_factorization_iterative(krylov_calls: list[int]) -> None:
+    A64, inverse = _grid_system_on_krylov()
     b = np.linspace(1.0, 2.0, A64.shape[0])
     assert np.max(np.abs(A64 @ inverse(b) - b)) <= 1e-10
 
@@ -224,14 +230,7 @@ def test_grid_quick_path_against_exact_storm(quick_only: list[str]) -> None:
 def test_lifted_loose_margin_covers_a_defect_with_zeros(krylov_calls: list[int]) -> None:
     """Segmented.margin solves loosely for a lifted right-hand side: the result is
     at least the exact A^-1 v (up to the loose tolerance) even where v is 0."""
-    P = _grid(10)
-    maybe = np.ones(P.shape[0], dtype=bool)
-    maybe[-1] = False
-    A64, _, _ = linsolve.restricted_parts(P, maybe)
-    found = scc.components(A64)
-    assert found is not None
-    inverse = scc.segmented_inverse(A64, found)
-    assert inverse is not None and inverse.iterative
+    A64, inverse = _grid_system_on_krylov()
     v = np.zeros(A64.shape[0])
     v[::7] = 1e-9
     margin = inverse.margin(v)
