@@ -6,6 +6,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 import scipy.sparse as sp
+from hypothesis import strategies as st
 
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -21,6 +22,17 @@ def matrix(rows: Rows, n: int) -> sp.csr_matrix:
             dst.append(t)
             prob.append(p)
     return sp.csr_matrix((prob, (src, dst)), shape=(n, n), dtype=np.float64)
+
+
+def draw_stochastic(draw: st.DrawFn, n: int) -> sp.csr_matrix:
+    """A random n x n stochastic matrix for hypothesis: 1-3 successors per row, integer
+    weights 1..9 normalised in float64."""
+    dense = np.zeros((n, n))
+    for s in range(n):
+        succ = draw(st.lists(st.integers(0, n - 1), min_size=1, max_size=3, unique=True))
+        weights = draw(st.lists(st.integers(1, 9), min_size=len(succ), max_size=len(succ)))
+        dense[s, succ] = np.asarray(weights) / sum(weights)
+    return sp.csr_matrix(dense)
 
 
 def mask(n: int, states: Sequence[int]) -> np.ndarray:

@@ -16,7 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
-from tests.checker.chains import matrix
+from tests.checker.chains import draw_stochastic, matrix
 from veribattery.checker import kernels
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.result import CheckResult
@@ -124,15 +124,11 @@ def test_stiff_random_chains(seed: int) -> None:
 def chains(draw: st.DrawFn) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray, np.ndarray, int]:
     """A random stochastic matrix (weights 1..9 normalised in float64), masks, rewards, k."""
     n = draw(st.integers(2, 9))
-    dense = np.zeros((n, n))
-    for s in range(n):
-        succ = draw(st.lists(st.integers(0, n - 1), min_size=1, max_size=3, unique=True))
-        weights = draw(st.lists(st.integers(1, 9), min_size=len(succ), max_size=len(succ)))
-        dense[s, succ] = np.asarray(weights) / sum(weights)
+    P = draw_stochastic(draw, n)
     flags = st.lists(st.booleans(), min_size=n, max_size=n)
     remain, target = np.array(draw(flags)), np.array(draw(flags))
     rewards = np.array(draw(st.lists(st.integers(0, 5), min_size=n, max_size=n)), dtype=float)
-    return sp.csr_matrix(dense), remain, target, rewards, draw(st.integers(0, 8))
+    return P, remain, target, rewards, draw(st.integers(0, 8))
 
 
 @settings(max_examples=80, deadline=None)

@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
-from tests.checker.chains import matrix
+from tests.checker.chains import draw_stochastic, matrix
 from veribattery.checker import certify, kernels
 from veribattery.checker.bounds import Bounds
 from veribattery.pipeline import check_prism_file
@@ -149,14 +149,10 @@ def test_properties_on_one_state_set_share_the_row_data() -> None:
 @st.composite
 def chains(draw: st.DrawFn) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray]:
     n = draw(st.integers(2, 9))
-    dense = np.zeros((n, n))
-    for s in range(n):
-        succ = draw(st.lists(st.integers(0, n - 1), min_size=1, max_size=3, unique=True))
-        weights = draw(st.lists(st.integers(1, 9), min_size=len(succ), max_size=len(succ)))
-        dense[s, succ] = np.asarray(weights) / sum(weights)
+    P = draw_stochastic(draw, n)
     flags = st.lists(st.booleans(), min_size=n, max_size=n)
     rewards = np.array(draw(st.lists(st.integers(0, 5), min_size=n, max_size=n)), dtype=float)
-    return sp.csr_matrix(dense), np.array(draw(flags)), rewards
+    return P, np.array(draw(flags)), rewards
 
 
 @settings(max_examples=60, deadline=None,
