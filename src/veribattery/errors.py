@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from veribattery._record import record
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Span:
     """A 1-based position in a source text; *source* names the file (or ``<string>``)."""
 

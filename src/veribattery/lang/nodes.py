@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import operator
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import field
 from typing import Any, Literal, TypeAlias
 
+from veribattery._record import record
 from veribattery.errors import NO_SPAN, Span
 
 # ---------------------------------------------------------------------------
@@ -27,7 +28,7 @@ ValueType: TypeAlias = Literal["int", "double", "bool"]
 Value: TypeAlias = int | float | bool
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class IntLit:
     """An integer literal."""
 
@@ -35,7 +36,7 @@ class IntLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class DoubleLit:
     """A double literal; *text* keeps the digits as written (for exact re-printing)."""
 
@@ -44,7 +45,7 @@ class DoubleLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class BoolLit:
     """``true`` or ``false``."""
 
@@ -52,7 +53,7 @@ class BoolLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Ident:
     """A name: a variable, constant or formula (resolved by semantic analysis)."""
 
@@ -60,7 +61,7 @@ class Ident:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class LabelRef:
     """A quoted label in a property: ``"success"``, ``"init"``, ``"deadlock"``."""
 
@@ -74,7 +75,7 @@ BinaryOp: TypeAlias = Literal[
 ]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Unary:
     """``!a`` or ``-a``."""
 
@@ -83,7 +84,7 @@ class Unary:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Binary:
     """``a op b`` for the boolean, relational and arithmetic operators."""
 
@@ -93,7 +94,7 @@ class Binary:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Ite:
     """``cond ? then : otherwise``."""
 
@@ -106,7 +107,7 @@ class Ite:
 FunctionName: TypeAlias = Literal["min", "max", "floor", "ceil", "pow", "mod", "log", "round"]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Call:
     """A built-in function: ``min max floor ceil pow mod log round`` (``func(f, ...)`` too)."""
 
@@ -128,7 +129,7 @@ BOUND_RELATIONS: Mapping[str, Callable[[Any, Any], Any]] = {
 QueryOp: TypeAlias = Literal["=?", "<", "<=", ">", ">="]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class TimeBound:
     """A step bound on a temporal operator: ``<=k``, ``<k``, ``>=k``, ``>k`` (``=k`` for I)."""
 
@@ -137,7 +138,7 @@ class TimeBound:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class TimeInterval:
     """A step interval ``[low,high]`` on a temporal operator (both ends included)."""
 
@@ -149,7 +150,7 @@ class TimeInterval:
 Bound: TypeAlias = TimeBound | TimeInterval
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Next:
     """``X phi``."""
 
@@ -157,7 +158,7 @@ class Next:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Until:
     """``left U right``, optionally step-bounded."""
 
@@ -167,7 +168,7 @@ class Until:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class WeakUntil:
     """``left W right``: ``left U right`` or ``G left``, optionally step-bounded."""
 
@@ -177,7 +178,7 @@ class WeakUntil:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Release:
     """``left R right``: *right* holds up to and including the first *left* state."""
 
@@ -187,7 +188,7 @@ class Release:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Eventually:
     """``F phi``, optionally step-bounded (equivalent to ``true U phi``)."""
 
@@ -196,7 +197,7 @@ class Eventually:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Globally:
     """``G phi``, optionally step-bounded."""
 
@@ -205,7 +206,7 @@ class Globally:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Cumulative:
     """Reward path ``C<=k``: reward accumulated over the first k steps."""
 
@@ -213,7 +214,7 @@ class Cumulative:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Instantaneous:
     """Reward path ``I=k``: expected state reward at step k."""
 
@@ -221,7 +222,7 @@ class Instantaneous:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Reach:
     """Reward path ``F phi``: reward accumulated until phi is first reached."""
 
@@ -229,21 +230,21 @@ class Reach:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Total:
     """Reward path ``C``: the total reward accumulated along the whole path."""
 
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class LongRun:
     """Reward path ``S``: the long-run average reward per step."""
 
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ReachUntil:
     """Reward path ``left U right``: reward until *right*, infinite unless it is sure."""
 
@@ -256,7 +257,7 @@ class ReachUntil:
 # --- checker/conditional.py).
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class RewardBounded:
     """``left U{"r"}<=T right`` (``F{"r"}<=T right`` has *left* ``true``), as in Storm.
 
@@ -272,7 +273,7 @@ class RewardBounded:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ReachNext:
     """Reward path ``X phi``: the first step's reward, infinite unless ``X phi`` is sure."""
 
@@ -280,7 +281,7 @@ class ReachNext:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Conditional:
     """``P=? [ path || F condition ]``: *path* given that *condition* is reached (Storm)."""
 
@@ -289,7 +290,7 @@ class Conditional:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ConditionalReach:
     """Reward path ``F target || F condition``: reward to *target*, given ``F condition``."""
 
@@ -307,7 +308,7 @@ RewardPath: TypeAlias = (
 )
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ProbOp:
     """``P=? [path]`` or ``P~p [path]``."""
 
@@ -317,7 +318,7 @@ class ProbOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class RewardOp:
     """``R{"name"}=? [path]``, ``R=? [path]`` (first structure), or with a bound.
 
@@ -332,7 +333,7 @@ class RewardOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class SteadyOp:
     """``S=? [phi]`` or ``S~p [phi]``: the long-run probability of being in *phi*."""
 
@@ -342,7 +343,7 @@ class SteadyOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Quantified:
     """CTL: ``A [path]`` (on all paths) or ``E [path]`` (on some path)."""
 
@@ -357,7 +358,7 @@ FilterOp: TypeAlias = Literal[
 ]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Filter:
     """``filter(op, operand, states)``; *states* None means all states."""
 
@@ -389,7 +390,7 @@ Expr: TypeAlias = (
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ConstDecl:
     """``const [int|double|bool] name [= value];`` -- *value* None means undefined."""
 
@@ -399,7 +400,7 @@ class ConstDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class FormulaDecl:
     """``formula name = expr;``."""
 
@@ -408,7 +409,7 @@ class FormulaDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class LabelDecl:
     """``label "name" = expr;``."""
 
@@ -417,7 +418,7 @@ class LabelDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class VarDecl:
     """``name : [low..high] init e;`` or ``name : bool init e;`` (``global`` if at top level)."""
 
@@ -429,7 +430,7 @@ class VarDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Assignment:
     """``(x' = expr)``."""
 
@@ -438,7 +439,7 @@ class Assignment:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Update:
     """One probabilistic branch ``p : (x'=..) & (y'=..)``; ``true`` has no assignments."""
 
@@ -447,7 +448,7 @@ class Update:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Command:
     """``[action] guard -> updates;`` -- *action* None for ``[]``."""
 
@@ -457,7 +458,7 @@ class Command:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Module:
     """``module name ... endmodule``."""
 
@@ -467,7 +468,7 @@ class Module:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class RenamedModule:
     """``module name = base [old=new, ...] endmodule``."""
 
@@ -477,7 +478,7 @@ class RenamedModule:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class RewardItem:
     """``[action] guard : value;`` (transition reward) or ``guard : value;`` (state reward)."""
 
@@ -488,7 +489,7 @@ class RewardItem:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class RewardStruct:
     """``rewards ["name"] ... endrewards`` -- *name* None when unnamed."""
 
@@ -500,7 +501,7 @@ class RewardStruct:
 ModelType: TypeAlias = Literal["dtmc"]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Model:
     """A whole PRISM model file, declarations in source order per kind."""
 
@@ -520,7 +521,7 @@ class Model:
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Property:
     """One property: ``["name":] formula``; *text* is the source text of the formula."""
 
@@ -534,7 +535,7 @@ class Property:
     unsupported: str | None = None
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class PropertiesFile:
     """A ``.props``/``.pctl`` file: its constants, labels and properties in order."""
 
@@ -549,7 +550,7 @@ class PropertiesFile:
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Variable:
     """A state variable with constant integer bounds (bool is 0..1)."""
 
@@ -562,7 +563,7 @@ class Variable:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class FlatModule:
     """A module after renaming: its own variables' names and its commands.
 
@@ -577,7 +578,7 @@ class FlatModule:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class FlatModel:
     """A checked, closed model: every expression uses only variables and literals.
 
