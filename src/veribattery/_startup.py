@@ -1,45 +1,136 @@
-"""Process start-up: defer numpy submodules that scipy drags in but we never use.
+"""Process start-up: defer what scipy drags in but a model check does not use.
 
-``import scipy.sparse`` (scipy >= 1.14) builds an array-API view of numpy with
-``from numpy import *``, and numpy 2 lists ``f2py``, ``testing`` and ``ma`` in its
-``__all__``, so every process that checks a model imports numpy's Fortran wrapper
-generator and its test framework (which pull unittest, email, charset_normalizer ...):
-about a tenth of a second and 10 MB before any work is done. (``numpy.ma`` is not
-deferred: ``numpy.unique`` uses it.) The CLI installs
-:func:`defer_unused_numpy_modules` first; those modules then load on first attribute
-access (:class:`importlib.util.LazyLoader`), which for a model check is never.
+Two kinds of deferral, installed by the CLI first (:func:`defer_unused_numpy_modules`):
+
+- **Modules nobody reads** (:data:`DEFERRED_MODULES`). ``import scipy.sparse``
+  (scipy >= 1.14) builds an array-API view of numpy with ``from numpy import *``, and
+  numpy 2 lists ``f2py``, ``testing``, ``ma``, ``polynomial`` ... in its ``__all__``, so
+  every process that checks a model would import numpy's Fortran wrapper generator, its
+  test framework (unittest, email ...), masked arrays and polynomials. Those modules
+  are handed out unexecuted and load on first attribute access
+  (:class:`importlib.util.LazyLoader`): for a model check, never, or (``numpy.ma``,
+  read by ``numpy.unique``) when first used.
+- **Packages whose ``__init__`` imports far more than is read**
+  (:data:`LAZY_PACKAGES`). ``scipy.sparse.csgraph`` (graph traversal, SCCs) imports
+  ``scipy.sparse.linalg`` for one name, and that package imports every sparse solver,
+  ARPACK, LOBPCG, ``expm`` and all of ``scipy.linalg`` (~0.1 s). Such a package is set
+  up without running its ``__init__`` (its ``__path__`` is there, so submodules such
+  as SuperLU's import as usual); the names listed for it are served from the module
+  that defines them (the very objects the package re-exports); reading any other name
+  runs the ``__init__`` then, once, and the package is the ordinary one from there on.
 """
 
 from __future__ import annotations
 
-import importlib.abc
+import importlib
 import importlib.machinery
 import importlib.util
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Callable, Mapping, Sequence
 from types import ModuleType
+from typing import Any, cast
 
-__all__ = ["DEFERRED_MODULES", "defer_unused_numpy_modules"]
+__all__ = ["DEFERRED_MODULES", "LAZY_PACKAGES", "defer_unused_numpy_modules"]
 
-#: Imported by scipy's array-API layer, never used by veribattery's engine.
-DEFERRED_MODULES = frozenset({"numpy.f2py", "numpy.testing"})
+#: Imported by scipy's array-API layer (``from numpy import *``), never read by the
+#: engine's start-up. (``numpy.random`` is not here: scipy reads it at import.)
+DEFERRED_MODULES = frozenset({
+    "numpy.f2py", "numpy.testing", "numpy.ma", "numpy.polynomial", "numpy.ctypeslib",
+    "numpy.char", "numpy.rec",
+})
+
+#: Package -> {name: module defining it}: the names served without the package's
+#: ``__init__``.
+LAZY_PACKAGES: Mapping[str, Mapping[str, str]] = {
+    # Read by scipy.sparse.csgraph's __init__ (for `laplacian`).
+    "scipy.sparse.linalg": {"LinearOperator": "scipy.sparse.linalg._interface"},
+    # Read by scipy.sparse.linalg._dsolve (SuperLU's wrapper): numpy's exception.
+    "scipy.linalg": {"LinAlgError": "numpy.linalg"},
+}
 
 
-class _DeferringFinder(importlib.abc.MetaPathFinder):
-    """Finds the deferred modules as usual, but hands them out unexecuted (lazy)."""
+class _DeferringFinder:
+    """Finds the deferred modules and lazy packages as usual, with a deferring loader.
+
+    (A meta path finder needs only ``find_spec``; ``importlib.abc`` is not imported
+    for its base class, which pulls in ``importlib.resources``, ``tempfile`` ...)
+    """
 
     def find_spec(
         self, fullname: str, path: Sequence[str] | None, target: ModuleType | None = None
     ) -> importlib.machinery.ModuleSpec | None:
-        if fullname not in DEFERRED_MODULES:
+        if fullname not in DEFERRED_MODULES and fullname not in LAZY_PACKAGES:
             return None
         spec = importlib.machinery.PathFinder.find_spec(fullname, path)
-        if spec is not None and spec.loader is not None:
+        if spec is None or spec.loader is None:
+            return spec
+        if fullname in DEFERRED_MODULES:
             spec.loader = importlib.util.LazyLoader(spec.loader)
+        elif spec.submodule_search_locations is not None:
+            spec.loader = cast(Any, _PackageLoader(spec.loader, LAZY_PACKAGES[fullname]))
         return spec
 
 
+class _PackageLoader:
+    """Loads a package without running its ``__init__`` until a name it defines is read."""
+
+    def __init__(self, loader: Any, served: Mapping[str, str]) -> None:
+        self.loader = loader
+        self.served = served
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.loader, name)  # resource readers and the like: the real loader's
+
+    def create_module(self, spec: importlib.machinery.ModuleSpec) -> ModuleType | None:
+        created: ModuleType | None = self.loader.create_module(spec)
+        return created
+
+    def exec_module(self, module: ModuleType) -> None:
+        module.__getattr__ = _deferred_init(module, self.loader, self.served)  # type: ignore[method-assign]
+
+
+def _deferred_init(module: ModuleType, loader: Any,
+                   served: Mapping[str, str]) -> Callable[[str], Any]:
+    """The module ``__getattr__`` that serves *served* and otherwise runs the package."""
+    lock = threading.RLock()  # re-entrant: the package's own __init__ reads itself
+    running = False
+
+    def __getattr__(name: str) -> Any:
+        nonlocal running
+        if name in served:
+            try:
+                return getattr(importlib.import_module(served[name]), name)
+            except (ImportError, AttributeError):
+                pass  # moved in another scipy: the package's own answer
+        with lock:
+            if running:  # read by the package's own __init__, not defined yet
+                raise AttributeError(f"module {module.__name__!r} has no attribute {name!r}")
+            if vars(module).get("__getattr__") is __getattr__:  # not run yet
+                running = True
+                try:
+                    _run_package(module, loader, __getattr__)
+                finally:
+                    running = False
+        return getattr(module, name)
+
+    return __getattr__
+
+
+def _run_package(module: ModuleType, loader: Any, deferred: Callable[[str], Any]) -> None:
+    """Run the package's ``__init__`` in *module* and make it an ordinary package."""
+    loader.exec_module(module)
+    if vars(module).get("__getattr__") is deferred:  # the package defines no __getattr__
+        del module.__getattr__
+    module.__loader__ = loader
+    if module.__spec__ is not None:
+        module.__spec__.loader = loader
+
+
 def defer_unused_numpy_modules() -> None:
-    """Make :data:`DEFERRED_MODULES` load lazily (idempotent; no effect once imported)."""
+    """Install the deferrals of :data:`DEFERRED_MODULES` and :data:`LAZY_PACKAGES`.
+
+    Idempotent; a module already imported is not affected.
+    """
     if not any(isinstance(finder, _DeferringFinder) for finder in sys.meta_path):
         sys.meta_path.insert(0, _DeferringFinder())

@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -97,3 +98,44 @@ def test_the_cli_defers_numpy_modules_that_scipy_drags_in(tmp_path: Path) -> Non
                           check=True)
     assert '"value": 0.5' in done.stdout  # the case is real: it checked
     assert done.stdout.splitlines()[-1] == "[]"
+
+
+def _modules_after(body: str) -> tuple[list[str], str]:
+    """Every module imported by running *body* in a fresh interpreter, and its output."""
+    script = body + "import sys\nprint(sorted(sys.modules))\n"
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          check=True)
+    *output, modules = done.stdout.splitlines()
+    return eval(modules), "\n".join(output)  # a printed list of str
+
+
+def test_a_check_without_a_linear_solve_imports_no_solver_package(tmp_path: Path) -> None:
+    # csgraph (SCCs, BFS) reads LinearOperator from scipy.sparse.linalg: that package
+    # (every sparse solver, ARPACK, LOBPCG) and scipy.linalg are set up, never run.
+    model = tmp_path / "tiny.prism"
+    model.write_text(_TINY)
+    modules, output = _modules_after(
+        _run_cli("prism", str(model), "--property", "P=? [ F x=1 ]", "--json"))
+    assert '"value": 0.5' in output  # the case is real: it checked
+    assert "scipy.sparse.csgraph" in modules and "scipy.sparse.linalg" in modules
+    solvers = [m for m in modules if m.startswith(("scipy.sparse.linalg._isolve",
+                                                   "scipy.sparse.linalg._eigen",
+                                                   "scipy.linalg."))]
+    assert solvers == []
+
+
+def test_a_check_with_sparse_lu_loads_the_solvers_it_reads(tmp_path: Path) -> None:
+    # Gambler's ruin from 10 of 20, up-probability 0.6: a cyclic system (SuperLU, and
+    # the steady-state solver reads spsolve). Exact: (1 - r^10) / (1 - r^20), r = 2/3.
+    model = tmp_path / "ruin.prism"
+    model.write_text("dtmc\nmodule m\n x : [0..20] init 10;\n"
+                     " [] x>0 & x<20 -> 0.4:(x'=x-1) + 0.6:(x'=x+1);\n"
+                     " [] x=0 | x=20 -> true;\nendmodule\n")
+    modules, output = _modules_after(_run_cli(
+        "prism", str(model), "--property", "P=? [ F x=20 ]", "--property", "S=? [ x=20 ]",
+        "--json"))
+    r = Fraction(2, 3)
+    exact = float((1 - r**10) / (1 - r**20))
+    values = [result["value"] for result in json.loads(output)["results"]]
+    assert values == [pytest.approx(exact, rel=1e-12)] * 2
+    assert "scipy.sparse.linalg._isolve" in modules  # the package ran when read

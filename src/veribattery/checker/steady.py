@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
-from scipy.sparse.linalg import spsolve
+from scipy.sparse import linalg as spla  # a lazy package in the CLI: read when solving
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels
@@ -106,7 +106,7 @@ def _weights(inner: sp.csr_matrix, fixed: IntArray) -> FloatArray:
         balance = inner - sp.identity(m, format="csr")
         A = sp.csc_matrix(balance[rest][:, rest])
         b = -np.asarray(inner[rest][:, fixed] @ np.ones(fixed.size)).ravel()
-        weight[rest] = np.clip(spsolve(A, b), 0.0, None)
+        weight[rest] = np.clip(spla.spsolve(A, b), 0.0, None)
     return weight
 
 
@@ -137,7 +137,7 @@ def _heaviest_first(inner: sp.csr_matrix, weight: FloatArray, comp: IntArray,
     A = sp.diags(keep, format="csr") @ (inner - sp.identity(m, format="csr")) + normalise
     b = np.zeros(m)
     b[first] = 1.0
-    pi = np.clip(spsolve(sp.csc_matrix(A), b), 0.0, None)
+    pi = np.clip(spla.spsolve(sp.csc_matrix(A), b), 0.0, None)
     order = np.lexsort((-pi, comp))
     heaviest = order[np.searchsorted(comp[order], np.arange(count))]
     better = _weights(inner, np.asarray(heaviest))
