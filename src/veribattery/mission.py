@@ -6,10 +6,11 @@ import math
 import os
 import tempfile
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from fractions import Fraction
 from pathlib import Path
 
+from veribattery._record import record
 from veribattery.checker import CheckResult, check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
@@ -38,7 +39,7 @@ CONFIG_FILE = "config.resolved.yaml"
 RECHARGE_CAP_WARN_AT = 1e-9
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class RequirementOutcome:
     """A requirement and whether the checked value meets it."""
 
@@ -54,7 +55,7 @@ class RequirementOutcome:
                 "value": self.value, "holds": self.holds, "decided": self.decided}
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class MissionReport:
     """The verification of one mission config: the run, named values, requirement outcomes."""
 
@@ -83,7 +84,7 @@ class MissionReport:
         return all(outcome.holds for outcome in self.requirements)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class MissionFiles:
     """The emitted texts: the PRISM model, its properties, and the resolved config."""
 

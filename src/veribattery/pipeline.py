@@ -12,13 +12,14 @@ import math
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from veribattery._memory import trim_heap
+from veribattery._record import record
 from veribattery.checker import CheckResult, check
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
@@ -46,7 +47,7 @@ if TYPE_CHECKING:
 ProgressCallback = Callable[[int, int], None]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ModelCheckRun:
     """What one run of the pipeline produced: the DTMC, one result per property, timings."""
 

@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
+from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.bounds import Bounds, round_down, round_up
 
@@ -156,7 +156,7 @@ def _nonnegative(x: FloatArray) -> bool:
     return bool(np.all(x >= 0))
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class AffineMap:
     """The fixed-point map of the unknown *states*, self-loops divided out.
 

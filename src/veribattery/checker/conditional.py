@@ -28,13 +28,14 @@ from __future__ import annotations
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass, fields, replace
+from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels, linsolve
 from veribattery.checker.bounds import Bounds, round_down, round_up
@@ -46,7 +47,7 @@ class ConditionUnreachable(UndefinedResult):
     """The condition of a conditional property has probability 0 from the initial state."""
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ConditionedChain:
     """The conditioned DTMC of a model given ``F b``, and where each state starts in it.
 
@@ -159,7 +160,7 @@ def _carry_over(dtmc: DTMC, matrix: CsrMatrix, origin: IntArray, start: IntArray
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Condition:
     """``x = P(F b)`` per state with certified bounds, and where it is positive.
 
@@ -354,7 +355,7 @@ def _long_way(F: certify.AffineMap, solver: linsolve.Factorization, rhs: FloatAr
     return found
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Split(certify.AffineMap):
     """Two monotone maps that enclose the exact one: upper bounds from this one
     (largest offset and known values), lower bounds from *below* (smallest)."""

@@ -7,11 +7,12 @@ the variables' values, in declaration order.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 from typing import Any
 
 import numpy as np
 
+from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.bounds import (
     ABSOLUTE_PRECISION,
@@ -31,7 +32,7 @@ SINGLE_VALUED = frozenset({
 })
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class FilterOutcome:
     """A filter's result: *value* for single-valued filters (a ``(low, high)`` pair
     for ``range``), otherwise *values* per state; *printed* holds the lines of

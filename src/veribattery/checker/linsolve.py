@@ -32,7 +32,6 @@ from __future__ import annotations
 import hashlib
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -45,6 +44,7 @@ try:  # SuperLU's triangular solve, used by _substitution when it behaves as exp
 except ImportError:  # pragma: no cover -- scipy moved it: the public path is used
     _superlu = None
 
+from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import scc
 from veribattery.errors import CheckError
@@ -119,7 +119,7 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
     return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _RestrictionPlan:
     """The index work of :func:`restricted_parts` for one pattern of *P* and *maybe*.
 
@@ -509,7 +509,7 @@ def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     return lu.solve  # type: ignore[no-any-return]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _TriangularPlan:
     """What :func:`_triangular_inverse` derives from *A64*'s sparsity pattern alone.
 

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import builtins
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
+from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
 from veribattery.checker.filters import FilterOutcome
@@ -14,7 +15,7 @@ from veribattery.errors import CheckError
 from veribattery.lang.nodes import Property
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class CheckResult:
     """A property's value in every state and its value at the initial states.
 

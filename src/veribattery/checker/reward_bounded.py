@@ -29,11 +29,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
 
+from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels, linsolve, reward_radius
 from veribattery.checker.bounds import Bounds, round_down, round_up
@@ -88,7 +89,7 @@ def integer_rewards(dtmc: DTMC, structure: RewardVectors, span: Span) -> IntArra
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Levels:
     """The moving states grouped by reward (in units of *unit*), and the zero-reward closure."""
 
@@ -213,7 +214,7 @@ def _certified_programme(P: CsrMatrix, target: BoolArray, levels: Levels, last: 
                          np.minimum(found.upper, 1.0))
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _BackwardGroup:
     """States with reward *r*: their value on level k is P_rows @ (successors' value on k-r).
 
@@ -257,7 +258,7 @@ class _BackwardGroup:
             self.history[i, slot] = vector[self.successors]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Closure:
     """The certified zero-reward closure of one level, over the columns its rows use."""
 
@@ -304,7 +305,7 @@ class _Closure:
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class LevelMasses:
     """Probability mass absorbed per reward level, from :func:`absorption_by_level`.
 
@@ -400,7 +401,7 @@ def _columns_used(rows: CsrMatrix) -> tuple[IntArray, CsrMatrix]:
     return used, sp.csr_matrix(rows[:, used].T)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Ring:
     """The mass that left the states with reward *r* on each of the last *r* levels."""
 

@@ -41,7 +41,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import field
 
 import numpy as np
 import numpy.typing as npt
@@ -49,6 +49,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
 
+from veribattery._record import record
 from veribattery._types import FloatArray
 
 #: Components up to this size are solved together with their neighbours in runs.
@@ -87,7 +88,7 @@ Inverse = Callable[[FloatArray], FloatArray]
 IntArray = npt.NDArray[np.int64]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Components:
     """The states in a topological order of the SCCs (successors first).
 
@@ -139,7 +140,7 @@ def segments(found: Components) -> list[tuple[int, int, bool]]:
             for lo, hi in itertools.pairwise(cuts)]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Segmented:
     """Block forward substitution over the segments (see :func:`segmented_inverse`).
 
@@ -288,7 +289,7 @@ def _jacobi(block: sp.csr_matrix) -> spla.LinearOperator:
     return spla.LinearOperator(block.shape, matvec=lambda v: inverse_diagonal * v)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Krylov:
     """Preconditioned BiCGSTAB, then restarted GMRES when BiCGSTAB stalls.
 
@@ -317,7 +318,7 @@ class _Krylov:
         return np.asarray(x, dtype=np.float64)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _KrylovFirst:
     """Krylov iteration on a dense component, and its LU (made once) wherever the
     iteration does not reach ``KRYLOV_RTOL``."""

@@ -13,13 +13,14 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from veribattery._memory import trim_heap
+from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import compile_expr
@@ -56,7 +57,7 @@ _NO_FLOATS = np.empty(0, dtype=np.float64)
 _INT32_MAX = int(np.iinfo(np.int32).max)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Layer:
     """The transitions out of one frontier and its states' choice counts.
 
@@ -333,7 +334,7 @@ def assemble(
         transitions=matrix,
         states=states,
         variable_names=model.variable_names,
-        initial=np.unique(initial),
+        initial=np.flatnonzero(np.bincount(initial, minlength=n)),  # np.unique imports numpy.ma
         labels=labels,
         rewards=rewards,
         deadlocks=deadlocks,

@@ -18,11 +18,11 @@ import dataclasses
 import functools
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from veribattery._record import record
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError, PrismSemanticError, Span
 from veribattery.lang.nodes import (
@@ -52,7 +52,7 @@ CompiledExpr = Callable[[IntArray], np.ndarray]
 _Fn = Callable[[IntArray], Any]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Node:
     """A compiled sub-expression: an evaluator, or a folded constant."""
 
@@ -68,7 +68,7 @@ class _Node:
         return self.risky and not self.labels
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Scope:
     """What compilation needs besides the expression.
 

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import field
 
 import numpy as np
 
+from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class RewardVectors:
     """One reward structure, as expected reward per state and step.
 
@@ -28,7 +29,7 @@ class RewardVectors:
         return self.state + self.transition
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class DTMC:
     """A discrete-time Markov chain over the reachable states of a model.
 

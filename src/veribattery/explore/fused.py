@@ -33,10 +33,11 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import field
 
 import numpy as np
 
+from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import CompiledExpr
@@ -53,7 +54,7 @@ MAX_BRANCH_KINDS = 4096
 _TOLERANCE = 0.5e-6  # half the builder's: a borderline sum is left to the exact check
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Expansion:
     """The branches out of a frontier, in order of source state, zero-probability ones dropped.
 
@@ -75,7 +76,7 @@ class Expansion:
     branches: int
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Expr:
     """An expression evaluated per layer: on the frontier, or on *kinds*' rows if risky."""
 
@@ -84,7 +85,7 @@ class _Expr:
     kinds: IntArray
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Values:
     """Where each branch kind's new variable values come from: rows of a per-layer table.
 
@@ -100,7 +101,7 @@ class _Values:
     kind_exprs: tuple[frozenset[int], ...]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Factors:
     """Branch probabilities: constants per branch kind, or per-part factor rows.
 
@@ -117,7 +118,7 @@ class _Factors:
     kind_exprs: tuple[frozenset[int], ...]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class LayerPlan:
     """The static tables of a program's fused layer expansion (see the module doc)."""
 
@@ -156,7 +157,7 @@ class LayerPlan:
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Kind:
     action: str | None
     commands: tuple[int, ...]  # global command indices, one per part

@@ -9,8 +9,9 @@ choice picks one enabled command from every part.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import field, replace
 
+from veribattery._record import record
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.explore.bounds import value_bounds
 from veribattery.explore.compile import (
@@ -31,7 +32,7 @@ __all__ = [
 ]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class CompiledUpdate:
     """One probabilistic branch: its probability and ``(column, right-hand side)`` pairs.
 
@@ -50,7 +51,7 @@ class CompiledUpdate:
     constants: tuple[int | None, ...] = ()
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class CompiledCommand:
     """A command of module *module*, compiled."""
 
@@ -68,7 +69,7 @@ class CompiledCommand:
         return self.command.span
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class ChoiceGroup:
     """Commands that produce choices together: one part per participating module."""
 
@@ -76,7 +77,7 @@ class ChoiceGroup:
     parts: tuple[tuple[CompiledCommand, ...], ...]
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class Program:
     """Everything the explorer evaluates, compiled once."""
 
@@ -146,7 +147,7 @@ def _actions(model: FlatModel) -> list[str]:
     return list(seen)
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Names:
     names: tuple[str, ...]
     ranges: dict[str, tuple[int, int]]

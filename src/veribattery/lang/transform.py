@@ -14,9 +14,9 @@ propagates up to the enclosing property, which is then kept with its reason;
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, cast
 
+from veribattery._record import record
 from veribattery.errors import PrismSemanticError, PrismSyntaxError, Span
 from veribattery.lang.nodes import (
     Assignment,
@@ -60,18 +60,18 @@ from veribattery.lang.property_rules import (
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Global:
     decl: VarDecl
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _Init:
     expr: Expr
     span: Span
 
 
-@dataclass(frozen=True, slots=True)
+@record
 class _ModelType:
     name: str
     span: Span
