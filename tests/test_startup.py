@@ -6,6 +6,7 @@ after they are installed, and the test process has imported scipy long before.
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -86,3 +87,19 @@ import numpy as np
 print(np.ma.masked_array([1, 2], mask=[0, 1]).sum(), np.polynomial.Polynomial([1, 2])(3.0))
 """)
     assert out == [str(len(DEFERRED_MODULES)), "1", "7.0"]
+
+
+def test_start_process_turns_pydantic_plugins_off_unless_the_user_chose() -> None:
+    script = """
+import os
+from veribattery._startup import start_process
+start_process()
+print(os.environ["PYDANTIC_DISABLE_PLUGINS"])
+"""
+    for preset, expected in ((None, "__all__"), ("", ""), ("logfire", "logfire")):
+        env = {k: v for k, v in os.environ.items() if k != "PYDANTIC_DISABLE_PLUGINS"}
+        if preset is not None:
+            env["PYDANTIC_DISABLE_PLUGINS"] = preset
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                              check=True, env=env)
+        assert done.stdout.strip() == expected

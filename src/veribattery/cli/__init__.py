@@ -55,7 +55,7 @@ def cli() -> None:
 
 def main(argv: Sequence[str] | None = None) -> None:
     """Console-script entry point."""
-    from veribattery._startup import defer_unused_numpy_modules
+    from veribattery._startup import start_process
 
-    defer_unused_numpy_modules()
+    start_process()
     cli.main(args=list(argv) if argv is not None else None, prog_name="veribattery")
