@@ -51,7 +51,7 @@ print(model.nr_states, [stormpy.model_checking(model, p).get_value(init) for p i
 """
 #: Modules whose cumulative import time ``--imports`` reports (those present).
 IMPORT_ROWS = (
-    "click", "veribattery.cli", "numpy", "scipy.sparse", "scipy.sparse.csgraph",
+    "click", "veribattery.cli", "numpy", "scipy.sparse",
     "scipy.sparse.linalg", "scipy.linalg", "numpy.ma", "veribattery.lang",
     "veribattery.lang.nodes", "veribattery.explore", "veribattery.checker",
     "veribattery.pipeline", "rich", "pydantic", "yaml", "jinja2", "lark",
