@@ -32,6 +32,12 @@ from veribattery.checker.bounds import Bounds, round_down, round_up
 UNIT_ROUNDOFF = 2.0**-53
 #: The smallest subnormal float64: the absolute error of one product that underflows.
 ETA = 2.0**-1074
+#: What :class:`AffineMap` adds to a row's rounding bound per term: it covers the
+#: underflow of a product (``2 * ETA``) and keeps the bound a normal number, so that a
+#: row whose numerator is exactly 0 (the no states of a shared system) does not make
+#: the images compute on subnormals, which costs ~20x per operation on x86 (microcode
+#: assists): half of a large certificate's time. ``2**-900`` is far below any precision.
+TERM_FLOOR = 2.0**-900
 #: Safety factor on the computed error bound (covers the rounding of the bound itself).
 _SAFETY = 1.0 + 2.0**-30
 #: Interval-iteration sweeps tried before a result is returned as imprecise.
@@ -181,7 +187,8 @@ class AffineMap:
     terms: FloatArray
     #: Per row, ``coefficient * magnitude + underflow`` bounds the rounding of the
     #: numerator (:func:`product_error` with the offset always counted as a term,
-    #: so it stays valid for any offset and known values a copy is given).
+    #: so it stays valid for any offset and known values a copy is given; each term's
+    #: underflow counted as :data:`TERM_FLOOR`).
     coefficient: FloatArray
     underflow: FloatArray
 
@@ -203,7 +210,7 @@ class AffineMap:
         terms = row_terms(off)
         return cls(off, states, known_lower, known_upper, offset,
                    np.maximum(leave_lower, 0.0), leave_upper, terms,
-                   error_coefficient(terms + 1.0), (terms + 1.0) * (2 * ETA))
+                   error_coefficient(terms + 1.0), (terms + 1.0) * TERM_FLOOR)
 
     @property
     def nonnegative(self) -> bool:
