@@ -205,12 +205,12 @@ class AffineMap:
         if shared is not None:
             return dataclasses.replace(shared, known_lower=known_lower,
                                        known_upper=known_upper, offset=offset)
-        off = _off_diagonal(rows, states)
-        _, leave_lower, leave_upper = enclose_product(off, np.ones(rows.shape[1]))
-        terms = row_terms(off)
+        plan = _row_plan(rows, states)
+        off = sp.csr_matrix((rows.data[plan.keep], plan.indices, plan.indptr), shape=rows.shape)
+        leave_lower, leave_upper = _row_sum_bounds(off, plan.terms)
         return cls(off, states, known_lower, known_upper, offset,
-                   np.maximum(leave_lower, 0.0), leave_upper, terms,
-                   error_coefficient(terms + 1.0), (terms + 1.0) * TERM_FLOOR)
+                   np.maximum(leave_lower, 0.0), leave_upper, plan.terms,
+                   plan.coefficient, plan.underflow)
 
     @property
     def nonnegative(self) -> bool:
@@ -288,15 +288,77 @@ class AffineMap:
         return np.where(np.isnan(quotient), np.inf, round_up(quotient))
 
 
-def _off_diagonal(rows: CsrMatrix, states: IntArray) -> sp.csr_matrix:
-    """*rows* without each row's entry in its own state's column (no re-sorting)."""
+@dataclass(frozen=True, slots=True)
+class _RowPlan:
+    """The index work of :meth:`AffineMap.of` for one pattern of rows and unknown states:
+    which stored entries are off the diagonal, and the per-row error constants.
+
+    A structure-reusing sweep builds the map of one pattern at every point (only the
+    probabilities change), so the plan of the last pattern seen twice is kept; it is
+    used for rows whose index arrays and states are equal to its own (compared).
+    """
+
+    pattern: tuple[IntArray, IntArray, IntArray]  # rows' indptr and indices, the states
+    keep: IntArray
+    indices: IntArray
+    indptr: IntArray
+    terms: FloatArray
+    coefficient: FloatArray
+    underflow: FloatArray
+
+    def fits(self, rows: CsrMatrix, states: IntArray) -> bool:
+        """Whether *rows* and *states* have this plan's pattern."""
+        indptr, indices, own = self.pattern
+        return (np.array_equal(rows.indptr, indptr) and np.array_equal(rows.indices, indices)
+                and np.array_equal(states, own))
+
+
+#: The plan kept (at most one), and the shape of the last rows planned without keeping.
+_ROW_PLANS: list[_RowPlan] = []
+_ROWS_SEEN: list[tuple[int, int, int, int]] = []
+
+
+def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
+    """The plan of *rows* and *states*: the kept one if it fits, else a new one (kept
+    when rows of this shape were planned just before: a sweep, not a single check)."""
+    if _ROW_PLANS and _ROW_PLANS[0].fits(rows, states):
+        return _ROW_PLANS[0]
+    keep = _off_diagonal_entries(rows, states)
+    lengths = np.bincount(np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[keep],
+                          minlength=rows.shape[0])
+    indptr = np.zeros(rows.shape[0] + 1, dtype=rows.indptr.dtype)
+    np.cumsum(lengths, out=indptr[1:])
+    terms = np.asarray(lengths, dtype=np.float64)
+    plan = _RowPlan((rows.indptr.copy(), rows.indices.copy(), states.copy()), keep,
+                    rows.indices[keep], indptr, terms, error_coefficient(terms + 1.0),
+                    (terms + 1.0) * TERM_FLOOR)
+    for array in (*plan.pattern, plan.keep, plan.indices, plan.indptr, plan.terms,
+                  plan.coefficient, plan.underflow):
+        array.flags.writeable = False  # shared by the maps of every point: never edited
+    shape = (*rows.shape, rows.nnz, states.size)
+    if [shape] == _ROWS_SEEN:
+        _ROW_PLANS[:] = [plan]
+    _ROWS_SEEN[:] = [shape]
+    return plan
+
+
+def _off_diagonal_entries(rows: CsrMatrix, states: IntArray) -> IntArray:
+    """Positions of *rows*' stored entries outside each row's own state's column."""
     row_of = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype),
                        np.diff(rows.indptr))
-    keep = rows.indices != states[row_of]
-    indptr = np.zeros(rows.shape[0] + 1, dtype=rows.indptr.dtype)
-    np.cumsum(np.bincount(row_of[keep], minlength=rows.shape[0]), out=indptr[1:])
-    del row_of
-    return sp.csr_matrix((rows.data[keep], rows.indices[keep], indptr), shape=rows.shape)
+    return np.flatnonzero(rows.indices != states[row_of])
+
+
+def _row_sum_bounds(off: sp.csr_matrix, terms: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`enclose_product` of *off* with a vector of ones (*terms*: its stored entries
+    per row), its lower and upper bounds: the same operations, without finding the terms."""
+    y = np.asarray(off @ np.ones(off.shape[1]), dtype=np.float64)
+    error = product_error(y, np.maximum(terms - 1.0, 0.0), np.zeros_like(y))
+    with np.errstate(invalid="ignore"):
+        lower, upper = step_down(y - error), step_up(y + error)
+    lower = np.where(error == 0, y, lower)
+    upper = np.where(error == 0, y, upper)
+    return np.where(np.isnan(lower), -np.inf, lower), np.where(np.isnan(upper), np.inf, upper)
 
 
 def _fast_images(F: AffineMap) -> bool:
