@@ -82,3 +82,14 @@ def test_another_pattern_of_the_same_shape_is_not_planned_as_the_kept_one() -> N
     for i, row in enumerate(expected["dense"]):
         exact = sum(Fraction(float(v)) for v in row)
         assert Fraction(F.leave_lower[i]) <= exact <= Fraction(F.leave_upper[i])
+
+
+def test_a_sweep_points_two_systems_keep_their_plans() -> None:
+    first, second = _rows(7), _rows(8)
+    for _ in range(3):  # each point: the reward system's map, then the recharge cap's
+        for rows, states in (first, second):
+            zeros = np.zeros(rows.shape[1])
+            certify.AffineMap.of(rows, states, zeros, zeros, None)
+    assert len(certify._ROW_PLANS) == 2
+    assert {id(p) for p in certify._ROW_PLANS} == {
+        id(next(p for p in certify._ROW_PLANS if p.fits(*pair))) for pair in (first, second)}

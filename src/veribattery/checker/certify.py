@@ -288,7 +288,7 @@ class AffineMap:
         return np.where(np.isnan(quotient), np.inf, round_up(quotient))
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, eq=False)
 class _RowPlan:
     """The index work of :meth:`AffineMap.of` for one pattern of rows and unknown states:
     which stored entries are off the diagonal, and the per-row error constants.
@@ -313,16 +313,21 @@ class _RowPlan:
                 and np.array_equal(states, own))
 
 
-#: The plan kept (at most one), and the shape of the last rows planned without keeping.
+#: Plans kept (a sweep point's systems: the reward system and the recharge cap's), most
+#: recent first, and the shapes of the last rows planned (a plan is kept for a shape seen
+#: before: a sweep, not a single check, which would only pay its memory).
+ROW_PLANS_KEPT = 2
 _ROW_PLANS: list[_RowPlan] = []
 _ROWS_SEEN: list[tuple[int, int, int, int]] = []
 
 
 def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
     """The plan of *rows* and *states*: the kept one if it fits, else a new one (kept
-    when rows of this shape were planned just before: a sweep, not a single check)."""
-    if _ROW_PLANS and _ROW_PLANS[0].fits(rows, states):
-        return _ROW_PLANS[0]
+    when rows of this shape were planned recently: a sweep, not a single check)."""
+    for i, kept in enumerate(_ROW_PLANS):
+        if kept.fits(rows, states):
+            _ROW_PLANS.insert(0, _ROW_PLANS.pop(i))
+            return kept
     keep = _off_diagonal_entries(rows, states)
     lengths = np.bincount(np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[keep],
                           minlength=rows.shape[0])
@@ -336,9 +341,10 @@ def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
                   plan.coefficient, plan.underflow):
         array.flags.writeable = False  # shared by the maps of every point: never edited
     shape = (*rows.shape, rows.nnz, states.size)
-    if [shape] == _ROWS_SEEN:
-        _ROW_PLANS[:] = [plan]
-    _ROWS_SEEN[:] = [shape]
+    if shape in _ROWS_SEEN:
+        _ROW_PLANS[:] = [plan, *_ROW_PLANS][:ROW_PLANS_KEPT]
+        _ROWS_SEEN.remove(shape)
+    _ROWS_SEEN[:] = [shape, *_ROWS_SEEN][:2 * ROW_PLANS_KEPT]
     return plan
 
 
