@@ -299,7 +299,7 @@ class _RowPlan:
     """
 
     pattern: tuple[IntArray, IntArray, IntArray]  # rows' indptr and indices, the states
-    keep: IntArray
+    keep: BoolArray  # the stored entries off the diagonal
     indices: IntArray
     indptr: IntArray
     terms: FloatArray
@@ -322,37 +322,35 @@ _ROWS_SEEN: list[tuple[int, int, int, int]] = []
 
 
 def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
-    """The plan of *rows* and *states*: the kept one if it fits, else a new one (kept
-    when rows of this shape were planned recently: a sweep, not a single check)."""
+    """The plan of *rows* and *states*: the kept one if it fits, else a new one (kept,
+    with a copy of the pattern, when rows of this shape were planned recently: a sweep,
+    not a single check, which would only pay its memory)."""
     for i, kept in enumerate(_ROW_PLANS):
         if kept.fits(rows, states):
             _ROW_PLANS.insert(0, _ROW_PLANS.pop(i))
             return kept
-    keep = _off_diagonal_entries(rows, states)
-    lengths = np.bincount(np.repeat(np.arange(rows.shape[0]), np.diff(rows.indptr))[keep],
-                          minlength=rows.shape[0])
+    row_of = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype),
+                       np.diff(rows.indptr))
+    keep = rows.indices != states[row_of]  # one byte per entry: large systems pass here
+    lengths = np.bincount(row_of[keep], minlength=rows.shape[0])
+    del row_of
     indptr = np.zeros(rows.shape[0] + 1, dtype=rows.indptr.dtype)
     np.cumsum(lengths, out=indptr[1:])
     terms = np.asarray(lengths, dtype=np.float64)
-    plan = _RowPlan((rows.indptr.copy(), rows.indices.copy(), states.copy()), keep,
-                    rows.indices[keep], indptr, terms, error_coefficient(terms + 1.0),
-                    (terms + 1.0) * TERM_FLOOR)
-    for array in (*plan.pattern, plan.keep, plan.indices, plan.indptr, plan.terms,
-                  plan.coefficient, plan.underflow):
-        array.flags.writeable = False  # shared by the maps of every point: never edited
     shape = (*rows.shape, rows.nnz, states.size)
-    if shape in _ROWS_SEEN:
+    again = shape in _ROWS_SEEN
+    pattern = (rows.indptr, rows.indices, states)
+    plan = _RowPlan(tuple(a.copy() for a in pattern) if again else pattern,  # type: ignore[arg-type]
+                    keep, rows.indices[keep], indptr, terms, error_coefficient(terms + 1.0),
+                    (terms + 1.0) * TERM_FLOOR)
+    if again:
+        for array in (*plan.pattern, plan.keep, plan.indices, plan.indptr, plan.terms,
+                      plan.coefficient, plan.underflow):
+            array.flags.writeable = False  # shared by the maps of every point: never edited
         _ROW_PLANS[:] = [plan, *_ROW_PLANS][:ROW_PLANS_KEPT]
         _ROWS_SEEN.remove(shape)
     _ROWS_SEEN[:] = [shape, *_ROWS_SEEN][:2 * ROW_PLANS_KEPT]
     return plan
-
-
-def _off_diagonal_entries(rows: CsrMatrix, states: IntArray) -> IntArray:
-    """Positions of *rows*' stored entries outside each row's own state's column."""
-    row_of = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype),
-                       np.diff(rows.indptr))
-    return np.flatnonzero(rows.indices != states[row_of])
 
 
 def _row_sum_bounds(off: sp.csr_matrix, terms: FloatArray) -> tuple[FloatArray, FloatArray]:
