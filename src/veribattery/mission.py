@@ -182,12 +182,16 @@ class MissionChecker:
     becomes 0 or 1 at one of them; order points by key to build each space once.
     """
 
-    def __init__(self, *, values_only: bool = False) -> None:
+    def __init__(self, *, values_only: bool = False, reuse: bool = True) -> None:
         """:param values_only: the reports' DTMCs need only the reward structures the
             properties use (a sweep keeps values, not models): the others are not built.
+        :param reuse: keep each full build's structure for the configs after it. False
+            for a checker that checks one config (a sweep task of one point): it then
+            builds as :func:`check_mission` does, without the pass that records every
+            branch's kind for re-pricing (a tenth of a build), which it would never use.
         """
         self._values_only = values_only
-        self._builder = ReusingBuilder()
+        self._builder = ReusingBuilder() if reuse else None
         # One parse cache per process: a sweep's workers check one task after another,
         # and consecutive points' texts differ in a constant or two (see _Parsed).
         self._parsed = _PARSES

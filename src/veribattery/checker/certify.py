@@ -32,6 +32,12 @@ from veribattery.checker.bounds import Bounds, round_down, round_up
 UNIT_ROUNDOFF = 2.0**-53
 #: The smallest subnormal float64: the absolute error of one product that underflows.
 ETA = 2.0**-1074
+#: What :class:`AffineMap` adds to a row's rounding bound per term: it covers the
+#: underflow of a product (``2 * ETA``) and keeps the bound a normal number, so that a
+#: row whose numerator is exactly 0 (the no states of a shared system) does not make
+#: the images compute on subnormals, which costs ~20x per operation on x86 (microcode
+#: assists): half of a large certificate's time. ``2**-900`` is far below any precision.
+TERM_FLOOR = 2.0**-900
 #: Safety factor on the computed error bound (covers the rounding of the bound itself).
 _SAFETY = 1.0 + 2.0**-30
 #: Interval-iteration sweeps tried before a result is returned as imprecise.
@@ -181,7 +187,8 @@ class AffineMap:
     terms: FloatArray
     #: Per row, ``coefficient * magnitude + underflow`` bounds the rounding of the
     #: numerator (:func:`product_error` with the offset always counted as a term,
-    #: so it stays valid for any offset and known values a copy is given).
+    #: so it stays valid for any offset and known values a copy is given; each term's
+    #: underflow counted as :data:`TERM_FLOOR`).
     coefficient: FloatArray
     underflow: FloatArray
 
@@ -198,12 +205,12 @@ class AffineMap:
         if shared is not None:
             return dataclasses.replace(shared, known_lower=known_lower,
                                        known_upper=known_upper, offset=offset)
-        off = _off_diagonal(rows, states)
-        _, leave_lower, leave_upper = enclose_product(off, np.ones(rows.shape[1]))
-        terms = row_terms(off)
+        plan = _row_plan(rows, states)
+        off = sp.csr_matrix((rows.data[plan.keep], plan.indices, plan.indptr), shape=rows.shape)
+        leave_lower, leave_upper = _row_sum_bounds(off, plan.terms)
         return cls(off, states, known_lower, known_upper, offset,
-                   np.maximum(leave_lower, 0.0), leave_upper, terms,
-                   error_coefficient(terms + 1.0), (terms + 1.0) * (2 * ETA))
+                   np.maximum(leave_lower, 0.0), leave_upper, plan.terms,
+                   plan.coefficient, plan.underflow)
 
     @property
     def nonnegative(self) -> bool:
@@ -281,15 +288,81 @@ class AffineMap:
         return np.where(np.isnan(quotient), np.inf, round_up(quotient))
 
 
-def _off_diagonal(rows: CsrMatrix, states: IntArray) -> sp.csr_matrix:
-    """*rows* without each row's entry in its own state's column (no re-sorting)."""
+@dataclass(frozen=True, slots=True, eq=False)
+class _RowPlan:
+    """The index work of :meth:`AffineMap.of` for one pattern of rows and unknown states:
+    which stored entries are off the diagonal, and the per-row error constants.
+
+    A structure-reusing sweep builds the map of one pattern at every point (only the
+    probabilities change), so the plan of the last pattern seen twice is kept; it is
+    used for rows whose index arrays and states are equal to its own (compared).
+    """
+
+    pattern: tuple[IntArray, IntArray, IntArray]  # rows' indptr and indices, the states
+    keep: BoolArray  # the stored entries off the diagonal
+    indices: IntArray
+    indptr: IntArray
+    terms: FloatArray
+    coefficient: FloatArray
+    underflow: FloatArray
+
+    def fits(self, rows: CsrMatrix, states: IntArray) -> bool:
+        """Whether *rows* and *states* have this plan's pattern."""
+        indptr, indices, own = self.pattern
+        return (np.array_equal(rows.indptr, indptr) and np.array_equal(rows.indices, indices)
+                and np.array_equal(states, own))
+
+
+#: Plans kept (a sweep point's systems: the reward system and the recharge cap's), most
+#: recent first, and the shapes of the last rows planned (a plan is kept for a shape seen
+#: before: a sweep, not a single check, which would only pay its memory).
+ROW_PLANS_KEPT = 2
+_ROW_PLANS: list[_RowPlan] = []
+_ROWS_SEEN: list[tuple[int, int, int, int]] = []
+
+
+def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
+    """The plan of *rows* and *states*: the kept one if it fits, else a new one (kept,
+    with a copy of the pattern, when rows of this shape were planned recently: a sweep,
+    not a single check, which would only pay its memory)."""
+    for i, kept in enumerate(_ROW_PLANS):
+        if kept.fits(rows, states):
+            _ROW_PLANS.insert(0, _ROW_PLANS.pop(i))
+            return kept
     row_of = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype),
                        np.diff(rows.indptr))
-    keep = rows.indices != states[row_of]
-    indptr = np.zeros(rows.shape[0] + 1, dtype=rows.indptr.dtype)
-    np.cumsum(np.bincount(row_of[keep], minlength=rows.shape[0]), out=indptr[1:])
+    keep = rows.indices != states[row_of]  # one byte per entry: large systems pass here
+    lengths = np.bincount(row_of[keep], minlength=rows.shape[0])
     del row_of
-    return sp.csr_matrix((rows.data[keep], rows.indices[keep], indptr), shape=rows.shape)
+    indptr = np.zeros(rows.shape[0] + 1, dtype=rows.indptr.dtype)
+    np.cumsum(lengths, out=indptr[1:])
+    terms = np.asarray(lengths, dtype=np.float64)
+    shape = (*rows.shape, rows.nnz, states.size)
+    again = shape in _ROWS_SEEN
+    pattern = (rows.indptr, rows.indices, states)
+    plan = _RowPlan(tuple(a.copy() for a in pattern) if again else pattern,  # type: ignore[arg-type]
+                    keep, rows.indices[keep], indptr, terms, error_coefficient(terms + 1.0),
+                    (terms + 1.0) * TERM_FLOOR)
+    if again:
+        for array in (*plan.pattern, plan.keep, plan.indices, plan.indptr, plan.terms,
+                      plan.coefficient, plan.underflow):
+            array.flags.writeable = False  # shared by the maps of every point: never edited
+        _ROW_PLANS[:] = [plan, *_ROW_PLANS][:ROW_PLANS_KEPT]
+        _ROWS_SEEN.remove(shape)
+    _ROWS_SEEN[:] = [shape, *_ROWS_SEEN][:2 * ROW_PLANS_KEPT]
+    return plan
+
+
+def _row_sum_bounds(off: sp.csr_matrix, terms: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:func:`enclose_product` of *off* with a vector of ones (*terms*: its stored entries
+    per row), its lower and upper bounds: the same operations, without finding the terms."""
+    y = np.asarray(off @ np.ones(off.shape[1]), dtype=np.float64)
+    error = product_error(y, np.maximum(terms - 1.0, 0.0), np.zeros_like(y))
+    with np.errstate(invalid="ignore"):
+        lower, upper = step_down(y - error), step_up(y + error)
+    lower = np.where(error == 0, y, lower)
+    upper = np.where(error == 0, y, upper)
+    return np.where(np.isnan(lower), -np.inf, lower), np.where(np.isnan(upper), np.inf, upper)
 
 
 def _fast_images(F: AffineMap) -> bool:

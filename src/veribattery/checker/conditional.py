@@ -32,6 +32,7 @@ from dataclasses import fields, replace
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
@@ -329,7 +330,9 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     below = system.affine(known.lower, known.lower, low)
     F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
                           offset=high), below)
-    rhs = offsets[0].astype(np.longdouble) + rows.astype(np.longdouble) @ known.value
+    rhs = offsets[0].astype(np.longdouble)
+    if known.value.any():  # (zero when b lies inside the target: the mission's success in done)
+        rhs += linsolve.extended_product(rows, known.value)
     floor = np.zeros(r.size) if np.all(low >= 0) else np.full(r.size, -np.inf)
     ceiling = np.full(r.size, np.inf)
     found = kernels.quick_bounds(F, solver, rhs, floor, ceiling)
@@ -339,7 +342,8 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     return Bounds(found.value[where], found.lower[where], found.upper[where])
 
 
-def _long_way(F: certify.AffineMap, solver: linsolve.Factorization, rhs: FloatArray,
+def _long_way(F: certify.AffineMap, solver: linsolve.Factorization,
+              rhs: npt.NDArray[np.floating],
               floor: FloatArray, ceiling: FloatArray) -> Bounds:
     """The refined solve, certified, then interval iteration if still too wide."""
     point = _solve(solver, rhs)
@@ -381,7 +385,7 @@ class _Split(certify.AffineMap):
         return self.below.image(low, up=False), certify.AffineMap.image(self, high, up=True)
 
 
-def _solve(solver: linsolve.Factorization, b: FloatArray) -> FloatArray | None:
+def _solve(solver: linsolve.Factorization, b: npt.NDArray[np.floating]) -> FloatArray | None:
     """The fast path's approximate solution (None when no solver was accepted)."""
     try:
         return solver.solve(b.astype(np.longdouble))

@@ -56,6 +56,11 @@ class Task:
 
     points: tuple[tuple[int, MissionConfig], ...]
 
+    def checker(self) -> MissionChecker:
+        """The checker of this task's points: one that keeps the structure of its builds
+        only when a later point of the task may re-use it."""
+        return MissionChecker(values_only=True, reuse=len(self.points) > 1)
+
 
 @dataclass(frozen=True, slots=True)
 class ReusePlan:
@@ -166,7 +171,7 @@ def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
     when it is done, so that finished points are kept even if the task never finishes,
     and a worker's death is blamed on the point it was checking.
     """
-    checker, results = MissionChecker(values_only=True), []
+    checker, results = task.checker(), []
     for index, cfg in task.points:
         if _STREAM is not None:
             _STREAM.put(index)
@@ -178,7 +183,7 @@ def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
 
 def iter_task(task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
     """Check the points of *task* in order with one checker, yielding each as it is done."""
-    checker = MissionChecker(values_only=True)
+    checker = task.checker()
     for index, cfg in task.points:
         yield (check or check_point)(checker, index, cfg)
 
