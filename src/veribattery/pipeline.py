@@ -194,6 +194,7 @@ def check_model(
     with watch.stage("check"):
         if exact_model is None:  # linear systems shared between the properties
             prepare(dtmc, [p.formula for p in resolved])
+            trim_heap()  # the builder's and the pre-pass's freed temporaries
         results, undefined = _run_checks(checks, resolved, dtmc, (undefined_ok, keep_states))
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
 

@@ -32,6 +32,7 @@ from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
@@ -282,20 +283,29 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     b = condition.states & ~target
     # On b the unconditional value (not needed when b lies inside the target, as
     # the mission's success inside done).
-    plain = (kernels.reach_rewards(P, rewards, target) if b.any()
-             else Bounds.exact(np.zeros(P.shape[0])))
-    infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value))
-    known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
-                     (plain.value, plain.lower, plain.upper)))
+    if b.any():
+        plain = kernels.reach_rewards(P, rewards, target)
+        infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value))
+        known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
+                         (plain.value, plain.lower, plain.upper)))
+        del plain
+    else:
+        infinite = ~kernels.prob0(P, ~target, b)
+        known = Bounds.exact(np.zeros(P.shape[0]))
     allowed = ~infinite & ~target & ~b
     maybe = allowed & condition.possible
-    value = np.where(infinite, np.inf, known.value)
-    numerator = Bounds(value, np.where(infinite, np.inf, known.lower),
-                       np.where(infinite, np.inf, known.upper))
-    if maybe.any():
-        numerator = _spread(numerator, maybe, _reward_system(
-            P, rewards, maybe, condition.probs, known, allowed))
-    return divide(numerator, condition, np.inf)
+    found = (_reward_system(P, rewards, maybe, condition.probs, known, allowed)
+             if maybe.any() else None)
+    # The numerator in known's own arrays (no longer read): inf where infinite,
+    # the solution on maybe (which lies outside infinite).
+    for vector, part in zip((known.value, known.lower, known.upper),
+                            (None, None, None) if found is None else
+                            (found.value, found.lower, found.upper), strict=True):
+        vector[infinite] = np.inf
+        if part is not None:
+            vector[maybe] = part
+    del found
+    return divide(known, condition, np.inf)
 
 
 def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bounds,
@@ -315,30 +325,45 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     system = kernels.shared_system(P, maybe, allowed)
     unknowns = system.unknowns
     r = np.asarray(rewards[unknowns], dtype=np.float64)
-    offsets = [r * x.value[unknowns], r * x.lower[unknowns], r * x.upper[unknowns]]
-    exact = (x.lower[unknowns] == 1.0) | (r == 0)
-    low = np.where(exact, np.minimum(offsets[1], offsets[2]),
-                   round_down(np.minimum(offsets[1], offsets[2])))
-    # r x >= 0 exactly where both are: rounding down must not leave 0 (x = 0 where the
-    # condition is impossible), or the map looks signed and loses its fast images.
-    low = np.where((r >= 0) & (x.lower[unknowns] >= 0), np.maximum(low, 0.0), low)
-    high = np.where(exact, np.maximum(offsets[1], offsets[2]),
-                    round_up(np.maximum(offsets[1], offsets[2])))
+    low, high = _offset_bounds(r, x.lower[unknowns], x.upper[unknowns])
     rows, solver = system.rows, system.factorization
     below = system.affine(known.lower, known.lower, low)
     F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
                           offset=high), below)
-    rhs = offsets[0].astype(np.longdouble) + rows.astype(np.longdouble) @ known.value
-    floor = np.zeros(r.size) if np.all(low >= 0) else np.full(r.size, -np.inf)
-    ceiling = np.full(r.size, np.inf)
-    found = kernels.quick_bounds(F, solver, rhs, floor, ceiling)
+    # offset + P known, rows widened a block at a time (no 16-byte copy of the matrix)
+    rhs = linsolve.extended_product(rows, known.value)
+    offset = r * x.value[unknowns]
+    rhs += offset
+    del offset, r
+    floor = 0.0 if np.all(low >= 0) else -np.inf
+    found = kernels.quick_bounds(F, solver, rhs, np.full((), floor), np.full((), np.inf))
     if found is None:
-        found = _long_way(F, solver, rhs, floor, ceiling)
+        size = rhs.size
+        found = _long_way(F, solver, rhs, np.full(size, floor), np.full(size, np.inf))
     where = np.flatnonzero(maybe[unknowns])
     return Bounds(found.value[where], found.lower[where], found.upper[where])
 
 
-def _long_way(F: certify.AffineMap, solver: linsolve.Factorization, rhs: FloatArray,
+def _offset_bounds(r: FloatArray, x_lower: FloatArray, x_upper: FloatArray
+                   ) -> tuple[FloatArray, FloatArray]:
+    """Certified bounds of the offset ``r x`` from those of *x*: each product rounded
+    outward, except where it is exact (``x = 1`` or ``r = 0``)."""
+    one, two = r * x_lower, r * x_upper
+    exact = (x_lower == 1.0) | (r == 0)
+    smaller = np.minimum(one, two)
+    low = np.where(exact, smaller, round_down(smaller))
+    del smaller
+    # r x >= 0 exactly where both are: rounding down must not leave 0 (x = 0 where the
+    # condition is impossible), or the map looks signed and loses its fast images.
+    low = np.where((r >= 0) & (x_lower >= 0), np.maximum(low, 0.0), low)
+    larger = np.maximum(one, two)
+    del one, two
+    high = np.where(exact, larger, round_up(larger))
+    return low, high
+
+
+def _long_way(F: certify.AffineMap, solver: linsolve.Factorization,
+              rhs: npt.NDArray[np.floating],
               floor: FloatArray, ceiling: FloatArray) -> Bounds:
     """The refined solve, certified, then interval iteration if still too wide."""
     point = _solve(solver, rhs)
@@ -380,19 +405,12 @@ class _Split(certify.AffineMap):
         return self.below.image(low, up=False), certify.AffineMap.image(self, high, up=True)
 
 
-def _solve(solver: linsolve.Factorization, b: FloatArray) -> FloatArray | None:
+def _solve(solver: linsolve.Factorization, b: npt.NDArray[np.floating]) -> FloatArray | None:
     """The fast path's approximate solution (None when no solver was accepted)."""
     try:
         return solver.solve(b.astype(np.longdouble))
     except CheckError:
         return None
-
-
-def _spread(known: Bounds, unknown: BoolArray, found: Bounds) -> Bounds:
-    """Full-length bounds: *known* outside *unknown*, *found* inside."""
-    value, lower, upper = known.value.copy(), known.lower.copy(), known.upper.copy()
-    value[unknown], lower[unknown], upper[unknown] = found.value, found.lower, found.upper
-    return Bounds(value, lower, upper)
 
 
 # ---------------------------------------------------------------------------

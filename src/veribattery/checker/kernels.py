@@ -24,6 +24,7 @@ map (the next iterate equal to the current one in every bit).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import weakref
@@ -90,8 +91,10 @@ class _System:
         """The fixed-point map on these rows with the given known values and offset."""
         F = certify.AffineMap.of(self.rows, np.flatnonzero(self.unknowns), known_lower,
                                  known_upper, offset, self.template)
-        if self.template is None:
-            self.template = F
+        if self.template is None:  # kept without this query's vectors (every use replaces them)
+            empty = np.zeros(0)
+            self.template = dataclasses.replace(F, known_lower=empty, known_upper=empty,
+                                                offset=None)
         return F
 
 
@@ -434,9 +437,9 @@ def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
     """
     if F.states.size < QUICK_MIN_STATES:
         return None
-    n = F.states.size
+    # The trivial bounds as 0-d arrays: they broadcast (two fewer vectors at the peak).
     return quick_bounds(F, system.factorization, _right_side(system, known, offset, np.float64),
-                        np.full(n, floor), np.full(n, ceiling))
+                        np.full((), floor), np.full((), ceiling))
 
 
 def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
