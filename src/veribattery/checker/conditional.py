@@ -216,18 +216,29 @@ def divide(numerator: Bounds, condition: Condition, ceiling: float) -> Bounds:
     stay infinite.
     """
     x = condition.probs
+    # Each vector is made once and then edited in place (at 1.4M states every
+    # temporary is 11 MB, and this runs at the conditional properties' peak).
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         value = numerator.value / x.value
-        lower = np.where(np.isinf(numerator.lower), numerator.lower,
-                         round_down(numerator.lower / x.upper))
-        upper = np.where(np.isinf(numerator.upper) | (numerator.upper == 0), numerator.upper,
-                         round_up(numerator.upper / x.lower))
-    upper = np.where(np.isnan(upper), np.inf, upper)  # a lower bound of x of 0
-    lower, upper = np.maximum(lower, 0.0), np.minimum(upper, ceiling)
+        lower = round_down(numerator.lower / x.upper)
+        kept = np.isinf(numerator.lower)
+        lower[kept] = numerator.lower[kept]
+        upper = round_up(numerator.upper / x.lower)
+        kept = np.isinf(numerator.upper) | (numerator.upper == 0)
+        upper[kept] = numerator.upper[kept]
+    del kept
+    upper[np.isnan(upper)] = np.inf  # a lower bound of x of 0
+    np.maximum(lower, 0.0, out=lower)
+    np.minimum(upper, ceiling, out=upper)
+    # The value moved into [lower, upper] (Bounds.around), NaN where x was 0.
+    unknown = np.isnan(value)
+    value[unknown] = lower[unknown]
+    del unknown
+    np.maximum(value, lower, out=value)
+    np.minimum(value, upper, out=value)
     undefined = ~condition.possible
-    found = Bounds.around(np.where(np.isnan(value), lower, value), lower, upper)
-    return Bounds(*(np.where(undefined, np.nan, v) for v in
-                    (found.value, found.lower, found.upper)))
+    value[undefined] = lower[undefined] = upper[undefined] = np.nan
+    return Bounds(value, lower, upper)
 
 
 # ---------------------------------------------------------------------------
@@ -289,23 +300,25 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
         known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
                          (plain.value, plain.lower, plain.upper)))
         del plain
-    else:
+    else:  # no known values: one zero vector stands for all three during the solve
         infinite = ~kernels.prob0(P, ~target, b)
-        known = Bounds.exact(np.zeros(P.shape[0]))
+        zero = np.zeros(P.shape[0])
+        known = Bounds(zero, zero, zero)
     allowed = ~infinite & ~target & ~b
     maybe = allowed & condition.possible
     found = (_reward_system(P, rewards, maybe, condition.probs, known, allowed)
              if maybe.any() else None)
-    # The numerator in known's own arrays (no longer read): inf where infinite,
-    # the solution on maybe (which lies outside infinite).
-    for vector, part in zip((known.value, known.lower, known.upper),
-                            (None, None, None) if found is None else
+    # The numerator: inf where infinite, the solution on maybe (which lies outside
+    # infinite), the known values elsewhere.
+    vectors = [known.value.copy(), known.lower.copy(), known.upper.copy()]
+    del known
+    for vector, part in zip(vectors, (None, None, None) if found is None else
                             (found.value, found.lower, found.upper), strict=True):
         vector[infinite] = np.inf
         if part is not None:
             vector[maybe] = part
     del found
-    return divide(known, condition, np.inf)
+    return divide(Bounds(*vectors), condition, np.inf)
 
 
 def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bounds,
@@ -330,18 +343,27 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     below = system.affine(known.lower, known.lower, low)
     F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
                           offset=high), below)
-    # offset + P known, rows widened a block at a time (no 16-byte copy of the matrix)
-    rhs = linsolve.extended_product(rows, known.value)
-    offset = r * x.value[unknowns]
-    rhs += offset
-    del offset, r
     floor = 0.0 if np.all(low >= 0) else -np.inf
-    found = kernels.quick_bounds(F, solver, rhs, np.full((), floor), np.full((), np.inf))
+    # The quick path reads the right-hand side in float64 only: the extended one is
+    # made again if the long way is needed (8 bytes per state less at the peak).
+    rhs = _right_side(rows, known.value, r, x.value[unknowns])
+    found = kernels.quick_bounds(F, solver, rhs.astype(np.float64), np.full((), floor),
+                                 np.full((), np.inf))
+    del rhs
     if found is None:
+        rhs = _right_side(rows, known.value, r, x.value[unknowns])
         size = rhs.size
         found = _long_way(F, solver, rhs, np.full(size, floor), np.full(size, np.inf))
     where = np.flatnonzero(maybe[unknowns])
     return Bounds(found.value[where], found.lower[where], found.upper[where])
+
+
+def _right_side(rows: CsrMatrix, known: FloatArray, r: FloatArray,
+                x: FloatArray) -> npt.NDArray[np.longdouble]:
+    """``r x + P known`` in extended precision (rows widened a block at a time)."""
+    rhs = linsolve.extended_product(rows, known)
+    rhs += r * x
+    return rhs
 
 
 def _offset_bounds(r: FloatArray, x_lower: FloatArray, x_upper: FloatArray

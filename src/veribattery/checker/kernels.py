@@ -37,6 +37,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import certify, linsolve, rational
 from veribattery.checker.bounds import (
@@ -95,6 +96,10 @@ class _System:
             empty = np.zeros(0)
             self.template = dataclasses.replace(F, known_lower=empty, known_upper=empty,
                                                 offset=None)
+            # From now on the rows are the map's: the same rows without their own
+            # state's entry. Every right-hand side reads known values that are 0 on
+            # the unknowns, so the products are the same (one copy of the rows kept).
+            self.rows = F.rows
         return F
 
 
@@ -195,11 +200,34 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) ->
         while systems and len(systems) >= SYSTEMS_KEPT:
             systems.popitem(last=False)
         A64, residue, rows = linsolve.restricted_parts(P, maybe)
-        found = _System(rows, linsolve.Factorization(A64, residue), maybe.copy())
+        unknowns = maybe.copy()
+        solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns))
+        del A64, residue
+        found = _System(rows, solver, unknowns)
+        trim_heap()  # the restriction's per-entry temporaries, before the solve's
         systems[key] = found
     else:
         systems.move_to_end(_mask_key(found.unknowns))
     return found
+
+
+def _rebuilder(P: CsrMatrix, unknowns: BoolArray
+               ) -> Callable[[], tuple[sp.csr_matrix, sp.csr_matrix]]:
+    """Makes ``I - P_mm`` (float64 part and residue) again, for a solver that released it.
+
+    *P* is held weakly, as by the memo (a system does not outlive its matrix); the
+    unmemoised restriction gives the same matrix bit for bit without making a plan.
+    """
+    matrix = weakref.ref(P)
+
+    def rebuild() -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        P = matrix()
+        if P is None:  # pragma: no cover -- the memo forgets a system with its matrix
+            raise CheckError("the transition matrix of a kept linear system is gone")
+        A64, residue, _ = linsolve.unplanned_parts(P, unknowns)
+        return A64, residue
+
+    return rebuild
 
 
 def _superset(systems: Iterable[_System], maybe: BoolArray,
@@ -221,7 +249,9 @@ def shared_system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray) -> _System
 
     For kernels outside this module (conditional numerators), so that they share the
     factorisation of an unconditional property. ``.unknowns`` is *M*; ``.rows`` the
-    rows ``P[M, :]``; ``.factorization`` the solver of ``I - P_MM``; ``.affine`` its maps.
+    rows ``P[M, :]`` (once a map is made, without each row's own diagonal entry: use
+    them with known values that are 0 on *M*); ``.factorization`` the solver of
+    ``I - P_MM``; ``.affine`` its maps.
     """
     return _system(P, maybe, allowed)
 
@@ -457,12 +487,16 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
     if x is None:
         return None
     x = np.clip(x, floor, ceiling)
+    found = None
     for margin in solver.margins_for(b, x):
         pair = certify.quick_certificate(F, x, margin, floor, ceiling)
         found = None if pair is None else Bounds.around(x, *pair)
+        del pair
         if found is not None and found.precise_states().all():
-            return found
-    return None
+            break
+        found = None
+    trim_heap()  # the certificate's temporaries, before the caller's next vectors
+    return found
 
 
 def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
