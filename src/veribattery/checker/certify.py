@@ -184,13 +184,28 @@ class AffineMap:
     offset: FloatArray | None
     leave_lower: FloatArray
     leave_upper: FloatArray
-    terms: FloatArray
-    #: Per row, ``coefficient * magnitude + underflow`` bounds the rounding of the
-    #: numerator (:func:`product_error` with the offset always counted as a term,
-    #: so it stays valid for any offset and known values a copy is given; each term's
-    #: underflow counted as :data:`TERM_FLOOR`).
-    coefficient: FloatArray
-    underflow: FloatArray
+
+    # The per-row constants below are derived from ``rows`` on each use rather than
+    # stored: three vectors per map (33 MB at 1.4M states) against a few cheap
+    # vector operations per image.
+
+    @property
+    def terms(self) -> FloatArray:
+        """Number of stored entries of each row (:func:`row_terms` of ``rows``)."""
+        return row_terms(self.rows)
+
+    @property
+    def coefficient(self) -> FloatArray:
+        """Per row, ``coefficient * magnitude + underflow`` bounds the rounding of the
+        numerator (:func:`product_error` with the offset always counted as a term,
+        so it stays valid for any offset and known values a copy is given; each
+        term's underflow counted as :data:`TERM_FLOOR`)."""
+        return error_coefficient(self.terms + 1.0)
+
+    @property
+    def underflow(self) -> FloatArray:
+        """The underflow part of that bound (see :attr:`coefficient`)."""
+        return (self.terms + 1.0) * TERM_FLOOR
 
     @classmethod
     def of(cls, rows: CsrMatrix, states: IntArray, known_lower: FloatArray,
@@ -209,8 +224,7 @@ class AffineMap:
         off = sp.csr_matrix((rows.data[plan.keep], plan.indices, plan.indptr), shape=rows.shape)
         leave_lower, leave_upper = _row_sum_bounds(off, plan.terms)
         return cls(off, states, known_lower, known_upper, offset,
-                   np.maximum(leave_lower, 0.0), leave_upper, plan.terms,
-                   plan.coefficient, plan.underflow)
+                   np.maximum(leave_lower, 0.0), leave_upper)
 
     @property
     def nonnegative(self) -> bool:
@@ -244,10 +258,16 @@ class AffineMap:
         full = known.copy()
         full[self.states] = x
         numerator = np.asarray(self.rows @ full, dtype=np.float64)
+        del full
         if self.offset is not None:
             numerator += self.offset
-        error = self.coefficient * numerator
-        error += self.underflow
+        terms = self.terms
+        terms += 1.0
+        error = error_coefficient(terms)
+        error *= numerator
+        terms *= TERM_FLOOR  # the underflow part
+        error += terms
+        del terms
         _step_up_in_place(error)
         return numerator, error
 
@@ -288,10 +308,10 @@ class AffineMap:
         return np.where(np.isnan(quotient), np.inf, round_up(quotient))
 
 
-@dataclass(frozen=True, slots=True, eq=False)
+@dataclasses.dataclass(frozen=True, slots=True, eq=False)
 class _RowPlan:
     """The index work of :meth:`AffineMap.of` for one pattern of rows and unknown states:
-    which stored entries are off the diagonal, and the per-row error constants.
+    which stored entries are off the diagonal, and how many per row.
 
     A structure-reusing sweep builds the map of one pattern at every point (only the
     probabilities change), so the plan of the last pattern seen twice is kept; it is
@@ -303,8 +323,6 @@ class _RowPlan:
     indices: IntArray
     indptr: IntArray
     terms: FloatArray
-    coefficient: FloatArray
-    underflow: FloatArray
 
     def fits(self, rows: CsrMatrix, states: IntArray) -> bool:
         """Whether *rows* and *states* have this plan's pattern."""
@@ -341,11 +359,9 @@ def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
     again = shape in _ROWS_SEEN
     pattern = (rows.indptr, rows.indices, states)
     plan = _RowPlan(tuple(a.copy() for a in pattern) if again else pattern,  # type: ignore[arg-type]
-                    keep, rows.indices[keep], indptr, terms, error_coefficient(terms + 1.0),
-                    (terms + 1.0) * TERM_FLOOR)
+                    keep, rows.indices[keep], indptr, terms)
     if again:
-        for array in (*plan.pattern, plan.keep, plan.indices, plan.indptr, plan.terms,
-                      plan.coefficient, plan.underflow):
+        for array in (*plan.pattern, plan.keep, plan.indices, plan.indptr, plan.terms):
             array.flags.writeable = False  # shared by the maps of every point: never edited
         _ROW_PLANS[:] = [plan, *_ROW_PLANS][:ROW_PLANS_KEPT]
         _ROWS_SEEN.remove(shape)
@@ -392,27 +408,48 @@ def quick_certificate(F: AffineMap, x: FloatArray, correct: Correction | None,
         return None
     fast = _fast_images(F) and F.nonnegative and bool(np.all(x >= 0))
     images = F.images if fast else (lambda lo, hi: (F.lower(lo), F.upper(hi)))
-    low, high = images(x, x)
-    defect = step_up(np.maximum(np.maximum(high - x, x - low), 0.0))
+    # Temporaries are dropped as soon as they are used: at 10^6 states each is 8 MB
+    # and this runs at the peak of a property's memory.
+    defect = _defect(*images(x, x), x)
     margin = correct(defect) if np.all(np.isfinite(defect)) else None
     if margin is None or not np.all(np.isfinite(margin)):
         return None
-    margin = np.maximum(margin, defect)
+    margin = np.maximum(margin, defect)  # (a new array: the solver's may be kept)
+    del defect
+    margin *= 2.0
     slack = 4.0 * UNIT_ROUNDOFF * np.abs(x) + ETA
     # With a nonnegative map 0 passes the lower test itself: F(0) >= 0.
     bottom = np.maximum(floor, 0.0) if fast else floor
-    upper = np.minimum(step_up(x + 2.0 * margin + slack), ceiling)
-    lower = np.maximum(step_down(x - 2.0 * margin - slack), bottom)
+    upper = x + margin  # x + 2 d + slack, then x - 2 d - slack, summed in that order
+    upper += slack
+    upper = np.minimum(step_up(upper), ceiling)
+    lower = x - margin
+    del margin
+    lower -= slack
+    del slack
+    lower = np.maximum(step_down(lower), bottom)
     if not np.all(np.isfinite(upper)):
         return None
     image_low, image_high = images(lower, upper)
     # Where a bound sits at the trivial one it needs no test: l >= bottom gives
     # F(l) >= F(bottom) >= bottom exactly (and u <= ceiling likewise), whereas the
     # enclosure of F(ceiling) is a few ulps above it.
-    if (np.all((image_high <= upper) | (upper == ceiling))
-            and np.all((image_low >= lower) | (lower == bottom))):
+    if not np.all((image_high <= upper) | (upper == ceiling)):
+        return None
+    del image_high
+    if np.all((image_low >= lower) | (lower == bottom)):
         return lower, upper
     return None
+
+
+def _defect(low: FloatArray, high: FloatArray, x: FloatArray) -> FloatArray:
+    """``step_up(max(high - x, x - low, 0))``, computed in *high*'s and *low*'s memory."""
+    high -= x
+    np.subtract(x, low, out=low)
+    np.maximum(high, low, out=high)
+    del low
+    np.maximum(high, 0.0, out=high)
+    return step_up(high)
 
 
 def certify_fixpoint(F: AffineMap, x: FloatArray, correct: Correction | None,

@@ -217,18 +217,29 @@ def divide(numerator: Bounds, condition: Condition, ceiling: float) -> Bounds:
     stay infinite.
     """
     x = condition.probs
+    # Each vector is made once and then edited in place (at 1.4M states every
+    # temporary is 11 MB, and this runs at the conditional properties' peak).
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         value = numerator.value / x.value
-        lower = np.where(np.isinf(numerator.lower), numerator.lower,
-                         round_down(numerator.lower / x.upper))
-        upper = np.where(np.isinf(numerator.upper) | (numerator.upper == 0), numerator.upper,
-                         round_up(numerator.upper / x.lower))
-    upper = np.where(np.isnan(upper), np.inf, upper)  # a lower bound of x of 0
-    lower, upper = np.maximum(lower, 0.0), np.minimum(upper, ceiling)
+        lower = round_down(numerator.lower / x.upper)
+        kept = np.isinf(numerator.lower)
+        lower[kept] = numerator.lower[kept]
+        upper = round_up(numerator.upper / x.lower)
+        kept = np.isinf(numerator.upper) | (numerator.upper == 0)
+        upper[kept] = numerator.upper[kept]
+    del kept
+    upper[np.isnan(upper)] = np.inf  # a lower bound of x of 0
+    np.maximum(lower, 0.0, out=lower)
+    np.minimum(upper, ceiling, out=upper)
+    # The value moved into [lower, upper] (Bounds.around), NaN where x was 0.
+    unknown = np.isnan(value)
+    value[unknown] = lower[unknown]
+    del unknown
+    np.maximum(value, lower, out=value)
+    np.minimum(value, upper, out=value)
     undefined = ~condition.possible
-    found = Bounds.around(np.where(np.isnan(value), lower, value), lower, upper)
-    return Bounds(*(np.where(undefined, np.nan, v) for v in
-                    (found.value, found.lower, found.upper)))
+    value[undefined] = lower[undefined] = upper[undefined] = np.nan
+    return Bounds(value, lower, upper)
 
 
 # ---------------------------------------------------------------------------
@@ -284,20 +295,31 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     b = condition.states & ~target
     # On b the unconditional value (not needed when b lies inside the target, as
     # the mission's success inside done).
-    plain = (kernels.reach_rewards(P, rewards, target) if b.any()
-             else Bounds.exact(np.zeros(P.shape[0])))
-    infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value))
-    known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
-                     (plain.value, plain.lower, plain.upper)))
+    if b.any():
+        plain = kernels.reach_rewards(P, rewards, target)
+        infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value))
+        known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
+                         (plain.value, plain.lower, plain.upper)))
+        del plain
+    else:  # no known values: one zero vector stands for all three during the solve
+        infinite = ~kernels.prob0(P, ~target, b)
+        zero = np.zeros(P.shape[0])
+        known = Bounds(zero, zero, zero)
     allowed = ~infinite & ~target & ~b
     maybe = allowed & condition.possible
-    value = np.where(infinite, np.inf, known.value)
-    numerator = Bounds(value, np.where(infinite, np.inf, known.lower),
-                       np.where(infinite, np.inf, known.upper))
-    if maybe.any():
-        numerator = _spread(numerator, maybe, _reward_system(
-            P, rewards, maybe, condition.probs, known, allowed))
-    return divide(numerator, condition, np.inf)
+    found = (_reward_system(P, rewards, maybe, condition.probs, known, allowed)
+             if maybe.any() else None)
+    # The numerator: inf where infinite, the solution on maybe (which lies outside
+    # infinite), the known values elsewhere.
+    vectors = [known.value.copy(), known.lower.copy(), known.upper.copy()]
+    del known
+    for vector, part in zip(vectors, (None, None, None) if found is None else
+                            (found.value, found.lower, found.upper), strict=True):
+        vector[infinite] = np.inf
+        if part is not None:
+            vector[maybe] = part
+    del found
+    return divide(Bounds(*vectors), condition, np.inf)
 
 
 def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bounds,
@@ -317,29 +339,51 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     system = kernels.shared_system(P, maybe, allowed)
     unknowns = system.unknowns
     r = np.asarray(rewards[unknowns], dtype=np.float64)
-    offsets = [r * x.value[unknowns], r * x.lower[unknowns], r * x.upper[unknowns]]
-    exact = (x.lower[unknowns] == 1.0) | (r == 0)
-    low = np.where(exact, np.minimum(offsets[1], offsets[2]),
-                   round_down(np.minimum(offsets[1], offsets[2])))
-    # r x >= 0 exactly where both are: rounding down must not leave 0 (x = 0 where the
-    # condition is impossible), or the map looks signed and loses its fast images.
-    low = np.where((r >= 0) & (x.lower[unknowns] >= 0), np.maximum(low, 0.0), low)
-    high = np.where(exact, np.maximum(offsets[1], offsets[2]),
-                    round_up(np.maximum(offsets[1], offsets[2])))
+    low, high = _offset_bounds(r, x.lower[unknowns], x.upper[unknowns])
     rows, solver = system.rows, system.factorization
     below = system.affine(known.lower, known.lower, low)
     F = _Split.pair(replace(below, known_lower=known.upper, known_upper=known.upper,
                           offset=high), below)
-    rhs = offsets[0].astype(np.longdouble)
-    if known.value.any():  # (zero when b lies inside the target: the mission's success in done)
-        rhs += linsolve.extended_product(rows, known.value)
-    floor = np.zeros(r.size) if np.all(low >= 0) else np.full(r.size, -np.inf)
-    ceiling = np.full(r.size, np.inf)
-    found = kernels.quick_bounds(F, solver, rhs, floor, ceiling)
+    floor = 0.0 if np.all(low >= 0) else -np.inf
+    # The quick path reads the right-hand side in float64 only: the extended one is
+    # made again if the long way is needed (8 bytes per state less at the peak).
+    rhs = _right_side(rows, known.value, r, x.value[unknowns])
+    found = kernels.quick_bounds(F, solver, rhs.astype(np.float64), np.full((), floor),
+                                 np.full((), np.inf))
+    del rhs
     if found is None:
-        found = _long_way(F, solver, rhs, floor, ceiling)
+        rhs = _right_side(rows, known.value, r, x.value[unknowns])
+        size = rhs.size
+        found = _long_way(F, solver, rhs, np.full(size, floor), np.full(size, np.inf))
     where = np.flatnonzero(maybe[unknowns])
     return Bounds(found.value[where], found.lower[where], found.upper[where])
+
+
+def _right_side(rows: CsrMatrix, known: FloatArray, r: FloatArray,
+                x: FloatArray) -> npt.NDArray[np.longdouble]:
+    """``r x + P known`` in extended precision (rows widened a block at a time)."""
+    rhs = (r * x).astype(np.longdouble)
+    if known.any():  # (zero when b lies inside the target: the mission's success in done)
+        rhs += linsolve.extended_product(rows, known)
+    return rhs
+
+
+def _offset_bounds(r: FloatArray, x_lower: FloatArray, x_upper: FloatArray
+                   ) -> tuple[FloatArray, FloatArray]:
+    """Certified bounds of the offset ``r x`` from those of *x*: each product rounded
+    outward, except where it is exact (``x = 1`` or ``r = 0``)."""
+    one, two = r * x_lower, r * x_upper
+    exact = (x_lower == 1.0) | (r == 0)
+    smaller = np.minimum(one, two)
+    low = np.where(exact, smaller, round_down(smaller))
+    del smaller
+    # r x >= 0 exactly where both are: rounding down must not leave 0 (x = 0 where the
+    # condition is impossible), or the map looks signed and loses its fast images.
+    low = np.where((r >= 0) & (x_lower >= 0), np.maximum(low, 0.0), low)
+    larger = np.maximum(one, two)
+    del one, two
+    high = np.where(exact, larger, round_up(larger))
+    return low, high
 
 
 def _long_way(F: certify.AffineMap, solver: linsolve.Factorization,
@@ -391,13 +435,6 @@ def _solve(solver: linsolve.Factorization, b: npt.NDArray[np.floating]) -> Float
         return solver.solve(b.astype(np.longdouble))
     except CheckError:
         return None
-
-
-def _spread(known: Bounds, unknown: BoolArray, found: Bounds) -> Bounds:
-    """Full-length bounds: *known* outside *unknown*, *found* inside."""
-    value, lower, upper = known.value.copy(), known.lower.copy(), known.upper.copy()
-    value[unknown], lower[unknown], upper[unknown] = found.value, found.lower, found.upper
-    return Bounds(value, lower, upper)
 
 
 # ---------------------------------------------------------------------------

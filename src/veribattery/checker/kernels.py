@@ -24,6 +24,7 @@ map (the next iterate equal to the current one in every bit).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import math
 import weakref
@@ -36,6 +37,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import certify, linsolve, rational
 from veribattery.checker.bounds import (
@@ -90,8 +92,14 @@ class _System:
         """The fixed-point map on these rows with the given known values and offset."""
         F = certify.AffineMap.of(self.rows, np.flatnonzero(self.unknowns), known_lower,
                                  known_upper, offset, self.template)
-        if self.template is None:
-            self.template = F
+        if self.template is None:  # kept without this query's vectors (every use replaces them)
+            empty = np.zeros(0)
+            self.template = dataclasses.replace(F, known_lower=empty, known_upper=empty,
+                                                offset=None)
+            # From now on the rows are the map's: the same rows without their own
+            # state's entry. Every right-hand side reads known values that are 0 on
+            # the unknowns, so the products are the same (one copy of the rows kept).
+            self.rows = F.rows
         return F
 
 
@@ -192,11 +200,34 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) ->
         while systems and len(systems) >= SYSTEMS_KEPT:
             systems.popitem(last=False)
         A64, residue, rows = linsolve.restricted_parts(P, maybe)
-        found = _System(rows, linsolve.Factorization(A64, residue), maybe.copy())
+        unknowns = maybe.copy()
+        solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns))
+        del A64, residue
+        found = _System(rows, solver, unknowns)
+        trim_heap()  # the restriction's per-entry temporaries, before the solve's
         systems[key] = found
     else:
         systems.move_to_end(_mask_key(found.unknowns))
     return found
+
+
+def _rebuilder(P: CsrMatrix, unknowns: BoolArray
+               ) -> Callable[[], tuple[sp.csr_matrix, sp.csr_matrix]]:
+    """Makes ``I - P_mm`` (float64 part and residue) again, for a solver that released it.
+
+    *P* is held weakly, as by the memo (a system does not outlive its matrix); the
+    unmemoised restriction gives the same matrix bit for bit without making a plan.
+    """
+    matrix = weakref.ref(P)
+
+    def rebuild() -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        P = matrix()
+        if P is None:  # pragma: no cover -- the memo forgets a system with its matrix
+            raise CheckError("the transition matrix of a kept linear system is gone")
+        A64, residue, _ = linsolve.unplanned_parts(P, unknowns)
+        return A64, residue
+
+    return rebuild
 
 
 def _superset(systems: Iterable[_System], maybe: BoolArray,
@@ -218,7 +249,9 @@ def shared_system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray) -> _System
 
     For kernels outside this module (conditional numerators), so that they share the
     factorisation of an unconditional property. ``.unknowns`` is *M*; ``.rows`` the
-    rows ``P[M, :]``; ``.factorization`` the solver of ``I - P_MM``; ``.affine`` its maps.
+    rows ``P[M, :]`` (once a map is made, without each row's own diagonal entry: use
+    them with known values that are 0 on *M*); ``.factorization`` the solver of
+    ``I - P_MM``; ``.affine`` its maps.
     """
     return _system(P, maybe, allowed)
 
@@ -434,9 +467,9 @@ def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
     """
     if F.states.size < QUICK_MIN_STATES:
         return None
-    n = F.states.size
+    # The trivial bounds as 0-d arrays: they broadcast (two fewer vectors at the peak).
     return quick_bounds(F, system.factorization, _right_side(system, known, offset, np.float64),
-                        np.full(n, floor), np.full(n, ceiling))
+                        np.full((), floor), np.full((), ceiling))
 
 
 def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
@@ -454,12 +487,16 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
     if x is None:
         return None
     x = np.clip(x, floor, ceiling)
+    found = None
     for margin in solver.margins_for(b, x):
         pair = certify.quick_certificate(F, x, margin, floor, ceiling)
         found = None if pair is None else Bounds.around(x, *pair)
+        del pair
         if found is not None and found.precise_states().all():
-            return found
-    return None
+            break
+        found = None
+    trim_heap()  # the certificate's temporaries, before the caller's next vectors
+    return found
 
 
 def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,

@@ -44,6 +44,7 @@ try:  # SuperLU's triangular solve, used by _substitution when it behaves as exp
 except ImportError:  # pragma: no cover -- scipy moved it: the public path is used
     _superlu = None
 
+from veribattery._memory import trim_heap
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import scc
@@ -55,6 +56,9 @@ ExtArray = npt.NDArray[np.longdouble]
 RESIDUAL_TOL = 1e-10
 #: Systems with more unknowns than this skip the LU factorisation.
 DIRECT_LIMIT = 4_000_000
+#: A system solved by substitution with at least this many unknowns releases its
+#: matrix when it can make it again (see :meth:`Factorization._release`).
+RELEASE_MIN_STATES = 100_000
 #: At most this many extended-precision refinement steps after the LU solve.
 REFINE_STEPS = 6
 #: Refinement stops once every correction is below this, relative to its component.
@@ -97,6 +101,13 @@ def restricted_parts(P: CsrMatrix, maybe: BoolArray
     return _restricted_parts(P, maybe)
 
 
+def unplanned_parts(P: CsrMatrix, maybe: BoolArray
+                    ) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix]:
+    """:func:`restricted_parts` without consulting or making a restriction plan (the same
+    arrays bit for bit), for making a released system matrix again."""
+    return _restricted_parts(P, maybe)
+
+
 def _restricted_parts(P: CsrMatrix, maybe: BoolArray
                       ) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix]:
     idx = np.flatnonzero(maybe)
@@ -114,9 +125,11 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
     leave = _row_sums(row_of[moves], rows.data[moves], n)
     leave64 = leave.astype(np.float64)
     keep = moves & (column >= 0) & (rows.data != 0)
-    del moves
+    del moves, position, idx
     A64 = _with_diagonal(row_of[keep], column[keep], -rows.data[keep], leave64)
-    return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+    del row_of, column, keep  # before the residue: these are per entry
+    leave -= leave64  # the residue, in place (leave64 widens exactly)
+    return A64, _diagonal_residue(leave), rows
 
 
 @record
@@ -236,9 +249,13 @@ def _with_diagonal(row: npt.NDArray[np.integer], col: npt.NDArray[np.integer],
 
 def _diagonal_residue(residue: ExtArray) -> sp.csr_matrix:
     """The diagonal matrix of *residue*, its zeros not stored."""
-    where = np.flatnonzero(residue)
     n = residue.size
-    return sp.csr_matrix((residue[where], (where, where)), shape=(n, n), dtype=np.longdouble)
+    present = residue != 0
+    # CSR straight away (one entry per row at most, on the diagonal; no COO copies).
+    indptr = np.zeros(n + 1, dtype=np.int32 if n < 2**31 - 1 else np.int64)
+    np.cumsum(present, out=indptr[1:])
+    where = np.flatnonzero(present).astype(indptr.dtype)
+    return sp.csr_matrix((residue[where], where, indptr), shape=(n, n), dtype=np.longdouble)
 
 
 #: Entries per block of an extended-precision reduction (bounds its 16-byte copy).
@@ -298,15 +315,50 @@ class Factorization:
     :param residue: with a float64 *A*, the extended-precision part ``A_exact - A``.
     """
 
-    def __init__(self, A: sp.csr_matrix, residue: sp.csr_matrix | None = None) -> None:
+    def __init__(self, A: sp.csr_matrix, residue: sp.csr_matrix | None = None,
+                 rebuild: Callable[[], tuple[sp.csr_matrix, sp.csr_matrix]] | None = None
+                 ) -> None:
         if residue is None:
             A, residue = _split(A)
-        self.A64 = sp.csr_matrix(A)
-        self.residue = residue
+        self._a64: sp.csr_matrix | None = sp.csr_matrix(A)
+        self._residue: sp.csr_matrix | None = residue
+        self._n = int(A.shape[0])
+        self._rebuild = rebuild
         self._direct: _Inverse | None = None
         self._direct_tried = False
         self._norm_a: float | None = None
         self._iterative = False
+
+    @property
+    def A64(self) -> sp.csr_matrix:
+        """The float64 part of the matrix (made again if it was released)."""
+        if self._a64 is None:
+            self._restore()
+        assert self._a64 is not None
+        return self._a64
+
+    @property
+    def residue(self) -> sp.csr_matrix:
+        """The extended-precision rest ``A_exact - A64`` (made again if it was released)."""
+        if self._residue is None:
+            self._restore()
+        assert self._residue is not None
+        return self._residue
+
+    def _restore(self) -> None:
+        assert self._rebuild is not None
+        self._a64, self._residue = self._rebuild()
+
+    def _release(self) -> None:
+        """Drop the matrix while only the triangular substitution is needed.
+
+        With *rebuild* (which makes the same matrix again, bit for bit), a large
+        system solved by substitution keeps the substitution's own copy only: the
+        quick certificate needs no residual, and ``A64`` and its residue (89 MB at
+        1.4M states) come back only if a refined solve is asked for.
+        """
+        if self._rebuild is not None and self._n >= RELEASE_MIN_STATES:
+            self._a64 = self._residue = None
 
     @property
     def A(self) -> sp.csr_matrix:
@@ -319,7 +371,7 @@ class Factorization:
         :param b: the right-hand side, in extended precision.
         :raises CheckError: when neither the direct nor the iterative path is accepted.
         """
-        n = self.A64.shape[0]
+        n = self._n
         if not b.any():
             return np.zeros(b.shape, dtype=np.float64)
         inverse = self._inverse() if n <= DIRECT_LIMIT else None
@@ -380,7 +432,7 @@ class Factorization:
         """
         if not b.any():
             return np.zeros(b.shape, dtype=np.float64)
-        inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
         if inverse is None:
             return None
         try:
@@ -398,7 +450,7 @@ class Factorization:
         """
         if not v.any():
             return np.zeros_like(v)
-        inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
         try:
             if inverse is not None:
                 return np.asarray(inverse(np.ascontiguousarray(v, dtype=np.float64)))
@@ -433,7 +485,7 @@ class Factorization:
     def margin(self, v: FloatArray) -> FloatArray | None:
         """:meth:`correction` for the quick certificate: with a Krylov segment, a
         loose solve of a lifted *v* (:meth:`scc.Segmented.margin`), else the same."""
-        inverse = self._inverse() if self.A64.shape[0] <= DIRECT_LIMIT else None
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
         if not isinstance(inverse, scc.Segmented) or not inverse.iterative:
             return self.correction(v)
         if not v.any():
@@ -444,6 +496,9 @@ class Factorization:
         if not self._direct_tried:
             self._direct_tried = True
             self._direct = _triangular_inverse(self.A64)
+            if self._direct is not None:
+                self._release()
+                trim_heap()  # the plan's temporaries (and the matrix) are free now
             if self._direct is None:
                 found = scc.components(self.A64)
                 if found is not None:
@@ -573,34 +628,47 @@ def _triangular_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
 
 def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
     """Topological positions from the SCC labelling (Tarjan/Pearce numbers them in
-    reverse topological order), checked against the pattern: lower triangular."""
+    reverse topological order), checked against the pattern: lower triangular.
+
+    Every per-entry temporary is int32 when the sizes allow (at 4M nonzeros an int64
+    copy is 33 MB, and this ran five of them at once), and the entries are turned
+    into column order by scipy's two counting passes on int32 tags.
+    """
     n = A64.shape[0]
     count, labels = csgraph.connected_components(A64, directed=True, connection="strong")
     if count != n:
         return None
-    row_of = np.repeat(np.arange(n, dtype=np.int64), np.diff(A64.indptr))
-    position = labels.astype(np.int64)
-    rows, cols = position[row_of], position[A64.indices]
+    index = np.int32 if max(A64.nnz, n) < 2**31 - 1 else np.int64
+    position = labels.astype(index, copy=False)
+    del labels
+    rows = np.repeat(position, np.diff(A64.indptr))  # the position of each entry's row
+    cols = position[A64.indices]
     if np.any(cols > rows):  # not the order expected: try the opposite one
-        position = n - 1 - position
-        rows, cols = n - 1 - rows, n - 1 - cols
+        position = (n - 1) - position
+        np.subtract(n - 1, rows, out=rows)
+        np.subtract(n - 1, cols, out=cols)
         if np.any(cols > rows):
             return None
     on_diagonal = np.flatnonzero(rows == cols)
     if on_diagonal.size != n:
         return None
-    diagonal_at = np.empty(n, dtype=np.int64)
+    diagonal_at = np.empty(n, dtype=index)
     diagonal_at[rows[on_diagonal]] = on_diagonal
-    # The entries in (column, row) order: scipy's two counting passes (COO -> CSR ->
-    # CSC, rows ascending within each column) on tags 1..nnz, exact in float64.
-    tags = np.arange(1, A64.nnz + 1, dtype=np.float64)
-    by_column = sp.csr_matrix((tags, (rows, cols)), shape=(n, n)).tocsc()
-    gather = by_column.data.astype(np.int64) - 1
-    order = np.empty(n, dtype=np.int64)
-    order[position] = np.arange(n)
-    small = np.int32 if A64.nnz < 2**31 else np.int64
-    return _TriangularPlan(order.astype(small), diagonal_at.astype(small), gather.astype(small),
-                           by_column.indices.astype(np.intc), by_column.indptr.astype(np.intc))
+    del on_diagonal
+    # The entries in (column, row) order: COO -> CSR -> CSC, rows ascending within
+    # each column, on tags 1..nnz (CSR's duplicate summing drops zeros: no tag is 0).
+    tags = np.arange(1, A64.nnz + 1, dtype=index)
+    by_row = sp.csr_matrix((tags, (rows, cols)), shape=(n, n))
+    del tags, rows, cols
+    by_column = by_row.tocsc()
+    del by_row
+    gather = by_column.data
+    gather -= 1
+    order = np.empty(n, dtype=index)
+    order[position] = np.arange(n, dtype=index)
+    return _TriangularPlan(order, diagonal_at, gather,
+                           np.asarray(by_column.indices, dtype=np.intc),
+                           np.asarray(by_column.indptr, dtype=np.intc))
 
 
 def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
@@ -619,38 +687,47 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     if not np.all(diagonal > 0):
         return None
     scale = 1.0 / diagonal
-    # Columns scaled to a unit diagonal: L y = b, then x = y / diagonal.
-    data = A64.data[plan.gather] * scale[plan.columns()]
+    # Columns scaled to a unit diagonal: L y = b, then x = y / diagonal (each
+    # column's scale repeated over its entries: no per-entry index array).
+    data = A64.data[plan.gather]
+    data *= np.repeat(scale, np.diff(plan.indptr))
     lower = sp.csc_matrix((data, plan.indices, plan.indptr), shape=(n, n))
     substitute = _substitution(lower)
     order = plan.order
 
     def apply(b: FloatArray) -> FloatArray:
+        # b[order] is a new array: the substitution may solve in it, and is scaled in place.
+        y = substitute(np.ascontiguousarray(b[order], dtype=np.float64))
+        y *= scale
         x = np.empty(n, dtype=np.float64)
-        x[order] = substitute(np.ascontiguousarray(b[order], dtype=np.float64)) * scale
+        x[order] = y
         return x
 
     return apply
 
 
 def _substitution(lower: sp.csc_matrix) -> _Inverse:
-    """Forward substitution with the unit lower-triangular CSC matrix *lower*.
+    """Forward substitution with the unit lower-triangular CSC matrix *lower* (the
+    returned function may overwrite its argument with the solution).
 
     SuperLU's triangular solve on prepared arrays (what ``spsolve_triangular``
     calls after copying and rescaling its argument each time); the public
     function is the fallback should that private entry point change.
     """
     n = lower.shape[0]
+    # Views of *lower*'s arrays when they have these types (a copy would keep a
+    # second set of indices alive for as long as the solver).
     data = np.ascontiguousarray(lower.data, dtype=np.float64)
-    indices = lower.indices.astype(np.intc)
-    indptr = lower.indptr.astype(np.intc)
+    indices = np.ascontiguousarray(lower.indices, dtype=np.intc)
+    indptr = np.ascontiguousarray(lower.indptr, dtype=np.intc)
     empty_data = np.zeros(0, dtype=np.float64)
     empty_indices = np.zeros(0, dtype=np.intc)
     empty_indptr = np.zeros(n + 1, dtype=np.intc)
 
     def private(b: FloatArray) -> FloatArray:
+        # (b is overwritten: callers pass an array of their own, no copy made here)
         x, info = _superlu.gstrs("N", n, data.size, data, indices, indptr,
-                                 n, 0, empty_data, empty_indices, empty_indptr, b.copy())
+                                 n, 0, empty_data, empty_indices, empty_indptr, b)
         if info:
             raise RuntimeError("triangular solve failed")
         return np.asarray(x, dtype=np.float64)

@@ -44,6 +44,7 @@ from veribattery.lang.nodes import (
     Expr,
     Filter,
     Globally,
+    Ident,
     Instantaneous,
     IntLit,
     Ite,
@@ -593,8 +594,14 @@ def _leaf(dtmc: DTMC, expr: Expr) -> Values:
 
 
 def _compiled(dtmc: DTMC, expr: Expr) -> Values:
-    """Evaluate *expr* with the builder's expression compiler."""
-    result = np.asarray(compile_expr(expr, dtmc.variable_names, dtmc.labels)(dtmc.states))
+    """Evaluate *expr* with the builder's expression compiler, on int64 copies of the
+    variables it reads (the state table may be stored narrower: :meth:`DTMC.compact`)."""
+    used = {node.name for node in walk(expr) if isinstance(node, Ident)}
+    names = tuple(name for name in dtmc.variable_names if name in used)
+    columns = [dtmc.variable_names.index(name) for name in names]
+    states = np.asarray(dtmc.states[:, columns], dtype=np.int64)
+    result = np.asarray(compile_expr(expr, names, dtmc.labels)(states))
+    del states
     result = np.broadcast_to(result, (dtmc.num_states,)).copy()
     return result if result.dtype == np.bool_ else result.astype(np.float64)
 
