@@ -125,6 +125,38 @@ endmodule
         build_dtmc(flatten_model(parse_model(text), {}))
 
 
+_LATER_PART_DIVIDES = """dtmc
+module a
+  x : [0..3] init 0;
+  [s] x<GUARD -> (x'=min(3, x+1));
+  [t] x=3 -> (x'=0);
+endmodule
+module b
+  y : [0..1] init 0;
+  [s] 6/(3-x) >= 2 -> (y'=1-y);
+  [s] 6/(3-x) < 2 -> true;
+endmodule
+"""
+
+
+def test_later_part_guard_is_not_evaluated_where_the_first_part_disables_it() -> None:
+    """At x=3 module a disables [s], so b's guards (a division by zero there) are not
+    evaluated: by either path, as PRISM's semantics of the synchronised command."""
+    model = flatten_model(parse_model(_LATER_PART_DIVIDES.replace("GUARD", "3")), {})
+    _assert_same_exploration(model)
+    dtmc = build_dtmc(model)
+    # (0,0) -> (1,1) -> (2,0) -> (3,1) -> (0,1) -> (1,0) -> (2,1) -> (3,0) -> (0,0)
+    assert dtmc.num_states == 8
+    assert dtmc.transitions.nnz == 8
+    np.testing.assert_array_equal(dtmc.transitions.data, np.ones(8))
+
+
+def test_later_part_guard_error_is_reported_where_the_first_part_enables_it() -> None:
+    model = flatten_model(parse_model(_LATER_PART_DIVIDES.replace("GUARD", "=3")), {})
+    with pytest.raises(ModelError, match="division by zero"):
+        build_dtmc(model)
+
+
 def test_bad_probability_sum_is_reported() -> None:
     text = """dtmc
 module m

@@ -487,7 +487,7 @@ def _logical(op: str, left: _Node, right: _Node, big: bool = False) -> _Node:
         first = np.broadcast_to(np.asarray(left.fn(states), dtype=bool), (states.shape[0],))
         result = first.copy()
         todo = first != decided_value
-        if todo.any():
+        if np.count_nonzero(todo):
             result[todo] = np.asarray(right.fn(states[todo]), dtype=bool)
         return result
 
@@ -503,7 +503,8 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, rig
 
     def evaluate(states: IntArray) -> Any:
         first = np.asarray(lfn(states), dtype=bool)
-        if first.ndim and (first.all() if decided_value else not first.any()):
+        # count_nonzero: a fraction of the cost of .any()/.all() on short arrays
+        if first.ndim and np.count_nonzero(first) == (first.size if decided_value else 0):
             return first
         return combine(first, rfn(states))
 
