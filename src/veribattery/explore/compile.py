@@ -92,9 +92,13 @@ class CompileCache:
     frontier array, so a formula shared by a dozen guards (a cost, a voltage
     level) is computed once per layer. Arrays passed to compiled expressions
     must therefore not be modified in place afterwards.
+
+    :param memoise: remember results per input array; False shares only the
+        compiled nodes and tables (no array is kept alive by the cache).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, memoise: bool = True) -> None:
+        self.memoise = memoise
         self.nodes: dict[int, _Node] = {}
         self.plain: dict[int, _Node] = {}  # row-wise nodes (tables' contents), no memo
         self.indices: dict[tuple[tuple[int, ...], tuple[int, ...], int], _Fn] = {}
@@ -202,8 +206,9 @@ def _compile(expr: Expr, scope: _Scope) -> _Node:
         node = _tabulated(expr, scope)
     else:
         node = _compile_node(expr, scope)
-    if store is not None:
-        if scope.ranges is not None and not (node.is_const or isinstance(expr, Ident | LabelRef)):
+    if cache is not None and store is not None:
+        if (scope.ranges is not None and cache.memoise
+                and not (node.is_const or isinstance(expr, Ident | LabelRef))):
             node = dataclasses.replace(node, fn=_memoised(node.fn))
         store[key] = node
     return node
@@ -382,7 +387,7 @@ def _lookup(
     if index_of is None:
         index_of = _index(cols, strides, offset)
         if cache is not None:
-            index_of = cache.indices[key] = _memoised(index_of)
+            index_of = cache.indices[key] = _memoised(index_of) if cache.memoise else index_of
     return lambda states: table[index_of(states)]
 
 

@@ -22,6 +22,7 @@ from veribattery._types import IntArray
 __all__ = ["StateStore", "radix_words"]
 
 _WORD_LIMIT = 1 << 62  # largest product of ranges packed into one signed word
+_QUADRUPLE_BELOW = 1 << 20  # slots of a table that grows fourfold, not twofold
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing multiplier
 
 
@@ -143,9 +144,11 @@ class StateStore:
     def _reserve_table(self) -> bool:
         """Keep the load factor at most 1/4 (short probe chains mean few rounds).
 
-        The table doubles (rather than growing fourfold) so that it never holds
-        more than 8 slots per state: at 4 bytes a slot it would otherwise be the
-        largest array of a search of millions of states.
+        A large table doubles (rather than growing fourfold) so that it never
+        holds more than 8 slots per state: at 4 bytes a slot it would otherwise
+        be the largest array of a search of millions of states. Below
+        ``_QUADRUPLE_BELOW`` slots (4 MB) it grows fourfold: half the rebuilds,
+        each of which re-inserts every known key, for at most 4 MB more.
 
         :returns: whether the table was rebuilt (with every known key inserted).
         """
@@ -153,7 +156,7 @@ class StateStore:
             return False
         size = self._table.size
         while 4 * self.count > size:
-            size *= 2
+            size *= 4 if size < _QUADRUPLE_BELOW else 2
         self._table = np.zeros(size, dtype=np.int32)
         everything = np.arange(self.count, dtype=np.int64)
         self._insert_probing(everything, self._slots(self._keys[: self.count]))
