@@ -258,7 +258,11 @@ def _compile_node(expr: Expr, scope: _Scope) -> _Node:
 
 
 def _constant(value: Any) -> _Node:
-    return _Node(fn=lambda _states: value, const=value, is_const=True)
+    # Evaluated as a 0-d array: numpy 2 promotes it exactly as the scalar (NEP 50),
+    # but a ufunc takes it without the scalar conversion that doubles the cost of
+    # ``s = 3`` on a short frontier.
+    array = np.asarray(value)
+    return _Node(fn=lambda _states: array, const=value, is_const=True)
 
 
 def _variable(expr: Ident, columns: Mapping[str, int]) -> _Node:
@@ -393,9 +397,10 @@ def _lookup(
 
 def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
     """Mixed-radix position of each row's valuation of *cols* in a table."""
+    shift = np.asarray(offset, dtype=np.int64)  # a 0-d array: see ``_constant``
     if len(cols) == 1:
         (col,) = cols
-        return lambda states: states[:, col] - offset
+        return lambda states: states[:, col] - shift
     width = max(cols) + 1
     weights = np.zeros(width, dtype=np.int64)
     weights[cols] = strides
@@ -404,7 +409,7 @@ def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
         # One product with the strides (zero for the other columns) instead of
         # a multiply and an add per column: this runs for every table, every layer.
         index = states[:, :width] @ weights
-        index -= offset
+        index -= shift
         return index
 
     return evaluate
