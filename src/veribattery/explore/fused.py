@@ -51,6 +51,9 @@ __all__ = ["Expansion", "LayerPlan", "branch_kinds", "plan_layers", "reprice"]
 MAX_KINDS = 512
 MAX_BRANCH_KINDS = 4096
 _TOLERANCE = 0.5e-6  # half the builder's: a borderline sum is left to the exact check
+# 0-d arrays: a ufunc takes them for about half the cost of a scalar (see ``compile``)
+_NO_PROBABILITY = np.asarray(0.0)
+_NO_CHOICE = np.asarray(0, dtype=np.int64)
 
 
 @dataclass(frozen=True, slots=True)
@@ -434,7 +437,7 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
         return None
     if src.size > states.shape[0]:  # some state has several choices (or n = 0)
         probability /= np.maximum(choices, 1)[source]
-    keep = probability > 0
+    keep = probability > _NO_PROBABILITY
     dropped = np.empty(0, dtype=np.int64)
     if np.count_nonzero(keep) < keep.size:
         dropped = np.flatnonzero(~keep)
@@ -464,7 +467,7 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
                 guards[i] = guard(states)
         enabled &= guards[table[:, p]]
     choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
-    np.equal(choices, 0, out=enabled[plan.kinds])
+    np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
     return enabled, choices
 
 

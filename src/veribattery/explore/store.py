@@ -23,7 +23,11 @@ __all__ = ["StateStore", "radix_words"]
 
 _WORD_LIMIT = 1 << 62  # largest product of ranges packed into one signed word
 _QUADRUPLE_BELOW = 1 << 20  # slots of a table that grows fourfold, not twofold
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing multiplier
+# Operands as 0-d arrays: numpy 2 takes them in a ufunc for about half the cost of a
+# Python or numpy scalar, and these operations run a few dozen times per BFS layer.
+_GOLDEN = np.asarray(0x9E3779B97F4A7C15, dtype=np.uint64)  # Fibonacci hashing multiplier
+_ZERO = np.asarray(0, dtype=np.int64)
+_ONE = np.asarray(1, dtype=np.int64)
 
 
 def radix_words(lows: Sequence[int], highs: Sequence[int]) -> IntArray:
@@ -111,11 +115,11 @@ class StateStore:
         first, inverse = _first_occurrences(keys)
         unique_keys = keys[first]
         index, slots = self._lookup(unique_keys)
-        new = np.flatnonzero(index < 0)
+        new = np.flatnonzero(index < _ZERO)
         if new.size == 0:  # nothing to number, append or insert
             return index[inverse]
         new = new[np.argsort(first[new], kind="stable")]
-        index[new] = self.count + np.arange(new.size)
+        index[new] = np.arange(self.count, self.count + new.size)
         self._append(unique_keys[new])
         if new.size:
             if not self._recent:
@@ -163,7 +167,7 @@ class StateStore:
         return True
 
     def _slots(self, keys: IntArray) -> IntArray:
-        bits = np.uint64(64 - int(self._table.size).bit_length() + 1)
+        bits = np.asarray(64 - int(self._table.size).bit_length() + 1, dtype=np.uint64)
         mixed = keys[:, 0].view(np.uint64) * _GOLDEN
         for w in range(1, keys.shape[1]):
             mixed = (mixed ^ keys[:, w].view(np.uint64)) * _GOLDEN
@@ -179,10 +183,10 @@ class StateStore:
         """
         slots = self._slots(keys)
         index = self._table[slots].astype(np.int64)
-        index -= 1
+        index -= _ONE
         # An empty slot gives index -1: the comparison reads the last key row
         # (garbage) and its result is masked by ``index >= 0``.
-        clash = index >= 0
+        clash = index >= _ZERO
         clash &= ~_rows_equal(self._keys[index], keys)
         if np.count_nonzero(clash):
             where = np.flatnonzero(clash)
@@ -197,14 +201,14 @@ class StateStore:
         batch at a load of at most 1/4), and their chains are short: a round of
         one-dimensional operations over them costs less than a window of slots.
         """
-        mask = self._table.size - 1
+        mask = np.asarray(self._table.size - 1, dtype=np.int64)
         index = np.full(keys.shape[0], -1, dtype=np.int64)
         active = np.arange(keys.shape[0])
         at, wanted = slots.copy(), keys
         while active.size:
             held = self._table[at].astype(np.int64)
-            held -= 1  # -1 where empty: the key row it reads is masked below
-            empty = held < 0
+            held -= _ONE  # -1 where empty: the key row it reads is masked below
+            empty = held < _ZERO
             match = _rows_equal(self._keys[held], wanted)
             match &= ~empty
             ended = match | empty
@@ -214,7 +218,8 @@ class StateStore:
             slots[active[stop]] = at[stop]
             going = np.flatnonzero(~ended)
             active, wanted = active[going], wanted[going]
-            at = (at[going] + 1) & mask
+            at = at[going] + _ONE
+            at &= mask
         return index, slots
 
     def _insert(self, index: IntArray, slots: IntArray) -> None:
@@ -268,5 +273,5 @@ def _first_occurrences(keys: IntArray) -> tuple[IntArray, IntArray]:
     starts[:1] = True
     starts[1:] = changed
     inverse = np.empty(keys.shape[0], dtype=np.int64)
-    inverse[order] = np.cumsum(starts) - 1
+    inverse[order] = np.cumsum(starts) - _ONE
     return order[starts], inverse
