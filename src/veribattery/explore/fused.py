@@ -474,8 +474,9 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
 def _positions(enabled: BoolArray) -> tuple[IntArray, IntArray]:
     """Source state and kind of every enabled choice, in (source, kind) order."""
     flat = np.flatnonzero(enabled.T)
-    source = flat // enabled.shape[0]
-    kind = flat - source * enabled.shape[0]
+    width = np.asarray(enabled.shape[0], dtype=np.int64)  # 0-d: see ``_NO_CHOICE``
+    source = flat // width
+    kind = flat - source * width
     return source, kind
 
 
