@@ -9,9 +9,10 @@ synchronising module) and their *branch kinds* (one per combination of
 updates), and tabulates statically, per branch kind, its probability factors
 and which expression each variable takes. A layer then costs one pass:
 
-1. every command guard on the frontier, combined into an ``(n, kinds)``
-   enabledness matrix, whose row-major nonzeros are the choices already in the
-   builder's order (source state, group, command combination);
+1. every command guard on the frontier (a later synchronising part's only
+   where one of its kinds is still alive), combined into a ``(kinds, n)``
+   enabledness matrix, whose nonzeros read column by column are the choices
+   already in the builder's order (source state, group, command combination);
 2. each branch's kind id by ``repeat``;
 3. per assigned variable, one gather from a small table whose rows are the
    evaluated right-hand sides (on the whole frontier, so shared sub-expressions
