@@ -125,6 +125,38 @@ endmodule
         build_dtmc(flatten_model(parse_model(text), {}))
 
 
+_LATER_PART_DIVIDES = """dtmc
+module a
+  x : [0..3] init 0;
+  [s] x<GUARD -> (x'=min(3, x+1));
+  [t] x=3 -> (x'=0);
+endmodule
+module b
+  y : [0..1] init 0;
+  [s] 6/(3-x) >= 2 -> (y'=1-y);
+  [s] 6/(3-x) < 2 -> true;
+endmodule
+"""
+
+
+def test_later_part_guard_is_not_evaluated_where_the_first_part_disables_it() -> None:
+    """At x=3 module a disables [s], so b's guards (a division by zero there) are not
+    evaluated: by either path, as PRISM's semantics of the synchronised command."""
+    model = flatten_model(parse_model(_LATER_PART_DIVIDES.replace("GUARD", "3")), {})
+    _assert_same_exploration(model)
+    dtmc = build_dtmc(model)
+    # (0,0) -> (1,1) -> (2,0) -> (3,1) -> (0,1) -> (1,0) -> (2,1) -> (3,0) -> (0,0)
+    assert dtmc.num_states == 8
+    assert dtmc.transitions.nnz == 8
+    np.testing.assert_array_equal(dtmc.transitions.data, np.ones(8))
+
+
+def test_later_part_guard_error_is_reported_where_the_first_part_enables_it() -> None:
+    model = flatten_model(parse_model(_LATER_PART_DIVIDES.replace("GUARD", "=3")), {})
+    with pytest.raises(ModelError, match="division by zero"):
+        build_dtmc(model)
+
+
 def test_bad_probability_sum_is_reported() -> None:
     text = """dtmc
 module m
@@ -160,3 +192,53 @@ PEER = _peer_cases(20_000)
 def test_fused_equals_group_by_group_on_peer_models(case: tuple[str, dict[str, str]]) -> None:
     path = PEER_TESTS / "prism-examples" / case[0]
     _assert_same_exploration(flatten_model(parse_model(path), case[1]))
+
+
+@pytest.mark.parametrize(
+    ("update", "message"),
+    [
+        ("x-4", r"update sets x to -3, outside its range -2\.\.3"),  # below a negative low
+        ("x+5", r"update sets x to 6, outside its range -2\.\.3"),
+        # int64 overflow: wraps to a huge negative value, still out of range
+        ("x*4611686018427387904*2", r"outside its range -2\.\.3"),
+    ],
+)
+def test_out_of_range_targets_fall_back_and_are_located(update: str, message: str) -> None:
+    text = f"""dtmc
+module m
+  x : [-2..3] init 0;
+  [] x=0 -> (x'=1);
+  [] x=1 -> (x'={update});
+  [] x!=0 & x!=1 -> true;
+endmodule
+"""
+    model = flatten_model(parse_model(text), {})
+    plan = plan_layers(compile_program(model))
+    assert plan is not None
+    assert plan.expand(np.array([[1]]), set()) is None  # the fused path gives the layer up
+    assert plan.expand(np.array([[0]]), set()) is not None
+    with pytest.raises(ModelError, match=message):
+        build_dtmc(model)
+
+
+def test_range_check_reads_offsets_unsigned() -> None:
+    """``_out_of_range`` flags exactly the targets outside [low, high], int64 extremes too."""
+    from veribattery.explore.fused import _out_of_range
+
+    model = flatten_model(parse_model("""dtmc
+module m
+  x : [-5..7] init 0;
+  y : [0..3] init 0;
+  [] true -> true;
+endmodule
+"""), {})
+    plan = plan_layers(compile_program(model))
+    assert plan is not None
+    info = np.iinfo(np.int64)
+    for x in (-6, 8, info.min, info.max, info.min + 1, -5 - (1 << 62)):
+        assert _out_of_range(plan, np.array([[0, 0], [x, 0]], dtype=np.int64)), x
+    for x in (-5, 0, 7):
+        for y in (0, 3):
+            assert not _out_of_range(plan, np.array([[x, y]], dtype=np.int64))
+    assert _out_of_range(plan, np.array([[0, -1]], dtype=np.int64))
+    assert _out_of_range(plan, np.array([[0, 4]], dtype=np.int64))

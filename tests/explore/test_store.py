@@ -81,3 +81,21 @@ def test_rows_served_or_decoded_equal_the_rows_added(
         stop = min(start + width, store.count)
         assert [tuple(r) for r in store.rows(start, stop).tolist()] == everything[start:stop]
     assert [tuple(r) for r in store.states.tolist()] == everything
+
+
+class _Crowded(StateStore):
+    """Every key hashed into one of three slots: long probe chains in every batch."""
+
+    def _slots(self, keys: np.ndarray) -> np.ndarray:
+        return np.asarray(keys[:, 0] % 3, dtype=np.int64)
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.lists(st.lists(st.integers(0, 400), max_size=80), min_size=1, max_size=6))
+def test_long_probe_chains_match_a_dictionary(batches: list[list[int]]) -> None:
+    store = _Crowded([0], [400])
+    reference: dict[int, int] = {}
+    for batch in batches:
+        expected = [reference.setdefault(v, len(reference)) for v in batch]
+        assert store.add(np.array(batch, dtype=np.int64).reshape(-1, 1)).tolist() == expected
+    assert store.states[:, 0].tolist() == list(reference)

@@ -23,7 +23,7 @@ from veribattery._memory import trim_heap
 from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.compile import compile_expr
+from veribattery.explore.compile import CompileCache, compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
 from veribattery.explore.program import Program, compile_program
@@ -324,10 +324,14 @@ def assemble(
     choices = np.concatenate([layer.choices for layer in layers])
     matrix = _transition_matrix(n, layers)
     labels, rewards = known
+    # The labels' and rewards' common sub-expressions and tables, compiled once; no
+    # memo: it would keep a result per node and chunk alive until the end.
+    cache = CompileCache(memoise=False)
     if labels is None:
-        labels = _labels(model, states, initial, choices == 0)
+        labels = _labels(model, (states, cache), initial, choices == 0)
     if rewards is None:
-        rewards = tuple(_reward_vectors(model, r, states, choices, layers) for r in model.rewards)
+        rewards = tuple(_reward_vectors(model, r, (states, cache), choices, layers)
+                        for r in model.rewards)
     deadlocks = int(np.count_nonzero(choices == 0))
     nondeterministic = int(np.count_nonzero(choices > 1))
     return DTMC(
@@ -409,12 +413,10 @@ def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
 
 
 def _labels(
-    model: FlatModel, states: IntArray, initial: IntArray, dead: BoolArray
+    model: FlatModel, over: tuple[IntArray, CompileCache], initial: IntArray, dead: BoolArray
 ) -> dict[str, BoolArray]:
-    labels = {
-        label.name: _over_states(model, label.expr, states, bool) for label in model.labels
-    }
-    init = np.zeros(states.shape[0], dtype=bool)
+    labels = {label.name: _over_states(model, label.expr, over, bool) for label in model.labels}
+    init = np.zeros(over[0].shape[0], dtype=bool)
     init[initial] = True
     labels["init"] = init
     labels["deadlock"] = dead
@@ -426,12 +428,16 @@ def _labels(
 _EVAL_CHUNK = 1 << 16
 
 
-def _over_states(model: FlatModel, expr: Expr, states: IntArray, dtype: Any) -> np.ndarray:
+def _over_states(
+    model: FlatModel, expr: Expr, over: tuple[IntArray, CompileCache], dtype: Any
+) -> np.ndarray:
     """*expr* in every state, as *dtype*, evaluated chunk by chunk; sub-expressions
-    over small domains are tabulated (as for the commands).
+    over small domains are tabulated (as for the commands), each table built once per
+    cache (the ``mt`` reward's ``T_CELL*dist`` of three actions, a label's formula).
     """
+    states, cache = over
     ranges = {v.name: (v.low, v.high) for v in model.variables}
-    evaluate = compile_expr(expr, model.variable_names, ranges=ranges)
+    evaluate = compile_expr(expr, model.variable_names, ranges=ranges, cache=cache)
     out = np.empty(states.shape[0], dtype=dtype)
     for start in range(0, states.shape[0], _EVAL_CHUNK):
         chunk = states[start : start + _EVAL_CHUNK]
@@ -446,17 +452,18 @@ def rewarded_actions(rewards: tuple[RewardStruct, ...]) -> set[str | None]:
 def _reward_vectors(
     model: FlatModel,
     struct: RewardStruct,
-    states: IntArray,
+    over: tuple[IntArray, CompileCache],
     choices: IntArray,
     layers: list[Layer],
 ) -> RewardVectors:
     """State rewards, and transition rewards weighted by each action's share of the choices."""
+    states = over[0]
     state = np.zeros(states.shape[0], dtype=np.float64)
     transition = np.zeros(states.shape[0], dtype=np.float64)
     share: dict[str | None, FloatArray] = {}
     for item in struct.items:
-        guard = _over_states(model, item.guard, states, bool)
-        value = np.where(guard, _over_states(model, item.value, states, np.float64), 0.0)
+        guard = _over_states(model, item.guard, over, bool)
+        value = np.where(guard, _over_states(model, item.value, over, np.float64), 0.0)
         if not item.is_transition:
             state += value
             continue

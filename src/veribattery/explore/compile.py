@@ -92,9 +92,13 @@ class CompileCache:
     frontier array, so a formula shared by a dozen guards (a cost, a voltage
     level) is computed once per layer. Arrays passed to compiled expressions
     must therefore not be modified in place afterwards.
+
+    :param memoise: remember results per input array; False shares only the
+        compiled nodes and tables (no array is kept alive by the cache).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, memoise: bool = True) -> None:
+        self.memoise = memoise
         self.nodes: dict[int, _Node] = {}
         self.plain: dict[int, _Node] = {}  # row-wise nodes (tables' contents), no memo
         self.indices: dict[tuple[tuple[int, ...], tuple[int, ...], int], _Fn] = {}
@@ -202,8 +206,9 @@ def _compile(expr: Expr, scope: _Scope) -> _Node:
         node = _tabulated(expr, scope)
     else:
         node = _compile_node(expr, scope)
-    if store is not None:
-        if scope.ranges is not None and not (node.is_const or isinstance(expr, Ident | LabelRef)):
+    if cache is not None and store is not None:
+        if (scope.ranges is not None and cache.memoise
+                and not (node.is_const or isinstance(expr, Ident | LabelRef))):
             node = dataclasses.replace(node, fn=_memoised(node.fn))
         store[key] = node
     return node
@@ -253,7 +258,11 @@ def _compile_node(expr: Expr, scope: _Scope) -> _Node:
 
 
 def _constant(value: Any) -> _Node:
-    return _Node(fn=lambda _states: value, const=value, is_const=True)
+    # Evaluated as a 0-d array: numpy 2 promotes it exactly as the scalar (NEP 50),
+    # but a ufunc takes it without the scalar conversion that doubles the cost of
+    # ``s = 3`` on a short frontier.
+    array = np.asarray(value)
+    return _Node(fn=lambda _states: array, const=value, is_const=True)
 
 
 def _variable(expr: Ident, columns: Mapping[str, int]) -> _Node:
@@ -382,15 +391,16 @@ def _lookup(
     if index_of is None:
         index_of = _index(cols, strides, offset)
         if cache is not None:
-            index_of = cache.indices[key] = _memoised(index_of)
+            index_of = cache.indices[key] = _memoised(index_of) if cache.memoise else index_of
     return lambda states: table[index_of(states)]
 
 
 def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
     """Mixed-radix position of each row's valuation of *cols* in a table."""
+    shift = np.asarray(offset, dtype=np.int64)  # a 0-d array: see ``_constant``
     if len(cols) == 1:
         (col,) = cols
-        return lambda states: states[:, col] - offset
+        return lambda states: states[:, col] - shift
     width = max(cols) + 1
     weights = np.zeros(width, dtype=np.int64)
     weights[cols] = strides
@@ -399,7 +409,7 @@ def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
         # One product with the strides (zero for the other columns) instead of
         # a multiply and an add per column: this runs for every table, every layer.
         index = states[:, :width] @ weights
-        index -= offset
+        index -= shift
         return index
 
     return evaluate
@@ -487,7 +497,7 @@ def _logical(op: str, left: _Node, right: _Node, big: bool = False) -> _Node:
         first = np.broadcast_to(np.asarray(left.fn(states), dtype=bool), (states.shape[0],))
         result = first.copy()
         todo = first != decided_value
-        if todo.any():
+        if np.count_nonzero(todo):
             result[todo] = np.asarray(right.fn(states[todo]), dtype=bool)
         return result
 
@@ -503,7 +513,8 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, rig
 
     def evaluate(states: IntArray) -> Any:
         first = np.asarray(lfn(states), dtype=bool)
-        if first.ndim and (first.all() if decided_value else not first.any()):
+        # count_nonzero: a fraction of the cost of .any()/.all() on short arrays
+        if first.ndim and np.count_nonzero(first) == (first.size if decided_value else 0):
             return first
         return combine(first, rfn(states))
 

@@ -9,9 +9,10 @@ synchronising module) and their *branch kinds* (one per combination of
 updates), and tabulates statically, per branch kind, its probability factors
 and which expression each variable takes. A layer then costs one pass:
 
-1. every command guard on the frontier, combined into an ``(n, kinds)``
-   enabledness matrix, whose row-major nonzeros are the choices already in the
-   builder's order (source state, group, command combination);
+1. every command guard on the frontier (a later synchronising part's only
+   where one of its kinds is still alive), combined into a ``(kinds, n)``
+   enabledness matrix, whose nonzeros read column by column are the choices
+   already in the builder's order (source state, group, command combination);
 2. each branch's kind id by ``repeat``;
 3. per assigned variable, one gather from a small table whose rows are the
    evaluated right-hand sides (on the whole frontier, so shared sub-expressions
@@ -52,6 +53,9 @@ __all__ = ["Expansion", "LayerPlan", "branch_kinds", "plan_layers", "reprice"]
 MAX_KINDS = 512
 MAX_BRANCH_KINDS = 4096
 _TOLERANCE = 0.5e-6  # half the builder's: a borderline sum is left to the exact check
+# 0-d arrays: a ufunc takes them for about half the cost of a scalar (see ``compile``)
+_NO_PROBABILITY = np.asarray(0.0)
+_NO_CHOICE = np.asarray(0, dtype=np.int64)
 
 
 @record
@@ -99,6 +103,8 @@ class _Values:
     constants: IntArray
     exprs: tuple[_Expr, ...]
     kind_exprs: tuple[frozenset[int], ...]
+    #: The expressions needed per set of present kinds (see ``_needed``).
+    needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
 
 
 @record
@@ -116,13 +122,15 @@ class _Factors:
     constants: FloatArray
     exprs: tuple[_Expr, ...]
     kind_exprs: tuple[frozenset[int], ...]
+    needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
 
 
 @record
 class LayerPlan:
     """The static tables of a program's fused layer expansion (see the module doc)."""
 
-    guards: tuple[tuple[int, CompiledExpr], ...]  # (command index, guard), non-trivial ones
+    #: Per part position: (command index, guard, kinds using it) of its non-trivial guards.
+    guards: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...]
     commands: int
     kind_commands: IntArray  # (kinds + 1, parts): command per part, ``commands`` = none
     widths: IntArray  # branches per kind; the last kind is the deadlock self-loop
@@ -133,9 +141,10 @@ class LayerPlan:
     action_kinds: dict[str | None, IntArray]
     lows: IntArray
     highs: IntArray
-    #: Per set of rewarded actions: those with kinds, their kinds in action order and
-    #: where each action's kinds start (see ``_action_choices``).
-    members: dict[frozenset[str | None], tuple[list[str | None], IntArray, IntArray]] = field(
+    spans: np.ndarray | None  # highs - lows as uint64, None if one reaches 2**63
+    #: Per set of rewarded actions: those with kinds, each with its kinds (see
+    #: ``_action_choices``).
+    members: dict[frozenset[str | None], list[tuple[str | None, list[int]]]] = field(
         default_factory=dict, compare=False
     )
 
@@ -173,7 +182,7 @@ def plan_layers(program: Program) -> LayerPlan | None:
         return None
     branches = _branch_updates(commands, kinds)
     return LayerPlan(
-        guards=tuple((i, c.guard) for i, c in enumerate(commands) if not c.always),
+        guards=_part_guards(commands, kinds),
         commands=len(commands),
         kind_commands=_kind_commands(kinds, len(commands)),
         widths=np.array(widths, dtype=np.int64),
@@ -184,7 +193,13 @@ def plan_layers(program: Program) -> LayerPlan | None:
         action_kinds=_action_kinds(kinds),
         lows=np.array(program.lows, dtype=np.int64),
         highs=np.array(program.highs, dtype=np.int64),
+        spans=_spans(program.lows, program.highs),
     )
+
+
+def _spans(lows: Sequence[int], highs: Sequence[int]) -> np.ndarray | None:
+    spans = [high - low for low, high in zip(lows, highs, strict=True)]
+    return np.array(spans, dtype=np.uint64) if max(spans, default=0) < 1 << 63 else None
 
 
 def _enumerate_kinds(program: Program) -> tuple[list[CompiledCommand], list[_Kind] | None]:
@@ -203,6 +218,22 @@ def _enumerate_kinds(program: Program) -> tuple[list[CompiledCommand], list[_Kin
             return commands, None
         kinds.extend(_Kind(group.action, combo) for combo in itertools.product(*parts))
     return commands, kinds
+
+
+def _part_guards(
+    commands: Sequence[CompiledCommand], kinds: Sequence[_Kind]
+) -> tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...]:
+    """Per part position, each non-trivial guard there with the kinds that use it."""
+    users: dict[tuple[int, int], list[int]] = {}
+    for k, kind in enumerate(kinds):
+        for p, c in enumerate(kind.commands):
+            users.setdefault((p, c), []).append(k)
+    parts = max((len(k.commands) for k in kinds), default=1)
+    return tuple(
+        tuple((c, commands[c].guard, tuple(ks)) for (q, c), ks in users.items()
+              if q == p and not commands[c].always)
+        for p in range(parts)
+    )
 
 
 def _kind_commands(kinds: Sequence[_Kind], none: int) -> IntArray:
@@ -389,8 +420,9 @@ def _action_kinds(kinds: Sequence[_Kind]) -> dict[str | None, IntArray]:
 
 def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
     enabled, choices = _enabled(plan, states)
-    src, kind = np.nonzero(enabled)
-    present = np.flatnonzero(enabled.any(axis=0)).tolist()
+    src, kind = _positions(enabled)
+    alive = np.logical_or.reduce(enabled, axis=1).tolist()
+    present = [k for k, on in enumerate(alive) if on]
     widths = plan.widths[kind]
     total = int(widths.sum())
     if total == src.size:  # one branch per choice
@@ -403,37 +435,67 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
     probability = _probabilities(plan.factors, states, enabled, present, (branch, source))
     if probability is None or not _sums_ok(plan, present, probability, firsts, kind):
         return None
-    if (targets < plan.lows).any() or (targets > plan.highs).any():
+    if _out_of_range(plan, targets):
         return None
-    if choices.max(initial=0) > 1:
+    if src.size > states.shape[0]:  # some state has several choices (or n = 0)
         probability /= np.maximum(choices, 1)[source]
-    keep = probability > 0
+    keep = probability > _NO_PROBABILITY
     dropped = np.empty(0, dtype=np.int64)
-    if not keep.all():
+    if np.count_nonzero(keep) < keep.size:
         dropped = np.flatnonzero(~keep)
         source, targets, probability = source[keep], targets[keep], probability[keep]
-    actions = _action_choices(plan, enabled, rewarded)
+    actions = _action_choices(plan, enabled, alive, rewarded)
     return Expansion(source, targets, probability, choices, actions, dropped, total)
 
 
 def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
-    """Enabledness ``(n, kinds + 1)`` (the last column: deadlock) and choices per state."""
-    guards = np.ones((states.shape[0], plan.commands + 1), dtype=bool)  # always-true ones stay
-    for i, guard in plan.guards:
-        guards[:, i] = guard(states)
+    """Enabledness ``(kinds + 1, n)`` (the last row: deadlock) and choices per state.
+
+    Kind-major rows keep every reduction over contiguous memory. Guards are
+    evaluated part by part, and a guard of a later part only where one of its
+    kinds is still enabled in some state, as the group-by-group path does
+    (``successors``: a group whose first modules enable nothing stops there), so
+    that both paths evaluate, and may fail on, the same guards.
+    """
+    guards = np.ones((plan.commands + 1, states.shape[0]), dtype=bool)  # always-true stay
     table = plan.kind_commands
-    enabled = guards[:, table[:, 0]]
-    for p in range(1, table.shape[1]):
-        enabled &= guards[:, table[:, p]]
-    choices = np.count_nonzero(enabled[:, : plan.kinds], axis=1).astype(np.int64)
-    enabled[:, plan.kinds] = choices == 0
+    for i, guard, _ in plan.guards[0]:
+        guards[i] = guard(states)
+    enabled = guards[table[:, 0]]
+    for p in range(1, len(plan.guards)):
+        alive = np.logical_or.reduce(enabled, axis=1).tolist()
+        for i, guard, kinds in plan.guards[p]:
+            if any(alive[k] for k in kinds):
+                guards[i] = guard(states)
+        enabled &= guards[table[:, p]]
+    choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
+    np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
     return enabled, choices
+
+
+def _positions(enabled: BoolArray) -> tuple[IntArray, IntArray]:
+    """Source state and kind of every enabled choice, in (source, kind) order."""
+    flat = np.flatnonzero(enabled.T)
+    width = np.asarray(enabled.shape[0], dtype=np.int64)  # 0-d: see ``_NO_CHOICE``
+    source = flat // width
+    kind = flat - source * width
+    return source, kind
+
+
+def _out_of_range(plan: LayerPlan, targets: IntArray) -> bool:
+    """Whether some target leaves a variable's range: ``target - low`` read unsigned
+    exceeds the range's span exactly when the target is below *low* or above *high*
+    (the subtraction wraps modulo 2**64; spans are below 2**63)."""
+    if plan.spans is None:
+        return bool((targets < plan.lows).any() or (targets > plan.highs).any())
+    offsets = targets - plan.lows
+    return bool(np.count_nonzero(offsets.view(np.uint64) > plan.spans))
 
 
 def _fill(
     table: np.ndarray,
     base: int,
-    exprs: tuple[tuple[_Expr, ...], tuple[frozenset[int], ...]],
+    exprs: _Values | _Factors,
     states: IntArray,
     enabled: BoolArray,
     present: list[int],
@@ -442,13 +504,11 @@ def _fill(
 
     :raises ModelError: an integer table receives floats (the slow path reports it).
     """
-    found, kind_exprs = exprs
-    needed = frozenset().union(*(kind_exprs[k] for k in present))
     integer = table.dtype.kind == "i"
-    for e in needed:
-        expr = found[e]
+    for e in _needed(exprs, present):
+        expr = exprs.exprs[e]
         if expr.risky:  # only where a kind using it is enabled
-            rows = np.flatnonzero(enabled[:, expr.kinds].any(axis=1))
+            rows = np.flatnonzero(np.logical_or.reduce(enabled[expr.kinds], axis=0))
             value = np.asarray(expr.fn(states[rows]))
         else:
             rows, value = None, np.asarray(expr.fn(states))
@@ -458,6 +518,22 @@ def _fill(
             table[base + e] = value
         else:
             table[base + e, rows] = value
+
+
+#: Sets of present kinds remembered per table of expressions (a few per model in practice).
+_NEEDED_KEEP = 1 << 12
+
+
+def _needed(exprs: _Values | _Factors, present: list[int]) -> tuple[int, ...]:
+    """The expressions used by the *present* kinds, remembered per set of kinds."""
+    key = tuple(present)
+    found = exprs.needed.get(key)
+    if found is None:
+        if len(exprs.needed) >= _NEEDED_KEEP:
+            exprs.needed.clear()
+        union = frozenset().union(*(exprs.kind_exprs[k] for k in present))
+        found = exprs.needed[key] = tuple(sorted(union))
+    return found
 
 
 def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) -> np.ndarray:
@@ -481,7 +557,7 @@ def _targets(
     table = np.empty((base + len(values.exprs), n), dtype=np.int64)
     table[:width] = states.T
     table[width:base] = values.constants[:, None]
-    _fill(table, base, (values.exprs, values.kind_exprs), states, enabled, present)
+    _fill(table, base, values, states, enabled, present)
     targets: IntArray = _gather(table, values.rows, at)
     return targets
 
@@ -501,7 +577,7 @@ def _probabilities(
     table = np.empty((base + len(factors.exprs), states.shape[0]), dtype=np.float64)
     table[0] = 1.0
     table[1:base] = factors.constants[:, None]
-    _fill(table, base, (factors.exprs, factors.kind_exprs), states, enabled, present)
+    _fill(table, base, factors, states, enabled, present)
     gathered = _gather(table, factors.rows, at)
     if gathered.min(initial=0.0) < 0:
         return None
@@ -522,28 +598,28 @@ def _sums_ok(
 
 
 def _action_choices(
-    plan: LayerPlan, enabled: BoolArray, rewarded: set[str | None]
+    plan: LayerPlan, enabled: BoolArray, alive: list[bool], rewarded: set[str | None]
 ) -> dict[str | None, IntArray]:
     """Per rewarded action with a choice in this layer, its number of choices per state."""
-    actions, order, starts = _members(plan, frozenset(rewarded))
-    if not actions:
-        return {}
-    counts = np.add.reduceat(enabled[:, order], starts, axis=1, dtype=np.int64)
-    present = np.count_nonzero(counts, axis=0) > 0
-    return {a: counts[:, i] for i, a in enumerate(actions) if present[i]}
+    found: dict[str | None, IntArray] = {}
+    for action, kinds in _members(plan, frozenset(rewarded)):
+        live = [k for k in kinds if alive[k]]
+        if len(live) == 1:  # 0/1 per state: the kind's row as it is
+            found[action] = enabled[live[0]].view(np.uint8)
+        elif live:
+            found[action] = np.add.reduce(enabled[live], axis=0, dtype=np.int64)
+    return found
 
 
 def _members(
     plan: LayerPlan, rewarded: frozenset[str | None]
-) -> tuple[list[str | None], IntArray, IntArray]:
-    """The rewarded actions that have kinds, their kinds in that order, and where each starts."""
+) -> list[tuple[str | None, list[int]]]:
+    """The rewarded actions that have kinds, with their kinds."""
     found = plan.members.get(rewarded)
     if found is None:
-        actions = [a for a in plan.action_kinds if a in rewarded]
-        groups = [plan.action_kinds[a] for a in actions]
-        order = np.concatenate(groups) if groups else np.empty(0, dtype=np.int64)
-        sizes = np.array([g.size for g in groups], dtype=np.int64)
-        found = plan.members[rewarded] = (actions, order, np.cumsum(sizes) - sizes)
+        found = plan.members[rewarded] = [
+            (a, plan.action_kinds[a].tolist()) for a in plan.action_kinds if a in rewarded
+        ]
     return found
 
 
@@ -556,7 +632,7 @@ def branch_kinds(plan: LayerPlan, states: IntArray) -> tuple[IntArray, IntArray]
     """The branch kind and the *states*-local source of every branch out of *states*,
     in the builder's order, zero-probability branches included."""
     enabled, _ = _enabled(plan, states)
-    src, kind = np.nonzero(enabled)
+    src, kind = _positions(enabled)
     widths = plan.widths[kind]
     firsts = np.cumsum(widths) - widths
     branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(int(widths.sum()))

@@ -22,8 +22,12 @@ from veribattery._types import IntArray
 __all__ = ["StateStore", "radix_words"]
 
 _WORD_LIMIT = 1 << 62  # largest product of ranges packed into one signed word
-_GOLDEN = np.uint64(0x9E3779B97F4A7C15)  # Fibonacci hashing multiplier
-_WINDOW = np.arange(8)  # slots looked at per probing round
+_QUADRUPLE_BELOW = 1 << 20  # slots of a table that grows fourfold, not twofold
+# Operands as 0-d arrays: numpy 2 takes them in a ufunc for about half the cost of a
+# Python or numpy scalar, and these operations run a few dozen times per BFS layer.
+_GOLDEN = np.asarray(0x9E3779B97F4A7C15, dtype=np.uint64)  # Fibonacci hashing multiplier
+_ZERO = np.asarray(0, dtype=np.int64)
+_ONE = np.asarray(1, dtype=np.int64)
 
 
 def radix_words(lows: Sequence[int], highs: Sequence[int]) -> IntArray:
@@ -60,6 +64,7 @@ class StateStore:
         self._sizes = np.asarray(highs, dtype=np.int64) - self._lows + 1
         self._multipliers = radix_words(lows, highs)
         self._word = self._multipliers.argmax(axis=1)  # each variable's key word
+        self._offset = self._lows @ self._multipliers
         self._keys = np.empty((1024, self._multipliers.shape[1]), dtype=np.int64)
         # State index + 1 (0 = empty); int32 halves the table, the largest array here.
         self._table = np.zeros(1 << 14, dtype=np.int32)
@@ -110,9 +115,11 @@ class StateStore:
         first, inverse = _first_occurrences(keys)
         unique_keys = keys[first]
         index, slots = self._lookup(unique_keys)
-        new = np.flatnonzero(index < 0)
+        new = np.flatnonzero(index < _ZERO)
+        if new.size == 0:  # nothing to number, append or insert
+            return index[inverse]
         new = new[np.argsort(first[new], kind="stable")]
-        index[new] = self.count + np.arange(new.size)
+        index[new] = np.arange(self.count, self.count + new.size)
         self._append(unique_keys[new])
         if new.size:
             if not self._recent:
@@ -124,7 +131,10 @@ class StateStore:
 
     def encode(self, rows: IntArray) -> IntArray:
         """Key words ``(n, n_words)`` of *rows*."""
-        return (rows - self._lows) @ self._multipliers
+        # rows @ M - lows @ M: the same words (exact in int64), one subtraction per key
+        keys = rows @ self._multipliers
+        keys -= self._offset
+        return keys
 
     # -- internals -----------------------------------------------------------
 
@@ -138,9 +148,11 @@ class StateStore:
     def _reserve_table(self) -> bool:
         """Keep the load factor at most 1/4 (short probe chains mean few rounds).
 
-        The table doubles (rather than growing fourfold) so that it never holds
-        more than 8 slots per state: at 4 bytes a slot it would otherwise be the
-        largest array of a search of millions of states.
+        A large table doubles (rather than growing fourfold) so that it never
+        holds more than 8 slots per state: at 4 bytes a slot it would otherwise
+        be the largest array of a search of millions of states. Below
+        ``_QUADRUPLE_BELOW`` slots (4 MB) it grows fourfold: half the rebuilds,
+        each of which re-inserts every known key, for at most 4 MB more.
 
         :returns: whether the table was rebuilt (with every known key inserted).
         """
@@ -148,18 +160,19 @@ class StateStore:
             return False
         size = self._table.size
         while 4 * self.count > size:
-            size *= 2
+            size *= 4 if size < _QUADRUPLE_BELOW else 2
         self._table = np.zeros(size, dtype=np.int32)
         everything = np.arange(self.count, dtype=np.int64)
         self._insert_probing(everything, self._slots(self._keys[: self.count]))
         return True
 
     def _slots(self, keys: IntArray) -> IntArray:
-        bits = np.uint64(64 - int(self._table.size).bit_length() + 1)
+        bits = np.asarray(64 - int(self._table.size).bit_length() + 1, dtype=np.uint64)
         mixed = keys[:, 0].view(np.uint64) * _GOLDEN
         for w in range(1, keys.shape[1]):
             mixed = (mixed ^ keys[:, w].view(np.uint64)) * _GOLDEN
-        return (mixed >> bits).astype(np.int64)
+        mixed >>= bits
+        return mixed.view(np.int64)  # below 2**63 after the shift
 
     def _lookup(self, keys: IntArray) -> tuple[IntArray, IntArray]:
         """Index of each key (-1 when absent) and the slot where its probe stopped.
@@ -170,40 +183,43 @@ class StateStore:
         """
         slots = self._slots(keys)
         index = self._table[slots].astype(np.int64)
-        index -= 1
+        index -= _ONE
         # An empty slot gives index -1: the comparison reads the last key row
         # (garbage) and its result is masked by ``index >= 0``.
-        clash = ~_rows_equal(self._keys[index], keys)
-        clash &= index >= 0
-        if clash.any():
+        clash = index >= _ZERO
+        clash &= ~_rows_equal(self._keys[index], keys)
+        if np.count_nonzero(clash):
             where = np.flatnonzero(clash)
             mask = self._table.size - 1
             index[where], slots[where] = self._probe(keys[where], (slots[where] + 1) & mask)
         return index, slots
 
     def _probe(self, keys: IntArray, slots: IntArray) -> tuple[IntArray, IntArray]:
-        """Linear probing from *slots*, a window of slots at a time for all unresolved keys.
+        """Linear probing from *slots*, one slot a round for all the unresolved keys.
 
-        At a load of at most 1/4 nearly every probe ends within one window, so a
-        batch costs one round of numpy operations instead of one per step.
+        Only keys whose first slot held another key come here (a few dozen per
+        batch at a load of at most 1/4), and their chains are short: a round of
+        one-dimensional operations over them costs less than a window of slots.
         """
-        mask = self._table.size - 1
+        mask = np.asarray(self._table.size - 1, dtype=np.int64)
         index = np.full(keys.shape[0], -1, dtype=np.int64)
         active = np.arange(keys.shape[0])
+        at, wanted = slots.copy(), keys
         while active.size:
-            window = (slots[active, None] + _WINDOW) & mask
-            held = self._table[window].astype(np.int64)
-            held -= 1  # -1 where empty: masked below, as in ``_lookup``
-            occupied = held >= 0
-            match = _rows_equal(self._keys[held], keys[active][:, None, :]) & occupied
-            stop = match | ~occupied
-            first = stop.argmax(axis=1)
-            ended = stop.any(axis=1)
-            pick = np.arange(active.size), first
-            found = ended & match[pick]
-            index[active[found]] = held[pick][found]
-            slots[active] = np.where(ended, window[pick], (slots[active] + _WINDOW.size) & mask)
-            active = active[~ended]
+            held = self._table[at].astype(np.int64)
+            held -= _ONE  # -1 where empty: the key row it reads is masked below
+            empty = held < _ZERO
+            match = _rows_equal(self._keys[held], wanted)
+            match &= ~empty
+            ended = match | empty
+            found = np.flatnonzero(match)
+            index[active[found]] = held[found]
+            stop = np.flatnonzero(ended)
+            slots[active[stop]] = at[stop]
+            going = np.flatnonzero(~ended)
+            active, wanted = active[going], wanted[going]
+            at = at[going] + _ONE
+            at &= mask
         return index, slots
 
     def _insert(self, index: IntArray, slots: IntArray) -> None:
@@ -214,7 +230,7 @@ class StateStore:
         """
         self._table[slots] = index + 1
         lost = self._table[slots] != index + 1
-        if lost.any():
+        if np.count_nonzero(lost):
             mask = self._table.size - 1
             self._insert_probing(index[lost], (slots[lost] + 1) & mask)
 
@@ -257,5 +273,5 @@ def _first_occurrences(keys: IntArray) -> tuple[IntArray, IntArray]:
     starts[:1] = True
     starts[1:] = changed
     inverse = np.empty(keys.shape[0], dtype=np.int64)
-    inverse[order] = np.cumsum(starts) - 1
+    inverse[order] = np.cumsum(starts) - _ONE
     return order[starts], inverse
