@@ -188,7 +188,7 @@ def check_model(
             dtmc, reused = build_dtmc(flat, progress=progress), False
         else:
             dtmc, reused = builder.build(flat, progress)
-    if not (exact or keep_states or reused or builder is not None):
+    if not (exact or keep_states or builder is not None):
         # Answers only, and the DTMC not handed to a re-using builder: nothing does
         # arithmetic on whole state rows, so the table can be narrow (65 -> 17 MB on
         # the 11x11 mission).
