@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+import yaml
 
 from veribattery.config import config_to_yaml, load_config, parse_override, set_value
 from veribattery.errors import ConfigError
@@ -131,3 +132,23 @@ def test_paper_configs(name: str, safe_t: str, p_wsp_c: str, model: str) -> None
     assert (str(cfg.strategy.safe_t), str(cfg.environment.p_wsp_c)) == (safe_t, p_wsp_c)
     assert cfg.battery.model == model
     assert cfg.battery.capacity_ah == 11
+
+
+def test_resolved_yaml_is_the_text_of_pythons_emitter() -> None:
+    """libyaml writes the header and the sweep fingerprint; PyYAML's own emitter must agree,
+    or a resumed sweep would call its own results another sweep's."""
+    if not yaml.__with_libyaml__:
+        pytest.skip("PyYAML without libyaml: config_to_yaml uses the Python emitter already")
+    from veribattery.config import load as loader
+
+    class PythonDumper(yaml.SafeDumper):  # type: ignore[misc]
+        pass
+
+    PythonDumper.add_representer(list, loader._represent_list)
+    odd = ('properties={"p": "P=? [ F \\"success\\" ]", "e": "R{\\"mt\\"}=? [ F s=7 ]  # ünï: ok",'
+           ' "long": "' + " | ".join(f"s={i}" for i in range(60)) + '"}')
+    configs = [load_config(path) for path in PAPER] + [load_config("", [odd, "farm.base=[1, 1]"])]
+    for cfg in configs:
+        expected = yaml.dump(loader._plain(cfg), Dumper=PythonDumper, sort_keys=False,
+                             allow_unicode=True, width=100)
+        assert config_to_yaml(cfg) == expected

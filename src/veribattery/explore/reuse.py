@@ -273,7 +273,7 @@ def _canonical(node: Any, memo: dict[int, str]) -> str:
     known = memo.get(id(node))
     if known is not None:
         return known
-    if dataclasses.is_dataclass(node) and not isinstance(node, type):
+    if hasattr(type(node), "__dataclass_fields__") and not isinstance(node, type):
         inner = ",".join(_canonical(v, memo) for v in _fields(node))
         text = f"{type(node).__name__}({inner})"
     elif isinstance(node, tuple | list):
@@ -287,6 +287,16 @@ def _canonical(node: Any, memo: dict[int, str]) -> str:
 
 
 def _fields(node: Any) -> Iterator[Any]:
-    for f in dataclasses.fields(node):
-        if f.name != "span":
-            yield getattr(node, f.name)
+    return map(node.__getattribute__, _field_names(type(node)))
+
+
+_FIELD_NAMES: dict[type, tuple[str, ...]] = {}
+
+
+def _field_names(cls: type) -> tuple[str, ...]:
+    """A record class's fields but its span (``dataclasses.fields`` is slow per node)."""
+    names = _FIELD_NAMES.get(cls)
+    if names is None:
+        names = _FIELD_NAMES[cls] = tuple(
+            f.name for f in dataclasses.fields(cls) if f.name != "span")
+    return names
