@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import difflib
+import functools
 from collections.abc import Callable, Mapping
 from typing import Any, get_args
 
@@ -18,6 +19,7 @@ __all__ = ["Path", "dotted", "known_keys", "validate_config"]
 Path = tuple[str | int, ...]
 
 
+@functools.cache  # the schema is fixed; every --set and every sweep point asks
 def known_keys() -> tuple[str, ...]:
     """Every dotted key of the schema (both consumption forms), sections included."""
     return tuple(sorted(set(_keys_of(MissionConfig, ""))))
