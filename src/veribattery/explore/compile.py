@@ -559,7 +559,9 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, rig
     lfn, rfn = left.fn, right.fn
 
     def evaluate(states: IntArray) -> Any:
-        first = np.asarray(lfn(states), dtype=bool)
+        first = lfn(states)
+        if type(first) is not np.ndarray or first.dtype != np.bool_:  # usually it is
+            first = np.asarray(first, dtype=bool)
         # count_nonzero: a fraction of the cost of .any()/.all() on short arrays
         if first.ndim and np.count_nonzero(first) == (first.size if decided_value else 0):
             return first

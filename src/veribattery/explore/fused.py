@@ -452,7 +452,7 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
     for p in range(1, len(plan.guards)):
         alive = np.logical_or.reduce(enabled, axis=1).tolist()
         for i, guard, kinds in plan.guards[p]:
-            if any(alive[k] for k in kinds):
+            if any(map(alive.__getitem__, kinds)):
                 guards[i] = guard(states)
         enabled &= guards[table[:, p]]
     choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
@@ -526,10 +526,11 @@ def _needed(exprs: _Values | _Factors, present: list[int]) -> tuple[int, ...]:
 def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) -> np.ndarray:
     """``table[rows[branch, j], source]`` for every branch and column *j*, in one take."""
     branch, source = at
-    index = rows[branch]
-    index *= table.shape[1]
+    scaled: IntArray = rows * table.shape[1]  # on the few branch kinds, not per branch
+    index = scaled[branch]
     index += source[:, None]
-    return table.ravel().take(index)
+    gathered: np.ndarray = table.ravel().take(index)
+    return gathered
 
 
 def _targets(
