@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
@@ -43,6 +44,7 @@ __all__ = [
     "CompiledExpr",
     "compile_expr",
     "constant_value",
+    "may_fail",
     "variables_of",
 ]
 
@@ -180,7 +182,23 @@ def compile_expr(
             return np.full(states.shape[0], value, dtype=value.dtype)
         return value
 
+    if node.risky or node.labels:
+        _MAY_FAIL.add(evaluate)
     return evaluate
+
+
+#: The compiled expressions that may raise on some rows or read label masks.
+_MAY_FAIL: weakref.WeakSet[CompiledExpr] = weakref.WeakSet()
+
+
+def may_fail(fn: CompiledExpr) -> bool:
+    """Whether the compiled expression *fn* may raise on some rows of a variables'
+    domain (division, ``mod``, ``pow`` outside a lookup table) or reads label masks
+    (which are aligned with the rows it was compiled for): such an expression must
+    be evaluated on exactly the rows that need it. An expression whose risky parts
+    were all tabulated without error cannot fail on a state within the ranges.
+    """
+    return fn in _MAY_FAIL
 
 
 def variables_of(expr: Expr) -> set[str]:
@@ -360,6 +378,25 @@ def _tabulated(expr: Expr, scope: _Scope) -> _Node:
     return _Node(fn=_lookup(table, cols, lows, shape, scope.cache))
 
 
+#: Narrower types a table may be stored in, tried in order, by kind of its values.
+_NARROW = {"i": (np.int8, np.int16, np.int32), "f": (np.float32,)}
+
+
+def _narrowed(table: np.ndarray) -> np.ndarray:
+    """*table* in the narrowest type that holds each of its values exactly (or as it is).
+
+    A layer's lookups land at random places in a table, and an int64 table over a
+    battery's charge and recharges is hundreds of kB: a dozen of them no longer fit
+    the L2 cache between two layers, and the misses cost more than the widening
+    back after the gather (``_lookup``).
+    """
+    for narrow in _NARROW.get(table.dtype.kind, ()):
+        candidate = table.astype(narrow)
+        if np.array_equal(candidate.astype(table.dtype), table):
+            return candidate
+    return table
+
+
 def _grid(
     cols: list[int], lows: list[int], shape: list[int], width: int, cache: CompileCache | None
 ) -> IntArray:
@@ -382,6 +419,9 @@ def _lookup(
 ) -> _Fn:
     strides = [math.prod(shape[i + 1 :]) for i in range(len(shape))]
     offset = sum(low * stride for low, stride in zip(lows, strides, strict=True))
+    dtype, table = table.dtype, _narrowed(table)
+    if table.dtype != dtype:  # widened back: later arithmetic must not wrap at the narrow type
+        return _widening(dtype, _lookup(table, cols, lows, shape, cache))
     if len(cols) == 1 and offset == 0:
         (col,) = cols
         return lambda states: table[states[:, col]]
@@ -395,20 +435,27 @@ def _lookup(
     return lambda states: table[index_of(states)]
 
 
+def _widening(dtype: np.dtype[Any], narrow: _Fn) -> _Fn:
+    """*narrow* (a lookup in a narrowed table) with its values back in *dtype*."""
+    return lambda states: narrow(states).astype(dtype)
+
+
 def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
     """Mixed-radix position of each row's valuation of *cols* in a table."""
     shift = np.asarray(offset, dtype=np.int64)  # a 0-d array: see ``_constant``
     if len(cols) == 1:
         (col,) = cols
         return lambda states: states[:, col] - shift
-    width = max(cols) + 1
-    weights = np.zeros(width, dtype=np.int64)
-    weights[cols] = strides
+    first, stop = min(cols), max(cols) + 1
+    weights = np.zeros(stop - first, dtype=np.int64)
+    weights[[c - first for c in cols]] = strides
 
     def evaluate(states: IntArray) -> Any:
-        # One product with the strides (zero for the other columns) instead of
-        # a multiply and an add per column: this runs for every table, every layer.
-        index = states[:, :width] @ weights
+        # One product with the strides (zero for the other columns in between)
+        # instead of a multiply and an add per column: this runs for every table,
+        # every layer. numpy's integer product is a plain loop, so its cost grows
+        # with the columns it reads: only those from the first to the last used.
+        index = states[:, first:stop] @ weights
         index -= shift
         return index
 
@@ -512,7 +559,9 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, rig
     lfn, rfn = left.fn, right.fn
 
     def evaluate(states: IntArray) -> Any:
-        first = np.asarray(lfn(states), dtype=bool)
+        first = lfn(states)
+        if type(first) is not np.ndarray or first.dtype != np.bool_:  # usually it is
+            first = np.asarray(first, dtype=bool)
         # count_nonzero: a fraction of the cost of .any()/.all() on short arrays
         if first.ndim and np.count_nonzero(first) == (first.size if decided_value else 0):
             return first

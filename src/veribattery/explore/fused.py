@@ -41,10 +41,8 @@ import numpy as np
 from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.compile import CompiledExpr
+from veribattery.explore.compile import CompiledExpr, may_fail
 from veribattery.explore.program import CompiledCommand, Program
-from veribattery.lang.expressions import walk
-from veribattery.lang.nodes import Binary, Call, Expr
 
 __all__ = ["Expansion", "LayerPlan", "branch_kinds", "plan_layers", "reprice"]
 
@@ -263,11 +261,11 @@ class _Registry:
         self._users: list[set[int]] = []
         self._by_kind: dict[int, set[int]] = {}
 
-    def add(self, fn: CompiledExpr, expr: Expr, kind: int) -> int:
+    def add(self, fn: CompiledExpr, kind: int) -> int:
         index = self._index.get(id(fn))
         if index is None:
             index = self._index[id(fn)] = len(self._exprs)
-            self._exprs.append((fn, _risky(expr)))
+            self._exprs.append((fn, may_fail(fn)))
             self._users.append(set())
         self._users[index].add(kind)
         self._by_kind.setdefault(kind, set()).add(index)
@@ -283,15 +281,6 @@ class _Registry:
         return tuple(frozenset(self._by_kind.get(k, ())) for k in range(kinds))
 
 
-def _risky(expr: Expr) -> bool:
-    """Whether evaluating *expr* may raise on some rows (as ``compile`` marks it)."""
-    return any(
-        (isinstance(node, Binary) and node.op == "/")
-        or (isinstance(node, Call) and node.func in ("pow", "mod"))
-        for node in walk(expr)
-    )
-
-
 def _values(
     names: Sequence[str],
     commands: Sequence[CompiledCommand],
@@ -301,7 +290,7 @@ def _values(
     """Each branch kind's source row per variable (later parts' assignments win)."""
     registry = _Registry()
     assigned = [
-        _assigned(names, commands, kind, picks, (registry, k))
+        _assigned(commands, kind, picks, (registry, k))
         for k, (kind, updates) in enumerate(zip(kinds, branches, strict=True))
         for picks in updates
     ]
@@ -321,7 +310,6 @@ def _values(
 
 
 def _assigned(
-    names: Sequence[str],
     commands: Sequence[CompiledCommand],
     kind: _Kind,
     picks: tuple[int, ...],
@@ -332,13 +320,12 @@ def _assigned(
     found: dict[int, int | tuple[int]] = {}
     for c, u in zip(kind.commands, picks, strict=True):
         update = commands[c].updates[u]
-        exprs = {a.variable: a.expr for a in commands[c].command.updates[u].assignments}
         for i, (column, rhs) in enumerate(update.assignments):
             constant = update.constants[i] if update.constants else None
             if constant is not None:
                 found[column] = int(constant)
             else:
-                found[column] = (registry.add(rhs, exprs[names[column]], k),)
+                found[column] = (registry.add(rhs, k),)
     return found
 
 
@@ -380,7 +367,7 @@ def _factor(command: CompiledCommand, u: int, user: tuple[_Registry, int]) -> fl
     constant = update.constant_probability
     if constant is not None and constant >= 0:
         return float(constant)
-    return (registry.add(update.probability, command.command.updates[u].probability, k),)
+    return (registry.add(update.probability, k),)
 
 
 def _product(factors: Sequence[float | tuple[int]]) -> float:
@@ -465,7 +452,7 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
     for p in range(1, len(plan.guards)):
         alive = np.logical_or.reduce(enabled, axis=1).tolist()
         for i, guard, kinds in plan.guards[p]:
-            if any(alive[k] for k in kinds):
+            if any(map(alive.__getitem__, kinds)):
                 guards[i] = guard(states)
         enabled &= guards[table[:, p]]
     choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
@@ -539,10 +526,11 @@ def _needed(exprs: _Values | _Factors, present: list[int]) -> tuple[int, ...]:
 def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) -> np.ndarray:
     """``table[rows[branch, j], source]`` for every branch and column *j*, in one take."""
     branch, source = at
-    index = rows[branch]
-    index *= table.shape[1]
+    scaled: IntArray = rows * table.shape[1]  # on the few branch kinds, not per branch
+    index = scaled[branch]
     index += source[:, None]
-    return table.ravel().take(index)
+    gathered: np.ndarray = table.ravel().take(index)
+    return gathered
 
 
 def _targets(
