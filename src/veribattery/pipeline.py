@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from veribattery._memory import trim_heap
 from veribattery._record import record
 from veribattery.checker import CheckResult, check
+from veribattery.checker.linsolve import trim_for
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
@@ -199,9 +199,9 @@ def check_model(
         checks = [functools.partial(check, dtmc, p) for p in resolved]
     with watch.stage("check"):
         if exact_model is None:  # linear systems shared between the properties
-            trim_heap()  # the builder's last temporaries, under the DTMC's arrays
+            trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's
             prepare(dtmc, [p.formula for p in resolved])
-            trim_heap()  # the pre-pass's freed temporaries
+            trim_for(dtmc.num_states)  # the pre-pass's freed temporaries
         results, undefined = _run_checks(checks, resolved, dtmc, (undefined_ok, keep_states))
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
 
@@ -235,7 +235,7 @@ def _run_checks(
             results.append(result if keep_states else result.without_states())
             del result  # before the next property: its per-state arrays can go now
             if not keep_states:
-                trim_heap()
+                trim_for(dtmc.num_states)
         except UndefinedResult as exc:
             if not undefined_ok:
                 raise

@@ -37,7 +37,6 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import certify, linsolve, rational
 from veribattery.checker.bounds import (
@@ -204,7 +203,7 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) ->
         solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns))
         del A64, residue
         found = _System(rows, solver, unknowns)
-        trim_heap()  # the restriction's per-entry temporaries, before the solve's
+        linsolve.trim_for(maybe.size)  # the restriction's per-entry temporaries
         systems[key] = found
     else:
         systems.move_to_end(_mask_key(found.unknowns))
@@ -400,12 +399,58 @@ def _until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
     maybe = ~(no | yes)
     if not maybe.any():
         return Bounds.exact(result)
+    pinned = _pinned_until(P, maybe, remain & ~target, result)
+    if pinned is not None:
+        return pinned
     # Every state of remain & !target satisfies x = P x, its yes and no states included.
     system = _system(P, maybe, remain & ~target)
     known = np.where(system.unknowns, 0.0, result)
     F = system.affine(known, known, None)
     found = _certified(F, system, known, None, 0.0, 1.0)
     return _spread(result, maybe, _restrict(found, system.unknowns, maybe))
+
+
+def _pinned_until(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray,
+                  result: FloatArray) -> Bounds | None:
+    """The until's values solved on a kept system that holds *maybe* and also states
+    outside *allowed* (the target states inside ``R=? [ F "done" ]``'s system, for the
+    recharge cap's ``P=? [ F rc=RC_MAX ]``), those rows pinned to their known values
+    *result* (docs/numerics.md, "Shared systems"); None when there is no such system
+    or the quick certificate does not succeed on it (the caller builds its own).
+    """
+    system = _pinnable(_memo(P).systems.values(), maybe, allowed)
+    if system is None:
+        return None
+    unknowns = system.unknowns
+    local = ~allowed[unknowns]  # the pinned states, among the system's
+    solver = system.factorization.pinned(local)
+    if solver is None:
+        return None
+    where = np.flatnonzero(local)
+    values = result[unknowns][where]
+    known = np.where(unknowns, 0.0, result)
+    F = certify.PinnedMap.around(system.affine(known, known, None), where, values)
+    b = _right_side(system, known, None, np.float64)
+    b[where] = values
+    found = quick_bounds(F, solver, b, np.full((), 0.0), np.full((), 1.0))
+    if found is None:
+        return None
+    return _spread(result, maybe, _restrict(found, unknowns, maybe))
+
+
+def _pinnable(systems: Iterable[_System], maybe: BoolArray,
+              allowed: BoolArray) -> _System | None:
+    """A kept system (of at least ``QUICK_MIN_STATES`` unknowns) whose unknowns hold
+    *maybe* and some states outside *allowed*, with *maybe* its ``SUPERSET_SHARE``."""
+    wanted = int(np.count_nonzero(maybe))
+    for system in systems:
+        unknowns = system.unknowns
+        size = int(np.count_nonzero(unknowns))
+        if (unknowns.size == maybe.size and size >= QUICK_MIN_STATES
+                and wanted >= SUPERSET_SHARE * size
+                and not np.any(maybe & ~unknowns) and np.any(unknowns & ~allowed)):
+            return system
+    return None
 
 
 def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bounds:
@@ -472,7 +517,7 @@ def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
                         np.full((), floor), np.full((), ceiling))
 
 
-def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
+def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
                  b: npt.NDArray[np.floating], floor: FloatArray, ceiling: FloatArray
                  ) -> Bounds | None:
     """The fixed point of *F* (system ``solver.A x = b``) from one unrefined substitution,
@@ -495,7 +540,7 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
         if found is not None and found.precise_states().all():
             break
         found = None
-    trim_heap()  # the certificate's temporaries, before the caller's next vectors
+    linsolve.trim_for(F.states.size)  # the certificate's temporaries, before the next vectors
     return found
 
 

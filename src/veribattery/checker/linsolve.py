@@ -32,6 +32,7 @@ from __future__ import annotations
 import hashlib
 from collections import OrderedDict
 from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -67,6 +68,18 @@ REFINE_TOL = 2.0**-52
 ITERATIVE_RTOL = 1e-13
 #: Iteration cap of each iterative method.
 ITERATIVE_MAXITER = 20_000
+
+
+#: Heaps are trimmed between stages only for models of at least this many states: the
+#: trim is for the peak memory of large models; on the paper's mission (176,481
+#: states) its ~2 ms per call were a tenth of a structure-reusing sweep point.
+TRIM_MIN_STATES = 1_000_000
+
+
+def trim_for(states: int) -> None:
+    """:func:`~veribattery._memory.trim_heap` when *states* reaches :data:`TRIM_MIN_STATES`."""
+    if states >= TRIM_MIN_STATES:
+        trim_heap()
 
 
 def restricted_matrix(P: CsrMatrix, maybe: BoolArray) -> tuple[sp.csr_matrix, CsrMatrix]:
@@ -492,13 +505,23 @@ class Factorization:
             return np.zeros_like(v)
         return np.asarray(inverse.margin(np.ascontiguousarray(v, dtype=np.float64)))
 
+    def pinned(self, mask: BoolArray) -> PinnedSolver | None:
+        """A solver of this system with the rows of the states in *mask* replaced by
+        identity rows, for the quick certificate of a query solved on it with those
+        states' values known (``kernels``, "Shared systems" in docs/numerics.md);
+        None unless the direct solver is a substitution."""
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        if not isinstance(inverse, _Triangular):
+            return None
+        return PinnedSolver(inverse.pinned(mask))
+
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
             self._direct_tried = True
             self._direct = _triangular_inverse(self.A64)
             if self._direct is not None:
                 self._release()
-                trim_heap()  # the plan's temporaries (and the matrix) are free now
+                trim_for(self._n)  # the plan's temporaries (and the matrix) are free now
             if self._direct is None:
                 found = scc.components(self.A64)
                 if found is not None:
@@ -508,6 +531,37 @@ class Factorization:
             if self._direct is None:
                 self._direct = _lu_inverse(self.A64)
         return self._direct
+
+
+class QuickSolver(Protocol):
+    """What the quick certificate needs of a solver (:class:`Factorization`,
+    :class:`PinnedSolver`)."""
+
+    def approximate(self, b: FloatArray) -> FloatArray | None: ...
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]: ...
+
+
+class PinnedSolver:
+    """A substitution whose pinned rows are identity rows (:meth:`Factorization.pinned`):
+    unrefined solves only, for the quick certificate."""
+
+    def __init__(self, inverse: _Inverse) -> None:
+        self._inverse = inverse
+
+    def approximate(self, b: FloatArray) -> FloatArray | None:
+        """One substitution (None when it fails or is not finite)."""
+        try:
+            x = np.asarray(self._inverse(np.asarray(b, dtype=np.float64)), dtype=np.float64)
+        except RuntimeError:
+            return None
+        return x if np.all(np.isfinite(x)) else None
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]:
+        """The margin solver: the same substitution."""
+        return [self.approximate]
 
 
 def _split(A: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -671,7 +725,7 @@ def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
                            np.asarray(by_column.indptr, dtype=np.intc))
 
 
-def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
+def _triangular_inverse(A64: sp.csr_matrix) -> _Triangular | None:
     """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
 
     The permutation and the triangular matrix's structure come from the pattern's
@@ -679,7 +733,6 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     are gathered from *A64*: a state's successors precede it, so the permuted
     matrix is lower triangular.
     """
-    n = A64.shape[0]
     plan = _triangular_plan(A64)
     if plan is None:
         return None
@@ -691,19 +744,67 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     # column's scale repeated over its entries: no per-entry index array).
     data = A64.data[plan.gather]
     data *= np.repeat(scale, np.diff(plan.indptr))
+    n = A64.shape[0]
     lower = sp.csc_matrix((data, plan.indices, plan.indptr), shape=(n, n))
-    substitute = _substitution(lower)
-    order = plan.order
+    return _Triangular(lower, _substitution(lower), plan.order, scale)
 
-    def apply(b: FloatArray) -> FloatArray:
-        # b[order] is a new array: the substitution may solve in it, and is scaled in place.
-        y = substitute(np.ascontiguousarray(b[order], dtype=np.float64))
-        y *= scale
-        x = np.empty(n, dtype=np.float64)
-        x[order] = y
-        return x
 
-    return apply
+class _Triangular:
+    """The substitution of :func:`_triangular_inverse`: ``A x = b`` with ``A = L D`` in
+    a topological order (``L`` unit lower triangular, ``D`` the diagonal of *A*)."""
+
+    def __init__(self, lower: sp.csc_matrix, substitute: _Inverse,
+                 order: npt.NDArray[np.integer], scale: FloatArray) -> None:
+        self._lower, self._substitute, self._order, self._scale = lower, substitute, order, scale
+        n = order.size
+        # Index arrays of numpy's own index type (others are converted at every use)
+        # and the inverse permutation, so that both ends of a solve are gathers;
+        # only for systems that do not keep a plan's int32 arrays for their memory.
+        self._forward: npt.NDArray[np.intp] | None = None
+        self._back: npt.NDArray[np.intp] | None = None
+        if n < TRIM_MIN_STATES:
+            self._forward = np.asarray(order, dtype=np.intp)
+            self._back = np.empty(n, dtype=np.intp)
+            self._back[self._forward] = np.arange(n, dtype=np.intp)
+
+    def __call__(self, b: FloatArray) -> FloatArray:
+        order = self._order
+        if self._forward is None or self._back is None:
+            # b[order] is a new array: the substitution may solve in it, and is scaled in place.
+            y = self._substitute(np.ascontiguousarray(b[order], dtype=np.float64))
+            y *= self._scale
+            x = np.empty(order.size, dtype=np.float64)
+            x[order] = y
+            return x
+        y = self._substitute(np.take(np.asarray(b, dtype=np.float64), self._forward))
+        y *= self._scale
+        return np.take(y, self._back)
+
+    def pinned(self, mask: BoolArray) -> _Inverse:
+        """Solves the system whose rows of the states in *mask* are identity rows
+        (``x_i = b_i`` there, the other rows as in *A*): *L* without those rows'
+        off-diagonal entries, the same order. The pinned entries of the answer are
+        *b*'s own (the substitution's ``(b_i d_i) / d_i`` may differ in the last bit)."""
+        order, scale = self._order, self._scale
+        lower = self._lower
+        at = mask[order]  # per topological position
+        data = np.where(at[lower.indices], 0.0, lower.data)  # column i's own entry is on
+        data[lower.indptr[:-1][at]] = 1.0  # the diagonal: it stays (first in the column)
+        substitute = _substitution(sp.csc_matrix((data, lower.indices, lower.indptr),
+                                                 shape=lower.shape))
+        where = np.flatnonzero(mask)
+
+        def apply(b: FloatArray) -> FloatArray:
+            c = np.ascontiguousarray(b[order], dtype=np.float64)
+            c[at] /= scale[at]  # y_i = d_i b_i, so that x_i = y_i / d_i is b_i
+            y = substitute(c)
+            y *= scale
+            x = np.empty(order.size, dtype=np.float64)
+            x[order] = y
+            x[where] = b[where]
+            return x
+
+        return apply
 
 
 def _substitution(lower: sp.csc_matrix) -> _Inverse:
