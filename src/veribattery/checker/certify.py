@@ -72,6 +72,13 @@ def _step_up_in_place(c: FloatArray) -> None:
     c += bump
 
 
+def _step_down_in_place(c: FloatArray) -> None:
+    """:func:`step_down` of *c* >= 0 (or NaN, +inf: NaN) into *c*: the same operations."""
+    bump = c * _PHI
+    bump += ETA
+    c -= bump
+
+
 def step_down(c: FloatArray) -> FloatArray:
     """A lower bound of the predecessor of each entry (see :func:`step_up`).
 
@@ -304,11 +311,21 @@ class AffineMap:
         return above
 
     def _below(self, numerator: FloatArray, error: FloatArray) -> FloatArray:
+        # The exact quotient is >= 0, so a negative bound is 0 whenever it is found:
+        # clamping before each step down gives the bounds of ``step_down`` on the
+        # nonnegative entries (then the cheaper in-place form applies) and 0 elsewhere.
+        below = numerator - error
+        np.maximum(below, 0.0, out=below)  # (NaN stays NaN)
         with np.errstate(divide="ignore", invalid="ignore"):
-            below = step_down(numerator - error)
+            _step_down_in_place(below)
             below /= self.leave_upper
-            below = step_down(below)
-        return np.where(np.isnan(below), -np.inf, np.maximum(below, 0.0))
+            np.maximum(below, 0.0, out=below)
+            _step_down_in_place(below)
+        np.maximum(below, 0.0, out=below)
+        undefined = np.isnan(below)
+        if undefined.any():
+            below[undefined] = -np.inf
+        return below
 
     def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
         full = known.copy()

@@ -128,9 +128,7 @@ def _pattern_key(P: CsrMatrix) -> bytes:
     """A digest of the positive entries' positions (not their values)."""
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
-    # Buffers, not .tobytes(): no copy of the index arrays.
-    digest.update(np.ascontiguousarray(P.indptr).data)
-    digest.update(np.ascontiguousarray(P.indices).data)
+    digest.update(linsolve.index_digest(P.indptr, P.indices))
     digest.update(np.packbits(P.data > 0).data)
     return digest.digest()
 

@@ -30,6 +30,7 @@ meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
 from __future__ import annotations
 
 import hashlib
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable
 from typing import Protocol
@@ -145,6 +146,38 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
     return A64, _diagonal_residue(leave), rows
 
 
+#: Digests of index arrays, by the arrays' identity (see :func:`index_digest`).
+_INDEX_DIGESTS: OrderedDict[tuple[int, int], tuple[weakref.ref[npt.NDArray[np.integer]],
+                                                  weakref.ref[npt.NDArray[np.integer]],
+                                                  bytes]] = OrderedDict()
+INDEX_DIGESTS_KEPT = 8
+
+
+def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.integer]) -> bytes:
+    """A digest of a sparse matrix's index arrays, memoised by the arrays' identity.
+
+    Matrices of a structure-reusing sweep share their index arrays (the re-evaluated
+    transition matrix takes the base's, :func:`veribattery.explore.reuse.reevaluate`;
+    a restriction plan's ``A64`` takes the plan's), so each point's pattern lookups
+    (pre-pass memo, restriction plan, triangular plan) hash no index array again.
+    Index arrays are never modified in place once a matrix is built (as the memos
+    here already require).
+    """
+    key = (id(indptr), id(indices))
+    found = _INDEX_DIGESTS.get(key)
+    if found is not None and found[0]() is indptr and found[1]() is indices:
+        _INDEX_DIGESTS.move_to_end(key)
+        return found[2]
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.ascontiguousarray(indptr).data)
+    digest.update(np.ascontiguousarray(indices).data)
+    value = digest.digest()
+    _INDEX_DIGESTS[key] = (weakref.ref(indptr), weakref.ref(indices), value)
+    while len(_INDEX_DIGESTS) > INDEX_DIGESTS_KEPT:
+        _INDEX_DIGESTS.popitem(last=False)
+    return value
+
+
 @record
 class _RestrictionPlan:
     """The index work of :func:`restricted_parts` for one pattern of *P* and *maybe*.
@@ -165,6 +198,11 @@ class _RestrictionPlan:
     source: npt.NDArray[np.int64]
     a_indices: npt.NDArray[np.int32]
     a_indptr: npt.NDArray[np.int32]
+    #: The rows with movers and where each one's movers start (for one ``reduceat``).
+    sum_rows: npt.NDArray[np.intp]
+    sum_starts: npt.NDArray[np.intp]
+    #: Per entry of ``A64``, its position in ``[-gathered data, leaving probabilities]``.
+    a_take: npt.NDArray[np.intp]
 
     def apply(self, P: CsrMatrix) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix] | None:
         """The parts for *P* (of the plan's pattern), equal bit for bit to a fresh
@@ -172,15 +210,24 @@ class _RestrictionPlan:
         m = self.shape[0]
         data = np.asarray(P.data[self.gather], dtype=np.float64)
         rows = sp.csr_matrix((data, self.rows_indices, self.rows_indptr), shape=(m, P.shape[1]))
-        leave = _row_sums(self.mover_rows, data[self.movers], m)
+        leave = self._leaving(data)
         leave64 = leave.astype(np.float64)
         if not np.all(leave64 != 0):
             return None
-        diagonal = self.source < 0
-        a_data = np.where(diagonal, leave64[np.where(diagonal, -1 - self.source, 0)],
-                          -data[np.where(diagonal, 0, self.source)])
+        a_data = np.take(np.concatenate([np.negative(data), leave64]), self.a_take)
         A64 = sp.csr_matrix((a_data, self.a_indices, self.a_indptr), shape=self.shape)
         return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+
+    def _leaving(self, data: FloatArray) -> ExtArray:
+        """:func:`_row_sums` of the movers: the same segments summed in the same order
+        (one ``reduceat`` over all of them when they fit in one block)."""
+        m = self.shape[0]
+        if self.movers.size > _SUM_BLOCK or not self.movers.size:
+            return _row_sums(self.mover_rows, data[self.movers], m)
+        leave = np.zeros(m, dtype=np.longdouble)
+        moving = np.take(data, self.movers).astype(np.longdouble)
+        leave[self.sum_rows] = np.add.reduceat(moving, self.sum_starts)
+        return leave
 
 
 #: Restriction plans of the last few (pattern, unknown states) pairs (None: seen once).
@@ -195,8 +242,7 @@ def _restriction_plan(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None
         return None
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
-    digest.update(np.ascontiguousarray(P.indptr).data)
-    digest.update(np.ascontiguousarray(P.indices).data)
+    digest.update(index_digest(P.indptr, P.indices))
     digest.update(np.packbits(P.data != 0).data)
     digest.update(np.packbits(maybe).data)
     key = digest.digest()
@@ -234,9 +280,15 @@ def _new_restriction(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
     tagged.sort_indices()
     # On the diagonal: i + 1 -> -1 - i; off it: -(k + 1) -> k.
     source = np.where(tagged.data > 0, -tagged.data, -tagged.data - 1).astype(np.int64)
+    mover_rows = row_of[moves]
+    counts = np.bincount(mover_rows, minlength=idx.size)
+    sum_rows = np.flatnonzero(counts)
+    sum_starts = (np.cumsum(counts) - counts)[sum_rows]
+    a_take = np.where(source < 0, gather.size + (-1 - source), source).astype(np.intp)
     return _RestrictionPlan((idx.size, idx.size), gather, rows.indices.copy(),
                             rows.indptr.astype(np.int64), np.flatnonzero(moves),
-                            row_of[moves], source, tagged.indices.copy(), tagged.indptr.copy())
+                            mover_rows, source, tagged.indices.copy(), tagged.indptr.copy(),
+                            sum_rows.astype(np.intp), sum_starts.astype(np.intp), a_take)
 
 
 def _with_diagonal(row: npt.NDArray[np.integer], col: npt.NDArray[np.integer],
@@ -655,8 +707,7 @@ def _pattern_digest(A64: sp.csr_matrix) -> bytes:
     """A digest of *A64*'s shape and stored positions (not its values)."""
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(A64.shape, dtype=np.int64).tobytes())
-    digest.update(np.ascontiguousarray(A64.indptr).data)
-    digest.update(np.ascontiguousarray(A64.indices).data)
+    digest.update(index_digest(A64.indptr, A64.indices))
     return digest.digest()
 
 
