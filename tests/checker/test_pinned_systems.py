@@ -204,3 +204,34 @@ def test_kept_constants_give_the_same_images(monkeypatch: pytest.MonkeyPatch) ->
     x = rng.random(n)
     for a, b in zip(kept.images(x, x), derived.images(x, x), strict=True):
         assert np.array_equal(a, b)
+
+
+@pytest.mark.parametrize("seed", range(10))
+def test_untils_share_one_system_on_their_union(seed: int, quick_everywhere: list[bool],
+                                                systems_built: list[int]) -> None:
+    # No reward query: pctl.prepare builds one system on the union of the two untils'
+    # unknowns (kernels.prepare_untils); "success" is solved on it as a superset, "t"
+    # with its target rows inside it pinned.
+    rows, rewards, done, succeeded, t = _forward_chain(seed)
+    n = len(rows)
+    results = check_prism_file(_text(rows, rewards, done, succeeded, t),
+                               props_source='P=? [ F "b" ];\nP=? [ F "t" ]').results
+    expected = [_until(rows, [True] * n, succeeded)[0], _until(rows, [True] * n, t)[0]]
+    for result, value in zip(results, expected, strict=True):
+        assert _contains(result, value), (result.property.text, result, value)
+        assert result.precise
+        assert float(result.value) == pytest.approx(float(value), rel=1e-12, abs=1e-15)
+    assert len(systems_built) == 1
+
+
+def test_a_cyclic_union_is_not_kept(quick_everywhere: list[bool],
+                                    systems_built: list[int]) -> None:
+    rows, rewards, done, succeeded, t = _forward_chain(1, back=True)
+    n = len(rows)
+    results = check_prism_file(_text(rows, rewards, done, succeeded, t),
+                               props_source='P=? [ F "b" ];\nP=? [ F "t" ]').results
+    for result, value in zip(results, [_until(rows, [True] * n, succeeded)[0],
+                                       _until(rows, [True] * n, t)[0]], strict=True):
+        assert _contains(result, value)
+    # The union was built, found cyclic and dropped; each until then built its own.
+    assert len(systems_built) == 3

@@ -262,6 +262,31 @@ def prepare_reach(P: CsrMatrix, target: BoolArray) -> BoolArray:
     return maybe
 
 
+def prepare_untils(P: CsrMatrix, untils: list[tuple[BoolArray, BoolArray]]) -> bool:
+    """Build (and keep) one system on the union of several untils' unknowns, so that each
+    is solved on it (as a superset, or with pinned rows: docs/numerics.md, "Shared
+    systems") instead of on a system of its own -- when that union holds at least
+    ``QUICK_MIN_STATES`` unknowns, each until has its ``SUPERSET_SHARE`` of them, and
+    the union's matrix is triangular in some order (then it is nonsingular: its
+    diagonal, the leaving probabilities, is positive). Returns whether it was kept.
+
+    :param untils: ``(remain, target)`` of each unbounded until.
+    """
+    maybes = [m for m in (until_unknowns(P, *until)[0] for until in untils) if m.any()]
+    if len(maybes) < 2:
+        return False
+    union = np.logical_or.reduce(maybes)
+    size = int(np.count_nonzero(union))
+    if size < QUICK_MIN_STATES or any(np.count_nonzero(m) < SUPERSET_SHARE * size
+                                      for m in maybes):
+        return False
+    system = _system(P, union)
+    if system.factorization.triangular:
+        return True
+    _memo(P).systems.pop(_mask_key(union), None)  # not worth keeping for them
+    return False
+
+
 def until_unknowns(P: CsrMatrix, remain: BoolArray,
                    target: BoolArray) -> tuple[BoolArray, BoolArray]:
     """The unknowns of ``remain U target`` and the states whose exact values satisfy its

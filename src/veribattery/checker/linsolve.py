@@ -557,6 +557,21 @@ class Factorization:
             return np.zeros_like(v)
         return np.asarray(inverse.margin(np.ascontiguousarray(v, dtype=np.float64)))
 
+    @property
+    def triangular(self) -> bool:
+        """Whether the direct solver is a substitution (the matrix is triangular in a
+        topological order, with a positive diagonal). Only that solver is tried here:
+        a caller that drops a system that is not triangular pays for no factorisation."""
+        if self._direct_tried:
+            return isinstance(self._direct, _Triangular)
+        found = _triangular_inverse(self.A64) if self._n <= DIRECT_LIMIT else None
+        if found is None:
+            return False  # (the solver is chosen as usual if the system is used after all)
+        self._direct_tried, self._direct = True, found
+        self._release()
+        trim_for(self._n)
+        return True
+
     def pinned(self, mask: BoolArray) -> PinnedSolver | None:
         """A solver of this system with the rows of the states in *mask* replaced by
         identity rows, for the quick certificate of a query solved on it with those
