@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from fractions import Fraction
 from pathlib import Path
@@ -22,6 +22,7 @@ from veribattery.lang.nodes import (
     Conditional,
     ConditionalReach,
     ConstDecl,
+    Expr,
     Model,
     ProbOp,
     PropertiesFile,
@@ -133,7 +134,8 @@ def _check(
     model = parsed.model(render_model(cfg))  # not mission_files: no config YAML needed
     props = parsed.properties(render_properties(cfg))
     modes = (exact, keep_states, values_only)
-    run = _check_properties(model, props, progress, builder, modes)
+    run = _check_properties(model, props, progress, builder, modes,
+                            lambda dtmc: _recharge_cap_formulas(dtmc, cfg))
     return mission_report(cfg, run)
 
 
@@ -146,8 +148,8 @@ def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
 
 
 def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCallback | None,
-                      builder: ReusingBuilder | None,
-                      modes: tuple[bool, bool, bool]) -> ModelCheckRun:
+                      builder: ReusingBuilder | None, modes: tuple[bool, bool, bool],
+                      checked_after: Callable[[DTMC], Sequence[Expr]]) -> ModelCheckRun:
     """Check every property; a property without a value here (the conditional defaults
     of a mission that never succeeds, or under ``--exact``) is NaN with a warning
     instead of stopping the whole check (and a sweep). *modes*: exact, keep_states,
@@ -155,7 +157,7 @@ def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCal
     exact, keep_states, values_only = modes
     return check_model(model, props.properties, props_file=props, progress=progress,
                        builder=builder, exact=exact, undefined_ok=True, keep_states=keep_states,
-                       values_only=values_only)
+                       values_only=values_only, checked_after=checked_after)
 
 
 def is_conditional(formula: object) -> bool:
@@ -321,6 +323,15 @@ def recharge_cap_probability(run: ModelCheckRun, cfg: MissionConfig) -> float:
     if run.dtmc.column("rc").max() < rc_max:
         return 0.0
     return float(check(run.dtmc, parse_property(f"P=? [ F rc={rc_max} ]")).value)
+
+
+def _recharge_cap_formulas(dtmc: DTMC, cfg: MissionConfig) -> tuple[Expr, ...]:
+    """The formula :func:`recharge_cap_probability` will check on *dtmc* (none when no
+    state reaches the cap), for the pipeline to prepare its linear systems with."""
+    rc_max = derive_parameters(cfg).rc_max
+    if dtmc.column("rc").max() < rc_max:
+        return ()
+    return (parse_property(f"P=? [ F rc={rc_max} ]").formula,)
 
 
 def _recharge_cap_warning(probability: float, cfg: MissionConfig) -> tuple[str, ...]:

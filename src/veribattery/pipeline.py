@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from veribattery._memory import trim_heap
 from veribattery._record import record
 from veribattery.checker import CheckResult, check
+from veribattery.checker.linsolve import trim_for
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
@@ -39,7 +39,7 @@ from veribattery.lang import (
     undefined_constants,
 )
 from veribattery.lang.expressions import walk
-from veribattery.lang.nodes import RewardBounded, RewardOp, Value
+from veribattery.lang.nodes import Expr, RewardBounded, RewardOp, Value
 
 if TYPE_CHECKING:
     from veribattery.explore.exact import ExactDTMC
@@ -158,6 +158,7 @@ def check_model(
     undefined_ok: bool = False,
     keep_states: bool = True,
     values_only: bool = False,
+    checked_after: Callable[[DTMC], Sequence[Expr]] | None = None,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states.
 
@@ -172,6 +173,9 @@ def check_model(
         per-state vectors are alive at a time (what the CLI prints needs no more).
     :param values_only: the caller needs the results, not the DTMC's other reward
         structures: those no property names are not built (a sweep point).
+    :param checked_after: the formulas the caller will check on the returned DTMC
+        (the mission's recharge-cap probability), so that the properties' linear
+        systems are chosen to serve them too (:func:`~veribattery.checker.pctl.prepare`).
     """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
@@ -199,9 +203,10 @@ def check_model(
         checks = [functools.partial(check, dtmc, p) for p in resolved]
     with watch.stage("check"):
         if exact_model is None:  # linear systems shared between the properties
-            trim_heap()  # the builder's last temporaries, under the DTMC's arrays
-            prepare(dtmc, [p.formula for p in resolved])
-            trim_heap()  # the pre-pass's freed temporaries
+            trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's
+            later = list(checked_after(dtmc)) if checked_after is not None else []
+            prepare(dtmc, [p.formula for p in resolved] + later)
+            trim_for(dtmc.num_states)  # the pre-pass's freed temporaries
         results, undefined = _run_checks(checks, resolved, dtmc, (undefined_ok, keep_states))
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
 
@@ -235,7 +240,7 @@ def _run_checks(
             results.append(result if keep_states else result.without_states())
             del result  # before the next property: its per-state arrays can go now
             if not keep_states:
-                trim_heap()
+                trim_for(dtmc.num_states)
         except UndefinedResult as exc:
             if not undefined_ok:
                 raise

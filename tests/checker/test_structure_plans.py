@@ -75,3 +75,15 @@ def test_triangular_plan_solves_reweighted_matrices(seed: int) -> None:
         b = np.asarray(rows @ target.astype(np.float64))
         exact = np.linalg.solve(A64.toarray(), b)
         assert np.allclose(inverse(b), exact, rtol=1e-12, atol=1e-15)
+
+
+def test_index_digest_is_memoised_by_identity_and_follows_content() -> None:
+    rng = np.random.default_rng(7)
+    P = _random_chain(rng, 12, acyclic=False)
+    first = linsolve.index_digest(P.indptr, P.indices)
+    assert linsolve.index_digest(P.indptr, P.indices) == first
+    # Equal arrays that are other objects: the same digest, computed again.
+    assert linsolve.index_digest(P.indptr.copy(), P.indices.copy()) == first
+    other = P.indices.copy()
+    other[0] = (other[0] + 1) % P.shape[1]
+    assert linsolve.index_digest(P.indptr, other) != first

@@ -277,3 +277,17 @@ def test_risky_probability_takes_the_expansion_way(monkeypatch: pytest.MonkeyPat
     got = reevaluate(base, structure, model)
     assert got is not None and calls == [1]
     assert_same_dtmc(got, build_dtmc(model))
+
+
+def test_reused_matrix_shares_the_base_index_arrays() -> None:
+    # The checker's pattern memos then know the pattern by the arrays' identity
+    # (linsolve.index_digest); the matrix stays the fresh build's, entry for entry.
+    base, structure = build_reusable(flat(GAMBLER, p=0.3))
+    model = flat(GAMBLER, p=0.6)
+    got = reevaluate(base, structure, model)
+    assert got is not None
+    assert got.transitions.indices is base.transitions.indices
+    assert got.transitions.indptr is base.transitions.indptr
+    assert_same_dtmc(got, build_dtmc(model))
+    value = check(got, parse_property('P=? [ F "win" ]')).value
+    assert value == pytest.approx(float(ruin(Fraction("0.6"))), rel=1e-12)

@@ -38,6 +38,8 @@ ETA = 2.0**-1074
 #: the images compute on subnormals, which costs ~20x per operation on x86 (microcode
 #: assists): half of a large certificate's time. ``2**-900`` is far below any precision.
 TERM_FLOOR = 2.0**-900
+#: Maps of fewer unknown states than this keep their per-row error constants.
+KEEP_CONSTANTS_BELOW = 1_000_000
 #: Safety factor on the computed error bound (covers the rounding of the bound itself).
 _SAFETY = 1.0 + 2.0**-30
 #: Interval-iteration sweeps tried before a result is returned as imprecise.
@@ -68,6 +70,13 @@ def _step_up_in_place(c: FloatArray) -> None:
     bump = c * _PHI
     bump += ETA
     c += bump
+
+
+def _step_down_in_place(c: FloatArray) -> None:
+    """:func:`step_down` of *c* >= 0 (or NaN, +inf: NaN) into *c*: the same operations."""
+    bump = c * _PHI
+    bump += ETA
+    c -= bump
 
 
 def step_down(c: FloatArray) -> FloatArray:
@@ -103,7 +112,15 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
 def error_coefficient(roundings: FloatArray) -> FloatArray:
     """The factor of the magnitude in :func:`product_error` (``4 k u`` with its safety
     margin, rounded up), for callers that bound many products of the same rows."""
-    return np.asarray(round_up((4.0 * UNIT_ROUNDOFF) * roundings * _SAFETY), dtype=np.float64)
+    product = (4.0 * UNIT_ROUNDOFF) * roundings * _SAFETY
+    # For integer counts below 2**22 the product is exact (k 2**-51 + k 2**-81 spans
+    # at most 52 bits), so it needs no rounding up: nextafter costs a libm call per
+    # entry, and the certificate's images make this vector at every call.
+    counts = np.asarray(roundings)
+    if counts.size and float(np.max(counts)) < 2.0**22 and bool(
+            np.all(counts >= 0)) and np.array_equal(np.trunc(counts), counts):
+        return np.asarray(product, dtype=np.float64)
+    return np.asarray(round_up(product), dtype=np.float64)
 
 
 def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = None,
@@ -184,10 +201,14 @@ class AffineMap:
     offset: FloatArray | None
     leave_lower: FloatArray
     leave_upper: FloatArray
+    #: :attr:`coefficient` and :attr:`underflow`, kept for maps of fewer than
+    #: :data:`KEEP_CONSTANTS_BELOW` states (None: derived from ``rows`` at each use).
+    constants: tuple[FloatArray, FloatArray] | None = None
 
-    # The per-row constants below are derived from ``rows`` on each use rather than
-    # stored: three vectors per map (33 MB at 1.4M states) against a few cheap
-    # vector operations per image.
+    # On large maps the per-row constants below are derived from ``rows`` on each use
+    # rather than stored: two vectors per map (22 MB at 1.4M states) against a few
+    # vector operations per image. On smaller ones (a sweep point of the paper's
+    # mission) those operations were a tenth of the certificate's time.
 
     @property
     def terms(self) -> FloatArray:
@@ -223,8 +244,12 @@ class AffineMap:
         plan = _row_plan(rows, states)
         off = sp.csr_matrix((rows.data[plan.keep], plan.indices, plan.indptr), shape=rows.shape)
         leave_lower, leave_upper = _row_sum_bounds(off, plan.terms)
+        constants = None
+        if states.size < KEEP_CONSTANTS_BELOW:
+            counted = plan.terms + 1.0
+            constants = (error_coefficient(counted), counted * TERM_FLOOR)
         return cls(off, states, known_lower, known_upper, offset,
-                   np.maximum(leave_lower, 0.0), leave_upper)
+                   np.maximum(leave_lower, 0.0), leave_upper, constants)
 
     @property
     def nonnegative(self) -> bool:
@@ -261,13 +286,18 @@ class AffineMap:
         del full
         if self.offset is not None:
             numerator += self.offset
-        terms = self.terms
-        terms += 1.0
-        error = error_coefficient(terms)
-        error *= numerator
-        terms *= TERM_FLOOR  # the underflow part
-        error += terms
-        del terms
+        if self.constants is not None:
+            coefficient, underflow = self.constants
+            error = coefficient * numerator
+            error += underflow
+        else:
+            terms = self.terms
+            terms += 1.0
+            error = error_coefficient(terms)
+            error *= numerator
+            terms *= TERM_FLOOR  # the underflow part
+            error += terms
+            del terms
         _step_up_in_place(error)
         return numerator, error
 
@@ -281,11 +311,21 @@ class AffineMap:
         return above
 
     def _below(self, numerator: FloatArray, error: FloatArray) -> FloatArray:
+        # The exact quotient is >= 0, so a negative bound is 0 whenever it is found:
+        # clamping before each step down gives the bounds of ``step_down`` on the
+        # nonnegative entries (then the cheaper in-place form applies) and 0 elsewhere.
+        below = numerator - error
+        np.maximum(below, 0.0, out=below)  # (NaN stays NaN)
         with np.errstate(divide="ignore", invalid="ignore"):
-            below = step_down(numerator - error)
+            _step_down_in_place(below)
             below /= self.leave_upper
-            below = step_down(below)
-        return np.where(np.isnan(below), -np.inf, np.maximum(below, 0.0))
+            np.maximum(below, 0.0, out=below)
+            _step_down_in_place(below)
+        np.maximum(below, 0.0, out=below)
+        undefined = np.isnan(below)
+        if undefined.any():
+            below[undefined] = -np.inf
+        return below
 
     def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
         full = known.copy()
@@ -306,6 +346,41 @@ class AffineMap:
         with np.errstate(divide="ignore", invalid="ignore"):
             quotient = np.where(high >= 0, high / self.leave_lower, high / self.leave_upper)
         return np.where(np.isnan(quotient), np.inf, round_up(quotient))
+
+
+@record
+class PinnedMap(AffineMap):
+    """An :class:`AffineMap` whose states at the positions *pinned* have the fixed values
+    *pinned_values*: ``G'(x)_i = v_i`` there, ``G(x)_i`` elsewhere (reading *x* at the
+    pinned states too). Monotone as ``G``; its fixed point is that of the map of the
+    other states with the pinned ones known (docs/numerics.md, "Shared systems")."""
+
+    pinned: IntArray | None = None
+    pinned_values: FloatArray | None = None
+
+    @classmethod
+    def around(cls, F: AffineMap, pinned: IntArray, values: FloatArray) -> PinnedMap:
+        """*F* with the states at positions *pinned* fixed to *values*."""
+        parts = {f.name: getattr(F, f.name) for f in dataclasses.fields(AffineMap)}
+        return cls(**parts, pinned=pinned, pinned_values=values)
+
+    def _pin(self, image: FloatArray) -> FloatArray:
+        assert self.pinned is not None and self.pinned_values is not None
+        image[self.pinned] = self.pinned_values
+        return image
+
+    def images(self, low: FloatArray, high: FloatArray) -> tuple[FloatArray, FloatArray]:
+        below, above = AffineMap.images(self, low, high)
+        return self._pin(below), self._pin(above)
+
+    def image(self, x: FloatArray, *, up: bool) -> FloatArray:
+        return self._pin(AffineMap.image(self, x, up=up))
+
+    def lower(self, x: FloatArray) -> FloatArray:
+        return self._pin(AffineMap.lower(self, x))
+
+    def upper(self, x: FloatArray) -> FloatArray:
+        return self._pin(AffineMap.upper(self, x))
 
 
 @dataclasses.dataclass(frozen=True, slots=True, eq=False)

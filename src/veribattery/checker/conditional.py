@@ -39,7 +39,7 @@ from scipy.sparse import csgraph
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels, linsolve
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.bounds import Bounds
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -213,7 +213,8 @@ def divide(numerator: Bounds, condition: Condition, ceiling: float) -> Bounds:
     the condition is impossible.
 
     ``[a, b] / [c, d]`` with ``0 <= a`` and ``0 < c`` is ``[a/d, b/c]``; each quotient
-    is rounded once (to nearest), so one ulp outward covers it. Infinite numerators
+    is rounded once (to nearest), so one step outward covers it (``certify.step_down``
+    and ``step_up``: at least one ulp, without a libm call per entry). Infinite numerators
     stay infinite.
     """
     x = condition.probs
@@ -221,10 +222,10 @@ def divide(numerator: Bounds, condition: Condition, ceiling: float) -> Bounds:
     # temporary is 11 MB, and this runs at the conditional properties' peak).
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         value = numerator.value / x.value
-        lower = round_down(numerator.lower / x.upper)
+        lower = certify.step_down(numerator.lower / x.upper)
         kept = np.isinf(numerator.lower)
         lower[kept] = numerator.lower[kept]
-        upper = round_up(numerator.upper / x.lower)
+        upper = certify.step_up(numerator.upper / x.lower)
         kept = np.isinf(numerator.upper) | (numerator.upper == 0)
         upper[kept] = numerator.upper[kept]
     del kept
@@ -327,8 +328,8 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     """The certified solution of ``y = r x + P y`` on *maybe*, *known* elsewhere.
 
     The offset ``r x`` is only known as an interval, so the lower bound is certified
-    for the map with offset ``round_down(r x_lower)`` (and the known values' lower
-    bounds) and the upper for ``round_up(r x_upper)``: the fixed point is monotone in
+    for the map with offset ``r x_lower`` stepped down (and the known values' lower
+    bounds) and the upper for ``r x_upper`` stepped up: the fixed point is monotone in
     both. Every state of *maybe* leaves it almost surely (a bottom component inside
     it would hold a *b* state), so the fixed point is unique.
 
@@ -370,19 +371,20 @@ def _right_side(rows: CsrMatrix, known: FloatArray, r: FloatArray,
 
 def _offset_bounds(r: FloatArray, x_lower: FloatArray, x_upper: FloatArray
                    ) -> tuple[FloatArray, FloatArray]:
-    """Certified bounds of the offset ``r x`` from those of *x*: each product rounded
-    outward, except where it is exact (``x = 1`` or ``r = 0``)."""
+    """Certified bounds of the offset ``r x`` from those of *x*: each product stepped
+    outward (``certify.step_down``/``step_up``), except where it is exact (``x = 1`` or
+    ``r = 0``)."""
     one, two = r * x_lower, r * x_upper
     exact = (x_lower == 1.0) | (r == 0)
     smaller = np.minimum(one, two)
-    low = np.where(exact, smaller, round_down(smaller))
+    low = np.where(exact, smaller, certify.step_down(smaller))
     del smaller
     # r x >= 0 exactly where both are: rounding down must not leave 0 (x = 0 where the
     # condition is impossible), or the map looks signed and loses its fast images.
     low = np.where((r >= 0) & (x_lower >= 0), np.maximum(low, 0.0), low)
     larger = np.maximum(one, two)
     del one, two
-    high = np.where(exact, larger, round_up(larger))
+    high = np.where(exact, larger, certify.step_up(larger))
     return low, high
 
 

@@ -37,7 +37,6 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import certify, linsolve, rational
 from veribattery.checker.bounds import (
@@ -129,9 +128,7 @@ def _pattern_key(P: CsrMatrix) -> bytes:
     """A digest of the positive entries' positions (not their values)."""
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
-    # Buffers, not .tobytes(): no copy of the index arrays.
-    digest.update(np.ascontiguousarray(P.indptr).data)
-    digest.update(np.ascontiguousarray(P.indices).data)
+    digest.update(linsolve.index_digest(P.indptr, P.indices))
     digest.update(np.packbits(P.data > 0).data)
     return digest.digest()
 
@@ -204,7 +201,7 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) ->
         solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns))
         del A64, residue
         found = _System(rows, solver, unknowns)
-        trim_heap()  # the restriction's per-entry temporaries, before the solve's
+        linsolve.trim_for(maybe.size)  # the restriction's per-entry temporaries
         systems[key] = found
     else:
         systems.move_to_end(_mask_key(found.unknowns))
@@ -263,6 +260,31 @@ def prepare_reach(P: CsrMatrix, target: BoolArray) -> BoolArray:
     if maybe.any():
         _system(P, maybe)
     return maybe
+
+
+def prepare_untils(P: CsrMatrix, untils: list[tuple[BoolArray, BoolArray]]) -> bool:
+    """Build (and keep) one system on the union of several untils' unknowns, so that each
+    is solved on it (as a superset, or with pinned rows: docs/numerics.md, "Shared
+    systems") instead of on a system of its own -- when that union holds at least
+    ``QUICK_MIN_STATES`` unknowns, each until has its ``SUPERSET_SHARE`` of them, and
+    the union's matrix is triangular in some order (then it is nonsingular: its
+    diagonal, the leaving probabilities, is positive). Returns whether it was kept.
+
+    :param untils: ``(remain, target)`` of each unbounded until.
+    """
+    maybes = [m for m in (until_unknowns(P, *until)[0] for until in untils) if m.any()]
+    if len(maybes) < 2:
+        return False
+    union = np.logical_or.reduce(maybes)
+    size = int(np.count_nonzero(union))
+    if size < QUICK_MIN_STATES or any(np.count_nonzero(m) < SUPERSET_SHARE * size
+                                      for m in maybes):
+        return False
+    system = _system(P, union)
+    if system.factorization.triangular:
+        return True
+    _memo(P).systems.pop(_mask_key(union), None)  # not worth keeping for them
+    return False
 
 
 def until_unknowns(P: CsrMatrix, remain: BoolArray,
@@ -400,12 +422,58 @@ def _until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
     maybe = ~(no | yes)
     if not maybe.any():
         return Bounds.exact(result)
+    pinned = _pinned_until(P, maybe, remain & ~target, result)
+    if pinned is not None:
+        return pinned
     # Every state of remain & !target satisfies x = P x, its yes and no states included.
     system = _system(P, maybe, remain & ~target)
     known = np.where(system.unknowns, 0.0, result)
     F = system.affine(known, known, None)
     found = _certified(F, system, known, None, 0.0, 1.0)
     return _spread(result, maybe, _restrict(found, system.unknowns, maybe))
+
+
+def _pinned_until(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray,
+                  result: FloatArray) -> Bounds | None:
+    """The until's values solved on a kept system that holds *maybe* and also states
+    outside *allowed* (the target states inside ``R=? [ F "done" ]``'s system, for the
+    recharge cap's ``P=? [ F rc=RC_MAX ]``), those rows pinned to their known values
+    *result* (docs/numerics.md, "Shared systems"); None when there is no such system
+    or the quick certificate does not succeed on it (the caller builds its own).
+    """
+    system = _pinnable(_memo(P).systems.values(), maybe, allowed)
+    if system is None:
+        return None
+    unknowns = system.unknowns
+    local = ~allowed[unknowns]  # the pinned states, among the system's
+    solver = system.factorization.pinned(local)
+    if solver is None:
+        return None
+    where = np.flatnonzero(local)
+    values = result[unknowns][where]
+    known = np.where(unknowns, 0.0, result)
+    F = certify.PinnedMap.around(system.affine(known, known, None), where, values)
+    b = _right_side(system, known, None, np.float64)
+    b[where] = values
+    found = quick_bounds(F, solver, b, np.full((), 0.0), np.full((), 1.0))
+    if found is None:
+        return None
+    return _spread(result, maybe, _restrict(found, unknowns, maybe))
+
+
+def _pinnable(systems: Iterable[_System], maybe: BoolArray,
+              allowed: BoolArray) -> _System | None:
+    """A kept system (of at least ``QUICK_MIN_STATES`` unknowns) whose unknowns hold
+    *maybe* and some states outside *allowed*, with *maybe* its ``SUPERSET_SHARE``."""
+    wanted = int(np.count_nonzero(maybe))
+    for system in systems:
+        unknowns = system.unknowns
+        size = int(np.count_nonzero(unknowns))
+        if (unknowns.size == maybe.size and size >= QUICK_MIN_STATES
+                and wanted >= SUPERSET_SHARE * size
+                and not np.any(maybe & ~unknowns) and np.any(unknowns & ~allowed)):
+            return system
+    return None
 
 
 def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bounds:
@@ -472,7 +540,7 @@ def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
                         np.full((), floor), np.full((), ceiling))
 
 
-def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
+def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
                  b: npt.NDArray[np.floating], floor: FloatArray, ceiling: FloatArray
                  ) -> Bounds | None:
     """The fixed point of *F* (system ``solver.A x = b``) from one unrefined substitution,
@@ -495,7 +563,7 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.Factorization,
         if found is not None and found.precise_states().all():
             break
         found = None
-    trim_heap()  # the certificate's temporaries, before the caller's next vectors
+    linsolve.trim_for(F.states.size)  # the certificate's temporaries, before the next vectors
     return found
 
 

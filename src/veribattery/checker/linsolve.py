@@ -30,8 +30,10 @@ meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
 from __future__ import annotations
 
 import hashlib
+import weakref
 from collections import OrderedDict
 from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -67,6 +69,18 @@ REFINE_TOL = 2.0**-52
 ITERATIVE_RTOL = 1e-13
 #: Iteration cap of each iterative method.
 ITERATIVE_MAXITER = 20_000
+
+
+#: Heaps are trimmed between stages only for models of at least this many states: the
+#: trim is for the peak memory of large models; on the paper's mission (176,481
+#: states) its ~2 ms per call were a tenth of a structure-reusing sweep point.
+TRIM_MIN_STATES = 1_000_000
+
+
+def trim_for(states: int) -> None:
+    """:func:`~veribattery._memory.trim_heap` when *states* reaches :data:`TRIM_MIN_STATES`."""
+    if states >= TRIM_MIN_STATES:
+        trim_heap()
 
 
 def restricted_matrix(P: CsrMatrix, maybe: BoolArray) -> tuple[sp.csr_matrix, CsrMatrix]:
@@ -132,6 +146,38 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
     return A64, _diagonal_residue(leave), rows
 
 
+#: Digests of index arrays, by the arrays' identity (see :func:`index_digest`).
+_INDEX_DIGESTS: OrderedDict[tuple[int, int], tuple[weakref.ref[npt.NDArray[np.integer]],
+                                                  weakref.ref[npt.NDArray[np.integer]],
+                                                  bytes]] = OrderedDict()
+INDEX_DIGESTS_KEPT = 8
+
+
+def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.integer]) -> bytes:
+    """A digest of a sparse matrix's index arrays, memoised by the arrays' identity.
+
+    Matrices of a structure-reusing sweep share their index arrays (the re-evaluated
+    transition matrix takes the base's, :func:`veribattery.explore.reuse.reevaluate`;
+    a restriction plan's ``A64`` takes the plan's), so each point's pattern lookups
+    (pre-pass memo, restriction plan, triangular plan) hash no index array again.
+    Index arrays are never modified in place once a matrix is built (as the memos
+    here already require).
+    """
+    key = (id(indptr), id(indices))
+    found = _INDEX_DIGESTS.get(key)
+    if found is not None and found[0]() is indptr and found[1]() is indices:
+        _INDEX_DIGESTS.move_to_end(key)
+        return found[2]
+    digest = hashlib.blake2b(digest_size=20)
+    digest.update(np.ascontiguousarray(indptr).data)
+    digest.update(np.ascontiguousarray(indices).data)
+    value = digest.digest()
+    _INDEX_DIGESTS[key] = (weakref.ref(indptr), weakref.ref(indices), value)
+    while len(_INDEX_DIGESTS) > INDEX_DIGESTS_KEPT:
+        _INDEX_DIGESTS.popitem(last=False)
+    return value
+
+
 @record
 class _RestrictionPlan:
     """The index work of :func:`restricted_parts` for one pattern of *P* and *maybe*.
@@ -152,6 +198,11 @@ class _RestrictionPlan:
     source: npt.NDArray[np.int64]
     a_indices: npt.NDArray[np.int32]
     a_indptr: npt.NDArray[np.int32]
+    #: The rows with movers and where each one's movers start (for one ``reduceat``).
+    sum_rows: npt.NDArray[np.intp]
+    sum_starts: npt.NDArray[np.intp]
+    #: Per entry of ``A64``, its position in ``[-gathered data, leaving probabilities]``.
+    a_take: npt.NDArray[np.intp]
 
     def apply(self, P: CsrMatrix) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix] | None:
         """The parts for *P* (of the plan's pattern), equal bit for bit to a fresh
@@ -159,15 +210,24 @@ class _RestrictionPlan:
         m = self.shape[0]
         data = np.asarray(P.data[self.gather], dtype=np.float64)
         rows = sp.csr_matrix((data, self.rows_indices, self.rows_indptr), shape=(m, P.shape[1]))
-        leave = _row_sums(self.mover_rows, data[self.movers], m)
+        leave = self._leaving(data)
         leave64 = leave.astype(np.float64)
         if not np.all(leave64 != 0):
             return None
-        diagonal = self.source < 0
-        a_data = np.where(diagonal, leave64[np.where(diagonal, -1 - self.source, 0)],
-                          -data[np.where(diagonal, 0, self.source)])
+        a_data = np.take(np.concatenate([np.negative(data), leave64]), self.a_take)
         A64 = sp.csr_matrix((a_data, self.a_indices, self.a_indptr), shape=self.shape)
         return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
+
+    def _leaving(self, data: FloatArray) -> ExtArray:
+        """:func:`_row_sums` of the movers: the same segments summed in the same order
+        (one ``reduceat`` over all of them when they fit in one block)."""
+        m = self.shape[0]
+        if self.movers.size > _SUM_BLOCK or not self.movers.size:
+            return _row_sums(self.mover_rows, data[self.movers], m)
+        leave = np.zeros(m, dtype=np.longdouble)
+        moving = np.take(data, self.movers).astype(np.longdouble)
+        leave[self.sum_rows] = np.add.reduceat(moving, self.sum_starts)
+        return leave
 
 
 #: Restriction plans of the last few (pattern, unknown states) pairs (None: seen once).
@@ -182,8 +242,7 @@ def _restriction_plan(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None
         return None
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
-    digest.update(np.ascontiguousarray(P.indptr).data)
-    digest.update(np.ascontiguousarray(P.indices).data)
+    digest.update(index_digest(P.indptr, P.indices))
     digest.update(np.packbits(P.data != 0).data)
     digest.update(np.packbits(maybe).data)
     key = digest.digest()
@@ -221,9 +280,15 @@ def _new_restriction(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
     tagged.sort_indices()
     # On the diagonal: i + 1 -> -1 - i; off it: -(k + 1) -> k.
     source = np.where(tagged.data > 0, -tagged.data, -tagged.data - 1).astype(np.int64)
+    mover_rows = row_of[moves]
+    counts = np.bincount(mover_rows, minlength=idx.size)
+    sum_rows = np.flatnonzero(counts)
+    sum_starts = (np.cumsum(counts) - counts)[sum_rows]
+    a_take = np.where(source < 0, gather.size + (-1 - source), source).astype(np.intp)
     return _RestrictionPlan((idx.size, idx.size), gather, rows.indices.copy(),
                             rows.indptr.astype(np.int64), np.flatnonzero(moves),
-                            row_of[moves], source, tagged.indices.copy(), tagged.indptr.copy())
+                            mover_rows, source, tagged.indices.copy(), tagged.indptr.copy(),
+                            sum_rows.astype(np.intp), sum_starts.astype(np.intp), a_take)
 
 
 def _with_diagonal(row: npt.NDArray[np.integer], col: npt.NDArray[np.integer],
@@ -492,13 +557,38 @@ class Factorization:
             return np.zeros_like(v)
         return np.asarray(inverse.margin(np.ascontiguousarray(v, dtype=np.float64)))
 
+    @property
+    def triangular(self) -> bool:
+        """Whether the direct solver is a substitution (the matrix is triangular in a
+        topological order, with a positive diagonal). Only that solver is tried here:
+        a caller that drops a system that is not triangular pays for no factorisation."""
+        if self._direct_tried:
+            return isinstance(self._direct, _Triangular)
+        found = _triangular_inverse(self.A64) if self._n <= DIRECT_LIMIT else None
+        if found is None:
+            return False  # (the solver is chosen as usual if the system is used after all)
+        self._direct_tried, self._direct = True, found
+        self._release()
+        trim_for(self._n)
+        return True
+
+    def pinned(self, mask: BoolArray) -> PinnedSolver | None:
+        """A solver of this system with the rows of the states in *mask* replaced by
+        identity rows, for the quick certificate of a query solved on it with those
+        states' values known (``kernels``, "Shared systems" in docs/numerics.md);
+        None unless the direct solver is a substitution."""
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        if not isinstance(inverse, _Triangular):
+            return None
+        return PinnedSolver(inverse.pinned(mask))
+
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
             self._direct_tried = True
             self._direct = _triangular_inverse(self.A64)
             if self._direct is not None:
                 self._release()
-                trim_heap()  # the plan's temporaries (and the matrix) are free now
+                trim_for(self._n)  # the plan's temporaries (and the matrix) are free now
             if self._direct is None:
                 found = scc.components(self.A64)
                 if found is not None:
@@ -508,6 +598,37 @@ class Factorization:
             if self._direct is None:
                 self._direct = _lu_inverse(self.A64)
         return self._direct
+
+
+class QuickSolver(Protocol):
+    """What the quick certificate needs of a solver (:class:`Factorization`,
+    :class:`PinnedSolver`)."""
+
+    def approximate(self, b: FloatArray) -> FloatArray | None: ...
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]: ...
+
+
+class PinnedSolver:
+    """A substitution whose pinned rows are identity rows (:meth:`Factorization.pinned`):
+    unrefined solves only, for the quick certificate."""
+
+    def __init__(self, inverse: _Inverse) -> None:
+        self._inverse = inverse
+
+    def approximate(self, b: FloatArray) -> FloatArray | None:
+        """One substitution (None when it fails or is not finite)."""
+        try:
+            x = np.asarray(self._inverse(np.asarray(b, dtype=np.float64)), dtype=np.float64)
+        except RuntimeError:
+            return None
+        return x if np.all(np.isfinite(x)) else None
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]:
+        """The margin solver: the same substitution."""
+        return [self.approximate]
 
 
 def _split(A: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
@@ -601,8 +722,7 @@ def _pattern_digest(A64: sp.csr_matrix) -> bytes:
     """A digest of *A64*'s shape and stored positions (not its values)."""
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(A64.shape, dtype=np.int64).tobytes())
-    digest.update(np.ascontiguousarray(A64.indptr).data)
-    digest.update(np.ascontiguousarray(A64.indices).data)
+    digest.update(index_digest(A64.indptr, A64.indices))
     return digest.digest()
 
 
@@ -671,7 +791,7 @@ def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
                            np.asarray(by_column.indptr, dtype=np.intc))
 
 
-def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
+def _triangular_inverse(A64: sp.csr_matrix) -> _Triangular | None:
     """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
 
     The permutation and the triangular matrix's structure come from the pattern's
@@ -679,7 +799,6 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     are gathered from *A64*: a state's successors precede it, so the permuted
     matrix is lower triangular.
     """
-    n = A64.shape[0]
     plan = _triangular_plan(A64)
     if plan is None:
         return None
@@ -691,19 +810,67 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     # column's scale repeated over its entries: no per-entry index array).
     data = A64.data[plan.gather]
     data *= np.repeat(scale, np.diff(plan.indptr))
+    n = A64.shape[0]
     lower = sp.csc_matrix((data, plan.indices, plan.indptr), shape=(n, n))
-    substitute = _substitution(lower)
-    order = plan.order
+    return _Triangular(lower, _substitution(lower), plan.order, scale)
 
-    def apply(b: FloatArray) -> FloatArray:
-        # b[order] is a new array: the substitution may solve in it, and is scaled in place.
-        y = substitute(np.ascontiguousarray(b[order], dtype=np.float64))
-        y *= scale
-        x = np.empty(n, dtype=np.float64)
-        x[order] = y
-        return x
 
-    return apply
+class _Triangular:
+    """The substitution of :func:`_triangular_inverse`: ``A x = b`` with ``A = L D`` in
+    a topological order (``L`` unit lower triangular, ``D`` the diagonal of *A*)."""
+
+    def __init__(self, lower: sp.csc_matrix, substitute: _Inverse,
+                 order: npt.NDArray[np.integer], scale: FloatArray) -> None:
+        self._lower, self._substitute, self._order, self._scale = lower, substitute, order, scale
+        n = order.size
+        # Index arrays of numpy's own index type (others are converted at every use)
+        # and the inverse permutation, so that both ends of a solve are gathers;
+        # only for systems that do not keep a plan's int32 arrays for their memory.
+        self._forward: npt.NDArray[np.intp] | None = None
+        self._back: npt.NDArray[np.intp] | None = None
+        if n < TRIM_MIN_STATES:
+            self._forward = np.asarray(order, dtype=np.intp)
+            self._back = np.empty(n, dtype=np.intp)
+            self._back[self._forward] = np.arange(n, dtype=np.intp)
+
+    def __call__(self, b: FloatArray) -> FloatArray:
+        order = self._order
+        if self._forward is None or self._back is None:
+            # b[order] is a new array: the substitution may solve in it, and is scaled in place.
+            y = self._substitute(np.ascontiguousarray(b[order], dtype=np.float64))
+            y *= self._scale
+            x = np.empty(order.size, dtype=np.float64)
+            x[order] = y
+            return x
+        y = self._substitute(np.take(np.asarray(b, dtype=np.float64), self._forward))
+        y *= self._scale
+        return np.take(y, self._back)
+
+    def pinned(self, mask: BoolArray) -> _Inverse:
+        """Solves the system whose rows of the states in *mask* are identity rows
+        (``x_i = b_i`` there, the other rows as in *A*): *L* without those rows'
+        off-diagonal entries, the same order. The pinned entries of the answer are
+        *b*'s own (the substitution's ``(b_i d_i) / d_i`` may differ in the last bit)."""
+        order, scale = self._order, self._scale
+        lower = self._lower
+        at = mask[order]  # per topological position
+        data = np.where(at[lower.indices], 0.0, lower.data)  # column i's own entry is on
+        data[lower.indptr[:-1][at]] = 1.0  # the diagonal: it stays (first in the column)
+        substitute = _substitution(sp.csc_matrix((data, lower.indices, lower.indptr),
+                                                 shape=lower.shape))
+        where = np.flatnonzero(mask)
+
+        def apply(b: FloatArray) -> FloatArray:
+            c = np.ascontiguousarray(b[order], dtype=np.float64)
+            c[at] /= scale[at]  # y_i = d_i b_i, so that x_i = y_i / d_i is b_i
+            y = substitute(c)
+            y *= scale
+            x = np.empty(order.size, dtype=np.float64)
+            x[order] = y
+            x[where] = b[where]
+            return x
+
+        return apply
 
 
 def _substitution(lower: sp.csc_matrix) -> _Inverse:

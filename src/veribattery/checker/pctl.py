@@ -237,8 +237,11 @@ def prepare(dtmc: DTMC, formulas: Sequence[Expr]) -> None:
     A ``P=? [ a U b ]`` whose unknown states lie inside those of an ``R=? [ F c ]``
     (and outside ``b``, inside ``a``) is solved on the latter's system (see
     :func:`kernels.shared_system`); when such a pair exists, the reward query's system
-    is built first. Only operator-free operands are looked at (their masks are cheap);
-    the pre-pass results are memoised, so checking repeats none of this work.
+    is built first. Without reward queries, several untils share one system on the
+    union of their unknowns where that is cheaper (:func:`kernels.prepare_untils`:
+    a Fig. 6 point's ``P=? [ F "success" ]`` and the recharge cap's probability).
+    Only operator-free operands are looked at (their masks are cheap); the pre-pass
+    results are memoised, so checking repeats none of this work.
     """
     P = dtmc.transitions
     reach = [m for m in (_reach_target(dtmc, f) for f in formulas) if m is not None]
@@ -248,6 +251,8 @@ def prepare(dtmc: DTMC, formulas: Sequence[Expr]) -> None:
         if any(_inside(kernels.until_unknowns(P, *until), unknowns) for until in untils):
             kernels.prepare_reach(P, target)
             return
+    if len(untils) > 1 and not reach:
+        kernels.prepare_untils(P, untils)
 
 
 def _inside(query: tuple[BoolArray, BoolArray], unknowns: BoolArray) -> bool:

@@ -196,7 +196,20 @@ def reevaluate(base: DTMC, structure: Structure, model: FlatModel) -> DTMC | Non
         dict(base.labels) if model.labels == structure.labels else None,
         base.rewards if model.rewards == structure.rewards else None,
     )
-    return assemble(model, base.states, np.arange(rows.shape[0]), layers, known)
+    dtmc = assemble(model, base.states, np.arange(rows.shape[0]), layers, known)
+    _share_indices(dtmc.transitions, base.transitions)
+    return dtmc
+
+
+def _share_indices(P: Any, base: Any) -> None:
+    """Give *P* the index arrays of *base* when they are equal (as they are when the
+    structure is re-used): the checker's memos by sparsity pattern then
+    recognise the pattern by the arrays' identity instead of hashing them at every
+    point (:func:`veribattery.checker.linsolve.index_digest`). Neither is modified
+    in place afterwards."""
+    if (P.shape == base.shape and np.array_equal(P.indptr, base.indptr)
+            and np.array_equal(P.indices, base.indices)):
+        P.indptr, P.indices = base.indptr, base.indices
 
 
 def _fast_layers(model: FlatModel, states: IntArray,
