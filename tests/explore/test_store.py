@@ -87,7 +87,8 @@ class _Crowded(StateStore):
     """Every key hashed into one of three slots: long probe chains in every batch."""
 
     def _slots(self, keys: np.ndarray) -> np.ndarray:
-        return np.asarray(keys[:, 0] % 3, dtype=np.int64)
+        first_word = keys if keys.ndim == 1 else keys[:, 0]
+        return np.asarray(first_word % 3, dtype=np.int64)
 
 
 @settings(max_examples=30, deadline=None)
