@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from veribattery._types import IntArray
+from veribattery._types import BoolArray, IntArray
 
 __all__ = ["StateStore", "radix_words"]
 
@@ -32,7 +32,7 @@ _GOLDEN = np.asarray(0x9E3779B97F4A7C15, dtype=np.uint64)  # Fibonacci hashing m
 _ZERO = np.asarray(0, dtype=np.int64)
 _ONE = np.asarray(1, dtype=np.int64)
 #: Slots read at once by a key whose first slot holds another key.
-_WINDOW = 8
+_WINDOW = 4
 _STEPS = np.arange(1, _WINDOW + 1, dtype=np.int64)
 #: Added to a batch position to mark a slot claimed during numbering (negative).
 _MARK = np.asarray(np.iinfo(np.int32).min, dtype=np.int32)
@@ -119,7 +119,9 @@ class StateStore:
         for i, (word, size) in enumerate(zip(self._word, self._sizes, strict=True)):
             column = keys[:, word] // self._multipliers[i, word] if i else keys[:, word].copy()
             if i + 1 < self._lows.size and self._word[i + 1] == word:
-                column %= size  # variables packed above this one are still in the word
+                # Variables packed above this one are still in the word. (numpy divides
+                # by a scalar with libdivide, but its % is a plain division: 4x slower.)
+                column -= column // size * size
             rows[:, i] = column
         rows += self._lows
         return rows
@@ -155,38 +157,40 @@ class StateStore:
         """
         slots = self._slots(keys)
         held = self._table[slots]
-        # An empty slot holds 0, which reads the sentinel key row: never equal.
+        # An empty slot holds 0, which reads the sentinel key: never equal.
         clash = self._differ(self._keys[held], keys)
-        clash &= held.astype(bool)
+        clash &= held != 0
         if np.count_nonzero(clash):
             where = clash.nonzero()[0]
             held[where], slots[where] = self._probe(keys[where], slots[where])
-        index = held.astype(np.int64)
-        index -= _ONE
-        return index, slots
+        return held - _ONE, slots  # int64: the 0-d operand is int64
 
     def _probe(self, keys: IntArray, slots: IntArray) -> tuple[np.ndarray, IntArray]:
-        """What the linear probes from *slots* stop at (a match or an empty slot) and where.
+        """What the linear probes after *slots* stop at (a match or an empty slot) and where.
 
-        Each round reads a window of the next ``_WINDOW`` slots of every key still
-        probing: at a load of at most 1/4 nearly every chain ends in the first window,
-        so a batch's clashes cost one round of a few 2-D operations.
+        A round reads a window of the next ``_WINDOW`` slots of every key at once:
+        at a load of at most 1/4 nearly every chain ends in the first window, so a
+        batch's clashes cost one round of a few 2-D operations.
         """
-        held_at = np.empty(keys.shape[0], dtype=self._table.dtype)
-        stop_at = np.empty(keys.shape[0], dtype=np.int64)
-        active = np.arange(keys.shape[0])
-        while active.size:
-            window = slots[:, None] + _STEPS
-            window &= self._mask
-            held = self._table[window]
-            stop = self._equal(self._keys[held], keys[:, None])
-            stop |= held == 0
-            pick = (np.arange(active.size), stop.argmax(axis=1))
-            held_at[active] = held[pick]  # those not stopped are overwritten later
-            stop_at[active] = window[pick]
-            going = (~stop[pick]).nonzero()[0]
-            active, keys, slots = active[going], keys[going], window[going, -1]
-        return held_at, stop_at
+        held, stop, going = self._window(keys, slots)
+        while np.count_nonzero(going):  # rare: a chain longer than the window
+            rest = going.nonzero()[0]
+            slots = slots + _WINDOW  # each key's next window (those of the rest matter)
+            slots &= self._mask
+            held[rest], stop[rest], going[rest] = self._window(keys[rest], slots[rest])
+        return held, stop
+
+    def _window(self, keys: IntArray, slots: IntArray) -> tuple[np.ndarray, IntArray, BoolArray]:
+        """One probing round: the entry and the slot where each probe stopped in the
+        window after *slots*, and which probes went through the window without stopping.
+        """
+        window = slots[:, None] + _STEPS
+        window &= self._mask
+        held = self._table[window]
+        stop = self._equal(self._keys[held], keys[:, None])
+        stop |= held == 0
+        pick = (np.arange(keys.shape[0]), stop.argmax(axis=1))
+        return held[pick], window[pick], ~stop[pick]
 
     def _number(
         self, rows: IntArray, keys: IntArray, index: IntArray, slots: IntArray,
