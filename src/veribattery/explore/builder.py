@@ -108,14 +108,27 @@ def explore(
         start = low
         while start < high:
             stop = min(start + size, high)
-            found = expand_frontier(program, store.rows(start, stop), rewarded)
-            layers.add(found, start, store.add(found.targets), store.count)
-            size = _next_chunk(size, found.branches, stop - start, len(program.lows))
+            branches = _explore_chunk(program, store, (start, stop), rewarded, layers)
+            size = _next_chunk(size, branches, stop - start, len(program.lows))
             start = stop
         if progress is not None:
             progress(store.count, high - low)
         low = high
     return store.states, initial, layers.done(store.count)
+
+
+def _explore_chunk(
+    program: Program, store: StateStore, chunk: tuple[int, int], rewarded: set[str | None],
+    layers: _Layers,
+) -> int:
+    """Expand the frontier states *chunk* (low, high) into *layers*; return its branches.
+
+    (A function of its own so that the successor rows, up to ``_BRANCH_WORDS`` words,
+    are freed before the next chunk is expanded.)
+    """
+    found = expand_frontier(program, store.rows(*chunk), rewarded)
+    layers.add(found, chunk[0], store.add(found.targets), store.count)
+    return found.branches
 
 
 def _next_chunk(size: int, branches: int, states: int, width: int) -> int:

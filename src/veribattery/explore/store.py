@@ -79,7 +79,9 @@ class StateStore:
         self._offset = self._lows @ self._encoder
         # Entry i + 1 holds state i's key; entry 0 is a sentinel that equals no key
         # (keys are offsets, never negative), read through the table's empty slots.
-        self._keys = np.empty((1024,) if words == 1 else (1024, words), dtype=np.int64)
+        # 1025 = 1024 states + the sentinel: doubled, it holds 2**k states + 1 exactly as
+        # often as a power of two held 2**k states.
+        self._keys = np.empty((1025,) if words == 1 else (1025, words), dtype=np.int64)
         self._keys[0] = -1
         # State index + 1 (0 = empty); int32 halves the table, the largest array here.
         self._resize(1 << 14)
@@ -241,7 +243,7 @@ class StateStore:
         """Store the keys of new states (numbered from ``count``) and keep their rows."""
         end = self.count + keys.shape[0]
         if end >= self._keys.shape[0]:
-            self._keys = _grown(self._keys, max(end + 1, 2 * self._keys.shape[0]))
+            self._keys = _grown(self._keys, max(end + 1, 2 * self._keys.shape[0] - 1))
         self._keys[self.count + 1 : end + 1] = keys
         if not self._recent:
             self._recent_start = self.count
