@@ -443,12 +443,13 @@ def test_merged_layers_equal_the_layers_one_by_one(
     from dataclasses import fields
 
     from veribattery.explore import builder
+    from veribattery.explore import layers as layers_module
     from veribattery.explore.program import compile_program
 
     model = _layered_walk()
 
     def layers_with(threshold: int) -> tuple[np.ndarray, list[builder.Layer]]:
-        monkeypatch.setattr(builder, "_MERGE_BRANCHES", threshold)
+        monkeypatch.setattr(layers_module, "_MERGE_BRANCHES", threshold)
         states, _, layers = builder.explore(model, compile_program(model))
         return states, layers
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import replace
 from typing import Any
 
@@ -20,12 +20,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._memory import trim_heap
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import CompileCache, compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
+from veribattery.explore.layers import Layer, Layers
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
@@ -54,26 +54,6 @@ _FIRST_CHUNK = 1 << 8
 _BRANCH_WORDS = 1 << 22
 _NONE = np.empty(0, dtype=np.int64)
 _NO_FLOATS = np.empty(0, dtype=np.float64)
-_INT32_MAX = int(np.iinfo(np.int32).max)
-
-
-@record
-class Layer:
-    """The transitions out of one frontier and its states' choice counts.
-
-    *dropped* lists the positions, in the frontier's branch order before
-    zero-probability branches were dropped, of those branches; *branches* counts
-    the branches before dropping. Both let a re-evaluation (see ``reuse``) prove
-    that the same branches exist.
-    """
-
-    rows: IntArray
-    columns: IntArray
-    probabilities: FloatArray
-    choices: IntArray
-    action_choices: dict[str | None, IntArray]
-    dropped: IntArray
-    branches: int
 
 
 def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None = None) -> DTMC:
@@ -93,13 +73,13 @@ def explore(
 ) -> tuple[IntArray, IntArray, list[Layer]]:
     """Breadth-first search: the states in numbering order, the initial ones, the layers.
 
-    Consecutive small layers are merged (see :class:`_Layers`), so that the number of
+    Consecutive small layers are merged (see :class:`Layers`), so that the number of
     layers, and the per-layer work of their users, does not grow with the BFS depth.
     """
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rewarded = rewarded_actions(model.rewards)
-    layers = _Layers(_count_dtype(program))
+    layers = Layers(_count_dtype(program))
     low, size = 0, _FIRST_CHUNK
     while low < store.count:
         high = store.count
@@ -119,7 +99,7 @@ def explore(
 
 def _explore_chunk(
     program: Program, store: StateStore, chunk: tuple[int, int], rewarded: set[str | None],
-    layers: _Layers,
+    layers: Layers,
 ) -> int:
     """Expand the frontier states *chunk* (low, high) into *layers*; return its branches.
 
@@ -177,79 +157,6 @@ def _domain_rows(lows: IntArray, sizes: IntArray, start: int, stop: int) -> IntA
 # ---------------------------------------------------------------------------
 # One BFS layer
 # ---------------------------------------------------------------------------
-
-
-class _Layers:
-    """The layers of a search, consecutive small ones merged into one.
-
-    A mission model has ~700 BFS layers of a few hundred branches: kept apart, each
-    costs a dozen numpy calls here and again wherever the layers are used (the
-    transition matrix, the action shares, structure re-use). Pending layers (their
-    successor rows dropped) are merged once they hold ``_MERGE_BRANCHES`` branches
-    (a large chunk alone at once), their indices narrowed as :func:`explore` keeps them.
-
-    :param counts: the dtype of the choice counts (see :func:`_count_dtype`).
-    """
-
-    def __init__(self, counts: np.dtype[Any]) -> None:
-        self._counts = counts
-        self._pending: list[_Pending] = []
-        self._branches = 0
-        self.layers: list[Layer] = []
-
-    def add(self, found: Expansion, low: int, columns: IntArray, states: int) -> None:
-        """Keep the expansion of the frontier from state *low* (its targets numbered
-        *columns*; *states* known so far)."""
-        self._pending.append((found.source, low, columns, found.probability, found.choices,
-                              found.action_choices, found.dropped, found.branches))
-        self._branches += columns.size
-        if self._branches >= _MERGE_BRANCHES:
-            self._flush(states)
-
-    def done(self, states: int) -> list[Layer]:
-        """Every layer, the pending ones merged (*states*: the number of states)."""
-        self._flush(states)
-        return self.layers
-
-    def _flush(self, states: int) -> None:
-        if self._pending:
-            self.layers.append(_merged(self._pending, states, self._counts))
-        self._pending, self._branches = [], 0
-
-
-#: What a layer keeps of an expansion until it is merged: source, first state,
-#: columns, probability, choices, action choices, dropped, branches.
-_Pending = tuple[IntArray, int, IntArray, FloatArray, IntArray, dict[str | None, IntArray],
-                 IntArray, int]
-#: Branches of consecutive layers merged into one (1.5 MB before narrowing).
-_MERGE_BRANCHES = 1 << 15
-
-
-def _merged(pending: list[_Pending], states: int, counts: np.dtype[Any]) -> Layer:
-    """One layer of the *pending* expansions (*states*: the number of states known)."""
-    index_type = np.int32 if states < _INT32_MAX else np.int64
-    source, low, columns, probability, choices, action_choices, dropped, branches = zip(
-        *pending, strict=True)
-    offsets = np.cumsum((0, *branches[:-1])).tolist()
-    actions = dict.fromkeys(a for found in action_choices for a in found)
-    return Layer(
-        _joined([s + first for s, first in zip(source, low, strict=True)], index_type),
-        _joined(columns, index_type),
-        _joined(probability, np.float64),
-        _joined(choices, counts),
-        {a: _joined([found.get(a, np.zeros(c.size, dtype=np.int64))
-                     for found, c in zip(action_choices, choices, strict=True)], counts)
-         for a in actions},
-        _joined([d + o for d, o in zip(dropped, offsets, strict=True)], np.int64),
-        sum(branches),
-    )
-
-
-def _joined(parts: Sequence[np.ndarray], dtype: Any) -> np.ndarray:
-    """The concatenation of *parts* as *dtype* (one copy)."""
-    if len(parts) == 1:
-        return parts[0].astype(dtype, copy=False)
-    return np.concatenate(parts, dtype=dtype, casting="unsafe")
 
 
 def _count_dtype(program: Program) -> np.dtype[Any]:
