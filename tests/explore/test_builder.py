@@ -414,3 +414,80 @@ def test_multi_word_keys_give_the_same_dtmc_as_one_word() -> None:
     assert a.labels["low"].tolist() == b.labels["low"].tolist()
     assert set(a.column("f").tolist()) == {0, 1}
     assert a.column("x").min() == -3 and a.column("y").min() == -5
+
+
+def _layered_walk() -> FlatModel:
+    """Many BFS layers (x climbs 0..39), an action on half the choices, a rewarded
+    action, zero-probability branches (p = 0 where y = 0) and deadlocks at the top."""
+    return flat_model(
+        [var("x", 0, 39), var("y", 0, 2)],
+        [
+            module(
+                "M",
+                ["x", "y"],
+                [
+                    command("x < 39", [("y / 4", {"x": "x+1", "y": "0"}),
+                                       ("1 - y / 4", {"y": "min(y+1, 2)"})]),
+                    command("x < 39 & y = 2", [("1", {"x": "x+1", "y": "1"})], action="hop"),
+                ],
+            )
+        ],
+        reward_structs=[rewards("r", ("hop", "true", "2"), (None, "x > 3", "1"))],
+    )
+
+
+@pytest.mark.parametrize("merge", [1, 3, 1 << 15])
+def test_merged_layers_equal_the_layers_one_by_one(
+    monkeypatch: pytest.MonkeyPatch, merge: int
+) -> None:
+    from dataclasses import fields
+
+    from veribattery.explore import builder
+    from veribattery.explore import layers as layers_module
+    from veribattery.explore.program import compile_program
+
+    model = _layered_walk()
+
+    def layers_with(threshold: int) -> tuple[np.ndarray, list[builder.Layer]]:
+        monkeypatch.setattr(layers_module, "_MERGE_BRANCHES", threshold)
+        states, _, layers = builder.explore(model, compile_program(model))
+        return states, layers
+
+    states, apart = layers_with(1)  # every chunk a layer of its own, as before merging
+    merged_states, merged = layers_with(merge)
+    np.testing.assert_array_equal(merged_states, states)
+    assert len(apart) > 40 and (merge == 1) == (len(merged) == len(apart))
+    for field in fields(builder.Layer):
+        name = field.name
+        if name in ("action_choices", "dropped", "branches"):
+            continue
+        joined = [np.concatenate([getattr(layer, name) for layer in group])
+                  for group in (apart, merged)]
+        assert joined[0].dtype == joined[1].dtype, name
+        np.testing.assert_array_equal(joined[1], joined[0], err_msg=name)
+    # dropped positions, counted over all branches of the search
+    for group in (apart, merged):
+        assert sum(layer.branches for layer in group) == sum(layer.branches for layer in apart)
+    assert _global_dropped(merged).tolist() == _global_dropped(apart).tolist()
+    assert _global_dropped(apart).size > 0
+    for action in ("hop",):
+        assert np.concatenate([_counts(layer, action) for layer in merged]).tolist() == (
+            np.concatenate([_counts(layer, action) for layer in apart]).tolist())
+    # and the DTMC assembled from either is the same, bit for bit
+    a = builder.assemble(model, states, np.array([0]), apart)
+    b = builder.assemble(model, states, np.array([0]), merged)
+    assert (a.transitions != b.transitions).nnz == 0
+    assert a.transitions.data.tobytes() == b.transitions.data.tobytes()
+    assert a.reward("r").transition.tolist() == b.reward("r").transition.tolist()
+    assert a.reward("r").transition.max() > 0  # (x, 2) with x > 3: (2 + 1) / 2
+    assert a.deadlocks == b.deadlocks == 2  # (39, 0) and (39, 1)
+
+
+def _global_dropped(layers: list) -> np.ndarray:  # type: ignore[type-arg]
+    offsets = np.cumsum([0] + [layer.branches for layer in layers[:-1]])
+    return np.concatenate([layer.dropped + o for layer, o in zip(layers, offsets, strict=True)])
+
+
+def _counts(layer, action: str) -> np.ndarray:  # type: ignore[no-untyped-def]
+    found = layer.action_choices.get(action)
+    return np.zeros(layer.choices.size, dtype=np.int64) if found is None else found

@@ -20,12 +20,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._memory import trim_heap
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import CompileCache, compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
+from veribattery.explore.layers import Layer, Layers
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore
 from veribattery.explore.successors import GroupSuccessors, expand_group
@@ -54,26 +54,6 @@ _FIRST_CHUNK = 1 << 8
 _BRANCH_WORDS = 1 << 22
 _NONE = np.empty(0, dtype=np.int64)
 _NO_FLOATS = np.empty(0, dtype=np.float64)
-_INT32_MAX = int(np.iinfo(np.int32).max)
-
-
-@record
-class Layer:
-    """The transitions out of one frontier and its states' choice counts.
-
-    *dropped* lists the positions, in the frontier's branch order before
-    zero-probability branches were dropped, of those branches; *branches* counts
-    the branches before dropping. Both let a re-evaluation (see ``reuse``) prove
-    that the same branches exist.
-    """
-
-    rows: IntArray
-    columns: IntArray
-    probabilities: FloatArray
-    choices: IntArray
-    action_choices: dict[str | None, IntArray]
-    dropped: IntArray
-    branches: int
 
 
 def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None = None) -> DTMC:
@@ -91,12 +71,15 @@ def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None 
 def explore(
     model: FlatModel, program: Program, progress: Callable[[int, int], None] | None = None
 ) -> tuple[IntArray, IntArray, list[Layer]]:
-    """Breadth-first search: the states in numbering order, the initial ones, the layers."""
+    """Breadth-first search: the states in numbering order, the initial ones, the layers.
+
+    Consecutive small layers are merged (see :class:`Layers`), so that the number of
+    layers, and the per-layer work of their users, does not grow with the BFS depth.
+    """
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rewarded = rewarded_actions(model.rewards)
-    layers: list[Layer] = []
-    counts = _count_dtype(program)
+    layers = Layers(_count_dtype(program))
     low, size = 0, _FIRST_CHUNK
     while low < store.count:
         high = store.count
@@ -105,13 +88,27 @@ def explore(
         start = low
         while start < high:
             stop = min(start + size, high)
-            layers.append(_explore_layer(program, store, start, stop, rewarded, counts))
-            size = _next_chunk(size, layers[-1].branches, stop - start, len(program.lows))
+            branches = _explore_chunk(program, store, (start, stop), rewarded, layers)
+            size = _next_chunk(size, branches, stop - start, len(program.lows))
             start = stop
         if progress is not None:
             progress(store.count, high - low)
         low = high
-    return store.states, initial, layers
+    return store.states, initial, layers.done(store.count)
+
+
+def _explore_chunk(
+    program: Program, store: StateStore, chunk: tuple[int, int], rewarded: set[str | None],
+    layers: Layers,
+) -> int:
+    """Expand the frontier states *chunk* (low, high) into *layers*; return its branches.
+
+    (A function of its own so that the successor rows, up to ``_BRANCH_WORDS`` words,
+    are freed before the next chunk is expanded.)
+    """
+    found = expand_frontier(program, store.rows(*chunk), rewarded)
+    layers.add(found, chunk[0], store.add(found.targets), store.count)
+    return found.branches
 
 
 def _next_chunk(size: int, branches: int, states: int, width: int) -> int:
@@ -160,28 +157,6 @@ def _domain_rows(lows: IntArray, sizes: IntArray, start: int, stop: int) -> IntA
 # ---------------------------------------------------------------------------
 # One BFS layer
 # ---------------------------------------------------------------------------
-
-
-def _explore_layer(
-    program: Program,
-    store: StateStore,
-    low: int,
-    high: int,
-    rewarded: set[str | None],
-    counts: np.dtype[Any],
-) -> Layer:
-    found = expand_frontier(program, store.rows(low, high), rewarded)
-    columns = store.add(found.targets)
-    index_type = np.int32 if store.count < _INT32_MAX else np.int64
-    return Layer(
-        (found.source + low).astype(index_type),
-        columns.astype(index_type),
-        found.probability,
-        found.choices.astype(counts),
-        {action: c.astype(counts) for action, c in found.action_choices.items()},
-        found.dropped,
-        found.branches,
-    )
 
 
 def _count_dtype(program: Program) -> np.dtype[Any]:

@@ -5,10 +5,13 @@ Each state is encoded by mixed radix over its variables' ranges into one int64
 the variables packed into the fewest bits their ranges need. Only the keys are
 stored, plus the rows added since the search last asked for rows (the next
 frontier, which it asks for next); any other rows are decoded from the keys.
-Keys live in an open-addressing hash table that is probed for a whole batch at
-once: each probing round is a handful of numpy operations over the rows still
-unresolved, so lookups cost O(1) per state without a Python loop per state, and
-unlike a sorted key array nothing is re-copied when a layer adds a few states.
+Keys live in an open-addressing hash table (linear probing) that is probed for a
+whole batch at once, so lookups cost O(1) per state without a Python loop per
+state, and unlike a sorted key array nothing is re-copied when a layer adds a few
+states. A BFS layer is a batch of a few hundred rows, so the cost of a batch is its
+count of numpy calls: the first slot of every key is read at once, the few keys
+that meet another key there read a window of the next slots at once, and the new
+keys are deduplicated and numbered by claiming their empty slots (no sort).
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from veribattery._types import IntArray
+from veribattery._types import BoolArray, IntArray
 
 __all__ = ["StateStore", "radix_words"]
 
@@ -28,6 +31,11 @@ _QUADRUPLE_BELOW = 1 << 20  # slots of a table that grows fourfold, not twofold
 _GOLDEN = np.asarray(0x9E3779B97F4A7C15, dtype=np.uint64)  # Fibonacci hashing multiplier
 _ZERO = np.asarray(0, dtype=np.int64)
 _ONE = np.asarray(1, dtype=np.int64)
+#: Slots read at once by a key whose first slot holds another key.
+_WINDOW = 4
+_STEPS = np.arange(1, _WINDOW + 1, dtype=np.int64)
+#: Added to a batch position to mark a slot claimed during numbering (negative).
+_MARK = np.asarray(np.iinfo(np.int32).min, dtype=np.int32)
 
 
 def radix_words(lows: Sequence[int], highs: Sequence[int]) -> IntArray:
@@ -64,10 +72,19 @@ class StateStore:
         self._sizes = np.asarray(highs, dtype=np.int64) - self._lows + 1
         self._multipliers = radix_words(lows, highs)
         self._word = self._multipliers.argmax(axis=1)  # each variable's key word
-        self._offset = self._lows @ self._multipliers
-        self._keys = np.empty((1024, self._multipliers.shape[1]), dtype=np.int64)
+        # One key word (the usual case) is kept as a flat array: a comparison of flat
+        # keys is one call, of key rows two or three.
+        self._words = words = self._multipliers.shape[1]
+        self._encoder = self._multipliers[:, 0].copy() if words == 1 else self._multipliers
+        self._offset = self._lows @ self._encoder
+        # Entry i + 1 holds state i's key; entry 0 is a sentinel that equals no key
+        # (keys are offsets, never negative), read through the table's empty slots.
+        # 1025 = 1024 states + the sentinel: doubled, it holds 2**k states + 1 exactly as
+        # often as a power of two held 2**k states.
+        self._keys = np.empty((1025,) if words == 1 else (1025, words), dtype=np.int64)
+        self._keys[0] = -1
         # State index + 1 (0 = empty); int32 halves the table, the largest array here.
-        self._table = np.zeros(1 << 14, dtype=np.int32)
+        self._resize(1 << 14)
         self.count = 0
         self._recent: list[IntArray] = []  # rows of states recent_start.. in order
         self._recent_start = 0
@@ -99,50 +116,138 @@ class StateStore:
             self._recent_start = low
 
     def _decode(self, low: int, high: int) -> IntArray:
-        keys = self._keys[low:high]
+        keys = self._keys[low + 1 : high + 1].reshape(high - low, self._words)
         rows = np.empty((keys.shape[0], self._lows.size), dtype=np.int64)
         for i, (word, size) in enumerate(zip(self._word, self._sizes, strict=True)):
             column = keys[:, word] // self._multipliers[i, word] if i else keys[:, word].copy()
             if i + 1 < self._lows.size and self._word[i + 1] == word:
-                column %= size  # variables packed above this one are still in the word
+                # Variables packed above this one are still in the word. (numpy divides
+                # by a scalar with libdivide, but its % is a plain division: 4x slower.)
+                column -= column // size * size
             rows[:, i] = column
         rows += self._lows
         return rows
 
     def add(self, rows: IntArray) -> IntArray:
         """Index of each row, numbering unseen rows in order of first occurrence."""
-        keys = self.encode(rows)
-        first, inverse = _first_occurrences(keys)
-        unique_keys = keys[first]
-        index, slots = self._lookup(unique_keys)
-        new = np.flatnonzero(index < _ZERO)
-        if new.size == 0:  # nothing to number, append or insert
-            return index[inverse]
-        new = new[np.argsort(first[new], kind="stable")]
-        index[new] = np.arange(self.count, self.count + new.size)
-        self._append(unique_keys[new])
-        if new.size:
-            if not self._recent:
-                self._recent_start = self.count - new.size
-            self._recent.append(rows[first[new]])
-        if not self._reserve_table():  # a rehash re-inserted everything already
-            self._insert(index[new], slots[new])
-        return index[inverse]
+        keys = self._encode(rows)
+        index, slots = self._lookup(keys)
+        missing = (index < _ZERO).nonzero()[0]
+        if missing.size:
+            self._number(rows, keys, index, slots, missing)
+        return index
 
     def encode(self, rows: IntArray) -> IntArray:
         """Key words ``(n, n_words)`` of *rows*."""
+        return self._encode(rows).reshape(rows.shape[0], self._words)
+
+    def _encode(self, rows: IntArray) -> IntArray:
+        """Keys of *rows*: flat ``(n,)`` for one word, else ``(n, n_words)``."""
         # rows @ M - lows @ M: the same words (exact in int64), one subtraction per key
-        keys = rows @ self._multipliers
+        keys = rows @ self._encoder
         keys -= self._offset
         return keys
 
     # -- internals -----------------------------------------------------------
 
-    def _append(self, keys: IntArray) -> None:
+    def _lookup(self, keys: IntArray) -> tuple[IntArray, IntArray]:
+        """Index of each key (-1 when absent) and the slot where its probe stopped.
+
+        For an absent key that slot was empty: the key can be inserted there. The
+        first slot is read for all keys at once; only the keys that find another
+        key there (about one in ten at a load of at most 1/4) probe on.
+        """
+        slots = self._slots(keys)
+        held = self._table[slots]
+        # An empty slot holds 0, which reads the sentinel key: never equal.
+        clash = self._differ(self._keys[held], keys)
+        clash &= held != 0
+        if np.count_nonzero(clash):
+            where = clash.nonzero()[0]
+            held[where], slots[where] = self._probe(keys[where], slots[where])
+        return held - _ONE, slots  # int64: the 0-d operand is int64
+
+    def _probe(self, keys: IntArray, slots: IntArray) -> tuple[np.ndarray, IntArray]:
+        """What the linear probes after *slots* stop at (a match or an empty slot) and where.
+
+        A round reads a window of the next ``_WINDOW`` slots of every key at once:
+        at a load of at most 1/4 nearly every chain ends in the first window, so a
+        batch's clashes cost one round of a few 2-D operations.
+        """
+        held, stop, going = self._window(keys, slots)
+        while np.count_nonzero(going):  # rare: a chain longer than the window
+            rest = going.nonzero()[0]
+            slots = slots + _WINDOW  # each key's next window (those of the rest matter)
+            slots &= self._mask
+            held[rest], stop[rest], going[rest] = self._window(keys[rest], slots[rest])
+        return held, stop
+
+    def _window(self, keys: IntArray, slots: IntArray) -> tuple[np.ndarray, IntArray, BoolArray]:
+        """One probing round: the entry and the slot where each probe stopped in the
+        window after *slots*, and which probes went through the window without stopping.
+        """
+        window = slots[:, None] + _STEPS
+        window &= self._mask
+        held = self._table[window]
+        stop = self._equal(self._keys[held], keys[:, None])
+        stop |= held == 0
+        pick = (np.arange(keys.shape[0]), stop.argmax(axis=1))
+        return held[pick], window[pick], ~stop[pick]
+
+    def _number(
+        self, rows: IntArray, keys: IntArray, index: IntArray, slots: IntArray,
+        missing: IntArray,
+    ) -> None:
+        """Number the absent keys at positions *missing* and insert them.
+
+        Equal absent keys stop at the same empty slot, so each slot is claimed by
+        the first position stopping there (``minimum.at`` of negative marks, read
+        back); when every claimant's key equals its followers' (distinct new keys
+        rarely stop at one slot), the claims are the first occurrences, numbered
+        in order in the slots themselves. Otherwise the slots are cleared and the
+        batch is deduplicated by sorting.
+        """
+        at = slots[missing]
+        marks = missing.astype(np.int32)
+        marks += _MARK
+        np.minimum.at(self._table, at, marks)
+        first = self._table[at] - _MARK  # int32: marks are positions - 2**31
+        if np.count_nonzero(self._differ(keys[first], keys[missing])):
+            self._table[at] = 0
+            self._number_sorted(rows, keys, index, slots, missing)
+            return
+        claims = first == missing
+        starts = missing[claims]
+        numbers = np.arange(self.count + 1, self.count + 1 + starts.size, dtype=np.int32)
+        self._table[at[claims]] = numbers
+        index[missing] = self._table[at] - _ONE
+        self._append(keys[starts], rows[starts])
+        self._reserve_table()
+
+    def _number_sorted(
+        self, rows: IntArray, keys: IntArray, index: IntArray, slots: IntArray,
+        missing: IntArray,
+    ) -> None:
+        """:meth:`_number` by sorting the absent keys (when distinct ones share a slot)."""
+        first, inverse = _first_occurrences(keys[missing].reshape(missing.size, self._words))
+        order = np.argsort(first, kind="stable")  # distinct keys by first occurrence
+        numbers = np.empty(first.size, dtype=np.int64)
+        numbers[order] = np.arange(self.count, self.count + first.size)
+        index[missing] = numbers[inverse]
+        starts = missing[first[order]]
+        self._append(keys[starts], rows[starts])
+        if not self._reserve_table():  # a rehash re-inserted everything already
+            self._insert(numbers[order], slots[starts])
+
+    def _append(self, keys: IntArray, rows: IntArray) -> None:
+        """Store the keys of new states (numbered from ``count``) and keep their rows."""
         end = self.count + keys.shape[0]
-        if end > self._keys.shape[0]:
-            self._keys = _grown(self._keys, max(end, 2 * self._keys.shape[0]))
-        self._keys[self.count : end] = keys
+        if end >= self._keys.shape[0]:
+            self._keys = _grown(self._keys, max(end + 1, 2 * self._keys.shape[0] - 1))
+        self._keys[self.count + 1 : end + 1] = keys
+        if not self._recent:
+            self._recent_start = self.count
+        self._recent.append(rows)
         self.count = end
 
     def _reserve_table(self) -> bool:
@@ -161,66 +266,38 @@ class StateStore:
         size = self._table.size
         while 4 * self.count > size:
             size *= 4 if size < _QUADRUPLE_BELOW else 2
-        self._table = np.zeros(size, dtype=np.int32)
+        self._resize(size)
         everything = np.arange(self.count, dtype=np.int64)
-        self._insert_probing(everything, self._slots(self._keys[: self.count]))
+        self._insert_probing(everything, self._slots(self._keys[1 : self.count + 1]))
         return True
 
+    def _resize(self, size: int) -> None:
+        """An empty table of *size* slots (a power of two), and its hashing constants."""
+        self._table = np.zeros(size, dtype=np.int32)
+        self._mask = np.asarray(size - 1, dtype=np.int64)
+        self._shift = np.asarray(64 - size.bit_length() + 1, dtype=np.uint64)
+
+    def _equal(self, a: IntArray, b: IntArray) -> np.ndarray:
+        """Whether keys are equal (flat keys element-wise, key rows over their words)."""
+        if self._keys.ndim == 1:
+            return np.asarray(a == b)
+        return np.asarray((a == b).all(axis=-1))
+
+    def _differ(self, a: IntArray, b: IntArray) -> np.ndarray:
+        """Whether keys differ (flat keys element-wise, key rows over their words)."""
+        if self._keys.ndim == 1:
+            return np.asarray(a != b)
+        return np.asarray((a != b).any(axis=-1))
+
     def _slots(self, keys: IntArray) -> IntArray:
-        bits = np.asarray(64 - int(self._table.size).bit_length() + 1, dtype=np.uint64)
-        mixed = keys[:, 0].view(np.uint64) * _GOLDEN
-        for w in range(1, keys.shape[1]):
-            mixed = (mixed ^ keys[:, w].view(np.uint64)) * _GOLDEN
-        mixed >>= bits
+        if keys.ndim == 1:
+            mixed = keys.view(np.uint64) * _GOLDEN
+        else:
+            mixed = keys[:, 0].view(np.uint64) * _GOLDEN
+            for w in range(1, keys.shape[1]):
+                mixed = (mixed ^ keys[:, w].view(np.uint64)) * _GOLDEN
+        mixed >>= self._shift
         return mixed.view(np.int64)  # below 2**63 after the shift
-
-    def _lookup(self, keys: IntArray) -> tuple[IntArray, IntArray]:
-        """Index of each key (-1 when absent) and the slot where its probe stopped.
-
-        For an absent key that slot was empty: the key can be inserted there. The
-        first probe is done for all keys at once; only the (few, at load <= 1/4)
-        keys that hit another key's slot go through the probing loop.
-        """
-        slots = self._slots(keys)
-        index = self._table[slots].astype(np.int64)
-        index -= _ONE
-        # An empty slot gives index -1: the comparison reads the last key row
-        # (garbage) and its result is masked by ``index >= 0``.
-        clash = index >= _ZERO
-        clash &= ~_rows_equal(self._keys[index], keys)
-        if np.count_nonzero(clash):
-            where = np.flatnonzero(clash)
-            mask = self._table.size - 1
-            index[where], slots[where] = self._probe(keys[where], (slots[where] + 1) & mask)
-        return index, slots
-
-    def _probe(self, keys: IntArray, slots: IntArray) -> tuple[IntArray, IntArray]:
-        """Linear probing from *slots*, one slot a round for all the unresolved keys.
-
-        Only keys whose first slot held another key come here (a few dozen per
-        batch at a load of at most 1/4), and their chains are short: a round of
-        one-dimensional operations over them costs less than a window of slots.
-        """
-        mask = np.asarray(self._table.size - 1, dtype=np.int64)
-        index = np.full(keys.shape[0], -1, dtype=np.int64)
-        active = np.arange(keys.shape[0])
-        at, wanted = slots.copy(), keys
-        while active.size:
-            held = self._table[at].astype(np.int64)
-            held -= _ONE  # -1 where empty: the key row it reads is masked below
-            empty = held < _ZERO
-            match = _rows_equal(self._keys[held], wanted)
-            match &= ~empty
-            ended = match | empty
-            found = np.flatnonzero(match)
-            index[active[found]] = held[found]
-            stop = np.flatnonzero(ended)
-            slots[active[stop]] = at[stop]
-            going = np.flatnonzero(~ended)
-            active, wanted = active[going], wanted[going]
-            at = at[going] + _ONE
-            at &= mask
-        return index, slots
 
     def _insert(self, index: IntArray, slots: IntArray) -> None:
         """Put the states *index* (absent, distinct) into the table at *slots*.
@@ -231,11 +308,9 @@ class StateStore:
         self._table[slots] = index + 1
         lost = self._table[slots] != index + 1
         if np.count_nonzero(lost):
-            mask = self._table.size - 1
-            self._insert_probing(index[lost], (slots[lost] + 1) & mask)
+            self._insert_probing(index[lost], (slots[lost] + 1) & self._mask)
 
     def _insert_probing(self, index: IntArray, slots: IntArray) -> None:
-        mask = self._table.size - 1
         active = np.arange(index.size)
         while active.size:
             targets = slots[active]
@@ -243,20 +318,13 @@ class StateStore:
             self._table[targets[free]] = index[active[free]] + 1
             placed = self._table[targets] == index[active] + 1
             active = active[~placed]
-            slots[active] = (slots[active] + 1) & mask
+            slots[active] = (slots[active] + 1) & self._mask
 
 
 def _grown(array: IntArray, capacity: int) -> IntArray:
-    bigger = np.empty((capacity, array.shape[1]), dtype=array.dtype)
+    bigger = np.empty((capacity, *array.shape[1:]), dtype=array.dtype)
     bigger[: array.shape[0]] = array
     return bigger
-
-
-def _rows_equal(a: IntArray, b: IntArray) -> np.ndarray:
-    """Whether key rows are equal, over the last axis (the words)."""
-    if a.shape[-1] == 1:
-        return np.asarray(a[..., 0] == b[..., 0])
-    return np.asarray((a == b).all(axis=-1))
 
 
 def _first_occurrences(keys: IntArray) -> tuple[IntArray, IntArray]:
