@@ -158,7 +158,10 @@ def record(points: int, subset: str, jobs: int, ours: tuple[float, float],
                  "| when | points | -j | vb wall s | vb CPU s | Storm wall s | Storm CPU s | "
                  "wall ratio | vb peak MB | agree | load avg |\n"
                  "|---|---|---|---|---|---|---|---|---|---|---|\n")
-    path.write_text(text + line)
+    # The row joins its own table, not whatever section was appended to the file since.
+    end = text.find("\n## ", text.index(header) + len(header))
+    end = len(text) if end < 0 else end
+    path.write_text(text[:end].rstrip("\n") + "\n" + line + text[end:])
 
 
 if __name__ == "__main__":

@@ -91,20 +91,6 @@ def quick_everywhere(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[bool]]:
     yield answered
 
 
-@pytest.fixture
-def systems_built(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
-    """How many restricted systems the kernels build (sizes, in order)."""
-    built: list[int] = []
-    original = linsolve.restricted_parts
-
-    def counting(P, maybe):  # type: ignore[no-untyped-def]
-        built.append(int(maybe.sum()))
-        return original(P, maybe)
-
-    monkeypatch.setattr(linsolve, "restricted_parts", counting)
-    yield built
-
-
 @pytest.mark.parametrize("seed", range(12))
 def test_pinned_until_holds_the_rational_answer(seed: int, quick_everywhere: list[bool],
                                                 systems_built: list[int]) -> None:

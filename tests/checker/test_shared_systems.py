@@ -11,7 +11,6 @@ conditioned chain. Probabilities are dyadic, so the float model is the rational 
 from __future__ import annotations
 
 import random
-from collections.abc import Iterator
 from fractions import Fraction
 
 import numpy as np
@@ -25,7 +24,7 @@ from tests.checker.test_conditional_certified import (
     _until,
     oracle,
 )
-from veribattery.checker import kernels, linsolve
+from veribattery.checker import kernels
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
 
@@ -75,20 +74,6 @@ def _with_c(text: str, n: int) -> str:
 def _contains(result: CheckResult, expected: Fraction) -> bool:
     assert result.lower is not None and result.upper is not None
     return Fraction(result.lower) <= expected <= Fraction(result.upper)
-
-
-@pytest.fixture
-def systems_built(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
-    """How many restricted systems the kernels build (sizes, in order)."""
-    built: list[int] = []
-    original = linsolve.restricted_parts
-
-    def counting(P, maybe):  # type: ignore[no-untyped-def]
-        built.append(int(maybe.sum()))
-        return original(P, maybe)
-
-    monkeypatch.setattr(linsolve, "restricted_parts", counting)
-    yield built
 
 
 @pytest.mark.parametrize("seed", range(16))
