@@ -319,15 +319,13 @@ def _judge(requirement: Requirement,
 
 def recharge_cap_probability(run: ModelCheckRun, cfg: MissionConfig) -> float:
     """P[F rc=RC_MAX] in *run*'s DTMC (0 without computing when no state reaches the cap)."""
-    rc_max = derive_parameters(cfg).rc_max
-    if run.dtmc.column("rc").max() < rc_max:
-        return 0.0
-    return float(check(run.dtmc, parse_property(f"P=? [ F rc={rc_max} ]")).value)
+    formulas = _recharge_cap_formulas(run.dtmc, cfg)
+    return float(check(run.dtmc, formulas[0]).value) if formulas else 0.0
 
 
 def _recharge_cap_formulas(dtmc: DTMC, cfg: MissionConfig) -> tuple[Expr, ...]:
-    """The formula :func:`recharge_cap_probability` will check on *dtmc* (none when no
-    state reaches the cap), for the pipeline to prepare its linear systems with."""
+    """The formula :func:`recharge_cap_probability` checks on *dtmc* (none when no state
+    reaches the cap), also for the pipeline to prepare its linear systems with."""
     rc_max = derive_parameters(cfg).rc_max
     if dtmc.column("rc").max() < rc_max:
         return ()

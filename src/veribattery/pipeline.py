@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from veribattery._memory import trim_for
 from veribattery._record import record
 from veribattery.checker import CheckResult, check
-from veribattery.checker.linsolve import trim_for
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc

@@ -221,12 +221,12 @@ class AffineMap:
         numerator (:func:`product_error` with the offset always counted as a term,
         so it stays valid for any offset and known values a copy is given; each
         term's underflow counted as :data:`TERM_FLOOR`)."""
-        return error_coefficient(self.terms + 1.0)
+        return _error_constants(self.terms)[0]
 
     @property
     def underflow(self) -> FloatArray:
         """The underflow part of that bound (see :attr:`coefficient`)."""
-        return (self.terms + 1.0) * TERM_FLOOR
+        return _error_constants(self.terms)[1]
 
     @classmethod
     def of(cls, rows: CsrMatrix, states: IntArray, known_lower: FloatArray,
@@ -244,10 +244,7 @@ class AffineMap:
         plan = _row_plan(rows, states)
         off = sp.csr_matrix((rows.data[plan.keep], plan.indices, plan.indptr), shape=rows.shape)
         leave_lower, leave_upper = _row_sum_bounds(off, plan.terms)
-        constants = None
-        if states.size < KEEP_CONSTANTS_BELOW:
-            counted = plan.terms + 1.0
-            constants = (error_coefficient(counted), counted * TERM_FLOOR)
+        constants = _error_constants(plan.terms) if states.size < KEEP_CONSTANTS_BELOW else None
         return cls(off, states, known_lower, known_upper, offset,
                    np.maximum(leave_lower, 0.0), leave_upper, constants)
 
@@ -346,6 +343,13 @@ class AffineMap:
         with np.errstate(divide="ignore", invalid="ignore"):
             quotient = np.where(high >= 0, high / self.leave_lower, high / self.leave_upper)
         return np.where(np.isnan(quotient), np.inf, round_up(quotient))
+
+
+def _error_constants(terms: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """:attr:`AffineMap.coefficient` and :attr:`AffineMap.underflow` of rows of *terms*
+    stored entries (the offset counted as one more)."""
+    counted = terms + 1.0
+    return error_coefficient(counted), counted * TERM_FLOOR
 
 
 @record

@@ -37,6 +37,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
+from veribattery._memory import trim_for
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import certify, linsolve, rational
 from veribattery.checker.bounds import (
@@ -201,7 +202,7 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) ->
         solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns))
         del A64, residue
         found = _System(rows, solver, unknowns)
-        linsolve.trim_for(maybe.size)  # the restriction's per-entry temporaries
+        trim_for(maybe.size)  # the restriction's per-entry temporaries
         systems[key] = found
     else:
         systems.move_to_end(_mask_key(found.unknowns))
@@ -563,7 +564,7 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
         if found is not None and found.precise_states().all():
             break
         found = None
-    linsolve.trim_for(F.states.size)  # the certificate's temporaries, before the next vectors
+    trim_for(F.states.size)  # the certificate's temporaries, before the next vectors
     return found
 
 

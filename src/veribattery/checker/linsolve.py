@@ -46,7 +46,7 @@ try:  # SuperLU's triangular solve, used by _substitution when it behaves as exp
 except ImportError:  # pragma: no cover -- scipy moved it: the public path is used
     _superlu = None
 
-from veribattery._memory import trim_heap
+from veribattery._memory import TRIM_MIN_STATES, trim_for
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import scc
@@ -69,18 +69,6 @@ REFINE_TOL = 2.0**-52
 ITERATIVE_RTOL = 1e-13
 #: Iteration cap of each iterative method.
 ITERATIVE_MAXITER = 20_000
-
-
-#: Heaps are trimmed between stages only for models of at least this many states: the
-#: trim is for the peak memory of large models; on the paper's mission (176,481
-#: states) its ~2 ms per call were a tenth of a structure-reusing sweep point.
-TRIM_MIN_STATES = 1_000_000
-
-
-def trim_for(states: int) -> None:
-    """:func:`~veribattery._memory.trim_heap` when *states* reaches :data:`TRIM_MIN_STATES`."""
-    if states >= TRIM_MIN_STATES:
-        trim_heap()
 
 
 def restricted_matrix(P: CsrMatrix, maybe: BoolArray) -> tuple[sp.csr_matrix, CsrMatrix]:
@@ -391,6 +379,8 @@ class Factorization:
         self._rebuild = rebuild
         self._direct: _Inverse | None = None
         self._direct_tried = False
+        self._substitute: _Triangular | None = None
+        self._substitute_tried = False
         self._norm_a: float | None = None
         self._iterative = False
 
@@ -562,33 +552,30 @@ class Factorization:
         """Whether the direct solver is a substitution (the matrix is triangular in a
         topological order, with a positive diagonal). Only that solver is tried here:
         a caller that drops a system that is not triangular pays for no factorisation."""
-        if self._direct_tried:
-            return isinstance(self._direct, _Triangular)
-        found = _triangular_inverse(self.A64) if self._n <= DIRECT_LIMIT else None
-        if found is None:
-            return False  # (the solver is chosen as usual if the system is used after all)
-        self._direct_tried, self._direct = True, found
-        self._release()
-        trim_for(self._n)
-        return True
+        return self._n <= DIRECT_LIMIT and self._substitution() is not None
 
     def pinned(self, mask: BoolArray) -> PinnedSolver | None:
         """A solver of this system with the rows of the states in *mask* replaced by
         identity rows, for the quick certificate of a query solved on it with those
         states' values known (``kernels``, "Shared systems" in docs/numerics.md);
         None unless the direct solver is a substitution."""
-        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
-        if not isinstance(inverse, _Triangular):
-            return None
-        return PinnedSolver(inverse.pinned(mask))
+        inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
+        return None if inverse is None else PinnedSolver(inverse.pinned(mask))
+
+    def _substitution(self) -> _Triangular | None:
+        """The substitution solver, tried once (None: the matrix's graph has a cycle)."""
+        if not self._substitute_tried:
+            self._substitute_tried = True
+            self._substitute = _triangular_inverse(self.A64)
+            if self._substitute is not None:
+                self._release()
+                trim_for(self._n)  # the plan's temporaries (and the matrix) are free now
+        return self._substitute
 
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
             self._direct_tried = True
-            self._direct = _triangular_inverse(self.A64)
-            if self._direct is not None:
-                self._release()
-                trim_for(self._n)  # the plan's temporaries (and the matrix) are free now
+            self._direct = self._substitution()
             if self._direct is None:
                 found = scc.components(self.A64)
                 if found is not None:
@@ -834,16 +821,21 @@ class _Triangular:
             self._back[self._forward] = np.arange(n, dtype=np.intp)
 
     def __call__(self, b: FloatArray) -> FloatArray:
-        order = self._order
-        if self._forward is None or self._back is None:
-            # b[order] is a new array: the substitution may solve in it, and is scaled in place.
-            y = self._substitute(np.ascontiguousarray(b[order], dtype=np.float64))
-            y *= self._scale
-            x = np.empty(order.size, dtype=np.float64)
-            x[order] = y
-            return x
-        y = self._substitute(np.take(np.asarray(b, dtype=np.float64), self._forward))
+        return self._from_order(self._substitute(self._to_order(b)))
+
+    def _to_order(self, b: npt.NDArray[np.floating]) -> FloatArray:
+        """*b* in topological order: a new array, which the substitution may solve in."""
+        if self._forward is None:
+            return np.ascontiguousarray(b[self._order], dtype=np.float64)
+        return np.take(np.asarray(b, dtype=np.float64), self._forward)
+
+    def _from_order(self, y: FloatArray) -> FloatArray:
+        """The answer of the substitution's *y* (scaled in place) in state order."""
         y *= self._scale
+        if self._back is None:
+            x = np.empty(y.size, dtype=np.float64)
+            x[self._order] = y
+            return x
         return np.take(y, self._back)
 
     def pinned(self, mask: BoolArray) -> _Inverse:
@@ -851,9 +843,8 @@ class _Triangular:
         (``x_i = b_i`` there, the other rows as in *A*): *L* without those rows'
         off-diagonal entries, the same order. The pinned entries of the answer are
         *b*'s own (the substitution's ``(b_i d_i) / d_i`` may differ in the last bit)."""
-        order, scale = self._order, self._scale
-        lower = self._lower
-        at = mask[order]  # per topological position
+        scale, lower = self._scale, self._lower
+        at = mask[self._order]  # per topological position
         data = np.where(at[lower.indices], 0.0, lower.data)  # column i's own entry is on
         data[lower.indptr[:-1][at]] = 1.0  # the diagonal: it stays (first in the column)
         substitute = _substitution(sp.csc_matrix((data, lower.indices, lower.indptr),
@@ -861,12 +852,9 @@ class _Triangular:
         where = np.flatnonzero(mask)
 
         def apply(b: FloatArray) -> FloatArray:
-            c = np.ascontiguousarray(b[order], dtype=np.float64)
+            c = self._to_order(b)
             c[at] /= scale[at]  # y_i = d_i b_i, so that x_i = y_i / d_i is b_i
-            y = substitute(c)
-            y *= scale
-            x = np.empty(order.size, dtype=np.float64)
-            x[order] = y
+            x = self._from_order(substitute(c))
             x[where] = b[where]
             return x
 

@@ -417,11 +417,20 @@ def _lookup(
     table: np.ndarray, cols: list[int], lows: list[int], shape: list[int],
     cache: CompileCache | None = None,
 ) -> _Fn:
+    narrow = _narrowed(table)
+    lookup = _lookup_in(narrow, cols, lows, shape, cache)
+    if narrow.dtype != table.dtype:  # widened back: later arithmetic must not wrap
+        return _widening(table.dtype, lookup)
+    return lookup
+
+
+def _lookup_in(
+    table: np.ndarray, cols: list[int], lows: list[int], shape: list[int],
+    cache: CompileCache | None,
+) -> _Fn:
+    """The lookup in *table*, stored as it is."""
     strides = [math.prod(shape[i + 1 :]) for i in range(len(shape))]
     offset = sum(low * stride for low, stride in zip(lows, strides, strict=True))
-    dtype, table = table.dtype, _narrowed(table)
-    if table.dtype != dtype:  # widened back: later arithmetic must not wrap at the narrow type
-        return _widening(dtype, _lookup(table, cols, lows, shape, cache))
     if len(cols) == 1 and offset == 0:
         (col,) = cols
         return lambda states: table[states[:, col]]
