@@ -200,7 +200,7 @@ def check_model(
     if exact_model is not None:
         checks = _exact_checks(exact_model, (properties, resolved), props_file, constants)
     else:
-        checks = [functools.partial(check, dtmc, p) for p in resolved]
+        checks = [functools.partial(check, dtmc, p, states=keep_states) for p in resolved]
     with watch.stage("check"):
         if exact_model is None:  # linear systems shared between the properties
             trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's

@@ -10,9 +10,12 @@ from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr, Property
 
 
-def check(dtmc: DTMC, prop: Property | Expr) -> CheckResult:
+def check(dtmc: DTMC, prop: Property | Expr, *, states: bool = True) -> CheckResult:
     """Check *prop* on *dtmc* and report PRISM's answer (at the initial states, unless
     the property is a filter).
+
+    With ``states=False`` only the answer is kept (:meth:`CheckResult.without_states`),
+    and its certificate is made for the initial states alone where that is cheaper.
 
     Numeric results carry certified bounds (``result.lower``, ``result.upper``)
     and ``result.precise``; see :class:`CheckResult`.
@@ -25,5 +28,6 @@ def check(dtmc: DTMC, prop: Property | Expr) -> CheckResult:
     """
     prop = prop if isinstance(prop, Property) else Property(prop)
     start = time.perf_counter()
-    answer = property_answer(dtmc, prop.formula)
-    return CheckResult.of_answer(prop, answer, time.perf_counter() - start)
+    answer = property_answer(dtmc, prop.formula, initial_only=not states)
+    result = CheckResult.of_answer(prop, answer, time.perf_counter() - start)
+    return result if states else result.without_states()

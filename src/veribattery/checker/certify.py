@@ -485,8 +485,7 @@ def quick_certificate(F: AffineMap, x: FloatArray, correct: Correction | None,
     """
     if correct is None or not np.all(np.isfinite(x)):
         return None
-    fast = _fast_images(F) and F.nonnegative and bool(np.all(x >= 0))
-    images = F.images if fast else (lambda lo, hi: (F.lower(lo), F.upper(hi)))
+    images, fast = _image_pair(F, x)
     # Temporaries are dropped as soon as they are used: at 10^6 states each is 8 MB
     # and this runs at the peak of a property's memory.
     defect = _defect(*images(x, x), x)
@@ -519,6 +518,23 @@ def quick_certificate(F: AffineMap, x: FloatArray, correct: Correction | None,
     if np.all((image_low >= lower) | (lower == bottom)):
         return lower, upper
     return None
+
+
+ImagePair = Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
+
+
+def _image_pair(F: AffineMap, x: FloatArray) -> tuple[ImagePair, bool]:
+    """``(lower(low), upper(high))`` of *F* for vectors like *x*, and whether that is the
+    fast form (a nonnegative map and ``x >= 0``: :meth:`AffineMap.images`)."""
+    fast = _fast_images(F) and F.nonnegative and bool(np.all(x >= 0))
+    return (F.images if fast else (lambda lo, hi: (F.lower(lo), F.upper(hi)))), fast
+
+
+def fixpoint_defect(F: AffineMap, x: FloatArray) -> FloatArray:
+    """A rigorous upper bound of ``|G(x) - x|`` per state (*x* finite), for the exact
+    map ``G`` that *F* encloses (any offset and known values within its intervals)."""
+    images, _ = _image_pair(F, x)
+    return _defect(*images(x, x), x)
 
 
 def _defect(low: FloatArray, high: FloatArray, x: FloatArray) -> FloatArray:

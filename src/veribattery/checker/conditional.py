@@ -284,7 +284,7 @@ def next_given(P: CsrMatrix, target: BoolArray, condition: Condition) -> Bounds:
 
 
 def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
-                        condition: Condition) -> Bounds:
+                        condition: Condition, focus_states: IntArray | None = None) -> Bounds:
     """``E[reward until target | F b]`` per state, certified (``R=? [ F a || F b ]``).
 
     The numerator ``y = E[R · 1{F b}]`` is 0 on *target*; on *b* the condition holds
@@ -292,6 +292,8 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     sure); it is infinite where a path outside *target* reaches such a *b* state;
     elsewhere it solves ``y = r x + P y`` (the reward of a step from a state before
     *b* counts on the paths that go on to meet *b*: a fraction ``x`` of them).
+    With *focus_states*, the numerator's bounds may be trivial away from them
+    (``kernels.until_probs``); the condition's are always whole, for its offset.
     """
     b = condition.states & ~target
     # On b the unconditional value (not needed when b lies inside the target, as
@@ -308,8 +310,8 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
         known = Bounds(zero, zero, zero)
     allowed = ~infinite & ~target & ~b
     maybe = allowed & condition.possible
-    found = (_reward_system(P, rewards, maybe, condition.probs, known, allowed)
-             if maybe.any() else None)
+    found = (_reward_system(P, rewards, (maybe, allowed), condition.probs, known,
+                            focus_states) if maybe.any() else None)
     # The numerator: inf where infinite, the solution on maybe (which lies outside
     # infinite), the known values elsewhere.
     vectors = [known.value.copy(), known.lower.copy(), known.upper.copy()]
@@ -323,8 +325,8 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     return divide(Bounds(*vectors), condition, np.inf)
 
 
-def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bounds,
-                   known: Bounds, allowed: BoolArray) -> Bounds:
+def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, BoolArray],
+                   x: Bounds, known: Bounds, focus_states: IntArray | None) -> Bounds:
     """The certified solution of ``y = r x + P y`` on *maybe*, *known* elsewhere.
 
     The offset ``r x`` is only known as an interval, so the lower bound is certified
@@ -337,6 +339,7 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     condition is impossible (``x = 0`` there and on every successor), so a kept system
     on a superset of *maybe* inside *allowed* (``R=? [ F a ]``'s) is solved instead.
     """
+    maybe, allowed = states
     system = kernels.shared_system(P, maybe, allowed)
     unknowns = system.unknowns
     r = np.asarray(rewards[unknowns], dtype=np.float64)
@@ -350,7 +353,7 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, maybe: BoolArray, x: Bound
     # made again if the long way is needed (8 bytes per state less at the peak).
     rhs = _right_side(rows, known.value, r, x.value[unknowns])
     found = kernels.quick_bounds(F, solver, rhs.astype(np.float64), np.full((), floor),
-                                 np.full((), np.inf))
+                                 np.full((), np.inf), kernels.focus_rows(system, F, focus_states))
     del rhs
     if found is None:
         rhs = _right_side(rows, known.value, r, x.value[unknowns])
@@ -464,7 +467,8 @@ def conditional_values(dtmc: DTMC, condition: BoolArray,
 
 
 def conditional_reach_reward_bounds(dtmc: DTMC, rewards: RewardVectors, target: BoolArray,
-                                    condition: BoolArray, what: str, span: Span) -> Bounds:
+                                    condition: BoolArray, what: str, span: Span,
+                                    focus_states: IntArray | None = None) -> Bounds:
     """``R=? [ F target || F condition ]`` per state, certified (NaN where impossible).
 
     :param dtmc: the model.
@@ -473,11 +477,12 @@ def conditional_reach_reward_bounds(dtmc: DTMC, rewards: RewardVectors, target: 
     :param condition: the states of the condition.
     :param what: how to name the condition in an error.
     :param span: where the formula is.
+    :param focus_states: as for ``kernels.until_probs``.
     :raises ConditionUnreachable: when the condition has probability 0 from an initial state.
     """
     found = condition_probs(dtmc.transitions, condition)
     require_possible(found, dtmc.initial, what, span)
-    return reach_rewards_given(dtmc.transitions, rewards.total, target, found)
+    return reach_rewards_given(dtmc.transitions, rewards.total, target, found, focus_states)
 
 
 def conditional_reach_rewards(dtmc: DTMC, rewards: RewardVectors, target: BoolArray,

@@ -29,7 +29,7 @@ import hashlib
 import math
 import weakref
 from collections import OrderedDict
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,8 +38,8 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._memory import trim_for
-from veribattery._types import BoolArray, CsrMatrix, FloatArray
-from veribattery.checker import certify, linsolve, rational
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker import certify, focus, linsolve, rational
 from veribattery.checker.bounds import (
     Bounds,
     current_precision,
@@ -86,6 +86,8 @@ class _System:
     #: The unknown states of the system (a mask over all states).
     unknowns: BoolArray
     template: certify.AffineMap | None = None
+    #: Certified rows of ``(I - B)^-1`` by focus position (None: its test failed).
+    focus_rows: dict[int, focus.FocusRow | None] = field(default_factory=dict)
 
     def affine(self, known_lower: FloatArray, known_upper: FloatArray,
                offset: FloatArray | None) -> certify.AffineMap:
@@ -111,9 +113,12 @@ class _Memo:
     matrix: weakref.ref[CsrMatrix]
     masks: _MaskMemo | None = None
     systems: OrderedDict[bytes, _System] = field(default_factory=OrderedDict)
-    results: OrderedDict[tuple[bytes, bytes, bool], Bounds] = field(
+    #: Keyed by the operands, escalation and the focus states (b"": every state).
+    results: OrderedDict[tuple[bytes, bytes, bool, bytes], Bounds] = field(
         default_factory=OrderedDict)
     reversed: tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]] | None = None
+    #: Untils (keys of ``remain``, ``target``) that some query needs in every state.
+    whole: set[tuple[bytes, bytes]] = field(default_factory=set)
 
 
 _MEMOS: dict[int, _Memo] = {}
@@ -392,7 +397,8 @@ def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray) -> 
 # ---------------------------------------------------------------------------
 
 
-def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
+def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                focus_states: IntArray | None = None) -> Bounds:
     """Probability of ``remain U target`` in every state, with certified bounds.
 
     prob0/prob1 fix the states with value 0 and 1; the rest solve
@@ -402,13 +408,22 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that may be passed through before *target*.
     :param target: states to reach.
+    :param focus_states: the only states whose bounds the caller reads (the initial
+        ones), or None; elsewhere the bounds may be the trivial ones (:mod:`focus`).
     :return: probabilities in [0, 1] and their certified enclosures.
     """
-    memo = _memo(P).results
-    key = (_mask_key(remain), _mask_key(target), escalated())
-    found = memo.get(key)
+    kept = _memo(P)
+    memo = kept.results
+    operands = (_mask_key(remain), _mask_key(target))
+    if operands in kept.whole:
+        focus_states = None  # computed once, for both
+    key = (*operands, escalated(), b"")
+    found = memo.get(key)  # a whole vector serves a focused query too
+    if found is None and focus_states is not None:
+        key = (*operands, escalated(), focus_states.tobytes())
+        found = memo.get(key)
     if found is None:
-        found = memo[key] = _until_probs(P, remain, target)
+        found = memo[key] = _until_probs(P, remain, target, focus_states)
         while len(memo) > RESULTS_KEPT:
             memo.popitem(last=False)
     else:
@@ -416,26 +431,34 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
     return found
 
 
-def _until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
+def need_whole(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> None:
+    """Mark ``remain U target`` as needed in every state (a conditional property's
+    condition), so that a query of it asked at the initial states only computes that
+    once, not a focused copy first."""
+    _memo(P).whole.add((_mask_key(remain), _mask_key(target)))
+
+
+def _until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                 focus_states: IntArray | None) -> Bounds:
     no = prob0(P, remain, target)
     yes = prob1(P, remain, target, no)
     result = yes.astype(np.float64)
     maybe = ~(no | yes)
     if not maybe.any():
         return Bounds.exact(result)
-    pinned = _pinned_until(P, maybe, remain & ~target, result)
+    pinned = _pinned_until(P, maybe, remain & ~target, result, focus_states)
     if pinned is not None:
         return pinned
     # Every state of remain & !target satisfies x = P x, its yes and no states included.
     system = _system(P, maybe, remain & ~target)
     known = np.where(system.unknowns, 0.0, result)
     F = system.affine(known, known, None)
-    found = _certified(F, system, known, None, 0.0, 1.0)
+    found = _certified(F, system, known, None, (0.0, 1.0), focus_states)
     return _spread(result, maybe, _restrict(found, system.unknowns, maybe))
 
 
 def _pinned_until(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray,
-                  result: FloatArray) -> Bounds | None:
+                  result: FloatArray, focus_states: IntArray | None) -> Bounds | None:
     """The until's values solved on a kept system that holds *maybe* and also states
     outside *allowed* (the target states inside ``R=? [ F "done" ]``'s system, for the
     recharge cap's ``P=? [ F rc=RC_MAX ]``), those rows pinned to their known values
@@ -456,7 +479,9 @@ def _pinned_until(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray,
     F = certify.PinnedMap.around(system.affine(known, known, None), where, values)
     b = _right_side(system, known, None, np.float64)
     b[where] = values
-    found = quick_bounds(F, solver, b, np.full((), 0.0), np.full((), 1.0))
+    # The system's rows of (I - B)^-1 bound the pinned map's too (docs/numerics.md).
+    found = quick_bounds(F, solver, b, np.full((), 0.0), np.full((), 1.0),
+                         focus_rows(system, F, focus_states))
     if found is None:
         return None
     return _spread(result, maybe, _restrict(found, unknowns, maybe))
@@ -477,7 +502,8 @@ def _pinnable(systems: Iterable[_System], maybe: BoolArray,
     return None
 
 
-def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bounds:
+def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
+                  focus_states: IntArray | None = None) -> Bounds:
     """Expected reward accumulated until *target* is first reached (``R=? [F target]``).
 
     PRISM semantics: 0 in *target* states; infinity in states that reach
@@ -487,6 +513,7 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bound
     :param P: row-stochastic CSR transition matrix.
     :param rewards: reward earned per step taken from each state (state + transition).
     :param target: states to reach.
+    :param focus_states: as for :func:`until_probs`.
     :return: expected rewards, ``inf`` where *target* is not almost sure, with bounds.
     """
     maybe = reach_unknowns(P, target)
@@ -500,7 +527,8 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray) -> Bound
     zeros = np.zeros(P.shape[0])
     F = system.affine(zeros, zeros, offset)
     floor = 0.0 if np.all(offset >= 0) else -np.inf
-    return _spread(result, maybe, _certified(F, system, None, offset, floor, np.inf))
+    return _spread(result, maybe,
+                   _certified(F, system, None, offset, (floor, np.inf), focus_states))
 
 
 def _point(system: _System, b: npt.NDArray[np.longdouble]) -> FloatArray | None:
@@ -525,7 +553,8 @@ def _right_side(system: _System, known: FloatArray | None, offset: FloatArray | 
 
 
 def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
-           offset: FloatArray | None, floor: float, ceiling: float) -> Bounds | None:
+           offset: FloatArray | None, trivial: tuple[float, float],
+           focus_states: IntArray | None) -> Bounds | None:
     """One substitution with the direct solver, certified by two products -- or None.
 
     No extended-precision refinement: when the certified interval already meets
@@ -536,19 +565,23 @@ def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
     """
     if F.states.size < QUICK_MIN_STATES:
         return None
+    floor, ceiling = trivial
     # The trivial bounds as 0-d arrays: they broadcast (two fewer vectors at the peak).
     return quick_bounds(F, system.factorization, _right_side(system, known, offset, np.float64),
-                        np.full((), floor), np.full((), ceiling))
+                        np.full((), floor), np.full((), ceiling),
+                        focus_rows(system, F, focus_states))
 
 
 def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
-                 b: npt.NDArray[np.floating], floor: FloatArray, ceiling: FloatArray
-                 ) -> Bounds | None:
+                 b: npt.NDArray[np.floating], floor: FloatArray, ceiling: FloatArray,
+                 rows: Sequence[focus.FocusRow] | None = None) -> Bounds | None:
     """The fixed point of *F* (system ``solver.A x = b``) from one unrefined substitution,
     certified by :func:`certify.quick_certificate` -- or None when the system is
     below ``QUICK_MIN_STATES``, the pair fails its test or is not precise enough.
 
-    For the kernels here and in :mod:`~veribattery.checker.conditional`.
+    With *rows* (:func:`focus_rows`), bounds tight at their focus states only are tried
+    first (:func:`focus.focused_bounds`). For the kernels here and in
+    :mod:`~veribattery.checker.conditional`.
     """
     if F.states.size < QUICK_MIN_STATES:
         return None
@@ -556,6 +589,10 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
     if x is None:
         return None
     x = np.clip(x, floor, ceiling)
+    if rows is not None:
+        focused = focus.focused_bounds(F, x, rows, floor, ceiling)
+        if focused is not None:
+            return focused
     found = None
     for margin in solver.margins_for(b, x):
         pair = certify.quick_certificate(F, x, margin, floor, ceiling)
@@ -569,7 +606,8 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
 
 
 def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
-               offset: FloatArray | None, floor: float, ceiling: float) -> Bounds:
+               offset: FloatArray | None, trivial: tuple[float, float],
+               focus_states: IntArray | None = None) -> Bounds:
     """Certified bounds of the fixed point of *F* (right-hand side ``offset + P known``),
     escalating until precise.
 
@@ -578,9 +616,10 @@ def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
     2. if too wide, solve the system exactly when it is small (:mod:`rational`);
     3. otherwise tighten by interval iteration, and return what it reached.
     """
-    quick = _quick(F, system, known, offset, floor, ceiling)
+    quick = _quick(F, system, known, offset, trivial, focus_states)
     if quick is not None:
         return quick
+    floor, ceiling = trivial
     x = _point(system, _right_side(system, known, offset, np.longdouble))
     x = None if x is None else np.clip(x, floor, ceiling)
     n = F.states.size
@@ -601,6 +640,29 @@ def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
             middle = low + (high - low) / 2
         return Bounds.around(np.where(np.isfinite(middle), middle, low), low, high)
     return Bounds.around(found.value, low, high)
+
+
+def focus_rows(system: _System, F: certify.AffineMap, focus_states: IntArray | None
+               ) -> tuple[focus.FocusRow, ...] | None:
+    """The certified rows of ``(I - B)^-1`` of *system* for the *focus_states* among its
+    unknowns (made once per system; *F* any map of it), or None: no focus, more than
+    ``focus.FOCUS_MAX`` of them, a solver without a transposed substitution, or a row
+    that failed its test. Then whole vectors are certified."""
+    if focus_states is None or F.states.size < QUICK_MIN_STATES:
+        return None
+    inside = focus_states[system.unknowns[focus_states]]
+    if inside.size > focus.FOCUS_MAX:
+        return None
+    rows = []
+    for position in np.searchsorted(F.states, inside).tolist():
+        if position not in system.focus_rows:
+            system.focus_rows[position] = focus.certified_row(
+                F, system.factorization.dual, position)
+        row = system.focus_rows[position]
+        if row is None:
+            return None
+        rows.append(row)
+    return tuple(rows)
 
 
 def _spread(known: FloatArray, unknown: BoolArray, found: Bounds) -> Bounds:
@@ -826,7 +888,7 @@ def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds) -> Bounds:
     system = _system(P, maybe, ~fixed)
     F = system.affine(lower, upper, None)
     point = np.where(fixed, known.value, 0.0)
-    found = _certified(F, system, point, None, 0.0, float(np.max(upper)))
+    found = _certified(F, system, point, None, (0.0, float(np.max(upper))))
     found = _restrict(found, system.unknowns, maybe)
     value, low, high = point.copy(), lower.copy(), upper.copy()
     value[maybe], low[maybe], high[maybe] = found.value, found.lower, found.upper

@@ -562,6 +562,22 @@ class Factorization:
         inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
         return None if inverse is None else PinnedSolver(inverse.pinned(mask))
 
+    def dual(self, v: FloatArray) -> FloatArray | None:
+        """An approximate ``w`` with ``w^T (I - B) = v^T``, where ``I - B = D^-1 A`` is the
+        system with each row divided by its diagonal (the fixed-point map's matrix):
+        ``w = D A^-T v``, one transposed substitution. None unless the direct solver is a
+        substitution, or when the answer is not finite. For the bounds at a few states
+        (:mod:`~veribattery.checker.focus`); accuracy affects only their tightness.
+        """
+        inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
+        if inverse is None:
+            return None
+        try:
+            w = inverse.dual(np.asarray(v, dtype=np.float64))
+        except RuntimeError:
+            return None
+        return w if np.all(np.isfinite(w)) else None
+
     def _substitution(self) -> _Triangular | None:
         """The substitution solver, tried once (None: the matrix's graph has a cycle)."""
         if not self._substitute_tried:
@@ -809,6 +825,7 @@ class _Triangular:
     def __init__(self, lower: sp.csc_matrix, substitute: _Inverse,
                  order: npt.NDArray[np.integer], scale: FloatArray) -> None:
         self._lower, self._substitute, self._order, self._scale = lower, substitute, order, scale
+        self._transposed: _Inverse | None = None  # made on the first dual solve
         n = order.size
         # Index arrays of numpy's own index type (others are converted at every use)
         # and the inverse permutation, so that both ends of a solve are gathers;
@@ -838,6 +855,19 @@ class _Triangular:
             return x
         return np.take(y, self._back)
 
+    def dual(self, v: FloatArray) -> FloatArray:
+        """``D A^-T v``: ``A^T = D L^T`` in the topological order, so ``L^T y = D^-1 v``
+        by a transposed substitution with the same factor, then ``D y``."""
+        if self._transposed is None:
+            self._transposed = _substitution(self._lower, transposed=True)
+        c = self._to_order(v)
+        c *= self._scale
+        y = self._transposed(c)
+        y /= self._scale
+        w = np.empty(y.size, dtype=np.float64)
+        w[self._order] = y
+        return w
+
     def pinned(self, mask: BoolArray) -> _Inverse:
         """Solves the system whose rows of the states in *mask* are identity rows
         (``x_i = b_i`` there, the other rows as in *A*): *L* without those rows'
@@ -861,9 +891,10 @@ class _Triangular:
         return apply
 
 
-def _substitution(lower: sp.csc_matrix) -> _Inverse:
-    """Forward substitution with the unit lower-triangular CSC matrix *lower* (the
-    returned function may overwrite its argument with the solution).
+def _substitution(lower: sp.csc_matrix, *, transposed: bool = False) -> _Inverse:
+    """Forward substitution with the unit lower-triangular CSC matrix *lower* (with
+    *transposed*, backward substitution with its transpose; the returned function may
+    overwrite its argument with the solution).
 
     SuperLU's triangular solve on prepared arrays (what ``spsolve_triangular``
     calls after copying and rescaling its argument each time); the public
@@ -881,33 +912,36 @@ def _substitution(lower: sp.csc_matrix) -> _Inverse:
 
     def private(b: FloatArray) -> FloatArray:
         # (b is overwritten: callers pass an array of their own, no copy made here)
-        x, info = _superlu.gstrs("N", n, data.size, data, indices, indptr,
+        x, info = _superlu.gstrs(trans, n, data.size, data, indices, indptr,
                                  n, 0, empty_data, empty_indices, empty_indptr, b)
         if info:
             raise RuntimeError("triangular solve failed")
         return np.asarray(x, dtype=np.float64)
 
     def public(b: FloatArray) -> FloatArray:
-        x = spla.spsolve_triangular(lower, b, lower=True, unit_diagonal=True)
+        matrix = lower.T.tocsc() if transposed else lower
+        x = spla.spsolve_triangular(matrix, b, lower=not transposed, unit_diagonal=True)
         return np.asarray(x, dtype=np.float64)
 
+    trans = "T" if transposed else "N"
     try:
         if _superlu is None:
             return public
-        if _PRIVATE_CHECKED:
+        if trans in _PRIVATE_CHECKED:
             return private
         probe = private(np.ones(n, dtype=np.float64))
-        if np.all(np.isfinite(probe)) and np.allclose(lower @ probe, 1.0):
-            _PRIVATE_CHECKED.append(True)
+        product = lower.T @ probe if transposed else lower @ probe
+        if np.all(np.isfinite(probe)) and np.allclose(product, 1.0):
+            _PRIVATE_CHECKED.add(trans)
             return private
     except Exception:
         pass
     return public
 
 
-#: Non-empty once the private triangular solve has been seen to solve ``L y = 1``
-#: (a property of the installed scipy, so probed once per process).
-_PRIVATE_CHECKED: list[bool] = []
+#: The modes ("N", "T") in which the private triangular solve has been seen to solve
+#: ``L y = 1`` / ``L^T y = 1`` (a property of the installed scipy, probed once per process).
+_PRIVATE_CHECKED: set[str] = set()
 
 
 def backward_error(A: sp.csr_matrix, x: FloatArray, b: ExtArray,

@@ -89,18 +89,21 @@ _CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
 # ---------------------------------------------------------------------------
 
 
-def values(dtmc: DTMC, formula: Expr) -> Result:
+def values(dtmc: DTMC, formula: Expr, focus_states: IntArray | None = None) -> Result:
     """Per-state value of *formula*: certified numbers for ``P=?``/``R=?``/``S=?``
     and expressions over them, booleans otherwise.
 
     :param dtmc: the model.
     :param formula: a property formula (constants substituted, labels inlined).
+    :param focus_states: the only states whose bounds the caller reads, or None: a
+        ``P=?``/``R=?`` operator's bounds may then be the trivial ones elsewhere
+        (``kernels.until_probs``). Operands are always evaluated in every state.
     :raises CheckError: on unknown labels or reward structures, or unsupported nesting.
     """
     if isinstance(formula, ProbOp) and formula.op == "=?":
-        return path_probs(dtmc, formula.path)
+        return path_probs(dtmc, formula.path, focus_states)
     if isinstance(formula, RewardOp) and formula.op == "=?":
-        return path_rewards(dtmc, formula)
+        return path_rewards(dtmc, formula, focus_states)
     if isinstance(formula, SteadyOp) and formula.op == "=?":
         return steady.steady_probs(dtmc.transitions, state_set(dtmc, formula.operand))
     if isinstance(formula, Filter):
@@ -113,11 +116,15 @@ def values(dtmc: DTMC, formula: Expr) -> Result:
     return Bounds.exact(np.asarray(leaf, dtype=np.float64))
 
 
-def property_answer(dtmc: DTMC, formula: Expr) -> filters.FilterOutcome:
+def property_answer(dtmc: DTMC, formula: Expr, *,
+                    initial_only: bool = False) -> filters.FilterOutcome:
     """The answer PRISM reports for a property: a filter's value, or PRISM's default
     filter -- ``forall`` initial states for a boolean, the value of the single
     initial state, or the ``range`` over several initial states.
 
+    :param initial_only: the caller reads the answer, not the per-state values: then
+        the per-state bounds of a property without a filter may be trivial away from
+        the initial states (the answer's own are certified as always).
     :raises CheckError: when the model has no initial state, or a filter fails.
     """
     printed: tuple[str, ...] = ()
@@ -131,7 +138,7 @@ def property_answer(dtmc: DTMC, formula: Expr) -> filters.FilterOutcome:
         # the other states true only where certified.
         per_state = _bounded_operator(dtmc, formula, must_decide=dtmc.initial)
     else:
-        per_state = values(dtmc, formula)
+        per_state = values(dtmc, formula, dtmc.initial if initial_only else None)
     if len(dtmc.initial) == 0:
         raise CheckError("the model has no initial state", formula.span)
     default = "forall" if not isinstance(per_state, Bounds) else (
@@ -163,31 +170,34 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
     return _as_mask(_point(values(dtmc, expr)), expr)
 
 
-def path_probs(dtmc: DTMC, path: PathFormula) -> Bounds:
+def path_probs(dtmc: DTMC, path: PathFormula, focus_states: IntArray | None = None) -> Bounds:
     """Per-state probability of the path formula *path*, with certified bounds.
 
     ``G``, ``W`` and ``R`` are complements of an until (:meth:`Bounds.complement`).
 
     :param dtmc: the model.
     :param path: ``X``, ``U``, ``F`` or ``G``, optionally step-bounded.
+    :param focus_states: as for :func:`values`.
     """
+    focus = focus_states
     match path:
         case Next(operand=operand):
             return kernels.next_probs(dtmc.transitions, state_set(dtmc, operand))
         case Until(left=left, right=right, bound=bound):
-            return _until(dtmc, state_set(dtmc, left), state_set(dtmc, right), bound)
+            return _until(dtmc, state_set(dtmc, left), state_set(dtmc, right), bound, focus)
         case Eventually(operand=operand, bound=bound):
-            return _until(dtmc, _everywhere(dtmc), state_set(dtmc, operand), bound)
+            return _until(dtmc, _everywhere(dtmc), state_set(dtmc, operand), bound, focus)
         case Globally(operand=operand, bound=bound):
-            return _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound).complement()
+            return _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound,
+                          focus).complement()
         case WeakUntil(left=left, right=right, bound=bound):
             # a W b = !((a & !b) U (!a & !b)), bounds kept (as PRISM rewrites it).
             a, b = state_set(dtmc, left), state_set(dtmc, right)
-            return _until(dtmc, a & ~b, ~a & ~b, bound).complement()
+            return _until(dtmc, a & ~b, ~a & ~b, bound, focus).complement()
         case Release(left=left, right=right, bound=bound):
             # a R b = !(!a U !b), bounds kept.
             a, b = state_set(dtmc, left), state_set(dtmc, right)
-            return _until(dtmc, ~a, ~b, bound).complement()
+            return _until(dtmc, ~a, ~b, bound, focus).complement()
         case RewardBounded():
             return _reward_bounded_probs(dtmc, path)
         case Conditional():
@@ -195,18 +205,20 @@ def path_probs(dtmc: DTMC, path: PathFormula) -> Bounds:
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
 
 
-def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
+def path_rewards(dtmc: DTMC, op: RewardOp, focus_states: IntArray | None = None) -> Bounds:
     """Per-state expected reward of the reward operator *op* (its bound is ignored), certified.
 
     :param dtmc: the model.
     :param op: ``R{..}`` over ``F``, ``C<=k`` or ``I=k``.
+    :param focus_states: as for :func:`values`.
     """
     structure = _reward_structure(dtmc, op)
     path: RewardPath = op.path
     P = dtmc.transitions
     match path:
         case Reach(target=target):
-            return kernels.reach_rewards(P, structure.total, state_set(dtmc, target))
+            return kernels.reach_rewards(P, structure.total, state_set(dtmc, target),
+                                         focus_states)
         case Cumulative(bound=bound):
             return kernels.cumulative_rewards(P, structure.total, _steps(bound))
         case Instantaneous(time=time):
@@ -226,7 +238,7 @@ def path_rewards(dtmc: DTMC, op: RewardOp) -> Bounds:
         case ConditionalReach(target=target, condition=condition):
             return conditional.conditional_reach_reward_bounds(
                 dtmc, structure, state_set(dtmc, target), state_set(dtmc, condition),
-                _condition_name(condition), path.span)
+                _condition_name(condition), path.span, focus_states)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
 
 
@@ -241,9 +253,13 @@ def prepare(dtmc: DTMC, formulas: Sequence[Expr]) -> None:
     union of their unknowns where that is cheaper (:func:`kernels.prepare_untils`:
     a Fig. 6 point's ``P=? [ F "success" ]`` and the recharge cap's probability).
     Only operator-free operands are looked at (their masks are cheap); the pre-pass
-    results are memoised, so checking repeats none of this work.
+    results are memoised, so checking repeats none of this work. The conditions of
+    conditional properties are marked as needed in every state
+    (:func:`kernels.need_whole`): a ``P=? [ F b ]`` among the properties then shares them.
     """
     P = dtmc.transitions
+    for condition in (c for c in (_condition_set(dtmc, f) for f in formulas) if c is not None):
+        kernels.need_whole(P, _everywhere(dtmc), condition)
     reach = [m for m in (_reach_target(dtmc, f) for f in formulas) if m is not None]
     untils = [u for u in (_until_operands(dtmc, f) for f in formulas) if u is not None]
     for target in reach if untils else ():
@@ -269,6 +285,16 @@ def _reach_target(dtmc: DTMC, formula: Expr) -> BoolArray | None:
     path = formula.path
     if isinstance(path, Reach | ConditionalReach) and not _has_operator(path.target):
         return _quiet_set(dtmc, path.target)
+    return None
+
+
+def _condition_set(dtmc: DTMC, formula: Expr) -> BoolArray | None:
+    """The states *b* of an operator-free condition ``F b`` of a conditional ``P=?``/``R=?``."""
+    if not (isinstance(formula, ProbOp | RewardOp) and formula.op == "=?"):
+        return None
+    path = formula.path
+    if isinstance(path, ConditionalReach | Conditional) and not _has_operator(path.condition):
+        return _quiet_set(dtmc, path.condition)
     return None
 
 
@@ -408,17 +434,18 @@ def _decide(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp, threshold: float,
 
 
 def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
-           bound: TimeBound | TimeInterval | None) -> Bounds:
+           bound: TimeBound | TimeInterval | None, focus_states: IntArray | None = None
+           ) -> Bounds:
     """Dispatch ``remain U target`` to the kernel for its step interval."""
     P = dtmc.transitions
     if bound is None:
-        return kernels.until_probs(P, remain, target)
+        return kernels.until_probs(P, remain, target, focus_states)
     low, high = _interval(bound)
     if high is not None and high < low:
         return Bounds.exact(np.zeros(dtmc.num_states))
     if low == 0:
         if high is None:
-            return kernels.until_probs(P, remain, target)
+            return kernels.until_probs(P, remain, target, focus_states)
         return kernels.bounded_until_probs(P, remain, target, high)
     if high is None:
         return kernels.lower_bounded_until_probs(P, remain, target, low)
