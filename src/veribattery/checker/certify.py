@@ -26,6 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._record import record
+from veribattery._sparse import csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.bounds import Bounds, round_down, round_up
 
@@ -242,7 +243,7 @@ class AffineMap:
             return dataclasses.replace(shared, known_lower=known_lower,
                                        known_upper=known_upper, offset=offset)
         plan = _row_plan(rows, states)
-        off = sp.csr_matrix((rows.data[plan.keep], plan.indices, plan.indptr), shape=rows.shape)
+        off = csr_sharing(rows.data[plan.keep], plan.indices, plan.indptr, rows.shape)
         leave_lower, leave_upper = _row_sum_bounds(off, plan.terms)
         constants = _error_constants(plan.terms) if states.size < KEEP_CONSTANTS_BELOW else None
         return cls(off, states, known_lower, known_upper, offset,

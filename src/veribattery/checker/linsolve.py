@@ -48,6 +48,7 @@ except ImportError:  # pragma: no cover -- scipy moved it: the public path is us
 
 from veribattery._memory import TRIM_MIN_STATES, trim_for
 from veribattery._record import record
+from veribattery._sparse import csc_sharing, csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import scc
 from veribattery.errors import CheckError
@@ -197,13 +198,13 @@ class _RestrictionPlan:
         computation; None when a leaving probability is 0 (the plan assumed not)."""
         m = self.shape[0]
         data = np.asarray(P.data[self.gather], dtype=np.float64)
-        rows = sp.csr_matrix((data, self.rows_indices, self.rows_indptr), shape=(m, P.shape[1]))
+        rows = csr_sharing(data, self.rows_indices, self.rows_indptr, (m, P.shape[1]))
         leave = self._leaving(data)
         leave64 = leave.astype(np.float64)
         if not np.all(leave64 != 0):
             return None
         a_data = np.take(np.concatenate([np.negative(data), leave64]), self.a_take)
-        A64 = sp.csr_matrix((a_data, self.a_indices, self.a_indptr), shape=self.shape)
+        A64 = csr_sharing(a_data, self.a_indices, self.a_indptr, self.shape)
         return A64, _diagonal_residue(leave - leave64.astype(np.longdouble)), rows
 
     def _leaving(self, data: FloatArray) -> ExtArray:
@@ -373,7 +374,8 @@ class Factorization:
                  ) -> None:
         if residue is None:
             A, residue = _split(A)
-        self._a64: sp.csr_matrix | None = sp.csr_matrix(A)
+        # (A itself when it is CSR already: a copy would not share the plan's indices)
+        self._a64: sp.csr_matrix | None = A if isinstance(A, sp.csr_matrix) else sp.csr_matrix(A)
         self._residue: sp.csr_matrix | None = residue
         self._n = int(A.shape[0])
         self._rebuild = rebuild
@@ -814,7 +816,7 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Triangular | None:
     data = A64.data[plan.gather]
     data *= np.repeat(scale, np.diff(plan.indptr))
     n = A64.shape[0]
-    lower = sp.csc_matrix((data, plan.indices, plan.indptr), shape=(n, n))
+    lower = csc_sharing(data, plan.indices, plan.indptr, (n, n))
     return _Triangular(lower, _substitution(lower), plan.order, scale)
 
 
