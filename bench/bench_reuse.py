@@ -8,12 +8,19 @@ re-used the state space, and the largest relative difference of any value.
 
     python bench/bench_reuse.py              # 50 points
     python bench/bench_reuse.py --points 5   # a quick look
+    python bench/bench_reuse.py --cli        # also as a user runs them (processes)
+
+With ``--cli`` it also times what a user runs: one ``veribattery sweep -j 1`` over the
+same values against one ``veribattery check --set`` process per value, wall clock,
+back to back (both sides pay their process start-up, imports and first build).
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import subprocess
+import sys
 import time
 from fractions import Fraction
 from pathlib import Path
@@ -29,10 +36,29 @@ Kept = tuple[dict[str, Value], bool]
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "paper" / "case1.yaml"
 
 
+def values(points: int) -> list[float]:
+    """p_wsp_c = k/(points+1), k = 1..points."""
+    return [float(Fraction(k, points + 1)) for k in range(1, points + 1)]
+
+
 def grid(points: int) -> list[MissionConfig]:
-    """*points* configs with p_wsp_c = k/(points+1), k = 1..points (exact decimals)."""
-    values = [Fraction(k, points + 1) for k in range(1, points + 1)]
-    return [load_config(CONFIG, (f"environment.p_wsp_c={float(v)!r}",)) for v in values]
+    """*points* configs, one per value of :func:`values`."""
+    return [load_config(CONFIG, (f"environment.p_wsp_c={v!r}",)) for v in values(points)]
+
+
+def timed_cli(points: int) -> tuple[float, float]:
+    """Wall seconds of one ``sweep -j 1`` over the values, and of one ``check`` per value."""
+    command = [str(Path(sys.executable).with_name("veribattery"))]  # the installed command
+    listed = ",".join(repr(v) for v in values(points))
+    start = time.perf_counter()
+    subprocess.run([*command, "sweep", str(CONFIG), "--vary", f"environment.p_wsp_c={listed}",
+                    "-j", "1", "--format", "csv"], check=True, capture_output=True)
+    swept = time.perf_counter() - start
+    start = time.perf_counter()
+    for v in values(points):
+        subprocess.run([*command, "check", str(CONFIG), "--set", f"environment.p_wsp_c={v!r}",
+                        "--format", "json"], check=True, capture_output=True)
+    return swept, time.perf_counter() - start
 
 
 def timed(
@@ -65,6 +91,8 @@ def largest_difference(a: list[Kept], b: list[Kept]) -> float:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=50, help="grid points (default 50)")
+    parser.add_argument("--cli", action="store_true",
+                        help="also time one sweep process against one check process per point")
     args = parser.parse_args()
     configs = grid(args.points)
     checker = MissionChecker(values_only=True)  # as a sweep runs it
@@ -79,6 +107,10 @@ def main() -> None:
     print(f"largest relative difference of a value: {difference:.3g}")
     if not math.isfinite(difference) or difference > 1e-12:
         raise SystemExit("re-used values differ from independent checks by more than 1e-12")
+    if args.cli:
+        swept, checked = timed_cli(args.points)
+        print(f"veribattery sweep -j 1: {swept:.2f} s wall; {args.points} x veribattery check: "
+              f"{checked:.2f} s wall; speed-up {checked / swept:.2f}x")
 
 
 if __name__ == "__main__":
