@@ -2,11 +2,37 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 import pytest
 
-from veribattery.checker import linsolve
+from veribattery.checker import kernels, linsolve
+
+#: Replaces ``owner.name`` by a spy; returns, per call, whether it answered (not None).
+SpyAnswers = Callable[[object, str], list[bool]]
+
+
+@pytest.fixture
+def quick_systems(monkeypatch: pytest.MonkeyPatch) -> SpyAnswers:
+    """The quick certificates on every system (small ones included), and kept systems
+    used whatever the share of their states a query has (a cost rule); returns a
+    function that spies on a kernel's answers."""
+    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
+    monkeypatch.setattr(kernels, "SUPERSET_SHARE", 0.0)
+
+    def spy_on(owner: object, name: str) -> list[bool]:
+        answered: list[bool] = []
+        original = getattr(owner, name)
+
+        def spy(*args):  # type: ignore[no-untyped-def]
+            found = original(*args)
+            answered.append(found is not None)
+            return found
+
+        monkeypatch.setattr(owner, name, spy)
+        return answered
+
+    return spy_on
 
 
 @pytest.fixture

@@ -12,15 +12,15 @@ quick one does (``QUICK_MIN_STATES`` unknowns and more): the tests lower that bo
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from fractions import Fraction
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from tests.checker.conftest import SpyAnswers
 from tests.checker.test_conditional_certified import Rows, _expected, _solve, _until, oracle
-from tests.checker.test_pinned_systems import _contains, _forward_chain, _text
+from tests.checker.test_pinned_systems import _contains, _forward_chain, _text, acyclic_rows
 from veribattery.checker import focus, kernels, linsolve
 from veribattery.pipeline import check_prism_file
 
@@ -29,21 +29,9 @@ PROPS = ('R{"r"}=? [ F "a" ];\nP=? [ F "t" ];\nP=? [ "c" U "t" ];\n'
 
 
 @pytest.fixture
-def focused(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[bool]]:
-    """The quick certificates on every system; yields, per focused attempt, whether it
-    answered."""
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
-    monkeypatch.setattr(kernels, "SUPERSET_SHARE", 0.0)
-    answered: list[bool] = []
-    original = focus.focused_bounds
-
-    def spy(*args):  # type: ignore[no-untyped-def]
-        found = original(*args)
-        answered.append(found is not None)
-        return found
-
-    monkeypatch.setattr(focus, "focused_bounds", spy)
-    yield answered
+def focused(quick_systems: SpyAnswers) -> list[bool]:
+    """``quick_systems``; per focused attempt, whether it answered."""
+    return quick_systems(focus, "focused_bounds")
 
 
 def _expected_answers(rows: Rows, rewards: list[Fraction], done: list[bool],
@@ -179,12 +167,7 @@ def _exact_row(P: sp.csr_matrix, states: list[int], k: int) -> list[Fraction]:
 def test_dual_solve_is_the_transposed_system() -> None:
     rng = np.random.default_rng(7)
     n = 40
-    dense = np.zeros((n, n))
-    for i in range(1, n):  # successors precede: acyclic, in a shuffled numbering
-        successors = rng.choice(i, size=min(i, 3), replace=False)
-        dense[i, successors] = rng.integers(1, 5, size=successors.size) / 16
-    shuffle = rng.permutation(n)
-    dense = dense[np.ix_(shuffle, shuffle)]
+    dense = acyclic_rows(rng, n)
     leave = rng.integers(4, 16, size=n) / 16  # the diagonal D (leaving probabilities)
     A = sp.csr_matrix(np.diag(leave) - dense)
     inverse = linsolve._triangular_inverse(A)

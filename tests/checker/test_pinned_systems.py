@@ -14,13 +14,13 @@ unknowns and more: the tests lower that bound to reach it on small chains.
 from __future__ import annotations
 
 import random
-from collections.abc import Iterator
 from fractions import Fraction
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from tests.checker.conftest import SpyAnswers
 from tests.checker.test_conditional_certified import Rows, _expected, _prism, _until
 from veribattery.checker import certify, kernels, linsolve
 from veribattery.checker.result import CheckResult
@@ -73,22 +73,9 @@ def _contains(result: CheckResult, expected: Fraction) -> bool:
 
 
 @pytest.fixture
-def quick_everywhere(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[bool]]:
-    """The quick certificate on every system, and kept systems used whatever the share of
-    their states a query has (a cost rule); yields, per ``_pinned_until`` call, whether
-    it answered."""
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
-    monkeypatch.setattr(kernels, "SUPERSET_SHARE", 0.0)
-    answered: list[bool] = []
-    original = kernels._pinned_until
-
-    def spy(*args):  # type: ignore[no-untyped-def]
-        found = original(*args)
-        answered.append(found is not None)
-        return found
-
-    monkeypatch.setattr(kernels, "_pinned_until", spy)
-    yield answered
+def quick_everywhere(quick_systems: SpyAnswers) -> list[bool]:
+    """:func:`quick_systems`; per ``_pinned_until`` call, whether it answered."""
+    return quick_systems(kernels, "_pinned_until")
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -126,15 +113,21 @@ def test_a_cyclic_system_is_not_pinned(seed: int, quick_everywhere: list[bool],
     assert len(systems_built) == 2
 
 
-def test_pinned_substitution_solves_the_pinned_system() -> None:
-    rng = np.random.default_rng(5)
-    n = 40
+def acyclic_rows(rng: np.random.Generator, n: int) -> np.ndarray:
+    """A dense substochastic matrix whose graph is acyclic, in a shuffled numbering (each
+    state's successors precede it before the shuffle), entries in 16ths."""
     dense = np.zeros((n, n))
-    for i in range(1, n):  # successors precede: acyclic, in a shuffled numbering
+    for i in range(1, n):
         successors = rng.choice(i, size=min(i, 3), replace=False)
         dense[i, successors] = rng.integers(1, 5, size=successors.size) / 16
     shuffle = rng.permutation(n)
-    dense = dense[np.ix_(shuffle, shuffle)]
+    return dense[np.ix_(shuffle, shuffle)]
+
+
+def test_pinned_substitution_solves_the_pinned_system() -> None:
+    rng = np.random.default_rng(5)
+    n = 40
+    dense = acyclic_rows(rng, n)
     A = sp.csr_matrix(np.eye(n) - dense)
     inverse = linsolve._triangular_inverse(A)
     assert isinstance(inverse, linsolve._Triangular)
