@@ -20,7 +20,13 @@ import scipy.sparse as sp
 
 from tests.checker.conftest import SpyAnswers
 from tests.checker.test_conditional_certified import Rows, _expected, _solve, _until, oracle
-from tests.checker.test_pinned_systems import _contains, _forward_chain, _text, acyclic_rows
+from tests.checker.test_pinned_systems import (
+    _contains,
+    _forward_chain,
+    _text,
+    acyclic_rows,
+    assert_rational_answers,
+)
 from veribattery.checker import focus, kernels, linsolve
 from veribattery.pipeline import check_prism_file
 
@@ -82,10 +88,8 @@ def test_answers_certified_at_the_initial_state_hold_the_rational_answer(
     answers = check_prism_file(text, props_source=PROPS, keep_states=False).results
     whole = check_prism_file(text, props_source=PROPS).results
     expected = _expected_answers(built, rewards, done, succeeded, t)
-    for answer, full, value in zip(answers, whole, expected, strict=True):
-        assert _contains(answer, value), (answer.property.text, answer, value)
-        assert answer.precise
-        assert float(answer.value) == pytest.approx(float(value), rel=1e-12, abs=1e-15)
+    assert_rational_answers(answers, expected)
+    for answer, full in zip(answers, whole, strict=True):
         assert answer.value == full.value  # the same approximate solution
         assert answer.bounds is None and answer.values.size == 0
     assert focused and all(focused)  # every focused attempt answered

@@ -14,6 +14,7 @@ unknowns and more: the tests lower that bound to reach it on small chains.
 from __future__ import annotations
 
 import random
+from collections.abc import Sequence
 from fractions import Fraction
 
 import numpy as np
@@ -67,9 +68,19 @@ def _text(rows: Rows, rewards: list[Fraction], done: list[bool], succeeded: list
     return _prism(rows, rewards, done, succeeded) + extra
 
 
-def _contains(result: CheckResult, expected: Fraction) -> bool:
+def _contains(result: CheckResult, expected: Fraction | float) -> bool:
     assert result.lower is not None and result.upper is not None
     return Fraction(result.lower) <= expected <= Fraction(result.upper)
+
+
+def assert_rational_answers(results: Sequence[CheckResult],
+                            expected: Sequence[Fraction | float]) -> None:
+    """Each result's interval holds its rational answer, is precise, and its value is the
+    answer to 1e-12."""
+    for result, value in zip(results, expected, strict=True):
+        assert _contains(result, value), (result.property.text, result, value)
+        assert result.precise
+        assert float(result.value) == pytest.approx(float(value), rel=1e-12, abs=1e-15)
 
 
 @pytest.fixture
@@ -88,11 +99,8 @@ def test_pinned_until_holds_the_rational_answer(seed: int, quick_everywhere: lis
     c = [s != 2 for s in range(n)]
     expected = [_expected(rows, rewards, done)[0], _until(rows, [True] * n, t)[0],
                 _until(rows, c, t)[0]]
-    for result, value in zip(results, expected, strict=True):
-        assert isinstance(value, Fraction)
-        assert _contains(result, value), (result.property.text, result, value)
-        assert result.precise
-        assert float(result.value) == pytest.approx(float(value), rel=1e-12, abs=1e-15)
+    assert all(isinstance(value, Fraction) for value in expected)
+    assert_rational_answers(results, expected)
     # The untils were answered on the reward system, the only one built (``c U t``
     # may have nothing to solve).
     assert quick_everywhere and all(quick_everywhere)
@@ -195,11 +203,8 @@ def test_untils_share_one_system_on_their_union(seed: int, quick_everywhere: lis
     n = len(rows)
     results = check_prism_file(_text(rows, rewards, done, succeeded, t),
                                props_source='P=? [ F "b" ];\nP=? [ F "t" ]').results
-    expected = [_until(rows, [True] * n, succeeded)[0], _until(rows, [True] * n, t)[0]]
-    for result, value in zip(results, expected, strict=True):
-        assert _contains(result, value), (result.property.text, result, value)
-        assert result.precise
-        assert float(result.value) == pytest.approx(float(value), rel=1e-12, abs=1e-15)
+    assert_rational_answers(results, [_until(rows, [True] * n, succeeded)[0],
+                                      _until(rows, [True] * n, t)[0]])
     assert len(systems_built) == 1
 
 

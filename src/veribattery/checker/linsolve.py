@@ -492,11 +492,7 @@ class Factorization:
         inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
         if inverse is None:
             return None
-        try:
-            x = np.asarray(inverse(np.ascontiguousarray(b, dtype=np.float64)), dtype=np.float64)
-        except RuntimeError:
-            return None
-        return x if np.all(np.isfinite(x)) else None
+        return _finite_solve(inverse, np.ascontiguousarray(b, dtype=np.float64))
 
     def correction(self, v: FloatArray) -> FloatArray | None:
         """An approximate ``A^{-1} v`` for certification margins (None if unavailable).
@@ -574,11 +570,7 @@ class Factorization:
         inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
         if inverse is None:
             return None
-        try:
-            w = inverse.dual(np.asarray(v, dtype=np.float64))
-        except RuntimeError:
-            return None
-        return w if np.all(np.isfinite(w)) else None
+        return _finite_solve(inverse.dual, np.asarray(v, dtype=np.float64))
 
     def _substitution(self) -> _Triangular | None:
         """The substitution solver, tried once (None: the matrix's graph has a cycle)."""
@@ -605,6 +597,15 @@ class Factorization:
         return self._direct
 
 
+def _finite_solve(inverse: _Inverse, b: FloatArray) -> FloatArray | None:
+    """``inverse(b)`` in float64, or None when the solve fails or is not finite."""
+    try:
+        x = np.asarray(inverse(b), dtype=np.float64)
+    except RuntimeError:
+        return None
+    return x if np.all(np.isfinite(x)) else None
+
+
 class QuickSolver(Protocol):
     """What the quick certificate needs of a solver (:class:`Factorization`,
     :class:`PinnedSolver`)."""
@@ -624,11 +625,7 @@ class PinnedSolver:
 
     def approximate(self, b: FloatArray) -> FloatArray | None:
         """One substitution (None when it fails or is not finite)."""
-        try:
-            x = np.asarray(self._inverse(np.asarray(b, dtype=np.float64)), dtype=np.float64)
-        except RuntimeError:
-            return None
-        return x if np.all(np.isfinite(x)) else None
+        return _finite_solve(self._inverse, np.asarray(b, dtype=np.float64))
 
     def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
                     ) -> list[Callable[[FloatArray], FloatArray | None]]:
@@ -851,6 +848,10 @@ class _Triangular:
     def _from_order(self, y: FloatArray) -> FloatArray:
         """The answer of the substitution's *y* (scaled in place) in state order."""
         y *= self._scale
+        return self._in_state_order(y)
+
+    def _in_state_order(self, y: FloatArray) -> FloatArray:
+        """*y*, given in topological order, in state order (a new array)."""
         if self._back is None:
             x = np.empty(y.size, dtype=np.float64)
             x[self._order] = y
@@ -866,9 +867,7 @@ class _Triangular:
         c *= self._scale
         y = self._transposed(c)
         y /= self._scale
-        w = np.empty(y.size, dtype=np.float64)
-        w[self._order] = y
-        return w
+        return self._in_state_order(y)
 
     def pinned(self, mask: BoolArray) -> _Inverse:
         """Solves the system whose rows of the states in *mask* are identity rows
