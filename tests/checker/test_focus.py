@@ -1,13 +1,16 @@
 """Bounds certified at the initial states only (checker/focus.py).
 
 When only a property's answer is kept (``keep_states=False``: ``check``, ``prism``, a
-sweep point), the kernels bound the error at the initial state by ``w . d``: ``d`` the
-enclosed defect of the approximate solution, ``w`` a certified upper bound of the initial
-state's row of ``(I - B)^-1`` (one transposed solve per system, shared by every query on
-it). The oracle is exact: each value, and each entry of that row, in ``fractions.Fraction``
-by Gauss-Jordan elimination (tests/checker/test_conditional_certified.py). Probabilities
-are dyadic, so the float model is the rational one. The focused certificate runs where the
-quick one does (``QUICK_MIN_STATES`` unknowns and more): the tests lower that bound.
+sweep point), the kernels certify the initial state's row of ``(I - B)^-1`` from both
+sides (one transposed solve per system, shared by every query on it) and enclose each
+answer as that row times the enclosed right-hand side; a pinned copy of a system, for
+which only the upper bound holds, bounds the error of an approximate solution by
+``w . d`` (``d`` its enclosed defect). The oracle is exact: each value, and each entry
+of that row, in ``fractions.Fraction`` by Gauss-Jordan elimination
+(tests/checker/test_conditional_certified.py), of the model as built (``_as_built``), with
+non-dyadic probabilities (``_thirds``) where the float solution must not be exact. The
+focused certificate runs where the quick one does (``QUICK_MIN_STATES`` unknowns and
+more): the tests lower that bound.
 """
 
 from __future__ import annotations
@@ -28,6 +31,7 @@ from tests.checker.test_pinned_systems import (
     assert_rational_answers,
 )
 from veribattery.checker import focus, kernels, linsolve
+from veribattery.checker.certify import TERM_FLOOR, error_coefficient
 from veribattery.pipeline import check_prism_file
 
 PROPS = ('R{"r"}=? [ F "a" ];\nP=? [ F "t" ];\nP=? [ "c" U "t" ];\n'
@@ -36,8 +40,11 @@ PROPS = ('R{"r"}=? [ F "a" ];\nP=? [ F "t" ];\nP=? [ "c" U "t" ];\n'
 
 @pytest.fixture
 def focused(quick_systems: SpyAnswers) -> list[bool]:
-    """``quick_systems``; per focused attempt, whether it answered."""
-    return quick_systems(focus, "focused_bounds")
+    """``quick_systems``; per focused attempt (from the rows alone, or from an
+    approximate solution's defect), whether it answered."""
+    answered = quick_systems(focus, "answered_bounds")
+    by_defect = quick_systems(focus, "focused_bounds")
+    return answered + by_defect if by_defect else answered
 
 
 def _expected_answers(rows: Rows, rewards: list[Fraction], done: list[bool],
@@ -90,7 +97,7 @@ def test_answers_certified_at_the_initial_state_hold_the_rational_answer(
     expected = _expected_answers(built, rewards, done, succeeded, t)
     assert_rational_answers(answers, expected)
     for answer, full in zip(answers, whole, strict=True):
-        assert answer.value == full.value  # the same approximate solution
+        assert answer.value == pytest.approx(full.value, rel=1e-13)
         assert answer.bounds is None and answer.values.size == 0
     assert focused and all(focused)  # every focused attempt answered
 
@@ -126,10 +133,11 @@ def test_a_condition_is_computed_once(focused: list[bool],
     assert len(calls) == 1
 
 
-@pytest.mark.parametrize("seed", range(8))
+@pytest.mark.parametrize("seed", range(12))
 def test_certified_row_bounds_the_exact_row(seed: int) -> None:
+    # Non-dyadic (_thirds), so the float row is not the exact one.
     rows, rewards, done, succeeded, t = _forward_chain(seed)
-    run = check_prism_file(_text(rows, rewards, done, succeeded, t),
+    run = check_prism_file(_text(_thirds(rows), rewards, done, succeeded, t),
                            props_source='R{"r"}=? [ F "a" ]')
     dtmc = run.dtmc
     P = dtmc.transitions
@@ -141,13 +149,64 @@ def test_certified_row_bounds_the_exact_row(seed: int) -> None:
     states = [int(s) for s in F.states]
     k = states.index(int(dtmc.initial[0]))
     row = focus.certified_row(F, system.factorization.dual, k)
-    assert row is not None and row.position == k
+    assert row is not None and row.position == k and row.lower is not None
     exact = _exact_row(P, states, k)
-    for weight, value in zip(row.weights.tolist(), exact, strict=True):
-        assert Fraction(weight) >= value
-        assert weight <= float(value) * (1 + 1e-12) + 1e-300  # and tight
+    for low, high, value in zip(row.lower.tolist(), row.upper.tolist(), exact, strict=True):
+        assert Fraction(low) <= value <= Fraction(high)
+        assert high - low <= float(value) * 1e-12 + 1e-300  # and tight
         if value == 0:
-            assert weight == 0  # a state the focus state does not reach keeps weight 0
+            assert high == 0  # a state the focus state does not reach keeps weight 0
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_sum_bounds_hold_the_exact_sum(seed: int) -> None:
+    # Products of mixed signs and magnitudes with heavy cancellation: the exact sum of
+    # the exact products (in rationals) lies between the bounds, and they are tight.
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 3000))
+    a = rng.random(n) * 10.0 ** rng.integers(-12, 12, size=n)
+    b = rng.standard_normal(n)
+    products = a * b
+    lower, upper = focus._sum_bounds(products)
+    exact = sum((Fraction(float(x)) * Fraction(float(y)) for x, y in zip(a, b, strict=True)),
+                Fraction(0))
+    assert Fraction(lower) <= exact <= Fraction(upper)
+    magnitude = float(np.sum(np.abs(products)))
+    assert upper - lower <= 1e-13 * magnitude
+
+
+def test_sum_bounds_cover_the_products_rounding() -> None:
+    # fl(3 * fl(1/3)) is 1 but the exact product is not; against exact -1s the float sum
+    # cancels to 0 while the exact one does not: only the error bound holds it.
+    third = 1.0 / 3.0
+    products = np.tile([third * 3.0, -1.0], 1 << 11)
+    assert float(np.sum(products)) == 0.0
+    exact = (Fraction(third) * 3 - 1) * (1 << 11)
+    assert exact != 0
+    lower, upper = focus._sum_bounds(products)
+    assert Fraction(lower) <= exact <= Fraction(upper)
+
+
+def test_image_terms_count_the_nonzero_products() -> None:
+    # The rounding bound of (B^T w)_j counts the nonzero terms of column j: a weighted
+    # sum of the pattern (the probabilities themselves) would undercount them.
+    rows, rewards, done, succeeded, t = _forward_chain(5)
+    run = check_prism_file(_text(_thirds(rows), rewards, done, succeeded, t),
+                           props_source='R{"r"}=? [ F "a" ]')
+    P = run.dtmc.transitions
+    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]))
+    system = kernels._system(P, maybe)
+    zeros = np.zeros(P.shape[0])
+    F = system.affine(zeros, zeros, None)
+    rng = np.random.default_rng(5)
+    nonzero = rng.random(F.states.size) < 0.7
+    terms = focus._ImageTerms.of(F, nonzero, 0)
+    dense = F.rows.toarray()[:, F.states] != 0  # stored entries P'_ij, unknown columns j
+    counts = (dense & nonzero[:, None]).sum(axis=0).astype(float)
+    counts[0] += 1.0  # the focus position's 1
+    assert counts.max() > 1  # several terms in some column
+    np.testing.assert_array_equal(terms.coefficient, error_coefficient(counts))
+    np.testing.assert_array_equal(terms.underflow, counts * TERM_FLOOR)
 
 
 def _exact_row(P: sp.csr_matrix, states: list[int], k: int) -> list[Fraction]:

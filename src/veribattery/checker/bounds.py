@@ -14,7 +14,7 @@ from contextvars import ContextVar
 import numpy as np
 
 from veribattery._record import record
-from veribattery._types import BoolArray, FloatArray
+from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.lang.nodes import BOUND_RELATIONS
 
 #: Default precision: an interval is *precise* when its width is at most this,
@@ -69,6 +69,10 @@ class Bounds:
     def exact(cls, value: FloatArray) -> Bounds:
         """Values known exactly (0/1 from graph analysis, infinities, exact sums)."""
         return cls(value, value.copy(), value.copy())
+
+    def at(self, index: IntArray) -> Bounds:
+        """The bounds of the states *index* only."""
+        return Bounds(self.value[index], self.lower[index], self.upper[index])
 
     @classmethod
     def around(cls, value: FloatArray, lower: FloatArray, upper: FloatArray) -> Bounds:

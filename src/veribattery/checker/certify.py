@@ -66,14 +66,14 @@ def step_up(c: FloatArray) -> FloatArray:
     return np.asarray(c + (_PHI * np.abs(c) + ETA), dtype=np.float64)
 
 
-def _step_up_in_place(c: FloatArray) -> None:
+def step_up_in_place(c: FloatArray) -> None:
     """:func:`step_up` of *c* >= 0 (or NaN, +inf) into *c*: the same operations."""
     bump = c * _PHI
     bump += ETA
     c += bump
 
 
-def _step_down_in_place(c: FloatArray) -> None:
+def step_down_in_place(c: FloatArray) -> None:
     """:func:`step_down` of *c* >= 0 (or NaN, +inf: NaN) into *c*: the same operations."""
     bump = c * _PHI
     bump += ETA
@@ -296,15 +296,15 @@ class AffineMap:
             terms *= TERM_FLOOR  # the underflow part
             error += terms
             del terms
-        _step_up_in_place(error)
+        step_up_in_place(error)
         return numerator, error
 
     def _above(self, numerator: FloatArray, error: FloatArray) -> FloatArray:
         above = numerator + error
         with np.errstate(divide="ignore", invalid="ignore"):
-            _step_up_in_place(above)
+            step_up_in_place(above)
             above /= self.leave_lower
-            _step_up_in_place(above)
+            step_up_in_place(above)
         above[np.isnan(above)] = np.inf
         return above
 
@@ -315,15 +315,41 @@ class AffineMap:
         below = numerator - error
         np.maximum(below, 0.0, out=below)  # (NaN stays NaN)
         with np.errstate(divide="ignore", invalid="ignore"):
-            _step_down_in_place(below)
+            step_down_in_place(below)
             below /= self.leave_upper
             np.maximum(below, 0.0, out=below)
-            _step_down_in_place(below)
+            step_down_in_place(below)
         np.maximum(below, 0.0, out=below)
         undefined = np.isnan(below)
         if undefined.any():
             below[undefined] = -np.inf
         return below
+
+    def constant_term(self) -> tuple[FloatArray, FloatArray]:
+        """Lower and upper bounds of ``G(0)``, the constant ``c`` of ``G(x) = c + B x``."""
+        return self.constant_side(up=False), self.constant_side(up=True)
+
+    def constant_side(self, *, up: bool) -> FloatArray:
+        """One side of :meth:`constant_term`: the upper bound if *up*, else the lower.
+
+        Without known values (rewards to a target) the numerator is the offset itself,
+        exactly, so only the division by the leaving probability is rounded.
+        """
+        zeros = np.zeros(self.states.size)
+        if self.offset is None or (self.known_upper if up else self.known_lower).any():
+            return self.image(zeros, up=up) if _fast_images(self) and self.nonnegative else (
+                self.upper(zeros) if up else self.lower(zeros))
+        o = self.offset
+        if bool(np.all(o >= 0)):  # o / s, s in [leave_lower, leave_upper]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                bound = o / (self.leave_lower if up else self.leave_upper)
+            if up:
+                step_up_in_place(bound)
+                bound[np.isnan(bound)] = np.inf  # (0 / 0: a bound no state needs)
+                return bound
+            step_down_in_place(bound)
+            return np.maximum(bound, 0.0)
+        return self.upper(zeros) if up else self.lower(zeros)
 
     def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
         full = known.copy()
@@ -383,6 +409,9 @@ class PinnedMap(AffineMap):
 
     def lower(self, x: FloatArray) -> FloatArray:
         return self._pin(AffineMap.lower(self, x))
+
+    def constant_side(self, *, up: bool) -> FloatArray:
+        return self._pin(AffineMap.constant_side(self, up=up))
 
     def upper(self, x: FloatArray) -> FloatArray:
         return self._pin(AffineMap.upper(self, x))

@@ -322,7 +322,23 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
         if part is not None:
             vector[maybe] = part
     del found
-    return divide(Bounds(*vectors), condition, np.inf)
+    if focus_states is None:
+        return divide(Bounds(*vectors), condition, np.inf)
+    return _divided_at(Bounds(*vectors), condition, focus_states)
+
+
+def _divided_at(numerator: Bounds, condition: Condition, focus_states: IntArray) -> Bounds:
+    """:func:`divide` (an expectation: no ceiling) at *focus_states* only; elsewhere the
+    trivial bounds ``[0, inf]`` and a value of 0, as the numerator's own there."""
+    part = divide(numerator.at(focus_states),
+                  Condition(condition.states[focus_states], condition.probs.at(focus_states),
+                            condition.possible[focus_states]), np.inf)
+    n = numerator.value.size
+    found = Bounds(np.zeros(n), np.zeros(n), np.full(n, np.inf))
+    for whole, piece in zip((found.value, found.lower, found.upper),
+                            (part.value, part.lower, part.upper), strict=True):
+        whole[focus_states] = piece
+    return found
 
 
 def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, BoolArray],
@@ -432,6 +448,11 @@ class _Split(certify.AffineMap):
     def images(self, low: FloatArray, high: FloatArray) -> tuple[FloatArray, FloatArray]:
         assert self.below is not None
         return self.below.image(low, up=False), certify.AffineMap.image(self, high, up=True)
+
+    def constant_side(self, *, up: bool) -> FloatArray:
+        assert self.below is not None
+        return certify.AffineMap.constant_side(self, up=True) if up else (
+            self.below.constant_side(up=False))
 
 
 def _solve(solver: linsolve.Factorization, b: npt.NDArray[np.floating]) -> FloatArray | None:

@@ -24,7 +24,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from veribattery._record import record
-from veribattery._types import FloatArray
+from veribattery._sparse import csc_sharing
+from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.certify import (
     TERM_FLOOR,
@@ -32,7 +33,10 @@ from veribattery.checker.certify import (
     AffineMap,
     error_coefficient,
     fixpoint_defect,
+    step_down,
+    step_down_in_place,
     step_up,
+    step_up_in_place,
 )
 
 #: Focus states beyond this many: the whole vector is certified instead (each costs
@@ -49,16 +53,27 @@ DualSolve = Callable[[FloatArray], FloatArray | None]
 
 @record
 class FocusRow:
-    """A certified upper bound *weights* of row *position* of ``(I - B)^-1``, for the
-    system whose map's unknown states hold the focus state at *position*."""
+    """Certified bounds of row *position* of ``(I - B)^-1``, for the system whose map's
+    unknown states hold the focus state at *position*: *upper* from above, *lower*
+    from below (None: not certified, or not valid for the map at hand)."""
 
     position: int
-    weights: FloatArray
+    upper: FloatArray
+    lower: FloatArray | None
+
+    def above_only(self) -> FocusRow:
+        """This row for a pinned copy of its system (``B' <= B``, so ``N' <= N``: the
+        upper bound holds for it, the lower one does not)."""
+        return FocusRow(self.position, self.upper, None)
 
 
 def certified_row(F: AffineMap, solve: DualSolve, position: int) -> FocusRow | None:
-    """Row *position* of ``(I - B)^-1`` bounded from above, certified; None when the
-    approximation fails its test (then the caller certifies whole vectors).
+    """Row *position* of ``(I - B)^-1`` bounded from above and, where the test allows,
+    from below, certified; None when the upper bound fails its test (then the caller
+    certifies whole vectors).
+
+    One margin serves both sides: ``w`` is moved by a multiple of the solved gap of the
+    worse side, as :func:`~veribattery.checker.certify.quick_certificate` does.
 
     :param F: a map of the system (only its rows and leaving probabilities are read).
     :param solve: the system's transposed solver.
@@ -69,15 +84,24 @@ def certified_row(F: AffineMap, solve: DualSolve, position: int) -> FocusRow | N
     if w is None:
         return None
     np.maximum(w, 0.0, out=w)
-    gap = _up(np.maximum(_transposed_image(F, w, position) - w, 0.0))
+    reached = w != 0
+    terms = _ImageTerms.of(F, reached, position)
+    low, high = _transposed_images(F, w, w, terms)
+    gap = _up(np.maximum(np.maximum(high - w, w - low), 0.0))
+    del low, high
     margin = solve(gap) if np.all(np.isfinite(gap)) else None
     if margin is None:
         return None
     np.maximum(margin, gap, out=margin)
     for factor in _FACTORS:
-        candidate = _up(w + factor * margin + (4.0 * UNIT_ROUNDOFF) * w)
-        if np.all(_transposed_image(F, candidate, position) <= candidate):
-            return FocusRow(position, candidate)
+        spread = factor * margin + (4.0 * UNIT_ROUNDOFF) * w
+        upper = _up(w + spread)
+        lower = np.maximum(step_down(w - spread), 0.0)
+        if not np.array_equal(upper != 0, reached):  # (upper >= w: more terms, or none)
+            terms = _ImageTerms.of(F, upper != 0, position)
+        low, high = _transposed_images(F, lower, upper, terms)
+        if np.all(high <= upper):
+            return FocusRow(position, upper, lower if np.all(low >= lower) else None)
     return None
 
 
@@ -88,28 +112,137 @@ def _up(c: FloatArray) -> FloatArray:
     return np.where(c > 0, step_up(c), c)
 
 
-def _transposed_image(F: AffineMap, w: FloatArray, position: int) -> FloatArray:
-    """A rigorous upper bound of ``H(w) = e_position + B^T w`` for ``w >= 0``.
+@record
+class _ImageTerms:
+    """The rounding bound of the sums ``(B^T w)_j`` for the *w* of one nonzero pattern:
+    ``coefficient * sum + underflow`` per unknown state, and the focus *position*."""
 
-    ``(B^T w)_j = sum_i P'_ij w_i / s_i``: each quotient is bounded above first (``s_i``
-    by its lower bound), then the sum of nonnegative products is enclosed with its
-    terms counted per column: only the nonzero ones (exact zeros leave no rounding), so
-    a state no focus path reaches keeps the image 0 its weight has.
+    coefficient: FloatArray
+    underflow: FloatArray
+    position: int
+
+    @classmethod
+    def of(cls, F: AffineMap, nonzero: BoolArray, position: int) -> _ImageTerms:
+        """The terms of the images of every ``w`` that is nonzero at most at *nonzero*:
+        per column, the stored entries ``P'_ij`` with ``nonzero[i]`` (counted, not
+        weighted), and the focus position's 1."""
+        rows = F.rows
+        pattern = csc_sharing(np.ones(rows.nnz), rows.indices, rows.indptr, rows.shape[::-1])
+        counts = np.asarray(pattern @ nonzero.astype(np.float64), dtype=np.float64)[F.states]
+        counts[position] += 1.0
+        return cls(error_coefficient(counts), counts * TERM_FLOOR, position)
+
+
+def _transposed_images(F: AffineMap, low: FloatArray, high: FloatArray,
+                       terms: _ImageTerms) -> tuple[FloatArray, FloatArray]:
+    """Rigorous bounds of ``H = e_position + B^T w``: below at *low*, above at *high*
+    (``0 <= low <= high``, nonzero only where *terms* count).
+
+    ``(B^T w)_j = sum_i P'_ij w_i / s_i``: each quotient is bounded first (``s_i`` by its
+    upper bound below, its lower bound above), then each sum of nonnegative products is
+    enclosed with its nonzero terms counted (exact zeros leave no rounding), so a state
+    no focus path reaches keeps the image 0 its weight has.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
-        quotient = _up(w / F.leave_lower)
-    quotient[w == 0] = 0.0  # exactly: every unknown state leaves (s_i > 0), bounded or not
-    quotient[np.isnan(quotient)] = np.inf
+        above = _up(high / F.leave_lower)
+        below = step_down(low / F.leave_upper)
+    np.maximum(below, 0.0, out=below)
+    unbounded = np.isnan(above)  # 0 / 0 where high is 0 (exactly 0: every state leaves)
+    if unbounded.any():
+        above[unbounded] = np.where(high[unbounded] == 0, 0.0, np.inf)
     columns = F.rows.T  # (a view: CSC of the transpose)
-    total = np.asarray(columns @ quotient, dtype=np.float64)[F.states]
-    terms = np.asarray(columns @ (quotient != 0).astype(np.float64),
-                       dtype=np.float64)[F.states]
-    total[position] += 1.0
-    terms[position] += 1.0
-    error = error_coefficient(terms) * total
-    error += terms * TERM_FLOOR  # the underflow of each nonzero product
-    image = total + step_up(error)
-    return step_up(image)
+    images = []
+    for quotient, up in ((below, False), (above, True)):
+        total = np.asarray(columns @ quotient, dtype=np.float64)[F.states]
+        total[terms.position] += 1.0
+        error = terms.coefficient * total
+        error += terms.underflow
+        step_up_in_place(error)
+        if up:
+            total += error
+            step_up_in_place(total)
+        else:
+            total -= error
+            np.maximum(total, 0.0, out=total)
+            step_down_in_place(total)
+            np.maximum(total, 0.0, out=total)
+        images.append(total)
+    return images[0], images[1]
+
+
+def answered_bounds(F: AffineMap, rows: Sequence[FocusRow], rhs: FloatArray,
+                    floor: FloatArray, ceiling: FloatArray) -> Bounds | None:
+    """Bounds of the fixed point of *F* tight at the *rows*' positions, without a solve:
+    ``x*_k = sum_j N_kj c_j`` with ``c = G(0)`` (the offset and known values, enclosed)
+    and row *k* of ``N`` between the row's bounds. Elsewhere the trivial *floor* and
+    *ceiling* (and a value of 0 clipped into them). None when a position misses the
+    required precision.
+
+    :param rows: rows bounded on both sides, of *F*'s own ``B``.
+    :param rhs: the system's right-hand side ``b`` (``c = b / s``), for the point value.
+    """
+    n = F.states.size
+    low, high = F.constant_term()
+    lower = np.array(np.broadcast_to(floor, (n,)))
+    upper = np.array(np.broadcast_to(ceiling, (n,)))
+    value = np.minimum(np.maximum(0.0, lower), upper)
+    least, most = float(np.min(low)), float(np.max(high))  # (NaN if any is)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        estimated = 2.0 * rhs / (F.leave_lower + F.leave_upper)
+    for row in rows:
+        assert row.lower is not None
+        k = row.position
+        w_low, w_high, c_low, c_high, c_value = row.lower, row.upper, low, high, estimated
+        if not (math.isfinite(least) and math.isfinite(most)):
+            # N_kj = 0 exactly where the upper bound is 0 (and c_j may be infinite there).
+            reached = np.flatnonzero(w_high)
+            w_low, w_high, c_low, c_high, c_value = (
+                v[reached] for v in (w_low, w_high, c_low, c_high, c_value))
+        with np.errstate(invalid="ignore"):  # (0 * inf: NaN, an imprecise answer)
+            at_least = _sum_bounds(w_low * c_low if least >= 0 else
+                                   np.where(c_low >= 0, w_low * c_low, w_high * c_low))[0]
+            at_most = _sum_bounds(w_high * c_high if least >= 0 else
+                                  np.where(c_high >= 0, w_high * c_high, w_low * c_high))[1]
+            # The value: the middle of the row times b / s, the solver's own right-hand
+            # side (as a solve's x_k, to within a few ulps), not the middle of the
+            # interval, which is wider.
+            estimate = _pairwise((w_low + w_high) * c_value)[0] / 2
+        lower[k], upper[k] = max(at_least, float(lower[k])), min(at_most, float(upper[k]))
+        value[k] = min(max(estimate, lower[k]), upper[k]) if math.isfinite(estimate) else (
+            lower[k])
+    found = Bounds(value, lower, upper)
+    return found if _precise_at(found, [row.position for row in rows]) else None
+
+
+def _sum_bounds(products: FloatArray) -> tuple[float, float]:
+    """Bounds of the exact sum of the exact products that *products* rounded.
+
+    The sum is taken pairwise by halving, so each term meets ``L = ceil(log2 n)``
+    additions: with the product's own rounding, ``|error| <= gamma_(L+1) sum |t|``
+    (Higham §3.1 and §4.2) plus each product's underflow; ``2 (L+1) u`` covers
+    ``gamma_(L+1)`` and the computed magnitude's own shortfall.
+    """
+    total, levels = _pairwise(products)
+    magnitude = total if total >= 0 and bool(np.all(products >= 0)) else (
+        _pairwise(np.abs(products))[0])
+    if not (math.isfinite(total) and math.isfinite(magnitude)):
+        return -math.inf, math.inf
+    error = (2.0 * UNIT_ROUNDOFF) * (levels + 1) * magnitude * _SAFETY + products.size * 2.0**-1074
+    error = math.nextafter(error, math.inf)
+    return (math.nextafter(total - error, -math.inf), math.nextafter(total + error, math.inf))
+
+
+def _pairwise(terms: FloatArray) -> tuple[float, int]:
+    """The sum of *terms* by halving (adjacent pairs, a zero appended to an odd count),
+    and the number of halvings: an order whose rounding is bounded by its depth."""
+    if terms.size <= 1:
+        return (float(terms[0]) if terms.size else 0.0), 0
+    levels = (terms.size - 1).bit_length()
+    padded = np.zeros(1 << levels)  # zeros add exactly
+    padded[:terms.size] = terms
+    for _ in range(levels):
+        padded = padded[0::2] + padded[1::2]
+    return float(padded[0]), levels
 
 
 def focused_bounds(F: AffineMap, x: FloatArray, rows: Sequence[FocusRow],
@@ -125,7 +258,7 @@ def focused_bounds(F: AffineMap, x: FloatArray, rows: Sequence[FocusRow],
     if rows:
         defect = fixpoint_defect(F, x)
         for row in rows:
-            radius = _weighted_sum_up(row.weights, defect)
+            radius = _weighted_sum_up(row.upper, defect)
             k = row.position
             lower[k] = max(math.nextafter(float(x[k]) - radius, -math.inf), float(lower[k]))
             upper[k] = min(math.nextafter(float(x[k]) + radius, math.inf), float(upper[k]))

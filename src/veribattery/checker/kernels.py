@@ -479,9 +479,10 @@ def _pinned_until(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray,
     F = certify.PinnedMap.around(system.affine(known, known, None), where, values)
     b = _right_side(system, known, None, np.float64)
     b[where] = values
-    # The system's rows of (I - B)^-1 bound the pinned map's too (docs/numerics.md).
+    # The system's rows of (I - B)^-1 bound the pinned map's from above (docs/numerics.md).
+    rows = focus_rows(system, F, focus_states)
     found = quick_bounds(F, solver, b, np.full((), 0.0), np.full((), 1.0),
-                         focus_rows(system, F, focus_states))
+                         None if rows is None else tuple(row.above_only() for row in rows))
     if found is None:
         return None
     return _spread(result, maybe, _restrict(found, unknowns, maybe))
@@ -580,11 +581,18 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
     below ``QUICK_MIN_STATES``, the pair fails its test or is not precise enough.
 
     With *rows* (:func:`focus_rows`), bounds tight at their focus states only are tried
-    first (:func:`focus.focused_bounds`). For the kernels here and in
+    first: from the rows alone where they are bounded on both sides
+    (:func:`focus.answered_bounds`, no solve), else from the approximate solution's
+    defect (:func:`focus.focused_bounds`). For the kernels here and in
     :mod:`~veribattery.checker.conditional`.
     """
     if F.states.size < QUICK_MIN_STATES:
         return None
+    if rows and all(row.lower is not None for row in rows):
+        answered = focus.answered_bounds(F, rows, np.asarray(b, dtype=np.float64), floor,
+                                          ceiling)
+        if answered is not None:
+            return answered
     x = solver.approximate(np.asarray(b, dtype=np.float64))
     if x is None:
         return None
