@@ -24,7 +24,6 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from veribattery._record import record
-from veribattery._sparse import csc_sharing
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.certify import (
@@ -73,7 +72,9 @@ def certified_row(F: AffineMap, solve: DualSolve, position: int) -> FocusRow | N
     certifies whole vectors).
 
     One margin serves both sides: ``w`` is moved by a multiple of the solved gap of the
-    worse side, as :func:`~veribattery.checker.certify.quick_certificate` does.
+    worse side, as :func:`~veribattery.checker.certify.quick_certificate` does. Each
+    image is made and tested in turn (at 1.4M states every vector is 11 MB, and this
+    runs at a property's peak).
 
     :param F: a map of the system (only its rows and leaving probabilities are read).
     :param solve: the system's transposed solver.
@@ -86,22 +87,29 @@ def certified_row(F: AffineMap, solve: DualSolve, position: int) -> FocusRow | N
     np.maximum(w, 0.0, out=w)
     reached = w != 0
     terms = _ImageTerms.of(F, reached, position)
-    low, high = _transposed_images(F, w, w, terms)
-    gap = _up(np.maximum(np.maximum(high - w, w - low), 0.0))
-    del low, high
+    gap = _transposed_image(F, w, terms, up=True)
+    gap -= w
+    np.maximum(gap, w - _transposed_image(F, w, terms, up=False), out=gap)
+    np.maximum(gap, 0.0, out=gap)
+    gap = _up(gap)
     margin = solve(gap) if np.all(np.isfinite(gap)) else None
     if margin is None:
         return None
     np.maximum(margin, gap, out=margin)
+    del gap
     for factor in _FACTORS:
-        spread = factor * margin + (4.0 * UNIT_ROUNDOFF) * w
+        spread = margin * factor
+        spread += (4.0 * UNIT_ROUNDOFF) * w
         upper = _up(w + spread)
-        lower = np.maximum(step_down(w - spread), 0.0)
         if not np.array_equal(upper != 0, reached):  # (upper >= w: more terms, or none)
             terms = _ImageTerms.of(F, upper != 0, position)
-        low, high = _transposed_images(F, lower, upper, terms)
-        if np.all(high <= upper):
-            return FocusRow(position, upper, lower if np.all(low >= lower) else None)
+        if not np.all(_transposed_image(F, upper, terms, up=True) <= upper):
+            continue
+        lower = w - spread
+        del spread
+        lower = np.maximum(step_down(lower), 0.0)
+        below = bool(np.all(_transposed_image(F, lower, terms, up=False) >= lower))
+        return FocusRow(position, upper, lower if below else None)
     return None
 
 
@@ -127,47 +135,49 @@ class _ImageTerms:
         per column, the stored entries ``P'_ij`` with ``nonzero[i]`` (counted, not
         weighted), and the focus position's 1."""
         rows = F.rows
-        pattern = csc_sharing(np.ones(rows.nnz), rows.indices, rows.indptr, rows.shape[::-1])
-        counts = np.asarray(pattern @ nonzero.astype(np.float64), dtype=np.float64)[F.states]
+        columns = rows.indices
+        if not nonzero.all():  # the entries of the nonzero rows only
+            columns = columns[np.repeat(nonzero, np.diff(rows.indptr))]
+        counts = np.bincount(columns, minlength=rows.shape[1])[F.states].astype(np.float64)
         counts[position] += 1.0
         return cls(error_coefficient(counts), counts * TERM_FLOOR, position)
 
 
-def _transposed_images(F: AffineMap, low: FloatArray, high: FloatArray,
-                       terms: _ImageTerms) -> tuple[FloatArray, FloatArray]:
-    """Rigorous bounds of ``H = e_position + B^T w``: below at *low*, above at *high*
-    (``0 <= low <= high``, nonzero only where *terms* count).
+def _transposed_image(F: AffineMap, w: FloatArray, terms: _ImageTerms, *,
+                      up: bool) -> FloatArray:
+    """A rigorous bound of ``H(w) = e_position + B^T w``: from above if *up*, else from
+    below (``w >= 0``, nonzero only where *terms* count).
 
     ``(B^T w)_j = sum_i P'_ij w_i / s_i``: each quotient is bounded first (``s_i`` by its
-    upper bound below, its lower bound above), then each sum of nonnegative products is
+    lower bound above, its upper bound below), then each sum of nonnegative products is
     enclosed with its nonzero terms counted (exact zeros leave no rounding), so a state
     no focus path reaches keeps the image 0 its weight has.
     """
     with np.errstate(divide="ignore", invalid="ignore"):
-        above = _up(high / F.leave_lower)
-        below = step_down(low / F.leave_upper)
-    np.maximum(below, 0.0, out=below)
-    unbounded = np.isnan(above)  # 0 / 0 where high is 0 (exactly 0: every state leaves)
-    if unbounded.any():
-        above[unbounded] = np.where(high[unbounded] == 0, 0.0, np.inf)
-    columns = F.rows.T  # (a view: CSC of the transpose)
-    images = []
-    for quotient, up in ((below, False), (above, True)):
-        total = np.asarray(columns @ quotient, dtype=np.float64)[F.states]
-        total[terms.position] += 1.0
-        error = terms.coefficient * total
-        error += terms.underflow
-        step_up_in_place(error)
-        if up:
-            total += error
-            step_up_in_place(total)
-        else:
-            total -= error
-            np.maximum(total, 0.0, out=total)
-            step_down_in_place(total)
-            np.maximum(total, 0.0, out=total)
-        images.append(total)
-    return images[0], images[1]
+        quotient = w / (F.leave_lower if up else F.leave_upper)
+    if up:
+        quotient = _up(quotient)
+        unbounded = np.isnan(quotient)  # 0 / 0 where w is 0 (exactly 0: every state leaves)
+        if unbounded.any():
+            quotient[unbounded] = np.where(w[unbounded] == 0, 0.0, np.inf)
+    else:
+        step_down_in_place(quotient)
+        np.maximum(quotient, 0.0, out=quotient)
+    total = np.asarray(F.rows.T @ quotient, dtype=np.float64)[F.states]
+    del quotient
+    total[terms.position] += 1.0
+    error = terms.coefficient * total
+    error += terms.underflow
+    step_up_in_place(error)
+    if up:
+        total += error
+        step_up_in_place(total)
+        return total
+    total -= error
+    np.maximum(total, 0.0, out=total)
+    step_down_in_place(total)
+    np.maximum(total, 0.0, out=total)
+    return total
 
 
 def answered_bounds(F: AffineMap, rows: Sequence[FocusRow], rhs: FloatArray,
@@ -182,36 +192,45 @@ def answered_bounds(F: AffineMap, rows: Sequence[FocusRow], rhs: FloatArray,
     :param rhs: the system's right-hand side ``b`` (``c = b / s``), for the point value.
     """
     n = F.states.size
-    low, high = F.constant_term()
     lower = np.array(np.broadcast_to(floor, (n,)))
     upper = np.array(np.broadcast_to(ceiling, (n,)))
     value = np.minimum(np.maximum(0.0, lower), upper)
-    least, most = float(np.min(low)), float(np.max(high))  # (NaN if any is)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        estimated = 2.0 * rhs / (F.leave_lower + F.leave_upper)
     for row in rows:
         assert row.lower is not None
         k = row.position
-        w_low, w_high, c_low, c_high, c_value = row.lower, row.upper, low, high, estimated
-        if not (math.isfinite(least) and math.isfinite(most)):
-            # N_kj = 0 exactly where the upper bound is 0 (and c_j may be infinite there).
-            reached = np.flatnonzero(w_high)
-            w_low, w_high, c_low, c_high, c_value = (
-                v[reached] for v in (w_low, w_high, c_low, c_high, c_value))
-        with np.errstate(invalid="ignore"):  # (0 * inf: NaN, an imprecise answer)
-            at_least = _sum_bounds(w_low * c_low if least >= 0 else
-                                   np.where(c_low >= 0, w_low * c_low, w_high * c_low))[0]
-            at_most = _sum_bounds(w_high * c_high if least >= 0 else
-                                  np.where(c_high >= 0, w_high * c_high, w_low * c_high))[1]
-            # The value: the middle of the row times b / s, the solver's own right-hand
-            # side (as a solve's x_k, to within a few ulps), not the middle of the
-            # interval, which is wider.
-            estimate = _pairwise((w_low + w_high) * c_value)[0] / 2
+        at_least = _row_sum(row, F.constant_side(up=False), up=False)
+        at_most = _row_sum(row, F.constant_side(up=True), up=True)
         lower[k], upper[k] = max(at_least, float(lower[k])), min(at_most, float(upper[k]))
+        # The value: the middle of the row times b / s, the solver's own right-hand side
+        # (as a solve's x_k, to within a few ulps), not the middle of the interval.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            middle = row.lower + row.upper
+            middle *= rhs
+            middle /= F.leave_lower + F.leave_upper
+        middle[row.upper == 0] = 0.0  # (N_kj = 0 exactly, whatever b_j is)
+        estimate = _pairwise(middle)[0]
+        del middle
         value[k] = min(max(estimate, lower[k]), upper[k]) if math.isfinite(estimate) else (
             lower[k])
     found = Bounds(value, lower, upper)
     return found if _precise_at(found, [row.position for row in rows]) else None
+
+
+def _row_sum(row: FocusRow, c: FloatArray, *, up: bool) -> float:
+    """A bound of ``sum_j N_kj c_j`` for ``N_k`` between the *row*'s bounds: from above
+    if *up* (its upper side where ``c_j >= 0``, its lower one where ``c_j < 0``), else
+    from below (the other way round)."""
+    assert row.lower is not None
+    near, far = (row.upper, row.lower) if up else (row.lower, row.upper)
+    least = float(np.min(c))
+    if not (math.isfinite(least) and math.isfinite(float(np.max(c)))):
+        # N_kj = 0 exactly where the upper bound is 0 (and c_j may be infinite there).
+        reached = np.flatnonzero(row.upper)
+        near, far, c = near[reached], far[reached], c[reached]
+    with np.errstate(invalid="ignore"):  # (0 * inf: NaN, an unbounded sum)
+        products = near * c if least >= 0 else np.where(c >= 0, near * c, far * c)
+    low, high = _sum_bounds(products)
+    return high if up else low
 
 
 def _sum_bounds(products: FloatArray) -> tuple[float, float]:
