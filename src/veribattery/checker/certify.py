@@ -325,12 +325,9 @@ class AffineMap:
             below[undefined] = -np.inf
         return below
 
-    def constant_term(self) -> tuple[FloatArray, FloatArray]:
-        """Lower and upper bounds of ``G(0)``, the constant ``c`` of ``G(x) = c + B x``."""
-        return self.constant_side(up=False), self.constant_side(up=True)
-
     def constant_side(self, *, up: bool) -> FloatArray:
-        """One side of :meth:`constant_term`: the upper bound if *up*, else the lower.
+        """A bound of ``G(0)``, the constant ``c`` of ``G(x) = c + B x``: from above if
+        *up*, else from below.
 
         Without known values (rewards to a target) the numerator is the offset itself,
         exactly, so only the division by the leaving probability is rounded.

@@ -39,7 +39,7 @@ from veribattery.checker.certify import (
 )
 
 #: Focus states beyond this many: the whole vector is certified instead (each costs
-#: two transposed solves and two products, about what a whole certificate of a query costs).
+#: two transposed solves and four images, about what a whole certificate of a query costs).
 FOCUS_MAX = 1
 #: Margin factors tried for a row's certificate, in turn.
 _FACTORS = (2.0, 16.0)
@@ -252,7 +252,7 @@ def _sum_bounds(products: FloatArray) -> tuple[float, float]:
 
 
 def _pairwise(terms: FloatArray) -> tuple[float, int]:
-    """The sum of *terms* by halving (adjacent pairs, a zero appended to an odd count),
+    """The sum of *terms* by halving (adjacent pairs, zeros padded to a power of two),
     and the number of halvings: an order whose rounding is bounded by its depth."""
     if terms.size <= 1:
         return (float(terms[0]) if terms.size else 0.0), 0
