@@ -30,7 +30,7 @@ from tests.checker.test_pinned_systems import (
     acyclic_rows,
     assert_rational_answers,
 )
-from veribattery.checker import focus, kernels, linsolve
+from veribattery.checker import certify, focus, kernels, linsolve
 from veribattery.checker.certify import TERM_FLOOR, error_coefficient
 from veribattery.pipeline import check_prism_file
 
@@ -187,17 +187,21 @@ def test_sum_bounds_cover_the_products_rounding() -> None:
     assert Fraction(lower) <= exact <= Fraction(upper)
 
 
+def _reward_map(seed: int, *, non_dyadic: bool) -> certify.AffineMap:
+    """The fixed-point map of ``R{"r"}=? [ F "a" ]`` on a random forward chain."""
+    rows, rewards, done, succeeded, t = _forward_chain(seed)
+    run = check_prism_file(_text(_thirds(rows) if non_dyadic else rows, rewards, done,
+                                 succeeded, t), props_source='R{"r"}=? [ F "a" ]')
+    P = run.dtmc.transitions
+    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]))
+    zeros = np.zeros(P.shape[0])
+    return kernels._system(P, maybe).affine(zeros, zeros, None)
+
+
 def test_image_terms_count_the_nonzero_products() -> None:
     # The rounding bound of (B^T w)_j counts the nonzero terms of column j: a weighted
     # sum of the pattern (the probabilities themselves) would undercount them.
-    rows, rewards, done, succeeded, t = _forward_chain(5)
-    run = check_prism_file(_text(_thirds(rows), rewards, done, succeeded, t),
-                           props_source='R{"r"}=? [ F "a" ]')
-    P = run.dtmc.transitions
-    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]))
-    system = kernels._system(P, maybe)
-    zeros = np.zeros(P.shape[0])
-    F = system.affine(zeros, zeros, None)
+    F = _reward_map(5, non_dyadic=True)
     rng = np.random.default_rng(5)
     nonzero = rng.random(F.states.size) < 0.7
     terms = focus._ImageTerms.of(F, nonzero, 0)
@@ -246,12 +250,5 @@ def test_dual_solve_is_the_transposed_system() -> None:
 
 def test_no_certificate_when_the_row_fails(monkeypatch: pytest.MonkeyPatch) -> None:
     # A transposed solver that returns a poor row: the test fails, nothing is claimed.
-    rows, rewards, done, succeeded, t = _forward_chain(2)
-    run = check_prism_file(_text(rows, rewards, done, succeeded, t),
-                           props_source='R{"r"}=? [ F "a" ]')
-    P = run.dtmc.transitions
-    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]))
-    system = kernels._system(P, maybe)
-    zeros = np.zeros(P.shape[0])
-    F = system.affine(zeros, zeros, None)
+    F = _reward_map(2, non_dyadic=False)
     assert focus.certified_row(F, lambda v: np.zeros_like(v), 0) is None
