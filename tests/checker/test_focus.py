@@ -31,6 +31,7 @@ from tests.checker.test_pinned_systems import (
     assert_rational_answers,
 )
 from veribattery.checker import certify, focus, kernels, linsolve
+from veribattery.checker.bounds import required_precision
 from veribattery.checker.certify import TERM_FLOOR, error_coefficient
 from veribattery.pipeline import check_prism_file
 
@@ -196,6 +197,33 @@ def _reward_map(seed: int, *, non_dyadic: bool) -> certify.AffineMap:
     maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]))
     zeros = np.zeros(P.shape[0])
     return kernels._system(P, maybe).affine(zeros, zeros, None)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_radius_covers_a_poor_approximation(seed: int) -> None:
+    # The one-sided radius (a pinned query's bound) from an approximation off by ~1e-7:
+    # the bounds at the initial state still hold the exact rational answer, and are
+    # at least as wide as the error (no ulp-sized interval could hold it).
+    rows, rewards, done, succeeded, t = _forward_chain(seed)
+    text = _text(_thirds(rows), rewards, done, succeeded, t)
+    built, initial = _as_built(text, len(rows))
+    exact = _expected(built, rewards, done)[initial]
+    run = check_prism_file(text, props_source='R{"r"}=? [ F "a" ]')
+    P, dtmc = run.dtmc.transitions, run.dtmc
+    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in dtmc.column("s")]))
+    system = kernels._system(P, maybe)
+    zeros = np.zeros(P.shape[0])
+    F = system.affine(zeros, zeros, np.asarray(dtmc.rewards[0].total[maybe], dtype=float))
+    k = int(np.searchsorted(F.states, dtmc.initial[0]))
+    row = focus.certified_row(F, system.factorization.dual, k)
+    assert row is not None
+    x = run.results[0].values[maybe] + 1e-7  # every state off by 1e-7
+    with required_precision(1e-3, 1e-3):  # (an interval this wide is not precise by default)
+        found = focus.focused_bounds(F, x, [row.above_only()], np.full((), 0.0),
+                                     np.full((), np.inf))
+    assert found is not None
+    assert Fraction(float(found.lower[k])) <= exact <= Fraction(float(found.upper[k]))
+    assert found.upper[k] - found.lower[k] >= 1e-7
 
 
 def test_image_terms_count_the_nonzero_products() -> None:

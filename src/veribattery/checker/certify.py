@@ -332,13 +332,10 @@ class AffineMap:
         Without known values (rewards to a target) the numerator is the offset itself,
         exactly, so only the division by the leaving probability is rounded.
         """
-        zeros = np.zeros(self.states.size)
-        if self.offset is None or (self.known_upper if up else self.known_lower).any():
-            return self.image(zeros, up=up) if _fast_images(self) and self.nonnegative else (
-                self.upper(zeros) if up else self.lower(zeros))
         o = self.offset
-        if bool(np.all(o >= 0)):  # o / s, s in [leave_lower, leave_upper]
-            with np.errstate(divide="ignore", invalid="ignore"):
+        known = self.known_upper if up else self.known_lower
+        if o is not None and not known.any() and bool(np.all(o >= 0)):
+            with np.errstate(divide="ignore", invalid="ignore"):  # s in [leave_lower, leave_upper]
                 bound = o / (self.leave_lower if up else self.leave_upper)
             if up:
                 step_up_in_place(bound)
@@ -346,6 +343,9 @@ class AffineMap:
                 return bound
             step_down_in_place(bound)
             return np.maximum(bound, 0.0)
+        zeros = np.zeros(self.states.size)
+        if _fast(self, zeros):
+            return self.image(zeros, up=up)
         return self.upper(zeros) if up else self.lower(zeros)
 
     def _numerator(self, x: FloatArray, known: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -553,8 +553,14 @@ ImagePair = Callable[[FloatArray, FloatArray], tuple[FloatArray, FloatArray]]
 def _image_pair(F: AffineMap, x: FloatArray) -> tuple[ImagePair, bool]:
     """``(lower(low), upper(high))`` of *F* for vectors like *x*, and whether that is the
     fast form (a nonnegative map and ``x >= 0``: :meth:`AffineMap.images`)."""
-    fast = _fast_images(F) and F.nonnegative and bool(np.all(x >= 0))
+    fast = _fast(F, x)
     return (F.images if fast else (lambda lo, hi: (F.lower(lo), F.upper(hi)))), fast
+
+
+def _fast(F: AffineMap, x: FloatArray) -> bool:
+    """Whether *F*'s images at vectors like *x* may take the fast form (a nonnegative
+    map and ``x >= 0``: :meth:`AffineMap.images` and :meth:`AffineMap.image`)."""
+    return _fast_images(F) and F.nonnegative and bool(np.all(x >= 0))
 
 
 def fixpoint_defect(F: AffineMap, x: FloatArray) -> FloatArray:

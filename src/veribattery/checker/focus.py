@@ -277,7 +277,7 @@ def focused_bounds(F: AffineMap, x: FloatArray, rows: Sequence[FocusRow],
     if rows:
         defect = fixpoint_defect(F, x)
         for row in rows:
-            radius = _weighted_sum_up(row.upper, defect)
+            radius = _sum_bounds(row.upper * defect)[1]  # (both >= 0; inf if unbounded)
             k = row.position
             lower[k] = max(math.nextafter(float(x[k]) - radius, -math.inf), float(lower[k]))
             upper[k] = min(math.nextafter(float(x[k]) + radius, math.inf), float(upper[k]))
@@ -286,18 +286,6 @@ def focused_bounds(F: AffineMap, x: FloatArray, rows: Sequence[FocusRow],
     if not _precise_at(found, positions):
         return None
     return found
-
-
-def _weighted_sum_up(weights: FloatArray, defect: FloatArray) -> float:
-    """An upper bound of ``sum_j weights_j defect_j`` (both >= 0): the float dot product
-    plus Higham's bound for ``n`` terms (any order), the underflows, rounded up."""
-    if not np.all(np.isfinite(defect)):
-        return math.inf
-    total = float(np.sum(weights * defect))  # (numpy's own sum: a BLAS dot may spawn threads)
-    n = float(weights.size)
-    error = 4.0 * UNIT_ROUNDOFF * n * total * _SAFETY + n * 2.0**-1073
-    return math.nextafter(math.nextafter(total + math.nextafter(error, math.inf), math.inf),
-                          math.inf)
 
 
 def _precise_at(found: Bounds, positions: list[int]) -> bool:

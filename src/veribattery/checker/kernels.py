@@ -588,12 +588,12 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
     """
     if F.states.size < QUICK_MIN_STATES:
         return None
+    b64 = np.asarray(b, dtype=np.float64)
     if rows and all(row.lower is not None for row in rows):
-        answered = focus.answered_bounds(F, rows, np.asarray(b, dtype=np.float64), floor,
-                                          ceiling)
+        answered = focus.answered_bounds(F, rows, b64, floor, ceiling)
         if answered is not None:
             return answered
-    x = solver.approximate(np.asarray(b, dtype=np.float64))
+    x = solver.approximate(b64)
     if x is None:
         return None
     x = np.clip(x, floor, ceiling)
