@@ -301,3 +301,19 @@ def test_checker_parses_only_the_changed_constant_declarations() -> None:
     edited = second.replace("s>=6", "s>6")
     assert _reparse(second, parsed.model(second), edited) is None
     assert parsed.model(edited) == parse_model(edited, name="model.prism")
+
+
+def test_sweep_checker_checks_on_the_bisimulation_quotient() -> None:
+    checker = MissionChecker(values_only=True)  # lumps: values only, many points
+    for p in ("0.1", "0.37", "0.9"):
+        report, fresh = checker.check(_small(p)), check_mission(_small(p), keep_states=False)
+        quotient = report.run.quotient
+        assert quotient is not None and quotient.num_states < 0.8 * report.run.dtmc.num_states
+        assert report.run.dtmc.num_states == fresh.run.dtmc.num_states  # sizes: the model's
+        for lumped, plain in zip(report.run.results, fresh.run.results, strict=True):
+            assert math.isclose(float(lumped.value), float(plain.value), rel_tol=1e-12), p
+            # both certified: the intervals share the exact value
+            assert lumped.lower <= plain.upper and plain.lower <= lumped.upper, p
+        assert math.isclose(report.recharge_cap_probability, fresh.recharge_cap_probability,
+                            rel_tol=1e-12, abs_tol=1e-300)
+    assert MissionChecker(values_only=True, lump=False).check(_small("0.1")).run.quotient is None

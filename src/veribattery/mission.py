@@ -15,6 +15,7 @@ from veribattery.checker import CheckResult, check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import VeribatteryError
 from veribattery.explore.dtmc import DTMC
+from veribattery.explore.lumping import Lumper
 from veribattery.explore.reuse import structure_key
 from veribattery.lang import flatten_model, parse_model, parse_properties, parse_property
 from veribattery.lang.nodes import (
@@ -127,6 +128,7 @@ def _check(
     exact: bool = False,
     keep_states: bool = True,
     values_only: bool = False,
+    lumper: Lumper | None = None,
 ) -> MissionReport:
     from veribattery.render import render_model, render_properties
 
@@ -134,7 +136,7 @@ def _check(
     model = parsed.model(render_model(cfg))  # not mission_files: no config YAML needed
     props = parsed.properties(render_properties(cfg))
     modes = (exact, keep_states, values_only)
-    run = _check_properties(model, props, progress, builder, modes,
+    run = _check_properties(model, props, progress, (builder, lumper), modes,
                             lambda dtmc: _recharge_cap_formulas(dtmc, cfg))
     return mission_report(cfg, run)
 
@@ -148,16 +150,18 @@ def mission_report(cfg: MissionConfig, run: ModelCheckRun) -> MissionReport:
 
 
 def _check_properties(model: Model, props: PropertiesFile, progress: ProgressCallback | None,
-                      builder: ReusingBuilder | None, modes: tuple[bool, bool, bool],
+                      reuse: tuple[ReusingBuilder | None, Lumper | None],
+                      modes: tuple[bool, bool, bool],
                       checked_after: Callable[[DTMC], Sequence[Expr]]) -> ModelCheckRun:
     """Check every property; a property without a value here (the conditional defaults
     of a mission that never succeeds, or under ``--exact``) is NaN with a warning
-    instead of stopping the whole check (and a sweep). *modes*: exact, keep_states,
-    values_only."""
+    instead of stopping the whole check (and a sweep). *reuse*: the builder and lumper,
+    if any; *modes*: exact, keep_states, values_only."""
     exact, keep_states, values_only = modes
     return check_model(model, props.properties, props_file=props, progress=progress,
-                       builder=builder, exact=exact, undefined_ok=True, keep_states=keep_states,
-                       values_only=values_only, checked_after=checked_after)
+                       builder=reuse[0], exact=exact, undefined_ok=True,
+                       keep_states=keep_states, values_only=values_only,
+                       checked_after=checked_after, lumper=reuse[1])
 
 
 def is_conditional(formula: object) -> bool:
@@ -184,16 +188,25 @@ class MissionChecker:
     becomes 0 or 1 at one of them; order points by key to build each space once.
     """
 
-    def __init__(self, *, values_only: bool = False, reuse: bool = True) -> None:
+    def __init__(self, *, values_only: bool = False, reuse: bool = True,
+                 lump: bool | None = None) -> None:
         """:param values_only: the reports' DTMCs need only the reward structures the
             properties use (a sweep keeps values, not models): the others are not built.
         :param reuse: keep each full build's structure for the configs after it. False
             for a checker that checks one config (a sweep task of one point): it then
             builds as :func:`check_mission` does, without the pass that records every
             branch's kind for re-pricing (a tenth of a build), which it would never use.
+        :param lump: check on each DTMC's bisimulation quotient where it has one
+            (:mod:`veribattery.explore.lumping`; values only). Default: with
+            *values_only* and *reuse* (many points of one structure). A sweep decides it
+            per run of points sharing a state space, so that a point's values do not
+            depend on how the run was cut into tasks.
         """
         self._values_only = values_only
         self._builder = ReusingBuilder() if reuse else None
+        if lump is None:
+            lump = values_only and reuse
+        self._lumper = Lumper() if lump and values_only else None
         # One parse cache per process: a sweep's workers check one task after another,
         # and consecutive points' texts differ in a constant or two (see _Parsed).
         self._parsed = _PARSES
@@ -201,9 +214,11 @@ class MissionChecker:
     def check(
         self, cfg: MissionConfig, *, progress: ProgressCallback | None = None
     ) -> MissionReport:
-        """Check *cfg* as :func:`check_mission` does (the same values, to the last bit)."""
+        """Check *cfg* as :func:`check_mission` does: the same values, to the last bit
+        unless checked on a quotient (then within a few ulps, inside the same bounds)."""
         return _check(cfg, progress, self._builder, self._parsed,
-                      keep_states=not self._values_only, values_only=self._values_only)
+                      keep_states=not self._values_only, values_only=self._values_only,
+                      lumper=self._lumper)
 
 
 class _Parsed:
@@ -320,7 +335,7 @@ def _judge(requirement: Requirement,
 def recharge_cap_probability(run: ModelCheckRun, cfg: MissionConfig) -> float:
     """P[F rc=RC_MAX] in *run*'s DTMC (0 without computing when no state reaches the cap)."""
     formulas = _recharge_cap_formulas(run.dtmc, cfg)
-    return float(check(run.dtmc, formulas[0], states=False).value) if formulas else 0.0
+    return float(check(run.checked_dtmc, formulas[0], states=False).value) if formulas else 0.0
 
 
 def _recharge_cap_formulas(dtmc: DTMC, cfg: MissionConfig) -> tuple[Expr, ...]:

@@ -24,6 +24,7 @@ from veribattery.checker import CheckResult, check
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
+from veribattery.explore.lumping import Lumper
 from veribattery.explore.reuse import Structure, build_reusable, reevaluate
 from veribattery.lang import (
     FlatModel,
@@ -39,7 +40,7 @@ from veribattery.lang import (
     undefined_constants,
 )
 from veribattery.lang.expressions import walk
-from veribattery.lang.nodes import Expr, RewardBounded, RewardOp, Value
+from veribattery.lang.nodes import Expr, Filter, Ident, RewardBounded, RewardOp, Value
 
 if TYPE_CHECKING:
     from veribattery.explore.exact import ExactDTMC
@@ -57,6 +58,14 @@ class ModelCheckRun:
     warnings: tuple[str, ...] = field(default=())
     #: True when the DTMC re-used an earlier model's state space (see :class:`ReusingBuilder`).
     reused: bool = False
+    #: The bisimulation quotient the properties were checked on, if any (see *lumper*
+    #: of :func:`check_model`); *dtmc* is always the model's own chain.
+    quotient: DTMC | None = None
+
+    @property
+    def checked_dtmc(self) -> DTMC:
+        """The chain the properties were checked on: the quotient, else the DTMC."""
+        return self.quotient if self.quotient is not None else self.dtmc
 
     @property
     def model_summary(self) -> dict[str, int]:
@@ -159,6 +168,7 @@ def check_model(
     keep_states: bool = True,
     values_only: bool = False,
     checked_after: Callable[[DTMC], Sequence[Expr]] | None = None,
+    lumper: Lumper | None = None,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states.
 
@@ -176,6 +186,10 @@ def check_model(
     :param checked_after: the formulas the caller will check on the returned DTMC
         (the mission's recharge-cap probability), so that the properties' linear
         systems are chosen to serve them too (:func:`~veribattery.checker.pctl.prepare`).
+    :param lumper: check on the DTMC's bisimulation quotient when it has one worth
+        checking on (answers only: without *keep_states*, never with *exact*); the
+        answers equal the DTMC's, their last bits aside. A sweep passes one per run of
+        points sharing a state space (:mod:`veribattery.explore.lumping`).
     """
     watch = stopwatch or _Stopwatch()
     with watch.stage("parse"):
@@ -197,18 +211,40 @@ def check_model(
         # arithmetic on whole state rows, so the table can be narrow (65 -> 17 MB on
         # the 11x11 mission).
         dtmc = dtmc.compact()
+    later = list(checked_after(dtmc)) if checked_after is not None and not exact else []
+    quotient = None
+    if lumper is not None and not (exact or keep_states):
+        with watch.stage("lump"):
+            quotient = _quotient(lumper, dtmc, [p.formula for p in resolved] + later)
+    checked = quotient if quotient is not None else dtmc
     if exact_model is not None:
         checks = _exact_checks(exact_model, (properties, resolved), props_file, constants)
     else:
-        checks = [functools.partial(check, dtmc, p, states=keep_states) for p in resolved]
+        checks = [functools.partial(check, checked, p, states=keep_states) for p in resolved]
     with watch.stage("check"):
         if exact_model is None:  # linear systems shared between the properties
             trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's
-            later = list(checked_after(dtmc)) if checked_after is not None else []
-            prepare(dtmc, [p.formula for p in resolved] + later)
+            prepare(checked, [p.formula for p in resolved] + later)
             trim_for(dtmc.num_states)  # the pre-pass's freed temporaries
-        results, undefined = _run_checks(checks, resolved, dtmc, (undefined_ok, keep_states))
-    return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused)
+        results, undefined = _run_checks(checks, resolved, checked, (undefined_ok, keep_states))
+    return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused,
+                         quotient)
+
+
+def _quotient(lumper: Lumper, dtmc: DTMC, formulas: Sequence[Expr]) -> DTMC | None:
+    """*dtmc*'s quotient for *formulas*: it keeps apart what their atoms read (labels and
+    rewards always; the variables they name). None if a formula filters over states (a
+    count or sum over them would change) or names something else."""
+    variables: set[str] = set()
+    for formula in formulas:
+        for node in walk(formula):
+            if isinstance(node, Filter):
+                return None
+            if isinstance(node, Ident):
+                if node.name not in dtmc.variable_names:
+                    return None
+                variables.add(node.name)
+    return lumper.quotient(dtmc, sorted(variables))
 
 
 def _named_rewards_only(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:

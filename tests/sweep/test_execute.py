@@ -12,7 +12,7 @@ import pytest
 from tests.sweep.helpers import PER_POINT, SMALL_FARM, four_axes, same_results
 from veribattery.config import load_config
 from veribattery.errors import ConfigError
-from veribattery.sweep import run_sweep
+from veribattery.sweep import parse_axis, run_sweep
 from veribattery.sweep.execute import LocalPool, open_executor
 from veribattery.sweep.tasks import ReusePlan, Task, plan_tasks
 
@@ -23,6 +23,20 @@ def test_process_pool_equals_in_process(serial_frame: pd.DataFrame, tmp_path: Pa
                       on_point=lambda result, _: order.append(result.index))
     assert sorted(order) == [0, 1, 2, 3]
     same_results(frame, serial_frame)
+
+
+def test_a_shared_run_cut_into_tasks_gives_the_serial_values() -> None:
+    # Three points of one state space: one task in process, tasks of 2 and 1 points with
+    # two workers. Each point is checked on its own quotient either way: bit for bit.
+    axis = [parse_axis("environment.p_wsp_c=0.15,0.35,0.65")]
+    serial = run_sweep("", axis, SMALL_FARM)
+    same_results(run_sweep("", axis, SMALL_FARM, jobs=2), serial)
+    # (The small farm's values come out equal on the chain and its quotient, so the
+    # rule itself: a one-point task of a shared run checks on the quotient too.)
+    cfg = load_config("", SMALL_FARM)
+    lone = Task(((0, cfg),), shared=True).checker().check(cfg)
+    assert lone.run.quotient is not None and not lone.reused
+    assert Task(((0, cfg),)).checker().check(cfg).run.quotient is None
 
 
 def test_pool_recovers_from_a_dead_worker(serial_frame: pd.DataFrame) -> None:
@@ -73,6 +87,8 @@ def test_plan_groups_equal_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
     cfg = load_config("", SMALL_FARM)
     tasks, plan = plan_tasks([(i, cfg) for i in range(7)], jobs=1)
     assert [[i for i, _ in t.points] for t in tasks] == [[0, 1, 2], [3], [4, 5], [6]]
+    # Points of shared runs are checked on quotients, however the run is cut (below).
+    assert [t.shared for t in tasks] == [True, False, True, False]
     assert plan == ReusePlan(5, 2, 7)
     assert plan.describe() == ("structure reuse: 5 points share 2 state spaces; "
                                "full build at the other 2")
@@ -80,6 +96,7 @@ def test_plan_groups_equal_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
     keys = iter(["a"] * 7)
     tasks, _ = plan_tasks([(i, cfg) for i in range(7)], jobs=2)
     assert [len(t.points) for t in tasks] == [4, 3]
+    assert all(t.shared for t in tasks)
 
 
 # --------------------------------------------------------------------------- Dask

@@ -204,8 +204,9 @@ def _after_break(
     failed = {i for i in blamed if breaks[i] >= _MAX_BREAKS}
     yield from seen.fresh(PointResult(i, error="a worker process died on this point "
                                       "(killed, or out of memory)") for i in sorted(failed))
-    return [Task(tuple(p for p in points if p[0] not in failed))
-            for points in open_points if any(p[0] not in failed for p in points)]
+    return [Task(tuple(p for p in points if p[0] not in failed), shared=task.shared)
+            for task, points in zip(unfinished, open_points, strict=True)
+            if any(p[0] not in failed for p in points)]
 
 
 class DaskExecutor:

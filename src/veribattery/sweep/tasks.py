@@ -52,14 +52,20 @@ class PointResult:
 
 @dataclass(frozen=True, slots=True)
 class Task:
-    """Consecutive grid points (index, config), checked in order by one checker."""
+    """Consecutive grid points (index, config), checked in order by one checker.
+
+    *shared*: the points belong to a run of points that share one state space; they
+    are checked on bisimulation quotients (whether the run was cut into one task or
+    several, so that -j never changes a value).
+    """
 
     points: tuple[tuple[int, MissionConfig], ...]
+    shared: bool = False
 
     def checker(self) -> MissionChecker:
         """The checker of this task's points: one that keeps the structure of its builds
         only when a later point of the task may re-use it."""
-        return MissionChecker(values_only=True, reuse=len(self.points) > 1)
+        return MissionChecker(values_only=True, reuse=len(self.points) > 1, lump=self.shared)
 
 
 @dataclass(frozen=True, slots=True)
@@ -92,7 +98,8 @@ def plan_tasks(
     shared = [run for run in runs if len(run) > 1]
     plan = ReusePlan(sum(map(len, shared)), len(shared), len(points))
     share = max(1, math.ceil(len(points) / max(jobs, 1)))
-    tasks = [Task(tuple(run[i:i + share])) for run in runs for i in range(0, len(run), share)]
+    tasks = [Task(tuple(run[i:i + share]), shared=len(run) > 1)
+             for run in runs for i in range(0, len(run), share)]
     return tasks, plan
 
 
