@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -223,10 +224,7 @@ class Partition:
         """:func:`dtmc_seeds`, or this partition's own when *dtmc* shares their sources
         (arrays are never changed in place once a DTMC is built)."""
         sources = _seed_sources(dtmc, variables)
-        if len(sources) == len(self.sources) and all(
-                a is b for a, b in zip(sources, self.sources, strict=True)):
-            return self.seeds
-        return dtmc_seeds(dtmc, variables)
+        return self.seeds if _same_sources(sources, self.sources) else dtmc_seeds(dtmc, variables)
 
     def holds(self, P: sp.csr_matrix, seeds: IntArray) -> bool:
         """Whether this is also the partition of *P*'s values and *seeds*, round by round
@@ -239,20 +237,25 @@ class Partition:
         return all(_round_holds(found, indptr, bits, (seeds, same))
                    for found in reversed(self.rounds))
 
-    def quotient(self, dtmc: DTMC) -> DTMC:
+    def quotient(self, dtmc: DTMC, parts: dict[str, Any] | None = None) -> DTMC:
         """The quotient chain of *dtmc* (a point where this partition :meth:`holds`):
-        a representative's variables, labels and rewards for each block."""
+        a representative's variables, labels and rewards for each block (*parts*, those
+        of :meth:`parts` of a DTMC that shares them, if given)."""
         last = self.rounds[-1]
-        rep = last.representative
         size = last.blocks
         data = np.take(np.asarray(dtmc.transitions.data, dtype=np.float64), self.q_gather)
         transitions = sp.csr_matrix((data, self.q_indices, self.q_indptr), shape=(size, size))
+        return replace(dtmc, transitions=transitions, **(parts or self.parts(dtmc)))
+
+    def parts(self, dtmc: DTMC) -> dict[str, Any]:
+        """The quotient's fields but its transitions: states, initial, labels, rewards."""
+        last = self.rounds[-1]
+        rep = last.representative
         rewards = tuple(RewardVectors(r.name, np.asarray(r.state)[rep],
                                       np.asarray(r.transition)[rep]) for r in dtmc.rewards)
-        return replace(dtmc, transitions=transitions, states=np.take(dtmc.states, rep, axis=0),
-                       initial=last.block[dtmc.initial],
-                       labels={name: mask[rep] for name, mask in dtmc.labels.items()},
-                       rewards=rewards)
+        return {"states": np.take(dtmc.states, rep, axis=0), "initial": last.block[dtmc.initial],
+                "labels": {name: mask[rep] for name, mask in dtmc.labels.items()},
+                "rewards": rewards}
 
 
 def _bits(P: sp.csr_matrix) -> IntArray:
@@ -260,9 +263,15 @@ def _bits(P: sp.csr_matrix) -> IntArray:
 
 
 def _seed_sources(dtmc: DTMC, variables: Sequence[str]) -> tuple[object, ...]:
+    """The arrays :func:`dtmc_seeds` reads (compared by identity), then the variables."""
     parts: list[object] = [dtmc.labels[name] for name in sorted(dtmc.labels)]
     parts += [part for r in dtmc.rewards for part in (r.state, r.transition)]
     return (*parts, dtmc.states, tuple(sorted(set(variables))))
+
+
+def _same_sources(one: tuple[object, ...], other: tuple[object, ...]) -> bool:
+    return (len(one) == len(other) and bool(one) and one[-1] == other[-1]
+            and all(a is b for a, b in zip(one[:-1], other[:-1], strict=True)))
 
 
 def partition(dtmc: DTMC, seeds: IntArray, variables: Sequence[str] | None = None) -> Partition:
@@ -598,6 +607,10 @@ class Lumper:
 
     def __init__(self) -> None:
         self._last: Partition | None = None
+        #: The last quotient's fields but its transitions, with its partition and the
+        #: DTMC's seed sources: a later point with the same ones takes them over (not
+        #: the quotient itself, whose solver memos would outlive their point).
+        self._made: tuple[Partition, tuple[object, ...], dict[str, Any]] | None = None
 
     def quotient(self, dtmc: DTMC, variables: Sequence[str]) -> DTMC | None:
         """The quotient of *dtmc* respecting its labels, rewards and *variables*, or
@@ -610,4 +623,13 @@ class Lumper:
         else:
             found = partition(dtmc, dtmc_seeds(dtmc, variables), variables)
         self._last = found
-        return found.quotient(dtmc) if found.worth(dtmc.num_states) else None
+        if not found.worth(dtmc.num_states):
+            return None
+        sources = _seed_sources(dtmc, variables)
+        made = self._made
+        if made and made[0] is found and _same_sources(sources, made[1]):
+            parts = made[2]
+        else:
+            parts = found.parts(dtmc)
+            self._made = (found, sources, parts)
+        return found.quotient(dtmc, parts)
