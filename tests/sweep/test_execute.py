@@ -99,6 +99,22 @@ def test_plan_groups_equal_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
     assert all(t.shared for t in tasks)
 
 
+def test_a_resumed_sweep_lumps_the_points_it_would_have_lumped(
+    monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import veribattery.sweep.tasks as tasks_module
+
+    configs = [load_config("", (*SMALL_FARM, f"environment.p_wsp_c=0.{i + 1}")) for i in range(4)]
+    keys = {id(cfg): key for cfg, key in zip(configs, "aabc", strict=True)}
+    monkeypatch.setattr(tasks_module, "reuse_key", lambda cfg: keys[id(cfg)])
+    grid = list(enumerate(configs))
+    # Points 1 and 3 left: 1 shares its grid run with 0 (done), 3 is alone.
+    tasks, _ = plan_tasks([grid[1], grid[3]], jobs=1, grid=grid)
+    assert [([i for i, _ in t.points], t.shared) for t in tasks] == [([1], True), ([3], False)]
+    tasks, _ = plan_tasks([grid[1], grid[3]], jobs=1)  # (planned alone: neither)
+    assert [t.shared for t in tasks] == [False, False]
+
+
 # --------------------------------------------------------------------------- Dask
 
 def _local_cluster() -> object:

@@ -356,14 +356,16 @@ def _heights(P: sp.csr_matrix) -> list[IntArray] | None:
     back = sp.csr_matrix((np.ones(int(off.sum()), dtype=np.int8),
                           (P.indices[off], rows[off])), shape=(n, n))  # predecessors
     levels, frontier, seen = [], np.flatnonzero(remaining == 0), 0
+    slot = np.zeros(n, dtype=np.int64)
     while frontier.size:
         levels.append(frontier)
         seen += frontier.size
         starts = back.indptr[frontier]
         preds = back.indices[_ranges(starts, back.indptr[frontier + 1] - starts)]
         np.subtract.at(remaining, preds, 1)
-        found = _distinct(preds)
-        frontier = found[remaining[found] == 0]
+        ready = preds[remaining[preds] == 0]
+        slot[ready] = np.arange(ready.size)  # one of each: the copy written last
+        frontier = np.sort(ready[slot[ready] == np.arange(ready.size)])
     return levels if seen == n else None
 
 
@@ -385,30 +387,39 @@ def _signatures(P: sp.csr_matrix, levels: _Levels, bits: IntArray,
     """Each state's recursive signature hash, level by level (an order-free sum over
     its entries, so that no sort is needed)."""
     seeds, tags = seeds_and_tags
+    n = P.shape[0]
     degree = np.diff(P.indptr)
-    own = _row_hashes(seeds, tags, salt) + _mix(degree)
-    signature = np.zeros(P.shape[0], dtype=_U64)
+    own = (_row_hashes(seeds, tags, salt) + _mix(degree))[levels.states]
+    # Signatures in level order, one more slot standing for "itself" (self-loops).
+    signature = np.zeros(n + 1, dtype=_U64)
+    signature[n] = _SELF
+    position = np.empty(n, dtype=np.int64)
+    position[levels.states] = np.arange(n, dtype=np.int64)
     columns = P.indices[levels.entries]
-    self_loop = columns == np.repeat(levels.states, degree[levels.states])
+    successors = np.where(columns == np.repeat(levels.states, degree[levels.states]), n,
+                          position[columns])
     # An entry adds its successor's signature times an odd number made from its bits:
     # signatures are mixed already, and a product keeps (t1, p), (t2, q) apart from
     # (t1, q), (t2, p) where a sum of xors would not.
     entry_bits = _mix(bits[levels.entries]) ^ _U64(salt)
     entry_bits |= _U64(1)
-    bounds, entries = levels.state_bounds, levels.entry_bounds
+    bounds, entries, ends = levels.state_bounds, levels.entry_bounds, levels.row_ends
+    starts = ends - degree[levels.states]
     for level in range(bounds.size - 1):
         lo, hi = entries[level], entries[level + 1]
-        states = levels.states[bounds[level]:bounds[level + 1]]
-        successor = np.where(self_loop[lo:hi], _SELF, signature[columns[lo:hi]])
+        first, last = bounds[level], bounds[level + 1]
+        successor = signature[successors[lo:hi]]
         successor *= entry_bits[lo:hi]
         total = np.zeros(hi - lo + 1, dtype=_U64)
         np.cumsum(successor, out=total[1:])
-        ends = levels.row_ends[bounds[level]:bounds[level + 1]]
-        mine = total[ends]
-        mine -= total[ends - degree[states]]
-        mine += own[states]
-        signature[states] = _mixed(mine)
-    return signature
+        mine = total[ends[first:last]]
+        mine -= total[starts[first:last]]
+        mine += own[first:last]
+        mine ^= mine >> _U64(33)  # a shorter finaliser: clashes are caught exactly anyway
+        mine *= _U64(0xFF51AFD7ED558CCD)
+        mine ^= mine >> _U64(29)
+        signature[first:last] = mine
+    return signature[position]
 
 
 def _row_hashes(seeds: IntArray, tags: IntArray, salt: int) -> HashArray:

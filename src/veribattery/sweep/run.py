@@ -130,7 +130,7 @@ class _Sweep:
             notes(f"{len(done)} of {total} points already done"
                   + (f"; {retried} failed points are retried" if retried else ""))
         pending = [(i, c) for i, c in enumerate(self.configs) if i not in done]
-        tasks, plan = plan_tasks(pending, jobs)
+        tasks, plan = plan_tasks(pending, jobs, list(enumerate(self.configs)) if done else None)
         if pending:
             where = executor.description if len(tasks) > 1 else InProcess.description
             notes(f"{plan.describe()}; running {where}")

@@ -87,33 +87,74 @@ class ReusePlan:
 
 
 def plan_tasks(
-    points: Sequence[tuple[int, MissionConfig]], jobs: int
+    points: Sequence[tuple[int, MissionConfig]], jobs: int,
+    grid: Sequence[tuple[int, MissionConfig]] | None = None,
 ) -> tuple[list[Task], ReusePlan]:
     """Group consecutive *points* with equal non-None reuse keys into tasks.
 
     A run of equal keys longer than an even share of the points (``len / jobs``) is cut
     into pieces, each building once, so that every worker has work.
+
+    :param grid: the whole grid, when *points* are what is left of it (a resumed
+        sweep). A point is checked on a quotient (:attr:`Task.shared`) when its run in
+        the grid has two points or more, so that resuming never changes a value.
     """
-    runs = _runs(points)
+    keys = {index: reuse_key(cfg) for index, cfg in points}
+    in_shared = _in_shared_runs(points, keys, grid)
+    runs = [piece for run in _runs(points, keys) for piece in _split(run, in_shared)]
     shared = [run for run in runs if len(run) > 1]
     plan = ReusePlan(sum(map(len, shared)), len(shared), len(points))
     share = max(1, math.ceil(len(points) / max(jobs, 1)))
-    tasks = [Task(tuple(run[i:i + share]), shared=len(run) > 1)
+    tasks = [Task(tuple(run[i:i + share]), shared=run[0][0] in in_shared)
              for run in runs for i in range(0, len(run), share)]
     return tasks, plan
 
 
-def _runs(points: Sequence[tuple[int, MissionConfig]]) -> list[list[tuple[int, MissionConfig]]]:
+def _in_shared_runs(points: Sequence[tuple[int, MissionConfig]], keys: dict[int, str | None],
+                    grid: Sequence[tuple[int, MissionConfig]] | None) -> set[int]:
+    """The indices of *points* whose run in *grid* (or in *points*) has two points or
+    more: a key that is not None and equals a grid neighbour's (whose keys are made
+    here, for those neighbours alone)."""
+    if grid is None:
+        return {index for run in _runs(points, keys) if len(run) > 1 for index, _ in run}
+    position = {index: at for at, (index, _) in enumerate(grid)}
+    found = set()
+    for index, _ in points:
+        key, at = keys[index], position[index]
+        for near in (at - 1, at + 1):
+            if key is not None and 0 <= near < len(grid):
+                other, cfg = grid[near]
+                if other not in keys:
+                    keys[other] = reuse_key(cfg)
+                if keys[other] == key:
+                    found.add(index)
+    return found
+
+
+def _runs(points: Sequence[tuple[int, MissionConfig]],
+          keys: dict[int, str | None]) -> list[list[tuple[int, MissionConfig]]]:
     runs: list[list[tuple[int, MissionConfig]]] = []
     previous: str | None = None
     for point in points:
-        key = reuse_key(point[1])
+        key = keys[point[0]]
         if key is not None and key == previous:
             runs[-1].append(point)
         else:
             runs.append([point])
         previous = key
     return runs
+
+
+def _split(run: list[tuple[int, MissionConfig]],
+           in_shared: set[int]) -> list[list[tuple[int, MissionConfig]]]:
+    """*run* cut where its points change between checked on quotients and not."""
+    pieces: list[list[tuple[int, MissionConfig]]] = []
+    for point in run:
+        if pieces and (pieces[-1][0][0] in in_shared) == (point[0] in in_shared):
+            pieces[-1].append(point)
+        else:
+            pieces.append([point])
+    return pieces
 
 
 #: Checks one point: :func:`check_point`, or a stand-in (tests) importable by workers.
