@@ -41,7 +41,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import IntArray
@@ -330,10 +329,7 @@ class _Levels:
     def of(cls, P: sp.csr_matrix) -> _Levels | None:
         """The levels of *P*'s graph; None if it has a cycle other than a self-loop."""
         n = P.shape[0]
-        count, _ = csgraph.connected_components(P, directed=True, connection="strong")
-        if count != n:
-            return None
-        levels = _heights(P)
+        levels = _heights(P)  # (Kahn's algorithm never reaches a state on a cycle)
         if levels is None:
             return None
         states = np.concatenate(levels) if levels else np.zeros(0, dtype=np.int64)
@@ -348,7 +344,8 @@ class _Levels:
 
 
 def _heights(P: sp.csr_matrix) -> list[IntArray] | None:
-    """Kahn's algorithm from the states without other successors, level by level."""
+    """Kahn's algorithm from the states without other successors, level by level; None
+    if some state is never reached (it lies on a cycle or leads into one)."""
     n = P.shape[0]
     rows = np.repeat(np.arange(n, dtype=np.int64), np.diff(P.indptr))
     off = P.indices != rows
@@ -356,16 +353,16 @@ def _heights(P: sp.csr_matrix) -> list[IntArray] | None:
     back = sp.csr_matrix((np.ones(int(off.sum()), dtype=np.int8),
                           (P.indices[off], rows[off])), shape=(n, n))  # predecessors
     levels, frontier, seen = [], np.flatnonzero(remaining == 0), 0
-    slot = np.zeros(n, dtype=np.int64)
     while frontier.size:
         levels.append(frontier)
         seen += frontier.size
         starts = back.indptr[frontier]
         preds = back.indices[_ranges(starts, back.indptr[frontier + 1] - starts)]
-        np.subtract.at(remaining, preds, 1)
-        ready = preds[remaining[preds] == 0]
-        slot[ready] = np.arange(ready.size)  # one of each: the copy written last
-        frontier = np.sort(ready[slot[ready] == np.arange(ready.size)])
+        preds.sort()
+        first = np.flatnonzero(np.concatenate([[preds.size > 0], preds[1:] != preds[:-1]]))
+        found = preds[first]
+        remaining[found] -= np.diff(np.append(first, preds.size))
+        frontier = found[remaining[found] == 0]
     return levels if seen == n else None
 
 
