@@ -36,13 +36,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
 from veribattery._record import record
+from veribattery._sparse import csr_sharing
 from veribattery._types import IntArray
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -58,6 +59,7 @@ SALTS = (0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9)
 
 _U64 = np.uint64
 HashArray = npt.NDArray[np.uint64]
+IndexArray = npt.NDArray[np.signedinteger[Any]]
 #: The hash standing for "this state itself" (a self-loop's successor).
 _SELF = _U64(0x5851F42D4C957F2D)
 
@@ -201,8 +203,8 @@ class Partition:
     indices: IntArray
     rounds: tuple[_Round, ...]
     q_gather: IntArray
-    q_indices: IntArray
-    q_indptr: IntArray
+    q_indices: IndexArray
+    q_indptr: IndexArray
     seeds: IntArray
     sources: tuple[object, ...] = ()
 
@@ -243,7 +245,8 @@ class Partition:
         last = self.rounds[-1]
         size = last.blocks
         data = np.take(np.asarray(dtmc.transitions.data, dtype=np.float64), self.q_gather)
-        transitions = sp.csr_matrix((data, self.q_indices, self.q_indptr), shape=(size, size))
+        # The same index arrays at every point: the checker's pattern memos know them.
+        transitions = csr_sharing(data, self.q_indices, self.q_indptr, (size, size))
         return replace(dtmc, transitions=transitions, **(parts or self.parts(dtmc)))
 
     def parts(self, dtmc: DTMC) -> dict[str, Any]:
@@ -542,18 +545,20 @@ def _shared_successors(P: sp.csr_matrix, found: _Round) -> IntArray:
     return _distinct(np.maximum(columns[twin], columns[twin + 1])).astype(np.int64)
 
 
-def _quotient_plan(P: sp.csr_matrix, last: _Round) -> tuple[IntArray, IntArray, IntArray]:
+def _quotient_plan(P: sp.csr_matrix, last: _Round) -> tuple[IntArray, IndexArray, IndexArray]:
     """Where each quotient entry comes from (a representative's entry), its column,
-    and the quotient's row pointers (columns sorted within rows)."""
+    and the quotient's row pointers (columns sorted within rows; int32 where they fit,
+    as scipy would make them)."""
     rep = last.representative
     degree = np.diff(P.indptr)[rep]
     positions = _ranges(P.indptr[rep], degree)
     rows = np.repeat(np.arange(rep.size, dtype=np.int64), degree)
     columns = last.block[P.indices[positions]]
     order = np.argsort(rows * rep.size + columns, kind="stable")  # (rows ascending)
-    indptr = np.zeros(rep.size + 1, dtype=np.int64)
-    np.cumsum(degree, out=indptr[1:])
-    return positions[order], columns[order], indptr
+    index = np.int32 if max(positions.size, rep.size) < 2**31 - 1 else np.int64
+    indptr = np.concatenate([[0], np.cumsum(degree)]).astype(index)
+    return positions[order], cast(IndexArray, columns[order].astype(index)), cast(
+        IndexArray, indptr)
 
 
 def _round_holds(found: _Round, indptr: IntArray, bits: IntArray,
