@@ -188,6 +188,11 @@ def test_a_point_with_coarser_blocks_gets_its_own_partition() -> None:
     fresh = partition(same, dtmc_seeds(same, []))
     assert np.array_equal(again.rounds[-1].block, fresh.rounds[-1].block)
     assert again.blocks < kept.blocks  # 1 and 2 (and 3 and 5) merge at 0.5
+    # The next point like the first finds the first partition again, made no more.
+    values[np.isin(P.data, (0.3, 0.4)) | np.isin(P.data, (0.7, 0.6))] = P.data[
+        np.isin(P.data, (0.3, 0.4)) | np.isin(P.data, (0.7, 0.6))]
+    lumper.quotient(replace_matrix(apart, csr_sharing(values, P.indices, P.indptr, P.shape)), [])
+    assert lumper._last is kept
 
 
 def replace_matrix(chain: DTMC, P: sp.csr_matrix) -> DTMC:

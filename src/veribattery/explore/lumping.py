@@ -54,6 +54,8 @@ __all__ = ["Lumper", "Partition", "dtmc_seeds", "partition"]
 WORTH_FRACTION = 0.8
 #: Rounds of splitting successors that share a block before giving up.
 MAX_ROUNDS = 8
+#: Partitions a :class:`Lumper` keeps for the points after (each is checked in turn).
+PARTITIONS_KEPT = 3
 #: Hash salts tried in turn should a clash merge states that differ.
 SALTS = (0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9)
 
@@ -614,28 +616,27 @@ def _blocks_differ(found: _Round, indptr: IntArray, ordered: IntArray,
 class Lumper:
     """The quotients of successive DTMCs of one structure (a sweep's points).
 
-    Each point's quotient is that of its own partition: the last partition is re-used
-    only where :meth:`Partition.holds`, and made afresh otherwise.
+    Each point's quotient is that of its own partition: a recent partition is re-used
+    only where :meth:`Partition.holds`, and one is made afresh otherwise. A few are
+    kept, so that after a point with coincidences of its own (``p_wsp_c = 0.5``, where
+    ``p = 1 - p`` merges more states) the next point finds the usual one again.
     """
 
     def __init__(self) -> None:
-        self._last: Partition | None = None
+        self._recent: list[Partition] = []
         #: The last quotient's fields but its transitions, with its partition and the
         #: DTMC's seed sources: a later point with the same ones takes them over (not
         #: the quotient itself, whose solver memos would outlive their point).
         self._made: tuple[Partition, tuple[object, ...], dict[str, Any]] | None = None
 
+    @property
+    def _last(self) -> Partition | None:
+        return self._recent[0] if self._recent else None
+
     def quotient(self, dtmc: DTMC, variables: Sequence[str]) -> DTMC | None:
         """The quotient of *dtmc* respecting its labels, rewards and *variables*, or
         None when there is none worth checking on (a cycle, too few states merged)."""
-        found, P = self._last, dtmc.transitions
-        if found is not None and found.fits(P):
-            seeds = found.seeds_of(dtmc, variables)
-            if not found.holds(P, seeds):
-                found = partition(dtmc, seeds, variables)
-        else:
-            found = partition(dtmc, dtmc_seeds(dtmc, variables), variables)
-        self._last = found
+        found = self._partition(dtmc, variables)
         if not found.worth(dtmc.num_states):
             return None
         sources = _seed_sources(dtmc, variables)
@@ -646,3 +647,18 @@ class Lumper:
             parts = found.parts(dtmc)
             self._made = (found, sources, parts)
         return found.quotient(dtmc, parts)
+
+    def _partition(self, dtmc: DTMC, variables: Sequence[str]) -> Partition:
+        """*dtmc*'s partition: a recent one that holds there, else a new one (first)."""
+        P = dtmc.transitions
+        self._recent = [kept for kept in self._recent if kept.fits(P)]
+        seeds = None
+        for at, found in enumerate(self._recent):
+            seeds = found.seeds_of(dtmc, variables)
+            if found.holds(P, seeds):
+                self._recent.insert(0, self._recent.pop(at))  # (by position: records
+                return found  # compare their arrays, not their identity)
+        found = partition(dtmc, dtmc_seeds(dtmc, variables) if seeds is None else seeds,
+                          variables)
+        self._recent = [found, *self._recent][:PARTITIONS_KEPT]
+        return found
