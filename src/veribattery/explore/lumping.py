@@ -223,12 +223,6 @@ class Partition:
         """Whether *P* has this partition's pattern arrays (the very same objects)."""
         return P.indptr is self.indptr and P.indices is self.indices
 
-    def seeds_of(self, dtmc: DTMC, variables: Sequence[str]) -> IntArray:
-        """:func:`dtmc_seeds`, or this partition's own when *dtmc* shares their sources
-        (arrays are never changed in place once a DTMC is built)."""
-        sources = _seed_sources(dtmc, variables)
-        return self.seeds if _same_sources(sources, self.sources) else dtmc_seeds(dtmc, variables)
-
     def holds(self, P: sp.csr_matrix, seeds: IntArray) -> bool:
         """Whether this is also the partition of *P*'s values and *seeds*, round by round
         (a chain with a cycle has none at any point: a property of its pattern)."""
@@ -278,12 +272,12 @@ def _same_sources(one: tuple[object, ...], other: tuple[object, ...]) -> bool:
             and all(a is b for a, b in zip(one[:-1], other[:-1], strict=True)))
 
 
-def partition(dtmc: DTMC, seeds: IntArray, variables: Sequence[str] | None = None) -> Partition:
+def partition(dtmc: DTMC, seeds: IntArray, sources: tuple[object, ...] = ()) -> Partition:
     """The partition of *dtmc*'s states at its values (no rounds, hence no quotient, if
     it has a cycle, its matrix is not canonical, or splitting did not settle).
 
-    :param variables: the variables *seeds* were made with (:func:`dtmc_seeds`), to
-        recognise later points with the same seeds; None: always make them again.
+    :param sources: what *seeds* were made from (:func:`_seed_sources`), to recognise
+        later points with the same seeds; empty: never.
     """
     P = dtmc.transitions
     levels = _Levels.of(P) if P.has_canonical_format else None
@@ -304,7 +298,6 @@ def partition(dtmc: DTMC, seeds: IntArray, variables: Sequence[str] | None = Non
         if not split.size:
             rounds = [_earlier(r, found, P.indptr) for r in rounds[:-1]] + [found]
             rounds = [replace(r, twin_seed_hash=_twin_seed_hash(r, seeds)) for r in rounds]
-            sources = () if variables is None else _seed_sources(dtmc, variables)
             return Partition(P.indptr, P.indices, tuple(rounds), *_quotient_plan(P, found),
                              seeds, sources)
         tags = tags.copy()
@@ -437,9 +430,10 @@ def _described(P: sp.csr_matrix, block: IntArray, tags: IntArray, bits: IntArray
     degree = np.diff(P.indptr)
     rows = np.repeat(np.arange(n, dtype=np.int64), degree)
     keys = np.where(P.indices == rows, -1, block[P.indices])
-    order = _entry_order(rows, keys, bits, int(block.max(initial=-1)) + 2)
+    count = int(block.max(initial=-1)) + 1
+    order = _entry_order(rows, keys, bits, count + 1)
     keys = keys[order]
-    representative = _firsts(block, int(block.max(initial=-1)) + 1)
+    representative = _firsts(block, count)
     ranks = np.arange(rows.size, dtype=np.int64) - np.repeat(P.indptr[:-1], degree)
     rep_entry = np.repeat(P.indptr[representative[block]], degree) + ranks
     twin = (rows[1:] == rows[:-1]) & (keys[1:] == keys[:-1])
@@ -539,11 +533,13 @@ def _earlier(found: _Round, last: _Round, indptr: IntArray) -> _Round:
 
 
 def _shared_successors(P: sp.csr_matrix, found: _Round) -> IntArray:
-    """The larger of every two successors of one state that share a block (to split)."""
-    rows = np.repeat(np.arange(P.shape[0], dtype=np.int64), np.diff(P.indptr))
-    keys = found.keys
-    twin = np.flatnonzero((rows[1:] == rows[:-1]) & (keys[1:] == keys[:-1]) & (keys[1:] >= 0))
-    columns = P.indices[found.order]
+    """The larger of every two successors of one state that share a block (to split):
+    adjacent entries of one key among the round's tied rows (a row has one self-loop
+    at most, so a key shared is a successor block's)."""
+    ties, rows = found.ties, found.tie_rows
+    keys = found.keys[ties]
+    twin = np.flatnonzero((rows[1:] == rows[:-1]) & (keys[1:] == keys[:-1]))
+    columns = P.indices[found.order[ties]]
     return _distinct(np.maximum(columns[twin], columns[twin + 1])).astype(np.int64)
 
 
@@ -636,10 +632,10 @@ class Lumper:
     def quotient(self, dtmc: DTMC, variables: Sequence[str]) -> DTMC | None:
         """The quotient of *dtmc* respecting its labels, rewards and *variables*, or
         None when there is none worth checking on (a cycle, too few states merged)."""
-        found = self._partition(dtmc, variables)
+        sources = _seed_sources(dtmc, variables)
+        found = self._partition(dtmc, variables, sources)
         if not found.worth(dtmc.num_states):
             return None
-        sources = _seed_sources(dtmc, variables)
         made = self._made
         if made and made[0] is found and _same_sources(sources, made[1]):
             parts = made[2]
@@ -648,17 +644,21 @@ class Lumper:
             self._made = (found, sources, parts)
         return found.quotient(dtmc, parts)
 
-    def _partition(self, dtmc: DTMC, variables: Sequence[str]) -> Partition:
+    def _partition(self, dtmc: DTMC, variables: Sequence[str],
+                   sources: tuple[object, ...]) -> Partition:
         """*dtmc*'s partition: a recent one that holds there, else a new one (first)."""
         P = dtmc.transitions
         self._recent = [kept for kept in self._recent if kept.fits(P)]
-        seeds = None
+        # A kept partition's seeds when *dtmc* shares their sources (arrays are never
+        # changed in place once a DTMC is built), else made once.
+        seeds = next((kept.seeds for kept in self._recent
+                      if _same_sources(sources, kept.sources)), None)
+        if seeds is None:
+            seeds = dtmc_seeds(dtmc, variables)
         for at, found in enumerate(self._recent):
-            seeds = found.seeds_of(dtmc, variables)
             if found.holds(P, seeds):
                 self._recent.insert(0, self._recent.pop(at))  # (by position: records
                 return found  # compare their arrays, not their identity)
-        found = partition(dtmc, dtmc_seeds(dtmc, variables) if seeds is None else seeds,
-                          variables)
+        found = partition(dtmc, seeds, sources)
         self._recent = [found, *self._recent][:PARTITIONS_KEPT]
         return found

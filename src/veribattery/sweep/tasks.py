@@ -100,7 +100,7 @@ def plan_tasks(
         the grid has two points or more, so that resuming never changes a value.
     """
     keys = {index: reuse_key(cfg) for index, cfg in points}
-    in_shared = _in_shared_runs(points, keys, grid)
+    in_shared = _in_shared_runs(points, keys, points if grid is None else grid)
     runs = [piece for run in _runs(points, keys) for piece in _split(run, in_shared)]
     shared = [run for run in runs if len(run) > 1]
     plan = ReusePlan(sum(map(len, shared)), len(shared), len(points))
@@ -111,12 +111,10 @@ def plan_tasks(
 
 
 def _in_shared_runs(points: Sequence[tuple[int, MissionConfig]], keys: dict[int, str | None],
-                    grid: Sequence[tuple[int, MissionConfig]] | None) -> set[int]:
-    """The indices of *points* whose run in *grid* (or in *points*) has two points or
-    more: a key that is not None and equals a grid neighbour's (whose keys are made
-    here, for those neighbours alone)."""
-    if grid is None:
-        return {index for run in _runs(points, keys) if len(run) > 1 for index, _ in run}
+                    grid: Sequence[tuple[int, MissionConfig]]) -> set[int]:
+    """The indices of *points* whose run in *grid* has two points or more: a key that
+    is not None and equals a grid neighbour's (whose keys are made here, for those
+    neighbours alone)."""
     position = {index: at for at, (index, _) in enumerate(grid)}
     found = set()
     for index, _ in points:
