@@ -31,3 +31,10 @@ def peer_harness() -> ModuleType:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+@pytest.fixture(autouse=True)
+def _piped_width(monkeypatch: pytest.MonkeyPatch) -> None:
+    """CLI output laid out as when piped with no ``$COLUMNS``: 80 columns, whatever the
+    terminal that runs the tests (the pseudo-terminal tests set their own width)."""
+    monkeypatch.delenv("COLUMNS", raising=False)

@@ -36,6 +36,10 @@ class ConfigError(VeribatteryError):
     """A mission config is malformed: YAML syntax, unknown key, wrong type or range."""
 
 
+class OptionError(VeribatteryError):
+    """A command-line option's value is unusable: an output path, a file type, a number."""
+
+
 class RenderError(VeribatteryError):
     """A template could not be rendered from a config."""
 

@@ -47,9 +47,14 @@ def test_table_one_row_per_point(config: str) -> None:
     result = run("sweep", config, "--vary", "battery.capacity_ah=10.5", *SMALL_FARM,
                  "--set", 'requirements=["exp_recharges < 10"]')
     assert result.exit_code == 0, result.output
-    header = result.stdout.splitlines()[0]
-    for column in ("battery.capacity_ah", "states", "p_success", "exp_recharges", "requirements"):
-        assert column in header
+    lines = result.stdout.splitlines()
+    assert max(map(len, lines)) <= 80  # piped: folded to $COLUMNS (80), never cut
+    blocks = [block.splitlines() for block in result.stdout.split("\n\n")]
+    headers = " ".join(block[0] for block in blocks)
+    for column in ("battery.capacity_ah", "states", "p_success", "exp_recharges",
+                   "exp_mission_time_given_success", "requirements"):
+        assert column in headers.split()
+    assert all(block[2].startswith("10.5 ") for block in blocks)  # the point's key repeated
     assert "PASS" in result.stdout
 
 

@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from veribattery._files import staged
 from veribattery._types import FloatArray
 from veribattery.checker import kernels, reward_bounded
 from veribattery.checker.conditional import conditional_reach_rewards
@@ -224,9 +225,8 @@ def write_csv(dist: Distribution, path: str | Path) -> Path:
         "cdf_success": dist.success_cdf,
         "cdf_failure": dist.failure_cdf,
     })
-    temporary = path.with_name(f".{path.name}.tmp")
-    frame.to_csv(temporary, index=False)  # shortest round-trip repr
-    temporary.replace(path)
+    with staged(path) as temporary:
+        frame.to_csv(temporary, index=False)  # shortest round-trip repr
     return path
 
 
@@ -266,9 +266,8 @@ def plot_distribution(dist: Distribution, deadlines: Sequence[Deadline],
                  f"{dist.expected_given_success:.6g}")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left")
-    temporary = path.with_name(f".{path.name}.tmp{path.suffix}")
-    figure.savefig(temporary, dpi=120)
-    temporary.replace(path)
+    with staged(path, suffix=path.suffix) as temporary:
+        figure.savefig(temporary, dpi=120)
     return path
 
 

@@ -8,14 +8,15 @@ from typing import TYPE_CHECKING
 
 import click
 
+from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     build_progress,
-    escape,
-    out,
     print_warnings,
     set_option,
     user_errors,
 )
+from veribattery.cli.tables import print_table
+from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from veribattery.analyses.distribution import Deadline, Distribution
@@ -47,15 +48,15 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
     """The distribution of mission time to success and to failure for CONFIG (YAML)."""
     from veribattery.analyses.distribution import parse_deadline, write_csv
     from veribattery.config import load_config
-    from veribattery.errors import ConfigError
     from veribattery.mission import mission_dtmc
 
     with user_errors():
         day = parse_deadline(working_day, option="--working-day").value
+        if day <= 0:
+            raise OptionError(f"--working-day {working_day}: must be longer than 0, e.g. 8h")
         limits = tuple(parse_deadline(d, day) for d in deadlines)
-        for path in (csv_path, plot_path):
-            if path is not None and path.exists() and not force:
-                raise ConfigError(f"{path} already exists; use --force to overwrite it")
+        check_output_file(csv_path, "-o", force=force, suffixes=CSV_SUFFIXES)
+        check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
             dtmc = mission_dtmc(cfg, progress=progress)
@@ -97,14 +98,10 @@ def _summary(dist: Distribution, limits: tuple[Deadline, ...]) -> list[tuple[str
 
 
 def _print_table(dist: Distribution, limits: tuple[Deadline, ...]) -> None:
-    from rich.table import Table
-
-    out.print(f"Distribution of {dist.reward!r} to success/failure: {dist.values.size:,} "
-              f"levels, up to {dist.values[-1]:g}")
-    table = Table("quantity", "value", show_edge=False)
-    for name, value in _summary(dist, limits):
-        table.add_row(escape(name), f"{value:.10g}")
-    out.print(table)
+    click.echo(f"Distribution of {dist.reward!r} to success/failure: {dist.values.size:,} "
+               f"levels, up to {dist.values[-1]:g}")
+    print_table(("quantity", "value"), [(name, f"{value:.10g}")
+                                        for name, value in _summary(dist, limits)])
 
 
 def _json(dist: Distribution, limits: tuple[Deadline, ...]) -> dict[str, object]:

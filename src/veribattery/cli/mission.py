@@ -10,18 +10,23 @@ from typing import TYPE_CHECKING
 import click
 
 from veribattery.cli.output import (
+    EXACT_NOTE,
     build_progress,
+    escape,
     exact_text,
     format_result,
     format_value,
+    is_long_exact,
     json_value,
     out,
     print_imprecise,
+    print_timings,
     print_warnings,
     result_bounds,
     set_option,
     user_errors,
 )
+from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
     from veribattery.mission import MissionReport
@@ -66,27 +71,26 @@ def check_command(
 
 def print_mission_table(report: MissionReport) -> None:
     """Model size, named results, requirements, timings."""
-    from rich.table import Column, Table
-
     dtmc = report.run.dtmc
-    out.print(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
-    table = Table("property", "formula", Column("value", overflow="fold"), show_edge=False)
-    for result in report.run.results:
-        mark = " †" if is_conditional(result.property.formula) else ""
-        table.add_row((result.property.name or "") + mark, result.property.text,
-                      format_result(result))
-    out.print(table)
+    click.echo(f"Model: {dtmc.num_states:,} states, {dtmc.num_transitions:,} transitions")
+    rows = [((result.property.name or "") + (" †" if is_conditional(result.property.formula)
+                                              else ""),
+             format_result(result), result.property.text) for result in report.run.results]
+    print_table(("property", "value", "formula"), rows)
+    notes = [EXACT_NOTE] if any(is_long_exact(value) for _, value, _ in rows) else []
     if any(is_conditional(r.property.formula) for r in report.run.results):
-        out.print("† conditional: the expectation given the condition after || "
-                  "(e.g. given success)", style="dim")
+        notes.append("† conditional: the expectation given the condition after || "
+                     "(e.g. given success)")
+    for note in notes:
+        out.print(fit_text(note), style="dim", markup=False)
     for outcome in report.requirements:
         verdict = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
         if not outcome.decided:
             verdict = "[bold red]UNDECIDED[/] (precision not enough: the certified interval " \
                 "straddles the bound)"
-        out.print(f"{verdict} {outcome.requirement} (value {format_value(outcome.value)})")
-    timings = ", ".join(f"{k} {v:.3f}s" for k, v in report.run.timings_s.items())
-    out.print(f"Time: {timings}", style="dim")
+        out.print(f"{verdict} {escape(str(outcome.requirement))} "
+                  f"(value {format_value(outcome.value)})")
+    print_timings(report.run.timings_s)
 
 
 def is_conditional(formula: object) -> bool:

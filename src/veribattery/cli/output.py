@@ -38,16 +38,30 @@ class _LazyConsole:
     def __getattr__(self, name: str) -> Any:
         if name.startswith("__"):  # copy/pickle probes: not the console's business
             raise AttributeError(name)
+        return getattr(self.console, name)
+
+    @property
+    def console(self) -> Console:
+        """The rich console itself (made now if not yet made)."""
         console = self.__dict__.get("_console")
         if console is None:
             from rich.console import Console
 
             console = self._console = Console(**self.__dict__.get("_options", {}))
-        return getattr(console, name)
+        return console
 
 
-out: Console = cast("Console", _LazyConsole(highlight=False, soft_wrap=True))
-err: Console = cast("Console", _LazyConsole(stderr=True, highlight=False, soft_wrap=True))
+def rich_console(console: Console) -> Console:
+    """The real console behind :data:`out` or :data:`err`, for rich objects that use
+    it as a context manager or check its type (``Progress``, ``Live``)."""
+    return console.console if isinstance(console, _LazyConsole) else console
+
+
+# emoji=False: user text such as ``--vary k=a:b:c`` or ``my:warning:x.yaml`` is printed
+# as typed, never with ``:b:`` or ``:warning:`` turned into emoji.
+out: Console = cast("Console", _LazyConsole(highlight=False, soft_wrap=True, emoji=False))
+err: Console = cast("Console", _LazyConsole(stderr=True, highlight=False, soft_wrap=True,
+                                            emoji=False))
 
 
 def escape(text: str) -> str:
@@ -152,14 +166,25 @@ EXACT_TABLE_CHARS = 40
 
 
 def format_exact(exact: str, approximate: str) -> str:
-    """``p/q ≈ value`` when short, else ``≈ value (exact p/q: N-digit numerator, ...)``."""
+    """``p/q ≈ value`` when short, else ``≈ value (p/q: N/M digits)``.
+
+    Tables that show the long form explain it below them (:data:`EXACT_NOTE`).
+    """
     if len(exact) <= EXACT_TABLE_CHARS:
         return f"{exact} ≈ {approximate}"
     numerator, _, denominator = exact.lstrip("-").partition("/")
-    digits = f"{len(numerator)}-digit numerator"
-    if denominator:
-        digits += f", {len(denominator)}-digit denominator"
-    return f"≈ {approximate} (exact p/q: {digits}; every digit in JSON and CSV output)"
+    digits = f"{len(numerator)}/{len(denominator)}" if denominator else f"{len(numerator)}"
+    return f"≈ {approximate} (p/q: {digits} digits)"
+
+
+#: The footnote of a table with a long exact value.
+EXACT_NOTE = ("p/q: N/M digits: the exact rational value has an N-digit numerator and an "
+              "M-digit denominator; --format json or csv prints every digit.")
+
+
+def is_long_exact(text: str) -> bool:
+    """Whether a table cell is :func:`format_exact`'s long form."""
+    return text.startswith("≈ ") and text.endswith(" digits)")
 
 
 #: Significant digits of numbers in tables.
@@ -203,6 +228,12 @@ def print_imprecise(results: Sequence[CheckResult]) -> None:
             err.print(f"[yellow]warning:[/] {escape(name)}: imprecise result, certified "
                       f"interval [{result.lower!r}, {result.upper!r}] is wider than 1e-9 "
                       "relative / 1e-12 absolute", markup=True)
+
+
+def print_timings(timings_s: dict[str, float]) -> None:
+    """The stages' times, dim, on stdout (``Time: parse 0.004s, build 0.42s, ...``)."""
+    text = ", ".join(f"{k} {v:.3f}s" for k, v in timings_s.items())
+    out.print(f"Time: {text}", style="dim", markup=False)
 
 
 def print_warnings(warnings: Sequence[str]) -> None:

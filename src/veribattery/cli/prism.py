@@ -10,17 +10,21 @@ import click
 
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
 from veribattery.cli.output import (
+    EXACT_NOTE,
     build_progress,
     exact_text,
     format_result,
     format_value,
+    is_long_exact,
     json_value,
     out,
     print_imprecise,
+    print_timings,
     print_warnings,
     result_bounds,
     user_errors,
 )
+from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
     from veribattery.checker import CheckResult
@@ -130,22 +134,18 @@ def _labelled(result: CheckResult) -> str:
 
 def print_prism_run(run: ModelCheckRun) -> None:
     """Model size, then one table row per property."""
-    from rich.table import Column, Table
-
     size = run.model_summary
-    out.print(
+    click.echo(
         f"Model: {size['states']:,} states, {size['transitions']:,} transitions, "
         f"{size['initial_states']} initial, {size['deadlocks']} deadlocks"
     )
-    table = Table("property", Column("value", overflow="fold"), title=None, show_edge=False)
-    for result in run.results:
-        table.add_row(_labelled(result), _shown(result))
-    out.print(table)
+    rows = [(_labelled(result), _shown(result)) for result in run.results]
+    print_table(("property", "value"), rows)
+    if any(is_long_exact(value) for _, value in rows):
+        out.print(fit_text(EXACT_NOTE), style="dim", markup=False)
     for result in run.results:
         if result.printed:
-            out.print(f"States of {result.property.text}:", highlight=False)
+            click.echo(f"States of {result.property.text}:")
             for line in result.printed:
-                out.print(f"  {line}", highlight=False, markup=False)
-    timings = ", ".join(f"{k} {v:.3f}s" for k, v in run.timings_s.items())
-    out.print(f"Time: {timings}", style="dim")
-
+                click.echo(f"  {line}")
+    print_timings(run.timings_s)

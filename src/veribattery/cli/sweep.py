@@ -4,22 +4,25 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
 import click
 
+from veribattery.cli.files import FIGURE_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     err,
     format_value,
     json_value,
-    out,
     print_warnings,
+    rich_console,
     set_option,
     user_errors,
 )
+from veribattery.cli.tables import print_table
+from veribattery.errors import OptionError
 
 
 @click.command("sweep")
@@ -39,7 +42,8 @@ from veribattery.cli.output import (
               help="Durable results (.csv, .jsonl or .parquet): rows are written as points "
               "finish, and rerunning the same command resumes.")
 @click.option("--force", is_flag=True,
-              help="Start RESULTS afresh even if it holds another sweep's results.")
+              help="Start RESULTS afresh even if it holds another sweep's results, and "
+              "overwrite an existing --plot file.")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes (default: the number of cores; 1: in this process).")
 @click.option("--scheduler", metavar="tcp://HOST:PORT|local",
@@ -63,12 +67,12 @@ def sweep_command(
     from veribattery.sweep import any_requirement_fails, axes_from, default_jobs, summary_line
 
     with user_errors():
-        axes = axes_from(specs, load_config(config, overrides).sweep.vary)
+        cfg = load_config(config, overrides)
+        axes = axes_from(specs, cfg.sweep.vary)
         x_key = plot_x or axes[0].key
-        if plot_path is not None:
-            from veribattery.sweep.plot import check_plot_target
-
-            check_plot_target(plot_path, x_key, [axis.key for axis in axes])
+        _check_plot_options(plot_path, plot_property, x_key, axes, cfg.properties, force)
+        check_output_file(results, "-o", force=True,
+                          suffixes=(".csv", ".jsonl", ".parquet"))
         frame = run_with_progress(
             config, axes, overrides, results, jobs=jobs or default_jobs(), scheduler=scheduler,
             force=force,
@@ -82,6 +86,20 @@ def sweep_command(
     print_sweep(frame, [axis.key for axis in axes], output_format)
     err.print(summary_line(frame), markup=False)
     sys.exit(1 if frame.attrs.get("failed") or any_requirement_fails(frame) else 0)
+
+
+def _check_plot_options(plot_path: Path | None, plot_property: str | None, x_key: str,
+                        axes: Sequence[Any], properties: Mapping[str, str], force: bool) -> None:
+    """Every plot option checked before the first point: file, x key, property."""
+    if plot_property is not None and plot_property not in properties:
+        raise OptionError(f"--plot-property {plot_property}: the config has no such property "
+                          f"(properties: {', '.join(properties)})")
+    if plot_path is None:
+        return
+    from veribattery.sweep.plot import check_plot_target
+
+    check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
+    check_plot_target(plot_path, x_key, [axis.key for axis in axes])
 
 
 def run_with_progress(
@@ -122,7 +140,7 @@ def sweep_progress() -> Iterator[tuple[Callable[[int, int], None], Callable[[Any
     failed = [0]
     columns = (TextColumn("checking grid points"), BarColumn(), MofNCompleteColumn(),
                TextColumn("{task.fields[failed]} failed"), TimeRemainingColumn())
-    with Progress(*columns, console=err, transient=True) as bar:
+    with Progress(*columns, console=rich_console(err), transient=True) as bar:
         task = bar.add_task("sweep", total=None, failed=0)
 
         def update(done: int, total: int) -> None:
@@ -154,9 +172,6 @@ def _plain_lines() -> Iterator[tuple[Callable[[int, int], None], Callable[[Any, 
 
 def print_sweep(frame: Any, keys: Sequence[str], output_format: str) -> None:
     """Table: one row per point, a column per property; csv/json: the tidy rows."""
-    from rich.console import Console
-    from rich.table import Table
-
     from veribattery.sweep import records, wide
 
     if output_format == "csv":
@@ -166,10 +181,5 @@ def print_sweep(frame: Any, keys: Sequence[str], output_format: str) -> None:
         click.echo(json.dumps({"axes": list(keys), "results": rows}))
     else:
         points = wide(frame, keys)
-        table = Table(*map(str, points.columns), show_edge=False)
-        for row in records(points):
-            table.add_row(*(format_value(v) for v in row.values()))
-        # Wider than the terminal rather than folding numbers: a sweep table is for reading.
-        natural = out.measure(table, options=out.options.update_width(10_000)).maximum
-        (out if natural <= out.width else Console(highlight=False, width=natural)).print(table)
-
+        rows = [[format_value(v) for v in row.values()] for row in records(points)]
+        print_table([str(c) for c in points.columns], rows, keys=len(keys))

@@ -1,0 +1,87 @@
+"""Output options, checked before any work starts: one convention for every command.
+
+Every file a command writes is named by an option; before the command computes
+anything, each is checked here: its type is one the command can write, its folder
+exists, it is not a folder itself, and it does not exist unless ``--force`` is given.
+Writing itself goes through :mod:`veribattery._files` (atomic, modes from the umask).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+from veribattery.errors import OptionError
+
+__all__ = [
+    "CSV_SUFFIXES",
+    "FIGURE_SUFFIXES",
+    "check_output_dir",
+    "check_output_file",
+]
+
+#: File types matplotlib's Agg canvas writes (the format follows the suffix).
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".svgz", ".eps", ".ps", ".jpg", ".jpeg", ".tif",
+                   ".tiff", ".webp", ".pgf")
+CSV_SUFFIXES = (".csv",)
+
+
+def check_output_file(path: Path | None, option: str, *, force: bool,
+                      suffixes: Sequence[str] | None = None) -> None:
+    """Refuse *path* (given as *option*) unless it can be written as asked.
+
+    :param suffixes: the file types the option writes (None: any).
+    :raises OptionError: naming the option, the path as typed, and what would be right.
+    """
+    if path is None:
+        return
+    where = f"{option} {path}"
+    if suffixes is not None and path.suffix.lower() not in suffixes:
+        kind = f"unsupported file type '{path.suffix}'" if path.suffix else "no file type"
+        raise OptionError(f"{where}: {kind}; name a file ending in {_choices(suffixes)}")
+    if path.is_dir():
+        raise OptionError(f"{where}: is a folder; name a file in it")
+    _check_folder(path.parent, where)
+    if path.exists() and not force:
+        raise OptionError(f"{where}: already exists; use --force to overwrite it, "
+                          "or choose another name")
+
+
+def check_output_dir(path: Path, option: str, *, force: bool,
+                     names: Iterable[str] = ()) -> None:
+    """Refuse the folder *path* unless the files *names* can be written into it.
+
+    The folder itself may be new (it is created, with its parents, when writing).
+    """
+    where = f"{option} {path}"
+    if path.exists() and not path.is_dir():
+        raise OptionError(f"{where}: is a file, not a folder")
+    existing = _nearest_existing(path)
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise OptionError(f"{where}: cannot write into {existing}")
+    clashes = [name for name in names if (path / name).exists()]
+    if clashes and not force:
+        raise OptionError(f"{where}: {', '.join(clashes)} already exist(s) there; use --force "
+                          "to overwrite, or choose another folder")
+
+
+def _check_folder(folder: Path, where: str) -> None:
+    folder = folder if str(folder) else Path(".")
+    if not folder.is_dir():
+        raise OptionError(f"{where}: folder {folder} does not exist; create it first")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OptionError(f"{where}: cannot write into folder {folder}")
+
+
+def _nearest_existing(path: Path) -> Path:
+    for candidate in (path, *path.parents):
+        if candidate.exists():
+            return candidate
+    return Path(".")
+
+
+def _choices(suffixes: Sequence[str]) -> str:
+    if len(suffixes) == 1:
+        return suffixes[0]
+    return ", ".join(suffixes[:-1]) + " or " + suffixes[-1]
