@@ -121,3 +121,61 @@ def test_small_voltage_noise_is_accepted(tmp_path: Path) -> None:
     path = write_csv(tmp_path / "d.csv", "soc,voltage_v",
                      [(1, 25), (0.75, 23), (0.5, 23.02), (0.25, 21), (0, 20)])
     assert len(read_discharge(path).soc) == 5
+
+
+def test_utf8_bom_before_the_header_is_accepted(tmp_path: Path) -> None:
+    # Spreadsheet programs save "CSV UTF-8" with a byte-order mark before the header.
+    path = tmp_path / "c.csv"
+    path.write_bytes(b"\xef\xbb\xbfcycle,capacity_ah\n0,11\n1,10.9\n2,10.8\n")
+    log = read_cycles(path)
+    assert log.cycle.tolist() == [0, 1, 2] and log.table.lines == (2, 3, 4)
+
+
+@pytest.mark.parametrize(("data", "where"), [
+    (b"cycle,capacity_ah\n0,11\n1,10\xff9\n2,10.8\n", "c.csv:3:5:"),
+    (b"\xef\xbb\xbfcycle,capacity_ah\n0,11\n\xe9,10.8\n", "c.csv:3:1:"),
+    (b"cycle,capacity_\xe9h\n0,11\n", "c.csv:1:16:"),
+    (b"# r\xc3\xa9sum\xc3\xa9 \xff\n", "c.csv:1:10:"),  # columns count characters, not bytes
+], ids=["mid-line", "after-a-bom", "header", "after-multibyte"])
+def test_non_utf8_byte_is_located(tmp_path: Path, data: bytes, where: str) -> None:
+    path = tmp_path / "c.csv"
+    path.write_bytes(data)
+    with pytest.raises(PhmDataError) as info:
+        read_cycles(path)
+    message = str(info.value)
+    assert message.startswith(f"{path}:{where.partition(':')[2]}")
+    assert "UTF-8" in message and "\n" not in message
+
+
+BAD_ROWS = [
+    ("cycle,capacity_ah\n0,11\n1,10.9,7\n2,10.8\n",
+     "c.csv:3:8: row 2 has 3 cells, the header has 2 (cycle,capacity_ah)"),
+    ("cycle,capacity_ah\n0,11\n1,10.9,\n2,10.8\n",
+     "c.csv:3:8: row 2 has 3 cells, the header has 2"),
+    ("cycle,capacity_ah,temp_c\n0,11,25\n1,10.9\n2,10.8,25\n",
+     "c.csv:3:7: row 2 has 2 cells, the header has 3 (cycle,capacity_ah,temp_c)"),
+    ('cycle,capacity_ah\n0,11\n1,"10,9",7\n2,10.8\n',
+     "c.csv:3:10: row 2 has 3 cells"),
+    ("# note\ncycle,capacity_ah\n\n0,11\n# more\n1,10.9\n2,10.8,1\n",
+     "c.csv:7:8: row 3 has 3 cells"),
+    ("cycle,capacity_ah,cycle\n0,11,0\n1,10.9,1\n2,10.8,2\n",
+     "c.csv:1:19: header: column 'cycle' appears twice"),
+]
+
+
+@pytest.mark.parametrize(("text", "message"), BAD_ROWS, ids=[m[:30] for _, m in BAD_ROWS])
+def test_row_cell_count_must_match_the_header(tmp_path: Path, text: str, message: str) -> None:
+    path = tmp_path / "c.csv"
+    path.write_text(text)
+    with pytest.raises(PhmDataError) as info:
+        read_cycles(path)
+    assert str(info.value).startswith(f"{tmp_path}/{message}")
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("capacity", [0.0, -2.0, float("nan"), float("inf")])
+def test_discharge_capacity_must_be_positive(tmp_path: Path, capacity: float) -> None:
+    path = write_csv(tmp_path / "d.csv", "time_s,voltage_v,current_a",
+                     [(0, 25, 2), (1800, 22, 4), (2700, 20, 4)])
+    with pytest.raises(PhmDataError, match="capacity_ah must be a positive number"):
+        read_discharge(path, capacity_ah=capacity)

@@ -1,12 +1,16 @@
 """Reading PHM logs: capacity against cycle, and discharge curves (CSV, ``#`` comments).
 
-Every problem is one :class:`PhmDataError` naming the file, the line (1-based, as an
-editor shows it; comment lines count), the data row (1-based, header excluded) and the
-column, what is wrong and what would be right.
+Files are UTF-8 text; a byte-order mark before the header (spreadsheets' "CSV UTF-8")
+is accepted. Every row has as many cells as the header. Every problem is one
+:class:`PhmDataError` naming the file, the line (1-based, as an editor shows it;
+comment lines count), the data row (1-based, header excluded) and the column (its name,
+or ``file:line:col`` for an undecodable byte or a cell without a column), what is wrong
+and what would be right.
 """
 
 from __future__ import annotations
 
+import codecs
 import csv
 import math
 from collections.abc import Sequence
@@ -16,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from veribattery._types import FloatArray, IntArray
-from veribattery.errors import VeribatteryError
+from veribattery.errors import Span, VeribatteryError
 
 __all__ = [
     "CycleLog",
@@ -77,18 +81,36 @@ def read_table(path: str | Path, forms: Sequence[Sequence[str]]) -> Table:
     :raises PhmDataError: on unreadable files, missing columns and bad cells.
     """
     source = str(path)
-    try:
-        text = Path(path).read_text(encoding="utf-8")
-    except OSError as exc:
-        raise PhmDataError(f"cannot read {source!r}: {exc.strerror}") from None
-    except UnicodeDecodeError:
-        raise PhmDataError(f"{source}: not a UTF-8 text (CSV) file") from None
+    text = _read_text(path, source)
     rows = [(n, line) for n, line in enumerate(text.splitlines(), 1) if _is_data(line)]
     if not rows:
         raise PhmDataError(f"{source}: no header line; expected columns {_wanted(forms)}")
-    header_line, header = rows[0][0], _fields(rows[0][1])
-    form = _pick_form(source, header_line, header, forms)
+    header = _fields(rows[0][1])
+    form = _pick_form(source, rows[0], header, forms)
+    for index, (line, row_text) in enumerate(rows[1:]):
+        _check_cell_count(source, rows[0][1], (index, line, row_text))
     return _numeric(source, header, form, rows[1:])
+
+
+def _read_text(path: str | Path, source: str) -> str:
+    """The file's text; a UTF-8 byte-order mark (spreadsheets' "CSV UTF-8") is dropped."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise PhmDataError(f"cannot read {source}: {exc.strerror}") from None
+    data = data.removeprefix(codecs.BOM_UTF8)
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise _not_utf8(source, data, exc.start) from None
+
+
+def _not_utf8(source: str, data: bytes, start: int) -> PhmDataError:
+    """The error for the byte at *start*, located as an editor counts lines and columns."""
+    before = (data[:start].decode("utf-8") + "x").splitlines()  # "x": the bad byte's place
+    where = Span(len(before), len(before[-1]), source)
+    return PhmDataError(f"byte 0x{data[start]:02x} is not UTF-8 text; save the file as UTF-8 "
+                        "(\"CSV UTF-8\" in spreadsheets)", where)
 
 
 def _is_data(line: str) -> bool:
@@ -104,17 +126,60 @@ def _wanted(forms: Sequence[Sequence[str]]) -> str:
     return " or ".join(",".join(form) for form in forms)
 
 
+def _cell_starts(line: str) -> list[int]:
+    """0-based index where each cell of *line* starts (commas inside quotes do not count)."""
+    starts, quoted = [0], False
+    for index, char in enumerate(line):
+        if char == '"':
+            quoted = not quoted  # a doubled quote inside a quoted cell flips twice
+        elif char == "," and not quoted:
+            starts.append(index + 1)
+    return starts
+
+
 def _pick_form(
-    source: str, line: int, header: list[str], forms: Sequence[Sequence[str]]
+    source: str, header_row: tuple[int, str], header: list[str], forms: Sequence[Sequence[str]]
 ) -> tuple[str, ...]:
+    line, text = header_row
     for form in forms:
         if all(name in header for name in form):
+            _check_unique(source, header_row, header, form)
             return tuple(form)
     missing = [name for name in forms[0] if name not in header]
     raise PhmDataError(
         f"{source}:{line}: header: missing column {missing[0]!r}; expected columns "
-        f"{_wanted(forms)}, got {','.join(header)}"
+        f"{_wanted(forms)}, got {text.strip()}"
     )
+
+
+def _check_unique(source: str, header_row: tuple[int, str], header: list[str],
+                  form: Sequence[str]) -> None:
+    for name in form:
+        if header.count(name) > 1:
+            second = [j for j, cell in enumerate(header) if cell == name][1]
+            column = _cell_starts(header_row[1])[second] + 1
+            raise PhmDataError(f"header: column {name!r} appears twice; rename or remove one",
+                               Span(header_row[0], column, source))
+
+
+def _check_cell_count(source: str, header: str, row: tuple[int, int, str]) -> None:
+    """A data row must have as many cells as the header: an extra cell is no column's."""
+    index, line, text = row
+    count, expected = len(_fields(text)), len(_fields(header))
+    if count == expected:
+        return
+    starts = _cell_starts(text)
+    if count > expected:
+        column = starts[expected] + 1 if len(starts) > expected else len(text) + 1
+        fix = "remove the extra cell or name its column in the header"
+    else:
+        column, fix = len(text) + 1, "add the missing cell (an empty cell still needs its comma)"
+    raise PhmDataError(f"row {index + 1} has {_cells(count)}, the header has {expected} "
+                       f"({header.strip()}); {fix}", Span(line, column, source))
+
+
+def _cells(count: int) -> str:
+    return f"{count} cell" if count == 1 else f"{count} cells"
 
 
 def _numeric(
@@ -127,7 +192,7 @@ def _numeric(
     for row, (_, line) in enumerate(rows):
         cells = _fields(line)
         for name, col in index.items():
-            values[name].append(_number(located, row, name, cells[col] if col < len(cells) else ""))
+            values[name].append(_number(located, row, name, cells[col]))
     return Table(source, {k: np.asarray(v, dtype=np.float64) for k, v in values.items()}, lines)
 
 
@@ -227,8 +292,11 @@ def read_discharge(path: str | Path, capacity_ah: float | None = None) -> Discha
     ``Q_max`` = *capacity_ah*, or by default the charge the log itself delivers.
 
     :raises PhmDataError: SOC outside [0, 1] or not monotone, time not increasing,
-        negative current, fewer than 3 rows, or voltage rising as the battery discharges.
+        negative current, fewer than 3 rows, voltage rising as the battery discharges,
+        or a *capacity_ah* that is not a positive number.
     """
+    if capacity_ah is not None and not (math.isfinite(capacity_ah) and capacity_ah > 0):
+        raise PhmDataError(f"capacity_ah must be a positive number (Ah), got {capacity_ah:g}")
     table = read_table(path, [SOC_COLUMNS, CURRENT_COLUMNS])
     if len(table) < 3:
         raise PhmDataError(f"{table.source}: {len(table)} data row(s); need at least 3")
