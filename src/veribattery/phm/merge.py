@@ -11,14 +11,13 @@ replaced atomically.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from veribattery._files import write_text
 from veribattery.config import set_value
 from veribattery.phm.data import PhmDataError
 from veribattery.phm.fragment import block_yaml, to_yaml_value
@@ -126,14 +125,6 @@ def _replace(text: str, node: yaml.Node, value: object) -> str:
 
 
 def write_atomic(path: Path, text: str) -> None:
-    """Replace *path* by *text* atomically (temporary file + rename), keeping its mode."""
-    handle, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        if path.exists():
-            os.chmod(name, path.stat().st_mode & 0o7777)
-        os.replace(name, path)
-    except BaseException:
-        Path(name).unlink(missing_ok=True)
-        raise
+    """Replace *path* by *text* atomically (temporary file + rename), keeping its mode
+    (a new file gets the mode ``open()`` would give it)."""
+    write_text(path, text)

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from veribattery._files import staged
 from veribattery.config.exact import show
 from veribattery.phm.data import CycleLog
 from veribattery.phm.forecast import Forecast
@@ -30,7 +31,9 @@ def _figure(rows: int = 1) -> tuple[Figure, Any]:
 
 
 def _save(figure: Figure, path: Path) -> Path:
-    figure.savefig(path, dpi=120)
+    """Write *figure* whole or not at all; its type follows *path*'s suffix."""
+    with staged(path, suffix=path.suffix) as temporary:
+        figure.savefig(temporary, dpi=120)
     return path
 
 

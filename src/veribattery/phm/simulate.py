@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import os
 import shlex
-import tempfile
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -22,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from veribattery._files import write_texts
 from veribattery._types import FloatArray
 from veribattery.phm.data import PhmDataError
 
@@ -178,6 +178,8 @@ def write_csvs(sim: Simulation, directory: Path, argv: Sequence[str],
                force: bool = False) -> tuple[Path, ...]:
     """Write ``discharge.csv`` (and ``cycles.csv``) with the command line *argv* as a comment.
 
+    The files are written all or nothing, with the modes ``open()`` would give them.
+
     :raises PhmDataError: when a file exists and not *force* (nothing is written then).
     """
     texts = {DISCHARGE_FILE: _header(argv, "constant-power discharge") +
@@ -190,9 +192,5 @@ def write_csvs(sim: Simulation, directory: Path, argv: Sequence[str],
     if clashes and not force:
         raise PhmDataError(f"{', '.join(clashes)} already exist(s); use --force to overwrite")
     directory.mkdir(parents=True, exist_ok=True)
-    for path, text in targets.items():
-        handle, name = tempfile.mkstemp(dir=directory, prefix=".veribattery-", suffix=".tmp")
-        with os.fdopen(handle, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(name, path)
+    write_texts(targets)
     return tuple(targets)
