@@ -42,6 +42,11 @@ def staged(path: Path, *, suffix: str | None = None) -> Iterator[Path]:
         mode = path.stat().st_mode & 0o7777 if path.exists() else new_file_mode()
         os.chmod(temporary, mode)
         os.replace(temporary, path)
+    except OSError as exc:
+        if exc.filename != name:
+            raise
+        # The user named *path*; the temporary name would only confuse them.
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     finally:
         temporary.unlink(missing_ok=True)
 

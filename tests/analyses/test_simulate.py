@@ -12,7 +12,8 @@ from veribattery.analyses.simulate import _Sampler, path_table, simulate
 from veribattery.checker import check
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
-from veribattery.lang import Property, parse_property
+from veribattery.explore import build_dtmc
+from veribattery.lang import Property, flatten_model, parse_model, parse_property
 
 # The loop of test_explain, with a reward of 1 per step outside {2, 3} and 2 on leaving 1.
 LOOP = {0: {1: 0.5, 2: 0.3, 3: 0.2}, 1: {0: 0.4, 3: 0.1, 2: 0.5}}
@@ -116,3 +117,13 @@ def test_path_table_has_prism_simulator_columns() -> None:
         assert [r[2] for r in steps] == list(range(len(steps)))
         assert steps[0][3] == 0 and steps[-1][3] in (2, 3)  # from the start to absorption
         assert steps[-1][1] == ""
+
+
+def test_path_table_names_a_reward_apart_from_its_variable() -> None:
+    chain = build_dtmc(flatten_model(parse_model(
+        "dtmc\nmodule m\n  rc : [0..1] init 0;\n  [] rc=0 -> (rc'=1);\n  [] rc=1 -> true;\n"
+        "endmodule\nrewards \"rc\" rc=0 : 1; endrewards\n")))
+    sim = simulate(chain, [parse_property('P=? [ F rc=1 ]')], runs=1, seed=0, record=1)
+    header, rows = path_table(chain, sim.paths)
+    assert header == ["run", "action", "step", "rc", "reward_rc"]
+    assert [row[3:] for row in rows] == [[0, 1.0], [1, 0.0]]

@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Sequence
+from contextlib import ExitStack
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from veribattery._files import staged
 from veribattery.analyses.paper import TABLE3
 from veribattery.config.schema import PAPER_PROPERTIES
 from veribattery.sweep import parse_axis, run_sweep
@@ -55,6 +57,8 @@ TABLE3_RESULTS = "table3_sweep.csv"
 #: The property whose presence adds Fig. 8's third panel (expected time given success).
 GIVEN_SUCCESS = "exp_mission_time_given_success"
 FIGURES = ("fig6", "fig8")
+#: The files each figure is written as, beside each other: ``fig6.png``, ...
+FIGURE_FILES = (".png", ".svg", ".csv")
 #: What each figure draws: a reproduction checks these properties only.
 FIGURE_PROPERTIES = {"fig6": ("p_success",), "fig8": ("exp_mission_time", GIVEN_SUCCESS)}
 _X = "battery.capacity_ah"
@@ -197,13 +201,15 @@ def _fit_y(ax: Axes, inside: pd.DataFrame) -> None:
 def _save(figure: Any, table: pd.DataFrame, directory: Path, name: str,
           value: str | None) -> list[Path]:
     directory.mkdir(parents=True, exist_ok=True)
-    paths = [directory / f"{name}.png", directory / f"{name}.svg", directory / f"{name}.csv"]
-    figure.savefig(paths[0], dpi=150)
-    figure.savefig(paths[1])
+    paths = [directory / f"{name}{suffix}" for suffix in FIGURE_FILES]
     out = table.rename_axis("capacity_ah")
     if value is not None:
         out = out.add_prefix(f"{value}:")
-    out.to_csv(paths[2])  # shortest round-trip repr: 12.2, not 12.199999999999999
+    with ExitStack() as stack:
+        png, svg, csv = (stack.enter_context(staged(p, suffix=p.suffix)) for p in paths)
+        figure.savefig(png, dpi=150)
+        figure.savefig(svg)
+        out.to_csv(csv)  # shortest round-trip repr: 12.2, not 12.199999999999999
     return paths
 
 

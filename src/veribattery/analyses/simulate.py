@@ -250,9 +250,13 @@ def path_table(
 
     Each reward column holds the reward of the step taken from that state (state
     reward plus expected transition reward), so its running sum is what ``C<=k``
-    counts; the last row of a run, where it stopped, has no action.
+    counts; the last row of a run, where it stopped, has no action. A reward named
+    like a variable (the mission's ``rc``) is headed ``reward_NAME``, so that every
+    column has its own name.
     """
+    variables = set(dtmc.variable_names)
     names = [r.name or f"reward{i + 1}" for i, r in enumerate(dtmc.rewards)]
+    names = [f"reward_{n}" if n in variables else n for n in names]
     header = ["run", "action", "step", *dtmc.variable_names, *names]
     table: list[list[object]] = []
     for run, states in enumerate(paths):

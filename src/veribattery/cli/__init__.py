@@ -4,12 +4,13 @@ Each command lives in its own module, imported only when that command runs (or w
 ``--help`` lists them all), and imports what it needs late, so that a command pays
 only for its own imports. Exit status: 0 success (and every requirement holds), 1 a
 requirement fails, 2 bad input (any :class:`~veribattery.errors.VeribatteryError`,
-or a usage error).
+or a usage error), 130 interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
 
 import importlib
+import sys
 from collections.abc import Sequence
 
 import click
@@ -46,11 +47,30 @@ class _LazyGroup(click.Group):
             self.add_command(command, cmd_name)
         return command
 
+    def invoke(self, ctx: click.Context) -> object:
+        """Run the command; Ctrl-C ends it with status 130 (not click's 1, which is a
+        failed requirement here) and one line, never a traceback."""
+        try:
+            return super().invoke(ctx)
+        except KeyboardInterrupt:
+            click.echo("\ninterrupted", err=True)
+            sys.exit(130)
+
 
 @click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="veribattery")
 def cli() -> None:
-    """Verify battery-powered robot missions with probabilistic model checking."""
+    """Verify battery-powered robot missions with probabilistic model checking.
+
+    \b
+    Every command follows the same rules:
+      --format table|json|csv   results on stdout (prism --json = --format json)
+      -o FILE|DIR               files written; never over an existing file
+                                without --force; all or nothing, no partial file
+      exit status               0 ok, 1 a requirement fails, 2 bad input,
+                                130 interrupted (Ctrl-C)
+    Errors are one line on stderr, naming the file, key or option at fault.
+    """
 
 
 def main(argv: Sequence[str] | None = None) -> None:

@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from veribattery.analyses.distribution import Deadline, Distribution
 
 
-@click.command("distribution")
+@click.command("distribution", short_help="Mission-time distribution, quantiles, deadlines.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
 @click.option("--reward", default="mt", show_default=True,
@@ -39,8 +39,9 @@ if TYPE_CHECKING:
 @click.option("--plot", "plot_path", type=click.Path(path_type=Path),
               help="Plot the CDF with quantiles and deadlines (.png, .pdf, .svg).")
 @click.option("--force", is_flag=True, help="Overwrite existing -o / --plot files.")
-@click.option("--format", "output_format", type=click.Choice(["table", "json"]),
-              default="table", show_default=True, help="Output format.")
+@click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
+              default="table", show_default=True,
+              help="Output format (csv: the summary's quantity,value rows).")
 def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
                          deadlines: tuple[str, ...], working_day: str, coverage: float,
                          csv_path: Path | None, plot_path: Path | None, force: bool,
@@ -70,6 +71,10 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
     print_warnings(dtmc.warnings)
     if output_format == "json":
         click.echo(json.dumps(_json(dist, limits)))
+    elif output_format == "csv":
+        click.echo("quantity,value")
+        for name, value in _summary(dist, limits):
+            click.echo(f'"{name}",{value!r}')
     else:
         _print_table(dist, limits)
 

@@ -14,9 +14,9 @@ from typing import TYPE_CHECKING
 
 import click
 
+from veribattery.cli.files import CSV_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     build_progress,
-    escape,
     fail,
     format_value,
     json_value,
@@ -25,6 +25,7 @@ from veribattery.cli.output import (
     set_option,
     user_errors,
 )
+from veribattery.cli.tables import fit_text, print_table
 from veribattery.errors import VeribatteryError
 
 if TYPE_CHECKING:
@@ -74,7 +75,7 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 # ---------------------------------------------------------------------------
 
 
-@click.command("explain")
+@click.command("explain", short_help="Where failures come from: breakdown and paths.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
 @click.option("--top", default=3, show_default=True, callback=_positive("--top"),
@@ -82,18 +83,25 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @click.option("--by", "by", multiple=True, metavar="KEYS",
               help="Groupings, comma-separated; join keys with + for a joint grouping "
                    "(keys: k, cell, state, action, wind, level, recharges, or a variable).")
-@click.option("--csv", "csv_file", type=click.Path(path_type=Path),
-              help="Write the paths here, one row per step.")
+@click.option("-o", "--output", "--csv", "csv_file", type=click.Path(path_type=Path),
+              help="Write the paths here as CSV, one row per step (--csv: the old name).")
+@click.option("--force", is_flag=True, help="Overwrite an existing -o file.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]),
               default="table", show_default=True, help="Output format.")
 def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tuple[str, ...],
-                    csv_file: Path | None, output_format: str) -> None:
-    """Where the mission's failures come from: exact breakdown and most probable paths."""
+                    csv_file: Path | None, force: bool, output_format: str) -> None:
+    """Where the mission's failures come from: exact breakdown and most probable paths.
+
+    The breakdown of P(failure) by cell, action, wind, voltage level and recharges is
+    exact; actions named ``oob (...)`` are the steps where the battery runs out
+    ("out of battery") or the recharge cap cuts the mission.
+    """
     from veribattery.analyses.explain import explain_target
     from veribattery.analyses.mission_view import DEFAULT_GROUPINGS, MissionView, build_mission
     from veribattery.config import load_config
 
     with user_errors():
+        check_output_file(csv_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
             mission = build_mission(cfg, progress=progress)
@@ -110,6 +118,13 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         click.echo(json.dumps(_explanation_json(explanation, steps)))
         return
     _print_explanation(explanation, steps, MISSION_COLUMNS, marker="recharge")
+    out.print(fit_text(OOB_NOTE), style="dim", markup=False)
+
+
+#: What the mission's ``oob`` actions mean, under the tables that show them.
+OOB_NOTE = ("oob (X): out of battery: the drone could not pay for X (take-off, flight, "
+            "inspection, landing) and the mission failed; oob (recharge cap): "
+            "battery.max_recharges was reached with cells left.")
 
 
 def _mission_steps(view: MissionView, states: IntArray) -> list[dict[str, object]]:
@@ -159,55 +174,46 @@ def _print_explanation(
     columns: Sequence[tuple[str, str]], *, marker: str | None,
 ) -> None:
     total = explanation.probability
-    out.print(f"P({explanation.target}) = {format_value(total)}  (exact; the breakdown sums to "
-              f"it over the {explanation.inflow.states.size:,} states "
-              f"{explanation.target} is entered from)")
+    click.echo(fit_text(
+        f"P({explanation.target}) = {format_value(total)}  (exact; the breakdown sums to it "
+        f"over the {explanation.inflow.states.size:,} states {explanation.target} is "
+        "entered from)"))
     for grouping in explanation.groupings:
         _print_grouping(grouping, total)
     for number, (path, rows) in enumerate(zip(explanation.paths, steps, strict=True), 1):
-        out.print(f"\n[bold]Path {number}[/]: probability {path.probability:.6g}, "
+        click.echo()
+        out.print(f"[bold]Path {number}[/]: probability {path.probability:.6g}, "
                   f"{path.steps} steps")
         _print_path(rows, columns, marker)
     if not explanation.paths:
-        out.print(f"\nNo path reaches {explanation.target}.")
+        click.echo(f"\nNo path reaches {explanation.target}.")
 
 
 def _print_grouping(grouping: Grouping, total: float) -> None:
-    from rich.table import Table
-
-    table = Table(*grouping.keys, "probability", "share", "", show_edge=False,
-                  title=f"by {', '.join(grouping.keys)}", title_justify="left")
+    rows = []
     for values, p in grouping.groups[:GROUP_ROWS]:
         share = p / total if total > 0 else 0.0
-        table.add_row(*(escape(str(v)) for v in values), f"{p:.6g}", f"{100 * share:.2f}%",
-                      "█" * round(BAR_WIDTH * share))
+        rows.append([*(str(v) for v in values), f"{p:.6g}", f"{100 * share:.2f}%",
+                     "█" * round(BAR_WIDTH * share)])
     hidden = len(grouping.groups) - GROUP_ROWS
     if hidden > 0:
         rest = sum(p for _, p in grouping.groups[GROUP_ROWS:])
-        table.add_row(f"… {hidden} more", *[""] * (len(grouping.keys) - 1), f"{rest:.6g}", "", "")
-    out.print()
-    out.print(table)
+        rows.append([f"… {hidden} more", *[""] * (len(grouping.keys) - 1), f"{rest:.6g}", "",
+                     ""])
+    click.echo()
+    print_table([*grouping.keys, "probability", "share", ""], rows, keys=len(grouping.keys),
+                title=f"by {', '.join(grouping.keys)}")
 
 
 def _print_path(rows: Sequence[Mapping[str, object]], columns: Sequence[tuple[str, str]],
                 marker: str | None) -> None:
-    """Aligned plain columns (a path is read down, and must not wrap on a narrow console)."""
+    """The path's steps, read down; a long run of recharge trips folded into one line."""
     from veribattery.analyses.folding import fold_path
 
     head, fold, end = fold_path([str(r["action"]) for r in rows], marker=marker)
     cells = [[str(rows[i][key]) for _, key in columns] for i in (*head, *end)]
-    widths = [max([len(h), *(len(c[j]) for c in cells)]) for j, (h, _) in enumerate(columns)]
-
-    def line(values: Sequence[str]) -> str:
-        return "  ".join(v.ljust(w) for v, w in zip(values, widths, strict=True)).rstrip()
-
-    out.print(escape(line([h for h, _ in columns])), style="bold")
-    for row in cells[: len(head)]:
-        out.print(escape(line(row)))
-    if fold is not None:
-        out.print(escape(" " * (widths[0] + 2) + fold.describe(marker)), style="dim")
-    for row in cells[len(head):]:
-        out.print(escape(line(row)))
+    notes = {len(head): fold.describe(marker)} if fold is not None else {}
+    print_table([h for h, _ in columns], cells, keys=2, notes=notes)
 
 
 # ---------------------------------------------------------------------------
@@ -221,31 +227,34 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
         click.option("--max-steps", default=100_000, show_default=True,
                      callback=_positive("--max-steps"),
                      help="Steps after which an undecided run stops (and is reported)."),
-        click.option("--paths", "paths_file", type=click.Path(path_type=Path),
-                     help="Write sampled paths here (PRISM simulator columns)."),
+        click.option("-o", "--output", "--paths", "paths_file", type=click.Path(path_type=Path),
+                     help="Write sampled paths here as CSV (PRISM simulator columns; "
+                     "--paths: the old name)."),
         click.option("--path-count", default=10, show_default=True,
-                     callback=_positive("--path-count"), help="How many runs --paths writes."),
+                     callback=_positive("--path-count"), help="How many runs -o writes."),
+        click.option("--force", is_flag=True, help="Overwrite an existing -o file."),
     )):
         function = option(function)
     return function
 
 
-@click.command("simulate")
+@click.command("simulate", short_help="Monte-Carlo estimates beside the exact values.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
 @click.option("--runs", required=True, type=int, callback=_positive("--runs"),
               help="Number of simulated runs.")
 @_simulation_options
-@click.option("--format", "output_format", type=click.Choice(["table", "json"]),
+@click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
               default="table", show_default=True, help="Output format.")
 def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: int,
-                     max_steps: int, paths_file: Path | None, path_count: int,
+                     max_steps: int, paths_file: Path | None, path_count: int, force: bool,
                      output_format: str) -> None:
     """Monte-Carlo estimates of the mission's named results, beside the exact values."""
     from veribattery.config import load_config
     from veribattery.mission import check_mission
 
     with user_errors():
+        check_output_file(paths_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
             report = check_mission(cfg, progress=progress)
@@ -289,21 +298,35 @@ def _write_simulated_paths(path: Path, dtmc: DTMC, simulation: Simulation,
 
 
 def _show_simulation(simulation: Simulation, output_format: str) -> None:
-    from rich.table import Table
-
     print_warnings(simulation.warnings())
     if output_format == "json":
         click.echo(json.dumps(_simulation_json(simulation)))
         return
-    table = Table("property", "exact", "estimate", "95% CI", "runs", show_edge=False)
+    if output_format == "csv":
+        _simulation_csv(simulation)
+        return
+    rows = []
     for e in simulation.estimates:
         exact = format_value(e.exact) if e.exact is not None else "-"
         ci = f"[{e.ci95[0]:.6g}, {e.ci95[1]:.6g}]"
         runs = f"{e.runs:,}" + (f" ({e.undecided:,} undecided)" if e.undecided else "")
-        table.add_row(escape(e.name), exact, f"{e.estimate:.6g}", ci, runs)
-    out.print(table)
+        rows.append((e.name, exact, f"{e.estimate:.6g}", ci, runs))
+    print_table(("property", "exact", "estimate", "95% CI", "runs"), rows)
     out.print(f"{simulation.runs:,} runs, seed {simulation.seed}, "
-              f"longest {simulation.steps:,} steps", style="dim")
+              f"longest {simulation.steps:,} steps", style="dim", markup=False)
+
+
+def _simulation_csv(simulation: Simulation) -> None:
+    """``property,value,estimate,ci95_low,ci95_high,runs,undecided`` rows, full precision."""
+    import csv
+    import sys
+
+    writer = csv.writer(sys.stdout, lineterminator="\n")
+    writer.writerow(["property", "value", "estimate", "ci95_low", "ci95_high", "runs",
+                     "undecided"])
+    for e in simulation.estimates:
+        writer.writerow([e.name, "" if e.exact is None else repr(e.exact), repr(e.estimate),
+                         repr(e.ci95[0]), repr(e.ci95[1]), e.runs, e.undecided])
 
 
 def _number(value: float | None) -> object:
@@ -372,7 +395,7 @@ def prism_explain(model: Path, constants: Mapping[str, Value | str], label: str,
 
 def prism_simulate(run: ModelCheckRun, model: Path, constants: Mapping[str, Value | str],
                    runs: int, *, seed: int, max_steps: int, paths_file: Path | None,
-                   path_count: int, as_json: bool) -> None:
+                   path_count: int, output_format: str) -> None:
     """``prism MODEL --simulate N``: estimates of the checked properties."""
     from veribattery.lang import flatten_model, parse_model
 
@@ -381,7 +404,7 @@ def prism_simulate(run: ModelCheckRun, model: Path, constants: Mapping[str, Valu
         if paths_file is not None:
             flat = flatten_model(parse_model(model), constants)
             _write_simulated_paths(paths_file, run.dtmc, simulation, flat)
-    _show_simulation(simulation, "json" if as_json else "table")
+    _show_simulation(simulation, output_format)
 
 
 def _build_prism(model: Path, constants: Mapping[str, Value | str]) -> tuple[FlatModel, DTMC]:

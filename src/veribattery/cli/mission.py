@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from veribattery.mission import MissionReport
 
 
-@click.command("check")
+@click.command("check", short_help="Verify a mission config; exit 1 if a requirement fails.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
 @click.option(
@@ -149,7 +149,7 @@ def print_mission_csv(report: MissionReport) -> None:
                else f"recharge_cap_probability,{cap}")
 
 
-@click.command("emit")
+@click.command("emit", short_help="Write a config's PRISM model and properties.")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Directory for model.prism, properties.props, config.resolved.yaml.")

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
+from veribattery.cli.files import CSV_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     EXACT_NOTE,
     build_progress,
@@ -25,13 +26,14 @@ from veribattery.cli.output import (
     user_errors,
 )
 from veribattery.cli.tables import fit_text, print_table
+from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from veribattery.checker import CheckResult
     from veribattery.pipeline import ModelCheckRun
 
 
-@click.command("prism")
+@click.command("prism", short_help="Check properties of any PRISM DTMC file.")
 @click.argument("model", type=click.Path(path_type=Path))
 @click.option("--props", "props", type=click.Path(path_type=Path), help="Properties file.")
 @click.option(
@@ -42,7 +44,11 @@ if TYPE_CHECKING:
     help="Property text, or a 1-based index or name in --props (repeatable).",
 )
 @click.option("--const", "consts", multiple=True, metavar="NAME=VALUE", help="Undefined constant.")
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option(
+    "--format", "output_format", type=click.Choice(["table", "json", "csv"]), default=None,
+    help="Output format [default: table].",
+)
+@click.option("--json", "as_json", is_flag=True, help="The same as --format json.")
 @click.option(
     "--exact", is_flag=True,
     help="Compute in exact rational arithmetic; results as p/q (JSON: \"exact\").",
@@ -53,6 +59,7 @@ def prism_command(
     props: Path | None,
     selectors: tuple[str, ...],
     consts: tuple[str, ...],
+    output_format: str | None,
     as_json: bool,
     exact: bool,
     **analysis: Any,
@@ -61,6 +68,14 @@ def prism_command(
     from veribattery.lang import parse_constant_assignments
     from veribattery.pipeline import check_prism_file
 
+    with user_errors():
+        output_format = _format(output_format, as_json)
+        check_output_file(analysis["paths_file"], "-o", force=analysis["force"],
+                          suffixes=CSV_SUFFIXES)
+        if analysis["explain"] is not None and output_format == "csv":
+            raise OptionError("--format csv: --explain prints a table or json; "
+                              "use --format table or --format json")
+    as_json = output_format == "json"
     if analysis["explain"] is not None:
         with user_errors():
             constants = parse_constant_assignments(consts)
@@ -77,12 +92,42 @@ def prism_command(
     if analysis["simulate"] is not None:
         prism_simulate(run, model, constants, analysis["simulate"], seed=analysis["seed"],
                        max_steps=analysis["max_steps"], paths_file=analysis["paths_file"],
-                       path_count=analysis["path_count"], as_json=as_json)
+                       path_count=analysis["path_count"], output_format=output_format)
         return
-    if as_json:
+    if output_format == "json":
         click.echo(json.dumps(prism_json(run)))
+    elif output_format == "csv":
+        print_prism_csv(run)
     else:
         print_prism_run(run)
+
+
+def _format(output_format: str | None, as_json: bool) -> str:
+    """``--format``, with ``--json`` as its old spelling (both given must agree)."""
+    if as_json and output_format not in (None, "json"):
+        raise OptionError(f"--json and --format {output_format} ask for different outputs; "
+                          "give one of them")
+    return "json" if as_json else output_format or "table"
+
+
+def print_prism_csv(run: ModelCheckRun) -> None:
+    """``property,name,value,lower,upper,exact`` rows, values with full precision."""
+    import csv
+    import sys
+
+    writer = csv.writer(sys.stdout, lineterminator="\n")
+    writer.writerow(["property", "name", "value", "lower", "upper", "exact"])
+    for result in run.results:
+        bounds = result_bounds(result) or ["", ""]
+        writer.writerow([result.property.text, result.property.name or "",
+                         _csv_value(result.value), *map(_csv_value, bounds),
+                         exact_text(result) or ""])
+
+
+def _csv_value(value: object) -> str:
+    if isinstance(value, bool):
+        return format_value(value)
+    return repr(value) if isinstance(value, float) else str(value)
 
 
 def prism_json(run: ModelCheckRun) -> dict[str, object]:

@@ -10,13 +10,15 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from veribattery.cli.output import err, fail, out, user_errors
+from veribattery.cli.files import check_output_dir
+from veribattery.cli.output import err, fail, user_errors
+from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
     from veribattery.analyses.table3 import Table3Comparison
 
 
-@click.command("reproduce")
+@click.command("reproduce", short_help="Re-run the paper's Table 3, Fig. 6 and Fig. 8.")
 @click.argument("what", type=click.Choice(["table3", "fig6", "fig8", "all"]))
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table",
               show_default=True, help="How Table 3 is printed.")
@@ -27,15 +29,20 @@ if TYPE_CHECKING:
               help="Worker processes for the sweeps (default: the number of cores).")
 @click.option("--scheduler", metavar="tcp://HOST:PORT|local",
               help="Run the sweeps on a Dask cluster.")
+@click.option("--force", is_flag=True,
+              help="Overwrite the tables and figures of an earlier run in DIR.")
 def reproduce_command(
-    what: str, output_format: str, out_dir: Path | None, jobs: int | None, scheduler: str | None
+    what: str, output_format: str, out_dir: Path | None, jobs: int | None,
+    scheduler: str | None, force: bool,
 ) -> None:
     """Re-run the seed paper's Table 3, Fig. 6 and Fig. 8 (all: every one, into -o DIR).
 
-    The figures come from one sweep (four battery models x 5.0-20.0 Ah, 604 points)
-    checking only the properties drawn, whose rows are kept in DIR/capacity_sweep.csv
-    (fig6 or fig8 alone: DIR/fig6_sweep.csv, DIR/fig8_sweep.csv): an interrupted run
-    resumes.
+    \b
+    The figures come from one sweep (four battery models x 5.0-20.0 Ah, 604
+    points) that checks only the properties drawn. Its rows are kept in
+    DIR/capacity_sweep.csv (fig6 or fig8 alone: DIR/fig6_sweep.csv or
+    DIR/fig8_sweep.csv), so an interrupted run resumes where it stopped.
+    The files written are listed on stderr; stdout has only Table 3.
     """
     if what == "table3" and out_dir is None:
         _table3_in_process(output_format)
@@ -45,6 +52,8 @@ def reproduce_command(
     from veribattery.sweep import default_jobs
 
     directory = out_dir or Path(".")
+    with user_errors():
+        check_output_dir(directory, "-o", force=force, names=_products(what))
     options = _options(jobs or default_jobs(), scheduler)
     try:
         _reproduce(what, directory, options, output_format)
@@ -101,14 +110,26 @@ def _mkdir(directory: Path) -> Path:
     return directory
 
 
+def _products(what: str) -> list[str]:
+    """The tables and figures *what* writes (the sweeps' results are resumed, not these)."""
+    from veribattery.analyses.figures import FIGURE_FILES, FIGURES
+
+    names = ["table3.csv"] if what in ("table3", "all") else []
+    drawn = FIGURES if what == "all" else (what,) if what != "table3" else ()
+    return names + [f"{figure}{suffix}" for figure in drawn for suffix in FIGURE_FILES]
+
+
 def _write_csv(table: Any, path: Path) -> None:
-    table.to_csv(path, index=False)  # shortest round-trip repr: 0.3, not 0.29999999999999999
-    click.echo(str(path))
+    from veribattery._files import staged
+
+    with staged(path) as temporary:
+        table.to_csv(temporary, index=False)  # shortest round-trip repr: 0.3, not 0.2999…
+    _written([path])
 
 
 def _written(paths: Sequence[Path]) -> None:
     for path in paths:
-        click.echo(str(path))
+        click.echo(f"wrote {path}", err=True)
 
 
 def _report_failures(frame: Any, results: str) -> None:
@@ -121,36 +142,28 @@ def _report_failures(frame: Any, results: str) -> None:
 
 
 def _print_table3_frame(table: Any, output_format: str) -> None:
-    from rich.table import Table
-
     if output_format == "json":
         click.echo(table.to_json(orient="records"))
         return
-    shown = Table("case", "quantity", "paper", "veribattery", "rel. diff", show_edge=False,
-                  title="Table 3 — paper vs veribattery")
+    rows = []
     for row in table.to_dict("records"):
         for q in ("p_success", "exp_mission_time", "exp_recharges"):
-            shown.add_row(row["case"], q, f"{row[q + '_paper']:g}", f"{row[q + '_ours']:.6g}",
-                          f"{row[q + '_rel_diff']:+.2%}")
-        shown.add_section()
-    out.print(shown)
+            rows.append((row["case"], q, f"{row[q + '_paper']:g}", f"{row[q + '_ours']:.6g}",
+                         f"{row[q + '_rel_diff']:+.2%}"))
+    print_table(TABLE3_COLUMNS, rows, keys=2, title="Table 3 — paper vs veribattery")
+
+
+#: Columns of the Table 3 comparison.
+TABLE3_COLUMNS = ("case", "quantity", "paper", "veribattery", "rel. diff")
 
 
 def print_table3(rows: Sequence[Table3Comparison]) -> None:
     """Paper vs veribattery, with relative differences."""
-    from rich.table import Table
-
     from veribattery.analyses.paper import SOURCE
 
-    table = Table("case", "quantity", "paper", "veribattery", "rel. diff", show_edge=False,
-                  title=f"Table 3 — {SOURCE} vs veribattery")
-    for row in rows:
-        for quantity, paper, ours, diff in row.lines():
-            table.add_row(row.paper.case, quantity, paper, ours, diff)
-        table.add_section()
-    out.print(table)
-    out.print(
-        "State and transition counts are not expected to match: the paper's model uses a "
-        "different encoding (see docs/model-spec.md).", style="dim",
-    )
-
+    lines = [(row.paper.case, quantity, paper, ours, diff)
+             for row in rows for quantity, paper, ours, diff in row.lines()]
+    print_table(TABLE3_COLUMNS, lines, keys=2, title=f"Table 3 — {SOURCE} vs veribattery")
+    err.print(fit_text("State and transition counts are not expected to match: the paper's "
+                       "model uses a different encoding (see docs/model-spec.md)."),
+              style="dim", markup=False)

@@ -25,7 +25,7 @@ from veribattery.cli.tables import print_table
 from veribattery.errors import OptionError
 
 
-@click.command("sweep")
+@click.command("sweep", short_help="Check a config at every point of a parameter grid.")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option(
     "--vary", "specs", multiple=True, metavar="KEY=SPEC",
@@ -177,9 +177,9 @@ def print_sweep(frame: Any, keys: Sequence[str], output_format: str) -> None:
     if output_format == "csv":
         click.echo(frame.to_csv(index=False), nl=False)
     elif output_format == "json":
-        rows = [{k: json_value(v) for k, v in row.items()} for row in records(frame)]
-        click.echo(json.dumps({"axes": list(keys), "results": rows}))
+        tidy = [{k: json_value(v) for k, v in row.items()} for row in records(frame)]
+        click.echo(json.dumps({"axes": list(keys), "results": tidy}))
     else:
         points = wide(frame, keys)
-        rows = [[format_value(v) for v in row.values()] for row in records(points)]
-        print_table([str(c) for c in points.columns], rows, keys=len(keys))
+        cells = [[format_value(v) for v in row.values()] for row in records(points)]
+        print_table([str(c) for c in points.columns], cells, keys=len(keys))

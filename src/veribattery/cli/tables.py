@@ -14,7 +14,7 @@ import os
 import shutil
 import sys
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from itertools import zip_longest
 
 import click
@@ -38,16 +38,19 @@ def output_width() -> int:
 
 
 def render_table(headers: Sequence[str], rows: Sequence[Sequence[str]], *, width: int,
-                 keys: int = 1) -> list[str]:
+                 keys: int = 1, notes: Mapping[int, str] | None = None) -> list[str]:
     """The lines of a table no wider than *width* (see the module's rule).
 
     :param keys: how many leading columns identify a row (repeated in every block).
+    :param notes: prose lines to show before row *i* (in every block), such as a
+        fold in a long path; wrapped to the width, indented past the first key.
     """
+    notes = notes or {}
     widths = _natural_widths(headers, rows)
     keys = min(keys, len(headers) - 1) if len(headers) > 1 else len(headers)
     key_width = sum(widths[:keys]) + GAP * keys
     if _span(widths) <= width:
-        return _block(headers, rows, list(range(len(headers))), widths)
+        return _block(headers, rows, list(range(len(headers))), widths, notes, width)
     if width - key_width < MIN_COLUMN:
         return _records(headers, rows, width)
     lines: list[str] = []
@@ -56,16 +59,17 @@ def render_table(headers: Sequence[str], rows: Sequence[Sequence[str]], *, width
         fitted = [min(w, width - key_width) if j >= keys else w for j, w in enumerate(widths)]
         if lines:
             lines.append("")
-        lines += _block(headers, rows, shown, fitted)
+        lines += _block(headers, rows, shown, fitted, notes, width)
     return lines
 
 
 def print_table(headers: Sequence[str], rows: Sequence[Sequence[str]], *, keys: int = 1,
-                title: str | None = None) -> None:
+                title: str | None = None, notes: Mapping[int, str] | None = None) -> None:
     """Print a table on stdout at :func:`output_width` (a title line first, if given)."""
+    width = output_width()
     if title:
-        click.echo(title)
-    for line in render_table(headers, rows, width=output_width(), keys=keys):
+        click.echo(fit_text(title, width))
+    for line in render_table(headers, rows, width=width, keys=keys, notes=notes):
         click.echo(line)
 
 
@@ -98,10 +102,14 @@ def _groups(widths: Sequence[int], room: int) -> list[list[int]]:
 
 
 def _block(headers: Sequence[str], rows: Sequence[Sequence[str]], shown: Sequence[int],
-           widths: Sequence[int]) -> list[str]:
+           widths: Sequence[int], notes: Mapping[int, str], width: int) -> list[str]:
     lines = [_line([headers[j] for j in shown], [widths[j] for j in shown])]
     lines.append(_line(["─" * widths[j] for j in shown], [widths[j] for j in shown]))
-    for row in rows:
+    indent = " " * (widths[0] + GAP)
+    for i, row in enumerate(rows):
+        if i in notes:
+            lines += textwrap.wrap(notes[i], width, initial_indent=indent,
+                                   subsequent_indent=indent + "  ", break_on_hyphens=False)
         lines += _wrapped_row([row[j] for j in shown], [widths[j] for j in shown])
     return lines
 
