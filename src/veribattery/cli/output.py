@@ -48,6 +48,9 @@ class _LazyConsole:
             from rich.console import Console
 
             console = self._console = Console(**self.__dict__.get("_options", {}))
+            # On a terminal, long lines wrap at word boundaries to its width; in pipes
+            # and logs a message stays on one line, whatever its length.
+            console.soft_wrap = not console.is_terminal
         return console
 
 
@@ -59,9 +62,8 @@ def rich_console(console: Console) -> Console:
 
 # emoji=False: user text such as ``--vary k=a:b:c`` or ``my:warning:x.yaml`` is printed
 # as typed, never with ``:b:`` or ``:warning:`` turned into emoji.
-out: Console = cast("Console", _LazyConsole(highlight=False, soft_wrap=True, emoji=False))
-err: Console = cast("Console", _LazyConsole(stderr=True, highlight=False, soft_wrap=True,
-                                            emoji=False))
+out: Console = cast("Console", _LazyConsole(highlight=False, emoji=False))
+err: Console = cast("Console", _LazyConsole(stderr=True, highlight=False, emoji=False))
 
 
 def escape(text: str) -> str:
@@ -92,7 +94,7 @@ def user_errors() -> Iterator[None]:
     except VeribatteryError as exc:
         fail(str(exc))
     except OSError as exc:
-        fail(f"{exc.filename or ''}: {exc.strerror or exc}")
+        fail(f"{exc.filename}: {exc.strerror}" if exc.filename and exc.strerror else str(exc))
 
 
 def _may_be_terminal() -> bool:

@@ -1,0 +1,107 @@
+"""Every command as a user types it: in a real (pseudo-)terminal at 80 and 120 columns.
+
+CliRunner never gives a command a terminal, so live progress, colours and the
+terminal's width are only exercised here: what is asserted is what is on screen.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from tests.cli.terminal import Screen, run_in_terminal
+
+REPO = Path(__file__).resolve().parents[2]
+CASE1 = str(REPO / "configs" / "paper" / "case1.yaml")
+#: A 3x3-turbine farm in 0.5 Ah units: ~2,500 states, a fraction of a second.
+SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]",
+         "--set", "battery.resolution_ah=0.5", "--set", "battery.max_recharges=25")
+DIE = """dtmc
+module die
+  s : [0..7] init 0;
+  d : [0..6] init 0;
+  [] s=0 -> 0.5 : (s'=1) + 0.5 : (s'=2);
+  [] s=1 -> 0.5 : (s'=3) + 0.5 : (s'=4);
+  [] s=2 -> 0.5 : (s'=5) + 0.5 : (s'=6);
+  [] s=3 -> 0.5 : (s'=1) + 0.5 : (s'=7) & (d'=1);
+  [] s=4 -> 0.5 : (s'=7) & (d'=2) + 0.5 : (s'=7) & (d'=3);
+  [] s=5 -> 0.5 : (s'=7) & (d'=4) + 0.5 : (s'=7) & (d'=5);
+  [] s=6 -> 0.5 : (s'=2) + 0.5 : (s'=7) & (d'=6);
+  [] s=7 -> (s'=7);
+endmodule
+label "six" = s=7 & d=6;
+"""
+CYCLES = "cycle,capacity_ah\n" + "".join(f"{n},{11 - 0.004 * n:.4f}\n" for n in range(0, 60, 5))
+
+#: (id, arguments, exit status, texts that must be on screen).
+COMMANDS = [
+    ("check", ["check", CASE1, *SMALL], 0, ["p_success", "exp_mission_time_given_success"]),
+    ("check-exact", ["check", CASE1, *SMALL, "--exact"], 0, ["p/q:"]),
+    ("emit", ["emit", CASE1, *SMALL, "-o", "model"], 0, ["model.prism"]),
+    ("prism", ["prism", "die.pm", "--property", 'P=? [ F "six" ]'], 0, ["0.166666666667"]),
+    ("sweep", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10:11:0.5",
+               "--vary", "battery.model=advanced,basic_high", "-j", "1"], 0,
+     ["exp_recharges_given_success", "6 points: 6 checked, 0 failed"]),
+    ("explain", ["explain", CASE1, *SMALL, "--top", "1"], 0, ["by k, cell", "Path 1"]),
+    ("simulate", ["simulate", CASE1, *SMALL, "--runs", "50"], 0, ["95% CI"]),
+    ("distribution", ["distribution", CASE1, *SMALL, "--deadline", "1d"], 0,
+     ["P(success within 1d"]),
+    ("phm-fade", ["phm", "fade", "cycles.csv"], 0, ["fade_per_recharge"]),
+    ("help", ["--help"], 0, ["sweep", "130 interrupted"]),
+]
+
+
+@pytest.fixture()
+def workdir(tmp_path: Path) -> Path:
+    (tmp_path / "die.pm").write_text(DIE)
+    (tmp_path / "cycles.csv").write_text(CYCLES)
+    return tmp_path
+
+
+@pytest.mark.parametrize("columns", [80, 120])
+@pytest.mark.parametrize(("args", "status", "shown"), [c[1:] for c in COMMANDS],
+                         ids=[c[0] for c in COMMANDS])
+def test_command_in_a_terminal(workdir: Path, columns: int, args: list[str], status: int,
+                               shown: list[str]) -> None:
+    screen = run_in_terminal(args, columns, workdir)
+    _assert_clean(screen, status, columns)
+    for text in shown:
+        assert text in screen.text, screen.text
+
+
+def _assert_clean(screen: Screen, status: int, columns: int) -> None:
+    assert screen.status == status, screen.text
+    assert "Traceback" not in screen.text, screen.text
+    assert screen.widest <= columns, "\n".join(l for l in screen.lines if len(l) > columns)
+
+
+def test_user_text_is_shown_as_typed(workdir: Path) -> None:
+    # rich would turn :b: and :warning: into emoji and [bold] into markup.
+    (workdir / "my:warning:[bold]x.yaml").write_text("farm: {cols: 3, rows: 3, base: [0, 0]\n")
+    screen = run_in_terminal(["check", "my:warning:[bold]x.yaml"], 80, workdir)
+    assert screen.status == 2
+    assert "my:warning:[bold]x.yaml" in screen.text, screen.text
+    screen = run_in_terminal(["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=a:b:c"],
+                             80, workdir)
+    assert screen.status == 2
+    assert "a:b:c" in screen.text, screen.text
+
+
+def test_interrupted_check_exits_130(workdir: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    process = subprocess.Popen(
+        [sys.executable, "-c", "from veribattery.cli import main; main()", "sweep", CASE1,
+         *SMALL, "--vary", "battery.capacity_ah=10:20:0.5", "-j", "1"],
+        cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert process.stderr is not None
+    process.stderr.readline()  # the first point's line: the sweep is under way
+    time.sleep(0.2)
+    process.send_signal(signal.SIGINT)
+    _, stderr = process.communicate(timeout=120)
+    assert process.returncode == 130, stderr
+    assert b"interrupted" in stderr and b"Traceback" not in stderr
