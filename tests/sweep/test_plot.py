@@ -97,6 +97,7 @@ def test_numeric_key_on_x_and_a_line_per_category() -> None:
     assert legend_of(ax) == ("battery model", list(MODELS))
     assert ax.get_ylim() == (0, 1)
     assert (ax.get_xlabel(), ax.get_ylabel()) == ("battery capacity (Ah)", "P(success)")
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["12", "12.2", "12.4"]
 
 
 def test_first_numeric_key_is_chosen_whatever_its_place() -> None:
@@ -179,6 +180,20 @@ def test_one_varied_key_draws_one_line_and_no_legend() -> None:
     assert xs(line) == list(CAPACITIES)
     assert ax.get_legend() is None
     assert ax.get_title(loc="right") == ""
+
+
+def test_a_legend_of_hundreds_names_the_first_and_counts_the_rest() -> None:
+    rows = [row for i in range(300) for row in point_rows(
+        PointResult(i, (PropertyValue("p_success", 0.5, None, None),)),
+        {"strategy.safe_t": 0.3, "battery.capacity_ah": 5 + i})]
+    frame = pd.DataFrame(rows, columns=["point", "strategy.safe_t", "battery.capacity_ah",
+                                        *FIXED_COLUMNS])
+    ax = axes_of(sweep_figure(frame, None, "p_success"))
+    assert ax.get_xlabel() == "safety threshold safe_t (SOC)"
+    assert len(ax.get_lines()) == 300
+    title, entries = legend_of(ax)
+    assert title == "battery capacity (Ah)"
+    assert entries[:2] == ["5", "6"] and entries[-1] == "… and 261 more" and len(entries) == 40
 
 
 @pytest.mark.parametrize("suffix", [".png", ".svg", ".pdf", ".PNG"])

@@ -13,6 +13,7 @@ through pyplot, so plotting needs no display and leaves the process's backend al
 
 from __future__ import annotations
 
+import itertools
 import math
 import numbers
 import os
@@ -26,6 +27,7 @@ from matplotlib.axes import Axes
 from matplotlib.backend_bases import FigureCanvasBase
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
 
 from veribattery._files import staged
 from veribattery.errors import ConfigError, VeribatteryError
@@ -39,8 +41,11 @@ __all__ = ["axis_keys", "check_plot_target", "plot_suffixes", "plot_sweep", "swe
 _NON_AXIS = frozenset({"point", *FIXED_COLUMNS})
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "<", ">", "*")
 _STYLES = ("-", "--", "-.", ":")
-#: Legend entries per column.
+#: Legend entries per column, and at most (the last saying how many more lines).
 _LEGEND_ROWS = 20
+_LEGEND_MOST = 40
+#: The most x values that each get a tick.
+_GRID_TICKS = 12
 
 
 def plot_sweep(frame: pd.DataFrame, x_key: str | None, property: str, path: str | Path, *,
@@ -192,8 +197,10 @@ def _draw(ax: Axes, frame: pd.DataFrame, rows: pd.DataFrame, x: str, others: lis
             _line(ax, i, xs, line["y"], ", ".join(map(_text, combo)))
     if ticks is not None:
         _categories(ax, ticks)
+    else:
+        _grid_ticks(ax, sorted(set(frame[x])))
     if others:
-        _legend(ax, ", ".join(map(key_label, others)), len(combos))
+        _legend(ax, ", ".join(map(key_label, others)))
     ax.grid(True, alpha=0.3)
 
 
@@ -203,8 +210,16 @@ def _line(ax: Axes, index: int, xs: pd.Series, ys: pd.Series, label: str) -> Non
     order = xs.argsort(kind="stable")
     ax.plot(xs.iloc[order], ys.iloc[order], color=f"C{index % 10}",
             linestyle=_STYLES[index % len(_STYLES)], marker=_MARKERS[index % len(_MARKERS)],
-            markersize=5 if len(xs) <= 40 else 3, linewidth=1.4, label=label, clip_on=False,
-            zorder=3)
+            markersize=5 if len(xs) <= 25 else 3 if len(xs) <= 80 else 1.5, linewidth=1.4,
+            label=label, clip_on=False, zorder=3)
+
+
+def _grid_ticks(ax: Axes, values: list[float]) -> None:
+    """Ticks at the values of an evenly spaced grid of a few points (``12, 12.2, 12.4``,
+    not ``12.00, 12.05, …``); denser or uneven grids keep matplotlib's ticks."""
+    steps = {round(b - a, 9) for a, b in itertools.pairwise(values)}
+    if 1 < len(values) <= _GRID_TICKS and len(steps) == 1:
+        ax.set_xticks(values, [_text(v) for v in values])
 
 
 def _categories(ax: Axes, ticks: list[Hashable]) -> None:
@@ -226,10 +241,20 @@ def _matches(rows: pd.DataFrame, keys: list[str], combo: tuple[Hashable, ...]) -
     return mask
 
 
-def _legend(ax: Axes, title: str, entries: int) -> None:
-    """Beside the axes: inside, it would hide points (markers at P = 1 on the frame)."""
-    ax.legend(title=title, fontsize="small", title_fontsize="small", loc="upper left",
-              bbox_to_anchor=(1.01, 1), ncols=math.ceil(entries / _LEGEND_ROWS))
+def _legend(ax: Axes, title: str) -> None:
+    """Beside the axes (inside, it would hide points: markers at P = 1 sit on the frame),
+    in columns of :data:`_LEGEND_ROWS`; past :data:`_LEGEND_MOST` lines, the first ones
+    and how many more (a legend of hundreds would crowd out the plot)."""
+    handles, labels = ax.get_legend_handles_labels()
+    if not handles:
+        return
+    if len(handles) > _LEGEND_MOST:
+        more = len(handles) - _LEGEND_MOST + 1
+        handles = [*handles[:_LEGEND_MOST - 1], Line2D([], [], linestyle="none")]
+        labels = [*labels[:_LEGEND_MOST - 1], f"… and {more} more"]
+    ax.legend(handles, labels, title=title, fontsize="small", title_fontsize="small",
+              loc="upper left", bbox_to_anchor=(1.01, 1),
+              ncols=math.ceil(len(handles) / _LEGEND_ROWS))
 
 
 def _style_y(ax: Axes, rows: pd.DataFrame, formula: str | None) -> None:
