@@ -2,31 +2,53 @@
 
 from __future__ import annotations
 
+import math
 import sys
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from veribattery.cli.output import format_value, out, print_warnings, set_option, user_errors
+from veribattery.cli.files import FIGURE_SUFFIXES, check_output_dir, check_output_file
+from veribattery.cli.output import (
+    escape,
+    format_value,
+    out,
+    print_warnings,
+    set_option,
+    user_errors,
+)
+from veribattery.cli.tables import print_table
+from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
-    from veribattery.config import MissionConfig
+    from fractions import Fraction
+
+    from veribattery.config import MissionConfig, Requirement
+    from veribattery.phm.data import DischargeCurve
     from veribattery.phm.fade import FadeReport
     from veribattery.phm.forecast import Forecast
+    from veribattery.phm.fragment import Fragment
+    from veribattery.phm.levels import StepFit
     from veribattery.phm.recheck import Recheck
     from veribattery.phm.refit import FadeParameters, LevelParameters
 
 F = TypeVar("F", bound=Callable[..., Any])
 
 MODELS = click.Choice(["linear", "exponential", "knee"])
+#: Figure types ``--plot`` writes: matplotlib's, less PGF (it needs a TeX install to lay
+#: out the text, and would fail only after the work is done).
+PLOT_SUFFIXES = tuple(suffix for suffix in FIGURE_SUFFIXES if suffix != ".pgf")
 
 
 def _plot_option(function: F) -> F:
-    return click.option("--plot", "plot_path", type=click.Path(path_type=Path),
-                        help="Also write a PNG figure here (never over an existing file)."
-                        )(function)
+    function = click.option("--force", is_flag=True,
+                            help="Let --plot overwrite an existing file.")(function)
+    return click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="FILE",
+                        help="Also write a figure here; its type follows the suffix "
+                             "(.png, .pdf, .svg, ...).")(function)
 
 
 def _model_option(function: F) -> F:
@@ -34,34 +56,89 @@ def _model_option(function: F) -> F:
                         help="Use this fade model instead of the AIC choice.")(function)
 
 
-def _new_file(path: Path | None) -> None:
-    """Refuse to overwrite a user's file with a figure or CSV."""
-    from veribattery.phm.data import PhmDataError
+def _check_plot(path: Path | None, force: bool) -> None:
+    check_output_file(path, "--plot", force=force, suffixes=PLOT_SUFFIXES)
 
-    if path is not None and path.exists():
-        raise PhmDataError(f"{path}: already exists; remove it or choose another name")
+
+def _typed(text: str) -> str:
+    """An option's value as the user typed it (an empty one shown as ``''``)."""
+    return text if text else "''"
+
+
+def _number(option: str, text: str, rule: str) -> float:
+    """*text* as a finite float, else an :class:`OptionError` saying *rule*."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise OptionError(f"{option} {_typed(text)}: {rule}")
+    return value
+
+
+def _at_cycle(text: str | None) -> float | None:
+    rule = ("must be a cycle number >= 0, e.g. 300 (leave it out for the last logged "
+            "cycle)")
+    value = None if text is None else _number("--at-cycle", text, rule)
+    if value is not None and value < 0:
+        raise OptionError(f"--at-cycle {text}: {rule}")
+    return value
+
+
+def _capacity(text: str | None) -> float | None:
+    rule = ("must be a positive number of Ah (Q_max, the full battery's charge), e.g. 5.0; "
+            "leave it out to use the charge the log delivers")
+    value = None if text is None else _number("--capacity-ah", text, rule)
+    if value is not None and value <= 0:
+        raise OptionError(f"--capacity-ah {text}: {rule}")
+    return value
 
 
 def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
+    """The config read for the fit: --write's (the file merged into), --config's, or the
+    paper's."""
     from veribattery.config import load_config
 
+    if config is not None and write is not None:
+        raise OptionError(f"--config {config} --write {write}: give one of them; --write "
+                          "reads the config it merges into, so it is also the config used")
+    check_output_file(write, "--write", force=True)
     source = write if write is not None else config
     return load_config(source) if source is not None else load_config("")
 
 
-def _write_or_print(fragment_values: dict[str, object], yaml_text: str, write: Path | None) -> None:
+def _merged(write: Path | None, values: dict[str, object]) -> str | None:
+    """The --write config with *values* merged, validated (None without --write)."""
     if write is None:
-        out.print("\n# YAML fragment for the mission config:", style="bold")
-        click.echo(yaml_text, nl=False)
-        return
+        return None
     from veribattery.config import load_config
-    from veribattery.phm.merge import merge_text, write_atomic
+    from veribattery.phm.merge import merge_text
 
-    original = write.read_text(encoding="utf-8")
-    merged = merge_text(original, fragment_values, str(write))
+    merged = merge_text(write.read_text(encoding="utf-8"), values, str(write))
     load_config(merged + "\n")  # the merged config must validate before it replaces the file
-    write_atomic(write, merged)
-    out.print(f"\nmerged {', '.join(fragment_values)} into {write} (comments kept)")
+    return merged
+
+
+def _write(write: Path | None, merged: str | None) -> None:
+    if write is not None and merged is not None:
+        from veribattery.phm.merge import write_atomic
+
+        write_atomic(write, merged)
+
+
+def _print_fragment(fragment: Fragment, write: Path | None) -> None:
+    """The YAML fragment, or where it was merged."""
+    if write is None:
+        out.print("\n# YAML fragment for the mission config:", style="bold", markup=False)
+        click.echo(fragment.yaml(), nl=False)
+    else:
+        out.print(f"\nmerged {', '.join(fragment.values)} into {write} (comments kept)",
+                  markup=False)
+
+
+def _print_figure(path: Path | None) -> None:
+    if path is not None:
+        out.print(f"figure: {path}", markup=False)
 
 
 @click.group("phm")
@@ -70,137 +147,144 @@ def phm_group() -> None:
 
 
 @phm_group.command("fade")
-@click.argument("cycles", type=click.Path(path_type=Path))
-@click.option("--at-cycle", type=float, default=None,
-              help="Cycle the battery is at (default: the last logged cycle).")
+@click.argument("cycles", type=click.Path())
+@click.option("--at-cycle", metavar="CYCLE", default=None,
+              help="Cycle the battery is at, >= 0 (default: the last logged cycle).")
 @click.option("--config", type=click.Path(path_type=Path),
               help="Config for resolution_ah and max_recharges (default: the paper's).")
 @click.option("--write", type=click.Path(path_type=Path),
-              help="Merge battery.capacity_ah and fade_per_recharge into this config.")
+              help="Merge battery.capacity_ah and fade_per_recharge into this config "
+                   "(also the config read; not with --config).")
 @_model_option
 @_plot_option
-def fade_command(cycles: Path, at_cycle: float | None, config: Path | None, write: Path | None,
-                 model: str | None, plot_path: Path | None) -> None:
+def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: Path | None,
+                 model: str | None, plot_path: Path | None, force: bool) -> None:
     """Fit capacity fade per cycle in CYCLES.csv (cycle,capacity_ah)."""
     from veribattery.phm.data import read_cycles
     from veribattery.phm.refit import fade_parameters
 
     with user_errors():
-        _new_file(plot_path)
+        _check_plot(plot_path, force)
+        cycle = _at_cycle(at_cycle)
         cfg = _base_config(config, write)
         log = read_cycles(cycles)
-        params = fade_parameters(log, cfg, at_cycle, model)
-        _print_fits(params.report)
-        _print_fade(params)
+        params = fade_parameters(log, cfg, cycle, model)
+        merged = _merged(write, params.fragment.values)
         if plot_path is not None:
             from veribattery.phm.plot import plot_fade
 
             plot_fade(log, params, cfg.battery.max_recharges,
                       float(cfg.battery.resolution_ah), plot_path)
-            out.print(f"figure: {plot_path}")
-        _write_or_print(params.fragment.values, params.fragment.yaml(), write)
+        _write(write, merged)
+    _print_fits(params.report)
+    _print_fade(params)
+    _print_figure(plot_path)
+    _print_fragment(params.fragment, write)
 
 
 def _print_fits(report: FadeReport) -> None:
-    from rich.table import Table
-
-    table = Table("model", "AIC", "RMSE (Ah)", "max |resid| (Ah)", show_edge=False)
-    for fit in report.fits:
-        table.add_row(fit.name, f"{fit.aic:.2f}", f"{fit.rmse:.4g}",
-                      f"{abs(fit.residuals).max():.4g}")
-    out.print(table)
+    rows = [(fit.name, f"{fit.aic:.2f}", f"{fit.rmse:.4g}", f"{abs(fit.residuals).max():.4g}")
+            for fit in report.fits]
+    print_table(("model", "AIC", "RMSE (Ah)", "max |resid| (Ah)"), rows)
     for fit in report.fits:
         values = ", ".join(f"{k}={v:.6g}" for k, v in fit.params.items())
-        out.print(f"  {fit.name}: {fit.formula}; {values}")
+        out.print(f"  {fit.name}: {fit.formula}; {values}", markup=False)
     for name, why in report.skipped.items():
-        out.print(f"  {name}: not used ({why})", style="dim")
-    out.print(f"choice: {report.explanation()}")
+        out.print(f"  {name}: not used ({why})", style="dim", markup=False)
+    out.print(f"choice: {report.explanation()}", markup=False)
 
 
 def _print_fade(params: FadeParameters) -> None:
     fit = params.fit
     resid = ", ".join(f"{r:+.3g}" for r in fit.residuals[:12])
     more = " …" if len(fit.residuals) > 12 else ""
-    out.print(f"residuals of {fit.name} (Ah, first rows): {resid}{more}")
+    out.print(f"residuals of {fit.name} (Ah, first rows): {resid}{more}", markup=False)
     low, high = params.fade_ci
     out.print(f"at cycle {params.at_cycle:g}: capacity {params.capacity_fit_ah:.4f} Ah "
               f"(on the grid: {_show(params.capacity_ah)} Ah), "
               f"loss {fit.loss_per_cycle(params.at_cycle):.4g} Ah/cycle, "
-              f"fade {params.fade:.4g}/cycle, 95% CI [{low:.4g}, {high:.4g}]")
+              f"fade {params.fade:.4g}/cycle, 95% CI [{low:.4g}, {high:.4g}]", markup=False)
 
 
 @phm_group.command("levels")
-@click.argument("discharge", type=click.Path(path_type=Path))
-@click.option("--capacity-ah", type=float, default=None,
-              help="Q_max for Coulomb counting (default: the charge the log delivers).")
+@click.argument("discharge", type=click.Path())
+@click.option("--capacity-ah", metavar="AH", default=None,
+              help="Q_max for Coulomb counting, > 0 (default: the charge the log delivers).")
 @click.option("--soc-step", type=str, default="0.01", show_default=True,
-              help="SOC grid on which thresholds are chosen (exact decimal).")
+              help="SOC grid on which thresholds are chosen (exact decimal in (0, 0.1]).")
 @click.option("--config", type=click.Path(path_type=Path),
               help="Config for Eq. 2's energy, times and resolution_ah (default: the paper's).")
 @click.option("--write", type=click.Path(path_type=Path),
-              help="Merge voltage_thresholds and an Eq. 2 consumption into this config.")
+              help="Merge voltage_thresholds and an Eq. 2 consumption into this config "
+                   "(also the config read; not with --config).")
 @_plot_option
-def levels_command(discharge: Path, capacity_ah: float | None, soc_step: str,
-                   config: Path | None, write: Path | None, plot_path: Path | None) -> None:
+def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
+                   config: Path | None, write: Path | None, plot_path: Path | None,
+                   force: bool) -> None:
     """Derive voltage levels, SOC thresholds (BA3) and consumption from a discharge curve."""
-    from veribattery.phm.data import PhmDataError, read_discharge
-    from veribattery.phm.levels import fixed_steps
+    from veribattery.phm.data import read_discharge
     from veribattery.phm.refit import level_parameters
 
     with user_errors():
-        _new_file(plot_path)
-        step = _soc_step(soc_step)
+        _check_plot(plot_path, force)
+        capacity, step = _capacity(capacity_ah), _soc_step(soc_step)
         cfg = _base_config(config, write)
-        curve = read_discharge(discharge, capacity_ah)
+        curve = read_discharge(discharge, capacity)
         params = level_parameters(curve, cfg, step)
-        _print_levels(params)
-        try:
-            paper = fixed_steps(curve, cfg.battery.voltage_thresholds.low,
-                                cfg.battery.voltage_thresholds.high, step)
-            out.print(f"(the config's thresholds {_show(paper.low)}/{_show(paper.high)} "
-                      f"would give RMS "
-                      f"{paper.rms_v:.4g} V, max {paper.max_v:.4g} V)")
-        except PhmDataError:  # the comparison is informative only
-            pass
+        paper = _config_steps(curve, cfg, step)
+        merged = _merged(write, params.fragment.values)
         if plot_path is not None:
             from veribattery.phm.plot import plot_levels
 
             plot_levels(params, plot_path)
-            out.print(f"figure: {plot_path}")
-        _write_or_print(params.fragment.values, params.fragment.yaml(), write)
+        _write(write, merged)
+    _print_levels(params, paper)
+    _print_figure(plot_path)
+    _print_fragment(params.fragment, write)
 
 
-def _soc_step(text: str) -> Any:
+def _config_steps(curve: DischargeCurve, cfg: MissionConfig, step: Fraction) -> StepFit | None:
+    """The config's own thresholds on *curve*, for comparison (None when they do not fit)."""
+    from veribattery.phm.data import PhmDataError
+    from veribattery.phm.levels import fixed_steps
+
+    thresholds = cfg.battery.voltage_thresholds
+    try:
+        return fixed_steps(curve, thresholds.low, thresholds.high, step)
+    except PhmDataError:  # the comparison is informative only
+        return None
+
+
+def _soc_step(text: str) -> Fraction:
     from fractions import Fraction
 
-    from veribattery.phm.data import PhmDataError
-
+    rule = "must be a decimal in (0, 0.1], e.g. 0.01"
     try:
         step = Fraction(text)
     except (ValueError, ZeroDivisionError):
-        raise PhmDataError(f"--soc-step: must be a decimal such as 0.01, got {text!r}") from None
+        raise OptionError(f"--soc-step {_typed(text)}: {rule}") from None
     if not 0 < step <= Fraction(1, 10):
-        raise PhmDataError(f"--soc-step: must be in (0, 0.1], got {text}")
+        raise OptionError(f"--soc-step {text}: {rule}")
     return step
 
 
-def _print_levels(params: LevelParameters) -> None:
-    from rich.table import Table
-
+def _print_levels(params: LevelParameters, paper: StepFit | None) -> None:
     steps = params.steps
     low, high = _show(steps.low), _show(steps.high)
-    out.print(f"thresholds: low SOC < {low}, medium {low}..{high}, high SOC > {high}")
+    say = partial(out.print, markup=False)
+    say(f"thresholds: low SOC < {low}, medium {low}..{high}, high SOC > {high}")
     named = zip(("low", "medium", "high"), params.voltages_v, strict=True)
-    out.print("levels: " + ", ".join(f"{n} {_show(v)} V" for n, v in named))
-    out.print(f"approximation error on the SOC grid: RMS {steps.rms_v:.4g} V, "
-              f"max {steps.max_v:.4g} V (minimised over all threshold pairs)")
-    table = Table(f"action (units of {_show(params.resolution)} Ah)", "wind",
-                  "low V", "medium V", "high V", show_edge=False)
-    for action, rows in params.table.items():
-        for wind, row in zip(("low", "high"), rows, strict=True):
-            table.add_row(action, wind, *map(str, row))
-    out.print("Eq. 2 consumption, C = E_spec·t / (V·T), rounded half up:")
-    out.print(table)
+    say("levels: " + ", ".join(f"{n} {_show(v)} V" for n, v in named))
+    say(f"approximation error on the SOC grid: RMS {steps.rms_v:.4g} V, "
+        f"max {steps.max_v:.4g} V (minimised over all threshold pairs)")
+    if paper is not None:
+        say(f"(the config's thresholds {_show(paper.low)}/{_show(paper.high)} would give RMS "
+            f"{paper.rms_v:.4g} V, max {paper.max_v:.4g} V)")
+    rows = [(action, wind, *map(str, row)) for action, table in params.table.items()
+            for wind, row in zip(("low", "high"), table, strict=True)]
+    print_table((f"action (units of {_show(params.resolution)} Ah)", "wind", "low V",
+                 "medium V", "high V"), rows, keys=2,
+                title="Eq. 2 consumption, C = E_spec·t / (V·T), rounded half up:")
 
 
 @phm_group.command("simulate")
@@ -227,9 +311,11 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
                      out_dir: Path,
                      force: bool) -> None:
     """Physics when there is no data: PyBaMM discharge (and ageing) CSVs."""
-    from veribattery.phm.simulate import Pack, simulate, write_csvs
+    from veribattery.phm.simulate import CYCLES_FILE, DISCHARGE_FILE, Pack, simulate, write_csvs
 
     with user_errors():
+        names = [DISCHARGE_FILE, *([CYCLES_FILE] if cycles else [])]
+        check_output_dir(out_dir, "-o", force=force, names=names)
         pack = Pack(parameter_set, power_w, cells_series, cells_parallel, sei)
         argv = ["veribattery", "phm", "simulate", "--parameter-set", parameter_set,
                 "--power-w", f"{power_w:g}", "--cells-series", str(cells_series),
@@ -244,7 +330,7 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
 
 @phm_group.command("forecast")
 @click.argument("config", type=click.Path(path_type=Path))
-@click.option("--cycles", "cycles_path", type=click.Path(path_type=Path), required=True,
+@click.option("--cycles", "cycles_path", type=click.Path(), required=True,
               help="Capacity log (cycle,capacity_ah).")
 @click.option("--horizon", type=click.IntRange(min=1), default=300, show_default=True,
               help="Cycles ahead to look.")
@@ -258,64 +344,78 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
 @_model_option
 @set_option
 @_plot_option
-def forecast_command(config: Path, cycles_path: Path, horizon: int, step: int | None,
+def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | None,
                      requirement: str, time_property: str, model: str | None,
-                     overrides: tuple[str, ...], plot_path: Path | None) -> None:
+                     overrides: tuple[str, ...], plot_path: Path | None, force: bool) -> None:
     """P(success) and mission time as the battery ages; when does REQUIRE stop holding?"""
-    from veribattery.config import parse_requirement
-    from veribattery.phm.data import PhmDataError, read_cycles
+    from veribattery.config import load_config
+    from veribattery.phm.data import read_cycles
     from veribattery.phm.forecast import forecast
 
     with user_errors():
-        _new_file(plot_path)
-        try:
-            req = parse_requirement(requirement)
-        except ValueError as exc:
-            raise PhmDataError(f"--require: {exc}") from None
+        _check_plot(plot_path, force)
+        req = _requirement(requirement)
+        cfg = load_config(config, overrides)
+        _check_property(cfg, config, f"--require {requirement}", req.prop)
+        if time_property:
+            _check_property(cfg, config, f"--time-property {time_property}", time_property)
         log = read_cycles(cycles_path)
         result = forecast(config, log, req, horizon, step or max(1, horizon // 10), overrides,
                           model)
-        _print_forecast(result, time_property)
         if plot_path is not None:
             from veribattery.phm.plot import plot_forecast
 
             plot_forecast(result, time_property or None, plot_path)
-            out.print(f"figure: {plot_path}")
+    _print_forecast(result, time_property)
+    _print_figure(plot_path)
+
+
+def _requirement(text: str) -> Requirement:
+    from veribattery.config import parse_requirement
+
+    try:
+        return parse_requirement(text)
+    except ValueError as exc:
+        raise OptionError(f"--require: {exc}") from None
+
+
+def _check_property(cfg: MissionConfig, config: Path, where: str, name: str) -> None:
+    """*name* must be one of the properties *cfg* checks."""
+    if name not in cfg.properties:
+        raise OptionError(f"{where}: {config} has no property '{name}'; its properties are "
+                          f"{', '.join(cfg.properties)}")
 
 
 def _print_forecast(result: Forecast, time_property: str) -> None:
-    from rich.table import Table
-
     req = result.requirement
-    columns = ["ahead", "cycle", "capacity_ah", "fade", req.prop]
     shown = time_property if time_property and time_property != req.prop else ""
-    table = Table(*columns, *([shown] if shown else []), "holds", show_edge=False)
-    for p in result.points:
-        extra = [_short(p.values.get(shown))] if shown else []
-        table.add_row(str(p.ahead), f"{result.now + p.ahead:g}", _show(p.capacity_ah),
-                      _show(p.fade), _short(p.values[req.prop]), *extra,
-                      "yes" if p.holds else "[bold red]no[/]")
-    out.print(table)
+    headers = ["ahead", "cycle", "capacity_ah", "fade", req.prop, *([shown] if shown else []),
+               "holds"]
+    rows = [[str(p.ahead), f"{result.now + p.ahead:g}", _show(p.capacity_ah), _show(p.fade),
+             _short(p.values[req.prop]), *([_short(p.values.get(shown))] if shown else []),
+             "yes" if p.holds else "no"] for p in result.points]
+    print_table(headers, rows)
+    say = partial(out.print, markup=False)
     if result.fails_after is None:
         last = result.points[-1].ahead
-        out.print(f"{req} holds at every checked age up to {last} cycles ahead")
+        say(f"{req} holds at every checked age up to {last} cycles ahead")
     elif result.fails_after == 0:
-        out.print(f"{req} already fails now (cycle {result.now:g})")
+        say(f"{req} already fails now (cycle {result.now:g})")
     else:
-        out.print(f"{req} stops holding after {result.fails_after} more cycles "
-                  f"(cycle {result.now + result.fails_after:g}; located by bisection between "
-                  "the checked ages, assuming one crossing between them)")
+        say(f"{req} stops holding after {result.fails_after} more cycles "
+            f"(cycle {result.now + result.fails_after:g}; located by bisection between "
+            "the checked ages, assuming one crossing between them)")
 
 
 @click.command("recheck")
 @click.argument("config", type=click.Path(path_type=Path))
-@click.option("--cycles", "cycles_path", type=click.Path(path_type=Path), required=True,
+@click.option("--cycles", "cycles_path", type=click.Path(), required=True,
               help="Newest capacity log (cycle,capacity_ah).")
-@click.option("--discharge", "discharge_path", type=click.Path(path_type=Path), default=None,
+@click.option("--discharge", "discharge_path", type=click.Path(), default=None,
               help="Newest discharge log (soc,voltage_v or time_s,voltage_v,current_a).")
 @_model_option
 @set_option
-def recheck_command(config: Path, cycles_path: Path, discharge_path: Path | None,
+def recheck_command(config: Path, cycles_path: str, discharge_path: str | None,
                     model: str | None, overrides: tuple[str, ...]) -> None:
     """Refit the battery from the newest data and re-verify CONFIG; exit 1 on a regression."""
     from veribattery.phm.recheck import recheck
@@ -328,23 +428,24 @@ def recheck_command(config: Path, cycles_path: Path, discharge_path: Path | None
 
 
 def _print_recheck(result: Recheck) -> None:
-    from rich.table import Table
-
-    out.print("parameters moved by the refit ('-': not set that way before):", style="bold")
+    out.print("parameters moved by the refit ('-': not set that way before):", style="bold",
+              markup=False)
     for moved in result.moved:
         before = "-" if moved.before is None else _show(moved.before)
         out.print(f"  {moved.key}: {before} → {_show(moved.after)}", markup=False)
     if not result.moved:
-        out.print("  none")
-    table = Table("property", "before", "after", "change", show_edge=False)
+        out.print("  none", markup=False)
     after = result.after.values
-    for name, value in result.before.values.items():
-        new = after.get(name)
-        change = (f"{float(new) - float(value):+.6g}"
-                  if isinstance(value, int | float) and isinstance(new, int | float) else "")
-        table.add_row(str(name), format_value(value), format_value(new), change)
-    out.print(table)
+    rows = [(str(name), format_value(value), format_value(after.get(name)),
+             _change(value, after.get(name))) for name, value in result.before.values.items()]
+    print_table(("property", "before", "after", "change"), rows)
     _print_requirements(result)
+
+
+def _change(before: object, after: object) -> str:
+    if isinstance(before, int | float) and isinstance(after, int | float):
+        return f"{float(after) - float(before):+.6g}"
+    return ""
 
 
 def _print_requirements(result: Recheck) -> None:
@@ -353,9 +454,9 @@ def _print_requirements(result: Recheck) -> None:
         name = str(outcome.requirement)
         was = "PASS" if before.get(name) else "FAIL"
         now = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
-        out.print(f"{name}: before {was}, after {now}")
+        out.print(f"{escape(name)}: before {was}, after {now}")
     if result.regressions:
-        out.print(f"[bold red]no longer holds:[/] {', '.join(result.regressions)}")
+        out.print(f"[bold red]no longer holds:[/] {escape(', '.join(result.regressions))}")
 
 
 def _short(value: object) -> str:

@@ -1,0 +1,182 @@
+"""Bad input to the phm commands: one ``error:`` line, exit 2, no traceback, no file written,
+and all of it before any work starts; user text is printed as typed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner, Result
+
+from tests.phm.helpers import EXAMPLES, cycles_csv
+from veribattery.cli import cli
+
+SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]")
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def run(*args: str) -> Result:
+    return CliRunner().invoke(cli, list(args))
+
+
+def files(folder: Path) -> list[str]:
+    return sorted(p.name for p in folder.iterdir())
+
+
+def assert_one_error(result: Result, *parts: str) -> str:
+    """Exit 2, stderr exactly one ``error:`` line holding *parts*, nothing on stdout."""
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    for part in parts:
+        assert part in lines[0]
+    assert result.stdout == ""
+    return lines[0]
+
+
+@pytest.fixture
+def mission(tmp_path: Path) -> Path:
+    path = tmp_path / "m.yaml"
+    path.write_text("battery:\n  capacity_ah: 11\n  max_recharges: 50\n")
+    return path
+
+
+def _command(name: str, tmp_path: Path, mission: Path) -> list[str]:
+    if name == "fade":
+        return ["phm", "fade", str(EXAMPLES / "cycles.csv")]
+    if name == "levels":
+        return ["phm", "levels", str(EXAMPLES / "discharge.csv")]
+    return ["phm", "forecast", str(mission), "--cycles", str(EXAMPLES / "cycles.csv"),
+            "--horizon", "10", *SMALL]
+
+
+@pytest.mark.parametrize("command", ["fade", "levels", "forecast"])
+@pytest.mark.parametrize(("name", "kind"), [("x.xyz", "'.xyz'"), ("figure", "no file type")])
+def test_plot_type_checked_before_work(tmp_path: Path, mission: Path, command: str, name: str,
+                                       kind: str) -> None:
+    before = files(tmp_path)
+    result = run(*_command(command, tmp_path, mission), "--plot", str(tmp_path / name))
+    assert_one_error(result, f"--plot {tmp_path / name}: ", kind, "name a file ending in .png")
+    assert files(tmp_path) == before
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_plot_overwrites_only_with_force(tmp_path: Path, mission: Path, command: str) -> None:
+    png = tmp_path / "mine.png"
+    png.write_bytes(b"keep")
+    result = run(*_command(command, tmp_path, mission), "--plot", str(png))
+    assert_one_error(result, f"--plot {png}: already exists; use --force")
+    assert png.read_bytes() == b"keep"
+    result = run(*_command(command, tmp_path, mission), "--plot", str(png), "--force")
+    assert result.exit_code == 0, result.output
+    assert png.read_bytes().startswith(PNG)
+
+
+def test_plot_in_a_missing_folder(tmp_path: Path) -> None:
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--plot",
+                 str(tmp_path / "nowhere" / "f.png"))
+    assert_one_error(result, "folder", "does not exist")
+
+
+def test_forecast_unknown_time_property(tmp_path: Path, mission: Path) -> None:
+    result = run(*_command("forecast", tmp_path, mission), "--time-property", "nosuch")
+    line = assert_one_error(result, "--time-property nosuch:", "'nosuch'", "p_success",
+                            "exp_mission_time")
+    assert str(mission) in line
+
+
+def test_forecast_unknown_requirement_property(tmp_path: Path, mission: Path) -> None:
+    result = run(*_command("forecast", tmp_path, mission), "--require", "p_nope >= 0.9")
+    assert_one_error(result, "--require", "'p_nope'", "p_success")
+
+
+def test_forecast_empty_time_property_means_none(tmp_path: Path, mission: Path) -> None:
+    result = run(*_command("forecast", tmp_path, mission), "--time-property", "")
+    assert result.exit_code in (0, 1), result.output
+    assert "exp_mission_time" not in result.stdout
+
+
+@pytest.mark.parametrize("value", ["-5", "-0.5", "nan", "inf", "abc", ""])
+def test_fade_at_cycle_must_be_a_cycle(value: str) -> None:
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--at-cycle", value)
+    assert_one_error(result, f"--at-cycle {value or repr('')}: must be a cycle number >= 0")
+
+
+@pytest.mark.parametrize("value", ["0", "-1", "0.0", "nan", "inf", "5Ah"])
+def test_levels_capacity_must_be_positive(value: str) -> None:
+    result = run("phm", "levels", str(EXAMPLES / "discharge.csv"), "--capacity-ah", value)
+    assert_one_error(result, f"--capacity-ah {value}:", "positive")
+
+
+def test_fade_config_and_write_together_refused(tmp_path: Path, mission: Path) -> None:
+    other = tmp_path / "other.yaml"
+    other.write_text("battery:\n  max_recharges: 20\n")
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--config", str(other),
+                 "--write", str(mission))
+    assert_one_error(result, "--config", "--write")
+    assert other.read_text() == "battery:\n  max_recharges: 20\n"
+
+
+def test_fade_invalid_merge_writes_no_figure(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text("battery:\n  max_recharges: 200  # long missions\n")
+    cycles = np.arange(0, 101, 10.0)
+    log = cycles_csv(tmp_path / "cycles.csv", cycles, 6.0 - 0.03 * cycles)
+    before = files(tmp_path)
+    result = run("phm", "fade", str(log), "--write", str(config), "--plot",
+                 str(tmp_path / "f.png"))
+    assert result.exit_code == 2 and "max_recharges" in result.stderr
+    assert files(tmp_path) == before
+
+
+def test_csv_extra_cell_is_located(tmp_path: Path) -> None:
+    path = tmp_path / "cycles.csv"
+    path.write_text("cycle,capacity_ah\n0,11\n1,10.9,7\n2,10.8\n")
+    assert_one_error(run("phm", "fade", str(path)),
+                     f"{path}:3:8: row 2 has 3 cells, the header has 2 (cycle,capacity_ah)")
+
+
+def test_csv_with_bom_is_read(tmp_path: Path) -> None:
+    path = tmp_path / "cycles.csv"
+    path.write_bytes(b"\xef\xbb\xbfcycle,capacity_ah\n0,11\n100,10.99\n200,10.98\n")
+    result = run("phm", "fade", str(path))
+    assert result.exit_code == 0, result.output
+    assert "capacity_ah: 11\n" in result.stdout
+
+
+def test_csv_non_utf8_byte_is_located(tmp_path: Path) -> None:
+    path = tmp_path / "cycles.csv"
+    path.write_bytes(b"cycle,capacity_ah\n0,11\n1,10\xff9\n2,10.8\n")
+    assert_one_error(run("phm", "fade", str(path)), f"{path}:3:5: byte 0xff is not UTF-8")
+
+
+def test_user_text_printed_as_typed(tmp_path: Path) -> None:
+    png = tmp_path / "[bold]my:warning:fade.png"
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--plot", str(png))
+    assert result.exit_code == 0, result.output
+    assert f"figure: {png}\n" in result.stdout
+    bad = tmp_path / "[red]my:warning:c.csv"
+    bad.write_text("cycle,capacity_ah\n0,11\n1,x\n2,10\n")
+    assert_one_error(run("phm", "fade", str(bad)), f"{bad}:3: row 2")
+
+
+def test_write_path_printed_as_typed(tmp_path: Path) -> None:
+    config = tmp_path / "[bold]m:warning:.yaml"
+    config.write_text("battery:\n  max_recharges: 50\n")
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--write", str(config))
+    assert result.exit_code == 0, result.output
+    assert f"into {config} (comments kept)" in result.stdout
+
+
+def test_simulate_output_checked_before_pybamm(tmp_path: Path) -> None:
+    (tmp_path / "discharge.csv").write_text("mine\n")
+    result = run("phm", "simulate", "--power-w", "10", "-o", str(tmp_path))
+    assert_one_error(result, "discharge.csv", "--force")
+    assert (tmp_path / "discharge.csv").read_text() == "mine\n"
+    afile = tmp_path / "afile"
+    afile.write_text("")
+    assert_one_error(run("phm", "simulate", "--power-w", "10", "-o", str(afile)),
+                     "is a file, not a folder")
