@@ -1,0 +1,190 @@
+"""A corpus of bad input over every command and option: each gives one line, exit 2.
+
+For every case: exit status 2, exactly one ``error:`` line on stderr (no traceback),
+nothing on stdout, and the working folder exactly as it was (nothing written, nothing
+partial, no temporary file left behind).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from veribattery.cli import cli
+
+REPO = Path(__file__).resolve().parents[2]
+CASE1 = str(REPO / "configs" / "paper" / "case1.yaml")
+SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]",
+         "--set", "battery.resolution_ah=0.5", "--set", "battery.max_recharges=25")
+DIE = "dtmc\nmodule m\n  s : [0..2] init 0;\n  [] s<2 -> 0.5 : (s'=s+1) + 0.5 : (s'=0);\n" \
+      "  [] s=2 -> true;\nendmodule\nlabel \"two\" = s=2;\n"
+
+#: Input files every case can use, made in the working folder.
+FILES: dict[str, bytes] = {
+    "die.pm": DIE.encode(),
+    "die.props": b'P=? [ F "two" ]\n',
+    "bad_syntax.pm": DIE.replace("init 0;", "init 0").encode(),
+    "bad_props.props": b'P=? [ F "nosuch" ]\n',
+    "ctmc.pm": DIE.replace("dtmc", "ctmc").encode(),
+    "config.yaml": b"farm:\n  cols: 3\n  rows: 3\n  base: [0, 0]\n",
+    "not_utf8.yaml": b"farm:\n  cols: 3 \xff\n",
+    "duplicate.yaml": b"farm:\n  cols: 3\n  cols: 4\n",
+    "unknown_key.yaml": b"farm:\n  colls: 3\n",
+    "wrong_type.yaml": b"strategy:\n  safe_t: high\n",
+    "out_of_range.yaml": b"strategy:\n  safe_t: 1.5\n",
+    "yaml_syntax.yaml": b"farm: {cols: 3\n",
+    "list.yaml": b"- 1\n- 2\n",
+    "bad_property.yaml": b"properties:\n  p: 'P=? [ F \"nosuch\" ]'\n",
+    "property_syntax.yaml": b"properties:\n  p: 'P=? [ F '\n",
+    "requirement.yaml": b"requirements: ['nosuch >= 0.9']\n",
+    "cycles.csv": b"cycle,capacity_ah\n0,11\n10,10.9\n20,10.8\n30,10.7\n",
+    "cycles_extra_cell.csv": b"cycle,capacity_ah\n0,11\n10,10.9,7\n20,10.8\n",
+    "cycles_no_column.csv": b"cycle,capacity\n0,11\n10,10.9\n",
+    "cycles_not_number.csv": b"cycle,capacity_ah\n0,11\n10,ten\n",
+    "discharge.csv": b"soc,voltage_v\n1,4.2\n0.5,3.7\n0,3.0\n",
+    "existing.png": b"not really a png",
+    "existing.csv": b"a,b\n",
+}
+
+CASES: list[tuple[str, list[str]]] = [
+    # config files
+    ("missing-config", ["check", "nosuch.yaml"]),
+    ("config-is-folder", ["check", "a_folder.csv"]),
+    ("not-utf8", ["check", "not_utf8.yaml"]),
+    ("duplicate-key", ["check", "duplicate.yaml"]),
+    ("unknown-key", ["check", "unknown_key.yaml"]),
+    ("wrong-type", ["check", "wrong_type.yaml"]),
+    ("out-of-range", ["check", "out_of_range.yaml"]),
+    ("yaml-syntax", ["check", "yaml_syntax.yaml"]),
+    ("config-not-mapping", ["check", "list.yaml"]),
+    ("config-bad-property", ["check", "bad_property.yaml"]),
+    ("config-property-syntax", ["check", "property_syntax.yaml"]),
+    ("config-requirement", ["check", "requirement.yaml"]),
+    ("emit-bad-property", ["emit", "bad_property.yaml", "-o", "out"]),
+    ("emit-not-utf8", ["emit", "not_utf8.yaml", "-o", "out"]),
+    # --set
+    ("set-no-equals", ["check", CASE1, "--set", "farm.cols"]),
+    ("set-unknown-key", ["check", CASE1, "--set", "farm.colls=3"]),
+    ("set-bad-yaml", ["check", CASE1, "--set", "farm.base=[1,"]),
+    ("set-bad-value", ["check", CASE1, "--set", "battery.capacity_ah=-1"]),
+    ("set-base-outside", ["check", CASE1, "--set", "farm.cols=3", "--set", "farm.rows=3"]),
+    ("set-property", ["check", CASE1, "--set", 'properties.x=P=? [ F "nosuch" ]']),
+    # --vary and sweep options
+    ("vary-range", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10:12"]),
+    ("vary-letters", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=a:b:c"]),
+    ("vary-key", ["sweep", CASE1, *SMALL, "--vary", "battery.capacty_ah=10:12:1"]),
+    ("vary-invalid-point", ["sweep", CASE1, *SMALL, "--vary", "strategy.safe_t=0.3,1.5"]),
+    ("vary-empty", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah="]),
+    ("vary-backwards", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=12:10:1"]),
+    ("sweep-no-vary", ["sweep", CASE1, *SMALL]),
+    ("sweep-plot-property", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                             "--plot", "p.png", "--plot-property", "nosuch"]),
+    ("sweep-plot-type", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                         "--plot", "p.xyz"]),
+    ("sweep-plot-no-suffix", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                              "--plot", "plot"]),
+    ("sweep-plot-exists", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                           "--plot", "existing.png"]),
+    ("sweep-plot-x", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                      "--plot", "p.png", "--plot-x", "battery.model"]),
+    ("sweep-output-type", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                           "-o", "results.txt"]),
+    ("sweep-output-nodir", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                            "-o", "nodir/results.csv"]),
+    ("sweep-jobs", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11", "-j", "0"]),
+    ("sweep-format", ["sweep", CASE1, "--vary", "battery.capacity_ah=10,11", "--format", "x"]),
+    # PRISM files and properties
+    ("prism-missing", ["prism", "nosuch.pm"]),
+    ("prism-syntax", ["prism", "bad_syntax.pm", "--property", 'P=? [ F s=2 ]']),
+    ("prism-ctmc", ["prism", "ctmc.pm", "--property", 'P=? [ F s=2 ]']),
+    ("prism-bad-label", ["prism", "die.pm", "--props", "bad_props.props"]),
+    ("prism-property-syntax", ["prism", "die.pm", "--property", "P=? [ F "]),
+    ("prism-index", ["prism", "die.pm", "--props", "die.props", "--property", "7"]),
+    ("prism-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--const", "N"]),
+    ("prism-unknown-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
+                             "--const", "N=3"]),
+    ("prism-json-and-csv", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--json",
+                            "--format", "csv"]),
+    ("prism-simulate-zero", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
+                             "--simulate", "0"]),
+    ("prism-paths-exists", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
+                            "--simulate", "10", "-o", "existing.csv"]),
+    ("prism-explain-label", ["prism", "die.pm", "--explain", "nosuch"]),
+    # analyses
+    ("explain-top", ["explain", CASE1, *SMALL, "--top", "0"]),
+    ("explain-by", ["explain", CASE1, *SMALL, "--by", "nosuch"]),
+    ("explain-output-exists", ["explain", CASE1, *SMALL, "-o", "existing.csv"]),
+    ("explain-output-folder", ["explain", CASE1, *SMALL, "-o", "a_folder.csv"]),
+    ("simulate-runs", ["simulate", CASE1, *SMALL, "--runs", "0"]),
+    ("simulate-runs-text", ["simulate", CASE1, *SMALL, "--runs", "many"]),
+    ("simulate-output-nodir", ["simulate", CASE1, *SMALL, "--runs", "5",
+                               "-o", "nodir/paths.csv"]),
+    ("distribution-working-day", ["distribution", CASE1, *SMALL, "--working-day", "0h"]),
+    ("distribution-deadline", ["distribution", CASE1, *SMALL, "--deadline", "5 weeks"]),
+    ("distribution-coverage", ["distribution", CASE1, *SMALL, "--coverage", "2"]),
+    ("distribution-output-nodir", ["distribution", CASE1, *SMALL, "-o", "nodir/cdf.csv"]),
+    ("distribution-output-folder", ["distribution", CASE1, *SMALL, "-o", "a_folder.csv",
+                                    "--force"]),
+    ("distribution-plot-type", ["distribution", CASE1, *SMALL, "--plot", "cdf.xyz"]),
+    ("distribution-plot-no-suffix", ["distribution", CASE1, *SMALL, "--plot", "cdf"]),
+    ("distribution-reward", ["distribution", CASE1, *SMALL, "--reward", "nosuch"]),
+    ("reproduce-what", ["reproduce", "fig9"]),
+    ("reproduce-all-no-dir", ["reproduce", "all"]),
+    ("reproduce-dir-is-file", ["reproduce", "fig6", "-o", "existing.csv"]),
+    # battery prognostics
+    ("fade-missing", ["phm", "fade", "nosuch.csv"]),
+    ("fade-extra-cell", ["phm", "fade", "cycles_extra_cell.csv"]),
+    ("fade-no-column", ["phm", "fade", "cycles_no_column.csv"]),
+    ("fade-not-number", ["phm", "fade", "cycles_not_number.csv"]),
+    ("fade-at-cycle", ["phm", "fade", "cycles.csv", "--at-cycle", "-5"]),
+    ("fade-plot-type", ["phm", "fade", "cycles.csv", "--plot", "fade.xyz"]),
+    ("fade-plot-no-suffix", ["phm", "fade", "cycles.csv", "--plot", "fade"]),
+    ("fade-plot-exists", ["phm", "fade", "cycles.csv", "--plot", "existing.png"]),
+    ("fade-model", ["phm", "fade", "cycles.csv", "--model", "cubic"]),
+    ("levels-capacity", ["phm", "levels", "discharge.csv", "--capacity-ah", "0"]),
+    ("levels-soc-step", ["phm", "levels", "discharge.csv", "--soc-step", "0.5"]),
+    ("forecast-time-property", ["phm", "forecast", CASE1, "--cycles", "cycles.csv",
+                                "--time-property", "nosuch"]),
+    ("forecast-require", ["phm", "forecast", CASE1, "--cycles", "cycles.csv",
+                          "--require", "p_success >> 0.9"]),
+    ("forecast-plot-type", ["phm", "forecast", CASE1, "--cycles", "cycles.csv",
+                            "--plot", "f.xyz"]),
+    ("simulate-power", ["phm", "simulate", "--power-w", "-3"]),
+    ("recheck-missing", ["recheck", CASE1, "--cycles", "nosuch.csv"]),
+    # options in general
+    ("unknown-option", ["check", CASE1, "--nosuch"]),
+    ("unknown-command", ["chek", CASE1]),
+    ("check-format", ["check", CASE1, "--format", "yaml"]),
+    ("check-emit-exists", ["check", CASE1, *SMALL, "--emit", "existing.csv"]),
+]
+
+
+@pytest.fixture()
+def workdir(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    for name, content in FILES.items():
+        (tmp_path / name).write_bytes(content)
+    (tmp_path / "a_folder.csv").mkdir()
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def _snapshot(folder: Path) -> dict[str, bytes | None]:
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None)
+            for p in sorted(folder.rglob("*"))}
+
+
+@pytest.mark.parametrize("args", [c[1] for c in CASES], ids=[c[0] for c in CASES])
+def test_bad_input_is_one_line_exit_2_nothing_written(workdir: Path, args: list[str]) -> None:
+    before = _snapshot(workdir)
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2, (result.stdout, result.stderr, result.exception)
+    assert result.stdout == ""
+    lines = result.stderr.splitlines()
+    problems = [line for line in lines if line.startswith(("error:", "Error:"))]
+    assert len(problems) == 1, result.stderr
+    assert "Traceback" not in result.stderr
+    assert _snapshot(workdir) == before
+    assert not [name for name in os.listdir(workdir) if name.startswith(".")]
