@@ -71,8 +71,6 @@ def sweep_command(
         axes = axes_from(specs, cfg.sweep.vary)
         x_key = plot_x or axes[0].key
         _check_plot_options(plot_path, plot_property, x_key, axes, cfg.properties, force)
-        check_output_file(results, "-o", force=True,
-                          suffixes=(".csv", ".jsonl", ".parquet"))
         frame = run_with_progress(
             config, axes, overrides, results, jobs=jobs or default_jobs(), scheduler=scheduler,
             force=force,

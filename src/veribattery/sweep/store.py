@@ -17,11 +17,11 @@ import io
 import json
 import math
 import os
-import tempfile
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import IO
 
+from veribattery._files import staged, write_text
 from veribattery.errors import ConfigError
 from veribattery.sweep.fingerprint import SweepFingerprint
 
@@ -132,10 +132,7 @@ def _resume(
 
 
 def _write_new(meta: Path, mark: SweepFingerprint) -> None:
-    handle, name = tempfile.mkstemp(dir=meta.parent, prefix=".veribattery-", suffix=".tmp")
-    with os.fdopen(handle, "w", encoding="utf-8") as stream:
-        stream.write(mark.as_json())
-    os.replace(name, meta)
+    write_text(meta, mark.as_json())
 
 
 def _create(journal: Path, columns: Sequence[str]) -> IO[str]:
@@ -210,22 +207,16 @@ def _read_parquet(path: Path) -> list[Row]:
 
 
 def _replace(path: Path, columns: Sequence[str], rows: list[Row]) -> None:
-    handle, name = tempfile.mkstemp(dir=path.parent, prefix=".veribattery-", suffix=path.suffix)
-    os.close(handle)
-    try:
+    with staged(path, suffix=path.suffix) as temporary:
         if path.suffix.lower() == ".parquet":
-            _write_parquet(Path(name), columns, rows)
-        else:
-            with open(name, "w", encoding="utf-8", newline="") as stream:
-                if path.suffix.lower() == ".csv":
-                    stream.write(_csv_line(columns))
-                stream.write(_text(path, columns, rows))
-                stream.flush()
-                os.fsync(stream.fileno())
-        os.replace(name, path)
-    except BaseException:
-        Path(name).unlink(missing_ok=True)
-        raise
+            _write_parquet(temporary, columns, rows)
+            return
+        with open(temporary, "w", encoding="utf-8", newline="") as stream:
+            if path.suffix.lower() == ".csv":
+                stream.write(_csv_line(columns))
+            stream.write(_text(path, columns, rows))
+            stream.flush()
+            os.fsync(stream.fileno())
 
 
 def _write_parquet(path: Path, columns: Sequence[str], rows: list[Row]) -> None:
