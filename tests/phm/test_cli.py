@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import io
+import json
 from pathlib import Path
 
 import numpy as np
@@ -139,3 +142,71 @@ def test_forecast_bad_requirement(tmp_path: Path) -> None:
     result = run("phm", "forecast", str(EXAMPLES / "mission.yaml"), "--cycles",
                  str(EXAMPLES / "cycles.csv"), "--require", "p_success ~ 1")
     assert result.exit_code == 2 and "--require" in result.stderr
+
+
+def test_fade_json_is_one_object_with_the_table_numbers(tmp_path: Path) -> None:
+    png = tmp_path / "fade.png"
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--format", "json",
+                 "--plot", str(png))
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["cycles"] == str(EXAMPLES / "cycles.csv")
+    assert [f["model"] for f in doc["fits"]] == ["knee", "exponential", "linear"]
+    assert doc["model"] == "knee" and doc["at_cycle"] == 30
+    assert doc["capacity_ah"] == 9.5 and doc["fade_per_recharge"] == 0.000145
+    assert doc["capacity_fit_ah"] == pytest.approx(9.5082, abs=5e-5)
+    low, high = doc["fade_ci95"]
+    assert low < doc["fade_per_cycle"] < high
+    assert doc["fragment"] == {"battery.capacity_ah": 9.5, "battery.fade_per_recharge": 0.000145}
+    assert doc["fragment_yaml"].startswith("battery:\n  capacity_ah: 9.5\n")
+    assert doc["figure"] == str(png) and doc["merged_into"] is None
+    assert png.read_bytes().startswith(PNG)
+
+
+def test_levels_json(tmp_path: Path) -> None:
+    result = run("phm", "levels", str(EXAMPLES / "discharge.csv"), "--format", "json")
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["thresholds"] == {"low": 0.19, "high": 0.65}
+    assert list(doc["voltages_v"]) == ["low", "medium", "high"]
+    assert doc["config_thresholds"]["low"] == 0.25
+    assert doc["consumption_units"]["inspection"]["high_wind"] == {"low": 103, "medium": 90,
+                                                                   "high": 81}
+    assert doc["fragment"]["battery.voltage_thresholds.low"] == 0.19
+
+
+def test_forecast_json_and_csv(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    cycles = np.arange(0, 51, 5.0)
+    log = cycles_csv(tmp_path / "c.csv", cycles, 8.6 - 0.032 * cycles)
+    args = ("phm", "forecast", str(config), "--cycles", str(log), "--horizon", "20", "--step",
+            "10", *SMALL)
+    result = run(*args, "--format", "json")
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["requirement"] == "p_success >= 0.99" and doc["now"] == 50
+    assert doc["fails_after"] == 8 and doc["fails_at_cycle"] == 58
+    assert [p["ahead"] for p in doc["points"]] == [0, 5, 7, 8, 10, 20]
+    assert [p["holds"] for p in doc["points"]] == [True, True, True, False, False, False]
+    assert doc["points"][0]["capacity_ah"] == 7 and "exp_mission_time" in doc["points"][0]["values"]
+    rows = list(csv.reader(io.StringIO(run(*args, "--format", "csv").stdout)))
+    assert rows[0] == ["ahead", "cycle", "capacity_ah", "fade_per_recharge", "p_success",
+                       "exp_mission_time", "holds"]
+    assert rows[1][:4] == ["0", "50", "7", "0.00457"] and rows[1][-1] == "true"
+    assert float(rows[4][4]) == doc["points"][3]["values"]["p_success"]
+
+
+def test_recheck_json_exit_1_on_regression(tmp_path: Path) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    result = run("recheck", str(config), "--cycles", str(_fading(tmp_path)), *SMALL,
+                 "--format", "json")
+    assert result.exit_code == 1, result.output
+    doc = json.loads(result.stdout)
+    assert doc["moved"][0] == {"key": "battery.capacity_ah", "before": 11, "after": 3}
+    assert doc["requirements"] == [{"requirement": "p_success >= 0.99", "before": True,
+                                    "after": False}]
+    assert doc["regressions"] == ["p_success >= 0.99"]
+    p_success = doc["properties"]["p_success"]
+    assert p_success["change"] == pytest.approx(p_success["after"] - p_success["before"])

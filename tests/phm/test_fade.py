@@ -113,6 +113,14 @@ def test_parameters_on_config_grid(tmp_path: Path) -> None:
     assert at_50.capacity_ah == Fraction(10)  # 11 e^-0.1 = 9.953 -> 10.0 (nearest 0.1)
 
 
+@pytest.mark.parametrize("cycle", [-5.0, float("nan"), float("inf")])
+def test_at_cycle_must_be_a_cycle(tmp_path: Path, cycle: float) -> None:
+    n = np.arange(0, 101, 10.0)
+    log = _log(tmp_path, n, 11.0 - 0.001 * n)
+    with pytest.raises(PhmDataError, match=r"at_cycle must be a cycle number >= 0, got"):
+        fade_parameters(log, load_config(""), at_cycle=cycle)  # type: ignore[arg-type]
+
+
 def test_fit_with_capacity_rising_at_cycle_is_refused(tmp_path: Path) -> None:
     n = np.arange(0, 101, 10.0)
     capacity = knee_curve(n, 11.0, 0.02, -0.005, 60.0)  # falls, then rises a little

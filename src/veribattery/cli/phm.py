@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import csv
+import io
+import json
 import math
 import sys
 from collections.abc import Callable
@@ -15,6 +18,7 @@ from veribattery.cli.files import FIGURE_SUFFIXES, check_output_dir, check_outpu
 from veribattery.cli.output import (
     escape,
     format_value,
+    json_value,
     out,
     print_warnings,
     set_option,
@@ -49,6 +53,12 @@ def _plot_option(function: F) -> F:
     return click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="FILE",
                         help="Also write a figure here; its type follows the suffix "
                              "(.png, .pdf, .svg, ...).")(function)
+
+
+def _format_option(*formats: str, text: str = "Output format (json: one object).",
+                   ) -> Callable[[F], F]:
+    return click.option("--format", "output_format", type=click.Choice(formats),
+                        default="table", show_default=True, help=text)
 
 
 def _model_option(function: F) -> F:
@@ -141,6 +151,28 @@ def _print_figure(path: Path | None) -> None:
         out.print(f"figure: {path}", markup=False)
 
 
+def _print_json(document: dict[str, object]) -> None:
+    click.echo(json.dumps(_json_ready(document)))
+
+
+def _json_ready(value: object) -> object:
+    """*value* as JSON: exact config values as numbers, infinities as strings."""
+    from fractions import Fraction
+
+    if isinstance(value, dict):
+        return {str(key): _json_ready(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_ready(item) for item in value]
+    return json_value(float(value) if isinstance(value, Fraction) else value)
+
+
+def _files_written(fragment: Fragment, plot: Path | None, write: Path | None
+                   ) -> dict[str, object]:
+    """The JSON keys of what fade and levels wrote (or would have the user paste)."""
+    return {"fragment_yaml": fragment.yaml(), "figure": None if plot is None else str(plot),
+            "merged_into": None if write is None else str(write)}
+
+
 @click.group("phm")
 def phm_group() -> None:
     """Battery prognostics: model parameters from cycling data, discharge curves, physics."""
@@ -157,8 +189,10 @@ def phm_group() -> None:
                    "(also the config read; not with --config).")
 @_model_option
 @_plot_option
+@_format_option("table", "json")
 def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: Path | None,
-                 model: str | None, plot_path: Path | None, force: bool) -> None:
+                 model: str | None, plot_path: Path | None, force: bool,
+                 output_format: str) -> None:
     """Fit capacity fade per cycle in CYCLES.csv (cycle,capacity_ah)."""
     from veribattery.phm.data import read_cycles
     from veribattery.phm.refit import fade_parameters
@@ -176,6 +210,12 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
             plot_fade(log, params, cfg.battery.max_recharges,
                       float(cfg.battery.resolution_ah), plot_path)
         _write(write, merged)
+    if output_format == "json":
+        from veribattery.phm.documents import fade_document
+
+        _print_json({"cycles": cycles, **fade_document(params),
+                     **_files_written(params.fragment, plot_path, write)})
+        return
     _print_fits(params.report)
     _print_fade(params)
     _print_figure(plot_path)
@@ -218,9 +258,10 @@ def _print_fade(params: FadeParameters) -> None:
               help="Merge voltage_thresholds and an Eq. 2 consumption into this config "
                    "(also the config read; not with --config).")
 @_plot_option
+@_format_option("table", "json")
 def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
                    config: Path | None, write: Path | None, plot_path: Path | None,
-                   force: bool) -> None:
+                   force: bool, output_format: str) -> None:
     """Derive voltage levels, SOC thresholds (BA3) and consumption from a discharge curve."""
     from veribattery.phm.data import read_discharge
     from veribattery.phm.refit import level_parameters
@@ -238,6 +279,12 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
 
             plot_levels(params, plot_path)
         _write(write, merged)
+    if output_format == "json":
+        from veribattery.phm.documents import levels_document
+
+        _print_json({"discharge": discharge, **levels_document(params, paper),
+                     **_files_written(params.fragment, plot_path, write)})
+        return
     _print_levels(params, paper)
     _print_figure(plot_path)
     _print_fragment(params.fragment, write)
@@ -344,9 +391,12 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
 @_model_option
 @set_option
 @_plot_option
+@_format_option("table", "json", "csv",
+                text="Output format (json: one object; csv: the table, full precision).")
 def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | None,
                      requirement: str, time_property: str, model: str | None,
-                     overrides: tuple[str, ...], plot_path: Path | None, force: bool) -> None:
+                     overrides: tuple[str, ...], plot_path: Path | None, force: bool,
+                     output_format: str) -> None:
     """P(success) and mission time as the battery ages; when does REQUIRE stop holding?"""
     from veribattery.config import load_config
     from veribattery.phm.data import read_cycles
@@ -366,8 +416,18 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
             from veribattery.phm.plot import plot_forecast
 
             plot_forecast(result, time_property or None, plot_path)
-    _print_forecast(result, time_property)
-    _print_figure(plot_path)
+    shown = _shown_properties(result, time_property)
+    if output_format == "json":
+        from veribattery.phm.documents import forecast_document
+
+        _print_json({"config": str(config), **forecast_document(result),
+                     "time_property": time_property or None,
+                     "figure": None if plot_path is None else str(plot_path)})
+    elif output_format == "csv":
+        _print_forecast_csv(result, shown)
+    else:
+        _print_forecast(result, shown)
+        _print_figure(plot_path)
 
 
 def _requirement(text: str) -> Requirement:
@@ -386,15 +446,18 @@ def _check_property(cfg: MissionConfig, config: Path, where: str, name: str) -> 
                           f"{', '.join(cfg.properties)}")
 
 
-def _print_forecast(result: Forecast, time_property: str) -> None:
+def _shown_properties(result: Forecast, time_property: str) -> list[str]:
+    """The forecast table's property columns: the requirement's, then the time property."""
+    prop = result.requirement.prop
+    return [prop, *([time_property] if time_property and time_property != prop else [])]
+
+
+def _print_forecast(result: Forecast, shown: list[str]) -> None:
     req = result.requirement
-    shown = time_property if time_property and time_property != req.prop else ""
-    headers = ["ahead", "cycle", "capacity_ah", "fade", req.prop, *([shown] if shown else []),
-               "holds"]
     rows = [[str(p.ahead), f"{result.now + p.ahead:g}", _show(p.capacity_ah), _show(p.fade),
-             _short(p.values[req.prop]), *([_short(p.values.get(shown))] if shown else []),
-             "yes" if p.holds else "no"] for p in result.points]
-    print_table(headers, rows)
+             *(_short(p.values[name]) for name in shown), "yes" if p.holds else "no"]
+            for p in result.points]
+    print_table(["ahead", "cycle", "capacity_ah", "fade", *shown, "holds"], rows)
     say = partial(out.print, markup=False)
     if result.fails_after is None:
         last = result.points[-1].ahead
@@ -407,6 +470,22 @@ def _print_forecast(result: Forecast, time_property: str) -> None:
             "the checked ages, assuming one crossing between them)")
 
 
+def _print_forecast_csv(result: Forecast, shown: list[str]) -> None:
+    """The table's rows as CSV, numbers in full (exact config values as decimals)."""
+    stream = io.StringIO()
+    writer = csv.writer(stream, lineterminator="\n")
+    writer.writerow(["ahead", "cycle", "capacity_ah", "fade_per_recharge", *shown, "holds"])
+    for p in result.points:
+        writer.writerow([p.ahead, format_value(result.now + p.ahead), _show(p.capacity_ah),
+                         _show(p.fade), *(_csv_value(p.values[name]) for name in shown),
+                         format_value(p.holds)])
+    click.echo(stream.getvalue(), nl=False)
+
+
+def _csv_value(value: object) -> str:
+    return format_value(value) if isinstance(value, bool) else repr(value)
+
+
 @click.command("recheck")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("--cycles", "cycles_path", type=click.Path(), required=True,
@@ -415,19 +494,26 @@ def _print_forecast(result: Forecast, time_property: str) -> None:
               help="Newest discharge log (soc,voltage_v or time_s,voltage_v,current_a).")
 @_model_option
 @set_option
+@_format_option("table", "json")
 def recheck_command(config: Path, cycles_path: str, discharge_path: str | None,
-                    model: str | None, overrides: tuple[str, ...]) -> None:
+                    model: str | None, overrides: tuple[str, ...], output_format: str) -> None:
     """Refit the battery from the newest data and re-verify CONFIG; exit 1 on a regression."""
     from veribattery.phm.recheck import recheck
 
     with user_errors():
         result = recheck(config, cycles_path, discharge_path, overrides, model)
+    from veribattery.phm.documents import recheck_document
+
     print_warnings(result.after.warnings)
-    _print_recheck(result)
+    document = recheck_document(result)
+    if output_format == "json":
+        _print_json({"config": str(config), **document})
+    else:
+        _print_recheck(result, document)
     sys.exit(1 if result.regressions else 0)
 
 
-def _print_recheck(result: Recheck) -> None:
+def _print_recheck(result: Recheck, document: dict[str, Any]) -> None:
     out.print("parameters moved by the refit ('-': not set that way before):", style="bold",
               markup=False)
     for moved in result.moved:
@@ -435,17 +521,11 @@ def _print_recheck(result: Recheck) -> None:
         out.print(f"  {moved.key}: {before} → {_show(moved.after)}", markup=False)
     if not result.moved:
         out.print("  none", markup=False)
-    after = result.after.values
-    rows = [(str(name), format_value(value), format_value(after.get(name)),
-             _change(value, after.get(name))) for name, value in result.before.values.items()]
+    rows = [(str(name), format_value(row["before"]), format_value(row["after"]),
+             "" if row["change"] is None else f"{row['change']:+.6g}")
+            for name, row in document["properties"].items()]
     print_table(("property", "before", "after", "change"), rows)
     _print_requirements(result)
-
-
-def _change(before: object, after: object) -> str:
-    if isinstance(before, int | float) and isinstance(after, int | float):
-        return f"{float(after) - float(before):+.6g}"
-    return ""
 
 
 def _print_requirements(result: Recheck) -> None:

@@ -64,9 +64,11 @@ def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = 
                     model: str | None = None) -> FadeParameters:
     """Fit *log* and read the capacity and fade at *at_cycle* (default: the last cycle).
 
-    :raises PhmDataError: when the chosen fit is not meaningful there (capacity not
-        positive, or rising).
+    :raises PhmDataError: when *at_cycle* is not a cycle number >= 0, or the chosen fit
+        is not meaningful there (capacity not positive, or rising).
     """
+    if at_cycle is not None and not (math.isfinite(at_cycle) and at_cycle >= 0):
+        raise PhmDataError(f"at_cycle must be a cycle number >= 0, got {at_cycle:g}")
     report, fit = choose(log, model)
     cycle = float(log.cycle[-1]) if at_cycle is None else at_cycle
     capacity = float(fit.capacity(cycle))
