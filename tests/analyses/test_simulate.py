@@ -11,8 +11,8 @@ from tests.checker.chains import dtmc
 from veribattery.analyses.simulate import _Sampler, path_table, simulate
 from veribattery.checker import check
 from veribattery.errors import CheckError
-from veribattery.explore.dtmc import DTMC
 from veribattery.explore import build_dtmc
+from veribattery.explore.dtmc import DTMC
 from veribattery.lang import Property, flatten_model, parse_model, parse_property
 
 # The loop of test_explain, with a reward of 1 per step outside {2, 3} and 2 on leaving 1.

@@ -14,6 +14,7 @@ from tests.cli.terminal import Screen, run_in_terminal
 
 REPO = Path(__file__).resolve().parents[2]
 CASE1 = str(REPO / "configs" / "paper" / "case1.yaml")
+EXAMPLES = REPO / "examples" / "phm"
 #: A 3x3-turbine farm in 0.5 Ah units: ~2,500 states, a fraction of a second.
 SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]",
          "--set", "battery.resolution_ah=0.5", "--set", "battery.max_recharges=25")
@@ -48,6 +49,12 @@ COMMANDS = [
     ("distribution", ["distribution", CASE1, *SMALL, "--deadline", "1d"], 0,
      ["P(success within 1d"]),
     ("phm-fade", ["phm", "fade", "cycles.csv"], 0, ["fade_per_recharge"]),
+    ("phm-levels", ["phm", "levels", str(EXAMPLES / "discharge.csv")], 0,
+     ["voltage_thresholds"]),
+    ("phm-forecast", ["phm", "forecast", CASE1, *SMALL, "--cycles", "cycles.csv",
+                      "--horizon", "20", "--step", "10"], 0, ["p_success"]),
+    ("recheck", ["recheck", CASE1, *SMALL, "--cycles", "cycles.csv"], 0, ["before", "after"]),
+    ("reproduce-table3", ["reproduce", "table3"], 0, ["exp_recharges", "42.7713"]),
     ("help", ["--help"], 0, ["sweep", "130 interrupted"]),
 ]
 
@@ -73,7 +80,7 @@ def test_command_in_a_terminal(workdir: Path, columns: int, args: list[str], sta
 def _assert_clean(screen: Screen, status: int, columns: int) -> None:
     assert screen.status == status, screen.text
     assert "Traceback" not in screen.text, screen.text
-    assert screen.widest <= columns, "\n".join(l for l in screen.lines if len(l) > columns)
+    assert screen.widest <= columns, "\n".join(line for line in screen.lines if len(line) > columns)
 
 
 def test_user_text_is_shown_as_typed(workdir: Path) -> None:

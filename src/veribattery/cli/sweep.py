@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from veribattery.cli.files import FIGURE_SUFFIXES, check_output_file
+from veribattery.cli.files import check_output_file
 from veribattery.cli.output import (
     err,
     format_value,
@@ -53,7 +53,8 @@ from veribattery.errors import OptionError
 @click.option("--plot-property", "plot_property", metavar="NAME",
               help="Property to plot (default: the first).")
 @click.option("--plot-x", "plot_x", metavar="KEY",
-              help="Varied key on the x axis (default: the first).")
+              help="Varied key on the x axis (default: the first numeric one; the others "
+              "give one line per combination).")
 def sweep_command(
     config: Path, specs: tuple[str, ...], overrides: tuple[str, ...], output_format: str,
     results: Path | None, force: bool, jobs: int | None, scheduler: str | None,
@@ -69,8 +70,7 @@ def sweep_command(
     with user_errors():
         cfg = load_config(config, overrides)
         axes = axes_from(specs, cfg.sweep.vary)
-        x_key = plot_x or axes[0].key
-        _check_plot_options(plot_path, plot_property, x_key, axes, cfg.properties, force)
+        _check_plot_options(plot_path, plot_property, plot_x, axes, cfg.properties, force)
         frame = run_with_progress(
             config, axes, overrides, results, jobs=jobs or default_jobs(), scheduler=scheduler,
             force=force,
@@ -79,15 +79,16 @@ def sweep_command(
             name = plot_property or str(frame["property"].dropna().iloc[0])
             from veribattery.sweep import plot_sweep
 
-            plot_sweep(frame, x_key, name, plot_path)
+            plot_sweep(frame, plot_x, name, plot_path, properties=cfg.properties)
     print_warnings(frame.attrs.get("warnings", ()))
     print_sweep(frame, [axis.key for axis in axes], output_format)
     err.print(summary_line(frame), markup=False)
     sys.exit(1 if frame.attrs.get("failed") or any_requirement_fails(frame) else 0)
 
 
-def _check_plot_options(plot_path: Path | None, plot_property: str | None, x_key: str,
-                        axes: Sequence[Any], properties: Mapping[str, str], force: bool) -> None:
+def _check_plot_options(plot_path: Path | None, plot_property: str | None,
+                        x_key: str | None, axes: Sequence[Any], properties: Mapping[str, str],
+                        force: bool) -> None:
     """Every plot option checked before the first point: file, x key, property."""
     if plot_property is not None and plot_property not in properties:
         raise OptionError(f"--plot-property {plot_property}: the config has no such property "
@@ -96,8 +97,9 @@ def _check_plot_options(plot_path: Path | None, plot_property: str | None, x_key
         return
     from veribattery.sweep.plot import check_plot_target
 
-    check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
-    check_plot_target(plot_path, x_key, [axis.key for axis in axes])
+    check_plot_target(plot_path, x_key, [axis.key for axis in axes], property=plot_property,
+                      properties=properties)
+    check_output_file(plot_path, "--plot", force=force)
 
 
 def run_with_progress(

@@ -17,6 +17,7 @@ Modules: :mod:`~veribattery.sweep.grid` (axes and grids), :mod:`~veribattery.swe
 from __future__ import annotations
 
 import importlib
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -78,8 +79,10 @@ __all__ = [
 ]
 
 
-def plot_sweep(frame: pd.DataFrame, x_key: str, property: str, path: str | Path) -> Path:
-    """Plot *property* against *x_key*; see :func:`veribattery.sweep.plot.plot_sweep`."""
+def plot_sweep(frame: pd.DataFrame, x_key: str | None, property: str, path: str | Path, *,
+               properties: Mapping[str, str] | None = None) -> Path:
+    """Plot *property* against *x_key* (None: the first numeric varied key); see
+    :func:`veribattery.sweep.plot.plot_sweep`."""
     from veribattery.sweep.plot import plot_sweep as plot
 
-    return plot(frame, x_key, property, path)
+    return plot(frame, x_key, property, path, properties=properties)
