@@ -21,9 +21,10 @@ __all__ = [
     "check_output_file",
 ]
 
-#: File types matplotlib's Agg canvas writes (the format follows the suffix).
+#: File types matplotlib writes without outside programs (the format follows the
+#: suffix; ``.pgf`` is left out: it needs a TeX installation).
 FIGURE_SUFFIXES = (".png", ".pdf", ".svg", ".svgz", ".eps", ".ps", ".jpg", ".jpeg", ".tif",
-                   ".tiff", ".webp", ".pgf")
+                   ".tiff", ".webp")
 CSV_SUFFIXES = (".csv",)
 
 

@@ -42,9 +42,6 @@ if TYPE_CHECKING:
 F = TypeVar("F", bound=Callable[..., Any])
 
 MODELS = click.Choice(["linear", "exponential", "knee"])
-#: Figure types ``--plot`` writes: matplotlib's, less PGF (it needs a TeX install to lay
-#: out the text, and would fail only after the work is done).
-PLOT_SUFFIXES = tuple(suffix for suffix in FIGURE_SUFFIXES if suffix != ".pgf")
 
 
 def _plot_option(function: F) -> F:
@@ -67,7 +64,7 @@ def _model_option(function: F) -> F:
 
 
 def _check_plot(path: Path | None, force: bool) -> None:
-    check_output_file(path, "--plot", force=force, suffixes=PLOT_SUFFIXES)
+    check_output_file(path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
 
 
 def _typed(text: str) -> str:
