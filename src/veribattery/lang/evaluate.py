@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
+from typing import Any, cast
 
 from veribattery.errors import PrismSemanticError
 from veribattery.lang.nodes import (
@@ -32,26 +33,96 @@ class EvaluationError(PrismSemanticError):
 def evaluate(expr: Expr, values: Mapping[str, Value]) -> Value:
     """The value of *expr*, whose identifiers must all be in *values*.
 
+    ``&`` and ``|`` short-circuit, so ``x!=0 & 1/x>2`` never divides by zero, and
+    ``? :`` evaluates only the branch it takes. The evaluation keeps its own stack:
+    a constant may be a sum of thousands of terms.
+
     :raises EvaluationError: for an unknown name or an arithmetic error
     """
-    if isinstance(expr, IntLit | DoubleLit | BoolLit):
-        return expr.value
-    if isinstance(expr, Ident):
-        if expr.name not in values:
-            raise EvaluationError(f"'{expr.name}' is not a constant", expr.span)
-        return values[expr.name]
-    if isinstance(expr, Unary):
-        operand = evaluate(expr.operand, values)
-        return (not operand) if expr.op == "!" else -operand
-    if isinstance(expr, Binary):
-        return _binary(expr, values)
-    if isinstance(expr, Ite):
-        branch = expr.then if evaluate(expr.cond, values) else expr.otherwise
-        return evaluate(branch, values)
-    if isinstance(expr, Call):
-        args = [evaluate(a, values) for a in expr.args]
-        return _call(expr, args)
-    raise EvaluationError("this expression has no constant value", expr.span)
+    results: list[Value] = []
+    todo: list[tuple[int, Expr]] = [(_EVALUATE, expr)]
+    while todo:
+        step, node = todo.pop()
+        if step == _EVALUATE:
+            _start(node, values, results, todo)
+        else:
+            _STEPS[step](cast(Any, node), results, todo)
+    return results[0]
+
+
+# What is left to do for a node once some of its operands are on the results stack.
+_EVALUATE, _NEGATE, _LEFT_DONE, _APPLY, _TRUTH, _CHOOSE, _CALL = range(7)
+
+
+def _start(
+    node: Expr, values: Mapping[str, Value], results: list[Value], todo: list[tuple[int, Expr]]
+) -> None:
+    """Push *node*'s value, or the steps that compute it."""
+    if isinstance(node, IntLit | DoubleLit | BoolLit):
+        results.append(node.value)
+    elif isinstance(node, Ident):
+        if node.name not in values:
+            raise EvaluationError(f"'{node.name}' is not a constant", node.span)
+        results.append(values[node.name])
+    elif isinstance(node, Unary):
+        todo += [(_NEGATE, node), (_EVALUATE, node.operand)]
+    elif isinstance(node, Binary):
+        todo += [(_LEFT_DONE, node), (_EVALUATE, node.left)]
+    elif isinstance(node, Ite):
+        todo += [(_CHOOSE, node), (_EVALUATE, node.cond)]
+    elif isinstance(node, Call):
+        todo.append((_CALL, node))
+        todo += [(_EVALUATE, a) for a in reversed(node.args)]
+    else:
+        raise EvaluationError("this expression has no constant value", node.span)
+
+
+def _negate(node: Unary, results: list[Value], todo: list[tuple[int, Expr]]) -> None:
+    operand = results.pop()
+    results.append((not operand) if node.op == "!" else -operand)
+
+
+def _left_done(node: Binary, results: list[Value], todo: list[tuple[int, Expr]]) -> None:
+    """The left operand is known: decide ``&``/``|`` by it, or evaluate the right one."""
+    op = node.op
+    if op in ("&", "|"):
+        left = bool(results.pop())
+        if left == (op == "|"):
+            results.append(left)
+            return
+        todo += [(_TRUTH, node), (_EVALUATE, node.right)]
+        return
+    todo += [(_APPLY, node), (_EVALUATE, node.right)]
+
+
+def _apply(node: Binary, results: list[Value], todo: list[tuple[int, Expr]]) -> None:
+    right = results.pop()
+    results.append(_ARITH[node.op](results.pop(), right))
+
+
+def _truth(node: Expr, results: list[Value], todo: list[tuple[int, Expr]]) -> None:
+    results.append(bool(results.pop()))
+
+
+def _choose(node: Ite, results: list[Value], todo: list[tuple[int, Expr]]) -> None:
+    todo.append((_EVALUATE, node.then if results.pop() else node.otherwise))
+
+
+def _call_step(node: Call, results: list[Value], todo: list[tuple[int, Expr]]) -> None:
+    count = len(node.args)
+    args = results[len(results) - count :]
+    del results[len(results) - count :]
+    results.append(_call(node, args))
+
+
+_STEPS: dict[int, Callable[[Any, list[Value], list[tuple[int, Expr]]], None]] = {
+    _NEGATE: _negate,
+    _LEFT_DONE: _left_done,
+    _APPLY: _apply,
+    _TRUTH: _truth,
+    _CHOOSE: _choose,
+    _CALL: _call_step,
+}
 
 
 def _divide(a: Value, b: Value) -> float:
@@ -75,17 +146,6 @@ _ARITH: dict[str, Callable[[Value, Value], Value]] = {
     "=>": lambda a, b: (not a) or bool(b),
     "<=>": lambda a, b: bool(a) == bool(b),
 }
-
-
-def _binary(expr: Binary, values: Mapping[str, Value]) -> Value:
-    left = evaluate(expr.left, values)
-    # & and | short-circuit, so "x!=0 & 1/x>2" never divides by zero.
-    if expr.op == "&":
-        return bool(left) and bool(evaluate(expr.right, values))
-    if expr.op == "|":
-        return bool(left) or bool(evaluate(expr.right, values))
-    result: Value = _ARITH[expr.op](left, evaluate(expr.right, values))
-    return result
 
 
 def prism_mod(i: int, n: int) -> int:

@@ -5,6 +5,11 @@ nearly every node of a model, so each traversal handles them directly and falls 
 to the dataclass fields only for the other node types. Each traversal also remembers
 its result per node object: formulas are inlined as shared sub-trees, and a shared
 sub-tree is then visited once, not once per use.
+
+No traversal here recurses in Python: a model may hold a 5,000-term disjunction or a
+conditional nested thousands deep (a value per cell of a large farm), far beyond the
+interpreter's recursion limit. They keep their own stack (:func:`_bottom_up`) and
+visit nodes in the order a recursive traversal would.
 """
 
 from __future__ import annotations
@@ -42,6 +47,8 @@ _NODE_TYPES = tuple(
 _NODE_TYPE_SET = frozenset(_NODE_TYPES)
 _LITERALS = (IntLit, DoubleLit, BoolLit)
 _LITERAL_TYPES = frozenset(_LITERALS)
+#: The operator nodes: closed ones are folded.
+_OPERATORS = frozenset({Binary, Ite, Unary, Call})
 #: Node types without sub-nodes.
 _LEAVES = frozenset({IntLit, DoubleLit, BoolLit, Ident, LabelRef})
 #: Field names per node type, in declaration order (``dataclasses.fields`` is slow).
@@ -141,6 +148,49 @@ def _rebuild_fields(node: Any, visit: Callable[[Any], Any]) -> Any:
     return cls(*values) if changed else node
 
 
+def _bottom_up(
+    root: Any,
+    pre: Callable[[Any], Any | None],
+    post: Callable[[Any, Callable[[Any], Any]], Any],
+    memo: Memo,
+) -> Any:
+    """The result for *root*, computed children first on an explicit stack.
+
+    *pre* is asked for each node before its children: a value is the node's result
+    (its children are not visited), None visits them. *post* then makes the node's
+    result, reading its children's through the lookup it is given. Each node object
+    is handled once (*memo*, which also keeps each node alive so that its id stays
+    valid), left to right and children first, as the recursion it replaces did.
+    """
+    hit = memo.get(id(root))
+    if hit is not None:
+        return hit[1]
+
+    def result(sub: Any) -> Any:
+        return memo[id(sub)][1]
+
+    stack: list[tuple[Any, bool]] = [(root, False)]
+    while stack:
+        node, expanded = stack.pop()
+        key = id(node)
+        if expanded:
+            memo[key] = (node, post(node, result))
+            continue
+        if key in memo:  # a sub-tree shared with one visited since it was pushed
+            continue
+        new = pre(node)
+        if new is not None:
+            memo[key] = (node, new)
+            continue
+        kids = _child_nodes(node)
+        if not kids:
+            memo[key] = (node, post(node, result))
+            continue
+        stack.append((node, True))
+        stack.extend([(child, False) for child in reversed(kids)])
+    return memo[id(root)][1]
+
+
 def substitute(node: Any, replace: Callable[[Any], Any | None]) -> Any:
     """Rebuild *node*, replacing each sub-node for which *replace* returns a value.
 
@@ -148,19 +198,7 @@ def substitute(node: Any, replace: Callable[[Any], Any | None]) -> Any:
     is not renamed twice. *replace* must give the same answer for the same node
     object: a shared sub-tree is visited once.
     """
-    memo: Memo = {}
-
-    def visit(sub: Any) -> Any:
-        hit = memo.get(id(sub))
-        if hit is not None:
-            return hit[1]
-        new = replace(sub)
-        if new is None:
-            new = _rebuild(sub, visit)
-        memo[id(sub)] = (sub, new)
-        return new
-
-    return visit(node)
+    return _bottom_up(node, replace, _rebuild, {})
 
 
 def rename_idents(expr: Expr, mapping: dict[str, Expr]) -> Expr:
@@ -202,24 +240,21 @@ def close(
     same *values* to share the work on shared sub-trees.
     """
 
-    def visit(sub: Any) -> Any:
-        hit = memo.get(id(sub))
-        if hit is not None:
-            return hit[1]
-        cls = type(sub)
-        if cls is Ident:
-            name = sub.name
-            new = literal(values[name], sub.span, types[name]) if name in values else sub
-        elif cls is Binary or cls is Ite or cls is Unary or cls is Call:
-            new = _rebuild(sub, visit)
-            if all(type(c) in _LITERAL_TYPES for c in _child_nodes(new)):
-                new = _evaluated(new)
-        else:
-            new = _rebuild(sub, visit)
-        memo[id(sub)] = (sub, new)
-        return new
+    def constant(sub: Any) -> Any | None:
+        if type(sub) is not Ident:
+            return None
+        name = sub.name
+        return literal(values[name], sub.span, types[name]) if name in values else sub
 
-    return visit(node)
+    return _bottom_up(node, constant, _folded, memo)
+
+
+def _folded(node: Any, visit: Callable[[Any], Any]) -> Any:
+    """*node* rebuilt from its visited children, evaluated if they are all literals."""
+    new = _rebuild(node, visit)
+    if type(node) in _OPERATORS and all(type(c) in _LITERAL_TYPES for c in _child_nodes(new)):
+        return _evaluated(new)
+    return new
 
 
 def _evaluated(node: Expr) -> Expr:

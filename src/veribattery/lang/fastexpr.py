@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 from bisect import bisect_right
+from collections.abc import Callable
 from typing import Any
 
 from veribattery.errors import Span
@@ -30,6 +31,8 @@ _LEVEL = {
 _NOT_LEVEL = 7
 _UNARY_LEVEL = 12
 _BOUND_OPS = frozenset({"<", "<=", ">", ">="})
+#: Tokens that end an expression: after one of them no operator continues it.
+_ENDS = frozenset({")", ";", ",", "]", "}", "$", "||", "->", ":", ".."})
 _TIME_OPS = frozenset({"<", "<=", ">", ">=", "="})
 
 
@@ -43,6 +46,7 @@ class ExprParser:
         self.rules = ToNodes(text, source)
         self.i = 0
         self.spans: dict[int, Span] = {}
+        self.matches: dict[int, int] | None = None  # "(" -> ")", made when first needed
 
     # ------------------------------------------------------------ positions
 
@@ -156,14 +160,45 @@ class ExprParser:
         return None
 
     def ternary(self) -> Any:
-        start = self.i
-        cond = self.binary(3)
-        if self.kinds[self.i] != "?":
-            return cond
-        self.i += 1
-        then = self.binary(3)
-        self.expect(":")
-        return ite(cond, then, self.ternary(), self.span(start))
+        """``c1 ? v1 : c2 ? v2 : ... : d``, read in a loop, as is a parenthesised
+        last branch ``c1 ? v1 : (c2 ? v2 : (...))``: a value per cell of a large farm
+        is a chain thousands long, and recursion would stop at a few hundred."""
+        # Per open parenthesis (the outermost level has none): where it is, and
+        # the links (condition, value, start) read at that level.
+        levels: list[tuple[int, list[tuple[Any, Any, int]]]] = [(-1, [])]
+        while True:
+            start = self.i
+            cond = self.binary(3)
+            if self.kinds[self.i] == "?":
+                self.i += 1
+                then = self.binary(3)
+                self.expect(":")
+                levels[-1][1].append((cond, then, start))
+                if self.closing_group():
+                    levels.append((self.i, []))
+                    self.i += 1
+                continue
+            result = _chain(levels[-1][1], cond, self.span)
+            while True:
+                paren, _ = levels.pop()
+                if paren < 0:
+                    return result
+                if self.kinds[self.i] == ")":
+                    self.i += 1
+                else:  # not a chain after all, e.g. "(a U b)": read the group as usual
+                    self.i = paren
+                    result = self.atom()
+                result = _chain(levels[-1][1], result, self.span)
+
+    def closing_group(self) -> bool:
+        """Whether a parenthesised group starts here and ends the expression (what
+        follows its ``)`` cannot continue it), so that it is the last branch."""
+        if self.kinds[self.i] != "(":
+            return False
+        if self.matches is None:
+            self.matches = _matching_parentheses(self.kinds)
+        close = self.matches.get(self.i)
+        return close is not None and self.kinds[close + 1] in _ENDS
 
     def binary(self, level: int) -> Any:
         """The rule at *level* of the chain (3 ``=>`` ... 11 ``*``; 12 and up: unary)."""
@@ -382,3 +417,23 @@ class ExprParser:
         children = [path, self.word(), self.expr()]
         return self.rules.conditional_reach(self.meta(start), children)
 
+
+
+def _chain(links: list[tuple[Any, Any, int]], last: Any, span: Callable[[int], Span]) -> Any:
+    """``c1 ? v1 : c2 ? v2 : ... : last`` from its links, innermost first."""
+    result = last
+    for cond, then, start in reversed(links):
+        result = ite(cond, then, result, span(start))
+    return result
+
+
+def _matching_parentheses(kinds: list[str]) -> dict[int, int]:
+    """The index of each ``(``'s matching ``)`` (unbalanced ones are left out)."""
+    matches: dict[int, int] = {}
+    opened: list[int] = []
+    for index, kind in enumerate(kinds):
+        if kind == "(":
+            opened.append(index)
+        elif kind == ")" and opened:
+            matches[opened.pop()] = index
+    return matches

@@ -143,15 +143,19 @@ def _end_position(text: str) -> tuple[int, int]:
 
 @functools.cache
 def _transformer() -> Any:
-    """:class:`ToNodes` as a lark transformer: each rule method called with its meta."""
-    from lark import Transformer, v_args
+    """:class:`ToNodes` as a lark transformer: each rule method called with its meta.
+
+    The non-recursive transformer: a left-deep chain ``a | b | c ...`` of thousands
+    of terms is a parse tree as deep, beyond Python's recursion limit.
+    """
+    from lark import Transformer_NonRecursive, v_args
 
     rules = {
         name: v_args(meta=True)(getattr(ToNodes, name))
         for name in dir(ToNodes)
         if not name.startswith("_") and callable(getattr(ToNodes, name))
     }
-    return type("LarkToNodes", (ToNodes, Transformer), rules)
+    return type("LarkToNodes", (ToNodes, Transformer_NonRecursive), rules)
 
 
 def _parse(text: str, source: str, start: str) -> Any:

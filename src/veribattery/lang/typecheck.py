@@ -7,7 +7,7 @@ only meet booleans. Errors name the operator and the operand types.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import cast
+from typing import Any, cast
 
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.lang.nodes import (
@@ -93,40 +93,115 @@ def type_of(expr: Expr, env: TypeEnv) -> ValueType:
     if cls is BoolLit:
         return "bool"
     memo = env.memo
-    if memo is None:
-        return _compound(expr, env)
-    hit = memo.get(id(expr))
-    if hit is not None:
-        return hit[1]
-    kind = _compound(expr, env)
-    memo[id(expr)] = (expr, kind)
-    return kind
+    if memo is not None:
+        hit = memo.get(id(expr))
+        if hit is not None:
+            return hit[1]
+    return _compound(expr, env)
 
 
-def _compound(expr: Expr, env: TypeEnv) -> ValueType:
-    if isinstance(expr, Binary):
-        return _binary(expr, env)
-    if isinstance(expr, Ite):
-        return _ite(expr, env)
-    if isinstance(expr, Unary):
-        return _unary(expr, env)
-    if isinstance(expr, Call):
-        return _call(expr, env)
-    return _property_type(expr, env)
+# Steps of the checker's own stack: a model's expressions may nest thousands deep.
+_VISIT, _FINISH, _REQUIRE_BOOL, _REQUIRE_NUMBER = 0, 1, 2, 3
+_Step = tuple[int, Any, str]
+
+
+def _compound(root: Expr, env: TypeEnv) -> ValueType:
+    """The type of a compound *root*, children first, without recursion.
+
+    Checks run in the order of the recursive definition they replace (a condition
+    before its branches, each argument before the next), so that of two errors
+    the same one is reported.
+    """
+    kinds: dict[int, ValueType] = {}
+    todo: list[_Step] = [(_VISIT, root, "")]
+    while todo:
+        step, node, what = todo.pop()
+        if step == _VISIT:
+            kind = _known(node, env, kinds)
+            if kind is not None:
+                kinds[id(node)] = kind
+                continue
+            todo.append((_FINISH, node, ""))
+            todo.extend(reversed(_plan(node)))
+        elif step == _FINISH:
+            kind = _finish(node, kinds)
+            kinds[id(node)] = kind
+            if env.memo is not None:
+                env.memo[id(node)] = (node, kind)
+        else:
+            wanted = "bool" if step == _REQUIRE_BOOL else "numeric"
+            _require(kinds[id(node)], node, wanted, what)
+    return kinds[id(root)]
+
+
+def _known(node: Expr, env: TypeEnv, kinds: Mapping[int, ValueType]) -> ValueType | None:
+    """The type of a leaf, of a node already typed, or of a property operator; else None."""
+    cls = type(node)
+    if cls is Ident or cls is IntLit or cls is DoubleLit or cls is BoolLit:
+        return type_of(node, env)
+    found = kinds.get(id(node))
+    if found is not None:
+        return found
+    if env.memo is not None:
+        hit = env.memo.get(id(node))
+        if hit is not None:
+            return hit[1]
+    if cls is Binary or cls is Ite or cls is Unary:
+        return None
+    if cls is Call:
+        _check_arity(cast(Call, node))
+        return None
+    return _property_type(node, env)
+
+
+def _plan(node: Expr) -> list[_Step]:
+    """What to do for *node*'s operands, in order (before it is finished)."""
+    if isinstance(node, Binary):
+        return [(_VISIT, node.left, ""), (_VISIT, node.right, "")]
+    if isinstance(node, Unary):
+        return [(_VISIT, node.operand, "")]
+    if isinstance(node, Ite):
+        return [
+            (_VISIT, node.cond, ""),
+            (_REQUIRE_BOOL, node.cond, "the condition of '? :'"),
+            (_VISIT, node.then, ""),
+            (_VISIT, node.otherwise, ""),
+        ]
+    call = cast(Call, node)
+    steps: list[_Step] = []
+    for arg in call.args:
+        steps += [(_VISIT, arg, ""), (_REQUIRE_NUMBER, arg, f"an argument of {call.func}")]
+    return steps
+
+
+def _finish(node: Expr, kinds: Mapping[int, ValueType]) -> ValueType:
+    """The type of *node* from its operands' types."""
+    if isinstance(node, Binary):
+        return _binary(node, kinds[id(node.left)], kinds[id(node.right)])
+    if isinstance(node, Unary):
+        return _unary(node, kinds[id(node.operand)])
+    if isinstance(node, Ite):
+        return _ite(node, kinds[id(node.then)], kinds[id(node.otherwise)])
+    call = cast(Call, node)
+    return _call(call, [kinds[id(a)] for a in call.args])
 
 
 def expect(expr: Expr, env: TypeEnv, wanted: str, what: str) -> ValueType:
     """Check that *expr* is ``bool`` or ``numeric`` (*wanted*); *what* names the context."""
     kind = type_of(expr, env)
+    _require(kind, expr, wanted, what)
+    return kind
+
+
+def _require(kind: ValueType, expr: Expr, wanted: str, what: str) -> None:
+    """Raise unless *kind* is ``bool`` or ``numeric``, as *wanted*."""
     ok = kind == "bool" if wanted == "bool" else _numeric(kind)
     if not ok:
         article = "a bool" if wanted == "bool" else "a number"
         raise PrismSemanticError(f"type error: {what} must be {article}, not {kind}", expr.span)
-    return kind
 
 
-def _unary(expr: Unary, env: TypeEnv) -> ValueType:
-    kind = type_of(expr.operand, env)
+def _unary(expr: Unary, kind: ValueType) -> ValueType:
     if expr.op == "!" and kind != "bool":
         raise PrismSemanticError(f"type error: '!' needs a bool, not {kind}", expr.span)
     if expr.op == "-" and not _numeric(kind):
@@ -134,8 +209,7 @@ def _unary(expr: Unary, env: TypeEnv) -> ValueType:
     return kind
 
 
-def _binary(expr: Binary, env: TypeEnv) -> ValueType:
-    left, right = type_of(expr.left, env), type_of(expr.right, env)
+def _binary(expr: Binary, left: ValueType, right: ValueType) -> ValueType:
     op = expr.op
     if op in _BOOL_OPS:
         ok = left == right == "bool"
@@ -152,9 +226,7 @@ def _binary(expr: Binary, env: TypeEnv) -> ValueType:
     return "double" if op == "/" else _join(left, right)
 
 
-def _ite(expr: Ite, env: TypeEnv) -> ValueType:
-    expect(expr.cond, env, "bool", "the condition of '? :'")
-    then, otherwise = type_of(expr.then, env), type_of(expr.otherwise, env)
+def _ite(expr: Ite, then: ValueType, otherwise: ValueType) -> ValueType:
     if then == otherwise:
         return then
     if _numeric(then) and _numeric(otherwise):
@@ -164,14 +236,16 @@ def _ite(expr: Ite, env: TypeEnv) -> ValueType:
     )
 
 
-def _call(expr: Call, env: TypeEnv) -> ValueType:
+def _check_arity(expr: Call) -> None:
     low, high = _ARITY.get(expr.func, (2, 10**9))
     if not low <= len(expr.args) <= high:
         count = f"{low}" if low == high else f"at least {low}"
         raise PrismSemanticError(
             f"{expr.func}(...) takes {count} arguments, not {len(expr.args)}", expr.span
         )
-    kinds = [expect(a, env, "numeric", f"an argument of {expr.func}") for a in expr.args]
+
+
+def _call(expr: Call, kinds: list[ValueType]) -> ValueType:
     if expr.func in ("floor", "ceil", "round"):
         return "int"
     if expr.func == "mod":
