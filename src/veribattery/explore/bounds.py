@@ -1,7 +1,8 @@
 """Interval analysis of expressions: which updates provably stay in range.
 
 Used to skip per-state range checks in the builder and whole commands in the
-domain-wide check. Pure AST analysis: a sound over-approximation, or None.
+domain-wide check. Pure AST analysis: a sound over-approximation, or None. It keeps
+its own stack: an expression may be a chain of thousands of ``? :``.
 """
 
 from __future__ import annotations
@@ -21,28 +22,62 @@ def value_bounds(expr: Expr, bounds: Mapping[str, Bounds]) -> Bounds | None:
 
     None when unknown (division, ``pow``, ``mod`` ...): callers then check at run time.
     """
+    found: dict[int, Bounds | None] = {}
+    stack: list[tuple[Expr, bool]] = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        if ready:
+            found[id(node)] = _combined(node, [found[id(o)] for o in _operands(node)], bounds)
+            continue
+        if id(node) in found:
+            continue
+        operands = _operands(node)
+        if not operands:
+            found[id(node)] = _combined(node, (), bounds)
+            continue
+        stack.append((node, True))
+        stack.extend([(o, False) for o in reversed(operands)])
+    return found[id(expr)]
+
+
+def _operands(expr: Expr) -> tuple[Expr, ...]:
+    """The operands whose bounds the bounds of *expr* are made of."""
+    if isinstance(expr, Unary):
+        return (expr.operand,) if expr.op == "-" else ()
+    if isinstance(expr, Binary):
+        return () if expr.op in _RELATIONAL else (expr.left, expr.right)
+    if isinstance(expr, Ite):
+        return (expr.then, expr.otherwise)
+    if isinstance(expr, Call) and expr.func in ("min", "max"):
+        return expr.args
+    return ()
+
+
+def _combined(
+    expr: Expr, parts: Sequence[Bounds | None], bounds: Mapping[str, Bounds]
+) -> Bounds | None:
+    """The bounds of *expr* from those of its operands (*bounds*: the variables')."""
     if isinstance(expr, IntLit | DoubleLit | BoolLit):
         return (float(expr.value), float(expr.value))
     if isinstance(expr, Ident):
         return bounds.get(expr.name)
     if isinstance(expr, Unary):
-        inner = value_bounds(expr.operand, bounds)
-        if expr.op == "!" or inner is None:
+        if expr.op == "!" or parts[0] is None:
             return (0.0, 1.0) if expr.op == "!" else None
-        return (-inner[1], -inner[0])
+        return (-parts[0][1], -parts[0][0])
     if isinstance(expr, Binary):
-        return _binary_bounds(expr, bounds)
+        return _binary_bounds(expr, parts)
     if isinstance(expr, Ite):
-        return _hull([value_bounds(expr.then, bounds), value_bounds(expr.otherwise, bounds)])
+        return _hull(parts)
     if isinstance(expr, Call) and expr.func in ("min", "max"):
-        return _min_max_bounds(expr, bounds)
+        return _min_max_bounds(expr, parts)
     return None
 
 
-def _binary_bounds(expr: Binary, bounds: Mapping[str, Bounds]) -> Bounds | None:
+def _binary_bounds(expr: Binary, parts: Sequence[Bounds | None]) -> Bounds | None:
     if expr.op in _RELATIONAL:
         return (0.0, 1.0)
-    left, right = value_bounds(expr.left, bounds), value_bounds(expr.right, bounds)
+    left, right = parts
     if left is None or right is None or expr.op == "/":
         return None
     if expr.op == "+":
@@ -53,8 +88,7 @@ def _binary_bounds(expr: Binary, bounds: Mapping[str, Bounds]) -> Bounds | None:
     return (min(products), max(products))
 
 
-def _min_max_bounds(expr: Call, bounds: Mapping[str, Bounds]) -> Bounds | None:
-    args = [value_bounds(a, bounds) for a in expr.args]
+def _min_max_bounds(expr: Call, args: Sequence[Bounds | None]) -> Bounds | None:
     known = [a for a in args if a is not None]
     if len(known) < len(args):
         return None

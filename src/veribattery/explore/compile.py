@@ -10,22 +10,25 @@ Operations that can fail on some rows (division, ``mod``, ``pow``) are *risky*:
 the branches of ``? :`` and the right operands of ``&``, ``|`` and ``=>`` that
 contain them are evaluated only on the rows that need them, so that a guard such
 as ``y>0 & x/y>1`` does not report a division by zero where ``y=0``.
+
+Nothing here recurses over an expression: compiling keeps its own stack, and the
+closures of a long chain (thousands of terms) run in a loop (:mod:`.chains`).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
 import weakref
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
 from veribattery._record import record
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError, PrismSemanticError, Span
+from veribattery.explore.chains import SPINE_LIMIT, Link, same_rows, unrolled
 from veribattery.lang.nodes import (
     Binary,
     BoolLit,
@@ -63,6 +66,8 @@ class _Node:
     is_const: bool = False
     risky: bool = False  # may raise on some rows
     labels: bool = False  # reads label masks (aligned with all rows: no row subsets)
+    link: Link | None = None  # how the value follows from the first operand's
+    spine: int = 0  # links in a row down from here (see ``_linked``)
 
     @property
     def subsettable(self) -> bool:
@@ -119,6 +124,21 @@ class CompileCache:
         found = self._by_id.get(id(expr))
         if found is not None and found[0] is expr:
             return found[1]
+        stack: list[tuple[Any, bool]] = [(expr, False)]
+        while stack:
+            node, ready = stack.pop()
+            if ready:
+                self._number(node)
+                continue
+            found = self._by_id.get(id(node))
+            if found is not None and found[0] is node:
+                continue
+            stack.append((node, True))
+            stack.extend([(child, False) for child in reversed(_key_children(node))])
+        return self._by_id[id(expr)][1]
+
+    def _number(self, expr: Any) -> None:
+        """Number *expr*, whose sub-expressions are numbered."""
         parts: tuple[Any, ...]
         if isinstance(expr, Binary):
             parts = (Binary, expr.op, self.key(expr.left), self.key(expr.right))
@@ -136,14 +156,38 @@ class CompileCache:
                                    if f.compare))
         number = self._keys.setdefault(parts, len(self._keys))
         self._by_id[id(expr)] = (expr, number)  # the reference keeps the id unique
-        return number
 
     def _field_key(self, value: Any) -> Any:
         if isinstance(value, tuple):
             return (tuple, *(self._field_key(v) for v in value))
-        if dataclasses.is_dataclass(value) and not isinstance(value, type):
-            return (Expr, self.key(value))  # type: ignore[arg-type]
+        if _is_node(value):
+            return (Expr, self.key(value))
         return (type(value), value)
+
+
+def _is_node(value: Any) -> bool:
+    return dataclasses.is_dataclass(value) and not isinstance(value, type)
+
+
+def _key_children(expr: Any) -> list[Any]:
+    """The sub-expressions a key is made of, in the order :meth:`CompileCache.key` reads."""
+    if isinstance(expr, Binary):
+        return [expr.left, expr.right]
+    if isinstance(expr, Ite):
+        return [expr.cond, expr.then, expr.otherwise]
+    if isinstance(expr, Unary):
+        return [expr.operand]
+    if isinstance(expr, Ident | IntLit | DoubleLit | BoolLit):
+        return []
+    found: list[Any] = []
+    pending = [getattr(expr, f.name) for f in dataclasses.fields(expr) if f.compare]
+    while pending:  # fields in order, tuples opened in place
+        value = pending.pop(0)
+        if isinstance(value, tuple):
+            pending[:0] = value
+        elif _is_node(value):
+            found.append(value)
+    return found
 
 
 def compile_expr(
@@ -212,23 +256,69 @@ def variables_of(expr: Expr) -> set[str]:
 
 
 def _compile(expr: Expr, scope: _Scope) -> _Node:
-    cache = scope.cache
-    store = None
-    if cache is not None:
-        store = cache.nodes if scope.ranges is not None else cache.plain
-        key = cache.key(expr)
-        found = store.get(key)
+    """The compiled node of *expr*: operands first, each sub-expression once (per
+    cache), on an explicit stack, in the order a recursive compiler would go."""
+    done: dict[int, _Node] = {}
+    stack: list[tuple[Expr, bool]] = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        if ready:
+            done[id(node)] = _finished(node, [done[id(c)] for c in _children(node)], scope)
+            continue
+        if id(node) in done:
+            continue
+        found = _cached(node, scope)
         if found is not None:
-            return found
+            done[id(node)] = found
+            continue
+        operands = _operands(node)
+        if not operands:
+            done[id(node)] = _finished(node, [], scope)
+            continue
+        stack.append((node, True))
+        stack.extend([(operand, False) for operand in reversed(operands)])
+    return done[id(expr)]
+
+
+def _store(scope: _Scope) -> dict[int, _Node] | None:
+    cache = scope.cache
+    if cache is None:
+        return None
+    return cache.nodes if scope.ranges is not None else cache.plain
+
+
+def _cached(expr: Expr, scope: _Scope) -> _Node | None:
+    """The node compiled before for an expression equal to *expr*, if any."""
+    store = _store(scope)
+    if store is None or scope.cache is None:
+        return None
+    return store.get(scope.cache.key(expr))
+
+
+def _operands(expr: Expr) -> tuple[Expr, ...]:
+    """The operands to compile before *expr*; an error for what is no state expression."""
+    if isinstance(expr, IntLit | DoubleLit | BoolLit | Ident | LabelRef):
+        return ()
+    if isinstance(expr, Unary | Binary | Ite | Call):
+        return _children(expr)
+    raise PrismSemanticError(
+        f"{type(expr).__name__} is not allowed in a state expression", expr.span
+    )
+
+
+def _finished(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
+    """The node of *expr* from its compiled operands: tabulated if worth it, and stored."""
+    cache = scope.cache
     if scope.ranges is not None and _worth_tabulating(expr, scope.ranges, cache):
-        node = _tabulated(expr, scope)
+        node = _tabulated(expr, _compile_node(expr, operands, scope), scope)
     else:
-        node = _compile_node(expr, scope)
+        node = _compile_node(expr, operands, scope)
+    store = _store(scope)
     if cache is not None and store is not None:
         if (scope.ranges is not None and cache.memoise
                 and not (node.is_const or isinstance(expr, Ident | LabelRef))):
             node = dataclasses.replace(node, fn=_memoised(node.fn))
-        store[key] = node
+        store[cache.key(expr)] = node
     return node
 
 
@@ -248,8 +338,8 @@ def _memoised(fn: _Fn) -> _Fn:
     return evaluate
 
 
-def _compile_node(expr: Expr, scope: _Scope) -> _Node:
-    columns, labels = scope.columns, scope.labels
+def _compile_node(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
+    """The node of *expr* made from its compiled *operands* (a leaf has none)."""
     if isinstance(expr, IntLit):
         return _constant(np.int64(expr.value))
     if isinstance(expr, DoubleLit):
@@ -257,22 +347,16 @@ def _compile_node(expr: Expr, scope: _Scope) -> _Node:
     if isinstance(expr, BoolLit):
         return _constant(np.bool_(expr.value))
     if isinstance(expr, Ident):
-        return _variable(expr, columns)
+        return _variable(expr, scope.columns)
     if isinstance(expr, LabelRef):
-        return _label(expr, labels)
+        return _label(expr, scope.labels)
     if isinstance(expr, Unary):
-        return _unary(expr, _compile(expr.operand, scope))
+        return _unary(expr, operands[0])
     if isinstance(expr, Binary):
-        left, right = _compile(expr.left, scope), _compile(expr.right, scope)
-        return _binary(expr, left, right)
+        return _binary(expr, operands[0], operands[1])
     if isinstance(expr, Ite):
-        parts = [_compile(e, scope) for e in (expr.cond, expr.then, expr.otherwise)]
-        return _ite(parts[0], parts[1], parts[2])
-    if isinstance(expr, Call):
-        return _call(expr, [_compile(a, scope) for a in expr.args])
-    raise PrismSemanticError(
-        f"{type(expr).__name__} is not allowed in a state expression", expr.span
-    )
+        return _ite(operands[0], operands[1], operands[2])
+    return _call(cast(Call, expr), operands)
 
 
 def _constant(value: Any) -> _Node:
@@ -326,25 +410,44 @@ def _shape(expr: Expr, cache: CompileCache | None) -> tuple[frozenset[str], int]
     """:func:`_shape_of`, memoised in *cache* by structural number when there is one."""
     if cache is None:
         return _shape_of(expr)
-    key = cache.key(expr)
-    found = cache.shapes.get(key)
-    if found is None:
-        if isinstance(expr, Ident):
-            found = frozenset((expr.name,)), 1
-        else:
-            parts = [_shape(c, cache) for c in _children(expr)]
-            found = frozenset().union(*(p[0] for p in parts)), 1 + sum(p[1] for p in parts)
-        cache.shapes[key] = found
-    return found
+    return _shapes(expr, cache.shapes, cache.key)
 
 
-@functools.lru_cache(maxsize=4096)
 def _shape_of(expr: Expr) -> tuple[frozenset[str], int]:
-    """The variables of *expr* and its number of nodes (memoised: asked at every node)."""
-    if isinstance(expr, Ident):
-        return frozenset((expr.name,)), 1
-    parts = [_shape_of(c) for c in _children(expr)]
-    return frozenset().union(*(p[0] for p in parts)), 1 + sum(p[1] for p in parts)
+    """The variables of *expr* and its number of nodes (shared sub-trees counted per use)."""
+    return _shapes(expr, {}, id)  # the nodes live as long as *expr*: ids are stable
+
+
+_Shape = tuple[frozenset[str], int]
+
+
+def _shapes(expr: Expr, shapes: dict[int, _Shape], number: Callable[[Expr], int]) -> _Shape:
+    """The shape of *expr*, children first, kept in *shapes* under each node's *number*."""
+    stack: list[tuple[Expr, bool]] = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        key = number(node)
+        if ready:
+            parts = [shapes[number(c)] for c in _children(node)]
+            shapes[key] = frozenset().union(*(p[0] for p in parts)), 1 + sum(p[1] for p in parts)
+        elif key not in shapes:
+            if isinstance(node, Ident):
+                shapes[key] = frozenset((node.name,)), 1
+                continue
+            stack.append((node, True))
+            stack.extend([(c, False) for c in reversed(_children(node))])
+    return shapes[number(expr)]
+
+
+def _size_at_least(expr: Expr, size: int) -> bool:
+    """Whether *expr* has at least *size* nodes (as counted by :func:`_shape_of`)."""
+    stack = [expr]
+    while stack:
+        size -= 1
+        if size <= 0:
+            return True
+        stack.extend(_children(stack.pop()))
+    return False
 
 
 def _children(expr: Expr) -> tuple[Expr, ...]:
@@ -359,13 +462,13 @@ def _children(expr: Expr) -> tuple[Expr, ...]:
     return ()
 
 
-def _tabulated(expr: Expr, scope: _Scope) -> _Node:
-    """*expr* as a lookup table over its variables' domain (row-wise if that fails)."""
+def _tabulated(expr: Expr, direct: _Node, scope: _Scope) -> _Node:
+    """*expr* (compiled row-wise as *direct*) as a lookup table over its variables'
+    domain, or *direct* if that fails."""
     assert scope.ranges is not None
     # The children keep their own tables and memos: a sub-expression shared by many
     # tables over the same variables (a voltage level inside every cost) is
     # evaluated once on their common grid, not once per table.
-    direct = _compile_node(expr, scope)
     names = sorted(_shape(expr, scope.cache)[0], key=lambda n: scope.columns[n])
     lows = [scope.ranges[n][0] for n in names]
     shape = [scope.ranges[n][1] - low + 1 for n, low in zip(names, lows, strict=True)]
@@ -476,18 +579,33 @@ def _index(cols: list[int], strides: list[int], offset: int) -> _Fn:
 # ---------------------------------------------------------------------------
 
 
-def _lift(op: Callable[..., Any], args: Sequence[_Node], risky: bool = False) -> _Node:
-    """Combine *args* with *op*, folding when every argument is a constant."""
+def _lift(
+    op: Callable[..., Any], args: Sequence[_Node], risky: bool = False, link: Link | None = None
+) -> _Node:
+    """Combine *args* with *op*, folding when every argument is a constant.
+
+    :param link: how the value follows from one operand's (default: from the first)
+    """
     if all(a.is_const for a in args):
         try:
             return _constant(op(*(a.const for a in args)))
         except ModelError:
             pass  # e.g. ``N=0 ? 0 : 1/N``: only fail if the branch is ever evaluated
-    return _Node(
-        fn=_applied(op, [a.fn for a in args]),
+    return _made(
+        _applied(op, [a.fn for a in args]),
+        link or Link(args[0], same_rows, _rest_applied(op, [a.fn for a in args[1:]])),
         risky=risky or any(a.risky for a in args),
         labels=any(a.labels for a in args),
     )
+
+
+def _made(fn: _Fn, link: Link, risky: bool, labels: bool) -> _Node:
+    """The node made by *link* (evaluated by *fn*, or in a loop deep down a chain)."""
+    below = cast(_Node, link.below)
+    spine = below.spine + 1
+    if spine >= SPINE_LIMIT:
+        fn = unrolled(link)
+    return _Node(fn=fn, risky=risky, labels=labels, link=link, spine=spine)
 
 
 def _applied(op: Callable[..., Any], fns: Sequence[_Fn]) -> _Fn:
@@ -499,6 +617,16 @@ def _applied(op: Callable[..., Any], fns: Sequence[_Fn]) -> _Fn:
         f, g = fns
         return lambda states: op(f(states), g(states))
     return lambda states: op(*(h(states) for h in fns))
+
+
+def _rest_applied(op: Callable[..., Any], rest: Sequence[_Fn]) -> Callable[[Any, Any], Any]:
+    """``op`` over the first argument's value and the others evaluated (a link's combine)."""
+    if not rest:
+        return lambda _states, value: op(value)
+    if len(rest) == 1:
+        (g,) = rest
+        return lambda states, value: op(value, g(states))
+    return lambda states, value: op(value, *(h(states) for h in rest))
 
 
 def _unary(expr: Unary, operand: _Node) -> _Node:
@@ -524,7 +652,7 @@ _SIMPLE_BINARY: dict[str, Callable[[Any, Any], Any]] = {
 def _binary(expr: Binary, left: _Node, right: _Node) -> _Node:
     op = expr.op
     if op in ("&", "|", "=>"):
-        return _logical(op, left, right, _shape_of(expr.right)[1] >= _SKIP_SIZE)
+        return _logical(op, left, right, _size_at_least(expr.right, _SKIP_SIZE))
     if op == "<=>":
         return _lift(lambda a, b: np.equal(np.asarray(a, bool), np.asarray(b, bool)), [left, right])
     if op == "/":
@@ -548,16 +676,18 @@ def _logical(op: str, left: _Node, right: _Node, big: bool = False) -> _Node:
         return _lift(combine, [left, right])
     # Rows where the left operand alone decides: false for ``&``, true for ``|``/``=>``.
     decided_value = op != "&"
+    lfn, rfn = left.fn, right.fn
 
-    def evaluate(states: IntArray) -> Any:
-        first = np.broadcast_to(np.asarray(left.fn(states), dtype=bool), (states.shape[0],))
+    def rest(states: IntArray, value: Any) -> Any:
+        first = np.broadcast_to(np.asarray(value, dtype=bool), (states.shape[0],))
         result = first.copy()
         todo = first != decided_value
         if np.count_nonzero(todo):
-            result[todo] = np.asarray(right.fn(states[todo]), dtype=bool)
+            result[todo] = np.asarray(rfn(states[todo]), dtype=bool)
         return result
 
-    return _Node(fn=evaluate, risky=True, labels=left.labels)
+    return _made(lambda states: rest(states, lfn(states)), Link(left, same_rows, rest),
+                 risky=True, labels=left.labels)
 
 
 def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, right: _Node) -> _Node:
@@ -567,8 +697,7 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, rig
     """
     lfn, rfn = left.fn, right.fn
 
-    def evaluate(states: IntArray) -> Any:
-        first = lfn(states)
+    def rest(states: IntArray, first: Any) -> Any:
         if type(first) is not np.ndarray or first.dtype != np.bool_:  # usually it is
             first = np.asarray(first, dtype=bool)
         # count_nonzero: a fraction of the cost of .any()/.all() on short arrays
@@ -576,24 +705,37 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, rig
             return first
         return combine(first, rfn(states))
 
-    return _Node(fn=evaluate, risky=left.risky or right.risky, labels=left.labels or right.labels)
+    return _made(lambda states: rest(states, lfn(states)), Link(left, same_rows, rest),
+                 risky=left.risky or right.risky, labels=left.labels or right.labels)
 
 
 def _ite(cond: _Node, then: _Node, otherwise: _Node) -> _Node:
+    """``cond ? then : otherwise``; linked through *otherwise*, where chains of
+    ``? :`` nest."""
     if cond.is_const:
         return then if bool(cond.const) else otherwise
+    cfn, tfn, ofn = cond.fn, then.fn, otherwise.fn
     if not (then.subsettable or otherwise.subsettable):
-        return _lift(np.where, [cond, then, otherwise])
+        both = Link(otherwise, lambda states: ((cfn(states), tfn(states)), states),
+                    lambda kept, low: np.where(kept[0], kept[1], low))
+        return _lift(np.where, [cond, then, otherwise], link=both)
 
-    def evaluate(states: IntArray) -> Any:
-        pick = np.broadcast_to(np.asarray(cond.fn(states), dtype=bool), (states.shape[0],))
-        high, low = then.fn(states[pick]), otherwise.fn(states[~pick])
-        out = np.empty(states.shape[0], dtype=np.result_type(high, low))
+    def descend(states: IntArray) -> tuple[Any, IntArray]:
+        pick = np.broadcast_to(np.asarray(cfn(states), dtype=bool), (states.shape[0],))
+        return (pick, tfn(states[pick])), states[~pick]
+
+    def combine(kept: tuple[Any, Any], low: Any) -> Any:
+        pick, high = kept
+        out = np.empty(pick.shape[0], dtype=np.result_type(high, low))
         out[pick] = high
         out[~pick] = low
         return out
 
-    return _Node(fn=evaluate, risky=True, labels=cond.labels)
+    def evaluate(states: IntArray) -> Any:
+        kept, rest = descend(states)
+        return combine(kept, ofn(rest))
+
+    return _made(evaluate, Link(otherwise, descend, combine), risky=True, labels=cond.labels)
 
 
 def _divide(a: Any, b: Any, span: Span) -> Any:

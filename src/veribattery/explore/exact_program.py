@@ -64,16 +64,25 @@ def needs_exact(expr: Expr, ranges: Mapping[str, tuple[int, int]] | None = None)
 
 
 def _rounds(expr: Expr, bounds: Mapping[str, tuple[float, float]]) -> bool:
-    if isinstance(expr, DoubleLit):
-        return True
-    if isinstance(expr, Binary) and expr.op == "/":
-        return True
-    if isinstance(expr, Call):
-        if expr.func in _ROUNDING_CALLS:
+    """Whether some node of *expr* may round (a walk of its own: chains are long)."""
+    stack = [expr]
+    seen: set[int] = set()  # formulas are inlined as shared sub-trees
+    while stack:
+        node = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, DoubleLit):
             return True
-        if expr.func in ("floor", "ceil") and _exact_quotient(expr.args[0], bounds):
-            return False
-    return any(_rounds(child, bounds) for child in children(expr))
+        if isinstance(node, Binary) and node.op == "/":
+            return True
+        if isinstance(node, Call):
+            if node.func in _ROUNDING_CALLS:
+                return True
+            if node.func in ("floor", "ceil") and _exact_quotient(node.args[0], bounds):
+                continue
+        stack.extend(children(node))
+    return False
 
 
 def _exact_quotient(expr: Expr, bounds: Mapping[str, tuple[float, float]]) -> bool:

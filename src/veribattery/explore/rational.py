@@ -221,7 +221,11 @@ def evaluate_rational(
 
 
 class _Evaluator:
-    """One evaluation: constants are broadcast, sub-expressions see row subsets."""
+    """One evaluation: constants are broadcast, sub-expressions see row subsets.
+
+    It keeps its own stack of steps (each with the evaluator of its rows) and of
+    values: an expression may be a chain of thousands of operators.
+    """
 
     def __init__(
         self, constants: Mapping[str, ExactScalar], variables: Mapping[str, np.ndarray], n: int
@@ -240,24 +244,41 @@ class _Evaluator:
         return np.full(self.n, value, dtype=object)
 
     def run(self, expr: Expr) -> np.ndarray:
+        values: list[np.ndarray] = []
+        todo: list[_Step] = [(_EVALUATE, expr, self)]
+        while todo:
+            step, node, context = todo.pop()
+            if step == _EVALUATE:
+                context.start(node, values, todo)
+            else:
+                _STEPS[step](node, context, values, todo)
+        return values[0]
+
+    def start(self, expr: Expr, values: list[np.ndarray], todo: list[_Step]) -> None:
+        """Push the value of *expr* on these rows, or the steps that compute it."""
         if isinstance(expr, IntLit):
-            return self.full(mpq(expr.value))
-        if isinstance(expr, DoubleLit):
-            return self.full(rational(expr.text) if expr.text else rational(expr.value))
-        if isinstance(expr, BoolLit):
-            return self.full(expr.value)
-        if isinstance(expr, Ident):
-            return self._ident(expr)
-        if isinstance(expr, Unary):
-            operand = self.run(expr.operand)
-            return ~_bools(operand) if expr.op == "!" else -operand
-        if isinstance(expr, Binary):
-            return self._binary(expr)
-        if isinstance(expr, Ite):
-            return self._ite(expr)
-        if isinstance(expr, Call):
-            return _call(expr, [self.run(a) for a in expr.args])
-        raise PrismSemanticError(f"{type(expr).__name__} has no exact rational value", expr.span)
+            values.append(self.full(mpq(expr.value)))
+        elif isinstance(expr, DoubleLit):
+            values.append(self.full(rational(expr.text) if expr.text else rational(expr.value)))
+        elif isinstance(expr, BoolLit):
+            values.append(self.full(expr.value))
+        elif isinstance(expr, Ident):
+            values.append(self._ident(expr))
+        elif isinstance(expr, Unary):
+            todo += [(_NEGATE, expr, self), (_EVALUATE, expr.operand, self)]
+        elif isinstance(expr, Binary) and expr.op in ("&", "|", "=>"):
+            todo += [(_LEFT_DONE, expr, self), (_EVALUATE, expr.left, self)]
+        elif isinstance(expr, Binary):
+            todo += [(_APPLY, expr, self), (_EVALUATE, expr.right, self),
+                     (_EVALUATE, expr.left, self)]
+        elif isinstance(expr, Ite):
+            todo += [(_CHOOSE, expr, self), (_EVALUATE, expr.cond, self)]
+        elif isinstance(expr, Call):
+            todo.append((_CALL, expr, self))
+            todo += [(_EVALUATE, a, self) for a in reversed(expr.args)]
+        else:
+            raise PrismSemanticError(
+                f"{type(expr).__name__} has no exact rational value", expr.span)
 
     def _ident(self, expr: Ident) -> np.ndarray:
         if expr.name in self.variables:
@@ -266,38 +287,90 @@ class _Evaluator:
             return self.full(self.constants[expr.name])
         raise PrismSemanticError(f"unknown identifier '{expr.name}'", expr.span)
 
-    def _binary(self, expr: Binary) -> np.ndarray:
-        if expr.op in ("&", "|", "=>"):
-            return self._logical(expr)
-        left, right = self.run(expr.left), self.run(expr.right)
-        if expr.op == "/":
-            return _divide(left, right, expr.span)
-        if expr.op == "<=>":
-            return np.asarray(_bools(left) == _bools(right))
+
+#: A step of :meth:`_Evaluator.run`: what to do, for which node, with what (the
+#: evaluator of the rows, or what an operator kept between its operands).
+_Step = tuple[int, Any, Any]
+_EVALUATE, _NEGATE, _APPLY, _LEFT_DONE, _RIGHT_DONE, _CHOOSE, _BRANCHES_DONE, _CALL = range(8)
+
+
+def _negate(expr: Unary, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
+    operand = values.pop()
+    values.append(~_bools(operand) if expr.op == "!" else -operand)
+
+
+def _apply(expr: Binary, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
+    right = values.pop()
+    left = values.pop()
+    if expr.op == "/":
+        values.append(_divide(left, right, expr.span))
+    elif expr.op == "<=>":
+        values.append(np.asarray(_bools(left) == _bools(right)))
+    else:
         result = _OPERATORS[expr.op](left, right)
-        return np.asarray(result, dtype=bool) if expr.op in _RELATIONS else result
+        values.append(np.asarray(result, dtype=bool) if expr.op in _RELATIONS else result)
 
-    def _logical(self, expr: Binary) -> np.ndarray:
-        """``&``, ``|``, ``=>``: the right operand only where the left does not decide."""
-        left = _bools(self.run(expr.left))
-        if expr.op == "=>":
-            left = ~left
-        decided = left if expr.op != "&" else ~left
-        result = left.copy()
-        todo = ~decided
-        if todo.any():
-            result[todo] = _bools(self.subset(todo).run(expr.right))
-        return result
 
-    def _ite(self, expr: Ite) -> np.ndarray:
-        pick = _bools(self.run(expr.cond))
-        high = self.subset(pick).run(expr.then)
-        low = self.subset(~pick).run(expr.otherwise)
-        kind = bool if high.dtype == bool and low.dtype == bool else object
-        out = np.empty(self.n, dtype=kind)
-        out[pick] = high
-        out[~pick] = low
-        return out
+def _left_done(expr: Binary, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
+    """``&``, ``|``, ``=>``: the right operand only where the left does not decide."""
+    left = _bools(values.pop())
+    if expr.op == "=>":
+        left = ~left
+    decided = left if expr.op != "&" else ~left
+    result = left.copy()
+    undecided = ~decided
+    if undecided.any():
+        todo += [(_RIGHT_DONE, expr, (result, undecided)),
+                 (_EVALUATE, expr.right, rows.subset(undecided))]
+    else:
+        values.append(result)
+
+
+def _right_done(
+    expr: Binary, kept: tuple[np.ndarray, np.ndarray], values: list[np.ndarray],
+    todo: list[_Step],
+) -> None:
+    result, undecided = kept
+    result[undecided] = _bools(values.pop())
+    values.append(result)
+
+
+def _choose(expr: Ite, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
+    pick = _bools(values.pop())
+    todo += [(_BRANCHES_DONE, expr, (rows, pick)),
+             (_EVALUATE, expr.otherwise, rows.subset(~pick)),
+             (_EVALUATE, expr.then, rows.subset(pick))]
+
+
+def _branches_done(
+    expr: Ite, kept: tuple[_Evaluator, np.ndarray], values: list[np.ndarray], todo: list[_Step]
+) -> None:
+    rows, pick = kept
+    low = values.pop()
+    high = values.pop()
+    kind = bool if high.dtype == bool and low.dtype == bool else object
+    out = np.empty(rows.n, dtype=kind)
+    out[pick] = high
+    out[~pick] = low
+    values.append(out)
+
+
+def _call_step(expr: Call, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
+    count = len(expr.args)
+    args = values[len(values) - count :]
+    del values[len(values) - count :]
+    values.append(_call(expr, args))
+
+
+_STEPS: dict[int, Callable[[Any, Any, list[np.ndarray], list[_Step]], None]] = {
+    _NEGATE: _negate,
+    _APPLY: _apply,
+    _LEFT_DONE: _left_done,
+    _RIGHT_DONE: _right_done,
+    _CHOOSE: _choose,
+    _BRANCHES_DONE: _branches_done,
+    _CALL: _call_step,
+}
 
 
 def _bools(values: np.ndarray) -> np.ndarray:
@@ -386,7 +459,36 @@ def _modulo(a: np.ndarray, b: np.ndarray, expr: Call) -> np.ndarray:
 
 
 def _text(expr: Expr) -> str:
-    """*expr* written back in PRISM syntax, for error messages."""
+    """*expr* written back in PRISM syntax, for error messages (children first, no
+    recursion)."""
+    done: dict[int, str] = {}
+    stack: list[tuple[Expr, bool]] = [(expr, False)]
+    while stack:
+        node, ready = stack.pop()
+        parts = _text_parts(node)
+        if not ready and parts:
+            stack.append((node, True))
+            stack.extend([(p, False) for p in reversed(parts)])
+            continue
+        done[id(node)] = _written(node, [done[id(p)] for p in parts])
+    return done[id(expr)]
+
+
+def _text_parts(expr: Expr) -> tuple[Expr, ...]:
+    match expr:
+        case Unary(operand=operand):
+            return (operand,)
+        case Binary(left=left, right=right):
+            return (left, right)
+        case Ite(cond=cond, then=then, otherwise=otherwise):
+            return (cond, then, otherwise)
+        case Call(args=args):
+            return args
+    return ()
+
+
+def _written(expr: Expr, parts: list[str]) -> str:
+    """*expr* in PRISM syntax, given its operands written."""
     match expr:
         case IntLit(value=value) | BoolLit(value=value):
             return str(value).lower() if isinstance(value, bool) else str(value)
@@ -394,12 +496,12 @@ def _text(expr: Expr) -> str:
             return text or repr(value)
         case Ident(name=name):
             return name
-        case Unary(op=op, operand=operand):
-            return f"{op}{_text(operand)}"
-        case Binary(op=op, left=left, right=right):
-            return f"({_text(left)} {op} {_text(right)})"
-        case Ite(cond=cond, then=then, otherwise=otherwise):
-            return f"({_text(cond)} ? {_text(then)} : {_text(otherwise)})"
-        case Call(func=func, args=args):
-            return f"{func}({', '.join(_text(a) for a in args)})"
+        case Unary(op=op):
+            return f"{op}{parts[0]}"
+        case Binary(op=op):
+            return f"({parts[0]} {op} {parts[1]})"
+        case Ite():
+            return f"({parts[0]} ? {parts[1]} : {parts[2]})"
+        case Call(func=func):
+            return f"{func}({', '.join(parts)})"
     return type(expr).__name__

@@ -1,0 +1,88 @@
+"""Long operator chains evaluated in a loop instead of nested calls.
+
+A compiled expression is a tree of closures, each calling its operands'. A chain
+such as ``a | b | c | ...`` (left-nested) or ``c1 ? v1 : c2 ? v2 : ...`` (nested in
+the last branch) becomes a nest of calls as deep as it is long, and a chain of a few
+hundred links exceeds Python's recursion limit at run time. Each compiled node made
+from an operand therefore also records a :class:`Link`: how its value follows from
+that operand's (its *below*). A node deep in such a chain gets the evaluator of
+:func:`unrolled`, which runs the links of the whole chain in a loop, in the order
+the nested calls would have run them, with the same numpy operations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol
+
+from veribattery._record import record
+from veribattery._types import IntArray
+
+__all__ = ["SPINE_LIMIT", "Link", "Linked", "same_rows", "unrolled"]
+
+#: Chains up to this many links keep their nested calls (at most a few hundred frames,
+#: and the fastest form); a node further down a chain is evaluated by :func:`unrolled`.
+SPINE_LIMIT = 48
+
+
+class Linked(Protocol):
+    """A compiled node as this module sees it."""
+
+    @property
+    def fn(self) -> Callable[[IntArray], Any]: ...
+
+    @property
+    def link(self) -> Link | None: ...
+
+
+@record
+class Link:
+    """How a node's value is made from the value of its operand *below*.
+
+    *descend* runs before *below*, on the node's rows: it returns what the node
+    keeps for later and the rows *below* is evaluated on (a condition and its
+    branch taken, and the other rows, for ``? :``). *combine* then makes the node's
+    value from what was kept and *below*'s value.
+    """
+
+    below: Linked
+    descend: Callable[[IntArray], tuple[Any, IntArray]]
+    combine: Callable[[Any, Any], Any]
+
+
+def same_rows(states: IntArray) -> tuple[IntArray, IntArray]:
+    """:attr:`Link.descend` of a node whose operand *below* is evaluated first, on the
+    same rows (an operator over its left operand): the rows are all it keeps."""
+    return states, states
+
+
+def unrolled(link: Link) -> Callable[[IntArray], Any]:
+    """The evaluator of a node made by *link*: its chain's links in a loop.
+
+    The chain is followed down from *link* to the first node without a link when
+    the evaluator first runs, and kept: a node whose evaluator never runs (a
+    prefix of a longer chain) costs nothing.
+    """
+    links: list[Link] = []
+    bottom: list[Callable[[IntArray], Any]] = []
+
+    def follow() -> None:
+        current: Link | None = link
+        while current is not None:
+            links.append(current)
+            current = current.below.link
+        bottom.append(links[-1].below.fn)
+
+    def evaluate(states: IntArray) -> Any:
+        if not bottom:
+            follow()
+        kept = []
+        for step in links:
+            context, states = step.descend(states)
+            kept.append(context)
+        value = bottom[0](states)
+        for step, context in zip(reversed(links), reversed(kept), strict=True):
+            value = step.combine(context, value)
+        return value
+
+    return evaluate
