@@ -170,12 +170,12 @@ def _files_written(fragment: Fragment, plot: Path | None, write: Path | None
             "merged_into": None if write is None else str(write)}
 
 
-@click.group("phm")
+@click.group("phm", short_help="Battery parameters from data or physics; forecasts.")
 def phm_group() -> None:
     """Battery prognostics: model parameters from cycling data, discharge curves, physics."""
 
 
-@phm_group.command("fade")
+@phm_group.command("fade", short_help="Fit capacity fade per cycle from a capacity log.")
 @click.argument("cycles", type=click.Path())
 @click.option("--at-cycle", metavar="CYCLE", default=None,
               help="Cycle the battery is at, >= 0 (default: the last logged cycle).")
@@ -243,7 +243,7 @@ def _print_fade(params: FadeParameters) -> None:
               f"fade {params.fade:.4g}/cycle, 95% CI [{low:.4g}, {high:.4g}]", markup=False)
 
 
-@phm_group.command("levels")
+@phm_group.command("levels", short_help="Voltage levels, SOC thresholds, consumption.")
 @click.argument("discharge", type=click.Path())
 @click.option("--capacity-ah", metavar="AH", default=None,
               help="Q_max for Coulomb counting, > 0 (default: the charge the log delivers).")
@@ -259,7 +259,11 @@ def _print_fade(params: FadeParameters) -> None:
 def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
                    config: Path | None, write: Path | None, plot_path: Path | None,
                    force: bool, output_format: str) -> None:
-    """Derive voltage levels, SOC thresholds (BA3) and consumption from a discharge curve."""
+    """Derive voltage levels, SOC thresholds and consumption from a discharge curve.
+
+    The thresholds are the paper's assumption BA3: the voltage level is high above
+    one SOC, low below another and medium in between.
+    """
     from veribattery.phm.data import read_discharge
     from veribattery.phm.refit import level_parameters
 
@@ -331,7 +335,7 @@ def _print_levels(params: LevelParameters, paper: StepFit | None) -> None:
                 title="Eq. 2 consumption, C = E_spec·t / (V·T), rounded half up:")
 
 
-@phm_group.command("simulate")
+@phm_group.command("simulate", short_help="PyBaMM discharge (and ageing) CSVs.")
 @click.option("--parameter-set", default="Chen2020", show_default=True,
               help="PyBaMM parameter set (built in; nothing is downloaded).")
 @click.option("--power-w", type=click.FloatRange(min=0, min_open=True), required=True,
@@ -343,8 +347,10 @@ def _print_levels(params: LevelParameters, paper: StepFit | None) -> None:
 @click.option("--sei", type=click.Choice(["reaction limited", "solvent-diffusion limited",
                                           "ec reaction limited",
                                           "interstitial-diffusion limited"]),
-              default="reaction limited", show_default=True,
-              help="SEI growth submodel of the ageing experiment.")
+              default="reaction limited", show_default=True, metavar="MODEL",
+              help="SEI growth submodel of the ageing experiment: 'reaction limited', "
+              "'solvent-diffusion limited', 'ec reaction limited' or "
+              "'interstitial-diffusion limited'.")
 @click.option("--period-s", type=click.FloatRange(min=1), default=30.0, show_default=True,
               help="Output time step of the discharge, s.")
 @click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path), default=Path("."),
@@ -372,7 +378,7 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
         click.echo(str(path))
 
 
-@phm_group.command("forecast")
+@phm_group.command("forecast", short_help="When does a requirement stop holding?")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("--cycles", "cycles_path", type=click.Path(), required=True,
               help="Capacity log (cycle,capacity_ah).")
@@ -483,7 +489,7 @@ def _csv_value(value: object) -> str:
     return format_value(value) if isinstance(value, bool) else repr(value)
 
 
-@click.command("recheck")
+@click.command("recheck", short_help="Refit from new data and re-verify; exit 1 on a regression.")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("--cycles", "cycles_path", type=click.Path(), required=True,
               help="Newest capacity log (cycle,capacity_ah).")
