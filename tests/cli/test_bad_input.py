@@ -13,12 +13,9 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from tests.cli.inputs import CASE1, SMALL
 from veribattery.cli import cli
 
-REPO = Path(__file__).resolve().parents[2]
-CASE1 = str(REPO / "configs" / "paper" / "case1.yaml")
-SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]",
-         "--set", "battery.resolution_ah=0.5", "--set", "battery.max_recharges=25")
 DIE = "dtmc\nmodule m\n  s : [0..2] init 0;\n  [] s<2 -> 0.5 : (s'=s+1) + 0.5 : (s'=0);\n" \
       "  [] s=2 -> true;\nendmodule\nlabel \"two\" = s=2;\n"
 

@@ -13,12 +13,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from tests.cli.inputs import CASE1, SMALL
 from veribattery.cli import cli
-
-REPO = Path(__file__).resolve().parents[2]
-CASE1 = str(REPO / "configs" / "paper" / "case1.yaml")
-SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]",
-         "--set", "battery.resolution_ah=0.5", "--set", "battery.max_recharges=25")
 
 #: (id, arguments, files written).
 WRITERS = [

@@ -10,29 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from tests.cli.inputs import CASE1, EXAMPLES, SMALL
 from tests.cli.terminal import Screen, run_in_terminal
+from tests.test_cli import DIE
 
-REPO = Path(__file__).resolve().parents[2]
-CASE1 = str(REPO / "configs" / "paper" / "case1.yaml")
-EXAMPLES = REPO / "examples" / "phm"
-#: A 3x3-turbine farm in 0.5 Ah units: ~2,500 states, a fraction of a second.
-SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]",
-         "--set", "battery.resolution_ah=0.5", "--set", "battery.max_recharges=25")
-DIE = """dtmc
-module die
-  s : [0..7] init 0;
-  d : [0..6] init 0;
-  [] s=0 -> 0.5 : (s'=1) + 0.5 : (s'=2);
-  [] s=1 -> 0.5 : (s'=3) + 0.5 : (s'=4);
-  [] s=2 -> 0.5 : (s'=5) + 0.5 : (s'=6);
-  [] s=3 -> 0.5 : (s'=1) + 0.5 : (s'=7) & (d'=1);
-  [] s=4 -> 0.5 : (s'=7) & (d'=2) + 0.5 : (s'=7) & (d'=3);
-  [] s=5 -> 0.5 : (s'=7) & (d'=4) + 0.5 : (s'=7) & (d'=5);
-  [] s=6 -> 0.5 : (s'=2) + 0.5 : (s'=7) & (d'=6);
-  [] s=7 -> (s'=7);
-endmodule
-label "six" = s=7 & d=6;
-"""
 CYCLES = "cycle,capacity_ah\n" + "".join(f"{n},{11 - 0.004 * n:.4f}\n" for n in range(0, 60, 5))
 
 #: (id, arguments, exit status, texts that must be on screen).

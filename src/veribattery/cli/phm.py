@@ -72,33 +72,30 @@ def _typed(text: str) -> str:
     return text if text else "''"
 
 
-def _number(option: str, text: str, rule: str) -> float:
-    """*text* as a finite float, else an :class:`OptionError` saying *rule*."""
+def _number(option: str, text: str | None, rule: str,
+            accept: Callable[[float], bool]) -> float | None:
+    """*text* as a finite float that *accept* takes (None stays None), else an
+    :class:`OptionError` saying *rule*."""
+    if text is None:
+        return None
     try:
         value = float(text)
     except ValueError:
         value = math.nan
-    if not math.isfinite(value):
+    if not math.isfinite(value) or not accept(value):
         raise OptionError(f"{option} {_typed(text)}: {rule}")
     return value
 
 
 def _at_cycle(text: str | None) -> float | None:
-    rule = ("must be a cycle number >= 0, e.g. 300 (leave it out for the last logged "
-            "cycle)")
-    value = None if text is None else _number("--at-cycle", text, rule)
-    if value is not None and value < 0:
-        raise OptionError(f"--at-cycle {text}: {rule}")
-    return value
+    return _number("--at-cycle", text, "must be a cycle number >= 0, e.g. 300 (leave it out "
+                   "for the last logged cycle)", lambda value: value >= 0)
 
 
 def _capacity(text: str | None) -> float | None:
-    rule = ("must be a positive number of Ah (Q_max, the full battery's charge), e.g. 5.0; "
-            "leave it out to use the charge the log delivers")
-    value = None if text is None else _number("--capacity-ah", text, rule)
-    if value is not None and value <= 0:
-        raise OptionError(f"--capacity-ah {text}: {rule}")
-    return value
+    return _number("--capacity-ah", text, "must be a positive number of Ah (Q_max, the full "
+                   "battery's charge), e.g. 5.0; leave it out to use the charge the log "
+                   "delivers", lambda value: value > 0)
 
 
 def _base_config(config: Path | None, write: Path | None) -> MissionConfig:

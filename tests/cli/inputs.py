@@ -1,0 +1,13 @@
+"""Inputs the CLI tests share: the paper's baseline config and a tiny farm to check fast."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from tests.sweep.helpers import SMALL_FARM
+
+REPO = Path(__file__).resolve().parents[2]
+CASE1 = str(REPO / "configs" / "paper" / "case1.yaml")
+EXAMPLES = REPO / "examples" / "phm"
+#: ``--set`` options for a 3x3-turbine farm in 0.5 Ah units (~2,500 states).
+SMALL = tuple(arg for item in SMALL_FARM for arg in ("--set", item))
