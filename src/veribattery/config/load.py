@@ -13,7 +13,9 @@ import yaml
 from pydantic import BaseModel
 
 from veribattery.config.exact import fraction_to_decimal
+from veribattery.config.origin import property_origins
 from veribattery.config.schema import MissionConfig
+from veribattery.config.source import compose, construct, decode
 from veribattery.config.validate import Path, known_keys, validate_config
 from veribattery.errors import ConfigError, Span
 
@@ -36,20 +38,22 @@ def load_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Mi
         malformed overrides and every validation problem.
     """
     text, source = _read(path_or_text)
-    data = _parse_yaml(text, source)
+    root = compose(text, source)
+    data = _mapping(construct(root, text, source), source)
     overridden: list[str] = []
     for item in overrides:
         key, value = parse_override(item)
         data = set_value(data, key, value)
         overridden.append(key)
-    root = _compose(text, source)
 
     def locate(path: Path) -> Span | None:
         if any(_under(path, key) for key in overridden):
             return None
         return _locate(root, path, source)
 
-    return validate_config(data, locate)
+    cfg = validate_config(data, locate)
+    cfg._property_origins = property_origins(cfg.properties, root, (text, source), overridden)
+    return cfg
 
 
 def _read(path_or_text: str | FsPath) -> tuple[str, str]:
@@ -57,9 +61,10 @@ def _read(path_or_text: str | FsPath) -> tuple[str, str]:
     if isinstance(path_or_text, FsPath) or _looks_like_path(path_or_text):
         path = FsPath(path_or_text)
         try:
-            return path.read_text(encoding="utf-8"), str(path)
+            data = path.read_bytes()
         except OSError as exc:
             raise ConfigError(f"cannot read config {str(path)!r}: {exc.strerror}") from None
+        return decode(data, str(path)), str(path)
     return path_or_text, "<string>"
 
 
@@ -69,28 +74,13 @@ def _looks_like_path(text: str) -> bool:
     return text.endswith((".yaml", ".yml")) or FsPath(text).is_file()
 
 
-def _parse_yaml(text: str, source: str) -> dict[str, Any]:
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(_yaml_message(exc), _yaml_span(exc, source)) from None
+def _mapping(data: object, source: str) -> dict[str, Any]:
     if data is None:
         return {}
     if not isinstance(data, dict):
         raise ConfigError(f"config: must be a mapping of keys, got {type(data).__name__}",
                           Span(1, 1, source))
     return data
-
-
-def _yaml_message(exc: yaml.YAMLError) -> str:
-    problem = getattr(exc, "problem", None) or str(exc)
-    context = getattr(exc, "context", None)
-    return f"YAML syntax error: {problem}" + (f" ({context})" if context else "")
-
-
-def _yaml_span(exc: yaml.YAMLError, source: str) -> Span | None:
-    mark = getattr(exc, "problem_mark", None)
-    return Span(mark.line + 1, mark.column + 1, source) if mark is not None else None
 
 
 def parse_override(item: str) -> tuple[str, object]:
@@ -104,11 +94,12 @@ def parse_override(item: str) -> tuple[str, object]:
         raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. strategy.safe_t=0.25")
     if not _known(key):
         raise ConfigError(f"--set {item!r}: {_unknown_key_message(key)}")
+    if not raw.strip():
+        return key, None
     try:
-        value = yaml.safe_load(raw) if raw.strip() else None
-    except yaml.YAMLError as exc:
-        message = f"--set {item!r}: value is not valid YAML: {_yaml_message(exc)}"
-        raise ConfigError(message) from None
+        value = construct(compose(raw, None, key), raw, None)
+    except ConfigError as exc:
+        raise ConfigError(f"--set {item!r}: value is not valid YAML: {exc.message}") from None
     return key, value
 
 
@@ -145,13 +136,6 @@ def set_value(cfg_dict: Mapping[str, Any], dotted_key: str, value: object) -> di
 def _under(path: Path, key: str) -> bool:
     parts = tuple(key.split("."))
     return tuple(str(p) for p in path[: len(parts)]) == parts
-
-
-def _compose(text: str, source: str) -> yaml.Node | None:
-    try:
-        return yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError:  # already parsed once; cannot happen, but never mask the real error
-        return None
 
 
 def _locate(node: yaml.Node | None, path: Path, source: str) -> Span | None:

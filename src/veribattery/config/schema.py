@@ -24,6 +24,7 @@ from pydantic import (
     ConfigDict,
     Discriminator,
     Field,
+    PrivateAttr,
     StrictInt,
     Tag,
     field_validator,
@@ -32,6 +33,8 @@ from pydantic import (
 from pydantic_core import PydanticCustomError
 
 from veribattery.config.exact import Exact, problem, show
+from veribattery.config.origin import PropertyOrigins
+from veribattery.errors import ConfigError, Span
 
 __all__ = [
     "BatteryConfig",
@@ -410,6 +413,8 @@ class MissionConfig(_Section):
     properties: dict[str, str] = Field(default_factory=lambda: dict(PAPER_PROPERTIES))
     requirements: tuple[str, ...] = ()
     sweep: SweepConfig = SweepConfig()
+    #: Where the property formulas were written (set by load_config; not compared).
+    _property_origins: PropertyOrigins = PrivateAttr(default_factory=PropertyOrigins)
 
     @field_validator("properties")
     @classmethod
@@ -434,6 +439,12 @@ class MissionConfig(_Section):
                     f"unknown property {req.prop!r} (declared: {names})", f"requirements.{i}"
                 )
         return self
+
+    def property_error(self, name: str, message: str, at: Span | None = None) -> ConfigError:
+        """A :class:`ConfigError` for a problem *at* a line:col of property *name*'s
+        formula, placed where the formula was written: its file position, or the
+        ``--set`` it came from (for a config built in code, the key alone)."""
+        return self._property_origins.error(name, self.properties[name], message, at)
 
     @property
     def parsed_requirements(self) -> tuple[Requirement, ...]:

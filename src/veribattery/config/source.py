@@ -1,0 +1,129 @@
+"""A config's text: decoded as UTF-8 and parsed as YAML, every problem placed at line:col.
+
+YAML alone lets a key appear twice in a mapping (the last one wins, silently); a
+config refuses that, naming both places. The document is composed once: its nodes
+tell :mod:`veribattery.config.load` where each key is written.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import yaml
+
+from veribattery.errors import ConfigError, Span
+
+__all__ = ["compose", "construct", "decode", "yaml_error"]
+
+_MERGE_TAG = "tag:yaml.org,2002:merge"
+
+
+def decode(data: bytes, source: str) -> str:
+    """*data* as text (newlines as :meth:`pathlib.Path.read_text` gives them).
+
+    :raises ConfigError: at the first byte that is not UTF-8.
+    """
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        before = data[: exc.start].decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
+        line = before.count("\n") + 1
+        col = len(before) - before.rfind("\n")
+        raise ConfigError(
+            f"not UTF-8 text (byte 0x{data[exc.start]:02x}); save the file as UTF-8",
+            Span(line, col, source),
+        ) from None
+    return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def compose(text: str, source: str | None, prefix: str = "") -> yaml.Node | None:
+    """The YAML node tree of *text* (None when it holds no document).
+
+    :param source: the file's name, or None for a one-line ``--set`` value (then a
+        duplicate key is placed by its columns, in the message).
+    :param prefix: the dotted key *text* is the value of (a ``--set`` key), for messages.
+    :raises ConfigError: on YAML syntax errors and on a key given twice in a mapping.
+    """
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        raise yaml_error(exc, text, source) from None
+    if root is not None:
+        _check_unique_keys(root, prefix, (yaml.constructor.SafeConstructor(), source))
+    return root
+
+
+def construct(root: yaml.Node | None, text: str, source: str | None) -> Any:
+    """The Python value of a node tree from :func:`compose`."""
+    if root is None:
+        return None
+    try:
+        return yaml.constructor.SafeConstructor().construct_document(root)
+    except yaml.YAMLError as exc:
+        raise yaml_error(exc, text, source) from None
+
+
+def yaml_error(exc: yaml.YAMLError, text: str, source: str | None) -> ConfigError:
+    """A :class:`ConfigError` for *exc*, at its line:col in *text* when known."""
+    if isinstance(exc, yaml.reader.ReaderError):
+        return ConfigError(
+            f"YAML does not allow the control character U+{exc.character:04X}; remove it",
+            _offset_span(text, exc.position, source),
+        )
+    problem = getattr(exc, "problem", None) or str(exc)
+    context = getattr(exc, "context", None)
+    message = f"YAML syntax error: {problem}" + (f" ({context})" if context else "")
+    mark = getattr(exc, "problem_mark", None)
+    if mark is None or source is None:
+        return ConfigError(message)
+    return ConfigError(message, Span(mark.line + 1, mark.column + 1, source))
+
+
+def _offset_span(text: str, offset: int, source: str | None) -> Span | None:
+    before = text[:offset]
+    line, col = before.count("\n") + 1, offset - before.rfind("\n")
+    return Span(line, col, source) if source is not None else None
+
+
+def _check_unique_keys(
+    node: yaml.Node, path: str, context: tuple[yaml.constructor.SafeConstructor, str | None]
+) -> None:
+    """Refuse a key written twice in any mapping under *node* (the value of *path*)."""
+    if isinstance(node, yaml.SequenceNode):
+        for index, item in enumerate(node.value):
+            _check_unique_keys(item, f"{path}[{index}]", context)
+    if not isinstance(node, yaml.MappingNode):
+        return
+    seen: dict[object, yaml.Node] = {}
+    for key, value in node.value:
+        name = _key(key, context[0])
+        dotted = f"{path}.{name}" if path else str(name)
+        if name is not None and name in seen:
+            raise _duplicate(dotted, seen[name], key, context[1])
+        if name is not None:
+            seen[name] = key
+        _check_unique_keys(value, dotted, context)
+
+
+def _key(node: yaml.Node, constructor: yaml.constructor.SafeConstructor) -> object:
+    """A scalar key's value (``1`` and ``01`` are one key), or None for other keys."""
+    if not isinstance(node, yaml.ScalarNode) or node.tag == _MERGE_TAG:
+        return None
+    try:
+        value: object = constructor.construct_object(node)
+    except yaml.YAMLError:
+        return node.value
+    return value if value.__hash__ is not None else node.value
+
+
+def _duplicate(dotted: str, first: yaml.Node, again: yaml.Node, source: str | None
+               ) -> ConfigError:
+    was, mark = first.start_mark, again.start_mark
+    if source is None:  # a one-line --set value: its columns say enough
+        return ConfigError(f"duplicate key '{dotted}' at column {mark.column + 1} "
+                           f"(first at column {was.column + 1}); give each key once")
+    return ConfigError(
+        f"duplicate key '{dotted}' (first at line {was.line + 1}, column {was.column + 1}); "
+        "give each key once",
+        Span(mark.line + 1, mark.column + 1, source),
+    )
