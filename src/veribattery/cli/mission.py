@@ -152,7 +152,8 @@ def print_mission_csv(report: MissionReport) -> None:
 @click.command("emit", short_help="Write a config's PRISM model and properties.")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path), required=True,
-              help="Directory for model.prism, properties.props, config.resolved.yaml.")
+              help="Directory for model.prism, properties.props (PRISM and Storm), "
+                   "storm-only.props (Storm only), config.resolved.yaml.")
 @set_option
 @click.option("--force", is_flag=True, help="Overwrite existing files.")
 def emit_command(config: Path, out_dir: Path, overrides: tuple[str, ...], force: bool) -> None:

@@ -1,0 +1,198 @@
+"""Bad configs a user meets in the first hour: each gives one located line, as a
+:class:`~veribattery.errors.VeribatteryError` from the library and, through the CLI,
+``error: ...`` on stderr with exit status 2, no traceback and nothing written.
+
+Each case is a config file (bytes, so that a stray byte can be in it), ``--set``
+overrides, and the message expected, ``{path}`` standing for the file's path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner, Result
+
+from veribattery.cli import cli
+from veribattery.config import MissionConfig, load_config
+from veribattery.errors import ConfigError, VeribatteryError
+from veribattery.mission import check_mission, mission_files, validate_properties
+
+SMALL = b"farm: {cols: 3, rows: 3, base: [0, 0]}\n"
+LABELS = "(known labels: deadlock, done, failure, init, success)"
+
+
+@dataclass(frozen=True, slots=True)
+class Bad:
+    """One bad config: its file, its overrides and the start of the expected message."""
+
+    name: str
+    content: bytes
+    expected: str
+    overrides: tuple[str, ...] = ()
+
+    def __str__(self) -> str:
+        return self.name
+
+
+ENCODING = [
+    Bad("byte-0xff", b"farm:\n  cols: 6 \xff\n", "{path}:2:11: not UTF-8 text (byte 0xff)"),
+    # Columns count characters: the two-byte e-acute before the bad byte is one column.
+    Bad("after-accent", "farm:\n  # caf\u00e9 ".encode() + b"\xe9t\xe9\n",
+        "{path}:2:10: not UTF-8 text (byte 0xe9)"),
+    Bad("latin-1-file", "# Stra\u00dfe\n".encode("latin-1"),
+        "{path}:1:7: not UTF-8 text (byte 0xdf)"),
+    Bad("nul-character", b"farm:\n  cols: 6\x00\n",
+        "{path}:2:10: YAML does not allow the control character U+0000"),
+]
+
+DUPLICATES = [
+    Bad("nested", b"farm:\n  cols: 3\n  rows: 3\n  cols: 4\n",
+        "{path}:4:3: duplicate key 'farm.cols' (first at line 2, column 3)"),
+    Bad("top-level", b"farm:\n  cols: 3\nstrategy: {safe_t: 0.2}\nfarm:\n  rows: 3\n",
+        "{path}:4:1: duplicate key 'farm' (first at line 1, column 1)"),
+    Bad("flow", b"farm: {cols: 3, rows: 3, cols: 4}\n",
+        "{path}:1:26: duplicate key 'farm.cols' (first at line 1, column 8)"),
+    Bad("property", SMALL + b"properties:\n  p: P=? [ F \"done\" ]\n  p: P=? [ F \"success\" ]\n",
+        "{path}:4:3: duplicate key 'properties.p' (first at line 3, column 3)"),
+    Bad("in-set", SMALL, "--set 'farm={cols: 3, cols: 4}': value is not valid YAML: "
+        "duplicate key 'farm.cols' at column 11 (first at column 2)", ("farm={cols: 3, cols: 4}",)),
+]
+
+PROPERTIES = [
+    # The formula is a plain or simply quoted scalar: the position is the file's own.
+    Bad("unknown-label", SMALL + b'properties:\n  bad: P=? [ F "nosuch" ]\n',
+        '{path}:3:16: properties.bad: unknown label "nosuch" ' + LABELS),
+    Bad("unknown-label-quoted", SMALL + b"properties:\n  bad: 'P=? [ F \"nosuch\" ]'\n",
+        '{path}:3:17: properties.bad: unknown label "nosuch" ' + LABELS),
+    Bad("unknown-reward", SMALL + b'properties:\n  bad: R{"nosuch"}=? [ F "done" ]\n',
+        '{path}:3:8: properties.bad: unknown reward structure "nosuch" '
+        '(the model has "mt", "rc")'),
+    Bad("syntax-end", SMALL + b"properties:\n  bad: P=? [ F\n",
+        "{path}:3:15: properties.bad: unexpected end of input (expected "),
+    Bad("syntax-token", SMALL + b"properties:\n  ok: P=? [ F \"done\" ]\n  bad: P=? [ F ) ]\n",
+        "{path}:4:16: properties.bad: unexpected token ')' (expected "),
+    Bad("unsupported", SMALL + b'properties:\n  bad: P=? [ X X "done" ]\n',
+        '{path}:3:8: properties.bad: unsupported property P=? [ X X "done" ]: temporal '
+        "operator X (next) inside another operator"),
+    Bad("named-formula", SMALL + b"properties:\n  bad: '\"x\": P=? [ F \"done\" ]'\n",
+        '{path}:3:9: properties.bad: the key names the property: write the formula '
+        'without "x":'),
+    # A literal block: the formula's lines are the file's lines.
+    Bad("block", SMALL + b'properties:\n  bad: |\n    P=? [\n      F "nosuch" ]\n',
+        '{path}:5:9: properties.bad: unknown label "nosuch" ' + LABELS),
+    # Escapes or folded lines: the key's place, and the column inside the formula.
+    Bad("escaped", SMALL + b'properties:\n  bad: "P=? [ F \\"nosuch\\" ]"\n',
+        '{path}:3:3: properties.bad: column 9 of the formula: unknown label "nosuch" '
+        + LABELS),
+    Bad("folded", SMALL + b'properties:\n  bad: >\n    P=? [ F\n    "nosuch" ]\n',
+        '{path}:3:3: properties.bad: column 9 of the formula: unknown label "nosuch" '
+        + LABELS),
+    Bad("set-label", SMALL, '--set properties.bad: column 9 of the formula: unknown label '
+        '"nosuch" ' + LABELS, ('properties.bad="P=? [ F \\"nosuch\\" ]"',)),
+    Bad("set-syntax", SMALL, "--set properties.bad: column 8 of the formula: unexpected end "
+        "of input (expected ", ("properties.bad=P=? [ F",)),
+    # A --set replaces the file's formula: the file's position no longer applies.
+    Bad("set-over-file", SMALL + b'properties:\n  bad: P=? [ F "done" ]\n',
+        '--set properties.bad: column 15 of the formula: unknown label "nosuch" ' + LABELS,
+        ('properties.bad=R{"mt"}=? [ F "nosuch" ]',)),
+]
+
+CASES = ENCODING + DUPLICATES + PROPERTIES
+
+
+def _write(tmp_path: Path, case: Bad) -> Path:
+    path = tmp_path / "mission.yaml"
+    path.write_bytes(case.content)
+    return path
+
+
+def _expected(case: Bad, path: Path) -> str:
+    return case.expected.replace("{path}", str(path))
+
+
+def _load_and_validate(path: Path, overrides: tuple[str, ...]) -> None:
+    validate_properties(load_config(path, overrides))
+
+
+@pytest.mark.parametrize("case", CASES, ids=str)
+def test_library_error_names_the_place(tmp_path: Path, case: Bad) -> None:
+    path = _write(tmp_path, case)
+    with pytest.raises(VeribatteryError) as info:
+        _load_and_validate(path, case.overrides)
+    assert isinstance(info.value, ConfigError)
+    assert str(info.value).startswith(_expected(case, path))
+    assert "\n" not in str(info.value)
+
+
+def _one_error_line(result: Result, case: Bad, path: Path) -> None:
+    assert result.exit_code == 2, result.output
+    assert "Traceback" not in result.output + result.stderr
+    assert result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: " + _expected(case, path))
+
+
+@pytest.mark.parametrize("case", CASES, ids=str)
+def test_check_prints_one_line_and_exits_2(tmp_path: Path, case: Bad) -> None:
+    path = _write(tmp_path, case)
+    sets = [arg for item in case.overrides for arg in ("--set", item)]
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["check", str(path), *sets, "--emit", str(out)])
+    _one_error_line(result, case, path)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("case", CASES, ids=str)
+def test_emit_refuses_and_writes_nothing(tmp_path: Path, case: Bad) -> None:
+    path = _write(tmp_path, case)
+    sets = [arg for item in case.overrides for arg in ("--set", item)]
+    out = tmp_path / "out"
+    result = CliRunner().invoke(cli, ["emit", str(path), *sets, "-o", str(out)])
+    _one_error_line(result, case, path)
+    assert not out.exists()
+
+
+def test_emit_into_an_existing_directory_leaves_it_empty(tmp_path: Path) -> None:
+    case = PROPERTIES[0]
+    path = _write(tmp_path, case)
+    out = tmp_path / "out"
+    out.mkdir()
+    result = CliRunner().invoke(cli, ["emit", str(path), "-o", str(out)])
+    assert result.exit_code == 2
+    assert list(out.iterdir()) == []
+
+
+def test_bad_property_is_refused_before_any_model_is_built(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def never(*_args: object, **_kwargs: object) -> None:
+        raise AssertionError("a model was built for a config with a bad property")
+
+    monkeypatch.setattr("veribattery.mission.check_model", never)
+    path = _write(tmp_path, PROPERTIES[0])
+    cfg = load_config(path)
+    for step in (check_mission, mission_files):
+        with pytest.raises(ConfigError, match=r'properties\.bad: unknown label "nosuch"'):
+            step(cfg)
+
+
+def test_config_built_in_python_names_the_key() -> None:
+    cfg = MissionConfig(properties={"bad": 'P=? [ F "nosuch" ]'})
+    with pytest.raises(ConfigError) as info:
+        validate_properties(cfg)
+    assert str(info.value) == (
+        f'properties.bad: column 9 of the formula: unknown label "nosuch" {LABELS}'
+    )
+
+
+def test_where_a_config_came_from_does_not_change_it(tmp_path: Path) -> None:
+    path = tmp_path / "baseline.yaml"
+    path.write_text("# the paper's baseline\nproperties:\n  p: P=? [ F \"done\" ]\n")
+    from_file = load_config(path)
+    from_text = load_config('properties:\n  p: P=? [ F "done" ]\n')
+    from_set = load_config("", ["properties={p: 'P=? [ F \"done\" ]'}"])
+    assert from_file == from_text == from_set == MissionConfig(
+        properties={"p": 'P=? [ F "done" ]'})
