@@ -7,6 +7,7 @@ bounded by the largest transition probability to the power of its length).
 
 from __future__ import annotations
 
+import dataclasses
 import heapq
 from fractions import Fraction
 
@@ -60,6 +61,19 @@ def test_most_probable_paths_of_a_loop_by_hand() -> None:
         [0, 3], [0, 1, 3], [0, 1, 0, 3], [0, 1, 0, 1, 3], [0, 1, 0, 1, 0, 3],
     ]
     assert [p.probability for p in paths] == pytest.approx([0.2, 0.05, 0.04, 0.01, 0.008])
+
+
+def test_a_path_below_the_float_range_keeps_its_probability() -> None:
+    # 0 -> 1 -> ... -> 400, each step 1/10 (else back to 0): P(path) = 1e-400 < 5e-324.
+    n = 400
+    chain = dtmc({i: {i + 1: 0.1, 0: 0.9} for i in range(1, n)} | {0: {1: 0.1, 0: 0.9}},
+                 n + 1)
+    (path,) = most_probable_paths(chain.transitions, 0, mask(n + 1, [n]), 1)
+    assert path.steps == n and path.probability == 0.0
+    assert path.log10_probability == pytest.approx(-400, rel=1e-12)
+    assert path.probability_text == "1e-400"
+    rounded = dataclasses.replace(path, log10_probability=-400.00000000001)
+    assert rounded.probability_text == "1e-400"  # not 10e-401
 
 
 def test_paths_when_target_unreachable_or_initial() -> None:

@@ -51,6 +51,20 @@ class ProbablePath:
 
     states: IntArray
     probability: float
+    #: ``log10`` of the probability: still finite where the product underflows to 0
+    #: (a path of hundreds of steps on a large farm).
+    log10_probability: float
+
+    @property
+    def probability_text(self) -> str:
+        """The probability to 6 significant digits, also below the float range."""
+        if self.probability > 0 or not math.isfinite(self.log10_probability):
+            return f"{self.probability:.6g}"
+        exponent = math.floor(self.log10_probability)
+        mantissa = f"{10 ** (self.log10_probability - exponent):.6g}"
+        if mantissa == "10":  # 9.9999996... rounds up to the next power of ten
+            mantissa, exponent = "1", exponent + 1
+        return f"{mantissa}e{exponent}"
 
     @property
     def steps(self) -> int:
@@ -87,7 +101,7 @@ def most_probable_paths(
     if count < 1:
         raise CheckError(f"the number of paths must be at least 1, not {count}")
     if target[source]:
-        return (ProbablePath(np.array([source], dtype=np.int64), 1.0),)
+        return (ProbablePath(np.array([source], dtype=np.int64), 1.0, 0.0),)
     tree = _shortest_tree(P, target)
     if not math.isfinite(tree.dist[source]):
         return ()
@@ -196,4 +210,5 @@ def _path_of(tree: _Tree, source: int, seq: tuple[int, ...]) -> ProbablePath:
     states.extend(_tree_path(tree, states[-1])[1:])
     path = np.asarray(states, dtype=np.int64)
     probs = np.asarray(tree.P[path[:-1], path[1:]]).ravel()
-    return ProbablePath(path, float(np.exp(np.sum(np.log(probs)))))
+    log10 = float(np.sum(np.log10(probs)))
+    return ProbablePath(path, float(10.0 ** log10), log10)

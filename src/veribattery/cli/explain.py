@@ -161,7 +161,8 @@ def _explanation_json(explanation: Explanation,
         f"p_{explanation.target}": explanation.probability,
         "breakdown": {"+".join(g.keys): g.records() for g in explanation.groupings},
         "paths": [
-            {"probability": p.probability, "steps": p.steps,
+            {"probability": p.probability, "log10_probability": p.log10_probability,
+             "steps": p.steps,
              "states": [{k: v for k, v in row.items() if k not in ("charge", "soc_text")}
                         for row in rows]}
             for p, rows in zip(explanation.paths, steps, strict=True)
@@ -182,7 +183,7 @@ def _print_explanation(
         _print_grouping(grouping, total)
     for number, (path, rows) in enumerate(zip(explanation.paths, steps, strict=True), 1):
         click.echo()
-        out.print(f"[bold]Path {number}[/]: probability {path.probability:.6g}, "
+        out.print(f"[bold]Path {number}[/]: probability {path.probability_text}, "
                   f"{path.steps} steps")
         _print_path(rows, columns, marker)
     if not explanation.paths:
