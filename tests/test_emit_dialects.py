@@ -129,16 +129,18 @@ def stormpy() -> Any:
 
 
 @pytest.mark.parametrize("extra", [False, True], ids=["paper", "extended"])
-@pytest.mark.parametrize("which", [PROPERTIES_FILE, STORM_ONLY_FILE])
-def test_storm_reads_each_file_with_the_model(
-    stormpy: Any, tmp_path: Path, extra: bool, which: str
-) -> None:
+def test_storm_reads_each_file_with_the_model(stormpy: Any, tmp_path: Path, extra: bool) -> None:
     files = mission_files(_config(extra))
     written = dict(zip(files.as_mapping(), write_files(files, tmp_path), strict=True))
     program = stormpy.parse_prism_program(str(written[MODEL_FILE]))
-    parsed = stormpy.parse_properties(str(written[which]), program)
-    assert [p.get_name() for p in parsed] == _names(written[which].read_text(encoding="utf-8"))
-    assert parsed or which == STORM_ONLY_FILE
+    names: dict[str, list[str]] = {}
+    for which in (PROPERTIES_FILE, STORM_ONLY_FILE):
+        parsed = stormpy.parse_properties(str(written[which]), program)
+        names[which] = [p.get_name() for p in parsed]
+        assert names[which] == _names(written[which].read_text(encoding="utf-8"))
+    assert names[PROPERTIES_FILE] and names[STORM_ONLY_FILE]
+    assert set(names[PROPERTIES_FILE]) | set(names[STORM_ONLY_FILE]) == set(
+        _config(extra).properties)
 
 
 # ---------------------------------------------------------------- writing
@@ -164,6 +166,18 @@ def test_an_existing_storm_only_file_stops_the_whole_write(tmp_path: Path) -> No
         write_files(mission_files(_config(False)), tmp_path)
     assert [p.name for p in tmp_path.iterdir()] == [STORM_ONLY_FILE]
     assert (tmp_path / STORM_ONLY_FILE).read_text() == "// mine\n"
+
+
+def test_a_failed_write_leaves_no_directory_behind(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    def full_disk(_targets: object) -> None:
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("veribattery.mission.write_texts", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        write_files(mission_files(_config(False)), tmp_path / "new" / "out")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_cli_emit_writes_and_names_the_four_files(tmp_path: Path) -> None:
