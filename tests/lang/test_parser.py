@@ -253,3 +253,22 @@ def test_true_update_may_stand_anywhere_in_a_sum() -> None:
     assert [len(u.assignments) for u in first.updates] == [0, 1]
     assert [len(u.assignments) for u in second.updates] == [1, 0]
     assert len(lone.updates) == 1 and lone.updates[0].assignments == ()
+
+
+def test_a_model_file_that_is_not_utf8_is_located(tmp_path) -> None:
+    from veribattery.errors import PrismSyntaxError
+    from veribattery.lang import parse_model
+
+    path = tmp_path / "bad.pm"
+    path.write_bytes(b"dtmc\nmodule m\n  s : [0..1] init 0; // caf\xe9\nendmodule\n")
+    with pytest.raises(PrismSyntaxError) as raised:
+        parse_model(path)
+    assert str(raised.value) == f"{path}:3:28: not UTF-8 text (byte 0xe9); save the file as UTF-8"
+
+
+def test_a_model_file_may_start_with_a_byte_order_mark(tmp_path) -> None:
+    from veribattery.lang import parse_model
+
+    path = tmp_path / "bom.pm"
+    path.write_bytes(b"\xef\xbb\xbfdtmc\nmodule m\n  s : [0..1] init 0;\nendmodule\n")
+    assert parse_model(path).modules[0].name == "m"

@@ -150,7 +150,7 @@ def test_csv_with_bom_is_read(tmp_path: Path) -> None:
 def test_csv_non_utf8_byte_is_located(tmp_path: Path) -> None:
     path = tmp_path / "cycles.csv"
     path.write_bytes(b"cycle,capacity_ah\n0,11\n1,10\xff9\n2,10.8\n")
-    assert_one_error(run("phm", "fade", str(path)), f"{path}:3:5: byte 0xff is not UTF-8")
+    assert_one_error(run("phm", "fade", str(path)), f"{path}:3:5: not UTF-8 text (byte 0xff)")
 
 
 def test_user_text_printed_as_typed(tmp_path: Path) -> None:

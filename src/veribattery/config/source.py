@@ -11,6 +11,7 @@ from typing import Any
 
 import yaml
 
+from veribattery._text import decode_text
 from veribattery.errors import ConfigError, Span
 
 __all__ = ["compose", "construct", "decode", "yaml_error"]
@@ -19,21 +20,11 @@ _MERGE_TAG = "tag:yaml.org,2002:merge"
 
 
 def decode(data: bytes, source: str) -> str:
-    """*data* as text (newlines as :meth:`pathlib.Path.read_text` gives them).
+    """*data* as text; see :func:`veribattery._text.decode_text`.
 
     :raises ConfigError: at the first byte that is not UTF-8.
     """
-    try:
-        text = data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        before = data[: exc.start].decode("utf-8").replace("\r\n", "\n").replace("\r", "\n")
-        line = before.count("\n") + 1
-        col = len(before) - before.rfind("\n")
-        raise ConfigError(
-            f"not UTF-8 text (byte 0x{data[exc.start]:02x}); save the file as UTF-8",
-            Span(line, col, source),
-        ) from None
-    return text.replace("\r\n", "\n").replace("\r", "\n")
+    return decode_text(data, source, ConfigError)
 
 
 def compose(text: str, source: str | None, prefix: str = "") -> yaml.Node | None:

@@ -13,6 +13,7 @@ import functools
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from veribattery._text import decode_text
 from veribattery.errors import PrismSyntaxError, Span, VeribatteryError
 from veribattery.lang.fastparse import Fallback, parse_fast
 from veribattery.lang.nodes import Model, PropertiesFile, Property
@@ -82,12 +83,14 @@ def _read(source: str | Path, name: str | None) -> tuple[str, str]:
     """The text and the name used in error messages; a str is PRISM text, never a path."""
     if isinstance(source, str):
         return source, name or "<string>"
+    shown = name or str(source)
     try:
-        return source.read_text(encoding="utf-8"), name or str(source)
+        data = source.read_bytes()
     except FileNotFoundError:
         raise PrismSyntaxError(f"file not found: {source}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise PrismSyntaxError(f"cannot read {source}: {exc}") from None
+    except OSError as exc:
+        raise PrismSyntaxError(f"cannot read {source}: {exc.strerror or exc}") from None
+    return decode_text(data, shown, PrismSyntaxError), shown
 
 
 def _describe_terminal(name: str) -> str:

@@ -10,7 +10,6 @@ and what would be right.
 
 from __future__ import annotations
 
-import codecs
 import csv
 import math
 from collections.abc import Sequence
@@ -19,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from veribattery._text import decode_text
 from veribattery._types import FloatArray, IntArray
 from veribattery.errors import Span, VeribatteryError
 
@@ -93,24 +93,12 @@ def read_table(path: str | Path, forms: Sequence[Sequence[str]]) -> Table:
 
 
 def _read_text(path: str | Path, source: str) -> str:
-    """The file's text; a UTF-8 byte-order mark (spreadsheets' "CSV UTF-8") is dropped."""
+    """The file's text (a byte-order mark dropped, as spreadsheets' "CSV UTF-8" writes)."""
     try:
         data = Path(path).read_bytes()
     except OSError as exc:
         raise PhmDataError(f"cannot read {source}: {exc.strerror}") from None
-    data = data.removeprefix(codecs.BOM_UTF8)
-    try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        raise _not_utf8(source, data, exc.start) from None
-
-
-def _not_utf8(source: str, data: bytes, start: int) -> PhmDataError:
-    """The error for the byte at *start*, located as an editor counts lines and columns."""
-    before = (data[:start].decode("utf-8") + "x").splitlines()  # "x": the bad byte's place
-    where = Span(len(before), len(before[-1]), source)
-    return PhmDataError(f"byte 0x{data[start]:02x} is not UTF-8 text; save the file as UTF-8 "
-                        "(\"CSV UTF-8\" in spreadsheets)", where)
+    return decode_text(data, source, PhmDataError)
 
 
 def _is_data(line: str) -> bool:
