@@ -192,12 +192,13 @@ def test_check_bad_config_exits_2_and_writes_nothing(
     assert not out.exists()
 
 
-def test_emit_writes_three_files_and_never_overwrites(tmp_path: Path, baseline: str) -> None:
+def test_emit_writes_four_files_and_never_overwrites(tmp_path: Path, baseline: str) -> None:
     out = tmp_path / "emitted"
     result = run("emit", baseline, *SMALL_FARM, "-o", str(out))
     assert result.exit_code == 0, result.output
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["config.resolved.yaml", "model.prism", "properties.props"]
+    assert names == ["config.resolved.yaml", "model.prism", "properties.props",
+                     "storm-only.props"]
     before = (out / "model.prism").read_text()
     again = run("emit", baseline, "-o", str(out))
     assert again.exit_code == 2
@@ -210,11 +211,14 @@ def test_emitted_files_check_like_the_config(tmp_path: Path, baseline: str) -> N
     out = tmp_path / "emitted"
     run("emit", baseline, *SMALL_FARM, "-o", str(out))
     direct = json.loads(run("check", baseline, *SMALL_FARM, "--format", "json").stdout)
-    via_files = json.loads(run(
-        "prism", str(out / "model.prism"), "--props", str(out / "properties.props"), "--json"
-    ).stdout)
-    assert via_files["model"]["states"] == direct["model"]["states"]
-    assert [r["value"] for r in via_files["results"]] == list(direct["results"].values())
+    values = {}
+    for props in ("properties.props", "storm-only.props"):
+        via_file = json.loads(run(
+            "prism", str(out / "model.prism"), "--props", str(out / props), "--json"
+        ).stdout)
+        assert via_file["model"]["states"] == direct["model"]["states"]
+        values |= {r["name"]: r["value"] for r in via_file["results"]}
+    assert values == direct["results"]  # the two files hold every property between them
     resolved = json.loads(run(
         "check", str(out / "config.resolved.yaml"), "--format", "json").stdout)
     assert resolved["results"] == direct["results"]

@@ -51,6 +51,8 @@ PROPERTIES_FILE = "properties.props"
 #: :func:`is_storm_only`): named so that nobody gives it to PRISM.
 STORM_ONLY_FILE = "storm-only.props"
 CONFIG_FILE = "config.resolved.yaml"
+#: Every file ``emit`` writes, in the order it lists them.
+EMITTED_FILES = (MODEL_FILE, PROPERTIES_FILE, STORM_ONLY_FILE, CONFIG_FILE)
 
 _BOTH_HEADER = f"""\
 // PRISM and Storm both read this file:
@@ -132,8 +134,8 @@ class MissionFiles:
 
     def as_mapping(self) -> Mapping[str, str]:
         """File name → text."""
-        return {MODEL_FILE: self.model, PROPERTIES_FILE: self.properties,
-                STORM_ONLY_FILE: self.storm_only, CONFIG_FILE: self.config}
+        texts = (self.model, self.properties, self.storm_only, self.config)
+        return dict(zip(EMITTED_FILES, texts, strict=True))
 
 
 def mission_files(cfg: MissionConfig) -> MissionFiles:

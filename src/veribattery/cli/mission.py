@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from veribattery.cli.files import check_output_dir
 from veribattery.cli.output import (
     EXACT_NOTE,
     build_progress,
@@ -53,9 +54,11 @@ def check_command(
 ) -> None:
     """Verify the mission of CONFIG (YAML); exit 1 if a requirement fails."""
     from veribattery.config import load_config
-    from veribattery.mission import check_mission, mission_files, write_files
+    from veribattery.mission import EMITTED_FILES, check_mission, mission_files, write_files
 
     with user_errors():
+        if emit_dir is not None:
+            check_output_dir(emit_dir, "--emit", force=force, names=EMITTED_FILES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
             report = check_mission(cfg, progress=progress, exact=exact, keep_states=False)
@@ -160,9 +163,16 @@ def emit_command(config: Path, out_dir: Path, overrides: tuple[str, ...], force:
     """Write the PRISM model and properties of CONFIG for PRISM or Storm."""
     from veribattery.config import load_config
     from veribattery.lang import flatten_model, parse_model, parse_properties
-    from veribattery.mission import MODEL_FILE, PROPERTIES_FILE, mission_files, write_files
+    from veribattery.mission import (
+        EMITTED_FILES,
+        MODEL_FILE,
+        PROPERTIES_FILE,
+        mission_files,
+        write_files,
+    )
 
     with user_errors():
+        check_output_dir(out_dir, "-o", force=force, names=EMITTED_FILES)
         files = mission_files(load_config(config, overrides))
         # The emitted text must be valid for our own front end before it is written.
         flatten_model(parse_model(files.model, name=MODEL_FILE))
