@@ -157,7 +157,7 @@ def test_user_text_printed_as_typed(tmp_path: Path) -> None:
     png = tmp_path / "[bold]my:warning:fade.png"
     result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--plot", str(png))
     assert result.exit_code == 0, result.output
-    assert f"figure: {png}\n" in result.stdout
+    assert f"wrote {png}\n" in result.stderr
     bad = tmp_path / "[red]my:warning:c.csv"
     bad.write_text("cycle,capacity_ah\n0,11\n1,x\n2,10\n")
     assert_one_error(run("phm", "fade", str(bad)), f"{bad}:3: row 2")

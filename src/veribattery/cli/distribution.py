@@ -12,6 +12,7 @@ from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, check_output_fi
 from veribattery.cli.output import (
     build_progress,
     print_warnings,
+    print_written,
     set_option,
     user_errors,
 )
@@ -63,11 +64,11 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
             dtmc = mission_dtmc(cfg, progress=progress)
         dist = _distribution(dtmc, reward, coverage, limits)
         if csv_path is not None:
-            write_csv(dist, csv_path)
+            print_written(write_csv(dist, csv_path))
         if plot_path is not None:
             from veribattery.analyses.distribution import plot_distribution
 
-            plot_distribution(dist, limits, plot_path)
+            print_written(plot_distribution(dist, limits, plot_path))
     print_warnings(dtmc.warnings)
     if output_format == "json":
         click.echo(json.dumps(_json(dist, limits)))

@@ -22,6 +22,7 @@ from veribattery.cli.output import (
     json_value,
     out,
     print_warnings,
+    print_written,
     set_option,
     user_errors,
 )
@@ -113,6 +114,7 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         steps = [_mission_steps(view, path.states) for path in explanation.paths]
         if csv_file is not None:
             _write_paths_csv(csv_file, explanation, steps)
+            print_written(csv_file)
     print_warnings(mission.dtmc.warnings)
     if output_format == "json":
         click.echo(json.dumps(_explanation_json(explanation, steps)))
@@ -296,6 +298,7 @@ def _write_simulated_paths(path: Path, dtmc: DTMC, simulation: Simulation,
     labeller = action_labeller(flat) if flat is not None else None
     header, rows = path_table(dtmc, simulation.paths, labeller)
     write_csv(path, header, rows)
+    print_written(path)
 
 
 def _show_simulation(simulation: Simulation, output_format: str) -> None:

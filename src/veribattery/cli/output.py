@@ -232,6 +232,12 @@ def print_imprecise(results: Sequence[CheckResult]) -> None:
                       "relative / 1e-12 absolute", markup=True)
 
 
+def print_written(*paths: object) -> None:
+    """List files just written, on stderr (stdout carries only the results)."""
+    for path in paths:
+        click.echo(f"wrote {path}", err=True)
+
+
 def print_timings(timings_s: dict[str, float]) -> None:
     """The stages' times, dim, on stdout (``Time: parse 0.004s, build 0.42s, ...``)."""
     text = ", ".join(f"{k} {v:.3f}s" for k, v in timings_s.items())

@@ -21,6 +21,7 @@ from veribattery.cli.output import (
     json_value,
     out,
     print_warnings,
+    print_written,
     set_option,
     user_errors,
 )
@@ -142,7 +143,7 @@ def _print_fragment(fragment: Fragment, write: Path | None) -> None:
 
 def _print_figure(path: Path | None) -> None:
     if path is not None:
-        out.print(f"figure: {path}", markup=False)
+        print_written(path)
 
 
 def _print_json(document: dict[str, object]) -> None:

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from veribattery.cli.files import check_output_dir
-from veribattery.cli.output import err, fail, user_errors
+from veribattery.cli.output import err, fail, print_written, user_errors
 from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
@@ -76,9 +76,9 @@ def _reproduce(what: str, directory: Path, options: Any, output_format: str) -> 
             frame = figures.capacity_sweep(_mkdir(directory), options, drawn)
             _report_failures(frame, figures.capacity_results(drawn))
             if what in ("fig6", "all"):
-                _written(figures.draw_fig6(frame, directory))
+                print_written(*figures.draw_fig6(frame, directory))
             if what in ("fig8", "all"):
-                _written(figures.draw_fig8(frame, directory))
+                print_written(*figures.draw_fig8(frame, directory))
 
 
 def _table3_in_process(output_format: str) -> None:
@@ -124,12 +124,7 @@ def _write_csv(table: Any, path: Path) -> None:
 
     with staged(path) as temporary:
         table.to_csv(temporary, index=False)  # shortest round-trip repr: 0.3, not 0.2999…
-    _written([path])
-
-
-def _written(paths: Sequence[Path]) -> None:
-    for path in paths:
-        click.echo(f"wrote {path}", err=True)
+    print_written(path)
 
 
 def _report_failures(frame: Any, results: str) -> None:

@@ -17,6 +17,7 @@ from veribattery.cli.output import (
     format_value,
     json_value,
     print_warnings,
+    print_written,
     rich_console,
     set_option,
     user_errors,
@@ -79,7 +80,7 @@ def sweep_command(
             name = plot_property or str(frame["property"].dropna().iloc[0])
             from veribattery.sweep import plot_sweep
 
-            plot_sweep(frame, plot_x, name, plot_path, properties=cfg.properties)
+            print_written(plot_sweep(frame, plot_x, name, plot_path, properties=cfg.properties))
     print_warnings(frame.attrs.get("warnings", ()))
     print_sweep(frame, [axis.key for axis in axes], output_format)
     err.print(summary_line(frame), markup=False)
