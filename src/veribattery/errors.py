@@ -56,6 +56,11 @@ class ModelError(VeribatteryError):
     """The state space cannot be built: out-of-range update, bad probabilities."""
 
 
+class ModelTooLarge(ModelError):
+    """The state space would not fit in the memory available: the builder stops while
+    it still can, and says how many states it found and how much more it needed."""
+
+
 class CheckError(VeribatteryError):
     """A property cannot be checked on a built model."""
 

@@ -25,9 +25,10 @@ from veribattery.errors import ModelError
 from veribattery.explore.compile import CompileCache, compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
+from veribattery.explore.guard import Footprint, MemoryGuard
 from veribattery.explore.layers import Layer, Layers
 from veribattery.explore.program import Program, compile_program
-from veribattery.explore.store import StateStore
+from veribattery.explore.store import StateStore, radix_words
 from veribattery.explore.successors import GroupSuccessors, expand_group
 from veribattery.lang.nodes import Expr, FlatModel, RewardStruct
 
@@ -39,6 +40,7 @@ __all__ = [
     "expand_frontier",
     "explore",
     "initial_states",
+    "memory_footprint",
     "rewarded_actions",
 ]
 
@@ -63,24 +65,34 @@ def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None 
     :param progress: called once per BFS layer with (states found so far, frontier size).
     :raises ModelError: an update leaves a variable's range, a probability is
         negative, or a choice's probabilities do not sum to 1.
+    :raises ModelTooLarge: the state space would not fit in the memory available.
     """
     states, initial, layers = explore(model, compile_program(model), progress)
     return assemble(model, states, initial, layers)
 
 
 def explore(
-    model: FlatModel, program: Program, progress: Callable[[int, int], None] | None = None
+    model: FlatModel,
+    program: Program,
+    progress: Callable[[int, int], None] | None = None,
+    guard: MemoryGuard | None = None,
 ) -> tuple[IntArray, IntArray, list[Layer]]:
     """Breadth-first search: the states in numbering order, the initial ones, the layers.
 
     Consecutive small layers are merged (see :class:`Layers`), so that the number of
     layers, and the per-layer work of their users, does not grow with the BFS depth.
+
+    :param progress: called once per BFS layer with (states found so far, frontier size).
+    :param guard: checked once per BFS layer (default: against the memory available).
+    :raises ModelTooLarge: when the search would outgrow the memory available.
     """
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rewarded = rewarded_actions(model.rewards)
     layers = Layers(_count_dtype(program))
-    low, size = 0, _FIRST_CHUNK
+    if guard is None:
+        guard = MemoryGuard(memory_footprint(program))
+    low, size, transitions = 0, _FIRST_CHUNK, 0
     while low < store.count:
         high = store.count
         # Chunks bound the memory of wide layers; sources stay in order, so the
@@ -90,11 +102,18 @@ def explore(
             stop = min(start + size, high)
             branches = _explore_chunk(program, store, (start, stop), rewarded, layers)
             size = _next_chunk(size, branches, stop - start, len(program.lows))
+            transitions += branches
             start = stop
         if progress is not None:
             progress(store.count, high - low)
+        guard.layer_done(store.count, high, high - low, transitions)
         low = high
     return store.states, initial, layers.done(store.count)
+
+
+def memory_footprint(program: Program) -> Footprint:
+    """The builder's bytes per state and transition for *program*'s states."""
+    return Footprint(len(program.lows), radix_words(program.lows, program.highs).shape[1])
 
 
 def _explore_chunk(
