@@ -10,7 +10,13 @@ import click
 from click.core import ParameterSource
 
 from veribattery.cli.files import check_output_file
-from veribattery.cli.output import build_progress, print_warnings, set_option, user_errors
+from veribattery.cli.output import (
+    build_progress,
+    print_warnings,
+    print_written,
+    set_option,
+    user_errors,
+)
 from veribattery.errors import OptionError
 
 #: The file types the report is written as.
@@ -70,7 +76,7 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
             data = write_report(output, cfg, options, sweep=sweep, progress=progress,
                                 notes=_note)
     print_warnings(data.verdict.warnings)
-    _note(f"{output} ({output.stat().st_size / 1024:,.0f} kB)")
+    print_written(output)
     sys.exit(0 if data.verdict.all_hold else 1)
 
 

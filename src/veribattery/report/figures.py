@@ -179,6 +179,10 @@ def heatmap_figure(farm: Farm, failures: Failures) -> Svg:
                     va="center", fontsize=6.5, zorder=6,
                     color="white" if norm(p) > 0.75 else "black")
         bar = figure.colorbar(ScalarMappable(norm=norm, cmap=colours), ax=ax, shrink=0.85)
+        # matplotlib rasterises a long colour bar into an embedded PNG; keep it vector,
+        # so that the page holds no image at all.
+        if bar.solids is not None:
+            bar.solids.set_rasterized(False)
         bar.set_label("P(failure) entered from the cell")
     ax.set_title(f"P(failure) = {failures.probability:.4g}, by cell", loc="left")
     after = _after_route(failures)
