@@ -1,13 +1,14 @@
 """Long operator chains evaluated in a loop instead of nested calls.
 
 A compiled expression is a tree of closures, each calling its operands'. A chain
-such as ``a | b | c | ...`` (left-nested) or ``c1 ? v1 : c2 ? v2 : ...`` (nested in
-the last branch) becomes a nest of calls as deep as it is long, and a chain of a few
-hundred links exceeds Python's recursion limit at run time. Each compiled node made
-from an operand therefore also records a :class:`Link`: how its value follows from
-that operand's (its *below*). A node deep in such a chain gets the evaluator of
-:func:`unrolled`, which runs the links of the whole chain in a loop, in the order
-the nested calls would have run them, with the same numpy operations.
+such as ``a | b | c | ...`` (left-nested), ``a | (b | (c | ...))`` (right-nested) or
+``c1 ? v1 : c2 ? v2 : ...`` (nested in the last branch) becomes a nest of calls as
+deep as it is long, and a chain of a few hundred links exceeds Python's recursion
+limit at run time. Each compiled node made from operands therefore also records a
+:class:`Link`: how its value follows from that of its deepest operand (its *below*).
+A node deep in such a chain gets the evaluator of :func:`unrolled`, which runs the
+links of the whole chain in a loop, in the order the nested calls would have run
+them, with the same numpy operations.
 """
 
 from __future__ import annotations
@@ -39,18 +40,20 @@ class Linked(Protocol):
 class Link:
     """How a node's value is made from the value of its operand *below*.
 
-    *descend* runs before *below*, on the node's rows: it returns what the node
-    keeps for later and the rows *below* is evaluated on (a condition and its
-    branch taken, and the other rows, for ``? :``). *combine* then makes the node's
-    value from what was kept and *below*'s value.
+    *descend* runs before *below*, on the node's rows, and evaluates what comes
+    before it: it returns what the node keeps for later and the rows *below* is
+    evaluated on (for ``? :``, the condition and the branch taken, and the other
+    rows), or the node's value and None when *below* is not needed at all (``a | b``
+    with ``a`` true in every row). *combine* then makes the node's value from what
+    was kept and *below*'s value.
     """
 
     below: Linked
-    descend: Callable[[IntArray], tuple[Any, IntArray]]
+    descend: Callable[[IntArray], tuple[Any, IntArray | None]]
     combine: Callable[[Any, Any], Any]
 
 
-def same_rows(states: IntArray) -> tuple[IntArray, IntArray]:
+def same_rows(states: IntArray) -> tuple[IntArray, IntArray | None]:
     """:attr:`Link.descend` of a node whose operand *below* is evaluated first, on the
     same rows (an operator over its left operand): the rows are all it keeps."""
     return states, states
@@ -78,10 +81,15 @@ def unrolled(link: Link) -> Callable[[IntArray], Any]:
             follow()
         kept = []
         for step in links:
-            context, states = step.descend(states)
+            context, rows = step.descend(states)
+            if rows is None:  # decided here: *context* is this link's value
+                value = context
+                break
             kept.append(context)
-        value = bottom[0](states)
-        for step, context in zip(reversed(links), reversed(kept), strict=True):
+            states = rows
+        else:
+            value = bottom[0](states)
+        for step, context in zip(reversed(links[: len(kept)]), reversed(kept), strict=True):
             value = step.combine(context, value)
         return value
 

@@ -410,7 +410,8 @@ def _shape(expr: Expr, cache: CompileCache | None) -> tuple[frozenset[str], int]
     """:func:`_shape_of`, memoised in *cache* by structural number when there is one."""
     if cache is None:
         return _shape_of(expr)
-    return _shapes(expr, cache.shapes, cache.key)
+    found = cache.shapes.get(cache.key(expr))  # the usual case: operands are shaped
+    return found if found is not None else _shapes(expr, cache.shapes, cache.key)
 
 
 def _shape_of(expr: Expr) -> tuple[frozenset[str], int]:
@@ -593,10 +594,19 @@ def _lift(
             pass  # e.g. ``N=0 ? 0 : 1/N``: only fail if the branch is ever evaluated
     return _made(
         _applied(op, [a.fn for a in args]),
-        link or Link(args[0], same_rows, _rest_applied(op, [a.fn for a in args[1:]])),
+        link or _operand_link(op, args),
         risky=risky or any(a.risky for a in args),
         labels=any(a.labels for a in args),
     )
+
+
+def _operand_link(op: Callable[..., Any], args: Sequence[_Node]) -> Link:
+    """``op`` over *args* as a link through the first operand, or through the second
+    when that one heads the longer chain (``a + (b + (c + ...))``)."""
+    if len(args) == 2 and args[1].spine > args[0].spine:
+        first = args[0].fn
+        return Link(args[1], lambda states: (first(states), states), op)
+    return Link(args[0], same_rows, _rest_applied(op, [a.fn for a in args[1:]]))
 
 
 def _made(fn: _Fn, link: Link, risky: bool, labels: bool) -> _Node:
@@ -678,15 +688,30 @@ def _logical(op: str, left: _Node, right: _Node, big: bool = False) -> _Node:
     decided_value = op != "&"
     lfn, rfn = left.fn, right.fn
 
-    def rest(states: IntArray, value: Any) -> Any:
+    def undecided(states: IntArray, value: Any) -> tuple[Any, Any]:
         first = np.broadcast_to(np.asarray(value, dtype=bool), (states.shape[0],))
-        result = first.copy()
-        todo = first != decided_value
+        return first.copy(), first != decided_value
+
+    def rest(states: IntArray, value: Any) -> Any:
+        result, todo = undecided(states, value)
         if np.count_nonzero(todo):
             result[todo] = np.asarray(rfn(states[todo]), dtype=bool)
         return result
 
-    return _made(lambda states: rest(states, lfn(states)), Link(left, same_rows, rest),
+    def descend(states: IntArray) -> tuple[Any, IntArray | None]:
+        result, todo = undecided(states, lfn(states))
+        if np.count_nonzero(todo):
+            return (result, todo), states[todo]
+        return result, None
+
+    def fill(kept: tuple[Any, Any], value: Any) -> Any:
+        result, todo = kept
+        result[todo] = np.asarray(value, dtype=bool)
+        return result
+
+    link = (Link(right, descend, fill) if right.spine > left.spine
+            else Link(left, same_rows, rest))
+    return _made(lambda states: rest(states, lfn(states)), link,
                  risky=True, labels=left.labels)
 
 
@@ -697,45 +722,77 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: _Node, rig
     """
     lfn, rfn = left.fn, right.fn
 
-    def rest(states: IntArray, first: Any) -> Any:
+    def decided(first: Any) -> Any:
+        """The left value as booleans, and whether it decides every row."""
         if type(first) is not np.ndarray or first.dtype != np.bool_:  # usually it is
             first = np.asarray(first, dtype=bool)
         # count_nonzero: a fraction of the cost of .any()/.all() on short arrays
-        if first.ndim and np.count_nonzero(first) == (first.size if decided_value else 0):
-            return first
-        return combine(first, rfn(states))
+        return first, first.ndim and np.count_nonzero(first) == (
+            first.size if decided_value else 0)
 
-    return _made(lambda states: rest(states, lfn(states)), Link(left, same_rows, rest),
+    def rest(states: IntArray, value: Any) -> Any:
+        first, done = decided(value)
+        return first if done else combine(first, rfn(states))
+
+    def descend(states: IntArray) -> tuple[Any, IntArray | None]:
+        first, done = decided(lfn(states))
+        return first, (None if done else states)
+
+    link = (Link(right, descend, combine) if right.spine > left.spine
+            else Link(left, same_rows, rest))
+    return _made(lambda states: rest(states, lfn(states)), link,
                  risky=left.risky or right.risky, labels=left.labels or right.labels)
 
 
 def _ite(cond: _Node, then: _Node, otherwise: _Node) -> _Node:
-    """``cond ? then : otherwise``; linked through *otherwise*, where chains of
-    ``? :`` nest."""
+    """``cond ? then : otherwise``, linked through the branch that heads the longer
+    chain (usually *otherwise*: ``c1 ? v1 : c2 ? v2 : ...``)."""
     if cond.is_const:
         return then if bool(cond.const) else otherwise
-    cfn, tfn, ofn = cond.fn, then.fn, otherwise.fn
     if not (then.subsettable or otherwise.subsettable):
-        both = Link(otherwise, lambda states: ((cfn(states), tfn(states)), states),
-                    lambda kept, low: np.where(kept[0], kept[1], low))
-        return _lift(np.where, [cond, then, otherwise], link=both)
+        return _lift(np.where, [cond, then, otherwise], link=_both_link(cond, then, otherwise))
+    cfn, tfn, ofn = cond.fn, then.fn, otherwise.fn
 
-    def descend(states: IntArray) -> tuple[Any, IntArray]:
-        pick = np.broadcast_to(np.asarray(cfn(states), dtype=bool), (states.shape[0],))
-        return (pick, tfn(states[pick])), states[~pick]
-
-    def combine(kept: tuple[Any, Any], low: Any) -> Any:
-        pick, high = kept
-        out = np.empty(pick.shape[0], dtype=np.result_type(high, low))
-        out[pick] = high
-        out[~pick] = low
-        return out
+    def picked(states: IntArray) -> Any:
+        return np.broadcast_to(np.asarray(cfn(states), dtype=bool), (states.shape[0],))
 
     def evaluate(states: IntArray) -> Any:
-        kept, rest = descend(states)
-        return combine(kept, ofn(rest))
+        pick = picked(states)
+        return _merged(pick, tfn(states[pick]), ofn(states[~pick]))
 
-    return _made(evaluate, Link(otherwise, descend, combine), risky=True, labels=cond.labels)
+    def to_then(states: IntArray) -> tuple[Any, IntArray | None]:
+        pick = picked(states)
+        return (pick, states), states[pick]
+
+    def to_otherwise(states: IntArray) -> tuple[Any, IntArray | None]:
+        pick = picked(states)
+        return (pick, tfn(states[pick])), states[~pick]
+
+    if then.spine > otherwise.spine:
+        link = Link(then, to_then,
+                    lambda kept, high: _merged(kept[0], high, ofn(kept[1][~kept[0]])))
+    else:
+        link = Link(otherwise, to_otherwise, lambda kept, low: _merged(kept[0], kept[1], low))
+    return _made(evaluate, link, risky=True, labels=cond.labels)
+
+
+def _both_link(cond: _Node, then: _Node, otherwise: _Node) -> Link:
+    """``np.where(cond, then, otherwise)``, all three on every row, as a link through
+    the branch that heads the longer chain."""
+    cfn, tfn, ofn = cond.fn, then.fn, otherwise.fn
+    if then.spine > otherwise.spine:
+        return Link(then, lambda states: ((cfn(states), states), states),
+                    lambda kept, high: np.where(kept[0], high, ofn(kept[1])))
+    return Link(otherwise, lambda states: ((cfn(states), tfn(states)), states),
+                lambda kept, low: np.where(kept[0], kept[1], low))
+
+
+def _merged(pick: Any, high: Any, low: Any) -> Any:
+    """*high* where *pick*, *low* elsewhere, in the type that holds both."""
+    out = np.empty(pick.shape[0], dtype=np.result_type(high, low))
+    out[pick] = high
+    out[~pick] = low
+    return out
 
 
 def _divide(a: Any, b: Any, span: Span) -> Any:

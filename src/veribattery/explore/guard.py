@@ -76,14 +76,15 @@ class MemoryGuard:
     need comes near it).
 
     :param footprint: the builder's bytes per state and transition.
-    :param available: the memory available now, in bytes (None: unknown, no guard).
+    :param available: the memory available now, in bytes, or None if unknown (then
+        nothing is checked); default :func:`available_memory`.
     """
 
     def __init__(
-        self, footprint: Footprint, available: Callable[[], int | None] = available_memory
+        self, footprint: Footprint, available: Callable[[], int | None] | None = None
     ) -> None:
         self.footprint = footprint
-        self._available = available
+        self._available = available if available is not None else available_memory
         self._known: int | None = None
 
     def layer_done(self, states: int, expanded: int, frontier: int, transitions: int) -> None:
