@@ -156,3 +156,14 @@ def test_case1_is_the_papers_baseline(case1_report: Made) -> None:
     assert isinstance(check, dict)
     assert check["model"] == {"states": 176_481, "transitions": 350_504}
     assert CASE1.endswith("case1.yaml")
+
+
+@pytest.mark.parametrize("name", ["case1.html", "case1-12.8Ah.html"])
+def test_the_example_reports_in_docs_stay_self_contained(name: str) -> None:
+    path = Path(__file__).resolve().parents[2] / "docs" / "reports" / name
+    if not path.exists():
+        pytest.skip(f"{path} is not there (make reports)")
+    page = path.read_text(encoding="utf-8")
+    assert path.stat().st_size < MOST_BYTES
+    assert "http://" not in page and "https://" not in page
+    assert all(url.startswith("#") for url in outline(page).urls)

@@ -70,7 +70,7 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
         cfg = load_config(config, overrides)
         sweep = read_sweep(sweep_file, config, cfg) if sweep_file is not None else None
         options = ReportOptions(runs=runs, seed=seed, top=top, deadlines=limits,
-                                working_day_minutes=day, title=config.name,
+                                working_day_minutes=day, title=config.name, settings=overrides,
                                 command_line=_command_line(click.get_current_context()))
         with build_progress() as progress:
             data = write_report(output, cfg, options, sweep=sweep, progress=progress,

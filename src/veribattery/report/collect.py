@@ -54,6 +54,8 @@ class ReportOptions:
     :ivar working_day_minutes: minutes in a working day ``d``.
     :ivar coverage: the mission-time distribution is computed until this share.
     :ivar title: the report's title (the config's name).
+    :ivar settings: the ``--set KEY=VALUE`` overrides the config was loaded with, shown
+        under the title (two reports of one file differ by them).
     :ivar command_line: the command that made the report, for reproducibility.
     """
 
@@ -65,6 +67,7 @@ class ReportOptions:
     working_day_minutes: float = 480.0
     coverage: float = 0.999
     title: str = "mission"
+    settings: tuple[str, ...] = ()
     command_line: str = ""
 
 
@@ -100,7 +103,7 @@ def collect_report(cfg: MissionConfig, options: ReportOptions, *,
             simulation = monte_carlo(report.run, mission.dtmc, runs=options.runs,
                                      seed=options.seed, max_steps=options.max_steps)
     provenance = _provenance(options, files, mission.dtmc, clock.seconds)
-    return ReportData(options.title, make_verdict(report), farm_picture(mission),
+    return ReportData(options.title, options.settings, make_verdict(report), farm_picture(mission),
                       battery_picture(mission), failures, timing, simulation, sweep, provenance)
 
 

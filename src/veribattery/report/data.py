@@ -418,9 +418,13 @@ class Provenance:
 
 @dataclass(frozen=True, slots=True)
 class ReportData:
-    """Every number of one mission report. *simulation* and *sweep* are optional."""
+    """Every number of one mission report. *simulation* and *sweep* are optional.
+
+    :ivar settings: the ``--set`` overrides of the config file (*title*).
+    """
 
     title: str
+    settings: tuple[str, ...]
     verdict: Verdict
     farm: Farm
     battery: Battery

@@ -120,7 +120,7 @@ def farm_figure(farm: Farm) -> Svg:
 @styled
 def battery_figure(battery: Battery, expected_recharges: float | None) -> Svg:
     """Capacity after each recharge, with the voltage levels and the reserve over it."""
-    figure = new_figure(6.4, 3.4)
+    figure = new_figure(6.4, 4.2)
     ax = figure.add_subplot()
     rc = np.arange(len(battery.capacity_ah))
     cap = np.asarray(battery.capacity_ah)
@@ -141,7 +141,8 @@ def battery_figure(battery: Battery, expected_recharges: float | None) -> Svg:
     ax.set_ylim(0, max(cap) * 1.05)
     ax.set_xlabel("recharges so far")
     ax.set_ylabel("charge (Ah)")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1), fontsize=7.5, frameon=False)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncols=2, fontsize=8.5,
+              frameon=False)
     ax.grid(True, alpha=0.3)
     desc = (f"The capacity starts at {cap[0]:g} Ah and is {cap[-1]:g} Ah after "
             f"{rc[-1]} recharges (fade {battery.fade_per_recharge:g} per recharge). The "
@@ -155,7 +156,7 @@ def battery_figure(battery: Battery, expected_recharges: float | None) -> Svg:
 @styled
 def heatmap_figure(farm: Farm, failures: Failures) -> Svg:
     """P(failure) entered from each cell, on the farm (log colour scale)."""
-    figure = new_figure(5.6, 4.6)
+    figure = new_figure(5.4, 4.6)
     ax = figure.add_subplot()
     _farm_axes(ax, farm)
     values = dict(failures.by_cell)
@@ -176,7 +177,7 @@ def heatmap_figure(farm: Farm, failures: Failures) -> Svg:
             tips[f"cell-{i}"] = (f"cell [{cell[0]},{cell[1]}]: P(failure) = {p:.4g} "
                                  f"({share:.2%} of all failures)")
             ax.text(cell[0] + 0.5, cell[1] + 0.5, f"{p:.1e}\n{share:.0%}", ha="center",
-                    va="center", fontsize=6.5, zorder=6,
+                    va="center", fontsize=7, zorder=6,
                     color="white" if norm(p) > 0.75 else "black")
         bar = figure.colorbar(ScalarMappable(norm=norm, cmap=colours), ax=ax, shrink=0.85)
         # matplotlib rasterises a long colour bar into an embedded PNG; keep it vector,
@@ -225,7 +226,7 @@ def breakdown_figure(failures: Failures) -> Svg:
             tips[gid] = f"{title[3:]} {row.values[0]}: P(failure) = {row.probability:.4g} " \
                         f"({row.share:.2%})"
             ax.text(min(bar.get_width(), 100) + 1, bar.get_y() + bar.get_height() / 2,
-                    f"{row.probability:.3g}", va="center", fontsize=7.5)
+                    f"{row.probability:.3g}", va="center", fontsize=8.5)
         parts.append(", ".join(f"{n} {s:.1f}%" for n, s in zip(names, shares, strict=True)))
         ax.set_xlim(0, 125)
         ax.set_xticks([0, 25, 50, 75, 100])
@@ -244,7 +245,7 @@ def _level_colour(name: str) -> str:
 def paths_figure(paths: Sequence[FailurePath]) -> Svg:
     """Battery charge along the most probable failure paths: over the whole mission (hours)
     and over the final sortie's steps, each action marked."""
-    figure = new_figure(7.0, 3.4)
+    figure = new_figure(6.8, 3.4)
     whole, sortie = figure.subplots(1, 2, width_ratios=(1.1, 1))
     tips: dict[str, str] = {}
     for path in paths:
@@ -259,7 +260,7 @@ def paths_figure(paths: Sequence[FailurePath]) -> Svg:
     whole.set_ylabel("charge (Ah)")
     whole.set_title("whole path", loc="left")
     whole.grid(True, alpha=0.3)
-    whole.legend(fontsize=7, loc="lower left")
+    whole.legend(fontsize=8, loc="lower left")
     sortie.set_xlabel("steps before the failure")
     sortie.set_title("final sortie", loc="left")
     sortie.grid(True, alpha=0.3)
@@ -297,7 +298,7 @@ def _action_legend(ax: Axes) -> None:
                for name, m in shown.items()]
     handles.append(Line2D([], [], marker="X", linestyle="none", color=RED,
                           label="out of battery"))
-    ax.legend(handles=handles, fontsize=7, loc="upper right", ncols=2)
+    ax.legend(handles=handles, fontsize=8, loc="upper right", ncols=2)
 
 
 @styled
@@ -312,7 +313,7 @@ def time_figure(timing: MissionTime) -> Svg:
     tips: dict[str, str] = {}
     for i, (q, value) in enumerate(timing.quantiles):
         ax.axvline(value, color=GREEN, linestyle=":", linewidth=1)
-        ax.text(value, 0.05 + 0.08 * i, f" {q:.0%}: {value:g} min", fontsize=7.5, color=GREEN,
+        ax.text(value, 0.05 + 0.08 * i, f" {q:.0%}: {value:g} min", fontsize=8.5, color=GREEN,
                 transform=ax.get_xaxis_transform())
     for i, d in enumerate(timing.deadlines):
         dot = ax.scatter([d.minutes], [d.p_success], color=BLUE, s=18, zorder=4)
@@ -327,7 +328,7 @@ def time_figure(timing: MissionTime) -> Svg:
     top = ax.secondary_xaxis("top", functions=(_scaled(1 / day), _scaled(day)))
     top.set_xlabel(f"working days of {day / 60:g} h")
     ax.grid(True, alpha=0.3)
-    ax.legend(loc="center left", fontsize=7.5)
+    ax.legend(loc="center left", fontsize=8.5)
     quantiles = ", ".join(f"{q:.0%} by {v:g} min" for q, v in timing.quantiles)
     desc = (f"Cumulative distribution of mission time. Given success, the mission ends "
             f"{quantiles}. P(success) overall is {timing.p_success:.6g}.")
@@ -371,7 +372,7 @@ def _sweep_figure(sweep: SweepResults, prop: str, index: int, formulas: dict[str
     bounds = [r for r in sweep.requirements if r.prop == prop]
     for req in bounds:
         ax.axhline(req.bound, color=DARK_RED, linestyle="--", linewidth=0.9)
-        ax.text(0.99, req.bound, f"{req.text} ", color=DARK_RED, fontsize=7.5, va="bottom",
+        ax.text(0.99, req.bound, f"{req.text} ", color=DARK_RED, fontsize=8, va="top",
                 ha="right", transform=ax.get_yaxis_transform())
     turns = [c for c in sweep.crossings if c.prop == prop]
     for i, turn in enumerate(turns):
