@@ -4,7 +4,11 @@ from __future__ import annotations
 
 from importlib.resources import files
 
+import pytest
+from click.testing import CliRunner
+
 import veribattery.report
+from veribattery.cli import cli
 
 EXPECTED = {"ReportData", "ReportOptions", "SweepResults", "collect_report", "make_report",
             "page_of", "read_sweep", "write_report"}
@@ -22,3 +26,11 @@ def test_the_templates_are_package_data() -> None:
     folder = files("veribattery.report") / "templates"
     names = {path.name for path in folder.iterdir()}
     assert {"report.html.j2", "macros.html.j2", "report.css", "report.js"} <= names
+
+
+def test_the_command_is_listed() -> None:
+    if "report" not in cli.list_commands(None):  # type: ignore[arg-type]
+        pytest.skip("'report' is not in veribattery.cli._COMMANDS yet: add "
+                    '"report": ("veribattery.cli.report", "report_command")')
+    result = CliRunner().invoke(cli, ["report", "--help"], terminal_width=80)
+    assert result.exit_code == 0 and max(map(len, result.stdout.splitlines())) <= 80
