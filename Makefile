@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test setup lint typecheck bench clean bytecode
+.PHONY: run test setup lint typecheck bench clean bytecode chromium reports
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -25,8 +25,20 @@ bytecode: $(STAMP)
 run: $(STAMP) bytecode
 	$(BIN)/veribattery check configs/paper/case1.yaml
 
-test: $(STAMP) lint
+test: $(STAMP) lint chromium
 	$(BIN)/python -m pytest -n 2 -q
+
+# Debian's Chromium, for the report's browser test (tests/report/test_browser.py); the
+# test skips, visibly, where it cannot be installed.
+chromium:
+	@command -v chromium >/dev/null 2>&1 || command -v chromium-browser >/dev/null 2>&1 || \
+	  { SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	    $$SUDO apt-get update -qq && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq chromium; } || \
+	  echo "warning: Chromium not installed; the browser tests will be skipped" >&2
+
+# The example reports in docs/reports/ (case 1 and the 12.8 Ah dip with its sweep).
+reports: $(STAMP) bytecode
+	$(BIN)/python docs/reports/make_reports.py
 
 lint: $(STAMP)
 	$(BIN)/ruff check src tests bench

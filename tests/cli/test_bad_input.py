@@ -44,6 +44,7 @@ FILES: dict[str, bytes] = {
     "discharge.csv": b"soc,voltage_v\n1,4.2\n0.5,3.7\n0,3.0\n",
     "existing.png": b"not really a png",
     "existing.csv": b"a,b\n",
+    "existing.html": b"<p>my notes</p>\n",
 }
 
 CASES: list[tuple[str, list[str]]] = [
@@ -131,6 +132,14 @@ CASES: list[tuple[str, list[str]]] = [
     ("reproduce-what", ["reproduce", "fig9"]),
     ("reproduce-all-no-dir", ["reproduce", "all"]),
     ("reproduce-dir-is-file", ["reproduce", "fig6", "-o", "existing.csv"]),
+    # report
+    ("report-no-output", ["report", CASE1, *SMALL]),
+    ("report-output-type", ["report", CASE1, *SMALL, "-o", "r.pdf"]),
+    ("report-output-exists", ["report", CASE1, *SMALL, "-o", "existing.html"]),
+    ("report-sweep-missing", ["report", CASE1, *SMALL, "-o", "r.html", "--sweep", "nosuch.csv"]),
+    ("report-sweep-foreign", ["report", CASE1, *SMALL, "-o", "r.html", "--sweep",
+                              "existing.csv"]),
+    ("report-runs", ["report", CASE1, *SMALL, "-o", "r.html", "--runs", "-1"]),
     # battery prognostics
     ("fade-missing", ["phm", "fade", "nosuch.csv"]),
     ("fade-extra-cell", ["phm", "fade", "cycles_extra_cell.csv"]),

@@ -36,6 +36,7 @@ COMMANDS = [
                       "--horizon", "20", "--step", "10"], 0, ["p_success"]),
     ("recheck", ["recheck", CASE1, *SMALL, "--cycles", "cycles.csv"], 0, ["before", "after"]),
     ("reproduce-table3", ["reproduce", "table3"], 0, ["exp_recharges", "42.7713"]),
+    ("report", ["report", CASE1, *SMALL, "--runs", "50", "-o", "r.html"], 0, ["wrote r.html"]),
     ("help", ["--help"], 0, ["sweep", "130 interrupted"]),
 ]
 

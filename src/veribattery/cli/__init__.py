@@ -30,6 +30,7 @@ _COMMANDS = {
     "phm": ("veribattery.cli.phm", "phm_group"),
     "recheck": ("veribattery.cli.phm", "recheck_command"),
     "distribution": ("veribattery.cli.distribution", "distribution_command"),
+    "report": ("veribattery.cli.report", "report_command"),
 }
 
 

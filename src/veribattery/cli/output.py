@@ -106,18 +106,30 @@ def _may_be_terminal() -> bool:
     return isatty is not None and bool(isatty())
 
 
+class LiveStatus:
+    """The spinner line of :func:`build_progress`: a state counter while the state space
+    is explored, then the stage a longer command is in."""
+
+    def __init__(self, status: Any) -> None:
+        self._status = status
+
+    def __call__(self, states: int, frontier: int) -> None:
+        self._status.update(f"exploring states… {states:,} found, frontier {frontier:,}")
+
+    def stage(self, text: str) -> None:
+        """Say (above the spinner) that a new stage starts, and show it on the spinner."""
+        err.print(text, markup=False, style="dim")
+        self._status.update(f"{text}…")
+
+
 @contextmanager
-def build_progress() -> Iterator[ProgressCallback | None]:
+def build_progress() -> Iterator[LiveStatus | None]:
     """A live state counter on stderr while the state space is explored (TTY only)."""
     if not _may_be_terminal() or not err.is_terminal:
         yield None
         return
     with err.status("exploring states…") as status:
-
-        def update(states: int, frontier: int) -> None:
-            status.update(f"exploring states… {states:,} found, frontier {frontier:,}")
-
-        yield update
+        yield LiveStatus(status)
 
 
 def json_value(value: object) -> object:

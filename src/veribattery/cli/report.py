@@ -74,7 +74,7 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
                                 command_line=_command_line(click.get_current_context()))
         with build_progress() as progress:
             data = write_report(output, cfg, options, sweep=sweep, progress=progress,
-                                notes=_note)
+                                notes=_note if progress is None else progress.stage)
     print_warnings(data.verdict.warnings)
     print_written(output)
     sys.exit(0 if data.verdict.all_hold else 1)
