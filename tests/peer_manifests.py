@@ -44,4 +44,5 @@ def fail_missing(suite: str) -> NoReturn:
 def assert_enough(found: int, floor: int, what: str) -> None:
     """At least *floor* cases of *what*, once ../shared is there (else a visible skip)."""
     require_shared()
-    assert found >= floor, f"only {found} {what} (at least {floor} expected): a manifest is missing or shrank"
+    assert found >= floor, (f"only {found} {what} (at least {floor} expected): "
+                            "a manifest is missing or shrank")
