@@ -9,7 +9,6 @@ about a minute apiece for both tools) run when ``VERIBATTERY_SLOW_TESTS=1``.
 
 from __future__ import annotations
 
-import json
 import os
 from fractions import Fraction
 from pathlib import Path
@@ -19,7 +18,8 @@ import pytest
 
 stormpy = pytest.importorskip("stormpy")
 
-from tests.conftest import PEER_TESTS, peer_harness, require_shared  # noqa: E402
+from tests.conftest import PEER_TESTS, peer_harness  # noqa: E402
+from tests.peer_manifests import assert_enough, fail_missing, manifest, missing  # noqa: E402
 from veribattery.checker.exact import ExactCheckResult  # noqa: E402
 from veribattery.config import load_config  # noqa: E402
 from veribattery.mission import check_mission, is_conditional, mission_files  # noqa: E402
@@ -27,6 +27,9 @@ from veribattery.pipeline import check_prism_file  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 STATE_LIMIT = 600
+SUITES = ("prism", "prism-examples")
+#: Entries :func:`_peer_entries` selects from each suite (counted 2026-11-26): a floor.
+SELECTED = {"prism": 143, "prism-examples": 28}
 SLOW = os.environ.get("VERIBATTERY_SLOW_TESTS") == "1"
 
 
@@ -58,12 +61,12 @@ def ours(result: ExactCheckResult) -> Fraction | bool | None:
 def _peer_entries() -> list[Any]:
     params = []
     seen = set()
-    for suite in ("prism", "prism-examples"):
-        manifest = PEER_TESTS / suite / "manifest.json"
-        if not manifest.is_file():
-            params.append(pytest.param(None, None, id=f"{suite}-absent"))
+    for suite in SUITES:
+        data = manifest(suite)
+        if data is None:
+            params.append(missing(suite, suite, None))
             continue
-        for entry in json.loads(manifest.read_text())["entries"]:
+        for entry in data["entries"]:
             key = (entry["model"], entry["props"], entry["property_index"],
                    tuple(sorted(entry["constants"].items())))
             small = entry.get("states", STATE_LIMIT + 1) <= STATE_LIMIT
@@ -73,11 +76,20 @@ def _peer_entries() -> list[Any]:
     return params
 
 
-@pytest.mark.parametrize(("suite", "entry"), _peer_entries())
-def test_peer_entry_equals_storm_exact(suite: str | None, entry: dict[str, Any] | None) -> None:
-    if suite is None or entry is None:
-        require_shared()
-        return
+PEER_ENTRIES = _peer_entries()
+
+
+@pytest.mark.parametrize("suite", SUITES)
+def test_enough_peer_entries_are_compared(suite: str) -> None:
+    """The filter above (small, one initial state, distinct) keeps a real share of each suite."""
+    count = sum(1 for p in PEER_ENTRIES if p.values[0] == suite and p.values[1] is not None)
+    assert_enough(count, SELECTED[suite], f"{suite} entries of at most {STATE_LIMIT} states")
+
+
+@pytest.mark.parametrize(("suite", "entry"), PEER_ENTRIES)
+def test_peer_entry_equals_storm_exact(suite: str, entry: dict[str, Any] | None) -> None:
+    if entry is None:
+        fail_missing(suite)
     root = PEER_TESTS / suite
     props_file = root / entry["props"]
     run = check_prism_file(root / entry["model"], props_source=props_file,
