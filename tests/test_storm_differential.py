@@ -18,7 +18,6 @@ falls back to Storm's floating point at 1e-6 relative, and the test id ends in
 from __future__ import annotations
 
 import itertools
-import json
 from collections import defaultdict
 from dataclasses import dataclass, replace
 from fractions import Fraction
@@ -33,12 +32,15 @@ stormpy = pytest.importorskip("stormpy")
 from hypothesis import HealthCheck, given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from tests.conftest import PEER_TESTS, peer_harness, require_shared  # noqa: E402
+from tests.conftest import PEER_TESTS, peer_harness  # noqa: E402
+from tests.peer_manifests import assert_enough, fail_missing, manifest, missing  # noqa: E402
 from tests.storm_oracle import compare, run_storm  # noqa: E402
 from veribattery.pipeline import check_prism_file  # noqa: E402
 
 RTOL_EXACT, RTOL_FLOAT, ATOL = 1e-8, 1e-6, 1e-12
 SUITES = ("prism-examples", "prism")
+#: Distinct (model, constants) of each manifest (counted 2026-11-26): a floor.
+MODELS = {"prism-examples": 24, "prism": 51}
 
 # (model, constants) groups for which Storm's exact mode fails: compared with
 # Storm's floating point instead (the test id says "-float").
@@ -70,19 +72,28 @@ class Group:
 def _groups() -> list[Any]:
     params: list[Any] = []
     for suite in SUITES:
-        manifest = PEER_TESTS / suite / "manifest.json"
-        if not manifest.is_file():
-            params.append(pytest.param(None, id=f"{suite}-absent"))
+        data = manifest(suite)
+        if data is None:
+            params.append(missing(suite, suite))
             continue
         grouped: dict[tuple[str, tuple[tuple[str, str], ...]], list[dict[str, Any]]]
         grouped = defaultdict(list)
-        for entry in json.loads(manifest.read_text())["entries"]:
+        for entry in data["entries"]:
             key = (entry["model"], tuple(sorted(entry["constants"].items())))
             grouped[key].append(entry)
         for (model, consts), entries in grouped.items():
             group = Group(suite, model, consts, tuple(entries))
             params.append(pytest.param(group, id=group.id))
     return params
+
+
+GROUPS = _groups()
+
+
+@pytest.mark.parametrize("suite", SUITES)
+def test_every_model_of_the_manifests_is_compared(suite: str) -> None:
+    count = sum(1 for p in GROUPS if isinstance(p.values[0], Group) and p.values[0].suite == suite)
+    assert_enough(count, MODELS[suite], f"{suite} (model, constants) groups")
 
 
 def _storm_properties(harness: ModuleType, model: Path, props: Path,
@@ -107,11 +118,10 @@ def _storm_properties(harness: ModuleType, model: Path, props: Path,
     return "\n".join(texts)
 
 
-@pytest.mark.parametrize("group", _groups())
-def test_manifest_model_matches_storm(group: Group | None) -> None:
-    if group is None:
-        require_shared()
-        return
+@pytest.mark.parametrize("group", GROUPS)
+def test_manifest_model_matches_storm(group: Group | str) -> None:
+    if isinstance(group, str):  # the suite whose manifest is missing
+        fail_missing(group)
     harness = peer_harness()
     root = PEER_TESTS / group.suite
     model = root / group.model
