@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import pytest
 
 from tests.conftest import require_shared
 from tests.explore.storm import assert_same, build
+from tests.peer_manifests import assert_enough, fail_missing, manifest, missing
 from veribattery.explore import DTMC, build_dtmc
 from veribattery.lang.parser import parse_model
 from veribattery.lang.semantics import flatten_model
@@ -32,13 +33,10 @@ class Case:
         return f"{Path(self.model).stem}[{consts}]" if consts else Path(self.model).stem
 
 
-def _cases() -> list[Case]:
-    from tests.conftest import PEER_TESTS
-
-    manifest = PEER_TESTS / SUITE / "manifest.json"
-    if not manifest.is_file():
-        return []
-    data = json.loads(manifest.read_text())
+def _cases() -> list[Any]:
+    data = manifest(str(SUITE))
+    if data is None:
+        return [missing(str(SUITE), None)]
     return [
         Case(m["model"], s["constants"], s["states"], s["transitions"], s["initial_states"])
         for m in data["models"]
@@ -47,6 +45,8 @@ def _cases() -> list[Case]:
 
 
 CASES = _cases()
+#: (model, constants) settings the manifest lists (counted 2026-11-26): a floor.
+SETTINGS = 9
 
 
 def _build(case: Case) -> tuple[Path, DTMC]:
@@ -54,9 +54,15 @@ def _build(case: Case) -> tuple[Path, DTMC]:
     return path, build_dtmc(flatten_model(parse_model(path), case.constants))
 
 
-@pytest.mark.skipif(not CASES, reason="peer suite manifest not found (../shared is absent)")
+def test_every_setting_of_the_manifest_is_built() -> None:
+    found = sum(isinstance(case, Case) for case in CASES)
+    assert_enough(found, SETTINGS, f"{SUITE} (model, constants) settings")
+
+
 @pytest.mark.parametrize("case", CASES, ids=str)
-def test_counts_match_manifest(case: Case) -> None:
+def test_counts_match_manifest(case: Case | None) -> None:
+    if case is None:
+        fail_missing(str(SUITE))
     _, dtmc = _build(case)
     assert dtmc.num_states == case.states
     assert dtmc.num_transitions == case.transitions
@@ -64,9 +70,10 @@ def test_counts_match_manifest(case: Case) -> None:
     assert dtmc.labels["init"].sum() == case.initial_states
 
 
-@pytest.mark.skipif(not CASES, reason="peer suite manifest not found (../shared is absent)")
 @pytest.mark.parametrize("case", CASES, ids=str)
-def test_same_chain_as_storm(case: Case) -> None:
+def test_same_chain_as_storm(case: Case | None) -> None:
+    if case is None:
+        fail_missing(str(SUITE))
     path, dtmc = _build(case)
     assert_same(dtmc, build(path, case.constants, dtmc.variable_names))
 
