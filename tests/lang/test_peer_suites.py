@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 
 from tests.lang.helpers import PEER, manifest_entries, peer_files
+from tests.peer_manifests import assert_enough, fail_missing
 from veribattery.lang import (
     flatten_model,
     parse_model,
@@ -18,6 +19,20 @@ from veribattery.lang import (
 )
 
 pytestmark = pytest.mark.skipif(not PEER.exists(), reason=f"peer suites not found at {PEER}")
+
+
+@pytest.mark.parametrize(
+    ("cases", "floor", "what"),
+    [
+        # Counted 2026-11-26, all four suites under peer-tests: floors, not exact counts.
+        (peer_files(".pm", ".prism"), 83, "model files"),
+        (peer_files(".props", ".pctl"), 112, "properties files"),
+        (manifest_entries(), 144 + 120, "prism and prism-examples manifest entries"),
+    ],
+    ids=["models", "properties", "entries"],
+)
+def test_the_corpus_is_all_there(cases: list[Any], floor: int, what: str) -> None:
+    assert_enough(sum(c.values[-1] is not None for c in cases), floor, what)
 
 
 @pytest.mark.parametrize("path", peer_files(".pm", ".prism"))
@@ -52,7 +67,9 @@ def test_property_count_matches_reference_splitter(path: Path) -> None:
 
 
 @pytest.mark.parametrize(("root", "entry"), manifest_entries())
-def test_manifest_entry_flattens_and_resolves(root: Path, entry: dict[str, Any]) -> None:
+def test_manifest_entry_flattens_and_resolves(root: Path, entry: dict[str, Any] | None) -> None:
+    if entry is None:
+        fail_missing(root.name)
     model = flatten_model(parse_model(root / entry["model"]), entry["constants"])
     props = parse_properties(root / entry["props"])
     (prop,) = select_properties(props, str(entry["property_index"]))
