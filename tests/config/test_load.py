@@ -14,6 +14,12 @@ REPO = Path(__file__).resolve().parents[2]
 PAPER = sorted((REPO / "configs" / "paper").glob("*.yaml"))
 
 
+def test_the_paper_configs_are_all_there() -> None:
+    """The corpus the round-trip and emitter tests run over: the paper's seven cases."""
+    assert [path.stem for path in PAPER] == [
+        "basic_high", "basic_low", "basic_medium", "case1", "case2", "case3", "case4"]
+
+
 def test_yaml_syntax_error_names_file_line_and_column(tmp_path: Path) -> None:
     path = tmp_path / "broken.yaml"
     path.write_text("farm:\n  cols: 6\n  base: [1, 2\nbattery: {}\n")

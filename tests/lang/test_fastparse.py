@@ -73,7 +73,15 @@ def test_the_corpus_is_real_and_mostly_on_the_fast_path() -> None:
     assert fast >= 0.9 * len(paths)
 
 
-@pytest.mark.parametrize("config", sorted((ROOT / "configs").rglob("*.yaml")), ids=str)
+CONFIGS = sorted((ROOT / "configs").rglob("*.yaml"))
+
+
+def test_every_config_is_in_the_corpus() -> None:
+    """configs/example.yaml and the paper's seven cases, at least."""
+    assert len(CONFIGS) >= 8, CONFIGS
+
+
+@pytest.mark.parametrize("config", CONFIGS, ids=str)
 def test_mission_models_take_the_fast_path(config: Path) -> None:
     from veribattery.config import load_config
     from veribattery.render import render_model, render_properties
