@@ -66,8 +66,9 @@ class _Node:
     is_const: bool = False
     risky: bool = False  # may raise on some rows
     labels: bool = False  # reads label masks (aligned with all rows: no row subsets)
-    link: Link | None = None  # how the value follows from the first operand's
-    spine: int = 0  # links in a row down from here (see ``_linked``)
+    link: Link | None = None  # how the value follows from its deepest operand's
+    spine: int = 0  # links in a row down from here: evaluated in a loop from SPINE_LIMIT
+    plain: _Fn | None = None  # *fn* without its memo (tables are made with it)
 
     @property
     def subsettable(self) -> bool:
@@ -310,14 +311,14 @@ def _finished(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
     """The node of *expr* from its compiled operands: tabulated if worth it, and stored."""
     cache = scope.cache
     if scope.ranges is not None and _worth_tabulating(expr, scope.ranges, cache):
-        node = _tabulated(expr, _compile_node(expr, operands, scope), scope)
+        node = _tabulated(expr, operands, scope)
     else:
         node = _compile_node(expr, operands, scope)
     store = _store(scope)
     if cache is not None and store is not None:
         if (scope.ranges is not None and cache.memoise
                 and not (node.is_const or isinstance(expr, Ident | LabelRef))):
-            node = dataclasses.replace(node, fn=_memoised(node.fn))
+            node = dataclasses.replace(node, fn=_memoised(node.fn), plain=node.fn)
         store[cache.key(expr)] = node
     return node
 
@@ -463,13 +464,15 @@ def _children(expr: Expr) -> tuple[Expr, ...]:
     return ()
 
 
-def _tabulated(expr: Expr, direct: _Node, scope: _Scope) -> _Node:
-    """*expr* (compiled row-wise as *direct*) as a lookup table over its variables'
-    domain, or *direct* if that fails."""
+def _tabulated(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
+    """*expr* as a lookup table over its variables' domain, or row-wise (its compiled
+    *operands* combined) if that fails."""
     assert scope.ranges is not None
-    # The children keep their own tables and memos: a sub-expression shared by many
-    # tables over the same variables (a voltage level inside every cost) is
-    # evaluated once on their common grid, not once per table.
+    # The table is made with the operands' evaluators without their memos: a memo
+    # would keep each operand's values on the grid (an int64 per valuation) for the
+    # whole search, and the nodes of a conditional over a route of thousands of
+    # cells would keep thousands of them (the operands keep their own tables).
+    direct = _compile_node(expr, [_without_memo(o) for o in operands], scope)
     names = sorted(_shape(expr, scope.cache)[0], key=lambda n: scope.columns[n])
     lows = [scope.ranges[n][0] for n in names]
     shape = [scope.ranges[n][1] - low + 1 for n, low in zip(names, lows, strict=True)]
@@ -478,8 +481,12 @@ def _tabulated(expr: Expr, direct: _Node, scope: _Scope) -> _Node:
     try:
         table = np.broadcast_to(np.asarray(direct.fn(grid)), grid.shape[:1]).copy()
     except ModelError:  # fails on some valuation (e.g. x/y at y=0): evaluate per row
-        return direct
+        return _compile_node(expr, operands, scope)
     return _Node(fn=_lookup(table, cols, lows, shape, scope.cache))
+
+
+def _without_memo(node: _Node) -> _Node:
+    return node if node.plain is None else dataclasses.replace(node, fn=node.plain)
 
 
 #: Narrower types a table may be stored in, tried in order, by kind of its values.
@@ -505,7 +512,7 @@ def _grid(
     cols: list[int], lows: list[int], shape: list[int], width: int, cache: CompileCache | None
 ) -> IntArray:
     """Every valuation of the variables *cols* (the other columns 0), shared via *cache*
-    so that the memos of common sub-expressions recognise it.
+    by the tables over the same variables.
     """
     key = (tuple(cols), tuple(lows), tuple(shape))
     found = cache.grids.get(key) if cache is not None else None
