@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.conftest import PEER_TESTS
+from tests.lang.helpers import DTMC_SUITES
 from veribattery.errors import PrismSyntaxError, VeribatteryError
 from veribattery.lang import parse_model, parse_property
 from veribattery.lang.fastparse import Fallback, parse_fast
@@ -27,7 +28,7 @@ _PROPS_SUFFIXES = (".props", ".pctl")
 
 def _corpus() -> list[Any]:
     """Every model and properties file of the tests and the peer suites."""
-    roots = [ROOT / "tests", PEER_TESTS]
+    roots = [ROOT / "tests", *(PEER_TESTS / suite for suite in DTMC_SUITES)]
     files = sorted(
         path for root in roots if root.is_dir() for path in root.rglob("*")
         if path.name.endswith(_MODEL_SUFFIXES + _PROPS_SUFFIXES)

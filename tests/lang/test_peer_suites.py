@@ -24,9 +24,9 @@ pytestmark = pytest.mark.skipif(not PEER.exists(), reason=f"peer suites not foun
 @pytest.mark.parametrize(
     ("cases", "floor", "what"),
     [
-        # Counted 2026-11-26, all four suites under peer-tests: floors, not exact counts.
-        (peer_files(".pm", ".prism"), 83, "model files"),
-        (peer_files(".props", ".pctl"), 112, "properties files"),
+        # Counted 2026-11-26 in the three DTMC suites: floors, not exact counts.
+        (peer_files(".pm", ".prism"), 76, "model files"),
+        (peer_files(".props", ".pctl"), 78, "properties files"),
         (manifest_entries(), 144 + 120, "prism and prism-examples manifest entries"),
     ],
     ids=["models", "properties", "entries"],
