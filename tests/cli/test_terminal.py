@@ -12,7 +12,7 @@ import pytest
 
 from tests.cli.inputs import CASE1, EXAMPLES, SMALL
 from tests.cli.terminal import Screen, run_in_terminal
-from tests.test_cli import DIE
+from tests.cli.test_contracts import DIE
 
 CYCLES = "cycle,capacity_ah\n" + "".join(f"{n},{11 - 0.004 * n:.4f}\n" for n in range(0, 60, 5))
 

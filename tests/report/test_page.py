@@ -161,8 +161,7 @@ def test_case1_is_the_papers_baseline(case1_report: Made) -> None:
 @pytest.mark.parametrize("name", ["case1.html", "case1-12.8Ah.html"])
 def test_the_example_reports_in_docs_stay_self_contained(name: str) -> None:
     path = Path(__file__).resolve().parents[2] / "docs" / "reports" / name
-    if not path.exists():
-        pytest.skip(f"{path} is not there (make reports)")
+    assert path.exists(), f"{path} is missing: `make reports` makes it"
     page = path.read_text(encoding="utf-8")
     assert path.stat().st_size < MOST_BYTES
     assert "http://" not in page and "https://" not in page
