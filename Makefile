@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test setup lint typecheck bench clean bytecode chromium reports
+.PHONY: run test setup lint typecheck bench clean bytecode chromium reports docs
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -46,6 +46,11 @@ lint: $(STAMP)
 
 bench: $(STAMP) bytecode
 	$(BIN)/python bench/bench_models.py
+
+# The documentation site, offline, warnings as errors: the CLI, config and API references
+# are generated from the code while it builds (docs/_ext/).
+docs: $(STAMP)
+	$(BIN)/python -m sphinx -W --keep-going -q -b html docs docs/_build/html
 
 clean:
 	rm -rf $(VENV) build dist .pytest_cache .mypy_cache
