@@ -11,7 +11,9 @@ it always reports); Storm (stormpy) runs a serial loop in this process over the 
 emitting is not timed). ``--stride K`` keeps every K-th capacity of 5.0-20.0 Ah (all
 four models) when the machine is too busy for the whole grid, and the output says so.
 Wall and CPU seconds are reported for both sides. Values are compared (1e-6 relative:
-Storm's default solver precision). A row is appended to ``bench/RESULTS.md``.
+Storm's default solver precision). The run's row replaces the previous run's with the
+same points (the whole grid, or one subset) in ``docs/_bench/bench_sweep.md``, which
+the documentation's performance page includes.
 """
 
 from __future__ import annotations
@@ -29,6 +31,16 @@ from decimal import Decimal
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
+#: The table the performance page (docs/performance.md) includes: the latest run per grid.
+TABLE = HERE.parent / "docs" / "_bench" / "bench_sweep.md"
+TABLE_HEAD = (
+    "Written by `python bench/bench_sweep.py`: the latest run of each grid. veribattery is "
+    "the whole `sweep` process, Storm parses, builds and checks each emitted model in one "
+    "process; CPU is user + system.\n\n"
+    "| when | points | -j | vb wall s | vb CPU s | Storm wall s | Storm CPU s | wall ratio | "
+    "vb peak MB | agree | load avg |\n"
+    "|---|---|---|---|---|---|---|---|---|---|---|\n"
+)
 MODELS = ("advanced", "basic_high", "basic_medium", "basic_low")
 
 
@@ -143,26 +155,24 @@ def main() -> None:
 
 def record(points: int, subset: str, jobs: int, ours: tuple[float, float],
            storm: tuple[float, float], peak: float, same: bool) -> None:
-    """Append the run to bench/RESULTS.md."""
+    """Write the run into TABLE, in place of the last run over the same points."""
     day = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M UTC")
-    line = (f"| {day} | {points}{subset} | {jobs} | {ours[0]:.1f} | {ours[1]:.1f} | "
+    grid = f"{points}{subset}"
+    line = (f"| {day} | {grid} | {jobs} | {ours[0]:.1f} | {ours[1]:.1f} | "
             f"{storm[0]:.1f} | {storm[1]:.1f} | {ours[0] / storm[0]:.2f} | {peak:.0f} | "
-            f"{'yes' if same else 'NO'} | {os.getloadavg()[0]:.1f} |\n")
-    path = HERE / "RESULTS.md"
-    text = path.read_text()
-    header = ("## Fig. 6 sweep (P(success) only, as `reproduce fig6`) vs a serial Storm loop "
-              "(`python bench/bench_sweep.py`)")
-    if header not in text:
-        text += (f"\n{header}\n\nveribattery is the whole `sweep` process, Storm parses, "
-                 "builds and checks each emitted model in one process; CPU is user + system.\n\n"
-                 "| when | points | -j | vb wall s | vb CPU s | Storm wall s | Storm CPU s | "
-                 "wall ratio | vb peak MB | agree | load avg |\n"
-                 "|---|---|---|---|---|---|---|---|---|---|---|\n")
-    # The row joins its own table, not whatever section was appended to the file since.
-    end = text.find("\n## ", text.index(header) + len(header))
-    end = len(text) if end < 0 else end
-    path.write_text(text[:end].rstrip("\n") + "\n" + line + text[end:])
+            f"{'yes' if same else 'NO'} | {os.getloadavg()[0]:.1f} |")
+    rows = [r for r in _rows() if r.split("|")[2].strip() != grid]
+    TABLE.parent.mkdir(parents=True, exist_ok=True)
+    TABLE.write_text(TABLE_HEAD + "\n".join([*rows, line]) + "\n", encoding="utf-8")
+    print(f"wrote {TABLE}", file=sys.stderr)
 
+
+def _rows() -> list[str]:
+    """The table rows of the runs recorded so far."""
+    if not TABLE.exists():
+        return []
+    table = [ln for ln in TABLE.read_text(encoding="utf-8").splitlines() if ln.startswith("|")]
+    return table[2:]  # below the header and its rule
 
 if __name__ == "__main__":
     main()
