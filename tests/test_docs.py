@@ -1,0 +1,79 @@
+"""The documentation: the site builds without a warning, and the README stays short and
+links only to files that exist.
+
+Sphinx and myst-parser come with the ``dev`` extra, which ``make test`` installs, so
+a missing generator fails these tests instead of skipping them.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+#: The README is an introduction; everything else lives in docs/.
+README_MAX_LINES = 250
+#: ``[text](target)`` and ``![alt](target)``, the target up to a space or ``)``.
+LINK = re.compile(r"!?\[[^\]]*\]\(\s*([^)\s]+)(?:\s+\"[^\"]*\")?\s*\)")
+BUILD_TIMEOUT_S = 60
+
+
+def test_docs_build_without_warnings(tmp_path: Path) -> None:
+    """`make docs`'s build, into a temporary folder, with warnings as errors."""
+    for module in ("sphinx", "myst_parser"):
+        assert importlib.util.find_spec(module) is not None, (
+            f"{module} is missing: install the dev extra (pip install -e '.[dev]')")
+    proc = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-W", "--keep-going", "-q", "-b", "html",
+         "-d", str(tmp_path / "doctrees"), str(ROOT / "docs"), str(tmp_path / "html")],
+        capture_output=True, text=True, timeout=BUILD_TIMEOUT_S, check=False,
+    )
+    assert proc.returncode == 0, proc.stderr[-4000:]
+    assert proc.stderr.strip() == "", proc.stderr[-4000:]
+    html = tmp_path / "html"
+    # The references are generated from the code: the commands' help, the config
+    # schema with configs/example.yaml's comments, the docstrings.
+    generated = {
+        "cli.html": (r"Usage: veribattery check \[OPTIONS\] CONFIG", r"veribattery phm fade"),
+        "config.html": (r"farm\.cols", r"BS1: act only if"),
+        "api.html": (r'id="veribattery(\.\w+)*\.check_mission"',
+                     r'id="veribattery(\.\w+)*\.MissionConfig"'),
+    }
+    for page, patterns in generated.items():
+        text = (html / page).read_text(encoding="utf-8")
+        for pattern in patterns:
+            assert re.search(pattern, text), f"{page} lacks {pattern!r}"
+
+
+def test_readme_is_short() -> None:
+    lines = README.read_text(encoding="utf-8").splitlines()
+    assert len(lines) <= README_MAX_LINES, (
+        f"README.md has {len(lines)} lines (at most {README_MAX_LINES}): "
+        "move the detail into docs/")
+
+
+def _relative_links(text: str) -> list[str]:
+    targets = (m.group(1) for m in LINK.finditer(text))
+    return [t for t in targets if not re.match(r"[a-z][a-z0-9+.-]*:|#", t)]
+
+
+def test_readme_links_point_to_files() -> None:
+    links = _relative_links(README.read_text(encoding="utf-8"))
+    assert links, "no relative link found: the pattern no longer matches the README"
+    missing = [t for t in links if not (ROOT / t.split("#", 1)[0]).exists()]
+    assert missing == [], f"README.md links to files that do not exist: {missing}"
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ("see [a](docs/a.md) and ![b](docs/b.png)", ["docs/a.md", "docs/b.png"]),
+    ("[x](https://example.org) [y](#anchor) [z](docs/z.md#part)", ["docs/z.md#part"]),
+    ('[t](docs/t.md "title")', ["docs/t.md"]),
+], ids=["plain-and-image", "external-anchor-fragment", "title"])
+def test_link_pattern(text: str, expected: list[str]) -> None:
+    assert _relative_links(text) == expected
