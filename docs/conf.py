@@ -17,7 +17,7 @@ sys.path.insert(0, str(DOCS.parent / "src"))
 
 project = "veribattery"
 author = "the veribattery authors"
-copyright = "the veribattery authors"  # noqa: A001 (Sphinx's name)
+copyright = "the veribattery authors"
 
 extensions = [
     "myst_parser",

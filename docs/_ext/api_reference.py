@@ -95,6 +95,8 @@ def packages_text() -> list[str]:
         target = f"{where}.{name}" if where else f"{ROOT}.{name}"
         lines.append(f"- :py:obj:`{name} <{target}>`: {summary(getattr(root, name))}")
     lines += ["", f".. py:module:: {ROOT}", ""]
+    if own:
+        lines += ["The names whose module has no ``__all__`` of its own are documented here:", ""]
     for name in own:
         obj = getattr(root, name)
         directive = _directive(obj)

@@ -104,11 +104,17 @@ def _is_section(annotation: object) -> bool:
             and not _is_group(annotation))
 
 
-def _alternatives(annotation: object) -> tuple[object, ...]:
-    """The members of a union (``Annotated`` wrappers removed), or ``()``."""
+def _members(annotation: object) -> tuple[object, ...]:
+    """The members of a union as written (``Annotated`` kept), or ``()``."""
+    annotation = _bare(annotation)
     if typing.get_origin(annotation) in (typing.Union, types.UnionType):
-        return tuple(_bare(a) for a in typing.get_args(annotation))
+        return typing.get_args(annotation)
     return ()
+
+
+def _alternatives(annotation: object) -> tuple[object, ...]:
+    """The members of a union, ``Annotated`` wrappers removed, or ``()``."""
+    return tuple(_bare(m) for m in _members(annotation))
 
 
 def _bare(annotation: object) -> object:
@@ -187,8 +193,8 @@ def rows(model: type[BaseModel], prefix: str, comments: dict[str, str],
 def _forms(info: FieldInfo) -> list[tuple[str, type[BaseModel]]]:
     """The tagged sections of a discriminated union: ``[(tag, model), ...]``."""
     forms = []
-    for member in _alternatives_tagged(info.annotation):
-        tag = next((getattr(m, "tag") for m in getattr(member, "__metadata__", ())
+    for member in _members(info.annotation):
+        tag = next((m.tag for m in getattr(member, "__metadata__", ())
                     if hasattr(m, "tag")), None)
         model = _bare(member)
         if tag is not None and _is_section(model):
@@ -197,19 +203,12 @@ def _forms(info: FieldInfo) -> list[tuple[str, type[BaseModel]]]:
     return forms
 
 
-def _alternatives_tagged(annotation: object) -> tuple[object, ...]:
-    annotation = _bare(annotation)
-    if typing.get_origin(annotation) in (typing.Union, types.UnionType):
-        return typing.get_args(annotation)
-    return ()
-
-
 def _forms_text(info: FieldInfo, forms: list[tuple[str, type[BaseModel]]], meaning: str) -> str:
     """What a two-form section holds, from the forms' docstrings and the discriminator's."""
     described = "; ".join(f"``{tag}``: {_summary(model)}" for tag, model in forms)
-    chooser = next((_summary(getattr(m, "discriminator")) for m in _all_metadata(info)
+    chooser = next((_summary(m.discriminator) for m in _all_metadata(info)
                     if callable(getattr(m, "discriminator", None))), "")
-    text = f"{meaning} Forms: {described}."
+    text = f"{_sentence(meaning)} Forms: {described}." if meaning else f"Forms: {described}."
     return f"{text} Form: {chooser}" if chooser else text
 
 
@@ -223,9 +222,14 @@ def _all_metadata(info: FieldInfo) -> list[object]:
 
 
 def _summary(obj: object) -> str:
-    """The first line of *obj*'s docstring."""
-    return (getattr(obj, "__doc__", None) or "").strip().splitlines()[0].rstrip(".") \
-        if getattr(obj, "__doc__", None) else ""
+    """The first line of *obj*'s docstring, without its full stop."""
+    doc = (getattr(obj, "__doc__", None) or "").strip()
+    return doc.splitlines()[0].rstrip(".") if doc else ""
+
+
+def _sentence(text: str) -> str:
+    """*text* ending with a full stop."""
+    return text if text.endswith((".", "!", "?")) else text + "."
 
 
 def _inline(text: str) -> str:
@@ -273,7 +277,7 @@ class ConfigReference(SphinxDirective):
                 doc = (annotation.__doc__ or "").strip().splitlines()[0]
                 text += [doc, ""] if doc else []
                 note = comments.get(name, "")
-                text += [_inline(note[0].upper() + note[1:]) + ".", ""] if note else []
+                text += [_sentence(_inline(note[0].upper() + note[1:])), ""] if note else []
             text += _table(list(_section_rows(name, info, comments)))
         container = nodes.section()
         nested_parse_with_titles(self.state, StringList(text, source=str(EXAMPLE)), container)
