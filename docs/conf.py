@@ -34,6 +34,8 @@ root_doc = "index"
 exclude_patterns = ["_build", "reports", "_bench", "figures"]
 
 myst_enable_extensions = ["deflist"]
+# Blocks without a language are output, not code: shown as written.
+highlight_language = "none"
 myst_heading_anchors = 3
 
 autodoc_member_order = "bysource"
