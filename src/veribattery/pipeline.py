@@ -1,8 +1,9 @@
 """The facade: text → parse → semantics → build → check, timed stage by stage.
 
-Every front end (the ``prism`` command, the mission commands, sweeps, the Python
-API) runs models through :func:`check_prism_text`, so a generated mission model
-takes exactly the path a user's own PRISM file takes.
+Every front end runs models through :func:`check_model`: the ``prism`` command
+and the Python API by way of :func:`check_prism_file`, the mission commands and
+sweeps with the model they rendered and parsed. So a generated mission model is
+checked by exactly the code that checks a user's own PRISM file.
 """
 
 from __future__ import annotations
