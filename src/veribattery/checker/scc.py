@@ -57,7 +57,7 @@ BLOCK_LIMIT = 4_096
 #: Components up to this size get a sparse LU with a fill-reducing order; larger
 #: ones only when their envelope is small (below). On the 10^6-state grid walk
 #: (one component) the LU took 101 s and 2.0 GB, multigrid-preconditioned
-#: BiCGSTAB a few times less of both (measured on 2026-11-21).
+#: BiCGSTAB a few times less of both (the measurement is in the git history).
 LU_LIMIT = 200_000
 #: A larger component still gets the LU when the envelope of its reverse
 #: Cuthill-McKee order (which bounds the factors' entries in that order) is at
