@@ -43,7 +43,6 @@ if TYPE_CHECKING:
     from veribattery.render import render_model, render_properties
     from veribattery.sweep import run_sweep
 
-__version__ = "0.1.0"
 
 # Exports are imported on first use, so `import veribattery` (and the CLI's start-up)
 # does not pay for numpy, scipy, pydantic and Jinja until a stage needs them.
@@ -67,6 +66,10 @@ _HOME = {name: module for module, names in _EXPORTS.items() for name in names}
 
 
 def __getattr__(name: str) -> Any:
+    if name == "__version__":  # written once, in pyproject.toml; read when asked for
+        from importlib.metadata import version
+
+        return version("veribattery")
     if name not in _HOME:
         raise AttributeError(f"module 'veribattery' has no attribute {name!r}")
     return getattr(importlib.import_module(_HOME[name]), name)

@@ -75,14 +75,15 @@ def fingerprint(
 
 def model_version() -> str:
     """veribattery's version and a digest of the PRISM templates the model is rendered from."""
-    from veribattery import __version__
+    from importlib.metadata import version
+
     from veribattery.render.render import template_dir
 
     digest = hashlib.sha256()
     for path in sorted(template_dir().iterdir()):
         if path.is_file():
             digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    return f"veribattery {__version__}, templates {digest.hexdigest()[:12]}"
+    return f"veribattery {version('veribattery')}, templates {digest.hexdigest()[:12]}"
 
 
 def _listed(items: Sequence[str]) -> str:
