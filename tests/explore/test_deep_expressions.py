@@ -18,7 +18,7 @@ import random
 import numpy as np
 import pytest
 
-from tests.lang.test_deep_expressions import TERMS, N, deep_model
+from tests.lang.test_deep_expressions import TERMS, N, chained_definitions, deep_model
 from veribattery.errors import ModelError
 from veribattery.explore import compile as compile_module
 from veribattery.explore import compile_expr
@@ -200,3 +200,11 @@ def test_exact_values_of_deep_expressions() -> None:
     guarded = _parsed(" ".join(f"x={i} ? 1/x :" for i in range(1, TERMS)) + " 0")
     values = evaluate_rational(guarded, {}, {"x": column}, 7)  # no 1/0 where x = 0
     assert [str(v) for v in values] == ["0", "0", "0", "0", "1", "1/2", "1/3"]
+
+
+def test_exact_constants_of_long_chains() -> None:
+    """The exact path recomputes a 5,000-long chain of constants as rationals."""
+    model = parse_model(chained_definitions())
+    props = parse_properties("P=? [ F x=1 ];")
+    run = check_model(model, props.properties, props_file=props, exact=True)
+    assert [str(getattr(r, "exact", None)) for r in run.results] == ["1"]

@@ -224,3 +224,38 @@ def test_a_deep_property_resolves_against_the_model() -> None:
 def test_parenthesised_last_branches_read_as_lark_reads_them(text: str) -> None:
     fast = repr(parse_fast(text, "p", "start_property"))
     assert fast == repr(_parse_with_lark(text, "p", "start_property"))
+
+
+def chained_definitions(count: int = TERMS) -> str:
+    """Constants and formulas each defined by the next one down, declared from the top
+    (so evaluating the first needs all the others first): chains *count* long."""
+    consts = "\n".join(f"const int c{i} = c{i - 1} + 1;" for i in reversed(range(1, count)))
+    forms = "\n".join(f"formula f{i} = f{i - 1} + 1;" for i in reversed(range(1, count)))
+    return f"""dtmc
+{consts}
+const int c0 = 0;
+{forms}
+formula f0 = x;
+module m
+  x : [0..1] init 0;
+  [] x=0 -> (x'=min(1, f{count - 1} - c{count - 1} + 1));
+  [] x=1 -> true;
+endmodule
+"""
+
+
+def test_chains_of_constants_and_formulas_are_evaluated_and_inlined() -> None:
+    flat = flatten_model(parse_model(chained_definitions()))
+    assert dict(flat.constants)[f"c{TERMS - 1}"] == TERMS - 1
+    (module,) = flat.modules
+    (assignment,) = module.commands[0].updates[0].assignments
+    assert evaluate(assignment.expr, {"x": 0}) == 1  # min(1, (x + 4999) - 4999 + 1)
+
+
+def test_a_cycle_through_a_long_chain_is_named() -> None:
+    text = chained_definitions(3000).replace("formula f0 = x;", "formula f0 = f2999;")
+    with pytest.raises(PrismSemanticError, match=r"cyclic formula definition: f2999 -> f2998"):
+        flatten_model(parse_model(text))
+    text = chained_definitions(3000).replace("const int c0 = 0;", "const int c0 = c2999;")
+    with pytest.raises(PrismSemanticError, match="constant 'c2999' is defined in terms of itself"):
+        flatten_model(parse_model(text))

@@ -18,7 +18,7 @@ expression, as do divisions by zero.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from fractions import Fraction
 from typing import Any, TypeAlias
 
@@ -90,35 +90,63 @@ def exact_constants(
     """
     values: dict[str, ExactScalar] = dict(outer or {})
     pending = {d.name: d for d in decls}
-
-    def value(name: str) -> ExactScalar:
-        if name not in values:
-            decl = pending[name]
-            for node in walk(decl.value) if decl.value is not None else ():
-                if isinstance(node, Ident) and node.name in pending:
-                    value(node.name)
-            values[name] = _constant(decl, given, values)
-        return values[name]
-
+    uses = {d.name: _constants_used(d, pending) for d in decls}
+    defined = _defined(uses, pending, given)
     for decl in decls:
-        if _defined(decl.name, pending, given):
-            value(decl.name)
+        if defined[decl.name]:
+            for name in _dependencies_first(decl.name, uses, values.keys()):
+                values[name] = _constant(pending[name], given, values)
     return values
 
 
-def _defined(name: str, pending: Mapping[str, ConstDecl], given: Mapping[str, object]) -> bool:
-    """Whether *name* has a value: given, or defined from constants that all have one.
+def _constants_used(decl: ConstDecl, pending: Mapping[str, ConstDecl]) -> list[str]:
+    """The constants of *pending* that *decl* is defined with, in order of appearance."""
+    if decl.value is None:
+        return []
+    return [n.name for n in walk(decl.value) if isinstance(n, Ident) and n.name in pending]
+
+
+def _dependencies_first(
+    name: str, uses: Mapping[str, list[str]], known: Collection[str]
+) -> list[str]:
+    """*name* and the constants it needs that are not *known*, each after those it
+    uses (depth first, in order of appearance; a stack of its own: chains are long)."""
+    order: list[str] = []
+    placed = set(known)
+    todo: list[tuple[str, bool]] = [(name, False)]
+    while todo:
+        current, ready = todo.pop()
+        if ready:
+            order.append(current)
+        elif current not in placed:
+            placed.add(current)  # flattening rejected cycles: each name is entered once
+            todo.append((current, True))
+            todo.extend((n, False) for n in reversed(uses[current]))
+    return order
+
+
+def _defined(
+    uses: Mapping[str, list[str]], pending: Mapping[str, ConstDecl], given: Mapping[str, object]
+) -> dict[str, bool]:
+    """Per constant, whether it has a value: given, or defined from constants that
+    all have one.
 
     A properties file may declare a constant it never uses and nobody gives
     (``const int x; // unused``); the float path accepts that, and so must this one.
     """
-    decl = pending[name]
-    if decl.value is None:
-        return name in given
-    return all(
-        _defined(node.name, pending, given)
-        for node in walk(decl.value) if isinstance(node, Ident) and node.name in pending
-    )
+    defined: dict[str, bool] = {}
+    for name in pending:
+        todo: list[tuple[str, bool]] = [(name, False)]
+        while todo:
+            current, ready = todo.pop()
+            if ready:
+                own = pending[current].value is not None or current in given
+                defined[current] = own and all(defined.get(n, False) for n in uses[current])
+            elif current not in defined:
+                defined[current] = False  # until known (and so for a cycle)
+                todo.append((current, True))
+                todo.extend((n, False) for n in reversed(uses[current]))
+    return defined
 
 
 def _constant(

@@ -107,22 +107,32 @@ class ConstantTable:
         self.env = TypeEnv({**types, **{d.name: d.type for d in decls}})
 
     def value(self, name: str) -> Value:
-        """The value of constant *name* (of this file or an outer one)."""
-        if name in self.values:
-            return self.values[name]
+        """The value of constant *name* (of this file or an outer one).
+
+        The constants it is defined with are evaluated first, depth first in the
+        order they appear, on a stack of its own: a chain of constants each defined
+        by the next may be thousands long.
+        """
+        todo: list[tuple[str, bool]] = [(name, False)]
+        while todo:
+            current, ready = todo.pop()
+            if ready:
+                self.values[current] = self._evaluate(self.decls[current])
+                self.pending.discard(current)
+            elif current not in self.values:
+                todo += self._enter(current)
+        return self.values[name]
+
+    def _enter(self, name: str) -> list[tuple[str, bool]]:
+        """Start on *name*: checked, and what to do next (its constants, then itself)."""
         decl = self.decls[name]
         if name in self.pending:
             raise PrismSemanticError(f"constant '{name}' is defined in terms of itself", decl.span)
-        self.pending.add(name)
-        self.values[name] = self._compute(decl)
-        self.pending.discard(name)
-        return self.values[name]
-
-    def _compute(self, decl: ConstDecl) -> Value:
         if decl.value is None:
             if decl.name not in self.given:
                 raise _missing_error([decl])
-            return coerce_value(decl, self.given[decl.name])
+            self.values[name] = coerce_value(decl, self.given[decl.name])
+            return []
         kind = type_of(decl.value, self.env)
         if not _assignable(decl.type, kind):
             raise PrismSemanticError(
@@ -130,9 +140,12 @@ class ConstantTable:
                 f"but its definition is {_a(kind)}",
                 decl.value.span,
             )
-        for node in walk(decl.value):
-            if isinstance(node, Ident) and node.name in self.decls:
-                self.value(node.name)
+        self.pending.add(name)
+        used = [n.name for n in walk(decl.value) if isinstance(n, Ident) and n.name in self.decls]
+        return [(name, True), *((n, False) for n in reversed(used))]
+
+    def _evaluate(self, decl: ConstDecl) -> Value:
+        assert decl.value is not None
         value = evaluate(decl.value, self.values)
         return float(value) if decl.type == "double" else value
 

@@ -62,21 +62,35 @@ def check_unique(items: Iterable[tuple[str, Span]], what: str) -> None:
 
 
 def expand_formulas(formulas: Sequence[FormulaDecl]) -> dict[str, Expr]:
-    """Each formula's body with the formulas it uses inlined (cycles are errors)."""
+    """Each formula's body with the formulas it uses inlined (cycles are errors).
+
+    Depth first on a stack of its own: a chain of formulas each using the next may
+    be thousands long.
+    """
     defs = {f.name: f for f in formulas}
     done: dict[str, Expr] = {}
-
-    def expand(name: str, stack: tuple[str, ...]) -> Expr:
-        if name in stack:
-            chain = " -> ".join((*stack, name))
-            raise PrismSemanticError(f"cyclic formula definition: {chain}", defs[name].span)
-        if name not in done:
+    uses: dict[str, set[str]] = {}
+    for formula in formulas:
+        path: list[str] = []  # the formulas being expanded, outermost first
+        todo: list[tuple[str, bool]] = [(formula.name, False)]
+        while todo:
+            name, ready = todo.pop()
+            if ready:
+                inner = {n: done[n] for n in uses[name]}
+                done[name] = rename_idents(defs[name].expr, inner)
+                path.pop()
+                continue
+            if name in path:
+                chain = " -> ".join((*path, name))
+                raise PrismSemanticError(f"cyclic formula definition: {chain}", defs[name].span)
+            if name in done:
+                continue
             used = {n.name for n in walk(defs[name].expr) if isinstance(n, Ident)} & defs.keys()
-            inner = {n: expand(n, (*stack, name)) for n in used}
-            done[name] = rename_idents(defs[name].expr, inner)
-        return done[name]
-
-    return {f.name: expand(f.name, ()) for f in formulas}
+            uses[name] = used
+            path.append(name)
+            todo.append((name, True))
+            todo.extend((n, False) for n in reversed(list(used)))
+    return {f.name: done[f.name] for f in formulas}
 
 
 def _inline(node: Any, formulas: Mapping[str, Expr]) -> Any:
