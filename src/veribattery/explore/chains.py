@@ -66,19 +66,19 @@ def unrolled(link: Link) -> Callable[[IntArray], Any]:
     the evaluator first runs, and kept: a node whose evaluator never runs (a
     prefix of a longer chain) costs nothing.
     """
-    links: list[Link] = []
-    bottom: list[Callable[[IntArray], Any]] = []
+    followed: list[tuple[list[Link], Callable[[IntArray], Any]]] = []
 
-    def follow() -> None:
+    def follow() -> tuple[list[Link], Callable[[IntArray], Any]]:
+        links: list[Link] = []
         current: Link | None = link
         while current is not None:
             links.append(current)
             current = current.below.link
-        bottom.append(links[-1].below.fn)
+        followed.append((links, links[-1].below.fn))  # two threads may both append: equal
+        return followed[0]
 
     def evaluate(states: IntArray) -> Any:
-        if not bottom:
-            follow()
+        links, bottom = followed[0] if followed else follow()
         kept = []
         for step in links:
             context, rows = step.descend(states)
@@ -88,7 +88,7 @@ def unrolled(link: Link) -> Callable[[IntArray], Any]:
             kept.append(context)
             states = rows
         else:
-            value = bottom[0](states)
+            value = bottom(states)
         for step, context in zip(reversed(links[: len(kept)]), reversed(kept), strict=True):
             value = step.combine(context, value)
         return value

@@ -46,8 +46,9 @@ def available_memory() -> int | None:
 @record
 class Footprint:
     """Bytes the builder holds per state and per transition, during the search and
-    once the DTMC is assembled (measured on the 20x20 mission: 2.26 GB at peak for
-    11.5 million states and 22.9 million transitions; this says 2.4 GB).
+    once the DTMC is assembled (measured on the mission of a 20x20 farm and a 60 Ah
+    battery: 2.26 GB at peak for 11.5 million states and 22.9 million transitions;
+    this says 2.4 GB).
 
     :param width: variables per state (the assembled DTMC keeps each as int64).
     :param words: int64 words per state key (one unless the ranges' product is huge).
@@ -96,12 +97,10 @@ class MemoryGuard:
         :param transitions: transitions found so far.
         :raises ModelTooLarge: if the next layer and the DTMC would not fit.
         """
-        upcoming = states - expanded
-        if not upcoming or not frontier:
-            return
-        growth = upcoming / frontier
+        upcoming = states - expanded  # the next frontier (none: the DTMC is assembled next)
+        growth = upcoming / frontier if frontier else 0.0
         later_states = states + int(upcoming * growth)
-        later_transitions = transitions + int(upcoming * transitions / expanded)
+        later_transitions = transitions + int(upcoming * transitions / max(expanded, 1))
         need = (self.footprint.assembled(later_states, later_transitions)
                 - self.footprint.searching(states, transitions))
         if need < _NEGLIGIBLE:
@@ -109,9 +108,10 @@ class MemoryGuard:
         if self._known is None or 4 * need > self._known:  # near the limit: look again
             self._known = self._available()
         if self._known is not None and need > _USABLE * self._known:
+            trend = "growing" if growth >= 1 else "shrinking"
             raise ModelTooLarge(
                 f"model too large for the memory available: {states:,} states and "
-                f"{transitions:,} transitions found so far, the frontier growing "
+                f"{transitions:,} transitions found so far, the frontier {trend} "
                 f"{growth:.2f}x per layer; going on needs about {_gb(need)} more "
                 f"(for about {later_states:,} states), {_gb(self._known)} available"
             )
