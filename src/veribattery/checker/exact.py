@@ -13,6 +13,7 @@ kept in a separate mask.
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Mapping
 from contextvars import ContextVar
@@ -26,7 +27,14 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.pctl import _CONNECTIVES, _as_mask, _has_operator, _leaf, _steps
+from veribattery.checker.pctl import (
+    _CONNECTIVES,
+    _as_mask,
+    _chain,
+    _has_operator,
+    _leaf,
+    _steps,
+)
 from veribattery.checker.result import CheckResult
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
 from veribattery.explore.exact import ExactDTMC, ExactRewards
@@ -201,11 +209,16 @@ def exact_values(
 
 def state_set(model: ExactDTMC, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
+    if not _has_operator(expr):  # plain state predicate: evaluated whole, no recursion
+        return _as_mask(_leaf(model.dtmc, expr), expr)
     match expr:
         case ProbOp() | RewardOp():
             return _bounded_operator(model, expr)
         case Unary(op="!", operand=operand):
             return ~state_set(model, operand)
+        case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion
+            masks = (state_set(model, operand) for operand in _chain(expr, op))
+            return functools.reduce(_CONNECTIVES[op], masks)
         case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
             return _CONNECTIVES[op](state_set(model, left), state_set(model, right))
         case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):

@@ -9,6 +9,7 @@ a node: ``F phi`` is ``true U phi``, ``G phi`` is ``1 - P(F !phi)``, ``U<k`` is
 
 from __future__ import annotations
 
+import functools
 import math
 import operator
 from collections.abc import Callable, Iterator, Sequence
@@ -155,6 +156,8 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
     :param expr: a boolean state formula, possibly with bounded ``P``/``R`` operators.
     :raises CheckError: when *expr* is not boolean or nests operators unsupportedly.
     """
+    if not _has_operator(expr):  # plain state predicate: evaluated whole, no recursion
+        return _as_mask(_point(values(dtmc, expr)), expr)
     match expr:
         case ProbOp() | RewardOp() | SteadyOp():
             return _bounded_operator(dtmc, expr)
@@ -162,12 +165,29 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
             return _ctl(dtmc, quantifier, path)
         case Unary(op="!", operand=operand):
             return ~state_set(dtmc, operand)
+        case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion
+            masks = (state_set(dtmc, operand) for operand in _chain(expr, op))
+            return functools.reduce(_CONNECTIVES[op], masks)
         case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
             return _CONNECTIVES[op](state_set(dtmc, left), state_set(dtmc, right))
         case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
             return np.where(state_set(dtmc, cond), state_set(dtmc, then),
                             state_set(dtmc, otherwise))
     return _as_mask(_point(values(dtmc, expr)), expr)
+
+
+def _chain(expr: Binary, op: str) -> list[Expr]:
+    """The operands of the chain of *op* (``&`` or ``|``) *expr* heads, left to right,
+    however it is nested."""
+    operands: list[Expr] = []
+    stack: list[Expr] = [expr]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, Binary) and node.op == op:
+            stack += (node.right, node.left)
+        else:
+            operands.append(node)
+    return operands
 
 
 def path_probs(dtmc: DTMC, path: PathFormula, focus_states: IntArray | None = None) -> Bounds:
