@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner, Result
 
+from tests.lang.helpers import expression_depth
 from veribattery.cli import cli
 from veribattery.config import load_config
 from veribattery.errors import ModelTooLarge
@@ -28,7 +29,6 @@ from veribattery.explore.guard import MemoryGuard, available_memory
 from veribattery.explore.program import compile_program
 from veribattery.lang import FlatModel, flatten_model, parse_model, parse_properties
 from veribattery.lang.evaluate import evaluate
-from veribattery.lang.expressions import children
 from veribattery.render import render_model
 
 CASE1 = Path(__file__).resolve().parents[1] / "configs" / "paper" / "case1.yaml"
@@ -53,14 +53,6 @@ def _emit(tmp_path: Path, size: int) -> Path:
     return out
 
 
-def _depth(expr: object) -> int:
-    deepest, stack = 0, [(expr, 1)]
-    while stack:
-        node, level = stack.pop()
-        deepest = max(deepest, level)
-        stack.extend((child, level + 1) for child in children(node))
-    return deepest
-
 
 def test_emit_of_a_40x40_farm_parses_with_the_route_values(tmp_path: Path) -> None:
     """The emitted model parses and flattens in our front end, its per-cell formulas
@@ -81,7 +73,8 @@ def test_emit_of_a_40x40_farm_parses_with_the_route_values(tmp_path: Path) -> No
         if name == "step":  # none after the last cell
             values, expected = values[:-1], expected[:-1]
         assert values == expected, name
-        assert _depth(formulas[name]) < 3 * (32 + 11)  # chains of 32 under log2(1521) halvings
+        # chains of 32 under log2(1521) halvings
+        assert expression_depth(formulas[name]) < 3 * (32 + 11)
 
 
 def test_a_20x20_farm_end_to_end_through_emit_and_prism(tmp_path: Path) -> None:

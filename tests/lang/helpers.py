@@ -41,6 +41,18 @@ def peer_files(*suffixes: str) -> list[Any]:
     return [pytest.param(p, id=str(p.relative_to(PEER))) for p in files]
 
 
+def expression_depth(expr: Any) -> int:
+    """How deep *expr*'s tree is (measured without recursion, as it may be very deep)."""
+    from veribattery.lang.expressions import children
+
+    deepest, stack = 0, [(expr, 1)]
+    while stack:
+        node, level = stack.pop()
+        deepest = max(deepest, level)
+        stack.extend((child, level + 1) for child in children(node))
+    return deepest
+
+
 MINI = """dtmc
 const int N = 3;
 module m

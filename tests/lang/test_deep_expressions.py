@@ -17,10 +17,11 @@ from typing import Any
 
 import pytest
 
+from tests.lang.helpers import expression_depth
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import FlatModel, Ident, flatten_model, parse_model, parse_property
 from veribattery.lang.evaluate import EvaluationError, evaluate
-from veribattery.lang.expressions import children, walk
+from veribattery.lang.expressions import walk
 from veribattery.lang.fastparse import parse_fast
 from veribattery.lang.parser import _parse_with_lark
 from veribattery.lang.properties import resolve_property
@@ -108,20 +109,12 @@ def _same_tree(a: Any, b: Any, *, spans: bool = True) -> bool:
     return True
 
 
-def _depth(expr: Any) -> int:
-    deepest, stack = 0, [(expr, 1)]
-    while stack:
-        node, level = stack.pop()
-        deepest = max(deepest, level)
-        stack.extend((child, level + 1) for child in children(node))
-    return deepest
-
 
 def test_the_model_is_deeper_than_the_recursion_limit() -> None:
     model = parse_model(_text())
     formulas = {f.name: f.expr for f in model.formulas}
     for name in ("even", "odd", "weight", "weight_nested"):
-        assert _depth(formulas[name]) >= TERMS > sys.getrecursionlimit()
+        assert expression_depth(formulas[name]) >= TERMS > sys.getrecursionlimit()
 
 
 def test_the_fast_parser_reads_it_as_lark_does() -> None:

@@ -133,6 +133,19 @@ def parse_deadline(text: str, working_day_minutes: float = 480.0,
     return Deadline(text, float(match.group(1)) * units[match.group(2)])
 
 
+def parse_deadlines(working_day: str,
+                    deadlines: Sequence[str]) -> tuple[float, tuple[Deadline, ...]]:
+    """``--working-day`` and the ``--deadline`` options: the day's length in minutes and
+    the deadlines.
+
+    :raises ConfigError: on a malformed value or a working day that is not longer than 0.
+    """
+    day = parse_deadline(working_day, option="--working-day").value
+    if day <= 0:
+        raise ConfigError(f"--working-day {working_day}: must be longer than 0, e.g. 8h")
+    return day, tuple(parse_deadline(d, day) for d in deadlines)
+
+
 def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success",
                         failure: str = "failure", *, coverage: float = 0.999,
                         horizon: float = 0.0, max_levels: int = MAX_LEVELS) -> Distribution:

@@ -17,7 +17,6 @@ from veribattery.cli.output import (
     user_errors,
 )
 from veribattery.cli.tables import print_table
-from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from veribattery.analyses.distribution import Deadline, Distribution
@@ -48,15 +47,12 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
                          csv_path: Path | None, plot_path: Path | None, force: bool,
                          output_format: str) -> None:
     """The distribution of mission time to success and to failure for CONFIG (YAML)."""
-    from veribattery.analyses.distribution import parse_deadline, write_csv
+    from veribattery.analyses.distribution import parse_deadlines, write_csv
     from veribattery.config import load_config
     from veribattery.mission import mission_dtmc
 
     with user_errors():
-        day = parse_deadline(working_day, option="--working-day").value
-        if day <= 0:
-            raise OptionError(f"--working-day {working_day}: must be longer than 0, e.g. 8h")
-        limits = tuple(parse_deadline(d, day) for d in deadlines)
+        _, limits = parse_deadlines(working_day, deadlines)
         check_output_file(csv_path, "-o", force=force, suffixes=CSV_SUFFIXES)
         check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
         cfg = load_config(config, overrides)

@@ -56,17 +56,14 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
     sweep's figures (--sweep) and what is needed to reproduce it. Exit 1 if a
     requirement fails (the report is written all the same).
     """
-    from veribattery.analyses.distribution import parse_deadline
+    from veribattery.analyses.distribution import parse_deadlines
     from veribattery.config import load_config
     from veribattery.report import ReportOptions, read_sweep, write_report
 
     with user_errors():
         check_output_file(output, "-o", force=force, suffixes=HTML_SUFFIXES)
         _check_counts(runs, top)
-        day = parse_deadline(working_day, option="--working-day").value
-        if day <= 0:
-            raise OptionError(f"--working-day {working_day}: must be longer than 0, e.g. 8h")
-        limits = tuple(parse_deadline(d, day) for d in deadlines)
+        day, limits = parse_deadlines(working_day, deadlines)
         cfg = load_config(config, overrides)
         sweep = read_sweep(sweep_file, config, cfg) if sweep_file is not None else None
         options = ReportOptions(runs=runs, seed=seed, top=top, deadlines=limits,
