@@ -79,11 +79,15 @@ class ModelCheckRun:
         }
 
 
-class _Stopwatch:
-    """Accumulates wall-clock seconds per named stage."""
+#: The stages of a check, always reported (``Time: parse …, build …, check …``).
+_STAGES = ("parse", "build", "check")
 
-    def __init__(self) -> None:
-        self.seconds: dict[str, float] = {"parse": 0.0, "build": 0.0, "check": 0.0}
+
+class Stopwatch:
+    """Accumulates wall-clock seconds per named stage (*stages* listed first, at 0)."""
+
+    def __init__(self, *stages: str) -> None:
+        self.seconds: dict[str, float] = dict.fromkeys(stages, 0.0)
 
     @contextmanager
     def stage(self, name: str) -> Iterator[None]:
@@ -162,7 +166,7 @@ def check_model(
     props_file: PropertiesFile | None = None,
     constants: Mapping[str, Value | str] | None = None,
     progress: ProgressCallback | None = None,
-    stopwatch: _Stopwatch | None = None,
+    stopwatch: Stopwatch | None = None,
     exact: bool = False,
     builder: ReusingBuilder | None = None,
     undefined_ok: bool = False,
@@ -192,7 +196,7 @@ def check_model(
         answers equal the DTMC's, their last bits aside. A sweep passes one per run of
         points sharing a state space (:mod:`veribattery.explore.lumping`).
     """
-    watch = stopwatch or _Stopwatch()
+    watch = stopwatch or Stopwatch(*_STAGES)
     with watch.stage("parse"):
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
@@ -339,7 +343,7 @@ def check_prism_file(
     :param exact: check in exact rational arithmetic (``--exact``).
     :param keep_states: keep per-state values and bounds (see :func:`check_model`).
     """
-    watch = _Stopwatch()
+    watch = Stopwatch(*_STAGES)
     with watch.stage("parse"):
         model = parse_model(model_source)
         props = parse_properties(props_source) if props_source is not None else None

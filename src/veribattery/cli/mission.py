@@ -11,13 +11,12 @@ import click
 
 from veribattery.cli.files import check_output_dir
 from veribattery.cli.output import (
-    EXACT_NOTE,
     build_progress,
     escape,
+    exact_notes,
     exact_text,
     format_result,
     format_value,
-    is_long_exact,
     json_value,
     out,
     print_imprecise,
@@ -80,7 +79,7 @@ def print_mission_table(report: MissionReport) -> None:
                                               else ""),
              format_result(result), result.property.text) for result in report.run.results]
     print_table(("property", "value", "formula"), rows)
-    notes = [EXACT_NOTE] if any(is_long_exact(value) for _, value, _ in rows) else []
+    notes = exact_notes(value for _, value, _ in rows)
     if any(is_conditional(r.property.formula) for r in report.run.results):
         notes.append("† conditional: the expectation given the condition after || "
                      "(e.g. given success)")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 import os
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar, cast
 
@@ -21,8 +21,6 @@ if TYPE_CHECKING:
     from rich.console import Console
 
     from veribattery.checker import CheckResult
-
-ProgressCallback = Callable[[int, int], None]
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -196,9 +194,10 @@ EXACT_NOTE = ("p/q: N/M digits: the exact rational value has an N-digit numerato
               "M-digit denominator; --format json or csv prints every digit.")
 
 
-def is_long_exact(text: str) -> bool:
-    """Whether a table cell is :func:`format_exact`'s long form."""
-    return text.startswith("≈ ") and text.endswith(" digits)")
+def exact_notes(cells: Iterable[str]) -> list[str]:
+    """``[EXACT_NOTE]`` if a table cell is :func:`format_exact`'s long form, else ``[]``."""
+    long_form = any(cell.startswith("≈ ") and cell.endswith(" digits)") for cell in cells)
+    return [EXACT_NOTE] if long_form else []
 
 
 #: Significant digits of numbers in tables.

@@ -11,12 +11,11 @@ import click
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
 from veribattery.cli.files import CSV_SUFFIXES, check_output_file
 from veribattery.cli.output import (
-    EXACT_NOTE,
     build_progress,
+    exact_notes,
     exact_text,
     format_result,
     format_value,
-    is_long_exact,
     json_value,
     out,
     print_imprecise,
@@ -186,8 +185,8 @@ def print_prism_run(run: ModelCheckRun) -> None:
     )
     rows = [(_labelled(result), _shown(result)) for result in run.results]
     print_table(("property", "value"), rows)
-    if any(is_long_exact(value) for _, value in rows):
-        out.print(fit_text(EXACT_NOTE), style="dim", markup=False)
+    for note in exact_notes(value for _, value in rows):
+        out.print(fit_text(note), style="dim", markup=False)
     for result in run.results:
         if result.printed:
             click.echo(f"States of {result.property.text}:")

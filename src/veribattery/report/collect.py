@@ -12,9 +12,7 @@ a copy of the table, not a second build.)
 from __future__ import annotations
 
 import hashlib
-import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 
@@ -26,7 +24,7 @@ from veribattery.config import MissionConfig
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang import flatten_model, parse_model
 from veribattery.mission import MODEL_FILE, MissionFiles, check_mission, mission_files
-from veribattery.pipeline import ProgressCallback
+from veribattery.pipeline import ProgressCallback, Stopwatch
 from veribattery.report.data import Provenance, ReportData
 from veribattery.report.failures import explain_failures, failures_of
 from veribattery.report.montecarlo import monte_carlo
@@ -82,23 +80,23 @@ def collect_report(cfg: MissionConfig, options: ReportOptions, *,
     :raises VeribatteryError: as the check and the analyses raise it.
     """
     say = notes or (lambda _: None)
-    clock = _Clock()
-    with clock("check"):
+    clock = Stopwatch()
+    with clock.stage("check"):
         say("checking the mission (build and model check)")
         report = check_mission(cfg, progress=progress, keep_states=False)
         files = mission_files(cfg)
         mission = _mission(cfg, files, report.run.dtmc)
     view = MissionView(mission)
-    with clock("explain"):
+    with clock.stage("explain"):
         say(f"explaining failures (breakdown and {options.top} most probable paths)")
         failures = failures_of(view, explain_failures(view, options.top))
-    with clock("distribution"):
+    with clock.stage("distribution"):
         say("computing the mission-time distribution")
         timing = mission_time(mission.dtmc, options.deadlines, options.working_day_minutes,
                               options.coverage)
     simulation = None
     if options.runs > 0:
-        with clock("simulate"):
+        with clock.stage("simulate"):
             say(f"simulating {options.runs:,} runs (seed {options.seed})")
             simulation = monte_carlo(report.run, mission.dtmc, runs=options.runs,
                                      seed=options.seed, max_steps=options.max_steps)
@@ -127,17 +125,3 @@ def _provenance(options: ReportOptions, files: MissionFiles, dtmc: DTMC,
         properties_props=files.properties, storm_only_props=files.storm_only,
     )
 
-
-class _Clock:
-    """Wall-clock seconds per stage of the report."""
-
-    def __init__(self) -> None:
-        self.seconds: dict[str, float] = {}
-
-    @contextmanager
-    def __call__(self, stage: str) -> Iterator[None]:
-        start = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.seconds[stage] = self.seconds.get(stage, 0.0) + time.perf_counter() - start
