@@ -33,8 +33,8 @@ SMALL = ("farm.cols=3", "farm.rows=2", "farm.base=[0,0]", "battery.capacity_ah=6
          "battery.max_recharges=8", "environment.p_wsp_c=0.3")
 
 #: name: (overrides, (states, choices, transitions) as Storm builds them and as the
-#: reference counts them). Variants cover the voltage levels, the wind's extremes,
-#: another route and a fixed level.
+#: reference counts them). Variants cover the voltage levels, the wind's extremes, a
+#: fixed level, another base, and a route by columns with Eq. 2's costs.
 SMALL_CASES: dict[str, tuple[tuple[str, ...], tuple[int, int, int]]] = {
     "tiny": (TINY, (233, 373, 712)),
     "small": (SMALL, (1431, 2190, 4208)),
@@ -43,6 +43,9 @@ SMALL_CASES: dict[str, tuple[tuple[str, ...], tuple[int, int, int]]] = {
     "small-basic-low": ((*SMALL, "battery.model=basic_low"), (915, 1443, 2786)),
     "three-by-three": (("farm.cols=3", "farm.rows=3", "farm.base=[1,1]",
                         "battery.capacity_ah=6", "battery.max_recharges=12"), (3927, 6022, 11722)),
+    "columns-eq2": (("farm.cols=4", "farm.rows=2", "farm.base=[1,0]", "farm.route=snake_columns",
+                     "battery.capacity_ah=6", "battery.max_recharges=6",
+                     "battery.consumption={energy_wh: 180}"), (1045, 1625, 3164)),
 }
 
 
@@ -162,7 +165,7 @@ def test_choice_table_by_hand(tmp_path: Path) -> None:
 
 def _failure_as_abort(dist: dict[State, float]) -> dict[State, float]:
     """A distribution with every failure state's charge set to 0, as abort leaves it
-    (BS1's `infeasible` leaves the charge as it was: model-spec-notes.md)."""
+    (BS1's `infeasible` leaves the charge as it was: docs/decisions.md)."""
     out: dict[State, float] = {}
     for y, p in dist.items():
         key = y._replace(b=0) if y.s == 6 else y
