@@ -146,6 +146,7 @@ def mission_files(cfg: MissionConfig) -> MissionFiles:
     """
     from veribattery.render import render_model
 
+    cfg.require_bs1()
     model = render_model(cfg)
     parsed = parse_model(model, name=MODEL_FILE)
     both, storm = _dialects(validate_properties(cfg, parsed), _label_names(parsed))
@@ -271,6 +272,7 @@ def _check(
 ) -> MissionReport:
     from veribattery.render import render_model, render_properties
 
+    cfg.require_bs1()
     parsed = parsed or _Parsed()
     model = parsed.model(render_model(cfg))  # not mission_files: no config YAML needed
     parsed.validate(cfg, model)

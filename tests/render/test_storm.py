@@ -4,7 +4,6 @@ calibration of model-spec.md, one action per state, and PRISM's domain-wide rang
 from __future__ import annotations
 
 import collections
-import itertools
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +13,8 @@ from veribattery.config import load_config
 from veribattery.render import render_model, render_properties
 
 stormpy = pytest.importorskip("stormpy")
+
+from tests.render.prism_ranges import range_violations  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -87,43 +88,6 @@ def test_one_action_in_every_live_state(tmp_path: Path) -> None:
     assert counts[0] == done.get_number_of_set_bits()  # the absorbing loop is unlabelled
 
 
-def _range_violations(text: str, tmp_path: Path) -> set[tuple[str, str]]:
-    """PRISM's symbolic check: over the WHOLE domain, does any command's own guard admit an
-    update out of range? (Storm only explores reachable states, so we enumerate here.)"""
-    program = _program(text, tmp_path).substitute_formulas().substitute_constants()
-    manager = program.expression_manager
-    bounds = {
-        v.name: (
-            v.expression_variable,
-            v.lower_bound_expression.evaluate_as_int(),
-            v.upper_bound_expression.evaluate_as_int(),
-        )
-        for module in program.modules
-        for v in module.integer_variables
-    }
-    commands = [
-        (
-            module.name,
-            c.guard_expression,
-            [(a.variable.name, a.expression) for u in c.updates for a in u.assignments],
-        )
-        for module in program.modules
-        for c in module.commands
-    ]
-    bad: set[tuple[str, str]] = set()
-    for values in itertools.product(*(range(lo, hi + 1) for _, lo, hi in bounds.values())):
-        sub = {
-            var: manager.integer(x) for (var, _, _), x in zip(bounds.values(), values, strict=True)
-        }
-        for module, guard, assignments in commands:
-            if guard.substitute(sub).evaluate_as_bool():
-                for name, expr in assignments:
-                    _, lo, hi = bounds[name]
-                    if not lo <= expr.substitute(sub).evaluate_as_int() <= hi:
-                        bad.add((module, name))
-    return bad
-
-
 def test_every_command_keeps_its_updates_in_range(tmp_path: Path) -> None:
     tiny = (
         "farm.cols=2",
@@ -135,6 +99,6 @@ def test_every_command_keeps_its_updates_in_range(tmp_path: Path) -> None:
         "battery.fade_per_recharge=0.1",
     )
     text = render_model(load_config("", tiny))
-    assert _range_violations(text, tmp_path) == set()
+    assert range_violations(text, tmp_path) == set()
     broken = text.replace("[inspect]  b>=c_ins   ->", "[inspect]  true ->")
-    assert _range_violations(broken, tmp_path) == {("Battery", "b")}
+    assert range_violations(broken, tmp_path) == {("Battery", "b")}

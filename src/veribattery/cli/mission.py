@@ -29,7 +29,8 @@ from veribattery.cli.output import (
 from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
-    from veribattery.mission import MissionReport
+    from veribattery.config import MissionConfig
+    from veribattery.mission import MissionFiles, MissionReport
 
 
 @click.command("check", short_help="Verify a mission config; exit 1 if a requirement fails.")
@@ -159,24 +160,38 @@ def print_mission_csv(report: MissionReport) -> None:
 @set_option
 @click.option("--force", is_flag=True, help="Overwrite existing files.")
 def emit_command(config: Path, out_dir: Path, overrides: tuple[str, ...], force: bool) -> None:
-    """Write the PRISM model and properties of CONFIG for PRISM or Storm."""
-    from veribattery.config import load_config
-    from veribattery.lang import flatten_model, parse_model, parse_properties
-    from veribattery.mission import (
-        EMITTED_FILES,
-        MODEL_FILE,
-        PROPERTIES_FILE,
-        mission_files,
-        write_files,
-    )
+    """Write the PRISM model and properties of CONFIG for PRISM or Storm.
 
+    With strategy.mode: synthesize, the model is the mission's MDP and the properties
+    are its questions: the best P(success), and the fastest policy for each requirement
+    on P(success).
+    """
+    from veribattery.config import load_config
+    from veribattery.mission import EMITTED_FILES, write_files
+
+    warnings: tuple[str, ...] = ()
     with user_errors():
         check_output_dir(out_dir, "-o", force=force, names=EMITTED_FILES)
-        files = mission_files(load_config(config, overrides))
-        # The emitted text must be valid for our own front end before it is written.
-        flatten_model(parse_model(files.model, name=MODEL_FILE))
-        parse_properties(files.properties, name=PROPERTIES_FILE)
+        cfg = load_config(config, overrides)
+        if cfg.strategy.mode == "synthesize":
+            from veribattery.synthesis import synthesis_files, unasked_requirements
+
+            files, warnings = synthesis_files(cfg), unasked_requirements(cfg)
+        else:
+            files = _checked_mission_files(cfg)
         written = write_files(files, out_dir, force=force)
+    print_warnings(warnings)
     for path in written:
         click.echo(str(path))
+
+
+def _checked_mission_files(cfg: MissionConfig) -> MissionFiles:
+    """BS1's files, valid for our own front end before they are written."""
+    from veribattery.lang import flatten_model, parse_model, parse_properties
+    from veribattery.mission import MODEL_FILE, PROPERTIES_FILE, mission_files
+
+    files = mission_files(cfg)
+    flatten_model(parse_model(files.model, name=MODEL_FILE))
+    parse_properties(files.properties, name=PROPERTIES_FILE)
+    return files
 

@@ -186,9 +186,12 @@ _Dumper.add_representer(list, _represent_list)
 
 
 def _plain(value: object) -> object:
-    """Models as dicts, fractions as decimals where exact (else ``"p/q"``), tuples as lists."""
+    """Models as dicts (less the fields their schema excludes at a value, see
+    ``exclude_if``), fractions as decimals where exact (else ``"p/q"``), tuples as lists."""
     if isinstance(value, BaseModel):
-        return {name: _plain(getattr(value, name)) for name in type(value).model_fields}
+        return {name: _plain(getattr(value, name))
+                for name, info in type(value).model_fields.items()
+                if info.exclude_if is None or not info.exclude_if(getattr(value, name))}
     if isinstance(value, Fraction):
         return _plain_fraction(value)
     if isinstance(value, dict):

@@ -55,6 +55,7 @@ __all__ = [
 Cell = tuple[int, int]
 BatteryModel = Literal["advanced", "basic_high", "basic_medium", "basic_low"]
 RouteName = Literal["snake_rows", "snake_columns"]
+StrategyMode = Literal["bs1", "synthesize"]
 
 PAPER_PROPERTIES: dict[str, str] = {
     "p_success": 'P=? [ F "success" ]',
@@ -313,10 +314,18 @@ class BatteryConfig(_Section):
         return self.fade_per_recharge if self.model == "advanced" else Fraction(0)
 
 
+def _is_bs1(mode: str) -> bool:
+    return mode == "bs1"
+
+
 class StrategyConfig(_Section):
-    """The battery safety strategy BS1."""
+    """The drone's return policy: the battery safety strategy BS1, or synthesised."""
 
     safe_t: Exact = Fraction(3, 10)
+    #: ``bs1``: the paper's DTMC, every decision taken by BS1; ``synthesize``: the MDP of
+    #: model-spec.md ("Synthesis"), every decision left open. The resolved config leaves
+    #: the default out, so that BS1's emitted files and sweep keys stay as they were.
+    mode: StrategyMode = Field("bs1", exclude_if=_is_bs1)
 
     @field_validator("safe_t")
     @classmethod
@@ -445,6 +454,17 @@ class MissionConfig(_Section):
         formula, placed where the formula was written: its file position, or the
         ``--set`` it came from (for a config built in code, the key alone)."""
         return self._property_origins.error(name, self.properties[name], message, at)
+
+    def require_bs1(self) -> None:
+        """Refuse to go on with BS1's DTMC when the config asks for synthesis.
+
+        :raises ConfigError: when ``strategy.mode`` is ``synthesize``.
+        """
+        if self.strategy.mode == "synthesize":
+            raise ConfigError(
+                "strategy.mode: synthesize makes the mission an MDP, and this command verifies "
+                "BS1's DTMC: use `veribattery emit` and check the MDP with Storm or PRISM "
+                "(`veribattery synthesize` is not yet available), or set strategy.mode=bs1")
 
     @property
     def parsed_requirements(self) -> tuple[Requirement, ...]:
