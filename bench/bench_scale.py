@@ -232,6 +232,7 @@ def main() -> None:
     settings = (f"Timeout {args.timeout:.0f} s and `ulimit -v` {args.memory_gb:g} GB per "
                 f"process; machine: {os.cpu_count()} cores, run {time.strftime('%Y-%m-%d')}.")
     rows: list[str] = []
+    args.out.with_suffix(".jsonl").unlink(missing_ok=True)  # raw measurements of this run
     for instance in INSTANCES:
         if args.only not in instance.label:
             continue
