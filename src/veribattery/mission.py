@@ -490,7 +490,9 @@ def _judge(requirement: Requirement,
 def recharge_cap_probability(run: ModelCheckRun, cfg: MissionConfig) -> float:
     """P[F rc=RC_MAX] in *run*'s DTMC (0 without computing when no state reaches the cap)."""
     formulas = _recharge_cap_formulas(run.dtmc, cfg)
-    return float(check(run.checked_dtmc, formulas[0], states=False).value) if formulas else 0.0
+    if not formulas:
+        return 0.0
+    return float(check(run.checked_dtmc, formulas[0], states=False, workspace=run.workspace).value)
 
 
 def _recharge_cap_formulas(dtmc: DTMC, cfg: MissionConfig) -> tuple[Expr, ...]:

@@ -21,8 +21,7 @@ import numpy as np
 
 from veribattery._memory import trim_for
 from veribattery._record import record
-from veribattery.checker import CheckResult, check
-from veribattery.checker.pctl import prepare
+from veribattery.checker import CheckResult, Workspace, check
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
 from veribattery.explore.lumping import Lumper
@@ -62,6 +61,9 @@ class ModelCheckRun:
     #: The bisimulation quotient the properties were checked on, if any (see *lumper*
     #: of :func:`check_model`); *dtmc* is always the model's own chain.
     quotient: DTMC | None = None
+    #: The checker's caches the properties were checked with, for checking more
+    #: formulas on :attr:`checked_dtmc` with the same linear systems.
+    workspace: Workspace | None = field(default=None, compare=False, repr=False)
 
     @property
     def checked_dtmc(self) -> DTMC:
@@ -109,6 +111,9 @@ class ReusingBuilder:
 
     def __init__(self) -> None:
         self._base: tuple[DTMC, Structure] | None = None
+        #: The checker's caches for the chains built here: the plans made for a state
+        #: space serve every later chain that re-uses it (:class:`Workspace`).
+        self.workspace = Workspace()
 
     def build(self, flat: FlatModel, progress: ProgressCallback | None = None) -> tuple[DTMC, bool]:
         """The DTMC of *flat*, and whether it re-used the base's state space."""
@@ -179,7 +184,8 @@ def check_model(
 
     :param exact: compute in exact rational arithmetic (results are
         :class:`~veribattery.checker.exact.ExactCheckResult`).
-    :param builder: re-use the state space of earlier models where possible.
+    :param builder: re-use the state space of earlier models where possible (and the
+        checker's caches in its workspace; without it, a new workspace for this run).
     :param undefined_ok: report a property that has no value on this model
         (:class:`~veribattery.errors.UndefinedResult`) as NaN with a warning,
         instead of failing the run.
@@ -188,9 +194,10 @@ def check_model(
         per-state vectors are alive at a time (what the CLI prints needs no more).
     :param values_only: the caller needs the results, not the DTMC's other reward
         structures: those no property names are not built (a sweep point).
-    :param checked_after: the formulas the caller will check on the returned DTMC
-        (the mission's recharge-cap probability), so that the properties' linear
-        systems are chosen to serve them too (:func:`~veribattery.checker.pctl.prepare`).
+    :param checked_after: the formulas the caller will check on the returned DTMC with
+        its :attr:`ModelCheckRun.workspace` (the mission's recharge-cap probability), so
+        that the properties' linear systems are chosen to serve them too
+        (:meth:`Workspace.prepare`).
     :param lumper: check on the DTMC's bisimulation quotient when it has one worth
         checking on (answers only: without *keep_states*, never with *exact*); the
         answers equal the DTMC's, their last bits aside. A sweep passes one per run of
@@ -222,18 +229,21 @@ def check_model(
         with watch.stage("lump"):
             quotient = _quotient(lumper, dtmc, [p.formula for p in resolved] + later)
     checked = quotient if quotient is not None else dtmc
+    workspace = builder.workspace if builder is not None else Workspace()
     if exact_model is not None:
-        checks = _exact_checks(exact_model, (properties, resolved), props_file, constants)
+        checks = _exact_checks(exact_model, (properties, resolved), props_file, constants,
+                               workspace)
     else:
-        checks = [functools.partial(check, checked, p, states=keep_states) for p in resolved]
+        checks = [functools.partial(check, checked, p, states=keep_states, workspace=workspace)
+                  for p in resolved]
     with watch.stage("check"):
         if exact_model is None:  # linear systems shared between the properties
             trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's
-            prepare(checked, [p.formula for p in resolved] + later)
+            workspace.prepare(checked, [p.formula for p in resolved] + later)
             trim_for(dtmc.num_states)  # the pre-pass's freed temporaries
         results, undefined = _run_checks(checks, resolved, checked, (undefined_ok, keep_states))
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused,
-                         quotient)
+                         quotient, workspace)
 
 
 def _quotient(lumper: Lumper, dtmc: DTMC, formulas: Sequence[Expr]) -> DTMC | None:
@@ -305,6 +315,7 @@ def _exact_checks(
     properties: tuple[Sequence[Property], Sequence[Property]],
     props_file: PropertiesFile | None,
     constants: Mapping[str, Value | str] | None,
+    workspace: Workspace,
 ) -> list[Callable[[], CheckResult]]:
     """A check per property on the exactly built *exact* model.
 
@@ -319,7 +330,8 @@ def _exact_checks(
     values = exact_constants(decls, given, outer=exact.constants)
     originals, resolved = properties
     return [
-        functools.partial(check_exact, exact, p, exact_bounds(o.formula, values))
+        functools.partial(check_exact, exact, p, exact_bounds(o.formula, values),
+                          workspace=workspace)
         for o, p in zip(originals, resolved, strict=True)
     ]
 

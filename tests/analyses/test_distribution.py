@@ -19,6 +19,7 @@ from veribattery.analyses.distribution import (
     reward_distribution,
     write_csv,
 )
+from veribattery.checker import Workspace
 from veribattery.checker.reward_bounded import integer_levels, reward_bounded_until_probs
 from veribattery.cli import cli
 from veribattery.errors import CheckError, ConfigError
@@ -50,7 +51,8 @@ def test_every_level_agrees_with_the_backward_kernel(mission: DTMC) -> None:
     for label, cdf in (("success", dist.success_cdf), ("failure", dist.failure_cdf)):
         for t in range(0, 401, 7):
             kernel = reward_bounded_until_probs(mission.transitions, everywhere,
-                                                mission.labels[label], levels, t)[start]
+                                                mission.labels[label], levels, t,
+                                                workspace=Workspace())[start]
             assert cdf[t] == pytest.approx(kernel, abs=1e-13), (label, t)
     assert dist.p_success == pytest.approx(0.406, abs=1e-12)
     assert dist.success_cdf[-1] + dist.failure_cdf[-1] + dist.pending == pytest.approx(1.0)

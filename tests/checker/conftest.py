@@ -41,9 +41,9 @@ def systems_built(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
     built: list[int] = []
     original = linsolve.restricted_parts
 
-    def counting(P, maybe):  # type: ignore[no-untyped-def]
+    def counting(P, maybe, plans=None):  # type: ignore[no-untyped-def]
         built.append(int(maybe.sum()))
-        return original(P, maybe)
+        return original(P, maybe, plans)
 
     monkeypatch.setattr(linsolve, "restricted_parts", counting)
     yield built

@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
-from veribattery.checker import kernels
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.result import CheckResult
 from veribattery.config.schema import parse_requirement
@@ -75,7 +75,7 @@ def test_tiny_and_near_one_probabilities(eps: float) -> None:
     P = matrix({0: {0: 1 - 2 * eps, 1: eps, 2: eps}, 3: {0: 1 - 1e-12, 1: 1e-12}}, 4)
     target = np.array([False, True, False, False])
     everywhere = np.ones(4, dtype=bool)
-    found = kernels.until_probs(P, everywhere, target)
+    found = kernels.until_probs(P, everywhere, target, workspace=Workspace())
     assert contains(found, ref.until(P, everywhere, target))
     assert found.precise_states().all()
     # The self-loop is read as 1 - (leaving probability): exactly 1/2 from state 0.
@@ -84,7 +84,8 @@ def test_tiny_and_near_one_probabilities(eps: float) -> None:
 
 def test_rewards_with_near_one_self_loop() -> None:
     P = matrix({0: {0: 1 - 1e-12, 1: 1e-12}}, 2)
-    found = kernels.reach_rewards(P, np.array([1.0, 0.0]), np.array([False, True]))
+    found = kernels.reach_rewards(P, np.array([1.0, 0.0]), np.array([False, True]),
+                                  workspace=Workspace())
     assert found.lower[0] <= 1e12 <= found.upper[0]
     assert found.precise_states().all()
 
@@ -107,10 +108,11 @@ def test_stiff_random_chains(seed: int) -> None:
     target = np.zeros(n, dtype=bool)
     target[n - 1] = True
     everywhere = np.ones(n, dtype=bool)
-    found = kernels.until_probs(P, everywhere, target)
+    workspace = Workspace()
+    found = kernels.until_probs(P, everywhere, target, workspace=workspace)
     assert contains(found, ref.until(P, everywhere, target))
     rewards = np.ones(n)
-    got = kernels.reach_rewards(P, rewards, target)
+    got = kernels.reach_rewards(P, rewards, target, workspace=workspace)
     exact = ref.reach_rewards(P, rewards, target)
     finite = np.isfinite(got.value)
     assert contains(Bounds(*(v[finite] for v in (got.value, got.lower, got.upper))),
@@ -135,7 +137,7 @@ def chains(draw: st.DrawFn) -> tuple[sp.csr_matrix, np.ndarray, np.ndarray, np.n
 @given(chains())
 def test_until_interval_contains_exact(case: tuple) -> None:  # type: ignore[type-arg]
     P, remain, target, _, _ = case
-    found = kernels.until_probs(P, remain, target)
+    found = kernels.until_probs(P, remain, target, workspace=Workspace())
     assert contains(found, ref.until(P, remain, target))
     assert found.precise_states().all()  # small random chains are well conditioned
 
@@ -144,7 +146,7 @@ def test_until_interval_contains_exact(case: tuple) -> None:  # type: ignore[typ
 @given(chains())
 def test_reach_rewards_interval_contains_exact(case: tuple) -> None:  # type: ignore[type-arg]
     P, _, target, rewards, _ = case
-    found = kernels.reach_rewards(P, rewards, target)
+    found = kernels.reach_rewards(P, rewards, target, workspace=Workspace())
     exact = ref.reach_rewards(P, rewards, target)
     finite = np.isfinite(found.value)
     assert np.array_equal(found.lower[~finite], found.upper[~finite])
@@ -233,10 +235,12 @@ def test_block_lu_matches_dense_solve_and_certifies() -> None:
     assert np.allclose(inverse(b), np.linalg.solve(A64.toarray(), b), rtol=1e-12)
     target = ~maybe
     everywhere = np.ones(n, dtype=bool)
-    found = kernels.reach_rewards(P, np.ones(n), target)
+    workspace = Workspace()
+    found = kernels.reach_rewards(P, np.ones(n), target, workspace=workspace)
     assert contains(found, ref.reach_rewards(P, np.ones(n), target))
     assert found.precise_states().all()
-    assert contains(kernels.until_probs(P, everywhere, target), ref.until(P, everywhere, target))
+    assert contains(kernels.until_probs(P, everywhere, target,
+                                        workspace=workspace), ref.until(P, everywhere, target))
 
 
 # --- output ---------------------------------------------------------------------------

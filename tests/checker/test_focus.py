@@ -143,8 +143,9 @@ def test_certified_row_bounds_the_exact_row(seed: int) -> None:
     dtmc = run.dtmc
     P = dtmc.transitions
     named = dtmc.column("s")  # the chain's state of each DTMC state
-    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in named]))
-    system = kernels._system(P, maybe)
+    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in named]),
+                                   workspace=run.workspace)
+    system = kernels._system(P, maybe, workspace=run.workspace)
     zeros = np.zeros(P.shape[0])
     F = system.affine(zeros, zeros, np.zeros(int(maybe.sum())))
     states = [int(s) for s in F.states]
@@ -194,9 +195,10 @@ def _reward_map(seed: int, *, non_dyadic: bool) -> certify.AffineMap:
     run = check_prism_file(_text(_thirds(rows) if non_dyadic else rows, rewards, done,
                                  succeeded, t), props_source='R{"r"}=? [ F "a" ]')
     P = run.dtmc.transitions
-    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]))
+    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]),
+                                   workspace=run.workspace)
     zeros = np.zeros(P.shape[0])
-    return kernels._system(P, maybe).affine(zeros, zeros, None)
+    return kernels._system(P, maybe, workspace=run.workspace).affine(zeros, zeros, None)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -210,8 +212,9 @@ def test_radius_covers_a_poor_approximation(seed: int) -> None:
     exact = _expected(built, rewards, done)[initial]
     run = check_prism_file(text, props_source='R{"r"}=? [ F "a" ]')
     P, dtmc = run.dtmc.transitions, run.dtmc
-    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in dtmc.column("s")]))
-    system = kernels._system(P, maybe)
+    maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in dtmc.column("s")]),
+                                   workspace=run.workspace)
+    system = kernels._system(P, maybe, workspace=run.workspace)
     zeros = np.zeros(P.shape[0])
     F = system.affine(zeros, zeros, np.asarray(dtmc.rewards[0].total[maybe], dtype=float))
     k = int(np.searchsorted(F.states, dtmc.initial[0]))

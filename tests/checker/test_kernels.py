@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker.chains import gamblers_ruin, knuth_die, mask, matrix
-from veribattery.checker import kernels, linsolve
+from veribattery.checker import Workspace, kernels, linsolve
 from veribattery.errors import CheckError
 
 ALL13 = np.ones(13, dtype=bool)
@@ -34,8 +34,9 @@ def _ruin_duration(i: int, n: int, p: float) -> float:
 def test_prob0_prob1_on_die() -> None:
     die = knuth_die()
     P, target = die.transitions, die.labels["face1"]
-    no = kernels.prob0(P, ALL13, target)
-    yes = kernels.prob1(P, ALL13, target, no)
+    workspace = Workspace()
+    no = kernels.prob0(P, ALL13, target, workspace=workspace)
+    yes = kernels.prob1(P, ALL13, target, no, workspace=workspace)
     assert np.flatnonzero(~no).tolist() == [0, 1, 3, 7]
     assert np.flatnonzero(yes).tolist() == [7]
 
@@ -43,20 +44,21 @@ def test_prob0_prob1_on_die() -> None:
 def test_prob0_respects_remain() -> None:
     # 0 -> 1 -> 2 (target); leaving 1 out of remain cuts 0 off.
     P = matrix({0: {1: 1.0}, 1: {2: 1.0}}, 3)
-    no = kernels.prob0(P, mask(3, [0]), mask(3, [2]))
+    no = kernels.prob0(P, mask(3, [0]), mask(3, [2]), workspace=Workspace())
     assert no.tolist() == [True, True, False]
 
 
 def test_prob0_ignores_explicit_zero_entries() -> None:
     P = matrix({0: {1: 0.0, 0: 1.0}}, 2)
-    assert kernels.prob0(P, mask(2, [0, 1]), mask(2, [1])).tolist() == [True, False]
+    assert kernels.prob0(P, mask(2, [0, 1]), mask(2, [1]),
+                         workspace=Workspace()).tolist() == [True, False]
 
 
 def test_prob0_on_long_chain_is_fast() -> None:
     # 200k-state chain: a mat-vec fixpoint would need 200k iterations.
     n = 200_000
     P = matrix({i: {i + 1: 1.0} for i in range(n - 1)}, n)
-    no = kernels.prob0(P, np.ones(n, dtype=bool), mask(n, [n - 1]))
+    no = kernels.prob0(P, np.ones(n, dtype=bool), mask(n, [n - 1]), workspace=Workspace())
     assert not no.any()
 
 
@@ -66,13 +68,15 @@ def test_prob0_on_long_chain_is_fast() -> None:
 @pytest.mark.parametrize("face", range(1, 7))
 def test_die_faces_are_one_sixth(face: int) -> None:
     die = knuth_die()
-    probs = kernels.until_probs(die.transitions, ALL13, die.labels[f"face{face}"]).value
+    probs = kernels.until_probs(die.transitions, ALL13, die.labels[f"face{face}"],
+                                workspace=Workspace()).value
     assert probs[0] == pytest.approx(1 / 6, rel=1e-12)
 
 
 def test_die_expected_flips() -> None:
     die = knuth_die()
-    flips = kernels.reach_rewards(die.transitions, die.rewards[0].total, die.labels["done"]).value
+    flips = kernels.reach_rewards(die.transitions, die.rewards[0].total, die.labels["done"],
+                                  workspace=Workspace()).value
     assert flips[0] == pytest.approx(11 / 3, rel=1e-12)
     assert flips[7:].tolist() == [0.0] * 6
 
@@ -82,8 +86,11 @@ def test_die_expected_flips() -> None:
 def test_gamblers_ruin_closed_forms(n: int, p: float) -> None:
     chain = gamblers_ruin(n, p)
     P = chain.transitions
-    win = kernels.until_probs(P, np.ones(n + 1, dtype=bool), chain.labels["win"]).value
-    steps = kernels.reach_rewards(P, chain.rewards[0].total, chain.labels["end"]).value
+    workspace = Workspace()
+    win = kernels.until_probs(P, np.ones(n + 1, dtype=bool), chain.labels["win"],
+                              workspace=workspace).value
+    steps = kernels.reach_rewards(P, chain.rewards[0].total, chain.labels["end"],
+                                  workspace=workspace).value
     for i in range(n + 1):
         assert win[i] == pytest.approx(_ruin_win(i, n, p), rel=1e-9)
         assert steps[i] == pytest.approx(_ruin_duration(i, n, p), rel=1e-9, abs=1e-9)
@@ -92,7 +99,7 @@ def test_gamblers_ruin_closed_forms(n: int, p: float) -> None:
 def test_until_with_remain_restriction() -> None:
     # 0 -> {1: .5, 2: .5}, 1 -> 3 (target), 2 -> 3; only 1 may be passed through.
     P = matrix({0: {1: 0.5, 2: 0.5}, 1: {3: 1.0}, 2: {3: 1.0}}, 4)
-    probs = kernels.until_probs(P, mask(4, [0, 1]), mask(4, [3])).value
+    probs = kernels.until_probs(P, mask(4, [0, 1]), mask(4, [3]), workspace=Workspace()).value
     assert probs.tolist() == pytest.approx([0.5, 1.0, 0.0, 1.0])
 
 
@@ -100,7 +107,8 @@ def test_until_with_near_one_self_loop() -> None:
     # Leaving probability 1e-12: 1 - P_ii would lose four digits; the off-diagonal sum does not.
     eps = 1e-12
     P = matrix({0: {0: 1 - eps, 1: eps / 4, 2: 3 * eps / 4}}, 3)
-    probs = kernels.until_probs(P, np.ones(3, dtype=bool), mask(3, [1])).value
+    probs = kernels.until_probs(P, np.ones(3, dtype=bool), mask(3, [1]),
+                                workspace=Workspace()).value
     assert probs[0] == pytest.approx(0.25, rel=1e-12)
 
 
@@ -110,13 +118,15 @@ def test_until_with_near_one_self_loop() -> None:
 def test_reach_reward_is_infinite_without_almost_sure_reach() -> None:
     # 0 -> 1 (target) or 2 (trap); reward 0 in the trap still gives inf (PRISM).
     P = matrix({0: {1: 0.5, 2: 0.5}}, 3)
-    result = kernels.reach_rewards(P, np.array([1.0, 5.0, 0.0]), mask(3, [1])).value
+    result = kernels.reach_rewards(P, np.array([1.0, 5.0, 0.0]), mask(3, [1]),
+                                   workspace=Workspace()).value
     assert result.tolist() == [np.inf, 0.0, np.inf]
 
 
 def test_reach_reward_zero_rewards() -> None:
     P = matrix({0: {0: 0.5, 1: 0.5}}, 2)
-    assert kernels.reach_rewards(P, np.zeros(2), mask(2, [1])).value.tolist() == [0.0, 0.0]
+    assert kernels.reach_rewards(P, np.zeros(2), mask(2, [1]),
+                                 workspace=Workspace()).value.tolist() == [0.0, 0.0]
 
 
 # 0 stays with 1/2 or moves to the absorbing 1; state reward 1 and transition reward 2 in 0,
@@ -168,13 +178,15 @@ PATH = matrix({0: {1: 1.0}, 1: {2: 1.0}}, 3)
 
 @pytest.mark.parametrize(("k", "expected"), [(0, [1, 1, 0]), (1, [1, 0, 0]), (2, [0, 0, 0])])
 def test_lower_bounded_until(k: int, expected: list[float]) -> None:
-    result = kernels.lower_bounded_until_probs(PATH, np.ones(3, dtype=bool), mask(3, [1]), k).value
+    result = kernels.lower_bounded_until_probs(PATH, np.ones(3, dtype=bool), mask(3, [1]), k,
+                                               workspace=Workspace()).value
     assert result.tolist() == expected
 
 
 def test_lower_bounded_until_needs_remain_before_k() -> None:
     # On LADDER, F>=1 target from 0 is 1, but with remain = {1, 2} state 0 fails at once.
-    result = kernels.lower_bounded_until_probs(LADDER, mask(3, [1, 2]), mask(3, [2]), 1).value
+    result = kernels.lower_bounded_until_probs(LADDER, mask(3, [1, 2]), mask(3, [2]), 1,
+                                               workspace=Workspace()).value
     assert result.tolist() == pytest.approx([0.0, 0.5, 1.0])
 
 
@@ -202,7 +214,8 @@ def test_iterative_fallback_meets_residual_rule() -> None:
 def test_direct_limit_zero_uses_iterative(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(linsolve, "DIRECT_LIMIT", 0)
     die = knuth_die()
-    probs = kernels.until_probs(die.transitions, ALL13, die.labels["face3"]).value
+    probs = kernels.until_probs(die.transitions, ALL13, die.labels["face3"],
+                                workspace=Workspace()).value
     assert probs[0] == pytest.approx(1 / 6, rel=1e-10)
 
 
@@ -256,9 +269,10 @@ def test_superlu_triangular_entry_point_is_used() -> None:
 def test_reward_properties_on_one_target_share_their_system() -> None:
     chain = gamblers_ruin(20, 0.4)
     P, end = chain.transitions, chain.labels["end"]
-    steps = kernels.reach_rewards(P, np.ones(P.shape[0]), end).value
-    doubled = kernels.reach_rewards(P, np.full(P.shape[0], 2.0), end).value
-    assert len(kernels._memo(P).systems) == 1
+    workspace = Workspace()
+    steps = kernels.reach_rewards(P, np.ones(P.shape[0]), end, workspace=workspace).value
+    doubled = kernels.reach_rewards(P, np.full(P.shape[0], 2.0), end, workspace=workspace).value
+    assert len(workspace.kernels.of(P).systems) == 1
     np.testing.assert_allclose(doubled, 2 * steps, rtol=1e-13)
     expected = [_ruin_duration(i, 20, 0.4) for i in range(1, 20)]
     assert steps[1:20].tolist() == pytest.approx(expected, rel=1e-10)

@@ -17,7 +17,7 @@ import scipy.sparse.linalg  # noqa: F401 -- sp.linalg below
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid, ring_then_walk
-from veribattery.checker import certify, kernels, linsolve, scc
+from veribattery.checker import Workspace, certify, kernels, linsolve, scc
 from veribattery.checker.bounds import Bounds
 
 GRID = """dtmc
@@ -66,13 +66,14 @@ def test_krylov_path_contains_the_exact_values(krylov_calls: list[int], seed: in
     target = np.zeros(n, dtype=bool)
     target[-1] = True
     rewards = (np.arange(n) % 3 + 1) / 4
-    found = kernels.reach_rewards(P, rewards, target)
+    workspace = Workspace()
+    found = kernels.reach_rewards(P, rewards, target, workspace=workspace)
     assert sorted(krylov_calls) == [12, 24]
     assert contains(found, ref.reach_rewards(P, rewards, target))
     assert found.precise_states().all()
     avoid = np.ones(n, dtype=bool)
     avoid[20] = False
-    reach = kernels.until_probs(P, avoid, target)
+    reach = kernels.until_probs(P, avoid, target, workspace=workspace)
     assert contains(reach, ref.until(P, avoid, target))
     assert reach.precise_states().all()
 
@@ -196,14 +197,15 @@ def test_quick_certificate_on_the_krylov_path(quick_only: list[str], side: int) 
     target = np.zeros(n, dtype=bool)
     target[-1] = True
     rewards = (np.arange(n) % 3 + 1) / 4
-    found = kernels.reach_rewards(P, rewards, target)
+    workspace = Workspace()
+    found = kernels.reach_rewards(P, rewards, target, workspace=workspace)
     assert contains(found, ref.reach_rewards(P, rewards, target))
     assert found.precise_states().all()
     assert quick_only == ["proportional"]
     used = len(quick_only)
     avoid = np.ones(n, dtype=bool)
     avoid[n // 2] = False
-    reach = kernels.until_probs(P, avoid, target)
+    reach = kernels.until_probs(P, avoid, target, workspace=workspace)
     assert contains(reach, ref.until(P, avoid, target))
     assert reach.precise_states().all()
     assert quick_only[used:] == ["solve"]

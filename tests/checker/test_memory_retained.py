@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker import kernels, linsolve
+from veribattery.checker import Workspace, kernels, linsolve
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.pipeline import check_prism_file
 
@@ -51,8 +51,9 @@ def test_released_matrix_comes_back_bit_for_bit(monkeypatch: pytest.MonkeyPatch)
     P = _forward_chain(400)
     target = np.zeros(400, dtype=bool)
     target[-1] = True
-    found = kernels.reach_rewards(P, np.ones(400), target)
-    system = next(iter(kernels._memo(P).systems.values()))
+    workspace = Workspace()
+    found = kernels.reach_rewards(P, np.ones(400), target, workspace=workspace)
+    system = next(iter(workspace.kernels.of(P).systems.values()))
     solver = system.factorization
     assert solver._a64 is None and solver._residue is None  # released
     fresh, residue, _ = linsolve.unplanned_parts(P, system.unknowns)
@@ -73,20 +74,21 @@ def test_a_kept_system_holds_one_copy_of_its_rows() -> None:
     P = _forward_chain(300)
     target = np.zeros(300, dtype=bool)
     target[-1] = True
-    kernels.reach_rewards(P, np.ones(300), target)
-    system = next(iter(kernels._memo(P).systems.values()))
+    workspace = Workspace()
+    kernels.reach_rewards(P, np.ones(300), target, workspace=workspace)
+    system = next(iter(workspace.kernels.of(P).systems.values()))
     assert system.template is not None
     assert system.rows is system.template.rows
     assert system.template.known_lower.size == 0 and system.template.offset is None
     # The second query on the same system still gets the right numbers.
-    twice = kernels.reach_rewards(P, np.full(300, 2.0), target)
+    twice = kernels.reach_rewards(P, np.full(300, 2.0), target, workspace=workspace)
     exact = _steps_exact(300)
     assert all(Fraction(float(lo)) <= 2 * e <= Fraction(float(hi)) for lo, hi, e in
                zip(twice.lower, twice.upper, exact, strict=True))
 
 
 def test_retained_memory_per_state_after_a_large_solve() -> None:
-    """Live memory kept by the memo after ``R=? [ F target ]`` on 200,000 states: the
+    """Live memory kept by the workspace after ``R=? [ F target ]`` on 200,000 states: the
     rows once, the map's two leaving vectors, the substitution and the pre-pass graph
     -- about 130 bytes a state (it was about 200: rows twice, ``I - P_mm`` with its
     residue, a second copy of the substitution's indices, three map constants)."""
@@ -98,10 +100,12 @@ def test_retained_memory_per_state_after_a_large_solve() -> None:
     tracemalloc.start()
     try:
         before = tracemalloc.get_traced_memory()[0]
-        found = kernels.reach_rewards(P, rewards, target)
+        workspace = Workspace()
+        found = kernels.reach_rewards(P, rewards, target, workspace=workspace)
         value = float(found.value[0])
         del found
         kept = tracemalloc.get_traced_memory()[0] - before
+        assert workspace.kernels.of(P).systems  # what is measured: the kept system
     finally:
         tracemalloc.stop()
     assert kept < 160 * n, f"{kept / n:.0f} bytes per state kept"

@@ -196,7 +196,7 @@ def test_kept_constants_give_the_same_images(monkeypatch: pytest.MonkeyPatch) ->
 @pytest.mark.parametrize("seed", range(10))
 def test_untils_share_one_system_on_their_union(seed: int, quick_everywhere: list[bool],
                                                 systems_built: list[int]) -> None:
-    # No reward query: pctl.prepare builds one system on the union of the two untils'
+    # No reward query: Workspace.prepare builds one system on the union of the two untils'
     # unknowns (kernels.prepare_untils); "success" is solved on it as a superset, "t"
     # with its target rows inside it pinned.
     rows, rewards, done, succeeded, t = _forward_chain(seed)

@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
-from veribattery.checker import certify, kernels
+from veribattery.checker import Workspace, certify, kernels
 from veribattery.checker.bounds import Bounds
 from veribattery.pipeline import check_prism_file
 
@@ -87,10 +87,11 @@ def test_quick_path_certifies_a_chain_with_exact_answers(quick_everywhere: list[
     target = np.zeros(n, dtype=bool)
     target[n - 1] = True
     everywhere = np.ones(n, dtype=bool)
-    probs = kernels.until_probs(P, everywhere, target)
+    workspace = Workspace()
+    probs = kernels.until_probs(P, everywhere, target, workspace=workspace)
     assert contains(probs, ref.until(P, everywhere, target))
     rewards = np.arange(n, dtype=np.float64)
-    found = kernels.reach_rewards(P, rewards, target)
+    found = kernels.reach_rewards(P, rewards, target, workspace=workspace)
     assert contains(found, ref.reach_rewards(P, rewards, target))
     assert found.precise_states().all()
     assert quick_everywhere and quick_everywhere[-1]  # the rewards took the quick path
@@ -135,7 +136,7 @@ def test_properties_on_one_state_set_share_the_row_data() -> None:
     target = np.zeros(n, dtype=bool)
     target[n - 1] = True
     maybe = ~target
-    system = kernels._system(P, maybe)
+    system = kernels._system(P, maybe, workspace=Workspace())
     zeros = np.zeros(n)
     first = system.affine(zeros, zeros, np.ones(n - 1))
     second = system.affine(zeros, zeros, np.arange(n - 1, dtype=np.float64))
@@ -163,10 +164,11 @@ def test_random_chains_quick_path_contains_exact(
         case: tuple[sp.csr_matrix, np.ndarray, np.ndarray]) -> None:
     P, target, rewards = case
     everywhere = np.ones(P.shape[0], dtype=bool)
-    probs = kernels.until_probs(P, everywhere, target)
+    workspace = Workspace()
+    probs = kernels.until_probs(P, everywhere, target, workspace=workspace)
     assert contains(probs, ref.until(P, everywhere, target))
     assert probs.precise_states().all()
-    found = kernels.reach_rewards(P, rewards, target)
+    found = kernels.reach_rewards(P, rewards, target, workspace=workspace)
     finite = np.isfinite(found.value)
     exact = ref.reach_rewards(P, rewards, target)
     assert contains(Bounds(*(v[finite] for v in (found.value, found.lower, found.upper))),

@@ -13,7 +13,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from veribattery.checker import kernels
+from veribattery.checker import Workspace, kernels
 
 
 @st.composite
@@ -65,7 +65,7 @@ def _dense_reach_rewards(dense: np.ndarray, rewards: np.ndarray, target: np.ndar
 @given(chains())
 def test_until_matches_dense_solve(case: tuple[np.ndarray, ...]) -> None:
     dense, remain, target, _ = case
-    result = kernels.until_probs(sp.csr_matrix(dense), remain, target).value
+    result = kernels.until_probs(sp.csr_matrix(dense), remain, target, workspace=Workspace()).value
     assert result.tolist() == pytest.approx(_dense_until(dense, remain, target).tolist(),
                                             rel=1e-9, abs=1e-12)
 
@@ -74,7 +74,8 @@ def test_until_matches_dense_solve(case: tuple[np.ndarray, ...]) -> None:
 @given(chains())
 def test_reach_rewards_match_dense_solve(case: tuple[np.ndarray, ...]) -> None:
     dense, _, target, rewards = case
-    result = kernels.reach_rewards(sp.csr_matrix(dense), rewards, target).value
+    result = kernels.reach_rewards(sp.csr_matrix(dense), rewards, target,
+                                   workspace=Workspace()).value
     expected = _dense_reach_rewards(dense, rewards, target)
     assert np.array_equal(np.isinf(result), np.isinf(expected))
     finite = np.isfinite(expected)
@@ -108,5 +109,6 @@ def test_lower_bounded_until_matches_dense_iteration(case: tuple[np.ndarray, ...
     later = _dense_until(dense, remain, target)
     for _ in range(k):
         later = np.where(remain, dense @ later, 0.0)
-    result = kernels.lower_bounded_until_probs(sp.csr_matrix(dense), remain, target, k).value
+    result = kernels.lower_bounded_until_probs(sp.csr_matrix(dense), remain, target, k,
+                                               workspace=Workspace()).value
     assert result.tolist() == pytest.approx(later.tolist(), rel=1e-9, abs=1e-12)

@@ -15,7 +15,7 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker.chains import dtmc, mask, matrix
-from veribattery.checker import check, kernels, linsolve
+from veribattery.checker import Workspace, check, kernels, linsolve
 from veribattery.lang import parse_property
 from veribattery.pipeline import check_prism_file
 
@@ -72,17 +72,19 @@ def test_the_old_system_is_freed_before_the_next_is_built(
     P = matrix({0: {1: 0.5, 2: 0.5}, 1: {0: 0.5, 3: 0.5}, 2: {1: 0.5, 4: 0.5}}, 5)
     alive: list[int] = []
     restrict = linsolve.restricted_parts
+    workspace = Workspace()
 
-    def spy(P: sp.csr_matrix, maybe: np.ndarray) -> object:
-        alive.append(len(kernels._memo(P).systems))
-        return restrict(P, maybe)
+    def spy(P: sp.csr_matrix, maybe: np.ndarray, plans: linsolve.SolverPlans) -> object:
+        alive.append(len(workspace.kernels.of(P).systems))
+        return restrict(P, maybe, plans)
 
     monkeypatch.setattr(linsolve, "restricted_parts", spy)
     everywhere = np.ones(5, dtype=bool)
-    first = kernels.until_probs(P, everywhere, mask(5, [3]))
-    second = kernels.until_probs(P, ~mask(5, [2]), mask(5, [3]))  # unknowns {0, 1} only
+    first = kernels.until_probs(P, everywhere, mask(5, [3]), workspace=workspace)
+    second = kernels.until_probs(P, ~mask(5, [2]), mask(5, [3]),
+                                 workspace=workspace)  # unknowns {0, 1} only
     assert alive == [0, 0]  # with SYSTEMS_KEPT = 1, none kept while building
-    assert len(kernels._memo(P).systems) == 1
+    assert len(workspace.kernels.of(P).systems) == 1
     # x0 = (x1 + x2)/2, x1 = x0/2 + 1/2, x2 = x1/2: x0 = 3/5. Not through 2: x0 = x1/2,
     # x1 = x0/2 + 1/2: x0 = 1/3.
     assert first.value[0] == pytest.approx(0.6, rel=1e-15)
@@ -91,14 +93,13 @@ def test_the_old_system_is_freed_before_the_next_is_built(
 
 def test_triangular_plans_are_kept_only_for_patterns_seen_again() -> None:
     A = sp.csr_matrix(np.array([[1.0, 0.0, 0.0], [-0.5, 1.0, 0.0], [0.0, -0.25, 1.0]]))
-    linsolve._PLANS.clear()
-    linsolve._PLANS_SEEN.clear()
-    first = linsolve._triangular_inverse(A)
-    assert first is not None and not linsolve._PLANS and len(linsolve._PLANS_SEEN) == 1
+    plans = linsolve.SolverPlans()
+    first = linsolve._triangular_inverse(A, plans)
+    assert first is not None and not plans.triangular and len(plans.triangular_seen) == 1
     B = A.copy()
     B.data = B.data * 0.5  # same pattern, other values
-    second = linsolve._triangular_inverse(B)
-    assert second is not None and len(linsolve._PLANS) == 1 and not linsolve._PLANS_SEEN
+    second = linsolve._triangular_inverse(B, plans)
+    assert second is not None and len(plans.triangular) == 1 and not plans.triangular_seen
     b = np.array([1.0, 2.0, 3.0])
     assert np.allclose(first(b), np.linalg.solve(A.toarray(), b), rtol=1e-15)
     assert np.allclose(second(b), np.linalg.solve(B.toarray(), b), rtol=1e-15)
@@ -127,7 +128,7 @@ def test_backward_reach_matches_a_plain_search(seed: int) -> None:
         P.data[rng.random(P.nnz) < 0.3] = 0.0
     through, seeds = rng.random(n) < 0.7, rng.random(n) < 0.15
     before = P.copy()
-    found = kernels._backward_reach(P, through, seeds)
+    found = kernels._backward_reach(P, through, seeds, Workspace())
     assert np.array_equal(found, _reach_reference(before, through, seeds))
     # the search must leave P as it was, stored zeros included
     assert np.array_equal(P.indptr, before.indptr) and np.array_equal(P.indices, before.indices)

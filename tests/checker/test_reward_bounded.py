@@ -12,7 +12,7 @@ import pytest
 
 from tests.checker.chains import dtmc, mask
 from tests.checker.test_conditional import CHAIN, REPO, SMALL_MISSION
-from veribattery.checker import check
+from veribattery.checker import Workspace, check
 from veribattery.checker.reward_bounded import reward_bounded_until_probs
 from veribattery.errors import CheckError
 from veribattery.lang import parse_model, parse_properties, parse_property
@@ -75,12 +75,13 @@ def test_zero_reward_loops_close_on_their_level() -> None:
 
 def test_kernel_values_in_every_state() -> None:
     P = dtmc({0: {1: 1.0}, 1: {2: 0.5, 0: 0.5}}, 3).transitions
+    workspace = Workspace()
     values = reward_bounded_until_probs(P, mask(3, [0, 1, 2]), mask(3, [2]),
-                                        np.array([1, 1, 0]), 3)
+                                        np.array([1, 1, 0]), 3, workspace=workspace)
     # From 1: win now (cost 1) w.p. 1/2, or 1 -> 0 -> 1 -> 2 (cost 3) w.p. 1/4.
     assert values.tolist() == pytest.approx([0.5, 0.75, 1.0], abs=1e-15)
-    assert reward_bounded_until_probs(P, mask(3, [0, 1, 2]), mask(3, [2]),
-                                      np.array([1, 1, 0]), -1).tolist() == [0, 0, 0]
+    assert reward_bounded_until_probs(P, mask(3, [0, 1, 2]), mask(3, [2]), np.array([1, 1, 0]),
+                                      -1, workspace=workspace).tolist() == [0, 0, 0]
 
 
 def test_non_integer_rewards_are_an_error() -> None:

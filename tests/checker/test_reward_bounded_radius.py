@@ -13,7 +13,7 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
-from veribattery.checker import kernels, reward_radius
+from veribattery.checker import Workspace, kernels, reward_radius
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.reward_bounded import _levels, reward_bounded_until_bounds
 
@@ -92,7 +92,8 @@ def _kernel(rows: Rows, rewards: list[int], target: set[int], bound: int) -> Bou
     P = matrix(rows, n)
     goal = np.isin(np.arange(n), list(target))
     return reward_bounded_until_bounds(P, np.ones(n, dtype=bool), goal,
-                                       np.array(rewards, dtype=np.int64), bound)
+                                       np.array(rewards, dtype=np.int64), bound,
+                                       workspace=Workspace())
 
 
 def _radius_only(rows: Rows, rewards: list[int], target: set[int], bound: int) -> Bounds | None:
@@ -101,7 +102,7 @@ def _radius_only(rows: Rows, rewards: list[int], target: set[int], bound: int) -
     P = matrix(rows, n)
     goal = np.isin(np.arange(n), list(target))
     everywhere = np.ones(n, dtype=bool)
-    moving = everywhere & ~goal & ~kernels.prob0(P, everywhere, goal)
+    moving = everywhere & ~goal & ~kernels.prob0(P, everywhere, goal, workspace=Workspace())
     r = np.array(rewards, dtype=np.int64)
     levels = _levels(P, moving, r, transpose=False)
     return reward_radius.radius_programme(P, moving, goal, r, levels, bound // levels.unit)
@@ -221,7 +222,7 @@ def test_minimal_rewards_against_bellman_ford(seed: int) -> None:
     n = len(rewards)
     P = matrix(rows, n)
     goal = np.isin(np.arange(n), list(target))
-    moving = ~goal & ~kernels.prob0(P, np.ones(n, dtype=bool), goal)
+    moving = ~goal & ~kernels.prob0(P, np.ones(n, dtype=bool), goal, workspace=Workspace())
     r = np.array(rewards, dtype=np.int64)
     found = reward_radius._minimal_rewards(P, moving, goal, r)
     assert found.tolist() == _least_brute_force(P, moving, goal, r)

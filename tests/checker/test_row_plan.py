@@ -54,28 +54,30 @@ def _assert_is(F: certify.AffineMap, expected: dict[str, np.ndarray]) -> None:
 def test_planned_maps_equal_the_formulas_across_values(seed: int) -> None:
     rows, states = _rows(seed)
     zeros = np.zeros(rows.shape[1])
+    plans = certify.RowPlans()
     for point in range(4):  # the same pattern, new probabilities at every point
         values = rows.copy()
         values.data = rows.data * (1 + point / 7)
-        F = certify.AffineMap.of(values, states, zeros, zeros, None)
+        F = certify.AffineMap.of(values, states, zeros, zeros, None, plans=plans)
         _assert_is(F, _reference(values, states))
-    assert certify._ROW_PLANS and certify._ROW_PLANS[0].fits(rows, states)
-    assert not certify._ROW_PLANS[0].indices.flags.writeable
+    assert plans.plans and plans.plans[0].fits(rows, states)
+    assert not plans.plans[0].indices.flags.writeable
 
 
 def test_another_pattern_of_the_same_shape_is_not_planned_as_the_kept_one() -> None:
     rows, states = _rows(5)
     zeros = np.zeros(rows.shape[1])
+    plans = certify.RowPlans()
     for _ in range(2):
-        certify.AffineMap.of(rows, states, zeros, zeros, None)
+        certify.AffineMap.of(rows, states, zeros, zeros, None, plans=plans)
     moved = rows.copy()
     moved.indices = moved.indices.copy()
     row = int(np.flatnonzero(np.diff(moved.indptr) > 1)[0])
     start = moved.indptr[row]
     moved.indices[start], moved.indices[start + 1] = (
         moved.indices[start + 1], moved.indices[start])  # same shape, other order
-    assert not certify._ROW_PLANS[0].fits(moved, states)
-    F = certify.AffineMap.of(moved, states, zeros, zeros, None)
+    assert not plans.plans[0].fits(moved, states)
+    F = certify.AffineMap.of(moved, states, zeros, zeros, None, plans=plans)
     expected = _reference(moved, states)  # (sorted: sums in another order, same terms)
     assert np.array_equal(F.rows.toarray(), expected["dense"])
     assert np.array_equal(F.terms, expected["terms"])
@@ -86,10 +88,15 @@ def test_another_pattern_of_the_same_shape_is_not_planned_as_the_kept_one() -> N
 
 def test_a_sweep_points_two_systems_keep_their_plans() -> None:
     first, second = _rows(7), _rows(8)
+    plans = certify.RowPlans()
     for _ in range(3):  # each point: the reward system's map, then the recharge cap's
         for rows, states in (first, second):
             zeros = np.zeros(rows.shape[1])
-            certify.AffineMap.of(rows, states, zeros, zeros, None)
-    assert len(certify._ROW_PLANS) == 2
-    assert {id(p) for p in certify._ROW_PLANS} == {
-        id(next(p for p in certify._ROW_PLANS if p.fits(*pair))) for pair in (first, second)}
+            certify.AffineMap.of(rows, states, zeros, zeros, None, plans=plans)
+    assert len(plans.plans) == 2
+    assert {id(p) for p in plans.plans} == {
+        id(next(p for p in plans.plans if p.fits(*pair))) for pair in (first, second)}
+    # Without plans nothing is kept, and the maps are the same.
+    rows, states = first
+    zeros = np.zeros(rows.shape[1])
+    _assert_is(certify.AffineMap.of(rows, states, zeros, zeros, None), _reference(rows, states))

@@ -16,7 +16,7 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
-from veribattery.checker import kernels, linsolve, scc
+from veribattery.checker import Workspace, kernels, linsolve, scc
 from veribattery.checker.bounds import Bounds
 
 
@@ -83,16 +83,18 @@ def test_large_components_against_fractions(small_limits: None, seed: int) -> No
     target[-1] = True
     everywhere = np.ones(n, dtype=bool)
     rewards = (np.arange(n) % 4 + 1) / 2
-    found = kernels.reach_rewards(P, rewards, target)
+    workspace = Workspace()
+    found = kernels.reach_rewards(P, rewards, target, workspace=workspace)
     assert contains(found, ref.reach_rewards(P, rewards, target))
     assert found.precise_states().all()
     # Through the walk's right part only (16 states): probabilities strictly in (0, 1).
     avoid = np.ones(n, dtype=bool)
     avoid[16] = False
-    reach = kernels.until_probs(P, avoid, target)
+    reach = kernels.until_probs(P, avoid, target, workspace=workspace)
     assert contains(reach, ref.until(P, avoid, target))
     assert reach.precise_states().all()
-    assert contains(kernels.until_probs(P, everywhere, target), ref.until(P, everywhere, target))
+    assert contains(kernels.until_probs(P, everywhere, target,
+                                        workspace=workspace), ref.until(P, everywhere, target))
 
 
 def _grid(n: int) -> sp.csr_matrix:
@@ -119,7 +121,7 @@ def test_grid_walk_by_lu_and_by_krylov(monkeypatch: pytest.MonkeyPatch, limit: i
     n = P.shape[0]
     target = np.zeros(n, dtype=bool)
     target[-1] = True
-    found = kernels.reach_rewards(P, np.ones(n), target)
+    found = kernels.reach_rewards(P, np.ones(n), target, workspace=Workspace())
     dense = np.eye(n - 1) - P.toarray()[:-1, :-1]
     expected = np.linalg.solve(dense, np.ones(n - 1))
     assert np.allclose(found.value[:-1], expected, rtol=1e-12)
@@ -189,7 +191,7 @@ def test_dense_components_go_to_krylov_first(monkeypatch: pytest.MonkeyPatch,
     rewards = (np.arange(n + 1) % 3 + 1).astype(np.float64)
     target = np.zeros(n + 1, dtype=bool)
     target[n] = True
-    found = kernels.reach_rewards(P, rewards, target)
+    found = kernels.reach_rewards(P, rewards, target, workspace=Workspace())
     reference = _dense_reference(P, rewards, n)
     dense = [s for s in chosen if isinstance(s, scc._KrylovFirst)]
     assert dense

@@ -1,4 +1,4 @@
-"""Properties of one model share one linear system (kernels.shared_system, pctl.prepare).
+"""Properties of one model share one linear system (kernels.shared_system, Workspace.prepare).
 
 ``P=? [ F "success" ]``, ``R=? [ F "done" ]`` and the conditional ``R=? [ F "done" ||
 F "success" ]`` of a mission are solved on the reward query's system, whose unknown
@@ -24,7 +24,7 @@ from tests.checker.test_conditional_certified import (
     _until,
     oracle,
 )
-from veribattery.checker import kernels
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
 
@@ -116,11 +116,13 @@ def test_no_superset_when_the_until_has_another_target_inside() -> None:
     # 0 -> 1 -> 2 (done), 1 -> 0; target {1}: R's unknowns {0, 1} hold the target.
     P = matrix({0: {1: 0.5, 2: 0.5}, 1: {0: 0.5, 2: 0.5}}, 3)
     done = np.array([False, False, True])
-    kernels.prepare_reach(P, done)
+    workspace = Workspace()
+    kernels.prepare_reach(P, done, workspace=workspace)
     target = np.array([False, True, False])
-    found = kernels.until_probs(P, np.ones(3, dtype=bool), target)
+    found = kernels.until_probs(P, np.ones(3, dtype=bool), target, workspace=workspace)
     assert found.lower[0] <= 0.5 <= found.upper[0] and found.value[1] == 1.0
-    maybe, allowed = kernels.until_unknowns(P, np.ones(3, dtype=bool), target)
+    maybe, allowed = kernels.until_unknowns(P, np.ones(3, dtype=bool), target,
+                                            workspace=workspace)
     assert maybe.tolist() == [True, False, False] and not allowed[1]
 
 
@@ -128,7 +130,11 @@ def test_until_results_are_shared_with_the_condition() -> None:
     P = matrix({0: {1: 0.25, 2: 0.75}, 1: {0: 0.5, 3: 0.5}}, 4)
     everywhere = np.ones(4, dtype=bool)
     target = np.array([False, False, False, True])
-    first = kernels.until_probs(P, everywhere, target)
-    assert kernels.until_probs(P, everywhere, target.copy()) is first
+    workspace = Workspace()
+    first = kernels.until_probs(P, everywhere, target, workspace=workspace)
+    assert kernels.until_probs(P, everywhere, target.copy(), workspace=workspace) is first
+    # Only through the workspace: another computes its own.
+    other = kernels.until_probs(P, everywhere, target, workspace=Workspace())
+    assert other is not first and np.array_equal(other.value, first.value)
     # x0 = 1/4 x1, x1 = 1/2 x0 + 1/2 => x0 = 1/7
     assert first.lower[0] <= Fraction(1, 7) <= first.upper[0]

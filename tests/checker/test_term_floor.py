@@ -9,7 +9,7 @@ from fractions import Fraction
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery.checker import certify, kernels
+from veribattery.checker import Workspace, certify, kernels
 
 TINY = np.finfo(np.float64).tiny  # the smallest normal float64
 
@@ -43,8 +43,10 @@ def test_until_on_a_shared_system_with_zero_states_encloses_the_exact_values() -
     P, exact = _chain()
     target, sink = np.zeros(6, dtype=bool), np.zeros(6, dtype=bool)
     target[4], sink[5] = True, True
-    kernels.prepare_reach(P, target | sink)  # states 0..3: the kept (shared) system
-    found = kernels.until_probs(P, np.ones(6, dtype=bool), target)
+    workspace = Workspace()
+    # states 0..3: the kept (shared) system
+    kernels.prepare_reach(P, target | sink, workspace=workspace)
+    found = kernels.until_probs(P, np.ones(6, dtype=bool), target, workspace=workspace)
     # x1 = 1/2 + x0/4 + x1/4 and x0 = x1/3: x1 = 1/2 + x1/12 + x1/4, so x1 = 3/4, x0 = 1/4.
     expected = [Fraction(1, 4), Fraction(3, 4), Fraction(0), Fraction(0), Fraction(1),
                 Fraction(0)]

@@ -27,7 +27,7 @@ import numpy as np
 
 from veribattery._files import staged
 from veribattery._types import FloatArray
-from veribattery.checker import kernels, reward_bounded
+from veribattery.checker import Workspace, kernels, reward_bounded
 from veribattery.checker.conditional import conditional_reach_rewards
 from veribattery.errors import CheckError, ConfigError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -148,7 +148,8 @@ def parse_deadlines(working_day: str,
 
 def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success",
                         failure: str = "failure", *, coverage: float = 0.999,
-                        horizon: float = 0.0, max_levels: int = MAX_LEVELS) -> Distribution:
+                        horizon: float = 0.0, max_levels: int = MAX_LEVELS,
+                        workspace: Workspace | None = None) -> Distribution:
     """The distribution of reward *reward* accumulated until *success* or *failure*.
 
     From the (first) initial state of *dtmc*; the reward structure must have
@@ -158,25 +159,28 @@ def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success"
         ``P(F failure)`` has been absorbed.
     :param horizon: and at least up to this total reward (the largest deadline).
     :param max_levels: give up (CheckError) after this many levels.
+    :param workspace: the checker's caches to share (those a check of *dtmc* filled:
+        its linear systems); None: new ones for this distribution.
     :raises CheckError: for unknown labels or reward structures, non-integer
         rewards, or a pass that does not reach *coverage* within *max_levels*.
     """
+    workspace = Workspace() if workspace is None else workspace
     structure = _structure(dtmc, reward)
     levels = reward_bounded.integer_rewards(dtmc, structure, _NO_SPAN)
     masks = (_label(dtmc, success), _label(dtmc, failure) & ~_label(dtmc, success))
     everywhere = np.ones(dtmc.num_states, dtype=bool)
     start = int(dtmc.initial[0])
-    exact = [float(kernels.until_probs(dtmc.transitions, everywhere, m).value[start])
-             for m in masks]
+    exact = [float(kernels.until_probs(dtmc.transitions, everywhere, m,
+                                       workspace=workspace).value[start]) for m in masks]
     initial = np.zeros(dtmc.num_states)
     initial[start] = 1.0
     masses = reward_bounded.absorption_by_level(
         dtmc.transitions, initial, masks, levels, _stop_rule(exact, coverage, horizon, levels),
-        max_levels)
+        max_levels, workspace=workspace)
     if not _covered(masses.absorbed.sum(axis=1), exact, coverage):
         raise CheckError(f"the distribution did not reach {coverage:g} of its mass within "
                          f"{max_levels:,} reward levels")
-    expected = _expected_given(dtmc, structure, masks[0], success, exact[0])
+    expected = _expected_given(dtmc, structure, masks[0], success, exact[0], workspace)
     return Distribution(reward, masses.rewards, masses.absorbed[0], masses.absorbed[1],
                         exact[0], exact[1], masses.pending, expected)
 
@@ -199,11 +203,11 @@ def _covered(absorbed: FloatArray, exact: Sequence[float], coverage: float) -> b
 
 
 def _expected_given(dtmc: DTMC, structure: RewardVectors, success_mask: np.ndarray,
-                    success: str, p_success: float) -> float:
+                    success: str, p_success: float, workspace: Workspace) -> float:
     if p_success <= 0:
         return math.nan
     values = conditional_reach_rewards(dtmc, structure, success_mask, success_mask,
-                                       f'F "{success}"', _NO_SPAN)
+                                       f'F "{success}"', _NO_SPAN, workspace=workspace)
     return float(values[int(dtmc.initial[0])])
 
 

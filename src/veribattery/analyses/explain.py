@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.analyses.paths import ProbablePath, most_probable_paths
-from veribattery.checker import linsolve
+from veribattery.checker import Workspace, linsolve
 from veribattery.checker.kernels import prob0
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
@@ -107,7 +107,8 @@ def target_inflow(dtmc: DTMC, target: BoolArray) -> Inflow:
     """
     P = dtmc.transitions
     start = int(dtmc.initial[0])
-    maybe = ~prob0(P, np.ones(dtmc.num_states, dtype=bool), target) & ~target
+    maybe = ~prob0(P, np.ones(dtmc.num_states, dtype=bool), target,
+                   workspace=Workspace()) & ~target
     empty = np.zeros(0, dtype=np.int64)
     if not maybe[start]:
         return Inflow(1.0 if target[start] else 0.0, empty, np.zeros(0), np.zeros(0))

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker import state_set
+from veribattery.checker import Workspace, state_set
 from veribattery.checker.kernels import prob0
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
@@ -106,32 +106,39 @@ def observer_for(dtmc: DTMC, formula: Expr, runs: int) -> Observer:
 
     :raises CheckError: for anything else (bounded queries, ``F>=k``, booleans).
     """
+    workspace = Workspace()  # the graph searches of this observer's sets
     if isinstance(formula, ProbOp) and formula.op == "=?":
-        return _path_observer(dtmc, formula, runs)
+        return _path_observer(dtmc, formula, runs, workspace=workspace)
     if isinstance(formula, RewardOp) and formula.op == "=?":
-        return _reward_observer(dtmc, formula, runs)
+        return _reward_observer(dtmc, formula, runs, workspace=workspace)
     raise CheckError("only P=? and R=? queries are simulated")
 
 
-def _path_observer(dtmc: DTMC, op: ProbOp, runs: int) -> Observer:
+def _path_observer(dtmc: DTMC, op: ProbOp, runs: int, *, workspace: Workspace) -> Observer:
     everywhere = np.ones(dtmc.num_states, dtype=bool)
     match op.path:
         case Next(operand=operand):
-            return Observer(runs, state_set(dtmc, operand), ~everywhere, horizon=1, start=1)
+            target = state_set(dtmc, operand, workspace=workspace)
+            return Observer(runs, target, ~everywhere, horizon=1, start=1)
         case Until(left=left, right=right, bound=bound):
-            return _until(dtmc, state_set(dtmc, left), state_set(dtmc, right), bound, runs)
+            a = state_set(dtmc, left, workspace=workspace)
+            b = state_set(dtmc, right, workspace=workspace)
+            return _until(dtmc, a, b, bound, runs, workspace=workspace)
         case Eventually(operand=operand, bound=bound):
-            return _until(dtmc, everywhere, state_set(dtmc, operand), bound, runs)
+            target = state_set(dtmc, operand, workspace=workspace)
+            return _until(dtmc, everywhere, target, bound, runs, workspace=workspace)
         case Globally(operand=operand, bound=bound):
-            escape = _until(dtmc, everywhere, ~state_set(dtmc, operand), bound, runs)
+            avoid = ~state_set(dtmc, operand, workspace=workspace)
+            escape = _until(dtmc, everywhere, avoid, bound, runs, workspace=workspace)
             escape.negate = True
             return escape
     raise CheckError(f"{type(op.path).__name__} is not simulated")
 
 
 def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
-           bound: TimeBound | TimeInterval | None, runs: int) -> Observer:
-    never = prob0(dtmc.transitions, remain, target)
+           bound: TimeBound | TimeInterval | None, runs: int, *,
+           workspace: Workspace) -> Observer:
+    never = prob0(dtmc.transitions, remain, target, workspace=workspace)
     horizon = _upper(bound)
     # A run at step `horizon` may still hit the target; after it, it cannot.
     return Observer(runs, target, never | (~remain & ~target), horizon=horizon)
@@ -155,7 +162,8 @@ def _steps(expr: Expr) -> int:
     raise CheckError("a step bound must be a non-negative integer")
 
 
-def _reward_observer(dtmc: DTMC, op: RewardOp, runs: int) -> Observer:
+def _reward_observer(dtmc: DTMC, op: RewardOp, runs: int, *,
+                     workspace: Workspace) -> Observer:
     try:
         structure = dtmc.reward(op.reward)
     except (KeyError, IndexError):
@@ -163,8 +171,8 @@ def _reward_observer(dtmc: DTMC, op: RewardOp, runs: int) -> Observer:
     nothing = np.zeros(dtmc.num_states, dtype=bool)
     match op.path:
         case Reach(target=target):
-            goal = state_set(dtmc, target)
-            lost = prob0(dtmc.transitions, ~nothing, goal)
+            goal = state_set(dtmc, target, workspace=workspace)
+            lost = prob0(dtmc.transitions, ~nothing, goal, workspace=workspace)
             return Observer(runs, goal, lost, reward=structure.total, stop_infinite=True)
         case Cumulative(bound=bound):
             return Observer(runs, nothing, nothing, horizon=_steps(bound),

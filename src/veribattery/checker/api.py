@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import time
 
-from veribattery.checker.pctl import property_answer
+from veribattery._types import BoolArray
+from veribattery.checker import pctl
 from veribattery.checker.result import CheckResult
+from veribattery.checker.workspace import Workspace
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr, Property
 
 
-def check(dtmc: DTMC, prop: Property | Expr, *, states: bool = True) -> CheckResult:
+def check(dtmc: DTMC, prop: Property | Expr, *, states: bool = True,
+          workspace: Workspace | None = None) -> CheckResult:
     """Check *prop* on *dtmc* and report PRISM's answer (at the initial states, unless
     the property is a filter).
 
@@ -23,11 +26,33 @@ def check(dtmc: DTMC, prop: Property | Expr, *, states: bool = True) -> CheckRes
     :param dtmc: the built model.
     :param prop: a property (constants substituted, property-file labels inlined),
         or a bare formula.
+    :param workspace: the caches to use and fill (graph searches, linear systems,
+        results), shared with the other checks given it; None: a new one for this
+        check alone.
     :raises CheckError: when the property cannot be checked on this model, or a
         bounded operator (``P>=0.9 [..]``) cannot be decided at the precision reached.
     """
     prop = prop if isinstance(prop, Property) else Property(prop)
+    workspace = Workspace() if workspace is None else workspace
     start = time.perf_counter()
-    answer = property_answer(dtmc, prop.formula, initial_only=not states)
+    answer = pctl.property_answer(dtmc, workspace, prop.formula, initial_only=not states)
     result = CheckResult.of_answer(prop, answer, time.perf_counter() - start)
     return result if states else result.without_states()
+
+
+def values(dtmc: DTMC, formula: Expr, *, workspace: Workspace | None = None) -> pctl.Result:
+    """Per-state value of *formula*: certified numbers for ``P=?``/``R=?``/``S=?``
+    and expressions over them, booleans otherwise (:func:`pctl.values`).
+
+    :param workspace: as for :func:`check`.
+    """
+    return pctl.values(dtmc, Workspace() if workspace is None else workspace, formula)
+
+
+def state_set(dtmc: DTMC, expr: Expr, *, workspace: Workspace | None = None) -> BoolArray:
+    """The states that satisfy the state formula *expr*, as a boolean mask
+    (:func:`pctl.state_set`).
+
+    :param workspace: as for :func:`check`.
+    """
+    return pctl.state_set(dtmc, Workspace() if workspace is None else workspace, expr)

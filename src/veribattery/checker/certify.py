@@ -232,17 +232,19 @@ class AffineMap:
     @classmethod
     def of(cls, rows: CsrMatrix, states: IntArray, known_lower: FloatArray,
            known_upper: FloatArray, offset: FloatArray | None,
-           shared: AffineMap | None = None) -> AffineMap:
+           shared: AffineMap | None = None, plans: RowPlans | None = None) -> AffineMap:
         """The map of the rows ``P[states, :]`` (all columns).
 
         :param offset: per-unknown constant (rewards), or None.
         :param shared: a map of the same *rows* and *states* whose row data (the
             off-diagonal matrix, leaving probabilities, error constants) to re-use.
+        :param plans: where the index work is kept for rows of the same pattern
+            (:class:`RowPlans`; None: nothing is kept).
         """
         if shared is not None:
             return dataclasses.replace(shared, known_lower=known_lower,
                                        known_upper=known_upper, offset=offset)
-        plan = _row_plan(rows, states)
+        plan = _row_plan(rows, states, plans)
         off = csr_sharing(rows.data[plan.keep], plan.indices, plan.indptr, rows.shape)
         leave_lower, leave_upper = _row_sum_bounds(off, plan.terms)
         constants = _error_constants(plan.terms) if states.size < KEEP_CONSTANTS_BELOW else None
@@ -437,21 +439,37 @@ class _RowPlan:
                 and np.array_equal(states, own))
 
 
-#: Plans kept (a sweep point's systems: the reward system and the recharge cap's), most
-#: recent first, and the shapes of the last rows planned (a plan is kept for a shape seen
-#: before: a sweep, not a single check, which would only pay its memory).
+#: Plans a :class:`RowPlans` keeps (a sweep point's systems: the reward system and the
+#: recharge cap's).
 ROW_PLANS_KEPT = 2
-_ROW_PLANS: list[_RowPlan] = []
-_ROWS_SEEN: list[tuple[int, int, int, int]] = []
 
 
-def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
-    """The plan of *rows* and *states*: the kept one if it fits, else a new one (kept,
-    with a copy of the pattern, when rows of this shape were planned recently: a sweep,
-    not a single check, which would only pay its memory)."""
-    for i, kept in enumerate(_ROW_PLANS):
+class RowPlans:
+    """The index work of :meth:`AffineMap.of` kept for rows of the same pattern (a
+    structure-reusing sweep builds the maps of one pattern at every point), held by a
+    :class:`~veribattery.checker.workspace.Workspace`."""
+
+    def __init__(self) -> None:
+        #: The plans kept, most recent first.
+        self.plans: list[_RowPlan] = []
+        #: The shapes of the last rows planned: a plan is kept for a shape seen before
+        #: (a sweep, not a single check, which would only pay its memory).
+        self.seen: list[tuple[int, int, int, int]] = []
+
+    @property
+    def empty(self) -> bool:
+        """Whether nothing is kept yet."""
+        return not (self.plans or self.seen)
+
+
+def _row_plan(rows: CsrMatrix, states: IntArray, plans: RowPlans | None) -> _RowPlan:
+    """The plan of *rows* and *states*: the one kept in *plans* if it fits, else a new
+    one (kept, with a copy of the pattern, when rows of this shape were planned recently:
+    a sweep, not a single check, which would only pay its memory)."""
+    kept_plans = [] if plans is None else plans.plans
+    for i, kept in enumerate(kept_plans):
         if kept.fits(rows, states):
-            _ROW_PLANS.insert(0, _ROW_PLANS.pop(i))
+            kept_plans.insert(0, kept_plans.pop(i))
             return kept
     row_of = np.repeat(np.arange(rows.shape[0], dtype=rows.indices.dtype),
                        np.diff(rows.indptr))
@@ -462,16 +480,18 @@ def _row_plan(rows: CsrMatrix, states: IntArray) -> _RowPlan:
     np.cumsum(lengths, out=indptr[1:])
     terms = np.asarray(lengths, dtype=np.float64)
     shape = (*rows.shape, rows.nnz, states.size)
-    again = shape in _ROWS_SEEN
+    again = plans is not None and shape in plans.seen
     pattern = (rows.indptr, rows.indices, states)
     plan = _RowPlan(tuple(a.copy() for a in pattern) if again else pattern,  # type: ignore[arg-type]
                     keep, rows.indices[keep], indptr, terms)
+    if plans is None:
+        return plan
     if again:
         for array in (*plan.pattern, plan.keep, plan.indices, plan.indptr, plan.terms):
             array.flags.writeable = False  # shared by the maps of every point: never edited
-        _ROW_PLANS[:] = [plan, *_ROW_PLANS][:ROW_PLANS_KEPT]
-        _ROWS_SEEN.remove(shape)
-    _ROWS_SEEN[:] = [shape, *_ROWS_SEEN][:2 * ROW_PLANS_KEPT]
+        plans.plans[:] = [plan, *plans.plans][:ROW_PLANS_KEPT]
+        plans.seen.remove(shape)
+    plans.seen[:] = [shape, *plans.seen][:2 * ROW_PLANS_KEPT]
     return plan
 
 

@@ -29,7 +29,7 @@ import weakref
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import fields, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -42,6 +42,9 @@ from veribattery.checker import certify, kernels, linsolve
 from veribattery.checker.bounds import Bounds
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
+
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
 
 
 class ConditionUnreachable(UndefinedResult):
@@ -73,15 +76,17 @@ class ConditionedChain:
         return result
 
 
-def conditioned_chain(dtmc: DTMC, condition: BoolArray) -> ConditionedChain:
+def conditioned_chain(dtmc: DTMC, condition: BoolArray, *, workspace: Workspace
+                      ) -> ConditionedChain:
     """The chain of *dtmc* conditioned on eventually reaching *condition*.
 
     :param dtmc: the model.
     :param condition: the states *b* of the condition ``F b``.
+    :param workspace: where the checker's memos are kept.
     """
     P = dtmc.transitions
     n = dtmc.num_states
-    x = kernels.until_probs(P, np.ones(n, dtype=bool), condition).value
+    x = kernels.until_probs(P, np.ones(n, dtype=bool), condition, workspace=workspace).value
     before = (x > 0) & ~condition
     after = _reachable_from(P, condition)
     origin = np.concatenate([np.flatnonzero(before), np.flatnonzero(after)])
@@ -175,29 +180,45 @@ class Condition:
     possible: BoolArray
 
 
-#: Conditions kept per process: (matrix, mask) → Condition, the matrix held weakly.
+#: Conditions a :class:`Conditions` keeps.
 _KEPT = 4
-_CONDITIONS: OrderedDict[tuple[int, bytes], tuple[weakref.ref[CsrMatrix], Condition]] = (
-    OrderedDict())
 
 
-def condition_probs(P: CsrMatrix, states: BoolArray) -> Condition:
-    """``P(F states)`` on *P*, computed once per matrix and condition.
+class Conditions:
+    """The conditions ``P(F b)`` computed last, held by a
+    :class:`~veribattery.checker.workspace.Workspace`: (matrix, mask) → Condition, the
+    matrix held weakly (the two conditional mission defaults share one)."""
+
+    def __init__(self) -> None:
+        self.kept: OrderedDict[tuple[int, bytes], tuple[weakref.ref[CsrMatrix], Condition]] = (
+            OrderedDict())
+
+    @property
+    def empty(self) -> bool:
+        """Whether nothing is kept yet."""
+        return not self.kept
+
+
+def condition_probs(P: CsrMatrix, states: BoolArray, *, workspace: Workspace) -> Condition:
+    """``P(F states)`` on *P*, computed once per matrix, condition and workspace.
 
     :param P: row-stochastic CSR transition matrix (not modified afterwards).
     :param states: the states *b* of the condition ``F b``.
+    :param workspace: where the condition (and the checker's memos) are kept.
     """
+    conditions = workspace.conditions.kept
     key = (id(P), np.packbits(states).tobytes() + states.size.to_bytes(8, "little"))
-    kept = _CONDITIONS.get(key)
+    kept = conditions.get(key)
     if kept is not None and kept[0]() is P:
-        _CONDITIONS.move_to_end(key)
+        conditions.move_to_end(key)
         return kept[1]
     everywhere = np.ones(P.shape[0], dtype=bool)
-    found = Condition(states.copy(), kernels.until_probs(P, everywhere, states),
-                      ~kernels.prob0(P, everywhere, states))
-    _CONDITIONS[key] = (weakref.ref(P), found)
-    while len(_CONDITIONS) > _KEPT:
-        _CONDITIONS.popitem(last=False)
+    found = Condition(states.copy(), kernels.until_probs(P, everywhere, states,
+                                                         workspace=workspace),
+                      ~kernels.prob0(P, everywhere, states, workspace=workspace))
+    conditions[key] = (weakref.ref(P), found)
+    while len(conditions) > _KEPT:
+        conditions.popitem(last=False)
     return found
 
 
@@ -249,20 +270,20 @@ def divide(numerator: Bounds, condition: Condition, ceiling: float) -> Bounds:
 
 
 def until_given(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                condition: Condition) -> Bounds:
+                condition: Condition, *, workspace: Workspace) -> Bounds:
     """``P(remain U target | F b)`` per state, certified (NaN where ``F b`` is impossible).
 
     The numerator ``z = P(remain U target ∧ F b)`` is 0 or known once the path meets
     *target* (then ``z = x``), leaves *remain* (0) or meets *b* (then ``z = P(remain U
     target)``): an absorption problem on the other states (:func:`kernels.absorption`).
     """
-    until = kernels.until_probs(P, remain, target)
+    until = kernels.until_probs(P, remain, target, workspace=workspace)
     b = condition.states
     x = condition.probs
     fixed = target | b | ~remain
     known = tuple(np.where(target, xv, np.where(b, uv, 0.0)) for xv, uv in
                   ((x.value, until.value), (x.lower, until.lower), (x.upper, until.upper)))
-    numerator = kernels.absorption(P, fixed, Bounds(*known))
+    numerator = kernels.absorption(P, fixed, Bounds(*known), workspace=workspace)
     return divide(numerator, condition, 1.0)
 
 
@@ -284,7 +305,8 @@ def next_given(P: CsrMatrix, target: BoolArray, condition: Condition) -> Bounds:
 
 
 def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
-                        condition: Condition, focus_states: IntArray | None = None) -> Bounds:
+                        condition: Condition, focus_states: IntArray | None = None, *,
+                        workspace: Workspace) -> Bounds:
     """``E[reward until target | F b]`` per state, certified (``R=? [ F a || F b ]``).
 
     The numerator ``y = E[R · 1{F b}]`` is 0 on *target*; on *b* the condition holds
@@ -299,19 +321,19 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     # On b the unconditional value (not needed when b lies inside the target, as
     # the mission's success inside done).
     if b.any():
-        plain = kernels.reach_rewards(P, rewards, target)
-        infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value))
+        plain = kernels.reach_rewards(P, rewards, target, workspace=workspace)
+        infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value), workspace=workspace)
         known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
                          (plain.value, plain.lower, plain.upper)))
         del plain
     else:  # no known values: one zero vector stands for all three during the solve
-        infinite = ~kernels.prob0(P, ~target, b)
+        infinite = ~kernels.prob0(P, ~target, b, workspace=workspace)
         zero = np.zeros(P.shape[0])
         known = Bounds(zero, zero, zero)
     allowed = ~infinite & ~target & ~b
     maybe = allowed & condition.possible
     found = (_reward_system(P, rewards, (maybe, allowed), condition.probs, known,
-                            focus_states) if maybe.any() else None)
+                            focus_states, workspace) if maybe.any() else None)
     # The numerator: inf where infinite, the solution on maybe (which lies outside
     # infinite), the known values elsewhere.
     vectors = [known.value.copy(), known.lower.copy(), known.upper.copy()]
@@ -342,7 +364,8 @@ def _divided_at(numerator: Bounds, condition: Condition, focus_states: IntArray)
 
 
 def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, BoolArray],
-                   x: Bounds, known: Bounds, focus_states: IntArray | None) -> Bounds:
+                   x: Bounds, known: Bounds, focus_states: IntArray | None,
+                   workspace: Workspace) -> Bounds:
     """The certified solution of ``y = r x + P y`` on *maybe*, *known* elsewhere.
 
     The offset ``r x`` is only known as an interval, so the lower bound is certified
@@ -356,7 +379,7 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, B
     on a superset of *maybe* inside *allowed* (``R=? [ F a ]``'s) is solved instead.
     """
     maybe, allowed = states
-    system = kernels.shared_system(P, maybe, allowed)
+    system = kernels.shared_system(P, maybe, allowed, workspace=workspace)
     unknowns = system.unknowns
     r = np.asarray(rewards[unknowns], dtype=np.float64)
     low, high = _offset_bounds(r, x.lower[unknowns], x.upper[unknowns])
@@ -470,7 +493,7 @@ def _solve(solver: linsolve.Factorization, b: npt.NDArray[np.floating]) -> Float
 
 def conditional_values(dtmc: DTMC, condition: BoolArray,
                        objective: Callable[[ConditionedChain], FloatArray],
-                       what: str, span: Span) -> FloatArray:
+                       what: str, span: Span, *, workspace: Workspace) -> FloatArray:
     """Per-state value of *objective* given ``F condition`` on the product chain, NaN where
     that is impossible (the fallback for objectives with step or reward bounds).
 
@@ -480,16 +503,19 @@ def conditional_values(dtmc: DTMC, condition: BoolArray,
         chain (``chain.dtmc``).
     :param what: how to name the condition in an error, e.g. ``F "success"``.
     :param span: where the conditional formula is.
+    :param workspace: where the checker's memos are kept.
     :raises ConditionUnreachable: when the condition has probability 0 from an initial state.
     """
-    require_possible(condition_probs(dtmc.transitions, condition), dtmc.initial, what, span)
-    chain = conditioned_chain(dtmc, condition)
+    require_possible(condition_probs(dtmc.transitions, condition, workspace=workspace),
+                     dtmc.initial, what, span)
+    chain = conditioned_chain(dtmc, condition, workspace=workspace)
     return chain.lift(objective(chain))
 
 
 def conditional_reach_reward_bounds(dtmc: DTMC, rewards: RewardVectors, target: BoolArray,
                                     condition: BoolArray, what: str, span: Span,
-                                    focus_states: IntArray | None = None) -> Bounds:
+                                    focus_states: IntArray | None = None, *,
+                                    workspace: Workspace) -> Bounds:
     """``R=? [ F target || F condition ]`` per state, certified (NaN where impossible).
 
     :param dtmc: the model.
@@ -499,14 +525,18 @@ def conditional_reach_reward_bounds(dtmc: DTMC, rewards: RewardVectors, target: 
     :param what: how to name the condition in an error.
     :param span: where the formula is.
     :param focus_states: as for ``kernels.until_probs``.
+    :param workspace: where the checker's memos are kept.
     :raises ConditionUnreachable: when the condition has probability 0 from an initial state.
     """
-    found = condition_probs(dtmc.transitions, condition)
+    found = condition_probs(dtmc.transitions, condition, workspace=workspace)
     require_possible(found, dtmc.initial, what, span)
-    return reach_rewards_given(dtmc.transitions, rewards.total, target, found, focus_states)
+    return reach_rewards_given(dtmc.transitions, rewards.total, target, found, focus_states,
+                               workspace=workspace)
 
 
 def conditional_reach_rewards(dtmc: DTMC, rewards: RewardVectors, target: BoolArray,
-                              condition: BoolArray, what: str, span: Span) -> FloatArray:
+                              condition: BoolArray, what: str, span: Span, *,
+                              workspace: Workspace) -> FloatArray:
     """The point values of :func:`conditional_reach_reward_bounds`."""
-    return conditional_reach_reward_bounds(dtmc, rewards, target, condition, what, span).value
+    return conditional_reach_reward_bounds(dtmc, rewards, target, condition, what, span,
+                                           workspace=workspace).value

@@ -10,12 +10,17 @@ and everything else reduces to them by PRISM's identities:
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix
 from veribattery.checker import kernels
+
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
 
 
 def _graph(P: CsrMatrix, rows: BoolArray, cols: BoolArray) -> sp.csr_matrix:
@@ -31,12 +36,13 @@ def exists_next(P: CsrMatrix, target: BoolArray) -> BoolArray:
     return np.asarray(_graph(P, np.ones_like(target), target) @ target.astype(np.float64) > 0)
 
 
-def exists_until(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> BoolArray:
+def exists_until(P: CsrMatrix, remain: BoolArray, target: BoolArray, *,
+                 workspace: Workspace) -> BoolArray:
     """States with a path through *remain* to *target* (``E [remain U target]``)."""
-    return ~kernels.prob0(P, remain, target)
+    return ~kernels.prob0(P, remain, target, workspace=workspace)
 
 
-def exists_globally(P: CsrMatrix, inside: BoolArray) -> BoolArray:
+def exists_globally(P: CsrMatrix, inside: BoolArray, *, workspace: Workspace) -> BoolArray:
     """States with an infinite path that stays in *inside* (``E [G inside]``)."""
     graph = _graph(P, inside, inside)
     _, scc = csgraph.connected_components(graph, directed=True, connection="strong")
@@ -46,27 +52,30 @@ def exists_globally(P: CsrMatrix, inside: BoolArray) -> BoolArray:
     cyclic_scc = np.zeros(int(scc.max()) + 1 if scc.size else 0, dtype=bool)
     cyclic_scc[scc[coo.row[internal]]] = True
     cyclic = inside & cyclic_scc[scc]
-    return exists_until(P, inside, cyclic)
+    return exists_until(P, inside, cyclic, workspace=workspace)
 
 
-def _exists(P: CsrMatrix, op: str, left: BoolArray, right: BoolArray) -> BoolArray:
+def _exists(P: CsrMatrix, op: str, left: BoolArray, right: BoolArray,
+            workspace: Workspace) -> BoolArray:
     """``E [left op right]`` for op in X F G U W R (unary operators use *right*)."""
     if op == "X":
         return exists_next(P, right)
     if op == "F":
-        return exists_until(P, np.ones_like(right), right)
+        return exists_until(P, np.ones_like(right), right, workspace=workspace)
     if op == "G":
-        return exists_globally(P, right)
+        return exists_globally(P, right, workspace=workspace)
     if op == "U":
-        return exists_until(P, left, right)
+        return exists_until(P, left, right, workspace=workspace)
     if op == "W":
-        return exists_until(P, left, right) | exists_globally(P, left)
+        return (exists_until(P, left, right, workspace=workspace)
+                | exists_globally(P, left, workspace=workspace))
     # a R b: b holds until and including the first a, or forever.
-    return exists_until(P, right, left & right) | exists_globally(P, right)
+    return (exists_until(P, right, left & right, workspace=workspace)
+            | exists_globally(P, right, workspace=workspace))
 
 
 def quantified(P: CsrMatrix, quantifier: str, op: str, left: BoolArray,
-               right: BoolArray) -> BoolArray:
+               right: BoolArray, *, workspace: Workspace) -> BoolArray:
     """``A``/``E`` applied to the path ``left op right`` (``op`` in X F G U W R).
 
     :param P: row-stochastic CSR transition matrix.
@@ -74,16 +83,17 @@ def quantified(P: CsrMatrix, quantifier: str, op: str, left: BoolArray,
     :param op: the temporal operator; for X, F and G only *right* is used.
     :param left: the left operand's states (ignored by unary operators).
     :param right: the (right) operand's states.
+    :param workspace: where the graph searches are memoised.
     """
     if quantifier == "E":
-        return _exists(P, op, left, right)
+        return _exists(P, op, left, right, workspace)
     # A phi = !E !phi, with the negated path in the same operator family.
     dual = {
-        "X": lambda: _exists(P, "X", left, ~right),
-        "F": lambda: _exists(P, "G", left, ~right),
-        "G": lambda: _exists(P, "F", left, ~right),
-        "U": lambda: _exists(P, "W", ~right, ~left & ~right),
-        "W": lambda: _exists(P, "U", left & ~right, ~left & ~right),
-        "R": lambda: _exists(P, "U", ~left, ~right),
+        "X": lambda: _exists(P, "X", left, ~right, workspace),
+        "F": lambda: _exists(P, "G", left, ~right, workspace),
+        "G": lambda: _exists(P, "F", left, ~right, workspace),
+        "U": lambda: _exists(P, "W", ~right, ~left & ~right, workspace),
+        "W": lambda: _exists(P, "U", left & ~right, ~left & ~right, workspace),
+        "R": lambda: _exists(P, "U", ~left, ~right, workspace),
     }
     return ~dual[op]()

@@ -36,6 +36,7 @@ from veribattery.checker.pctl import (
     _steps,
 )
 from veribattery.checker.result import CheckResult
+from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
 from veribattery.explore.exact import ExactDTMC, ExactRewards
 from veribattery.explore.rational import ExactScalar, ObjectArray, evaluate_rational, rational
@@ -114,17 +115,20 @@ class ExactCheckResult(CheckResult):
 
 
 def check_exact(
-    model: ExactDTMC, prop: Property | Expr, bounds: Mapping[Span, mpq] | None = None
+    model: ExactDTMC, prop: Property | Expr, bounds: Mapping[Span, mpq] | None = None, *,
+    workspace: Workspace | None = None,
 ) -> ExactCheckResult:
     """Check *prop* on *model* in exact arithmetic and report it at the initial states.
 
     :param bounds: exact values of ``P~p``/``R~r`` bounds by their span (see
         :func:`exact_bounds`); a bound not in it is read from its literal's digits.
+    :param workspace: the caches to use and fill (graph searches, prepared systems),
+        shared with the other checks given it; None: a new one for this check alone.
     :raises CheckError: when the property cannot be checked on this model.
     """
     prop = prop if isinstance(prop, Property) else Property(prop)
     start = time.perf_counter()
-    result = exact_values(model, prop.formula, bounds or {})
+    result = exact_values(model, prop.formula, bounds or {}, workspace=workspace)
     initial = model.dtmc.initial
     if isinstance(result, ExactValues):
         plain = CheckResult.at_initial(prop, _enclosure(result), initial, 0.0)
@@ -180,20 +184,23 @@ def exact_bounds(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Sp
 
 
 def exact_values(
-    model: ExactDTMC, formula: Expr, bounds: Mapping[Span, mpq] | None = None
+    model: ExactDTMC, formula: Expr, bounds: Mapping[Span, mpq] | None = None, *,
+    workspace: Workspace | None = None,
 ) -> ExactValues | BoolArray:
     """Per-state value of *formula*: rationals for ``P=?``/``R=?``, booleans otherwise.
 
     :param bounds: exact bound values by span (see :func:`exact_bounds`).
+    :param workspace: as for :func:`check_exact`.
     """
+    workspace = Workspace() if workspace is None else workspace
     if isinstance(formula, ProbOp) and formula.op == "=?":
-        return ExactValues.finite(path_probs(model, formula.path))
+        return ExactValues.finite(path_probs(model, workspace, formula.path))
     if isinstance(formula, RewardOp) and formula.op == "=?":
-        return path_rewards(model, formula)
+        return path_rewards(model, workspace, formula)
     if _has_operator(formula):
         token = _BOUNDS.set(bounds or {})
         try:
-            return state_set(model, formula)
+            return state_set(model, workspace, formula)
         finally:
             _BOUNDS.reset(token)
     leaf = _leaf(model.dtmc, formula)
@@ -207,36 +214,38 @@ def exact_values(
 # State formulas
 # ---------------------------------------------------------------------------
 
-def state_set(model: ExactDTMC, expr: Expr) -> BoolArray:
+def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
     if not _has_operator(expr):  # plain state predicate: evaluated whole, no recursion
         return _as_mask(_leaf(model.dtmc, expr), expr)
     match expr:
         case ProbOp() | RewardOp():
-            return _bounded_operator(model, expr)
+            return _bounded_operator(model, workspace, expr)
         case Unary(op="!", operand=operand):
-            return ~state_set(model, operand)
+            return ~state_set(model, workspace, operand)
         case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion
-            masks = (state_set(model, operand) for operand in _chain(expr, op))
+            masks = (state_set(model, workspace, operand) for operand in _chain(expr, op))
             return functools.reduce(_CONNECTIVES[op], masks)
         case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
-            return _CONNECTIVES[op](state_set(model, left), state_set(model, right))
+            return _CONNECTIVES[op](state_set(model, workspace, left),
+                                    state_set(model, workspace, right))
         case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
-            return np.where(state_set(model, cond), state_set(model, then),
-                            state_set(model, otherwise))
+            return np.where(state_set(model, workspace, cond), state_set(model, workspace, then),
+                            state_set(model, workspace, otherwise))
     if _has_operator(expr):
         raise CheckError("P and R operators may only be combined with ! & | => <=> "
                          "and ?:", expr.span)
     return _as_mask(_leaf(model.dtmc, expr), expr)
 
 
-def _bounded_operator(model: ExactDTMC, op: ProbOp | RewardOp) -> BoolArray:
+def _bounded_operator(model: ExactDTMC, workspace: Workspace,
+                      op: ProbOp | RewardOp) -> BoolArray:
     if op.op == "=?" or op.bound is None:
         raise CheckError("a query (=?) cannot be used as a state formula", op.span)
     if isinstance(op, ProbOp):
-        numbers = ExactValues.finite(path_probs(model, op.path))
+        numbers = ExactValues.finite(path_probs(model, workspace, op.path))
     else:
-        numbers = path_rewards(model, op)
+        numbers = path_rewards(model, workspace, op)
     exact = (_BOUNDS.get() or {}).get(op.bound.span)
     bound = _bound(op.bound) if exact is None else exact
     holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, bound), dtype=bool)
@@ -260,43 +269,47 @@ def _bound(expr: Expr) -> mpq:
 # ---------------------------------------------------------------------------
 
 
-def path_probs(model: ExactDTMC, path: PathFormula) -> ObjectArray:
+def path_probs(model: ExactDTMC, workspace: Workspace, path: PathFormula) -> ObjectArray:
     """Per-state exact probability of *path* (``X``, ``U``, ``F``, ``G``, step-bounded too)."""
     everywhere = np.ones(model.dtmc.num_states, dtype=bool)
     match path:
         case Next(operand=operand):
-            return _next(model, state_set(model, operand))
+            return _next(model, state_set(model, workspace, operand))
         case Until(left=left, right=right, bound=bound):
-            return _until(model, state_set(model, left), state_set(model, right), bound)
+            a, b = state_set(model, workspace, left), state_set(model, workspace, right)
+            return _until(model, workspace, a, b, bound)
         case Eventually(operand=operand, bound=bound):
-            return _until(model, everywhere, state_set(model, operand), bound)
+            target = state_set(model, workspace, operand)
+            return _until(model, workspace, everywhere, target, bound)
         case Globally(operand=operand, bound=bound):
-            escape = _until(model, everywhere, ~state_set(model, operand), bound)
+            avoid = ~state_set(model, workspace, operand)
+            escape = _until(model, workspace, everywhere, avoid, bound)
             return np.asarray(_ONE - escape, dtype=object)
         case RewardBounded() | Conditional():
-            return _storm_formula(model, path)
+            return _storm_formula(model, workspace, path)
     raise UndefinedResult(
         f"{type(path).__name__} formulas are not supported in exact arithmetic", path.span)
 
 
-def _storm_formula(model: ExactDTMC, path: RewardBounded | Conditional) -> ObjectArray:
+def _storm_formula(model: ExactDTMC, workspace: Workspace,
+                   path: RewardBounded | Conditional) -> ObjectArray:
     """Storm's reward-bounded and conditional formulas (checker/exact_storm_formulas.py)."""
     from veribattery.checker import exact_storm_formulas as storm
 
     if isinstance(path, RewardBounded):
-        return storm.reward_bounded_probs(model, path)
-    return storm.conditional_probs(model, path)
+        return storm.reward_bounded_probs(model, workspace, path)
+    return storm.conditional_probs(model, workspace, path)
 
 
-def _until(model: ExactDTMC, remain: BoolArray, target: BoolArray,
+def _until(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: BoolArray,
            bound: TimeBound | TimeInterval | None) -> ObjectArray:
     if bound is None:
-        return until_probs(model, remain, target)
+        return until_probs(model, workspace, remain, target)
     if isinstance(bound, TimeInterval):  # U[a,b]: remain for a steps, then U<=b-a
         low, high = _steps(bound.low), _steps(bound.high)
         if high < low:
             return _indicator(np.zeros_like(target))
-        later = _within(model, remain, target, high - low)
+        later = _within(model, workspace, remain, target, high - low)
         return _power(model, remain, later, _indicator(np.zeros_like(target)), low)
     k = _steps(bound.value)
     match bound.op:
@@ -304,41 +317,45 @@ def _until(model: ExactDTMC, remain: BoolArray, target: BoolArray,
             steps = k if bound.op == "<=" else k - 1
             if steps < 0:  # U<0 can never be met
                 return _indicator(np.zeros_like(target))
-            return _within(model, remain, target, steps)
+            return _within(model, workspace, remain, target, steps)
         case ">=" | ">":
-            later = until_probs(model, remain, target)
+            later = until_probs(model, workspace, remain, target)
             zero = _indicator(np.zeros_like(target))
             return _power(model, remain, later, zero, k if bound.op == ">=" else k + 1)
     raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
 
 
-def _within(model: ExactDTMC, remain: BoolArray, target: BoolArray, steps: int) -> ObjectArray:
+def _within(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: BoolArray,
+            steps: int) -> ObjectArray:
     """Exact probability of ``remain U<=steps target``."""
     hit = _indicator(target)
     return _power(model, remain & ~target, hit, hit, steps)
 
 
-def until_probs(model: ExactDTMC, remain: BoolArray, target: BoolArray) -> ObjectArray:
+def until_probs(model: ExactDTMC, workspace: Workspace, remain: BoolArray,
+                target: BoolArray) -> ObjectArray:
     """Exact probability of ``remain U target``: pre-pass, then the SCC-wise solve."""
     P = model.dtmc.transitions
-    no = kernels.prob0(P, remain, target)
-    yes = kernels.prob1(P, remain, target, no)
+    no = kernels.prob0(P, remain, target, workspace=workspace)
+    yes = kernels.prob1(P, remain, target, no, workspace=workspace)
     result = _indicator(yes)
     maybe = ~(no | yes)
     if maybe.any():
         rows = np.flatnonzero(maybe)
         b = row_products(P, model.probabilities, rows, _indicator(yes))
-        result[rows] = solve(_system(model, maybe), b)
+        result[rows] = solve(_system(model, workspace, maybe), b)
     return result
 
 
-def _system(model: ExactDTMC, maybe: BoolArray) -> Prepared:
-    """The system on *maybe*, prepared once per model and mask (rewards share targets)."""
+def _system(model: ExactDTMC, workspace: Workspace, maybe: BoolArray) -> Prepared:
+    """The system on *maybe*, prepared once per model, mask and workspace (rewards share
+    targets)."""
+    kept = workspace.kernels.exact(model.dtmc.transitions)
     key = np.packbits(maybe).tobytes()
-    found = model.cache.get(key)
+    found = kept.get(key)
     if not isinstance(found, Prepared):
         found = prepare(restrict(model.dtmc.transitions, model.probabilities, maybe))
-        model.cache[key] = found
+        kept[key] = found
     return found
 
 
@@ -373,14 +390,15 @@ def _indicator(mask: BoolArray) -> ObjectArray:
 # ---------------------------------------------------------------------------
 
 
-def path_rewards(model: ExactDTMC, op: RewardOp) -> ExactValues:
+def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactValues:
     """Per-state exact expected reward of ``R{..}`` over ``F``, ``C<=k`` or ``I=k``."""
     structure = _reward_structure(model, op)
     zero = _indicator(np.zeros(model.dtmc.num_states, dtype=bool))
     everywhere = np.ones(model.dtmc.num_states, dtype=bool)
     match op.path:
         case Reach(target=target):
-            return reach_rewards(model, structure.total, state_set(model, target))
+            reached = state_set(model, workspace, target)
+            return reach_rewards(model, workspace, structure.total, reached)
         case Cumulative(bound=bound):
             total = structure.total
             return ExactValues.finite(_power(model, everywhere, zero, total, _steps(bound)))
@@ -390,22 +408,24 @@ def path_rewards(model: ExactDTMC, op: RewardOp) -> ExactValues:
         case ConditionalReach():
             from veribattery.checker import exact_storm_formulas as storm
 
-            return storm.conditional_reach_rewards(model, structure, op.path)
+            return storm.conditional_reach_rewards(model, workspace, structure, op.path)
     raise UndefinedResult(
         f"{type(op.path).__name__} reward paths are not supported in exact arithmetic",
         op.path.span)
 
 
-def reach_rewards(model: ExactDTMC, rewards: ObjectArray, target: BoolArray) -> ExactValues:
+def reach_rewards(model: ExactDTMC, workspace: Workspace, rewards: ObjectArray,
+                  target: BoolArray) -> ExactValues:
     """Exact ``R=? [F target]``: infinite where *target* is not almost sure (PRISM)."""
     P = model.dtmc.transitions
     everywhere = np.ones(P.shape[0], dtype=bool)
-    sure = kernels.prob1(P, everywhere, target, kernels.prob0(P, everywhere, target))
+    no = kernels.prob0(P, everywhere, target, workspace=workspace)
+    sure = kernels.prob1(P, everywhere, target, no, workspace=workspace)
     result = _indicator(np.zeros_like(target))
     maybe = sure & ~target
     if maybe.any():
         rows = np.flatnonzero(maybe)
-        result[rows] = solve(_system(model, maybe), rewards[rows])
+        result[rows] = solve(_system(model, workspace, maybe), rewards[rows])
     return ExactValues(result, ~sure)
 
 

@@ -23,6 +23,7 @@ from veribattery._types import BoolArray, IntArray
 from veribattery.checker import exact, kernels
 from veribattery.checker.conditional import ConditionUnreachable
 from veribattery.checker.exact_solve import row_products, solve
+from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.exact import ExactDTMC, ExactRewards
 from veribattery.explore.rational import ObjectArray
@@ -52,109 +53,113 @@ _UNDEFINED = float("nan")
 # ---------------------------------------------------------------------------
 
 
-def conditional_probs(model: ExactDTMC, path: Conditional) -> ObjectArray:
+def conditional_probs(model: ExactDTMC, workspace: Workspace, path: Conditional) -> ObjectArray:
     """``P=? [ phi || F b ]`` per state: exact rationals, NaN where ``F b`` is impossible.
 
     :raises ConditionUnreachable: when ``F b`` has probability 0 from an initial state.
     :raises UndefinedResult: for an objective with a step or reward bound.
     """
-    x, possible = _condition(model, path.condition, path.span)
+    x, possible = _condition(model, workspace, path.condition, path.span)
     P, probabilities = model.dtmc.transitions, model.probabilities
     objective = path.path
     if isinstance(objective, Next):
-        hits = exact._indicator(exact.state_set(model, objective.operand))
+        hits = exact._indicator(exact.state_set(model, workspace, objective.operand))
         everything = np.arange(model.dtmc.num_states)
         weighted = np.asarray(hits * x, dtype=object)
         numerator = row_products(P, probabilities, everything, weighted)
         on_b = row_products(P, probabilities, everything, hits)
-        b = exact.state_set(model, path.condition)
+        b = exact.state_set(model, workspace, path.condition)
         return _divide(np.where(b, on_b, numerator), x, possible)
-    reduced = _as_until(model, objective)
+    reduced = _as_until(model, workspace, objective)
     if reduced is None:
         raise UndefinedResult("a conditional objective with a step or reward bound is not "
                               "supported in exact arithmetic", objective.span)
     remain, target, negated = reduced
-    b = exact.state_set(model, path.condition)
-    ratio = _divide(_until_and_condition(model, remain, target, b, x), x, possible)
+    b = exact.state_set(model, workspace, path.condition)
+    ratio = _divide(_until_and_condition(model, workspace, remain, target, b, x), x, possible)
     if negated:
         ratio = np.asarray([_ONE - v if possible[i] else v for i, v in enumerate(ratio)],
                            dtype=object)
     return ratio
 
 
-def conditional_reach_rewards(model: ExactDTMC, rewards: ExactRewards,
+def conditional_reach_rewards(model: ExactDTMC, workspace: Workspace, rewards: ExactRewards,
                               path: ConditionalReach) -> exact.ExactValues:
     """``R=? [ F a || F b ]`` per state exactly (infinite and NaN as the float checker)."""
-    x, possible = _condition(model, path.condition, path.span)
+    x, possible = _condition(model, workspace, path.condition, path.span)
     P = model.dtmc.transitions
-    target = exact.state_set(model, path.target)
-    b = exact.state_set(model, path.condition)
+    target = exact.state_set(model, workspace, path.target)
+    b = exact.state_set(model, workspace, path.condition)
     b = b & ~target
     numerator = exact._indicator(np.zeros_like(target))
     infinite = np.zeros_like(target)
     if b.any():  # the unconditional value once on b (none when b lies inside the target)
-        plain = exact.reach_rewards(model, rewards.total, target)
-        infinite = ~kernels.prob0(P, ~target, b & plain.infinite)
+        plain = exact.reach_rewards(model, workspace, rewards.total, target)
+        infinite = ~kernels.prob0(P, ~target, b & plain.infinite, workspace=workspace)
         numerator = np.where(b & ~infinite, plain.values, _ZERO).astype(object)
     maybe = ~infinite & ~target & ~b & possible
     if maybe.any():
         rows = np.flatnonzero(maybe)
         offsets = np.asarray(rewards.total[rows] * x[rows], dtype=object)
         offsets = offsets + row_products(P, model.probabilities, rows, numerator)
-        numerator[rows] = solve(exact._system(model, maybe), offsets)
+        numerator[rows] = solve(exact._system(model, workspace, maybe), offsets)
     return exact.ExactValues(_divide(numerator, x, possible), infinite & possible)
 
 
-def _condition(model: ExactDTMC, condition: Expr, span: Span) -> tuple[ObjectArray, BoolArray]:
+def _condition(model: ExactDTMC, workspace: Workspace, condition: Expr,
+               span: Span) -> tuple[ObjectArray, BoolArray]:
     """``P(F b)`` exactly and where it is positive; an error if not from an initial state."""
-    b = exact.state_set(model, condition)
+    b = exact.state_set(model, workspace, condition)
     everywhere = np.ones(b.size, dtype=bool)
-    possible = ~kernels.prob0(model.dtmc.transitions, everywhere, b)
+    possible = ~kernels.prob0(model.dtmc.transitions, everywhere, b, workspace=workspace)
     if not possible[model.dtmc.initial].all():
         what = (f'F "{condition.name}"' if isinstance(condition, LabelRef)
                 else f"after || (at {span})")
         raise ConditionUnreachable(f"the condition {what} has probability 0 from the initial "
                                    "state, so the conditional value is undefined", span)
     key = b"condition:" + np.packbits(b).tobytes()  # shared by the conditional properties
-    x = model.cache.get(key)
+    kept = workspace.kernels.exact(model.dtmc.transitions)
+    x = kept.get(key)
     if not isinstance(x, np.ndarray):
-        x = exact.until_probs(model, everywhere, b)
-        model.cache[key] = x
+        x = exact.until_probs(model, workspace, everywhere, b)
+        kept[key] = x
     return x, possible
 
 
-def _until_and_condition(model: ExactDTMC, remain: BoolArray, target: BoolArray,
-                         b: BoolArray, x: ObjectArray) -> ObjectArray:
+def _until_and_condition(model: ExactDTMC, workspace: Workspace, remain: BoolArray,
+                         target: BoolArray, b: BoolArray, x: ObjectArray) -> ObjectArray:
     """``P(remain U target ∧ F b)``: known on *target* (x), *b* (the until) and ``!remain`` (0)."""
     P = model.dtmc.transitions
-    until = exact.until_probs(model, remain, target)
+    until = exact.until_probs(model, workspace, remain, target)
     fixed = target | b | ~remain
     known = np.where(target, x, np.where(b, until, _ZERO)).astype(object)
     positive = fixed & np.fromiter((v != 0 for v in known), dtype=bool, count=known.size)
-    maybe = ~fixed & ~kernels.prob0(P, np.ones_like(b), positive)
+    maybe = ~fixed & ~kernels.prob0(P, np.ones_like(b), positive, workspace=workspace)
     result = np.where(fixed, known, _ZERO).astype(object)
     if maybe.any():
         rows = np.flatnonzero(maybe)
         rhs = row_products(P, model.probabilities, rows, result)
-        result[rows] = solve(exact._system(model, maybe), rhs)
+        result[rows] = solve(exact._system(model, workspace, maybe), rhs)
     return result
 
 
-def _as_until(model: ExactDTMC, path: object) -> tuple[BoolArray, BoolArray, bool] | None:
+def _as_until(model: ExactDTMC, workspace: Workspace, path: object
+              ) -> tuple[BoolArray, BoolArray, bool] | None:
     """An unbounded path formula as ``remain U target`` or its negation (None otherwise)."""
     everywhere = np.ones(model.dtmc.num_states, dtype=bool)
     match path:
         case Until(left=left, right=right, bound=None):
-            return exact.state_set(model, left), exact.state_set(model, right), False
+            a, b = exact.state_set(model, workspace, left), exact.state_set(model, workspace, right)
+            return a, b, False
         case Eventually(operand=operand, bound=None):
-            return everywhere, exact.state_set(model, operand), False
+            return everywhere, exact.state_set(model, workspace, operand), False
         case Globally(operand=operand, bound=None):
-            return everywhere, ~exact.state_set(model, operand), True
+            return everywhere, ~exact.state_set(model, workspace, operand), True
         case WeakUntil(left=left, right=right, bound=None):
-            a, c = exact.state_set(model, left), exact.state_set(model, right)
+            a, c = exact.state_set(model, workspace, left), exact.state_set(model, workspace, right)
             return a & ~c, ~a & ~c, True
         case Release(left=left, right=right, bound=None):
-            a, c = exact.state_set(model, left), exact.state_set(model, right)
+            a, c = exact.state_set(model, workspace, left), exact.state_set(model, workspace, right)
             return ~a, ~c, True
     return None
 
@@ -170,17 +175,18 @@ def _divide(numerator: ObjectArray, x: ObjectArray, possible: BoolArray) -> Obje
 # ---------------------------------------------------------------------------
 
 
-def reward_bounded_probs(model: ExactDTMC, path: RewardBounded) -> ObjectArray:
+def reward_bounded_probs(model: ExactDTMC, workspace: Workspace,
+                         path: RewardBounded) -> ObjectArray:
     """``remain U{"r"}<=T target`` per state exactly (Storm's semantics, see reward_bounded)."""
     rewards = _integer_rewards(model, path)
     bound = _reward_bound(path.bound)
-    remain = exact.state_set(model, path.left)
-    target = exact.state_set(model, path.right)
+    remain = exact.state_set(model, workspace, path.left)
+    target = exact.state_set(model, workspace, path.right)
     n = model.dtmc.num_states
     if bound < 0:
         return exact._indicator(np.zeros(n, dtype=bool))
     P, probabilities = model.dtmc.transitions, model.probabilities
-    moving = remain & ~target & ~kernels.prob0(P, remain, target)
+    moving = remain & ~target & ~kernels.prob0(P, remain, target, workspace=workspace)
     positive = [int(v) for v in np.unique(rewards[moving & (rewards > 0)])]
     unit = math.gcd(*positive) if positive else 1
     groups = [(value // unit, np.flatnonzero(moving & (rewards == value))) for value in positive]
@@ -195,7 +201,7 @@ def reward_bounded_probs(model: ExactDTMC, path: RewardBounded) -> ObjectArray:
             if k >= r:
                 value[states] = row_products(P, probabilities, states, history[-r])
         if zero.size:
-            value[zero] = solve(exact._system(model, zero_mask),
+            value[zero] = solve(exact._system(model, workspace, zero_mask),
                                 row_products(P, probabilities, zero, value))
         history = [*history[-(keep - 1):], value] if keep > 1 else [value]
     return value

@@ -31,13 +31,13 @@ import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._memory import trim_for
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, focus, linsolve, rational
 from veribattery.checker.bounds import (
@@ -49,11 +49,14 @@ from veribattery.checker.bounds import (
 )
 from veribattery.errors import CheckError
 
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
+
 # ---------------------------------------------------------------------------
-# Memo per transition matrix: properties of one model share targets (``F "done"``
-# under two reward structures) and hence graph searches and linear systems.
-# Matrices are keyed by identity and forgotten with them; they must not be
-# modified in place afterwards (a DTMC's never is).
+# Memo per transition matrix, kept in the caller's workspace: properties of one
+# model share targets (``F "done"`` under two reward structures) and hence graph
+# searches and linear systems. Matrices are keyed by identity and forgotten with
+# them; they must not be modified in place afterwards (a DTMC's never is).
 # ---------------------------------------------------------------------------
 
 #: Linear systems kept per matrix (each holds its matrix and direct solver).
@@ -85,6 +88,8 @@ class _System:
     factorization: linsolve.Factorization
     #: The unknown states of the system (a mask over all states).
     unknowns: BoolArray
+    #: Where the maps' index work is kept for later rows of the same pattern.
+    row_plans: certify.RowPlans | None = None
     template: certify.AffineMap | None = None
     #: Certified rows of ``(I - B)^-1`` by focus position (None: its test failed).
     focus_rows: dict[int, focus.FocusRow | None] = field(default_factory=dict)
@@ -93,7 +98,7 @@ class _System:
                offset: FloatArray | None) -> certify.AffineMap:
         """The fixed-point map on these rows with the given known values and offset."""
         F = certify.AffineMap.of(self.rows, np.flatnonzero(self.unknowns), known_lower,
-                                 known_upper, offset, self.template)
+                                 known_upper, offset, self.template, self.row_plans)
         if self.template is None:  # kept without this query's vectors (every use replaces them)
             empty = np.zeros(0)
             self.template = dataclasses.replace(F, known_lower=empty, known_upper=empty,
@@ -119,55 +124,87 @@ class _Memo:
     reversed: tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]] | None = None
     #: Untils (keys of ``remain``, ``target``) that some query needs in every state.
     whole: set[tuple[bytes, bytes]] = field(default_factory=set)
+    #: The exact checker's prepared systems and conditions (:mod:`~veribattery.checker.exact`).
+    exact: dict[bytes, object] = field(default_factory=dict)
 
-
-_MEMOS: dict[int, _Memo] = {}
 
 #: Graph-search results per sparsity pattern: the 0/1 pre-pass depends only on
 #: which transitions exist, so matrices that differ only in their probabilities
 #: (a sweep re-using one state space) share them. A few patterns are kept.
 PATTERNS_KEPT = 4
-_PATTERN_MASKS: OrderedDict[bytes, _MaskMemo] = OrderedDict()
 
 
-def _pattern_key(P: CsrMatrix) -> bytes:
+class KernelMemos:
+    """The kernels' memos, held by a :class:`~veribattery.checker.workspace.Workspace`:
+    one per transition matrix (by identity, forgotten with the matrix or the
+    workspace, whichever goes first) and the 0/1 pre-pass per sparsity pattern."""
+
+    def __init__(self) -> None:
+        self._matrices: dict[int, _Memo] = {}
+        self._patterns: OrderedDict[bytes, _MaskMemo] = OrderedDict()
+
+    @property
+    def matrices(self) -> int:
+        """How many matrices have a memo here."""
+        return len(self._matrices)
+
+    @property
+    def empty(self) -> bool:
+        """Whether nothing is kept yet."""
+        return not (self._matrices or self._patterns)
+
+    def of(self, P: CsrMatrix) -> _Memo:
+        """The memo of *P*, made on first use."""
+        key = id(P)
+        memo = self._matrices.get(key)
+        if memo is None or memo.matrix() is not P:
+            memo = _Memo(weakref.ref(P))
+            self._matrices[key] = memo
+            # The finalizer holds these memos weakly: a workspace dropped before its
+            # matrix frees its systems then, not when the matrix goes.
+            weakref.finalize(P, _forget, weakref.ref(self), key)
+        return memo
+
+    def exact(self, P: CsrMatrix) -> dict[bytes, object]:
+        """The exact checker's memo of *P* (prepared systems and conditions, by key)."""
+        return self.of(P).exact
+
+    def pattern_masks(self, key: bytes) -> _MaskMemo:
+        """The pre-pass memo of the pattern with digest *key* (the last few are kept)."""
+        masks = self._patterns.get(key)
+        if masks is None:
+            masks = self._patterns[key] = {}
+            while len(self._patterns) > PATTERNS_KEPT:
+                self._patterns.popitem(last=False)
+        else:
+            self._patterns.move_to_end(key)
+        return masks
+
+
+def _forget(memos: weakref.ref[KernelMemos], key: int) -> None:
+    """Drop the memo of a matrix that is gone (if its workspace is still there)."""
+    kept = memos()
+    if kept is not None:
+        memo = kept._matrices.get(key)
+        if memo is not None and memo.matrix() is None:
+            del kept._matrices[key]
+
+
+def _pattern_key(P: CsrMatrix, workspace: Workspace) -> bytes:
     """A digest of the positive entries' positions (not their values)."""
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
-    digest.update(linsolve.index_digest(P.indptr, P.indices))
+    digest.update(linsolve.index_digest(P.indptr, P.indices, workspace.solvers))
     digest.update(np.packbits(P.data > 0).data)
     return digest.digest()
 
 
-def _pattern_masks(P: CsrMatrix) -> _MaskMemo:
+def _pattern_masks(P: CsrMatrix, workspace: Workspace) -> _MaskMemo:
     """The pre-pass memo shared by every matrix with *P*'s pattern."""
-    memo = _memo(P)
+    memo = workspace.kernels.of(P)
     if memo.masks is None:
-        key = _pattern_key(P)
-        masks = _PATTERN_MASKS.get(key)
-        if masks is None:
-            masks = _PATTERN_MASKS[key] = {}
-            while len(_PATTERN_MASKS) > PATTERNS_KEPT:
-                _PATTERN_MASKS.popitem(last=False)
-        else:
-            _PATTERN_MASKS.move_to_end(key)
-        memo.masks = masks
+        memo.masks = workspace.kernels.pattern_masks(_pattern_key(P, workspace))
     return memo.masks
-
-
-def _memo(P: CsrMatrix) -> _Memo:
-    key = id(P)
-    memo = _MEMOS.get(key)
-    if memo is None or memo.matrix() is not P:
-        memo = _Memo(weakref.ref(P))
-        _MEMOS[key] = memo
-        weakref.finalize(P, _forget, key, memo)
-    return memo
-
-
-def _forget(key: int, memo: _Memo) -> None:
-    if _MEMOS.get(key) is memo:
-        del _MEMOS[key]
 
 
 def _mask_key(mask: BoolArray) -> bytes:
@@ -175,16 +212,18 @@ def _mask_key(mask: BoolArray) -> bytes:
 
 
 def _memoised_mask(P: CsrMatrix, kind: str, a: BoolArray, b: BoolArray,
-                   compute: Callable[[], BoolArray]) -> BoolArray:
-    masks = _pattern_masks(P)
+                   compute: Callable[[], BoolArray], workspace: Workspace) -> BoolArray:
+    masks = _pattern_masks(P, workspace)
     key = (kind, _mask_key(a), _mask_key(b))
     if key not in masks:
         masks[key] = compute()
     return masks[key].copy()
 
 
-def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) -> _System:
-    """The restricted system on *maybe*, built (and its solver prepared) once per matrix.
+def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None, *,
+            workspace: Workspace) -> _System:
+    """The restricted system on *maybe*, built (and its solver prepared) once per matrix
+    and workspace.
 
     With *allowed*, a kept system whose unknowns *M* satisfy ``maybe <= M <= allowed``
     (and hold not many more states, :data:`SUPERSET_SHARE`) is returned instead: the
@@ -192,7 +231,7 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) ->
     state of *allowed* (docs/numerics.md, "Shared systems"), so solving on *M* with the
     values outside *M* known gives the same fixed point on *maybe*.
     """
-    systems = _memo(P).systems
+    systems = workspace.kernels.of(P).systems
     key = _mask_key(maybe)
     found = systems.get(key)
     if found is None and allowed is not None:
@@ -202,12 +241,12 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None) ->
         # after (on the 11x11 mission each takes ~250 MB).
         while systems and len(systems) >= SYSTEMS_KEPT:
             systems.popitem(last=False)
-        A64, residue, rows = linsolve.restricted_parts(P, maybe)
+        A64, residue, rows = linsolve.restricted_parts(P, maybe, workspace.solvers)
         unknowns = maybe.copy()
-        solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns))
+        solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns),
+                                        workspace.solvers)
         del A64, residue
-        found = _System(rows, solver, unknowns)
-        trim_for(maybe.size)  # the restriction's per-entry temporaries
+        found = _System(rows, solver, unknowns, workspace.row_plans)
         systems[key] = found
     else:
         systems.move_to_end(_mask_key(found.unknowns))
@@ -246,7 +285,8 @@ def _superset(systems: Iterable[_System], maybe: BoolArray,
     return None
 
 
-def shared_system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray) -> _System:
+def shared_system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray, *,
+                  workspace: Workspace) -> _System:
     """The linear system to solve the unknowns *maybe* on: a kept one on a superset
     *M* of them inside *allowed*, or a new one on *maybe* (see :func:`_system`).
 
@@ -256,19 +296,21 @@ def shared_system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray) -> _System
     them with known values that are 0 on *M*); ``.factorization`` the solver of
     ``I - P_MM``; ``.affine`` its maps.
     """
-    return _system(P, maybe, allowed)
+    return _system(P, maybe, allowed, workspace=workspace)
 
 
-def prepare_reach(P: CsrMatrix, target: BoolArray) -> BoolArray:
-    """Build (and keep) the system of ``R=? [ F target ]`` now, so that queries checked
-    before it can be solved on it; returns its unknowns (empty: nothing to solve)."""
-    maybe = reach_unknowns(P, target)
+def prepare_reach(P: CsrMatrix, target: BoolArray, *, workspace: Workspace) -> BoolArray:
+    """Build (and keep in *workspace*) the system of ``R=? [ F target ]`` now, so that
+    queries checked before it can be solved on it; returns its unknowns (empty: nothing
+    to solve)."""
+    maybe = reach_unknowns(P, target, workspace=workspace)
     if maybe.any():
-        _system(P, maybe)
+        _system(P, maybe, workspace=workspace)
     return maybe
 
 
-def prepare_untils(P: CsrMatrix, untils: list[tuple[BoolArray, BoolArray]]) -> bool:
+def prepare_untils(P: CsrMatrix, untils: list[tuple[BoolArray, BoolArray]], *,
+                   workspace: Workspace) -> bool:
     """Build (and keep) one system on the union of several untils' unknowns, so that each
     is solved on it (as a superset, or with pinned rows: docs/numerics.md, "Shared
     systems") instead of on a system of its own -- when that union holds at least
@@ -278,7 +320,8 @@ def prepare_untils(P: CsrMatrix, untils: list[tuple[BoolArray, BoolArray]]) -> b
 
     :param untils: ``(remain, target)`` of each unbounded until.
     """
-    maybes = [m for m in (until_unknowns(P, *until)[0] for until in untils) if m.any()]
+    maybes = [m for m in (until_unknowns(P, *until, workspace=workspace)[0]
+                          for until in untils) if m.any()]
     if len(maybes) < 2:
         return False
     union = np.logical_or.reduce(maybes)
@@ -286,26 +329,27 @@ def prepare_untils(P: CsrMatrix, untils: list[tuple[BoolArray, BoolArray]]) -> b
     if size < QUICK_MIN_STATES or any(np.count_nonzero(m) < SUPERSET_SHARE * size
                                       for m in maybes):
         return False
-    system = _system(P, union)
+    system = _system(P, union, workspace=workspace)
     if system.factorization.triangular:
         return True
-    _memo(P).systems.pop(_mask_key(union), None)  # not worth keeping for them
+    workspace.kernels.of(P).systems.pop(_mask_key(union), None)  # not worth keeping
     return False
 
 
-def until_unknowns(P: CsrMatrix, remain: BoolArray,
-                   target: BoolArray) -> tuple[BoolArray, BoolArray]:
+def until_unknowns(P: CsrMatrix, remain: BoolArray, target: BoolArray, *,
+                   workspace: Workspace) -> tuple[BoolArray, BoolArray]:
     """The unknowns of ``remain U target`` and the states whose exact values satisfy its
     equations (``remain & !target``), from the memoised pre-pass."""
-    no = prob0(P, remain, target)
-    yes = prob1(P, remain, target, no)
+    no = prob0(P, remain, target, workspace=workspace)
+    yes = prob1(P, remain, target, no, workspace=workspace)
     return ~(no | yes), remain & ~target
 
 
-def reach_unknowns(P: CsrMatrix, target: BoolArray) -> BoolArray:
+def reach_unknowns(P: CsrMatrix, target: BoolArray, *, workspace: Workspace) -> BoolArray:
     """The states of ``R=? [ F target ]``'s linear system: target almost sure, not in it."""
     everywhere = np.ones(P.shape[0], dtype=bool)
-    sure = prob1(P, everywhere, target, prob0(P, everywhere, target))
+    no = prob0(P, everywhere, target, workspace=workspace)
+    sure = prob1(P, everywhere, target, no, workspace=workspace)
     return sure & ~target
 
 
@@ -322,7 +366,8 @@ def _restrict(found: Bounds, unknowns: BoolArray, maybe: BoolArray) -> Bounds:
 # ---------------------------------------------------------------------------
 
 
-def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray) -> BoolArray:
+def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray,
+                    workspace: Workspace) -> BoolArray:
     """States with a path to *seeds* whose states before the last lie in *through*.
 
     One breadth-first search over the reversed graph from a virtual source joined to
@@ -334,7 +379,7 @@ def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray) -> BoolA
     n = P.shape[0]
     if not seeds.any():
         return np.zeros(n, dtype=bool)
-    indptr, indices = _reversed(P)
+    indptr, indices = _reversed(P, workspace)
     expand = seeds | through
     lengths = np.diff(indptr)
     kept = indices[np.repeat(expand, lengths)]
@@ -350,10 +395,11 @@ def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray) -> BoolA
     return reached[:n] & expand
 
 
-def _reversed(P: CsrMatrix) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]]:
+def _reversed(P: CsrMatrix, workspace: Workspace
+              ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]]:
     """The predecessors of every state along positive entries (CSR of the transposed
     pattern), built once per matrix."""
-    memo = _memo(P)
+    memo = workspace.kernels.of(P)
     if memo.reversed is None:
         pattern = sp.csr_matrix((np.asarray(P.data > 0, dtype=np.int8), P.indices, P.indptr),
                                 shape=P.shape)  # shares P's index arrays: not edited
@@ -363,19 +409,23 @@ def _reversed(P: CsrMatrix) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.integ
     return memo.reversed
 
 
-def prob0(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> BoolArray:
+def prob0(P: CsrMatrix, remain: BoolArray, target: BoolArray, *,
+          workspace: Workspace) -> BoolArray:
     """States where ``remain U target`` holds with probability exactly 0.
 
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that may be passed through before *target*.
     :param target: states to reach.
+    :param workspace: where the answer is memoised (by *P*'s pattern).
     :return: mask of the states that cannot reach *target* inside *remain*.
     """
     return _memoised_mask(P, "prob0", remain, target,
-                          lambda: ~_backward_reach(P, remain & ~target, target))
+                          lambda: ~_backward_reach(P, remain & ~target, target, workspace),
+                          workspace)
 
 
-def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray) -> BoolArray:
+def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray, *,
+          workspace: Workspace) -> BoolArray:
     """States where ``remain U target`` holds with probability exactly 1.
 
     In a finite DTMC the probability is below 1 exactly when a ``remain & !target``
@@ -386,10 +436,12 @@ def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray) -> 
     :param remain: states that may be passed through before *target*.
     :param target: states to reach.
     :param no: the result of :func:`prob0` for the same arguments.
+    :param workspace: where the answer is memoised (by *P*'s pattern).
     :return: mask of the states that reach *target* inside *remain* almost surely.
     """
     through = remain & ~target
-    return _memoised_mask(P, "prob1", through, no, lambda: ~_backward_reach(P, through, no))
+    return _memoised_mask(P, "prob1", through, no,
+                          lambda: ~_backward_reach(P, through, no, workspace), workspace)
 
 
 # ---------------------------------------------------------------------------
@@ -398,7 +450,7 @@ def prob1(P: CsrMatrix, remain: BoolArray, target: BoolArray, no: BoolArray) -> 
 
 
 def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                focus_states: IntArray | None = None) -> Bounds:
+                focus_states: IntArray | None = None, *, workspace: Workspace) -> Bounds:
     """Probability of ``remain U target`` in every state, with certified bounds.
 
     prob0/prob1 fix the states with value 0 and 1; the rest solve
@@ -410,9 +462,11 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param target: states to reach.
     :param focus_states: the only states whose bounds the caller reads (the initial
         ones), or None; elsewhere the bounds may be the trivial ones (:mod:`focus`).
+    :param workspace: where the pre-pass, the linear system and the result are kept
+        for later queries on *P*.
     :return: probabilities in [0, 1] and their certified enclosures.
     """
-    kept = _memo(P)
+    kept = workspace.kernels.of(P)
     memo = kept.results
     operands = (_mask_key(remain), _mask_key(target))
     if operands in kept.whole:
@@ -423,7 +477,7 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
         key = (*operands, escalated(), focus_states.tobytes())
         found = memo.get(key)
     if found is None:
-        found = memo[key] = _until_probs(P, remain, target, focus_states)
+        found = memo[key] = _until_probs(P, remain, target, focus_states, workspace)
         while len(memo) > RESULTS_KEPT:
             memo.popitem(last=False)
     else:
@@ -431,41 +485,42 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     return found
 
 
-def need_whole(P: CsrMatrix, remain: BoolArray, target: BoolArray) -> None:
+def need_whole(P: CsrMatrix, remain: BoolArray, target: BoolArray, *,
+               workspace: Workspace) -> None:
     """Mark ``remain U target`` as needed in every state (a conditional property's
     condition), so that a query of it asked at the initial states only computes that
     once, not a focused copy first."""
-    _memo(P).whole.add((_mask_key(remain), _mask_key(target)))
+    workspace.kernels.of(P).whole.add((_mask_key(remain), _mask_key(target)))
 
 
 def _until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                 focus_states: IntArray | None) -> Bounds:
-    no = prob0(P, remain, target)
-    yes = prob1(P, remain, target, no)
+                 focus_states: IntArray | None, workspace: Workspace) -> Bounds:
+    no = prob0(P, remain, target, workspace=workspace)
+    yes = prob1(P, remain, target, no, workspace=workspace)
     result = yes.astype(np.float64)
     maybe = ~(no | yes)
     if not maybe.any():
         return Bounds.exact(result)
-    pinned = _pinned_until(P, maybe, remain & ~target, result, focus_states)
+    pinned = _pinned_until(P, maybe, remain & ~target, result, focus_states, workspace)
     if pinned is not None:
         return pinned
     # Every state of remain & !target satisfies x = P x, its yes and no states included.
-    system = _system(P, maybe, remain & ~target)
+    system = _system(P, maybe, remain & ~target, workspace=workspace)
     known = np.where(system.unknowns, 0.0, result)
     F = system.affine(known, known, None)
     found = _certified(F, system, known, None, (0.0, 1.0), focus_states)
     return _spread(result, maybe, _restrict(found, system.unknowns, maybe))
 
 
-def _pinned_until(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray,
-                  result: FloatArray, focus_states: IntArray | None) -> Bounds | None:
+def _pinned_until(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray, result: FloatArray,
+                  focus_states: IntArray | None, workspace: Workspace) -> Bounds | None:
     """The until's values solved on a kept system that holds *maybe* and also states
     outside *allowed* (the target states inside ``R=? [ F "done" ]``'s system, for the
     recharge cap's ``P=? [ F rc=RC_MAX ]``), those rows pinned to their known values
     *result* (docs/numerics.md, "Shared systems"); None when there is no such system
     or the quick certificate does not succeed on it (the caller builds its own).
     """
-    system = _pinnable(_memo(P).systems.values(), maybe, allowed)
+    system = _pinnable(workspace.kernels.of(P).systems.values(), maybe, allowed)
     if system is None:
         return None
     unknowns = system.unknowns
@@ -504,7 +559,7 @@ def _pinnable(systems: Iterable[_System], maybe: BoolArray,
 
 
 def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
-                  focus_states: IntArray | None = None) -> Bounds:
+                  focus_states: IntArray | None = None, *, workspace: Workspace) -> Bounds:
     """Expected reward accumulated until *target* is first reached (``R=? [F target]``).
 
     PRISM semantics: 0 in *target* states; infinity in states that reach
@@ -515,15 +570,16 @@ def reach_rewards(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     :param rewards: reward earned per step taken from each state (state + transition).
     :param target: states to reach.
     :param focus_states: as for :func:`until_probs`.
+    :param workspace: as for :func:`until_probs`.
     :return: expected rewards, ``inf`` where *target* is not almost sure, with bounds.
     """
-    maybe = reach_unknowns(P, target)
+    maybe = reach_unknowns(P, target, workspace=workspace)
     result = np.where(maybe | target, 0.0, np.inf)
     if not maybe.any():
         return Bounds.exact(result)
     # Successors of almost-sure states are almost sure, so the system is closed
     # and every known value it reads is a target's 0.
-    system = _system(P, maybe)
+    system = _system(P, maybe, workspace=workspace)
     offset = np.asarray(rewards[maybe], dtype=np.float64)
     zeros = np.zeros(P.shape[0])
     F = system.affine(zeros, zeros, offset)
@@ -609,7 +665,6 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
         if found is not None and found.precise_states().all():
             break
         found = None
-    trim_for(F.states.size)  # the certificate's temporaries, before the next vectors
     return found
 
 
@@ -824,15 +879,16 @@ def _within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
 
 
 def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                              k: int) -> Bounds:
+                              k: int, *, workspace: Workspace) -> Bounds:
     """Probability of ``remain U>=k target``: *remain* for the first *k* steps, then until.
 
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that must hold before *target* is reached.
     :param target: states to reach, at step *k* or later.
     :param k: lower step bound, at least 0.
+    :param workspace: as for :func:`until_probs`.
     """
-    later = until_probs(P, remain, target)
+    later = until_probs(P, remain, target, workspace=workspace)
     found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), k)
     return _probabilities(found)
 
@@ -875,7 +931,8 @@ def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int) -> Bo
     return _step_power(P, Bounds.exact(start), np.zeros_like(start), k)
 
 
-def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds) -> Bounds:
+def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds, *,
+               workspace: Workspace) -> Bounds:
     """``x = P x`` off *fixed*, ``x = known`` on it: each state's expectation of the
     value of the *fixed* state where it is absorbed, with certified bounds.
 
@@ -886,14 +943,16 @@ def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds) -> Bounds:
     :param P: row-stochastic CSR transition matrix.
     :param fixed: the states whose values are known.
     :param known: the values (meaningful on *fixed* only), non-negative.
+    :param workspace: as for :func:`until_probs`.
     """
     lower = np.where(fixed, known.lower, 0.0)
     upper = np.where(fixed, known.upper, 0.0)
-    maybe = ~fixed & ~prob0(P, np.ones(P.shape[0], dtype=bool), fixed & (upper > 0))
+    maybe = ~fixed & ~prob0(P, np.ones(P.shape[0], dtype=bool), fixed & (upper > 0),
+                            workspace=workspace)
     if not maybe.any():
         return Bounds.around(np.where(fixed, known.value, 0.0), lower, upper)
     # x = P x holds on every state outside fixed (0 where no positive value is reachable).
-    system = _system(P, maybe, ~fixed)
+    system = _system(P, maybe, ~fixed, workspace=workspace)
     F = system.affine(lower, upper, None)
     point = np.where(fixed, known.value, 0.0)
     found = _certified(F, system, point, None, (0.0, float(np.max(upper))))

@@ -46,7 +46,7 @@ try:  # SuperLU's triangular solve, used by _substitution when it behaves as exp
 except ImportError:  # pragma: no cover -- scipy moved it: the public path is used
     _superlu = None
 
-from veribattery._memory import TRIM_MIN_STATES, trim_for
+from veribattery._memory import TRIM_MIN_STATES
 from veribattery._record import record
 from veribattery._sparse import csc_sharing, csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
@@ -72,7 +72,41 @@ ITERATIVE_RTOL = 1e-13
 ITERATIVE_MAXITER = 20_000
 
 
-def restricted_matrix(P: CsrMatrix, maybe: BoolArray) -> tuple[sp.csr_matrix, CsrMatrix]:
+class SolverPlans:
+    """The index work of restricted systems and substitutions, kept for later matrices of
+    the same sparsity pattern (a structure-reusing sweep: same states and transitions,
+    other probabilities), so that only their values are gathered anew.
+
+    A plan is made the second time its pattern is seen: a single check never pays for
+    one. Held by a :class:`~veribattery.checker.workspace.Workspace`; every bound is
+    small (a few patterns each).
+    """
+
+    def __init__(self) -> None:
+        #: Digests of index arrays by the arrays' identity (:func:`index_digest`).
+        self.digests: OrderedDict[tuple[int, int], tuple[
+            weakref.ref[npt.NDArray[np.integer]], weakref.ref[npt.NDArray[np.integer]],
+            bytes]] = OrderedDict()
+        #: Restriction plans by (pattern, unknown states) digest (None: seen once).
+        self.restrictions: OrderedDict[bytes, _RestrictionPlan | None] = OrderedDict()
+        #: Substitution plans by pattern digest (None: the pattern has a cycle).
+        self.triangular: OrderedDict[bytes, _TriangularPlan | None] = OrderedDict()
+        #: Patterns whose substitution plan was made once and not kept: a plan (~40 MB
+        #: at 1.4M states) is kept only for a pattern seen again, as restrictions are.
+        self.triangular_seen: OrderedDict[bytes, None] = OrderedDict()
+        #: The modes ("N", "T") in which the private triangular solve has been seen to
+        #: solve ``L y = 1`` / ``L^T y = 1`` (see :func:`_substitution`).
+        self.private_modes: set[str] = set()
+
+    @property
+    def empty(self) -> bool:
+        """Whether nothing is kept yet."""
+        return not (self.digests or self.restrictions or self.triangular
+                    or self.triangular_seen or self.private_modes)
+
+
+def restricted_matrix(P: CsrMatrix, maybe: BoolArray, plans: SolverPlans | None = None
+                      ) -> tuple[sp.csr_matrix, CsrMatrix]:
     """``I - P[maybe, maybe]`` in extended precision, and the rows ``P[maybe, :]``.
 
     The diagonal is the probability of leaving each state, summed from the
@@ -80,23 +114,26 @@ def restricted_matrix(P: CsrMatrix, maybe: BoolArray) -> tuple[sp.csr_matrix, Cs
     catastrophically for self-loops close to 1, and rows that do not sum to
     exactly 1 in float64 would leak or gain mass. (Kernels use
     :func:`restricted_parts`, which stores the same matrix in float64.)
+
+    :param plans: where restriction plans are kept (see :func:`restricted_parts`).
     """
-    A64, residue, rows = restricted_parts(P, maybe)
+    A64, residue, rows = restricted_parts(P, maybe, plans)
     A = A64.astype(np.longdouble) + residue
     return sp.csr_matrix(A), rows
 
 
-def restricted_parts(P: CsrMatrix, maybe: BoolArray
+def restricted_parts(P: CsrMatrix, maybe: BoolArray, plans: SolverPlans | None = None
                      ) -> tuple[sp.csr_matrix, sp.csr_matrix, CsrMatrix]:
     """:func:`restricted_matrix` as ``A64 + residue``: the float64 matrix (diagonal
     rounded to nearest) and the extended-precision rounding residue of the diagonal.
 
     The off-diagonal entries are stored probabilities, exact in float64, so only
     the diagonal needs more: 8 bytes per state instead of 16 per nonzero. Index
-    work depends only on *P*'s pattern and *maybe*, so it is memoised by them
-    (:class:`_RestrictionPlan`); the values are then gathered.
+    work depends only on *P*'s pattern and *maybe*, so *plans* keeps it by them
+    (:class:`_RestrictionPlan`, made the second time they are seen); the values are
+    then gathered. Without *plans* nothing is kept (the same arrays, bit for bit).
     """
-    plan = _restriction_plan(P, maybe)
+    plan = None if plans is None else _restriction_plan(P, maybe, plans)
     if plan is not None:
         found = plan.apply(P)
         if found is not None:
@@ -135,15 +172,14 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
     return A64, _diagonal_residue(leave), rows
 
 
-#: Digests of index arrays, by the arrays' identity (see :func:`index_digest`).
-_INDEX_DIGESTS: OrderedDict[tuple[int, int], tuple[weakref.ref[npt.NDArray[np.integer]],
-                                                  weakref.ref[npt.NDArray[np.integer]],
-                                                  bytes]] = OrderedDict()
+#: Index-array digests kept by a :class:`SolverPlans` (see :func:`index_digest`).
 INDEX_DIGESTS_KEPT = 8
 
 
-def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.integer]) -> bytes:
-    """A digest of a sparse matrix's index arrays, memoised by the arrays' identity.
+def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.integer],
+                 plans: SolverPlans | None = None) -> bytes:
+    """A digest of a sparse matrix's index arrays, memoised in *plans* by the arrays'
+    identity.
 
     Matrices of a structure-reusing sweep share their index arrays (the re-evaluated
     transition matrix takes the base's, :func:`veribattery.explore.reuse.reevaluate`;
@@ -153,17 +189,20 @@ def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.intege
     here already require).
     """
     key = (id(indptr), id(indices))
-    found = _INDEX_DIGESTS.get(key)
+    kept = None if plans is None else plans.digests
+    found = None if kept is None else kept.get(key)
     if found is not None and found[0]() is indptr and found[1]() is indices:
-        _INDEX_DIGESTS.move_to_end(key)
+        assert kept is not None
+        kept.move_to_end(key)
         return found[2]
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.ascontiguousarray(indptr).data)
     digest.update(np.ascontiguousarray(indices).data)
     value = digest.digest()
-    _INDEX_DIGESTS[key] = (weakref.ref(indptr), weakref.ref(indices), value)
-    while len(_INDEX_DIGESTS) > INDEX_DIGESTS_KEPT:
-        _INDEX_DIGESTS.popitem(last=False)
+    if kept is not None:
+        kept[key] = (weakref.ref(indptr), weakref.ref(indices), value)
+        while len(kept) > INDEX_DIGESTS_KEPT:
+            kept.popitem(last=False)
     return value
 
 
@@ -219,30 +258,32 @@ class _RestrictionPlan:
         return leave
 
 
-#: Restriction plans of the last few (pattern, unknown states) pairs (None: seen once).
+#: Restriction plans a :class:`SolverPlans` keeps: the last few (pattern, unknown
+#: states) pairs (None: seen once).
 RESTRICTIONS_KEPT = 8
-_RESTRICTIONS: OrderedDict[bytes, _RestrictionPlan | None] = OrderedDict()
 
 
-def _restriction_plan(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
-    """The memoised plan of *P*'s pattern (positions and positive entries) and *maybe*,
-    made the second time they are seen (None the first time)."""
+def _restriction_plan(P: CsrMatrix, maybe: BoolArray, plans: SolverPlans
+                      ) -> _RestrictionPlan | None:
+    """The plan of *P*'s pattern (positions and positive entries) and *maybe* kept in
+    *plans*, made the second time they are seen (None the first time)."""
     if not P.has_canonical_format:
         return None
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
-    digest.update(index_digest(P.indptr, P.indices))
+    digest.update(index_digest(P.indptr, P.indices, plans))
     digest.update(np.packbits(P.data != 0).data)
     digest.update(np.packbits(maybe).data)
     key = digest.digest()
+    kept = plans.restrictions
     plan = None
-    if key in _RESTRICTIONS:  # seen before: a sweep re-uses the pattern, worth a plan
-        _RESTRICTIONS.move_to_end(key)
-        plan = _RESTRICTIONS[key] or _new_restriction(P, maybe)
+    if key in kept:  # seen before: a sweep re-uses the pattern, worth a plan
+        kept.move_to_end(key)
+        plan = kept[key] or _new_restriction(P, maybe)
     # A pattern seen once is only remembered (a single check never pays for a plan).
-    _RESTRICTIONS[key] = plan
-    while len(_RESTRICTIONS) > RESTRICTIONS_KEPT:
-        _RESTRICTIONS.popitem(last=False)
+    kept[key] = plan
+    while len(kept) > RESTRICTIONS_KEPT:
+        kept.popitem(last=False)
     return plan
 
 
@@ -367,11 +408,14 @@ class Factorization:
 
     :param A: the system matrix (extended precision or float64).
     :param residue: with a float64 *A*, the extended-precision part ``A_exact - A``.
+    :param rebuild: makes ``(A64, residue)`` again, bit for bit (see :meth:`_release`).
+    :param plans: where substitution plans are kept for later matrices of the same
+        pattern (None: nothing is kept).
     """
 
     def __init__(self, A: sp.csr_matrix, residue: sp.csr_matrix | None = None,
-                 rebuild: Callable[[], tuple[sp.csr_matrix, sp.csr_matrix]] | None = None
-                 ) -> None:
+                 rebuild: Callable[[], tuple[sp.csr_matrix, sp.csr_matrix]] | None = None,
+                 plans: SolverPlans | None = None) -> None:
         if residue is None:
             A, residue = _split(A)
         # (A itself when it is CSR already: a copy would not share the plan's indices)
@@ -379,6 +423,7 @@ class Factorization:
         self._residue: sp.csr_matrix | None = residue
         self._n = int(A.shape[0])
         self._rebuild = rebuild
+        self._plans = plans
         self._direct: _Inverse | None = None
         self._direct_tried = False
         self._substitute: _Triangular | None = None
@@ -576,10 +621,9 @@ class Factorization:
         """The substitution solver, tried once (None: the matrix's graph has a cycle)."""
         if not self._substitute_tried:
             self._substitute_tried = True
-            self._substitute = _triangular_inverse(self.A64)
+            self._substitute = _triangular_inverse(self.A64, self._plans)
             if self._substitute is not None:
                 self._release()
-                trim_for(self._n)  # the plan's temporaries (and the matrix) are free now
         return self._substitute
 
     def _inverse(self) -> _Inverse | None:
@@ -712,39 +756,39 @@ class _TriangularPlan:
         return np.repeat(np.arange(self.indptr.size - 1), np.diff(self.indptr))
 
 
-#: Plans of the last few patterns, by digest (see :func:`_pattern_digest`).
+#: Substitution plans a :class:`SolverPlans` keeps: those of the last few patterns.
 PLANS_KEPT = 4
-_PLANS: OrderedDict[bytes, _TriangularPlan | None] = OrderedDict()
-#: Patterns whose plan was made once and not kept: a plan (~40 MB at 1.4M states) is
-#: kept only for a pattern seen again (a structure-reusing sweep), as restrictions are.
-_PLANS_SEEN: OrderedDict[bytes, None] = OrderedDict()
 
 
-def _pattern_digest(A64: sp.csr_matrix) -> bytes:
+def _pattern_digest(A64: sp.csr_matrix, plans: SolverPlans) -> bytes:
     """A digest of *A64*'s shape and stored positions (not its values)."""
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(A64.shape, dtype=np.int64).tobytes())
-    digest.update(index_digest(A64.indptr, A64.indices))
+    digest.update(index_digest(A64.indptr, A64.indices, plans))
     return digest.digest()
 
 
-def _triangular_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
-    """The plan of *A64*'s pattern (None if its graph has a cycle), memoised by pattern."""
+def _triangular_plan(A64: sp.csr_matrix, plans: SolverPlans | None) -> _TriangularPlan | None:
+    """The plan of *A64*'s pattern (None if its graph has a cycle), kept in *plans* by
+    pattern when that is seen a second time."""
     A64.sum_duplicates()  # canonical: one stored entry per position
-    key = _pattern_digest(A64)
-    if key in _PLANS:
-        _PLANS.move_to_end(key)
-        return _PLANS[key]
+    if plans is None:
+        return _new_plan(A64)
+    key = _pattern_digest(A64, plans)
+    kept, seen = plans.triangular, plans.triangular_seen
+    if key in kept:
+        kept.move_to_end(key)
+        return kept[key]
     plan = _new_plan(A64)
-    if plan is not None and key not in _PLANS_SEEN:
-        _PLANS_SEEN[key] = None
-        while len(_PLANS_SEEN) > RESTRICTIONS_KEPT:
-            _PLANS_SEEN.popitem(last=False)
+    if plan is not None and key not in seen:
+        seen[key] = None
+        while len(seen) > RESTRICTIONS_KEPT:
+            seen.popitem(last=False)
         return plan
-    _PLANS_SEEN.pop(key, None)
-    _PLANS[key] = plan
-    while len(_PLANS) > PLANS_KEPT:
-        _PLANS.popitem(last=False)
+    seen.pop(key, None)
+    kept[key] = plan
+    while len(kept) > PLANS_KEPT:
+        kept.popitem(last=False)
     return plan
 
 
@@ -793,7 +837,8 @@ def _new_plan(A64: sp.csr_matrix) -> _TriangularPlan | None:
                            np.asarray(by_column.indptr, dtype=np.intc))
 
 
-def _triangular_inverse(A64: sp.csr_matrix) -> _Triangular | None:
+def _triangular_inverse(A64: sp.csr_matrix, plans: SolverPlans | None = None
+                        ) -> _Triangular | None:
     """Substitution in a topological order of *A64*'s graph; None if that has a cycle.
 
     The permutation and the triangular matrix's structure come from the pattern's
@@ -801,7 +846,7 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Triangular | None:
     are gathered from *A64*: a state's successors precede it, so the permuted
     matrix is lower triangular.
     """
-    plan = _triangular_plan(A64)
+    plan = _triangular_plan(A64, plans)
     if plan is None:
         return None
     diagonal = np.asarray(A64.data[plan.diagonal_at], dtype=np.float64)
@@ -814,16 +859,17 @@ def _triangular_inverse(A64: sp.csr_matrix) -> _Triangular | None:
     data *= np.repeat(scale, np.diff(plan.indptr))
     n = A64.shape[0]
     lower = csc_sharing(data, plan.indices, plan.indptr, (n, n))
-    return _Triangular(lower, _substitution(lower), plan.order, scale)
+    return _Triangular(lower, plan.order, scale, plans)
 
 
 class _Triangular:
     """The substitution of :func:`_triangular_inverse`: ``A x = b`` with ``A = L D`` in
     a topological order (``L`` unit lower triangular, ``D`` the diagonal of *A*)."""
 
-    def __init__(self, lower: sp.csc_matrix, substitute: _Inverse,
-                 order: npt.NDArray[np.integer], scale: FloatArray) -> None:
-        self._lower, self._substitute, self._order, self._scale = lower, substitute, order, scale
+    def __init__(self, lower: sp.csc_matrix, order: npt.NDArray[np.integer],
+                 scale: FloatArray, plans: SolverPlans | None) -> None:
+        self._lower, self._order, self._scale, self._plans = lower, order, scale, plans
+        self._substitute = _substitution(lower, plans=plans)
         self._transposed: _Inverse | None = None  # made on the first dual solve
         n = order.size
         # Index arrays of numpy's own index type (others are converted at every use)
@@ -862,7 +908,7 @@ class _Triangular:
         """``D A^-T v``: ``A^T = D L^T`` in the topological order, so ``L^T y = D^-1 v``
         by a transposed substitution with the same factor, then ``D y``."""
         if self._transposed is None:
-            self._transposed = _substitution(self._lower, transposed=True)
+            self._transposed = _substitution(self._lower, transposed=True, plans=self._plans)
         c = self._to_order(v)
         c *= self._scale
         y = self._transposed(c)
@@ -879,7 +925,7 @@ class _Triangular:
         data = np.where(at[lower.indices], 0.0, lower.data)  # column i's own entry is on
         data[lower.indptr[:-1][at]] = 1.0  # the diagonal: it stays (first in the column)
         substitute = _substitution(sp.csc_matrix((data, lower.indices, lower.indptr),
-                                                 shape=lower.shape))
+                                                 shape=lower.shape), plans=self._plans)
         where = np.flatnonzero(mask)
 
         def apply(b: FloatArray) -> FloatArray:
@@ -892,15 +938,18 @@ class _Triangular:
         return apply
 
 
-def _substitution(lower: sp.csc_matrix, *, transposed: bool = False) -> _Inverse:
+def _substitution(lower: sp.csc_matrix, *, transposed: bool = False,
+                  plans: SolverPlans | None = None) -> _Inverse:
     """Forward substitution with the unit lower-triangular CSC matrix *lower* (with
     *transposed*, backward substitution with its transpose; the returned function may
     overwrite its argument with the solution).
 
     SuperLU's triangular solve on prepared arrays (what ``spsolve_triangular``
     calls after copying and rescaling its argument each time); the public
-    function is the fallback should that private entry point change.
+    function is the fallback should that private entry point change. Whether it
+    behaves as expected is probed once per mode and *plans* (every time without).
     """
+    checked = plans.private_modes if plans is not None else set()
     n = lower.shape[0]
     # Views of *lower*'s arrays when they have these types (a copy would keep a
     # second set of indices alive for as long as the solver).
@@ -928,21 +977,16 @@ def _substitution(lower: sp.csc_matrix, *, transposed: bool = False) -> _Inverse
     try:
         if _superlu is None:
             return public
-        if trans in _PRIVATE_CHECKED:
+        if trans in checked:
             return private
         probe = private(np.ones(n, dtype=np.float64))
         product = lower.T @ probe if transposed else lower @ probe
         if np.all(np.isfinite(probe)) and np.allclose(product, 1.0):
-            _PRIVATE_CHECKED.add(trans)
+            checked.add(trans)
             return private
     except Exception:
         pass
     return public
-
-
-#: The modes ("N", "T") in which the private triangular solve has been seen to solve
-#: ``L y = 1`` / ``L^T y = 1`` (a property of the installed scipy, probed once per process).
-_PRIVATE_CHECKED: set[str] = set()
 
 
 def backward_error(A: sp.csr_matrix, x: FloatArray, b: ExtArray,

@@ -14,7 +14,7 @@ import math
 import operator
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
-from typing import TypeAlias
+from typing import TYPE_CHECKING, TypeAlias
 
 import numpy as np
 
@@ -72,6 +72,9 @@ from veribattery.lang.nodes import (
 )
 from veribattery.lang.property_rules import STEPS_REWARD
 
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
+
 _OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
 
 Values: TypeAlias = FloatArray | BoolArray
@@ -90,11 +93,14 @@ _CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
 # ---------------------------------------------------------------------------
 
 
-def values(dtmc: DTMC, formula: Expr, focus_states: IntArray | None = None) -> Result:
+def values(dtmc: DTMC, workspace: Workspace, formula: Expr,
+           focus_states: IntArray | None = None) -> Result:
     """Per-state value of *formula*: certified numbers for ``P=?``/``R=?``/``S=?``
     and expressions over them, booleans otherwise.
 
     :param dtmc: the model.
+    :param workspace: where graph searches, linear systems and results are kept for the
+        later queries of its owner (:class:`~veribattery.checker.workspace.Workspace`).
     :param formula: a property formula (constants substituted, labels inlined).
     :param focus_states: the only states whose bounds the caller reads, or None: a
         ``P=?``/``R=?`` operator's bounds may then be the trivial ones elsewhere
@@ -102,22 +108,23 @@ def values(dtmc: DTMC, formula: Expr, focus_states: IntArray | None = None) -> R
     :raises CheckError: on unknown labels or reward structures, or unsupported nesting.
     """
     if isinstance(formula, ProbOp) and formula.op == "=?":
-        return path_probs(dtmc, formula.path, focus_states)
+        return path_probs(dtmc, workspace, formula.path, focus_states)
     if isinstance(formula, RewardOp) and formula.op == "=?":
-        return path_rewards(dtmc, formula, focus_states)
+        return path_rewards(dtmc, workspace, formula, focus_states)
     if isinstance(formula, SteadyOp) and formula.op == "=?":
-        return steady.steady_probs(dtmc.transitions, state_set(dtmc, formula.operand))
+        target = state_set(dtmc, workspace, formula.operand)
+        return steady.steady_probs(dtmc.transitions, target, workspace=workspace)
     if isinstance(formula, Filter):
-        return _filter_values(dtmc, formula)
+        return _filter_values(dtmc, workspace, formula)
     if _has_operator(formula):
-        return _compound(dtmc, formula)
+        return _compound(dtmc, workspace, formula)
     leaf = _leaf(dtmc, formula)
     if leaf.dtype == np.bool_:
         return np.asarray(leaf, dtype=np.bool_)
     return Bounds.exact(np.asarray(leaf, dtype=np.float64))
 
 
-def property_answer(dtmc: DTMC, formula: Expr, *,
+def property_answer(dtmc: DTMC, workspace: Workspace, formula: Expr, *,
                     initial_only: bool = False) -> filters.FilterOutcome:
     """The answer PRISM reports for a property: a filter's value, or PRISM's default
     filter -- ``forall`` initial states for a boolean, the value of the single
@@ -130,16 +137,16 @@ def property_answer(dtmc: DTMC, formula: Expr, *,
     """
     printed: tuple[str, ...] = ()
     if isinstance(formula, Filter):
-        outcome = filter_outcome(dtmc, formula)
+        outcome = filter_outcome(dtmc, workspace, formula)
         if outcome.value is not None:
             return outcome
         per_state, printed = _as_result(outcome.values), outcome.printed
     elif isinstance(formula, ProbOp | RewardOp | SteadyOp) and formula.op != "=?":
         # Only the initial states' answers are reported: decide those, and mark
         # the other states true only where certified.
-        per_state = _bounded_operator(dtmc, formula, must_decide=dtmc.initial)
+        per_state = _bounded_operator(dtmc, workspace, formula, must_decide=dtmc.initial)
     else:
-        per_state = values(dtmc, formula, dtmc.initial if initial_only else None)
+        per_state = values(dtmc, workspace, formula, dtmc.initial if initial_only else None)
     if len(dtmc.initial) == 0:
         raise CheckError("the model has no initial state", formula.span)
     default = "forall" if not isinstance(per_state, Bounds) else (
@@ -149,7 +156,7 @@ def property_answer(dtmc: DTMC, formula: Expr, *,
     return replace(answer, printed=printed)
 
 
-def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
+def state_set(dtmc: DTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     """The states that satisfy the state formula *expr*, as a boolean mask.
 
     :param dtmc: the model.
@@ -157,23 +164,24 @@ def state_set(dtmc: DTMC, expr: Expr) -> BoolArray:
     :raises CheckError: when *expr* is not boolean or nests operators unsupportedly.
     """
     if not _has_operator(expr):  # plain state predicate: evaluated whole, no recursion
-        return _as_mask(_point(values(dtmc, expr)), expr)
+        return _as_mask(_point(values(dtmc, workspace, expr)), expr)
     match expr:
         case ProbOp() | RewardOp() | SteadyOp():
-            return _bounded_operator(dtmc, expr)
+            return _bounded_operator(dtmc, workspace, expr)
         case Quantified(quantifier=quantifier, path=path):
-            return _ctl(dtmc, quantifier, path)
+            return _ctl(dtmc, workspace, quantifier, path)
         case Unary(op="!", operand=operand):
-            return ~state_set(dtmc, operand)
+            return ~state_set(dtmc, workspace, operand)
         case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion
-            masks = (state_set(dtmc, operand) for operand in _chain(expr, op))
+            masks = (state_set(dtmc, workspace, operand) for operand in _chain(expr, op))
             return functools.reduce(_CONNECTIVES[op], masks)
         case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
-            return _CONNECTIVES[op](state_set(dtmc, left), state_set(dtmc, right))
+            return _CONNECTIVES[op](state_set(dtmc, workspace, left),
+                                    state_set(dtmc, workspace, right))
         case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
-            return np.where(state_set(dtmc, cond), state_set(dtmc, then),
-                            state_set(dtmc, otherwise))
-    return _as_mask(_point(values(dtmc, expr)), expr)
+            return np.where(state_set(dtmc, workspace, cond), state_set(dtmc, workspace, then),
+                            state_set(dtmc, workspace, otherwise))
+    return _as_mask(_point(values(dtmc, workspace, expr)), expr)
 
 
 def _chain(expr: Binary, op: str) -> list[Expr]:
@@ -190,7 +198,8 @@ def _chain(expr: Binary, op: str) -> list[Expr]:
     return operands
 
 
-def path_probs(dtmc: DTMC, path: PathFormula, focus_states: IntArray | None = None) -> Bounds:
+def path_probs(dtmc: DTMC, workspace: Workspace, path: PathFormula,
+               focus_states: IntArray | None = None) -> Bounds:
     """Per-state probability of the path formula *path*, with certified bounds.
 
     ``G``, ``W`` and ``R`` are complements of an until (:meth:`Bounds.complement`).
@@ -202,30 +211,33 @@ def path_probs(dtmc: DTMC, path: PathFormula, focus_states: IntArray | None = No
     focus = focus_states
     match path:
         case Next(operand=operand):
-            return kernels.next_probs(dtmc.transitions, state_set(dtmc, operand))
+            return kernels.next_probs(dtmc.transitions, state_set(dtmc, workspace, operand))
         case Until(left=left, right=right, bound=bound):
-            return _until(dtmc, state_set(dtmc, left), state_set(dtmc, right), bound, focus)
+            a, b = state_set(dtmc, workspace, left), state_set(dtmc, workspace, right)
+            return _until(dtmc, workspace, a, b, bound, focus)
         case Eventually(operand=operand, bound=bound):
-            return _until(dtmc, _everywhere(dtmc), state_set(dtmc, operand), bound, focus)
+            target = state_set(dtmc, workspace, operand)
+            return _until(dtmc, workspace, _everywhere(dtmc), target, bound, focus)
         case Globally(operand=operand, bound=bound):
-            return _until(dtmc, _everywhere(dtmc), ~state_set(dtmc, operand), bound,
-                          focus).complement()
+            escape = ~state_set(dtmc, workspace, operand)
+            return _until(dtmc, workspace, _everywhere(dtmc), escape, bound, focus).complement()
         case WeakUntil(left=left, right=right, bound=bound):
             # a W b = !((a & !b) U (!a & !b)), bounds kept (as PRISM rewrites it).
-            a, b = state_set(dtmc, left), state_set(dtmc, right)
-            return _until(dtmc, a & ~b, ~a & ~b, bound, focus).complement()
+            a, b = state_set(dtmc, workspace, left), state_set(dtmc, workspace, right)
+            return _until(dtmc, workspace, a & ~b, ~a & ~b, bound, focus).complement()
         case Release(left=left, right=right, bound=bound):
             # a R b = !(!a U !b), bounds kept.
-            a, b = state_set(dtmc, left), state_set(dtmc, right)
-            return _until(dtmc, ~a, ~b, bound, focus).complement()
+            a, b = state_set(dtmc, workspace, left), state_set(dtmc, workspace, right)
+            return _until(dtmc, workspace, ~a, ~b, bound, focus).complement()
         case RewardBounded():
-            return _reward_bounded_probs(dtmc, path)
+            return _reward_bounded_probs(dtmc, workspace, path)
         case Conditional():
-            return _conditional_probs(dtmc, path)
+            return _conditional_probs(dtmc, workspace, path)
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
 
 
-def path_rewards(dtmc: DTMC, op: RewardOp, focus_states: IntArray | None = None) -> Bounds:
+def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
+                 focus_states: IntArray | None = None) -> Bounds:
     """Per-state expected reward of the reward operator *op* (its bound is ignored), certified.
 
     :param dtmc: the model.
@@ -237,34 +249,36 @@ def path_rewards(dtmc: DTMC, op: RewardOp, focus_states: IntArray | None = None)
     P = dtmc.transitions
     match path:
         case Reach(target=target):
-            return kernels.reach_rewards(P, structure.total, state_set(dtmc, target),
-                                         focus_states)
+            return kernels.reach_rewards(P, structure.total, state_set(dtmc, workspace, target),
+                                         focus_states, workspace=workspace)
         case Cumulative(bound=bound):
             return kernels.cumulative_rewards(P, structure.total, _steps(bound))
         case Instantaneous(time=time):
             return kernels.instantaneous_rewards(P, structure.state, _steps(time))
         case Total():
-            return steady.total_rewards(P, structure.total)
+            return steady.total_rewards(P, structure.total, workspace=workspace)
         case LongRun():
-            return steady.long_run_rewards(P, structure.total)
+            return steady.long_run_rewards(P, structure.total, workspace=workspace)
         case ReachUntil(left=left, right=right):
-            return _reach_until_rewards(dtmc, structure, left, right)
+            return _reach_until_rewards(dtmc, workspace, structure, left, right)
         case ReachNext(target=target):
             # Co-safe X phi is decided after one step: that step's reward, if sure.
             # Sure is graph analysis: no successor outside the target (positive
             # entries make the sum below 0 exactly where none is).
-            sure = P @ (~state_set(dtmc, target)).astype(np.float64) == 0
+            sure = P @ (~state_set(dtmc, workspace, target)).astype(np.float64) == 0
             return Bounds.exact(np.where(sure, structure.total, np.inf))
         case ConditionalReach(target=target, condition=condition):
             return conditional.conditional_reach_reward_bounds(
-                dtmc, structure, state_set(dtmc, target), state_set(dtmc, condition),
-                _condition_name(condition), path.span, focus_states)
+                dtmc, structure, state_set(dtmc, workspace, target),
+                state_set(dtmc, workspace, condition), _condition_name(condition), path.span,
+                focus_states, workspace=workspace)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
 
 
-def prepare(dtmc: DTMC, formulas: Sequence[Expr]) -> None:
-    """Let the unbounded queries among *formulas* share one linear system, whatever
-    the order they are checked in.
+def share_systems(dtmc: DTMC, workspace: Workspace, formulas: Sequence[Expr]) -> None:
+    """Let the unbounded queries among *formulas* share one linear system in *workspace*,
+    whatever the order they are checked in with it
+    (:meth:`~veribattery.checker.workspace.Workspace.prepare`).
 
     A ``P=? [ a U b ]`` whose unknown states lie inside those of an ``R=? [ F c ]``
     (and outside ``b``, inside ``a``) is solved on the latter's system (see
@@ -273,22 +287,24 @@ def prepare(dtmc: DTMC, formulas: Sequence[Expr]) -> None:
     union of their unknowns where that is cheaper (:func:`kernels.prepare_untils`:
     a Fig. 6 point's ``P=? [ F "success" ]`` and the recharge cap's probability).
     Only operator-free operands are looked at (their masks are cheap); the pre-pass
-    results are memoised, so checking repeats none of this work. The conditions of
+    results are kept in *workspace*, so checking repeats none of this work. The conditions of
     conditional properties are marked as needed in every state
     (:func:`kernels.need_whole`): a ``P=? [ F b ]`` among the properties then shares them.
     """
     P = dtmc.transitions
-    for condition in (c for c in (_condition_set(dtmc, f) for f in formulas) if c is not None):
-        kernels.need_whole(P, _everywhere(dtmc), condition)
-    reach = [m for m in (_reach_target(dtmc, f) for f in formulas) if m is not None]
-    untils = [u for u in (_until_operands(dtmc, f) for f in formulas) if u is not None]
+    conditions = (_condition_set(dtmc, workspace, f) for f in formulas)
+    for condition in (c for c in conditions if c is not None):
+        kernels.need_whole(P, _everywhere(dtmc), condition, workspace=workspace)
+    reach = [m for m in (_reach_target(dtmc, workspace, f) for f in formulas) if m is not None]
+    untils = [u for u in (_until_operands(dtmc, workspace, f) for f in formulas) if u is not None]
     for target in reach if untils else ():
-        unknowns = kernels.reach_unknowns(P, target)
-        if any(_inside(kernels.until_unknowns(P, *until), unknowns) for until in untils):
-            kernels.prepare_reach(P, target)
+        unknowns = kernels.reach_unknowns(P, target, workspace=workspace)
+        if any(_inside(kernels.until_unknowns(P, *until, workspace=workspace), unknowns)
+               for until in untils):
+            kernels.prepare_reach(P, target, workspace=workspace)
             return
     if len(untils) > 1 and not reach:
-        kernels.prepare_untils(P, untils)
+        kernels.prepare_untils(P, untils, workspace=workspace)
 
 
 def _inside(query: tuple[BoolArray, BoolArray], unknowns: BoolArray) -> bool:
@@ -298,46 +314,47 @@ def _inside(query: tuple[BoolArray, BoolArray], unknowns: BoolArray) -> bool:
                 and not np.any(unknowns & ~allowed))
 
 
-def _reach_target(dtmc: DTMC, formula: Expr) -> BoolArray | None:
+def _reach_target(dtmc: DTMC, workspace: Workspace, formula: Expr) -> BoolArray | None:
     """The target of an ``R=? [ F a ]`` (or ``[ F a || F b ]``) with an operator-free *a*."""
     if not (isinstance(formula, RewardOp) and formula.op == "=?"):
         return None
     path = formula.path
     if isinstance(path, Reach | ConditionalReach) and not _has_operator(path.target):
-        return _quiet_set(dtmc, path.target)
+        return _quiet_set(dtmc, workspace, path.target)
     return None
 
 
-def _condition_set(dtmc: DTMC, formula: Expr) -> BoolArray | None:
+def _condition_set(dtmc: DTMC, workspace: Workspace, formula: Expr) -> BoolArray | None:
     """The states *b* of an operator-free condition ``F b`` of a conditional ``P=?``/``R=?``."""
     if not (isinstance(formula, ProbOp | RewardOp) and formula.op == "=?"):
         return None
     path = formula.path
     if isinstance(path, ConditionalReach | Conditional) and not _has_operator(path.condition):
-        return _quiet_set(dtmc, path.condition)
+        return _quiet_set(dtmc, workspace, path.condition)
     return None
 
 
-def _until_operands(dtmc: DTMC, formula: Expr) -> tuple[BoolArray, BoolArray] | None:
+def _until_operands(dtmc: DTMC, workspace: Workspace, formula: Expr
+                    ) -> tuple[BoolArray, BoolArray] | None:
     """``(remain, target)`` of an unbounded ``P=? [ F b ]`` / ``[ a U b ]``, operator-free."""
     if not (isinstance(formula, ProbOp) and formula.op == "=?"):
         return None
     match formula.path:
         case Eventually(operand=operand, bound=None) if not _has_operator(operand):
-            target = _quiet_set(dtmc, operand)
+            target = _quiet_set(dtmc, workspace, operand)
             return None if target is None else (_everywhere(dtmc), target)
         case Until(left=left, right=right, bound=None) if not (
                 _has_operator(left) or _has_operator(right)):
-            a, b = _quiet_set(dtmc, left), _quiet_set(dtmc, right)
+            a, b = _quiet_set(dtmc, workspace, left), _quiet_set(dtmc, workspace, right)
             return None if a is None or b is None else (a, b)
     return None
 
 
-def _quiet_set(dtmc: DTMC, expr: Expr) -> BoolArray | None:
+def _quiet_set(dtmc: DTMC, workspace: Workspace, expr: Expr) -> BoolArray | None:
     """:func:`state_set` of an operator-free *expr*, or None where it would fail
     (the check itself then reports the error)."""
     try:
-        return state_set(dtmc, expr)
+        return state_set(dtmc, workspace, expr)
     except VeribatteryError:
         return None
 
@@ -348,16 +365,17 @@ def _quiet_set(dtmc: DTMC, expr: Expr) -> BoolArray | None:
 # ---------------------------------------------------------------------------
 
 
-def _reward_bounded_probs(dtmc: DTMC, path: RewardBounded) -> Bounds:
+def _reward_bounded_probs(dtmc: DTMC, workspace: Workspace, path: RewardBounded) -> Bounds:
     """``U{"r"}<=T`` / ``F{"r"}<=T``, certified."""
     structure = _reward_structure(dtmc, path)
     levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
     return reward_bounded.reward_bounded_until_bounds(
-        dtmc.transitions, state_set(dtmc, path.left), state_set(dtmc, path.right),
-        levels, _reward_bound(path.bound))
+        dtmc.transitions, state_set(dtmc, workspace, path.left),
+        state_set(dtmc, workspace, path.right), levels, _reward_bound(path.bound),
+        workspace=workspace)
 
 
-def _conditional_probs(dtmc: DTMC, path: Conditional) -> Bounds:
+def _conditional_probs(dtmc: DTMC, workspace: Workspace, path: Conditional) -> Bounds:
     """``path || F b``: certified ratios for unbounded ``X F G U W R`` objectives, the
     product chain (range only, not certified) for step- and reward-bounded ones."""
     objective = path.path
@@ -365,35 +383,39 @@ def _conditional_probs(dtmc: DTMC, path: Conditional) -> Bounds:
         raise CheckError("P and R operators inside a conditional formula are not supported",
                          path.span)
     what = _condition_name(path.condition)
-    given = conditional.condition_probs(dtmc.transitions, state_set(dtmc, path.condition))
+    given = conditional.condition_probs(dtmc.transitions,
+                                        state_set(dtmc, workspace, path.condition),
+                                        workspace=workspace)
     conditional.require_possible(given, dtmc.initial, what, path.span)
-    reduced = _as_until(dtmc, objective)
+    reduced = _as_until(dtmc, workspace, objective)
     if reduced is not None:
         remain, target, negated = reduced
-        found = conditional.until_given(dtmc.transitions, remain, target, given)
+        found = conditional.until_given(dtmc.transitions, remain, target, given,
+                                        workspace=workspace)
         return found.complement() if negated else found
     if isinstance(objective, Next):
-        return conditional.next_given(dtmc.transitions, state_set(dtmc, objective.operand),
-                                      given)
+        return conditional.next_given(dtmc.transitions,
+                                      state_set(dtmc, workspace, objective.operand), given)
     return Bounds.uncertified(conditional.conditional_values(
-        dtmc, given.states, lambda chain: path_probs(chain.dtmc, objective).value,
-        what, path.span), 0.0, 1.0)
+        dtmc, given.states, lambda chain: path_probs(chain.dtmc, workspace, objective).value,
+        what, path.span, workspace=workspace), 0.0, 1.0)
 
 
-def _as_until(dtmc: DTMC, path: PathFormula) -> tuple[BoolArray, BoolArray, bool] | None:
+def _as_until(dtmc: DTMC, workspace: Workspace, path: PathFormula
+              ) -> tuple[BoolArray, BoolArray, bool] | None:
     """An unbounded path formula as ``remain U target`` or its negation (None otherwise)."""
     match path:
         case Until(left=left, right=right, bound=None):
-            return state_set(dtmc, left), state_set(dtmc, right), False
+            return state_set(dtmc, workspace, left), state_set(dtmc, workspace, right), False
         case Eventually(operand=operand, bound=None):
-            return _everywhere(dtmc), state_set(dtmc, operand), False
+            return _everywhere(dtmc), state_set(dtmc, workspace, operand), False
         case Globally(operand=operand, bound=None):
-            return _everywhere(dtmc), ~state_set(dtmc, operand), True
+            return _everywhere(dtmc), ~state_set(dtmc, workspace, operand), True
         case WeakUntil(left=left, right=right, bound=None):
-            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            a, b = state_set(dtmc, workspace, left), state_set(dtmc, workspace, right)
             return a & ~b, ~a & ~b, True
         case Release(left=left, right=right, bound=None):
-            a, b = state_set(dtmc, left), state_set(dtmc, right)
+            a, b = state_set(dtmc, workspace, left), state_set(dtmc, workspace, right)
             return ~a, ~b, True
     return None
 
@@ -416,7 +438,7 @@ def _condition_name(condition: Expr) -> str:
 # ---------------------------------------------------------------------------
 
 
-def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp,
+def _bounded_operator(dtmc: DTMC, workspace: Workspace, op: ProbOp | RewardOp | SteadyOp,
                       must_decide: IntArray | None = None) -> BoolArray:
     """``P~p [..]``, ``R~r [..]`` or ``S~p [..]`` as a mask: the value against the bound.
 
@@ -428,11 +450,11 @@ def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp,
     if op.op == "=?" or op.bound is None:
         raise CheckError("a query (=?) cannot be used as a state formula", op.span)
     threshold = _number(op.bound)
-    numbers, holds, undecided = _decide(dtmc, op, threshold, must_decide)
+    numbers, holds, undecided = _decide(dtmc, workspace, op, threshold, must_decide)
     if undecided.any():
         # Escalate: ask the kernels for exact (or as tight as reachable) bounds.
         with required_precision(0.0, 0.0):
-            numbers, holds, undecided = _decide(dtmc, op, threshold, must_decide)
+            numbers, holds, undecided = _decide(dtmc, workspace, op, threshold, must_decide)
     if undecided.any():
         state = int(np.flatnonzero(undecided)[0])
         raise CheckError(
@@ -442,10 +464,10 @@ def _bounded_operator(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp,
     return holds
 
 
-def _decide(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp, threshold: float,
+def _decide(dtmc: DTMC, workspace: Workspace, op: ProbOp | RewardOp | SteadyOp, threshold: float,
             must_decide: IntArray | None) -> tuple[Bounds, BoolArray, BoolArray]:
     """The operator's numbers, where the bound certainly holds, and where it is undecided."""
-    numbers = values(dtmc, replace(op, op="=?", bound=None))
+    numbers = values(dtmc, workspace, replace(op, op="=?", bound=None))
     assert isinstance(numbers, Bounds)  # a query always gives numbers
     holds, undecided = numbers.compare(op.op, threshold)
     if must_decide is not None:
@@ -453,22 +475,22 @@ def _decide(dtmc: DTMC, op: ProbOp | RewardOp | SteadyOp, threshold: float,
     return numbers, holds, undecided
 
 
-def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
+def _until(dtmc: DTMC, workspace: Workspace, remain: BoolArray, target: BoolArray,
            bound: TimeBound | TimeInterval | None, focus_states: IntArray | None = None
            ) -> Bounds:
     """Dispatch ``remain U target`` to the kernel for its step interval."""
     P = dtmc.transitions
     if bound is None:
-        return kernels.until_probs(P, remain, target, focus_states)
+        return kernels.until_probs(P, remain, target, focus_states, workspace=workspace)
     low, high = _interval(bound)
     if high is not None and high < low:
         return Bounds.exact(np.zeros(dtmc.num_states))
     if low == 0:
         if high is None:
-            return kernels.until_probs(P, remain, target, focus_states)
+            return kernels.until_probs(P, remain, target, focus_states, workspace=workspace)
         return kernels.bounded_until_probs(P, remain, target, high)
     if high is None:
-        return kernels.lower_bounded_until_probs(P, remain, target, low)
+        return kernels.lower_bounded_until_probs(P, remain, target, low, workspace=workspace)
     return kernels.interval_until_probs(P, remain, target, low, high)
 
 
@@ -530,20 +552,20 @@ def _steps(expr: Expr) -> int:
 # ---------------------------------------------------------------------------
 
 
-def _reach_until_rewards(dtmc: DTMC, structure: RewardVectors, left: Expr,
+def _reach_until_rewards(dtmc: DTMC, workspace: Workspace, structure: RewardVectors, left: Expr,
                          right: Expr) -> Bounds:
     """``R [a U b]``: the reward until *b*, infinite where ``a U b`` is not almost sure."""
-    a, b = state_set(dtmc, left), state_set(dtmc, right)
+    a, b = state_set(dtmc, workspace, left), state_set(dtmc, workspace, right)
     P = dtmc.transitions
     # Almost-sure is graph analysis (prob1), so the certified lower bound is exactly 1.
-    sure = kernels.until_probs(P, a, b).lower >= 1.0
-    rewards = kernels.reach_rewards(P, structure.total, b)
+    sure = kernels.until_probs(P, a, b, workspace=workspace).lower >= 1.0
+    rewards = kernels.reach_rewards(P, structure.total, b, workspace=workspace)
     infinite = np.full(dtmc.num_states, np.inf)
     return Bounds(np.where(sure, rewards.value, infinite), np.where(sure, rewards.lower, infinite),
                   np.where(sure, rewards.upper, infinite))
 
 
-def _ctl(dtmc: DTMC, quantifier: str, path: PathFormula) -> BoolArray:
+def _ctl(dtmc: DTMC, workspace: Workspace, quantifier: str, path: PathFormula) -> BoolArray:
     """``A [path]`` or ``E [path]`` as a state set (unbounded operators only, as PRISM)."""
     bound = getattr(path, "bound", None)
     if bound is not None:
@@ -554,9 +576,10 @@ def _ctl(dtmc: DTMC, quantifier: str, path: PathFormula) -> BoolArray:
     if type(path) not in ops:
         raise CheckError("A [...] and E [...] take X, F, G, U, W or R, not a conditional (||) "
                          "formula", path.span)
-    right = state_set(dtmc, _operands(path)[-1])
-    left = state_set(dtmc, _operands(path)[0]) if len(_operands(path)) == 2 else right
-    return ctl.quantified(dtmc.transitions, quantifier, ops[type(path)], left, right)
+    right = state_set(dtmc, workspace, _operands(path)[-1])
+    left = state_set(dtmc, workspace, _operands(path)[0]) if len(_operands(path)) == 2 else right
+    return ctl.quantified(dtmc.transitions, quantifier, ops[type(path)], left, right,
+                          workspace=workspace)
 
 
 def _operands(path: PathFormula) -> tuple[Expr, ...]:
@@ -567,20 +590,20 @@ def _operands(path: PathFormula) -> tuple[Expr, ...]:
     return (path.operand,)
 
 
-def filter_outcome(dtmc: DTMC, node: Filter) -> filters.FilterOutcome:
+def filter_outcome(dtmc: DTMC, workspace: Workspace, node: Filter) -> filters.FilterOutcome:
     """The outcome of ``filter(op, prop, states)`` (value, per-state values, printout).
 
     :raises CheckError: for a filter over no states, or ``state`` over several.
     """
-    where = _everywhere(dtmc) if node.states is None else state_set(dtmc, node.states)
-    inner = values(dtmc, node.operand)
+    where = _everywhere(dtmc) if node.states is None else state_set(dtmc, workspace, node.states)
+    inner = values(dtmc, workspace, node.operand)
     return filters.apply_filter(node.op, inner, where, dtmc.states, dtmc.variable_names,
                                 node.span)
 
 
-def _filter_values(dtmc: DTMC, node: Filter) -> Result:
+def _filter_values(dtmc: DTMC, workspace: Workspace, node: Filter) -> Result:
     """A filter inside an expression: its single value in every state (PRISM's semantics)."""
-    outcome = filter_outcome(dtmc, node)
+    outcome = filter_outcome(dtmc, workspace, node)
     if outcome.value is None or isinstance(outcome.value, tuple):
         if isinstance(outcome.value, tuple):
             raise CheckError("filter(range, ...) gives an interval, which cannot be used "
@@ -593,37 +616,39 @@ def _filter_values(dtmc: DTMC, node: Filter) -> Result:
     return Bounds(*(np.full(dtmc.num_states, float(v)) for v in (value, low, high)))
 
 
-def _compound(dtmc: DTMC, expr: Expr) -> Result:
+def _compound(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
     """:func:`_compound_values`, retried at exact precision when a comparison of
     numbers is undecided by the intervals."""
     try:
-        return _compound_values(dtmc, expr)
+        return _compound_values(dtmc, workspace, expr)
     except intervals.Undecided:
         if escalated():
             raise
     with required_precision(0.0, 0.0):
-        return _compound_values(dtmc, expr)
+        return _compound_values(dtmc, workspace, expr)
 
 
-def _compound_values(dtmc: DTMC, expr: Expr) -> Result:
+def _compound_values(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
     """Arithmetic, comparisons and functions over operator results, state by state,
     in interval arithmetic (:mod:`~veribattery.checker.intervals`)."""
     match expr:
         case Quantified() | ProbOp() | RewardOp() | SteadyOp():
-            return state_set(dtmc, expr)
+            return state_set(dtmc, workspace, expr)
         case Unary(op="!", operand=operand):
-            return ~state_set(dtmc, operand)
+            return ~state_set(dtmc, workspace, operand)
         case Unary(op=op, operand=operand):
-            return intervals.unary(op, values(dtmc, operand), expr.span)
+            return intervals.unary(op, values(dtmc, workspace, operand), expr.span)
         case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
-            return intervals.binary(op, state_set(dtmc, left), state_set(dtmc, right))
+            return intervals.binary(op, state_set(dtmc, workspace, left),
+                                    state_set(dtmc, workspace, right))
         case Binary(op=op, left=left, right=right):
-            return intervals.binary(op, values(dtmc, left), values(dtmc, right), expr.span)
+            return intervals.binary(op, values(dtmc, workspace, left),
+                                    values(dtmc, workspace, right), expr.span)
         case Ite(cond=cond, then=then, otherwise=otherwise):
-            return intervals.choose(state_set(dtmc, cond), values(dtmc, then),
-                                     values(dtmc, otherwise))
+            return intervals.choose(state_set(dtmc, workspace, cond), values(dtmc, workspace, then),
+                                     values(dtmc, workspace, otherwise))
         case Call(func=func, args=args):
-            return intervals.call(func, [values(dtmc, a) for a in args], expr.span)
+            return intervals.call(func, [values(dtmc, workspace, a) for a in args], expr.span)
     raise CheckError(f"cannot evaluate {type(expr).__name__} here", getattr(expr, "span", None))
 
 

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -40,6 +41,9 @@ from veribattery.checker import certify, kernels, linsolve, reward_radius
 from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
+
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
 
 #: Largest accepted distance of a reward value from the nearest integer.
 INTEGER_TOL = 1e-9
@@ -103,8 +107,10 @@ class Levels:
     zero_rows: CsrMatrix
 
 
-def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool) -> Levels:
-    """Group the *moving* states by reward; factorise the zero-reward closure once.
+def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool,
+            plans: linsolve.SolverPlans | None = None) -> Levels:
+    """Group the *moving* states by reward; factorise the zero-reward closure once
+    (its index work kept in *plans* for a closure of the same pattern).
 
     The closure is nonsingular because every moving state can leave the moving set
     (the caller removed the states that cannot reach the target).
@@ -118,8 +124,8 @@ def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool)
     zero = np.flatnonzero(zero_mask)
     closure = None
     if zero.size:
-        A, _rows = linsolve.restricted_matrix(P, zero_mask)
-        closure = linsolve.Factorization(sp.csr_matrix(A.T) if transpose else A)
+        A, _rows = linsolve.restricted_matrix(P, zero_mask, plans)
+        closure = linsolve.Factorization(sp.csr_matrix(A.T) if transpose else A, plans=plans)
     return Levels(unit, groups, zero, closure, sp.csr_matrix(P[zero]))
 
 
@@ -135,13 +141,16 @@ def _close(levels: Levels, b: FloatArray) -> FloatArray:
 
 
 def reward_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                               rewards: IntArray, bound: int) -> FloatArray:
+                               rewards: IntArray, bound: int, *, workspace: Workspace
+                               ) -> FloatArray:
     """The point values of :func:`reward_bounded_until_bounds`."""
-    return reward_bounded_until_bounds(P, remain, target, rewards, bound).value
+    return reward_bounded_until_bounds(P, remain, target, rewards, bound,
+                                       workspace=workspace).value
 
 
 def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                                rewards: IntArray, bound: int) -> Bounds:
+                                rewards: IntArray, bound: int, *, workspace: Workspace
+                                ) -> Bounds:
     """Probability of ``remain U{r}<=bound target`` in every state, with certified bounds.
 
     First the point values with a forward-error radius per state
@@ -156,16 +165,17 @@ def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArr
     :param rewards: non-negative integer reward of the step leaving each state
         (see :func:`integer_levels`).
     :param bound: the largest total reward allowed, the entering step included.
+    :param workspace: where the graph search and the closure's plans are kept.
     :return: probabilities in [0, 1]; 0 everywhere if *bound* < 0.
     """
     n = P.shape[0]
     if bound < 0:
         return Bounds.exact(np.zeros(n))
-    moving = remain & ~target & ~kernels.prob0(P, remain, target)
+    moving = remain & ~target & ~kernels.prob0(P, remain, target, workspace=workspace)
     order = _grouped_order(moving, rewards)
     P, moving, target, rewards = (sp.csr_matrix(P[order][:, order]), moving[order],
                                   target[order], rewards[order])
-    levels = _levels(P, moving, rewards, transpose=False)
+    levels = _levels(P, moving, rewards, transpose=False, plans=workspace.solvers)
     last = bound // levels.unit
     found = reward_radius.radius_programme(P, moving, target, rewards, levels, last)
     if found is None or not found.precise_states().all():
@@ -331,7 +341,8 @@ StopRule = Callable[[int, FloatArray, float], bool]
 
 
 def absorption_by_level(P: CsrMatrix, initial: FloatArray, absorbing: tuple[BoolArray, ...],
-                        rewards: IntArray, stop: StopRule, max_levels: int) -> LevelMasses:
+                        rewards: IntArray, stop: StopRule, max_levels: int, *,
+                        workspace: Workspace) -> LevelMasses:
     """The distribution of the reward accumulated until the first absorbing state.
 
     One forward pass over reward levels: the mass arriving on a level is closed
@@ -346,16 +357,17 @@ def absorption_by_level(P: CsrMatrix, initial: FloatArray, absorbing: tuple[Bool
     :param rewards: non-negative integer reward of the step leaving each state.
     :param stop: called after each level; the pass ends when it returns True.
     :param max_levels: the pass ends after this many levels in any case.
+    :param workspace: where the graph search and the closure's plans are kept.
     """
     n = P.shape[0]
     stopped = np.zeros(n, dtype=bool)
     for mask in absorbing:
         stopped |= mask
-    dead = kernels.prob0(P, np.ones(n, dtype=bool), stopped) & ~stopped
+    dead = kernels.prob0(P, np.ones(n, dtype=bool), stopped, workspace=workspace) & ~stopped
     moving = ~stopped & ~dead
     order = _grouped_order(moving, rewards)
     Q = sp.csr_matrix(P[order][:, order])
-    levels = _levels(Q, moving[order], rewards[order], transpose=True)
+    levels = _levels(Q, moving[order], rewards[order], transpose=True, plans=workspace.solvers)
     return _forward(Q, levels, initial[order], tuple(m[order] for m in absorbing),
                     dead[order], stop, max_levels)
 

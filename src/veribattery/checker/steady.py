@@ -16,6 +16,7 @@ does not grow with the number of BSCCs.
 from __future__ import annotations
 
 import weakref
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
@@ -26,6 +27,9 @@ from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels
 from veribattery.checker.bounds import Bounds, round_down, round_up
+
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
 
 
 @record
@@ -144,51 +148,63 @@ def _heaviest_first(inner: sp.csr_matrix, weight: FloatArray, comp: IntArray,
     return better if _balanced(inner, better, comp, count) else np.asarray(pi)
 
 
-#: The BSCCs and stationary distribution of the last matrix (properties of one model
-#: share them); keyed by identity and dropped with the matrix.
-_LAST: list[tuple[weakref.ref[CsrMatrix], Bsccs, FloatArray]] = []
+class LongRun:
+    """The BSCCs and stationary distribution of the last matrix (properties of one model
+    share them), held by a :class:`~veribattery.checker.workspace.Workspace`; the
+    matrix is held weakly."""
+
+    def __init__(self) -> None:
+        self.last: tuple[weakref.ref[CsrMatrix], Bsccs, FloatArray] | None = None
+
+    @property
+    def empty(self) -> bool:
+        """Whether nothing is kept yet."""
+        return self.last is None
+
+    def of(self, P: CsrMatrix) -> tuple[Bsccs, FloatArray]:
+        """The BSCCs of *P* and their stationary distributions, kept for the next query."""
+        if self.last is not None and self.last[0]() is P:
+            return self.last[1], self.last[2]
+        parts = bsccs(P)
+        pi = stationary(P, parts)
+        self.last = (weakref.ref(P), parts, pi)
+        return parts, pi
 
 
-def _long_run(P: CsrMatrix) -> tuple[Bsccs, FloatArray]:
-    if _LAST and _LAST[0][0]() is P:
-        return _LAST[0][1], _LAST[0][2]
-    parts = bsccs(P)
-    pi = stationary(P, parts)
-    _LAST[:] = [(weakref.ref(P), parts, pi)]
-    return parts, pi
-
-
-def steady_probs(P: CsrMatrix, target: BoolArray) -> Bounds:
+def steady_probs(P: CsrMatrix, target: BoolArray, *, workspace: Workspace) -> Bounds:
     """Long-run probability of being in *target*, from every state (``S=? [target]``),
     certified (:func:`bscc_averages`, then :func:`kernels.absorption`).
 
     :param P: row-stochastic CSR transition matrix.
     :param target: the states counted.
+    :param workspace: where the BSCCs and the checker's memos are kept.
     """
-    found = _long_run_values(P, target.astype(np.float64))
+    found = _long_run_values(P, target.astype(np.float64), workspace)
     value = np.clip(found.value, 0.0, 1.0)
     return Bounds.around(value, np.maximum(found.lower, 0.0), found.upper)
 
 
-def long_run_rewards(P: CsrMatrix, rewards: FloatArray) -> Bounds:
+def long_run_rewards(P: CsrMatrix, rewards: FloatArray, *, workspace: Workspace) -> Bounds:
     """Long-run average reward per step from every state (``R=? [S]``), certified.
 
     :param P: row-stochastic CSR transition matrix.
     :param rewards: non-negative expected reward per step from each state.
+    :param workspace: where the BSCCs and the checker's memos are kept.
     """
-    return _long_run_values(P, rewards)
+    return _long_run_values(P, rewards, workspace)
 
 
-def _long_run_values(P: CsrMatrix, weights: FloatArray) -> Bounds:
+def _long_run_values(P: CsrMatrix, weights: FloatArray, workspace: Workspace) -> Bounds:
     """Each state's long-run average of *weights*: BSCC averages carried back."""
-    parts, pi = _long_run(P)
-    per_bscc = bscc_averages(P, parts, pi, weights)
+    parts, pi = workspace.long_run.of(P)
+    per_bscc = bscc_averages(P, parts, pi, weights, workspace=workspace)
     comp = np.maximum(parts.component, 0)
     known = Bounds(per_bscc.value[comp], per_bscc.lower[comp], per_bscc.upper[comp])
-    return kernels.absorption(P, parts.recurrent, known)
+    return kernels.absorption(P, parts.recurrent, known, workspace=workspace)
 
 
-def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArray) -> Bounds:
+def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArray, *,
+                  workspace: Workspace) -> Bounds:
     """The average of *weights* under each BSCC's stationary distribution, certified.
 
     By the renewal theorem the average is ``E[cycle weight] / E[cycle length]`` for
@@ -200,6 +216,7 @@ def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArra
 
     :param parts: the BSCCs of *P*; *pi* their stationary distributions.
     :param weights: non-negative weight per state.
+    :param workspace: where the checker's memos are kept.
     """
     states = np.flatnonzero(parts.recurrent)
     comp = parts.component[states]
@@ -213,20 +230,20 @@ def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArra
     order = np.lexsort((-pi[states], comp))
     ref = order[np.searchsorted(comp[order], np.arange(parts.count))]
     inner = sp.csr_matrix(P[states][:, states])
-    low, high = _renewal(inner, ref, weights[states])
+    low, high = _renewal(inner, ref, weights[states], workspace)
     constant = least == most
     lower, upper = np.where(constant, least, low), np.where(constant, most, high)
     return Bounds.around(np.where(constant, least, value), lower, upper)
 
 
-def _renewal(inner: CsrMatrix, ref: IntArray, weights: FloatArray) -> tuple[FloatArray,
-                                                                             FloatArray]:
+def _renewal(inner: CsrMatrix, ref: IntArray, weights: FloatArray,
+             workspace: Workspace) -> tuple[FloatArray, FloatArray]:
     """Certified ends of ``E[cycle weight] / E[cycle length]`` from each state *ref*."""
     target = np.zeros(inner.shape[0], dtype=bool)
     target[ref] = True
     rows = sp.csr_matrix(inner[ref])
-    gained = kernels.reach_rewards(inner, weights, target)
-    steps = kernels.reach_rewards(inner, np.ones(inner.shape[0]), target)
+    gained = kernels.reach_rewards(inner, weights, target, workspace=workspace)
+    steps = kernels.reach_rewards(inner, np.ones(inner.shape[0]), target, workspace=workspace)
     ones = np.ones(ref.size)
     gained_low = certify.enclose_product(rows, gained.lower, weights[ref])[1]
     gained_high = certify.enclose_product(rows, gained.upper, weights[ref])[2]
@@ -238,7 +255,7 @@ def _renewal(inner: CsrMatrix, ref: IntArray, weights: FloatArray) -> tuple[Floa
     return np.where(np.isnan(low), 0.0, low), np.where(np.isnan(high), np.inf, high)
 
 
-def total_rewards(P: CsrMatrix, rewards: FloatArray) -> Bounds:
+def total_rewards(P: CsrMatrix, rewards: FloatArray, *, workspace: Workspace) -> Bounds:
     """Expected total reward along the whole path (``R=? [C]``), certified.
 
     Every path enters a BSCC almost surely. In a BSCC with some reward, reward
@@ -249,10 +266,11 @@ def total_rewards(P: CsrMatrix, rewards: FloatArray) -> Bounds:
 
     :param P: row-stochastic CSR transition matrix.
     :param rewards: non-negative expected reward per step from each state.
+    :param workspace: where the checker's memos are kept.
     """
     parts = bsccs(P)
     recurrent = parts.recurrent
     earning = np.zeros(parts.count, dtype=bool)
     earning[parts.component[recurrent & (rewards > 0)]] = True
     cold = recurrent & ~earning[np.maximum(parts.component, 0)]
-    return kernels.reach_rewards(P, rewards, cold)
+    return kernels.reach_rewards(P, rewards, cold, workspace=workspace)

@@ -16,7 +16,7 @@ recomputed the same way.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from gmpy2 import mpq
@@ -68,14 +68,12 @@ class ExactDTMC:
     :param probabilities: ``mpq`` per entry of ``dtmc.transitions`` (CSR data order).
     :param rewards: the reward structures, in declaration order.
     :param constants: the exact values of the model's constants.
-    :param cache: the checker's per-model memo (prepared linear systems).
     """
 
     dtmc: DTMC
     probabilities: ObjectArray
     rewards: tuple[ExactRewards, ...]
     constants: Mapping[str, ExactScalar]
-    cache: dict[bytes, object] = field(default_factory=dict, compare=False, repr=False)
 
     def reward(self, key: str | int | None) -> ExactRewards:
         """The reward structure named *key*, at index *key*, or the first (None)."""

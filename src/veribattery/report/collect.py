@@ -93,7 +93,7 @@ def collect_report(cfg: MissionConfig, options: ReportOptions, *,
     with clock.stage("distribution"):
         say("computing the mission-time distribution")
         timing = mission_time(mission.dtmc, options.deadlines, options.working_day_minutes,
-                              options.coverage)
+                              options.coverage, report.run.workspace)
     simulation = None
     if options.runs > 0:
         with clock.stage("simulate"):

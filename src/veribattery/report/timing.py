@@ -21,6 +21,7 @@ from veribattery.analyses.distribution import (
     parse_deadline,
     reward_distribution,
 )
+from veribattery.checker import Workspace
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
 from veribattery.report.data import DeadlineRow, MissionTime
@@ -34,15 +35,18 @@ _FIRST_MASS = 1e-3
 
 
 def mission_time(dtmc: DTMC, deadlines: Sequence[Deadline], working_day: float,
-                 coverage: float) -> MissionTime:
+                 coverage: float, workspace: Workspace | None = None) -> MissionTime:
     """The distribution of ``mt`` to success and failure, and P(success) by each deadline.
 
     :param deadlines: as the user gave them (empty: whole working days, chosen here).
     :param working_day: minutes in a working day ``d``.
     :param coverage: continue until this share of P(success) and P(failure) is absorbed.
+    :param workspace: the checker's caches of the check of *dtmc* (see
+        :func:`~veribattery.analyses.distribution.reward_distribution`).
     """
     horizon = max((d.value for d in deadlines), default=0.0)
-    dist = reward_distribution(dtmc, "mt", coverage=coverage, horizon=horizon)
+    dist = reward_distribution(dtmc, "mt", coverage=coverage, horizon=horizon,
+                               workspace=workspace)
     chosen = tuple(deadlines) or _working_days(dist, working_day)
     return MissionTime(
         p_success=dist.p_success, p_failure=dist.p_failure,
