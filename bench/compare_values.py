@@ -20,8 +20,9 @@ run) is blanked, and the trees' own folders and the output folders are replaced 
 placeholders. The report gives the count of identical cases per kind, the peer
 harness's pass counts per tree, then every difference: JSON as ``key.path: base ->
 work``, other text as a unified diff. A case the base rejects as a usage error (an
-option or command it does not have yet) is listed as not comparable rather than as a
-difference (``--strict`` counts it as one). Exit status 1 if anything differs.
+option or command it does not have yet) is listed apart, as not comparable. Exit
+status 1 if anything differs or is not comparable (``--allow-incomparable``: only
+differences count).
 
 Each case runs in its own forked process of a per-tree server that imports the
 third-party libraries once (``tree_runner.py``); ``--isolation process`` runs every case
@@ -306,7 +307,7 @@ def harness_passes(harness: ModuleType, entry: dict[str, Any], got: Outcome) -> 
 
 
 def report(cases: list[Case], base: list[Outcome], work: list[Outcome],
-           harness: ModuleType | None, max_lines: int, strict: bool) -> int:
+           harness: ModuleType | None, max_lines: int, allow_incomparable: bool) -> int:
     """Print the summary and every difference; the exit status."""
     diffs: list[tuple[Case, list[str]]] = []
     incomparable: list[Case] = []
@@ -314,7 +315,7 @@ def report(cases: list[Case], base: list[Outcome], work: list[Outcome],
         lines = differences(a, b)
         if not lines:
             continue
-        if base_lacks_option(a, b) and not strict:
+        if base_lacks_option(a, b):
             incomparable.append(case)
         else:
             diffs.append((case, lines))
@@ -342,8 +343,11 @@ def report(cases: list[Case], base: list[Outcome], work: list[Outcome],
             print(f"   ... {len(lines) - max_lines} more lines (--max-lines)")
     if diffs:
         print_places(diffs)
-    print("\nIDENTICAL" if not diffs else f"\n{len(diffs)} case(s) DIFFER")
-    return 1 if diffs else 0
+    verdict = f"{len(diffs)} case(s) DIFFER" if diffs else "IDENTICAL"
+    if incomparable:
+        verdict += f"; {len(incomparable)} case(s) NOT COMPARABLE (the base lacks an option)"
+    print(f"\n{verdict}")
+    return 1 if diffs or (incomparable and not allow_incomparable) else 0
 
 
 def print_places(diffs: list[tuple[Case, list[str]]]) -> None:
@@ -400,8 +404,8 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=600.0, help="seconds per case")
     parser.add_argument("--isolation", choices=("fork", "process"), default="fork")
     parser.add_argument("--max-lines", type=int, default=40, help="diff lines shown per case")
-    parser.add_argument("--strict", action="store_true",
-                        help="a case the base rejects as a usage error counts as a difference")
+    parser.add_argument("--allow-incomparable", action="store_true",
+                        help="exit 0 even if the base rejects some cases as usage errors")
     parser.add_argument("--save", type=Path, help="write both trees' outcomes here as JSON")
     args = parser.parse_args()
     kinds = [k for k in args.only.split(",") if k]
@@ -418,7 +422,8 @@ def main() -> None:
     if args.save:
         save(args.save, cases, base, got[0])
         save(args.save, cases, work, got[1])
-    status = report(cases, got[0], got[1], harness, args.max_lines, args.strict)
+    status = report(cases, got[0], got[1], harness, args.max_lines,
+                    args.allow_incomparable)
     print(f"({time.perf_counter() - started:.0f} s)")
     sys.exit(status)
 
