@@ -4,7 +4,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: run test setup lint typecheck bench clean bytecode chromium reports docs
+.PHONY: run test setup lint typecheck bench clean bytecode chromium reports docs compare \
+	compare-speed
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -46,6 +47,17 @@ lint: $(STAMP)
 
 bench: $(STAMP) bytecode
 	$(BIN)/python bench/bench_models.py
+
+# The working tree against a base revision, e.g. `make compare BASE=8887d91`: every value
+# (check JSON on configs/, the three peer suites' outputs, emit's files) byte for byte,
+# exit 1 on a difference; compare-speed times both side by side (QUICK=1 for a short run).
+# ARGS passes more options (e.g. ARGS="--only check,prism" or ARGS="-n 3").
+BASE ?= 8887d91
+compare: $(STAMP)
+	$(BIN)/python bench/compare_values.py $(BASE) $(ARGS)
+
+compare-speed: $(STAMP)
+	$(BIN)/python bench/compare_speed.py $(BASE) $(if $(QUICK),--quick) $(ARGS)
 
 # The documentation site, offline, warnings as errors: the CLI, config and API references
 # are generated from the code while it builds (docs/_ext/).
