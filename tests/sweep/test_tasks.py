@@ -37,8 +37,8 @@ def _values(result: PointResult) -> dict[str, float | bool]:
     return {v.name: v.value for v in result.values}
 
 
-@pytest.mark.parametrize("run", [run_task, lambda task: list(Worker().iter(task))],
-                         ids=["run_task", "Worker.iter"])
+@pytest.mark.parametrize("run", [run_task, lambda task: list(Worker().results(task))],
+                         ids=["run_task", "Worker.results"])
 def test_one_point_task_keeps_no_structure(
     run: Callable[[Task], list[PointResult]], reusable_builds: list[int]
 ) -> None:
@@ -79,6 +79,6 @@ def test_a_worker_parses_a_model_in_full_once(monkeypatch: pytest.MonkeyPatch) -
     monkeypatch.setattr(parses, "parse_model", counting)
     worker = Worker()
     for index, p in enumerate(("0.1", "0.35")):
-        [result] = worker.iter(Task(((index, _mission(p)),)))
+        [result] = worker.results(Task(((index, _mission(p)),)))
         assert result.error is None
     assert full == [1]

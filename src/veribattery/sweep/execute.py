@@ -80,7 +80,7 @@ class InProcess:
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Check each task's points in order."""
         for task in tasks:
-            yield from self.worker.iter(task)
+            yield from self.worker.results(task)
 
 
 class LocalPool:
@@ -105,7 +105,7 @@ class LocalPool:
         """Run the tasks in the pool, yielding each point's result as it is checked."""
         if len(tasks) <= 1:
             worker = Worker()
-            yield from (r for task in tasks for r in worker.iter(task, self.check))
+            yield from (r for task in tasks for r in worker.results(task, self.check))
             return
         pending, seen = list(tasks), _Seen()
         breaks = {index: 0 for task in tasks for index, _ in task.points}
@@ -262,7 +262,7 @@ def run_dask_task(
 
     stream = DaskQueue(stream_name)  # type: ignore[no-untyped-call]
     results = []
-    for result in process_worker().iter(task, check):
+    for result in process_worker().results(task, check):
         stream.put(pickle.dumps(result))  # type: ignore[no-untyped-call]
         results.append(result)
     return results

@@ -230,7 +230,7 @@ class Worker:
         self.stream = stream
         self.parses = ParseCache()
 
-    def iter(self, task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
+    def results(self, task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
         """Check the points of *task* in order in one session, yielding each as it is done.
 
         With a stream, each point is reported when it starts and when it is done, so
@@ -261,15 +261,15 @@ def start_worker(stream: PointStream | None) -> None:
 
 def process_worker() -> Worker:
     """This process's worker (made on first use where no pool started it: Dask)."""
+    global _WORKER
     if _WORKER is None:
-        start_worker(None)
-    assert _WORKER is not None
+        _WORKER = Worker()
     return _WORKER
 
 
 def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
     """Check every point of *task* in this process's worker (what a pool process runs)."""
-    return list(process_worker().iter(task, check))
+    return list(process_worker().results(task, check))
 
 
 def check_point(session: MissionSession, index: int, mission: RenderedMission) -> PointResult:
