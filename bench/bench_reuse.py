@@ -1,9 +1,9 @@
-"""Structure reuse on a p_wsp_c sweep: MissionChecker against independent checks.
+"""Structure reuse on a p_wsp_c sweep: a MissionSession against independent checks.
 
 Checks the paper's baseline (configs/paper/case1.yaml) at N values of
-``environment.p_wsp_c`` strictly inside (0, 1), once with one :class:`MissionChecker`
+``environment.p_wsp_c`` strictly inside (0, 1), once with one :class:`MissionSession`
 (the state space is built once and re-used) and once with :func:`check_mission`
-per point as ``veribattery check`` runs it (answers only, ``keep_states=False``), in
+per point as ``veribattery check`` runs it (answers only, ``keep="answers"``), in
 the same process; prints both totals, the speed-up, how many points re-used the state
 space, and the largest relative difference of any value.
 
@@ -28,7 +28,7 @@ from pathlib import Path
 
 from veribattery.config import MissionConfig, load_config
 from veribattery.lang.nodes import Value
-from veribattery.mission import MissionChecker, check_mission
+from veribattery.mission import MissionSession, check_mission
 
 #: What is kept of each report: its values and whether it re-used the state space
 #: (not the report: 100 DTMCs with their per-state results took 2.5 GB).
@@ -80,7 +80,7 @@ def timed(
 
 def independent(cfg: MissionConfig) -> object:
     """One check of *cfg* as ``veribattery check`` runs it: the answers only."""
-    return check_mission(cfg, keep_states=False)
+    return check_mission(cfg, keep="answers")
 
 
 def largest_difference(a: list[Kept], b: list[Kept]) -> float:
@@ -101,12 +101,12 @@ def main() -> None:
                         help="also time one sweep process against one check process per point")
     args = parser.parse_args()
     configs = grid(args.points)
-    checker = MissionChecker(values_only=True)  # as a sweep runs it
+    checker = MissionSession.for_sweep(lump=True)  # as a sweep runs a run of points
     reused_s, reused_cpu, reused = timed(checker.check, configs)
     fresh_s, fresh_cpu, fresh = timed(independent, configs)
     count = sum(was for _, was in reused)
     print(f"points: {len(configs)}, re-used the state space: {count}")
-    print(f"MissionChecker: {reused_s:.2f} s wall, {reused_cpu:.2f} s CPU; "
+    print(f"MissionSession: {reused_s:.2f} s wall, {reused_cpu:.2f} s CPU; "
           f"independent checks: {fresh_s:.2f} s wall, {fresh_cpu:.2f} s CPU; "
           f"speed-up {fresh_s / reused_s:.2f}x wall, {fresh_cpu / reused_cpu:.2f}x CPU")
     difference = largest_difference(reused, fresh)

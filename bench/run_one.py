@@ -16,7 +16,7 @@ def run_veribattery(model: Path, props: Path) -> dict[str, object]:
     from veribattery.pipeline import check_prism_file
 
     start = time.perf_counter()
-    run = check_prism_file(model, props_source=props, keep_states=False)  # as the CLI
+    run = check_prism_file(model, props_source=props, keep="answers")  # as the CLI
     total = time.perf_counter() - start
     return {
         "states": run.dtmc.num_states,

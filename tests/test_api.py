@@ -9,9 +9,10 @@ from pathlib import Path
 import veribattery
 
 EXPECTED = {
-    "DTMC", "CheckError", "CheckResult", "ConfigError", "MissionConfig", "MissionReport",
-    "ModelCheckRun", "ModelError", "PrismSemanticError", "PrismSyntaxError", "RenderError",
-    "VeribatteryError", "build_dtmc", "check", "check_mission", "check_prism_file",
+    "DTMC", "CheckError", "CheckOptions", "CheckResult", "ConfigError", "MissionConfig",
+    "MissionReport", "MissionSession", "ModelCheckRun", "ModelError", "PrismSemanticError",
+    "PrismSyntaxError", "RenderError", "Session", "VeribatteryError", "build_dtmc", "check",
+    "check_mission", "check_model", "check_model_exact", "check_prism_file",
     "flatten_model", "load_config", "mission_files", "parse_model", "parse_properties",
     "parse_property", "render_model", "render_properties", "resolve_property", "run_sweep",
 }

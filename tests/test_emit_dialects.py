@@ -174,7 +174,7 @@ def test_a_failed_write_leaves_no_directory_behind(
     def full_disk(_targets: object) -> None:
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr("veribattery.mission.write_texts", full_disk)
+    monkeypatch.setattr("veribattery.mission.files.write_texts", full_disk)
     with pytest.raises(OSError, match="No space left"):
         write_files(mission_files(_config(False)), tmp_path / "new" / "out")
     assert list(tmp_path.iterdir()) == []

@@ -35,15 +35,16 @@ from veribattery.errors import ModelError
 from veribattery.explore import check_update_ranges_over_domain
 from veribattery.lang import flatten_model, parse_model
 from veribattery.mission import (
-    MissionChecker,
     MissionFiles,
     MissionReport,
-    _Parsed,
-    _reparse,
+    MissionSession,
+    ParseCache,
+    RenderedMission,
     check_mission,
     mission_files,
     reuse_key,
 )
+from veribattery.mission.parses import reparse
 
 REPO = Path(__file__).resolve().parents[1]
 PAPER = REPO / "configs" / "paper"
@@ -261,7 +262,7 @@ def _small(p_wsp_c: str, *more: str) -> MissionConfig:
 
 
 def test_reused_values_equal_independent_checks_over_p_wsp_c() -> None:
-    checker = MissionChecker()
+    checker = MissionSession()
     for p in ("0.1", "0.02", "0.37", "0.9"):
         report, fresh = checker.check(_small(p)), check_mission(_small(p))
         assert report.reused == (p != "0.1"), p
@@ -277,37 +278,41 @@ def test_reused_values_equal_independent_checks_over_p_wsp_c() -> None:
 
 @pytest.mark.parametrize("p", ["0", "1"])
 def test_probability_zero_or_one_falls_back_to_a_full_build(p: str) -> None:
-    checker = MissionChecker()
+    checker = MissionSession()
     assert not checker.check(_small("0.3")).reused
     report = checker.check(_small(p))
     assert not report.reused  # a wind branch has probability 0: other transitions
     assert report.values == check_mission(_small(p)).values
 
 
+def _key(cfg: MissionConfig) -> str | None:
+    return reuse_key(RenderedMission.of(cfg))
+
+
 def test_reuse_key_from_the_model() -> None:
-    key = reuse_key(_small("0.1"))
-    assert reuse_key(_small("0.73")) == key  # reaches only probabilities
-    assert reuse_key(_small("0.1", "battery.capacity_ah=12")) != key  # ranges and guards
-    assert reuse_key(_small("0.1", "strategy.safe_t=0.25")) != key  # guards
+    key = _key(_small("0.1"))
+    assert _key(_small("0.73")) == key  # reaches only probabilities
+    assert _key(_small("0.1", "battery.capacity_ah=12")) != key  # ranges and guards
+    assert _key(_small("0.1", "strategy.safe_t=0.25")) != key  # guards
 
 
 def test_checker_parses_only_the_changed_constant_declarations() -> None:
-    parsed = _Parsed()
+    parsed = ParseCache()
     first, second = (mission_files(_small(p)).model for p in ("0.1", "0.37"))
     base = parsed.model(first)
-    assert _reparse(first, base, second) is not None
+    assert reparse(first, base, second) is not None
     assert parsed.model(second) == parse_model(second, name="model.prism")
     # Anything but constant declarations and comments changed: a full parse.
     edited = second.replace("s>=6", "s>6")
-    assert _reparse(second, parsed.model(second), edited) is None
+    assert reparse(second, parsed.model(second), edited) is None
     assert parsed.model(edited) == parse_model(edited, name="model.prism")
 
 
 def test_sweep_checker_checks_on_the_bisimulation_quotient() -> None:
-    checker = MissionChecker(values_only=True)  # lumps: values only, many points
+    checker = MissionSession.for_sweep(lump=True)  # answers only, many points
     # 0.5 makes p and 1 - p equal (a coarser partition of its own); 0.9 comes back.
     for p in ("0.1", "0.37", "0.5", "0.9"):
-        report, fresh = checker.check(_small(p)), check_mission(_small(p), keep_states=False)
+        report, fresh = checker.check(_small(p)), check_mission(_small(p), keep="answers")
         quotient = report.run.quotient
         if p == "0.5":  # p = 1 - p: more successor pairs share a block and are split
             # apart; 83% of the states stay, not worth checking on
@@ -322,4 +327,12 @@ def test_sweep_checker_checks_on_the_bisimulation_quotient() -> None:
             assert lumped.lower <= plain.upper and plain.lower <= lumped.upper, p
         assert math.isclose(report.recharge_cap_probability, fresh.recharge_cap_probability,
                             rel_tol=1e-12, abs_tol=1e-300)
-    assert MissionChecker(values_only=True, lump=False).check(_small("0.1")).run.quotient is None
+    assert MissionSession.for_sweep().check(_small("0.1")).run.quotient is None
+
+
+def test_lumping_needs_answers_only() -> None:
+    """A quotient has no values for the model's own states: a session that keeps them
+    cannot lump (the combination is refused, not silently dropped)."""
+    with pytest.raises(ValueError, match="lumping keeps answers only"):
+        MissionSession(keep="states", lump=True)
+    assert MissionSession(keep="answers", lump=True).session.lumper is not None

@@ -1,4 +1,4 @@
-"""Sweep points build only the reward structures their properties use (values_only)."""
+"""Sweep points build only the reward structures their properties use (``rewards="named"``)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from veribattery.config import load_config
 from veribattery.config.schema import PAPER_PROPERTIES
 from veribattery.lang import parse_model, parse_properties
 from veribattery.lang.nodes import Model, PropertiesFile
-from veribattery.mission import MissionChecker, check_mission
-from veribattery.pipeline import check_model
+from veribattery.mission import MissionSession, check_mission
+from veribattery.pipeline import Session, check_model
 
 PROPS = 'P=? [ F "success" ];\nR{"mt"}=? [ F "done" ]'
 
@@ -25,7 +25,7 @@ def _model_and_props() -> tuple[Model, PropertiesFile]:
 def test_unused_reward_structures_are_not_built_and_values_stay() -> None:
     model, props = _model_and_props()
     full = check_model(model, props.properties)
-    lean = check_model(model, props.properties, values_only=True)
+    lean = Session(reuse=False, rewards="named").check(model, props.properties)
     assert [r.name for r in full.dtmc.rewards] == ["mt", "rc"]
     assert [r.name for r in lean.dtmc.rewards] == ["mt"]
     assert [r.value for r in lean.results] == [r.value for r in full.results]
@@ -34,7 +34,7 @@ def test_unused_reward_structures_are_not_built_and_values_stay() -> None:
 def test_a_reward_by_index_keeps_every_structure() -> None:
     model, _ = _model_and_props()
     props = parse_properties('R{2}=? [ F "done" ];\nR=? [ F "done" ]')
-    lean = check_model(model, props.properties, values_only=True)
+    lean = Session(reuse=False, rewards="named").check(model, props.properties)
     assert [r.name for r in lean.dtmc.rewards] == ["mt", "rc"]
 
 
@@ -42,7 +42,7 @@ def test_sweep_checker_gives_the_values_of_check_mission() -> None:
     sets = (*SMALL_MISSION, "properties=" + json.dumps(
         {"p_success": PAPER_PROPERTIES["p_success"]}))
     cfg = load_config("{}\n", sets)
-    lean = MissionChecker(values_only=True).check(cfg)
+    lean = MissionSession.for_sweep(lump=True).check(cfg)
     full = check_mission(cfg)
     assert lean.values == full.values
     assert lean.recharge_cap_probability == full.recharge_cap_probability

@@ -11,6 +11,11 @@ and for missions::
 
     report = check_mission(load_config("configs/paper/case1.yaml"))
     report.values["p_success"]
+
+One typed entry point per way of checking: :func:`check_model` (floating point,
+certified bounds), :func:`check_model_exact` (rational arithmetic), and a
+:class:`Session` (or, for missions, a :class:`MissionSession`) for many similar models
+in a row; :class:`CheckOptions` says what each result keeps.
 """
 
 from __future__ import annotations
@@ -38,8 +43,15 @@ if TYPE_CHECKING:
         parse_property,
         resolve_property,
     )
-    from veribattery.mission import MissionReport, check_mission, mission_files
-    from veribattery.pipeline import ModelCheckRun, check_prism_file
+    from veribattery.mission import MissionReport, MissionSession, check_mission, mission_files
+    from veribattery.pipeline import (
+        CheckOptions,
+        ModelCheckRun,
+        Session,
+        check_model,
+        check_model_exact,
+        check_prism_file,
+    )
     from veribattery.render import render_model, render_properties
     from veribattery.sweep import run_sweep
 
@@ -57,8 +69,9 @@ _EXPORTS = {
     "veribattery.lang": (
         "flatten_model", "parse_model", "parse_properties", "parse_property", "resolve_property",
     ),
-    "veribattery.mission": ("MissionReport", "check_mission", "mission_files"),
-    "veribattery.pipeline": ("ModelCheckRun", "check_prism_file"),
+    "veribattery.mission": ("MissionReport", "MissionSession", "check_mission", "mission_files"),
+    "veribattery.pipeline": ("CheckOptions", "ModelCheckRun", "Session", "check_model",
+                             "check_model_exact", "check_prism_file"),
     "veribattery.render": ("render_model", "render_properties"),
     "veribattery.sweep": ("run_sweep",),
 }
@@ -78,19 +91,24 @@ def __getattr__(name: str) -> Any:
 __all__ = [
     "DTMC",
     "CheckError",
+    "CheckOptions",
     "CheckResult",
     "ConfigError",
     "MissionConfig",
     "MissionReport",
+    "MissionSession",
     "ModelCheckRun",
     "ModelError",
     "PrismSemanticError",
     "PrismSyntaxError",
     "RenderError",
+    "Session",
     "VeribatteryError",
     "build_dtmc",
     "check",
     "check_mission",
+    "check_model",
+    "check_model_exact",
     "check_prism_file",
     "flatten_model",
     "load_config",

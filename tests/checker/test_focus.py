@@ -1,6 +1,6 @@
 """Bounds certified at the initial states only (checker/focus.py).
 
-When only a property's answer is kept (``keep_states=False``: ``check``, ``prism``, a
+When only a property's answer is kept (``keep="answers"``: ``check``, ``prism``, a
 sweep point), the kernels certify the initial state's row of ``(I - B)^-1`` from both
 sides (one transposed solve per system, shared by every query on it) and enclose each
 answer as that row times the enclosed right-hand side; a pinned copy of a system, for
@@ -93,7 +93,7 @@ def test_answers_certified_at_the_initial_state_hold_the_rational_answer(
     text = _text(_thirds(rows), rewards, done, succeeded, t)
     built, initial = _as_built(text, len(rows))
     assert initial == 0
-    answers = check_prism_file(text, props_source=PROPS, keep_states=False).results
+    answers = check_prism_file(text, props_source=PROPS, keep="answers").results
     whole = check_prism_file(text, props_source=PROPS).results
     expected = _expected_answers(built, rewards, done, succeeded, t)
     assert_rational_answers(answers, expected)
@@ -107,7 +107,7 @@ def test_answers_certified_at_the_initial_state_hold_the_rational_answer(
 def test_a_cyclic_system_is_certified_whole(seed: int, focused: list[bool]) -> None:
     # An SCC-wise solver has no transposed substitution: the whole vector is certified.
     chain = _forward_chain(seed, back=True)
-    answers = check_prism_file(_text(*chain), props_source=PROPS, keep_states=False).results
+    answers = check_prism_file(_text(*chain), props_source=PROPS, keep="answers").results
     for answer, value in zip(answers, _expected_answers(*chain), strict=True):
         assert _contains(answer, value), (answer.property.text, answer, value)
         assert answer.precise
@@ -128,7 +128,7 @@ def test_a_condition_is_computed_once(focused: list[bool],
     monkeypatch.setattr(kernels, "_until_probs", counting)
     chain = _forward_chain(4)
     props = 'P=? [ F "b" ];\nR{"r"}=? [ F "a" || F "b" ]'
-    answers = check_prism_file(_text(*chain), props_source=props, keep_states=False).results
+    answers = check_prism_file(_text(*chain), props_source=props, keep="answers").results
     expected = _expected_answers(*chain)
     assert _contains(answers[0], expected[4]) and _contains(answers[1], expected[3])
     assert len(calls) == 1

@@ -143,11 +143,11 @@ endmodule
 
 def test_expressions_over_a_narrow_table_do_not_overflow() -> None:
     """``x*x*x*1000`` overflows int8 (x <= 120 fits int8): atoms are evaluated on int64
-    copies, so the answers equal those of the full table (``keep_states=True`` keeps it)."""
+    copies, so the answers equal those of the full table (``keep="states"`` keeps it)."""
     props = ('P=? [ F x*x*x*1000 > 1000000000 ]', 'filter(max, x*x*x*1000)',
              'P=? [ F x*x*x*1000 = 1728000000 ]')
-    narrow = check_prism_file(MODEL, selectors=props, keep_states=False)
-    full = check_prism_file(MODEL, selectors=props, keep_states=True)
+    narrow = check_prism_file(MODEL, selectors=props, keep="answers")
+    full = check_prism_file(MODEL, selectors=props, keep="states")
     assert narrow.dtmc.states.dtype == np.int8
     assert [r.value for r in narrow.results] == [r.value for r in full.results]
     assert narrow.results[0].value == pytest.approx(1.0)  # x reaches 120 surely

@@ -1,7 +1,7 @@
 """What a checked property keeps alive after its check (memory), values unchanged.
 
 A run of several properties reduces each result to its answer when asked
-(``keep_states=False``, what the CLI does), the kernels' memo frees the previous
+(``keep="answers"``, what the CLI does), the kernels' memo frees the previous
 linear system before building the next, and a triangular plan (index work by
 sparsity pattern, for sweeps) is kept only for a pattern seen a second time.
 """
@@ -55,7 +55,7 @@ def test_without_states_keeps_the_answer_and_drops_the_vectors() -> None:
 
 def test_runs_without_states_give_the_same_answers(tmp_path: object) -> None:
     kept = check_prism_file(RUIN, props_source=PROPS)
-    answers = check_prism_file(RUIN, props_source=PROPS, keep_states=False)
+    answers = check_prism_file(RUIN, props_source=PROPS, keep="answers")
     assert [r.value for r in answers.results] == [r.value for r in kept.results]
     assert [(r.lower, r.upper) for r in answers.results] == [
         (r.lower, r.upper) for r in kept.results]

@@ -171,7 +171,7 @@ def test_bad_property_is_refused_before_any_model_is_built(
     def never(*_args: object, **_kwargs: object) -> None:
         raise AssertionError("a model was built for a config with a bad property")
 
-    monkeypatch.setattr("veribattery.mission.check_model", never)
+    monkeypatch.setattr("veribattery.pipeline.Session.check", never)
     path = _write(tmp_path, PROPERTIES[0])
     cfg = load_config(path)
     for step in (check_mission, mission_files):

@@ -29,7 +29,7 @@ from veribattery.explore.rational import evaluate_rational, rational
 from veribattery.lang import parse_model
 from veribattery.lang.nodes import Expr
 from veribattery.lang.parser import parse_properties
-from veribattery.pipeline import ModelCheckRun, check_model
+from veribattery.pipeline import ModelCheckRun, check_model, check_model_exact
 
 PROPERTIES = """
 P=? [ F x=N ];
@@ -78,7 +78,7 @@ def test_the_exact_path_evaluates_deep_expressions_as_rationals() -> None:
     2.5 * 1,500 exactly."""
     model = parse_model(deep_model(1500))
     props = parse_properties('R{"weight"}=? [ F x=N ]; R{"weight_nested"}=? [ F x=N ];')
-    run = check_model(model, props.properties, props_file=props, exact=True)
+    run = check_model_exact(model, props.properties, props_file=props)
     assert (run.dtmc.num_states, run.dtmc.num_transitions) == (3001, 4501)
     assert [str(getattr(r, "exact", None)) for r in run.results] == ["3750", "3750"]
 
@@ -206,5 +206,5 @@ def test_exact_constants_of_long_chains() -> None:
     """The exact path recomputes a 5,000-long chain of constants as rationals."""
     model = parse_model(chained_definitions())
     props = parse_properties("P=? [ F x=1 ];")
-    run = check_model(model, props.properties, props_file=props, exact=True)
+    run = check_model_exact(model, props.properties, props_file=props)
     assert [str(getattr(r, "exact", None)) for r in run.results] == ["1"]

@@ -12,6 +12,7 @@ import pytest
 from tests.sweep.helpers import PER_POINT, SMALL_FARM, four_axes, same_results
 from veribattery.config import load_config
 from veribattery.errors import ConfigError
+from veribattery.mission import ParseCache, RenderedMission
 from veribattery.sweep import parse_axis, run_sweep
 from veribattery.sweep.execute import LocalPool, open_executor
 from veribattery.sweep.tasks import ReusePlan, Task, plan_tasks
@@ -33,17 +34,17 @@ def test_a_shared_run_cut_into_tasks_gives_the_serial_values() -> None:
     same_results(run_sweep("", axis, SMALL_FARM, jobs=2), serial)
     # (The small farm's values come out equal on the chain and its quotient, so the
     # rule itself: a one-point task of a shared run checks on the quotient too.)
-    cfg = load_config("", SMALL_FARM)
-    lone = Task(((0, cfg),), shared=True).checker().check(cfg)
+    mission = RenderedMission.of(load_config("", SMALL_FARM))
+    lone = Task(((0, mission),), shared=True).session(ParseCache()).check(mission)
     assert lone.run.quotient is not None and not lone.reused
-    assert Task(((0, cfg),)).checker().check(cfg).run.quotient is None
+    assert Task(((0, mission),)).session(ParseCache()).check(mission).run.quotient is None
 
 
 def test_pool_recovers_from_a_dead_worker(serial_frame: pd.DataFrame) -> None:
     # The pool's worker processes are killed after the first point: the pool breaks, is
     # restarted, and the unfinished tasks run again.
-    cfgs = [load_config("", [*SMALL_FARM, "battery.capacity_ah=10"])] * 3
-    tasks = [Task(((i, cfg),)) for i, cfg in enumerate(cfgs)]
+    missions = [RenderedMission.of(load_config("", [*SMALL_FARM, "battery.capacity_ah=10"]))] * 3
+    tasks = [Task(((i, mission),)) for i, mission in enumerate(missions)]
     pool = LocalPool(2)
     results = pool.results(tasks)
     first = next(results)
@@ -65,16 +66,16 @@ def _kill_pool_workers() -> None:
 def test_plan_full_build_without_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
     import veribattery.sweep.tasks as tasks_module
 
-    monkeypatch.setattr(tasks_module, "reuse_key", lambda cfg: None)
-    cfg = load_config("", SMALL_FARM)
-    tasks, plan = plan_tasks([(i, cfg) for i in range(5)], jobs=2)
+    monkeypatch.setattr(tasks_module, "reuse_key", lambda mission, parses: None)
+    mission = RenderedMission.of(load_config("", SMALL_FARM))
+    tasks, plan = plan_tasks([(i, mission) for i in range(5)], jobs=2)
     assert [len(t.points) for t in tasks] == [1] * 5  # no reuse key: one point each
     assert plan.describe() == "full build at every point"
 
 
 def test_plan_shares_the_state_space_of_equal_configs() -> None:
-    cfg = load_config("", SMALL_FARM)
-    tasks, plan = plan_tasks([(i, cfg) for i in range(5)], jobs=1)
+    mission = RenderedMission.of(load_config("", SMALL_FARM))
+    tasks, plan = plan_tasks([(i, mission) for i in range(5)], jobs=1)
     assert [len(t.points) for t in tasks] == [5]
     assert plan.describe() == "structure reuse: 5 points share 1 state space"
 
@@ -83,9 +84,9 @@ def test_plan_groups_equal_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
     import veribattery.sweep.tasks as tasks_module
 
     keys = iter(["a", "a", "a", None, "b", "b", "a"])
-    monkeypatch.setattr(tasks_module, "reuse_key", lambda cfg: next(keys))
-    cfg = load_config("", SMALL_FARM)
-    tasks, plan = plan_tasks([(i, cfg) for i in range(7)], jobs=1)
+    monkeypatch.setattr(tasks_module, "reuse_key", lambda mission, parses: next(keys))
+    mission = RenderedMission.of(load_config("", SMALL_FARM))
+    tasks, plan = plan_tasks([(i, mission) for i in range(7)], jobs=1)
     assert [[i for i, _ in t.points] for t in tasks] == [[0, 1, 2], [3], [4, 5], [6]]
     # Points of shared runs are checked on quotients, however the run is cut (below).
     assert [t.shared for t in tasks] == [True, False, True, False]
@@ -94,7 +95,7 @@ def test_plan_groups_equal_reuse_keys(monkeypatch: pytest.MonkeyPatch) -> None:
                                "full build at the other 2")
     # With two workers a run longer than an even share (4 points) is cut.
     keys = iter(["a"] * 7)
-    tasks, _ = plan_tasks([(i, cfg) for i in range(7)], jobs=2)
+    tasks, _ = plan_tasks([(i, mission) for i in range(7)], jobs=2)
     assert [len(t.points) for t in tasks] == [4, 3]
     assert all(t.shared for t in tasks)
 
@@ -106,12 +107,13 @@ def test_a_resumed_sweep_lumps_the_points_it_would_have_lumped(
 
     configs = [load_config("", (*SMALL_FARM, f"environment.p_wsp_c=0.{i + 1}")) for i in range(4)]
     keys = {id(cfg): key for cfg, key in zip(configs, "aabc", strict=True)}
-    monkeypatch.setattr(tasks_module, "reuse_key", lambda cfg: keys[id(cfg)])
+    monkeypatch.setattr(tasks_module, "reuse_key", lambda mission, parses: keys[id(mission.config)])
     grid = list(enumerate(configs))
+    left = [(i, RenderedMission.of(configs[i])) for i in (1, 3)]
     # Points 1 and 3 left: 1 shares its grid run with 0 (done), 3 is alone.
-    tasks, _ = plan_tasks([grid[1], grid[3]], jobs=1, grid=grid)
+    tasks, _ = plan_tasks(left, jobs=1, grid=grid)
     assert [([i for i, _ in t.points], t.shared) for t in tasks] == [([1], True), ([3], False)]
-    tasks, _ = plan_tasks([grid[1], grid[3]], jobs=1)  # (planned alone: neither)
+    tasks, _ = plan_tasks(left, jobs=1)  # (planned alone: neither)
     assert [t.shared for t in tasks] == [False, False]
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from veribattery.errors import ConfigError
-from veribattery.sweep import Axis, grid, parse_axis, point_overrides
+from veribattery.sweep import Axis, grid, parse_axis, point_values
 
 
 def test_range_is_exact_and_includes_stop() -> None:
@@ -14,7 +14,7 @@ def test_range_is_exact_and_includes_stop() -> None:
     assert len(axis.values) == 16
     assert [repr(v) for v in axis.values[:3]] == ["10", "10.2", "10.4"]
     assert axis.values[-1] == 13 and isinstance(axis.values[-1], int)
-    assert point_overrides({"battery.capacity_ah": axis.values[7]}) == ["battery.capacity_ah=11.4"]
+    assert point_values({"battery.capacity_ah": axis.values[7]}) == {"battery.capacity_ah": 11.4}
 
 
 @pytest.mark.parametrize(
@@ -36,10 +36,11 @@ def test_axis_values(spec: str, expected: tuple[object, ...]) -> None:
     assert parse_axis(spec).values == expected
 
 
-def test_list_values_round_trip_as_yaml() -> None:
+def test_point_values_are_what_yaml_loads() -> None:
     axis = parse_axis("farm.base=[0,0],[1,1]")
-    assert point_overrides({axis.key: axis.values[1]}) == ["farm.base=[1, 1]"]
-    assert point_overrides({"battery.model": "basic_high"}) == ["battery.model=basic_high"]
+    values = point_values({axis.key: axis.values[1]})
+    assert values == {"farm.base": [1, 1]} and isinstance(values["farm.base"], list)
+    assert point_values({"battery.model": "basic_high"}) == {"battery.model": "basic_high"}
 
 
 def test_grid_is_the_product_first_axis_slowest() -> None:

@@ -13,6 +13,7 @@ from tests.sweep.helpers import SMALL_FARM
 from veribattery.cli import cli
 from veribattery.config import load_config
 from veribattery.mission import (
+    RECHARGE_CAP,
     RECHARGE_CAP_WARN_AT,
     MissionReport,
     check_mission,
@@ -49,6 +50,12 @@ def test_tiny_probability_is_reported_but_not_warned(tmp_path: Path) -> None:
     # The independent path: Storm's value of the same probability on the emitted model.
     storm = _storm_probability(report)
     assert report.recharge_cap_probability == pytest.approx(storm, rel=1e-6)
+    # A named property of the check, read by the report: never among the config's
+    # results, nor in the files emit writes.
+    assert report.run.internal_value(RECHARGE_CAP) == report.recharge_cap_probability
+    assert [r.property.name for r in report.run.results] == list(report.config.properties)
+    files = mission_files(report.config)
+    assert "rc=" not in files.properties + files.storm_only
     config = tmp_path / "m.yaml"
     config.write_text("")
     result = CliRunner().invoke(cli, ["check", str(config), *_sets(), "--format", "json"])

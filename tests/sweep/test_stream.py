@@ -11,7 +11,7 @@ import pytest
 
 from tests.sweep.helpers import PER_POINT, SMALL_FARM
 from veribattery.config import load_config
-from veribattery.mission import MissionChecker
+from veribattery.mission import MissionSession, RenderedMission
 from veribattery.sweep import parse_axis, run_sweep
 from veribattery.sweep.execute import LocalPool
 from veribattery.sweep.tasks import PointResult, Task, check_point
@@ -20,15 +20,16 @@ from veribattery.sweep.tasks import PointResult, Task, check_point
 REUSE_AXIS = "environment.p_wsp_c=0.1:0.4:0.1"
 
 
-def dies_at_point_one(checker: MissionChecker, index: int, cfg: object) -> PointResult:
+def dies_at_point_one(session: MissionSession, index: int,
+                      mission: RenderedMission) -> PointResult:
     """A worker's point check that kills its process at point 1, every time."""
     if index == 1:
         os._exit(3)
-    return check_point(checker, index, cfg)  # type: ignore[arg-type]
+    return check_point(session, index, mission)
 
 
 def test_finished_points_of_a_task_survive_its_worker_dying() -> None:
-    cfg = load_config("", SMALL_FARM)
+    cfg = RenderedMission.of(load_config("", SMALL_FARM))
     tasks = [Task(((0, cfg), (1, cfg), (2, cfg))), Task(((3, cfg),))]
     results = list(LocalPool(2, check=dies_at_point_one).results(tasks))
     by_index = {r.index: r for r in results}
@@ -81,7 +82,7 @@ def test_dask_keeps_finished_points_of_a_task_whose_worker_dies() -> None:
     distributed = pytest.importorskip("distributed")
     from veribattery.sweep.execute import DaskExecutor
 
-    cfg = load_config("", SMALL_FARM)
+    cfg = RenderedMission.of(load_config("", SMALL_FARM))
     tasks = [Task(((0, cfg), (1, cfg), (2, cfg))), Task(((3, cfg),))]
     # No retries: the first worker death gives the task up (KilledWorker).
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \

@@ -8,15 +8,15 @@ from typing import Any
 
 import pytest
 
-import veribattery.pipeline as pipeline
+import veribattery.pipeline.session as pipeline
 from tests.sweep.helpers import SMALL_FARM
-from veribattery.config import MissionConfig, load_config
-from veribattery.mission import check_mission, reuse_key
-from veribattery.sweep.tasks import PointResult, Task, iter_task, run_task
+from veribattery.config import load_config
+from veribattery.mission import RenderedMission, check_mission, reuse_key
+from veribattery.sweep.tasks import PointResult, Task, Worker, run_task
 
 
-def _config(p_wsp_c: str) -> MissionConfig:
-    return load_config("", (*SMALL_FARM, f"environment.p_wsp_c={p_wsp_c}"))
+def _mission(p_wsp_c: str) -> RenderedMission:
+    return RenderedMission.of(load_config("", (*SMALL_FARM, f"environment.p_wsp_c={p_wsp_c}")))
 
 
 @pytest.fixture
@@ -37,15 +37,15 @@ def _values(result: PointResult) -> dict[str, float | bool]:
     return {v.name: v.value for v in result.values}
 
 
-@pytest.mark.parametrize("run", [run_task, lambda task: list(iter_task(task))],
-                         ids=["run_task", "iter_task"])
+@pytest.mark.parametrize("run", [run_task, lambda task: list(Worker().results(task))],
+                         ids=["run_task", "Worker.results"])
 def test_one_point_task_keeps_no_structure(
     run: Callable[[Task], list[PointResult]], reusable_builds: list[int]
 ) -> None:
-    cfg = _config("0.1")
-    [result] = run(Task(((7, cfg),)))
+    mission = _mission("0.1")
+    [result] = run(Task(((7, mission),)))
     assert reusable_builds == []
-    fresh = check_mission(cfg)
+    fresh = check_mission(mission.config)
     assert result.index == 7 and result.error is None
     assert _values(result) == fresh.values  # the same build and solves: equal to the bit
     assert result.recharge_cap_probability == fresh.recharge_cap_probability
@@ -53,11 +53,32 @@ def test_one_point_task_keeps_no_structure(
 
 
 def test_task_of_one_key_builds_once(reusable_builds: list[int]) -> None:
-    configs = [_config(p) for p in ("0.1", "0.35")]
-    assert reuse_key(configs[0]) == reuse_key(configs[1])
-    results = run_task(Task(tuple(enumerate(configs))))
+    missions = [_mission(p) for p in ("0.1", "0.35")]
+    assert reuse_key(missions[0]) == reuse_key(missions[1])
+    results = run_task(Task(tuple(enumerate(missions))))
     assert reusable_builds == [1]  # the second point re-used the first one's structure
-    for result, cfg in zip(results, configs, strict=True):
-        fresh = check_mission(cfg).values
+    for result, mission in zip(results, missions, strict=True):
+        fresh = check_mission(mission.config).values
         for name, value in _values(result).items():
             assert float(value) == pytest.approx(float(fresh[name]), rel=1e-12)
+
+
+def test_a_worker_parses_a_model_in_full_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """One-point tasks (a sweep without shared state spaces) in one worker: the second
+    point's model differs in a constant, and only that declaration is parsed again."""
+    import veribattery.mission.parses as parses
+
+    full: list[int] = []
+    original: Callable[..., Any] = parses.parse_model
+
+    def counting(text: str, *args: Any, **kwargs: Any) -> Any:
+        if len(text) > 2000:  # a whole model, not one declaration at its own line
+            full.append(1)
+        return original(text, *args, **kwargs)
+
+    monkeypatch.setattr(parses, "parse_model", counting)
+    worker = Worker()
+    for index, p in enumerate(("0.1", "0.35")):
+        [result] = worker.results(Task(((index, _mission(p)),)))
+        assert result.error is None
+    assert full == [1]

@@ -61,7 +61,7 @@ def check_command(
             check_output_dir(emit_dir, "--emit", force=force, names=EMITTED_FILES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            report = check_mission(cfg, progress=progress, exact=exact, keep_states=False)
+            report = check_mission(cfg, progress=progress, exact=exact, keep="answers")
         if emit_dir is not None:
             write_files(mission_files(cfg), emit_dir, force=force)
     print_warnings(report.warnings)

@@ -84,7 +84,7 @@ def prism_command(
         constants = parse_constant_assignments(consts)
         run = check_prism_file(
             model, props_source=props, selectors=selectors, constants=constants, progress=progress,
-            exact=exact, keep_states=False,
+            exact=exact, keep="answers",
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)

@@ -5,12 +5,20 @@ This package imports nothing of veribattery but :mod:`veribattery.errors`.
 
 from veribattery.config.battery import CostTable, capacity_units, consumption_units, round_half_up
 from veribattery.config.farm import FarmLayout, derive_layout, route_cells
-from veribattery.config.load import config_to_yaml, load_config, parse_override, set_value
+from veribattery.config.load import (
+    ConfigDocument,
+    config_to_yaml,
+    load_config,
+    parse_override,
+    read_config,
+    set_value,
+)
 from veribattery.config.params import ModelParameters, Ratio, derive_parameters
 from veribattery.config.schema import MissionConfig, Requirement, parse_requirement
 from veribattery.config.validate import known_keys, validate_config
 
 __all__ = [
+    "ConfigDocument",
     "CostTable",
     "FarmLayout",
     "MissionConfig",
@@ -26,6 +34,7 @@ __all__ = [
     "load_config",
     "parse_override",
     "parse_requirement",
+    "read_config",
     "round_half_up",
     "route_cells",
     "set_value",

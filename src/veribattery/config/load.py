@@ -5,6 +5,7 @@ from __future__ import annotations
 import copy
 import difflib
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path as FsPath
 from typing import Any
@@ -19,7 +20,8 @@ from veribattery.config.source import compose, construct, decode
 from veribattery.config.validate import Path, known_keys, validate_config
 from veribattery.errors import ConfigError, Span
 
-__all__ = ["config_to_yaml", "load_config", "parse_override", "set_value"]
+__all__ = ["ConfigDocument", "config_to_yaml", "load_config", "parse_override", "read_config",
+           "set_value"]
 
 _PROPERTY_KEY = "properties."
 
@@ -37,6 +39,61 @@ def load_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Mi
     :raises ConfigError: on unreadable files, YAML syntax errors (with line:col),
         malformed overrides and every validation problem.
     """
+    return read_config(path_or_text, overrides).validate()
+
+
+@dataclass(frozen=True, slots=True)
+class ConfigDocument:
+    """A config document as read, its ``--set`` overrides applied, not yet validated.
+
+    A sweep reads and parses its config once, and validates each point's values set
+    on it (:meth:`with_values`): every point's config, and every error in one, is what
+    :func:`load_config` would make of the file with the point's keys given by ``--set``.
+    """
+
+    #: The document's data, overrides applied.
+    data: dict[str, Any]
+    #: The YAML node tree, to place errors in the file.
+    root: yaml.Node | None
+    #: The text and the name it was read under (a path, or ``<string>``).
+    written: tuple[str, str]
+    #: The dotted keys set by overrides: errors under them have no place in the file.
+    overridden: tuple[str, ...] = ()
+
+    def with_values(self, values: Mapping[str, object]) -> ConfigDocument:
+        """This document with *values* at their dotted keys, as ``--set`` would put them
+        (each value as YAML loads it: lists, not tuples)."""
+        data = self.data
+        for key, value in values.items():
+            data = set_value(data, key, value)
+        return replace(self, data=data, overridden=(*self.overridden, *values))
+
+    def validate(self) -> MissionConfig:
+        """The validated config.
+
+        :raises ConfigError: naming the first bad key, placed in the file unless an
+            override set it.
+        """
+        source = self.written[1]
+
+        def locate(path: Path) -> Span | None:
+            if any(_under(path, key) for key in self.overridden):
+                return None
+            return _locate(self.root, path, source)
+
+        cfg = validate_config(self.data, locate)
+        cfg._property_origins = property_origins(cfg.properties, self.root, self.written,
+                                                 self.overridden)
+        return cfg
+
+
+def read_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> ConfigDocument:
+    """Read a config file (or YAML text) and apply overrides, without validating (see
+    :func:`load_config`, which validates the result).
+
+    :raises ConfigError: on unreadable files, YAML syntax errors (with line:col) and
+        malformed overrides.
+    """
     text, source = _read(path_or_text)
     root = compose(text, source)
     data = _mapping(construct(root, text, source), source)
@@ -45,15 +102,7 @@ def load_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Mi
         key, value = parse_override(item)
         data = set_value(data, key, value)
         overridden.append(key)
-
-    def locate(path: Path) -> Span | None:
-        if any(_under(path, key) for key in overridden):
-            return None
-        return _locate(root, path, source)
-
-    cfg = validate_config(data, locate)
-    cfg._property_origins = property_origins(cfg.properties, root, (text, source), overridden)
-    return cfg
+    return ConfigDocument(data, root, (text, source), tuple(overridden))
 
 
 def _read(path_or_text: str | FsPath) -> tuple[str, str]:

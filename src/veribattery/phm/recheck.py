@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from veribattery.config import MissionConfig, consumption_units, load_config
-from veribattery.mission import MissionChecker, MissionReport
+from veribattery.mission import MissionReport, MissionSession
 from veribattery.phm.data import read_cycles, read_discharge
 from veribattery.phm.fragment import Fragment
 from veribattery.phm.refit import FadeParameters, LevelParameters, fade_parameters, level_parameters
@@ -107,14 +107,17 @@ def _moved(before: MissionConfig, after: MissionConfig, fragment: Fragment) -> l
 
 def recheck(config: str | Path, cycles: str | Path, discharge: str | Path | None = None,
             overrides: Sequence[str] = (), model: str | None = None,
-            checker: MissionChecker | None = None) -> Recheck:
+            session: MissionSession | None = None) -> Recheck:
     """Verify *config* as it is and with the battery refitted from the data.
 
+    :param session: what checks both configs (default: a
+        :class:`~veribattery.mission.MissionSession` that keeps every state's values and
+        re-uses the first config's state space for the second where it can).
     :raises VeribatteryError: on bad config or data (before anything is checked).
     """
     before_cfg = load_config(config, overrides)
     fitted = refit(before_cfg, cycles, discharge, model)
     after_cfg = load_config(config, [*overrides, *fitted.fragment.overrides()])
-    checker = checker or MissionChecker()
-    before, after = checker.check(before_cfg), checker.check(after_cfg)
+    session = session or MissionSession()
+    before, after = session.check(before_cfg), session.check(after_cfg)
     return Recheck(fitted, before, after, tuple(_moved(before_cfg, after_cfg, fitted.fragment)))

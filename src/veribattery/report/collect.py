@@ -1,7 +1,7 @@
 """Collect a report's numbers: the mission is built and checked once, and every analysis
 runs on that one DTMC.
 
-``check`` (:func:`~veribattery.mission.check_mission` with ``keep_states=False``)
+``check`` (:func:`~veribattery.mission.check_mission` with ``keep="answers"``)
 builds and checks the chain; its DTMC is handed on to ``explain``'s breakdown and
 paths, ``distribution``'s CDF and ``simulate``'s runs, so the state space is explored
 once. (The check keeps its state table in a narrow integer type; the analyses
@@ -83,7 +83,7 @@ def collect_report(cfg: MissionConfig, options: ReportOptions, *,
     clock = Stopwatch()
     with clock.stage("check"):
         say("checking the mission (build and model check)")
-        report = check_mission(cfg, progress=progress, keep_states=False)
+        report = check_mission(cfg, progress=progress, keep="answers")
         files = mission_files(cfg)
         mission = _mission(cfg, files, report.run.dtmc)
     view = MissionView(mission)

@@ -1,7 +1,7 @@
 """The verdict: the config's requirements and named results, from the same check as ``check``.
 
 The values, intervals and requirement outcomes are those of
-:func:`veribattery.mission.check_mission` with ``keep_states=False``, the call
+:func:`veribattery.mission.check_mission` with ``keep="answers"``, the call
 ``veribattery check`` makes, so the page and ``check --format json`` cannot differ.
 """
 
@@ -35,7 +35,7 @@ def label(name: str) -> str:
 
 
 def make_verdict(report: MissionReport) -> Verdict:
-    """The verdict of a finished check (``check_mission(cfg, keep_states=False)``)."""
+    """The verdict of a finished check (``check_mission(cfg, keep="answers")``)."""
     dtmc = report.run.dtmc
     quantities = tuple(_quantity(r) for r in report.run.results)
     requirements = tuple(_requirement(o, report) for o in report.requirements)

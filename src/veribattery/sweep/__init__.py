@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 
 # Imported now: the function grid shares its name with the module veribattery.sweep.grid,
 # which would otherwise shadow it once imported.
-from veribattery.sweep.grid import Axis, axes_from, grid, parse_axis, point_overrides
+from veribattery.sweep.grid import Axis, axes_from, grid, parse_axis, point_values
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -71,7 +71,7 @@ __all__ = [
     "grid",
     "parse_axis",
     "plot_sweep",
-    "point_overrides",
+    "point_values",
     "records",
     "run_sweep",
     "summary_line",

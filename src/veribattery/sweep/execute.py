@@ -22,9 +22,10 @@ from veribattery.sweep.tasks import (
     PointResult,
     PointStream,
     Task,
-    iter_task,
+    Worker,
+    process_worker,
     run_task,
-    stream_to,
+    start_worker,
 )
 
 if TYPE_CHECKING:
@@ -69,14 +70,17 @@ def open_executor(jobs: int, scheduler: str | None) -> Iterator[Executor]:
 
 
 class InProcess:
-    """``-j 1``: the points one after another in this process."""
+    """``-j 1``: the points one after another in this process (one :class:`Worker`)."""
 
     description = "in this process"
+
+    def __init__(self) -> None:
+        self.worker = Worker()
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Check each task's points in order."""
         for task in tasks:
-            yield from iter_task(task)
+            yield from self.worker.results(task)
 
 
 class LocalPool:
@@ -100,7 +104,8 @@ class LocalPool:
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Run the tasks in the pool, yielding each point's result as it is checked."""
         if len(tasks) <= 1:
-            yield from (r for task in tasks for r in iter_task(task, self.check))
+            worker = Worker()
+            yield from (r for task in tasks for r in worker.results(task, self.check))
             return
         pending, seen = list(tasks), _Seen()
         breaks = {index: 0 for task in tasks for index, _ in task.points}
@@ -117,7 +122,7 @@ class LocalPool:
         stream = PointStream.open(context)
         started: set[int] = set()
         with ProcessPoolExecutor(min(self.jobs, len(pending)), mp_context=context,
-                                 initializer=stream_to, initargs=(stream,)) as pool:
+                                 initializer=start_worker, initargs=(stream,)) as pool:
             futures: dict[Future[list[PointResult]], Task] = {
                 pool.submit(run_task, task, self.check): task for task in pending}
             try:
@@ -257,7 +262,7 @@ def run_dask_task(
 
     stream = DaskQueue(stream_name)  # type: ignore[no-untyped-call]
     results = []
-    for result in iter_task(task, check):
+    for result in process_worker().results(task, check):
         stream.put(pickle.dumps(result))  # type: ignore[no-untyped-call]
         results.append(result)
     return results

@@ -29,7 +29,7 @@ __all__ = [
     "axes_from",
     "grid",
     "parse_axis",
-    "point_overrides",
+    "point_values",
     "yaml_text",
 ]
 
@@ -97,9 +97,10 @@ def grid(axes: Sequence[Axis]) -> list[Point]:
             itertools.product(*(axis.values for axis in axes))]
 
 
-def point_overrides(point: Mapping[str, object]) -> list[str]:
-    """``KEY=VALUE`` override strings (as ``--set`` takes them) for one grid point."""
-    return [f"{key}={yaml_text(value)}" for key, value in point.items()]
+def point_values(point: Mapping[str, object]) -> dict[str, object]:
+    """The values one grid point sets, by dotted key, as YAML loads them (lists where the
+    grid holds tuples): what :meth:`~veribattery.config.ConfigDocument.with_values` takes."""
+    return {key: _thaw(value) for key, value in point.items()}
 
 
 def yaml_text(value: object) -> str:

@@ -31,11 +31,12 @@ from pathlib import Path
 
 import pandas as pd
 
-from veribattery.config import MissionConfig, load_config
+from veribattery.config import ConfigDocument, MissionConfig, read_config
 from veribattery.errors import VeribatteryError
+from veribattery.mission import ParseCache, RenderedMission
 from veribattery.sweep.execute import Executor, InProcess, open_executor
 from veribattery.sweep.fingerprint import fingerprint
-from veribattery.sweep.grid import Axis, Point, grid, point_overrides, yaml_text
+from veribattery.sweep.grid import Axis, Point, grid, point_values, yaml_text
 from veribattery.sweep.store import ResultsStore, Row, check_target, open_results
 from veribattery.sweep.summary import sweep_warnings
 from veribattery.sweep.tasks import PointResult, plan_tasks
@@ -77,11 +78,14 @@ def run_sweep(
 ) -> pd.DataFrame:
     """Check the mission *config* at every point of the grid of *axes*.
 
-    Every point's config is loaded and validated, the RESULTS target checked and the
-    scheduler reached before any point is checked or anything written, so bad input
-    fails at once and leaves nothing behind.
+    The config is read once, and every point's config validated (as
+    :func:`~veribattery.config.load_config` would with the point's keys given by
+    ``--set``), the RESULTS target checked and the scheduler reached before any point is
+    checked or anything written, so bad input fails at once and leaves nothing behind.
+    Each point still to check is rendered once, for its reuse key and its check.
 
-    :param config: the config file (or YAML text, as :func:`load_config` takes).
+    :param config: the config file (or YAML text, as
+        :func:`~veribattery.config.load_config` takes).
     :param axes: the swept keys; their values override *overrides*.
     :param overrides: ``KEY=VALUE`` strings applied at every point (``--set``).
     :param progress: called with (points done, total points).
@@ -96,7 +100,8 @@ def run_sweep(
         an unreachable scheduler.
     """
     points = grid(axes)
-    configs = [_load(config, overrides, point) for point in points]
+    document = read_config(config, overrides)
+    configs = [_at(document, point) for point in points]
     columns = ["point", *(axis.key for axis in axes), *FIXED_COLUMNS]
     cells = [_cells(point) for point in points]
     if results is not None:
@@ -104,7 +109,7 @@ def run_sweep(
     with open_executor(jobs, scheduler) as executor:
         store, earlier = None, {}
         if results is not None:
-            mark = fingerprint(load_config(config, overrides), overrides, axes)
+            mark = fingerprint(document.validate(), overrides, axes)
             store, rows = open_results(Path(results), columns, mark, force=force)
             earlier = _by_point(rows, cells)
         sweep = _Sweep(points, configs, cells, store, earlier)
@@ -129,8 +134,9 @@ class _Sweep:
             retried = len(self.rows) - len(done)
             notes(f"{len(done)} of {total} points already done"
                   + (f"; {retried} failed points are retried" if retried else ""))
-        pending = [(i, c) for i, c in enumerate(self.configs) if i not in done]
-        tasks, plan = plan_tasks(pending, jobs, list(enumerate(self.configs)) if done else None)
+        pending = [(i, RenderedMission.of(c)) for i, c in enumerate(self.configs) if i not in done]
+        whole = list(enumerate(self.configs)) if done else None
+        tasks, plan = plan_tasks(pending, jobs, whole, ParseCache())
         if pending:
             where = executor.description if len(tasks) > 1 else InProcess.description
             notes(f"{plan.describe()}; running {where}")
@@ -201,9 +207,10 @@ def _cells(point: Point) -> Row:
     return {key: yaml_text(v) if isinstance(v, tuple) else v for key, v in point.items()}
 
 
-def _load(config: str | Path, overrides: Sequence[str], point: Point) -> MissionConfig:
+def _at(document: ConfigDocument, point: Point) -> MissionConfig:
+    """The validated config of *point*; an error names the point."""
     try:
-        return load_config(config, [*overrides, *point_overrides(point)])
+        return document.with_values(point_values(point)).validate()
     except VeribatteryError as exc:
         if not point:
             raise

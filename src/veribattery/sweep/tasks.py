@@ -1,10 +1,12 @@
 """Units of sweep work: tasks of grid points and what checking one point gives back.
 
 A task is a run of consecutive grid points checked in order by one
-:class:`~veribattery.mission.MissionChecker`, so that points with equal
+:class:`~veribattery.mission.MissionSession`, so that points with equal
 :func:`~veribattery.mission.reuse_key` can share one state space. A task is what an
-executor ships to a worker; a :class:`PointResult` is what comes back: plain numbers and
-strings only, never the DTMC, so it pickles small.
+executor ships to a worker (each point's config with its rendered texts: a point is
+rendered once); a :class:`PointResult` is what comes back: plain numbers and strings
+only, never the DTMC, so it pickles small. A :class:`Worker` runs tasks one after
+another in one process.
 """
 
 from __future__ import annotations
@@ -16,14 +18,20 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from veribattery.config import MissionConfig
-from veribattery.mission import MissionChecker, MissionReport, reuse_key
+from veribattery.mission import (
+    MissionReport,
+    MissionSession,
+    ParseCache,
+    RenderedMission,
+    reuse_key,
+)
 
 if TYPE_CHECKING:
     from multiprocessing.connection import Connection
     from multiprocessing.context import BaseContext
 
 __all__ = ["PointCheck", "PointResult", "PointStream", "PropertyValue", "ReusePlan", "Task",
-           "iter_task", "plan_tasks", "run_task", "stream_to"]
+           "Worker", "plan_tasks", "run_task", "start_worker"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,22 +58,30 @@ class PointResult:
     error: str | None = None
 
 
+#: A grid point to check: its index and its rendered mission.
+Point = tuple[int, RenderedMission]
+
+
 @dataclass(frozen=True, slots=True)
 class Task:
-    """Consecutive grid points (index, config), checked in order by one checker.
+    """Consecutive grid points, checked in order in one session.
 
     *shared*: the points belong to a run of points that share one state space; they
     are checked on bisimulation quotients (whether the run was cut into one task or
     several, so that -j never changes a value).
     """
 
-    points: tuple[tuple[int, MissionConfig], ...]
+    points: tuple[Point, ...]
     shared: bool = False
 
-    def checker(self) -> MissionChecker:
-        """The checker of this task's points: one that keeps the structure of its builds
-        only when a later point of the task may re-use it."""
-        return MissionChecker(values_only=True, reuse=len(self.points) > 1, lump=self.shared)
+    def session(self, parses: ParseCache) -> MissionSession:
+        """The session of this task's points: one that keeps the structure of its builds
+        only when a later point of the task may re-use it.
+
+        :param parses: the worker's parse cache.
+        """
+        return MissionSession.for_sweep(reuse=len(self.points) > 1, lump=self.shared,
+                                        parses=parses)
 
 
 @dataclass(frozen=True, slots=True)
@@ -87,20 +103,24 @@ class ReusePlan:
 
 
 def plan_tasks(
-    points: Sequence[tuple[int, MissionConfig]], jobs: int,
+    points: Sequence[Point], jobs: int,
     grid: Sequence[tuple[int, MissionConfig]] | None = None,
+    parses: ParseCache | None = None,
 ) -> tuple[list[Task], ReusePlan]:
     """Group consecutive *points* with equal non-None reuse keys into tasks.
 
     A run of equal keys longer than an even share of the points (``len / jobs``) is cut
     into pieces, each building once, so that every worker has work.
 
-    :param grid: the whole grid, when *points* are what is left of it (a resumed
-        sweep). A point is checked on a quotient (:attr:`Task.shared`) when its run in
-        the grid has two points or more, so that resuming never changes a value.
+    :param grid: the whole grid's configs, when *points* are what is left of it (a
+        resumed sweep). A point is checked on a quotient (:attr:`Task.shared`) when its
+        run in the grid has two points or more, so that resuming never changes a value.
+    :param parses: the parse cache for the keys (consecutive points differ little).
     """
-    keys = {index: reuse_key(cfg) for index, cfg in points}
-    in_shared = _in_shared_runs(points, keys, points if grid is None else grid)
+    parses = parses or ParseCache()
+    keys = {index: reuse_key(mission, parses) for index, mission in points}
+    whole = grid if grid is not None else [(index, m.config) for index, m in points]
+    in_shared = _in_shared_runs(points, keys, whole, parses)
     runs = [piece for run in _runs(points, keys) for piece in _split(run, in_shared)]
     shared = [run for run in runs if len(run) > 1]
     plan = ReusePlan(sum(map(len, shared)), len(shared), len(points))
@@ -110,8 +130,8 @@ def plan_tasks(
     return tasks, plan
 
 
-def _in_shared_runs(points: Sequence[tuple[int, MissionConfig]], keys: dict[int, str | None],
-                    grid: Sequence[tuple[int, MissionConfig]]) -> set[int]:
+def _in_shared_runs(points: Sequence[Point], keys: dict[int, str | None],
+                    grid: Sequence[tuple[int, MissionConfig]], parses: ParseCache) -> set[int]:
     """The indices of *points* whose run in *grid* has two points or more: a key that
     is not None and equals a grid neighbour's (whose keys are made here, for those
     neighbours alone)."""
@@ -123,15 +143,14 @@ def _in_shared_runs(points: Sequence[tuple[int, MissionConfig]], keys: dict[int,
             if key is not None and 0 <= near < len(grid):
                 other, cfg = grid[near]
                 if other not in keys:
-                    keys[other] = reuse_key(cfg)
+                    keys[other] = reuse_key(RenderedMission.of(cfg), parses)
                 if keys[other] == key:
                     found.add(index)
     return found
 
 
-def _runs(points: Sequence[tuple[int, MissionConfig]],
-          keys: dict[int, str | None]) -> list[list[tuple[int, MissionConfig]]]:
-    runs: list[list[tuple[int, MissionConfig]]] = []
+def _runs(points: Sequence[Point], keys: dict[int, str | None]) -> list[list[Point]]:
+    runs: list[list[Point]] = []
     previous: str | None = None
     for point in points:
         key = keys[point[0]]
@@ -143,10 +162,9 @@ def _runs(points: Sequence[tuple[int, MissionConfig]],
     return runs
 
 
-def _split(run: list[tuple[int, MissionConfig]],
-           in_shared: set[int]) -> list[list[tuple[int, MissionConfig]]]:
+def _split(run: list[Point], in_shared: set[int]) -> list[list[Point]]:
     """*run* cut where its points change between checked on quotients and not."""
-    pieces: list[list[tuple[int, MissionConfig]]] = []
+    pieces: list[list[Point]] = []
     for point in run:
         if pieces and (pieces[-1][0][0] in in_shared) == (point[0] in in_shared):
             pieces[-1].append(point)
@@ -156,7 +174,8 @@ def _split(run: list[tuple[int, MissionConfig]],
 
 
 #: Checks one point: :func:`check_point`, or a stand-in (tests) importable by workers.
-PointCheck = Callable[["MissionChecker", int, MissionConfig], "PointResult"]
+PointCheck = Callable[[MissionSession, int, RenderedMission], "PointResult"]
+
 
 @dataclass(frozen=True, slots=True)
 class PointStream:
@@ -198,47 +217,66 @@ class PointStream:
         self.writer.close()
 
 
-#: Where this worker process reports each point: its index when its check starts, its
-#: result the moment it is done (set by :func:`stream_to` when a local pool starts the
-#: process).
-_STREAM: PointStream | None = None
+class Worker:
+    """Runs tasks one after another in one process, keeping from one task to the next
+    its parse cache (consecutive points' texts differ in a constant or two, and most
+    tasks of a sweep without shared state spaces are one point long).
+
+    :param stream: where to report each point, its index when its check starts and its
+        result the moment it is done (a local pool's worker), or None.
+    """
+
+    def __init__(self, stream: PointStream | None = None) -> None:
+        self.stream = stream
+        self.parses = ParseCache()
+
+    def results(self, task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
+        """Check the points of *task* in order in one session, yielding each as it is done.
+
+        With a stream, each point is reported when it starts and when it is done, so
+        that finished points are kept even if the task never finishes, and a worker's
+        death is blamed on the point it was checking.
+        """
+        session = task.session(self.parses)
+        for index, mission in task.points:
+            if self.stream is not None:
+                self.stream.put(index)
+            result = (check or check_point)(session, index, mission)
+            if self.stream is not None:
+                self.stream.put(result)
+            yield result
 
 
-def stream_to(stream: PointStream | None) -> None:
-    """Report every point to *stream* as it starts and ends (a pool's initializer)."""
-    global _STREAM
-    _STREAM = stream
+#: The worker of this process, when it checks tasks for a pool or a Dask cluster (made by
+#: :func:`start_worker`, or on the first task).
+_WORKER: Worker | None = None
+
+
+def start_worker(stream: PointStream | None) -> None:
+    """Make this process a worker that reports every point to *stream* (a pool's
+    initializer)."""
+    global _WORKER
+    _WORKER = Worker(stream)
+
+
+def process_worker() -> Worker:
+    """This process's worker (made on first use where no pool started it: Dask)."""
+    global _WORKER
+    if _WORKER is None:
+        _WORKER = Worker()
+    return _WORKER
 
 
 def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
-    """Check every point of *task* (what a worker process runs).
-
-    With a stream (see :func:`stream_to`) each point is reported when it starts and
-    when it is done, so that finished points are kept even if the task never finishes,
-    and a worker's death is blamed on the point it was checking.
-    """
-    checker, results = task.checker(), []
-    for index, cfg in task.points:
-        if _STREAM is not None:
-            _STREAM.put(index)
-        results.append((check or check_point)(checker, index, cfg))
-        if _STREAM is not None:
-            _STREAM.put(results[-1])
-    return results
+    """Check every point of *task* in this process's worker (what a pool process runs)."""
+    return list(process_worker().results(task, check))
 
 
-def iter_task(task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
-    """Check the points of *task* in order with one checker, yielding each as it is done."""
-    checker = task.checker()
-    for index, cfg in task.points:
-        yield (check or check_point)(checker, index, cfg)
-
-
-def check_point(checker: MissionChecker, index: int, cfg: MissionConfig) -> PointResult:
+def check_point(session: MissionSession, index: int, mission: RenderedMission) -> PointResult:
     """Check one point; any failure becomes the point's *error* and the sweep goes on."""
     started = time.perf_counter()
     try:
-        report = checker.check(cfg)
+        report = session.check(mission)
     except MemoryError:
         return PointResult(index, seconds=time.perf_counter() - started, error="out of memory")
     except Exception as exc:  # a failed point is data in a sweep, whatever the cause

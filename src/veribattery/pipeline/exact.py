@@ -1,0 +1,108 @@
+"""Exact checks: a model explored with its guards decided exactly and checked in rational
+arithmetic (``--exact``)."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
+
+from veribattery.checker import CheckResult, Workspace
+from veribattery.lang import (
+    FlatModel,
+    Model,
+    PropertiesFile,
+    Property,
+    flatten_model,
+    resolve_property,
+)
+from veribattery.lang.nodes import Value
+from veribattery.pipeline.run import (
+    STAGES,
+    CheckOptions,
+    ModelCheckRun,
+    ProgressCallback,
+    Stopwatch,
+    internal_results,
+    may_hold,
+    run_checks,
+)
+
+if TYPE_CHECKING:
+    from veribattery.explore.exact import ExactDTMC
+
+__all__ = ["check_model_exact"]
+
+
+def check_model_exact(
+    model: Model,
+    properties: Sequence[Property],
+    *,
+    props_file: PropertiesFile | None = None,
+    constants: Mapping[str, Value | str] | None = None,
+    progress: ProgressCallback | None = None,
+    stopwatch: Stopwatch | None = None,
+    options: CheckOptions | None = None,
+    internal: Sequence[Property] = (),
+) -> ModelCheckRun:
+    """:func:`~veribattery.pipeline.check_model` in exact rational arithmetic: each result
+    is an :class:`~veribattery.checker.exact.ExactCheckResult`.
+
+    The model is explored with its guards decided exactly (its own exploration, never a
+    re-used state space), and bounds such as ``P<=1/3`` are evaluated exactly from the
+    properties as written. *internal* properties are answered as by
+    :meth:`~veribattery.pipeline.Session.check`, in floating point on the model's DTMC
+    (they feed warnings, not results).
+    """
+    options = options or CheckOptions()
+    watch = stopwatch or Stopwatch(*STAGES)
+    with watch.stage("parse"):
+        flat = flatten_model(model, constants)
+        resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+        aside = [resolve_property(p, flat, props_file, constants) for p in internal]
+    with watch.stage("build"):
+        exact = _build_exact(model, flat, constants, progress)
+    dtmc = exact.dtmc
+    workspace = Workspace()  # this run's caches: the float pre-pass of exact solves
+    checks = _exact_checks(exact, (properties, resolved), props_file, constants, workspace)
+    with watch.stage("check"):
+        results, undefined = run_checks(checks, resolved, dtmc, options)
+        aside_results = internal_results(dtmc, aside, [may_hold(dtmc, p) for p in aside],
+                                         workspace)
+    return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined,
+                         internal=aside_results)
+
+
+def _build_exact(
+    model: Model, flat: FlatModel, constants: Mapping[str, Value | str] | None,
+    progress: ProgressCallback | None,
+) -> ExactDTMC:
+    from veribattery.explore.exact import build_exact  # gmpy2 only when asked
+
+    return build_exact(model, flat, constants, progress)
+
+
+def _exact_checks(
+    exact: ExactDTMC,
+    properties: tuple[Sequence[Property], Sequence[Property]],
+    props_file: PropertiesFile | None,
+    constants: Mapping[str, Value | str] | None,
+    workspace: Workspace,
+) -> list[Callable[[], CheckResult]]:
+    """A check per property on the exactly built *exact* model.
+
+    *properties* are the properties as written and as resolved: bounds such as
+    ``P<=1/3`` are evaluated exactly from the former.
+    """
+    from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
+    from veribattery.explore.rational import exact_constants
+
+    given = dict(constants or {})
+    decls = props_file.constants if props_file is not None else ()
+    values = exact_constants(decls, given, outer=exact.constants)
+    originals, resolved = properties
+    return [
+        functools.partial(check_exact, exact, p, exact_bounds(o.formula, values),
+                          workspace=workspace)
+        for o, p in zip(originals, resolved, strict=True)
+    ]

@@ -1,0 +1,122 @@
+"""A user's PRISM file and its properties, picked by index, name or text, to results
+(the ``veribattery prism`` command and :func:`veribattery.check_prism_file`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from pathlib import Path
+
+from veribattery.errors import PrismSemanticError
+from veribattery.lang import (
+    Model,
+    PropertiesFile,
+    Property,
+    parse_model,
+    parse_properties,
+    parse_property,
+    select_properties,
+    undefined_constants,
+)
+from veribattery.lang.nodes import Value
+from veribattery.pipeline.exact import check_model_exact
+from veribattery.pipeline.run import (
+    STAGES,
+    CheckOptions,
+    Keep,
+    ModelCheckRun,
+    ProgressCallback,
+    Stopwatch,
+)
+from veribattery.pipeline.session import check_model
+
+__all__ = ["check_prism_file", "select"]
+
+
+def select(
+    props: PropertiesFile | None, selectors: Sequence[str]
+) -> tuple[Property, ...]:
+    """Properties picked by index, name or literal text (all of *props* if none given).
+
+    :param props: the properties file, if any.
+    :param selectors: 1-based indices, property names, or property text.
+    """
+    if not selectors:
+        if props is None:
+            raise PrismSemanticError("no property given: use --props FILE or --property TEXT")
+        return props.properties
+    return tuple(p for s in selectors for p in _select_one(props, s))
+
+
+def _supported(properties: Sequence[Property]) -> tuple[tuple[Property, ...], tuple[str, ...]]:
+    """Split off properties outside the supported subset, with a warning for each.
+
+    Checking a whole file should not fail for one ``filter(...)``; a property the
+    user picked by name, index or text still fails with the reason (resolve_property).
+    """
+    skipped = tuple(
+        f"skipped {p.span}: unsupported property {p.text} ({p.unsupported})"
+        for p in properties if p.unsupported is not None
+    )
+    return tuple(p for p in properties if p.unsupported is None), skipped
+
+
+def _select_one(props: PropertiesFile | None, selector: str) -> tuple[Property, ...]:
+    if props is not None and (selector.isdigit() or _names_property(props, selector)):
+        return select_properties(props, selector)
+    return (parse_property(selector),)
+
+
+def _names_property(props: PropertiesFile, name: str) -> bool:
+    return any(p.name == name for p in props.properties)
+
+
+def check_prism_file(
+    model_source: str | Path,
+    *,
+    props_source: str | Path | None = None,
+    selectors: Sequence[str] = (),
+    constants: Mapping[str, Value | str] | None = None,
+    progress: ProgressCallback | None = None,
+    exact: bool = False,
+    keep: Keep = "states",
+) -> ModelCheckRun:
+    """The ``veribattery prism`` pipeline: model file (and properties) to results.
+
+    :param model_source: a model file path, or PRISM text.
+    :param props_source: a properties file path, or properties text.
+    :param selectors: properties to check, by 1-based index, name or text.
+    :param constants: values of undefined constants.
+    :param exact: check in exact rational arithmetic (``--exact``:
+        :func:`~veribattery.pipeline.check_model_exact`), else in floating point
+        (:func:`~veribattery.pipeline.check_model`).
+    :param keep: what each result keeps: ``"states"`` or ``"answers"`` (see
+        :class:`~veribattery.pipeline.CheckOptions`).
+    """
+    watch = Stopwatch(*STAGES)
+    with watch.stage("parse"):
+        model = parse_model(model_source)
+        props = parse_properties(props_source) if props_source is not None else None
+        _reject_unknown_constants(model, props, constants or {})
+        chosen = select(props, selectors)
+        skipped: tuple[str, ...] = ()
+        if not selectors:
+            chosen, skipped = _supported(chosen)
+    way = check_model_exact if exact else check_model
+    run = way(model, chosen, props_file=props, constants=constants, progress=progress,
+              stopwatch=watch, options=CheckOptions(keep))
+    return replace(run, warnings=skipped + run.warnings) if skipped else run
+
+
+def _reject_unknown_constants(
+    model: Model, props: PropertiesFile | None, constants: Mapping[str, object]
+) -> None:
+    """A ``--const`` that names no declared constant is a typo: say so, don't ignore it."""
+    declared = {c.name for c in model.constants}
+    declared |= {c.name for c in props.constants} if props is not None else set()
+    unknown = sorted(set(constants) - declared)
+    if unknown:
+        hint = ", ".join(undefined_constants(model, props)) or "none"
+        raise PrismSemanticError(
+            f"--const {', '.join(unknown)}: no such constant (undefined constants: {hint})"
+        )

@@ -1,0 +1,179 @@
+"""What a check produces and how it runs its properties, in either arithmetic: the run,
+the options, the stopwatch and the loop over the properties."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Literal, get_args
+
+import numpy as np
+
+from veribattery._memory import trim_for
+from veribattery._record import record
+from veribattery.checker import CheckResult, Workspace, check, state_set
+from veribattery.errors import UndefinedResult
+from veribattery.explore import DTMC
+from veribattery.lang import Property
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import (
+    Eventually,
+    Filter,
+    ProbOp,
+    Quantified,
+    RewardOp,
+    SteadyOp,
+    Value,
+)
+
+__all__ = ["STAGES", "CheckOptions", "Keep", "ModelCheckRun", "ProgressCallback", "Stopwatch",
+           "internal_results", "may_hold", "run_checks"]
+
+#: Called while a state space is explored, with (states found, states explored).
+ProgressCallback = Callable[[int, int], None]
+
+#: The stages of a check, always reported (``Time: parse …, build …, check …``).
+STAGES = ("parse", "build", "check")
+
+#: What each result keeps: ``"states"``, every state's value and bounds; ``"answers"``,
+#: the answer at the initial states and its interval only
+#: (:meth:`~veribattery.checker.CheckResult.without_states`), so that one property's
+#: per-state vectors are alive at a time (what the CLI prints needs no more).
+Keep = Literal["states", "answers"]
+
+#: The operators a state formula needs the checker for (a plain predicate has none).
+_OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
+
+
+@dataclass(frozen=True, slots=True)
+class CheckOptions:
+    """How properties are checked, in floating point or exact arithmetic alike.
+
+    :param keep: what each result keeps (:data:`Keep`).
+    :param undefined_as_nan: report a property that has no value on the model
+        (:class:`~veribattery.errors.UndefinedResult`: the conditional defaults of a
+        mission that never succeeds) as NaN with a warning, instead of failing the run.
+    :raises ValueError: for a *keep* outside :data:`Keep`.
+    """
+
+    keep: Keep = "states"
+    undefined_as_nan: bool = False
+
+    def __post_init__(self) -> None:
+        if self.keep not in get_args(Keep):
+            raise ValueError(f"keep must be one of {get_args(Keep)}, got {self.keep!r}")
+
+
+@record
+class ModelCheckRun:
+    """What one run of the pipeline produced: the DTMC, one result per property, timings."""
+
+    dtmc: DTMC
+    results: tuple[CheckResult, ...]
+    timings_s: dict[str, float]
+    warnings: tuple[str, ...] = field(default=())
+    #: True when the DTMC re-used an earlier model's state space (see
+    #: :class:`~veribattery.pipeline.ReusingBuilder`).
+    reused: bool = False
+    #: The bisimulation quotient the properties were checked on, if any (see *lump* of
+    #: :class:`~veribattery.pipeline.Session`); *dtmc* is always the model's own chain.
+    quotient: DTMC | None = None
+    #: The answers of the caller's internal properties (see
+    #: :meth:`~veribattery.pipeline.Session.check`), in their order: read by the caller,
+    #: never reported with *results*.
+    internal: tuple[CheckResult, ...] = ()
+
+    def internal_value(self, name: str) -> Value:
+        """The answer of the internal property named *name*.
+
+        :raises KeyError: when no internal property has that name.
+        """
+        for result in self.internal:
+            if result.property.name == name:
+                return result.value
+        raise KeyError(name)
+
+    @property
+    def checked_dtmc(self) -> DTMC:
+        """The chain the properties were checked on: the quotient, else the DTMC."""
+        return self.quotient if self.quotient is not None else self.dtmc
+
+    @property
+    def model_summary(self) -> dict[str, int]:
+        """Sizes as reported by ``--json``: states, transitions, initial states, deadlocks."""
+        return {
+            "states": self.dtmc.num_states,
+            "transitions": self.dtmc.num_transitions,
+            "initial_states": len(self.dtmc.initial),
+            "deadlocks": self.dtmc.deadlocks,
+        }
+
+
+class Stopwatch:
+    """Accumulates wall-clock seconds per named stage (*stages* listed first, at 0)."""
+
+    def __init__(self, *stages: str) -> None:
+        self.seconds: dict[str, float] = dict.fromkeys(stages, 0.0)
+
+    @contextmanager
+    def stage(self, name: str) -> Iterator[None]:
+        start = time.perf_counter()
+        try:
+            yield
+        finally:
+            self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - start
+
+
+def run_checks(
+    checks: Sequence[Callable[[], CheckResult]], resolved: Sequence[Property], dtmc: DTMC,
+    options: CheckOptions,
+) -> tuple[tuple[CheckResult, ...], tuple[str, ...]]:
+    """Run each property's check, and the warnings about properties without a value.
+
+    With *undefined_as_nan* a property without a value is NaN; with answers kept only,
+    each result is reduced to its answer as soon as it is made.
+    """
+    per_state = options.keep == "states"
+    results: list[CheckResult] = []
+    warnings: list[str] = []
+    for run_one, prop in zip(checks, resolved, strict=True):
+        try:
+            result = run_one()
+            results.append(result if per_state else result.without_states())
+            del result  # before the next property: its per-state arrays can go now
+            if not per_state:
+                trim_for(dtmc.num_states)
+        except UndefinedResult as exc:
+            if not options.undefined_as_nan:
+                raise
+            size = dtmc.num_states if per_state else 0
+            results.append(CheckResult(prop, np.full(size, np.nan), math.nan, 0.0))
+            warnings.append(f"{prop.name or prop.text}: undefined (NaN): {exc.message}")
+    return tuple(results), tuple(warnings)
+
+
+def may_hold(dtmc: DTMC, prop: Property) -> bool:
+    """False for a ``P=? [ F a ]`` whose operator-free ``a`` holds in no state of *dtmc*:
+    its answer is 0 whatever the probabilities."""
+    formula = prop.formula
+    if not (isinstance(formula, ProbOp) and formula.op == "=?"):
+        return True
+    path = formula.path
+    if not isinstance(path, Eventually) or path.bound is not None or any(
+            isinstance(node, _OPERATORS) for node in walk(path.operand)):
+        return True
+    return bool(state_set(dtmc, path.operand).any())
+
+
+def internal_results(
+    dtmc: DTMC, internal: Sequence[Property], live: Sequence[bool], workspace: Workspace
+) -> tuple[CheckResult, ...]:
+    """The answers of the *internal* properties on *dtmc* in floating point: the *live*
+    ones checked, the others 0 exactly (see :func:`may_hold`)."""
+    return tuple(
+        check(dtmc, p, states=False, workspace=workspace) if may else CheckResult(p, np.zeros(0), 0.0, 0.0, 0.0, 0.0)
+        for p, may in zip(internal, live, strict=True)
+    )

@@ -1,0 +1,216 @@
+"""Floating-point checks: a :class:`Session` checks one model after another and owns what
+the checks share; :func:`check_model` checks one model alone."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Literal, get_args
+
+from veribattery._memory import trim_for
+from veribattery.checker import Workspace, check
+from veribattery.explore import DTMC, build_dtmc
+from veribattery.explore.lumping import Lumper
+from veribattery.explore.reuse import Structure, build_reusable, reevaluate
+from veribattery.lang import (
+    FlatModel,
+    Model,
+    PropertiesFile,
+    Property,
+    flatten_model,
+    resolve_property,
+)
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import Expr, Filter, Ident, RewardBounded, RewardOp, Value
+from veribattery.pipeline.run import (
+    STAGES,
+    CheckOptions,
+    ModelCheckRun,
+    ProgressCallback,
+    Stopwatch,
+    internal_results,
+    may_hold,
+    run_checks,
+)
+
+__all__ = ["ReusingBuilder", "Rewards", "Session", "check_model"]
+
+#: The reward structures a :class:`Session` builds: all, or those the properties name.
+Rewards = Literal["all", "named"]
+
+
+class ReusingBuilder:
+    """Builds DTMCs one after another, re-using the last state space where it can.
+
+    When a model shares the structure of the last model built in full (the same
+    variables, guards and assignments; see :mod:`veribattery.explore.reuse`), its
+    probabilities, rewards and labels are evaluated on the known states instead of
+    exploring them again; otherwise it is built in full and becomes the new base.
+    """
+
+    def __init__(self) -> None:
+        self._base: tuple[DTMC, Structure] | None = None
+
+    def build(self, flat: FlatModel, progress: ProgressCallback | None = None) -> tuple[DTMC, bool]:
+        """The DTMC of *flat*, and whether it re-used the base's state space."""
+        if self._base is not None:
+            dtmc = reevaluate(*self._base, flat)
+            if dtmc is not None:
+                return dtmc, True
+        dtmc, structure = build_reusable(flat, progress=progress)
+        self._base = (dtmc, structure)
+        return dtmc, False
+
+
+class Session:
+    """Floating-point checks of one model after another, with fixed options.
+
+    A sweep's task, a PHM recheck or a single check: the session owns what its checks
+    share -- the last state space (*reuse*), the partitions of bisimulation quotients
+    (*lump*) and the checker's workspace -- so that two sessions never influence each
+    other's results.
+
+    :param options: what each result keeps, and how a property without a value is
+        reported.
+    :param reuse: build through a :class:`ReusingBuilder`: a model that shares the
+        structure of the last one built in full re-uses its state space.
+    :param lump: check on the DTMC's bisimulation quotient when it has one worth
+        checking on (:mod:`veribattery.explore.lumping`): the answers equal the
+        DTMC's, their last bits aside. Only with ``keep="answers"``: a quotient has
+        no values for the model's own states.
+    :param rewards: ``"named"``: build only the reward structures the properties name
+        (all of them when one is referred to by index or by default), for a caller that
+        keeps values, not models (a sweep point).
+    :param workspace: the checker's caches, shared by this session's checks (default:
+        a new one, so the session's caches live and go with it).
+    :raises ValueError: for *lump* without ``keep="answers"``, or an unknown *rewards*.
+    """
+
+    def __init__(self, options: CheckOptions | None = None, *, reuse: bool = True,
+                 lump: bool = False, rewards: Rewards = "all",
+                 workspace: Workspace | None = None) -> None:
+        self.options = options or CheckOptions()
+        if lump and self.options.keep != "answers":
+            raise ValueError('lumping keeps answers only: give CheckOptions(keep="answers")')
+        if rewards not in get_args(Rewards):
+            raise ValueError(f"rewards must be one of {get_args(Rewards)}, got {rewards!r}")
+        self.rewards = rewards
+        self.builder = ReusingBuilder() if reuse else None
+        self.lumper = Lumper() if lump else None
+        self.workspace = workspace if workspace is not None else Workspace()
+
+    def check(
+        self,
+        model: Model,
+        properties: Sequence[Property],
+        *,
+        props_file: PropertiesFile | None = None,
+        constants: Mapping[str, Value | str] | None = None,
+        progress: ProgressCallback | None = None,
+        stopwatch: Stopwatch | None = None,
+        internal: Sequence[Property] = (),
+    ) -> ModelCheckRun:
+        """Flatten *model*, build its DTMC and check each property at the initial states.
+
+        :param props_file: the properties file the properties come from (its constants
+            and labels), if any.
+        :param constants: values of the model's and properties' undefined constants.
+        :param internal: properties the caller reads (:attr:`ModelCheckRun.internal`)
+            but does not report: checked after *properties* and together with them
+            (shared linear systems, the quotient), answers only, never NaN. One that is
+            ``P=? [ F a ]`` with an operator-free ``a`` that no state satisfies is 0
+            without a check, and shapes neither the shared systems nor the quotient.
+        """
+        watch = stopwatch or Stopwatch(*STAGES)
+        with watch.stage("parse"):
+            flat = flatten_model(model, constants)
+            resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+            aside = [resolve_property(p, flat, props_file, constants) for p in internal]
+            if self.rewards == "named":
+                flat = _named_rewards_only(flat, resolved + aside)
+        with watch.stage("build"):
+            dtmc, reused = self._build(flat, progress)
+        live = [may_hold(dtmc, p) for p in aside]
+        formulas = [p.formula for p in resolved] + [
+            p.formula for p, may in zip(aside, live, strict=True) if may]
+        quotient = None
+        if self.lumper is not None:
+            with watch.stage("lump"):
+                quotient = _quotient(self.lumper, dtmc, formulas)
+        checked = quotient if quotient is not None else dtmc
+        states = self.options.keep == "states"
+        checks = [functools.partial(check, checked, p, states=states, workspace=self.workspace)
+                  for p in resolved]
+        with watch.stage("check"):
+            trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's
+            self.workspace.prepare(checked, formulas)  # systems shared between the properties
+            trim_for(dtmc.num_states)  # the pre-pass's freed temporaries
+            results, undefined = run_checks(checks, resolved, checked, self.options)
+            aside_results = internal_results(checked, aside, live, self.workspace)
+        return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused,
+                             quotient, aside_results)
+
+    def _build(self, flat: FlatModel, progress: ProgressCallback | None) -> tuple[DTMC, bool]:
+        """*flat*'s DTMC, and whether it re-used an earlier state space."""
+        if self.builder is not None:
+            return self.builder.build(flat, progress)
+        dtmc = build_dtmc(flat, progress=progress)
+        if self.options.keep == "answers":
+            # Answers only, and the DTMC not kept as a re-using builder's base: nothing
+            # does arithmetic on whole state rows, so the table can be narrow (65 -> 17
+            # MB on the 11x11 mission).
+            dtmc = dtmc.compact()
+        return dtmc, False
+
+
+def check_model(
+    model: Model,
+    properties: Sequence[Property],
+    *,
+    props_file: PropertiesFile | None = None,
+    constants: Mapping[str, Value | str] | None = None,
+    progress: ProgressCallback | None = None,
+    stopwatch: Stopwatch | None = None,
+    options: CheckOptions | None = None,
+    internal: Sequence[Property] = (),
+) -> ModelCheckRun:
+    """Flatten *model*, build its DTMC and check each property at the initial states, in
+    floating point with certified bounds: :meth:`Session.check` in a session of its own.
+
+    :param options: what each result keeps, and how a property without a value is
+        reported (default: :class:`CheckOptions` ``()``).
+    """
+    return Session(options, reuse=False).check(
+        model, properties, props_file=props_file, constants=constants, progress=progress,
+        stopwatch=stopwatch, internal=internal)
+
+
+def _quotient(lumper: Lumper, dtmc: DTMC, formulas: Sequence[Expr]) -> DTMC | None:
+    """*dtmc*'s quotient for *formulas*: it keeps apart what their atoms read (labels and
+    rewards always; the variables they name). None if a formula filters over states (a
+    count or sum over them would change) or names something else."""
+    variables: set[str] = set()
+    for formula in formulas:
+        for node in walk(formula):
+            if isinstance(node, Filter):
+                return None
+            if isinstance(node, Ident):
+                if node.name not in dtmc.variable_names:
+                    return None
+                variables.add(node.name)
+    return lumper.quotient(dtmc, sorted(variables))
+
+
+def _named_rewards_only(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:
+    """*flat* without the reward structures no property uses (all of them kept when a
+    property refers to one by index or by default)."""
+    names: set[str] = set()
+    for prop in properties:
+        for node in walk(prop.formula):
+            if isinstance(node, RewardOp | RewardBounded):
+                if not isinstance(node.reward, str):
+                    return flat
+                names.add(node.reward)
+    kept = tuple(r for r in flat.rewards if r.name in names)
+    return flat if len(kept) == len(flat.rewards) else replace(flat, rewards=kept)
