@@ -70,7 +70,7 @@ def check_model_exact(
         aside_results = internal_results(dtmc, aside, [may_hold(dtmc, p) for p in aside],
                                          workspace)
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined,
-                         internal=aside_results)
+                         internal=aside_results, workspace=workspace)
 
 
 def _build_exact(

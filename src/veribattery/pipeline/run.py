@@ -85,6 +85,9 @@ class ModelCheckRun:
     #: :meth:`~veribattery.pipeline.Session.check`), in their order: read by the caller,
     #: never reported with *results*.
     internal: tuple[CheckResult, ...] = ()
+    #: The checker's caches the properties were checked with, for checking more
+    #: formulas on :attr:`checked_dtmc` with the same linear systems.
+    workspace: Workspace | None = field(default=None, compare=False, repr=False)
 
     def internal_value(self, name: str) -> Value:
         """The answer of the internal property named *name*.

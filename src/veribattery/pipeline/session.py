@@ -149,7 +149,7 @@ class Session:
             results, undefined = run_checks(checks, resolved, checked, self.options)
             aside_results = internal_results(checked, aside, live, self.workspace)
         return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused,
-                             quotient, aside_results)
+                             quotient, aside_results, self.workspace)
 
     def _build(self, flat: FlatModel, progress: ProgressCallback | None) -> tuple[DTMC, bool]:
         """*flat*'s DTMC, and whether it re-used an earlier state space."""
