@@ -18,7 +18,10 @@ import pandas as pd
 import stormpy
 
 from tests.render.spec_mdp import Choice, State
+from veribattery.synthesis.decisions import GO_ON
 from veribattery.synthesis.strategy import STATE_VARIABLES, strategy_frame
+
+GO_ON_ACTIONS = frozenset(GO_ON.values())
 
 
 def build(text: str, folder: Path, name: str = "model.prism") -> tuple[Any, Any]:
@@ -104,3 +107,24 @@ def choice_values(choices: Sequence[Choice], value: dict[State, Fraction],
         out.append(sum((p * value[y] for y, p in dist.items() if y != here), Fraction(0))
                    / (1 - stay))
     return out
+
+
+def indifference(model: dict[State, list[Choice]],
+                 value: dict[State, Fraction]) -> Callable[[State], bool]:
+    """Whether going on and turning back are exactly equally good at a state of *model*
+    (both possible, and the best of turning back -- return or abort -- worth as much as
+    going on), by the exact values *value*."""
+    def indifferent(x: State) -> bool:
+        worth = dict(zip([a for a, _ in model[x]], choice_values(model[x], value, x),
+                         strict=True))
+        go_on = [v for a, v in worth.items() if a in GO_ON_ACTIONS]
+        back = [v for a, v in worth.items() if a not in GO_ON_ACTIONS]
+        return bool(go_on and back) and go_on[0] == max(back)
+    return indifferent
+
+
+def exactly_optimal(model: dict[State, list[Choice]], value: dict[State, Fraction],
+                    x: State, chosen: str) -> bool:
+    """Whether *chosen* is worth *value* at *x* (an optimal choice), exactly."""
+    worth = dict(zip([a for a, _ in model[x]], choice_values(model[x], value, x), strict=True))
+    return worth[chosen] == value[x]

@@ -18,7 +18,8 @@ from veribattery.synthesis.pareto import (
 )
 
 FRONT = (FrontPoint(0.4, 500.0), FrontPoint(0.1, 90.5), FrontPoint(0.2346, 276.25))
-BS1 = (Bs1Point(Fraction(3, 10), 0.2346, 788.0), Bs1Point(Fraction(1, 20), 0.31, 900.0))
+BS1 = (Bs1Point(Fraction(3, 10), 0.2346, 788.0), Bs1Point(Fraction(1, 20), 0.31, 900.0),
+       Bs1Point(Fraction(1, 10), 0.2346, 788.0))
 
 
 def test_figure_draws_the_front_in_order_and_bs1_labelled() -> None:
@@ -29,8 +30,10 @@ def test_figure_draws_the_front_in_order_and_bs1_labelled() -> None:
     assert list(front.get_ydata()) == [0.1, 0.2346, 0.4]
     assert list(p_max.get_ydata()) == [0.433, 0.433]
     (bs1,) = ax.collections
-    assert bs1.get_offsets().tolist() == [[788.0, 0.2346], [900.0, 0.31]]
-    assert [t.get_text() for t in ax.texts] == ["0.3", "0.05"]
+    assert bs1.get_offsets().tolist() == [[788.0, 0.2346], [900.0, 0.31], [788.0, 0.2346]]
+    # One label per point, safe_t in order: 0.1 and 0.3 give the same strategy here.
+    assert sorted(t.get_text() for t in ax.texts) == ["0.05", "0.1, 0.3"]
+    assert ax.get_ylim() == (0, 1)
     assert ax.get_ylabel() == "P(success)"
     assert "failed missions included" in ax.get_xlabel()
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
@@ -61,5 +64,6 @@ def test_csv(tmp_path: Path) -> None:
     assert rows == [
         ["front", "0.1", "", "0.1", "90.5"], ["front", "0.2346", "", "0.2346", "276.25"],
         ["front", "0.4", "", "0.4", "500.0"],
-        ["bs1", "", "0.05", "0.31", "900.0"], ["bs1", "", "0.3", "0.2346", "788.0"],
+        ["bs1", "", "0.05", "0.31", "900.0"], ["bs1", "", "0.1", "0.2346", "788.0"],
+        ["bs1", "", "0.3", "0.2346", "788.0"],
     ]

@@ -65,8 +65,9 @@ class Bs1Point:
 
 def pareto_figure(front: Sequence[FrontPoint], bs1: Sequence[Bs1Point], *,
                   p_max: float | None = None) -> Figure:
-    """P(success) (y) against expected mission time (x): the front as a line through its
-    points in order of *p*, BS1's points labelled with their ``safe_t``.
+    """P(success) (y, 0 to 1) against expected mission time (x): the front as a line
+    through its points in order of *p* (randomising between two strategies reaches every
+    point between them), BS1's points labelled with their ``safe_t``.
 
     :param p_max: the best P(success) of any strategy, drawn as a dashed line.
     """
@@ -80,9 +81,11 @@ def pareto_figure(front: Sequence[FrontPoint], bs1: Sequence[Bs1Point], *,
                    label=f"best P(success) = {p_max:.6g}")
     ax.set_xlabel(_TIME)
     ax.set_ylabel("P(success)")
+    ax.set_ylim(0, 1)
     ax.grid(True, alpha=0.3)
     if front or bs1 or p_max is not None:
-        ax.legend(fontsize="small", loc="lower right")
+        # No strategy is both safer and faster than the front: its upper left is empty.
+        ax.legend(fontsize="small", loc="upper left")
     return figure
 
 
@@ -113,7 +116,7 @@ def _draw_front(ax: Axes, front: Sequence[FrontPoint]) -> None:
     points = sorted(front, key=lambda pt: pt.p)
     if points:
         ax.plot([pt.exp_mission_time for pt in points], [pt.p for pt in points],
-                color=_FRONT, marker="o", markersize=4, linewidth=1.4, zorder=3,
+                color=_FRONT, marker="o", markersize=4, linewidth=1.4, zorder=3, clip_on=False,
                 label="fastest strategy with P(success) ≥ p")
 
 
@@ -121,8 +124,11 @@ def _draw_bs1(ax: Axes, bs1: Sequence[Bs1Point]) -> None:
     if not bs1:
         return
     ax.scatter([pt.exp_mission_time for pt in bs1], [pt.p_success for pt in bs1],
-               color=_BS1, marker="s", s=28, zorder=4, label="BS1 (safe_t)")
-    for pt in bs1:
-        ax.annotate(show(pt.safe_t), (pt.exp_mission_time, pt.p_success),
-                    textcoords="offset points", xytext=(5, -10), fontsize="small",
-                    color=_BS1)
+               color=_BS1, marker="s", s=28, zorder=4, clip_on=False, label="BS1 (safe_t)")
+    # Several safe_t often give the same strategy, hence the same point: one label.
+    labels: dict[tuple[float, float], list[str]] = {}
+    for pt in sorted(bs1, key=lambda pt: pt.safe_t):
+        labels.setdefault((pt.exp_mission_time, pt.p_success), []).append(show(pt.safe_t))
+    for xy, names in labels.items():
+        ax.annotate(", ".join(names), xy, textcoords="offset points", xytext=(5, 5),
+                    fontsize="small", color=_BS1)
