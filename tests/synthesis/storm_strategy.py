@@ -2,20 +2,26 @@
 take a memoryless scheduler, follow it from the initial state, and hand the states it
 reaches to the threshold table as (valuation, action).
 
+The model is read out of Storm once, into arrays (its transitions row by row, each
+row's action, each state's variables), so that following a strategy and valuing
+choices need no per-state calls into Storm.
+
 Import this module only after ``pytest.importorskip("stormpy")``.
 """
 
 from __future__ import annotations
 
-import json
-from collections import deque
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pandas as pd
+import scipy.sparse as sp
 import stormpy
+from scipy.sparse.csgraph import breadth_first_order
 
 from tests.render.spec_mdp import Choice, State
 from veribattery.synthesis.decisions import GO_ON
@@ -24,59 +30,119 @@ from veribattery.synthesis.strategy import STATE_VARIABLES, strategy_frame
 GO_ON_ACTIONS = frozenset(GO_ON.values())
 
 
-def build(text: str, folder: Path, name: str = "model.prism") -> tuple[Any, Any]:
-    """Storm's full model of the PRISM *text* (state valuations, choice labels, every
-    reward model), and the parsed program (to parse properties against)."""
-    path = folder / name
-    path.write_text(text)
-    program = stormpy.parse_prism_program(str(path))
-    options = stormpy.BuilderOptions()
-    options.set_build_state_valuations()
-    options.set_build_choice_labels()
-    options.set_build_all_labels()
-    options.set_build_all_reward_models()
-    return stormpy.build_model(program, options=options), program
+@dataclass(frozen=True)
+class StormMdp:
+    """Storm's model of a PRISM MDP (or DTMC: one row per state), read into arrays.
+
+    :ivar groups: the first row of each state, and the number of rows at the end.
+    :ivar matrix: the rows (choices) as a CSR matrix over states.
+    :ivar labels: each row's action label ("" for an unlabelled loop).
+    :ivar variables: each state variable's value per state (a constant wind: 0).
+    """
+
+    model: Any
+    program: Any
+    groups: np.ndarray
+    matrix: sp.csr_matrix
+    labels: np.ndarray
+    variables: dict[str, np.ndarray]
+
+    @classmethod
+    def build(cls, text: str, folder: Path, name: str = "model.prism") -> StormMdp:
+        """Storm's full model of the PRISM *text*: state valuations, choice labels and
+        every reward model."""
+        path = folder / name
+        path.write_text(text)
+        program = stormpy.parse_prism_program(str(path))
+        options = stormpy.BuilderOptions()
+        options.set_build_state_valuations()
+        options.set_build_choice_labels()
+        options.set_build_all_labels()
+        options.set_build_all_reward_models()
+        model = stormpy.build_model(program, options=options)
+        return cls(model, program, _groups(model), _matrix(model), _labels(model),
+                   _variables(model))
+
+    @property
+    def initial(self) -> int:
+        return int(self.model.initial_states[0])
+
+    def state(self, s: int) -> State:
+        return State(*(int(self.variables[v][s]) for v in State._fields))
+
+    def value(self, formula: str, **options: Any) -> Any:
+        """Storm's answer to *formula* at the initial state."""
+        prop = stormpy.parse_properties(formula, self.program)[0]
+        result = stormpy.model_checking(self.model, prop, **options)
+        if result.is_qualitative():
+            return result.get_truth_values_vector()[self.initial]
+        return result.get_value(self.initial)
+
+    def optimal(self, formula: str) -> tuple[np.ndarray, float, np.ndarray]:
+        """Storm's optimal memoryless scheduler for *formula* (its row in each state),
+        the value at the initial state, and the value of every state."""
+        prop = stormpy.parse_properties(formula, self.program)[0]
+        result = stormpy.model_checking(self.model, prop, extract_scheduler=True)
+        scheduler = result.get_scheduler()
+        assert scheduler.memoryless and scheduler.deterministic
+        chosen = [scheduler.get_choice(s).get_deterministic_choice()
+                  for s in range(self.model.nr_states)]
+        rows = self.groups[:-1] + np.asarray(chosen, dtype=np.int64)
+        return rows, float(result.get_value(self.initial)), np.asarray(
+            result.get_value_vector(), dtype=float)
+
+    def reachable(self, rows: np.ndarray) -> np.ndarray:
+        """The states reachable from the initial state when each state takes *rows*."""
+        induced = self.matrix[rows]
+        order = breadth_first_order(induced, self.initial, directed=True,
+                                    return_predecessors=False)
+        return np.sort(order)
+
+    def strategy(self, rows: np.ndarray, states: np.ndarray | None = None,
+                 indifferent: Sequence[bool] | None = None) -> pd.DataFrame:
+        """The strategy frame of *rows* on *states* (default: those it reaches)."""
+        states = self.reachable(rows) if states is None else states
+        columns = {name: self.variables[name][states] for name in STATE_VARIABLES}
+        return strategy_frame(columns, self.labels[rows[states]].tolist(),
+                              indifferent=indifferent)
+
+    def choice_values(self, values: np.ndarray) -> np.ndarray:
+        """Each row's expected successor value under the state *values*."""
+        return np.asarray(self.matrix @ values, dtype=float)
 
 
-def valuation(model: Any, state: int) -> State:
-    """Storm state *state* as the spec's six variables (a constant wind is low)."""
-    values = json.loads(str(model.state_valuations.to_json(state)))
-    values.setdefault("wsp", 0)
-    return State(*(int(values[v]) for v in State._fields))
+def _groups(model: Any) -> np.ndarray:
+    if not model.is_nondeterministic_model:
+        return np.arange(model.nr_states + 1, dtype=np.int64)
+    return np.asarray(model.nondeterministic_choice_indices, dtype=np.int64)
 
 
-def action(model: Any, row: int) -> str:
-    """The action label of choice *row* ("" for the absorbing loop)."""
-    return "".join(sorted(model.choice_labeling.get_labels_of_choice(row)))
-
-
-def scheduler_rows(model: Any, scheduler: Any) -> list[int]:
-    """Per state, the row of the choice a memoryless deterministic *scheduler* takes."""
-    assert scheduler.memoryless and scheduler.deterministic
+def _matrix(model: Any) -> sp.csr_matrix:
     matrix = model.transition_matrix
-    return [matrix.get_row_group_start(s) + scheduler.get_choice(s).get_deterministic_choice()
-            for s in range(model.nr_states)]
+    indptr, columns, probs = [0], [], []
+    for r in range(matrix.nr_rows):
+        for entry in matrix.get_row(r):
+            columns.append(entry.column)
+            probs.append(entry.value)
+        indptr.append(len(columns))
+    return sp.csr_matrix((probs, columns, indptr), shape=(matrix.nr_rows, model.nr_states))
 
 
-def optimal_rows(model: Any, formula: str, program: Any) -> tuple[list[int], float]:
-    """Storm's optimal scheduler for *formula* (rows per state) and its value."""
-    prop = stormpy.parse_properties(formula, program)[0]
-    result = stormpy.model_checking(model, prop, extract_scheduler=True)
-    value = float(result.get_value(model.initial_states[0]))
-    return scheduler_rows(model, result.get_scheduler()), value
+def _labels(model: Any) -> np.ndarray:
+    labeling = model.choice_labeling
+    labels = np.full(model.transition_matrix.nr_rows, "", dtype=object)
+    for label in labeling.get_labels():
+        labels[np.fromiter(labeling.get_choices(label), dtype=np.int64)] = label
+    return labels
 
 
-def reachable(model: Any, rows: Sequence[int]) -> list[int]:
-    """The states reachable from the initial state when each state takes *rows*."""
-    matrix = model.transition_matrix
-    seen = set(model.initial_states)
-    queue = deque(seen)
-    while queue:
-        for entry in matrix.get_row(rows[queue.popleft()]):
-            if entry.column not in seen:
-                seen.add(entry.column)
-                queue.append(entry.column)
-    return sorted(seen)
+def _variables(model: Any) -> dict[str, np.ndarray]:
+    valuations = model.state_valuations
+    found = {v.name: np.asarray(valuations.get_int64_values(v), dtype=np.int64)
+             for v in valuations.get_all_variables()}
+    # A wind that never changes (p_wsp_c = 0) is a constant to Storm, not a variable.
+    found.setdefault("wsp", np.zeros(model.nr_states, dtype=np.int64))
+    return found
 
 
 def frame(states: Sequence[State], actions: Sequence[str],
@@ -84,15 +150,6 @@ def frame(states: Sequence[State], actions: Sequence[str],
     """The strategy frame of *states* choosing *actions*."""
     columns = {name: [getattr(x, name) for x in states] for name in STATE_VARIABLES}
     return strategy_frame(columns, actions, indifferent=indifferent)
-
-
-def strategy_of(model: Any, rows: Sequence[int],
-                indifferent: Callable[[State], bool] | None = None) -> pd.DataFrame:
-    """The states reachable under *rows*, as a strategy frame."""
-    states = reachable(model, rows)
-    named = [valuation(model, s) for s in states]
-    flags = None if indifferent is None else [indifferent(x) for x in named]
-    return frame(named, [action(model, rows[s]) for s in states], flags)
 
 
 def choice_values(choices: Sequence[Choice], value: dict[State, Fraction],

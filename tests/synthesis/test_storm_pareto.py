@@ -18,12 +18,12 @@ import pytest
 
 from veribattery.config import load_config
 from veribattery.render import render_synthesis_model
-from veribattery.synthesis.bs1_points import bs1_points
+from veribattery.synthesis.bs1_values import bs1_points
 from veribattery.synthesis.pareto import FrontPoint, write_pareto_csv, write_pareto_figure
 
 stormpy = pytest.importorskip("stormpy")
 
-from tests.synthesis.storm_strategy import build  # noqa: E402
+from tests.synthesis.storm_strategy import StormMdp  # noqa: E402
 
 FARM = ("farm.cols=3", "farm.rows=2", "farm.base=[0,0]", "battery.capacity_ah=8",
         "battery.max_recharges=8", "environment.p_wsp_c=0.3")
@@ -45,7 +45,8 @@ class _Mdp:
         lines += [f"  [{a}] true : {FAILURE_MINUTES};" for a in ("abort", "oob")]
         cost = "\n".join(['rewards "cost"', *lines, "endrewards", ""])
         text = render_synthesis_model(load_config("", FARM)) + "\n" + cost
-        self.model, self.program = build(text, folder)
+        mdp = StormMdp.build(text, folder)
+        self.model, self.program = mdp.model, mdp.program
         self.env = stormpy.Environment()
         self.env.modelchecker().multi().precision = stormpy.Rational("1/1000000")
 

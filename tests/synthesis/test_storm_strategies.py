@@ -15,21 +15,16 @@ import pytest
 
 from veribattery.config import MissionConfig, derive_parameters, load_config
 from veribattery.render import render_model, render_synthesis_model
+from veribattery.synthesis.strategy import STATE_VARIABLES, strategy_frame
 from veribattery.synthesis.thresholds import ThresholdRow, ThresholdTable, threshold_table
 
 stormpy = pytest.importorskip("stormpy")
 
 from tests.render.spec_mdp import SpecMission, max_success  # noqa: E402
 from tests.synthesis.storm_strategy import (  # noqa: E402
-    action,
-    build,
+    StormMdp,
     exactly_optimal,
-    frame,
     indifference,
-    optimal_rows,
-    reachable,
-    strategy_of,
-    valuation,
 )
 
 #: One cell of four turbines at the base, 5 Ah (C_NEW 50) and 3 recharges: every
@@ -46,14 +41,16 @@ def _pmax_table(cfg: MissionConfig, folder: Path) -> tuple[ThresholdTable, float
     """The table of Storm's Pmax strategy over the states it reaches, indifference
     exact; Storm's Pmax; and whether every choice Storm makes is exactly optimal
     wherever going on and turning back are not equally good."""
-    model, program = build(render_synthesis_model(cfg), folder)
-    rows, pmax = optimal_rows(model, 'Pmax=? [ F "success" ]', program)
+    mdp = StormMdp.build(render_synthesis_model(cfg), folder)
+    rows, pmax, _ = mdp.optimal('Pmax=? [ F "success" ]')
     reference = SpecMission.of(cfg).reachable()
     value = max_success(reference)
     indifferent = indifference(reference, value)
-    strategy = strategy_of(model, rows, indifferent)
-    decisive = [(valuation(model, s), action(model, rows[s])) for s in reachable(model, rows)]
-    optimal = all(exactly_optimal(reference, value, x, a) for x, a in decisive
+    states = mdp.reachable(rows)
+    named = [mdp.state(s) for s in states]
+    strategy = mdp.strategy(rows, states, [indifferent(x) for x in named])
+    optimal = all(exactly_optimal(reference, value, x, mdp.labels[rows[s]])
+                  for s, x in zip(states, named, strict=True)
                   if x.s < 6 and not indifferent(x))
     return threshold_table(strategy, derive_parameters(cfg)), pmax, optimal
 
@@ -114,11 +111,12 @@ def test_pmax_strategies_are_thresholds(overrides: tuple[str, ...], tmp_path: Pa
 def _bs1_strategy(cfg: MissionConfig, folder: Path) -> pd.DataFrame:
     """BS1's DTMC as a strategy of the MDP (every state of it is reachable under BS1):
     its failures in flight and on the ground (oob, infeasible) are the MDP's abort."""
-    model, _ = build(render_model(cfg), folder, "bs1.prism")
-    states = [valuation(model, s) for s in range(model.nr_states)]
-    actions = [action(model, s) for s in range(model.nr_states)]
-    return frame(states, ["abort" if a == "infeasible" or (a == "oob" and x.s != 5) else a
-                          for a, x in zip(actions, states, strict=True)])
+    dtmc = StormMdp.build(render_model(cfg), folder, "bs1.prism")
+    s = dtmc.variables["s"]
+    labels = dtmc.labels.copy()
+    labels[(labels == "infeasible") | ((labels == "oob") & (s != 5))] = "abort"
+    return strategy_frame({name: dtmc.variables[name] for name in STATE_VARIABLES},
+                          labels.tolist())
 
 
 def _below(charge: Any, threshold: Any) -> bool:

@@ -147,3 +147,9 @@ def test_malformed_strategies() -> None:
         strategy_frame({"s": [0], "k": [0]}, ["wait"])
     with pytest.raises(StrategyError, match="different lengths"):
         strategy_frame({name: [0] for name in State._fields}, ["wait", "wait"])
+
+
+def test_no_decision_no_row() -> None:
+    assert _table([]).rows == ()
+    assert _table([(State(5, 0, 0, 3, 0, 0), "recharge"), (State(4, 1, 0, 9, 0, 1), "abort")]
+                  ).rows == ()

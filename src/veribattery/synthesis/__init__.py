@@ -9,7 +9,7 @@ Modules: :mod:`~veribattery.synthesis.files` (what ``emit`` writes),
 :mod:`~veribattery.synthesis.thresholds` (the threshold table) and
 :mod:`~veribattery.synthesis.table_files` (its CSV and JSON),
 :mod:`~veribattery.synthesis.pareto` (the Pareto front's figure and CSV) and
-:mod:`~veribattery.synthesis.bs1_points` (BS1's points on it).
+:mod:`~veribattery.synthesis.bs1_values` (BS1's points on it).
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ from typing import TYPE_CHECKING, Any
 from veribattery.synthesis.files import synthesis_files, unasked_requirements
 
 if TYPE_CHECKING:
-    from veribattery.synthesis.bs1_points import bs1_points
     from veribattery.synthesis.bs1_rule import bs1_least_go_on
+    from veribattery.synthesis.bs1_values import bs1_points
     from veribattery.synthesis.pareto import (
         Bs1Point,
         FrontPoint,
@@ -39,8 +39,8 @@ if TYPE_CHECKING:
 
 # Imported on first use: pandas and matplotlib are not needed to emit a model.
 _EXPORTS = {
-    "veribattery.synthesis.bs1_points": ("bs1_points",),
     "veribattery.synthesis.bs1_rule": ("bs1_least_go_on",),
+    "veribattery.synthesis.bs1_values": ("bs1_points",),
     "veribattery.synthesis.pareto": ("Bs1Point", "FrontPoint", "pareto_figure",
                                      "write_pareto_csv", "write_pareto_figure"),
     "veribattery.synthesis.strategy": ("StrategyError", "strategy_frame"),

@@ -2,7 +2,8 @@
 
 This is what the threshold table reads, whoever computed the strategy (veribattery's
 MDP engine, Storm, or a strategy file): one row per state with the spec's six
-variables, the action the strategy chooses there, and whether the choice matters.
+variables, the action the strategy chooses there, and whether going on or turning back
+matters there.
 Which states to pass is the caller's choice; the states reachable under the strategy
 from the initial state are the meaningful ones (a state the strategy never enters says
 nothing about it), and that is what ``veribattery synthesize`` reports.
@@ -39,9 +40,10 @@ def strategy_frame(variables: Mapping[str, ArrayLike], actions: Sequence[str], *
 
     :param variables: each of :data:`STATE_VARIABLES` → its value in every state.
     :param actions: the action chosen in each state, as the MDP labels it.
-    :param indifferent: per state, True where every choice is equally good (the
-        strategy's choice there is arbitrary: its charge is left out of the thresholds);
-        default: no state is.
+    :param indifferent: per state, True where going on is exactly as good as the best
+        way of turning back (returning or giving up): the strategy's choice between them
+        is arbitrary there, and its charge is left out of the thresholds. Default: no
+        state is.
     :raises StrategyError: when a variable is missing, the lengths differ or an action
         is not one of the MDP's.
     """

@@ -8,8 +8,8 @@ the strategy is a *threshold* there, as BS1 is; where not, the row says so. Besi
 row stands BS1's own threshold for the same config, from its rule
 (:mod:`veribattery.synthesis.bs1_rule`).
 
-States the caller marks indifferent (every choice equally good) are counted but left
-out of the thresholds: the strategy's choice there is arbitrary.
+States the caller marks indifferent (going on exactly as good as turning back) are
+counted but left out of the thresholds: the strategy's choice there is arbitrary.
 """
 
 from __future__ import annotations
@@ -52,7 +52,8 @@ class ThresholdRow:
     :ivar level_from: the least charge at this level (after *recharges*), *level_to*
         the greatest.
     :ivar states: the states reported (decisive and indifferent).
-    :ivar indifferent: those where every choice is equally good (not in the thresholds).
+    :ivar indifferent: those where going on is as good as turning back (not in the
+        thresholds).
     :ivar going_on: decisive states that go on; *returning*, *giving_up*: that turn back.
     :ivar least_go_on: the least charge going on (None: none goes on).
     :ivar greatest_turn_back: the greatest charge turning back (None: none does).
