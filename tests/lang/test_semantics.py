@@ -20,7 +20,8 @@ from veribattery.lang import (
     parse_model,
     undefined_constants,
 )
-from veribattery.lang.evaluate import evaluate, prism_mod
+from veribattery.lang.evaluate import evaluate
+from veribattery.lang.ops import modulo
 
 
 def flat(text: str, constants: dict[str, object] | None = None) -> FlatModel:
@@ -40,7 +41,7 @@ def const_value(expression: str, kind: str = "double") -> object:
         ("floor(7/2)", "int", 3),
         ("ceil(7/2)", "int", 4),
         ("pow(2, 10)", "int", 1024),
-        ("pow(2, 100)", "int", 2**100),
+        ("pow(2, 62)", "int", 2**62),
         ("pow(9.0, 0.5)", "double", 3.0),
         ("mod(7, 3)", "int", 1),
         ("mod(-7, 3)", "int", 2),
@@ -62,7 +63,7 @@ def test_constant_evaluation(expression: str, kind: str, value: object) -> None:
 
 
 def test_prism_mod_sign_convention() -> None:
-    assert [prism_mod(i, 3) for i in (-4, -3, -1, 0, 1, 4)] == [2, 0, 2, 0, 1, 1]
+    assert [modulo(i, 3) for i in (-4, -3, -1, 0, 1, 4)] == [2, 0, 2, 0, 1, 1]
 
 
 def test_division_by_zero_is_infinite_like_java() -> None:
