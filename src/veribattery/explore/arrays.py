@@ -26,6 +26,8 @@ from veribattery.lang.ops import (
     NEGATIVE_EXPONENT,
     OperatorError,
     int_pow,
+    java_log,
+    java_pow,
     not_an_int,
 )
 
@@ -159,6 +161,14 @@ def rounded_half_up(x: Any) -> Any:
 # pow, mod, log
 # ---------------------------------------------------------------------------
 
+def _rows_of(x: Any, other: Any) -> Any:
+    """*x* as it meets *other*, row for row: a constant divisor of no row is none."""
+    x = np.asarray(x)
+    if x.ndim == 0 and np.ndim(other):
+        return np.broadcast_to(x, np.shape(other))
+    return x
+
+
 #: Int powers at least this large are checked against the int range exactly.
 _POW_CHECK = 2.0**62
 
@@ -168,18 +178,22 @@ def power(a: Any, b: Any) -> Any:
     Java's ``Math.pow`` in doubles (NaN or infinity, never an error)."""
     if is_int(a) and is_int(b):
         return _int_power(np.asarray(a, np.int64), np.asarray(b, np.int64))
-    base, exponent = np.asarray(a, np.float64), np.asarray(b, np.float64)
-    with np.errstate(all="ignore"):
-        result = np.power(base, exponent)
-    # C's pow gives 1 for pow(1, NaN) and pow(-1, +-inf); Java gives NaN.
-    java_nan = np.isnan(exponent) | (np.isinf(exponent) & (np.abs(base) == 1))
-    if java_nan.any():
-        result = np.where(java_nan, np.nan, result)
-    return np.asarray(result)[()]
+    return _doubles(_JAVA_POW(np.asarray(a, np.float64), np.asarray(b, np.float64)))
+
+
+def _doubles(values: Any) -> Any:
+    return np.asarray(values, dtype=np.float64)[()]
+
+
+# pow and log of doubles, element by element with the C library as the reference
+# computes them: numpy's vectorised pow and log may differ in the last bit (and its
+# pow differently for a constant exponent); they are rare, and usually tabulated.
+_JAVA_POW = np.frompyfunc(java_pow, 2, 1)
+_JAVA_LOG = np.frompyfunc(java_log, 2, 1)
 
 
 def _int_power(base: Any, exponent: Any) -> Any:
-    if np.any(exponent < 0):
+    if np.any(_rows_of(exponent, base) < 0):
         raise OperatorError(NEGATIVE_EXPONENT)
     result = np.power(base, exponent)  # wraps on overflow: checked below
     with np.errstate(over="ignore"):
@@ -196,20 +210,14 @@ def modulo(a: Any, b: Any) -> Any:
     """``mod(a, b)``: ints, a positive divisor, a result in ``0..b-1``."""
     if not (is_int(a) and is_int(b)):
         raise OperatorError(MOD_INTEGERS)
-    if np.any(np.asarray(b) <= 0):
+    if np.any(_rows_of(b, a) <= 0):
         raise OperatorError(MOD_DIVISOR)
     return np.mod(np.asarray(a, np.int64), np.asarray(b, np.int64))[()]
 
 
 def log(x: Any, base: Any) -> Any:
     """``log(x, base)``: ``ln x / ln base``, NaN for a base <= 0, 1 or infinite."""
-    xs, bases = np.asarray(x, np.float64), np.asarray(base, np.float64)
-    with np.errstate(all="ignore"):  # Java's Math.log: NaN/-Infinity, no exception
-        result = np.log(xs) / np.log(bases)
-    bad = ~(bases > 0) | (bases == 1) | np.isinf(bases)
-    if bad.any():
-        result = np.where(bad, np.nan, result)
-    return np.asarray(result)[()]
+    return _doubles(_JAVA_LOG(np.asarray(x, np.float64), np.asarray(base, np.float64)))
 
 
 UNARY: Mapping[str, ArrayOp] = {"!": np.logical_not, "-": np.negative}

@@ -154,7 +154,8 @@ class CompileCache:
         elif isinstance(expr, Ident):
             parts = (Ident, expr.name)
         elif isinstance(expr, IntLit | DoubleLit | BoolLit):
-            parts = (type(expr), type(expr.value), expr.value)
+            # -0.0 == 0.0, but 1/-0.0 is -inf: the sign of a zero tells them apart
+            parts = (type(expr), type(expr.value), expr.value, math.copysign(1, expr.value))
         elif isinstance(expr, Ite):
             parts = (Ite, self.key(expr.cond), self.key(expr.then), self.key(expr.otherwise))
         elif isinstance(expr, Unary):
@@ -362,7 +363,7 @@ def _compile_node(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
     its type and whether it may see infinities."""
     node = _built(expr, operands, scope)
     double = _is_double(expr, operands, node)
-    noisy = _own_noise(expr, operands, node) or any(o.noisy for o in operands)
+    noisy = _own_noise(expr, operands, node, double) or any(o.noisy for o in operands)
     if node.double == double and node.noisy == noisy:
         return node
     return dataclasses.replace(node, double=double, noisy=noisy)
@@ -384,7 +385,7 @@ def _is_double(expr: Expr, operands: list[_Node], node: _Node) -> bool:
     return False
 
 
-def _own_noise(expr: Expr, operands: list[_Node], node: _Node) -> bool:
+def _own_noise(expr: Expr, operands: list[_Node], node: _Node, double: bool) -> bool:
     """Whether *node* may make an infinity or a NaN of finite operands (or is one)."""
     if node.is_const:
         return not bool(np.all(np.isfinite(node.const)))
@@ -393,7 +394,7 @@ def _own_noise(expr: Expr, operands: list[_Node], node: _Node) -> bool:
         return not (divisor.is_const and bool(np.all(np.isfinite(divisor.const)))
                     and bool(np.all(divisor.const != 0)))
     if isinstance(expr, Call):
-        return expr.func == "log" or (expr.func == "pow" and node.double)
+        return expr.func == "log" or (expr.func == "pow" and double)
     return False
 
 
@@ -563,7 +564,8 @@ def _narrowed(table: np.ndarray) -> np.ndarray:
     back after the gather (``_lookup``).
     """
     for narrow in _NARROW.get(table.dtype.kind, ()):
-        candidate = table.astype(narrow)
+        with np.errstate(over="ignore", invalid="ignore"):  # 1e45 in float32: refused below
+            candidate = table.astype(narrow)
         if np.array_equal(candidate.astype(table.dtype), table):
             return candidate
     return table
@@ -659,14 +661,26 @@ def _lift(
         try:
             with np.errstate(all="ignore"):  # Java's doubles: inf - inf is NaN, silently
                 return _constant(op(*(a.const for a in args)))
-        except ModelError:
-            pass  # e.g. ``N=0 ? 0 : mod(1, N)``: only fail if the branch is ever evaluated
+        except ModelError as exc:  # ``N=0 ? 0 : mod(1, N)``: fails if ever evaluated
+            return _Node(fn=_failing(exc), risky=True)
     return _made(
         _applied(op, [a.fn for a in args]),
         link or _operand_link(op, args),
         risky=risky or any(a.risky for a in args),
         labels=any(a.labels for a in args),
     )
+
+
+def _failing(error: ModelError) -> _Fn:
+    """An operation of constants without a value: an error on any row (of the ones
+    that fail, ``mod``, ``pow``, ``floor``..., every one gives ints)."""
+
+    def evaluate(states: IntArray) -> Any:
+        if states.shape[0]:
+            raise error
+        return np.empty(0, dtype=np.int64)
+
+    return evaluate
 
 
 def _operand_link(op: Callable[..., Any], args: Sequence[_Node]) -> Link:

@@ -23,6 +23,7 @@ from veribattery.lang.ops import (
     MOD_DIVISOR,
     MOD_INTEGERS,
     NEGATIVE_EXPONENT,
+    POW_OVERFLOW,
     OperatorError,
 )
 
@@ -37,6 +38,7 @@ NO_EXACT_LOG = ("log has no exact rational value; --exact needs rational express
 NO_EXACT_POW = "pow with a non-integer exponent has no exact rational value"
 ZERO_POWER = "zero to a negative power"
 DIVISION_BY_ZERO = "division by zero (no exact rational value)"
+EXPONENT_TOO_LARGE = "pow with an exponent beyond 4096 is not computed exactly"
 
 
 def as_objects(items: Sequence[Any]) -> np.ndarray:
@@ -116,9 +118,14 @@ def _round(values: np.ndarray) -> np.ndarray:
     return as_objects([_checked_int(mpq(math.floor(x + HALF))) for x in values])
 
 
+#: Exponents beyond this (of a base other than 0 and +-1) are refused: the exact
+#: power would have millions of digits (a double under- or overflows long before).
+_LARGEST_EXPONENT = 4096
+
+
 def power(base: np.ndarray, exponent: np.ndarray, integers: bool) -> np.ndarray:
     """``pow`` exactly: *integers* if both operands are PRISM ints (no negative
-    exponent then); otherwise the exponent must be a whole number."""
+    exponent then, and an int result); otherwise the exponent must be whole."""
     if any(e.denominator != 1 for e in exponent):
         raise OperatorError(NO_EXACT_POW)
     if integers and any(e < 0 for e in exponent):
@@ -127,6 +134,8 @@ def power(base: np.ndarray, exponent: np.ndarray, integers: bool) -> np.ndarray:
     for b, e in zip(base, exponent, strict=True):
         if b == ZERO and e.numerator < 0:
             raise OperatorError(ZERO_POWER)
+        if abs(e) > (64 if integers else _LARGEST_EXPONENT) and abs(b) not in (0, 1):
+            raise OperatorError(POW_OVERFLOW if integers else EXPONENT_TOO_LARGE)
         out.append(b ** int(e.numerator))
     return as_objects([_checked_int(v) for v in out] if integers else out)
 
@@ -141,7 +150,9 @@ def _modulo(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _log(x: np.ndarray, base: np.ndarray) -> np.ndarray:
-    raise OperatorError(NO_EXACT_LOG)
+    if len(x):
+        raise OperatorError(NO_EXACT_LOG)
+    return as_objects([])
 
 
 #: The built-in functions but ``pow`` (see :func:`power`), on evaluated arguments.

@@ -196,13 +196,14 @@ def _is_odd_integer(x: float) -> bool:
 
 
 def java_pow(a: float, b: float) -> float:
-    """Java's ``Math.pow`` (C's ``pow`` but NaN for a NaN exponent and for
-    ``pow(+-1, +-inf)``); no exception: NaN or infinity instead."""
-    if b != b:
-        return math.nan
-    if b == 0.0:
-        return 1.0
-    if a != a or (abs(a) == 1.0 and math.isinf(b)):
+    """Java's ``Math.pow`` (the C library's ``pow``, but NaN for a NaN exponent and
+    for ``pow(+-1, +-inf)``); never an error: NaN or infinity instead.
+
+    Every evaluator of doubles computes powers with this function (the numpy
+    domain element by element): numpy's own ``pow`` may differ in the last bit,
+    and differently for a constant exponent and for one per state.
+    """
+    if b != b or (abs(a) == 1.0 and math.isinf(b)):
         return math.nan
     try:
         return math.pow(a, b)
@@ -253,7 +254,8 @@ def _natural_log(x: float) -> float:
 
 def java_log(x: Value, b: Value) -> float:
     """``log(x, b)`` as PRISM: NaN for a base <= 0, 1, infinite or NaN; else
-    ``ln x / ln b`` with Java's ``ln`` (``ln 0 = -inf``, ``ln`` of a negative is NaN)."""
+    ``ln x / ln b`` with Java's ``ln`` (``ln 0 = -inf``, ``ln`` of a negative is NaN),
+    computed, as :func:`java_pow`, with the C library in every evaluator."""
     base = float(b)
     if not base > 0 or base == 1.0 or math.isinf(base):
         return math.nan
