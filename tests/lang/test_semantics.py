@@ -121,6 +121,36 @@ def test_parse_constant_assignments() -> None:
     }
 
 
+def test_a_constant_may_be_given_as_a_closed_expression() -> None:
+    """``--const p=1/3``: numbers, operators and functions; commas inside parentheses
+    belong to the expression."""
+    assert parse_constant_assignments(["M=max(2,3),N=4", "q=pow(2, -1.0)"]) == {
+        "M": "max(2,3)", "N": "4", "q": "pow(2, -1.0)"}
+    model = flat(
+        "dtmc\nconst double p;\nconst int N;\nconst int M;\nconst double q;\nconst bool b;\n"
+        "module m x : bool; endmodule\n",
+        {"p": "1/3", "N": "2*3", "M": "max(2,3)", "q": "pow(2, -1.0)", "b": "1 < 2 & !false"},
+    )
+    assert model.constants == (("p", 1 / 3), ("N", 6), ("M", 3), ("q", 0.5), ("b", True))
+
+
+@pytest.mark.parametrize(
+    ("decl", "value", "message"),
+    [
+        ("const int n;", "2*x", "constant 'n' is an int, but was given the value '2\\*x'"),
+        ("const int n;", "7/2", "constant 'n' is an int, but was given the value '7/2'"),
+        ("const double n;", "1 +", "constant 'n' is a double, but was given the value '1 \\+'"),
+        ("const double n;", '"a"', "constant 'n' is a double, but was given the value '\"a\"'"),
+        ("const int n;", "mod(3, 0)", "constant 'n' has no value: --const n=mod\\(3, 0\\): "
+                                      "cannot evaluate mod"),
+    ],
+)
+def test_a_given_expression_must_be_closed_and_of_the_constant_type(
+        decl: str, value: str, message: str) -> None:
+    with pytest.raises(PrismSemanticError, match=message):
+        flat(f"dtmc\n{decl}\nmodule m x : bool; endmodule\n", {"n": value})
+
+
 @pytest.mark.parametrize("item", ["N", "N=", "=3", "1N=2", "N=1,,M=2"])
 def test_malformed_constant_assignment(item: str) -> None:
     with pytest.raises(
