@@ -878,17 +878,9 @@ def _call(expr: Call, args: list[_Node]) -> _Node:
     apply = arrays.FUNCTIONS[func]
     if not function.may_fail:
         return _lift(apply, args)
-    return _lift(_located(apply, span), args, risky=_may_fail(func, args))
-
-
-def _may_fail(func: str, args: list[_Node]) -> bool:
-    """Whether ``func(args)`` may have no value: ``floor`` of an int always has one,
-    and so has ``pow`` of doubles (NaN or infinity at worst)."""
-    if func == "mod":
-        return True
-    if func == "pow":
-        return not any(a.double for a in args)
-    return args[0].double
+    # (ops' types: a variable, int or bool, counts as an int: bools take no numbers)
+    fails = function.fails(["double" if a.double else "int" for a in args])
+    return _lift(_located(apply, span), args, risky=fails)
 
 
 def _located(apply: Callable[..., Any], span: Span) -> Callable[..., Any]:

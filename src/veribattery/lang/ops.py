@@ -5,7 +5,7 @@ Every evaluator of expressions follows this table: constant folding
 the checker's intervals. Per operator it gives the number of operands, the type
 rule (:meth:`Operator.result`), whether later operands are evaluated only when the
 first leaves the value open (:attr:`Operator.lazy`), whether some operands have no
-value at all (:attr:`Operator.may_fail`: an error, as in PRISM, not a NaN), and the
+value at all (:attr:`Operator.fails`: an error, as in PRISM, not a NaN), and the
 reference value on Python scalars (:attr:`Operator.apply`), where ``int`` is PRISM's
 int, ``float`` its double and ``bool`` its bool.
 
@@ -39,6 +39,10 @@ __all__ = [
     "FUNCTIONS",
     "INT_MAX",
     "INT_MIN",
+    "MOD_DIVISOR",
+    "MOD_INTEGERS",
+    "NEGATIVE_EXPONENT",
+    "POW_OVERFLOW",
     "UNARY",
     "Operator",
     "OperatorError",
@@ -53,6 +57,7 @@ __all__ = [
     "java_min",
     "java_pow",
     "modulo",
+    "not_an_int",
     "round_int",
 ]
 
@@ -150,8 +155,10 @@ class Operator:
     :param apply: the value for evaluated operands (typed Python scalars).
     :param lazy: the first operand may decide the value alone; the second is then
         not evaluated (PRISM's ``&``, ``|``, ``=>``; see :func:`decided_by`).
-    :param may_fail: some operands have no value: :class:`OperatorError`, which a
-        vectorised evaluator must not raise for a state that does not evaluate it.
+    :param fails: whether, for operands of these types, some values have no result:
+        :class:`OperatorError`, which a vectorised evaluator must not raise for a
+        state that does not evaluate the operator (``floor`` of an int never fails,
+        of a double it does for NaN).
     """
 
     name: str
@@ -159,7 +166,12 @@ class Operator:
     result: TypeRule
     apply: Callable[..., Value]
     lazy: bool = False
-    may_fail: bool = False
+    fails: Callable[[Sequence[ValueType]], bool] = lambda kinds: False
+
+    @property
+    def may_fail(self) -> bool:
+        """Whether some operands of some types have no result."""
+        return self.fails(("double", "double")) or self.fails(("int", "int"))
 
     def accepts(self, count: int) -> bool:
         """Whether *count* operands are allowed."""
@@ -332,6 +344,16 @@ def _relation(test: Callable[[Any, Any], bool]) -> Callable[[Value, Value], bool
     return lambda a, b: bool(test(a, b))
 
 
+def _of_a_double(kinds: Sequence[ValueType]) -> bool:
+    """``floor``, ``ceil``, ``round``: NaN and infinity have no int; an int is itself."""
+    return kinds[0] == "double"
+
+
+def _of_ints(kinds: Sequence[ValueType]) -> bool:
+    """``pow``: of ints, a negative exponent or an overflow; of doubles, NaN at worst."""
+    return all(k == "int" for k in kinds)
+
+
 _ANY = (1, 1)
 _TWO = (2, 2)
 
@@ -360,11 +382,11 @@ BINARY: Mapping[str, Operator] = {
 FUNCTIONS: Mapping[str, Operator] = {
     "min": Operator("min", (1, None), _joined, _extreme(java_min, min)),
     "max": Operator("max", (1, None), _joined, _extreme(java_max, max)),
-    "floor": Operator("floor", _ANY, _int, floor_int, may_fail=True),
-    "ceil": Operator("ceil", _ANY, _int, ceil_int, may_fail=True),
-    "round": Operator("round", _ANY, _int, round_int, may_fail=True),
-    "pow": Operator("pow", _TWO, _joined, _power, may_fail=True),
-    "mod": Operator("mod", _TWO, _ints, modulo, may_fail=True),
+    "floor": Operator("floor", _ANY, _int, floor_int, fails=_of_a_double),
+    "ceil": Operator("ceil", _ANY, _int, ceil_int, fails=_of_a_double),
+    "round": Operator("round", _ANY, _int, round_int, fails=_of_a_double),
+    "pow": Operator("pow", _TWO, _joined, _power, fails=_of_ints),
+    "mod": Operator("mod", _TWO, _ints, modulo, fails=lambda kinds: True),
     "log": Operator("log", _TWO, _double, java_log),
 }
 
