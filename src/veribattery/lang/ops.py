@@ -75,7 +75,7 @@ INT_MIN = -(1 << 63)
 INT_MAX = (1 << 63) - 1
 
 # The messages of the errors, shared by every evaluator.
-NEGATIVE_EXPONENT = "negative exponent in integer pow"
+NEGATIVE_EXPONENT = "negative exponent in integer pow (for a real power write a double: -1.0)"
 POW_OVERFLOW = "integer pow out of the int range"
 MOD_DIVISOR = "modulo with non-positive divisor"
 MOD_INTEGERS = "mod requires integer arguments"
