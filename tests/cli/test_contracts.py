@@ -224,6 +224,35 @@ def test_emitted_files_check_like_the_config(tmp_path: Path, baseline: str) -> N
     assert resolved["results"] == direct["results"]
 
 
+@pytest.fixture
+def coin(tmp_path: Path) -> Path:
+    model = tmp_path / "coin.pm"
+    model.write_text("dtmc\nconst double p;\nconst int N;\nmodule m\n  x : [0..9] init 0;\n"
+                     "  [] x<N -> p:(x'=x+1) + 1-p:(x'=N);\nendmodule\n")
+    return model
+
+
+def test_prism_const_may_be_an_expression(coin: Path) -> None:
+    """``--const p=1/3`` is the double nearest 1/3 (and 1/3 itself under --exact)."""
+    model = coin
+    prop = ("--property", "P=? [ F x=2 ]")
+    given = run("prism", str(model), *prop, "--const", "p=1/3,N=2*3", "--json")
+    assert given.exit_code == 0, given.output
+    written = run("prism", str(model), *prop, "--const", f"p={1 / 3!r}", "--const", "N=6",
+                  "--json")
+    assert json.loads(given.stdout)["results"] == json.loads(written.stdout)["results"]
+    exact = run("prism", str(model), *prop, "--const", "p=1/3,N=max(2,3)*2", "--exact",
+                "--json")
+    assert exact.exit_code == 0, exact.output
+    assert json.loads(exact.stdout)["results"][0]["exact"] == "1/9"
+
+
+def test_prism_const_expression_with_a_name_is_rejected(coin: Path) -> None:
+    result = run("prism", str(coin), "--property", "P=? [ F x=2 ]", "--const", "p=0.5,N=2*x")
+    assert result.exit_code == 2
+    assert result.stderr == "error: constant 'N' is an int, but was given the value '2*x'\n"
+
+
 def test_prism_unknown_const_name_is_rejected(die: Path) -> None:
     result = run("prism", str(die), "--property", 'P=? [ F "six" ]', "--const", "Y=3")
     assert result.exit_code == 2

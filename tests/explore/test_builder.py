@@ -184,6 +184,31 @@ def test_state_and_transition_rewards() -> None:
     assert r.transition.tolist() == [2.5, 1.0, 0.0]
 
 
+def _counter_with_reward(guard: str, value: str) -> FlatModel:
+    """x counts 0, 1, 2 and stays; one reward item ``guard : value``."""
+    return flat_model(
+        [var("x", 0, 2)],
+        [module("M", ["x"], [command("x < 2", [("1", {"x": "x+1"})])])],
+        reward_structs=[rewards("r", (guard, value))],
+    )
+
+
+@pytest.mark.parametrize("value", ["1/x", "pow(0.0, x - 1)", "log(x, 1)"])
+def test_a_reward_that_is_not_finite_is_an_error_naming_structure_and_state(value: str) -> None:
+    """As PRISM: "Reward structure is not finite at state ..." (1/0 is inf, log base 1 NaN)."""
+    with pytest.raises(ModelError, match=r'reward structure "r" is not finite at state \(x=0\)'):
+        build_dtmc(_counter_with_reward("true", value))
+
+
+def test_a_reward_is_evaluated_only_where_its_guard_holds() -> None:
+    """``x>0 : floor(6/x)`` has no value at x=0 (floor of inf), where PRISM does not
+    evaluate it; 1/x is infinite there, but not a reward there either."""
+    r = build_dtmc(_counter_with_reward("x > 0", "floor(6/x)")).reward("r")
+    assert r.state.tolist() == [0.0, 6.0, 3.0]
+    r = build_dtmc(_counter_with_reward("x > 0", "1/x")).reward("r")
+    assert r.state.tolist() == [0.0, 1.0, 0.5]
+
+
 @pytest.mark.parametrize(
     ("updates", "message"),
     [

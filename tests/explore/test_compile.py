@@ -65,10 +65,18 @@ def test_risky_operands_only_evaluated_where_needed() -> None:
     assert run("x = 0 | y / x > 1").tolist() == [True, True, False, False]
 
 
-def test_division_by_zero_is_a_model_error() -> None:
-    node = expr("y / x")
-    with pytest.raises(ModelError, match="division by zero"):
-        compile_expr(node, NAMES)(STATES)
+def test_division_by_zero_is_infinite_as_in_java() -> None:
+    """PRISM divides doubles: y/0 is +-inf by the signs, 0/0 NaN; no error."""
+    got = run("y / (x - x)")
+    assert got.tolist() == [np.inf, np.inf, np.inf, -np.inf]
+    assert np.isnan(run("x / (y - y)")[0])
+    assert run("y / (x - x) > 100").tolist() == [True, True, True, False]
+
+
+def test_floor_of_an_infinite_quotient_is_a_model_error() -> None:
+    with pytest.raises(ModelError, match="cannot take floor of inf"):
+        run("floor(y / x)")
+    assert run("x != 0 & floor(y / x) >= 0").tolist() == [False, True, False, False]
 
 
 @pytest.mark.parametrize(

@@ -258,12 +258,13 @@ def _stateful_exact(p: Fraction) -> Fraction:
 
 
 def test_risky_probability_takes_the_expansion_way(monkeypatch: pytest.MonkeyPatch) -> None:
-    # A division by a state expression may fail on some states (p/x at x=0, where the
-    # command is disabled): re-pricing would need the guards to know where it is
-    # evaluated, so the states are expanded again. (A division that cannot fail within
-    # the ranges, such as p/(x+1), is tabulated and re-priced like any other factor.)
+    # A mod by a state expression has no value on some states (mod(x, x) at x=0, where
+    # the command is disabled): re-pricing would need the guards to know where it is
+    # evaluated, so the states are expanded again. (One that cannot fail within the
+    # ranges, such as mod(x, x+1), is tabulated and re-priced like any other factor;
+    # so is p/x, infinite at x=0, as in PRISM.)
     text = GAMBLER.replace("p : (x'=x+1) + 1-p : (x'=x-1)",
-                           "p/x : (x'=x+1) + 1-p/x : (x'=x-1)")
+                           "p*(1+mod(x,x)) : (x'=x+1) + 1-p*(1+mod(x,x)) : (x'=x-1)")
     base, structure = build_reusable(flat(text, p=0.3))
     calls = []
     original = reuse._relayers

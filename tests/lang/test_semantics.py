@@ -20,7 +20,8 @@ from veribattery.lang import (
     parse_model,
     undefined_constants,
 )
-from veribattery.lang.evaluate import evaluate, prism_mod
+from veribattery.lang.evaluate import evaluate
+from veribattery.lang.ops import modulo
 
 
 def flat(text: str, constants: dict[str, object] | None = None) -> FlatModel:
@@ -40,7 +41,7 @@ def const_value(expression: str, kind: str = "double") -> object:
         ("floor(7/2)", "int", 3),
         ("ceil(7/2)", "int", 4),
         ("pow(2, 10)", "int", 1024),
-        ("pow(2, 100)", "int", 2**100),
+        ("pow(2, 62)", "int", 2**62),
         ("pow(9.0, 0.5)", "double", 3.0),
         ("mod(7, 3)", "int", 1),
         ("mod(-7, 3)", "int", 2),
@@ -62,7 +63,7 @@ def test_constant_evaluation(expression: str, kind: str, value: object) -> None:
 
 
 def test_prism_mod_sign_convention() -> None:
-    assert [prism_mod(i, 3) for i in (-4, -3, -1, 0, 1, 4)] == [2, 0, 2, 0, 1, 1]
+    assert [modulo(i, 3) for i in (-4, -3, -1, 0, 1, 4)] == [2, 0, 2, 0, 1, 1]
 
 
 def test_division_by_zero_is_infinite_like_java() -> None:
@@ -118,6 +119,36 @@ def test_parse_constant_assignments() -> None:
         "p": "0.5",
         "x": "true",
     }
+
+
+def test_a_constant_may_be_given_as_a_closed_expression() -> None:
+    """``--const p=1/3``: numbers, operators and functions; commas inside parentheses
+    belong to the expression."""
+    assert parse_constant_assignments(["M=max(2,3),N=4", "q=pow(2, -1.0)"]) == {
+        "M": "max(2,3)", "N": "4", "q": "pow(2, -1.0)"}
+    model = flat(
+        "dtmc\nconst double p;\nconst int N;\nconst int M;\nconst double q;\nconst bool b;\n"
+        "module m x : bool; endmodule\n",
+        {"p": "1/3", "N": "2*3", "M": "max(2,3)", "q": "pow(2, -1.0)", "b": "1 < 2 & !false"},
+    )
+    assert model.constants == (("p", 1 / 3), ("N", 6), ("M", 3), ("q", 0.5), ("b", True))
+
+
+@pytest.mark.parametrize(
+    ("decl", "value", "message"),
+    [
+        ("const int n;", "2*x", "constant 'n' is an int, but was given the value '2\\*x'"),
+        ("const int n;", "7/2", "constant 'n' is an int, but was given the value '7/2'"),
+        ("const double n;", "1 +", "constant 'n' is a double, but was given the value '1 \\+'"),
+        ("const double n;", '"a"', "constant 'n' is a double, but was given the value '\"a\"'"),
+        ("const int n;", "mod(3, 0)", "constant 'n' has no value: --const n=mod\\(3, 0\\): "
+                                      "cannot evaluate mod"),
+    ],
+)
+def test_a_given_expression_must_be_closed_and_of_the_constant_type(
+        decl: str, value: str, message: str) -> None:
+    with pytest.raises(PrismSemanticError, match=message):
+        flat(f"dtmc\n{decl}\nmodule m x : bool; endmodule\n", {"n": value})
 
 
 @pytest.mark.parametrize("item", ["N", "N=", "=3", "1N=2", "N=1,,M=2"])

@@ -21,6 +21,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import expression
 from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.errors import CheckError, Span
+from veribattery.explore import arrays
 from veribattery.lang.nodes import BOUND_RELATIONS
 
 Result: TypeAlias = Bounds | BoolArray
@@ -136,7 +137,7 @@ def choose(cond: BoolArray, then: Result, otherwise: Result) -> Result:
 
 
 def _monotone(fn: Callable[[FloatArray], FloatArray], value: Values, a: Bounds) -> Bounds:
-    """A non-decreasing exact function (floor, ceil, round) maps the ends."""
+    """A non-decreasing exact function (floor, ceil, round, in doubles) maps the ends."""
     with np.errstate(invalid="ignore"):
         return Bounds(value, fn(a.lower), fn(a.upper))
 
@@ -152,16 +153,10 @@ def call(func: str, args: Sequence[Result], span: Span | None = None) -> Result:
         return Bounds(value, reduce([e.lower for e in ends]), reduce([e.upper for e in ends]))
     if func in ("floor", "ceil", "round"):
         rounders: dict[str, Callable[[FloatArray], FloatArray]] = {
-            "floor": np.floor, "ceil": np.ceil, "round": lambda x: np.floor(x + 0.5)}
-        fn = rounders[func]
-        # x + 0.5 in round may round up: move the ends one float outward first.
-        return _monotone(fn, value, _widened(ends[0]) if func == "round" else ends[0])
+            "floor": np.floor, "ceil": np.ceil, "round": arrays.rounded_half_up}
+        return _monotone(rounders[func], value, ends[0])
     if all(bool(np.all(e.lower == e.upper)) for e in ends) and np.issubdtype(value.dtype,
                                                                              np.integer):
         return Bounds.exact(value)  # pow/mod of exact ints is exact
     return _unknown(value)
 
-
-def _widened(a: Bounds) -> Bounds:
-    """*a* with each end moved one float outward (covers the rounding of ``x + 0.5``)."""
-    return Bounds(a.value, round_down(a.lower), round_up(a.upper))

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import functools
 import math
-import operator
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
 from typing import TYPE_CHECKING, TypeAlias
@@ -30,6 +29,7 @@ from veribattery.checker import (
 )
 from veribattery.checker.bounds import Bounds, escalated, required_precision
 from veribattery.errors import CheckError, VeribatteryError
+from veribattery.explore import arrays
 from veribattery.explore.compile import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.expressions import walk
@@ -82,10 +82,7 @@ Values: TypeAlias = FloatArray | BoolArray
 Result: TypeAlias = Bounds | BoolArray
 
 _CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
-    "&": operator.and_,
-    "|": operator.or_,
-    "=>": lambda a, b: ~a | b,
-    "<=>": operator.eq,
+    op: arrays.BINARY[op] for op in ("&", "|", "=>", "<=>")  # over state sets
 }
 
 # ---------------------------------------------------------------------------

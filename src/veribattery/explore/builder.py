@@ -22,15 +22,15 @@ import scipy.sparse as sp
 from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.compile import CompileCache, compile_expr
+from veribattery.explore.compile import CompileCache, CompiledExpr, compile_expr, may_fail
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
 from veribattery.explore.guard import Footprint, MemoryGuard
 from veribattery.explore.layers import Layer, Layers
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore, radix_words
-from veribattery.explore.successors import GroupSuccessors, expand_group
-from veribattery.lang.nodes import Expr, FlatModel, RewardStruct
+from veribattery.explore.successors import GroupSuccessors, expand_group, format_state
+from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 
 __all__ = [
     "Expansion",
@@ -423,19 +423,28 @@ _EVAL_CHUNK = 1 << 16
 
 
 def _over_states(
-    model: FlatModel, expr: Expr, over: tuple[IntArray, CompileCache], dtype: Any
+    model: FlatModel, expr: Expr, over: tuple[IntArray, CompileCache], dtype: Any,
+    where: BoolArray | None = None,
 ) -> np.ndarray:
     """*expr* in every state, as *dtype*, evaluated chunk by chunk; sub-expressions
     over small domains are tabulated (as for the commands), each table built once per
     cache (the ``mt`` reward's ``T_CELL*dist`` of three actions, a label's formula).
-    """
+    With *where*, 0 elsewhere: an expression that may fail is evaluated only there."""
     states, cache = over
     ranges = {v.name: (v.low, v.high) for v in model.variables}
     evaluate = compile_expr(expr, model.variable_names, ranges=ranges, cache=cache)
+    if where is None or not may_fail(evaluate):
+        out = _chunked(evaluate, states, dtype)
+        return out if where is None else np.where(where, out, 0)
+    out = np.zeros(states.shape[0], dtype=dtype)
+    out[where] = _chunked(evaluate, states[where], dtype)
+    return out
+
+
+def _chunked(evaluate: CompiledExpr, states: IntArray, dtype: Any) -> np.ndarray:
     out = np.empty(states.shape[0], dtype=dtype)
     for start in range(0, states.shape[0], _EVAL_CHUNK):
-        chunk = states[start : start + _EVAL_CHUNK]
-        out[start : start + chunk.shape[0]] = evaluate(chunk)
+        out[start : start + _EVAL_CHUNK] = evaluate(states[start : start + _EVAL_CHUNK])
     return out
 
 
@@ -457,7 +466,8 @@ def _reward_vectors(
     share: dict[str | None, FloatArray] = {}
     for item in struct.items:
         guard = _over_states(model, item.guard, over, bool)
-        value = np.where(guard, _over_states(model, item.value, over, np.float64), 0.0)
+        value = _over_states(model, item.value, over, np.float64, where=guard)
+        _check_finite(struct, item, value, model, states)
         if not item.is_transition:
             state += value
             continue
@@ -465,6 +475,17 @@ def _reward_vectors(
             share[item.action] = _action_share(item.action, choices, layers)
         transition += share[item.action] * value
     return RewardVectors(struct.name, state, transition)
+
+
+def _check_finite(struct: RewardStruct, item: RewardItem, value: FloatArray, model: FlatModel,
+                  states: IntArray) -> None:
+    """A reward that is infinite or NaN in a state is an error, as in PRISM."""
+    bad = np.flatnonzero(~np.isfinite(value))
+    if bad.size:
+        name = f'"{struct.name}"' if struct.name is not None else "(unnamed)"
+        where = format_state(model.variable_names, states[bad[0]])
+        raise ModelError(f"reward structure {name} is not finite at state ({where}): "
+                         f"{value[bad[0]]}", item.value.span)
 
 
 def _action_share(action: str | None, choices: IntArray, layers: list[Layer]) -> FloatArray:

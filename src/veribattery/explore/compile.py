@@ -5,11 +5,13 @@ A compiled expression takes an ``(n, n_vars)`` int64 array of variable values
 int64 and exact; ``/`` always gives a float, as in PRISM. Boolean variables are
 stored as 0/1, which numpy's logical functions and comparisons treat correctly.
 
-Sub-expressions whose operands are all literals are folded at compile time.
-Operations that can fail on some rows (division, ``mod``, ``pow``) are *risky*:
-the branches of ``? :`` and the right operands of ``&``, ``|`` and ``=>`` that
-contain them are evaluated only on the rows that need them, so that a guard such
-as ``y>0 & x/y>1`` does not report a division by zero where ``y=0``.
+The operators are those of :mod:`veribattery.lang.ops`, in the numpy domain of
+:mod:`.arrays` (``x/0`` is infinite, as in PRISM). Sub-expressions whose operands
+are all literals are folded at compile time. Operations that have no value for some
+operands (``mod``, ``pow`` of ints, ``floor``/``ceil``/``round`` of doubles) are
+*risky*: the branches of ``? :`` and the right operands of ``&``, ``|`` and ``=>``
+that contain them are evaluated only on the rows that need them, as PRISM evaluates
+them, so that ``c=0 | pow(2, c-1)>0`` reports no negative exponent where ``c=0``.
 
 Nothing here recurses over an expression: compiling keeps its own stack, and the
 closures of a long chain (thousands of terms) run in a loop (:mod:`.chains`).
@@ -28,7 +30,9 @@ import numpy as np
 from veribattery._record import record
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError, PrismSemanticError, Span
+from veribattery.explore import arrays
 from veribattery.explore.chains import SPINE_LIMIT, Link, same_rows, unrolled
+from veribattery.lang import ops
 from veribattery.lang.nodes import (
     Binary,
     BoolLit,
@@ -40,7 +44,9 @@ from veribattery.lang.nodes import (
     Ite,
     LabelRef,
     Unary,
+    ValueType,
 )
+from veribattery.lang.ops import OperatorError
 
 __all__ = [
     "CompileCache",
@@ -69,6 +75,8 @@ class _Node:
     link: Link | None = None  # how the value follows from its deepest operand's
     spine: int = 0  # links in a row down from here: evaluated in a loop from SPINE_LIMIT
     plain: _Fn | None = None  # *fn* without its memo (tables are made with it)
+    double: bool = False  # PRISM type double (else int or bool)
+    noisy: bool = False  # evaluates an operand that may be infinite or NaN (numpy warns)
 
     @property
     def subsettable(self) -> bool:
@@ -146,7 +154,8 @@ class CompileCache:
         elif isinstance(expr, Ident):
             parts = (Ident, expr.name)
         elif isinstance(expr, IntLit | DoubleLit | BoolLit):
-            parts = (type(expr), type(expr.value), expr.value)
+            # -0.0 == 0.0, but 1/-0.0 is -inf: the sign of a zero tells them apart
+            parts = (type(expr), type(expr.value), expr.value, math.copysign(1, expr.value))
         elif isinstance(expr, Ite):
             parts = (Ite, self.key(expr.cond), self.key(expr.then), self.key(expr.otherwise))
         elif isinstance(expr, Unary):
@@ -216,7 +225,7 @@ def compile_expr(
     columns = {name: i for i, name in enumerate(variable_names)}
     node = _compile(expr, _Scope(columns, label_masks, ranges, cache))
 
-    fn = node.fn
+    fn = _quiet(node.fn) if node.noisy else node.fn
 
     def evaluate(states: IntArray) -> np.ndarray:
         value = fn(states)
@@ -229,6 +238,16 @@ def compile_expr(
 
     if node.risky or node.labels:
         _MAY_FAIL.add(evaluate)
+    return evaluate
+
+
+def _quiet(fn: _Fn) -> _Fn:
+    """*fn* without numpy's warnings: infinities and NaN are values here (``x/0``)."""
+
+    def evaluate(states: IntArray) -> Any:
+        with np.errstate(all="ignore"):
+            return fn(states)
+
     return evaluate
 
 
@@ -340,7 +359,47 @@ def _memoised(fn: _Fn) -> _Fn:
 
 
 def _compile_node(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
-    """The node of *expr* made from its compiled *operands* (a leaf has none)."""
+    """The node of *expr* made from its compiled *operands* (a leaf has none), with
+    its type and whether it may see infinities."""
+    node = _built(expr, operands, scope)
+    double = _is_double(expr, operands, node)
+    noisy = _own_noise(expr, operands, node, double) or any(o.noisy for o in operands)
+    if node.double == double and node.noisy == noisy:
+        return node
+    return dataclasses.replace(node, double=double, noisy=noisy)
+
+
+def _is_double(expr: Expr, operands: list[_Node], node: _Node) -> bool:
+    """Whether *node* has PRISM type double (by :mod:`~veribattery.lang.ops`'s rules)."""
+    if node.is_const:
+        return bool(np.asarray(node.const).dtype.kind == "f")
+    kinds: list[ValueType] = ["double" if o.double else "int" for o in operands]
+    if isinstance(expr, Unary):
+        return ops.UNARY[expr.op].result(kinds) == "double"
+    if isinstance(expr, Binary):
+        return ops.BINARY[expr.op].result(kinds) == "double"
+    if isinstance(expr, Ite):
+        return operands[1].double or operands[2].double
+    if isinstance(expr, Call):
+        return ops.FUNCTIONS[expr.func].result(kinds) == "double"
+    return False
+
+
+def _own_noise(expr: Expr, operands: list[_Node], node: _Node, double: bool) -> bool:
+    """Whether *node* may make an infinity or a NaN of finite operands (or is one)."""
+    if node.is_const:
+        return not bool(np.all(np.isfinite(node.const)))
+    if isinstance(expr, Binary) and expr.op == "/":
+        divisor = operands[1]
+        return not (divisor.is_const and bool(np.all(np.isfinite(divisor.const)))
+                    and bool(np.all(divisor.const != 0)))
+    if isinstance(expr, Call):
+        return expr.func == "log" or (expr.func == "pow" and double)
+    return False
+
+
+def _built(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
+    """The node of *expr* made from its compiled *operands*."""
     if isinstance(expr, IntLit):
         return _constant(np.int64(expr.value))
     if isinstance(expr, DoubleLit):
@@ -479,10 +538,13 @@ def _tabulated(expr: Expr, operands: list[_Node], scope: _Scope) -> _Node:
     cols = [scope.columns[n] for n in names]
     grid = _grid(cols, lows, shape, len(scope.columns), scope.cache)
     try:
-        table = np.broadcast_to(np.asarray(direct.fn(grid)), grid.shape[:1]).copy()
-    except ModelError:  # fails on some valuation (e.g. x/y at y=0): evaluate per row
+        with np.errstate(all="ignore"):  # x/y at y=0: infinite, a value as any other
+            table = np.broadcast_to(np.asarray(direct.fn(grid)), grid.shape[:1]).copy()
+    except ModelError:  # fails on some valuation (e.g. mod(x, y) at y=0): evaluate per row
         return _compile_node(expr, operands, scope)
-    return _Node(fn=_lookup(table, cols, lows, shape, scope.cache))
+    noisy = table.dtype.kind == "f" and not bool(np.isfinite(table).all())
+    return _Node(fn=_lookup(table, cols, lows, shape, scope.cache), double=direct.double,
+                 noisy=noisy)
 
 
 def _without_memo(node: _Node) -> _Node:
@@ -502,7 +564,8 @@ def _narrowed(table: np.ndarray) -> np.ndarray:
     back after the gather (``_lookup``).
     """
     for narrow in _NARROW.get(table.dtype.kind, ()):
-        candidate = table.astype(narrow)
+        with np.errstate(over="ignore", invalid="ignore"):  # 1e45 in float32: refused below
+            candidate = table.astype(narrow)
         if np.array_equal(candidate.astype(table.dtype), table):
             return candidate
     return table
@@ -596,15 +659,28 @@ def _lift(
     """
     if all(a.is_const for a in args):
         try:
-            return _constant(op(*(a.const for a in args)))
-        except ModelError:
-            pass  # e.g. ``N=0 ? 0 : 1/N``: only fail if the branch is ever evaluated
+            with np.errstate(all="ignore"):  # Java's doubles: inf - inf is NaN, silently
+                return _constant(op(*(a.const for a in args)))
+        except ModelError as exc:  # ``N=0 ? 0 : mod(1, N)``: fails if ever evaluated
+            return _Node(fn=_failing(exc), risky=True)
     return _made(
         _applied(op, [a.fn for a in args]),
         link or _operand_link(op, args),
         risky=risky or any(a.risky for a in args),
         labels=any(a.labels for a in args),
     )
+
+
+def _failing(error: ModelError) -> _Fn:
+    """An operation of constants without a value: an error on any row (of the ones
+    that fail, ``mod``, ``pow``, ``floor``..., every one gives ints)."""
+
+    def evaluate(states: IntArray) -> Any:
+        if states.shape[0]:
+            raise error
+        return np.empty(0, dtype=np.int64)
+
+    return evaluate
 
 
 def _operand_link(op: Callable[..., Any], args: Sequence[_Node]) -> Link:
@@ -647,34 +723,14 @@ def _rest_applied(op: Callable[..., Any], rest: Sequence[_Fn]) -> Callable[[Any,
 
 
 def _unary(expr: Unary, operand: _Node) -> _Node:
-    if expr.op == "!":
-        return _lift(np.logical_not, [operand])
-    return _lift(np.negative, [operand])
-
-
-_SIMPLE_BINARY: dict[str, Callable[[Any, Any], Any]] = {
-    "<=>": np.equal,
-    "=": np.equal,
-    "!=": np.not_equal,
-    "<": np.less,
-    "<=": np.less_equal,
-    ">": np.greater,
-    ">=": np.greater_equal,
-    "+": np.add,
-    "-": np.subtract,
-    "*": np.multiply,
-}
+    return _lift(arrays.UNARY[expr.op], [operand])
 
 
 def _binary(expr: Binary, left: _Node, right: _Node) -> _Node:
     op = expr.op
-    if op in ("&", "|", "=>"):
+    if ops.BINARY[op].lazy:
         return _logical(op, left, right, _size_at_least(expr.right, _SKIP_SIZE))
-    if op == "<=>":
-        return _lift(lambda a, b: np.equal(np.asarray(a, bool), np.asarray(b, bool)), [left, right])
-    if op == "/":
-        return _lift(lambda a, b: _divide(a, b, expr.span), [left, right], risky=True)
-    return _lift(_SIMPLE_BINARY[op], [left, right])
+    return _lift(arrays.BINARY[op], [left, right])
 
 
 #: Right operands of ``&``/``|`` with at least this many nodes are skipped when the
@@ -685,8 +741,8 @@ _SKIP_SIZE = 4
 def _logical(op: str, left: _Node, right: _Node, big: bool = False) -> _Node:
     """``&``, ``|`` and ``=>``; a risky right operand is evaluated only where needed."""
     if op == "=>":
-        left = _lift(np.logical_not, [left])
-    combine = np.logical_and if op == "&" else np.logical_or
+        left = _lift(arrays.UNARY["!"], [left])
+    combine = arrays.BINARY["&" if op == "&" else "|"]
     if not right.subsettable or left.is_const:
         if big and not (left.is_const or right.is_const):
             return _skipping(combine, op != "&", left, right)
@@ -755,7 +811,10 @@ def _ite(cond: _Node, then: _Node, otherwise: _Node) -> _Node:
     """``cond ? then : otherwise``, linked through the branch that heads the longer
     chain (usually *otherwise*: ``c1 ? v1 : c2 ? v2 : ...``)."""
     if cond.is_const:
-        return then if bool(cond.const) else otherwise
+        chosen, other = (then, otherwise) if bool(cond.const) else (otherwise, then)
+        if other.double and not chosen.double:  # an int branch of a double ``? :``
+            return _lift(_as_double, [chosen])
+        return chosen
     if not (then.subsettable or otherwise.subsettable):
         return _lift(np.where, [cond, then, otherwise], link=_both_link(cond, then, otherwise))
     cfn, tfn, ofn = cond.fn, then.fn, otherwise.fn
@@ -802,10 +861,8 @@ def _merged(pick: Any, high: Any, low: Any) -> Any:
     return out
 
 
-def _divide(a: Any, b: Any, span: Span) -> Any:
-    if np.any(np.asarray(b) == 0):
-        raise ModelError("division by zero", span)
-    return np.true_divide(a, b, dtype=np.float64)
+def _as_double(x: Any) -> Any:
+    return np.asarray(x, dtype=np.float64)[()]
 
 
 # ---------------------------------------------------------------------------
@@ -815,59 +872,27 @@ def _divide(a: Any, b: Any, span: Span) -> Any:
 
 def _call(expr: Call, args: list[_Node]) -> _Node:
     func, span = expr.func, expr.span
-    arity = {"floor": 1, "ceil": 1, "pow": 2, "mod": 2, "log": 2}.get(func)
-    if (arity is not None and len(args) != arity) or (arity is None and not args):
+    function = ops.FUNCTIONS.get(func)
+    if function is None or not function.accepts(len(args)):
         raise PrismSemanticError(f"wrong number of arguments to {func}", span)
-    if func in ("min", "max"):
-        return _lift(lambda *xs: _reduce(np.minimum if func == "min" else np.maximum, xs), args)
-    if func in ("floor", "ceil"):
-        return _lift(lambda x: _round(np.floor if func == "floor" else np.ceil, x), args)
-    if func == "pow":
-        return _lift(lambda a, b: _power(a, b, span), args, risky=True)
-    if func == "mod":
-        return _lift(lambda a, b: _modulo(a, b, span), args, risky=True)
-    return _lift(_log, args)
+    apply = arrays.FUNCTIONS[func]
+    if not function.may_fail:
+        return _lift(apply, args)
+    # (ops' types: a variable, int or bool, counts as an int: bools take no numbers)
+    fails = function.fails(["double" if a.double else "int" for a in args])
+    return _lift(_located(apply, span), args, risky=fails)
 
 
-def _is_int(x: Any) -> bool:
-    return np.asarray(x).dtype.kind in "iub"
+def _located(apply: Callable[..., Any], span: Span) -> Callable[..., Any]:
+    """*apply*, its errors reported at *span*."""
 
+    def located(*args: Any) -> Any:
+        try:
+            return apply(*args)
+        except OperatorError as exc:
+            raise ModelError(str(exc), span) from None
 
-def _reduce(op: Callable[[Any, Any], Any], xs: Sequence[Any]) -> Any:
-    result = xs[0]
-    for x in xs[1:]:
-        result = op(result, x)
-    return result
-
-
-def _round(op: Callable[[Any], Any], x: Any) -> Any:
-    if _is_int(x):
-        return np.asarray(x, dtype=np.int64)[()]
-    with np.errstate(invalid="ignore"):
-        return np.asarray(op(x)).astype(np.int64)[()]
-
-
-def _power(a: Any, b: Any, span: Span) -> Any:
-    if _is_int(a) and _is_int(b):
-        if np.any(np.asarray(b) < 0):
-            raise ModelError("negative exponent in integer pow", span)
-        return np.power(np.asarray(a, np.int64), np.asarray(b, np.int64))[()]
-    with np.errstate(all="ignore"):  # Java's Math.pow: NaN/Infinity, no exception
-        return np.power(np.asarray(a, np.float64), np.asarray(b, np.float64))[()]
-
-
-def _modulo(a: Any, b: Any, span: Span) -> Any:
-    if not (_is_int(a) and _is_int(b)):
-        raise ModelError("mod requires integer arguments", span)
-    if np.any(np.asarray(b) <= 0):
-        raise ModelError("modulo with non-positive divisor", span)
-    # PRISM returns a result in 0..b-1 even for negative a: numpy's (Python's) convention.
-    return np.mod(np.asarray(a, np.int64), np.asarray(b, np.int64))[()]
-
-
-def _log(x: Any, base: Any) -> Any:
-    with np.errstate(all="ignore"):  # Java's Math.log: NaN/-Infinity, no exception
-        return (np.log(np.asarray(x, np.float64)) / np.log(np.asarray(base, np.float64)))[()]
+    return located
 
 
 # ---------------------------------------------------------------------------

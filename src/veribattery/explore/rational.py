@@ -17,16 +17,18 @@ expression, as do divisions by zero.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Collection, Mapping, Sequence
 from fractions import Fraction
 from typing import Any, TypeAlias
 
 import numpy as np
-from gmpy2 import mpq
+from gmpy2 import mpq, mpz
 
 from veribattery._types import IntArray
-from veribattery.errors import ModelError, PrismSemanticError, Span
+from veribattery.errors import ModelError, PrismSemanticError
+from veribattery.explore.rational_ops import BINARY, FUNCTIONS, as_objects, bools, power
+from veribattery.lang import ops
+from veribattery.lang.constants import given_expression
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     Binary,
@@ -40,7 +42,9 @@ from veribattery.lang.nodes import (
     Ite,
     Unary,
     Value,
+    ValueType,
 )
+from veribattery.lang.ops import OperatorError
 
 __all__ = [
     "ExactScalar",
@@ -52,10 +56,8 @@ __all__ = [
 ]
 
 ObjectArray: TypeAlias = np.ndarray
-#: An exact constant: a rational (ints included) or a boolean.
-ExactScalar: TypeAlias = mpq | bool
-
-_ZERO = mpq(0)
+#: An exact constant: an int (:class:`gmpy2.mpz`), a double (:class:`gmpy2.mpq`) or a bool.
+ExactScalar: TypeAlias = mpz | mpq | bool
 
 
 def rational(value: Value | Fraction | str) -> mpq:
@@ -153,12 +155,28 @@ def _constant(
     decl: ConstDecl, given: Mapping[str, Value | str], values: Mapping[str, ExactScalar]
 ) -> ExactScalar:
     if decl.value is None:
-        raw = given[decl.name]
-        if decl.type == "bool":
-            return raw in (True, "true")
-        return rational(raw.strip() if isinstance(raw, str) else raw)
-    result = evaluate_rational(decl.value, values, {}, 1)[0]
-    return bool(result) if decl.type == "bool" else result
+        result = _given(decl, given[decl.name])
+    else:
+        result = evaluate_rational(decl.value, values, {}, 1)[0]
+    if decl.type == "bool":
+        return bool(result)
+    return mpz(result) if decl.type == "int" else mpq(result)
+
+
+def _given(decl: ConstDecl, raw: Value | str) -> ExactScalar:
+    """The exact value given for *decl*: a number as written (``0.1`` is 1/10), or
+    a closed expression (``1/3``), as the float path accepted it."""
+    if isinstance(raw, bool):
+        return raw
+    if not isinstance(raw, str):
+        return rational(raw)
+    text = raw.strip()
+    if decl.type == "bool" and text in ("true", "false"):
+        return text == "true"
+    try:
+        return rational(text)
+    except (ValueError, ZeroDivisionError):
+        return evaluate_rational(given_expression(decl, text), {}, {}, 1)[0]
 
 
 # ---------------------------------------------------------------------------
@@ -219,13 +237,7 @@ def _distinct_rows(rows: IntArray) -> tuple[IntArray, IntArray]:
 def _column(values: IntArray, is_bool: bool) -> np.ndarray:
     if is_bool:
         return values.astype(bool)
-    return _as_objects([mpq(int(v)) for v in values])
-
-
-def _as_objects(items: Sequence[Any]) -> ObjectArray:
-    array = np.empty(len(items), dtype=object)
-    array[:] = items
-    return array
+    return as_objects([mpq(int(v)) for v in values])
 
 
 # ---------------------------------------------------------------------------
@@ -241,11 +253,20 @@ def evaluate_rational(
 ) -> np.ndarray:
     """*expr* evaluated exactly for *n* valuations (object array of mpq, or bools).
 
-    :param constants: exact constant values (scalars).
+    The operators are those of :mod:`veribattery.lang.ops` (see
+    :mod:`.rational_ops`); ``&``, ``|``, ``=>`` and ``? :`` evaluate an operand
+    only on the valuations that need it.
+
+    :param constants: exact constant values (scalars; an int constant is an
+        :class:`gmpy2.mpz`, a double an :class:`gmpy2.mpq`).
     :param variables: per variable, an array of *n* values (mpq objects or bools).
     :raises ModelError: for an operation without an exact rational result.
     """
-    return _Evaluator(constants, variables, n).run(expr)
+    return _Evaluator(constants, variables, n).run(expr)[0]
+
+
+#: A value on the evaluator's stack: its array and its PRISM type.
+_Typed = tuple[np.ndarray, ValueType]
 
 
 class _Evaluator:
@@ -266,13 +287,13 @@ class _Evaluator:
         chosen = {k: v[mask] for k, v in self.variables.items()}
         return _Evaluator(self.constants, chosen, int(np.count_nonzero(mask)))
 
-    def full(self, value: Any) -> np.ndarray:
-        if isinstance(value, bool | np.bool_):
-            return np.full(self.n, bool(value), dtype=bool)
-        return np.full(self.n, value, dtype=object)
+    def full(self, value: Any, kind: ValueType) -> _Typed:
+        if kind == "bool":
+            return np.full(self.n, bool(value), dtype=bool), kind
+        return np.full(self.n, mpq(value), dtype=object), kind
 
-    def run(self, expr: Expr) -> np.ndarray:
-        values: list[np.ndarray] = []
+    def run(self, expr: Expr) -> _Typed:
+        values: list[_Typed] = []
         todo: list[_Step] = [(_EVALUATE, expr, self)]
         while todo:
             step, node, context = todo.pop()
@@ -282,19 +303,20 @@ class _Evaluator:
                 _STEPS[step](node, context, values, todo)
         return values[0]
 
-    def start(self, expr: Expr, values: list[np.ndarray], todo: list[_Step]) -> None:
+    def start(self, expr: Expr, values: list[_Typed], todo: list[_Step]) -> None:
         """Push the value of *expr* on these rows, or the steps that compute it."""
         if isinstance(expr, IntLit):
-            values.append(self.full(mpq(expr.value)))
+            values.append(self.full(expr.value, "int"))
         elif isinstance(expr, DoubleLit):
-            values.append(self.full(rational(expr.text) if expr.text else rational(expr.value)))
+            exact = rational(expr.text) if expr.text else rational(expr.value)
+            values.append(self.full(exact, "double"))
         elif isinstance(expr, BoolLit):
-            values.append(self.full(expr.value))
+            values.append(self.full(expr.value, "bool"))
         elif isinstance(expr, Ident):
             values.append(self._ident(expr))
         elif isinstance(expr, Unary):
             todo += [(_NEGATE, expr, self), (_EVALUATE, expr.operand, self)]
-        elif isinstance(expr, Binary) and expr.op in ("&", "|", "=>"):
+        elif isinstance(expr, Binary) and ops.BINARY[expr.op].lazy:
             todo += [(_LEFT_DONE, expr, self), (_EVALUATE, expr.left, self)]
         elif isinstance(expr, Binary):
             todo += [(_APPLY, expr, self), (_EVALUATE, expr.right, self),
@@ -308,12 +330,20 @@ class _Evaluator:
             raise PrismSemanticError(
                 f"{type(expr).__name__} has no exact rational value", expr.span)
 
-    def _ident(self, expr: Ident) -> np.ndarray:
+    def _ident(self, expr: Ident) -> _Typed:
         if expr.name in self.variables:
-            return self.variables[expr.name]
+            column = self.variables[expr.name]
+            return column, "bool" if column.dtype == bool else "int"
         if expr.name in self.constants:
-            return self.full(self.constants[expr.name])
+            value = self.constants[expr.name]
+            return self.full(value, _constant_type(value))
         raise PrismSemanticError(f"unknown identifier '{expr.name}'", expr.span)
+
+
+def _constant_type(value: ExactScalar) -> ValueType:
+    if isinstance(value, bool | np.bool_):
+        return "bool"
+    return "int" if isinstance(value, int | mpz) else "double"
 
 
 #: A step of :meth:`_Evaluator.run`: what to do, for which node, with what (the
@@ -322,75 +352,68 @@ _Step = tuple[int, Any, Any]
 _EVALUATE, _NEGATE, _APPLY, _LEFT_DONE, _RIGHT_DONE, _CHOOSE, _BRANCHES_DONE, _CALL = range(8)
 
 
-def _negate(expr: Unary, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
-    operand = values.pop()
-    values.append(~_bools(operand) if expr.op == "!" else -operand)
+def _negate(expr: Unary, rows: _Evaluator, values: list[_Typed], todo: list[_Step]) -> None:
+    operand, kind = values.pop()
+    values.append((~bools(operand) if expr.op == "!" else -operand, kind))
 
 
-def _apply(expr: Binary, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
-    right = values.pop()
-    left = values.pop()
-    if expr.op == "/":
-        values.append(_divide(left, right, expr.span))
-    elif expr.op == "<=>":
-        values.append(np.asarray(_bools(left) == _bools(right)))
-    else:
-        result = _OPERATORS[expr.op](left, right)
-        values.append(np.asarray(result, dtype=bool) if expr.op in _RELATIONS else result)
+def _apply(expr: Binary, rows: _Evaluator, values: list[_Typed], todo: list[_Step]) -> None:
+    right, right_kind = values.pop()
+    left, left_kind = values.pop()
+    kind = ops.BINARY[expr.op].result((left_kind, right_kind)) or "double"
+    values.append((_located(expr, BINARY[expr.op], left, right), kind))
 
 
-def _left_done(expr: Binary, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
+def _left_done(expr: Binary, rows: _Evaluator, values: list[_Typed], todo: list[_Step]) -> None:
     """``&``, ``|``, ``=>``: the right operand only where the left does not decide."""
-    left = _bools(values.pop())
-    if expr.op == "=>":
-        left = ~left
-    decided = left if expr.op != "&" else ~left
-    result = left.copy()
-    undecided = ~decided
+    left = bools(values.pop()[0])
+    deciding = ops.decided_by(expr.op, True) is not None  # the left value that decides
+    settled = left if deciding else ~left
+    result = settled.copy() if ops.decided_by(expr.op, deciding) else np.zeros_like(settled)
+    undecided = ~settled
     if undecided.any():
         todo += [(_RIGHT_DONE, expr, (result, undecided)),
                  (_EVALUATE, expr.right, rows.subset(undecided))]
     else:
-        values.append(result)
+        values.append((result, "bool"))
 
 
 def _right_done(
-    expr: Binary, kept: tuple[np.ndarray, np.ndarray], values: list[np.ndarray],
-    todo: list[_Step],
+    expr: Binary, kept: tuple[np.ndarray, np.ndarray], values: list[_Typed], todo: list[_Step],
 ) -> None:
     result, undecided = kept
-    result[undecided] = _bools(values.pop())
-    values.append(result)
+    result[undecided] = bools(values.pop()[0])
+    values.append((result, "bool"))
 
 
-def _choose(expr: Ite, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
-    pick = _bools(values.pop())
+def _choose(expr: Ite, rows: _Evaluator, values: list[_Typed], todo: list[_Step]) -> None:
+    pick = bools(values.pop()[0])
     todo += [(_BRANCHES_DONE, expr, (rows, pick)),
              (_EVALUATE, expr.otherwise, rows.subset(~pick)),
              (_EVALUATE, expr.then, rows.subset(pick))]
 
 
 def _branches_done(
-    expr: Ite, kept: tuple[_Evaluator, np.ndarray], values: list[np.ndarray], todo: list[_Step]
+    expr: Ite, kept: tuple[_Evaluator, np.ndarray], values: list[_Typed], todo: list[_Step]
 ) -> None:
     rows, pick = kept
-    low = values.pop()
-    high = values.pop()
-    kind = bool if high.dtype == bool and low.dtype == bool else object
-    out = np.empty(rows.n, dtype=kind)
+    low, low_kind = values.pop()
+    high, high_kind = values.pop()
+    kind = ops.conditional_type(high_kind, low_kind) or "double"
+    out = np.empty(rows.n, dtype=bool if kind == "bool" else object)
     out[pick] = high
     out[~pick] = low
-    values.append(out)
+    values.append((out, kind))
 
 
-def _call_step(expr: Call, rows: _Evaluator, values: list[np.ndarray], todo: list[_Step]) -> None:
+def _call_step(expr: Call, rows: _Evaluator, values: list[_Typed], todo: list[_Step]) -> None:
     count = len(expr.args)
     args = values[len(values) - count :]
     del values[len(values) - count :]
     values.append(_call(expr, args))
 
 
-_STEPS: dict[int, Callable[[Any, Any, list[np.ndarray], list[_Step]], None]] = {
+_STEPS: dict[int, Callable[[Any, Any, list[_Typed], list[_Step]], None]] = {
     _NEGATE: _negate,
     _APPLY: _apply,
     _LEFT_DONE: _left_done,
@@ -401,89 +424,23 @@ _STEPS: dict[int, Callable[[Any, Any, list[np.ndarray], list[_Step]], None]] = {
 }
 
 
-def _bools(values: np.ndarray) -> np.ndarray:
-    if values.dtype == bool:
-        return values
-    return np.asarray(values != _ZERO, dtype=bool)  # a 0/1 int used as a condition
+def _call(expr: Call, args: list[_Typed]) -> _Typed:
+    function = ops.FUNCTIONS[expr.func]
+    kinds = [kind for _, kind in args]
+    kind = function.result(kinds) or "double"
+    arrays = [array for array, _ in args]
+    if expr.func == "pow":
+        return _located(expr, power, *arrays, kind == "int"), kind
+    return _located(expr, FUNCTIONS[expr.func], *arrays), kind
 
 
-_RELATIONS = frozenset({"=", "!=", "<", "<=", ">", ">="})
-
-_OPERATORS: dict[str, Callable[[Any, Any], Any]] = {
-    "+": np.add,
-    "-": np.subtract,
-    "*": np.multiply,
-    "=": np.equal,
-    "!=": np.not_equal,
-    "<": np.less,
-    "<=": np.less_equal,
-    ">": np.greater,
-    ">=": np.greater_equal,
-}
-
-
-def _divide(left: np.ndarray, right: np.ndarray, span: Span) -> np.ndarray:
-    if np.any(right == _ZERO):
-        raise ModelError("division by zero (no exact rational value)", span)
-    return np.asarray(left / right, dtype=object)
-
-
-# ---------------------------------------------------------------------------
-# Built-in functions
-# ---------------------------------------------------------------------------
-
-
-def _call(expr: Call, args: list[np.ndarray]) -> np.ndarray:
-    func = expr.func
-    if func in ("min", "max"):
-        pick = np.minimum if func == "min" else np.maximum
-        result = args[0]
-        for arg in args[1:]:
-            result = pick(result, arg)
-        return np.asarray(result, dtype=object)
-    if func in ("floor", "ceil"):
-        round_ = _floor if func == "floor" else _ceil
-        return _as_objects([round_(x) for x in args[0]])
-    if func == "pow":
-        return _power(args[0], args[1], expr)
-    if func == "mod":
-        return _modulo(args[0], args[1], expr)
-    raise ModelError(
-        f"{_text(expr)}: {func} has no exact rational value; --exact needs rational "
-        "expressions (+ - * / min max floor ceil mod, pow with an integer exponent)",
-        expr.span,
-    )
-
-
-def _floor(x: mpq) -> mpq:
-    return mpq(math.floor(x))
-
-
-def _ceil(x: mpq) -> mpq:
-    return mpq(math.ceil(x))
-
-
-def _power(base: np.ndarray, exponent: np.ndarray, expr: Call) -> np.ndarray:
-    if any(e.denominator != 1 for e in exponent):
-        raise ModelError(
-            f"{_text(expr)}: pow with a non-integer exponent has no exact rational value",
-            expr.span,
-        )
-    out = []
-    for b, e in zip(base, exponent, strict=True):
-        if b == _ZERO and e.numerator < 0:
-            raise ModelError(f"{_text(expr)}: zero to a negative power", expr.span)
-        out.append(b ** int(e.numerator))
-    return _as_objects(out)
-
-
-def _modulo(a: np.ndarray, b: np.ndarray, expr: Call) -> np.ndarray:
-    if any(x.denominator != 1 for x in a) or any(y.denominator != 1 for y in b):
-        raise ModelError(f"{_text(expr)}: mod requires integer arguments", expr.span)
-    if any(y.numerator <= 0 for y in b):
-        raise ModelError(f"{_text(expr)}: modulo with non-positive divisor", expr.span)
-    pairs = zip(a, b, strict=True)
-    return _as_objects([mpq(int(x.numerator) % int(y.numerator)) for x, y in pairs])
+def _located(expr: Binary | Call, apply: Callable[..., np.ndarray], *args: Any) -> np.ndarray:
+    """*apply* to *args*, an error reported at *expr* (a function's written out)."""
+    try:
+        return apply(*args)
+    except OperatorError as exc:
+        where = f"{_text(expr)}: " if isinstance(expr, Call) else ""
+        raise ModelError(f"{where}{exc}", expr.span) from None
 
 
 def _text(expr: Expr) -> str:

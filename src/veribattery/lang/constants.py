@@ -1,4 +1,5 @@
-"""Constants: ``--const`` parsing, typed values, and evaluation in dependency order."""
+"""Constants: ``--const`` parsing (values or closed expressions), typed values, and
+evaluation in dependency order."""
 
 from __future__ import annotations
 
@@ -6,10 +7,23 @@ import re
 from collections.abc import Mapping, Sequence
 from fractions import Fraction
 
-from veribattery.errors import PrismSemanticError
-from veribattery.lang.evaluate import evaluate
+from veribattery.errors import PrismSemanticError, PrismSyntaxError
+from veribattery.lang.evaluate import EvaluationError, evaluate
 from veribattery.lang.expressions import walk
-from veribattery.lang.nodes import ConstDecl, Ident, Value, ValueType
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    ConstDecl,
+    DoubleLit,
+    Expr,
+    Ident,
+    IntLit,
+    Ite,
+    Unary,
+    Value,
+    ValueType,
+)
 from veribattery.lang.typecheck import TypeEnv, type_of
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -18,11 +32,14 @@ _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 def parse_constant_assignments(items: Sequence[str]) -> dict[str, str]:
     """Parse CLI ``--const`` items: ``N=16``, or several at once as ``N=16,MAX=2``.
 
+    A value may be a closed expression (``p=1/3``, ``N=max(2,3)``): commas inside
+    parentheses belong to it.
+
     :raises PrismSemanticError: for an item that is not ``NAME=VALUE``, or a name given twice
     """
     result: dict[str, str] = {}
     for item in items:
-        for part in item.split(","):
+        for part in _top_level_parts(item):
             name, sep, value = (s.strip() for s in part.partition("="))
             if not sep or not _NAME.fullmatch(name) or not value:
                 raise PrismSemanticError(
@@ -35,18 +52,77 @@ def parse_constant_assignments(items: Sequence[str]) -> dict[str, str]:
     return result
 
 
+def _top_level_parts(item: str) -> list[str]:
+    """*item* split at the commas outside parentheses."""
+    parts, depth, start = [], 0, 0
+    for i, char in enumerate(item):
+        depth += (char == "(") - (char == ")")
+        if char == "," and depth == 0:
+            parts.append(item[start:i])
+            start = i + 1
+    parts.append(item[start:])
+    return parts
+
+
 def _parse_text(decl: ConstDecl, text: str) -> Value:
+    """The value given as *text*: a literal, or a closed expression such as ``1/3``."""
     text = text.strip()
-    if decl.type == "bool" and text in ("true", "false"):
-        return text == "true"
+    literal = _literal(decl, text)
+    if literal is not None:
+        return literal
+    expr = given_expression(decl, text)
+    try:
+        value = evaluate(expr, {})
+    except EvaluationError as exc:
+        raise PrismSemanticError(
+            f"constant '{decl.name}' has no value: --const {decl.name}={text}: {exc.message}"
+        ) from None
+    return float(value) if decl.type == "double" else value
+
+
+def _literal(decl: ConstDecl, text: str) -> Value | None:
+    """*text* read as a number or truth value of *decl*'s type, or None."""
+    if decl.type == "bool":
+        return text == "true" if text in ("true", "false") else None
     try:
         if decl.type == "int":
             return int(text)
-        if decl.type == "double":
-            return float(Fraction(text)) if "/" in text else float(text)
+        return float(Fraction(text)) if "/" in text else float(text)
     except (ValueError, ZeroDivisionError):
-        pass
-    raise PrismSemanticError(
+        return None
+
+
+def given_expression(decl: ConstDecl, text: str) -> Expr:
+    """*text*, given on the command line for *decl*, as a closed expression of its type.
+
+    :raises PrismSemanticError: for text that is no such expression (the message
+        quotes it): a syntax error, a name, a property operator or the wrong type
+    """
+    from veribattery.lang.parser import parse_property
+
+    try:
+        prop = parse_property(text)
+    except PrismSyntaxError:
+        prop = None
+    closed = prop is not None and prop.name is None and all(
+        type(node) in _CLOSED for node in walk(prop.formula))
+    if prop is None or not closed:
+        raise _wrong_value(decl, text)
+    try:
+        kind = type_of(prop.formula, TypeEnv({}))
+    except PrismSemanticError:
+        raise _wrong_value(decl, text) from None
+    if not _assignable(decl.type, kind):
+        raise _wrong_value(decl, text)
+    return prop.formula
+
+
+#: The nodes of a closed expression: literals, operators and functions.
+_CLOSED = frozenset({IntLit, DoubleLit, BoolLit, Unary, Binary, Ite, Call})
+
+
+def _wrong_value(decl: ConstDecl, text: str) -> PrismSemanticError:
+    return PrismSemanticError(
         f"constant '{decl.name}' is {_a(decl.type)}, but was given the value '{text}'"
     )
 

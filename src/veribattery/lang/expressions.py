@@ -263,11 +263,4 @@ def _evaluated(node: Expr) -> Expr:
         value = evaluate(node, {})
     except EvaluationError:
         return node
-    return literal(value, node.span, "double" if _double_ite(node) else None)
-
-
-def _double_ite(node: Expr) -> bool:
-    """An ``?:`` with an int and a double branch has type double whichever branch wins."""
-    return isinstance(node, Ite) and (
-        isinstance(node.then, DoubleLit) or isinstance(node.otherwise, DoubleLit)
-    )
+    return literal(value, node.span)  # a double ``? :`` gives a float: evaluate types it

@@ -44,20 +44,11 @@ from veribattery.lang.nodes import (
     ValueType,
     WeakUntil,
 )
-
-_BOOL_OPS = frozenset({"&", "|", "=>", "<=>"})
-_ORDER_OPS = frozenset({"<", "<=", ">", ">="})
-_ARITY = {
-    "floor": (1, 1), "ceil": (1, 1), "round": (1, 1), "pow": (2, 2), "mod": (2, 2), "log": (2, 2)
-}
+from veribattery.lang.ops import BINARY, FUNCTIONS, conditional_type
 
 
 def _numeric(kind: ValueType) -> bool:
     return kind in ("int", "double")
-
-
-def _join(a: ValueType, b: ValueType) -> ValueType:
-    return "int" if a == b == "int" else "double"
 
 
 class TypeEnv:
@@ -210,35 +201,28 @@ def _unary(expr: Unary, kind: ValueType) -> ValueType:
 
 
 def _binary(expr: Binary, left: ValueType, right: ValueType) -> ValueType:
-    op = expr.op
-    if op in _BOOL_OPS:
-        ok = left == right == "bool"
-    elif op in ("=", "!="):
-        ok = left == right == "bool" or (_numeric(left) and _numeric(right))
-    else:
-        ok = _numeric(left) and _numeric(right)
-    if not ok:
+    kind = BINARY[expr.op].result((left, right))
+    if kind is None:
         raise PrismSemanticError(
-            f"type error: operator '{op}' cannot be applied to {left} and {right}", expr.span
+            f"type error: operator '{expr.op}' cannot be applied to {left} and {right}",
+            expr.span,
         )
-    if op in _BOOL_OPS or op in _ORDER_OPS or op in ("=", "!="):
-        return "bool"
-    return "double" if op == "/" else _join(left, right)
+    return kind
 
 
 def _ite(expr: Ite, then: ValueType, otherwise: ValueType) -> ValueType:
-    if then == otherwise:
-        return then
-    if _numeric(then) and _numeric(otherwise):
-        return "double"
-    raise PrismSemanticError(
-        f"type error: the branches of '? :' are {then} and {otherwise}", expr.span
-    )
+    kind = conditional_type(then, otherwise)
+    if kind is None:
+        raise PrismSemanticError(
+            f"type error: the branches of '? :' are {then} and {otherwise}", expr.span
+        )
+    return kind
 
 
 def _check_arity(expr: Call) -> None:
-    low, high = _ARITY.get(expr.func, (2, 10**9))
-    if not low <= len(expr.args) <= high:
+    function = FUNCTIONS[expr.func]
+    if not function.accepts(len(expr.args)):
+        low, high = function.arity
         count = f"{low}" if low == high else f"at least {low}"
         raise PrismSemanticError(
             f"{expr.func}(...) takes {count} arguments, not {len(expr.args)}", expr.span
@@ -246,16 +230,14 @@ def _check_arity(expr: Call) -> None:
 
 
 def _call(expr: Call, kinds: list[ValueType]) -> ValueType:
-    if expr.func in ("floor", "ceil", "round"):
-        return "int"
-    if expr.func == "mod":
-        for arg, kind in zip(expr.args, kinds, strict=True):
-            if kind != "int":
-                raise PrismSemanticError("type error: mod(...) needs int arguments", arg.span)
-        return "int"
-    if expr.func == "log":
-        return "double"
-    return "int" if all(k == "int" for k in kinds) else "double"
+    kind = FUNCTIONS[expr.func].result(kinds)
+    if kind is None:  # the arguments are numbers (checked before): mod wants ints
+        for arg, arg_kind in zip(expr.args, kinds, strict=True):
+            if arg_kind != "int":
+                raise PrismSemanticError(
+                    f"type error: {expr.func}(...) needs int arguments", arg.span)
+    assert kind is not None
+    return kind
 
 
 # ----------------------------------------------------------------- properties
