@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from veribattery.checker import Workspace
 from veribattery.config import MissionConfig
 from veribattery.explore.dtmc import DTMC
 from veribattery.explore.reuse import structure_key
@@ -111,7 +112,7 @@ class MissionSession:
 
     def __init__(self, *, keep: Keep = "states", reuse: bool = True, lump: bool = False,
                  rewards: Rewards = "all", parses: ParseCache | None = None,
-                 workspace: object | None = None) -> None:
+                 workspace: Workspace | None = None) -> None:
         options = CheckOptions(keep, undefined_as_nan=True)
         self.session = Session(options, reuse=reuse, lump=lump, rewards=rewards,
                                workspace=workspace)

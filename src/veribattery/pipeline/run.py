@@ -177,6 +177,7 @@ def internal_results(
     """The answers of the *internal* properties on *dtmc* in floating point: the *live*
     ones checked, the others 0 exactly (see :func:`may_hold`)."""
     return tuple(
-        check(dtmc, p, states=False, workspace=workspace) if may else CheckResult(p, np.zeros(0), 0.0, 0.0, 0.0, 0.0)
+        check(dtmc, p, states=False, workspace=workspace) if may
+        else CheckResult(p, np.zeros(0), 0.0, 0.0, 0.0, 0.0)
         for p, may in zip(internal, live, strict=True)
     )

@@ -25,7 +25,7 @@ def bs1_points(cfg: MissionConfig, safe_ts: Sequence[Fraction]) -> tuple[Bs1Poin
     """
     points = []
     for safe_t in safe_ts:
-        values = check_mission(bs1_config(cfg, safe_t), keep_states=False).values
+        values = check_mission(bs1_config(cfg, safe_t), keep="answers").values
         points.append(Bs1Point(Fraction(safe_t), float(values["p_success"]),
                                float(values["exp_mission_time"])))
     return tuple(points)
