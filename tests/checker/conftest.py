@@ -6,7 +6,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from veribattery.checker import kernels, linsolve
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 
 #: Replaces ``owner.name`` by a spy; returns, per call, whether it answered (not None).
 SpyAnswers = Callable[[object, str], list[bool]]

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid
-from veribattery.checker import kernels
+from veribattery.checker.kernels import until as kernels
 
 
 @pytest.mark.parametrize("k", [0, 1, 7, 23])

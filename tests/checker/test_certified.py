@@ -17,8 +17,9 @@ from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
-from veribattery.checker import Workspace, kernels
-from veribattery.checker.bounds import Bounds
+from veribattery.checker import Workspace
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import until as kernels
 from veribattery.checker.result import CheckResult
 from veribattery.config.schema import parse_requirement
 from veribattery.lang.nodes import BoolLit, Property
@@ -219,7 +220,8 @@ def _chain_of_cycles(blocks: int, size: int, seed: int) -> sp.csr_matrix:
 
 
 def test_block_lu_matches_dense_solve_and_certifies() -> None:
-    from veribattery.checker import linsolve, scc
+    from veribattery.checker.linalg import factorization as linsolve
+    from veribattery.checker.linalg import scc
 
     P = _chain_of_cycles(10, 4, seed=1)
     n = P.shape[0]

@@ -30,9 +30,12 @@ from tests.checker.test_pinned_systems import (
     acyclic_rows,
     assert_rational_answers,
 )
-from veribattery.checker import certify, focus, kernels, linsolve
-from veribattery.checker.bounds import required_precision
-from veribattery.checker.certify import TERM_FLOOR, error_coefficient
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify import focus
+from veribattery.checker.certify.affine import TERM_FLOOR, error_coefficient
+from veribattery.checker.certify.bounds import required_precision
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.pipeline import check_prism_file
 
 PROPS = ('R{"r"}=? [ F "a" ];\nP=? [ F "t" ];\nP=? [ "c" U "t" ];\n'

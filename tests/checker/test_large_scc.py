@@ -17,8 +17,12 @@ import scipy.sparse.linalg  # noqa: F401 -- sp.linalg below
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid, ring_then_walk
-from veribattery.checker import Workspace, certify, kernels, linsolve, scc
-from veribattery.checker.bounds import Bounds
+from veribattery.checker import Workspace
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
+from veribattery.checker.linalg import scc
 
 GRID = """dtmc
 const int N = {n};

@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace, kernels, linsolve
+from veribattery.checker import Workspace
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.pipeline import check_prism_file
 

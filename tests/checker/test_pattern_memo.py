@@ -6,7 +6,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from tests.checker.chains import matrix
-from veribattery.checker import Workspace, kernels
+from veribattery.checker import Workspace
+from veribattery.checker.kernels import until as kernels
 
 
 def _chain(p: float) -> sp.csr_matrix:

@@ -23,7 +23,9 @@ import scipy.sparse as sp
 
 from tests.checker.conftest import SpyAnswers
 from tests.checker.test_conditional_certified import Rows, _expected, _prism, _until
-from veribattery.checker import certify, kernels, linsolve
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
 

@@ -20,8 +20,10 @@ from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
-from veribattery.checker import Workspace, certify, kernels
-from veribattery.checker.bounds import Bounds
+from veribattery.checker import Workspace
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import until as kernels
 from veribattery.pipeline import check_prism_file
 
 DATA = Path(__file__).resolve().parent.parent / "data"

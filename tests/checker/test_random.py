@@ -13,7 +13,8 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from veribattery.checker import Workspace, kernels
+from veribattery.checker import Workspace
+from veribattery.checker.kernels import until as kernels
 
 
 @st.composite

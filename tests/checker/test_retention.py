@@ -15,7 +15,9 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker.chains import dtmc, mask, matrix
-from veribattery.checker import Workspace, check, kernels, linsolve
+from veribattery.checker import Workspace, check
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.lang import parse_property
 from veribattery.pipeline import check_prism_file
 

@@ -16,8 +16,11 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
-from veribattery.checker import Workspace, kernels, linsolve, scc
-from veribattery.checker.bounds import Bounds
+from veribattery.checker import Workspace
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
+from veribattery.checker.linalg import scc
 
 
 def contains(found: Bounds, exact: list[Fraction]) -> bool:

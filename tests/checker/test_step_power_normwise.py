@@ -15,8 +15,8 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
-from veribattery.checker import kernels
-from veribattery.checker.bounds import Bounds, required_precision
+from veribattery.checker.certify.bounds import Bounds, required_precision
+from veribattery.checker.kernels import until as kernels
 
 
 def _random_chain(seed: int, n: int = 12) -> tuple[sp.csr_matrix, np.ndarray]:

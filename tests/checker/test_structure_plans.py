@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace, kernels, linsolve
+from veribattery.checker import Workspace
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 
 
 def _random_chain(rng: np.random.Generator, n: int, acyclic: bool) -> sp.csr_matrix:

@@ -15,7 +15,9 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
-from veribattery.checker import certify, linsolve, topological
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.linalg import factorization as linsolve
+from veribattery.checker.linalg import topological
 from veribattery.errors import CheckError
 
 GOAL_Q, GOAL_R, LOOP = 0.5, 0.25, 0.125  # next, goal, self-loop; the rest to a sink

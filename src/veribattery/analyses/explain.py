@@ -28,8 +28,9 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.analyses.paths import ProbablePath, most_probable_paths
-from veribattery.checker import Workspace, linsolve
-from veribattery.checker.kernels import prob0
+from veribattery.checker import Workspace
+from veribattery.checker.kernels.until import prob0
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
 

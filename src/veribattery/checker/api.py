@@ -5,7 +5,7 @@ from __future__ import annotations
 import time
 
 from veribattery._types import BoolArray
-from veribattery.checker import pctl
+from veribattery.checker.formula import pctl
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
 from veribattery.explore.dtmc import DTMC

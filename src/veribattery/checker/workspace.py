@@ -13,7 +13,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from veribattery.checker import certify, conditional, kernels, linsolve, pctl, steady
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.formula import pctl
+from veribattery.checker.kernels import conditional, steady
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr
 

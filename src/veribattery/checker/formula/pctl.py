@@ -2,7 +2,7 @@
 
 State formulas become boolean masks (:func:`state_set`); ``P=?`` and ``R=?``
 become per-state values (:func:`values`). Path formulas are reduced to the
-kernels' vocabulary here, so that :mod:`~veribattery.checker.kernels` never sees
+kernels' vocabulary here, so that :mod:`~veribattery.checker.kernels.until` never sees
 a node: ``F phi`` is ``true U phi``, ``G phi`` is ``1 - P(F !phi)``, ``U<k`` is
 ``U<=k-1`` and ``U>k`` is ``U>=k+1``.
 """
@@ -18,16 +18,10 @@ from typing import TYPE_CHECKING, TypeAlias
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker import (
-    conditional,
-    ctl,
-    filters,
-    intervals,
-    kernels,
-    reward_bounded,
-    steady,
-)
-from veribattery.checker.bounds import Bounds, escalated, required_precision
+from veribattery.checker.certify.bounds import Bounds, escalated, required_precision
+from veribattery.checker.formula import ctl, filters, intervals
+from veribattery.checker.kernels import conditional, reward_bounded, steady
+from veribattery.checker.kernels import until as kernels
 from veribattery.errors import CheckError, VeribatteryError
 from veribattery.explore import arrays
 from veribattery.explore.compile import compile_expr
@@ -627,7 +621,7 @@ def _compound(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
 
 def _compound_values(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
     """Arithmetic, comparisons and functions over operator results, state by state,
-    in interval arithmetic (:mod:`~veribattery.checker.intervals`)."""
+    in interval arithmetic (:mod:`~veribattery.checker.formula.intervals`)."""
     match expr:
         case Quantified() | ProbOp() | RewardOp() | SteadyOp():
             return state_set(dtmc, workspace, expr)

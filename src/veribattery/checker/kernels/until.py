@@ -2,19 +2,19 @@
 
 Every kernel takes the row-stochastic CSR transition matrix *P* and boolean
 state masks, never formulas (the recursion over formulas lives in
-:mod:`veribattery.checker.pctl`). Unbounded properties run the qualitative
+:mod:`veribattery.checker.formula.pctl`). Unbounded properties run the qualitative
 pre-pass first (:func:`prob0`, :func:`prob1`, both graph searches in C via
 :mod:`scipy.sparse.csgraph`), so the linear systems are only solved on the
 states whose value is strictly between the trivial ones, where they are
 nonsingular.
 
-Every kernel returns :class:`~veribattery.checker.bounds.Bounds`: point values
+Every kernel returns :class:`~veribattery.checker.certify.bounds.Bounds`: point values
 with certified enclosures (``docs/numerics.md``). The linear systems of
 :func:`until_probs` and :func:`reach_rewards` are solved by
-:mod:`~veribattery.checker.linsolve` (sparse LU with extended-precision iterative
+:mod:`~veribattery.checker.linalg.factorization` (sparse LU with extended-precision iterative
 refinement, or an iterative method), then certified by
-:func:`~veribattery.checker.certify.certify_fixpoint`; when that interval is too
-wide, small systems are solved exactly (:mod:`~veribattery.checker.rational`)
+:func:`~veribattery.checker.certify.affine.certify_fixpoint`; when that interval is too
+wide, small systems are solved exactly (:mod:`~veribattery.checker.linalg.rational`)
 and larger ones tightened by interval iteration.
 
 Step-bounded kernels iterate one sparse matrix-vector product per step, plus
@@ -39,14 +39,17 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, focus, linsolve, rational
-from veribattery.checker.bounds import (
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify import focus
+from veribattery.checker.certify.bounds import (
     Bounds,
     current_precision,
     escalated,
     round_down,
     round_up,
 )
+from veribattery.checker.linalg import factorization as linsolve
+from veribattery.checker.linalg import rational
 from veribattery.errors import CheckError
 
 if TYPE_CHECKING:
@@ -124,7 +127,7 @@ class _Memo:
     reversed: tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]] | None = None
     #: Untils (keys of ``remain``, ``target``) that some query needs in every state.
     whole: set[tuple[bytes, bytes]] = field(default_factory=set)
-    #: The exact checker's prepared systems and conditions (:mod:`~veribattery.checker.exact`).
+    #: The exact checker's prepared systems and conditions (:mod:`~veribattery.checker.exact.pctl`).
     exact: dict[bytes, object] = field(default_factory=dict)
 
 
@@ -640,7 +643,7 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
     first: from the rows alone where they are bounded on both sides
     (:func:`focus.answered_bounds`, no solve), else from the approximate solution's
     defect (:func:`focus.focused_bounds`). For the kernels here and in
-    :mod:`~veribattery.checker.conditional`.
+    :mod:`~veribattery.checker.kernels.conditional`.
     """
     if F.states.size < QUICK_MIN_STATES:
         return None

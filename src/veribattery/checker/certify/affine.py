@@ -28,7 +28,7 @@ import scipy.sparse as sp
 from veribattery._record import record
 from veribattery._sparse import csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 
 UNIT_ROUNDOFF = 2.0**-53
 #: The smallest subnormal float64: the absolute error of one product that underflows.
@@ -59,7 +59,7 @@ _PHI = 2.0**-53 + 2.0**-105
 def step_up(c: FloatArray) -> FloatArray:
     """An upper bound of the successor of each entry, in three vectorised operations.
 
-    :func:`~veribattery.checker.bounds.round_up` (``nextafter``) is exact but costs
+    :func:`~veribattery.checker.certify.bounds.round_up` (``nextafter``) is exact but costs
     a libm call per entry; this is the same bound, at most one float further out.
     Valid for finite entries and ``+inf``; ``-inf`` gives NaN (callers exclude it).
     """

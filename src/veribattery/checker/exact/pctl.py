@@ -1,12 +1,12 @@
 """PCTL model checking in exact rational arithmetic (``--exact``).
 
-The same recursion as :mod:`~veribattery.checker.pctl` over an
+The same recursion as :mod:`~veribattery.checker.formula.pctl` over an
 :class:`~veribattery.explore.exact.ExactDTMC`: state formulas are masks, ``P``
 and ``R`` operators are per-state rationals (:class:`ExactValues`), and
 ``P~p``/``R~r`` compare them with the bound exactly. The qualitative pre-pass
 is the float checker's (prob0/prob1 are graph searches, identical on the exact
 matrix, which has the same structure); the maybe states are then solved SCC by
-SCC in rationals (:mod:`~veribattery.checker.exact_solve`), and step-bounded
+SCC in rationals (:mod:`~veribattery.checker.exact.solve`), and step-bounded
 operators iterate exact matrix-vector products. Infinite expected rewards are
 kept in a separate mask.
 """
@@ -24,10 +24,9 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray
-from veribattery.checker import kernels
-from veribattery.checker.bounds import Bounds
-from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.pctl import (
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
+from veribattery.checker.formula.pctl import (
     _CONNECTIVES,
     _as_mask,
     _chain,
@@ -35,6 +34,7 @@ from veribattery.checker.pctl import (
     _leaf,
     _steps,
 )
+from veribattery.checker.kernels import until as kernels
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
@@ -294,7 +294,7 @@ def path_probs(model: ExactDTMC, workspace: Workspace, path: PathFormula) -> Obj
 def _storm_formula(model: ExactDTMC, workspace: Workspace,
                    path: RewardBounded | Conditional) -> ObjectArray:
     """Storm's reward-bounded and conditional formulas (checker/exact_storm_formulas.py)."""
-    from veribattery.checker import exact_storm_formulas as storm
+    from veribattery.checker.exact import storm
 
     if isinstance(path, RewardBounded):
         return storm.reward_bounded_probs(model, workspace, path)
@@ -406,7 +406,7 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
             state = structure.state
             return ExactValues.finite(_power(model, everywhere, state, zero, _steps(time_)))
         case ConditionalReach():
-            from veribattery.checker import exact_storm_formulas as storm
+            from veribattery.checker.exact import storm
 
             return storm.conditional_reach_rewards(model, workspace, structure, op.path)
     raise UndefinedResult(

@@ -1,7 +1,7 @@
 """Storm's conditional and reward-bounded formulas in exact rational arithmetic (``--exact``).
 
-The same constructions as the float checker (:mod:`~veribattery.checker.conditional`,
-:mod:`~veribattery.checker.reward_bounded`), on the rational transition matrix:
+The same constructions as the float checker (:mod:`~veribattery.checker.kernels.conditional`,
+:mod:`~veribattery.checker.kernels.reward_bounded`), on the rational transition matrix:
 
 * ``P(phi | F b) = P(phi ∧ F b) / P(F b)`` and ``E[R_a | F b] = E[R_a · 1{F b}] / P(F b)``,
   the numerators solved exactly SCC by SCC; states where ``F b`` is impossible hold
@@ -20,9 +20,10 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray, IntArray
-from veribattery.checker import exact, kernels
-from veribattery.checker.conditional import ConditionUnreachable
-from veribattery.checker.exact_solve import row_products, solve
+from veribattery.checker.exact import pctl as exact
+from veribattery.checker.exact.solve import row_products, solve
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.kernels.conditional import ConditionUnreachable
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.exact import ExactDTMC, ExactRewards

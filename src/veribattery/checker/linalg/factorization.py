@@ -6,7 +6,7 @@ conditioned: a symmetric random walk over n states has condition number ~n².
 A plain LU solve there loses digits (1e-6 relative error at n = 10⁶), so:
 
 1. **Direct.** A substitution (acyclic systems) or the SCC-wise solve of
-   :mod:`~veribattery.checker.scc` (LU per segment, or preconditioned Krylov
+   :mod:`~veribattery.checker.linalg.scc` (LU per segment, or preconditioned Krylov
    inside components too large to factorise), on the float64 matrix; then
    *mixed-precision iterative refinement* computes each residual ``b - A x``
    in extended precision (``numpy.longdouble``, 64-bit mantissa on x86-64;
@@ -50,7 +50,7 @@ from veribattery._memory import TRIM_MIN_STATES
 from veribattery._record import record
 from veribattery._sparse import csc_sharing, csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
-from veribattery.checker import scc
+from veribattery.checker.linalg import scc
 from veribattery.errors import CheckError
 
 ExtArray = npt.NDArray[np.longdouble]
@@ -404,7 +404,7 @@ class Factorization:
     single state, as in a mission that only moves forward), *A* is triangular in
     a topological order and the "factorisation" is that permutation, so each
     solve is one sparse substitution; otherwise the system is solved SCC by SCC
-    (:mod:`~veribattery.checker.scc`), each component by a method chosen by its size.
+    (:mod:`~veribattery.checker.linalg.scc`), each component by a method chosen by its size.
 
     :param A: the system matrix (extended precision or float64).
     :param residue: with a float64 *A*, the extended-precision part ``A_exact - A``.
@@ -610,7 +610,7 @@ class Factorization:
         system with each row divided by its diagonal (the fixed-point map's matrix):
         ``w = D A^-T v``, one transposed substitution. None unless the direct solver is a
         substitution, or when the answer is not finite. For the bounds at a few states
-        (:mod:`~veribattery.checker.focus`); accuracy affects only their tightness.
+        (:mod:`~veribattery.checker.certify.focus`); accuracy affects only their tightness.
         """
         inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
         if inverse is None:

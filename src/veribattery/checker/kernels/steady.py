@@ -9,7 +9,7 @@ replaced by ``sum pi = 1``: unique for an irreducible chain, periodic or not, an
 equal to the Cesàro long-run average that PRISM reports). Their certified
 enclosures come from the renewal theorem (:func:`bscc_averages`), and each
 BSCC's value is carried back to the transient states by one certified
-absorption system (:func:`~veribattery.checker.kernels.absorption`), so the cost
+absorption system (:func:`~veribattery.checker.kernels.until.absorption`), so the cost
 does not grow with the number of BSCCs.
 """
 
@@ -25,8 +25,9 @@ from scipy.sparse import linalg as spla  # a lazy package in the CLI: read when 
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, kernels
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.kernels import until as kernels
 
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
@@ -262,7 +263,7 @@ def total_rewards(P: CsrMatrix, rewards: FloatArray, *, workspace: Workspace) ->
     is earned infinitely often; in one without ("cold"), none is earned any
     more. So the total reward is the reward until a cold BSCC is reached --
     infinite where that is not almost sure -- which is
-    :func:`~veribattery.checker.kernels.reach_rewards` with its certificate.
+    :func:`~veribattery.checker.kernels.until.reach_rewards` with its certificate.
 
     :param P: row-stochastic CSR transition matrix.
     :param rewards: non-negative expected reward per step from each state.

@@ -38,8 +38,10 @@ from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, kernels, linsolve
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
 

@@ -1,6 +1,6 @@
 """Reward-bounded reachability, fast path: float64 levels with a forward-error radius.
 
-The backward programme of :mod:`~veribattery.checker.reward_bounded` computed once in
+The backward programme of :mod:`~veribattery.checker.kernels.reward_bounded` computed once in
 float64, each state carrying a radius ``e >= |computed - exact|`` (the exact value of
 the model as built). The argument is in ``docs/numerics.md`` ("Reward-bounded
 reachability"); in short:
@@ -30,11 +30,12 @@ from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, linsolve
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.linalg import factorization as linsolve
 
 if TYPE_CHECKING:
-    from veribattery.checker.reward_bounded import Levels
+    from veribattery.checker.kernels.reward_bounded import Levels
 
 #: Multiplying a nonnegative result of at most 7 rounded operations by this bounds
 #: the exact value from above: ``(1 + u)^8 < 1 + 2^-50`` with ``u = 2^-53``.

@@ -20,7 +20,7 @@ every level up to a stopping rule: a whole distribution in one pass).
 
 **Certification** (backward; ``docs/numerics.md``). The levels are computed once in
 float64 with a rigorous forward-error radius per state
-(:mod:`~veribattery.checker.reward_radius`); only where that interval misses the
+(:mod:`~veribattery.checker.kernels.reward_radius`); only where that interval misses the
 required precision is every level certified on its own (:func:`_certified_programme`,
 about ten times slower), and the two intervals are intersected.
 """
@@ -37,8 +37,11 @@ import scipy.sparse as sp
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, kernels, linsolve, reward_radius
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify import affine as certify
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.kernels import reward_radius
+from veribattery.checker.kernels import until as kernels
+from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -154,7 +157,7 @@ def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArr
     """Probability of ``remain U{r}<=bound target`` in every state, with certified bounds.
 
     First the point values with a forward-error radius per state
-    (:func:`~veribattery.checker.reward_radius.radius_programme`: per level two
+    (:func:`~veribattery.checker.kernels.reward_radius.radius_programme`: per level two
     products per reward group and two substitutions for the closure); where that
     interval misses the required precision, the programme is run again with every level certified
     (:func:`_certified_programme`) and the two certified intervals are intersected.

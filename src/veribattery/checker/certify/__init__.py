@@ -1,0 +1,1 @@
+"""Certified enclosures: directed rounding, affine fixpoint maps and their certificates."""

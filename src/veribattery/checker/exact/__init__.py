@@ -1,0 +1,1 @@
+"""The --exact checker: PCTL in rational arithmetic."""

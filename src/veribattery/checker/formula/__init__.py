@@ -1,0 +1,1 @@
+"""The PCTL/CTL recursion: formulas in, per-state values and state sets out."""

@@ -1,0 +1,1 @@
+"""Numeric kernels: transition matrices and state masks in, certified bounds out."""

@@ -1,0 +1,1 @@
+"""Linear systems: restriction to the unknown states, factorisations, triangular and iterative solves, SCC decomposition, exact fallback."""
