@@ -6,7 +6,7 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker.kernels import systems
 from veribattery.checker.linalg import factorization as linsolve
 
 #: Replaces ``owner.name`` by a spy; returns, per call, whether it answered (not None).
@@ -18,8 +18,8 @@ def quick_systems(monkeypatch: pytest.MonkeyPatch) -> SpyAnswers:
     """The quick certificates on every system (small ones included), and kept systems
     used whatever the share of their states a query has (a cost rule); returns a
     function that spies on a kernel's answers."""
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
-    monkeypatch.setattr(kernels, "SUPERSET_SHARE", 0.0)
+    monkeypatch.setattr(systems, "QUICK_MIN_STATES", 1)
+    monkeypatch.setattr(systems, "SUPERSET_SHARE", 0.0)
 
     def spy_on(owner: object, name: str) -> list[bool]:
         answered: list[bool] = []

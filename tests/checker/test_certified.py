@@ -17,9 +17,8 @@ from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
-from veribattery.checker import Workspace
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.kernels import until as kernels
 from veribattery.checker.result import CheckResult
 from veribattery.config.schema import parse_requirement
 from veribattery.lang.nodes import BoolLit, Property

@@ -7,8 +7,7 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker.chains import gamblers_ruin, knuth_die, mask, matrix
-from veribattery.checker import Workspace
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError
 

@@ -17,10 +17,10 @@ import scipy.sparse.linalg  # noqa: F401 -- sp.linalg below
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid, ring_then_walk
-from veribattery.checker import Workspace
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker.kernels import systems
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.checker.linalg import scc
 
@@ -165,7 +165,7 @@ def test_restricted_parts_match_the_dense_reference() -> None:
 def quick_only(krylov_calls: list[int], monkeypatch: pytest.MonkeyPatch) -> list[str]:
     """The Krylov path with the quick certificate on every system; the long way fails
     the test. Returns which margin each certificate used ("solve" or "proportional")."""
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
+    monkeypatch.setattr(systems, "QUICK_MIN_STATES", 1)
 
     def no_long_way(*args: object, **kwargs: object) -> None:
         raise AssertionError("the quick certificate should have been enough")

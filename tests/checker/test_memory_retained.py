@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker import Workspace, kernels
+from veribattery.checker.kernels import systems
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.pipeline import check_prism_file
@@ -49,7 +49,7 @@ def test_released_matrix_comes_back_bit_for_bit(monkeypatch: pytest.MonkeyPatch)
     """A triangular system drops ``I - P_mm`` once the substitution is built, and makes
     the same matrix again when a refined solve asks for it."""
     monkeypatch.setattr(linsolve, "RELEASE_MIN_STATES", 1)
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)  # certified without a refined solve
+    monkeypatch.setattr(systems, "QUICK_MIN_STATES", 1)  # certified without a refined solve
     P = _forward_chain(400)
     target = np.zeros(400, dtype=bool)
     target[-1] = True

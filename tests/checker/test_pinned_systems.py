@@ -1,7 +1,7 @@
 """An until whose target states lie inside a kept system is solved on it, those rows pinned.
 
 The mission's recharge-cap probability ``P=? [ F rc=RC_MAX ]`` has its target states
-inside ``R=? [ F "done" ]``'s system: ``kernels._pinned_until`` solves it there with
+inside ``R=? [ F "done" ]``'s system: ``until._pinned_until`` solves it there with
 the target (and other known) rows replaced by identity rows (``linsolve._Triangular.
 pinned``, ``certify.PinnedMap``) instead of building a second system. The oracle is
 independent of that construction: each value in ``fractions.Fraction`` by Gauss-Jordan
@@ -24,7 +24,7 @@ import scipy.sparse as sp
 from tests.checker.conftest import SpyAnswers
 from tests.checker.test_conditional_certified import Rows, _expected, _prism, _until
 from veribattery.checker.certify import affine as certify
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker.kernels import until
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
@@ -88,7 +88,7 @@ def assert_rational_answers(results: Sequence[CheckResult],
 @pytest.fixture
 def quick_everywhere(quick_systems: SpyAnswers) -> list[bool]:
     """:func:`quick_systems`; per ``_pinned_until`` call, whether it answered."""
-    return quick_systems(kernels, "_pinned_until")
+    return quick_systems(until, "_pinned_until")
 
 
 @pytest.mark.parametrize("seed", range(12))

@@ -13,8 +13,7 @@ import scipy.sparse as sp
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from veribattery.checker import Workspace
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker import Workspace, kernels
 
 
 @st.composite

@@ -15,8 +15,8 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker.chains import dtmc, mask, matrix
-from veribattery.checker import Workspace, check
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker import Workspace, check, kernels
+from veribattery.checker.kernels import prepass
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.lang import parse_property
 from veribattery.pipeline import check_prism_file
@@ -130,7 +130,7 @@ def test_backward_reach_matches_a_plain_search(seed: int) -> None:
         P.data[rng.random(P.nnz) < 0.3] = 0.0
     through, seeds = rng.random(n) < 0.7, rng.random(n) < 0.15
     before = P.copy()
-    found = kernels._backward_reach(P, through, seeds, Workspace())
+    found = prepass._backward_reach(P, through, seeds, Workspace())
     assert np.array_equal(found, _reach_reference(before, through, seeds))
     # the search must leave P as it was, stored zeros included
     assert np.array_equal(P.indptr, before.indptr) and np.array_equal(P.indices, before.indices)

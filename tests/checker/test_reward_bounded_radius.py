@@ -13,10 +13,9 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
-from veribattery.checker import Workspace
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.kernels import reward_radius
-from veribattery.checker.kernels import until as kernels
 from veribattery.checker.kernels.reward_bounded import _levels, reward_bounded_until_bounds
 
 Rows = dict[int, dict[int, float]]

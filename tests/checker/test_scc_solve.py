@@ -16,9 +16,8 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
-from veribattery.checker import Workspace
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.kernels import until as kernels
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.checker.linalg import scc
 

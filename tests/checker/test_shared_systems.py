@@ -24,8 +24,7 @@ from tests.checker.test_conditional_certified import (
     _until,
     oracle,
 )
-from veribattery.checker import Workspace
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
 

@@ -11,8 +11,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.linalg import factorization as linsolve
 
 

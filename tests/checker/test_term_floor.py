@@ -9,9 +9,8 @@ from fractions import Fraction
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.certify import affine as certify
-from veribattery.checker.kernels import until as kernels
 
 TINY = np.finfo(np.float64).tiny  # the smallest normal float64
 

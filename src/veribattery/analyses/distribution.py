@@ -27,9 +27,8 @@ import numpy as np
 
 from veribattery._files import staged
 from veribattery._types import FloatArray
-from veribattery.checker import Workspace
+from veribattery.checker import Workspace, kernels
 from veribattery.checker.kernels import reward_bounded
-from veribattery.checker.kernels import until as kernels
 from veribattery.checker.kernels.conditional import conditional_reach_rewards
 from veribattery.errors import CheckError, ConfigError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+from veribattery.checker import kernels
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.formula import pctl
 from veribattery.checker.kernels import conditional, steady
-from veribattery.checker.kernels import until as kernels
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr

@@ -24,6 +24,7 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray
+from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
 from veribattery.checker.formula.pctl import (
@@ -34,7 +35,6 @@ from veribattery.checker.formula.pctl import (
     _leaf,
     _steps,
 )
-from veribattery.checker.kernels import until as kernels
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError

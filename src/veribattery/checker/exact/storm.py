@@ -20,9 +20,9 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray, IntArray
+from veribattery.checker import kernels
 from veribattery.checker.exact import pctl as exact
 from veribattery.checker.exact.solve import row_products, solve
-from veribattery.checker.kernels import until as kernels
 from veribattery.checker.kernels.conditional import ConditionUnreachable
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult

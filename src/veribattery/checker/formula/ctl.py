@@ -17,7 +17,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker import kernels
 
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace

@@ -18,10 +18,10 @@ from typing import TYPE_CHECKING, TypeAlias
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import Bounds, escalated, required_precision
 from veribattery.checker.formula import ctl, filters, intervals
 from veribattery.checker.kernels import conditional, reward_bounded, steady
-from veribattery.checker.kernels import until as kernels
 from veribattery.errors import CheckError, VeribatteryError
 from veribattery.explore import arrays
 from veribattery.explore.compile import compile_expr

@@ -40,7 +40,10 @@ from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker.kernels.prepass import prob0
+from veribattery.checker.kernels.steps import absorption, next_probs
+from veribattery.checker.kernels.systems import shared_system
+from veribattery.checker.kernels.until import focus_rows, quick_bounds, reach_rewards, until_probs
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -88,7 +91,7 @@ def conditioned_chain(dtmc: DTMC, condition: BoolArray, *, workspace: Workspace
     """
     P = dtmc.transitions
     n = dtmc.num_states
-    x = kernels.until_probs(P, np.ones(n, dtype=bool), condition, workspace=workspace).value
+    x = until_probs(P, np.ones(n, dtype=bool), condition, workspace=workspace).value
     before = (x > 0) & ~condition
     after = _reachable_from(P, condition)
     origin = np.concatenate([np.flatnonzero(before), np.flatnonzero(after)])
@@ -215,9 +218,9 @@ def condition_probs(P: CsrMatrix, states: BoolArray, *, workspace: Workspace) ->
         conditions.move_to_end(key)
         return kept[1]
     everywhere = np.ones(P.shape[0], dtype=bool)
-    found = Condition(states.copy(), kernels.until_probs(P, everywhere, states,
+    found = Condition(states.copy(), until_probs(P, everywhere, states,
                                                          workspace=workspace),
-                      ~kernels.prob0(P, everywhere, states, workspace=workspace))
+                      ~prob0(P, everywhere, states, workspace=workspace))
     conditions[key] = (weakref.ref(P), found)
     while len(conditions) > _KEPT:
         conditions.popitem(last=False)
@@ -277,15 +280,15 @@ def until_given(P: CsrMatrix, remain: BoolArray, target: BoolArray,
 
     The numerator ``z = P(remain U target ∧ F b)`` is 0 or known once the path meets
     *target* (then ``z = x``), leaves *remain* (0) or meets *b* (then ``z = P(remain U
-    target)``): an absorption problem on the other states (:func:`kernels.absorption`).
+    target)``): an absorption problem on the other states (:func:`steps.absorption`).
     """
-    until = kernels.until_probs(P, remain, target, workspace=workspace)
+    until = until_probs(P, remain, target, workspace=workspace)
     b = condition.states
     x = condition.probs
     fixed = target | b | ~remain
     known = tuple(np.where(target, xv, np.where(b, uv, 0.0)) for xv, uv in
                   ((x.value, until.value), (x.lower, until.lower), (x.upper, until.upper)))
-    numerator = kernels.absorption(P, fixed, Bounds(*known), workspace=workspace)
+    numerator = absorption(P, fixed, Bounds(*known), workspace=workspace)
     return divide(numerator, condition, 1.0)
 
 
@@ -297,7 +300,7 @@ def next_given(P: CsrMatrix, target: BoolArray, condition: Condition) -> Bounds:
     value = np.asarray(P @ (hits * x.value), dtype=np.float64)
     lower = certify.enclose_product(P, hits * x.lower)[1]
     upper = certify.enclose_product(P, hits * x.upper)[2]
-    on_b = kernels.next_probs(P, target)
+    on_b = next_probs(P, target)
     b = condition.states
     numerator = Bounds.around(np.where(b, on_b.value, value), np.where(b, on_b.lower, lower),
                               np.where(b, on_b.upper, upper))
@@ -317,19 +320,19 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     elsewhere it solves ``y = r x + P y`` (the reward of a step from a state before
     *b* counts on the paths that go on to meet *b*: a fraction ``x`` of them).
     With *focus_states*, the numerator's bounds may be trivial away from them
-    (``kernels.until_probs``); the condition's are always whole, for its offset.
+    (``until.until_probs``); the condition's are always whole, for its offset.
     """
     b = condition.states & ~target
     # On b the unconditional value (not needed when b lies inside the target, as
     # the mission's success inside done).
     if b.any():
-        plain = kernels.reach_rewards(P, rewards, target, workspace=workspace)
-        infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value), workspace=workspace)
+        plain = reach_rewards(P, rewards, target, workspace=workspace)
+        infinite = ~prob0(P, ~target, b & np.isinf(plain.value), workspace=workspace)
         known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
                          (plain.value, plain.lower, plain.upper)))
         del plain
     else:  # no known values: one zero vector stands for all three during the solve
-        infinite = ~kernels.prob0(P, ~target, b, workspace=workspace)
+        infinite = ~prob0(P, ~target, b, workspace=workspace)
         zero = np.zeros(P.shape[0])
         known = Bounds(zero, zero, zero)
     allowed = ~infinite & ~target & ~b
@@ -381,7 +384,7 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, B
     on a superset of *maybe* inside *allowed* (``R=? [ F a ]``'s) is solved instead.
     """
     maybe, allowed = states
-    system = kernels.shared_system(P, maybe, allowed, workspace=workspace)
+    system = shared_system(P, maybe, allowed, workspace=workspace)
     unknowns = system.unknowns
     r = np.asarray(rewards[unknowns], dtype=np.float64)
     low, high = _offset_bounds(r, x.lower[unknowns], x.upper[unknowns])
@@ -393,8 +396,8 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, B
     # The quick path reads the right-hand side in float64 only: the extended one is
     # made again if the long way is needed (8 bytes per state less at the peak).
     rhs = _right_side(rows, known.value, r, x.value[unknowns])
-    found = kernels.quick_bounds(F, solver, rhs.astype(np.float64), np.full((), floor),
-                                 np.full((), np.inf), kernels.focus_rows(system, F, focus_states))
+    found = quick_bounds(F, solver, rhs.astype(np.float64), np.full((), floor),
+                                 np.full((), np.inf), focus_rows(system, F, focus_states))
     del rhs
     if found is None:
         rhs = _right_side(rows, known.value, r, x.value[unknowns])
@@ -526,7 +529,7 @@ def conditional_reach_reward_bounds(dtmc: DTMC, rewards: RewardVectors, target: 
     :param condition: the states of the condition.
     :param what: how to name the condition in an error.
     :param span: where the formula is.
-    :param focus_states: as for ``kernels.until_probs``.
+    :param focus_states: as for ``until.until_probs``.
     :param workspace: where the checker's memos are kept.
     :raises ConditionUnreachable: when the condition has probability 0 from an initial state.
     """

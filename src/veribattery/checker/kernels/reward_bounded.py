@@ -40,7 +40,7 @@ from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.kernels import reward_radius
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker.kernels.prepass import prob0
 from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -174,7 +174,7 @@ def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArr
     n = P.shape[0]
     if bound < 0:
         return Bounds.exact(np.zeros(n))
-    moving = remain & ~target & ~kernels.prob0(P, remain, target, workspace=workspace)
+    moving = remain & ~target & ~prob0(P, remain, target, workspace=workspace)
     order = _grouped_order(moving, rewards)
     P, moving, target, rewards = (sp.csr_matrix(P[order][:, order]), moving[order],
                                   target[order], rewards[order])
@@ -366,7 +366,7 @@ def absorption_by_level(P: CsrMatrix, initial: FloatArray, absorbing: tuple[Bool
     stopped = np.zeros(n, dtype=bool)
     for mask in absorbing:
         stopped |= mask
-    dead = kernels.prob0(P, np.ones(n, dtype=bool), stopped, workspace=workspace) & ~stopped
+    dead = prob0(P, np.ones(n, dtype=bool), stopped, workspace=workspace) & ~stopped
     moving = ~stopped & ~dead
     order = _grouped_order(moving, rewards)
     Q = sp.csr_matrix(P[order][:, order])

@@ -27,7 +27,8 @@ from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
-from veribattery.checker.kernels import until as kernels
+from veribattery.checker.kernels.steps import absorption
+from veribattery.checker.kernels.until import reach_rewards
 
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
@@ -174,7 +175,7 @@ class LongRun:
 
 def steady_probs(P: CsrMatrix, target: BoolArray, *, workspace: Workspace) -> Bounds:
     """Long-run probability of being in *target*, from every state (``S=? [target]``),
-    certified (:func:`bscc_averages`, then :func:`kernels.absorption`).
+    certified (:func:`bscc_averages`, then :func:`steps.absorption`).
 
     :param P: row-stochastic CSR transition matrix.
     :param target: the states counted.
@@ -201,7 +202,7 @@ def _long_run_values(P: CsrMatrix, weights: FloatArray, workspace: Workspace) ->
     per_bscc = bscc_averages(P, parts, pi, weights, workspace=workspace)
     comp = np.maximum(parts.component, 0)
     known = Bounds(per_bscc.value[comp], per_bscc.lower[comp], per_bscc.upper[comp])
-    return kernels.absorption(P, parts.recurrent, known, workspace=workspace)
+    return absorption(P, parts.recurrent, known, workspace=workspace)
 
 
 def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArray, *,
@@ -211,7 +212,7 @@ def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArra
     By the renewal theorem the average is ``E[cycle weight] / E[cycle length]`` for
     the cycles from a reference state *r* back to *r*: ``w_r + sum_j P_rj h_j`` over
     ``1 + sum_j P_rj l_j``, with *h* and *l* the expected weight and number of steps
-    until *r* (:func:`kernels.reach_rewards`, certified; one solve for all BSCCs,
+    until *r* (:func:`until.reach_rewards`, certified; one solve for all BSCCs,
     each restricted to itself). Ends are divided with outward rounding. The point
     value is the stationary solve's. BSCCs where *weights* is constant are exact.
 
@@ -243,8 +244,8 @@ def _renewal(inner: CsrMatrix, ref: IntArray, weights: FloatArray,
     target = np.zeros(inner.shape[0], dtype=bool)
     target[ref] = True
     rows = sp.csr_matrix(inner[ref])
-    gained = kernels.reach_rewards(inner, weights, target, workspace=workspace)
-    steps = kernels.reach_rewards(inner, np.ones(inner.shape[0]), target, workspace=workspace)
+    gained = reach_rewards(inner, weights, target, workspace=workspace)
+    steps = reach_rewards(inner, np.ones(inner.shape[0]), target, workspace=workspace)
     ones = np.ones(ref.size)
     gained_low = certify.enclose_product(rows, gained.lower, weights[ref])[1]
     gained_high = certify.enclose_product(rows, gained.upper, weights[ref])[2]
@@ -274,4 +275,4 @@ def total_rewards(P: CsrMatrix, rewards: FloatArray, *, workspace: Workspace) ->
     earning = np.zeros(parts.count, dtype=bool)
     earning[parts.component[recurrent & (rewards > 0)]] = True
     cold = recurrent & ~earning[np.maximum(parts.component, 0)]
-    return kernels.reach_rewards(P, rewards, cold, workspace=workspace)
+    return reach_rewards(P, rewards, cold, workspace=workspace)
