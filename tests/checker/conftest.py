@@ -6,8 +6,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
+from veribattery.checker import linalg
 from veribattery.checker.kernels import systems
-from veribattery.checker.linalg import factorization as linsolve
 
 #: Replaces ``owner.name`` by a spy; returns, per call, whether it answered (not None).
 SpyAnswers = Callable[[object, str], list[bool]]
@@ -40,11 +40,11 @@ def quick_systems(monkeypatch: pytest.MonkeyPatch) -> SpyAnswers:
 def systems_built(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
     """How many restricted systems the kernels build (sizes, in order)."""
     built: list[int] = []
-    original = linsolve.restricted_parts
+    original = linalg.restricted_parts
 
     def counting(P, maybe, plans=None):  # type: ignore[no-untyped-def]
         built.append(int(maybe.sum()))
         return original(P, maybe, plans)
 
-    monkeypatch.setattr(linsolve, "restricted_parts", counting)
+    monkeypatch.setattr(linalg, "restricted_parts", counting)
     yield built

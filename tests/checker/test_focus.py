@@ -36,7 +36,7 @@ from veribattery.checker.certify import focus
 from veribattery.checker.certify.affine import TERM_FLOOR, error_coefficient
 from veribattery.checker.certify.bounds import required_precision
 from veribattery.checker.kernels import systems, until
-from veribattery.checker.linalg import factorization as linsolve
+from veribattery.checker.linalg import triangular
 from veribattery.pipeline import check_prism_file
 
 PROPS = ('R{"r"}=? [ F "a" ];\nP=? [ F "t" ];\nP=? [ "c" U "t" ];\n'
@@ -272,8 +272,8 @@ def test_dual_solve_is_the_transposed_system() -> None:
     dense = acyclic_rows(rng, n)
     leave = rng.integers(4, 16, size=n) / 16  # the diagonal D (leaving probabilities)
     A = sp.csr_matrix(np.diag(leave) - dense)
-    inverse = linsolve._triangular_inverse(A)
-    assert isinstance(inverse, linsolve._Triangular)
+    inverse = triangular._triangular_inverse(A)
+    assert isinstance(inverse, triangular._Triangular)
     v = rng.random(n)
     B = dense / leave[:, None]
     expected = np.linalg.solve((np.eye(n) - B).T, v)  # w^T (I - B) = v^T

@@ -17,11 +17,10 @@ import scipy.sparse.linalg  # noqa: F401 -- sp.linalg below
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid, ring_then_walk
-from veribattery.checker import Workspace, kernels
+from veribattery.checker import Workspace, kernels, linalg
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.kernels import systems
-from veribattery.checker.linalg import factorization as linsolve
 from veribattery.checker.linalg import scc
 
 GRID = """dtmc
@@ -87,7 +86,7 @@ def _grid_system_on_krylov() -> tuple[sp.csr_matrix, scc.Segmented]:
     P = _grid(10)
     maybe = np.ones(P.shape[0], dtype=bool)
     maybe[-1] = False
-    A64, _, _ = linsolve.restricted_parts(P, maybe)
+    A64, _, _ = linalg.restricted_parts(P, maybe)
     found = scc.components(A64)
     assert found is not None
     inverse = scc.segmented_inverse(A64, found)
@@ -146,7 +145,7 @@ def test_restricted_parts_match_the_dense_reference() -> None:
         P = sp.random(n, n, density=0.3, random_state=rng, format="csr")
         P.data = rng.choice([0.1, 0.25, 1 / 3, 1e-12, 1 - 1e-12, 0.0], P.nnz)
         maybe = rng.random(n) < 0.7
-        A64, residue, rows = linsolve.restricted_parts(P, maybe)
+        A64, residue, rows = linalg.restricted_parts(P, maybe)
         idx = np.flatnonzero(maybe)
         dense = P.toarray()
         assert np.array_equal(rows.toarray(), dense[idx])
@@ -173,13 +172,13 @@ def quick_only(krylov_calls: list[int], monkeypatch: pytest.MonkeyPatch) -> list
     monkeypatch.setattr(certify, "certify_fixpoint", no_long_way)
     used: list[str] = []
     original_margin = scc.Segmented.margin
-    original_for = linsolve.Factorization.margins_for
+    original_for = linalg.Factorization.margins_for
 
     def margin(self: scc.Segmented, v: np.ndarray) -> np.ndarray:
         used.append("solve")
         return original_margin(self, v)
 
-    def margins_for(self: linsolve.Factorization, b: np.ndarray, x: np.ndarray
+    def margins_for(self: linalg.Factorization, b: np.ndarray, x: np.ndarray
                     ) -> list[Callable[[np.ndarray], np.ndarray | None]]:
         chosen = original_for(self, b, x)
         if chosen[0].__name__ == "proportional":
@@ -187,7 +186,7 @@ def quick_only(krylov_calls: list[int], monkeypatch: pytest.MonkeyPatch) -> list
         return chosen
 
     monkeypatch.setattr(scc.Segmented, "margin", margin)
-    monkeypatch.setattr(linsolve.Factorization, "margins_for", margins_for)
+    monkeypatch.setattr(linalg.Factorization, "margins_for", margins_for)
     return used
 
 

@@ -2,7 +2,7 @@
 
 The mission's recharge-cap probability ``P=? [ F rc=RC_MAX ]`` has its target states
 inside ``R=? [ F "done" ]``'s system: ``until._pinned_until`` solves it there with
-the target (and other known) rows replaced by identity rows (``linsolve._Triangular.
+the target (and other known) rows replaced by identity rows (``triangular._Triangular.
 pinned``, ``certify.PinnedMap``) instead of building a second system. The oracle is
 independent of that construction: each value in ``fractions.Fraction`` by Gauss-Jordan
 elimination on its own unknown states (tests/checker/test_conditional_certified.py).
@@ -25,7 +25,7 @@ from tests.checker.conftest import SpyAnswers
 from tests.checker.test_conditional_certified import Rows, _expected, _prism, _until
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.kernels import until
-from veribattery.checker.linalg import factorization as linsolve
+from veribattery.checker.linalg import triangular
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
 
@@ -139,8 +139,8 @@ def test_pinned_substitution_solves_the_pinned_system() -> None:
     n = 40
     dense = acyclic_rows(rng, n)
     A = sp.csr_matrix(np.eye(n) - dense)
-    inverse = linsolve._triangular_inverse(A)
-    assert isinstance(inverse, linsolve._Triangular)
+    inverse = triangular._triangular_inverse(A)
+    assert isinstance(inverse, triangular._Triangular)
     pinned = rng.random(n) < 0.3
     b = rng.random(n)
     system = np.where(pinned[:, None], np.eye(n), np.eye(n) - dense)

@@ -15,8 +15,8 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
+from veribattery.checker import linalg
 from veribattery.checker.certify import affine as certify
-from veribattery.checker.linalg import factorization as linsolve
 from veribattery.checker.linalg import topological
 from veribattery.errors import CheckError
 
@@ -56,7 +56,7 @@ def certified(P: sp.csr_matrix, unknown: np.ndarray, goal: int,
 
 def system(P: sp.csr_matrix, unknown: np.ndarray) -> sp.csr_matrix:
     """``I - P_mm`` as the checker builds it (leaving probabilities on the diagonal)."""
-    A64, _, _ = linsolve.restricted_parts(P, unknown)
+    A64, _, _ = linalg.restricted_parts(P, unknown)
     return A64
 
 

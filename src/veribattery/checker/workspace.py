@@ -13,11 +13,10 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from veribattery.checker import kernels
+from veribattery.checker import kernels, linalg
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.formula import pctl
 from veribattery.checker.kernels import conditional, steady
-from veribattery.checker.linalg import factorization as linsolve
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr
 
@@ -41,8 +40,8 @@ class Workspace:
         #: Per transition matrix: the 0/1 pre-pass (shared by matrices of one pattern),
         #: linear systems with their solvers, results (:class:`kernels.KernelMemos`).
         self.kernels = kernels.KernelMemos()
-        #: Restriction and substitution plans by pattern (:class:`linsolve.SolverPlans`).
-        self.solvers = linsolve.SolverPlans()
+        #: Restriction and substitution plans by pattern (:class:`linalg.SolverPlans`).
+        self.solvers = linalg.SolverPlans()
         #: The index work of the certificates' maps (:class:`certify.RowPlans`).
         self.row_plans = certify.RowPlans()
         #: ``P(F b)`` of the last conditions (:class:`conditional.Conditions`).

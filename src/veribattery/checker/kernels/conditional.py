@@ -38,13 +38,13 @@ from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker import linalg
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.kernels.prepass import prob0
 from veribattery.checker.kernels.steps import absorption, next_probs
 from veribattery.checker.kernels.systems import shared_system
 from veribattery.checker.kernels.until import focus_rows, quick_bounds, reach_rewards, until_probs
-from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -412,7 +412,7 @@ def _right_side(rows: CsrMatrix, known: FloatArray, r: FloatArray,
     """``r x + P known`` in extended precision (rows widened a block at a time)."""
     rhs = (r * x).astype(np.longdouble)
     if known.any():  # (zero when b lies inside the target: the mission's success in done)
-        rhs += linsolve.extended_product(rows, known)
+        rhs += linalg.extended_product(rows, known)
     return rhs
 
 
@@ -435,7 +435,7 @@ def _offset_bounds(r: FloatArray, x_lower: FloatArray, x_upper: FloatArray
     return low, high
 
 
-def _long_way(F: certify.AffineMap, solver: linsolve.Factorization,
+def _long_way(F: certify.AffineMap, solver: linalg.Factorization,
               rhs: npt.NDArray[np.floating],
               floor: FloatArray, ceiling: FloatArray) -> Bounds:
     """The refined solve, certified, then interval iteration if still too wide."""
@@ -483,7 +483,7 @@ class _Split(certify.AffineMap):
             self.below.constant_side(up=False))
 
 
-def _solve(solver: linsolve.Factorization, b: npt.NDArray[np.floating]) -> FloatArray | None:
+def _solve(solver: linalg.Factorization, b: npt.NDArray[np.floating]) -> FloatArray | None:
     """The fast path's approximate solution (None when no solver was accepted)."""
     try:
         return solver.solve(b.astype(np.longdouble))

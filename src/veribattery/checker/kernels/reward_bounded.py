@@ -37,11 +37,11 @@ import scipy.sparse as sp
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker import linalg
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.kernels import reward_radius
 from veribattery.checker.kernels.prepass import prob0
-from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -105,13 +105,13 @@ class Levels:
     groups: tuple[tuple[int, IntArray], ...]
     zero: IntArray
     #: ``I - P_ZZ`` over the zero-reward moving states, factorised (None if there are none).
-    closure: linsolve.Factorization | None
+    closure: linalg.Factorization | None
     #: Rows of P of the zero-reward moving states.
     zero_rows: CsrMatrix
 
 
 def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool,
-            plans: linsolve.SolverPlans | None = None) -> Levels:
+            plans: linalg.SolverPlans | None = None) -> Levels:
     """Group the *moving* states by reward; factorise the zero-reward closure once
     (its index work kept in *plans* for a closure of the same pattern).
 
@@ -127,8 +127,8 @@ def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool,
     zero = np.flatnonzero(zero_mask)
     closure = None
     if zero.size:
-        A, _rows = linsolve.restricted_matrix(P, zero_mask, plans)
-        closure = linsolve.Factorization(sp.csr_matrix(A.T) if transpose else A, plans=plans)
+        A, _rows = linalg.restricted_matrix(P, zero_mask, plans)
+        closure = linalg.Factorization(sp.csr_matrix(A.T) if transpose else A, plans=plans)
     return Levels(unit, groups, zero, closure, sp.csr_matrix(P[zero]))
 
 

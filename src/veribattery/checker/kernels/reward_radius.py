@@ -30,9 +30,9 @@ from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker import linalg
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
-from veribattery.checker.linalg import factorization as linsolve
 
 if TYPE_CHECKING:
     from veribattery.checker.kernels.reward_bounded import Levels
@@ -259,7 +259,7 @@ class _RadiusClosure:
         return np.where(np.isnan(gap), np.inf, gap)
 
 
-def _solve(closure: linsolve.Factorization, right: FloatArray, *, refine: bool,
+def _solve(closure: linalg.Factorization, right: FloatArray, *, refine: bool,
            clip: bool = True) -> FloatArray:
     """``A^-1 right`` by one substitution with the factors (or refined); in [0, 1] if *clip*."""
     solved = None if refine else closure.correction(right)
@@ -268,7 +268,7 @@ def _solve(closure: linsolve.Factorization, right: FloatArray, *, refine: bool,
     return np.clip(solved, 0.0, 1.0) if clip else np.maximum(solved, 0.0)
 
 
-def _expected_moves(shape: certify.AffineMap, closure: linsolve.Factorization) -> FloatArray:
+def _expected_moves(shape: certify.AffineMap, closure: linalg.Factorization) -> FloatArray:
     """A certified upper bound of ``tau = 1 + D^-1 P' tau`` (inf where none was found).
 
     ``tau = A^-1 D 1`` (``A = D - P'``) is the expected number of moves inside the

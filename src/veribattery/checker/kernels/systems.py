@@ -21,10 +21,10 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
+from veribattery.checker import linalg
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify import focus
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.linalg import factorization as linsolve
 from veribattery.errors import CheckError
 
 if TYPE_CHECKING:
@@ -61,7 +61,7 @@ class _System:
     """
 
     rows: CsrMatrix
-    factorization: linsolve.Factorization
+    factorization: linalg.Factorization
     #: The unknown states of the system (a mask over all states).
     unknowns: BoolArray
     #: Where the maps' index work is kept for later rows of the same pattern.
@@ -170,7 +170,7 @@ def _pattern_key(P: CsrMatrix, workspace: Workspace) -> bytes:
     """A digest of the positive entries' positions (not their values)."""
     digest = hashlib.blake2b(digest_size=20)
     digest.update(np.asarray(P.shape, dtype=np.int64).tobytes())
-    digest.update(linsolve.index_digest(P.indptr, P.indices, workspace.solvers))
+    digest.update(linalg.index_digest(P.indptr, P.indices, workspace.solvers))
     digest.update(np.packbits(P.data > 0).data)
     return digest.digest()
 
@@ -217,9 +217,9 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None, *,
         # after (on the 11x11 mission each takes ~250 MB).
         while systems and len(systems) >= SYSTEMS_KEPT:
             systems.popitem(last=False)
-        A64, residue, rows = linsolve.restricted_parts(P, maybe, workspace.solvers)
+        A64, residue, rows = linalg.restricted_parts(P, maybe, workspace.solvers)
         unknowns = maybe.copy()
-        solver = linsolve.Factorization(A64, residue, _rebuilder(P, unknowns),
+        solver = linalg.Factorization(A64, residue, _rebuilder(P, unknowns),
                                         workspace.solvers)
         del A64, residue
         found = _System(rows, solver, unknowns, workspace.row_plans)
@@ -242,7 +242,7 @@ def _rebuilder(P: CsrMatrix, unknowns: BoolArray
         P = matrix()
         if P is None:  # pragma: no cover -- the memo forgets a system with its matrix
             raise CheckError("the transition matrix of a kept linear system is gone")
-        A64, residue, _ = linsolve.unplanned_parts(P, unknowns)
+        A64, residue, _ = linalg.unplanned_parts(P, unknowns)
         return A64, residue
 
     return rebuild

@@ -17,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker import linalg
 from veribattery.checker.certify import affine as certify
 from veribattery.checker.certify import focus
 from veribattery.checker.certify.bounds import Bounds, escalated
@@ -27,7 +28,6 @@ from veribattery.checker.kernels.systems import (
     _restrict,
     _system,
 )
-from veribattery.checker.linalg import factorization as linsolve
 from veribattery.checker.linalg import rational
 from veribattery.errors import CheckError
 
@@ -196,7 +196,7 @@ def _right_side(system: _System, known: FloatArray | None, offset: FloatArray | 
     """``offset + P_m,known known`` (the system's right-hand side) in *dtype*."""
     b = np.zeros(system.rows.shape[0], dtype=dtype)
     if known is not None and dtype == np.longdouble:  # no extended copy of the rows
-        b += linsolve.extended_product(system.rows, known)
+        b += linalg.extended_product(system.rows, known)
     elif known is not None:
         b += system.rows @ known.astype(dtype)
     if offset is not None:
@@ -224,7 +224,7 @@ def _quick(F: certify.AffineMap, system: _System, known: FloatArray | None,
                         focus_rows(system, F, focus_states))
 
 
-def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
+def quick_bounds(F: certify.AffineMap, solver: linalg.QuickSolver,
                  b: npt.NDArray[np.floating], floor: FloatArray, ceiling: FloatArray,
                  rows: Sequence[focus.FocusRow] | None = None) -> Bounds | None:
     """The fixed point of *F* (system ``solver.A x = b``) from one unrefined substitution,
