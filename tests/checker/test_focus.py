@@ -30,11 +30,10 @@ from tests.checker.test_pinned_systems import (
     acyclic_rows,
     assert_rational_answers,
 )
-from veribattery.checker import kernels
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, kernels
 from veribattery.checker.certify import focus
-from veribattery.checker.certify.affine import TERM_FLOOR, error_coefficient
 from veribattery.checker.certify.bounds import required_precision
+from veribattery.checker.certify.rounding import TERM_FLOOR, error_coefficient
 from veribattery.checker.kernels import systems, until
 from veribattery.checker.linalg import triangular
 from veribattery.pipeline import check_prism_file

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker.certify import affine as certify
-from veribattery.checker.certify.affine import step_down, step_up
+from veribattery.checker import certify
+from veribattery.checker.certify.rounding import step_down, step_up
 
 
 def _reference(F: certify.AffineMap, x: np.ndarray, *, up: bool) -> np.ndarray:

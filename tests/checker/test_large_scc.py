@@ -17,8 +17,7 @@ import scipy.sparse.linalg  # noqa: F401 -- sp.linalg below
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid, ring_then_walk
-from veribattery.checker import Workspace, kernels, linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import Workspace, certify, kernels, linalg
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.kernels import systems
 from veribattery.checker.linalg import scc

@@ -20,8 +20,7 @@ from hypothesis import strategies as st
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
-from veribattery.checker import Workspace, kernels
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import Workspace, certify, kernels
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.kernels import systems
 from veribattery.pipeline import check_prism_file

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker.certify import affine as certify
-from veribattery.checker.certify.affine import TERM_FLOOR, enclose_product, error_coefficient
+from veribattery.checker import certify
+from veribattery.checker.certify.rounding import TERM_FLOOR, enclose_product, error_coefficient
 
 
 def _rows(seed: int) -> tuple[sp.csr_matrix, np.ndarray]:

@@ -9,8 +9,7 @@ from fractions import Fraction
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace, kernels
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import Workspace, certify, kernels
 
 TINY = np.finfo(np.float64).tiny  # the smallest normal float64
 

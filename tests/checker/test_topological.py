@@ -15,8 +15,7 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
-from veribattery.checker import linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, linalg
 from veribattery.checker.linalg import topological
 from veribattery.errors import CheckError
 

@@ -13,8 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from veribattery.checker import kernels, linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, kernels, linalg
 from veribattery.checker.formula import pctl
 from veribattery.checker.kernels import conditional, steady
 from veribattery.explore.dtmc import DTMC

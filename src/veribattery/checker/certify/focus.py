@@ -25,18 +25,18 @@ import numpy as np
 
 from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray
-from veribattery.checker.certify.affine import (
+from veribattery.checker.certify.affine import AffineMap
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.certify.fixpoint import fixpoint_defect
+from veribattery.checker.certify.rounding import (
     TERM_FLOOR,
     UNIT_ROUNDOFF,
-    AffineMap,
     error_coefficient,
-    fixpoint_defect,
     step_down,
     step_down_in_place,
     step_up,
     step_up_in_place,
 )
-from veribattery.checker.certify.bounds import Bounds
 
 #: Focus states beyond this many: the whole vector is certified instead (each costs
 #: two transposed solves and four images, about what a whole certificate of a query costs).

@@ -38,8 +38,7 @@ from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.kernels.prepass import prob0
 from veribattery.checker.kernels.steps import absorption, next_probs

@@ -37,8 +37,7 @@ import scipy.sparse as sp
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.kernels import reward_radius
 from veribattery.checker.kernels.prepass import prob0

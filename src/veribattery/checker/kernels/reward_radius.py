@@ -30,8 +30,7 @@ from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 
 if TYPE_CHECKING:

@@ -25,7 +25,7 @@ from scipy.sparse import linalg as spla  # a lazy package in the CLI: read when 
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.kernels.steps import absorption
 from veribattery.checker.kernels.until import reach_rewards

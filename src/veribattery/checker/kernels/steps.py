@@ -16,7 +16,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify
 from veribattery.checker.certify.bounds import (
     Bounds,
     current_precision,

@@ -21,8 +21,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
-from veribattery.checker import linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, linalg
 from veribattery.checker.certify import focus
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.errors import CheckError

@@ -17,8 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import linalg
-from veribattery.checker.certify import affine as certify
+from veribattery.checker import certify, linalg
 from veribattery.checker.certify import focus
 from veribattery.checker.certify.bounds import Bounds, escalated
 from veribattery.checker.kernels import systems
