@@ -27,13 +27,13 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.formula.pctl import (
-    _CONNECTIVES,
-    _as_mask,
-    _chain,
-    _has_operator,
-    _leaf,
-    _steps,
+from veribattery.checker.formula.leaves import (
+    CONNECTIVES,
+    as_mask,
+    has_operator,
+    leaf_values,
+    operand_chain,
+    step_bound,
 )
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
@@ -197,13 +197,13 @@ def exact_values(
         return ExactValues.finite(path_probs(model, workspace, formula.path))
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(model, workspace, formula)
-    if _has_operator(formula):
+    if has_operator(formula):
         token = _BOUNDS.set(bounds or {})
         try:
             return state_set(model, workspace, formula)
         finally:
             _BOUNDS.reset(token)
-    leaf = _leaf(model.dtmc, formula)
+    leaf = leaf_values(model.dtmc, formula)
     if leaf.dtype == np.bool_:
         return np.asarray(leaf, dtype=np.bool_)
     raise CheckError("--exact checks P and R operators and boolean formulas; "
@@ -216,26 +216,26 @@ def exact_values(
 
 def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
-    if not _has_operator(expr):  # plain state predicate: evaluated whole, no recursion
-        return _as_mask(_leaf(model.dtmc, expr), expr)
+    if not has_operator(expr):  # plain state predicate: evaluated whole, no recursion
+        return as_mask(leaf_values(model.dtmc, expr), expr)
     match expr:
         case ProbOp() | RewardOp():
             return _bounded_operator(model, workspace, expr)
         case Unary(op="!", operand=operand):
             return ~state_set(model, workspace, operand)
         case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion
-            masks = (state_set(model, workspace, operand) for operand in _chain(expr, op))
-            return functools.reduce(_CONNECTIVES[op], masks)
-        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
-            return _CONNECTIVES[op](state_set(model, workspace, left),
+            masks = (state_set(model, workspace, operand) for operand in operand_chain(expr, op))
+            return functools.reduce(CONNECTIVES[op], masks)
+        case Binary(op=op, left=left, right=right) if op in CONNECTIVES:
+            return CONNECTIVES[op](state_set(model, workspace, left),
                                     state_set(model, workspace, right))
-        case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
+        case Ite(cond=cond, then=then, otherwise=otherwise) if has_operator(expr):
             return np.where(state_set(model, workspace, cond), state_set(model, workspace, then),
                             state_set(model, workspace, otherwise))
-    if _has_operator(expr):
+    if has_operator(expr):
         raise CheckError("P and R operators may only be combined with ! & | => <=> "
                          "and ?:", expr.span)
-    return _as_mask(_leaf(model.dtmc, expr), expr)
+    return as_mask(leaf_values(model.dtmc, expr), expr)
 
 
 def _bounded_operator(model: ExactDTMC, workspace: Workspace,
@@ -306,12 +306,12 @@ def _until(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: Bo
     if bound is None:
         return until_probs(model, workspace, remain, target)
     if isinstance(bound, TimeInterval):  # U[a,b]: remain for a steps, then U<=b-a
-        low, high = _steps(bound.low), _steps(bound.high)
+        low, high = step_bound(bound.low), step_bound(bound.high)
         if high < low:
             return _indicator(np.zeros_like(target))
         later = _within(model, workspace, remain, target, high - low)
         return _power(model, remain, later, _indicator(np.zeros_like(target)), low)
-    k = _steps(bound.value)
+    k = step_bound(bound.value)
     match bound.op:
         case "<=" | "<":
             steps = k if bound.op == "<=" else k - 1
@@ -401,10 +401,10 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
             return reach_rewards(model, workspace, structure.total, reached)
         case Cumulative(bound=bound):
             total = structure.total
-            return ExactValues.finite(_power(model, everywhere, zero, total, _steps(bound)))
+            return ExactValues.finite(_power(model, everywhere, zero, total, step_bound(bound)))
         case Instantaneous(time=time_):
             state = structure.state
-            return ExactValues.finite(_power(model, everywhere, state, zero, _steps(time_)))
+            return ExactValues.finite(_power(model, everywhere, state, zero, step_bound(time_)))
         case ConditionalReach():
             from veribattery.checker.exact import storm
 
