@@ -19,7 +19,7 @@ from pathlib import Path
 import pytest
 
 from tests.checker.test_conditional import CHAIN, small_mission_storm_exact
-from veribattery.checker.exact.pctl import ExactCheckResult
+from veribattery.checker.exact import ExactCheckResult
 from veribattery.checker.result import CheckResult
 from veribattery.errors import CheckError
 from veribattery.pipeline import check_prism_file

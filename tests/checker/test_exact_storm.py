@@ -20,7 +20,7 @@ stormpy = pytest.importorskip("stormpy")
 
 from tests.conftest import PEER_TESTS, peer_harness  # noqa: E402
 from tests.peer_manifests import assert_enough, fail_missing, manifest, missing  # noqa: E402
-from veribattery.checker.exact.pctl import ExactCheckResult  # noqa: E402
+from veribattery.checker.exact import ExactCheckResult  # noqa: E402
 from veribattery.config import load_config  # noqa: E402
 from veribattery.mission import check_mission, is_conditional, mission_files  # noqa: E402
 from veribattery.pipeline import check_prism_file  # noqa: E402

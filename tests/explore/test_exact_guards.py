@@ -13,7 +13,7 @@ from fractions import Fraction
 import pytest
 from click.testing import CliRunner
 
-from veribattery.checker.exact.pctl import ExactCheckResult
+from veribattery.checker.exact import ExactCheckResult
 from veribattery.cli import cli
 from veribattery.explore.exact_program import needs_exact
 from veribattery.lang import parse_property

@@ -94,7 +94,7 @@ def _exact_checks(
     *properties* are the properties as written and as resolved: bounds such as
     ``P<=1/3`` are evaluated exactly from the former.
     """
-    from veribattery.checker.exact.pctl import check_exact, exact_bounds  # gmpy2 only when asked
+    from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
     from veribattery.explore.rational import exact_constants
 
     given = dict(constants or {})
