@@ -1,4 +1,4 @@
-"""Bounds certified at the initial states only (checker/focus.py).
+"""Bounds certified at the initial states only (checker/certify/focus.py).
 
 When only a property's answer is kept (``keep="answers"``: ``check``, ``prism``, a
 sweep point), the kernels certify the initial state's row of ``(I - B)^-1`` from both

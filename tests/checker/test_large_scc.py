@@ -1,4 +1,4 @@
-"""The large-component path of checker/scc.py: multigrid-preconditioned Krylov, certified.
+"""The large-component path of checker/linalg/scc.py: multigrid-preconditioned Krylov, certified.
 
 Module constants are lowered with monkeypatch so that models of a few thousand
 states (or a few dozen, where exact Fraction references are cheap) take the

@@ -1,6 +1,6 @@
-"""Certified ``F{"r"}<=T``: the forward-error radius (checker/reward_radius.py) against exact
-rationals, the escalation to per-level certification when the radius is too wide, a stiff
-closure, exact zeros, and the least-reward search against a brute-force one."""
+"""Certified ``F{"r"}<=T``: the forward-error radius (checker/kernels/reward_radius.py)
+against exact rationals, the escalation to per-level certification when the radius is too
+wide, a stiff closure, exact zeros, and the least-reward search against a brute-force one."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""SCC-wise solving for any component size (checker/scc.py), certified.
+"""SCC-wise solving for any component size (checker/linalg/scc.py), certified.
 
 The size thresholds are lowered with monkeypatch so that small models (whose
 exact answers are computed independently in Fraction arithmetic) take the

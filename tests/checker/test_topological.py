@@ -1,6 +1,6 @@
-"""SCC-by-SCC solving in topological order (checker/topological.py), certified.
+"""SCC-by-SCC solving in topological order (checker/linalg/topological.py), certified.
 
-The solver only proposes values; the existing certificate (certify.py) bounds them.
+The solver only proposes values; the existing certificate (checker/certify/) bounds them.
 Each test asserts which method solved which states, the values against an
 independent answer (a closed form, or Gauss-Jordan over Fractions in
 tests/checker/exact_reference.py) and that the certified bounds contain it.

@@ -29,7 +29,7 @@ import scipy.sparse as sp
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.analyses.paths import ProbablePath, most_probable_paths
 from veribattery.checker import Workspace, linalg
-from veribattery.checker.kernels.until import prob0
+from veribattery.checker.kernels import prob0
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
 

@@ -13,7 +13,7 @@ import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker import Workspace, state_set
-from veribattery.checker.kernels.until import prob0
+from veribattery.checker.kernels import prob0
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import (

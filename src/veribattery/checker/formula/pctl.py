@@ -252,7 +252,7 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
 
 # ---------------------------------------------------------------------------
 # Storm's reward-bounded and conditional path formulas
-# (kernels in checker/reward_bounded.py and checker/conditional.py)
+# (kernels in checker/kernels/reward_bounded.py and checker/kernels/conditional.py)
 # ---------------------------------------------------------------------------
 
 

@@ -9,7 +9,7 @@ replaced by ``sum pi = 1``: unique for an irreducible chain, periodic or not, an
 equal to the Cesàro long-run average that PRISM reports). Their certified
 enclosures come from the renewal theorem (:func:`bscc_averages`), and each
 BSCC's value is carried back to the transient states by one certified
-absorption system (:func:`~veribattery.checker.kernels.until.absorption`), so the cost
+absorption system (:func:`~veribattery.checker.kernels.steps.absorption`), so the cost
 does not grow with the number of BSCCs.
 """
 

@@ -48,7 +48,8 @@ def until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     """Probability of ``remain U target`` in every state, with certified bounds.
 
     prob0/prob1 fix the states with value 0 and 1; the rest solve
-    ``(I - P_mm) x = P_my 1`` under linsolve's residual rule, and the answer is
+    ``(I - P_mm) x = P_my 1`` under the residual rule of
+    :mod:`~veribattery.checker.linalg.factorization`, and the answer is
     certified (then refined if needed) by :func:`_certified`.
 
     :param P: row-stochastic CSR transition matrix.
