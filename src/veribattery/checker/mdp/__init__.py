@@ -1,0 +1,28 @@
+"""Markov decision processes: optimal values with certified bounds, and strategies.
+
+The numeric core of the MDP checker, independent of the language: kernels take an
+:class:`MDP` (a row per choice, rows grouped by state) and state masks, and return
+an :class:`MdpResult` -- per state, the optimal value inside a certified interval,
+and a strategy that attains it. ``docs/mdp-numerics.md`` says how each operator is
+certified.
+"""
+
+from veribattery.checker.mdp.model import MDP, MdpRewards
+from veribattery.checker.mdp.reach import reach_probability
+from veribattery.checker.mdp.result import MdpResult
+from veribattery.checker.mdp.rewards import reach_reward, total_reward
+from veribattery.checker.mdp.strategy import StepStrategy, Strategy, induced_chain
+from veribattery.checker.mdp.system import Objective
+
+__all__ = [
+    "MDP",
+    "MdpResult",
+    "MdpRewards",
+    "Objective",
+    "StepStrategy",
+    "Strategy",
+    "induced_chain",
+    "reach_probability",
+    "reach_reward",
+    "total_reward",
+]
