@@ -26,6 +26,7 @@ from veribattery._types import BoolArray, CsrMatrix, IntArray
 __all__ = [
     "ChoiceGraph",
     "all_successors_in",
+    "almost_surely",
     "any_successor_in",
     "attractor",
     "can_reach",
@@ -211,17 +212,36 @@ def prob1a(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
     return ~can_reach(graph, remain & ~target, zero_somewhere)
 
 
-def prob1e(graph: ChoiceGraph, remain: BoolArray, target: BoolArray) -> BoolArray:
+def prob1e(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
+           allowed: BoolArray | None = None) -> BoolArray:
     """States where some strategy makes ``remain U target`` have probability 1 (Pmax = 1).
 
     The nested fixpoint: the candidate set *u* shrinks to the states that reach
     *target* using only choices that never leave *u*, until it stops changing.
+
+    :param allowed: the choices the strategy may use (None: all).
     """
     through = remain & ~target
     candidate = np.ones(graph.num_states, dtype=bool)
     while True:
         staying = all_successors_in(graph, candidate)
+        if allowed is not None:
+            staying &= allowed
         shrunk = can_reach(graph, through & candidate, target, staying)
         if np.array_equal(shrunk, candidate):
             return candidate
         candidate = shrunk
+
+
+def almost_surely(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
+                  allowed: BoolArray | None = None) -> tuple[BoolArray, IntArray]:
+    """:func:`prob1e` and a witness: per state of it outside *target*, a choice that stays
+    in the set and moves closer to *target* (-1 elsewhere). Following the witnesses
+    reaches *target* with probability 1.
+    """
+    sure = prob1e(graph, remain, target, allowed)
+    staying = all_successors_in(graph, sure)
+    if allowed is not None:
+        staying &= allowed
+    _, via = attractor(graph, remain & ~target & sure, target, staying)
+    return sure, via

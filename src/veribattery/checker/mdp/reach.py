@@ -19,7 +19,7 @@ from veribattery._types import BoolArray, IntArray
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.mdp import graph as qualitative
 from veribattery.checker.mdp.components import EndComponents, end_components
-from veribattery.checker.mdp.graph import ChoiceGraph, all_successors_in, attractor
+from veribattery.checker.mdp.graph import ChoiceGraph, all_successors_in
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.optimum import optimise, spread
 from veribattery.checker.mdp.result import MdpResult
@@ -43,9 +43,9 @@ def reach_probability(mdp: MDP, target: BoolArray, *, objective: Objective,
     """
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
     remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
-    part = reach_partition(graph, remain, target, objective)
+    part = reach_partition(mdp, graph, remain, target, objective)
     values = Bounds.exact(part.yes.astype(np.float64))
-    strategy = _qualitative_strategy(mdp, graph, remain, target, part, objective)
+    strategy = part.strategy
     if part.maybe.any():
         values, strategy = _quantitative(mdp, graph, part, objective, values, strategy)
     return MdpResult(values, Strategy(strategy))
@@ -53,10 +53,15 @@ def reach_probability(mdp: MDP, target: BoolArray, *, objective: Objective,
 
 @dataclass(frozen=True, slots=True)
 class ReachPartition:
-    """The states of value 0 (*no*), 1 (*yes*) and the others (:attr:`maybe`)."""
+    """The states of value 0 (*no*), 1 (*yes*) and the others (:attr:`maybe`).
+
+    :param strategy: per state, a choice that attains the value 1 on *yes* (Pmax) or
+        0 on *no* (Pmin); the state's first choice elsewhere.
+    """
 
     no: BoolArray
     yes: BoolArray
+    strategy: IntArray
 
     @property
     def maybe(self) -> BoolArray:
@@ -64,14 +69,24 @@ class ReachPartition:
         return ~(self.no | self.yes)
 
 
-def reach_partition(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
+def reach_partition(mdp: MDP, graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
                     objective: Objective) -> ReachPartition:
-    """The qualitative pre-pass of Pmin or Pmax (``remain U target``)."""
+    """The qualitative pre-pass of Pmin or Pmax (``remain U target``).
+
+    For Pmax the states of value 1 follow the witnesses of :func:`almost_surely`; for
+    Pmin the states of value 0 in ``remain & !target`` keep to choices that never leave
+    them (there is one: they are the complement of a universal attractor).
+    """
+    choices = mdp.row_groups[:-1].copy()
+    moving = remain & ~target
     if objective == "max":
-        return ReachPartition(qualitative.prob0a(graph, remain, target),
-                              qualitative.prob1e(graph, remain, target))
+        yes, via = qualitative.almost_surely(graph, remain, target)
+        choices[moving & yes] = via[moving & yes]
+        return ReachPartition(qualitative.prob0a(graph, remain, target), yes, choices)
     no = qualitative.prob0e(graph, remain, target)
-    return ReachPartition(no, qualitative.prob1a(graph, remain, target, no))
+    avoiding = first_choice_where(mdp, all_successors_in(graph, no))
+    choices[moving & no] = avoiding[moving & no]
+    return ReachPartition(no, qualitative.prob1a(graph, remain, target, no), choices)
 
 
 def _quantitative(mdp: MDP, graph: ChoiceGraph, part: ReachPartition, objective: Objective,
@@ -88,19 +103,3 @@ def _quantitative(mdp: MDP, graph: ChoiceGraph, part: ReachPartition, objective:
 def _collapsed(graph: ChoiceGraph, maybe: BoolArray) -> EndComponents:
     """The maximal end components among the *maybe* states."""
     return end_components(graph, maybe, all_successors_in(graph, maybe))
-
-
-def _qualitative_strategy(mdp: MDP, graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
-                          part: ReachPartition, objective: Objective) -> IntArray:
-    """Choices that attain 0 on *no* (Pmin) or 1 on *yes* (Pmax); the first elsewhere."""
-    choices = mdp.row_groups[:-1].copy()
-    if objective == "max":
-        staying = all_successors_in(graph, part.yes)
-        moving = remain & ~target & part.yes
-        _, via = attractor(graph, moving, target, staying)
-        choices[moving] = via[moving]
-    else:
-        avoiding = first_choice_where(mdp, all_successors_in(graph, part.no))
-        moving = remain & ~target & part.no
-        choices[moving] = avoiding[moving]
-    return choices

@@ -48,26 +48,9 @@ def reach_reward(mdp: MDP, rewards: FloatArray, target: BoolArray, *,
     """
     _check_rewards(mdp, rewards)
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
-    everywhere = np.ones(mdp.num_states, dtype=bool)
     if objective == "max":
-        zero = qualitative.prob0e(graph, everywhere, target)
-        finite = qualitative.prob1a(graph, everywhere, target, zero)
-        choices = _escaping(mdp, graph, ~finite, zero)
-        allowed = None
-    else:
-        finite = qualitative.prob1e(graph, everywhere, target)
-        choices = mdp.row_groups[:-1].copy()
-        allowed = all_successors_in(graph, finite)
-    values = Bounds.exact(np.where(finite, 0.0, math.inf))
-    maybe = finite & ~target
-    if not maybe.any():
-        return MdpResult(values, Strategy(choices))
-    components = None
-    if objective == "min":
-        free = allowed & (rewards == 0) & all_successors_in(graph, maybe)
-        components = end_components(graph, maybe, free)
-    return _optimised(mdp, graph, maybe, components, np.zeros(mdp.num_states), rewards, allowed,
-                      target, objective, values, choices)
+        return _reach_max(mdp, graph, rewards, target)
+    return _reach_min(mdp, graph, rewards, target)
 
 
 def total_reward(mdp: MDP, rewards: FloatArray, *, objective: Objective) -> MdpResult:
@@ -87,7 +70,39 @@ def total_reward(mdp: MDP, rewards: FloatArray, *, objective: Objective) -> MdpR
     return _total_min(mdp, graph, rewards)
 
 
+def _reach_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
+               target: BoolArray) -> MdpResult:
+    """Finite where Pmin(F target) = 1; there no end component is left outside *target*."""
+    everywhere = np.ones(mdp.num_states, dtype=bool)
+    zero = qualitative.prob0e(graph, everywhere, target)
+    finite = qualitative.prob1a(graph, everywhere, target, zero)
+    choices = _escaping(mdp, graph, ~finite, zero)
+    maybe = finite & ~target
+    maybe &= _can_earn(mdp, graph, maybe, rewards)
+    return _optimised(mdp, graph, maybe, None, rewards, None, finite & ~maybe, "max",
+                      finite, choices)
+
+
+def _reach_min(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
+               target: BoolArray) -> MdpResult:
+    """Finite where Pmax(F target) = 1; 0 where the target is reached almost surely
+    through choices of reward 0; zero-reward end components of the rest collapsed."""
+    everywhere = np.ones(mdp.num_states, dtype=bool)
+    finite = qualitative.prob1e(graph, everywhere, target)
+    allowed = all_successors_in(graph, finite)
+    free, via = qualitative.almost_surely(graph, everywhere, target, allowed & (rewards == 0))
+    choices = mdp.row_groups[:-1].copy()
+    choices[free & ~target] = via[free & ~target]
+    maybe = finite & ~free
+    idle = allowed & (rewards == 0) & all_successors_in(graph, maybe)
+    components = end_components(graph, maybe, idle)
+    return _optimised(mdp, graph, maybe, components, rewards, allowed, free, "min", finite,
+                      choices)
+
+
 def _total_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> MdpResult:
+    """Infinite where an end component with a paying inside choice is reachable; the
+    zero-reward end components of the rest collapsed, those no choice leaves known 0."""
     everywhere = np.ones(mdp.num_states, dtype=bool)
     components = end_components(graph, everywhere)
     paying = components.inside & (rewards > 0)
@@ -96,41 +111,51 @@ def _total_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> MdpResult:
     choices = _collecting(mdp, graph, components, paying, rich, infinite)
     finite = ~infinite
     inner = end_components(graph, finite, all_successors_in(graph, finite))
-    closed = _closed_components(graph, inner)
-    choices[closed] = first_choice_where(mdp, inner.inside)[closed]
-    values = Bounds.exact(np.where(finite, 0.0, math.inf))
-    maybe = finite & ~closed
-    if not maybe.any():
-        return MdpResult(values, Strategy(choices))
-    return _optimised(mdp, graph, maybe, inner, np.zeros(mdp.num_states), rewards, None, closed,
-                      "max", values, choices)
+    maybe = finite & ~_closed_components(graph, inner)
+    maybe &= _can_earn(mdp, graph, maybe, rewards)
+    return _optimised(mdp, graph, maybe, inner, rewards, None, finite & ~maybe, "max", finite,
+                      choices)
 
 
 def _total_min(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> MdpResult:
+    """Finite where the zero-reward end components are reached almost surely; 0 where
+    they are reached through choices of reward 0 (then stayed in forever)."""
     everywhere = np.ones(mdp.num_states, dtype=bool)
-    free = end_components(graph, everywhere, rewards == 0)
-    resting = free.states
-    finite = qualitative.prob1e(graph, everywhere, resting)
+    resting = end_components(graph, everywhere, rewards == 0)
+    finite = qualitative.prob1e(graph, everywhere, resting.states)
+    free, via = qualitative.almost_surely(graph, everywhere, resting.states, rewards == 0)
     choices = mdp.row_groups[:-1].copy()
-    choices[resting] = first_choice_where(mdp, free.inside)[resting]
-    values = Bounds.exact(np.where(finite, 0.0, math.inf))
-    maybe = finite & ~resting
-    if not maybe.any():
-        return MdpResult(values, Strategy(choices))
-    return _optimised(mdp, graph, maybe, None, np.zeros(mdp.num_states), rewards,
-                      all_successors_in(graph, finite), resting, "min", values, choices)
+    choices[free] = via[free]
+    choices[resting.states] = first_choice_where(mdp, resting.inside)[resting.states]
+    maybe = finite & ~free
+    return _optimised(mdp, graph, maybe, None, rewards, all_successors_in(graph, finite), free,
+                      "min", finite, choices)
 
 
 def _optimised(mdp: MDP, graph: ChoiceGraph, maybe: BoolArray,
-               components: EndComponents | None, known: FloatArray, rewards: FloatArray,
+               components: EndComponents | None, rewards: FloatArray,
                allowed: BoolArray | None, goal: BoolArray, objective: Objective,
-               values: Bounds, choices: IntArray) -> MdpResult:
-    """The maybe states solved (end components of *components* collapsed) and merged."""
+               finite: BoolArray, choices: IntArray) -> MdpResult:
+    """The *maybe* states solved (the end components of *components* among them
+    collapsed) and merged with the known ones: 0 on *finite*, infinite elsewhere.
+
+    :param goal: known states of value 0 a first strategy moves towards.
+    """
+    values = Bounds.exact(np.where(finite, 0.0, math.inf))
+    if not maybe.any():
+        return MdpResult(values, Strategy(choices))
     class_of = quotient_classes(maybe, None if components is None else components.component)
-    found = optimise(mdp, class_of, known, objective, rewards=rewards, allowed=allowed,
-                     goal=goal, ceiling=math.inf)
+    found = optimise(mdp, class_of, np.zeros(mdp.num_states), objective, rewards=rewards,
+                     allowed=allowed, goal=goal, ceiling=math.inf)
     strategy = lifted(mdp, graph, found.system, found.rows, components, choices)
     return MdpResult(spread(values, class_of, found.bounds), Strategy(strategy))
+
+
+def _can_earn(mdp: MDP, graph: ChoiceGraph, states: BoolArray, rewards: FloatArray) -> BoolArray:
+    """The *states* from which, inside *states*, a choice of positive reward is reachable
+    (elsewhere every strategy earns exactly 0 there)."""
+    earning = np.bincount(graph.owner[rewards > 0], minlength=mdp.num_states) > 0
+    return qualitative.can_reach(graph, states, earning & states)
 
 
 def _check_rewards(mdp: MDP, rewards: FloatArray) -> None:
