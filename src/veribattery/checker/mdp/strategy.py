@@ -43,13 +43,15 @@ class StepStrategy:
     steps: int
     last: IntArray
     changes: tuple[tuple[IntArray, IntArray], ...]
-    then: Strategy | None = None
+    then: Strategy | StepStrategy | None = None
 
     def at(self, step: int) -> Strategy:
         """The memoryless strategy used at step *step* (0 = the first move)."""
         if step >= self.steps:
             if self.then is None:
                 raise ValueError(f"the strategy is bounded to {self.steps} steps")
+            if isinstance(self.then, StepStrategy):
+                return self.then.at(step - self.steps)
             return self.then
         choices = self.last.copy()
         for states, picked in self.changes[: self.steps - 1 - step]:
