@@ -173,3 +173,26 @@ def _atom(rng: random.Random, ranges: list[int], own: int | None = None) -> str:
     j = own if own is not None and rng.random() < 0.7 else rng.randrange(len(ranges))
     op = rng.choice(["=", "<", ">=", "!="])
     return f"x{j}{op}{rng.randint(0, ranges[j])}"
+
+
+def exact_entries(built: Built) -> np.ndarray:
+    """Storm's rational probabilities of :attr:`Built.mdp`'s stored entries (``mpq``)."""
+    from gmpy2 import mpq
+
+    matrix = built.exact.transition_matrix
+    values = [mpq(str(entry.value)) for row in range(matrix.nr_rows)
+              for entry in matrix.get_row(row)]
+    return np.array(values, dtype=object)
+
+
+def exact_rewards(built: Built, name: str = "r") -> np.ndarray:
+    """Storm's rational rewards per choice (state reward plus action reward), ``mpq``."""
+    from gmpy2 import mpq
+
+    structure = built.exact.reward_models[name]
+    owner = built.mdp.choice_owner
+    state = ([mpq(str(v)) for v in structure.state_rewards] if structure.has_state_rewards
+             else [mpq(0)] * built.mdp.num_states)
+    action = ([mpq(str(v)) for v in structure.state_action_rewards]
+              if structure.has_state_action_rewards else [mpq(0)] * built.mdp.num_choices)
+    return np.array([state[owner[c]] + action[c] for c in range(owner.size)], dtype=object)

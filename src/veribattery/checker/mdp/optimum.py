@@ -1,10 +1,13 @@
 """The optimal values of the unknown states: equations, policy iteration, certificate.
 
 Every unbounded operator ends here once its pre-pass has decided which states
-are known and which choices may be used: :func:`optimise` builds the
-:class:`~veribattery.checker.mdp.system.ChoiceSystem` of the unknown classes,
-approximates the optimum by policy iteration from a strategy that makes progress
-towards the *goal* states, and certifies it.
+are known, which are unknown (and which end components among them are
+collapsed) and which choices may be used -- a :class:`Problem`. :func:`solve`
+builds the :class:`~veribattery.checker.mdp.system.ChoiceSystem` of the unknown
+classes, approximates the optimum by policy iteration from a strategy that makes
+progress towards the *goal* states, certifies it, and lifts the strategy from
+classes back to states. The exact engine (:mod:`~veribattery.checker.mdp.exact`)
+solves the same problems in rationals.
 """
 
 from __future__ import annotations
@@ -16,46 +19,90 @@ import numpy as np
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.mdp.certificate import certified_values
+from veribattery.checker.mdp.components import EndComponents
+from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.solve import policy_iteration, progress_rows
-from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations
+from veribattery.checker.mdp.result import MdpResult
+from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
+from veribattery.checker.mdp.strategy import Strategy, lifted
+from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
 
-__all__ = ["Optimum", "optimise", "spread"]
+__all__ = ["Problem", "approximate", "solve", "spread"]
 
 
 @dataclass(frozen=True, slots=True)
-class Optimum:
-    """The certified optimum of the unknown classes and the strategy that attains it.
+class Problem:
+    """An unbounded operator after its qualitative pre-pass.
 
-    :param system: the equations of the classes.
-    :param bounds: per class, the optimal value and its enclosure.
-    :param rows: per class, the row (of *system*) the strategy takes.
+    :param objective: whether the values are minimal or maximal.
+    :param unknown: the states still to solve.
+    :param known: per state, the exact value of the others (0, 1 or ``inf``).
+    :param choices: per state, an optimal choice where the value is known (the
+        first choice where any will do); the unknown states' are replaced.
+    :param goal: known states a first strategy moves towards (for minimal rewards
+        they are reached almost surely from every unknown state under it).
+    :param components: end components among the unknown states to collapse, if any.
+    :param allowed: the choices that may be taken (None: all).
+    :param ceiling: the trivial upper bound (1 for probabilities, ``inf`` for rewards).
     """
+
+    objective: Objective
+    unknown: BoolArray
+    known: FloatArray
+    choices: IntArray
+    goal: BoolArray
+    components: EndComponents | None = None
+    allowed: BoolArray | None = None
+    ceiling: float = 1.0
+
+    @property
+    def classes(self) -> IntArray:
+        """Per state, its class among the unknowns (-1: known)."""
+        component = None if self.components is None else self.components.component
+        return quotient_classes(self.unknown, component)
+
+
+@dataclass(frozen=True, slots=True)
+class Approximation:
+    """A problem's equations and policy iteration's answer on them (None: none found)."""
 
     system: ChoiceSystem
-    bounds: Bounds
-    rows: IntArray
+    known: FloatArray
+    offset: FloatArray | None
+    evaluation: Evaluation | None
+    start: IntArray
+
+    @property
+    def rows(self) -> IntArray:
+        """The strategy found (per class, a row of the system)."""
+        return self.start if self.evaluation is None else self.evaluation.rows
 
 
-def optimise(mdp: MDP, class_of: IntArray, known: FloatArray, objective: Objective, *,
-             rewards: FloatArray | None = None, allowed: BoolArray | None = None,
-             goal: BoolArray, ceiling: float) -> Optimum:
-    """The optimal values of the classes of *class_of* (-1: a known state).
+def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None) -> Approximation:
+    """The equations of *problem*'s unknown classes and their approximate optimum.
 
-    :param known: per state, the exact value of the known states (read there only).
     :param rewards: per choice, the reward of taking it (None: probabilities).
-    :param allowed: the choices that may be taken (None: all).
-    :param goal: the known states a first strategy moves towards (for minimal
-        rewards it must reach them almost surely from every class).
-    :param ceiling: the trivial upper bound (1 for probabilities, inf for rewards).
     """
-    system = equations(mdp.transitions, mdp.choice_owner, class_of, allowed)
-    fixed = np.asarray(known[system.known_states], dtype=np.float64)
+    system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
+    known = np.asarray(problem.known[system.known_states], dtype=np.float64)
     offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
-    start = progress_rows(system, goal[system.known_states])
-    evaluation = policy_iteration(system, objective, fixed, offset, start)
-    bounds = certified_values(system, objective, fixed, offset, evaluation, ceiling)
-    return Optimum(system, bounds, start if evaluation is None else evaluation.rows)
+    start = progress_rows(system, problem.goal[system.known_states])
+    evaluation = policy_iteration(system, problem.objective, known, offset, start)
+    return Approximation(system, known, offset, evaluation, start)
+
+
+def solve(mdp: MDP, graph: ChoiceGraph, problem: Problem,
+          rewards: FloatArray | None) -> MdpResult:
+    """*problem* solved: certified values in every state and an optimal strategy."""
+    values = Bounds.exact(problem.known.copy())
+    if not problem.unknown.any():
+        return MdpResult(values, Strategy(problem.choices))
+    found = approximate(mdp, problem, rewards)
+    bounds = certified_values(found.system, problem.objective, found.known, found.offset,
+                              found.evaluation, problem.ceiling)
+    strategy = lifted(mdp, graph, found.system, found.rows, problem.components,
+                      problem.choices)
+    return MdpResult(spread(values, problem.classes, bounds), Strategy(strategy))
 
 
 def spread(values: Bounds, class_of: IntArray, found: Bounds) -> Bounds:

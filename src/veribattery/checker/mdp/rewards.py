@@ -22,17 +22,16 @@ import math
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.bounds import Bounds
 from veribattery.checker.mdp import graph as qualitative
 from veribattery.checker.mdp.components import EndComponents, end_components
 from veribattery.checker.mdp.graph import ChoiceGraph, all_successors_in, attractor
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.optimum import optimise, spread
+from veribattery.checker.mdp.optimum import Problem, solve
 from veribattery.checker.mdp.result import MdpResult
-from veribattery.checker.mdp.strategy import Strategy, first_choice_where, lifted
-from veribattery.checker.mdp.system import Objective, quotient_classes
+from veribattery.checker.mdp.strategy import first_choice_where
+from veribattery.checker.mdp.system import Objective
 
-__all__ = ["reach_reward", "total_reward"]
+__all__ = ["reach_reward", "reach_reward_problem", "total_reward", "total_reward_problem"]
 
 
 def reach_reward(mdp: MDP, rewards: FloatArray, target: BoolArray, *,
@@ -46,11 +45,9 @@ def reach_reward(mdp: MDP, rewards: FloatArray, target: BoolArray, *,
     :return: values (``inf`` where the target is not reached almost surely under the
         optimising strategy), their enclosures and a memoryless optimal strategy.
     """
-    _check_rewards(mdp, rewards)
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
-    if objective == "max":
-        return _reach_max(mdp, graph, rewards, target)
-    return _reach_min(mdp, graph, rewards, target)
+    problem = reach_reward_problem(mdp, graph, rewards, target, objective)
+    return solve(mdp, graph, problem, rewards)
 
 
 def total_reward(mdp: MDP, rewards: FloatArray, *, objective: Objective) -> MdpResult:
@@ -63,15 +60,30 @@ def total_reward(mdp: MDP, rewards: FloatArray, *, objective: Objective) -> MdpR
 
     :param rewards: per choice, the reward of one step taken with it (nonnegative).
     """
-    _check_rewards(mdp, rewards)
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
+    return solve(mdp, graph, total_reward_problem(mdp, graph, rewards, objective), rewards)
+
+
+def reach_reward_problem(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
+                         target: BoolArray, objective: Objective) -> Problem:
+    """The pre-pass of Rmin or Rmax ``[ F target ]``."""
+    _check_rewards(mdp, rewards)
+    if objective == "max":
+        return _reach_max(mdp, graph, rewards, target)
+    return _reach_min(mdp, graph, rewards, target)
+
+
+def total_reward_problem(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
+                         objective: Objective) -> Problem:
+    """The pre-pass of Rmin or Rmax ``[ C ]``."""
+    _check_rewards(mdp, rewards)
     if objective == "max":
         return _total_max(mdp, graph, rewards)
     return _total_min(mdp, graph, rewards)
 
 
 def _reach_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
-               target: BoolArray) -> MdpResult:
+               target: BoolArray) -> Problem:
     """Finite where Pmin(F target) = 1; there no end component is left outside *target*."""
     everywhere = np.ones(mdp.num_states, dtype=bool)
     zero = qualitative.prob0e(graph, everywhere, target)
@@ -79,12 +91,11 @@ def _reach_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
     choices = _escaping(mdp, graph, ~finite, zero)
     maybe = finite & ~target
     maybe &= _can_earn(mdp, graph, maybe, rewards)
-    return _optimised(mdp, graph, maybe, None, rewards, None, finite & ~maybe, "max",
-                      finite, choices)
+    return _problem("max", maybe, finite, choices, finite & ~maybe)
 
 
 def _reach_min(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
-               target: BoolArray) -> MdpResult:
+               target: BoolArray) -> Problem:
     """Finite where Pmax(F target) = 1; 0 where the target is reached almost surely
     through choices of reward 0; zero-reward end components of the rest collapsed."""
     everywhere = np.ones(mdp.num_states, dtype=bool)
@@ -96,11 +107,10 @@ def _reach_min(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,
     maybe = finite & ~free
     idle = allowed & (rewards == 0) & all_successors_in(graph, maybe)
     components = end_components(graph, maybe, idle)
-    return _optimised(mdp, graph, maybe, components, rewards, allowed, free, "min", finite,
-                      choices)
+    return _problem("min", maybe, finite, choices, free, components, allowed)
 
 
-def _total_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> MdpResult:
+def _total_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> Problem:
     """Infinite where an end component with a paying inside choice is reachable; the
     zero-reward end components of the rest collapsed, those no choice leaves known 0."""
     everywhere = np.ones(mdp.num_states, dtype=bool)
@@ -113,11 +123,10 @@ def _total_max(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> MdpResult:
     inner = end_components(graph, finite, all_successors_in(graph, finite))
     maybe = finite & ~_closed_components(graph, inner)
     maybe &= _can_earn(mdp, graph, maybe, rewards)
-    return _optimised(mdp, graph, maybe, inner, rewards, None, finite & ~maybe, "max", finite,
-                      choices)
+    return _problem("max", maybe, finite, choices, finite & ~maybe, inner)
 
 
-def _total_min(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> MdpResult:
+def _total_min(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> Problem:
     """Finite where the zero-reward end components are reached almost surely; 0 where
     they are reached through choices of reward 0 (then stayed in forever)."""
     everywhere = np.ones(mdp.num_states, dtype=bool)
@@ -128,27 +137,15 @@ def _total_min(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray) -> MdpResult:
     choices[free] = via[free]
     choices[resting.states] = first_choice_where(mdp, resting.inside)[resting.states]
     maybe = finite & ~free
-    return _optimised(mdp, graph, maybe, None, rewards, all_successors_in(graph, finite), free,
-                      "min", finite, choices)
+    return _problem("min", maybe, finite, choices, free, None, all_successors_in(graph, finite))
 
 
-def _optimised(mdp: MDP, graph: ChoiceGraph, maybe: BoolArray,
-               components: EndComponents | None, rewards: FloatArray,
-               allowed: BoolArray | None, goal: BoolArray, objective: Objective,
-               finite: BoolArray, choices: IntArray) -> MdpResult:
-    """The *maybe* states solved (the end components of *components* among them
-    collapsed) and merged with the known ones: 0 on *finite*, infinite elsewhere.
-
-    :param goal: known states of value 0 a first strategy moves towards.
-    """
-    values = Bounds.exact(np.where(finite, 0.0, math.inf))
-    if not maybe.any():
-        return MdpResult(values, Strategy(choices))
-    class_of = quotient_classes(maybe, None if components is None else components.component)
-    found = optimise(mdp, class_of, np.zeros(mdp.num_states), objective, rewards=rewards,
-                     allowed=allowed, goal=goal, ceiling=math.inf)
-    strategy = lifted(mdp, graph, found.system, found.rows, components, choices)
-    return MdpResult(spread(values, class_of, found.bounds), Strategy(strategy))
+def _problem(objective: Objective, maybe: BoolArray, finite: BoolArray, choices: IntArray,
+             goal: BoolArray, components: EndComponents | None = None,
+             allowed: BoolArray | None = None) -> Problem:
+    """A reward problem: 0 on the known finite states, infinite on the others."""
+    known = np.where(finite, 0.0, math.inf)
+    return Problem(objective, maybe, known, choices, goal, components, allowed, math.inf)
 
 
 def _can_earn(mdp: MDP, graph: ChoiceGraph, states: BoolArray, rewards: FloatArray) -> BoolArray:

@@ -15,6 +15,7 @@ read the stored entries as they are.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -174,7 +175,7 @@ def _compact(mdp: MDP, decisions: list[IntArray],
     if not decisions:
         return StepStrategy(0, mdp.row_groups[:-1].copy(), (), then)
     changes = []
-    for before, now in zip(decisions, decisions[1:], strict=False):
+    for before, now in itertools.pairwise(decisions):
         differ = np.flatnonzero(before != now)
         changes.append((differ, now[differ]))
     return StepStrategy(len(decisions), decisions[0], tuple(changes), then)
