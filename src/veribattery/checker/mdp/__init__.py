@@ -7,21 +7,47 @@ and a strategy that attains it. ``docs/mdp-numerics.md`` says how each operator 
 certified.
 """
 
+from veribattery.checker.mdp.exact import (
+    ExactMdpResult,
+    exact_probabilities,
+    exact_reach_probability,
+    exact_reach_reward,
+    exact_total_reward,
+)
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
+from veribattery.checker.mdp.stepped import (
+    bounded_reach_probability,
+    cumulative_reward,
+    instantaneous_reward,
+    interval_reach_probability,
+    later_reach_probability,
+    next_probability,
+)
 from veribattery.checker.mdp.strategy import StepStrategy, Strategy, induced_chain
 from veribattery.checker.mdp.system import Objective
 
 __all__ = [
     "MDP",
+    "ExactMdpResult",
     "MdpResult",
     "MdpRewards",
     "Objective",
     "StepStrategy",
     "Strategy",
+    "bounded_reach_probability",
+    "cumulative_reward",
+    "exact_probabilities",
+    "exact_reach_probability",
+    "exact_reach_reward",
+    "exact_total_reward",
     "induced_chain",
+    "instantaneous_reward",
+    "interval_reach_probability",
+    "later_reach_probability",
+    "next_probability",
     "reach_probability",
     "reach_reward",
     "total_reward",
