@@ -14,13 +14,14 @@ The tests use rigorous enclosures of ``B`` (:meth:`ChoiceSystem.bound_images`):
 the maximum (minimum) of upper bounds of the rows' images is an upper bound of
 the maximum (minimum) of the exact images, and likewise below. Candidates come
 from policy iteration's approximation *x*: ``x +- (c d + slack)`` for a margin
-*d* (:func:`_margins`) and growing *c*; failing all, the states that fail are
-set to the trivial bound and the test is repeated.
+*d* (:func:`_margin`) and growing *c*, moved outward where a state fails
+(:func:`_pushed`); failing all, the states that fail are set to the trivial
+bound and the test is repeated; then interval iteration tightens what is left.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +29,7 @@ import numpy as np
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.bounds import Bounds
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
-from veribattery.checker.mdp.solve import Evaluation, policy_iteration
+from veribattery.checker.mdp.solve import Evaluation
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 
 __all__ = ["certified_values"]
@@ -39,9 +40,8 @@ INTERVAL_SWEEPS = 2_000
 INTERVAL_WORK = 400_000_000
 #: Share of the largest defect given to every state before the margin is solved for.
 SPREAD = 2.0**-20
-#: Rows whose image at the approximation is within this many margins of the optimum
-#: count as near-optimal (ties) for the second margin.
-NEAR = 4096.0
+#: Rounds of moving failing states outward before a factor is given up.
+PUSH_ROUNDS = 32
 #: Margin factors tried in turn.
 FACTORS = (2.0, 16.0, 1024.0)
 #: Rounds of resetting failed states to the trivial bound before a factor is given up.
@@ -83,82 +83,77 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
     x, lower, upper = images.floor, images.floor, images.top
     if approximation is not None:
         x = np.clip(approximation.values, 0.0, ceiling)
-        margins = _margins(system, objective, known, offset, x, approximation, images)
-        lower, upper = _candidates(x, margins, images)
+        lower, upper = _candidates(x, _margin(x, approximation, images), images)
     if not Bounds.around(x, lower, upper).precise_states().all():
         lower, upper = _tightened(system, images, x, lower, upper)
     return Bounds.around(x, lower, upper)
 
 
-def _margins(system: ChoiceSystem, objective: Objective, known: FloatArray,
-             offset: FloatArray | None, x: FloatArray, approximation: Evaluation,
-             images: _Images) -> Iterator[FloatArray]:
-    """Margins ``d`` to try, the cheap one first.
+def _margin(x: FloatArray, approximation: Evaluation, images: _Images) -> FloatArray | None:
+    """The margin ``d`` around *x*, or None.
 
     The enclosed defect ``d0 = |B(x) - x|`` is spread a little to every state (so
     that ``d`` is a strict super-solution and the solver's noise cannot break it),
     then pushed through the final strategy's system: ``d = (I - B_sigma)^-1 d0'``.
-    That covers the strategy's own rows; a *tied* row with another distribution
-    may need more (``B(x + c d)`` takes the worst row), so the second margin is
-    the largest over the near-optimal rows: the optimum of ``d = d0' + max_a B_a d``
-    over them, by policy iteration.
     """
     with np.errstate(invalid="ignore", over="ignore"):
         defect = np.maximum(np.maximum(images.upper(x) - x, x - images.lower(x)), 0.0)
         defect = _above(defect)
     if not np.all(np.isfinite(defect)):
-        return
+        return None
     spread = defect + (SPREAD * float(np.max(defect, initial=0.0))
                        + 4.0 * UNIT_ROUNDOFF * np.abs(x))
-    own = approximation.correct(spread)
-    if not np.all(np.isfinite(own)):
-        return
-    own = np.maximum(own, spread)  # (also drops the solver's negative noise)
-    yield own
-    worst = _worst_margin(system, objective, known, offset, x, approximation, own, spread)
-    if worst is not None:
-        yield worst
-
-
-def _worst_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
-                  offset: FloatArray | None, x: FloatArray, approximation: Evaluation,
-                  own: FloatArray, spread: FloatArray) -> FloatArray | None:
-    """The margin over every row within ``NEAR * max(own)`` of optimal at *x*, or None
-    when no other row is near."""
-    reach = NEAR * float(np.max(own, initial=0.0))
-    gap = system.images(x, known, offset) - x[system.row_class]
-    with np.errstate(invalid="ignore"):
-        near = gap >= -reach if objective == "max" else gap <= reach
-    near[approximation.rows] = True
-    if int(near.sum()) == system.size:
+    margin = approximation.correct(spread)
+    if not np.all(np.isfinite(margin)):
         return None
-    rows = system.restricted(near)
-    start = np.searchsorted(np.flatnonzero(near), approximation.rows)
-    weight = spread[rows.row_class] * rows.leave
-    found = policy_iteration(rows, "max", np.zeros(known.size), weight, start)
-    if found is None or not np.all(np.isfinite(found.values)):
-        return None
-    return np.maximum(found.values, own)
+    return np.maximum(margin, spread)  # (also drops the solver's negative noise)
 
 
-def _candidates(x: FloatArray, margins: Iterator[FloatArray], images: _Images
+def _candidates(x: FloatArray, margin: FloatArray | None, images: _Images
                 ) -> tuple[FloatArray, FloatArray]:
-    """The first pair ``x +- (c d + slack)`` that passes its tests everywhere, for each
-    margin *d* in turn; failing that, the last margin with the states that fail set
-    to the trivial bounds."""
-    last = None
-    for margin in margins:
-        last = margin
-        for factor in FACTORS:
-            upper, lower = _around(x, margin, factor, images, up=True), _around(
-                x, margin, factor, images, up=False)
-            if _passes(images.upper, upper, images.top, up=True) and _passes(
-                    images.lower, lower, images.floor, up=False):
-                return lower, upper
-    if last is None:
+    """Certified bounds around *x*: for growing factors *c*, ``x +- (c d + slack)``,
+    pushed where it fails (:func:`_pushed`); failing that, the last factor with the
+    states that fail set to the trivial bounds."""
+    if margin is None:
         return images.floor, images.top
-    return (_first_certified(images.lower, x, last, images, up=False),
-            _first_certified(images.upper, x, last, images, up=True))
+    return (_side(images.lower, x, margin, images, up=False),
+            _side(images.upper, x, margin, images, up=True))
+
+
+def _side(image: Image, x: FloatArray, margin: FloatArray, images: _Images,
+          *, up: bool) -> FloatArray:
+    trivial = images.top if up else images.floor
+    for factor in FACTORS:
+        pushed = _pushed(image, _around(x, margin, factor, images, up=up), trivial, up=up)
+        if pushed is not None:
+            return pushed
+    repaired = _repaired(image, _around(x, margin, FACTORS[-1], images, up=up), trivial, up=up)
+    return trivial if repaired is None else repaired
+
+
+def _pushed(image: Image, bound: FloatArray, trivial: FloatArray,
+            *, up: bool) -> FloatArray | None:
+    """*bound* moved outward where it fails its test, until every state passes.
+
+    A state whose image lies beyond its bound is moved past the image by as much
+    again: a row tied with the strategy's but with another distribution (which the
+    margin does not cover) needs a little more room there, and its predecessors
+    then absorb the change in their own margins. Every vector tried is tested
+    whole; only one that passes everywhere is returned.
+    """
+    for _ in range(PUSH_ROUNDS):
+        mapped = image(bound)
+        with np.errstate(invalid="ignore"):
+            failing = ((mapped > bound) if up else (mapped < bound)) & (bound != trivial)
+        if not failing.any():
+            return bound
+        with np.errstate(invalid="ignore", over="ignore"):
+            if up:
+                moved = np.minimum(_above(mapped + (mapped - bound)), trivial)
+            else:
+                moved = np.maximum(step_down(mapped - (bound - mapped)), trivial)
+        bound = np.where(failing, np.where(np.isnan(moved), trivial, moved), bound)
+    return None
 
 
 def _around(x: FloatArray, margin: FloatArray, factor: float, images: _Images,
@@ -188,17 +183,6 @@ def _passes(image: Image, bound: FloatArray, trivial: FloatArray, *, up: bool) -
 def _above(total: FloatArray) -> FloatArray:
     """An upper bound of a sum of nonnegative terms computed as *total* (exact if 0)."""
     return np.where(total == 0, 0.0, step_up(total))
-
-
-def _first_certified(image: Image, x: FloatArray, margin: FloatArray, images: _Images,
-                     *, up: bool) -> FloatArray:
-    """The first factor whose bound passes once failing states are reset to trivial."""
-    trivial = images.top if up else images.floor
-    for factor in FACTORS:
-        repaired = _repaired(image, _around(x, margin, factor, images, up=up), trivial, up=up)
-        if repaired is not None:
-            return repaired
-    return trivial
 
 
 def _repaired(image: Image, bound: FloatArray, trivial: FloatArray,
