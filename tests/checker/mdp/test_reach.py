@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from fractions import Fraction
+
 import numpy as np
 import pytest
 
 from tests.checker.mdp import chain_values
 from tests.checker.mdp.models import TIED_EXIT, mask, mdp_from
-from veribattery.checker.mdp import induced_chain, reach_probability
+from veribattery.checker.mdp import exact_reach_probability, induced_chain, reach_probability
 
 
 def test_pmax_leaves_an_end_component_through_its_best_exit() -> None:
@@ -64,3 +66,23 @@ def test_pmin_chooses_the_smaller_gamble() -> None:
     assert result.strategy.choices[0] == 1
     assert result.lower[0] <= 0.625 <= result.upper[0]
     assert result.bounds.precise_states().all()
+
+
+def test_ill_conditioned_small_system_is_solved_exactly() -> None:
+    """Two states that pass the mass back and forth and leak 1e-13 per step: the
+    float certificate cannot reach 1e-9, so the small system is solved in rationals
+    and the bounds are the floats either side of the exact value."""
+    eps = 1e-13
+    mdp = mdp_from([
+        [[(1, 1 - eps), (2, eps / 2), (3, eps / 2)], [(2, 0.3), (3, 0.7)]],
+        [[(0, 1 - eps), (2, eps / 3), (3, 2 * eps / 3)]],
+        [[(2, 1)]], [[(3, 1)]],
+    ])
+    goal = mask(4, [2])
+    result = reach_probability(mdp, goal, objective="max")
+    assert result.values[0] == pytest.approx(5 / 12, rel=1e-9)
+    assert result.bounds.precise_states().all()
+    assert result.strategy.choices[0] == 0
+    exact = exact_reach_probability(mdp, goal, objective="max").values[0]
+    assert Fraction(result.lower[0]) <= Fraction(int(exact.numerator), int(exact.denominator))
+    assert Fraction(int(exact.numerator), int(exact.denominator)) <= Fraction(result.upper[0])

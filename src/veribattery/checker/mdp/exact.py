@@ -18,16 +18,20 @@ from dataclasses import dataclass
 import numpy as np
 from gmpy2 import mpq
 
-from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.exact_solve import ExactSystem
-from veribattery.checker.exact_solve import solve as solve_linear
+from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.optimum import Problem, approximate
+from veribattery.checker.mdp.rational import (
+    ObjectArray,
+    RationalSystem,
+    exact_policy_iteration,
+    exact_probabilities,
+)
 from veribattery.checker.mdp.reach import reach_problem
 from veribattery.checker.mdp.rewards import reach_reward_problem, total_reward_problem
 from veribattery.checker.mdp.strategy import Strategy, lifted
-from veribattery.checker.mdp.system import ChoiceSystem, Objective
+from veribattery.checker.mdp.system import Objective
 
 __all__ = [
     "ExactMdpResult",
@@ -36,9 +40,6 @@ __all__ = [
     "exact_reach_reward",
     "exact_total_reward",
 ]
-
-#: One Python object (here :class:`gmpy2.mpq`) per entry.
-ObjectArray = np.ndarray
 
 _ZERO = mpq(0)
 
@@ -55,11 +56,6 @@ class ExactMdpResult:
     values: ObjectArray
     infinite: BoolArray
     strategy: Strategy
-
-
-def exact_probabilities(mdp: MDP) -> ObjectArray:
-    """The stored float64 probabilities as the rationals they are (CSR data order)."""
-    return np.array([mpq(float(p)) for p in mdp.transitions.data], dtype=object)
 
 
 def exact_reach_probability(mdp: MDP, target: BoolArray, *, objective: Objective,
@@ -113,90 +109,11 @@ def _solved(mdp: MDP, graph: ChoiceGraph, problem: Problem, probabilities: Objec
         return ExactMdpResult(values, infinite, Strategy(problem.choices))
     exact = exact_probabilities(mdp) if probabilities is None else probabilities
     found = approximate(mdp, problem, None if rewards is None else _floats(rewards))
-    rational = _Rational.of(found.system, exact, values, rewards)
-    rows, x = _policy_iteration(rational, problem.objective, found.rows)
+    rational = RationalSystem.of(found.system, exact, values[found.system.known_states], rewards)
+    rows, x = exact_policy_iteration(rational, problem.objective, found.rows)
     class_of = problem.classes
     values[class_of >= 0] = x[class_of[class_of >= 0]]
     strategy = lifted(mdp, graph, found.system, rows, problem.components, problem.choices)
     return ExactMdpResult(values, infinite, Strategy(strategy))
 
 
-@dataclass(frozen=True, slots=True)
-class _Rational:
-    """A :class:`ChoiceSystem` with exact entries, known values and offsets."""
-
-    system: ChoiceSystem
-    entries: ObjectArray  # per stored entry of system.off
-    entry_row: IntArray
-    leave: ObjectArray  # per row, the exact probability of leaving its class
-    known: ObjectArray  # per known state of the system
-    offset: ObjectArray  # per row
-
-    @classmethod
-    def of(cls, system: ChoiceSystem, probabilities: ObjectArray, values: ObjectArray,
-           rewards: ObjectArray | None) -> _Rational:
-        entries = probabilities[system.positions]
-        entry_row = np.repeat(np.arange(system.off.shape[0]), np.diff(system.off.indptr))
-        leave = np.add.reduceat(entries, system.off.indptr[:-1])
-        offset = (np.full(system.choices.size, _ZERO, dtype=object) if rewards is None
-                  else np.asarray(rewards, dtype=object)[system.choices])
-        return cls(system, entries, entry_row, leave, values[system.known_states], offset)
-
-    def images(self, x: ObjectArray) -> ObjectArray:
-        """``G_a(x)`` of every row, exactly."""
-        full = np.concatenate([x, self.known])
-        products = self.entries * full[self.system.off.indices]
-        sums = np.add.reduceat(products, self.system.off.indptr[:-1])
-        return np.asarray((sums + self.offset) / self.leave, dtype=object)
-
-    def evaluate(self, rows: IntArray) -> ObjectArray:
-        """The exact values of the strategy *rows* (one row per class)."""
-        size = self.system.size
-        chosen = np.zeros(self.system.choices.size, dtype=bool)
-        chosen[rows] = True
-        local = np.full(self.system.choices.size, -1, dtype=np.int64)
-        local[rows] = np.arange(size)
-        picked = chosen[self.entry_row]
-        columns = self.system.off.indices[picked]
-        owner = local[self.entry_row[picked]]
-        scaled = self.entries[picked] / self.leave[self.entry_row[picked]]
-        inner = columns < size
-        rhs = self.offset[rows] / self.leave[rows]
-        np.add.at(rhs, owner[~inner], scaled[~inner] * self.known[columns[~inner] - size])
-        linear = _merged(size, owner[inner], columns[inner], scaled[inner])
-        return np.asarray(solve_linear(linear, rhs), dtype=object)
-
-
-def _merged(size: int, rows: IntArray, columns: IntArray, values: ObjectArray) -> ExactSystem:
-    """The entries with one (row, column) summed: a row of a collapsed class may enter
-    another class through several of its states."""
-    keys, inverse = np.unique(rows * size + columns, return_inverse=True)
-    sums = np.full(keys.size, _ZERO, dtype=object)
-    np.add.at(sums, inverse, values)
-    return ExactSystem(size, keys // size, keys % size, sums)
-
-
-def _policy_iteration(rational: _Rational, objective: Objective,
-                      rows: IntArray) -> tuple[IntArray, ObjectArray]:
-    """Exact policy iteration from *rows*: the optimal strategy and values."""
-    system = rational.system
-    starts = system.groups[:-1]
-    reduce = np.maximum if objective == "max" else np.minimum
-    while True:
-        x = rational.evaluate(rows)
-        images = rational.images(x)
-        best = reduce.reduceat(images, starts)
-        now = images[rows]
-        better = (best > now) if objective == "max" else (best < now)
-        better = np.asarray(better, dtype=bool)
-        if not better.any():
-            return rows, x
-        first = _first_equal(images, best[system.row_class], starts, images.size)
-        rows = np.where(better, first, rows)
-
-
-def _first_equal(values: ObjectArray, best: ObjectArray, starts: IntArray, size: int) -> IntArray:
-    """Per group, the first position whose value equals its group's *best*."""
-    hits = np.asarray(values == best, dtype=bool)
-    positions = np.where(hits, np.arange(size), size)
-    return np.asarray(np.minimum.reduceat(positions, starts), dtype=np.int64)

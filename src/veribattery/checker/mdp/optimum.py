@@ -15,19 +15,27 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.checker.mdp.certificate import certified_values
 from veribattery.checker.mdp.components import EndComponents
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.rational import RationalSystem, exact_policy_iteration
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
 from veribattery.checker.mdp.strategy import Strategy, lifted
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
 
 __all__ = ["Problem", "approximate", "solve", "spread"]
+
+#: Systems of at most this many classes are solved exactly when their certificate
+#: stays too wide (as the DTMC side's rational solve of small systems).
+EXACT_LIMIT = 2_000
+
+_ZERO = mpq(0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -100,9 +108,39 @@ def solve(mdp: MDP, graph: ChoiceGraph, problem: Problem,
     found = approximate(mdp, problem, rewards)
     bounds = certified_values(found.system, problem.objective, found.known, found.offset,
                               found.evaluation, problem.ceiling)
-    strategy = lifted(mdp, graph, found.system, found.rows, problem.components,
-                      problem.choices)
+    rows = found.rows
+    if not bounds.precise_states().all() and found.system.size <= EXACT_LIMIT:
+        rows, bounds = _exactly(mdp, problem, found, rewards)
+    strategy = lifted(mdp, graph, found.system, rows, problem.components, problem.choices)
     return MdpResult(spread(values, problem.classes, bounds), Strategy(strategy))
+
+
+def _exactly(mdp: MDP, problem: Problem, found: Approximation,
+             rewards: FloatArray | None) -> tuple[IntArray, Bounds]:
+    """The last resort of a small system whose certificate stays too wide: policy
+    iteration in rationals on the same equations (the stored doubles read exactly),
+    the exact values rounded to the floats either side."""
+    system = found.system
+    probabilities = np.full(mdp.transitions.nnz, _ZERO, dtype=object)
+    probabilities[system.positions] = [mpq(float(p)) for p in mdp.transitions.data[
+        system.positions]]
+    known = np.array([mpq(float(v)) for v in found.known], dtype=object)
+    exact_rewards = None
+    if rewards is not None:
+        exact_rewards = np.full(mdp.num_choices, _ZERO, dtype=object)
+        exact_rewards[system.choices] = [mpq(float(r)) for r in rewards[system.choices]]
+    rational = RationalSystem.of(system, probabilities, known, exact_rewards)
+    rows, x = exact_policy_iteration(rational, problem.objective, found.rows)
+    return rows, _rounded(x)
+
+
+def _rounded(values: np.ndarray) -> Bounds:
+    """Rationals as floats: the nearest one, inside the floats either side (exactly
+    the value where it is a float)."""
+    point = np.array([float(v) for v in values], dtype=np.float64)
+    exact = np.array([mpq(p) == v for p, v in zip(point, values, strict=True)], dtype=bool)
+    return Bounds(point, np.where(exact, point, round_down(point)),
+                  np.where(exact, point, round_up(point)))
 
 
 def spread(values: Bounds, class_of: IntArray, found: Bounds) -> Bounds:
