@@ -15,6 +15,14 @@ from veribattery.checker.mdp.exact import (
     exact_total_reward,
 )
 from veribattery.checker.mdp.model import MDP, MdpRewards
+from veribattery.checker.mdp.multi import (
+    Constraint,
+    MultiResult,
+    Reach,
+    Total,
+    multi_achievable,
+    multi_optimum,
+)
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
@@ -31,12 +39,16 @@ from veribattery.checker.mdp.system import Objective
 
 __all__ = [
     "MDP",
+    "Constraint",
     "ExactMdpResult",
     "MdpResult",
     "MdpRewards",
+    "MultiResult",
     "Objective",
+    "Reach",
     "StepStrategy",
     "Strategy",
+    "Total",
     "bounded_reach_probability",
     "cumulative_reward",
     "exact_probabilities",
@@ -47,6 +59,8 @@ __all__ = [
     "instantaneous_reward",
     "interval_reach_probability",
     "later_reach_probability",
+    "multi_achievable",
+    "multi_optimum",
     "next_probability",
     "reach_probability",
     "reach_reward",
