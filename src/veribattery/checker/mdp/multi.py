@@ -219,45 +219,56 @@ class _Programme:
 
 def _assembled(product: _Product, graph: ChoiceGraph, component: IntArray,
                quantities: Sequence[Quantity], rewards: Sequence[FloatArray]) -> _Programme:
-    """Variables: the choices that leave their class, then one stay option per resting
-    class; one flow row per class."""
+    """Variables: the choices kept (:func:`_kept`), then one stay option per resting
+    class; one flow row per class: uses out of it + staying - uses into it = start."""
     pm = product.mdp
     count = int(component.max(initial=-1)) + 1
-    singles = component < 0
     class_of = component.copy()
-    class_of[singles] = count + np.arange(int(singles.sum()))
+    class_of[component < 0] = count + np.arange(int(np.sum(component < 0)))
     classes = int(class_of.max(initial=-1)) + 1
     owner_class = class_of[pm.choice_owner]
+    kept = _kept(graph, class_of, owner_class, rewards)
     entering = sp.csr_matrix((pm.transitions.data, class_of[pm.transitions.indices],
                               pm.transitions.indptr), shape=(pm.num_choices, classes))
-    entering.sum_duplicates()
-    # A free choice that keeps all its mass in its class only moves inside it (what the
-    # stay option stands for): dropped. A paying one is kept: looping on it is a way
-    # to collect as much reward as wished before leaving.
-    sizes = np.diff(graph.successor_ptr)
-    outside = class_of[graph.successors] != np.repeat(owner_class, sizes)
-    paying = np.zeros(pm.num_choices, dtype=bool)
-    for reward in rewards:
-        paying |= reward > 0
-    kept = np.flatnonzero(np.logical_or.reduceat(outside, graph.successor_ptr[:-1]) | paying)
     out = sp.csr_matrix((np.ones(kept.size), (owner_class[kept], np.arange(kept.size))),
                         shape=(classes, kept.size))
-    flow_choices = out - sp.csr_matrix(entering[kept].T)
     stay = sp.csr_matrix((np.ones(count), (np.arange(count), np.arange(count))),
                          shape=(classes, count))
-    flow = sp.csr_matrix(sp.hstack([flow_choices, stay]))
+    flow = sp.csr_matrix(sp.hstack([out - sp.csr_matrix(entering[kept].T), stay]))
     initial = np.zeros(classes)
     initial[class_of[product.initial]] = 1.0
+    return _Programme(product, flow, initial,
+                      _forms(product, component, quantities, rewards, kept), kept)
+
+
+def _kept(graph: ChoiceGraph, class_of: IntArray, owner_class: IntArray,
+          rewards: Sequence[FloatArray]) -> IntArray:
+    """The choices that are variables. A free choice that keeps all its mass in its
+    class only moves inside it (what the stay option stands for): dropped. A paying one
+    is kept: looping on it collects as much reward as wished before leaving."""
+    sizes = np.diff(graph.successor_ptr)
+    outside = class_of[graph.successors] != np.repeat(owner_class, sizes)
+    leaving = np.logical_or.reduceat(outside, graph.successor_ptr[:-1])
+    for reward in rewards:
+        leaving |= reward > 0
+    return np.flatnonzero(leaving)
+
+
+def _forms(product: _Product, component: IntArray, quantities: Sequence[Quantity],
+           rewards: Sequence[FloatArray], kept: IntArray) -> dict[int, FloatArray]:
+    """Each quantity as coefficients over the variables (keyed by the quantity's id):
+    a reward on the uses, a probability on staying where its target has been visited."""
+    count = int(component.max(initial=-1)) + 1
     forms: dict[int, FloatArray] = {}
     totals = iter(rewards)
     targets = 0
     for quantity in quantities:
         if isinstance(quantity, Total):
             forms[id(quantity)] = np.concatenate([next(totals)[kept], np.zeros(count)])
-        else:
-            visited = product.bits(targets)
-            targets += 1
-            first = np.zeros(count, dtype=bool)
-            first[component[visited & ~singles]] = True
-            forms[id(quantity)] = np.concatenate([np.zeros(kept.size), first.astype(float)])
-    return _Programme(product, flow, initial, forms, kept)
+            continue
+        visited = product.bits(targets) & (component >= 0)
+        targets += 1
+        reached = np.zeros(count)
+        reached[component[visited]] = 1.0
+        forms[id(quantity)] = np.concatenate([np.zeros(kept.size), reached])
+    return forms
