@@ -74,3 +74,8 @@ def test_cumulative_and_instantaneous() -> None:
     assert instantaneous_reward(RACE, state, 1, objective="max").values[0] == 1
     assert instantaneous_reward(RACE, state, 1, objective="min").values[0] == 0
     assert instantaneous_reward(RACE, state, 2, objective="max").values[0] == pytest.approx(0.1)
+
+
+def test_exact_inputs_give_exact_bounds() -> None:
+    found = next_probability(RACE, GOAL, objective="max")
+    assert found.lower.tolist() == found.upper.tolist() == [0.5, 0.9, 1, 0]

@@ -6,10 +6,9 @@ at fixed values. An optimal strategy for a finite horizon takes, at each step,
 a choice that attains the optimum of that round (dynamic programming), so the
 strategy returned is step-dependent (:class:`StepStrategy`).
 
-The bounds are carried through the rounds: with ``lo_{r-1} <= x*_{r-1} <=
-hi_{r-1}``, monotonicity gives ``opt_a (o_a + P_a lo) <= x*_r``, and a rigorous
-lower enclosure of each row's product (:func:`enclose_product`) keeps that
-true in floating point; likewise above. As on the DTMC side, these operators
+A rigorous error radius is carried through the rounds, as on the DTMC side
+(:func:`_round`: the rounding of each round enclosed by :func:`enclose_product`,
+the inherited error pushed through the worst row). As there, these operators
 read the stored entries as they are.
 """
 
@@ -20,9 +19,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.bounds import Bounds
-from veribattery.checker.certify import enclose_product, row_terms
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify import (
+    TERM_FLOOR,
+    enclose_product,
+    error_coefficient,
+    row_terms,
+    step_up,
+    step_up_in_place,
+)
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
@@ -126,40 +132,96 @@ def _blocked(mdp: MDP, remain: BoolArray, objective: Objective) -> _Rounds:
 def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
               then: Strategy | StepStrategy | None) -> MdpResult:
     """*steps* rounds from *start*; the strategy of the last round is taken first."""
-    value, lower, upper = start.value, start.lower, start.upper
-    terms = row_terms(mdp.transitions)
+    value, radius = start.value, _radius(start)
+    fixed_radius = _radius(rounds.fixed)
+    rows = _Rows.of(mdp)
     decisions: list[IntArray] = []
     for _ in range(steps):
-        following = _round(mdp, rounds, value, lower, upper, terms)
-        decisions.append(following[3])
-        if all(np.array_equal(a, b) for a, b in zip(following[:3], (value, lower, upper),
-                                                     strict=True)):
-            decisions += [following[3]] * (steps - len(decisions))
+        following, grown, choice = _round(mdp, rounds, value, radius, fixed_radius, rows)
+        decisions.append(choice)
+        if np.array_equal(following, value) and np.array_equal(grown, radius):
+            decisions += [choice] * (steps - len(decisions))  # every later round is this one
             break
-        value, lower, upper = following[:3]
-    strategy = _compact(mdp, decisions, then)
-    return MdpResult(Bounds.around(value, lower, upper), strategy)
+        value, radius = following, grown
+    with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
+        lower = np.where(radius == 0, value, np.maximum(round_down(value - radius), 0.0))
+        upper = np.where(radius == 0, value, round_up(value + radius))
+    return MdpResult(Bounds(value, lower, upper), _compact(mdp, decisions, then))
 
 
-def _round(mdp: MDP, rounds: _Rounds, value: FloatArray, lower: FloatArray,
-           upper: FloatArray, terms: FloatArray
-           ) -> tuple[FloatArray, FloatArray, FloatArray, IntArray]:
-    """One Bellman round: the point values, both bounds and the choices attaining them."""
+def _up(total: FloatArray) -> FloatArray:
+    """An upper bound of a nonnegative sum or difference computed as *total* (exact if
+    0: a float sum or difference is 0 only when it is exactly 0)."""
+    return np.where(total == 0, 0.0, step_up(total))
+
+
+def _radius(bounds: Bounds) -> FloatArray:
+    """A bound of ``|value - exact|`` per state."""
+    with np.errstate(invalid="ignore"):
+        below, above = bounds.value - bounds.lower, bounds.upper - bounds.value
+        gap = np.maximum(_up(below), _up(above))
+    return np.asarray(np.where(np.isnan(gap), 0.0, gap), dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True)
+class _Rows:
+    """Per row of the choice matrix, the constants of the rounding bound of one product
+    ``P_a x + o_a`` with nonnegative terms (:func:`enclosed`): Higham's ``gamma_k`` for
+    its stored entries plus the offset, and the underflow of each product (counted as
+    ``TERM_FLOOR``, a normal number, as :class:`certify.AffineMap` does)."""
+
+    matrix: CsrMatrix
+    terms: FloatArray
+    coefficient: FloatArray
+    underflow: FloatArray
+
+    @classmethod
+    def of(cls, mdp: MDP) -> _Rows:
+        terms = row_terms(mdp.transitions)
+        counted = terms + 1.0
+        return cls(mdp.transitions, terms, error_coefficient(counted), counted * TERM_FLOOR)
+
+    def enclosed(self, x: FloatArray, offset: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+        """``y = fl(P x + o)`` and a bound of ``|y - (P x + o)|`` per row (*x*, *o* >= 0).
+
+        The terms are nonnegative, so the magnitude in the bound is *y* itself;
+        vectors of 0s and 1s without an offset go through :func:`enclose_product`,
+        whose products are exact (so exact results stay exact).
+        """
+        if not x.any() and (offset is None or not offset.any()):
+            zeros = np.zeros(self.matrix.shape[0])
+            return zeros, zeros.copy()  # (an exact radius of 0 stays 0)
+        if offset is None and bool(np.all((x == 0) | (x == 1))):
+            y, low, high = enclose_product(self.matrix, x, None, self.terms)
+            return y, _up(np.maximum(high - y, y - low))
+        y = np.asarray(self.matrix @ x, dtype=np.float64)
+        if offset is not None:
+            y += offset
+        error = self.coefficient * y
+        error += self.underflow
+        step_up_in_place(error)
+        return y, error
+
+
+def _round(mdp: MDP, rounds: _Rounds, value: FloatArray, radius: FloatArray,
+           fixed_radius: FloatArray, rows: _Rows
+           ) -> tuple[FloatArray, FloatArray, IntArray]:
+    """One Bellman round: the point values, their error radius, the choices taken.
+
+    ``|opt_a y_a - opt_a f_a(x*)| <= max_a |y_a - f_a(x*)| <= max_a (err_a + P_a r)``
+    for the float images ``y_a`` of the point values (rounding ``err_a``, enclosed)
+    and their radius ``r``, whichever optimum is taken: two products per round.
+    """
     reduce = np.maximum if rounds.objective == "max" else np.minimum
     starts = mdp.row_groups[:-1]
-    images = mdp.transitions @ value
-    if rounds.offset is not None:
-        images = images + rounds.offset
-    low = enclose_product(mdp.transitions, lower, rounds.offset, terms)[1]
-    high = enclose_product(mdp.transitions, upper, rounds.offset, terms)[2]
+    images, rounding = rows.enclosed(value, rounds.offset)
+    spread, error = rows.enclosed(radius, rounding)
+    grown = _up(spread + error)  # (0 only where both are: an exact value stays exact)
     best = reduce.reduceat(images, starts)
-    choice = _first_best(mdp, images, best)
-    moving = rounds.moving
-    fixed = rounds.fixed
+    moving, fixed = rounds.moving, rounds.fixed
     return (np.where(moving, best, fixed.value),
-            np.where(moving, np.maximum(reduce.reduceat(low, starts), 0.0), fixed.lower),
-            np.where(moving, reduce.reduceat(high, starts), fixed.upper),
-            np.where(moving, choice, starts))
+            np.where(moving, np.maximum.reduceat(grown, starts), fixed_radius),
+            np.where(moving, _first_best(mdp, images, best), starts))
 
 
 def _first_best(mdp: MDP, images: FloatArray, best: FloatArray) -> IntArray:
