@@ -13,10 +13,10 @@ from tests.explore.models import expr
 from tests.explore.test_fused import _assert_same_exploration
 from veribattery.errors import ModelError
 from veribattery.explore import compile_expr
-from veribattery.explore.builder import explore
-from veribattery.explore.compile import CompileCache, _narrowed, may_fail
-from veribattery.explore.fused import plan_layers
-from veribattery.explore.program import compile_program
+from veribattery.explore.build.builder import explore
+from veribattery.explore.build.fused import plan_layers
+from veribattery.explore.compile.expr import CompileCache, _narrowed, may_fail
+from veribattery.explore.compile.program import compile_program
 from veribattery.lang.parser import parse_model
 from veribattery.lang.semantics import flatten_model
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from veribattery._record import record
 from veribattery._types import FloatArray, IntArray
-from veribattery.explore.fused import Expansion
+from veribattery.explore.build.fused import Expansion
 
 __all__ = ["Layer", "Layers"]
 

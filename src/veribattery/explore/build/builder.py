@@ -22,14 +22,14 @@ import scipy.sparse as sp
 from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.compile import CompileCache, CompiledExpr, compile_expr, may_fail
+from veribattery.explore.build.fused import Expansion, LayerPlan, plan_layers
+from veribattery.explore.build.guard import Footprint, MemoryGuard
+from veribattery.explore.build.layers import Layer, Layers
+from veribattery.explore.build.store import StateStore, radix_words
+from veribattery.explore.build.successors import GroupSuccessors, expand_group, format_state
+from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr, may_fail
+from veribattery.explore.compile.program import Program, compile_program
 from veribattery.explore.dtmc import DTMC, RewardVectors
-from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
-from veribattery.explore.guard import Footprint, MemoryGuard
-from veribattery.explore.layers import Layer, Layers
-from veribattery.explore.program import Program, compile_program
-from veribattery.explore.store import StateStore, radix_words
-from veribattery.explore.successors import GroupSuccessors, expand_group, format_state
 from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 
 __all__ = [

@@ -2,7 +2,7 @@
 
 The builder explores the state space in floating point; :func:`exact_dtmc` then
 re-derives, for every transition of that DTMC, its probability as an exact
-rational (:mod:`~veribattery.explore.rational`): each command's updates are
+rational (:mod:`~veribattery.explore.exact.rational`): each command's updates are
 re-expanded over all states at once (guards and assignments are the builder's
 compiled ones, so the successors are the same), and each update's probability
 is evaluated from the model's *source* expression -- formulas inlined and
@@ -23,20 +23,25 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.builder import assemble, explore
-from veribattery.explore.compile import compile_expr
+from veribattery.explore.build.builder import assemble, explore
+from veribattery.explore.build.store import StateStore
+from veribattery.explore.build.successors import format_state
+from veribattery.explore.compile.expr import compile_expr
+from veribattery.explore.compile.program import (
+    ChoiceGroup,
+    CompiledCommand,
+    Program,
+    compile_program,
+)
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.exact_program import (
+from veribattery.explore.exact.program import (
     ExactSource,
     as_bools,
     exact_labels,
     exact_program,
     needs_exact,
 )
-from veribattery.explore.program import ChoiceGroup, CompiledCommand, Program, compile_program
-from veribattery.explore.rational import ExactScalar, ObjectArray, exact_constants, tabulate
-from veribattery.explore.store import StateStore
-from veribattery.explore.successors import format_state
+from veribattery.explore.exact.rational import ExactScalar, ObjectArray, exact_constants, tabulate
 from veribattery.lang.nodes import Command, Expr, FlatModel, Model, RewardStruct, Value
 from veribattery.lang.semantics import _inline, _modules, expand_formulas
 
@@ -109,7 +114,7 @@ def build_exact(
     progress: Callable[[int, int], None] | None = None,
 ) -> ExactDTMC:
     """Build *flat*'s DTMC with rounding-prone guards, assignments and labels decided
-    exactly (:mod:`~veribattery.explore.exact_program`), then its exact probabilities.
+    exactly (:mod:`~veribattery.explore.exact.program`), then its exact probabilities.
 
     :param model: the parsed model; *flat* is ``flatten_model(model, constants)``.
     :param constants: the values given for undefined constants (decimals are exact).

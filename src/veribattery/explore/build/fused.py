@@ -41,8 +41,8 @@ import numpy as np
 from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.compile import CompiledExpr, may_fail
-from veribattery.explore.program import CompiledCommand, Program
+from veribattery.explore.compile.expr import CompiledExpr, may_fail
+from veribattery.explore.compile.program import CompiledCommand, Program
 
 __all__ = ["Expansion", "LayerPlan", "branch_kinds", "plan_layers", "reprice"]
 

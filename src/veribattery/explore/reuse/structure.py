@@ -40,7 +40,7 @@ import numpy as np
 from veribattery._record import record
 from veribattery._types import FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.builder import (
+from veribattery.explore.build.builder import (
     Layer,
     assemble,
     expand_frontier,
@@ -48,9 +48,9 @@ from veribattery.explore.builder import (
     initial_states,
     rewarded_actions,
 )
+from veribattery.explore.build.fused import branch_kinds, plan_layers, reprice
+from veribattery.explore.compile.program import Program, compile_program, with_probabilities
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.fused import branch_kinds, plan_layers, reprice
-from veribattery.explore.program import Program, compile_program, with_probabilities
 from veribattery.lang.nodes import Command, FlatModel, LabelDecl, RewardStruct
 
 __all__ = ["Structure", "build_reusable", "reevaluate", "structure_key"]

@@ -13,8 +13,8 @@ from dataclasses import field, replace
 
 from veribattery._record import record
 from veribattery.errors import PrismSemanticError, Span
-from veribattery.explore.bounds import value_bounds
-from veribattery.explore.compile import (
+from veribattery.explore.compile.bounds import value_bounds
+from veribattery.explore.compile.expr import (
     CompileCache,
     CompiledExpr,
     compile_expr,

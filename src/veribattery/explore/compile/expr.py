@@ -30,8 +30,8 @@ import numpy as np
 from veribattery._record import record
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError, PrismSemanticError, Span
-from veribattery.explore import arrays
-from veribattery.explore.chains import SPINE_LIMIT, Link, same_rows, unrolled
+from veribattery.explore.compile import arrays
+from veribattery.explore.compile.chains import SPINE_LIMIT, Link, same_rows, unrolled
 from veribattery.lang import ops
 from veribattery.lang.nodes import (
     Binary,
