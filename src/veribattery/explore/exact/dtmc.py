@@ -43,7 +43,7 @@ from veribattery.explore.exact.program import (
 )
 from veribattery.explore.exact.rational import ExactScalar, ObjectArray, exact_constants, tabulate
 from veribattery.lang.nodes import Command, Expr, FlatModel, Model, RewardStruct, Value
-from veribattery.lang.semantics import _inline, _modules, expand_formulas
+from veribattery.lang.semantics import expand_formulas, expanded_modules, inline_formulas
 
 __all__ = ["ExactDTMC", "ExactRewards", "build_exact", "exact_dtmc"]
 
@@ -164,7 +164,7 @@ def exact_dtmc(
     probabilities = _aligned(program.lows, program.highs, dtmc, parts, total)
     _check_sums(dtmc, probabilities, flat.variable_names)
     formulas = expand_formulas(model.formulas)
-    sources = [_inline(r, formulas) for r in model.rewards]
+    sources = [inline_formulas(r, formulas) for r in model.rewards]
     rewards = tuple(
         _rewards(f, s, dtmc, context, counts, total)
         for f, s in zip(flat.rewards, sources, strict=True)
@@ -177,7 +177,7 @@ def _source(
 ) -> ExactSource:
     exact = exact_constants(model.constants, dict(constants or {}))
     formulas = expand_formulas(model.formulas)
-    labels = {lab.name: _inline(lab.expr, formulas) for lab in model.labels}
+    labels = {lab.name: inline_formulas(lab.expr, formulas) for lab in model.labels}
     ranges = {v.name: (v.low, v.high) for v in flat.variables}
     return ExactSource(exact, _columns(flat), _source_commands(model, flat, formulas), labels,
                        ranges)
@@ -196,7 +196,7 @@ def _source_commands(
     unfolded modules line up with the flat ones position by position.
     """
     found: dict[int, Command] = {}
-    for flat_module, module in zip(flat.modules, _modules(model, formulas), strict=True):
+    for flat_module, module in zip(flat.modules, expanded_modules(model, formulas), strict=True):
         for flat_command, command in zip(flat_module.commands, module.commands, strict=True):
             found[id(flat_command)] = command
     return found
