@@ -14,7 +14,7 @@ from veribattery.errors import ModelError
 from veribattery.explore import build_dtmc
 from veribattery.explore.build import builder as builder_module
 from veribattery.explore.build.builder import Layer, explore
-from veribattery.explore.build.fused import plan_layers
+from veribattery.explore.build.plan import plan_layers
 from veribattery.explore.compile.program import compile_program
 from veribattery.lang.nodes import FlatModel
 from veribattery.lang.parser import parse_model

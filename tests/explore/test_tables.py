@@ -14,7 +14,7 @@ from tests.explore.test_fused import _assert_same_exploration
 from veribattery.errors import ModelError
 from veribattery.explore import compile_expr
 from veribattery.explore.build.builder import explore
-from veribattery.explore.build.fused import plan_layers
+from veribattery.explore.build.plan import plan_layers
 from veribattery.explore.compile.expr import CompileCache, may_fail
 from veribattery.explore.compile.program import compile_program
 from veribattery.explore.compile.tables import narrowed

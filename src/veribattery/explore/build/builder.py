@@ -22,9 +22,10 @@ import scipy.sparse as sp
 from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.build.fused import Expansion, LayerPlan, plan_layers
+from veribattery.explore.build.fused import Expansion, LayerPlan
 from veribattery.explore.build.guard import Footprint, MemoryGuard
 from veribattery.explore.build.layers import Layer, Layers
+from veribattery.explore.build.plan import plan_layers
 from veribattery.explore.build.store import StateStore, radix_words
 from veribattery.explore.build.successors import GroupSuccessors, expand_group, format_state
 from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr, may_fail

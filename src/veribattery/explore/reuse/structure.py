@@ -48,7 +48,8 @@ from veribattery.explore.build.builder import (
     initial_states,
     rewarded_actions,
 )
-from veribattery.explore.build.fused import branch_kinds, plan_layers, reprice
+from veribattery.explore.build.fused import branch_kinds, reprice
+from veribattery.explore.build.plan import plan_layers
 from veribattery.explore.compile.program import Program, compile_program, with_probabilities
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Command, FlatModel, LabelDecl, RewardStruct
