@@ -313,7 +313,7 @@ def assemble(
     """The DTMC of *model* from its explored layers (which are emptied as they are used).
 
     :param known: labels and rewards already evaluated on these states and choices
-        (see ``reuse``), or None to evaluate them.
+        (see ``reuse.structure``), or None to evaluate them.
     """
     n = states.shape[0]
     choices = np.concatenate([layer.choices for layer in layers])

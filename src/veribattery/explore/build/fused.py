@@ -52,7 +52,7 @@ __all__ = [
 ]
 
 SUM_TOLERANCE = 0.5e-6  # half the builder's: a borderline sum is left to the exact check
-# 0-d arrays: a ufunc takes them for about half the cost of a scalar (see ``compile``)
+# 0-d arrays: a ufunc takes them for about half the cost of a scalar (see ``constant_node``)
 _NO_PROBABILITY = np.asarray(0.0)
 _NO_CHOICE = np.asarray(0, dtype=np.int64)
 
@@ -372,7 +372,7 @@ def _members(
 
 
 # ---------------------------------------------------------------------------
-# Re-pricing known branches (structure reuse, see ``reuse``)
+# Re-pricing known branches (structure reuse, see ``reuse.structure``)
 # ---------------------------------------------------------------------------
 
 

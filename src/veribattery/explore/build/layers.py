@@ -27,7 +27,7 @@ class Layer:
 
     *dropped* lists the positions, in the frontier's branch order before
     zero-probability branches were dropped, of those branches; *branches* counts
-    the branches before dropping. Both let a re-evaluation (see ``reuse``) prove
+    the branches before dropping. Both let a re-evaluation (see ``reuse.structure``) prove
     that the same branches exist.
     """
 

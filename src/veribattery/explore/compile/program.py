@@ -99,7 +99,7 @@ def with_probabilities(program: Program, model: FlatModel) -> Program:
     """*program* with the update probabilities of *model*, guards and assignments kept.
 
     *model* must have the commands *program* was compiled from, in the same
-    order, up to their probabilities (as the models of one ``reuse`` key do):
+    order, up to their probabilities (as the models of one ``reuse.structure`` key do):
     only the probabilities are compiled again.
     """
     names = _names(model)
