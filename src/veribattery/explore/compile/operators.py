@@ -30,7 +30,6 @@ from veribattery.lang.ops import OperatorError
 __all__ = ["binary_node", "call_node", "ite_node", "lift", "unary_node"]
 
 
-
 def lift(
     op: Callable[..., Any], args: Sequence[Node], risky: bool = False, link: Link | None = None
 ) -> Node:
