@@ -21,8 +21,7 @@ from typing import Any
 
 from veribattery.explore.build import builder, store
 from veribattery.explore.compile.program import compile_program
-from veribattery.lang import parse_model
-from veribattery.pipeline import flatten_model
+from veribattery.lang import flatten_model, parse_model
 
 
 def _constants(pairs: list[str]) -> dict[str, Any]:
