@@ -16,8 +16,9 @@ import pytest
 
 from veribattery.checker import check
 from veribattery.errors import ModelError
-from veribattery.explore import DTMC, build_dtmc, reuse
-from veribattery.explore.reuse import build_reusable, reevaluate, structure_key
+from veribattery.explore import DTMC, build_dtmc
+from veribattery.explore.reuse import structure as reuse
+from veribattery.explore.reuse.structure import build_reusable, reevaluate, structure_key
 from veribattery.lang import flatten_model, parse_model, parse_property
 from veribattery.lang.nodes import FlatModel, Value
 from veribattery.pipeline import ReusingBuilder

@@ -182,7 +182,7 @@ def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.intege
     identity.
 
     Matrices of a structure-reusing sweep share their index arrays (the re-evaluated
-    transition matrix takes the base's, :func:`veribattery.explore.reuse.reevaluate`;
+    transition matrix takes the base's, :func:`veribattery.explore.reuse.structure.reevaluate`;
     a restriction plan's ``A64`` takes the plan's), so each point's pattern lookups
     (pre-pass memo, restriction plan, triangular plan) hash no index array again.
     Index arrays are never modified in place once a matrix is built (as the memos

@@ -29,8 +29,8 @@ from veribattery.checker import (
 )
 from veribattery.checker.bounds import Bounds, escalated, required_precision
 from veribattery.errors import CheckError, VeribatteryError
-from veribattery.explore import arrays
-from veribattery.explore.compile import compile_expr
+from veribattery.explore.compile import arrays
+from veribattery.explore.compile.expr import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
