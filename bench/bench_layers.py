@@ -19,10 +19,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-from veribattery.explore import builder, store
-from veribattery.explore.program import compile_program
-from veribattery.lang import parse_model
-from veribattery.pipeline import flatten_model
+from veribattery.explore.build import builder, store
+from veribattery.explore.compile.program import compile_program
+from veribattery.lang import flatten_model, parse_model
 
 
 def _constants(pairs: list[str]) -> dict[str, Any]:

@@ -23,10 +23,10 @@ from tests.lang.helpers import expression_depth
 from veribattery.cli import cli
 from veribattery.config import load_config
 from veribattery.errors import ModelTooLarge
-from veribattery.explore import guard
-from veribattery.explore.builder import build_dtmc, explore, memory_footprint
-from veribattery.explore.guard import MemoryGuard, available_memory
-from veribattery.explore.program import compile_program
+from veribattery.explore.build import guard
+from veribattery.explore.build.builder import build_dtmc, explore, memory_footprint
+from veribattery.explore.build.guard import MemoryGuard, available_memory
+from veribattery.explore.compile.program import compile_program
 from veribattery.lang import FlatModel, flatten_model, parse_model, parse_properties
 from veribattery.lang.evaluate import evaluate
 from veribattery.render import render_model

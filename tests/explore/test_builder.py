@@ -304,8 +304,8 @@ def _three_part_sync() -> FlatModel:
 
 
 def test_one_command_per_part_matches_the_general_product() -> None:
-    from veribattery.explore import successors
-    from veribattery.explore.program import compile_program
+    from veribattery.explore.build import successors
+    from veribattery.explore.compile.program import compile_program
 
     program = compile_program(_three_part_sync())
     (group,) = program.groups
@@ -375,7 +375,7 @@ def test_range_error_located_in_a_later_layer(synchronised: bool) -> None:
 def test_labels_and_rewards_evaluated_in_chunks_equal_the_formulas(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    from veribattery.explore import builder
+    from veribattery.explore.build import builder
 
     # A 7x5 grid walk; chunks of 4 states split it mid-layer and mid-row.
     monkeypatch.setattr(builder, "_EVAL_CHUNK", 4)
@@ -426,7 +426,7 @@ def _clamped_walk(wide: int) -> FlatModel:
 
 
 def test_multi_word_keys_give_the_same_dtmc_as_one_word() -> None:
-    from veribattery.explore.store import radix_words
+    from veribattery.explore.build.store import radix_words
 
     narrow, wide = _clamped_walk(0), _clamped_walk(1 << 40)
     assert radix_words([0, -3, -5], [1, 3, -1]).shape[1] == 1
@@ -467,9 +467,9 @@ def test_merged_layers_equal_the_layers_one_by_one(
 ) -> None:
     from dataclasses import fields
 
-    from veribattery.explore import builder
-    from veribattery.explore import layers as layers_module
-    from veribattery.explore.program import compile_program
+    from veribattery.explore.build import builder
+    from veribattery.explore.build import layers as layers_module
+    from veribattery.explore.compile.program import compile_program
 
     model = _layered_walk()
 

@@ -8,8 +8,8 @@ import pytest
 from tests.explore.models import expr
 from veribattery.errors import ModelError, PrismSemanticError, Span
 from veribattery.explore import compile_expr
-from veribattery.explore.bounds import value_bounds
-from veribattery.explore.compile import constant_value
+from veribattery.explore.compile.bounds import value_bounds
+from veribattery.explore.compile.expr import constant_value
 from veribattery.lang.nodes import Eventually, Ident, LabelRef, ProbOp
 
 NAMES = ("x", "y")

@@ -20,12 +20,12 @@ import pytest
 
 from tests.lang.test_deep_expressions import TERMS, N, chained_definitions, deep_model
 from veribattery.errors import ModelError
-from veribattery.explore import compile as compile_module
 from veribattery.explore import compile_expr
-from veribattery.explore.bounds import value_bounds
-from veribattery.explore.compile import CompileCache, variables_of
-from veribattery.explore.exact_program import needs_exact
-from veribattery.explore.rational import evaluate_rational, rational
+from veribattery.explore.compile import operators as operators_module
+from veribattery.explore.compile.bounds import value_bounds
+from veribattery.explore.compile.expr import CompileCache, variables_of
+from veribattery.explore.exact.program import needs_exact
+from veribattery.explore.exact.rational import evaluate_rational, rational
 from veribattery.lang import parse_model
 from veribattery.lang.nodes import Expr
 from veribattery.lang.parser import parse_properties
@@ -136,8 +136,8 @@ def test_a_chain_in_a_loop_equals_its_nested_calls(
     text = _long_chains(rng, rng.randrange(2, 30), seed % 7)
     rows = _rows(seed=seed)
     found = []
-    for limit in (compile_module.SPINE_LIMIT, 1):
-        monkeypatch.setattr(compile_module, "SPINE_LIMIT", limit)
+    for limit in (operators_module.SPINE_LIMIT, 1):
+        monkeypatch.setattr(operators_module, "SPINE_LIMIT", limit)
         fn = compile_expr(_parsed(text), NAMES)
         try:
             found.append(fn(rows))

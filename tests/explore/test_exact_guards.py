@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 from veribattery.checker.exact import ExactCheckResult
 from veribattery.cli import cli
-from veribattery.explore.exact_program import needs_exact
+from veribattery.explore.exact.program import needs_exact
 from veribattery.lang import parse_property
 from veribattery.pipeline import check_prism_file
 

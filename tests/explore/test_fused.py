@@ -12,10 +12,10 @@ from tests.conftest import PEER_TESTS
 from tests.peer_manifests import assert_enough, fail_missing, manifest, missing
 from veribattery.errors import ModelError
 from veribattery.explore import build_dtmc
-from veribattery.explore import builder as builder_module
-from veribattery.explore.builder import Layer, explore
-from veribattery.explore.fused import plan_layers
-from veribattery.explore.program import compile_program
+from veribattery.explore.build import builder as builder_module
+from veribattery.explore.build.builder import Layer, explore
+from veribattery.explore.build.plan import plan_layers
+from veribattery.explore.compile.program import compile_program
 from veribattery.lang.nodes import FlatModel
 from veribattery.lang.parser import parse_model
 from veribattery.lang.semantics import flatten_model
@@ -230,7 +230,7 @@ endmodule
 
 def test_range_check_reads_offsets_unsigned() -> None:
     """``_out_of_range`` flags exactly the targets outside [low, high], int64 extremes too."""
-    from veribattery.explore.fused import _out_of_range
+    from veribattery.explore.build.fused import _out_of_range
 
     model = flatten_model(parse_model("""dtmc
 module m

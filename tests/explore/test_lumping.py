@@ -12,7 +12,7 @@ from tests.checker.chains import dtmc
 from veribattery._sparse import csr_sharing
 from veribattery.checker import check
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.lumping import Lumper, Partition, dtmc_seeds, partition
+from veribattery.explore.reuse.lumping import Lumper, Partition, dtmc_seeds, partition
 from veribattery.lang import parse_property
 
 

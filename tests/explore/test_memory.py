@@ -14,8 +14,8 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from veribattery.explore import builder
-from veribattery.explore.builder import build_dtmc
+from veribattery.explore.build import builder
+from veribattery.explore.build.builder import build_dtmc
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang import flatten_model, parse_model
 from veribattery.lang.nodes import FlatModel

@@ -16,8 +16,9 @@ import pytest
 
 from veribattery.checker import check
 from veribattery.errors import ModelError
-from veribattery.explore import DTMC, build_dtmc, reuse
-from veribattery.explore.reuse import build_reusable, reevaluate, structure_key
+from veribattery.explore import DTMC, build_dtmc
+from veribattery.explore.reuse import structure as reuse
+from veribattery.explore.reuse.structure import build_reusable, reevaluate, structure_key
 from veribattery.lang import flatten_model, parse_model, parse_property
 from veribattery.lang.nodes import FlatModel, Value
 from veribattery.pipeline import ReusingBuilder
@@ -282,7 +283,7 @@ def test_risky_probability_takes_the_expansion_way(monkeypatch: pytest.MonkeyPat
 
 def test_reused_matrix_shares_the_base_index_arrays() -> None:
     # The checker's pattern memos then know the pattern by the arrays' identity
-    # (linsolve.index_digest); the matrix stays the fresh build's, entry for entry.
+    # (linalg.index_digest); the matrix stays the fresh build's, entry for entry.
     base, structure = build_reusable(flat(GAMBLER, p=0.3))
     model = flat(GAMBLER, p=0.6)
     got = reevaluate(base, structure, model)

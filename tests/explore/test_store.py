@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from veribattery.explore.store import StateStore, radix_words
+from veribattery.explore.build.store import StateStore, radix_words
 
 
 def test_first_occurrence_numbering() -> None:

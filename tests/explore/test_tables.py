@@ -13,10 +13,11 @@ from tests.explore.models import expr
 from tests.explore.test_fused import _assert_same_exploration
 from veribattery.errors import ModelError
 from veribattery.explore import compile_expr
-from veribattery.explore.builder import explore
-from veribattery.explore.compile import CompileCache, _narrowed, may_fail
-from veribattery.explore.fused import plan_layers
-from veribattery.explore.program import compile_program
+from veribattery.explore.build.builder import explore
+from veribattery.explore.build.plan import plan_layers
+from veribattery.explore.compile.expr import CompileCache, may_fail
+from veribattery.explore.compile.program import compile_program
+from veribattery.explore.compile.tables import narrowed
 from veribattery.lang.parser import parse_model
 from veribattery.lang.semantics import flatten_model
 
@@ -107,7 +108,7 @@ def test_narrow_tables_give_wide_values() -> None:
 )
 def test_narrowed_type_holds_every_value_exactly(values: list[object], dtype: type) -> None:
     table = np.array(values)
-    narrow = _narrowed(table)
+    narrow = narrowed(table)
     assert narrow.dtype == dtype
     assert narrow.astype(table.dtype).tobytes() == table.tobytes()
 

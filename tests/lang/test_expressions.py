@@ -30,7 +30,8 @@ from veribattery.lang.semantics import expand_formulas
 _NODES = tuple(
     obj
     for obj in vars(nodes).values()
-    if isinstance(obj, type) and dataclasses.is_dataclass(obj) and obj.__module__ == nodes.__name__
+    if isinstance(obj, type) and dataclasses.is_dataclass(obj)
+    and obj.__module__.startswith(f"{nodes.__name__}.")  # the modules of lang.nodes
 )
 _LITERALS = (IntLit, DoubleLit, BoolLit)
 

@@ -3,8 +3,8 @@
 One table (:mod:`veribattery.lang.ops`) defines the operators; five places evaluate
 them: constant evaluation (:mod:`veribattery.lang.evaluate`), constant folding
 (:func:`veribattery.lang.expressions.close`), the builder's numpy kernels
-(:func:`veribattery.explore.compile.compile_expr`, row by row and tabulated), exact
-rationals (:func:`veribattery.explore.rational.evaluate_rational`) and the checker's
+(:func:`veribattery.explore.compile.expr.compile_expr`, row by row and tabulated), exact
+rationals (:func:`veribattery.explore.exact.rational.evaluate_rational`) and the checker's
 intervals (:mod:`veribattery.checker.formula.intervals`). Random expressions over ints,
 doubles and bools are evaluated by each and compared with a reference written
 here (a plain recursive walk over the table), state by state; then each case the
@@ -28,8 +28,8 @@ from hypothesis import strategies as st
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.formula import intervals
 from veribattery.errors import CheckError, ModelError, VeribatteryError
-from veribattery.explore.compile import CompileCache, compile_expr
-from veribattery.explore.rational import evaluate_rational
+from veribattery.explore.compile.expr import CompileCache, compile_expr
+from veribattery.explore.exact.rational import evaluate_rational
 from veribattery.lang import ops, parse_property
 from veribattery.lang.evaluate import EvaluationError, evaluate
 from veribattery.lang.expressions import close

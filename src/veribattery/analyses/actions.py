@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from veribattery._types import BoolArray, IntArray
-from veribattery.explore.program import ChoiceGroup, compile_program
+from veribattery.explore.compile.program import ChoiceGroup, compile_program
 from veribattery.lang.nodes import FlatModel
 
 __all__ = ["ActionLabeller", "action_labeller"]

@@ -18,7 +18,7 @@ from veribattery._types import IntArray
 from veribattery.analyses.actions import ActionLabeller, action_labeller
 from veribattery.config import MissionConfig, ModelParameters, derive_parameters
 from veribattery.explore import DTMC, build_dtmc, compile_expr
-from veribattery.explore.compile import CompiledExpr
+from veribattery.explore.compile.expr import CompiledExpr
 from veribattery.lang import FlatModel, flatten_model, parse_model
 from veribattery.pipeline import ProgressCallback
 

@@ -2,13 +2,9 @@
 
 from __future__ import annotations
 
-import csv
-import io
-import json
 import math
 import sys
 from collections.abc import Callable
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -16,16 +12,22 @@ import click
 
 from veribattery.cli.files import FIGURE_SUFFIXES, check_output_dir, check_output_file
 from veribattery.cli.output import (
-    escape,
-    format_value,
-    json_value,
-    out,
     print_warnings,
-    print_written,
     set_option,
     user_errors,
 )
-from veribattery.cli.tables import print_table
+from veribattery.cli.phm_output import (
+    files_written,
+    print_fade,
+    print_figure,
+    print_fits,
+    print_forecast,
+    print_forecast_csv,
+    print_fragment,
+    print_json,
+    print_levels,
+    print_recheck,
+)
 from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
@@ -33,12 +35,8 @@ if TYPE_CHECKING:
 
     from veribattery.config import MissionConfig, Requirement
     from veribattery.phm.data import DischargeCurve
-    from veribattery.phm.fade import FadeReport
     from veribattery.phm.forecast import Forecast
-    from veribattery.phm.fragment import Fragment
     from veribattery.phm.levels import StepFit
-    from veribattery.phm.recheck import Recheck
-    from veribattery.phm.refit import FadeParameters, LevelParameters
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -131,43 +129,6 @@ def _write(write: Path | None, merged: str | None) -> None:
         write_atomic(write, merged)
 
 
-def _print_fragment(fragment: Fragment, write: Path | None) -> None:
-    """The YAML fragment, or where it was merged."""
-    if write is None:
-        out.print("\n# YAML fragment for the mission config:", style="bold", markup=False)
-        click.echo(fragment.yaml(), nl=False)
-    else:
-        out.print(f"\nmerged {', '.join(fragment.values)} into {write} (comments kept)",
-                  markup=False)
-
-
-def _print_figure(path: Path | None) -> None:
-    if path is not None:
-        print_written(path)
-
-
-def _print_json(document: dict[str, object]) -> None:
-    click.echo(json.dumps(_json_ready(document)))
-
-
-def _json_ready(value: object) -> object:
-    """*value* as JSON: exact config values as numbers, infinities as strings."""
-    from fractions import Fraction
-
-    if isinstance(value, dict):
-        return {str(key): _json_ready(item) for key, item in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_ready(item) for item in value]
-    return json_value(float(value) if isinstance(value, Fraction) else value)
-
-
-def _files_written(fragment: Fragment, plot: Path | None, write: Path | None
-                   ) -> dict[str, object]:
-    """The JSON keys of what fade and levels wrote (or would have the user paste)."""
-    return {"fragment_yaml": fragment.yaml(), "figure": None if plot is None else str(plot),
-            "merged_into": None if write is None else str(write)}
-
-
 @click.group("phm", short_help="Battery parameters from data or physics; forecasts.")
 def phm_group() -> None:
     """Battery prognostics: model parameters from cycling data, discharge curves, physics."""
@@ -208,37 +169,13 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
     if output_format == "json":
         from veribattery.phm.documents import fade_document
 
-        _print_json({"cycles": cycles, **fade_document(params),
-                     **_files_written(params.fragment, plot_path, write)})
+        print_json({"cycles": cycles, **fade_document(params),
+                     **files_written(params.fragment, plot_path, write)})
         return
-    _print_fits(params.report)
-    _print_fade(params)
-    _print_figure(plot_path)
-    _print_fragment(params.fragment, write)
-
-
-def _print_fits(report: FadeReport) -> None:
-    rows = [(fit.name, f"{fit.aic:.2f}", f"{fit.rmse:.4g}", f"{abs(fit.residuals).max():.4g}")
-            for fit in report.fits]
-    print_table(("model", "AIC", "RMSE (Ah)", "max |resid| (Ah)"), rows)
-    for fit in report.fits:
-        values = ", ".join(f"{k}={v:.6g}" for k, v in fit.params.items())
-        out.print(f"  {fit.name}: {fit.formula}; {values}", markup=False)
-    for name, why in report.skipped.items():
-        out.print(f"  {name}: not used ({why})", style="dim", markup=False)
-    out.print(f"choice: {report.explanation()}", markup=False)
-
-
-def _print_fade(params: FadeParameters) -> None:
-    fit = params.fit
-    resid = ", ".join(f"{r:+.3g}" for r in fit.residuals[:12])
-    more = " …" if len(fit.residuals) > 12 else ""
-    out.print(f"residuals of {fit.name} (Ah, first rows): {resid}{more}", markup=False)
-    low, high = params.fade_ci
-    out.print(f"at cycle {params.at_cycle:g}: capacity {params.capacity_fit_ah:.4f} Ah "
-              f"(on the grid: {_show(params.capacity_ah)} Ah), "
-              f"loss {fit.loss_per_cycle(params.at_cycle):.4g} Ah/cycle, "
-              f"fade {params.fade:.4g}/cycle, 95% CI [{low:.4g}, {high:.4g}]", markup=False)
+    print_fits(params.report)
+    print_fade(params)
+    print_figure(plot_path)
+    print_fragment(params.fragment, write)
 
 
 @phm_group.command("levels", short_help="Voltage levels, SOC thresholds, consumption.")
@@ -281,12 +218,12 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
     if output_format == "json":
         from veribattery.phm.documents import levels_document
 
-        _print_json({"discharge": discharge, **levels_document(params, paper),
-                     **_files_written(params.fragment, plot_path, write)})
+        print_json({"discharge": discharge, **levels_document(params, paper),
+                     **files_written(params.fragment, plot_path, write)})
         return
-    _print_levels(params, paper)
-    _print_figure(plot_path)
-    _print_fragment(params.fragment, write)
+    print_levels(params, paper)
+    print_figure(plot_path)
+    print_fragment(params.fragment, write)
 
 
 def _config_steps(curve: DischargeCurve, cfg: MissionConfig, step: Fraction) -> StepFit | None:
@@ -312,25 +249,6 @@ def _soc_step(text: str) -> Fraction:
     if not 0 < step <= Fraction(1, 10):
         raise OptionError(f"--soc-step {text}: {rule}")
     return step
-
-
-def _print_levels(params: LevelParameters, paper: StepFit | None) -> None:
-    steps = params.steps
-    low, high = _show(steps.low), _show(steps.high)
-    say = partial(out.print, markup=False)
-    say(f"thresholds: low SOC < {low}, medium {low}..{high}, high SOC > {high}")
-    named = zip(("low", "medium", "high"), params.voltages_v, strict=True)
-    say("levels: " + ", ".join(f"{n} {_show(v)} V" for n, v in named))
-    say(f"approximation error on the SOC grid: RMS {steps.rms_v:.4g} V, "
-        f"max {steps.max_v:.4g} V (minimised over all threshold pairs)")
-    if paper is not None:
-        say(f"(the config's thresholds {_show(paper.low)}/{_show(paper.high)} would give RMS "
-            f"{paper.rms_v:.4g} V, max {paper.max_v:.4g} V)")
-    rows = [(action, wind, *map(str, row)) for action, table in params.table.items()
-            for wind, row in zip(("low", "high"), table, strict=True)]
-    print_table((f"action (units of {_show(params.resolution)} Ah)", "wind", "low V",
-                 "medium V", "high V"), rows, keys=2,
-                title="Eq. 2 consumption, C = E_spec·t / (V·T), rounded half up:")
 
 
 @phm_group.command("simulate", short_help="PyBaMM discharge (and ageing) CSVs.")
@@ -421,14 +339,14 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     if output_format == "json":
         from veribattery.phm.documents import forecast_document
 
-        _print_json({"config": str(config), **forecast_document(result),
+        print_json({"config": str(config), **forecast_document(result),
                      "time_property": time_property or None,
                      "figure": None if plot_path is None else str(plot_path)})
     elif output_format == "csv":
-        _print_forecast_csv(result, shown)
+        print_forecast_csv(result, shown)
     else:
-        _print_forecast(result, shown)
-        _print_figure(plot_path)
+        print_forecast(result, shown)
+        print_figure(plot_path)
 
 
 def _requirement(text: str) -> Requirement:
@@ -453,40 +371,6 @@ def _shown_properties(result: Forecast, time_property: str) -> list[str]:
     return [prop, *([time_property] if time_property and time_property != prop else [])]
 
 
-def _print_forecast(result: Forecast, shown: list[str]) -> None:
-    req = result.requirement
-    rows = [[str(p.ahead), f"{result.now + p.ahead:g}", _show(p.capacity_ah), _show(p.fade),
-             *(_short(p.values[name]) for name in shown), "yes" if p.holds else "no"]
-            for p in result.points]
-    print_table(["ahead", "cycle", "capacity_ah", "fade", *shown, "holds"], rows)
-    say = partial(out.print, markup=False)
-    if result.fails_after is None:
-        last = result.points[-1].ahead
-        say(f"{req} holds at every checked age up to {last} cycles ahead")
-    elif result.fails_after == 0:
-        say(f"{req} already fails now (cycle {result.now:g})")
-    else:
-        say(f"{req} stops holding after {result.fails_after} more cycles "
-            f"(cycle {result.now + result.fails_after:g}; located by bisection between "
-            "the checked ages, assuming one crossing between them)")
-
-
-def _print_forecast_csv(result: Forecast, shown: list[str]) -> None:
-    """The table's rows as CSV, numbers in full (exact config values as decimals)."""
-    stream = io.StringIO()
-    writer = csv.writer(stream, lineterminator="\n")
-    writer.writerow(["ahead", "cycle", "capacity_ah", "fade_per_recharge", *shown, "holds"])
-    for p in result.points:
-        writer.writerow([p.ahead, format_value(result.now + p.ahead), _show(p.capacity_ah),
-                         _show(p.fade), *(_csv_value(p.values[name]) for name in shown),
-                         format_value(p.holds)])
-    click.echo(stream.getvalue(), nl=False)
-
-
-def _csv_value(value: object) -> str:
-    return format_value(value) if isinstance(value, bool) else repr(value)
-
-
 @click.command("recheck", short_help="Refit from new data and re-verify; exit 1 on a regression.")
 @click.argument("config", type=click.Path(path_type=Path))
 @click.option("--cycles", "cycles_path", type=click.Path(), required=True,
@@ -508,46 +392,8 @@ def recheck_command(config: Path, cycles_path: str, discharge_path: str | None,
     print_warnings(result.after.warnings)
     document = recheck_document(result)
     if output_format == "json":
-        _print_json({"config": str(config), **document})
+        print_json({"config": str(config), **document})
     else:
-        _print_recheck(result, document)
+        print_recheck(result, document)
     sys.exit(1 if result.regressions else 0)
 
-
-def _print_recheck(result: Recheck, document: dict[str, Any]) -> None:
-    out.print("parameters moved by the refit ('-': not set that way before):", style="bold",
-              markup=False)
-    for moved in result.moved:
-        before = "-" if moved.before is None else _show(moved.before)
-        out.print(f"  {moved.key}: {before} → {_show(moved.after)}", markup=False)
-    if not result.moved:
-        out.print("  none", markup=False)
-    rows = [(str(name), format_value(row["before"]), format_value(row["after"]),
-             "" if row["change"] is None else f"{row['change']:+.6g}")
-            for name, row in document["properties"].items()]
-    print_table(("property", "before", "after", "change"), rows)
-    _print_requirements(result)
-
-
-def _print_requirements(result: Recheck) -> None:
-    before = {str(o.requirement): o.holds for o in result.before.requirements}
-    for outcome in result.after.requirements:
-        name = str(outcome.requirement)
-        was = "PASS" if before.get(name) else "FAIL"
-        now = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
-        out.print(f"{escape(name)}: before {was}, after {now}")
-    if result.regressions:
-        out.print(f"[bold red]no longer holds:[/] {escape(', '.join(result.regressions))}")
-
-
-def _short(value: object) -> str:
-    """A value to 6 significant digits, for narrow tables."""
-    return f"{value:.6g}" if isinstance(value, float) else format_value(value)
-
-
-def _show(value: object) -> str:
-    from fractions import Fraction
-
-    from veribattery.config.exact import show
-
-    return show(value) if isinstance(value, Fraction | str | tuple | list) else str(value)

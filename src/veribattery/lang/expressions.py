@@ -40,7 +40,8 @@ from veribattery.lang.nodes import (
 _NODE_TYPES = tuple(
     obj
     for obj in vars(nodes).values()
-    if isinstance(obj, type) and dataclasses.is_dataclass(obj) and obj.__module__ == nodes.__name__
+    if isinstance(obj, type) and dataclasses.is_dataclass(obj)
+    and obj.__module__.startswith(f"{nodes.__name__}.")  # the modules of lang.nodes
 )
 # Node classes are never subclassed: a type lookup in a set is what isinstance against
 # ~50 classes costs, several times over (it dominated the semantic pass on large models).

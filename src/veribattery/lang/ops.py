@@ -19,7 +19,7 @@ for a base that is not positive, 1 or infinite; ``min``/``max`` take one or more
 numbers and are ints iff all are. See docs/expressions.md for the table as prose.
 
 Pure Python: the numpy, rational and interval domains live in
-:mod:`veribattery.explore.arrays`, :mod:`veribattery.explore.rational_ops` and
+:mod:`veribattery.explore.compile.arrays`, :mod:`veribattery.explore.exact.rational_ops` and
 :mod:`veribattery.checker.formula.intervals`.
 """
 

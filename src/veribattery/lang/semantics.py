@@ -93,7 +93,9 @@ def expand_formulas(formulas: Sequence[FormulaDecl]) -> dict[str, Expr]:
     return {f.name: done[f.name] for f in formulas}
 
 
-def _inline(node: Any, formulas: Mapping[str, Expr]) -> Any:
+def inline_formulas(node: Any, formulas: Mapping[str, Expr]) -> Any:
+    """*node* with every identifier naming one of *formulas* replaced by its expansion."""
+
     def replace_ident(sub: Any) -> Any | None:
         if type(sub) is Ident and sub.name in formulas:
             return formulas[sub.name]
@@ -147,10 +149,10 @@ def _rename_command(
     return replace(command, action=action, guard=rename_all(command.guard), updates=updates)
 
 
-def _modules(model: Model, formulas: Mapping[str, Expr]) -> list[Module]:
+def expanded_modules(model: Model, formulas: Mapping[str, Expr]) -> list[Module]:
     """All modules, formulas inlined, renamed modules expanded, in source order."""
     check_unique(((m.name, m.span) for m in model.modules), "module")
-    bases = {m.name: _inline(m, formulas) for m in model.modules if isinstance(m, Module)}
+    bases = {m.name: inline_formulas(m, formulas) for m in model.modules if isinstance(m, Module)}
     return [
         bases[m.name] if isinstance(m, Module) else _rename_module(m, bases) for m in model.modules
     ]
@@ -292,7 +294,7 @@ def _labels(model: Model, formulas: Mapping[str, Expr], scope: _Scope) -> tuple[
     for lab in model.labels:
         if lab.name in BUILTIN_LABELS:
             raise PrismSemanticError(f'the label "{lab.name}" is built in', lab.span)
-    labels = [_inline(lab, formulas) for lab in model.labels]
+    labels = [inline_formulas(lab, formulas) for lab in model.labels]
     for lab in labels:
         expect(lab.expr, scope.env(), "bool", f'label "{lab.name}"')
     return tuple(scope.closed(lab) for lab in labels)
@@ -307,7 +309,7 @@ def _reward_item(item: RewardItem, scope: _Scope) -> RewardItem:
 def _rewards(model: Model, formulas: Mapping[str, Expr], scope: _Scope) -> tuple[RewardStruct, ...]:
     named = [(r.name, r.span) for r in model.rewards if r.name is not None]
     check_unique(named, "reward structure")
-    structs = [_inline(r, formulas) for r in model.rewards]
+    structs = [inline_formulas(r, formulas) for r in model.rewards]
     return tuple(replace(r, items=tuple(_reward_item(i, scope) for i in r.items)) for r in structs)
 
 
@@ -326,7 +328,7 @@ def flatten_model(model: Model, constants: Mapping[str, Value | str] | None = No
     formulas = expand_formulas(model.formulas)
     values = evaluate_constants(model.constants, _own(constants, model.constants))
     scope = _Scope(values, model.constants)
-    modules = _modules(model, formulas)
+    modules = expanded_modules(model, formulas)
     variables = _variables(model, modules, scope)
     for body in formulas.values():
         type_of(body, scope.env())
@@ -354,6 +356,6 @@ def _own(
 
 
 def _init_block(init: Expr, formulas: Mapping[str, Expr], scope: _Scope) -> Expr:
-    expr = _inline(init, formulas)
+    expr = inline_formulas(init, formulas)
     expect(expr, scope.env(), "bool", "the init ... endinit expression")
     return cast(Expr, scope.closed(expr))

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from veribattery.checker import Workspace
 from veribattery.config import MissionConfig
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.reuse import structure_key
+from veribattery.explore.reuse.structure import structure_key
 from veribattery.lang import flatten_model, parse_model
 from veribattery.lang.nodes import Model, PropertiesFile
 from veribattery.mission.files import MODEL_FILE, mission_files
@@ -103,7 +103,7 @@ class MissionSession:
         :func:`check_mission` does, without the pass that records every branch's kind
         for re-pricing (a tenth of a build), which it would never use.
     :param lump: check on each DTMC's bisimulation quotient where it has one
-        (:mod:`veribattery.explore.lumping`); only with ``keep="answers"``.
+        (:mod:`veribattery.explore.reuse.lumping`); only with ``keep="answers"``.
     :param rewards: ``"named"``: build only the reward structures the properties name.
     :param parses: the parse cache to use (a sweep's worker gives every task its own).
     :param workspace: the checker's caches (see :class:`~veribattery.pipeline.Session`).

@@ -29,7 +29,7 @@ from veribattery.pipeline.run import (
 )
 
 if TYPE_CHECKING:
-    from veribattery.explore.exact import ExactDTMC
+    from veribattery.explore.exact.dtmc import ExactDTMC
 
 __all__ = ["check_model_exact"]
 
@@ -77,7 +77,7 @@ def _build_exact(
     model: Model, flat: FlatModel, constants: Mapping[str, Value | str] | None,
     progress: ProgressCallback | None,
 ) -> ExactDTMC:
-    from veribattery.explore.exact import build_exact  # gmpy2 only when asked
+    from veribattery.explore.exact.dtmc import build_exact  # gmpy2 only when asked
 
     return build_exact(model, flat, constants, progress)
 
@@ -95,7 +95,7 @@ def _exact_checks(
     ``P<=1/3`` are evaluated exactly from the former.
     """
     from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
-    from veribattery.explore.rational import exact_constants
+    from veribattery.explore.exact.rational import exact_constants
 
     given = dict(constants or {})
     decls = props_file.constants if props_file is not None else ()

@@ -11,8 +11,8 @@ from typing import Literal, get_args
 from veribattery._memory import trim_for
 from veribattery.checker import Workspace, check
 from veribattery.explore import DTMC, build_dtmc
-from veribattery.explore.lumping import Lumper
-from veribattery.explore.reuse import Structure, build_reusable, reevaluate
+from veribattery.explore.reuse.lumping import Lumper
+from veribattery.explore.reuse.structure import Structure, build_reusable, reevaluate
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -44,7 +44,7 @@ class ReusingBuilder:
     """Builds DTMCs one after another, re-using the last state space where it can.
 
     When a model shares the structure of the last model built in full (the same
-    variables, guards and assignments; see :mod:`veribattery.explore.reuse`), its
+    variables, guards and assignments; see :mod:`veribattery.explore.reuse.structure`), its
     probabilities, rewards and labels are evaluated on the known states instead of
     exploring them again; otherwise it is built in full and becomes the new base.
     """
@@ -76,7 +76,7 @@ class Session:
     :param reuse: build through a :class:`ReusingBuilder`: a model that shares the
         structure of the last one built in full re-uses its state space.
     :param lump: check on the DTMC's bisimulation quotient when it has one worth
-        checking on (:mod:`veribattery.explore.lumping`): the answers equal the
+        checking on (:mod:`veribattery.explore.reuse.lumping`): the answers equal the
         DTMC's, their last bits aside. Only with ``keep="answers"``: a quotient has
         no values for the model's own states.
     :param rewards: ``"named"``: build only the reward structures the properties name

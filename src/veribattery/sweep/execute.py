@@ -17,6 +17,7 @@ from contextlib import contextmanager, suppress
 from typing import TYPE_CHECKING, Any, Protocol
 
 from veribattery.errors import ConfigError
+from veribattery.mission import ParseCache
 from veribattery.sweep.tasks import (
     PointCheck,
     PointResult,
@@ -56,14 +57,19 @@ def default_jobs() -> int:
 
 
 @contextmanager
-def open_executor(jobs: int, scheduler: str | None) -> Iterator[Executor]:
+def open_executor(
+    jobs: int, scheduler: str | None, parses: ParseCache | None = None
+) -> Iterator[Executor]:
     """The executor for ``-j JOBS`` and ``--scheduler``, connected, as a context manager.
+
+    :param parses: the parse cache of the points checked in this process (the sweep's,
+        which made their reuse keys: the first point's model is then parsed already).
 
     :raises ConfigError: (on entering) when the scheduler cannot be reached within
         :data:`CONNECT_TIMEOUT_S` seconds or its address is malformed.
     """
     if scheduler is None:
-        yield InProcess() if jobs == 1 else LocalPool(jobs)
+        yield InProcess(parses) if jobs == 1 else LocalPool(jobs, parses=parses)
         return
     with _dask_client(scheduler, jobs) as client:
         yield DaskExecutor(client, scheduler)
@@ -74,8 +80,8 @@ class InProcess:
 
     description = "in this process"
 
-    def __init__(self) -> None:
-        self.worker = Worker()
+    def __init__(self, parses: ParseCache | None = None) -> None:
+        self.worker = Worker(parses=parses)
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Check each task's points in order."""
@@ -94,17 +100,20 @@ class LocalPool:
     one bad point cannot stop the sweep.
 
     :param check: what checks one point in a worker (tests pass a stand-in).
+    :param parses: the parse cache of a lone task, which runs in this process.
     """
 
-    def __init__(self, jobs: int, check: PointCheck | None = None):
+    def __init__(self, jobs: int, check: PointCheck | None = None, *,
+                 parses: ParseCache | None = None):
         self.jobs = jobs
         self.check = check
+        self.parses = parses
         self.description = f"on {jobs} local worker processes"
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Run the tasks in the pool, yielding each point's result as it is checked."""
         if len(tasks) <= 1:
-            worker = Worker()
+            worker = Worker(parses=self.parses)
             yield from (r for task in tasks for r in worker.results(task, self.check))
             return
         pending, seen = list(tasks), _Seen()

@@ -106,13 +106,14 @@ def run_sweep(
     cells = [_cells(point) for point in points]
     if results is not None:
         check_target(Path(results))
-    with open_executor(jobs, scheduler) as executor:
+    parses = ParseCache()  # the reuse keys' parses, and the checks' in this process
+    with open_executor(jobs, scheduler, parses) as executor:
         store, earlier = None, {}
         if results is not None:
             mark = fingerprint(document.validate(), overrides, axes)
             store, rows = open_results(Path(results), columns, mark, force=force)
             earlier = _by_point(rows, cells)
-        sweep = _Sweep(points, configs, cells, store, earlier)
+        sweep = _Sweep(points, configs, cells, store, earlier, parses)
         sweep.run(executor, jobs, progress, on_point, notes or (lambda _: None))
     return sweep.frame(columns)
 
@@ -121,10 +122,13 @@ class _Sweep:
     """One sweep's state: every point's rows so far, and the new results."""
 
     def __init__(self, points: list[Point], configs: list[MissionConfig], cells: list[Row],
-                 store: ResultsStore | None, earlier: dict[int, list[Row]]):
+                 store: ResultsStore | None, earlier: dict[int, list[Row]],
+                 parses: ParseCache):
         self.points, self.configs, self.cells, self.store = points, configs, cells, store
         self.rows = earlier
         self.results: list[tuple[Point, PointResult]] = []
+        #: Where the reuse keys are parsed (the executor's in-process checks share it).
+        self.parses = parses
 
     def run(self, executor: Executor, jobs: int, progress: SweepProgress | None,
             on_point: PointCallback | None, notes: Callable[[str], None]) -> None:
@@ -136,7 +140,7 @@ class _Sweep:
                   + (f"; {retried} failed points are retried" if retried else ""))
         pending = [(i, RenderedMission.of(c)) for i, c in enumerate(self.configs) if i not in done]
         whole = list(enumerate(self.configs)) if done else None
-        tasks, plan = plan_tasks(pending, jobs, whole, ParseCache())
+        tasks, plan = plan_tasks(pending, jobs, whole, self.parses)
         if pending:
             where = executor.description if len(tasks) > 1 else InProcess.description
             notes(f"{plan.describe()}; running {where}")

@@ -224,11 +224,13 @@ class Worker:
 
     :param stream: where to report each point, its index when its check starts and its
         result the moment it is done (a local pool's worker), or None.
+    :param parses: the parse cache to keep (default: a new one).
     """
 
-    def __init__(self, stream: PointStream | None = None) -> None:
+    def __init__(self, stream: PointStream | None = None, *,
+                 parses: ParseCache | None = None) -> None:
         self.stream = stream
-        self.parses = ParseCache()
+        self.parses = parses or ParseCache()
 
     def results(self, task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
         """Check the points of *task* in order in one session, yielding each as it is done.

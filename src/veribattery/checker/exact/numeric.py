@@ -21,8 +21,8 @@ from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_pro
 from veribattery.checker.formula.leaves import step_bound
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError
-from veribattery.explore.exact import ExactDTMC
-from veribattery.explore.rational import ObjectArray, rational
+from veribattery.explore.exact.dtmc import ExactDTMC
+from veribattery.explore.exact.rational import ObjectArray, rational
 from veribattery.lang.nodes import DoubleLit, Expr, IntLit, TimeBound, TimeInterval, Unary
 
 _ZERO = mpq(0)

@@ -1,7 +1,7 @@
 """PCTL model checking in exact rational arithmetic (``--exact``).
 
 The same recursion as :mod:`~veribattery.checker.formula.pctl` over an
-:class:`~veribattery.explore.exact.ExactDTMC`: state formulas are masks, ``P``
+:class:`~veribattery.explore.exact.dtmc.ExactDTMC`: state formulas are masks, ``P``
 and ``R`` operators are per-state rationals (:class:`ExactValues`), and
 ``P~p``/``R~r`` compare them with the bound exactly. The qualitative pre-pass
 is the float checker's (prob0/prob1 are graph searches, identical on the exact
@@ -49,8 +49,8 @@ from veribattery.checker.formula.leaves import (
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
-from veribattery.explore.exact import ExactDTMC, ExactRewards
-from veribattery.explore.rational import ExactScalar, ObjectArray, evaluate_rational
+from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
+from veribattery.explore.exact.rational import ExactScalar, ObjectArray, evaluate_rational
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,

@@ -28,7 +28,7 @@ from gmpy2 import mpq
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, IntArray
-from veribattery.explore.rational import ObjectArray
+from veribattery.explore.exact.rational import ObjectArray
 
 __all__ = ["BATCH_LIMIT", "ExactSystem", "Prepared", "prepare", "restrict", "row_products", "solve"]
 

@@ -34,8 +34,8 @@ from veribattery.checker.exact.solve import row_products, solve
 from veribattery.checker.kernels.conditional import ConditionUnreachable
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult
-from veribattery.explore.exact import ExactDTMC, ExactRewards
-from veribattery.explore.rational import ObjectArray
+from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
+from veribattery.explore.exact.rational import ObjectArray
 from veribattery.lang.nodes import (
     Conditional,
     ConditionalReach,

@@ -3,7 +3,7 @@
 ``P=? [F a] + P=? [F b]``, ``1 - S=? [..]``, ``round(R=? [..])``: once the
 operators are computed (one value per state), the expression around them is
 evaluated state-wise here, with the operators of :mod:`veribattery.lang.ops` in
-the numpy domain of :mod:`veribattery.explore.arrays` (``/`` is real division;
+the numpy domain of :mod:`veribattery.explore.compile.arrays` (``/`` is real division;
 ``pow`` of ints is an int and rejects a negative exponent; ``mod`` takes ints),
 after the type checks that an unchecked formula still needs.
 """
@@ -18,7 +18,7 @@ import numpy.typing as npt
 
 from veribattery._types import BoolArray
 from veribattery.errors import CheckError, Span
-from veribattery.explore import arrays
+from veribattery.explore.compile import arrays
 from veribattery.lang import ops
 from veribattery.lang.ops import OperatorError
 

@@ -21,7 +21,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.formula import expression
 from veribattery.errors import CheckError, Span
-from veribattery.explore import arrays
+from veribattery.explore.compile import arrays
 from veribattery.lang.nodes import BOUND_RELATIONS
 
 Result: TypeAlias = Bounds | BoolArray

@@ -18,8 +18,8 @@ import numpy as np
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.errors import CheckError
-from veribattery.explore import arrays
-from veribattery.explore.compile import compile_expr
+from veribattery.explore.compile import arrays
+from veribattery.explore.compile.expr import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (

@@ -2,7 +2,7 @@
 
 The builder explores the state space in floating point; :func:`exact_dtmc` then
 re-derives, for every transition of that DTMC, its probability as an exact
-rational (:mod:`~veribattery.explore.rational`): each command's updates are
+rational (:mod:`~veribattery.explore.exact.rational`): each command's updates are
 re-expanded over all states at once (guards and assignments are the builder's
 compiled ones, so the successors are the same), and each update's probability
 is evaluated from the model's *source* expression -- formulas inlined and
@@ -23,22 +23,27 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.builder import assemble, explore
-from veribattery.explore.compile import compile_expr
+from veribattery.explore.build.builder import assemble, explore
+from veribattery.explore.build.store import StateStore
+from veribattery.explore.build.successors import format_state
+from veribattery.explore.compile.expr import compile_expr
+from veribattery.explore.compile.program import (
+    ChoiceGroup,
+    CompiledCommand,
+    Program,
+    compile_program,
+)
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.exact_program import (
+from veribattery.explore.exact.program import (
     ExactSource,
     as_bools,
     exact_labels,
     exact_program,
     needs_exact,
 )
-from veribattery.explore.program import ChoiceGroup, CompiledCommand, Program, compile_program
-from veribattery.explore.rational import ExactScalar, ObjectArray, exact_constants, tabulate
-from veribattery.explore.store import StateStore
-from veribattery.explore.successors import format_state
+from veribattery.explore.exact.rational import ExactScalar, ObjectArray, exact_constants, tabulate
 from veribattery.lang.nodes import Command, Expr, FlatModel, Model, RewardStruct, Value
-from veribattery.lang.semantics import _inline, _modules, expand_formulas
+from veribattery.lang.semantics import expand_formulas, expanded_modules, inline_formulas
 
 __all__ = ["ExactDTMC", "ExactRewards", "build_exact", "exact_dtmc"]
 
@@ -109,7 +114,7 @@ def build_exact(
     progress: Callable[[int, int], None] | None = None,
 ) -> ExactDTMC:
     """Build *flat*'s DTMC with rounding-prone guards, assignments and labels decided
-    exactly (:mod:`~veribattery.explore.exact_program`), then its exact probabilities.
+    exactly (:mod:`~veribattery.explore.exact.program`), then its exact probabilities.
 
     :param model: the parsed model; *flat* is ``flatten_model(model, constants)``.
     :param constants: the values given for undefined constants (decimals are exact).
@@ -159,7 +164,7 @@ def exact_dtmc(
     probabilities = _aligned(program.lows, program.highs, dtmc, parts, total)
     _check_sums(dtmc, probabilities, flat.variable_names)
     formulas = expand_formulas(model.formulas)
-    sources = [_inline(r, formulas) for r in model.rewards]
+    sources = [inline_formulas(r, formulas) for r in model.rewards]
     rewards = tuple(
         _rewards(f, s, dtmc, context, counts, total)
         for f, s in zip(flat.rewards, sources, strict=True)
@@ -172,7 +177,7 @@ def _source(
 ) -> ExactSource:
     exact = exact_constants(model.constants, dict(constants or {}))
     formulas = expand_formulas(model.formulas)
-    labels = {lab.name: _inline(lab.expr, formulas) for lab in model.labels}
+    labels = {lab.name: inline_formulas(lab.expr, formulas) for lab in model.labels}
     ranges = {v.name: (v.low, v.high) for v in flat.variables}
     return ExactSource(exact, _columns(flat), _source_commands(model, flat, formulas), labels,
                        ranges)
@@ -191,7 +196,7 @@ def _source_commands(
     unfolded modules line up with the flat ones position by position.
     """
     found: dict[int, Command] = {}
-    for flat_module, module in zip(flat.modules, _modules(model, formulas), strict=True):
+    for flat_module, module in zip(flat.modules, expanded_modules(model, formulas), strict=True):
         for flat_command, command in zip(flat_module.commands, module.commands, strict=True):
             found[id(flat_command)] = command
     return found

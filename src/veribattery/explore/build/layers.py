@@ -14,7 +14,7 @@ import numpy as np
 
 from veribattery._record import record
 from veribattery._types import FloatArray, IntArray
-from veribattery.explore.fused import Expansion
+from veribattery.explore.build.fused import Expansion
 
 __all__ = ["Layer", "Layers"]
 
@@ -27,7 +27,7 @@ class Layer:
 
     *dropped* lists the positions, in the frontier's branch order before
     zero-probability branches were dropped, of those branches; *branches* counts
-    the branches before dropping. Both let a re-evaluation (see ``reuse``) prove
+    the branches before dropping. Both let a re-evaluation (see ``reuse.structure``) prove
     that the same branches exist.
     """
 

@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 
 from veribattery._types import IntArray
-from veribattery.explore.compile import variables_of
-from veribattery.explore.program import CompiledCommand, Program, compile_program
-from veribattery.explore.successors import check_update_ranges
+from veribattery.explore.build.successors import check_update_ranges
+from veribattery.explore.compile.expr import variables_of
+from veribattery.explore.compile.program import CompiledCommand, Program, compile_program
 from veribattery.lang.nodes import Command, FlatModel
 
 __all__ = ["check_update_ranges_over_domain"]

@@ -1,40 +1,13 @@
-"""Bisimulation quotients of acyclic DTMCs, for sweeps that check many points of one structure.
+"""The rounds of a lumping partition: made level by level from 64-bit signature hashes,
+checked exactly, and re-checked at later points of the same structure.
 
-States that carry the same labels, rewards and values of the variables the properties
-read, and that move with the same probabilities to the same blocks of such states, have
-the same value for every PCTL property and expected reward (strong probabilistic
-bisimulation). A sweep that re-uses one state space checks each point on the quotient
-chain of those blocks instead: on the paper's mission 176,481 states become ~74,000.
-
-**Exact quotients.** Results are certified, so the quotient must be the chain's exact
-lumping: every quotient entry is one stored probability of the chain, never a sum of
-two. A state whose two successors fall into one block would need ``p + q``, which
-float64 may round (``fl(0.1) + fl(0.9)`` is not their exact sum), so the larger of such
-successors is split off and the partition made again (a *round*). In the last round
-every state of a block ``B`` has at most one entry into each block ``C``, and the same
-one as every other state of ``B``: ``P 1_C = 1_B Q_BC`` holds exactly, and with it the
-quotient's values and certified bounds are the chain's.
-
-**The partition of a point.** On an acyclic chain (self-loops allowed) two states are
-put together when their *recursive signatures* are equal: their seeds (labels,
-rewards, read variables; a unique tag for initial and split states) and the multisets
-of (successor's signature, probability bits). It is computed level by level, as 64-bit
-hashes (a state's successors lie on lower levels), then checked exactly: every state
-against its block's representative. A hash clash that merged unequal states is caught
-there and the hashes are made again with another salt. Chains with a cycle get no
-quotient.
-
-A later point of the same structure re-uses the last partition only after checking in
-a few vector passes that it is that point's own: members agree with their
-representative, and no two blocks have equal signatures (then, by induction on the
-levels, equal recursive signatures and equal blocks coincide). So each point's
-quotient, and every value a sweep prints, depends on that point alone, not on which
-points a worker checked before.
+A :class:`Round` is one partition of an acyclic chain's states with the index arrays
+that check it again at another point (see :mod:`.lumping` for why rounds exist and
+what makes a partition exact).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import replace
 from typing import Any, cast
 
@@ -43,19 +16,23 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from veribattery._record import record
-from veribattery._sparse import csr_sharing
 from veribattery._types import IntArray
-from veribattery.explore.dtmc import DTMC, RewardVectors
 
-__all__ = ["Lumper", "Partition", "dtmc_seeds", "partition"]
+__all__ = [
+    "SALTS",
+    "HashArray",
+    "IndexArray",
+    "Levels",
+    "Round",
+    "earlier_round",
+    "make_round",
+    "probability_bits",
+    "quotient_plan",
+    "round_holds",
+    "shared_successors",
+    "twin_seed_hashes",
+]
 
-#: A quotient with more blocks than this fraction of the states is not used (checking
-#: on it would save less than making it costs).
-WORTH_FRACTION = 0.8
-#: Rounds of splitting successors that share a block before giving up.
-MAX_ROUNDS = 8
-#: Partitions a :class:`Lumper` keeps for the points after (each is checked in turn).
-PARTITIONS_KEPT = 3
 #: Hash salts tried in turn should a clash merge states that differ.
 SALTS = (0x9E3779B97F4A7C15, 0xC2B2AE3D27D4EB4F, 0x165667B19E3779F9)
 
@@ -114,28 +91,8 @@ def _ranges(starts: npt.NDArray[np.integer], lengths: npt.NDArray[np.integer]) -
     return offsets + np.arange(int(lengths.sum()), dtype=np.int64)
 
 
-def dtmc_seeds(dtmc: DTMC, variables: Sequence[str]) -> IntArray:
-    """What bisimilar states must share, one int64 row per kind, one column per state:
-    the labels (packed into bits), every reward structure's state and transition
-    rewards (their float64 bits) and the values of *variables*."""
-    n = dtmc.num_states
-    names = sorted(dtmc.labels)
-    columns = []
-    for first in range(0, len(names), 63):  # 63 labels to a column
-        packed = np.zeros(n, dtype=np.int64)
-        for bit, name in enumerate(names[first:first + 63]):
-            packed |= dtmc.labels[name].astype(np.int64) << bit
-        columns.append(packed)
-    for structure in dtmc.rewards:
-        for part in (structure.state, structure.transition):
-            values = np.ascontiguousarray(np.broadcast_to(part, (n,)), dtype=np.float64)
-            columns.append(values.view(np.int64))
-    columns += [dtmc.column(name).astype(np.int64) for name in sorted(set(variables))]
-    return np.stack(columns) if columns else np.zeros((0, n), dtype=np.int64)
-
-
 @record
-class _Round:
+class Round:
     """One partition of the rounds, with the index arrays that check it at other points.
 
     :param block: each state's block.
@@ -171,7 +128,7 @@ class _Round:
     twin_ends: IntArray
     #: The states checked against their representative (None: all), the sorted
     #: positions of their entries and of their representatives' matching entries: an
-    #: earlier round checks only the last round's representatives (:func:`_earlier`).
+    #: earlier round checks only the last round's representatives (:func:`earlier_round`).
     members: IntArray | None = None
     member_entries: IntArray | None = None
     member_rep_entries: IntArray | None = None
@@ -183,130 +140,12 @@ class _Round:
         return int(self.representative.size)
 
 
-@record
-class Partition:
-    """A stable partition of one structure's states at one point (module docstring).
-
-    :param indptr: the structure's row pointers (later points must share the object).
-    :param indices: its column indices (likewise).
-    :param rounds: the partitions of the rounds, the last one without two successors of
-        a state in one block; empty when there is no quotient (a cycle, no settling).
-    :param q_gather: per quotient entry, its position in ``P.data``.
-    :param q_indices: the quotient's column indices (sorted within rows).
-    :param q_indptr: the quotient's row pointers.
-    :param seeds: the seeds it was made with (a later point with the same seeds needs
-        only its probabilities checked).
-    :param sources: the arrays the seeds were made from (labels, rewards, state table):
-        a point of a re-used structure that shares every one of them (the re-evaluation
-        takes them over when they do not change) has these seeds, unmade.
-    """
-
-    indptr: IntArray
-    indices: IntArray
-    rounds: tuple[_Round, ...]
-    q_gather: IntArray
-    q_indices: IndexArray
-    q_indptr: IndexArray
-    seeds: IntArray
-    sources: tuple[object, ...] = ()
-
-    @property
-    def blocks(self) -> int:
-        """The number of blocks (0 when there is no quotient)."""
-        return self.rounds[-1].blocks if self.rounds else 0
-
-    def worth(self, states: int) -> bool:
-        """Whether the quotient is small enough to be worth checking on."""
-        return bool(self.rounds) and self.blocks <= WORTH_FRACTION * states
-
-    def fits(self, P: sp.csr_matrix) -> bool:
-        """Whether *P* has this partition's pattern arrays (the very same objects)."""
-        return P.indptr is self.indptr and P.indices is self.indices
-
-    def holds(self, P: sp.csr_matrix, seeds: IntArray) -> bool:
-        """Whether this is also the partition of *P*'s values and *seeds*, round by round
-        (a chain with a cycle has none at any point: a property of its pattern)."""
-        bits = _bits(P)
-        indptr = np.asarray(self.indptr, dtype=np.int64)
-        same = seeds is self.seeds or (
-            seeds.shape == self.seeds.shape and bool(np.array_equal(seeds, self.seeds)))
-        # The last round first: the earlier ones check only its representatives.
-        return all(_round_holds(found, indptr, bits, (seeds, same))
-                   for found in reversed(self.rounds))
-
-    def quotient(self, dtmc: DTMC, parts: dict[str, Any] | None = None) -> DTMC:
-        """The quotient chain of *dtmc* (a point where this partition :meth:`holds`):
-        a representative's variables, labels and rewards for each block (*parts*, those
-        of :meth:`parts` of a DTMC that shares them, if given)."""
-        last = self.rounds[-1]
-        size = last.blocks
-        data = np.take(np.asarray(dtmc.transitions.data, dtype=np.float64), self.q_gather)
-        # The same index arrays at every point: the checker's pattern memos know them.
-        transitions = csr_sharing(data, self.q_indices, self.q_indptr, (size, size))
-        return replace(dtmc, transitions=transitions, **(parts or self.parts(dtmc)))
-
-    def parts(self, dtmc: DTMC) -> dict[str, Any]:
-        """The quotient's fields but its transitions: states, initial, labels, rewards."""
-        last = self.rounds[-1]
-        rep = last.representative
-        rewards = tuple(RewardVectors(r.name, np.asarray(r.state)[rep],
-                                      np.asarray(r.transition)[rep]) for r in dtmc.rewards)
-        return {"states": np.take(dtmc.states, rep, axis=0), "initial": last.block[dtmc.initial],
-                "labels": {name: mask[rep] for name, mask in dtmc.labels.items()},
-                "rewards": rewards}
-
-
-def _bits(P: sp.csr_matrix) -> IntArray:
+def probability_bits(P: sp.csr_matrix) -> IntArray:
     return np.ascontiguousarray(P.data, dtype=np.float64).view(np.int64)
 
 
-def _seed_sources(dtmc: DTMC, variables: Sequence[str]) -> tuple[object, ...]:
-    """The arrays :func:`dtmc_seeds` reads (compared by identity), then the variables."""
-    parts: list[object] = [dtmc.labels[name] for name in sorted(dtmc.labels)]
-    parts += [part for r in dtmc.rewards for part in (r.state, r.transition)]
-    return (*parts, dtmc.states, tuple(sorted(set(variables))))
-
-
-def _same_sources(one: tuple[object, ...], other: tuple[object, ...]) -> bool:
-    return (len(one) == len(other) and bool(one) and one[-1] == other[-1]
-            and all(a is b for a, b in zip(one[:-1], other[:-1], strict=True)))
-
-
-def partition(dtmc: DTMC, seeds: IntArray, sources: tuple[object, ...] = ()) -> Partition:
-    """The partition of *dtmc*'s states at its values (no rounds, hence no quotient, if
-    it has a cycle, its matrix is not canonical, or splitting did not settle).
-
-    :param sources: what *seeds* were made from (:func:`_seed_sources`), to recognise
-        later points with the same seeds; empty: never.
-    """
-    P = dtmc.transitions
-    levels = _Levels.of(P) if P.has_canonical_format else None
-    empty = np.zeros(0, dtype=np.int64)
-    none = Partition(P.indptr, P.indices, (), empty, empty, empty, seeds)
-    if levels is None:
-        return none
-    bits = _bits(P)
-    tags = np.zeros(dtmc.num_states, dtype=np.int64)
-    tags[dtmc.initial] = dtmc.initial + 1  # initial states are never merged
-    rounds: list[_Round] = []
-    while len(rounds) < MAX_ROUNDS:
-        found = _made(P, levels, bits, seeds, tags)
-        if found is None:
-            return none
-        rounds.append(found)
-        split = _shared_successors(P, found)
-        if not split.size:
-            rounds = [_earlier(r, found, P.indptr) for r in rounds[:-1]] + [found]
-            rounds = [replace(r, twin_seed_hash=_twin_seed_hash(r, seeds)) for r in rounds]
-            return Partition(P.indptr, P.indices, tuple(rounds), *_quotient_plan(P, found),
-                             seeds, sources)
-        tags = tags.copy()
-        tags[split] = split + 1
-    return none
-
-
 @record
-class _Levels:
+class Levels:
     """The states by height (longest path to a state without other successors), and
     their entries in that order, so that each level is one slice.
 
@@ -324,7 +163,7 @@ class _Levels:
     row_ends: IntArray
 
     @classmethod
-    def of(cls, P: sp.csr_matrix) -> _Levels | None:
+    def of(cls, P: sp.csr_matrix) -> Levels | None:
         """The levels of *P*'s graph; None if it has a cycle other than a self-loop."""
         n = P.shape[0]
         levels = _heights(P)  # (Kahn's algorithm never reaches a state on a cycle)
@@ -364,8 +203,8 @@ def _heights(P: sp.csr_matrix) -> list[IntArray] | None:
     return levels if seen == n else None
 
 
-def _made(P: sp.csr_matrix, levels: _Levels, bits: IntArray, seeds: IntArray,
-          tags: IntArray) -> _Round | None:
+def make_round(P: sp.csr_matrix, levels: Levels, bits: IntArray, seeds: IntArray,
+          tags: IntArray) -> Round | None:
     """The partition by recursive signature, checked exactly (another salt after a
     clash; None if every salt clashed)."""
     for salt in SALTS:
@@ -377,7 +216,7 @@ def _made(P: sp.csr_matrix, levels: _Levels, bits: IntArray, seeds: IntArray,
     return None
 
 
-def _signatures(P: sp.csr_matrix, levels: _Levels, bits: IntArray,
+def _signatures(P: sp.csr_matrix, levels: Levels, bits: IntArray,
                 seeds_and_tags: tuple[IntArray, IntArray], salt: int) -> HashArray:
     """Each state's recursive signature hash, level by level (an order-free sum over
     its entries, so that no sort is needed)."""
@@ -424,7 +263,7 @@ def _row_hashes(seeds: IntArray, tags: IntArray, salt: int) -> HashArray:
     return hashes
 
 
-def _described(P: sp.csr_matrix, block: IntArray, tags: IntArray, bits: IntArray) -> _Round:
+def _described(P: sp.csr_matrix, block: IntArray, tags: IntArray, bits: IntArray) -> Round:
     """*block* with the index arrays that check it, here and at other points."""
     n = P.shape[0]
     degree = np.diff(P.indptr)
@@ -438,7 +277,7 @@ def _described(P: sp.csr_matrix, block: IntArray, tags: IntArray, bits: IntArray
     rep_entry = np.repeat(P.indptr[representative[block]], degree) + ranks
     twin = (rows[1:] == rows[:-1]) & (keys[1:] == keys[:-1])
     tie_rows = _distinct(rows[1:][twin])
-    return _Round(block, tags, representative, order.astype(np.int64), keys,
+    return Round(block, tags, representative, order.astype(np.int64), keys,
                   rep_entry.astype(np.int64), _ranges(P.indptr[tie_rows], degree[tie_rows]),
                   np.repeat(tie_rows, degree[tie_rows]),
                   *_twins(np.asarray(P.indptr, dtype=np.int64), representative, keys, tags))
@@ -458,7 +297,7 @@ def _entry_order(rows: IntArray, keys: IntArray, bits: IntArray, width: int) -> 
 
 def _twins(indptr: IntArray, rep: IntArray, keys: IntArray,
            tags: IntArray) -> tuple[IntArray, HashArray, IntArray, HashArray, IntArray]:
-    """The :class:`_Round` fields of the blocks sharing a hash of (degree, tag, keys)."""
+    """The :class:`Round` fields of the blocks sharing a hash of (degree, tag, keys)."""
     zero = np.zeros((0, rep.size), dtype=np.int64)
     hashes = _block_hashes(indptr, rep, (keys, np.zeros_like(keys)), (zero, tags[rep]))
     groups, counts = _groups(hashes)
@@ -487,7 +326,7 @@ def _block_hashes(indptr: IntArray, rep: IntArray, entries: tuple[IntArray, IntA
     return hashes
 
 
-def _members_agree(found: _Round, degree: IntArray, ordered: IntArray,
+def _members_agree(found: Round, degree: IntArray, ordered: IntArray,
                    seeds: IntArray) -> bool:
     """Whether every state has its representative's degree, tag, keys (the structural
     part, the same at every point of the pattern), seed and bits."""
@@ -495,13 +334,13 @@ def _members_agree(found: _Round, degree: IntArray, ordered: IntArray,
     return _structure_agrees(found, degree, own) and _values_agree(found, ordered, seeds)
 
 
-def _structure_agrees(found: _Round, degree: IntArray, own: IntArray) -> bool:
+def _structure_agrees(found: Round, degree: IntArray, own: IntArray) -> bool:
     return bool(np.array_equal(degree, degree[own])
                 and np.array_equal(found.tags, found.tags[own])
                 and np.array_equal(found.keys, found.keys[found.rep_entry]))
 
 
-def _values_agree(found: _Round, ordered: IntArray, seeds: IntArray | None) -> bool:
+def _values_agree(found: Round, ordered: IntArray, seeds: IntArray | None) -> bool:
     """Whether the members have their representatives' seeds (None: the seeds the
     partition was made with, known to agree) and bits."""
     members = found.members
@@ -518,7 +357,7 @@ def _values_agree(found: _Round, ordered: IntArray, seeds: IntArray | None) -> b
                                np.take(ordered, found.member_rep_entries)))
 
 
-def _earlier(found: _Round, last: _Round, indptr: IntArray) -> _Round:
+def earlier_round(found: Round, last: Round, indptr: IntArray) -> Round:
     """*found* (a round before *last*) checking only *last*'s representatives.
 
     The last round refines every earlier one (its tags only add, its keys refine
@@ -532,7 +371,7 @@ def _earlier(found: _Round, last: _Round, indptr: IntArray) -> _Round:
                    member_rep_entries=found.rep_entry[entries])
 
 
-def _shared_successors(P: sp.csr_matrix, found: _Round) -> IntArray:
+def shared_successors(P: sp.csr_matrix, found: Round) -> IntArray:
     """The larger of every two successors of one state that share a block (to split):
     adjacent entries of one key among the round's tied rows (a row has one self-loop
     at most, so a key shared is a successor block's)."""
@@ -543,7 +382,7 @@ def _shared_successors(P: sp.csr_matrix, found: _Round) -> IntArray:
     return _distinct(np.maximum(columns[twin], columns[twin + 1])).astype(np.int64)
 
 
-def _quotient_plan(P: sp.csr_matrix, last: _Round) -> tuple[IntArray, IndexArray, IndexArray]:
+def quotient_plan(P: sp.csr_matrix, last: Round) -> tuple[IntArray, IndexArray, IndexArray]:
     """Where each quotient entry comes from (a representative's entry), its column,
     and the quotient's row pointers (columns sorted within rows; int32 where they fit,
     as scipy would make them)."""
@@ -559,7 +398,7 @@ def _quotient_plan(P: sp.csr_matrix, last: _Round) -> tuple[IntArray, IndexArray
         IndexArray, indptr)
 
 
-def _round_holds(found: _Round, indptr: IntArray, bits: IntArray,
+def round_holds(found: Round, indptr: IntArray, bits: IntArray,
                  seeds: tuple[IntArray, bool]) -> bool:
     """Whether *found* is the partition at these values and seeds (and whether those are
     the ones it was made with): every state agrees with its representative, and no two
@@ -572,11 +411,11 @@ def _round_holds(found: _Round, indptr: IntArray, bits: IntArray,
             and _blocks_differ(found, indptr, ordered, seeds))
 
 
-def _twin_seed_hash(found: _Round, seeds: IntArray) -> HashArray:
+def twin_seed_hashes(found: Round, seeds: IntArray) -> HashArray:
     return _row_hashes(np.take(seeds, found.twins, axis=1), found.tags[found.twins], SALTS[0])
 
 
-def _blocks_differ(found: _Round, indptr: IntArray, ordered: IntArray,
+def _blocks_differ(found: Round, indptr: IntArray, ordered: IntArray,
                    given: tuple[IntArray, bool]) -> bool:
     """Whether the blocks' signatures (their representatives') are pairwise different.
 
@@ -591,7 +430,7 @@ def _blocks_differ(found: _Round, indptr: IntArray, ordered: IntArray,
     total = np.concatenate([np.zeros(1, dtype=_U64), np.cumsum(entry, dtype=_U64)])
     seeds, same = given
     known = found.twin_seed_hash
-    hashes = known.copy() if same and known is not None else _twin_seed_hash(found, seeds)
+    hashes = known.copy() if same and known is not None else twin_seed_hashes(found, seeds)
     hashes += total[found.twin_ends] - total[found.twin_ends - (indptr[twins + 1] - indptr[twins])]
     hashes ^= found.twin_group
     ranked = np.sort(hashes)
@@ -607,58 +446,3 @@ def _blocks_differ(found: _Round, indptr: IntArray, ordered: IntArray,
                                    ordered[indptr[b]:indptr[b + 1]])):
             return False
     return True
-
-
-class Lumper:
-    """The quotients of successive DTMCs of one structure (a sweep's points).
-
-    Each point's quotient is that of its own partition: a recent partition is re-used
-    only where :meth:`Partition.holds`, and one is made afresh otherwise. A few are
-    kept, so that after a point with coincidences of its own (``p_wsp_c = 0.5``, where
-    ``p = 1 - p`` merges more states) the next point finds the usual one again.
-    """
-
-    def __init__(self) -> None:
-        self._recent: list[Partition] = []
-        #: The last quotient's fields but its transitions, with its partition and the
-        #: DTMC's seed sources: a later point with the same ones takes them over (not
-        #: the quotient itself, whose solver memos would outlive their point).
-        self._made: tuple[Partition, tuple[object, ...], dict[str, Any]] | None = None
-
-    @property
-    def _last(self) -> Partition | None:
-        return self._recent[0] if self._recent else None
-
-    def quotient(self, dtmc: DTMC, variables: Sequence[str]) -> DTMC | None:
-        """The quotient of *dtmc* respecting its labels, rewards and *variables*, or
-        None when there is none worth checking on (a cycle, too few states merged)."""
-        sources = _seed_sources(dtmc, variables)
-        found = self._partition(dtmc, variables, sources)
-        if not found.worth(dtmc.num_states):
-            return None
-        made = self._made
-        if made and made[0] is found and _same_sources(sources, made[1]):
-            parts = made[2]
-        else:
-            parts = found.parts(dtmc)
-            self._made = (found, sources, parts)
-        return found.quotient(dtmc, parts)
-
-    def _partition(self, dtmc: DTMC, variables: Sequence[str],
-                   sources: tuple[object, ...]) -> Partition:
-        """*dtmc*'s partition: a recent one that holds there, else a new one (first)."""
-        P = dtmc.transitions
-        self._recent = [kept for kept in self._recent if kept.fits(P)]
-        # A kept partition's seeds when *dtmc* shares their sources (arrays are never
-        # changed in place once a DTMC is built), else made once.
-        seeds = next((kept.seeds for kept in self._recent
-                      if _same_sources(sources, kept.sources)), None)
-        if seeds is None:
-            seeds = dtmc_seeds(dtmc, variables)
-        for at, found in enumerate(self._recent):
-            if found.holds(P, seeds):
-                self._recent.insert(0, self._recent.pop(at))  # (by position: records
-                return found  # compare their arrays, not their identity)
-        found = partition(dtmc, seeds, sources)
-        self._recent = [found, *self._recent][:PARTITIONS_KEPT]
-        return found

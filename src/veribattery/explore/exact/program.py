@@ -27,11 +27,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from veribattery._types import IntArray
-from veribattery.explore.bounds import value_bounds
-from veribattery.explore.compile import CompiledExpr
+from veribattery.explore.compile.bounds import value_bounds
+from veribattery.explore.compile.expr import CompiledExpr
+from veribattery.explore.compile.program import CompiledCommand, CompiledUpdate, Program
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.program import CompiledCommand, CompiledUpdate, Program
-from veribattery.explore.rational import ExactScalar, tabulate
+from veribattery.explore.exact.rational import ExactScalar, tabulate
 from veribattery.lang.expressions import children
 from veribattery.lang.nodes import (
     Binary,

@@ -18,7 +18,12 @@ import numpy as np
 from veribattery._record import record
 from veribattery._types import FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.program import ChoiceGroup, CompiledCommand, CompiledUpdate, Program
+from veribattery.explore.compile.program import (
+    ChoiceGroup,
+    CompiledCommand,
+    CompiledUpdate,
+    Program,
+)
 
 __all__ = ["GroupSuccessors", "check_update_ranges", "expand_group", "format_state"]
 

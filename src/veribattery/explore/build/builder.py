@@ -22,14 +22,15 @@ import scipy.sparse as sp
 from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.compile import CompileCache, CompiledExpr, compile_expr, may_fail
+from veribattery.explore.build.fused import Expansion, LayerPlan
+from veribattery.explore.build.guard import Footprint, MemoryGuard
+from veribattery.explore.build.layers import Layer, Layers
+from veribattery.explore.build.plan import plan_layers
+from veribattery.explore.build.store import StateStore, radix_words
+from veribattery.explore.build.successors import GroupSuccessors, expand_group, format_state
+from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr, may_fail
+from veribattery.explore.compile.program import Program, compile_program
 from veribattery.explore.dtmc import DTMC, RewardVectors
-from veribattery.explore.fused import Expansion, LayerPlan, plan_layers
-from veribattery.explore.guard import Footprint, MemoryGuard
-from veribattery.explore.layers import Layer, Layers
-from veribattery.explore.program import Program, compile_program
-from veribattery.explore.store import StateStore, radix_words
-from veribattery.explore.successors import GroupSuccessors, expand_group, format_state
 from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 
 __all__ = [
@@ -312,7 +313,7 @@ def assemble(
     """The DTMC of *model* from its explored layers (which are emptied as they are used).
 
     :param known: labels and rewards already evaluated on these states and choices
-        (see ``reuse``), or None to evaluate them.
+        (see ``reuse.structure``), or None to evaluate them.
     """
     n = states.shape[0]
     choices = np.concatenate([layer.choices for layer in layers])

@@ -13,8 +13,8 @@ from dataclasses import field, replace
 
 from veribattery._record import record
 from veribattery.errors import PrismSemanticError, Span
-from veribattery.explore.bounds import value_bounds
-from veribattery.explore.compile import (
+from veribattery.explore.compile.bounds import value_bounds
+from veribattery.explore.compile.expr import (
     CompileCache,
     CompiledExpr,
     compile_expr,
@@ -99,7 +99,7 @@ def with_probabilities(program: Program, model: FlatModel) -> Program:
     """*program* with the update probabilities of *model*, guards and assignments kept.
 
     *model* must have the commands *program* was compiled from, in the same
-    order, up to their probabilities (as the models of one ``reuse`` key do):
+    order, up to their probabilities (as the models of one ``reuse.structure`` key do):
     only the probabilities are compiled again.
     """
     names = _names(model)

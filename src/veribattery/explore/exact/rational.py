@@ -26,7 +26,7 @@ from gmpy2 import mpq, mpz
 
 from veribattery._types import IntArray
 from veribattery.errors import ModelError, PrismSemanticError
-from veribattery.explore.rational_ops import BINARY, FUNCTIONS, as_objects, bools, power
+from veribattery.explore.exact.rational_ops import BINARY, FUNCTIONS, as_objects, bools, power
 from veribattery.lang import ops
 from veribattery.lang.constants import given_expression
 from veribattery.lang.expressions import walk

@@ -1,0 +1,210 @@
+"""Certified bounds of the optimal values of a :class:`ChoiceSystem`.
+
+After the pre-pass of each operator the Bellman operator ``B`` of the system has
+exactly one fixed point, the optimal value ``x*`` (``docs/mdp-numerics.md``
+says why, operator by operator), and ``B`` is monotone. Then, as on the DTMC
+side (``docs/numerics.md``):
+
+* a vector *u* with ``B(u) <= u`` is an upper bound of ``x*``, one with
+  ``B(l) >= l`` a lower bound (``B^n(u)`` decreases to the unique fixed point);
+* from a certified pair, ``max(l, B(l))`` and ``min(u, B(u))`` stay certified
+  (interval iteration, Haddad & Monmege 2018; Baier et al., CAV 2017).
+
+The tests use rigorous enclosures of ``B`` (:meth:`ChoiceSystem.bound_images`):
+the maximum (minimum) of upper bounds of the rows' images is an upper bound of
+the maximum (minimum) of the exact images, and likewise below. Candidates come
+from policy iteration's approximation *x*: ``x +- (c d + slack)`` for a margin
+*d* (:func:`_margin`) and growing *c*, moved outward where a state fails
+(:func:`_pushed`); failing all, the states that fail are set to the trivial
+bound and the test is repeated; then interval iteration tightens what is left.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from veribattery._types import BoolArray, FloatArray
+from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.mdp.solve import Evaluation
+from veribattery.checker.mdp.system import ChoiceSystem, Objective
+
+__all__ = ["certified_values"]
+
+#: Interval-iteration sweeps tried when the first certificate is not precise.
+INTERVAL_SWEEPS = 2_000
+#: ... unless the sweeps would cost more than this many nonzero visits in total.
+INTERVAL_WORK = 400_000_000
+#: Share of the largest defect given to every state before the margin is solved for.
+SPREAD = 2.0**-20
+#: Rounds of moving failing states outward before a factor is given up.
+PUSH_ROUNDS = 32
+#: Margin factors tried in turn.
+FACTORS = (2.0, 16.0, 1024.0)
+#: Rounds of resetting failed states to the trivial bound before a factor is given up.
+REPAIR_ROUNDS = 4
+
+Image = Callable[[FloatArray], FloatArray]
+
+
+@dataclass(frozen=True, slots=True)
+class _Images:
+    """The rigorous images of the Bellman operator and the trivial bounds."""
+
+    lower: Image
+    upper: Image
+    floor: FloatArray
+    top: FloatArray
+
+
+def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                     offset: FloatArray | None, approximation: Evaluation | None,
+                     ceiling: float) -> Bounds:
+    """Certified bounds of the unique fixed point of the system's Bellman operator.
+
+    :param known: the exact values of ``system.known_states`` (nonnegative).
+    :param offset: the reward of each row (nonnegative), or None.
+    :param approximation: policy iteration's result, or None.
+    :param ceiling: a trivial upper bound that passes the test by itself
+        (1 for probabilities, ``inf`` for rewards); 0 is the trivial lower bound.
+    """
+
+    def lower_image(v: FloatArray) -> FloatArray:
+        return system.best(system.bound_images(v, known, offset, up=False), objective)
+
+    def upper_image(v: FloatArray) -> FloatArray:
+        return system.best(system.bound_images(v, known, offset, up=True), objective)
+
+    images = _Images(lower_image, upper_image, np.zeros(system.size),
+                     np.full(system.size, ceiling))
+    x, lower, upper = images.floor, images.floor, images.top
+    if approximation is not None:
+        x = np.clip(approximation.values, 0.0, ceiling)
+        lower, upper = _candidates(x, _margin(x, approximation, images), images)
+    if not Bounds.around(x, lower, upper).precise_states().all():
+        lower, upper = _tightened(system, images, x, lower, upper)
+    return Bounds.around(x, lower, upper)
+
+
+def _margin(x: FloatArray, approximation: Evaluation, images: _Images) -> FloatArray | None:
+    """The margin ``d`` around *x*, or None.
+
+    The enclosed defect ``d0 = |B(x) - x|`` is spread a little to every state (so
+    that ``d`` is a strict super-solution and the solver's noise cannot break it),
+    then pushed through the final strategy's system: ``d = (I - B_sigma)^-1 d0'``.
+    """
+    with np.errstate(invalid="ignore", over="ignore"):
+        defect = np.maximum(np.maximum(images.upper(x) - x, x - images.lower(x)), 0.0)
+        defect = _above(defect)
+    if not np.all(np.isfinite(defect)):
+        return None
+    spread = defect + (SPREAD * float(np.max(defect, initial=0.0))
+                       + 4.0 * UNIT_ROUNDOFF * np.abs(x))
+    margin = approximation.correct(spread)
+    if not np.all(np.isfinite(margin)):
+        return None
+    return np.maximum(margin, spread)  # (also drops the solver's negative noise)
+
+
+def _candidates(x: FloatArray, margin: FloatArray | None, images: _Images
+                ) -> tuple[FloatArray, FloatArray]:
+    """Certified bounds around *x*: for growing factors *c*, ``x +- (c d + slack)``,
+    pushed where it fails (:func:`_pushed`); failing that, the last factor with the
+    states that fail set to the trivial bounds."""
+    if margin is None:
+        return images.floor, images.top
+    return (_side(images.lower, x, margin, images, up=False),
+            _side(images.upper, x, margin, images, up=True))
+
+
+def _side(image: Image, x: FloatArray, margin: FloatArray, images: _Images,
+          *, up: bool) -> FloatArray:
+    trivial = images.top if up else images.floor
+    for factor in FACTORS:
+        pushed = _pushed(image, _around(x, margin, factor, images, up=up), trivial, up=up)
+        if pushed is not None:
+            return pushed
+    repaired = _repaired(image, _around(x, margin, FACTORS[-1], images, up=up), trivial, up=up)
+    return trivial if repaired is None else repaired
+
+
+def _pushed(image: Image, bound: FloatArray, trivial: FloatArray,
+            *, up: bool) -> FloatArray | None:
+    """*bound* moved outward where it fails its test, until every state passes.
+
+    A state whose image lies beyond its bound is moved past the image by as much
+    again: a row tied with the strategy's but with another distribution (which the
+    margin does not cover) needs a little more room there, and its predecessors
+    then absorb the change in their own margins. Every vector tried is tested
+    whole; only one that passes everywhere is returned.
+    """
+    for _ in range(PUSH_ROUNDS):
+        mapped = image(bound)
+        with np.errstate(invalid="ignore"):
+            failing = ((mapped > bound) if up else (mapped < bound)) & (bound != trivial)
+        if not failing.any():
+            return bound
+        with np.errstate(invalid="ignore", over="ignore"):
+            if up:
+                moved = np.minimum(_above(mapped + (mapped - bound)), trivial)
+            else:
+                moved = np.maximum(step_down(mapped - (bound - mapped)), trivial)
+        bound = np.where(failing, np.where(np.isnan(moved), trivial, moved), bound)
+    return None
+
+
+def _around(x: FloatArray, margin: FloatArray, factor: float, images: _Images,
+            *, up: bool) -> FloatArray:
+    """``x + (factor margin + slack)`` rounded up, or ``x - ...`` rounded down, clipped
+    to the trivial bounds; exact zeros (value and margin 0) stay zeros."""
+    slack = 4.0 * UNIT_ROUNDOFF * np.abs(x) + np.where((x == 0) & (margin == 0), 0.0, ETA)
+    with np.errstate(invalid="ignore", over="ignore"):
+        if up:
+            bound = np.minimum(_above(x + factor * margin + slack), images.top)
+            return np.where(np.isnan(bound), images.top, bound)
+        bound = np.maximum(step_down(x - factor * margin - slack), images.floor)
+    return np.where(np.isnan(bound), images.floor, bound)
+
+
+def _passes(image: Image, bound: FloatArray, trivial: FloatArray, *, up: bool) -> bool:
+    """Whether *bound* passes the fixed-point test everywhere.
+
+    A state at its trivial bound needs no test: ``B(l) >= B(0) >= 0`` for a
+    nonnegative map, and the ceiling is a pre-fixed point by the caller's contract.
+    """
+    mapped = image(bound)
+    good: BoolArray = (mapped <= bound) if up else (mapped >= bound)
+    return bool(np.all(good | (bound == trivial)))
+
+
+def _above(total: FloatArray) -> FloatArray:
+    """An upper bound of a sum of nonnegative terms computed as *total* (exact if 0)."""
+    return np.where(total == 0, 0.0, step_up(total))
+
+
+def _repaired(image: Image, bound: FloatArray, trivial: FloatArray,
+              *, up: bool) -> FloatArray | None:
+    """*bound* with the states that fail the test set to *trivial*, until all pass."""
+    for _ in range(REPAIR_ROUNDS):
+        mapped = image(bound)
+        good: BoolArray = (mapped <= bound) if up else (mapped >= bound)
+        good |= bound == trivial
+        if good.all():
+            return bound
+        bound = np.where(good, bound, trivial)
+    return None
+
+
+def _tightened(system: ChoiceSystem, images: _Images, x: FloatArray,
+               lower: FloatArray, upper: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """Interval iteration from a certified pair until precise (or out of sweeps)."""
+    sweeps = min(INTERVAL_SWEEPS, INTERVAL_WORK // max(1, 2 * system.off.nnz))
+    for _ in range(sweeps):
+        if Bounds.around(x, lower, upper).precise_states().all():
+            break
+        lower = np.maximum(lower, images.lower(lower))
+        upper = np.minimum(upper, images.upper(upper))
+    return lower, upper

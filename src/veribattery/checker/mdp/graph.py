@@ -1,0 +1,247 @@
+"""Qualitative analysis of an MDP: which states reach a target with probability 0 or 1.
+
+The four classic pre-computations (PRISM's names; de Alfaro 1997, Baier & Katoen
+2008, §10.6), for ``remain U target``:
+
+* :func:`prob0a` -- probability 0 under *every* strategy (``Pmax = 0``);
+* :func:`prob0e` -- probability 0 under *some* strategy (``Pmin = 0``);
+* :func:`prob1a` -- probability 1 under every strategy (``Pmin = 1``);
+* :func:`prob1e` -- probability 1 under some strategy (``Pmax = 1``).
+
+Everything is a graph search over the positive entries of the choice matrix,
+vectorised over whole frontiers; the only Python loops run over the levels or
+the rounds of a fixpoint.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from veribattery._types import BoolArray, CsrMatrix, IntArray
+
+__all__ = [
+    "ChoiceGraph",
+    "all_successors_in",
+    "almost_surely",
+    "any_successor_in",
+    "attractor",
+    "can_reach",
+    "forced_into",
+    "prob0a",
+    "prob0e",
+    "prob1a",
+    "prob1e",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class ChoiceGraph:
+    """The positive entries of a choice matrix, forwards and backwards.
+
+    :param owner: the state owning each choice.
+    :param successor_ptr: CSR offsets of each choice's successors in *successors*.
+    :param successors: the states each choice reaches with positive probability.
+    :param predecessor_ptr: per state, offsets of the choices entering it in *predecessors*.
+    :param predecessors: the choices with a positive entry into each state.
+    """
+
+    owner: IntArray
+    successor_ptr: IntArray
+    successors: IntArray
+    predecessor_ptr: IntArray
+    predecessors: IntArray
+
+    @classmethod
+    def of(cls, transitions: CsrMatrix, owner: IntArray) -> ChoiceGraph:
+        """The graph of *transitions* (choices x states), whose choice *c* belongs to
+        state ``owner[c]``."""
+        pattern = sp.csr_matrix(transitions, copy=True)
+        pattern.data = (pattern.data > 0).astype(np.int8)
+        pattern.eliminate_zeros()
+        pattern.sum_duplicates()
+        backwards = pattern.tocsc()
+        return cls(owner, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
+                   backwards.indptr.astype(np.int64), backwards.indices.astype(np.int64))
+
+    @property
+    def num_states(self) -> int:
+        """Number of states (columns)."""
+        return int(self.predecessor_ptr.size - 1)
+
+    @property
+    def num_choices(self) -> int:
+        """Number of choices (rows)."""
+        return int(self.successor_ptr.size - 1)
+
+    def choices_into(self, states: IntArray) -> IntArray:
+        """The choices with a positive entry into any of *states* (with repeats)."""
+        return self.predecessors[_segments(self.predecessor_ptr, states)]
+
+
+def _segments(indptr: IntArray, rows: IntArray) -> IntArray:
+    """Positions ``indptr[r]:indptr[r + 1]`` of every row *r* of *rows*, concatenated."""
+    starts = indptr[rows]
+    lengths = indptr[rows + 1] - starts
+    total = int(lengths.sum())
+    if total == 0:
+        return np.empty(0, dtype=np.int64)
+    ends = np.cumsum(lengths)
+    offsets = np.arange(total, dtype=np.int64) - np.repeat(ends - lengths, lengths)
+    return np.asarray(np.repeat(starts, lengths) + offsets, dtype=np.int64)
+
+
+def all_successors_in(graph: ChoiceGraph, states: BoolArray) -> BoolArray:
+    """Per choice: whether every successor lies in *states*."""
+    return np.asarray(np.logical_and.reduceat(states[graph.successors],
+                                              graph.successor_ptr[:-1]), dtype=bool)
+
+
+def any_successor_in(graph: ChoiceGraph, states: BoolArray) -> BoolArray:
+    """Per choice: whether some successor lies in *states*."""
+    return np.asarray(np.logical_or.reduceat(states[graph.successors],
+                                             graph.successor_ptr[:-1]), dtype=bool)
+
+
+def can_reach(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
+              allowed: BoolArray | None = None) -> BoolArray:
+    """States with a path to *seeds* whose states before the last lie in *through*.
+
+    One breadth-first search in C over the reversed graph, from a virtual root
+    linked to every seed. The seeds themselves are included.
+
+    :param allowed: the choices the paths may use (None: all).
+    """
+    n = graph.num_states
+    moves = through[graph.owner]
+    if allowed is not None:
+        moves &= allowed
+    sizes = np.diff(graph.successor_ptr)
+    sources = np.repeat(moves, sizes)
+    heads = graph.successors[sources]
+    tails = np.repeat(graph.owner, sizes)[sources]
+    roots = np.flatnonzero(seeds)
+    rows = np.concatenate([heads, np.full(roots.size, n, dtype=np.int64)])
+    columns = np.concatenate([tails, roots])
+    backwards = sp.csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, columns)),
+                              shape=(n + 1, n + 1))
+    order = csgraph.breadth_first_order(backwards, n, directed=True, return_predecessors=False)
+    reached = np.zeros(n + 1, dtype=bool)
+    reached[order] = True
+    return reached[:n]
+
+
+def attractor(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
+              allowed: BoolArray | None = None) -> tuple[BoolArray, IntArray]:
+    """:func:`can_reach` with a witness: per state, a choice that moves closer to *seeds*.
+
+    Level by level: a state of *through* joins at level ``d + 1`` with a choice that
+    enters level ``d`` with positive probability. Following the witnesses, every step
+    has a positive probability of getting one level closer; as long as each choice's
+    other successors also keep that property (the caller's *allowed*), *seeds* are
+    reached almost surely.
+
+    :return: ``(reached, via)``, *via* the witness choice of each reached non-seed
+        state and -1 elsewhere.
+    """
+    reached = seeds.copy()
+    via = np.full(graph.num_states, -1, dtype=np.int64)
+    frontier = np.flatnonzero(seeds)
+    while frontier.size:
+        entering = np.unique(graph.choices_into(frontier))
+        owners = graph.owner[entering]
+        usable = through[owners] & ~reached[owners]
+        if allowed is not None:
+            usable &= allowed[entering]
+        entering, owners = entering[usable], owners[usable]
+        owners, first = np.unique(owners, return_index=True)
+        via[owners] = entering[first]
+        reached[owners] = True
+        frontier = owners
+    return reached, via
+
+
+def forced_into(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray) -> BoolArray:
+    """States from which *every* strategy reaches *seeds* with positive probability,
+    passing through *through* (the universal attractor: all choices must lead closer).
+
+    A state joins once each of its choices has a successor already in the set;
+    the count of choices still missing is kept per state, so each entry of the
+    matrix is looked at once over all levels.
+    """
+    pending = np.bincount(graph.owner, minlength=graph.num_states)
+    hit = np.zeros(graph.num_choices, dtype=bool)
+    inside = seeds.copy()
+    frontier = np.flatnonzero(seeds)
+    while frontier.size:
+        entering = np.unique(graph.choices_into(frontier))
+        entering = entering[~hit[entering]]
+        hit[entering] = True
+        owners = graph.owner[entering]
+        pending -= np.bincount(owners, minlength=graph.num_states)
+        candidates = np.unique(owners)
+        joining = (pending[candidates] == 0) & through[candidates] & ~inside[candidates]
+        frontier = candidates[joining]
+        inside[frontier] = True
+    return inside
+
+
+def prob0a(graph: ChoiceGraph, remain: BoolArray, target: BoolArray) -> BoolArray:
+    """States where ``remain U target`` has probability 0 under every strategy (Pmax = 0)."""
+    return ~can_reach(graph, remain & ~target, target)
+
+
+def prob0e(graph: ChoiceGraph, remain: BoolArray, target: BoolArray) -> BoolArray:
+    """States where some strategy makes ``remain U target`` have probability 0 (Pmin = 0)."""
+    return ~forced_into(graph, remain & ~target, target)
+
+
+def prob1a(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
+           zero_somewhere: BoolArray) -> BoolArray:
+    """States where ``remain U target`` has probability 1 under every strategy (Pmin = 1).
+
+    Pmin < 1 exactly where a path through ``remain & !target`` leads to a state where
+    some strategy gives probability 0: follow it with positive probability, then play
+    that strategy.
+
+    :param zero_somewhere: the result of :func:`prob0e` for the same arguments.
+    """
+    return ~can_reach(graph, remain & ~target, zero_somewhere)
+
+
+def prob1e(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
+           allowed: BoolArray | None = None) -> BoolArray:
+    """States where some strategy makes ``remain U target`` have probability 1 (Pmax = 1).
+
+    The nested fixpoint: the candidate set *u* shrinks to the states that reach
+    *target* using only choices that never leave *u*, until it stops changing.
+
+    :param allowed: the choices the strategy may use (None: all).
+    """
+    through = remain & ~target
+    candidate = np.ones(graph.num_states, dtype=bool)
+    while True:
+        staying = all_successors_in(graph, candidate)
+        if allowed is not None:
+            staying &= allowed
+        shrunk = can_reach(graph, through & candidate, target, staying)
+        if np.array_equal(shrunk, candidate):
+            return candidate
+        candidate = shrunk
+
+
+def almost_surely(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
+                  allowed: BoolArray | None = None) -> tuple[BoolArray, IntArray]:
+    """:func:`prob1e` and a witness: per state of it outside *target*, a choice that stays
+    in the set and moves closer to *target* (-1 elsewhere). Following the witnesses
+    reaches *target* with probability 1.
+    """
+    sure = prob1e(graph, remain, target, allowed)
+    staying = all_successors_in(graph, sure)
+    if allowed is not None:
+        staying &= allowed
+    _, via = attractor(graph, remain & ~target & sure, target, staying)
+    return sure, via

@@ -1,0 +1,153 @@
+"""The optimal values of the unknown states: equations, policy iteration, certificate.
+
+Every unbounded operator ends here once its pre-pass has decided which states
+are known, which are unknown (and which end components among them are
+collapsed) and which choices may be used -- a :class:`Problem`. :func:`solve`
+builds the :class:`~veribattery.checker.mdp.system.ChoiceSystem` of the unknown
+classes, approximates the optimum by policy iteration from a strategy that makes
+progress towards the *goal* states, certifies it, and lifts the strategy from
+classes back to states. The exact engine (:mod:`~veribattery.checker.mdp.exact`)
+solves the same problems in rationals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from gmpy2 import mpq
+
+from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.mdp.certificate import certified_values
+from veribattery.checker.mdp.components import EndComponents
+from veribattery.checker.mdp.graph import ChoiceGraph
+from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.rational import RationalSystem, exact_policy_iteration
+from veribattery.checker.mdp.result import MdpResult
+from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
+from veribattery.checker.mdp.strategy import Strategy, lifted
+from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
+
+__all__ = ["Problem", "approximate", "solve", "spread"]
+
+#: Systems of at most this many classes are solved exactly when their certificate
+#: stays too wide (as the DTMC side's rational solve of small systems).
+EXACT_LIMIT = 2_000
+
+_ZERO = mpq(0)
+
+
+@dataclass(frozen=True, slots=True)
+class Problem:
+    """An unbounded operator after its qualitative pre-pass.
+
+    :param objective: whether the values are minimal or maximal.
+    :param unknown: the states still to solve.
+    :param known: per state, the exact value of the others (0, 1 or ``inf``).
+    :param choices: per state, an optimal choice where the value is known (the
+        first choice where any will do); the unknown states' are replaced.
+    :param goal: known states a first strategy moves towards (for minimal rewards
+        they are reached almost surely from every unknown state under it).
+    :param components: end components among the unknown states to collapse, if any.
+    :param allowed: the choices that may be taken (None: all).
+    :param ceiling: the trivial upper bound (1 for probabilities, ``inf`` for rewards).
+    """
+
+    objective: Objective
+    unknown: BoolArray
+    known: FloatArray
+    choices: IntArray
+    goal: BoolArray
+    components: EndComponents | None = None
+    allowed: BoolArray | None = None
+    ceiling: float = 1.0
+
+    @property
+    def classes(self) -> IntArray:
+        """Per state, its class among the unknowns (-1: known)."""
+        component = None if self.components is None else self.components.component
+        return quotient_classes(self.unknown, component)
+
+
+@dataclass(frozen=True, slots=True)
+class Approximation:
+    """A problem's equations and policy iteration's answer on them (None: none found)."""
+
+    system: ChoiceSystem
+    known: FloatArray
+    offset: FloatArray | None
+    evaluation: Evaluation | None
+    start: IntArray
+
+    @property
+    def rows(self) -> IntArray:
+        """The strategy found (per class, a row of the system)."""
+        return self.start if self.evaluation is None else self.evaluation.rows
+
+
+def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None) -> Approximation:
+    """The equations of *problem*'s unknown classes and their approximate optimum.
+
+    :param rewards: per choice, the reward of taking it (None: probabilities).
+    """
+    system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
+    known = np.asarray(problem.known[system.known_states], dtype=np.float64)
+    offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
+    start = progress_rows(system, problem.goal[system.known_states])
+    evaluation = policy_iteration(system, problem.objective, known, offset, start)
+    return Approximation(system, known, offset, evaluation, start)
+
+
+def solve(mdp: MDP, graph: ChoiceGraph, problem: Problem,
+          rewards: FloatArray | None) -> MdpResult:
+    """*problem* solved: certified values in every state and an optimal strategy."""
+    values = Bounds.exact(problem.known.copy())
+    if not problem.unknown.any():
+        return MdpResult(values, Strategy(problem.choices))
+    found = approximate(mdp, problem, rewards)
+    bounds = certified_values(found.system, problem.objective, found.known, found.offset,
+                              found.evaluation, problem.ceiling)
+    rows = found.rows
+    if not bounds.precise_states().all() and found.system.size <= EXACT_LIMIT:
+        rows, bounds = _exactly(mdp, problem, found, rewards)
+    strategy = lifted(mdp, graph, found.system, rows, problem.components, problem.choices)
+    return MdpResult(spread(values, problem.classes, bounds), Strategy(strategy))
+
+
+def _exactly(mdp: MDP, problem: Problem, found: Approximation,
+             rewards: FloatArray | None) -> tuple[IntArray, Bounds]:
+    """The last resort of a small system whose certificate stays too wide: policy
+    iteration in rationals on the same equations (the stored doubles read exactly),
+    the exact values rounded to the floats either side."""
+    system = found.system
+    probabilities = np.full(mdp.transitions.nnz, _ZERO, dtype=object)
+    probabilities[system.positions] = [mpq(float(p)) for p in mdp.transitions.data[
+        system.positions]]
+    known = np.array([mpq(float(v)) for v in found.known], dtype=object)
+    exact_rewards = None
+    if rewards is not None:
+        exact_rewards = np.full(mdp.num_choices, _ZERO, dtype=object)
+        exact_rewards[system.choices] = [mpq(float(r)) for r in rewards[system.choices]]
+    rational = RationalSystem.of(system, probabilities, known, exact_rewards)
+    rows, x = exact_policy_iteration(rational, problem.objective, found.rows)
+    return rows, _rounded(x)
+
+
+def _rounded(values: np.ndarray) -> Bounds:
+    """Rationals as floats: the nearest one, inside the floats either side (exactly
+    the value where it is a float)."""
+    point = np.array([float(v) for v in values], dtype=np.float64)
+    exact = np.array([mpq(p) == v for p, v in zip(point, values, strict=True)], dtype=bool)
+    return Bounds(point, np.where(exact, point, round_down(point)),
+                  np.where(exact, point, round_up(point)))
+
+
+def spread(values: Bounds, class_of: IntArray, found: Bounds) -> Bounds:
+    """*values* with each classed state given its class's bounds from *found*."""
+    inside = class_of >= 0
+    index = class_of[inside]
+    value, lower, upper = values.value.copy(), values.lower.copy(), values.upper.copy()
+    value[inside], lower[inside], upper[inside] = (found.value[index], found.lower[index],
+                                                   found.upper[index])
+    return Bounds(value, lower, upper)

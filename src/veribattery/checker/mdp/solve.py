@@ -1,0 +1,173 @@
+"""Approximate optimal values and strategies: policy iteration in floating point.
+
+Policy iteration (Howard 1960; Puterman 1994, §6.4 and §7.2) evaluates a strategy
+by one sparse LU solve of its induced system, then switches every class whose
+best row beats its current one. Only the *approximation* comes from here: the
+bounds returned to users are certified afterwards from the Bellman operator
+itself (:mod:`~veribattery.checker.mdp.certificate`), so a rounding error or a
+tie broken the wrong way here can widen an interval but never falsify it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
+
+from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.mdp.graph import attractor
+from veribattery.checker.mdp.system import ChoiceSystem, Objective
+
+__all__ = ["Evaluation", "evaluate", "policy_iteration", "progress_rows"]
+
+#: A row replaces the current one only if it is better by this much, relative (a few
+#: roundings of an image: the values are refined to about the last bit).
+POLICY_TOLERANCE = 2.0**-48
+#: Improvement rounds before the last strategy is taken as it is.
+POLICY_ROUNDS = 200
+#: Refinement steps after each LU solve (in float64).
+REFINE_STEPS = 3
+
+
+@dataclass(frozen=True, slots=True)
+class Evaluation:
+    """A strategy's values on the classes and an approximate solver of its system.
+
+    :param values: the strategy's value per class.
+    :param rows: the strategy: one row of the system per class.
+    :param correct: ``delta -> (I - B)^-1 delta`` for the strategy's map
+        ``x -> G_rows(x)`` (``B`` its linear part): how far a defect *delta* of that map
+        moves its fixed point.
+    """
+
+    values: FloatArray
+    rows: IntArray
+    correct: Callable[[FloatArray], FloatArray]
+
+
+def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
+             offset: FloatArray | None) -> Evaluation | None:
+    """The values of the strategy *rows*, or None if its system is singular (the
+    strategy stays forever among the unknown states from somewhere).
+
+    One sparse LU factorisation, then iterative refinement with the residual
+    computed in extended precision (``np.longdouble``, the leaving probabilities
+    summed there too), so that the values are correct to about the last bit of a
+    double wherever the system is not too ill-conditioned.
+    """
+    chosen = sp.csr_matrix(system.off[rows])
+    leave = system.leave[rows]
+    matrix = sp.csc_matrix(sp.diags(leave) - chosen[:, : system.size])
+    try:
+        factors = splu(matrix)
+    except RuntimeError:
+        return None
+    residual = _Residual.of(chosen, system.size, known, None if offset is None else offset[rows])
+    x = factors.solve(residual.rhs.astype(np.float64))
+    for _ in range(REFINE_STEPS):
+        if not np.all(np.isfinite(x)):
+            return None
+        x = x + factors.solve(residual.of_values(x))
+    if not np.all(np.isfinite(x)):
+        return None
+
+    def correct(delta: FloatArray) -> FloatArray:
+        return np.asarray(factors.solve(leave * delta), dtype=np.float64)
+
+    return Evaluation(np.asarray(x, dtype=np.float64), rows, correct)
+
+
+@dataclass(frozen=True, slots=True)
+class _Residual:
+    """``b - (diag(s) - P'_inner) x`` of a strategy's system in extended precision."""
+
+    inner: sp.csr_matrix
+    leave: npt.NDArray[np.longdouble]
+    rhs: npt.NDArray[np.longdouble]
+
+    @classmethod
+    def of(cls, chosen: sp.csr_matrix, size: int, known: FloatArray,
+           offset: FloatArray | None) -> _Residual:
+        wide = sp.csr_matrix(chosen, dtype=np.longdouble)
+        leave = np.asarray(wide @ np.ones(wide.shape[1], dtype=np.longdouble))
+        rhs = np.asarray(wide[:, size:] @ known.astype(np.longdouble))
+        if offset is not None:
+            rhs = rhs + offset.astype(np.longdouble)
+        return cls(sp.csr_matrix(wide[:, :size]), leave, rhs)
+
+    def of_values(self, x: FloatArray) -> FloatArray:
+        wide = x.astype(np.longdouble)
+        return np.asarray(self.rhs - (self.leave * wide - self.inner @ wide), dtype=np.float64)
+
+
+def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                     offset: FloatArray | None, start: IntArray) -> Evaluation | None:
+    """Policy iteration from the strategy *start* (rows per class).
+
+    A class switches only where its best row beats the current one by more than
+    :data:`POLICY_TOLERANCE` (relative), and the iteration stops when a switch makes
+    no value better (or one worse) by more than that, so rounding noise cannot make
+    it cycle.
+    For minimising expected rewards *start* must reach the known states almost
+    surely (a proper strategy); improvements keep that (Bertsekas & Tsitsiklis 1991).
+
+    :return: the last strategy's evaluation, or None if even *start* is singular.
+    """
+    current = evaluate(system, start, known, offset)
+    for _ in range(POLICY_ROUNDS):
+        if current is None:
+            return None
+        following = _improved(system, objective, current, known, offset)
+        if following is None:
+            return current
+        candidate = evaluate(system, following, known, offset)
+        if candidate is None or _improper(candidate.values):
+            return current
+        gain = candidate.values - current.values
+        if objective == "min":
+            gain = -gain
+        noise = POLICY_TOLERANCE * np.maximum(np.abs(candidate.values), np.abs(current.values))
+        if np.any(gain < -noise):  # worse somewhere: rounding has taken over
+            return current
+        current = candidate
+        if not np.any(gain > noise):  # no real progress: a switch between near-ties
+            return current
+    return current
+
+
+def _improper(values: FloatArray) -> bool:
+    """Whether values that must be >= 0 are clearly negative (more than rounding
+    noise): the sign of a strategy that stays forever among the unknowns."""
+    scale = float(np.max(np.abs(values), initial=1.0))
+    return bool(np.any(values < -1e-9 * scale))
+
+
+def _improved(system: ChoiceSystem, objective: Objective, current: Evaluation,
+              known: FloatArray, offset: FloatArray | None) -> IntArray | None:
+    """The switched strategy, or None when no class improves."""
+    images = system.images(current.values, known, offset)
+    best = system.best(images, objective)
+    now = images[current.rows]
+    tolerance = POLICY_TOLERANCE * np.maximum(np.abs(now), np.abs(best))
+    with np.errstate(invalid="ignore"):
+        better = best > now + tolerance if objective == "max" else best < now - tolerance
+    if not better.any():
+        return None
+    return np.where(better, system.best_rows(images, objective), current.rows)
+
+
+def progress_rows(system: ChoiceSystem, goal: BoolArray) -> IntArray:
+    """A starting strategy: per class, a row that moves towards the known states
+    *goal* (a mask over ``system.known_states``); the first row where none does."""
+    graph = system.graph()
+    nodes = system.size + system.known_states.size
+    through = np.zeros(nodes, dtype=bool)
+    through[: system.size] = True
+    seeds = np.zeros(nodes, dtype=bool)
+    seeds[system.size:] = goal
+    _, via = attractor(graph, through, seeds)
+    return np.where(via[: system.size] >= 0, via[: system.size], system.groups[:-1])

@@ -1,0 +1,243 @@
+"""Step-bounded operators: ``X``, ``U<=k``, ``U>=k``, ``U[a,b]``, ``C<=k``, ``I=k``.
+
+Each is a finite-horizon Bellman recursion: ``k`` rounds of
+``x_r(s) = opt_a (o_a + P_a x_{r-1})`` on the states that move, the others held
+at fixed values. An optimal strategy for a finite horizon takes, at each step,
+a choice that attains the optimum of that round (dynamic programming), so the
+strategy returned is step-dependent (:class:`StepStrategy`).
+
+A rigorous error radius is carried through the rounds, as on the DTMC side
+(:func:`_round`: the rounding of each round enclosed by :func:`enclose_product`,
+the inherited error pushed through the worst row). As there, these operators
+read the stored entries as they are.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker.certify import (
+    TERM_FLOOR,
+    enclose_product,
+    error_coefficient,
+    row_terms,
+    step_up,
+    step_up_in_place,
+)
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.reach import reach_probability
+from veribattery.checker.mdp.result import MdpResult
+from veribattery.checker.mdp.strategy import StepStrategy, Strategy
+from veribattery.checker.mdp.system import Objective
+
+__all__ = [
+    "bounded_reach_probability",
+    "cumulative_reward",
+    "instantaneous_reward",
+    "interval_reach_probability",
+    "later_reach_probability",
+    "next_probability",
+]
+
+
+@dataclass(frozen=True, slots=True)
+class _Rounds:
+    """What the recursion needs besides the start: who moves, what the others hold."""
+
+    moving: BoolArray
+    fixed: Bounds
+    offset: FloatArray | None
+    objective: Objective
+
+
+def next_probability(mdp: MDP, target: BoolArray, *, objective: Objective) -> MdpResult:
+    """Minimal or maximal probability that the next state is in *target* (``X target``)."""
+    everywhere = np.ones(mdp.num_states, dtype=bool)
+    start = Bounds.exact(target.astype(np.float64))
+    return _iterated(mdp, start, _Rounds(everywhere, start, None, objective), 1, None)
+
+
+def bounded_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
+                              objective: Objective,
+                              remain: BoolArray | None = None) -> MdpResult:
+    """Minimal or maximal probability of ``remain U<=steps target``.
+
+    :param steps: the step bound, at least 0.
+    :param remain: states that may be passed through before *target* (None: all).
+    :return: values with certified bounds and a step-dependent optimal strategy.
+    """
+    remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
+    start = Bounds.exact(target.astype(np.float64))
+    rounds = _Rounds(remain & ~target, start, None, objective)
+    return _iterated(mdp, start, rounds, steps, None)
+
+
+def later_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
+                            objective: Objective,
+                            remain: BoolArray | None = None) -> MdpResult:
+    """Minimal or maximal probability of ``remain U>=steps target``: *remain* for the
+    first *steps* steps, then ``remain U target`` (its strategy afterwards)."""
+    remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
+    later = reach_probability(mdp, target, objective=objective, remain=remain)
+    assert isinstance(later.strategy, Strategy)
+    return _iterated(mdp, later.bounds, _blocked(mdp, remain, objective), steps,
+                     later.strategy)
+
+
+def interval_reach_probability(mdp: MDP, target: BoolArray, low: int, high: int, *,
+                               objective: Objective,
+                               remain: BoolArray | None = None) -> MdpResult:
+    """Minimal or maximal probability of ``remain U[low,high] target``: *remain* for the
+    first *low* steps, then *target* within ``high - low`` more, through *remain*."""
+    remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
+    window = bounded_reach_probability(mdp, target, high - low, objective=objective,
+                                       remain=remain)
+    return _iterated(mdp, window.bounds, _blocked(mdp, remain, objective), low,
+                     window.strategy)
+
+
+def cumulative_reward(mdp: MDP, rewards: FloatArray, steps: int, *,
+                      objective: Objective) -> MdpResult:
+    """Minimal or maximal expected reward of the first *steps* steps (``C<=steps``).
+
+    :param rewards: per choice, the reward of one step taken with it (nonnegative).
+    """
+    everywhere = np.ones(mdp.num_states, dtype=bool)
+    start = Bounds.exact(np.zeros(mdp.num_states))
+    offset = np.asarray(rewards, dtype=np.float64)
+    return _iterated(mdp, start, _Rounds(everywhere, start, offset, objective), steps, None)
+
+
+def instantaneous_reward(mdp: MDP, state_rewards: FloatArray, steps: int, *,
+                         objective: Objective) -> MdpResult:
+    """Minimal or maximal expected reward of the state occupied at step *steps* (``I=k``).
+
+    :param state_rewards: per state, its reward (nonnegative).
+    """
+    everywhere = np.ones(mdp.num_states, dtype=bool)
+    start = Bounds.exact(np.asarray(state_rewards, dtype=np.float64))
+    return _iterated(mdp, start, _Rounds(everywhere, start, None, objective), steps, None)
+
+
+def _blocked(mdp: MDP, remain: BoolArray, objective: Objective) -> _Rounds:
+    """Rounds in which the states outside *remain* fail (value 0)."""
+    return _Rounds(remain, Bounds.exact(np.zeros(mdp.num_states)), None, objective)
+
+
+def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
+              then: Strategy | StepStrategy | None) -> MdpResult:
+    """*steps* rounds from *start*; the strategy of the last round is taken first."""
+    value, radius = start.value, _radius(start)
+    fixed_radius = _radius(rounds.fixed)
+    rows = _Rows.of(mdp)
+    decisions: list[IntArray] = []
+    for _ in range(steps):
+        following, grown, choice = _round(mdp, rounds, value, radius, fixed_radius, rows)
+        decisions.append(choice)
+        if np.array_equal(following, value) and np.array_equal(grown, radius):
+            decisions += [choice] * (steps - len(decisions))  # every later round is this one
+            break
+        value, radius = following, grown
+    with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
+        lower = np.where(radius == 0, value, np.maximum(round_down(value - radius), 0.0))
+        upper = np.where(radius == 0, value, round_up(value + radius))
+    return MdpResult(Bounds(value, lower, upper), _compact(mdp, decisions, then))
+
+
+def _up(total: FloatArray) -> FloatArray:
+    """An upper bound of a nonnegative sum or difference computed as *total* (exact if
+    0: a float sum or difference is 0 only when it is exactly 0)."""
+    return np.where(total == 0, 0.0, step_up(total))
+
+
+def _radius(bounds: Bounds) -> FloatArray:
+    """A bound of ``|value - exact|`` per state."""
+    with np.errstate(invalid="ignore"):
+        below, above = bounds.value - bounds.lower, bounds.upper - bounds.value
+        gap = np.maximum(_up(below), _up(above))
+    return np.asarray(np.where(np.isnan(gap), 0.0, gap), dtype=np.float64)
+
+
+@dataclass(frozen=True, slots=True)
+class _Rows:
+    """Per row of the choice matrix, the constants of the rounding bound of one product
+    ``P_a x + o_a`` with nonnegative terms (:func:`enclosed`): Higham's ``gamma_k`` for
+    its stored entries plus the offset, and the underflow of each product (counted as
+    ``TERM_FLOOR``, a normal number, as :class:`certify.AffineMap` does)."""
+
+    matrix: CsrMatrix
+    terms: FloatArray
+    coefficient: FloatArray
+    underflow: FloatArray
+
+    @classmethod
+    def of(cls, mdp: MDP) -> _Rows:
+        terms = row_terms(mdp.transitions)
+        counted = terms + 1.0
+        return cls(mdp.transitions, terms, error_coefficient(counted), counted * TERM_FLOOR)
+
+    def enclosed(self, x: FloatArray, offset: FloatArray | None) -> tuple[FloatArray, FloatArray]:
+        """``y = fl(P x + o)`` and a bound of ``|y - (P x + o)|`` per row (*x*, *o* >= 0).
+
+        The terms are nonnegative, so the magnitude in the bound is *y* itself;
+        vectors of 0s and 1s without an offset go through :func:`enclose_product`,
+        whose products are exact (so exact results stay exact).
+        """
+        if not x.any() and (offset is None or not offset.any()):
+            zeros = np.zeros(self.matrix.shape[0])
+            return zeros, zeros.copy()  # (an exact radius of 0 stays 0)
+        if offset is None and bool(np.all((x == 0) | (x == 1))):
+            y, low, high = enclose_product(self.matrix, x, None, self.terms)
+            return y, _up(np.maximum(high - y, y - low))
+        y = np.asarray(self.matrix @ x, dtype=np.float64)
+        if offset is not None:
+            y += offset
+        error = self.coefficient * y
+        error += self.underflow
+        step_up_in_place(error)
+        return y, error
+
+
+def _round(mdp: MDP, rounds: _Rounds, value: FloatArray, radius: FloatArray,
+           fixed_radius: FloatArray, rows: _Rows
+           ) -> tuple[FloatArray, FloatArray, IntArray]:
+    """One Bellman round: the point values, their error radius, the choices taken.
+
+    ``|opt_a y_a - opt_a f_a(x*)| <= max_a |y_a - f_a(x*)| <= max_a (err_a + P_a r)``
+    for the float images ``y_a`` of the point values (rounding ``err_a``, enclosed)
+    and their radius ``r``, whichever optimum is taken: two products per round.
+    """
+    reduce = np.maximum if rounds.objective == "max" else np.minimum
+    starts = mdp.row_groups[:-1]
+    images, rounding = rows.enclosed(value, rounds.offset)
+    spread, error = rows.enclosed(radius, rounding)
+    grown = _up(spread + error)  # (0 only where both are: an exact value stays exact)
+    best = reduce.reduceat(images, starts)
+    moving, fixed = rounds.moving, rounds.fixed
+    return (np.where(moving, best, fixed.value),
+            np.where(moving, np.maximum.reduceat(grown, starts), fixed_radius),
+            np.where(moving, _first_best(mdp, images, best), starts))
+
+
+def _first_best(mdp: MDP, images: FloatArray, best: FloatArray) -> IntArray:
+    """Per state, its first choice whose image equals *best*."""
+    hits = images == best[mdp.choice_owner]
+    rows = np.where(hits, np.arange(images.size), images.size)
+    return np.asarray(np.minimum.reduceat(rows, mdp.row_groups[:-1]), dtype=np.int64)
+
+
+def _compact(mdp: MDP, decisions: list[IntArray],
+             then: Strategy | StepStrategy | None) -> StepStrategy:
+    """The decisions of rounds 1..k (round r: r steps to go) as a :class:`StepStrategy`."""
+    if not decisions:
+        return StepStrategy(0, mdp.row_groups[:-1].copy(), (), then)
+    changes = []
+    for before, now in itertools.pairwise(decisions):
+        differ = np.flatnonzero(before != now)
+        changes.append((differ, now[differ]))
+    return StepStrategy(len(decisions), decisions[0], tuple(changes), then)

@@ -1,0 +1,225 @@
+"""The Bellman equations of the unknown states of an MDP, with rigorous images.
+
+After the qualitative pre-pass the unknown states are grouped into *classes*
+(one per state, or one per end component that is collapsed, de Alfaro 1997);
+each class has the choices of its states that leave it. With ``P'_a`` the
+entries of choice *a* that leave its class, ``s_a = sum_j P'_aj`` and ``o_a``
+its reward, choice *a* maps a value vector *x* to
+
+    G_a(x) = (o_a + sum_j P'_aj ext(x)_j) / s_a
+
+(``ext(x)`` reads *x* on the classes and the known values elsewhere): the mass
+that stays in the class is read as ``1 - s_a``, exactly -- the reading the DTMC
+side gives a self-loop (``docs/numerics.md``), of which a collapsed class is the
+generalisation. The Bellman operator is the maximum or minimum of ``G_a`` over
+each class's choices. Dividing by ``s_a`` changes no fixed point and no test
+``B(u) <= u``: for ``s_a > 0``, ``G_a(u) <= u_c`` iff ``o_a + P'_a ext(u) +
+(1 - s_a) u_c <= u_c`` (``docs/mdp-numerics.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker.certify import enclose_product, product_error, step_down, step_up
+from veribattery.checker.mdp.graph import ChoiceGraph
+
+__all__ = ["ChoiceSystem", "Objective", "equations", "quotient_classes"]
+
+#: Which player the values are optimal for.
+Objective = Literal["min", "max"]
+
+
+@dataclass(frozen=True, slots=True)
+class ChoiceSystem:
+    """The equations of *size* classes: one row per choice that leaves its class.
+
+    :param class_of: per state, its class, or -1 for a state whose value is known.
+    :param choices: per row, the MDP's choice index (rows grouped by class).
+    :param groups: ``size + 1`` offsets of each class's rows.
+    :param off: rows x ``(size + len(known_states))``: the entries that leave the row's
+        class, columns ``0..size-1`` the classes, then the known states.
+    :param positions: per stored entry of *off*, its position in the MDP's
+        ``transitions.data`` (for exact arithmetic on the same rows).
+    :param known_states: the states of known value that some row reaches.
+    :param leave: per row, ``s_a`` in floating point.
+    :param leave_lower: a rigorous lower bound of ``s_a`` (its exact sum).
+    :param leave_upper: a rigorous upper bound of ``s_a``.
+    :param pattern: *off* with its stored entries set to 1.
+    """
+
+    class_of: IntArray
+    choices: IntArray
+    groups: IntArray
+    off: CsrMatrix
+    positions: IntArray
+    known_states: IntArray
+    leave: FloatArray
+    leave_lower: FloatArray
+    leave_upper: FloatArray
+    #: *off* with every stored entry 1 (counts the nonzero terms of a product).
+    pattern: CsrMatrix
+
+    @property
+    def size(self) -> int:
+        """Number of classes (unknowns)."""
+        return int(self.groups.size - 1)
+
+    @property
+    def row_class(self) -> IntArray:
+        """The class of each row."""
+        return np.repeat(np.arange(self.size, dtype=np.int64), np.diff(self.groups))
+
+    @property
+    def inner(self) -> CsrMatrix:
+        """The columns of the classes: entries between unknowns."""
+        return sp.csr_matrix(self.off[:, : self.size])
+
+    @property
+    def outer(self) -> CsrMatrix:
+        """The columns of the known states."""
+        return sp.csr_matrix(self.off[:, self.size:])
+
+    def graph(self) -> ChoiceGraph:
+        """The rows as a choice graph over classes then known states."""
+        return ChoiceGraph.of(self.off, self.row_class)
+
+    def images(self, x: FloatArray, known: FloatArray, offset: FloatArray | None) -> FloatArray:
+        """``G_a(x)`` of every row in floating point (not rigorous)."""
+        numerator = self.off @ np.concatenate([x, known])
+        if offset is not None:
+            numerator = numerator + offset
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.asarray(numerator / self.leave, dtype=np.float64)
+
+    def bound_images(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,
+                     *, up: bool) -> FloatArray:
+        """Rigorous bounds of ``G_a(x)`` per row: from above if *up*, else from below.
+
+        *x*, *known* and *offset* must be nonnegative (so is every term). The
+        numerator's rounding is bounded by Higham's ``gamma_k`` over the row's *nonzero*
+        terms only (a product with an exact 0 is exactly 0 and adding it is exact), so
+        a row that reads only zeros has the exact image 0 -- which lets exact zeros
+        pass the certificate's tests. The quotient is divided by the other side of
+        ``s_a``'s enclosure and stepped one float outward (and clamped at 0 below).
+        """
+        full = np.concatenate([x, known])
+        numerator = np.asarray(self.off @ full, dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            terms = np.asarray(self.pattern @ (full != 0).astype(np.float64), dtype=np.float64)
+        if offset is not None:
+            numerator = numerator + offset
+            terms = terms + (offset != 0)
+        error = product_error(numerator, terms, terms)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            if up:
+                high = numerator + error
+                quotient = np.where(high == 0, 0.0, step_up(step_up(high) / self.leave_lower))
+                return np.where(np.isnan(quotient), np.inf, quotient)
+            low = np.maximum(step_down(numerator - error), 0.0)
+            quotient = step_down(low / self.leave_upper)
+        return np.maximum(np.where(np.isnan(quotient), 0.0, quotient), 0.0)
+
+    def restricted(self, keep: BoolArray) -> ChoiceSystem:
+        """The same classes with only the rows *keep* (each class must keep one)."""
+        counts = np.bincount(self.row_class[keep], minlength=self.size)
+        if np.any(counts == 0):
+            raise ValueError("every class needs a row")
+        entries = np.repeat(keep, np.diff(self.off.indptr))
+        off = sp.csr_matrix(self.off[np.flatnonzero(keep)])
+        pattern = sp.csr_matrix((np.ones(off.nnz), off.indices, off.indptr), shape=off.shape)
+        groups = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+        return ChoiceSystem(self.class_of, self.choices[keep], groups, off,
+                            self.positions[entries], self.known_states, self.leave[keep],
+                            self.leave_lower[keep], self.leave_upper[keep], pattern)
+
+    def best(self, row_values: FloatArray, objective: Objective) -> FloatArray:
+        """The maximum or minimum of *row_values* over each class's rows."""
+        reduce = np.maximum if objective == "max" else np.minimum
+        return np.asarray(reduce.reduceat(row_values, self.groups[:-1]), dtype=np.float64)
+
+    def best_rows(self, row_values: FloatArray, objective: Objective) -> IntArray:
+        """Per class, the first row attaining :meth:`best`."""
+        best = self.best(row_values, objective)
+        hits = row_values == best[self.row_class]
+        rows = np.where(hits, np.arange(row_values.size), row_values.size)
+        return np.asarray(np.minimum.reduceat(rows, self.groups[:-1]), dtype=np.int64)
+
+
+def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
+              allowed: BoolArray | None = None) -> ChoiceSystem:
+    """The rows of the classes of *class_of* (states with -1 are known).
+
+    :param transitions: the MDP's choice matrix; *owner* the state of each choice.
+    :param allowed: the choices that may be used (None: all); choices that keep all
+        their mass in their class are dropped (they never change a value).
+    :raises ValueError: when a class is left without any row.
+    """
+    size = int(class_of.max(initial=-1)) + 1
+    candidate = class_of[owner] >= 0
+    if allowed is not None:
+        candidate &= allowed
+    rows = np.flatnonzero(candidate)
+    rows = rows[np.argsort(class_of[owner[rows]], kind="stable")]
+    leaving = _leaving_entries(transitions, owner, class_of, rows)[2]
+    rows = rows[leaving > 0]
+    positions, row_of, _ = _leaving_entries(transitions, owner, class_of, rows)
+    counts = np.bincount(class_of[owner[rows]], minlength=size)
+    if np.any(counts == 0):
+        raise ValueError(f"{int(np.sum(counts == 0))} classes have no choice leaving them")
+    columns, known_states = _local_columns(class_of, transitions.indices[positions], size)
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(row_of, minlength=rows.size))])
+    off = sp.csr_matrix((transitions.data[positions], columns, indptr),
+                        shape=(rows.size, size + known_states.size))
+    leave, leave_lower, leave_upper = enclose_product(off, np.ones(off.shape[1]))
+    groups = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    pattern = sp.csr_matrix((np.ones(off.nnz), off.indices, off.indptr), shape=off.shape)
+    return ChoiceSystem(class_of, rows, groups, off, positions, known_states, leave,
+                        np.maximum(leave_lower, 0.0), leave_upper, pattern)
+
+
+def _leaving_entries(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
+                     rows: IntArray) -> tuple[IntArray, IntArray, IntArray]:
+    """Positions of the positive entries of *rows* outside the row's class, the index
+    in *rows* of each, and how many each row has."""
+    starts = transitions.indptr[rows].astype(np.int64)
+    lengths = transitions.indptr[rows + 1].astype(np.int64) - starts
+    row_of = np.repeat(np.arange(rows.size, dtype=np.int64), lengths)
+    ends = np.cumsum(lengths)
+    positions = np.repeat(starts, lengths) + (np.arange(row_of.size) - np.repeat(ends - lengths,
+                                                                                 lengths))
+    column_class = class_of[transitions.indices[positions]]
+    keep = (transitions.data[positions] > 0) & (column_class != class_of[owner[rows]][row_of])
+    positions, row_of = positions[keep], row_of[keep]
+    return positions, row_of, np.bincount(row_of, minlength=rows.size)
+
+
+def _local_columns(class_of: IntArray, columns: IntArray, size: int) -> tuple[IntArray, IntArray]:
+    """Columns renumbered: a class keeps its index, a known state gets ``size + k``."""
+    column_class = class_of[columns]
+    known = column_class < 0
+    known_states, inverse = np.unique(columns[known], return_inverse=True)
+    local = column_class.copy()
+    local[known] = size + inverse
+    return local, known_states.astype(np.int64)
+
+
+def quotient_classes(unknown: BoolArray, component: IntArray | None = None) -> IntArray:
+    """Classes of the *unknown* states: one per end component in *component* (>= 0),
+    one per other unknown state; -1 for the states that are not unknown."""
+    class_of = np.full(unknown.size, -1, dtype=np.int64)
+    if component is None:
+        class_of[unknown] = np.arange(int(unknown.sum()))
+        return class_of
+    grouped = unknown & (component >= 0)
+    _, dense = np.unique(component[grouped], return_inverse=True)
+    class_of[grouped] = dense
+    count = int(dense.max(initial=-1)) + 1
+    single = unknown & ~grouped
+    class_of[single] = count + np.arange(int(single.sum()))
+    return class_of
