@@ -3,7 +3,7 @@
 scipy's CSR/CSC constructors copy ``indices`` even when its dtype already fits. A
 structure-reusing sweep builds its matrices of each point from index arrays kept
 with a plan; sharing them saves the copy and lets the pattern memos, keyed by the
-arrays' identity (``linsolve.index_digest``), recognise the pattern without hashing
+arrays' identity (``linalg.index_digest``), recognise the pattern without hashing
 it again.
 """
 

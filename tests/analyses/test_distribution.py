@@ -20,7 +20,7 @@ from veribattery.analyses.distribution import (
     write_csv,
 )
 from veribattery.checker import Workspace
-from veribattery.checker.reward_bounded import integer_levels, reward_bounded_until_probs
+from veribattery.checker.kernels.reward_bounded import integer_levels, reward_bounded_until_probs
 from veribattery.cli import cli
 from veribattery.errors import CheckError, ConfigError
 from veribattery.explore.dtmc import DTMC

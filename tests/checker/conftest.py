@@ -6,7 +6,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from veribattery.checker import kernels, linsolve
+from veribattery.checker import linalg
+from veribattery.checker.kernels import systems
 
 #: Replaces ``owner.name`` by a spy; returns, per call, whether it answered (not None).
 SpyAnswers = Callable[[object, str], list[bool]]
@@ -17,8 +18,8 @@ def quick_systems(monkeypatch: pytest.MonkeyPatch) -> SpyAnswers:
     """The quick certificates on every system (small ones included), and kept systems
     used whatever the share of their states a query has (a cost rule); returns a
     function that spies on a kernel's answers."""
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
-    monkeypatch.setattr(kernels, "SUPERSET_SHARE", 0.0)
+    monkeypatch.setattr(systems, "QUICK_MIN_STATES", 1)
+    monkeypatch.setattr(systems, "SUPERSET_SHARE", 0.0)
 
     def spy_on(owner: object, name: str) -> list[bool]:
         answered: list[bool] = []
@@ -39,11 +40,11 @@ def quick_systems(monkeypatch: pytest.MonkeyPatch) -> SpyAnswers:
 def systems_built(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
     """How many restricted systems the kernels build (sizes, in order)."""
     built: list[int] = []
-    original = linsolve.restricted_parts
+    original = linalg.restricted_parts
 
     def counting(P, maybe, plans=None):  # type: ignore[no-untyped-def]
         built.append(int(maybe.sum()))
         return original(P, maybe, plans)
 
-    monkeypatch.setattr(linsolve, "restricted_parts", counting)
+    monkeypatch.setattr(linalg, "restricted_parts", counting)
     yield built

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
 from veribattery.checker import Workspace, kernels
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.result import CheckResult
 from veribattery.config.schema import parse_requirement
 from veribattery.lang.nodes import BoolLit, Property
@@ -219,13 +219,14 @@ def _chain_of_cycles(blocks: int, size: int, seed: int) -> sp.csr_matrix:
 
 
 def test_block_lu_matches_dense_solve_and_certifies() -> None:
-    from veribattery.checker import linsolve, scc
+    from veribattery.checker import linalg
+    from veribattery.checker.linalg import scc
 
     P = _chain_of_cycles(10, 4, seed=1)
     n = P.shape[0]
     maybe = np.ones(n, dtype=bool)
     maybe[-1] = False
-    A, _ = linsolve.restricted_matrix(P, maybe)
+    A, _ = linalg.restricted_matrix(P, maybe)
     A64 = sp.csr_matrix(A.astype(np.float64))
     found = scc.components(A64)
     assert found is not None and found.largest == 4  # 10 SCCs of 4 states

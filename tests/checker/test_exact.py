@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from veribattery.checker import exact_solve
 from veribattery.checker.exact import ExactCheckResult
+from veribattery.checker.exact import solve as exact_solve
 from veribattery.cli import cli
 from veribattery.errors import ModelError
 from veribattery.pipeline import check_prism_file

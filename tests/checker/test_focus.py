@@ -1,4 +1,4 @@
-"""Bounds certified at the initial states only (checker/focus.py).
+"""Bounds certified at the initial states only (checker/certify/focus.py).
 
 When only a property's answer is kept (``keep="answers"``: ``check``, ``prism``, a
 sweep point), the kernels certify the initial state's row of ``(I - B)^-1`` from both
@@ -30,9 +30,12 @@ from tests.checker.test_pinned_systems import (
     acyclic_rows,
     assert_rational_answers,
 )
-from veribattery.checker import certify, focus, kernels, linsolve
-from veribattery.checker.bounds import required_precision
-from veribattery.checker.certify import TERM_FLOOR, error_coefficient
+from veribattery.checker import certify, kernels
+from veribattery.checker.certify import focus
+from veribattery.checker.certify.bounds import required_precision
+from veribattery.checker.certify.rounding import TERM_FLOOR, error_coefficient
+from veribattery.checker.kernels import systems, until
+from veribattery.checker.linalg import triangular
 from veribattery.pipeline import check_prism_file
 
 PROPS = ('R{"r"}=? [ F "a" ];\nP=? [ F "t" ];\nP=? [ "c" U "t" ];\n'
@@ -119,13 +122,13 @@ def test_a_condition_is_computed_once(focused: list[bool],
     # P=? [ F "b" ] asked at the initial state alone, and the condition F "b" of the
     # conditional property needed in every state: one computation serves both.
     calls: list[int] = []
-    original = kernels._until_probs
+    original = until._until_probs
 
     def counting(*args):  # type: ignore[no-untyped-def]
         calls.append(1)
         return original(*args)
 
-    monkeypatch.setattr(kernels, "_until_probs", counting)
+    monkeypatch.setattr(until, "_until_probs", counting)
     chain = _forward_chain(4)
     props = 'P=? [ F "b" ];\nR{"r"}=? [ F "a" || F "b" ]'
     answers = check_prism_file(_text(*chain), props_source=props, keep="answers").results
@@ -145,7 +148,7 @@ def test_certified_row_bounds_the_exact_row(seed: int) -> None:
     named = dtmc.column("s")  # the chain's state of each DTMC state
     maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in named]),
                                    workspace=run.workspace)
-    system = kernels._system(P, maybe, workspace=run.workspace)
+    system = systems._system(P, maybe, workspace=run.workspace)
     zeros = np.zeros(P.shape[0])
     F = system.affine(zeros, zeros, np.zeros(int(maybe.sum())))
     states = [int(s) for s in F.states]
@@ -198,7 +201,7 @@ def _reward_map(seed: int, *, non_dyadic: bool) -> certify.AffineMap:
     maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in run.dtmc.column("s")]),
                                    workspace=run.workspace)
     zeros = np.zeros(P.shape[0])
-    return kernels._system(P, maybe, workspace=run.workspace).affine(zeros, zeros, None)
+    return systems._system(P, maybe, workspace=run.workspace).affine(zeros, zeros, None)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -214,7 +217,7 @@ def test_radius_covers_a_poor_approximation(seed: int) -> None:
     P, dtmc = run.dtmc.transitions, run.dtmc
     maybe = kernels.reach_unknowns(P, np.array([done[int(v)] for v in dtmc.column("s")]),
                                    workspace=run.workspace)
-    system = kernels._system(P, maybe, workspace=run.workspace)
+    system = systems._system(P, maybe, workspace=run.workspace)
     zeros = np.zeros(P.shape[0])
     F = system.affine(zeros, zeros, np.asarray(dtmc.rewards[0].total[maybe], dtype=float))
     k = int(np.searchsorted(F.states, dtmc.initial[0]))
@@ -268,8 +271,8 @@ def test_dual_solve_is_the_transposed_system() -> None:
     dense = acyclic_rows(rng, n)
     leave = rng.integers(4, 16, size=n) / 16  # the diagonal D (leaving probabilities)
     A = sp.csr_matrix(np.diag(leave) - dense)
-    inverse = linsolve._triangular_inverse(A)
-    assert isinstance(inverse, linsolve._Triangular)
+    inverse = triangular._triangular_inverse(A)
+    assert isinstance(inverse, triangular._Triangular)
     v = rng.random(n)
     B = dense / leave[:, None]
     expected = np.linalg.solve((np.eye(n) - B).T, v)  # w^T (I - B) = v^T

@@ -10,7 +10,7 @@ import pytest
 import scipy.sparse as sp
 
 from veribattery.checker import certify
-from veribattery.checker.certify import step_down, step_up
+from veribattery.checker.certify.rounding import step_down, step_up
 
 
 def _reference(F: certify.AffineMap, x: np.ndarray, *, up: bool) -> np.ndarray:

@@ -7,7 +7,8 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker.chains import gamblers_ruin, knuth_die, mask, matrix
-from veribattery.checker import Workspace, kernels, linsolve
+from veribattery.checker import Workspace, kernels, linalg
+from veribattery.checker.linalg import factorization, iterative, triangular
 from veribattery.errors import CheckError
 
 ALL13 = np.ones(13, dtype=bool)
@@ -199,20 +200,20 @@ def test_next_probs() -> None:
 
 def _ruin_system(n: int, p: float) -> tuple[sp.csr_matrix, np.ndarray]:
     chain = gamblers_ruin(n, p)
-    A, rows = linsolve.restricted_matrix(chain.transitions, ~chain.labels["end"])
+    A, rows = linalg.restricted_matrix(chain.transitions, ~chain.labels["end"])
     return A, rows.astype(np.longdouble) @ chain.labels["win"].astype(np.longdouble)
 
 
 def test_iterative_fallback_meets_residual_rule() -> None:
     A, b = _ruin_system(30, 0.45)
-    x = linsolve._solve_iterative(sp.csr_matrix(A.astype(float)), b.astype(float), None)
-    assert linsolve.backward_error(A, x, b) <= linsolve.RESIDUAL_TOL
+    x = iterative.solve_iterative(sp.csr_matrix(A.astype(float)), b.astype(float), None)
+    assert linalg.backward_error(A, x, b) <= iterative.RESIDUAL_TOL
     expected = [_ruin_win(i, 30, 0.45) for i in range(1, 30)]
     assert x.tolist() == pytest.approx(expected, rel=1e-8)
 
 
 def test_direct_limit_zero_uses_iterative(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(linsolve, "DIRECT_LIMIT", 0)
+    monkeypatch.setattr(factorization, "DIRECT_LIMIT", 0)
     die = knuth_die()
     probs = kernels.until_probs(die.transitions, ALL13, die.labels["face3"],
                                 workspace=Workspace()).value
@@ -220,18 +221,18 @@ def test_direct_limit_zero_uses_iterative(monkeypatch: pytest.MonkeyPatch) -> No
 
 
 def test_unsolvable_system_raises(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(linsolve, "DIRECT_LIMIT", 0)
-    monkeypatch.setattr(linsolve, "ITERATIVE_MAXITER", 1)
+    monkeypatch.setattr(factorization, "DIRECT_LIMIT", 0)
+    monkeypatch.setattr(iterative, "ITERATIVE_MAXITER", 1)
     A, b = _ruin_system(200, 0.5)
     with pytest.raises(CheckError, match="backward error"):
-        linsolve.solve(A, b)
+        linalg.solve(A, b)
 
 
 def test_refinement_recovers_accuracy_on_a_long_symmetric_walk() -> None:
     # cond ~ n^2 = 1e10: plain LU loses ~5 digits here; refined, it keeps ~15.
     n = 100_000
     A, b = _ruin_system(n, 0.5)
-    x = linsolve.solve(A, b)
+    x = linalg.solve(A, b)
     exact = np.arange(1, n) / n
     assert np.max(np.abs(x - exact) / exact) < 1e-12
 
@@ -244,24 +245,24 @@ def test_acyclic_system_is_solved_by_substitution() -> None:
     n = 50
     rng = np.random.default_rng(1)
     P = matrix({i: {i: 0.3, i + 1: 0.5, min(i + 2, n - 1): 0.2} for i in range(n - 1)}, n)
-    A, _rows = linsolve.restricted_matrix(P, mask(n, range(n - 1)))
+    A, _rows = linalg.restricted_matrix(P, mask(n, range(n - 1)))
     A64 = sp.csr_matrix(A.astype(np.float64))
-    inverse = linsolve._triangular_inverse(A64)
+    inverse = triangular._triangular_inverse(A64)
     assert inverse is not None
     b = rng.random(n - 1)
     assert np.allclose(A64 @ inverse(b), b, rtol=1e-13)
-    x = linsolve.solve(A, b.astype(np.longdouble))
+    x = linalg.solve(A, b.astype(np.longdouble))
     assert np.allclose(x, sp.linalg.spsolve(A64.tocsc(), b), rtol=1e-12)
 
 
 def test_cyclic_system_is_not_triangular() -> None:
     A, _b = _ruin_system(10, 0.5)
-    assert linsolve._triangular_inverse(sp.csr_matrix(A.astype(np.float64))) is None
+    assert triangular._triangular_inverse(sp.csr_matrix(A.astype(np.float64))) is None
 
 
 def test_superlu_triangular_entry_point_is_used() -> None:
     lower = sp.csc_matrix(np.array([[1.0, 0.0], [-0.5, 1.0]]))
-    substitute = linsolve._substitution(lower)
+    substitute = triangular._substitution(lower)
     assert substitute.__name__ == "private"  # scipy's private API still behaves
     assert substitute(np.array([1.0, 0.0])).tolist() == [1.0, 0.5]
 

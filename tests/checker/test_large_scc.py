@@ -1,4 +1,4 @@
-"""The large-component path of checker/scc.py: multigrid-preconditioned Krylov, certified.
+"""The large-component path of checker/linalg/scc.py: multigrid-preconditioned Krylov, certified.
 
 Module constants are lowered with monkeypatch so that models of a few thousand
 states (or a few dozen, where exact Fraction references are cheap) take the
@@ -17,8 +17,10 @@ import scipy.sparse.linalg  # noqa: F401 -- sp.linalg below
 
 from tests.checker import exact_reference as ref
 from tests.checker.test_scc_solve import _grid, ring_then_walk
-from veribattery.checker import Workspace, certify, kernels, linsolve, scc
-from veribattery.checker.bounds import Bounds
+from veribattery.checker import Workspace, certify, kernels, linalg
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import systems
+from veribattery.checker.linalg import scc
 
 GRID = """dtmc
 const int N = {n};
@@ -83,7 +85,7 @@ def _grid_system_on_krylov() -> tuple[sp.csr_matrix, scc.Segmented]:
     P = _grid(10)
     maybe = np.ones(P.shape[0], dtype=bool)
     maybe[-1] = False
-    A64, _, _ = linsolve.restricted_parts(P, maybe)
+    A64, _, _ = linalg.restricted_parts(P, maybe)
     found = scc.components(A64)
     assert found is not None
     inverse = scc.segmented_inverse(A64, found)
@@ -142,7 +144,7 @@ def test_restricted_parts_match_the_dense_reference() -> None:
         P = sp.random(n, n, density=0.3, random_state=rng, format="csr")
         P.data = rng.choice([0.1, 0.25, 1 / 3, 1e-12, 1 - 1e-12, 0.0], P.nnz)
         maybe = rng.random(n) < 0.7
-        A64, residue, rows = linsolve.restricted_parts(P, maybe)
+        A64, residue, rows = linalg.restricted_parts(P, maybe)
         idx = np.flatnonzero(maybe)
         dense = P.toarray()
         assert np.array_equal(rows.toarray(), dense[idx])
@@ -161,7 +163,7 @@ def test_restricted_parts_match_the_dense_reference() -> None:
 def quick_only(krylov_calls: list[int], monkeypatch: pytest.MonkeyPatch) -> list[str]:
     """The Krylov path with the quick certificate on every system; the long way fails
     the test. Returns which margin each certificate used ("solve" or "proportional")."""
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)
+    monkeypatch.setattr(systems, "QUICK_MIN_STATES", 1)
 
     def no_long_way(*args: object, **kwargs: object) -> None:
         raise AssertionError("the quick certificate should have been enough")
@@ -169,13 +171,13 @@ def quick_only(krylov_calls: list[int], monkeypatch: pytest.MonkeyPatch) -> list
     monkeypatch.setattr(certify, "certify_fixpoint", no_long_way)
     used: list[str] = []
     original_margin = scc.Segmented.margin
-    original_for = linsolve.Factorization.margins_for
+    original_for = linalg.Factorization.margins_for
 
     def margin(self: scc.Segmented, v: np.ndarray) -> np.ndarray:
         used.append("solve")
         return original_margin(self, v)
 
-    def margins_for(self: linsolve.Factorization, b: np.ndarray, x: np.ndarray
+    def margins_for(self: linalg.Factorization, b: np.ndarray, x: np.ndarray
                     ) -> list[Callable[[np.ndarray], np.ndarray | None]]:
         chosen = original_for(self, b, x)
         if chosen[0].__name__ == "proportional":
@@ -183,7 +185,7 @@ def quick_only(krylov_calls: list[int], monkeypatch: pytest.MonkeyPatch) -> list
         return chosen
 
     monkeypatch.setattr(scc.Segmented, "margin", margin)
-    monkeypatch.setattr(linsolve.Factorization, "margins_for", margins_for)
+    monkeypatch.setattr(linalg.Factorization, "margins_for", margins_for)
     return used
 
 

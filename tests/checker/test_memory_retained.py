@@ -15,7 +15,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace, kernels, linsolve
+from veribattery.checker import Workspace, kernels, linalg
+from veribattery.checker.kernels import systems
+from veribattery.checker.linalg import factorization
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.pipeline import check_prism_file
 
@@ -46,8 +48,8 @@ def _steps_exact(n: int) -> list[Fraction]:
 def test_released_matrix_comes_back_bit_for_bit(monkeypatch: pytest.MonkeyPatch) -> None:
     """A triangular system drops ``I - P_mm`` once the substitution is built, and makes
     the same matrix again when a refined solve asks for it."""
-    monkeypatch.setattr(linsolve, "RELEASE_MIN_STATES", 1)
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 1)  # certified without a refined solve
+    monkeypatch.setattr(factorization, "RELEASE_MIN_STATES", 1)
+    monkeypatch.setattr(systems, "QUICK_MIN_STATES", 1)  # certified without a refined solve
     P = _forward_chain(400)
     target = np.zeros(400, dtype=bool)
     target[-1] = True
@@ -56,7 +58,7 @@ def test_released_matrix_comes_back_bit_for_bit(monkeypatch: pytest.MonkeyPatch)
     system = next(iter(workspace.kernels.of(P).systems.values()))
     solver = system.factorization
     assert solver._a64 is None and solver._residue is None  # released
-    fresh, residue, _ = linsolve.unplanned_parts(P, system.unknowns)
+    fresh, residue, _ = linalg.unplanned_parts(P, system.unknowns)
     again = solver.A64  # made again on demand
     assert (again != fresh).nnz == 0 and np.array_equal(again.indices, fresh.indices)
     assert (solver.residue != residue).nnz == 0

@@ -7,7 +7,7 @@ import pytest
 
 from tests.checker.chains import dtmc, gamblers_ruin, knuth_die
 from veribattery.checker import CheckResult, check, state_set, values
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.certify.bounds import Bounds
 from veribattery.errors import CheckError, Span
 from veribattery.lang.nodes import (
     Binary,

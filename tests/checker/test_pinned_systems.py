@@ -1,8 +1,8 @@
 """An until whose target states lie inside a kept system is solved on it, those rows pinned.
 
 The mission's recharge-cap probability ``P=? [ F rc=RC_MAX ]`` has its target states
-inside ``R=? [ F "done" ]``'s system: ``kernels._pinned_until`` solves it there with
-the target (and other known) rows replaced by identity rows (``linsolve._Triangular.
+inside ``R=? [ F "done" ]``'s system: ``until._pinned_until`` solves it there with
+the target (and other known) rows replaced by identity rows (``triangular._Triangular.
 pinned``, ``certify.PinnedMap``) instead of building a second system. The oracle is
 independent of that construction: each value in ``fractions.Fraction`` by Gauss-Jordan
 elimination on its own unknown states (tests/checker/test_conditional_certified.py).
@@ -23,7 +23,10 @@ import scipy.sparse as sp
 
 from tests.checker.conftest import SpyAnswers
 from tests.checker.test_conditional_certified import Rows, _expected, _prism, _until
-from veribattery.checker import certify, kernels, linsolve
+from veribattery.checker import certify
+from veribattery.checker.certify import affine
+from veribattery.checker.kernels import until
+from veribattery.checker.linalg import triangular
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
 
@@ -86,7 +89,7 @@ def assert_rational_answers(results: Sequence[CheckResult],
 @pytest.fixture
 def quick_everywhere(quick_systems: SpyAnswers) -> list[bool]:
     """:func:`quick_systems`; per ``_pinned_until`` call, whether it answered."""
-    return quick_systems(kernels, "_pinned_until")
+    return quick_systems(until, "_pinned_until")
 
 
 @pytest.mark.parametrize("seed", range(12))
@@ -137,8 +140,8 @@ def test_pinned_substitution_solves_the_pinned_system() -> None:
     n = 40
     dense = acyclic_rows(rng, n)
     A = sp.csr_matrix(np.eye(n) - dense)
-    inverse = linsolve._triangular_inverse(A)
-    assert isinstance(inverse, linsolve._Triangular)
+    inverse = triangular._triangular_inverse(A)
+    assert isinstance(inverse, triangular._Triangular)
     pinned = rng.random(n) < 0.3
     b = rng.random(n)
     system = np.where(pinned[:, None], np.eye(n), np.eye(n) - dense)
@@ -185,7 +188,7 @@ def test_kept_constants_give_the_same_images(monkeypatch: pytest.MonkeyPatch) ->
     known = np.concatenate([np.zeros(n), [1.0, 0.0]])
     offset = rng.random(n)
     kept = certify.AffineMap.of(rows, states, known, known, offset)
-    monkeypatch.setattr(certify, "KEEP_CONSTANTS_BELOW", 0)
+    monkeypatch.setattr(affine, "KEEP_CONSTANTS_BELOW", 0)
     derived = certify.AffineMap.of(rows, states, known, known, offset)
     assert kept.constants is not None and derived.constants is None
     x = rng.random(n)

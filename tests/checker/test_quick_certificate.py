@@ -1,6 +1,6 @@
-"""The one-substitution certification path (certify.quick_certificate, kernels._quick).
+"""The one-substitution certification path (certify.quick_certificate, until._quick).
 
-The quick path only runs on systems of at least ``kernels.QUICK_MIN_STATES``
+The quick path only runs on systems of at least ``systems.QUICK_MIN_STATES``
 unknowns; these tests lower that threshold to 0 so that small chains, whose exact
 answers are computed independently in Fractions (tests/checker/exact_reference.py),
 go through it. Every interval must contain the exact value, whichever path certified it.
@@ -21,7 +21,8 @@ from hypothesis import strategies as st
 from tests.checker import exact_reference as ref
 from tests.checker.chains import draw_stochastic, matrix
 from veribattery.checker import Workspace, certify, kernels
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import systems
 from veribattery.pipeline import check_prism_file
 
 DATA = Path(__file__).resolve().parent.parent / "data"
@@ -35,7 +36,7 @@ def contains(found: Bounds, exact: list[Fraction]) -> bool:
 @pytest.fixture
 def quick_everywhere(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[bool]]:
     """Every system tries the quick path; yields a log of its outcomes (True: certified)."""
-    monkeypatch.setattr(kernels, "QUICK_MIN_STATES", 0)
+    monkeypatch.setattr(systems, "QUICK_MIN_STATES", 0)
     outcomes: list[bool] = []
     original = certify.quick_certificate
 
@@ -136,7 +137,7 @@ def test_properties_on_one_state_set_share_the_row_data() -> None:
     target = np.zeros(n, dtype=bool)
     target[n - 1] = True
     maybe = ~target
-    system = kernels._system(P, maybe, workspace=Workspace())
+    system = systems._system(P, maybe, workspace=Workspace())
     zeros = np.zeros(n)
     first = system.affine(zeros, zeros, np.ones(n - 1))
     second = system.affine(zeros, zeros, np.arange(n - 1, dtype=np.float64))

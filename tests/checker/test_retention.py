@@ -15,7 +15,9 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker.chains import dtmc, mask, matrix
-from veribattery.checker import Workspace, check, kernels, linsolve
+from veribattery.checker import Workspace, check, kernels, linalg
+from veribattery.checker.kernels import prepass
+from veribattery.checker.linalg import triangular
 from veribattery.lang import parse_property
 from veribattery.pipeline import check_prism_file
 
@@ -71,14 +73,14 @@ def test_the_old_system_is_freed_before_the_next_is_built(
 ) -> None:
     P = matrix({0: {1: 0.5, 2: 0.5}, 1: {0: 0.5, 3: 0.5}, 2: {1: 0.5, 4: 0.5}}, 5)
     alive: list[int] = []
-    restrict = linsolve.restricted_parts
+    restrict = linalg.restricted_parts
     workspace = Workspace()
 
-    def spy(P: sp.csr_matrix, maybe: np.ndarray, plans: linsolve.SolverPlans) -> object:
+    def spy(P: sp.csr_matrix, maybe: np.ndarray, plans: linalg.SolverPlans) -> object:
         alive.append(len(workspace.kernels.of(P).systems))
         return restrict(P, maybe, plans)
 
-    monkeypatch.setattr(linsolve, "restricted_parts", spy)
+    monkeypatch.setattr(linalg, "restricted_parts", spy)
     everywhere = np.ones(5, dtype=bool)
     first = kernels.until_probs(P, everywhere, mask(5, [3]), workspace=workspace)
     second = kernels.until_probs(P, ~mask(5, [2]), mask(5, [3]),
@@ -93,12 +95,12 @@ def test_the_old_system_is_freed_before_the_next_is_built(
 
 def test_triangular_plans_are_kept_only_for_patterns_seen_again() -> None:
     A = sp.csr_matrix(np.array([[1.0, 0.0, 0.0], [-0.5, 1.0, 0.0], [0.0, -0.25, 1.0]]))
-    plans = linsolve.SolverPlans()
-    first = linsolve._triangular_inverse(A, plans)
+    plans = linalg.SolverPlans()
+    first = triangular._triangular_inverse(A, plans)
     assert first is not None and not plans.triangular and len(plans.triangular_seen) == 1
     B = A.copy()
     B.data = B.data * 0.5  # same pattern, other values
-    second = linsolve._triangular_inverse(B, plans)
+    second = triangular._triangular_inverse(B, plans)
     assert second is not None and len(plans.triangular) == 1 and not plans.triangular_seen
     b = np.array([1.0, 2.0, 3.0])
     assert np.allclose(first(b), np.linalg.solve(A.toarray(), b), rtol=1e-15)
@@ -128,7 +130,7 @@ def test_backward_reach_matches_a_plain_search(seed: int) -> None:
         P.data[rng.random(P.nnz) < 0.3] = 0.0
     through, seeds = rng.random(n) < 0.7, rng.random(n) < 0.15
     before = P.copy()
-    found = kernels._backward_reach(P, through, seeds, Workspace())
+    found = prepass._backward_reach(P, through, seeds, Workspace())
     assert np.array_equal(found, _reach_reference(before, through, seeds))
     # the search must leave P as it was, stored zeros included
     assert np.array_equal(P.indptr, before.indptr) and np.array_equal(P.indices, before.indices)

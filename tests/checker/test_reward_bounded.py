@@ -13,7 +13,7 @@ import pytest
 from tests.checker.chains import dtmc, mask
 from tests.checker.test_conditional import CHAIN, REPO, SMALL_MISSION
 from veribattery.checker import Workspace, check
-from veribattery.checker.reward_bounded import reward_bounded_until_probs
+from veribattery.checker.kernels.reward_bounded import reward_bounded_until_probs
 from veribattery.errors import CheckError
 from veribattery.lang import parse_model, parse_properties, parse_property
 from veribattery.pipeline import check_model, check_prism_file

@@ -1,6 +1,6 @@
-"""Certified ``F{"r"}<=T``: the forward-error radius (checker/reward_radius.py) against exact
-rationals, the escalation to per-level certification when the radius is too wide, a stiff
-closure, exact zeros, and the least-reward search against a brute-force one."""
+"""Certified ``F{"r"}<=T``: the forward-error radius (checker/kernels/reward_radius.py)
+against exact rationals, the escalation to per-level certification when the radius is too
+wide, a stiff closure, exact zeros, and the least-reward search against a brute-force one."""
 
 from __future__ import annotations
 
@@ -13,9 +13,10 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
-from veribattery.checker import Workspace, kernels, reward_radius
-from veribattery.checker.bounds import Bounds
-from veribattery.checker.reward_bounded import _levels, reward_bounded_until_bounds
+from veribattery.checker import Workspace, kernels
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels import reward_radius
+from veribattery.checker.kernels.reward_bounded import _levels, reward_bounded_until_bounds
 
 Rows = dict[int, dict[int, float]]
 

@@ -10,7 +10,7 @@ import pytest
 import scipy.sparse as sp
 
 from veribattery.checker import certify
-from veribattery.checker.certify import TERM_FLOOR, enclose_product, error_coefficient
+from veribattery.checker.certify.rounding import TERM_FLOOR, enclose_product, error_coefficient
 
 
 def _rows(seed: int) -> tuple[sp.csr_matrix, np.ndarray]:

@@ -1,4 +1,4 @@
-"""SCC-wise solving for any component size (checker/scc.py), certified.
+"""SCC-wise solving for any component size (checker/linalg/scc.py), certified.
 
 The size thresholds are lowered with monkeypatch so that small models (whose
 exact answers are computed independently in Fraction arithmetic) take the
@@ -16,8 +16,9 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from tests.checker.chains import matrix
-from veribattery.checker import Workspace, kernels, linsolve, scc
-from veribattery.checker.bounds import Bounds
+from veribattery.checker import Workspace, kernels, linalg
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.linalg import scc
 
 
 def contains(found: Bounds, exact: list[Fraction]) -> bool:
@@ -63,7 +64,7 @@ def test_segments_isolate_large_components(small_limits: None) -> None:
     P = ring_then_walk(10, 20, seed=0)
     maybe = np.ones(P.shape[0], dtype=bool)
     maybe[-1] = False
-    A64, _, _ = linsolve.restricted_parts(P, maybe)
+    A64, _, _ = linalg.restricted_parts(P, maybe)
     found = scc.components(A64)
     assert found is not None
     assert found.largest == 20
@@ -141,11 +142,11 @@ def test_factorization_keeps_float64_and_residue() -> None:
     """The extended diagonal survives in the residue: a self-loop of 1 - 1e-17 is
     1 in float64, yet the stored system is the exact one."""
     P = matrix({0: {0: 1 - 2.0**-60, 1: 2.0**-60}}, 2)
-    A64, residue, _ = linsolve.restricted_parts(P, np.array([True, False]))
+    A64, residue, _ = linalg.restricted_parts(P, np.array([True, False]))
     assert A64.dtype == np.float64 and residue.dtype == np.longdouble
     # 1 - P_00 is read as the leaving probability 2^-60: exact in float64 already.
     assert A64[0, 0] == 2.0**-60 and residue.nnz == 0
-    system = linsolve.Factorization(A64, residue)
+    system = linalg.Factorization(A64, residue)
     x = system.solve(np.array([2.0**-60], dtype=np.longdouble))
     assert x[0] == 1.0
 

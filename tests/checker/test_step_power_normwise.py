@@ -16,7 +16,8 @@ import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
 from veribattery.checker import kernels
-from veribattery.checker.bounds import Bounds, required_precision
+from veribattery.checker.certify.bounds import Bounds, required_precision
+from veribattery.checker.kernels import steps
 
 
 def _random_chain(seed: int, n: int = 12) -> tuple[sp.csr_matrix, np.ndarray]:
@@ -44,14 +45,14 @@ def _contains(found: Bounds, exact: list[Fraction]) -> bool:
 def paths(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[str]]:
     """Which radius each step-bounded iteration used."""
     taken: list[str] = []
-    normwise = kernels._step_power_normwise
+    normwise = steps._step_power_normwise
 
     def spy(*args: object) -> Bounds | None:
         found = normwise(*args)  # type: ignore[arg-type]
         taken.append("componentwise" if found is None else "normwise")
         return found
 
-    monkeypatch.setattr(kernels, "_step_power_normwise", spy)
+    monkeypatch.setattr(steps, "_step_power_normwise", spy)
     yield taken
 
 

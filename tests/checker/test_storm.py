@@ -17,7 +17,7 @@ import pytest
 import scipy.sparse as sp
 
 from veribattery.checker import values
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.certify.bounds import Bounds
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.nodes import (
     Binary,

@@ -1,4 +1,4 @@
-"""Index work kept by sparsity pattern (linsolve.SolverPlans: _RestrictionPlan, _TriangularPlan).
+"""Index work kept by sparsity pattern (linalg.SolverPlans: _RestrictionPlan, _TriangularPlan).
 
 A matrix with the pattern of an earlier one (other probabilities, same transitions)
 must get exactly -- bit for bit -- what a fresh computation gives, and the solutions
@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from veribattery.checker import Workspace, kernels, linsolve
+from veribattery.checker import Workspace, kernels, linalg
+from veribattery.checker.linalg import restriction, triangular
 
 
 def _random_chain(rng: np.random.Generator, n: int, acyclic: bool) -> sp.csr_matrix:
@@ -38,10 +39,10 @@ def test_restriction_plan_equals_a_fresh_computation(seed: int) -> None:
     n = int(rng.integers(2, 40))
     P = _random_chain(rng, n, acyclic=bool(seed % 2))
     maybe = rng.random(n) < 0.7
-    plans = linsolve.SolverPlans()
+    plans = linalg.SolverPlans()
     for matrix in (P, _reweighted(P, rng), _reweighted(P, rng)):
-        planned = linsolve.restricted_parts(matrix, maybe, plans)
-        fresh = linsolve._restricted_parts(matrix, maybe)
+        planned = linalg.restricted_parts(matrix, maybe, plans)
+        fresh = restriction._restricted_parts(matrix, maybe)
         assert all(_same(a, b) for a, b in zip(planned, fresh, strict=True))
     # One pattern: remembered at the first matrix, planned at the second, re-used after.
     assert len(plans.restrictions) == 1
@@ -71,8 +72,8 @@ def test_triangular_plan_solves_reweighted_matrices(seed: int) -> None:
                                          workspace=workspace)
         if not maybe.any():
             continue
-        A64, _, rows = linsolve.restricted_parts(matrix, maybe, workspace.solvers)
-        inverse = linsolve._triangular_inverse(A64, workspace.solvers)
+        A64, _, rows = linalg.restricted_parts(matrix, maybe, workspace.solvers)
+        inverse = triangular._triangular_inverse(A64, workspace.solvers)
         assert inverse is not None
         b = np.asarray(rows @ target.astype(np.float64))
         exact = np.linalg.solve(A64.toarray(), b)
@@ -82,13 +83,13 @@ def test_triangular_plan_solves_reweighted_matrices(seed: int) -> None:
 def test_index_digest_is_memoised_by_identity_and_follows_content() -> None:
     rng = np.random.default_rng(7)
     P = _random_chain(rng, 12, acyclic=False)
-    plans = linsolve.SolverPlans()
-    first = linsolve.index_digest(P.indptr, P.indices, plans)
-    assert linsolve.index_digest(P.indptr, P.indices, plans) == first
+    plans = linalg.SolverPlans()
+    first = linalg.index_digest(P.indptr, P.indices, plans)
+    assert linalg.index_digest(P.indptr, P.indices, plans) == first
     assert len(plans.digests) == 1
     # Equal arrays that are other objects: the same digest, computed again.
-    assert linsolve.index_digest(P.indptr.copy(), P.indices.copy(), plans) == first
-    assert linsolve.index_digest(P.indptr.copy(), P.indices.copy()) == first  # nothing kept
+    assert linalg.index_digest(P.indptr.copy(), P.indices.copy(), plans) == first
+    assert linalg.index_digest(P.indptr.copy(), P.indices.copy()) == first  # nothing kept
     other = P.indices.copy()
     other[0] = (other[0] + 1) % P.shape[1]
-    assert linsolve.index_digest(P.indptr, other, plans) != first
+    assert linalg.index_digest(P.indptr, other, plans) != first

@@ -1,6 +1,6 @@
-"""SCC-by-SCC solving in topological order (checker/topological.py), certified.
+"""SCC-by-SCC solving in topological order (checker/linalg/topological.py), certified.
 
-The solver only proposes values; the existing certificate (certify.py) bounds them.
+The solver only proposes values; the existing certificate (checker/certify/) bounds them.
 Each test asserts which method solved which states, the values against an
 independent answer (a closed form, or Gauss-Jordan over Fractions in
 tests/checker/exact_reference.py) and that the certified bounds contain it.
@@ -15,7 +15,8 @@ import pytest
 import scipy.sparse as sp
 
 from tests.checker import exact_reference as ref
-from veribattery.checker import certify, linsolve, topological
+from veribattery.checker import certify, linalg
+from veribattery.checker.linalg import topological
 from veribattery.errors import CheckError
 
 GOAL_Q, GOAL_R, LOOP = 0.5, 0.25, 0.125  # next, goal, self-loop; the rest to a sink
@@ -54,7 +55,7 @@ def certified(P: sp.csr_matrix, unknown: np.ndarray, goal: int,
 
 def system(P: sp.csr_matrix, unknown: np.ndarray) -> sp.csr_matrix:
     """``I - P_mm`` as the checker builds it (leaving probabilities on the diagonal)."""
-    A64, _, _ = linsolve.restricted_parts(P, unknown)
+    A64, _, _ = linalg.restricted_parts(P, unknown)
     return A64
 
 

@@ -283,7 +283,7 @@ def test_risky_probability_takes_the_expansion_way(monkeypatch: pytest.MonkeyPat
 
 def test_reused_matrix_shares_the_base_index_arrays() -> None:
     # The checker's pattern memos then know the pattern by the arrays' identity
-    # (linsolve.index_digest); the matrix stays the fresh build's, entry for entry.
+    # (linalg.index_digest); the matrix stays the fresh build's, entry for entry.
     base, structure = build_reusable(flat(GAMBLER, p=0.3))
     model = flat(GAMBLER, p=0.6)
     got = reevaluate(base, structure, model)

@@ -5,7 +5,7 @@ them: constant evaluation (:mod:`veribattery.lang.evaluate`), constant folding
 (:func:`veribattery.lang.expressions.close`), the builder's numpy kernels
 (:func:`veribattery.explore.compile.expr.compile_expr`, row by row and tabulated), exact
 rationals (:func:`veribattery.explore.exact.rational.evaluate_rational`) and the checker's
-intervals (:mod:`veribattery.checker.intervals`). Random expressions over ints,
+intervals (:mod:`veribattery.checker.formula.intervals`). Random expressions over ints,
 doubles and bools are evaluated by each and compared with a reference written
 here (a plain recursive walk over the table), state by state; then each case the
 issue lists is checked against the value PRISM gives, written out by hand.
@@ -25,8 +25,8 @@ from gmpy2 import mpq
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from veribattery.checker import intervals
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.formula import intervals
 from veribattery.errors import CheckError, ModelError, VeribatteryError
 from veribattery.explore.compile.expr import CompileCache, compile_expr
 from veribattery.explore.exact.rational import evaluate_rational

@@ -4,7 +4,7 @@
 curve. :func:`reward_distribution` computes, for any DTMC with integer rewards,
 the probability of first reaching *success* (and, separately, *failure*) with a
 total reward of exactly each value, by one forward pass over reward levels
-(:func:`veribattery.checker.reward_bounded.absorption_by_level`): exact up to
+(:func:`veribattery.checker.kernels.reward_bounded.absorption_by_level`): exact up to
 floating-point rounding, not sampled. The pass stops once the CDF of the time to
 success has reached *coverage* of ``P(F success)`` (and likewise for failure) and
 every requested horizon has been passed; what is cut off is reported as
@@ -27,8 +27,9 @@ import numpy as np
 
 from veribattery._files import staged
 from veribattery._types import FloatArray
-from veribattery.checker import Workspace, kernels, reward_bounded
-from veribattery.checker.conditional import conditional_reach_rewards
+from veribattery.checker import Workspace, kernels
+from veribattery.checker.kernels import reward_bounded
+from veribattery.checker.kernels.conditional import conditional_reach_rewards
 from veribattery.errors import CheckError, ConfigError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.analyses.paths import ProbablePath, most_probable_paths
-from veribattery.checker import Workspace, linsolve
+from veribattery.checker import Workspace, linalg
 from veribattery.checker.kernels import prob0
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC
@@ -112,11 +112,11 @@ def target_inflow(dtmc: DTMC, target: BoolArray) -> Inflow:
     empty = np.zeros(0, dtype=np.int64)
     if not maybe[start]:
         return Inflow(1.0 if target[start] else 0.0, empty, np.zeros(0), np.zeros(0))
-    A, rows = linsolve.restricted_matrix(P, maybe)
+    A, rows = linalg.restricted_matrix(P, maybe)
     idx = np.flatnonzero(maybe)
     rhs = np.zeros(idx.size, dtype=np.longdouble)
     rhs[np.searchsorted(idx, start)] = 1
-    visits = linsolve.Factorization(sp.csr_matrix(A.T)).solve(rhs)
+    visits = linalg.Factorization(sp.csr_matrix(A.T)).solve(rhs)
     into = np.asarray(rows[:, np.flatnonzero(target)].sum(axis=1)).ravel()
     entering = into > 0
     visits_in = np.maximum(visits[entering], 0.0)

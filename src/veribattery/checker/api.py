@@ -5,7 +5,8 @@ from __future__ import annotations
 import time
 
 from veribattery._types import BoolArray
-from veribattery.checker import pctl
+from veribattery.checker.formula import pctl
+from veribattery.checker.formula.leaves import Result
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
 from veribattery.explore.dtmc import DTMC
@@ -40,9 +41,10 @@ def check(dtmc: DTMC, prop: Property | Expr, *, states: bool = True,
     return result if states else result.without_states()
 
 
-def values(dtmc: DTMC, formula: Expr, *, workspace: Workspace | None = None) -> pctl.Result:
+def values(dtmc: DTMC, formula: Expr, *, workspace: Workspace | None = None) -> Result:
     """Per-state value of *formula*: certified numbers for ``P=?``/``R=?``/``S=?``
-    and expressions over them, booleans otherwise (:func:`pctl.values`).
+    and expressions over them, booleans otherwise
+    (:func:`~veribattery.checker.formula.pctl.values`).
 
     :param workspace: as for :func:`check`.
     """
@@ -51,7 +53,7 @@ def values(dtmc: DTMC, formula: Expr, *, workspace: Workspace | None = None) -> 
 
 def state_set(dtmc: DTMC, expr: Expr, *, workspace: Workspace | None = None) -> BoolArray:
     """The states that satisfy the state formula *expr*, as a boolean mask
-    (:func:`pctl.state_set`).
+    (:func:`~veribattery.checker.formula.pctl.state_set`).
 
     :param workspace: as for :func:`check`.
     """

@@ -9,8 +9,8 @@ import numpy as np
 
 from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
-from veribattery.checker.filters import FilterOutcome
+from veribattery.checker.certify.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
+from veribattery.checker.formula.filters import FilterOutcome
 from veribattery.errors import CheckError
 from veribattery.lang.nodes import Property
 

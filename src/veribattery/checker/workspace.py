@@ -13,7 +13,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from veribattery.checker import certify, conditional, kernels, linsolve, pctl, steady
+from veribattery.checker import certify, kernels, linalg
+from veribattery.checker.formula import share
+from veribattery.checker.kernels import conditional, steady
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr
 
@@ -37,8 +39,8 @@ class Workspace:
         #: Per transition matrix: the 0/1 pre-pass (shared by matrices of one pattern),
         #: linear systems with their solvers, results (:class:`kernels.KernelMemos`).
         self.kernels = kernels.KernelMemos()
-        #: Restriction and substitution plans by pattern (:class:`linsolve.SolverPlans`).
-        self.solvers = linsolve.SolverPlans()
+        #: Restriction and substitution plans by pattern (:class:`linalg.SolverPlans`).
+        self.solvers = linalg.SolverPlans()
         #: The index work of the certificates' maps (:class:`certify.RowPlans`).
         self.row_plans = certify.RowPlans()
         #: ``P(F b)`` of the last conditions (:class:`conditional.Conditions`).
@@ -55,9 +57,10 @@ class Workspace:
     def prepare(self, dtmc: DTMC, formulas: Sequence[Expr]) -> None:
         """Choose the linear systems the unbounded queries among *formulas* will share on
         *dtmc*, and build them now, so that the order the formulas are then checked in
-        with this workspace does not matter (:func:`pctl.share_systems`).
+        with this workspace does not matter
+        (:func:`~veribattery.checker.formula.share.share_systems`).
 
         :param dtmc: the chain the formulas will be checked on.
         :param formulas: property formulas (constants substituted, labels inlined).
         """
-        pctl.share_systems(dtmc, self, formulas)
+        share.share_systems(dtmc, self, formulas)

@@ -151,7 +151,7 @@ def format_value(value: object) -> str:
 def exact_text(result: object) -> str | None:
     """An ``--exact`` result's value as ``p/q`` (``Infinity`` if infinite); None otherwise.
 
-    Duck-typed on :class:`~veribattery.checker.exact.ExactCheckResult`, so that
+    Duck-typed on :class:`~veribattery.checker.exact.pctl.ExactCheckResult`, so that
     the CLI does not import the exact checker (and python-flint) unless asked to.
     """
     if getattr(result, "exact_values", None) is None:

@@ -20,7 +20,7 @@ numbers and are ints iff all are. See docs/expressions.md for the table as prose
 
 Pure Python: the numpy, rational and interval domains live in
 :mod:`veribattery.explore.compile.arrays`, :mod:`veribattery.explore.exact.rational_ops` and
-:mod:`veribattery.checker.intervals`.
+:mod:`veribattery.checker.formula.intervals`.
 """
 
 from __future__ import annotations

@@ -46,7 +46,7 @@ def check_model_exact(
     internal: Sequence[Property] = (),
 ) -> ModelCheckRun:
     """:func:`~veribattery.pipeline.check_model` in exact rational arithmetic: each result
-    is an :class:`~veribattery.checker.exact.ExactCheckResult`.
+    is an :class:`~veribattery.checker.exact.pctl.ExactCheckResult`.
 
     The model is explored with its guards decided exactly (its own exploration, never a
     re-used state space), and bounds such as ``P<=1/3`` are evaluated exactly from the

@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 
 from veribattery.checker import CheckResult
-from veribattery.checker.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION
+from veribattery.checker.certify.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION
 from veribattery.mission import MissionReport, RequirementOutcome, is_conditional
 from veribattery.report.data import Quantity, RequirementRow, Verdict
 

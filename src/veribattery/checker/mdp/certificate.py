@@ -27,8 +27,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray
-from veribattery.checker.bounds import Bounds
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
+from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.mdp.solve import Evaluation
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 

@@ -4,7 +4,7 @@ The qualitative pre-pass and the equations are those of the float engine (graph
 searches do not depend on the arithmetic); the transition probabilities and
 rewards are then read as rationals (:class:`gmpy2.mpq`). Policy iteration starts
 from the float engine's strategy, evaluates each strategy exactly (its induced
-system solved SCC by SCC by :mod:`~veribattery.checker.exact_solve`) and switches
+system solved SCC by SCC by :mod:`~veribattery.checker.exact.solve`) and switches
 every class whose best row is *strictly* better, compared exactly. It stops when
 no row is better: then ``B(x) = x`` holds exactly, and since the pre-pass left
 ``B`` with a single fixed point (``docs/mdp-numerics.md``), ``x`` is the optimal

@@ -18,7 +18,7 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.mdp.certificate import certified_values
 from veribattery.checker.mdp.components import EndComponents
 from veribattery.checker.mdp.graph import ChoiceGraph

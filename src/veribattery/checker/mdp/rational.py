@@ -3,7 +3,7 @@
 Shared by the exact engine (:mod:`~veribattery.checker.mdp.exact`) and by the
 float engine's last resort for small systems whose certificate stays too wide
 (:mod:`~veribattery.checker.mdp.optimum`). A strategy's induced system is
-solved SCC by SCC in rationals (:mod:`~veribattery.checker.exact_solve`);
+solved SCC by SCC in rationals (:mod:`~veribattery.checker.exact.solve`);
 every comparison is exact, so the loop ends exactly when ``B(x) = x``.
 """
 
@@ -15,8 +15,8 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import IntArray
-from veribattery.checker.exact_solve import ExactSystem
-from veribattery.checker.exact_solve import solve as solve_linear
+from veribattery.checker.exact.solve import ExactSystem
+from veribattery.checker.exact.solve import solve as solve_linear
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 

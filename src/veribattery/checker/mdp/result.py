@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from veribattery._types import FloatArray
-from veribattery.checker.bounds import Bounds
+from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.mdp.strategy import StepStrategy, Strategy
 
 __all__ = ["MdpResult"]

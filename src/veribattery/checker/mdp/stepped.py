@@ -20,7 +20,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker.bounds import Bounds, round_down, round_up
 from veribattery.checker.certify import (
     TERM_FLOOR,
     enclose_product,
@@ -29,6 +28,7 @@ from veribattery.checker.certify import (
     step_up,
     step_up_in_place,
 )
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult

@@ -206,7 +206,7 @@ def _share_indices(P: Any, base: Any) -> None:
     """Give *P* the index arrays of *base* when they are equal (as they are when the
     structure is re-used): the checker's memos by sparsity pattern then
     recognise the pattern by the arrays' identity instead of hashing them at every
-    point (:func:`veribattery.checker.linsolve.index_digest`). Neither is modified
+    point (:func:`veribattery.checker.linalg.restriction.index_digest`). Neither is modified
     in place afterwards."""
     if (P.shape == base.shape and np.array_equal(P.indptr, base.indptr)
             and np.array_equal(P.indices, base.indices)):

@@ -17,7 +17,8 @@ quantities of the original chain (``docs/numerics.md``, "Conditional results"):
 the two conditional mission defaults solve it once), and the reward numerator
 solves on the same states as ``R=? [ F a ]`` (sharing its factorisation) — one
 extra solve of size *n*, not a product chain of size 2n. Objectives with step
-or reward bounds still use the product chain (:func:`conditioned_chain`), whose
+or reward bounds still use the product chain
+(:func:`~veribattery.checker.kernels.conditioned.conditioned_chain`), whose
 results are reported with their range only (not certified).
 
 States from which *b* is unreachable have no conditioned chain; their value is NaN.
@@ -33,133 +34,26 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
-import scipy.sparse as sp
-from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, kernels, linsolve
-from veribattery.checker.bounds import Bounds
+from veribattery.checker import certify, linalg
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels.conditioned import conditioned_chain
+from veribattery.checker.kernels.prepass import prob0
+from veribattery.checker.kernels.steps import absorption, next_probs
+from veribattery.checker.kernels.systems import shared_system
+from veribattery.checker.kernels.until import focus_rows, quick_bounds, reach_rewards, until_probs
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
 if TYPE_CHECKING:
+    from veribattery.checker.kernels.conditioned import ConditionedChain
     from veribattery.checker.workspace import Workspace
 
 
 class ConditionUnreachable(UndefinedResult):
     """The condition of a conditional property has probability 0 from the initial state."""
-
-
-@record
-class ConditionedChain:
-    """The conditioned DTMC of a model given ``F b``, and where each state starts in it.
-
-    :param dtmc: the product chain (copy 0 then copy 1), with the original variables,
-        labels and reward structures carried over to each copy.
-    :param start: for each original state, its index in *dtmc*, or -1 where
-        ``P(F b) = 0``.
-    :param origin: for each product state, the original state it copies.
-    :param condition: ``P(F b)`` in each original state.
-    """
-
-    dtmc: DTMC
-    start: IntArray
-    origin: IntArray
-    condition: FloatArray
-
-    def lift(self, values: FloatArray) -> FloatArray:
-        """Values over the product chain → values of the original states (NaN: undefined)."""
-        result = np.full(self.start.size, np.nan)
-        defined = self.start >= 0
-        result[defined] = values[self.start[defined]]
-        return result
-
-
-def conditioned_chain(dtmc: DTMC, condition: BoolArray, *, workspace: Workspace
-                      ) -> ConditionedChain:
-    """The chain of *dtmc* conditioned on eventually reaching *condition*.
-
-    :param dtmc: the model.
-    :param condition: the states *b* of the condition ``F b``.
-    :param workspace: where the checker's memos are kept.
-    """
-    P = dtmc.transitions
-    n = dtmc.num_states
-    x = kernels.until_probs(P, np.ones(n, dtype=bool), condition, workspace=workspace).value
-    before = (x > 0) & ~condition
-    after = _reachable_from(P, condition)
-    origin = np.concatenate([np.flatnonzero(before), np.flatnonzero(after)])
-    index0 = _index_map(before)
-    index1 = _index_map(after)
-    matrix = sp.vstack([_conditioned_rows(P, before, condition, x, index0, index1, origin.size),
-                        _shifted_rows(P, after, index1, int(before.sum()), origin.size)])
-    start = np.full(n, -1, dtype=np.int64)
-    start[before] = index0[before]
-    start[condition] = index1[condition] + int(before.sum())
-    product = _carry_over(dtmc, sp.csr_matrix(matrix), origin, start)
-    return ConditionedChain(product, start, origin, x)
-
-
-def _reachable_from(P: CsrMatrix, seeds: BoolArray) -> BoolArray:
-    """States reachable from *seeds* (the seeds included): one search in C."""
-    n = P.shape[0]
-    seed_idx = np.flatnonzero(seeds)
-    rows = np.repeat(np.arange(n), np.diff(P.indptr))
-    keep = P.data > 0
-    src = np.concatenate([rows[keep], np.full(seed_idx.size, n)])
-    dst = np.concatenate([P.indices[keep], seed_idx])
-    graph = sp.csr_matrix((np.ones(src.size), (src, dst)), shape=(n + 1, n + 1))
-    order = csgraph.breadth_first_order(graph, n, directed=True, return_predecessors=False)
-    reached = np.zeros(n + 1, dtype=bool)
-    reached[order] = True
-    return reached[:n]
-
-
-def _index_map(mask: BoolArray) -> IntArray:
-    """Position of each masked state among the masked ones; -1 elsewhere."""
-    index = np.full(mask.size, -1, dtype=np.int64)
-    index[mask] = np.arange(int(mask.sum()))
-    return index
-
-
-def _conditioned_rows(P: CsrMatrix, before: BoolArray, condition: BoolArray, x: FloatArray,
-                      index0: IntArray, index1: IntArray, size: int) -> sp.csr_matrix:
-    """Copy 0: ``P(s,t) x(t) / x(s)``, into copy 1 where *t* meets the condition."""
-    rows = sp.coo_matrix(P[before])
-    keep = x[rows.col] > 0
-    r, c = rows.row[keep], rows.col[keep]
-    weights = rows.data[keep] * x[c]
-    columns = np.where(condition[c], index1[c] + int(before.sum()), index0[c])
-    # Normalise each row to sum 1 exactly (x solves the system only to rounding).
-    sums = np.bincount(r, weights=weights, minlength=int(before.sum()))
-    matrix = sp.csr_matrix((weights / sums[r], (r, columns)),
-                           shape=(int(before.sum()), size))
-    matrix.sum_duplicates()
-    return matrix
-
-
-def _shifted_rows(P: CsrMatrix, after: BoolArray, index1: IntArray, offset: int,
-                  size: int) -> sp.csr_matrix:
-    """Copy 1: the original rows of the states reachable from the condition."""
-    rows = sp.coo_matrix(P[after])
-    columns = index1[rows.col] + offset
-    return sp.csr_matrix((rows.data, (rows.row, columns)), shape=(int(after.sum()), size))
-
-
-def _carry_over(dtmc: DTMC, matrix: CsrMatrix, origin: IntArray, start: IntArray) -> DTMC:
-    """The product DTMC: each product state has the variables, labels, rewards of its origin."""
-    initial = start[dtmc.initial]
-    return DTMC(
-        transitions=matrix,
-        states=dtmc.states[origin],
-        variable_names=dtmc.variable_names,
-        initial=initial[initial >= 0],
-        labels={name: mask[origin] for name, mask in dtmc.labels.items()},
-        rewards=tuple(RewardVectors(r.name, r.state[origin], r.transition[origin])
-                      for r in dtmc.rewards),
-    )
-
 
 # ---------------------------------------------------------------------------
 # The condition: P(F b), certified and memoised
@@ -213,9 +107,9 @@ def condition_probs(P: CsrMatrix, states: BoolArray, *, workspace: Workspace) ->
         conditions.move_to_end(key)
         return kept[1]
     everywhere = np.ones(P.shape[0], dtype=bool)
-    found = Condition(states.copy(), kernels.until_probs(P, everywhere, states,
+    found = Condition(states.copy(), until_probs(P, everywhere, states,
                                                          workspace=workspace),
-                      ~kernels.prob0(P, everywhere, states, workspace=workspace))
+                      ~prob0(P, everywhere, states, workspace=workspace))
     conditions[key] = (weakref.ref(P), found)
     while len(conditions) > _KEPT:
         conditions.popitem(last=False)
@@ -275,15 +169,15 @@ def until_given(P: CsrMatrix, remain: BoolArray, target: BoolArray,
 
     The numerator ``z = P(remain U target ∧ F b)`` is 0 or known once the path meets
     *target* (then ``z = x``), leaves *remain* (0) or meets *b* (then ``z = P(remain U
-    target)``): an absorption problem on the other states (:func:`kernels.absorption`).
+    target)``): an absorption problem on the other states (:func:`steps.absorption`).
     """
-    until = kernels.until_probs(P, remain, target, workspace=workspace)
+    until = until_probs(P, remain, target, workspace=workspace)
     b = condition.states
     x = condition.probs
     fixed = target | b | ~remain
     known = tuple(np.where(target, xv, np.where(b, uv, 0.0)) for xv, uv in
                   ((x.value, until.value), (x.lower, until.lower), (x.upper, until.upper)))
-    numerator = kernels.absorption(P, fixed, Bounds(*known), workspace=workspace)
+    numerator = absorption(P, fixed, Bounds(*known), workspace=workspace)
     return divide(numerator, condition, 1.0)
 
 
@@ -295,7 +189,7 @@ def next_given(P: CsrMatrix, target: BoolArray, condition: Condition) -> Bounds:
     value = np.asarray(P @ (hits * x.value), dtype=np.float64)
     lower = certify.enclose_product(P, hits * x.lower)[1]
     upper = certify.enclose_product(P, hits * x.upper)[2]
-    on_b = kernels.next_probs(P, target)
+    on_b = next_probs(P, target)
     b = condition.states
     numerator = Bounds.around(np.where(b, on_b.value, value), np.where(b, on_b.lower, lower),
                               np.where(b, on_b.upper, upper))
@@ -315,19 +209,19 @@ def reach_rewards_given(P: CsrMatrix, rewards: FloatArray, target: BoolArray,
     elsewhere it solves ``y = r x + P y`` (the reward of a step from a state before
     *b* counts on the paths that go on to meet *b*: a fraction ``x`` of them).
     With *focus_states*, the numerator's bounds may be trivial away from them
-    (``kernels.until_probs``); the condition's are always whole, for its offset.
+    (``until.until_probs``); the condition's are always whole, for its offset.
     """
     b = condition.states & ~target
     # On b the unconditional value (not needed when b lies inside the target, as
     # the mission's success inside done).
     if b.any():
-        plain = kernels.reach_rewards(P, rewards, target, workspace=workspace)
-        infinite = ~kernels.prob0(P, ~target, b & np.isinf(plain.value), workspace=workspace)
+        plain = reach_rewards(P, rewards, target, workspace=workspace)
+        infinite = ~prob0(P, ~target, b & np.isinf(plain.value), workspace=workspace)
         known = Bounds(*(np.where(b & ~infinite, v, 0.0) for v in
                          (plain.value, plain.lower, plain.upper)))
         del plain
     else:  # no known values: one zero vector stands for all three during the solve
-        infinite = ~kernels.prob0(P, ~target, b, workspace=workspace)
+        infinite = ~prob0(P, ~target, b, workspace=workspace)
         zero = np.zeros(P.shape[0])
         known = Bounds(zero, zero, zero)
     allowed = ~infinite & ~target & ~b
@@ -379,7 +273,7 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, B
     on a superset of *maybe* inside *allowed* (``R=? [ F a ]``'s) is solved instead.
     """
     maybe, allowed = states
-    system = kernels.shared_system(P, maybe, allowed, workspace=workspace)
+    system = shared_system(P, maybe, allowed, workspace=workspace)
     unknowns = system.unknowns
     r = np.asarray(rewards[unknowns], dtype=np.float64)
     low, high = _offset_bounds(r, x.lower[unknowns], x.upper[unknowns])
@@ -391,8 +285,8 @@ def _reward_system(P: CsrMatrix, rewards: FloatArray, states: tuple[BoolArray, B
     # The quick path reads the right-hand side in float64 only: the extended one is
     # made again if the long way is needed (8 bytes per state less at the peak).
     rhs = _right_side(rows, known.value, r, x.value[unknowns])
-    found = kernels.quick_bounds(F, solver, rhs.astype(np.float64), np.full((), floor),
-                                 np.full((), np.inf), kernels.focus_rows(system, F, focus_states))
+    found = quick_bounds(F, solver, rhs.astype(np.float64), np.full((), floor),
+                                 np.full((), np.inf), focus_rows(system, F, focus_states))
     del rhs
     if found is None:
         rhs = _right_side(rows, known.value, r, x.value[unknowns])
@@ -407,7 +301,7 @@ def _right_side(rows: CsrMatrix, known: FloatArray, r: FloatArray,
     """``r x + P known`` in extended precision (rows widened a block at a time)."""
     rhs = (r * x).astype(np.longdouble)
     if known.any():  # (zero when b lies inside the target: the mission's success in done)
-        rhs += linsolve.extended_product(rows, known)
+        rhs += linalg.extended_product(rows, known)
     return rhs
 
 
@@ -430,7 +324,7 @@ def _offset_bounds(r: FloatArray, x_lower: FloatArray, x_upper: FloatArray
     return low, high
 
 
-def _long_way(F: certify.AffineMap, solver: linsolve.Factorization,
+def _long_way(F: certify.AffineMap, solver: linalg.Factorization,
               rhs: npt.NDArray[np.floating],
               floor: FloatArray, ceiling: FloatArray) -> Bounds:
     """The refined solve, certified, then interval iteration if still too wide."""
@@ -478,7 +372,7 @@ class _Split(certify.AffineMap):
             self.below.constant_side(up=False))
 
 
-def _solve(solver: linsolve.Factorization, b: npt.NDArray[np.floating]) -> FloatArray | None:
+def _solve(solver: linalg.Factorization, b: npt.NDArray[np.floating]) -> FloatArray | None:
     """The fast path's approximate solution (None when no solver was accepted)."""
     try:
         return solver.solve(b.astype(np.longdouble))
@@ -524,7 +418,7 @@ def conditional_reach_reward_bounds(dtmc: DTMC, rewards: RewardVectors, target: 
     :param condition: the states of the condition.
     :param what: how to name the condition in an error.
     :param span: where the formula is.
-    :param focus_states: as for ``kernels.until_probs``.
+    :param focus_states: as for ``until.until_probs``.
     :param workspace: where the checker's memos are kept.
     :raises ConditionUnreachable: when the condition has probability 0 from an initial state.
     """

@@ -22,8 +22,8 @@ import scipy.sparse as sp
 from scipy.sparse import linalg as spla
 
 from veribattery._types import FloatArray, IntArray
-from veribattery.checker.bounds import round_down, round_up
-from veribattery.checker.certify import AffineMap
+from veribattery.checker.certify.affine import AffineMap
+from veribattery.checker.certify.bounds import round_down, round_up
 
 #: Largest number of unknowns solved exactly.
 EXACT_LIMIT = 5_000

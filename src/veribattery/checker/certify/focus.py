@@ -8,7 +8,7 @@ the fixed-point map of the unknown states (``B = D^-1 P'``, self-loops divided o
     |x*_k - x_k| <= sum_j N_kj |G(x) - x|_j <= w . d
 
 for any ``w`` bounding row *k* of *N* from above and ``d`` the enclosed defect
-(:func:`~veribattery.checker.certify.fixpoint_defect`). Row *k* of *N* is the fixed
+(:func:`~veribattery.checker.certify.fixpoint.fixpoint_defect`). Row *k* of *N* is the fixed
 point of the monotone map ``H(w) = e_k + B^T w``, so a ``w`` with ``H(w) <= w``
 (tested in float64 on a rigorous upper enclosure) bounds it, as in ``certify``.
 One such ``w`` per system serves every query solved on it: the same ``B``, whatever
@@ -25,13 +25,13 @@ import numpy as np
 
 from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray
-from veribattery.checker.bounds import Bounds
-from veribattery.checker.certify import (
+from veribattery.checker.certify.affine import AffineMap
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.certify.fixpoint import fixpoint_defect
+from veribattery.checker.certify.rounding import (
     TERM_FLOOR,
     UNIT_ROUNDOFF,
-    AffineMap,
     error_coefficient,
-    fixpoint_defect,
     step_down,
     step_down_in_place,
     step_up,
@@ -72,7 +72,7 @@ def certified_row(F: AffineMap, solve: DualSolve, position: int) -> FocusRow | N
     certifies whole vectors).
 
     One margin serves both sides: ``w`` is moved by a multiple of the solved gap of the
-    worse side, as :func:`~veribattery.checker.certify.quick_certificate` does. Each
+    worse side, as :func:`~veribattery.checker.certify.fixpoint.quick_certificate` does. Each
     image is made and tested in turn (at 1.4M states every vector is 11 MB, and this
     runs at a property's peak).
 

@@ -1,12 +1,12 @@
 """PCTL model checking in exact rational arithmetic (``--exact``).
 
-The same recursion as :mod:`~veribattery.checker.pctl` over an
+The same recursion as :mod:`~veribattery.checker.formula.pctl` over an
 :class:`~veribattery.explore.exact.dtmc.ExactDTMC`: state formulas are masks, ``P``
 and ``R`` operators are per-state rationals (:class:`ExactValues`), and
 ``P~p``/``R~r`` compare them with the bound exactly. The qualitative pre-pass
 is the float checker's (prob0/prob1 are graph searches, identical on the exact
 matrix, which has the same structure); the maybe states are then solved SCC by
-SCC in rationals (:mod:`~veribattery.checker.exact_solve`), and step-bounded
+SCC in rationals (:mod:`~veribattery.checker.exact.solve`), and step-bounded
 operators iterate exact matrix-vector products. Infinite expected rewards are
 kept in a separate mask.
 """
@@ -23,23 +23,34 @@ from fractions import Fraction
 import numpy as np
 from gmpy2 import mpq
 
-from veribattery._types import BoolArray, FloatArray
-from veribattery.checker import kernels
-from veribattery.checker.bounds import Bounds
-from veribattery.checker.exact_solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.pctl import (
-    _CONNECTIVES,
-    _as_mask,
-    _chain,
-    _has_operator,
-    _leaf,
-    _steps,
+from veribattery._types import BoolArray
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.exact import storm
+from veribattery.checker.exact.numeric import (
+    _DYADIC,
+    _ONE,
+    _TO_MPQ,
+    ExactValues,
+    _next,
+    _power,
+    _until,
+    exact_literal,
+    indicator,
+    reach_rewards,
+)
+from veribattery.checker.formula.leaves import (
+    CONNECTIVES,
+    as_mask,
+    has_operator,
+    leaf_values,
+    operand_chain,
+    step_bound,
 )
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
 from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
-from veribattery.explore.exact.rational import ExactScalar, ObjectArray, evaluate_rational, rational
+from veribattery.explore.exact.rational import ExactScalar, ObjectArray, evaluate_rational
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,
@@ -47,12 +58,10 @@ from veribattery.lang.nodes import (
     Conditional,
     ConditionalReach,
     Cumulative,
-    DoubleLit,
     Eventually,
     Expr,
     Globally,
     Instantaneous,
-    IntLit,
     Ite,
     Next,
     PathFormula,
@@ -61,45 +70,14 @@ from veribattery.lang.nodes import (
     Reach,
     RewardBounded,
     RewardOp,
-    TimeBound,
-    TimeInterval,
     Unary,
     Until,
 )
 
-__all__ = ["ExactCheckResult", "ExactValues", "check_exact", "exact_bounds", "exact_values"]
-
-_ZERO = mpq(0)
-_ONE = mpq(1)
+__all__ = ["ExactCheckResult", "check_exact", "exact_bounds", "exact_values"]
 
 #: The exact bounds of the property being checked (set by :func:`exact_values`).
 _BOUNDS: ContextVar[Mapping[Span, mpq] | None] = ContextVar("exact_bounds", default=None)
-
-
-@dataclass(frozen=True, slots=True)
-class ExactValues:
-    """Per-state rationals; *infinite* marks expected rewards that are infinite."""
-
-    values: ObjectArray
-    infinite: BoolArray
-
-    @classmethod
-    def finite(cls, values: ObjectArray) -> ExactValues:
-        """Values none of which is infinite."""
-        return cls(np.asarray(values, dtype=object), np.zeros(values.size, dtype=bool))
-
-    def floats(self) -> FloatArray:
-        """The nearest doubles (``inf`` where infinite)."""
-        result = np.asarray(_TO_FLOAT(self.values), dtype=np.float64).reshape(-1)
-        result[self.infinite] = np.inf
-        return result
-
-
-#: Elementwise ``float``/``mpq``/power-of-two-denominator over object arrays (C loops).
-_TO_FLOAT = np.frompyfunc(float, 1, 1)
-_TO_MPQ = np.frompyfunc(mpq, 1, 1)
-_DYADIC = np.frompyfunc(lambda q: q.denominator.bit_count() == 1, 1, 1)
-
 
 @dataclass(frozen=True, slots=True)
 class ExactCheckResult(CheckResult):
@@ -197,13 +175,13 @@ def exact_values(
         return ExactValues.finite(path_probs(model, workspace, formula.path))
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(model, workspace, formula)
-    if _has_operator(formula):
+    if has_operator(formula):
         token = _BOUNDS.set(bounds or {})
         try:
             return state_set(model, workspace, formula)
         finally:
             _BOUNDS.reset(token)
-    leaf = _leaf(model.dtmc, formula)
+    leaf = leaf_values(model.dtmc, formula)
     if leaf.dtype == np.bool_:
         return np.asarray(leaf, dtype=np.bool_)
     raise CheckError("--exact checks P and R operators and boolean formulas; "
@@ -216,26 +194,26 @@ def exact_values(
 
 def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
-    if not _has_operator(expr):  # plain state predicate: evaluated whole, no recursion
-        return _as_mask(_leaf(model.dtmc, expr), expr)
+    if not has_operator(expr):  # plain state predicate: evaluated whole, no recursion
+        return as_mask(leaf_values(model.dtmc, expr), expr)
     match expr:
         case ProbOp() | RewardOp():
             return _bounded_operator(model, workspace, expr)
         case Unary(op="!", operand=operand):
             return ~state_set(model, workspace, operand)
         case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion
-            masks = (state_set(model, workspace, operand) for operand in _chain(expr, op))
-            return functools.reduce(_CONNECTIVES[op], masks)
-        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
-            return _CONNECTIVES[op](state_set(model, workspace, left),
+            masks = (state_set(model, workspace, operand) for operand in operand_chain(expr, op))
+            return functools.reduce(CONNECTIVES[op], masks)
+        case Binary(op=op, left=left, right=right) if op in CONNECTIVES:
+            return CONNECTIVES[op](state_set(model, workspace, left),
                                     state_set(model, workspace, right))
-        case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
+        case Ite(cond=cond, then=then, otherwise=otherwise) if has_operator(expr):
             return np.where(state_set(model, workspace, cond), state_set(model, workspace, then),
                             state_set(model, workspace, otherwise))
-    if _has_operator(expr):
+    if has_operator(expr):
         raise CheckError("P and R operators may only be combined with ! & | => <=> "
                          "and ?:", expr.span)
-    return _as_mask(_leaf(model.dtmc, expr), expr)
+    return as_mask(leaf_values(model.dtmc, expr), expr)
 
 
 def _bounded_operator(model: ExactDTMC, workspace: Workspace,
@@ -247,21 +225,9 @@ def _bounded_operator(model: ExactDTMC, workspace: Workspace,
     else:
         numbers = path_rewards(model, workspace, op)
     exact = (_BOUNDS.get() or {}).get(op.bound.span)
-    bound = _bound(op.bound) if exact is None else exact
+    bound = exact_literal(op.bound) if exact is None else exact
     holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, bound), dtype=bool)
     return np.where(numbers.infinite, op.op in (">", ">="), holds)
-
-
-def _bound(expr: Expr) -> mpq:
-    """A probability or reward bound, read exactly from its digits."""
-    match expr:
-        case IntLit(value=value):
-            return mpq(value)
-        case DoubleLit(value=value, text=text):
-            return rational(text) if text else rational(value)
-        case Unary(op="-", operand=operand):
-            return -_bound(operand)
-    raise CheckError("expected a numeric constant", expr.span)
 
 
 # ---------------------------------------------------------------------------
@@ -293,96 +259,10 @@ def path_probs(model: ExactDTMC, workspace: Workspace, path: PathFormula) -> Obj
 
 def _storm_formula(model: ExactDTMC, workspace: Workspace,
                    path: RewardBounded | Conditional) -> ObjectArray:
-    """Storm's reward-bounded and conditional formulas (checker/exact_storm_formulas.py)."""
-    from veribattery.checker import exact_storm_formulas as storm
-
+    """Storm's reward-bounded and conditional formulas (:mod:`~veribattery.checker.exact.storm`)."""
     if isinstance(path, RewardBounded):
-        return storm.reward_bounded_probs(model, workspace, path)
-    return storm.conditional_probs(model, workspace, path)
-
-
-def _until(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: BoolArray,
-           bound: TimeBound | TimeInterval | None) -> ObjectArray:
-    if bound is None:
-        return until_probs(model, workspace, remain, target)
-    if isinstance(bound, TimeInterval):  # U[a,b]: remain for a steps, then U<=b-a
-        low, high = _steps(bound.low), _steps(bound.high)
-        if high < low:
-            return _indicator(np.zeros_like(target))
-        later = _within(model, workspace, remain, target, high - low)
-        return _power(model, remain, later, _indicator(np.zeros_like(target)), low)
-    k = _steps(bound.value)
-    match bound.op:
-        case "<=" | "<":
-            steps = k if bound.op == "<=" else k - 1
-            if steps < 0:  # U<0 can never be met
-                return _indicator(np.zeros_like(target))
-            return _within(model, workspace, remain, target, steps)
-        case ">=" | ">":
-            later = until_probs(model, workspace, remain, target)
-            zero = _indicator(np.zeros_like(target))
-            return _power(model, remain, later, zero, k if bound.op == ">=" else k + 1)
-    raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
-
-
-def _within(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: BoolArray,
-            steps: int) -> ObjectArray:
-    """Exact probability of ``remain U<=steps target``."""
-    hit = _indicator(target)
-    return _power(model, remain & ~target, hit, hit, steps)
-
-
-def until_probs(model: ExactDTMC, workspace: Workspace, remain: BoolArray,
-                target: BoolArray) -> ObjectArray:
-    """Exact probability of ``remain U target``: pre-pass, then the SCC-wise solve."""
-    P = model.dtmc.transitions
-    no = kernels.prob0(P, remain, target, workspace=workspace)
-    yes = kernels.prob1(P, remain, target, no, workspace=workspace)
-    result = _indicator(yes)
-    maybe = ~(no | yes)
-    if maybe.any():
-        rows = np.flatnonzero(maybe)
-        b = row_products(P, model.probabilities, rows, _indicator(yes))
-        result[rows] = solve(_system(model, workspace, maybe), b)
-    return result
-
-
-def _system(model: ExactDTMC, workspace: Workspace, maybe: BoolArray) -> Prepared:
-    """The system on *maybe*, prepared once per model, mask and workspace (rewards share
-    targets)."""
-    kept = workspace.kernels.exact(model.dtmc.transitions)
-    key = np.packbits(maybe).tobytes()
-    found = kept.get(key)
-    if not isinstance(found, Prepared):
-        found = prepare(restrict(model.dtmc.transitions, model.probabilities, maybe))
-        kept[key] = found
-    return found
-
-
-def _next(model: ExactDTMC, target: BoolArray) -> ObjectArray:
-    everything = np.arange(model.dtmc.num_states)
-    return row_products(model.dtmc.transitions, model.probabilities, everything,
-                        _indicator(target))
-
-
-def _power(model: ExactDTMC, moving: BoolArray, start: ObjectArray, offset: ObjectArray,
-           k: int) -> ObjectArray:
-    """``k`` steps of ``x <- offset + M x`` (M: the rows of *moving*), stopping at a fixpoint."""
-    P, probabilities = model.dtmc.transitions, model.probabilities
-    rows = np.flatnonzero(moving)
-    x = start.copy()
-    for _ in range(k):
-        following = offset.copy()
-        following[rows] = following[rows] + row_products(P, probabilities, rows, x)
-        if np.all(following == x):
-            break
-        x = following
-    return x
-
-
-def _indicator(mask: BoolArray) -> ObjectArray:
-    result: ObjectArray = np.where(mask, _ONE, _ZERO).astype(object)
-    return result
+        return storm.reward_bounded_probs(model, workspace, path, state_set=state_set)
+    return storm.conditional_probs(model, workspace, path, state_set=state_set)
 
 
 # ---------------------------------------------------------------------------
@@ -393,7 +273,7 @@ def _indicator(mask: BoolArray) -> ObjectArray:
 def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactValues:
     """Per-state exact expected reward of ``R{..}`` over ``F``, ``C<=k`` or ``I=k``."""
     structure = _reward_structure(model, op)
-    zero = _indicator(np.zeros(model.dtmc.num_states, dtype=bool))
+    zero = indicator(np.zeros(model.dtmc.num_states, dtype=bool))
     everywhere = np.ones(model.dtmc.num_states, dtype=bool)
     match op.path:
         case Reach(target=target):
@@ -401,32 +281,16 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
             return reach_rewards(model, workspace, structure.total, reached)
         case Cumulative(bound=bound):
             total = structure.total
-            return ExactValues.finite(_power(model, everywhere, zero, total, _steps(bound)))
+            return ExactValues.finite(_power(model, everywhere, zero, total, step_bound(bound)))
         case Instantaneous(time=time_):
             state = structure.state
-            return ExactValues.finite(_power(model, everywhere, state, zero, _steps(time_)))
+            return ExactValues.finite(_power(model, everywhere, state, zero, step_bound(time_)))
         case ConditionalReach():
-            from veribattery.checker import exact_storm_formulas as storm
-
-            return storm.conditional_reach_rewards(model, workspace, structure, op.path)
+            return storm.conditional_reach_rewards(model, workspace, structure, op.path,
+                                                   state_set=state_set)
     raise UndefinedResult(
         f"{type(op.path).__name__} reward paths are not supported in exact arithmetic",
         op.path.span)
-
-
-def reach_rewards(model: ExactDTMC, workspace: Workspace, rewards: ObjectArray,
-                  target: BoolArray) -> ExactValues:
-    """Exact ``R=? [F target]``: infinite where *target* is not almost sure (PRISM)."""
-    P = model.dtmc.transitions
-    everywhere = np.ones(P.shape[0], dtype=bool)
-    no = kernels.prob0(P, everywhere, target, workspace=workspace)
-    sure = kernels.prob1(P, everywhere, target, no, workspace=workspace)
-    result = _indicator(np.zeros_like(target))
-    maybe = sure & ~target
-    if maybe.any():
-        rows = np.flatnonzero(maybe)
-        result[rows] = solve(_system(model, workspace, maybe), rewards[rows])
-    return ExactValues(result, ~sure)
 
 
 def _reward_structure(model: ExactDTMC, op: RewardOp) -> ExactRewards:

@@ -1,6 +1,6 @@
 """Reward-bounded reachability, fast path: float64 levels with a forward-error radius.
 
-The backward programme of :mod:`~veribattery.checker.reward_bounded` computed once in
+The backward programme of :mod:`~veribattery.checker.kernels.reward_bounded` computed once in
 float64, each state carrying a radius ``e >= |computed - exact|`` (the exact value of
 the model as built). The argument is in ``docs/numerics.md`` ("Reward-bounded
 reachability"); in short:
@@ -30,11 +30,11 @@ from scipy.sparse import csgraph
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, linsolve
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker import certify, linalg
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 
 if TYPE_CHECKING:
-    from veribattery.checker.reward_bounded import Levels
+    from veribattery.checker.kernels.reward_bounded import Levels
 
 #: Multiplying a nonnegative result of at most 7 rounded operations by this bounds
 #: the exact value from above: ``(1 + u)^8 < 1 + 2^-50`` with ``u = 2^-53``.
@@ -258,7 +258,7 @@ class _RadiusClosure:
         return np.where(np.isnan(gap), np.inf, gap)
 
 
-def _solve(closure: linsolve.Factorization, right: FloatArray, *, refine: bool,
+def _solve(closure: linalg.Factorization, right: FloatArray, *, refine: bool,
            clip: bool = True) -> FloatArray:
     """``A^-1 right`` by one substitution with the factors (or refined); in [0, 1] if *clip*."""
     solved = None if refine else closure.correction(right)
@@ -267,7 +267,7 @@ def _solve(closure: linsolve.Factorization, right: FloatArray, *, refine: bool,
     return np.clip(solved, 0.0, 1.0) if clip else np.maximum(solved, 0.0)
 
 
-def _expected_moves(shape: certify.AffineMap, closure: linsolve.Factorization) -> FloatArray:
+def _expected_moves(shape: certify.AffineMap, closure: linalg.Factorization) -> FloatArray:
     """A certified upper bound of ``tau = 1 + D^-1 P' tau`` (inf where none was found).
 
     ``tau = A^-1 D 1`` (``A = D - P'``) is the expected number of moves inside the

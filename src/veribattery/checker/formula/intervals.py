@@ -1,7 +1,7 @@
 """Properties as expressions, certified: interval arithmetic over :class:`Bounds`.
 
 ``1 - P=? [..]``, ``P=? [..] + P=? [..]``, ``min(R=? [..], 3)``: the point values
-are computed by :mod:`~veribattery.checker.expression` (PRISM's types and
+are computed by :mod:`~veribattery.checker.formula.expression` (PRISM's types and
 rules); the certified enclosure alongside, rounded outward. Where no enclosure
 is derived (``pow``, ``log``, ``mod`` of inexact numbers, ``0 * inf``), the
 interval is ``[-inf, inf]``: honest, and reported as imprecise. Comparisons of
@@ -18,8 +18,8 @@ import numpy as np
 import numpy.typing as npt
 
 from veribattery._types import BoolArray, FloatArray
-from veribattery.checker import expression
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.formula import expression
 from veribattery.errors import CheckError, Span
 from veribattery.explore.compile import arrays
 from veribattery.lang.nodes import BOUND_RELATIONS

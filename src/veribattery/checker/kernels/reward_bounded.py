@@ -20,7 +20,7 @@ every level up to a stopping rule: a whole distribution in one pass).
 
 **Certification** (backward; ``docs/numerics.md``). The levels are computed once in
 float64 with a rigorous forward-error radius per state
-(:mod:`~veribattery.checker.reward_radius`); only where that interval misses the
+(:mod:`~veribattery.checker.kernels.reward_radius`); only where that interval misses the
 required precision is every level certified on its own (:func:`_certified_programme`,
 about ten times slower), and the two intervals are intersected.
 """
@@ -37,8 +37,10 @@ import scipy.sparse as sp
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, kernels, linsolve, reward_radius
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker import certify, linalg
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.kernels import reward_radius
+from veribattery.checker.kernels.prepass import prob0
 from veribattery.errors import CheckError, Span
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
@@ -102,13 +104,13 @@ class Levels:
     groups: tuple[tuple[int, IntArray], ...]
     zero: IntArray
     #: ``I - P_ZZ`` over the zero-reward moving states, factorised (None if there are none).
-    closure: linsolve.Factorization | None
+    closure: linalg.Factorization | None
     #: Rows of P of the zero-reward moving states.
     zero_rows: CsrMatrix
 
 
 def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool,
-            plans: linsolve.SolverPlans | None = None) -> Levels:
+            plans: linalg.SolverPlans | None = None) -> Levels:
     """Group the *moving* states by reward; factorise the zero-reward closure once
     (its index work kept in *plans* for a closure of the same pattern).
 
@@ -124,8 +126,8 @@ def _levels(P: CsrMatrix, moving: BoolArray, rewards: IntArray, transpose: bool,
     zero = np.flatnonzero(zero_mask)
     closure = None
     if zero.size:
-        A, _rows = linsolve.restricted_matrix(P, zero_mask, plans)
-        closure = linsolve.Factorization(sp.csr_matrix(A.T) if transpose else A, plans=plans)
+        A, _rows = linalg.restricted_matrix(P, zero_mask, plans)
+        closure = linalg.Factorization(sp.csr_matrix(A.T) if transpose else A, plans=plans)
     return Levels(unit, groups, zero, closure, sp.csr_matrix(P[zero]))
 
 
@@ -154,7 +156,7 @@ def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArr
     """Probability of ``remain U{r}<=bound target`` in every state, with certified bounds.
 
     First the point values with a forward-error radius per state
-    (:func:`~veribattery.checker.reward_radius.radius_programme`: per level two
+    (:func:`~veribattery.checker.kernels.reward_radius.radius_programme`: per level two
     products per reward group and two substitutions for the closure); where that
     interval misses the required precision, the programme is run again with every level certified
     (:func:`_certified_programme`) and the two certified intervals are intersected.
@@ -171,7 +173,7 @@ def reward_bounded_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArr
     n = P.shape[0]
     if bound < 0:
         return Bounds.exact(np.zeros(n))
-    moving = remain & ~target & ~kernels.prob0(P, remain, target, workspace=workspace)
+    moving = remain & ~target & ~prob0(P, remain, target, workspace=workspace)
     order = _grouped_order(moving, rewards)
     P, moving, target, rewards = (sp.csr_matrix(P[order][:, order]), moving[order],
                                   target[order], rewards[order])
@@ -363,7 +365,7 @@ def absorption_by_level(P: CsrMatrix, initial: FloatArray, absorbing: tuple[Bool
     stopped = np.zeros(n, dtype=bool)
     for mask in absorbing:
         stopped |= mask
-    dead = kernels.prob0(P, np.ones(n, dtype=bool), stopped, workspace=workspace) & ~stopped
+    dead = prob0(P, np.ones(n, dtype=bool), stopped, workspace=workspace) & ~stopped
     moving = ~stopped & ~dead
     order = _grouped_order(moving, rewards)
     Q = sp.csr_matrix(P[order][:, order])

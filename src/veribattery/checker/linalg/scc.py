@@ -31,7 +31,7 @@ once every earlier segment is known. The method per segment is chosen by its siz
   and keeps memory linear in the component (about three times its nonzeros);
   an incomplete LU with capped fill, then Jacobi, when the multigrid set-up fails.
 
-The result is only an approximate inverse: :mod:`~veribattery.checker.linsolve`
+The result is only an approximate inverse: :mod:`~veribattery.checker.linalg.factorization`
 judges every solution by its backward-error rule and ``certify`` bounds the
 error rigorously, so no method here needs to be exact to keep results certified.
 """

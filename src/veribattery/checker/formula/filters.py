@@ -1,6 +1,6 @@
 """PRISM's filters: ``filter(op, prop, states)`` reduces per-state values to one answer.
 
-Operators on arrays only (the formula recursion is in :mod:`~veribattery.checker.pctl`).
+Operators on arrays only (the formula recursion is in :mod:`~veribattery.checker.formula.pctl`).
 "First" and the printed state lists use PRISM's state order: lexicographic in
 the variables' values, in declaration order.
 """
@@ -14,7 +14,7 @@ import numpy as np
 
 from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.bounds import (
+from veribattery.checker.certify.bounds import (
     ABSOLUTE_PRECISION,
     RELATIVE_PRECISION,
     Bounds,

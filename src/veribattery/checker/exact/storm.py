@@ -1,7 +1,7 @@
 """Storm's conditional and reward-bounded formulas in exact rational arithmetic (``--exact``).
 
-The same constructions as the float checker (:mod:`~veribattery.checker.conditional`,
-:mod:`~veribattery.checker.reward_bounded`), on the rational transition matrix:
+The same constructions as the float checker (:mod:`~veribattery.checker.kernels.conditional`,
+:mod:`~veribattery.checker.kernels.reward_bounded`), on the rational transition matrix:
 
 * ``P(phi | F b) = P(phi ∧ F b) / P(F b)`` and ``E[R_a | F b] = E[R_a · 1{F b}] / P(F b)``,
   the numerators solved exactly SCC by SCC; states where ``F b`` is impossible hold
@@ -15,14 +15,23 @@ Objectives of a conditional with a step or reward bound are not supported here.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray, IntArray
-from veribattery.checker import exact, kernels
-from veribattery.checker.conditional import ConditionUnreachable
-from veribattery.checker.exact_solve import row_products, solve
+from veribattery.checker import kernels
+from veribattery.checker.exact.numeric import (
+    ExactValues,
+    exact_literal,
+    indicator,
+    prepared_system,
+    reach_rewards,
+    until_probs,
+)
+from veribattery.checker.exact.solve import row_products, solve
+from veribattery.checker.kernels.conditional import ConditionUnreachable
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult
 from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
@@ -43,6 +52,11 @@ from veribattery.lang.nodes import (
 )
 from veribattery.lang.property_rules import STEPS_REWARD
 
+#: The recursion passes its state-set evaluator
+#: (:func:`veribattery.checker.exact.pctl.state_set`): state formulas nest inside these
+#: path formulas, and the recursion over them lives there.
+StateSet = Callable[[ExactDTMC, Workspace, Expr], BoolArray]
+
 _ZERO = mpq(0)
 _ONE = mpq(1)
 _UNDEFINED = float("nan")
@@ -53,29 +67,31 @@ _UNDEFINED = float("nan")
 # ---------------------------------------------------------------------------
 
 
-def conditional_probs(model: ExactDTMC, workspace: Workspace, path: Conditional) -> ObjectArray:
+def conditional_probs(model: ExactDTMC, workspace: Workspace, path: Conditional, *,
+                      state_set: StateSet) -> ObjectArray:
     """``P=? [ phi || F b ]`` per state: exact rationals, NaN where ``F b`` is impossible.
 
     :raises ConditionUnreachable: when ``F b`` has probability 0 from an initial state.
     :raises UndefinedResult: for an objective with a step or reward bound.
     """
-    x, possible = _condition(model, workspace, path.condition, path.span)
+    x, possible = _condition(model, workspace, path.condition, path.span,
+                              state_set=state_set)
     P, probabilities = model.dtmc.transitions, model.probabilities
     objective = path.path
     if isinstance(objective, Next):
-        hits = exact._indicator(exact.state_set(model, workspace, objective.operand))
+        hits = indicator(state_set(model, workspace, objective.operand))
         everything = np.arange(model.dtmc.num_states)
         weighted = np.asarray(hits * x, dtype=object)
         numerator = row_products(P, probabilities, everything, weighted)
         on_b = row_products(P, probabilities, everything, hits)
-        b = exact.state_set(model, workspace, path.condition)
+        b = state_set(model, workspace, path.condition)
         return _divide(np.where(b, on_b, numerator), x, possible)
-    reduced = _as_until(model, workspace, objective)
+    reduced = _as_until(model, workspace, objective, state_set=state_set)
     if reduced is None:
         raise UndefinedResult("a conditional objective with a step or reward bound is not "
                               "supported in exact arithmetic", objective.span)
     remain, target, negated = reduced
-    b = exact.state_set(model, workspace, path.condition)
+    b = state_set(model, workspace, path.condition)
     ratio = _divide(_until_and_condition(model, workspace, remain, target, b, x), x, possible)
     if negated:
         ratio = np.asarray([_ONE - v if possible[i] else v for i, v in enumerate(ratio)],
@@ -84,17 +100,18 @@ def conditional_probs(model: ExactDTMC, workspace: Workspace, path: Conditional)
 
 
 def conditional_reach_rewards(model: ExactDTMC, workspace: Workspace, rewards: ExactRewards,
-                              path: ConditionalReach) -> exact.ExactValues:
+                              path: ConditionalReach, *, state_set: StateSet) -> ExactValues:
     """``R=? [ F a || F b ]`` per state exactly (infinite and NaN as the float checker)."""
-    x, possible = _condition(model, workspace, path.condition, path.span)
+    x, possible = _condition(model, workspace, path.condition, path.span,
+                              state_set=state_set)
     P = model.dtmc.transitions
-    target = exact.state_set(model, workspace, path.target)
-    b = exact.state_set(model, workspace, path.condition)
+    target = state_set(model, workspace, path.target)
+    b = state_set(model, workspace, path.condition)
     b = b & ~target
-    numerator = exact._indicator(np.zeros_like(target))
+    numerator = indicator(np.zeros_like(target))
     infinite = np.zeros_like(target)
     if b.any():  # the unconditional value once on b (none when b lies inside the target)
-        plain = exact.reach_rewards(model, workspace, rewards.total, target)
+        plain = reach_rewards(model, workspace, rewards.total, target)
         infinite = ~kernels.prob0(P, ~target, b & plain.infinite, workspace=workspace)
         numerator = np.where(b & ~infinite, plain.values, _ZERO).astype(object)
     maybe = ~infinite & ~target & ~b & possible
@@ -102,14 +119,14 @@ def conditional_reach_rewards(model: ExactDTMC, workspace: Workspace, rewards: E
         rows = np.flatnonzero(maybe)
         offsets = np.asarray(rewards.total[rows] * x[rows], dtype=object)
         offsets = offsets + row_products(P, model.probabilities, rows, numerator)
-        numerator[rows] = solve(exact._system(model, workspace, maybe), offsets)
-    return exact.ExactValues(_divide(numerator, x, possible), infinite & possible)
+        numerator[rows] = solve(prepared_system(model, workspace, maybe), offsets)
+    return ExactValues(_divide(numerator, x, possible), infinite & possible)
 
 
-def _condition(model: ExactDTMC, workspace: Workspace, condition: Expr,
-               span: Span) -> tuple[ObjectArray, BoolArray]:
+def _condition(model: ExactDTMC, workspace: Workspace, condition: Expr, span: Span, *,
+               state_set: StateSet) -> tuple[ObjectArray, BoolArray]:
     """``P(F b)`` exactly and where it is positive; an error if not from an initial state."""
-    b = exact.state_set(model, workspace, condition)
+    b = state_set(model, workspace, condition)
     everywhere = np.ones(b.size, dtype=bool)
     possible = ~kernels.prob0(model.dtmc.transitions, everywhere, b, workspace=workspace)
     if not possible[model.dtmc.initial].all():
@@ -121,7 +138,7 @@ def _condition(model: ExactDTMC, workspace: Workspace, condition: Expr,
     kept = workspace.kernels.exact(model.dtmc.transitions)
     x = kept.get(key)
     if not isinstance(x, np.ndarray):
-        x = exact.until_probs(model, workspace, everywhere, b)
+        x = until_probs(model, workspace, everywhere, b)
         kept[key] = x
     return x, possible
 
@@ -130,7 +147,7 @@ def _until_and_condition(model: ExactDTMC, workspace: Workspace, remain: BoolArr
                          target: BoolArray, b: BoolArray, x: ObjectArray) -> ObjectArray:
     """``P(remain U target ∧ F b)``: known on *target* (x), *b* (the until) and ``!remain`` (0)."""
     P = model.dtmc.transitions
-    until = exact.until_probs(model, workspace, remain, target)
+    until = until_probs(model, workspace, remain, target)
     fixed = target | b | ~remain
     known = np.where(target, x, np.where(b, until, _ZERO)).astype(object)
     positive = fixed & np.fromiter((v != 0 for v in known), dtype=bool, count=known.size)
@@ -139,27 +156,27 @@ def _until_and_condition(model: ExactDTMC, workspace: Workspace, remain: BoolArr
     if maybe.any():
         rows = np.flatnonzero(maybe)
         rhs = row_products(P, model.probabilities, rows, result)
-        result[rows] = solve(exact._system(model, workspace, maybe), rhs)
+        result[rows] = solve(prepared_system(model, workspace, maybe), rhs)
     return result
 
 
-def _as_until(model: ExactDTMC, workspace: Workspace, path: object
+def _as_until(model: ExactDTMC, workspace: Workspace, path: object, *, state_set: StateSet
               ) -> tuple[BoolArray, BoolArray, bool] | None:
     """An unbounded path formula as ``remain U target`` or its negation (None otherwise)."""
     everywhere = np.ones(model.dtmc.num_states, dtype=bool)
     match path:
         case Until(left=left, right=right, bound=None):
-            a, b = exact.state_set(model, workspace, left), exact.state_set(model, workspace, right)
+            a, b = state_set(model, workspace, left), state_set(model, workspace, right)
             return a, b, False
         case Eventually(operand=operand, bound=None):
-            return everywhere, exact.state_set(model, workspace, operand), False
+            return everywhere, state_set(model, workspace, operand), False
         case Globally(operand=operand, bound=None):
-            return everywhere, ~exact.state_set(model, workspace, operand), True
+            return everywhere, ~state_set(model, workspace, operand), True
         case WeakUntil(left=left, right=right, bound=None):
-            a, c = exact.state_set(model, workspace, left), exact.state_set(model, workspace, right)
+            a, c = state_set(model, workspace, left), state_set(model, workspace, right)
             return a & ~c, ~a & ~c, True
         case Release(left=left, right=right, bound=None):
-            a, c = exact.state_set(model, workspace, left), exact.state_set(model, workspace, right)
+            a, c = state_set(model, workspace, left), state_set(model, workspace, right)
             return ~a, ~c, True
     return None
 
@@ -175,16 +192,16 @@ def _divide(numerator: ObjectArray, x: ObjectArray, possible: BoolArray) -> Obje
 # ---------------------------------------------------------------------------
 
 
-def reward_bounded_probs(model: ExactDTMC, workspace: Workspace,
-                         path: RewardBounded) -> ObjectArray:
+def reward_bounded_probs(model: ExactDTMC, workspace: Workspace, path: RewardBounded, *,
+                         state_set: StateSet) -> ObjectArray:
     """``remain U{"r"}<=T target`` per state exactly (Storm's semantics, see reward_bounded)."""
     rewards = _integer_rewards(model, path)
     bound = _reward_bound(path.bound)
-    remain = exact.state_set(model, workspace, path.left)
-    target = exact.state_set(model, workspace, path.right)
+    remain = state_set(model, workspace, path.left)
+    target = state_set(model, workspace, path.right)
     n = model.dtmc.num_states
     if bound < 0:
-        return exact._indicator(np.zeros(n, dtype=bool))
+        return indicator(np.zeros(n, dtype=bool))
     P, probabilities = model.dtmc.transitions, model.probabilities
     moving = remain & ~target & ~kernels.prob0(P, remain, target, workspace=workspace)
     positive = [int(v) for v in np.unique(rewards[moving & (rewards > 0)])]
@@ -194,14 +211,14 @@ def reward_bounded_probs(model: ExactDTMC, workspace: Workspace,
     zero = np.flatnonzero(zero_mask)
     history: list[ObjectArray] = []
     keep = max((r for r, _ in groups), default=1)
-    value = exact._indicator(target)
+    value = indicator(target)
     for k in range(bound // unit + 1):
-        value = exact._indicator(target)
+        value = indicator(target)
         for r, states in groups:
             if k >= r:
                 value[states] = row_products(P, probabilities, states, history[-r])
         if zero.size:
-            value[zero] = solve(exact._system(model, workspace, zero_mask),
+            value[zero] = solve(prepared_system(model, workspace, zero_mask),
                                 row_products(P, probabilities, zero, value))
         history = [*history[-(keep - 1):], value] if keep > 1 else [value]
     return value
@@ -235,5 +252,5 @@ def model_reward(model: ExactDTMC, path: RewardBounded) -> ExactRewards:
 
 def _reward_bound(bound: TimeBound) -> int:
     """The largest integer total reward that ``<=T`` / ``<T`` admits (T read exactly)."""
-    value = exact._bound(bound.value)
+    value = exact_literal(bound.value)
     return int(math.floor(value) if bound.op == "<=" else math.ceil(value) - 1)

@@ -2,7 +2,7 @@
 
 State formulas become boolean masks (:func:`state_set`); ``P=?`` and ``R=?``
 become per-state values (:func:`values`). Path formulas are reduced to the
-kernels' vocabulary here, so that :mod:`~veribattery.checker.kernels` never sees
+kernels' vocabulary here, so that :mod:`~veribattery.checker.kernels.until` never sees
 a node: ``F phi`` is ``true U phi``, ``G phi`` is ``1 - P(F !phi)``, ``U<k`` is
 ``U<=k-1`` and ``U>k`` is ``U>=k+1``.
 """
@@ -10,46 +10,47 @@ a node: ``F phi`` is ``true U phi``, ``G phi`` is ``1 - P(F !phi)``, ``U<k`` is
 from __future__ import annotations
 
 import functools
-import math
-from collections.abc import Callable, Iterator, Sequence
 from dataclasses import replace
-from typing import TYPE_CHECKING, TypeAlias
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker import (
-    conditional,
-    ctl,
-    filters,
-    intervals,
-    kernels,
-    reward_bounded,
-    steady,
+from veribattery._types import BoolArray, IntArray
+from veribattery.checker import kernels
+from veribattery.checker.certify.bounds import Bounds, escalated, required_precision
+from veribattery.checker.formula import ctl, filters, intervals
+from veribattery.checker.formula.leaves import (
+    CONNECTIVES,
+    _as_result,
+    _condition_name,
+    _everywhere,
+    _interval,
+    _number,
+    _operands,
+    _point,
+    _reward_bound,
+    _reward_structure,
+    as_mask,
+    has_operator,
+    leaf_values,
+    operand_chain,
+    step_bound,
 )
-from veribattery.checker.bounds import Bounds, escalated, required_precision
-from veribattery.errors import CheckError, VeribatteryError
-from veribattery.explore.compile import arrays
-from veribattery.explore.compile.expr import compile_expr
+from veribattery.checker.kernels import conditional, reward_bounded, steady
+from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC, RewardVectors
-from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     Binary,
-    BoolLit,
     Call,
     Conditional,
     ConditionalReach,
     Cumulative,
-    DoubleLit,
     Eventually,
     Expr,
     Filter,
     Globally,
-    Ident,
     Instantaneous,
-    IntLit,
     Ite,
-    LabelRef,
     LongRun,
     Next,
     PathFormula,
@@ -70,20 +71,11 @@ from veribattery.lang.nodes import (
     Until,
     WeakUntil,
 )
-from veribattery.lang.property_rules import STEPS_REWARD
 
 if TYPE_CHECKING:
+    from veribattery.checker.formula.leaves import Result
     from veribattery.checker.workspace import Workspace
 
-_OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
-
-Values: TypeAlias = FloatArray | BoolArray
-#: What :func:`values` returns: certified numbers, or a state set.
-Result: TypeAlias = Bounds | BoolArray
-
-_CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
-    op: arrays.BINARY[op] for op in ("&", "|", "=>", "<=>")  # over state sets
-}
 
 # ---------------------------------------------------------------------------
 # Public entry points
@@ -113,9 +105,9 @@ def values(dtmc: DTMC, workspace: Workspace, formula: Expr,
         return steady.steady_probs(dtmc.transitions, target, workspace=workspace)
     if isinstance(formula, Filter):
         return _filter_values(dtmc, workspace, formula)
-    if _has_operator(formula):
+    if has_operator(formula):
         return _compound(dtmc, workspace, formula)
-    leaf = _leaf(dtmc, formula)
+    leaf = leaf_values(dtmc, formula)
     if leaf.dtype == np.bool_:
         return np.asarray(leaf, dtype=np.bool_)
     return Bounds.exact(np.asarray(leaf, dtype=np.float64))
@@ -160,8 +152,8 @@ def state_set(dtmc: DTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     :param expr: a boolean state formula, possibly with bounded ``P``/``R`` operators.
     :raises CheckError: when *expr* is not boolean or nests operators unsupportedly.
     """
-    if not _has_operator(expr):  # plain state predicate: evaluated whole, no recursion
-        return _as_mask(_point(values(dtmc, workspace, expr)), expr)
+    if not has_operator(expr):  # plain state predicate: evaluated whole, no recursion
+        return as_mask(_point(values(dtmc, workspace, expr)), expr)
     match expr:
         case ProbOp() | RewardOp() | SteadyOp():
             return _bounded_operator(dtmc, workspace, expr)
@@ -170,29 +162,15 @@ def state_set(dtmc: DTMC, workspace: Workspace, expr: Expr) -> BoolArray:
         case Unary(op="!", operand=operand):
             return ~state_set(dtmc, workspace, operand)
         case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion
-            masks = (state_set(dtmc, workspace, operand) for operand in _chain(expr, op))
-            return functools.reduce(_CONNECTIVES[op], masks)
-        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
-            return _CONNECTIVES[op](state_set(dtmc, workspace, left),
+            masks = (state_set(dtmc, workspace, operand) for operand in operand_chain(expr, op))
+            return functools.reduce(CONNECTIVES[op], masks)
+        case Binary(op=op, left=left, right=right) if op in CONNECTIVES:
+            return CONNECTIVES[op](state_set(dtmc, workspace, left),
                                     state_set(dtmc, workspace, right))
-        case Ite(cond=cond, then=then, otherwise=otherwise) if _has_operator(expr):
+        case Ite(cond=cond, then=then, otherwise=otherwise) if has_operator(expr):
             return np.where(state_set(dtmc, workspace, cond), state_set(dtmc, workspace, then),
                             state_set(dtmc, workspace, otherwise))
-    return _as_mask(_point(values(dtmc, workspace, expr)), expr)
-
-
-def _chain(expr: Binary, op: str) -> list[Expr]:
-    """The operands of the chain of *op* (``&`` or ``|``) *expr* heads, left to right,
-    however it is nested."""
-    operands: list[Expr] = []
-    stack: list[Expr] = [expr]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, Binary) and node.op == op:
-            stack += (node.right, node.left)
-        else:
-            operands.append(node)
-    return operands
+    return as_mask(_point(values(dtmc, workspace, expr)), expr)
 
 
 def path_probs(dtmc: DTMC, workspace: Workspace, path: PathFormula,
@@ -249,9 +227,9 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
             return kernels.reach_rewards(P, structure.total, state_set(dtmc, workspace, target),
                                          focus_states, workspace=workspace)
         case Cumulative(bound=bound):
-            return kernels.cumulative_rewards(P, structure.total, _steps(bound))
+            return kernels.cumulative_rewards(P, structure.total, step_bound(bound))
         case Instantaneous(time=time):
-            return kernels.instantaneous_rewards(P, structure.state, _steps(time))
+            return kernels.instantaneous_rewards(P, structure.state, step_bound(time))
         case Total():
             return steady.total_rewards(P, structure.total, workspace=workspace)
         case LongRun():
@@ -272,93 +250,9 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
 
 
-def share_systems(dtmc: DTMC, workspace: Workspace, formulas: Sequence[Expr]) -> None:
-    """Let the unbounded queries among *formulas* share one linear system in *workspace*,
-    whatever the order they are checked in with it
-    (:meth:`~veribattery.checker.workspace.Workspace.prepare`).
-
-    A ``P=? [ a U b ]`` whose unknown states lie inside those of an ``R=? [ F c ]``
-    (and outside ``b``, inside ``a``) is solved on the latter's system (see
-    :func:`kernels.shared_system`); when such a pair exists, the reward query's system
-    is built first. Without reward queries, several untils share one system on the
-    union of their unknowns where that is cheaper (:func:`kernels.prepare_untils`:
-    a Fig. 6 point's ``P=? [ F "success" ]`` and the recharge cap's probability).
-    Only operator-free operands are looked at (their masks are cheap); the pre-pass
-    results are kept in *workspace*, so checking repeats none of this work. The conditions of
-    conditional properties are marked as needed in every state
-    (:func:`kernels.need_whole`): a ``P=? [ F b ]`` among the properties then shares them.
-    """
-    P = dtmc.transitions
-    conditions = (_condition_set(dtmc, workspace, f) for f in formulas)
-    for condition in (c for c in conditions if c is not None):
-        kernels.need_whole(P, _everywhere(dtmc), condition, workspace=workspace)
-    reach = [m for m in (_reach_target(dtmc, workspace, f) for f in formulas) if m is not None]
-    untils = [u for u in (_until_operands(dtmc, workspace, f) for f in formulas) if u is not None]
-    for target in reach if untils else ():
-        unknowns = kernels.reach_unknowns(P, target, workspace=workspace)
-        if any(_inside(kernels.until_unknowns(P, *until, workspace=workspace), unknowns)
-               for until in untils):
-            kernels.prepare_reach(P, target, workspace=workspace)
-            return
-    if len(untils) > 1 and not reach:
-        kernels.prepare_untils(P, untils, workspace=workspace)
-
-
-def _inside(query: tuple[BoolArray, BoolArray], unknowns: BoolArray) -> bool:
-    """Whether a query's unknowns lie in *unknowns*, all of which satisfy its equations."""
-    maybe, allowed = query
-    return bool(maybe.any() and not np.any(maybe & ~unknowns)
-                and not np.any(unknowns & ~allowed))
-
-
-def _reach_target(dtmc: DTMC, workspace: Workspace, formula: Expr) -> BoolArray | None:
-    """The target of an ``R=? [ F a ]`` (or ``[ F a || F b ]``) with an operator-free *a*."""
-    if not (isinstance(formula, RewardOp) and formula.op == "=?"):
-        return None
-    path = formula.path
-    if isinstance(path, Reach | ConditionalReach) and not _has_operator(path.target):
-        return _quiet_set(dtmc, workspace, path.target)
-    return None
-
-
-def _condition_set(dtmc: DTMC, workspace: Workspace, formula: Expr) -> BoolArray | None:
-    """The states *b* of an operator-free condition ``F b`` of a conditional ``P=?``/``R=?``."""
-    if not (isinstance(formula, ProbOp | RewardOp) and formula.op == "=?"):
-        return None
-    path = formula.path
-    if isinstance(path, ConditionalReach | Conditional) and not _has_operator(path.condition):
-        return _quiet_set(dtmc, workspace, path.condition)
-    return None
-
-
-def _until_operands(dtmc: DTMC, workspace: Workspace, formula: Expr
-                    ) -> tuple[BoolArray, BoolArray] | None:
-    """``(remain, target)`` of an unbounded ``P=? [ F b ]`` / ``[ a U b ]``, operator-free."""
-    if not (isinstance(formula, ProbOp) and formula.op == "=?"):
-        return None
-    match formula.path:
-        case Eventually(operand=operand, bound=None) if not _has_operator(operand):
-            target = _quiet_set(dtmc, workspace, operand)
-            return None if target is None else (_everywhere(dtmc), target)
-        case Until(left=left, right=right, bound=None) if not (
-                _has_operator(left) or _has_operator(right)):
-            a, b = _quiet_set(dtmc, workspace, left), _quiet_set(dtmc, workspace, right)
-            return None if a is None or b is None else (a, b)
-    return None
-
-
-def _quiet_set(dtmc: DTMC, workspace: Workspace, expr: Expr) -> BoolArray | None:
-    """:func:`state_set` of an operator-free *expr*, or None where it would fail
-    (the check itself then reports the error)."""
-    try:
-        return state_set(dtmc, workspace, expr)
-    except VeribatteryError:
-        return None
-
-
 # ---------------------------------------------------------------------------
 # Storm's reward-bounded and conditional path formulas
-# (kernels in checker/reward_bounded.py and checker/conditional.py)
+# (kernels in checker/kernels/reward_bounded.py and checker/kernels/conditional.py)
 # ---------------------------------------------------------------------------
 
 
@@ -376,7 +270,7 @@ def _conditional_probs(dtmc: DTMC, workspace: Workspace, path: Conditional) -> B
     """``path || F b``: certified ratios for unbounded ``X F G U W R`` objectives, the
     product chain (range only, not certified) for step- and reward-bounded ones."""
     objective = path.path
-    if any(_has_operator(operand) for operand in _operands(objective)):
+    if any(has_operator(operand) for operand in _operands(objective)):
         raise CheckError("P and R operators inside a conditional formula are not supported",
                          path.span)
     what = _condition_name(path.condition)
@@ -415,19 +309,6 @@ def _as_until(dtmc: DTMC, workspace: Workspace, path: PathFormula
             a, b = state_set(dtmc, workspace, left), state_set(dtmc, workspace, right)
             return ~a, ~b, True
     return None
-
-
-def _reward_bound(bound: TimeBound) -> int:
-    """The largest integer total reward that ``<=T`` / ``<T`` admits."""
-    value = _number(bound.value)
-    return math.floor(value) if bound.op == "<=" else math.ceil(value) - 1
-
-
-def _condition_name(condition: Expr) -> str:
-    """The condition as an error message names it."""
-    if isinstance(condition, LabelRef):
-        return f'F "{condition.name}"'
-    return f"after || (at {condition.span})"
 
 
 # ---------------------------------------------------------------------------
@@ -491,59 +372,6 @@ def _until(dtmc: DTMC, workspace: Workspace, remain: BoolArray, target: BoolArra
     return kernels.interval_until_probs(P, remain, target, low, high)
 
 
-def _interval(bound: TimeBound | TimeInterval) -> tuple[int, int | None]:
-    """The steps ``[low, high]`` (``high`` None: unbounded) at which the target counts."""
-    if isinstance(bound, TimeInterval):
-        return _steps(bound.low), _steps(bound.high)
-    k = _steps(bound.value)
-    match bound.op:
-        case "<=":
-            return 0, k
-        case "<":
-            return 0, k - 1
-        case ">=":
-            return k, None
-        case ">":
-            return k + 1, None
-    return k, k
-
-
-def _reward_structure(dtmc: DTMC, op: RewardOp | RewardBounded) -> RewardVectors:
-    """The reward structure *op* names, or a CheckError that says where."""
-    if op.reward == STEPS_REWARD:
-        ones = np.ones(dtmc.num_states)
-        return RewardVectors(None, ones, np.zeros(dtmc.num_states))
-    try:
-        structure = dtmc.reward(op.reward)
-    except (KeyError, IndexError):
-        key = "" if op.reward is None else f" {op.reward!r}"
-        raise CheckError(f"the model has no reward structure{key}", op.span) from None
-    if np.any(structure.state < 0) or np.any(structure.transition < 0):
-        name = "" if structure.name is None else f' "{structure.name}"'
-        raise CheckError(f"the reward structure{name} has negative rewards, which PRISM "
-                         "does not allow", op.span)
-    return structure
-
-
-def _number(expr: Expr) -> float:
-    """The value of a literal (constants are substituted before checking)."""
-    match expr:
-        case IntLit(value=value) | DoubleLit(value=value):
-            return float(value)
-        case Unary(op="-", operand=operand):
-            return -_number(operand)
-    raise CheckError("expected a numeric constant", expr.span)
-
-
-def _steps(expr: Expr) -> int:
-    """A step bound: a non-negative integer literal."""
-    value = _number(expr)
-    if value < 0 or value != int(value):
-        raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
-                         expr.span)
-    return int(value)
-
-
 # ---------------------------------------------------------------------------
 # Steady state, CTL, filters and expressions over operators
 # ---------------------------------------------------------------------------
@@ -577,14 +405,6 @@ def _ctl(dtmc: DTMC, workspace: Workspace, quantifier: str, path: PathFormula) -
     left = state_set(dtmc, workspace, _operands(path)[0]) if len(_operands(path)) == 2 else right
     return ctl.quantified(dtmc.transitions, quantifier, ops[type(path)], left, right,
                           workspace=workspace)
-
-
-def _operands(path: PathFormula) -> tuple[Expr, ...]:
-    if isinstance(path, Until | WeakUntil | Release | RewardBounded):
-        return (path.left, path.right)
-    if isinstance(path, Conditional):
-        return (path.condition,)
-    return (path.operand,)
 
 
 def filter_outcome(dtmc: DTMC, workspace: Workspace, node: Filter) -> filters.FilterOutcome:
@@ -627,7 +447,7 @@ def _compound(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
 
 def _compound_values(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
     """Arithmetic, comparisons and functions over operator results, state by state,
-    in interval arithmetic (:mod:`~veribattery.checker.intervals`)."""
+    in interval arithmetic (:mod:`~veribattery.checker.formula.intervals`)."""
     match expr:
         case Quantified() | ProbOp() | RewardOp() | SteadyOp():
             return state_set(dtmc, workspace, expr)
@@ -635,7 +455,7 @@ def _compound_values(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
             return ~state_set(dtmc, workspace, operand)
         case Unary(op=op, operand=operand):
             return intervals.unary(op, values(dtmc, workspace, operand), expr.span)
-        case Binary(op=op, left=left, right=right) if op in _CONNECTIVES:
+        case Binary(op=op, left=left, right=right) if op in CONNECTIVES:
             return intervals.binary(op, state_set(dtmc, workspace, left),
                                     state_set(dtmc, workspace, right))
         case Binary(op=op, left=left, right=right):
@@ -647,72 +467,3 @@ def _compound_values(dtmc: DTMC, workspace: Workspace, expr: Expr) -> Result:
         case Call(func=func, args=args):
             return intervals.call(func, [values(dtmc, workspace, a) for a in args], expr.span)
     raise CheckError(f"cannot evaluate {type(expr).__name__} here", getattr(expr, "span", None))
-
-
-# ---------------------------------------------------------------------------
-# Leaves: labels and operator-free state expressions
-# ---------------------------------------------------------------------------
-
-
-def _leaf(dtmc: DTMC, expr: Expr) -> Values:
-    """Evaluate an operator-free state expression in every state."""
-    for ref in _labels_in(expr):
-        if ref.name not in dtmc.labels:
-            raise CheckError(f'unknown label "{ref.name}"', ref.span)
-    match expr:
-        case LabelRef(name=name):
-            return np.asarray(dtmc.labels[name], dtype=bool)
-        case BoolLit(value=value):
-            return np.full(dtmc.num_states, value, dtype=bool)
-    return _compiled(dtmc, expr)
-
-
-def _compiled(dtmc: DTMC, expr: Expr) -> Values:
-    """Evaluate *expr* with the builder's expression compiler, on int64 copies of the
-    variables it reads (the state table may be stored narrower: :meth:`DTMC.compact`)."""
-    used = {node.name for node in walk(expr) if isinstance(node, Ident)}
-    names = tuple(name for name in dtmc.variable_names if name in used)
-    columns = [dtmc.variable_names.index(name) for name in names]
-    states = np.asarray(dtmc.states[:, columns], dtype=np.int64)
-    result = np.asarray(compile_expr(expr, names, dtmc.labels)(states))
-    del states
-    result = np.broadcast_to(result, (dtmc.num_states,)).copy()
-    return result if result.dtype == np.bool_ else result.astype(np.float64)
-
-
-def _as_mask(result: Values, expr: Expr) -> BoolArray:
-    """A leaf's values as a mask; boolean variables arrive as 0/1 integers."""
-    if result.dtype == np.bool_:
-        return np.asarray(result, dtype=np.bool_)
-    if np.all((result == 0) | (result == 1)):
-        return np.asarray(result == 1, dtype=np.bool_)
-    raise CheckError("expected a boolean state formula", expr.span)
-
-
-def _as_result(per_state: Bounds | Values) -> Result:
-    """A filter's per-state values as a result (numbers without bounds: exact)."""
-    if isinstance(per_state, Bounds):
-        return per_state
-    if per_state.dtype == np.bool_:
-        return np.asarray(per_state, dtype=np.bool_)
-    return Bounds.exact(np.asarray(per_state, dtype=np.float64))
-
-
-def _point(result: Result) -> Values:
-    """The point values of a result (a mask stays a mask)."""
-    return result.value if isinstance(result, Bounds) else result
-
-
-def _everywhere(dtmc: DTMC) -> BoolArray:
-    return np.ones(dtmc.num_states, dtype=bool)
-
-
-def _has_operator(expr: Expr) -> bool:
-    """Whether *expr* needs the checker: an operator, a filter or ``round`` occurs in it."""
-    return any(isinstance(node, _OPERATORS) or (isinstance(node, Call) and node.func == "round")
-               for node in walk(expr))
-
-
-def _labels_in(expr: Expr) -> Iterator[LabelRef]:
-    """Every label reference in *expr*."""
-    return (node for node in walk(expr) if isinstance(node, LabelRef))

@@ -9,7 +9,7 @@ replaced by ``sum pi = 1``: unique for an irreducible chain, periodic or not, an
 equal to the Cesàro long-run average that PRISM reports). Their certified
 enclosures come from the renewal theorem (:func:`bscc_averages`), and each
 BSCC's value is carried back to the transient states by one certified
-absorption system (:func:`~veribattery.checker.kernels.absorption`), so the cost
+absorption system (:func:`~veribattery.checker.kernels.steps.absorption`), so the cost
 does not grow with the number of BSCCs.
 """
 
@@ -25,8 +25,10 @@ from scipy.sparse import linalg as spla  # a lazy package in the CLI: read when 
 
 from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, kernels
-from veribattery.checker.bounds import Bounds, round_down, round_up
+from veribattery.checker import certify
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.kernels.steps import absorption
+from veribattery.checker.kernels.until import reach_rewards
 
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
@@ -173,7 +175,7 @@ class LongRun:
 
 def steady_probs(P: CsrMatrix, target: BoolArray, *, workspace: Workspace) -> Bounds:
     """Long-run probability of being in *target*, from every state (``S=? [target]``),
-    certified (:func:`bscc_averages`, then :func:`kernels.absorption`).
+    certified (:func:`bscc_averages`, then :func:`steps.absorption`).
 
     :param P: row-stochastic CSR transition matrix.
     :param target: the states counted.
@@ -200,7 +202,7 @@ def _long_run_values(P: CsrMatrix, weights: FloatArray, workspace: Workspace) ->
     per_bscc = bscc_averages(P, parts, pi, weights, workspace=workspace)
     comp = np.maximum(parts.component, 0)
     known = Bounds(per_bscc.value[comp], per_bscc.lower[comp], per_bscc.upper[comp])
-    return kernels.absorption(P, parts.recurrent, known, workspace=workspace)
+    return absorption(P, parts.recurrent, known, workspace=workspace)
 
 
 def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArray, *,
@@ -210,7 +212,7 @@ def bscc_averages(P: CsrMatrix, parts: Bsccs, pi: FloatArray, weights: FloatArra
     By the renewal theorem the average is ``E[cycle weight] / E[cycle length]`` for
     the cycles from a reference state *r* back to *r*: ``w_r + sum_j P_rj h_j`` over
     ``1 + sum_j P_rj l_j``, with *h* and *l* the expected weight and number of steps
-    until *r* (:func:`kernels.reach_rewards`, certified; one solve for all BSCCs,
+    until *r* (:func:`until.reach_rewards`, certified; one solve for all BSCCs,
     each restricted to itself). Ends are divided with outward rounding. The point
     value is the stationary solve's. BSCCs where *weights* is constant are exact.
 
@@ -242,8 +244,8 @@ def _renewal(inner: CsrMatrix, ref: IntArray, weights: FloatArray,
     target = np.zeros(inner.shape[0], dtype=bool)
     target[ref] = True
     rows = sp.csr_matrix(inner[ref])
-    gained = kernels.reach_rewards(inner, weights, target, workspace=workspace)
-    steps = kernels.reach_rewards(inner, np.ones(inner.shape[0]), target, workspace=workspace)
+    gained = reach_rewards(inner, weights, target, workspace=workspace)
+    steps = reach_rewards(inner, np.ones(inner.shape[0]), target, workspace=workspace)
     ones = np.ones(ref.size)
     gained_low = certify.enclose_product(rows, gained.lower, weights[ref])[1]
     gained_high = certify.enclose_product(rows, gained.upper, weights[ref])[2]
@@ -262,7 +264,7 @@ def total_rewards(P: CsrMatrix, rewards: FloatArray, *, workspace: Workspace) ->
     is earned infinitely often; in one without ("cold"), none is earned any
     more. So the total reward is the reward until a cold BSCC is reached --
     infinite where that is not almost sure -- which is
-    :func:`~veribattery.checker.kernels.reach_rewards` with its certificate.
+    :func:`~veribattery.checker.kernels.until.reach_rewards` with its certificate.
 
     :param P: row-stochastic CSR transition matrix.
     :param rewards: non-negative expected reward per step from each state.
@@ -273,4 +275,4 @@ def total_rewards(P: CsrMatrix, rewards: FloatArray, *, workspace: Workspace) ->
     earning = np.zeros(parts.count, dtype=bool)
     earning[parts.component[recurrent & (rewards > 0)]] = True
     cold = recurrent & ~earning[np.maximum(parts.component, 0)]
-    return kernels.reach_rewards(P, rewards, cold, workspace=workspace)
+    return reach_rewards(P, rewards, cold, workspace=workspace)

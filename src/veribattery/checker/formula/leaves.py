@@ -1,0 +1,216 @@
+"""The leaves of the PCTL recursion and the literals in its formulas.
+
+Operator-free state expressions evaluated in every state (:func:`leaf_values`,
+:func:`as_mask`), the boolean connectives over state sets, step bounds and other
+numeric literals (:func:`step_bound`), and the reward structure an operator names.
+Shared by the float recursion (:mod:`~veribattery.checker.formula.pctl`) and the exact
+one (:mod:`~veribattery.checker.exact.pctl`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterator
+from typing import TypeAlias
+
+import numpy as np
+
+from veribattery._types import BoolArray, FloatArray
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.errors import CheckError
+from veribattery.explore.compile import arrays
+from veribattery.explore.compile.expr import compile_expr
+from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    Conditional,
+    DoubleLit,
+    Expr,
+    Filter,
+    Ident,
+    IntLit,
+    LabelRef,
+    PathFormula,
+    ProbOp,
+    Quantified,
+    Release,
+    RewardBounded,
+    RewardOp,
+    SteadyOp,
+    TimeBound,
+    TimeInterval,
+    Unary,
+    Until,
+    WeakUntil,
+)
+from veribattery.lang.property_rules import STEPS_REWARD
+
+_OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
+
+Values: TypeAlias = FloatArray | BoolArray
+#: What :func:`~veribattery.checker.formula.pctl.values` returns: certified numbers, or a state set.
+Result: TypeAlias = Bounds | BoolArray
+
+#: The boolean connectives over state sets, by operator.
+CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
+    op: arrays.BINARY[op] for op in ("&", "|", "=>", "<=>")  # over state sets
+}
+
+def operand_chain(expr: Binary, op: str) -> list[Expr]:
+    """The operands of the chain of *op* (``&`` or ``|``) *expr* heads, left to right,
+    however it is nested."""
+    operands: list[Expr] = []
+    stack: list[Expr] = [expr]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, Binary) and node.op == op:
+            stack += (node.right, node.left)
+        else:
+            operands.append(node)
+    return operands
+
+
+def _reward_bound(bound: TimeBound) -> int:
+    """The largest integer total reward that ``<=T`` / ``<T`` admits."""
+    value = _number(bound.value)
+    return math.floor(value) if bound.op == "<=" else math.ceil(value) - 1
+
+
+def _condition_name(condition: Expr) -> str:
+    """The condition as an error message names it."""
+    if isinstance(condition, LabelRef):
+        return f'F "{condition.name}"'
+    return f"after || (at {condition.span})"
+
+
+def _interval(bound: TimeBound | TimeInterval) -> tuple[int, int | None]:
+    """The steps ``[low, high]`` (``high`` None: unbounded) at which the target counts."""
+    if isinstance(bound, TimeInterval):
+        return step_bound(bound.low), step_bound(bound.high)
+    k = step_bound(bound.value)
+    match bound.op:
+        case "<=":
+            return 0, k
+        case "<":
+            return 0, k - 1
+        case ">=":
+            return k, None
+        case ">":
+            return k + 1, None
+    return k, k
+
+
+def _reward_structure(dtmc: DTMC, op: RewardOp | RewardBounded) -> RewardVectors:
+    """The reward structure *op* names, or a CheckError that says where."""
+    if op.reward == STEPS_REWARD:
+        ones = np.ones(dtmc.num_states)
+        return RewardVectors(None, ones, np.zeros(dtmc.num_states))
+    try:
+        structure = dtmc.reward(op.reward)
+    except (KeyError, IndexError):
+        key = "" if op.reward is None else f" {op.reward!r}"
+        raise CheckError(f"the model has no reward structure{key}", op.span) from None
+    if np.any(structure.state < 0) or np.any(structure.transition < 0):
+        name = "" if structure.name is None else f' "{structure.name}"'
+        raise CheckError(f"the reward structure{name} has negative rewards, which PRISM "
+                         "does not allow", op.span)
+    return structure
+
+
+def _number(expr: Expr) -> float:
+    """The value of a literal (constants are substituted before checking)."""
+    match expr:
+        case IntLit(value=value) | DoubleLit(value=value):
+            return float(value)
+        case Unary(op="-", operand=operand):
+            return -_number(operand)
+    raise CheckError("expected a numeric constant", expr.span)
+
+
+def step_bound(expr: Expr) -> int:
+    """A step bound: a non-negative integer literal."""
+    value = _number(expr)
+    if value < 0 or value != int(value):
+        raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
+                         expr.span)
+    return int(value)
+
+
+def _operands(path: PathFormula) -> tuple[Expr, ...]:
+    if isinstance(path, Until | WeakUntil | Release | RewardBounded):
+        return (path.left, path.right)
+    if isinstance(path, Conditional):
+        return (path.condition,)
+    return (path.operand,)
+
+
+# ---------------------------------------------------------------------------
+# Leaves: labels and operator-free state expressions
+# ---------------------------------------------------------------------------
+
+
+def leaf_values(dtmc: DTMC, expr: Expr) -> Values:
+    """Evaluate an operator-free state expression in every state."""
+    for ref in _labels_in(expr):
+        if ref.name not in dtmc.labels:
+            raise CheckError(f'unknown label "{ref.name}"', ref.span)
+    match expr:
+        case LabelRef(name=name):
+            return np.asarray(dtmc.labels[name], dtype=bool)
+        case BoolLit(value=value):
+            return np.full(dtmc.num_states, value, dtype=bool)
+    return _compiled(dtmc, expr)
+
+
+def _compiled(dtmc: DTMC, expr: Expr) -> Values:
+    """Evaluate *expr* with the builder's expression compiler, on int64 copies of the
+    variables it reads (the state table may be stored narrower: :meth:`DTMC.compact`)."""
+    used = {node.name for node in walk(expr) if isinstance(node, Ident)}
+    names = tuple(name for name in dtmc.variable_names if name in used)
+    columns = [dtmc.variable_names.index(name) for name in names]
+    states = np.asarray(dtmc.states[:, columns], dtype=np.int64)
+    result = np.asarray(compile_expr(expr, names, dtmc.labels)(states))
+    del states
+    result = np.broadcast_to(result, (dtmc.num_states,)).copy()
+    return result if result.dtype == np.bool_ else result.astype(np.float64)
+
+
+def as_mask(result: Values, expr: Expr) -> BoolArray:
+    """A leaf's values as a mask; boolean variables arrive as 0/1 integers."""
+    if result.dtype == np.bool_:
+        return np.asarray(result, dtype=np.bool_)
+    if np.all((result == 0) | (result == 1)):
+        return np.asarray(result == 1, dtype=np.bool_)
+    raise CheckError("expected a boolean state formula", expr.span)
+
+
+def _as_result(per_state: Bounds | Values) -> Result:
+    """A filter's per-state values as a result (numbers without bounds: exact)."""
+    if isinstance(per_state, Bounds):
+        return per_state
+    if per_state.dtype == np.bool_:
+        return np.asarray(per_state, dtype=np.bool_)
+    return Bounds.exact(np.asarray(per_state, dtype=np.float64))
+
+
+def _point(result: Result) -> Values:
+    """The point values of a result (a mask stays a mask)."""
+    return result.value if isinstance(result, Bounds) else result
+
+
+def _everywhere(dtmc: DTMC) -> BoolArray:
+    return np.ones(dtmc.num_states, dtype=bool)
+
+
+def has_operator(expr: Expr) -> bool:
+    """Whether *expr* needs the checker: an operator, a filter or ``round`` occurs in it."""
+    return any(isinstance(node, _OPERATORS) or (isinstance(node, Call) and node.func == "round")
+               for node in walk(expr))
+
+
+def _labels_in(expr: Expr) -> Iterator[LabelRef]:
+    """Every label reference in *expr*."""
+    return (node for node in walk(expr) if isinstance(node, LabelRef))

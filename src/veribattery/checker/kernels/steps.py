@@ -1,0 +1,260 @@
+"""Step-bounded kernels: next, bounded until, cumulative and instantaneous rewards.
+
+Each iterates one sparse matrix-vector product per step, plus one on the error
+radius, and stops early only at an exact fixpoint of the float map (the next iterate
+equal to the current one in every bit). :func:`absorption` finishes a system whose
+values are known outside it.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse import csgraph
+
+from veribattery._types import BoolArray, CsrMatrix, FloatArray
+from veribattery.checker import certify
+from veribattery.checker.certify.bounds import (
+    Bounds,
+    current_precision,
+    escalated,
+    round_down,
+    round_up,
+)
+from veribattery.checker.kernels.prepass import prob0
+from veribattery.checker.kernels.systems import _restrict, _system
+from veribattery.checker.kernels.until import _certified, _spread, until_probs
+from veribattery.checker.linalg import rational
+
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
+
+
+# ---------------------------------------------------------------------------
+# Step-bounded kernels: iterate, carrying a rigorous forward error bound
+# ---------------------------------------------------------------------------
+
+
+def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Bounds:
+    """``k`` steps of ``x <- offset + M x`` from *start*, with a certified radius.
+
+    The radius *e* bounds ``|x - exact|`` componentwise: ``e <- M e + delta`` where
+    *delta* bounds the rounding of the step (:func:`certify.enclose_product`).
+    The iteration stops early at an exact fixpoint of the float map; the
+    remaining steps are accounted normwise with ``||M||_inf`` (rounded up).
+    """
+    if escalated() and np.array_equal(start.lower, start.upper):
+        # Asked for exact bounds: iterate in rational arithmetic when small enough.
+        exact = rational.power_exact(M, start.value, offset, k)
+        if exact is not None:
+            return Bounds(*exact)
+    terms = certify.row_terms(M)
+    normwise = _step_power_normwise(M, start, offset, k, terms)
+    if normwise is not None:
+        return normwise
+    x = start.value
+    radius = np.maximum(round_up(x - start.lower), round_up(start.upper - x))
+    for step in range(k):
+        following, low, high = certify.enclose_product(M, x, offset, terms)
+        rounding = np.maximum(high - following, following - low)
+        if np.array_equal(following, x):
+            return _finish(M, x, radius, rounding, k - step)
+        radius = round_up(certify.enclose_product(M, radius, rounding, terms)[2])
+        x = following
+    return _finish(M, x, radius, np.zeros_like(x), 0)
+
+
+def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
+                         terms: FloatArray) -> Bounds | None:
+    """:func:`_step_power` with one radius for every state: one product per step
+    instead of two (the componentwise radius needs ``M e`` too), or None when that
+    radius would not meet the required absolute precision everywhere.
+
+    ``|x_j - exact_j| <= r_j`` for all states gives ``|M (x - exact)| <= ||M||_inf r_j``,
+    so ``r <- ||M||_inf r + max(delta)`` (each operation rounded up) bounds every
+    state's error after the step; *delta* is the step's rounding as above.
+    """
+    _, absolute = current_precision()
+    x = start.value
+    radius = float(np.max(np.maximum(round_up(x - start.lower), round_up(start.upper - x)),
+                          initial=0.0))
+    rho = max(1.0, certify.spectral_cap(M))
+    for step in range(k):
+        if not 2 * radius <= absolute:  # (NaN too) the componentwise radius may still be
+            return None
+        following, low, high = certify.enclose_product(M, x, offset, terms)
+        rounding = float(np.max(np.maximum(high - following, following - low), initial=0.0))
+        if np.array_equal(following, x):
+            return _finish(M, x, np.full_like(x, radius), np.full_like(x, rounding), k - step)
+        grown = math.nextafter(rho * radius, math.inf)  # each operation rounded up
+        radius = math.nextafter(grown + rounding, math.inf)
+        x = following
+    if not 2 * radius <= absolute:
+        return None
+    return _finish(M, x, np.full_like(x, radius), np.zeros_like(x), 0)
+
+
+def _finish(M: CsrMatrix, x: FloatArray, radius: FloatArray, rounding: FloatArray,
+            remaining: int) -> Bounds:
+    """Bounds after *remaining* more steps at a float fixpoint *x* (normwise)."""
+    if remaining:
+        rho = max(1.0, certify.spectral_cap(M))
+        try:
+            growth = rho**remaining
+        except OverflowError:
+            growth = np.inf
+        extra = growth * (float(np.max(radius)) + remaining * float(np.max(rounding)))
+        radius = round_up(np.full_like(x, extra)) if extra > 0 else radius
+    with np.errstate(invalid="ignore"):
+        return Bounds(x, round_down(x - radius), round_up(x + radius))
+
+
+def _rows_in(P: CsrMatrix, mask: BoolArray) -> CsrMatrix:
+    """*P* with the rows outside *mask* zeroed (those states stop moving)."""
+    return sp.csr_matrix(sp.diags(mask.astype(np.float64), format="csr") @ P)
+
+
+def _probabilities(found: Bounds) -> Bounds:
+    """Probabilities: the value clipped to [0, 1], lower bounds to 0.
+
+    Upper bounds are not clipped to 1: a stored row may sum to a little more
+    than 1 in exact arithmetic, and the bounds are for the model as stored.
+    """
+    lower = np.maximum(found.lower, 0.0)
+    return Bounds.around(np.clip(found.value, 0.0, 1.0), lower, found.upper)
+
+
+def next_probs(P: CsrMatrix, target: BoolArray) -> Bounds:
+    """Probability that the next state is in *target* (``X target``).
+
+    :param P: row-stochastic CSR transition matrix.
+    :param target: states to reach in one step.
+    """
+    value, lower, upper = certify.enclose_product(P, target.astype(np.float64))
+    return _probabilities(Bounds(value, lower, upper))
+
+
+def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                        k: int) -> Bounds:
+    """Probability of reaching *target* within *k* steps while staying in *remain*.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param remain: states that may be passed through before *target*.
+    :param target: states to reach.
+    :param k: step bound (``U<=k``), at least 0.
+    """
+    moving = _rows_in(P, remain & ~target)
+    near = _within_steps(moving, target, k)
+    if not near.any():
+        return Bounds.exact(np.zeros(P.shape[0]))
+    hit = target.astype(np.float64)
+    if near.all():
+        return _probabilities(_step_power(moving, Bounds.exact(hit), hit, k))
+    # States farther than k steps from the target have probability exactly 0, and
+    # so has every such successor of a nearer state at each of the k iterations:
+    # iterating on the near states alone gives the same values (Storm does the same).
+    index = np.flatnonzero(near)
+    sub = sp.csr_matrix(moving[index][:, index])
+    del moving
+    found = _step_power(sub, Bounds.exact(hit[index]), hit[index], k)
+    return _probabilities(_spread(np.zeros(P.shape[0]), near, found))
+
+
+def _within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
+    """States with a path of at most *k* steps of *moving* (rows of the states that
+    may move) to *target*: a breadth-first search over the reversed graph cut at
+    depth *k* (in C; any superset would do, so stored zeros may count as edges)."""
+    n = moving.shape[0]
+    if not target.any():
+        return np.zeros(n, dtype=bool)
+    # The transpose is a CSC view of the same arrays; csgraph makes one CSR copy.
+    distance = csgraph.dijkstra(moving.T, directed=True, indices=np.flatnonzero(target),
+                                unweighted=True, min_only=True, limit=k + 0.5)
+    return np.asarray(np.isfinite(distance), dtype=bool)
+
+
+def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                              k: int, *, workspace: Workspace) -> Bounds:
+    """Probability of ``remain U>=k target``: *remain* for the first *k* steps, then until.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param remain: states that must hold before *target* is reached.
+    :param target: states to reach, at step *k* or later.
+    :param k: lower step bound, at least 0.
+    :param workspace: as for :func:`until_probs`.
+    """
+    later = until_probs(P, remain, target, workspace=workspace)
+    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), k)
+    return _probabilities(found)
+
+
+def interval_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                         low: int, high: int) -> Bounds:
+    """Probability of ``remain U[low,high] target``: *remain* for the first *low* steps,
+    then *target* within ``high - low`` more steps, passing through *remain*.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param remain: states that must hold before *target* is reached.
+    :param target: states to reach, at a step in ``[low, high]``.
+    :param low: first step that counts, at least 0.
+    :param high: last step that counts, at least *low*.
+    """
+    later = bounded_until_probs(P, remain, target, high - low)
+    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), low)
+    return _probabilities(found)
+
+
+def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int) -> Bounds:
+    """Expected reward of the first *k* steps (``C<=k``).
+
+    :param P: row-stochastic CSR transition matrix.
+    :param rewards: reward earned per step taken from each state (state + transition).
+    :param k: number of steps, at least 0.
+    """
+    offset = np.asarray(rewards, dtype=np.float64)
+    return _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k)
+
+
+def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int) -> Bounds:
+    """Expected state reward of the state occupied at step *k* (``I=k``).
+
+    :param P: row-stochastic CSR transition matrix.
+    :param state_rewards: reward of being in each state.
+    :param k: the step, at least 0.
+    """
+    start = np.asarray(state_rewards, dtype=np.float64)
+    return _step_power(P, Bounds.exact(start), np.zeros_like(start), k)
+
+
+def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds, *,
+               workspace: Workspace) -> Bounds:
+    """``x = P x`` off *fixed*, ``x = known`` on it: each state's expectation of the
+    value of the *fixed* state where it is absorbed, with certified bounds.
+
+    Every state outside *fixed* must reach *fixed* almost surely (the BSCCs, for
+    long-run values), so the fixed point is unique; it is certified like
+    :func:`until_probs`, with the known values as intervals.
+
+    :param P: row-stochastic CSR transition matrix.
+    :param fixed: the states whose values are known.
+    :param known: the values (meaningful on *fixed* only), non-negative.
+    :param workspace: as for :func:`until_probs`.
+    """
+    lower = np.where(fixed, known.lower, 0.0)
+    upper = np.where(fixed, known.upper, 0.0)
+    maybe = ~fixed & ~prob0(P, np.ones(P.shape[0], dtype=bool), fixed & (upper > 0),
+                            workspace=workspace)
+    if not maybe.any():
+        return Bounds.around(np.where(fixed, known.value, 0.0), lower, upper)
+    # x = P x holds on every state outside fixed (0 where no positive value is reachable).
+    system = _system(P, maybe, ~fixed, workspace=workspace)
+    F = system.affine(lower, upper, None)
+    point = np.where(fixed, known.value, 0.0)
+    found = _certified(F, system, point, None, (0.0, float(np.max(upper))))
+    found = _restrict(found, system.unknowns, maybe)
+    value, low, high = point.copy(), lower.copy(), upper.copy()
+    value[maybe], low[maybe], high[maybe] = found.value, found.lower, found.upper
+    return Bounds.around(value, low, high)

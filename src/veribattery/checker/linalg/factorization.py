@@ -1,0 +1,413 @@
+"""Sparse linear systems ``(I - P_mm) x = b`` of the unbounded kernels, and their stopping rule.
+
+The systems are nonsingular M-matrices (the qualitative pre-pass removed every
+state that cannot leave the restricted set), but on long chains they are badly
+conditioned: a symmetric random walk over n states has condition number ~n².
+A plain LU solve there loses digits (1e-6 relative error at n = 10⁶), so:
+
+1. **Direct.** A substitution (acyclic systems) or the SCC-wise solve of
+   :mod:`~veribattery.checker.linalg.scc` (LU per segment, or preconditioned Krylov
+   inside components too large to factorise), on the float64 matrix; then
+   *mixed-precision iterative refinement* computes each residual ``b - A x``
+   in extended precision (``numpy.longdouble``, 64-bit mantissa on x86-64;
+   elsewhere it may be float64 and refinement only tightens the backward
+   error) and corrects *x* with the same solver, at most ``REFINE_STEPS``
+   times (2 with a Krylov segment), stopping once every component's
+   correction is below ``REFINE_TOL`` relative. This recovers full float64
+   accuracy while ``cond(A) * 1e-16 < 1``.
+2. **Iterative fallback**, when the LU factorisation fails (out of memory,
+   singular) or the system has more than ``DIRECT_LIMIT`` unknowns:
+   Jacobi-preconditioned BiCGSTAB (``rtol = ITERATIVE_RTOL``, at most
+   ``ITERATIVE_MAXITER`` iterations) from the best iterate so far, then
+   restarted GMRES(60) if BiCGSTAB broke down.
+
+**Acceptance rule** (both paths): the normwise backward error
+``||b - A x||_inf / (||A||_inf ||x||_inf + ||b||_inf) <= RESIDUAL_TOL = 1e-10``,
+residual in extended precision, and every component finite. A system that
+meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Protocol
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+from scipy.sparse import linalg as spla
+
+from veribattery._types import BoolArray, CsrMatrix, FloatArray
+from veribattery.checker.linalg import scc
+from veribattery.checker.linalg.iterative import RESIDUAL_TOL, _norm, matrix_norm, solve_iterative
+from veribattery.checker.linalg.triangular import _triangular_inverse
+from veribattery.errors import CheckError
+
+if TYPE_CHECKING:
+    from veribattery.checker.linalg.restriction import ExtArray, SolverPlans
+    from veribattery.checker.linalg.triangular import _Triangular
+
+
+#: Systems with more unknowns than this skip the LU factorisation.
+DIRECT_LIMIT = 4_000_000
+#: A system solved by substitution with at least this many unknowns releases its
+#: matrix when it can make it again (see :meth:`Factorization._release`).
+RELEASE_MIN_STATES = 100_000
+#: At most this many extended-precision refinement steps after the LU solve.
+REFINE_STEPS = 6
+#: Refinement stops once every correction is below this, relative to its component.
+REFINE_TOL = 2.0**-52
+def solve(A: sp.csr_matrix, b: ExtArray) -> FloatArray:
+    """Solve ``A x = b`` (extended-precision *A* and *b*) under the module's rule.
+
+    :param A: the system matrix from :func:`restricted_matrix`.
+    :param b: the right-hand side, in extended precision.
+    :raises CheckError: when neither the direct nor the iterative path is accepted.
+    """
+    return Factorization(A).solve(b)
+
+
+class Factorization:
+    """A system matrix prepared once for any number of right-hand sides.
+
+    The matrix is kept as float64 ``A64`` plus a sparse extended-precision
+    ``residue`` (``A = A64 + residue`` exactly; for :func:`restricted_parts` the
+    residue is the rounding of the diagonal), so no extended copy of the whole
+    matrix is kept; residuals are computed in extended precision a block of
+    rows at a time.
+
+    The direct solver is built on the first non-trivial solve and kept: when the
+    off-diagonal graph of *A* is acyclic (every strongly connected component a
+    single state, as in a mission that only moves forward), *A* is triangular in
+    a topological order and the "factorisation" is that permutation, so each
+    solve is one sparse substitution; otherwise the system is solved SCC by SCC
+    (:mod:`~veribattery.checker.linalg.scc`), each component by a method chosen by its size.
+
+    :param A: the system matrix (extended precision or float64).
+    :param residue: with a float64 *A*, the extended-precision part ``A_exact - A``.
+    :param rebuild: makes ``(A64, residue)`` again, bit for bit (see :meth:`_release`).
+    :param plans: where substitution plans are kept for later matrices of the same
+        pattern (None: nothing is kept).
+    """
+
+    def __init__(self, A: sp.csr_matrix, residue: sp.csr_matrix | None = None,
+                 rebuild: Callable[[], tuple[sp.csr_matrix, sp.csr_matrix]] | None = None,
+                 plans: SolverPlans | None = None) -> None:
+        if residue is None:
+            A, residue = _split(A)
+        # (A itself when it is CSR already: a copy would not share the plan's indices)
+        self._a64: sp.csr_matrix | None = A if isinstance(A, sp.csr_matrix) else sp.csr_matrix(A)
+        self._residue: sp.csr_matrix | None = residue
+        self._n = int(A.shape[0])
+        self._rebuild = rebuild
+        self._plans = plans
+        self._direct: _Inverse | None = None
+        self._direct_tried = False
+        self._substitute: _Triangular | None = None
+        self._substitute_tried = False
+        self._norm_a: float | None = None
+        self._iterative = False
+
+    @property
+    def A64(self) -> sp.csr_matrix:
+        """The float64 part of the matrix (made again if it was released)."""
+        if self._a64 is None:
+            self._restore()
+        assert self._a64 is not None
+        return self._a64
+
+    @property
+    def residue(self) -> sp.csr_matrix:
+        """The extended-precision rest ``A_exact - A64`` (made again if it was released)."""
+        if self._residue is None:
+            self._restore()
+        assert self._residue is not None
+        return self._residue
+
+    def _restore(self) -> None:
+        assert self._rebuild is not None
+        self._a64, self._residue = self._rebuild()
+
+    def _release(self) -> None:
+        """Drop the matrix while only the triangular substitution is needed.
+
+        With *rebuild* (which makes the same matrix again, bit for bit), a large
+        system solved by substitution keeps the substitution's own copy only: the
+        quick certificate needs no residual, and ``A64`` and its residue (89 MB at
+        1.4M states) come back only if a refined solve is asked for.
+        """
+        if self._rebuild is not None and self._n >= RELEASE_MIN_STATES:
+            self._a64 = self._residue = None
+
+    @property
+    def A(self) -> sp.csr_matrix:
+        """The exact system matrix in extended precision (a new copy: tests, small systems)."""
+        return sp.csr_matrix(self.A64.astype(np.longdouble) + self.residue)
+
+    def solve(self, b: ExtArray) -> FloatArray:
+        """Solve ``A x = b`` under the module's rule.
+
+        :param b: the right-hand side, in extended precision.
+        :raises CheckError: when neither the direct nor the iterative path is accepted.
+        """
+        n = self._n
+        if not b.any():
+            return np.zeros(b.shape, dtype=np.float64)
+        inverse = self._inverse() if n <= DIRECT_LIMIT else None
+        if self._norm_a is None:
+            self._norm_a = matrix_norm(self.A64) + matrix_norm(self.residue)
+        steps = 2 if self._iterative else REFINE_STEPS
+        x = self._refined(inverse, b, steps) if inverse is not None else None
+        if x is not None and self.backward_error(x, b) <= RESIDUAL_TOL:
+            return x
+        x = solve_iterative(self.A64, b.astype(np.float64), x)
+        if not self.backward_error(x, b) <= RESIDUAL_TOL:
+            raise CheckError(f"linear solver did not reach backward error {RESIDUAL_TOL:g} "
+                             f"on {n} states")
+        return x
+
+    def residual(self, x: FloatArray, b: ExtArray) -> ExtArray:
+        """``b - A x`` in extended precision, a block of rows at a time."""
+        return b - _extended_product(self.A64, self.residue, x)
+
+    def backward_error(self, x: FloatArray, b: ExtArray) -> float:
+        """The normwise backward error of *x* (see :func:`backward_error`)."""
+        if not np.all(np.isfinite(x)):
+            return float("inf")
+        if self._norm_a is None:
+            self._norm_a = matrix_norm(self.A64) + matrix_norm(self.residue)
+        scale = self._norm_a * _norm(x) + _norm(b)
+        residual = _norm(self.residual(x, b))
+        return residual / scale if scale > 0 else residual
+
+
+    def _accepted(self, x: FloatArray, b: ExtArray, residual: ExtArray) -> bool:
+        """The backward-error rule for *x*, given its residual."""
+        if not np.all(np.isfinite(x)) or self._norm_a is None:
+            return False
+        scale = self._norm_a * _norm(x) + _norm(b)
+        error = _norm(residual)
+        return (error / scale if scale > 0 else error) <= RESIDUAL_TOL
+
+    def _refined(self, inverse: _Inverse, b: ExtArray, steps: int) -> FloatArray:
+        """``inverse(b)``, refined with extended-precision residuals."""
+        x: FloatArray = inverse(b.astype(np.float64))
+        for _ in range(steps):
+            residual = self.residual(x, b)
+            if self._iterative and self._accepted(x, b, residual):
+                break  # each correction would be a whole Krylov solve: only when needed
+            correction: FloatArray = inverse(residual.astype(np.float64))
+            x = x + correction
+            if not np.all(np.isfinite(x)) or _converged(correction, x):
+                break
+        return x
+
+    def approximate(self, b: FloatArray) -> FloatArray | None:
+        """One application of the direct solver to *b*: no refinement, no acceptance test
+        (None when there is no direct solver or the result is not finite).
+
+        For callers that certify the answer anyway and only need the full rule of
+        :meth:`solve` when the certified interval comes out too wide.
+        """
+        if not b.any():
+            return np.zeros(b.shape, dtype=np.float64)
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        if inverse is None:
+            return None
+        return _finite_solve(inverse, np.ascontiguousarray(b, dtype=np.float64))
+
+    def correction(self, v: FloatArray) -> FloatArray | None:
+        """An approximate ``A^{-1} v`` for certification margins (None if unavailable).
+
+        The direct solver's factors when there are any (one substitution pass);
+        otherwise a full :meth:`solve`. Accuracy only affects how tight the
+        certified bounds come out, never their validity.
+        """
+        if not v.any():
+            return np.zeros_like(v)
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        try:
+            if inverse is not None:
+                return np.asarray(inverse(np.ascontiguousarray(v, dtype=np.float64)))
+            return self.solve(v.astype(np.longdouble))
+        except (CheckError, RuntimeError):
+            return None
+
+    @property
+    def iterative(self) -> bool:
+        """Whether the direct solver has a Krylov segment (known once it is built)."""
+        return self._iterative
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]:
+        """The margin solvers to try, in turn, for the quick certificate of ``x ~ A^-1 b``.
+
+        With a Krylov segment and ``b > 0``, first one without any solve: ``A^-1 >= 0``
+        (an M-matrix), so ``A^-1 v <= max(v / b) A^-1 b``, and *x* stands for
+        ``A^-1 b`` (the certificate's test decides whether it does well enough;
+        the interval is wider than with :meth:`margin` where the defect is uneven).
+        Then :meth:`margin`.
+        """
+        if self._iterative and bool(np.all(b > 0)) and bool(np.all(x > 0)):
+            positive = np.asarray(b, dtype=np.float64)
+
+            def proportional(v: FloatArray) -> FloatArray:
+                return float(np.max(v / positive, initial=0.0)) * x
+
+            return [proportional, self.margin]
+        return [self.margin]
+
+    def margin(self, v: FloatArray) -> FloatArray | None:
+        """:meth:`correction` for the quick certificate: with a Krylov segment, a
+        loose solve of a lifted *v* (:meth:`scc.Segmented.margin`), else the same."""
+        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        if not isinstance(inverse, scc.Segmented) or not inverse.iterative:
+            return self.correction(v)
+        if not v.any():
+            return np.zeros_like(v)
+        return np.asarray(inverse.margin(np.ascontiguousarray(v, dtype=np.float64)))
+
+    @property
+    def triangular(self) -> bool:
+        """Whether the direct solver is a substitution (the matrix is triangular in a
+        topological order, with a positive diagonal). Only that solver is tried here:
+        a caller that drops a system that is not triangular pays for no factorisation."""
+        return self._n <= DIRECT_LIMIT and self._substitution() is not None
+
+    def pinned(self, mask: BoolArray) -> PinnedSolver | None:
+        """A solver of this system with the rows of the states in *mask* replaced by
+        identity rows, for the quick certificate of a query solved on it with those
+        states' values known (``kernels``, "Shared systems" in docs/numerics.md);
+        None unless the direct solver is a substitution."""
+        inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
+        return None if inverse is None else PinnedSolver(inverse.pinned(mask))
+
+    def dual(self, v: FloatArray) -> FloatArray | None:
+        """An approximate ``w`` with ``w^T (I - B) = v^T``, where ``I - B = D^-1 A`` is the
+        system with each row divided by its diagonal (the fixed-point map's matrix):
+        ``w = D A^-T v``, one transposed substitution. None unless the direct solver is a
+        substitution, or when the answer is not finite. For the bounds at a few states
+        (:mod:`~veribattery.checker.certify.focus`); accuracy affects only their tightness.
+        """
+        inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
+        if inverse is None:
+            return None
+        return _finite_solve(inverse.dual, np.asarray(v, dtype=np.float64))
+
+    def _substitution(self) -> _Triangular | None:
+        """The substitution solver, tried once (None: the matrix's graph has a cycle)."""
+        if not self._substitute_tried:
+            self._substitute_tried = True
+            self._substitute = _triangular_inverse(self.A64, self._plans)
+            if self._substitute is not None:
+                self._release()
+        return self._substitute
+
+    def _inverse(self) -> _Inverse | None:
+        if not self._direct_tried:
+            self._direct_tried = True
+            self._direct = self._substitution()
+            if self._direct is None:
+                found = scc.components(self.A64)
+                if found is not None:
+                    segmented = scc.segmented_inverse(self.A64, found)
+                    self._iterative = segmented is not None and segmented.iterative
+                    self._direct = segmented
+            if self._direct is None:
+                self._direct = _lu_inverse(self.A64)
+        return self._direct
+
+
+def _finite_solve(inverse: _Inverse, b: FloatArray) -> FloatArray | None:
+    """``inverse(b)`` in float64, or None when the solve fails or is not finite."""
+    try:
+        x = np.asarray(inverse(b), dtype=np.float64)
+    except RuntimeError:
+        return None
+    return x if np.all(np.isfinite(x)) else None
+
+
+class QuickSolver(Protocol):
+    """What the quick certificate needs of a solver (:class:`Factorization`,
+    :class:`PinnedSolver`)."""
+
+    def approximate(self, b: FloatArray) -> FloatArray | None: ...
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]: ...
+
+
+class PinnedSolver:
+    """A substitution whose pinned rows are identity rows (:meth:`Factorization.pinned`):
+    unrefined solves only, for the quick certificate."""
+
+    def __init__(self, inverse: _Inverse) -> None:
+        self._inverse = inverse
+
+    def approximate(self, b: FloatArray) -> FloatArray | None:
+        """One substitution (None when it fails or is not finite)."""
+        return _finite_solve(self._inverse, np.asarray(b, dtype=np.float64))
+
+    def margins_for(self, b: npt.NDArray[np.floating], x: FloatArray
+                    ) -> list[Callable[[FloatArray], FloatArray | None]]:
+        """The margin solver: the same substitution."""
+        return [self.approximate]
+
+
+def _split(A: sp.csr_matrix) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+    """*A* as float64 plus its extended-precision rounding residue (zeros not stored)."""
+    A = sp.csr_matrix(A)
+    A64 = sp.csr_matrix(A.astype(np.float64))
+    A64.sort_indices()
+    if A.dtype != np.longdouble:
+        return A64, sp.csr_matrix(A.shape, dtype=np.longdouble)
+    residue = sp.csr_matrix(A - A64.astype(np.longdouble))
+    residue.eliminate_zeros()
+    return A64, residue
+
+
+#: Nonzeros per block of the extended-precision product (bounds its temporary copy).
+_PRODUCT_BLOCK = 1 << 20
+
+
+def extended_product(M: CsrMatrix, x: FloatArray) -> ExtArray:
+    """``M x`` in extended precision, as ``M.astype(longdouble) @ x`` computes it (same
+    order of summation) but widening *M* a block of rows at a time."""
+    return _extended_product(M, None, x)
+
+
+def _extended_product(A64: sp.csr_matrix, residue: sp.csr_matrix | None,
+                      x: FloatArray) -> ExtArray:
+    """``(A64 + residue) x`` in extended precision, *A64* converted a block at a time."""
+    n = A64.shape[0]
+    x_ext = np.asarray(x, dtype=np.longdouble)
+    out = np.empty(n, dtype=np.longdouble)
+    step = max(1, _PRODUCT_BLOCK * n // max(A64.nnz, 1))
+    for lo in range(0, n, step):
+        hi = min(n, lo + step)
+        start, stop = A64.indptr[lo], A64.indptr[hi]
+        block = sp.csr_matrix((A64.data[start:stop].astype(np.longdouble),
+                               A64.indices[start:stop], A64.indptr[lo:hi + 1] - start),
+                              shape=(hi - lo, A64.shape[1]))
+        out[lo:hi] = block @ x_ext
+    if residue is not None and residue.nnz:
+        out += residue @ x_ext
+    return out
+
+
+#: Applies an approximate inverse of the system matrix to a float64 vector.
+_Inverse = Callable[[FloatArray], FloatArray]
+
+
+def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
+    """SuperLU's factors of *A64* (None if the factorisation fails)."""
+    try:
+        lu = spla.splu(A64.tocsc())
+    except (RuntimeError, MemoryError):
+        return None
+    return lu.solve  # type: ignore[no-any-return]
+
+
+def _converged(correction: FloatArray, x: FloatArray) -> bool:
+    """Every correction below REFINE_TOL relative to its component (zero stays zero)."""
+    return bool(np.all(np.abs(correction) <= REFINE_TOL * np.abs(x)))
