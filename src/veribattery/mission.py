@@ -5,12 +5,11 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager, suppress
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path
 
 from veribattery._files import write_texts
-from veribattery._record import record
 from veribattery.checker import CheckResult, check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import Span, VeribatteryError
@@ -77,7 +76,7 @@ _FORMULA = "<property>"
 RECHARGE_CAP_WARN_AT = 1e-9
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RequirementOutcome:
     """A requirement and whether the checked value meets it."""
 
@@ -93,7 +92,7 @@ class RequirementOutcome:
                 "value": self.value, "holds": self.holds, "decided": self.decided}
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class MissionReport:
     """The verification of one mission config: the run, named values, requirement outcomes."""
 
@@ -122,7 +121,7 @@ class MissionReport:
         return all(outcome.holds for outcome in self.requirements)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class MissionFiles:
     """The emitted texts: the PRISM model, the properties PRISM and Storm both read,
     those only Storm reads, and the resolved config."""

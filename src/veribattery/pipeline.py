@@ -13,14 +13,13 @@ import math
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
-from dataclasses import field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from veribattery._memory import trim_for
-from veribattery._record import record
 from veribattery.checker import CheckResult, check
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
@@ -49,7 +48,7 @@ if TYPE_CHECKING:
 ProgressCallback = Callable[[int, int], None]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ModelCheckRun:
     """What one run of the pipeline produced: the DTMC, one result per property, timings."""
 

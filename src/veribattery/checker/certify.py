@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._sparse import csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.bounds import Bounds, round_down, round_up
@@ -180,7 +180,7 @@ def _nonnegative(x: FloatArray) -> bool:
     return bool(np.all(x >= 0))
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class AffineMap:
     """The fixed-point map of the unknown *states*, self-loops divided out.
 
@@ -376,7 +376,7 @@ def _error_constants(terms: FloatArray) -> tuple[FloatArray, FloatArray]:
     return error_coefficient(counted), counted * TERM_FLOOR
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class PinnedMap(AffineMap):
     """An :class:`AffineMap` whose states at the positions *pinned* have the fixed values
     *pinned_values*: ``G'(x)_i = v_i`` there, ``G(x)_i`` elsewhere (reading *x* at the

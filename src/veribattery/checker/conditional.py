@@ -28,7 +28,7 @@ from __future__ import annotations
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 import numpy as np
@@ -36,7 +36,6 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels, linsolve
 from veribattery.checker.bounds import Bounds
@@ -48,7 +47,7 @@ class ConditionUnreachable(UndefinedResult):
     """The condition of a conditional property has probability 0 from the initial state."""
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ConditionedChain:
     """The conditioned DTMC of a model given ``F b``, and where each state starts in it.
 
@@ -161,7 +160,7 @@ def _carry_over(dtmc: DTMC, matrix: CsrMatrix, origin: IntArray, start: IntArray
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Condition:
     """``x = P(F b)`` per state with certified bounds, and where it is positive.
 
@@ -424,7 +423,7 @@ def _long_way(F: certify.AffineMap, solver: linsolve.Factorization,
     return found
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Split(certify.AffineMap):
     """Two monotone maps that enclose the exact one: upper bounds from this one
     (largest offset and known values), lower bounds from *below* (smallest)."""

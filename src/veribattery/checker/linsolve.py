@@ -33,6 +33,7 @@ import hashlib
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -47,7 +48,6 @@ except ImportError:  # pragma: no cover -- scipy moved it: the public path is us
     _superlu = None
 
 from veribattery._memory import TRIM_MIN_STATES, trim_for
-from veribattery._record import record
 from veribattery._sparse import csc_sharing, csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import scc
@@ -167,7 +167,7 @@ def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.intege
     return value
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _RestrictionPlan:
     """The index work of :func:`restricted_parts` for one pattern of *P* and *maybe*.
 
@@ -687,7 +687,7 @@ def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
     return lu.solve  # type: ignore[no-any-return]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _TriangularPlan:
     """What :func:`_triangular_inverse` derives from *A64*'s sparsity pattern alone.
 

@@ -29,12 +29,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels, linsolve, reward_radius
 from veribattery.checker.bounds import Bounds, round_down, round_up
@@ -89,7 +88,7 @@ def integer_rewards(dtmc: DTMC, structure: RewardVectors, span: Span) -> IntArra
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Levels:
     """The moving states grouped by reward (in units of *unit*), and the zero-reward closure."""
 
@@ -214,7 +213,7 @@ def _certified_programme(P: CsrMatrix, target: BoolArray, levels: Levels, last: 
                          np.minimum(found.upper, 1.0))
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _BackwardGroup:
     """States with reward *r*: their value on level k is P_rows @ (successors' value on k-r).
 
@@ -258,7 +257,7 @@ class _BackwardGroup:
             self.history[i, slot] = vector[self.successors]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Closure:
     """The certified zero-reward closure of one level, over the columns its rows use."""
 
@@ -305,7 +304,7 @@ class _Closure:
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LevelMasses:
     """Probability mass absorbed per reward level, from :func:`absorption_by_level`.
 
@@ -401,7 +400,7 @@ def _columns_used(rows: CsrMatrix) -> tuple[IntArray, CsrMatrix]:
     return used, sp.csr_matrix(rows[:, used].T)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Ring:
     """The mass that left the states with reward *r* on each of the last *r* levels."""
 

@@ -16,19 +16,19 @@ does not grow with the number of BSCCs.
 from __future__ import annotations
 
 import weakref
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla  # a lazy package in the CLI: read when solving
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, kernels
 from veribattery.checker.bounds import Bounds, round_down, round_up
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Bsccs:
     """The BSCCs of a DTMC: *component* is each state's BSCC index, -1 if transient."""
 

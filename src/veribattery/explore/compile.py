@@ -21,11 +21,11 @@ import dataclasses
 import math
 import weakref
 from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any, cast
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError, PrismSemanticError, Span
 from veribattery.explore.chains import SPINE_LIMIT, Link, same_rows, unrolled
@@ -57,7 +57,7 @@ CompiledExpr = Callable[[IntArray], np.ndarray]
 _Fn = Callable[[IntArray], Any]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Node:
     """A compiled sub-expression: an evaluator, or a folded constant."""
 
@@ -76,7 +76,7 @@ class _Node:
         return self.risky and not self.labels
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Scope:
     """What compilation needs besides the expression.
 

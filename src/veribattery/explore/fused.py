@@ -34,11 +34,10 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
-from dataclasses import field
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile import CompiledExpr, may_fail
@@ -56,7 +55,7 @@ _NO_PROBABILITY = np.asarray(0.0)
 _NO_CHOICE = np.asarray(0, dtype=np.int64)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Expansion:
     """The branches out of a frontier, in order of source state, zero-probability ones dropped.
 
@@ -78,7 +77,7 @@ class Expansion:
     branches: int
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Expr:
     """An expression evaluated per layer: on the frontier, or on *kinds*' rows if risky."""
 
@@ -87,7 +86,7 @@ class _Expr:
     kinds: IntArray
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Values:
     """Where each branch kind's new variable values come from: rows of a per-layer table.
 
@@ -105,7 +104,7 @@ class _Values:
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Factors:
     """Branch probabilities: constants per branch kind, or per-part factor rows.
 
@@ -123,7 +122,7 @@ class _Factors:
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LayerPlan:
     """The static tables of a program's fused layer expansion (see the module doc)."""
 
@@ -164,7 +163,7 @@ class LayerPlan:
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Kind:
     action: str | None
     commands: tuple[int, ...]  # global command indices, one per part

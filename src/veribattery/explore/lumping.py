@@ -35,14 +35,13 @@ points a worker checked before.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._sparse import csr_sharing
 from veribattery._types import IntArray
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -134,7 +133,7 @@ def dtmc_seeds(dtmc: DTMC, variables: Sequence[str]) -> IntArray:
     return np.stack(columns) if columns else np.zeros((0, n), dtype=np.int64)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Round:
     """One partition of the rounds, with the index arrays that check it at other points.
 
@@ -183,7 +182,7 @@ class _Round:
         return int(self.representative.size)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Partition:
     """A stable partition of one structure's states at one point (module docstring).
 
@@ -305,7 +304,7 @@ def partition(dtmc: DTMC, seeds: IntArray, sources: tuple[object, ...] = ()) -> 
     return none
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Levels:
     """The states by height (longest path to a state without other successors), and
     their entries in that order, so that each level is one slice.

@@ -13,10 +13,9 @@ from __future__ import annotations
 
 import operator
 from collections.abc import Callable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any, Literal, TypeAlias
 
-from veribattery._record import record
 from veribattery.errors import NO_SPAN, Span
 
 # ---------------------------------------------------------------------------
@@ -28,7 +27,7 @@ ValueType: TypeAlias = Literal["int", "double", "bool"]
 Value: TypeAlias = int | float | bool
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class IntLit:
     """An integer literal."""
 
@@ -36,7 +35,7 @@ class IntLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class DoubleLit:
     """A double literal; *text* keeps the digits as written (for exact re-printing)."""
 
@@ -45,7 +44,7 @@ class DoubleLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class BoolLit:
     """``true`` or ``false``."""
 
@@ -53,7 +52,7 @@ class BoolLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Ident:
     """A name: a variable, constant or formula (resolved by semantic analysis)."""
 
@@ -61,7 +60,7 @@ class Ident:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LabelRef:
     """A quoted label in a property: ``"success"``, ``"init"``, ``"deadlock"``."""
 
@@ -75,7 +74,7 @@ BinaryOp: TypeAlias = Literal[
 ]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Unary:
     """``!a`` or ``-a``."""
 
@@ -84,7 +83,7 @@ class Unary:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Binary:
     """``a op b`` for the boolean, relational and arithmetic operators."""
 
@@ -94,7 +93,7 @@ class Binary:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Ite:
     """``cond ? then : otherwise``."""
 
@@ -107,7 +106,7 @@ class Ite:
 FunctionName: TypeAlias = Literal["min", "max", "floor", "ceil", "pow", "mod", "log", "round"]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Call:
     """A built-in function: ``min max floor ceil pow mod log round`` (``func(f, ...)`` too)."""
 
@@ -129,7 +128,7 @@ BOUND_RELATIONS: Mapping[str, Callable[[Any, Any], Any]] = {
 QueryOp: TypeAlias = Literal["=?", "<", "<=", ">", ">="]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class TimeBound:
     """A step bound on a temporal operator: ``<=k``, ``<k``, ``>=k``, ``>k`` (``=k`` for I)."""
 
@@ -138,7 +137,7 @@ class TimeBound:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class TimeInterval:
     """A step interval ``[low,high]`` on a temporal operator (both ends included)."""
 
@@ -150,7 +149,7 @@ class TimeInterval:
 Bound: TypeAlias = TimeBound | TimeInterval
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Next:
     """``X phi``."""
 
@@ -158,7 +157,7 @@ class Next:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Until:
     """``left U right``, optionally step-bounded."""
 
@@ -168,7 +167,7 @@ class Until:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class WeakUntil:
     """``left W right``: ``left U right`` or ``G left``, optionally step-bounded."""
 
@@ -178,7 +177,7 @@ class WeakUntil:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Release:
     """``left R right``: *right* holds up to and including the first *left* state."""
 
@@ -188,7 +187,7 @@ class Release:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Eventually:
     """``F phi``, optionally step-bounded (equivalent to ``true U phi``)."""
 
@@ -197,7 +196,7 @@ class Eventually:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Globally:
     """``G phi``, optionally step-bounded."""
 
@@ -206,7 +205,7 @@ class Globally:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Cumulative:
     """Reward path ``C<=k``: reward accumulated over the first k steps."""
 
@@ -214,7 +213,7 @@ class Cumulative:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Instantaneous:
     """Reward path ``I=k``: expected state reward at step k."""
 
@@ -222,7 +221,7 @@ class Instantaneous:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Reach:
     """Reward path ``F phi``: reward accumulated until phi is first reached."""
 
@@ -230,21 +229,21 @@ class Reach:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Total:
     """Reward path ``C``: the total reward accumulated along the whole path."""
 
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LongRun:
     """Reward path ``S``: the long-run average reward per step."""
 
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ReachUntil:
     """Reward path ``left U right``: reward until *right*, infinite unless it is sure."""
 
@@ -257,7 +256,7 @@ class ReachUntil:
 # --- checker/conditional.py).
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardBounded:
     """``left U{"r"}<=T right`` (``F{"r"}<=T right`` has *left* ``true``), as in Storm.
 
@@ -273,7 +272,7 @@ class RewardBounded:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ReachNext:
     """Reward path ``X phi``: the first step's reward, infinite unless ``X phi`` is sure."""
 
@@ -281,7 +280,7 @@ class ReachNext:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Conditional:
     """``P=? [ path || F condition ]``: *path* given that *condition* is reached (Storm)."""
 
@@ -290,7 +289,7 @@ class Conditional:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ConditionalReach:
     """Reward path ``F target || F condition``: reward to *target*, given ``F condition``."""
 
@@ -308,7 +307,7 @@ RewardPath: TypeAlias = (
 )
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ProbOp:
     """``P=? [path]`` or ``P~p [path]``."""
 
@@ -318,7 +317,7 @@ class ProbOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardOp:
     """``R{"name"}=? [path]``, ``R=? [path]`` (first structure), or with a bound.
 
@@ -333,7 +332,7 @@ class RewardOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class SteadyOp:
     """``S=? [phi]`` or ``S~p [phi]``: the long-run probability of being in *phi*."""
 
@@ -343,7 +342,7 @@ class SteadyOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Quantified:
     """CTL: ``A [path]`` (on all paths) or ``E [path]`` (on some path)."""
 
@@ -358,7 +357,7 @@ FilterOp: TypeAlias = Literal[
 ]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Filter:
     """``filter(op, operand, states)``; *states* None means all states."""
 
@@ -390,7 +389,7 @@ Expr: TypeAlias = (
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ConstDecl:
     """``const [int|double|bool] name [= value];`` -- *value* None means undefined."""
 
@@ -400,7 +399,7 @@ class ConstDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FormulaDecl:
     """``formula name = expr;``."""
 
@@ -409,7 +408,7 @@ class FormulaDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LabelDecl:
     """``label "name" = expr;``."""
 
@@ -418,7 +417,7 @@ class LabelDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class VarDecl:
     """``name : [low..high] init e;`` or ``name : bool init e;`` (``global`` if at top level)."""
 
@@ -430,7 +429,7 @@ class VarDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Assignment:
     """``(x' = expr)``."""
 
@@ -439,7 +438,7 @@ class Assignment:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Update:
     """One probabilistic branch ``p : (x'=..) & (y'=..)``; ``true`` has no assignments."""
 
@@ -448,7 +447,7 @@ class Update:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Command:
     """``[action] guard -> updates;`` -- *action* None for ``[]``."""
 
@@ -458,7 +457,7 @@ class Command:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Module:
     """``module name ... endmodule``."""
 
@@ -468,7 +467,7 @@ class Module:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RenamedModule:
     """``module name = base [old=new, ...] endmodule``."""
 
@@ -478,7 +477,7 @@ class RenamedModule:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardItem:
     """``[action] guard : value;`` (transition reward) or ``guard : value;`` (state reward)."""
 
@@ -489,7 +488,7 @@ class RewardItem:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardStruct:
     """``rewards ["name"] ... endrewards`` -- *name* None when unnamed."""
 
@@ -501,7 +500,7 @@ class RewardStruct:
 ModelType: TypeAlias = Literal["dtmc"]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Model:
     """A whole PRISM model file, declarations in source order per kind."""
 
@@ -521,7 +520,7 @@ class Model:
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Property:
     """One property: ``["name":] formula``; *text* is the source text of the formula."""
 
@@ -535,7 +534,7 @@ class Property:
     unsupported: str | None = None
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class PropertiesFile:
     """A ``.props``/``.pctl`` file: its constants, labels and properties in order."""
 
@@ -550,7 +549,7 @@ class PropertiesFile:
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Variable:
     """A state variable with constant integer bounds (bool is 0..1)."""
 
@@ -563,7 +562,7 @@ class Variable:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FlatModule:
     """A module after renaming: its own variables' names and its commands.
 
@@ -578,7 +577,7 @@ class FlatModule:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FlatModel:
     """A checked, closed model: every expression uses only variables and literals.
 
