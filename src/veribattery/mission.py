@@ -8,14 +8,13 @@ from contextlib import contextmanager, suppress
 from dataclasses import dataclass, replace
 from fractions import Fraction
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from veribattery._files import write_texts
 from veribattery.checker import CheckResult, check
 from veribattery.config import MissionConfig, Requirement, config_to_yaml, derive_parameters
 from veribattery.errors import Span, VeribatteryError
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.lumping import Lumper
-from veribattery.explore.reuse import structure_key
 from veribattery.lang import (
     flatten_model,
     parse_model,
@@ -42,6 +41,9 @@ from veribattery.lang.nodes import (
 from veribattery.lang.property_rules import STEPS_REWARD
 from veribattery.lang.semantics import BUILTIN_LABELS
 from veribattery.pipeline import ModelCheckRun, ProgressCallback, ReusingBuilder, check_model
+
+if TYPE_CHECKING:
+    from veribattery.explore.lumping import Lumper
 
 MODEL_FILE = "model.prism"
 #: The properties PRISM and Storm both read.
@@ -345,7 +347,11 @@ class MissionChecker:
         self._builder = ReusingBuilder() if reuse else None
         if lump is None:
             lump = values_only and reuse
-        self._lumper = Lumper() if lump and values_only else None
+        self._lumper = None
+        if lump and values_only:  # sweeps only: a single check never imports lumping
+            from veribattery.explore.lumping import Lumper
+
+            self._lumper = Lumper()
         # One parse cache per process: a sweep's workers check one task after another,
         # and consecutive points' texts differ in a constant or two (see _Parsed).
         self._parsed = _PARSES
@@ -453,6 +459,7 @@ def reuse_key(cfg: MissionConfig) -> str | None:
     Equal keys are necessary for re-use; :class:`MissionChecker` still falls back
     to a full build where a probability becomes 0 or 1.
     """
+    from veribattery.explore.reuse import structure_key
     from veribattery.render import render_model
 
     model = _PARSES.model(render_model(cfg))

@@ -24,8 +24,6 @@ from veribattery.checker import CheckResult, check
 from veribattery.checker.pctl import prepare
 from veribattery.errors import PrismSemanticError, UndefinedResult
 from veribattery.explore import DTMC, build_dtmc
-from veribattery.explore.lumping import Lumper
-from veribattery.explore.reuse import Structure, build_reusable, reevaluate
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -44,6 +42,8 @@ from veribattery.lang.nodes import Expr, Filter, Ident, RewardBounded, RewardOp,
 
 if TYPE_CHECKING:
     from veribattery.explore.exact import ExactDTMC
+    from veribattery.explore.lumping import Lumper
+    from veribattery.explore.reuse import Structure
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -111,6 +111,8 @@ class ReusingBuilder:
 
     def build(self, flat: FlatModel, progress: ProgressCallback | None = None) -> tuple[DTMC, bool]:
         """The DTMC of *flat*, and whether it re-used the base's state space."""
+        from veribattery.explore.reuse import build_reusable, reevaluate  # sweeps only
+
         if self._base is not None:
             dtmc = reevaluate(*self._base, flat)
             if dtmc is not None:

@@ -31,6 +31,7 @@ import weakref
 from collections import OrderedDict
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
@@ -39,7 +40,7 @@ from scipy.sparse import csgraph
 
 from veribattery._memory import trim_for
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker import certify, focus, linsolve, rational
+from veribattery.checker import certify, linsolve
 from veribattery.checker.bounds import (
     Bounds,
     current_precision,
@@ -48,6 +49,9 @@ from veribattery.checker.bounds import (
     round_up,
 )
 from veribattery.errors import CheckError
+
+if TYPE_CHECKING:
+    from veribattery.checker import focus
 
 # ---------------------------------------------------------------------------
 # Memo per transition matrix: properties of one model share targets (``F "done"``
@@ -589,6 +593,8 @@ def quick_bounds(F: certify.AffineMap, solver: linsolve.QuickSolver,
     if F.states.size < QUICK_MIN_STATES:
         return None
     b64 = np.asarray(b, dtype=np.float64)
+    if rows is not None:  # answers at a few states only: focus is imported then
+        from veribattery.checker import focus
     if rows and all(row.lower is not None for row in rows):
         answered = focus.answered_bounds(F, rows, b64, floor, ceiling)
         if answered is not None:
@@ -638,6 +644,8 @@ def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
     found = Bounds.around(x if x is not None else low, low, high)
     if found.precise_states().all():
         return found
+    from veribattery.checker import rational  # the last resort: imported when reached
+
     exact = rational.solve_exact(F)
     if exact is not None:
         return Bounds(*exact)
@@ -658,6 +666,8 @@ def focus_rows(system: _System, F: certify.AffineMap, focus_states: IntArray | N
     that failed its test. Then whole vectors are certified."""
     if focus_states is None or F.states.size < QUICK_MIN_STATES:
         return None
+    from veribattery.checker import focus  # answers at a few states only
+
     inside = focus_states[system.unknowns[focus_states]]
     if inside.size > focus.FOCUS_MAX:
         return None
@@ -695,6 +705,8 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Boun
     """
     if escalated() and np.array_equal(start.lower, start.upper):
         # Asked for exact bounds: iterate in rational arithmetic when small enough.
+        from veribattery.checker import rational
+
         exact = rational.power_exact(M, start.value, offset, k)
         if exact is not None:
             return Bounds(*exact)

@@ -34,7 +34,7 @@ import weakref
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -50,8 +50,10 @@ except ImportError:  # pragma: no cover -- scipy moved it: the public path is us
 from veribattery._memory import TRIM_MIN_STATES, trim_for
 from veribattery._sparse import csc_sharing, csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
-from veribattery.checker import scc
 from veribattery.errors import CheckError
+
+if TYPE_CHECKING:
+    from veribattery.checker import scc
 
 ExtArray = npt.NDArray[np.longdouble]
 
@@ -539,11 +541,12 @@ class Factorization:
         """:meth:`correction` for the quick certificate: with a Krylov segment, a
         loose solve of a lifted *v* (:meth:`scc.Segmented.margin`), else the same."""
         inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
-        if not isinstance(inverse, scc.Segmented) or not inverse.iterative:
+        if inverse is None or not self._iterative:  # iterative: a Krylov segment's inverse
             return self.correction(v)
         if not v.any():
             return np.zeros_like(v)
-        return np.asarray(inverse.margin(np.ascontiguousarray(v, dtype=np.float64)))
+        segmented = cast("scc.Segmented", inverse)
+        return np.asarray(segmented.margin(np.ascontiguousarray(v, dtype=np.float64)))
 
     @property
     def triangular(self) -> bool:
@@ -586,7 +589,9 @@ class Factorization:
         if not self._direct_tried:
             self._direct_tried = True
             self._direct = self._substitution()
-            if self._direct is None:
+            if self._direct is None:  # the graph has a cycle: segment it
+                from veribattery.checker import scc
+
                 found = scc.components(self.A64)
                 if found is not None:
                     segmented = scc.segmented_inverse(self.A64, found)

@@ -19,15 +19,7 @@ from typing import TypeAlias
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker import (
-    conditional,
-    ctl,
-    filters,
-    intervals,
-    kernels,
-    reward_bounded,
-    steady,
-)
+from veribattery.checker import ctl, filters, intervals, kernels
 from veribattery.checker.bounds import Bounds, escalated, required_precision
 from veribattery.errors import CheckError, VeribatteryError
 from veribattery.explore.compile import compile_expr
@@ -106,6 +98,8 @@ def values(dtmc: DTMC, formula: Expr, focus_states: IntArray | None = None) -> R
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(dtmc, formula, focus_states)
     if isinstance(formula, SteadyOp) and formula.op == "=?":
+        from veribattery.checker import steady  # rare kinds of property: imported when met
+
         return steady.steady_probs(dtmc.transitions, state_set(dtmc, formula.operand))
     if isinstance(formula, Filter):
         return _filter_values(dtmc, formula)
@@ -244,8 +238,12 @@ def path_rewards(dtmc: DTMC, op: RewardOp, focus_states: IntArray | None = None)
         case Instantaneous(time=time):
             return kernels.instantaneous_rewards(P, structure.state, _steps(time))
         case Total():
+            from veribattery.checker import steady
+
             return steady.total_rewards(P, structure.total)
         case LongRun():
+            from veribattery.checker import steady
+
             return steady.long_run_rewards(P, structure.total)
         case ReachUntil(left=left, right=right):
             return _reach_until_rewards(dtmc, structure, left, right)
@@ -256,6 +254,8 @@ def path_rewards(dtmc: DTMC, op: RewardOp, focus_states: IntArray | None = None)
             sure = P @ (~state_set(dtmc, target)).astype(np.float64) == 0
             return Bounds.exact(np.where(sure, structure.total, np.inf))
         case ConditionalReach(target=target, condition=condition):
+            from veribattery.checker import conditional
+
             return conditional.conditional_reach_reward_bounds(
                 dtmc, structure, state_set(dtmc, target), state_set(dtmc, condition),
                 _condition_name(condition), path.span, focus_states)
@@ -350,6 +350,8 @@ def _quiet_set(dtmc: DTMC, expr: Expr) -> BoolArray | None:
 
 def _reward_bounded_probs(dtmc: DTMC, path: RewardBounded) -> Bounds:
     """``U{"r"}<=T`` / ``F{"r"}<=T``, certified."""
+    from veribattery.checker import reward_bounded
+
     structure = _reward_structure(dtmc, path)
     levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
     return reward_bounded.reward_bounded_until_bounds(
@@ -360,6 +362,8 @@ def _reward_bounded_probs(dtmc: DTMC, path: RewardBounded) -> Bounds:
 def _conditional_probs(dtmc: DTMC, path: Conditional) -> Bounds:
     """``path || F b``: certified ratios for unbounded ``X F G U W R`` objectives, the
     product chain (range only, not certified) for step- and reward-bounded ones."""
+    from veribattery.checker import conditional
+
     objective = path.path
     if any(_has_operator(operand) for operand in _operands(objective)):
         raise CheckError("P and R operators inside a conditional formula are not supported",

@@ -14,7 +14,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -29,8 +29,10 @@ from veribattery.explore.guard import Footprint, MemoryGuard
 from veribattery.explore.layers import Layer, Layers
 from veribattery.explore.program import Program, compile_program
 from veribattery.explore.store import StateStore, radix_words
-from veribattery.explore.successors import GroupSuccessors, expand_group
 from veribattery.lang.nodes import Expr, FlatModel, RewardStruct
+
+if TYPE_CHECKING:
+    from veribattery.explore.successors import GroupSuccessors
 
 __all__ = [
     "Expansion",
@@ -233,6 +235,9 @@ class _OutOfRange(Exception):
 def _expand_groups(
     program: Program, frontier: IntArray, bounds: bool
 ) -> list[tuple[str | None, GroupSuccessors]]:
+    # Layers the fused plan does not cover (and error locations) only: imported then.
+    from veribattery.explore.successors import expand_group
+
     parts = [(g.action, expand_group(program, g, frontier, bounds)) for g in program.groups]
     return [(a, s) for a, s in parts if s is not None]
 

@@ -21,7 +21,6 @@ import numpy as np
 from veribattery._types import IntArray
 from veribattery.explore.compile import variables_of
 from veribattery.explore.program import CompiledCommand, Program, compile_program
-from veribattery.explore.successors import check_update_ranges
 from veribattery.lang.nodes import Command, FlatModel
 
 __all__ = ["check_update_ranges_over_domain"]
@@ -56,6 +55,8 @@ def check_update_ranges_over_domain(
 
 def _check_command(program: Program, command: CompiledCommand, limit: int) -> int | None:
     """Check one command; return its domain size instead if that exceeds *limit*."""
+    from veribattery.explore.successors import check_update_ranges  # not a model check's
+
     if _provably_in_range(command):
         return None
     columns = sorted(program.variable_names.index(v) for v in _mentioned(command.command))

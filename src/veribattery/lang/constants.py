@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from fractions import Fraction
 
 from veribattery.errors import PrismSemanticError
 from veribattery.lang.evaluate import evaluate
@@ -43,6 +42,8 @@ def _parse_text(decl: ConstDecl, text: str) -> Value:
         if decl.type == "int":
             return int(text)
         if decl.type == "double":
+            from fractions import Fraction  # --const values only: it imports decimal
+
             return float(Fraction(text)) if "/" in text else float(text)
     except (ValueError, ZeroDivisionError):
         pass
