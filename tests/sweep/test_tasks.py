@@ -8,7 +8,7 @@ from typing import Any
 
 import pytest
 
-import veribattery.pipeline.session as pipeline
+import veribattery.explore.reuse.structure as structure
 from tests.sweep.helpers import SMALL_FARM
 from veribattery.config import load_config
 from veribattery.mission import RenderedMission, check_mission, reuse_key
@@ -23,13 +23,14 @@ def _mission(p_wsp_c: str) -> RenderedMission:
 def reusable_builds(monkeypatch: pytest.MonkeyPatch) -> list[int]:
     """Counts the builds that keep a structure for re-use (and record branch kinds)."""
     calls: list[int] = []
-    original: Callable[..., Any] = pipeline.build_reusable
+    # Patched where it is defined: the session imports it when it builds (re-use only).
+    original: Callable[..., Any] = structure.build_reusable
 
     def counting(*args: Any, **kwargs: Any) -> Any:
         calls.append(1)
         return original(*args, **kwargs)
 
-    monkeypatch.setattr(pipeline, "build_reusable", counting)
+    monkeypatch.setattr(structure, "build_reusable", counting)
     return calls
 
 

@@ -12,12 +12,16 @@ other only through a workspace they share, and everything it holds goes with it.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 from veribattery.checker import certify, kernels, linalg
 from veribattery.checker.formula import share
-from veribattery.checker.kernels import conditional, steady
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr
+
+if TYPE_CHECKING:
+    from veribattery.checker.kernels.conditional import Conditions
+    from veribattery.checker.kernels.steady import LongRun
 
 
 class Workspace:
@@ -33,7 +37,7 @@ class Workspace:
     Not for concurrent use: give each thread its own.
     """
 
-    __slots__ = ("conditions", "kernels", "long_run", "row_plans", "solvers")
+    __slots__ = ("_conditions", "_long_run", "kernels", "row_plans", "solvers")
 
     def __init__(self) -> None:
         #: Per transition matrix: the 0/1 pre-pass (shared by matrices of one pattern),
@@ -43,16 +47,34 @@ class Workspace:
         self.solvers = linalg.SolverPlans()
         #: The index work of the certificates' maps (:class:`certify.RowPlans`).
         self.row_plans = certify.RowPlans()
-        #: ``P(F b)`` of the last conditions (:class:`conditional.Conditions`).
-        self.conditions = conditional.Conditions()
-        #: The BSCCs and stationary distribution of the last matrix (:class:`steady.LongRun`).
-        self.long_run = steady.LongRun()
+        # The caches of rarer kinds of property, made on first use (below): their
+        # kernels' modules are imported only by checks that meet such a property.
+        self._conditions: Conditions | None = None
+        self._long_run: LongRun | None = None
+
+    @property
+    def conditions(self) -> Conditions:
+        """``P(F b)`` of the last conditions (:class:`conditional.Conditions`)."""
+        if self._conditions is None:
+            from veribattery.checker.kernels.conditional import Conditions
+
+            self._conditions = Conditions()
+        return self._conditions
+
+    @property
+    def long_run(self) -> LongRun:
+        """The BSCCs and stationary distribution of the last matrix (:class:`steady.LongRun`)."""
+        if self._long_run is None:
+            from veribattery.checker.kernels.steady import LongRun
+
+            self._long_run = LongRun()
+        return self._long_run
 
     @property
     def empty(self) -> bool:
         """Whether nothing is kept yet (a new workspace, or one no check has used)."""
-        return all(part.empty for part in (self.kernels, self.solvers, self.row_plans,
-                                           self.conditions, self.long_run))
+        made = [part for part in (self._conditions, self._long_run) if part is not None]
+        return all(part.empty for part in (self.kernels, self.solvers, self.row_plans, *made))
 
     def prepare(self, dtmc: DTMC, formulas: Sequence[Expr]) -> None:
         """Choose the linear systems the unbounded queries among *formulas* will share on

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping, Sequence
-from fractions import Fraction
 
 from veribattery.errors import PrismSemanticError, PrismSyntaxError
 from veribattery.lang.evaluate import EvaluationError, evaluate
@@ -87,7 +86,11 @@ def _literal(decl: ConstDecl, text: str) -> Value | None:
     try:
         if decl.type == "int":
             return int(text)
-        return float(Fraction(text)) if "/" in text else float(text)
+        if "/" in text:  # a ratio: fractions (which imports decimal) only then
+            from fractions import Fraction
+
+            return float(Fraction(text))
+        return float(text)
     except (ValueError, ZeroDivisionError):
         return None
 

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from veribattery.checker import Workspace
 from veribattery.config import MissionConfig
 from veribattery.explore.dtmc import DTMC
-from veribattery.explore.reuse.structure import structure_key
 from veribattery.lang import flatten_model, parse_model
 from veribattery.lang.nodes import Model, PropertiesFile
 from veribattery.mission.files import MODEL_FILE, mission_files
@@ -173,5 +172,7 @@ def reuse_key(mission: RenderedMission, parses: ParseCache | None = None) -> str
     :param parses: the parse cache to use (a sweep asks for the keys of many similar
         missions in a row).
     """
+    from veribattery.explore.reuse.structure import structure_key  # sweeps only
+
     model = (parses or ParseCache()).model(mission.model)
     return structure_key(flatten_model(model))

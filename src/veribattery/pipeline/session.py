@@ -6,13 +6,11 @@ from __future__ import annotations
 import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Literal, get_args
+from typing import TYPE_CHECKING, Literal, get_args
 
 from veribattery._memory import trim_for
 from veribattery.checker import Workspace, check
 from veribattery.explore import DTMC, build_dtmc
-from veribattery.explore.reuse.lumping import Lumper
-from veribattery.explore.reuse.structure import Structure, build_reusable, reevaluate
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -34,6 +32,10 @@ from veribattery.pipeline.run import (
     run_checks,
 )
 
+if TYPE_CHECKING:
+    from veribattery.explore.reuse.lumping import Lumper
+    from veribattery.explore.reuse.structure import Structure
+
 __all__ = ["ReusingBuilder", "Rewards", "Session", "check_model"]
 
 #: The reward structures a :class:`Session` builds: all, or those the properties name.
@@ -54,6 +56,8 @@ class ReusingBuilder:
 
     def build(self, flat: FlatModel, progress: ProgressCallback | None = None) -> tuple[DTMC, bool]:
         """The DTMC of *flat*, and whether it re-used the base's state space."""
+        from veribattery.explore.reuse.structure import build_reusable, reevaluate  # reuse only
+
         if self._base is not None:
             dtmc = reevaluate(*self._base, flat)
             if dtmc is not None:
@@ -97,7 +101,11 @@ class Session:
             raise ValueError(f"rewards must be one of {get_args(Rewards)}, got {rewards!r}")
         self.rewards = rewards
         self.builder = ReusingBuilder() if reuse else None
-        self.lumper = Lumper() if lump else None
+        self.lumper: Lumper | None = None
+        if lump:  # sweeps only: a single check never imports lumping
+            from veribattery.explore.reuse.lumping import Lumper
+
+            self.lumper = Lumper()
         self.workspace = workspace if workspace is not None else Workspace()
 
     def check(

@@ -36,7 +36,6 @@ from veribattery.checker.formula.leaves import (
     operand_chain,
     step_bound,
 )
-from veribattery.checker.kernels import conditional, reward_bounded, steady
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.nodes import (
@@ -101,6 +100,8 @@ def values(dtmc: DTMC, workspace: Workspace, formula: Expr,
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(dtmc, workspace, formula, focus_states)
     if isinstance(formula, SteadyOp) and formula.op == "=?":
+        from veribattery.checker.kernels import steady  # rare kinds of property: when met
+
         target = state_set(dtmc, workspace, formula.operand)
         return steady.steady_probs(dtmc.transitions, target, workspace=workspace)
     if isinstance(formula, Filter):
@@ -231,8 +232,12 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
         case Instantaneous(time=time):
             return kernels.instantaneous_rewards(P, structure.state, step_bound(time))
         case Total():
+            from veribattery.checker.kernels import steady
+
             return steady.total_rewards(P, structure.total, workspace=workspace)
         case LongRun():
+            from veribattery.checker.kernels import steady
+
             return steady.long_run_rewards(P, structure.total, workspace=workspace)
         case ReachUntil(left=left, right=right):
             return _reach_until_rewards(dtmc, workspace, structure, left, right)
@@ -243,6 +248,8 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
             sure = P @ (~state_set(dtmc, workspace, target)).astype(np.float64) == 0
             return Bounds.exact(np.where(sure, structure.total, np.inf))
         case ConditionalReach(target=target, condition=condition):
+            from veribattery.checker.kernels import conditional
+
             return conditional.conditional_reach_reward_bounds(
                 dtmc, structure, state_set(dtmc, workspace, target),
                 state_set(dtmc, workspace, condition), _condition_name(condition), path.span,
@@ -258,6 +265,8 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
 
 def _reward_bounded_probs(dtmc: DTMC, workspace: Workspace, path: RewardBounded) -> Bounds:
     """``U{"r"}<=T`` / ``F{"r"}<=T``, certified."""
+    from veribattery.checker.kernels import reward_bounded
+
     structure = _reward_structure(dtmc, path)
     levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
     return reward_bounded.reward_bounded_until_bounds(
@@ -269,6 +278,8 @@ def _reward_bounded_probs(dtmc: DTMC, workspace: Workspace, path: RewardBounded)
 def _conditional_probs(dtmc: DTMC, workspace: Workspace, path: Conditional) -> Bounds:
     """``path || F b``: certified ratios for unbounded ``X F G U W R`` objectives, the
     product chain (range only, not certified) for step- and reward-bounded ones."""
+    from veribattery.checker.kernels import conditional
+
     objective = path.path
     if any(has_operator(operand) for operand in _operands(objective)):
         raise CheckError("P and R operators inside a conditional formula are not supported",

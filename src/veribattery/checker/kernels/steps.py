@@ -27,7 +27,6 @@ from veribattery.checker.certify.bounds import (
 from veribattery.checker.kernels.prepass import prob0
 from veribattery.checker.kernels.systems import _restrict, _system
 from veribattery.checker.kernels.until import _certified, _spread, until_probs
-from veribattery.checker.linalg import rational
 
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
@@ -48,6 +47,8 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Boun
     """
     if escalated() and np.array_equal(start.lower, start.upper):
         # Asked for exact bounds: iterate in rational arithmetic when small enough.
+        from veribattery.checker.linalg import rational
+
         exact = rational.power_exact(M, start.value, offset, k)
         if exact is not None:
             return Bounds(*exact)

@@ -22,11 +22,11 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import certify, linalg
-from veribattery.checker.certify import focus
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.errors import CheckError
 
 if TYPE_CHECKING:
+    from veribattery.checker.certify import focus
     from veribattery.checker.workspace import Workspace
 
 

@@ -18,7 +18,6 @@ import numpy.typing as npt
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, linalg
-from veribattery.checker.certify import focus
 from veribattery.checker.certify.bounds import Bounds, escalated
 from veribattery.checker.kernels import systems
 from veribattery.checker.kernels.prepass import prob0, prob1, reach_unknowns
@@ -27,10 +26,10 @@ from veribattery.checker.kernels.systems import (
     _restrict,
     _system,
 )
-from veribattery.checker.linalg import rational
 from veribattery.errors import CheckError
 
 if TYPE_CHECKING:
+    from veribattery.checker.certify import focus
     from veribattery.checker.kernels.systems import _System
     from veribattery.checker.workspace import Workspace
 
@@ -240,6 +239,8 @@ def quick_bounds(F: certify.AffineMap, solver: linalg.QuickSolver,
     if F.states.size < systems.QUICK_MIN_STATES:
         return None
     b64 = np.asarray(b, dtype=np.float64)
+    if rows is not None:  # answers at a few states only: focus is imported then
+        from veribattery.checker.certify import focus
     if rows and all(row.lower is not None for row in rows):
         answered = focus.answered_bounds(F, rows, b64, floor, ceiling)
         if answered is not None:
@@ -288,6 +289,8 @@ def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
     found = Bounds.around(x if x is not None else low, low, high)
     if found.precise_states().all():
         return found
+    from veribattery.checker.linalg import rational  # the last resort: imported when reached
+
     exact = rational.solve_exact(F)
     if exact is not None:
         return Bounds(*exact)
@@ -308,6 +311,8 @@ def focus_rows(system: _System, F: certify.AffineMap, focus_states: IntArray | N
     that failed its test. Then whole vectors are certified."""
     if focus_states is None or F.states.size < systems.QUICK_MIN_STATES:
         return None
+    from veribattery.checker.certify import focus  # answers at a few states only
+
     inside = focus_states[system.unknowns[focus_states]]
     if inside.size > focus.FOCUS_MAX:
         return None

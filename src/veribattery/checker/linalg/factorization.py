@@ -30,7 +30,7 @@ meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Protocol, cast
 
 import numpy as np
 import numpy.typing as npt
@@ -38,12 +38,12 @@ import scipy.sparse as sp
 from scipy.sparse import linalg as spla
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
-from veribattery.checker.linalg import scc
 from veribattery.checker.linalg.iterative import RESIDUAL_TOL, _norm, matrix_norm, solve_iterative
 from veribattery.checker.linalg.triangular import _triangular_inverse
 from veribattery.errors import CheckError
 
 if TYPE_CHECKING:
+    from veribattery.checker.linalg import scc
     from veribattery.checker.linalg.restriction import ExtArray, SolverPlans
     from veribattery.checker.linalg.triangular import _Triangular
 
@@ -261,11 +261,12 @@ class Factorization:
         """:meth:`correction` for the quick certificate: with a Krylov segment, a
         loose solve of a lifted *v* (:meth:`scc.Segmented.margin`), else the same."""
         inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
-        if not isinstance(inverse, scc.Segmented) or not inverse.iterative:
+        if inverse is None or not self._iterative:  # iterative: a Krylov segment's inverse
             return self.correction(v)
         if not v.any():
             return np.zeros_like(v)
-        return np.asarray(inverse.margin(np.ascontiguousarray(v, dtype=np.float64)))
+        segmented = cast("scc.Segmented", inverse)
+        return np.asarray(segmented.margin(np.ascontiguousarray(v, dtype=np.float64)))
 
     @property
     def triangular(self) -> bool:
@@ -307,7 +308,9 @@ class Factorization:
         if not self._direct_tried:
             self._direct_tried = True
             self._direct = self._substitution()
-            if self._direct is None:
+            if self._direct is None:  # the graph has a cycle: segment it
+                from veribattery.checker.linalg import scc
+
                 found = scc.components(self.A64)
                 if found is not None:
                     segmented = scc.segmented_inverse(self.A64, found)

@@ -14,7 +14,7 @@ import functools
 import math
 from collections.abc import Callable
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -27,11 +27,13 @@ from veribattery.explore.build.guard import Footprint, MemoryGuard
 from veribattery.explore.build.layers import Layer, Layers
 from veribattery.explore.build.plan import plan_layers
 from veribattery.explore.build.store import StateStore, radix_words
-from veribattery.explore.build.successors import GroupSuccessors, expand_group, format_state
 from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr, may_fail
 from veribattery.explore.compile.program import Program, compile_program
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
+
+if TYPE_CHECKING:
+    from veribattery.explore.build.successors import GroupSuccessors
 
 __all__ = [
     "Expansion",
@@ -203,13 +205,16 @@ def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | No
         fused = plan.expand(frontier, rewarded)
         if fused is not None:
             return fused
+    # Layers the fused plan does not cover (and error locations) only: imported then.
+    from veribattery.explore.build.successors import expand_groups
+
     try:
-        found = _expand_groups(program, frontier, bounds=False)
+        found = expand_groups(program, frontier, bounds=False)
         expansion = _combine(program, found, frontier, rewarded)
     except (ModelError, _OutOfRange):
         # Expand again checking each update as it is made, so that the first error
         # in command order is the one reported, located at its command.
-        _expand_groups(program, frontier, bounds=True)
+        expand_groups(program, frontier, bounds=True)
         raise
     return expansion
 
@@ -229,13 +234,6 @@ def _plan(program: Program) -> LayerPlan | None:
 
 class _OutOfRange(Exception):
     """Some branch of a layer leaves its variable's range (located by a re-expansion)."""
-
-
-def _expand_groups(
-    program: Program, frontier: IntArray, bounds: bool
-) -> list[tuple[str | None, GroupSuccessors]]:
-    parts = [(g.action, expand_group(program, g, frontier, bounds)) for g in program.groups]
-    return [(a, s) for a, s in parts if s is not None]
 
 
 def _check_in_range(program: Program, targets: IntArray) -> None:
@@ -484,6 +482,8 @@ def _check_finite(struct: RewardStruct, item: RewardItem, value: FloatArray, mod
     bad = np.flatnonzero(~np.isfinite(value))
     if bad.size:
         name = f'"{struct.name}"' if struct.name is not None else "(unnamed)"
+        from veribattery.explore.build.successors import format_state  # an error only
+
         where = format_state(model.variable_names, states[bad[0]])
         raise ModelError(f"reward structure {name} is not finite at state ({where}): "
                          f"{value[bad[0]]}", item.value.span)

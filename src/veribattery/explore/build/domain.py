@@ -19,7 +19,6 @@ from __future__ import annotations
 import numpy as np
 
 from veribattery._types import IntArray
-from veribattery.explore.build.successors import check_update_ranges
 from veribattery.explore.compile.expr import variables_of
 from veribattery.explore.compile.program import CompiledCommand, Program, compile_program
 from veribattery.lang.nodes import Command, FlatModel
@@ -56,6 +55,8 @@ def check_update_ranges_over_domain(
 
 def _check_command(program: Program, command: CompiledCommand, limit: int) -> int | None:
     """Check one command; return its domain size instead if that exceeds *limit*."""
+    from veribattery.explore.build.successors import check_update_ranges  # not a model check's
+
     if _provably_in_range(command):
         return None
     columns = sorted(program.variable_names.index(v) for v in _mentioned(command.command))

@@ -25,7 +25,8 @@ from veribattery.explore.compile.program import (
     Program,
 )
 
-__all__ = ["GroupSuccessors", "check_update_ranges", "expand_group", "format_state"]
+__all__ = ["GroupSuccessors", "check_update_ranges", "expand_group", "expand_groups",
+           "format_state"]
 
 _TOLERANCE = 1e-6  # allowed deviation of a choice's probabilities from 1
 
@@ -69,6 +70,15 @@ def expand_group(
     if all(len(part) == 1 for part in group.parts):
         return _expand_one_each(program, [part[0] for part in group.parts], states, bounds)
     return _expand_product(program, group, states, bounds)
+
+
+def expand_groups(
+    program: Program, states: IntArray, bounds: bool
+) -> list[tuple[str | None, GroupSuccessors]]:
+    """Every group's branches from the frontier *states*, with its action: the groups
+    that enable nothing left out (:func:`expand_group`)."""
+    parts = [(g.action, expand_group(program, g, states, bounds)) for g in program.groups]
+    return [(a, s) for a, s in parts if s is not None]
 
 
 def _expand_product(
