@@ -78,3 +78,13 @@ def test_readme_links_point_to_files() -> None:
 ], ids=["plain-and-image", "external-anchor-fragment", "title"])
 def test_link_pattern(text: str, expected: list[str]) -> None:
     assert _relative_links(text) == expected
+
+
+def test_the_layout_page_names_every_package() -> None:
+    # docs/layout.md is written by hand: a new package must be added to it.
+    root = Path(__file__).resolve().parents[1]
+    page = (root / "docs" / "layout.md").read_text(encoding="utf-8")
+    src = root / "src" / "veribattery"
+    packages = sorted(str(p.parent.relative_to(src)) + "/" for p in src.rglob("__init__.py")
+                      if p.parent != src)
+    assert packages and [p for p in packages if f"`{p}`" not in page] == []

@@ -34,7 +34,7 @@ ROOT = "veribattery"
 #: own layer and lower ones only. Rank 0 is the base: shared modules every layer may use.
 LAYERS: dict[str, int] = {
     "errors": 0, "_types": 0, "_files": 0, "_text": 0, "_memory": 0, "_sparse": 0,
-    "_record": 0, "_record_code": 0, "_startup": 0,
+    "_startup": 0,
     "config": 1,
     "render": 2,
     "lang": 3,
@@ -42,7 +42,7 @@ LAYERS: dict[str, int] = {
     "checker": 5,
     "pipeline": 6,
     "mission": 7,
-    "analyses": 8, "sweep": 8, "phm": 8, "report": 8,
+    "analyses": 8, "sweep": 8, "phm": 8, "report": 8, "synthesis": 8,
     "cli": 9,
 }
 #: The package root, veribattery/__init__.py: the users' facade over every layer but cli.
@@ -55,6 +55,7 @@ SIBLINGS: dict[str, frozenset[str]] = {
     "analyses": frozenset({"sweep"}),
     "phm": frozenset({"sweep"}),
     "report": frozenset({"analyses", "sweep"}),
+    "synthesis": frozenset(),
 }
 #: Modules allowed over MAX_LINES, each with the reason it stays whole.
 LONG_MODULES: dict[str, str] = {}

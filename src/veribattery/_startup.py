@@ -13,7 +13,11 @@ else turns it back on) and installs two kinds of deferral
   test framework (unittest, email ...), masked arrays and polynomials. Those modules
   are handed out unexecuted and load on first attribute access
   (:class:`importlib.util.LazyLoader`): for a model check, never, or (``numpy.ma``,
-  read by ``numpy.unique``) when first used.
+  read by ``numpy.unique``) when first used. The same holds for ``numpy.fft`` (and
+  scipy's array-API wrapper of it), for ``pydoc`` (imported by scipy's docstring
+  parser, read only when a docstring is parsed) and for the two modules that attach
+  docstrings to numpy's compiled functions and scalar types (about a twentieth of
+  a small check's start-up; under ``python -OO`` numpy leaves them out too).
 - **Packages whose ``__init__`` imports far more than is read**
   (:data:`LAZY_PACKAGES`). ``scipy.sparse.csgraph`` (graph traversal, SCCs) imports
   ``scipy.sparse.linalg`` for one name, and that package imports every sparse solver,
@@ -38,11 +42,13 @@ from typing import Any, cast
 
 __all__ = ["DEFERRED_MODULES", "LAZY_PACKAGES", "defer_unused_numpy_modules", "start_process"]
 
-#: Imported by scipy's array-API layer (``from numpy import *``), never read by the
-#: engine's start-up. (``numpy.random`` is not here: scipy reads it at import.)
+#: Imported by scipy's array-API layer (``from numpy import *``), by numpy itself (its
+#: docstrings) or by scipy's docstring parser (``pydoc``), never read by the engine's
+#: start-up. (``numpy.random`` is not here: scipy reads it at import.)
 DEFERRED_MODULES = frozenset({
     "numpy.f2py", "numpy.testing", "numpy.ma", "numpy.polynomial", "numpy.ctypeslib",
-    "numpy.char", "numpy.rec",
+    "numpy.char", "numpy.rec", "numpy.fft", "scipy._lib.array_api_compat.numpy.fft",
+    "numpy._core._add_newdocs", "numpy._core._add_newdocs_scalars", "pydoc",
 })
 
 #: Package -> {name: module defining it}: the names served without the package's

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from veribattery._record import record
+from dataclasses import dataclass
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Span:
     """A 1-based position in a source text; *source* names the file (or ``<string>``)."""
 

@@ -22,7 +22,7 @@ from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.result import CheckResult
 from veribattery.config.schema import parse_requirement
 from veribattery.lang.nodes import BoolLit, Property
-from veribattery.mission import _judge
+from veribattery.mission.report import _judge
 from veribattery.pipeline import check_prism_file
 
 DATA = Path(__file__).resolve().parent.parent / "data"

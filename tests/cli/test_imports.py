@@ -109,6 +109,30 @@ def _modules_after(body: str) -> tuple[list[str], str]:
     return eval(modules), "\n".join(output)  # a printed list of str
 
 
+#: What a small ``P=? [ F ... ]`` check does not use, so does not import: the kernels of
+#: rarer kinds of property (steady state, conditional, reward-bounded), answers at a
+#: few states, a sweep's re-use and lumping, cyclic systems' segments, the exact last
+#: resort (and ``fractions``), the unfused successor expansion.
+COLD = (
+    "veribattery.checker.kernels.steady", "veribattery.checker.kernels.conditional",
+    "veribattery.checker.kernels.reward_bounded", "veribattery.checker.kernels.reward_radius",
+    "veribattery.checker.certify.focus", "veribattery.explore.reuse.lumping",
+    "veribattery.explore.reuse.structure", "veribattery.checker.linalg.scc",
+    "veribattery.checker.linalg.rational", "fractions", "veribattery.explore.build.successors",
+)
+
+
+def test_a_small_check_imports_no_module_it_does_not_use(tmp_path: Path) -> None:
+    # Table output into a pipe: rich (colours, widths) has nothing to add there either.
+    model = tmp_path / "tiny.prism"
+    model.write_text(_TINY)
+    modules, output = _modules_after(_run_cli("prism", str(model), "--property", "P=? [ F x=1 ]"))
+    assert "P=? [ F x=1 ]  0.5" in output and "Time: parse " in output  # it checked
+    assert "veribattery.checker.kernels" in modules  # the case is real: the checker ran
+    unused = [m for m in modules if m in COLD or m.partition(".")[0] == "rich"]
+    assert unused == []
+
+
 def test_a_check_without_a_linear_solve_imports_no_solver_package(tmp_path: Path) -> None:
     # csgraph (SCCs, BFS) reads LinearOperator from scipy.sparse.linalg: that package
     # (every sparse solver, ARPACK, LOBPCG) and scipy.linalg are set up, never run.
@@ -139,3 +163,5 @@ def test_a_check_with_sparse_lu_loads_the_solvers_it_reads(tmp_path: Path) -> No
     values = [result["value"] for result in json.loads(output)["results"]]
     assert values == [pytest.approx(exact, rel=1e-12)] * 2
     assert "scipy.sparse.linalg._isolve" in modules  # the package ran when read
+    # The cold modules load when met: steady state for S, segments for a cyclic system.
+    assert {"veribattery.checker.kernels.steady", "veribattery.checker.linalg.scc"} <= set(modules)

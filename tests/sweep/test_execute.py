@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 
 from tests.sweep.helpers import PER_POINT, SMALL_FARM, four_axes, same_results
+from veribattery.checker import Workspace
 from veribattery.config import load_config
 from veribattery.errors import ConfigError
 from veribattery.mission import ParseCache, RenderedMission
@@ -35,9 +36,10 @@ def test_a_shared_run_cut_into_tasks_gives_the_serial_values() -> None:
     # (The small farm's values come out equal on the chain and its quotient, so the
     # rule itself: a one-point task of a shared run checks on the quotient too.)
     mission = RenderedMission.of(load_config("", SMALL_FARM))
-    lone = Task(((0, mission),), shared=True).session(ParseCache()).check(mission)
+    lone = Task(((0, mission),), shared=True).session(ParseCache(), Workspace()).check(mission)
     assert lone.run.quotient is not None and not lone.reused
-    assert Task(((0, mission),)).session(ParseCache()).check(mission).run.quotient is None
+    alone = Task(((0, mission),)).session(ParseCache(), Workspace()).check(mission)
+    assert alone.run.quotient is None
 
 
 def test_pool_recovers_from_a_dead_worker(serial_frame: pd.DataFrame) -> None:

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import builtins
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
 from veribattery.checker.formula.filters import FilterOutcome
@@ -15,7 +14,7 @@ from veribattery.errors import CheckError
 from veribattery.lang.nodes import Property
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class CheckResult:
     """A property's value in every state and its value at the initial states.
 

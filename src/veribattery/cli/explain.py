@@ -21,6 +21,7 @@ from veribattery.cli.output import (
     format_value,
     json_value,
     out,
+    print_dim,
     print_warnings,
     print_written,
     set_option,
@@ -120,7 +121,7 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         click.echo(json.dumps(_explanation_json(explanation, steps)))
         return
     _print_explanation(explanation, steps, MISSION_COLUMNS, marker="recharge")
-    out.print(fit_text(OOB_NOTE), style="dim", markup=False)
+    print_dim(fit_text(OOB_NOTE))
 
 
 #: What the mission's ``oob`` actions mean, under the tables that show them.

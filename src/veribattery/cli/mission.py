@@ -19,6 +19,7 @@ from veribattery.cli.output import (
     format_value,
     json_value,
     out,
+    print_dim,
     print_imprecise,
     print_timings,
     print_warnings,
@@ -91,7 +92,7 @@ def print_mission_table(report: MissionReport) -> None:
         notes.append("† conditional: the expectation given the condition after || "
                      "(e.g. given success)")
     for note in notes:
-        out.print(fit_text(note), style="dim", markup=False)
+        print_dim(fit_text(note))
     for outcome in report.requirements:
         verdict = "[green]PASS[/]" if outcome.holds else "[bold red]FAIL[/]"
         if not outcome.decided:

@@ -17,7 +17,7 @@ from veribattery.cli.output import (
     format_result,
     format_value,
     json_value,
-    out,
+    print_dim,
     print_imprecise,
     print_timings,
     print_warnings,
@@ -192,7 +192,7 @@ def print_prism_run(run: ModelCheckRun) -> None:
     rows = [(_labelled(result), _shown(result)) for result in run.results]
     print_table(("property", "value"), rows)
     for note in exact_notes(value for _, value in rows):
-        out.print(fit_text(note), style="dim", markup=False)
+        print_dim(fit_text(note))
     for result in run.results:
         if result.printed:
             click.echo(f"States of {result.property.text}:")

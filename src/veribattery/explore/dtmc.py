@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import field, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 
 #: Reward vectors at least this long are stored as one broadcast zero when all zero.
@@ -18,7 +17,7 @@ def _all_plus_zero(values: FloatArray) -> bool:
     return not values.any() and not np.signbit(values).any()
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardVectors:
     """One reward structure, as expected reward per state and step.
 
@@ -46,7 +45,7 @@ class RewardVectors:
         return self.state + self.transition
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class DTMC:
     """A discrete-time Markov chain over the reachable states of a model.
 

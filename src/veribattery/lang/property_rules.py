@@ -8,9 +8,9 @@ file always parses as a whole and ``--property`` can pick the others.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Literal, Protocol, TypeAlias, cast
 
-from veribattery._record import record
 from veribattery.errors import PrismSemanticError, PrismSyntaxError, Span
 from veribattery.lang.nodes import (
     BoolLit,
@@ -58,7 +58,7 @@ _FILTER_ALIASES = {"+": "sum", "&": "forall", "|": "exists"}
 STEPS_REWARD = "\0steps"
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Unsupported:
     """A construct that parses but is outside the supported language."""
 
@@ -66,7 +66,7 @@ class Unsupported:
     span: Span
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Temporal:
     """A temporal operator, valid only as the whole path of a P, R, A or E operator."""
 
@@ -79,7 +79,7 @@ class Temporal:
     reward: str | int | None = None
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Legacy:
     """An old-style filter suffix ``{states}{min}{max}`` inside P, R or S."""
 

@@ -14,9 +14,9 @@ propagates up to the enclosing property, which is then kept with its reason;
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, cast
 
-from veribattery._record import record
 from veribattery.errors import PrismSemanticError, PrismSyntaxError, Span
 from veribattery.lang.nodes import (
     Assignment,
@@ -60,18 +60,18 @@ from veribattery.lang.property_rules import (
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Global:
     decl: VarDecl
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Init:
     expr: Expr
     span: Span
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _ModelType:
     name: str
     span: Span

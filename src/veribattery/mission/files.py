@@ -6,11 +6,10 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager, suppress
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from veribattery._files import write_texts
-from veribattery._record import record
 from veribattery.config import MissionConfig, config_to_yaml
 from veribattery.errors import Span, VeribatteryError
 from veribattery.lang import flatten_model, parse_model, parse_property, resolve_property
@@ -61,7 +60,7 @@ _NO_PROPERTIES = "// (None of this config's properties is of this kind.)\n"
 _FORMULA = "<property>"
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class MissionFiles:
     """The emitted texts: the PRISM model, the properties PRISM and Storm both read,
     those only Storm reads, and the resolved config."""

@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from fractions import Fraction
 
-from veribattery._record import record
 from veribattery.checker import CheckResult
 from veribattery.config import MissionConfig, Requirement, derive_parameters
 from veribattery.lang import parse_property
@@ -35,7 +34,7 @@ RECHARGE_CAP_WARN_AT = 1e-9
 RECHARGE_CAP = "recharge_cap"
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RequirementOutcome:
     """A requirement and whether the checked value meets it."""
 
@@ -51,7 +50,7 @@ class RequirementOutcome:
                 "value": self.value, "holds": self.holds, "decided": self.decided}
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class MissionReport:
     """The verification of one mission config: the run, named values, requirement outcomes."""
 

@@ -120,15 +120,18 @@ class MissionSession:
 
     @classmethod
     def for_sweep(cls, *, reuse: bool = True, lump: bool = False,
-                  parses: ParseCache | None = None) -> MissionSession:
+                  parses: ParseCache | None = None,
+                  workspace: Workspace | None = None) -> MissionSession:
         """A session for sweep points, which keep values, not models: answers only, and
         only the reward structures the properties name.
 
         :param lump: check on quotients. A sweep decides it per run of points sharing a
             state space, so that a point's values do not depend on how the run was cut
             into tasks.
+        :param workspace: the checker's caches (a sweep worker keeps one across tasks).
         """
-        return cls(keep="answers", reuse=reuse, lump=lump, rewards="named", parses=parses)
+        return cls(keep="answers", reuse=reuse, lump=lump, rewards="named", parses=parses,
+                   workspace=workspace)
 
     def check(
         self, mission: MissionConfig | RenderedMission, *,

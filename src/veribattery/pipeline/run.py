@@ -13,7 +13,6 @@ from typing import Literal, get_args
 import numpy as np
 
 from veribattery._memory import trim_for
-from veribattery._record import record
 from veribattery.checker import CheckResult, Workspace, check, state_set
 from veribattery.errors import UndefinedResult
 from veribattery.explore import DTMC
@@ -67,7 +66,7 @@ class CheckOptions:
             raise ValueError(f"keep must be one of {get_args(Keep)}, got {self.keep!r}")
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ModelCheckRun:
     """What one run of the pipeline produced: the DTMC, one result per property, timings."""
 

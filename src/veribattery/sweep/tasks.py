@@ -17,6 +17,7 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from veribattery.checker import Workspace
 from veribattery.config import MissionConfig
 from veribattery.mission import (
     MissionReport,
@@ -74,14 +75,15 @@ class Task:
     points: tuple[Point, ...]
     shared: bool = False
 
-    def session(self, parses: ParseCache) -> MissionSession:
+    def session(self, parses: ParseCache, workspace: Workspace) -> MissionSession:
         """The session of this task's points: one that keeps the structure of its builds
         only when a later point of the task may re-use it.
 
         :param parses: the worker's parse cache.
+        :param workspace: the worker's checker caches.
         """
         return MissionSession.for_sweep(reuse=len(self.points) > 1, lump=self.shared,
-                                        parses=parses)
+                                        parses=parses, workspace=workspace)
 
 
 @dataclass(frozen=True, slots=True)
@@ -220,7 +222,9 @@ class PointStream:
 class Worker:
     """Runs tasks one after another in one process, keeping from one task to the next
     its parse cache (consecutive points' texts differ in a constant or two, and most
-    tasks of a sweep without shared state spaces are one point long).
+    tasks of a sweep without shared state spaces are one point long) and its checker
+    :class:`Workspace` (points of one farm share sparsity patterns, and so plans and
+    graph searches, even where their state spaces differ).
 
     :param stream: where to report each point, its index when its check starts and its
         result the moment it is done (a local pool's worker), or None.
@@ -231,6 +235,7 @@ class Worker:
                  parses: ParseCache | None = None) -> None:
         self.stream = stream
         self.parses = parses or ParseCache()
+        self.workspace = Workspace()
 
     def results(self, task: Task, check: PointCheck | None = None) -> Iterator[PointResult]:
         """Check the points of *task* in order in one session, yielding each as it is done.
@@ -239,7 +244,7 @@ class Worker:
         that finished points are kept even if the task never finishes, and a worker's
         death is blamed on the point it was checking.
         """
-        session = task.session(self.parses)
+        session = task.session(self.parses, self.workspace)
         for index, mission in task.points:
             if self.stream is not None:
                 self.stream.put(index)

@@ -9,11 +9,11 @@ pattern for later matrices.
 from __future__ import annotations
 
 import dataclasses
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._sparse import csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.certify.bounds import round_down, round_up
@@ -31,7 +31,9 @@ from veribattery.checker.certify.rounding import (
 
 #: Maps of fewer unknown states than this keep their per-row error constants.
 KEEP_CONSTANTS_BELOW = 1_000_000
-@record
+
+
+@dataclass(frozen=True, slots=True)
 class AffineMap:
     """The fixed-point map of the unknown *states*, self-loops divided out.
 
@@ -229,7 +231,7 @@ def _error_constants(terms: FloatArray) -> tuple[FloatArray, FloatArray]:
     return error_coefficient(counted), counted * TERM_FLOOR
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class PinnedMap(AffineMap):
     """An :class:`AffineMap` whose states at the positions *pinned* have the fixed values
     *pinned_values*: ``G'(x)_i = v_i`` there, ``G(x)_i`` elsewhere (reading *x* at the

@@ -10,10 +10,10 @@ from __future__ import annotations
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
+from dataclasses import dataclass
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.lang.nodes import BOUND_RELATIONS
 
@@ -52,7 +52,7 @@ def round_up(x: FloatArray) -> FloatArray:
     return np.nextafter(x, np.inf)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Bounds:
     """Per-state point values with certified enclosures ``lower <= exact <= upper``.
 

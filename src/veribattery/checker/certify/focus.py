@@ -20,10 +20,10 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify.affine import AffineMap
 from veribattery.checker.certify.bounds import Bounds
@@ -50,7 +50,7 @@ _SAFETY = 1.0 + 2.0**-30
 DualSolve = Callable[[FloatArray], FloatArray | None]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FocusRow:
     """Certified bounds of row *position* of ``(I - B)^-1``, for the system whose map's
     unknown states hold the focus state at *position*: *upper* from above, *lower*
@@ -120,7 +120,7 @@ def _up(c: FloatArray) -> FloatArray:
     return np.where(c > 0, step_up(c), c)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _ImageTerms:
     """The rounding bound of the sums ``(B^T w)_j`` for the *w* of one nonzero pattern:
     ``coefficient * sum + underflow`` per unknown state, and the focus *position*."""

@@ -7,12 +7,11 @@ the variables' values, in declaration order.
 
 from __future__ import annotations
 
-from dataclasses import field, replace
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import (
     ABSOLUTE_PRECISION,
@@ -32,7 +31,7 @@ SINGLE_VALUED = frozenset({
 })
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FilterOutcome:
     """A filter's result: *value* for single-valued filters (a ``(low, high)`` pair
     for ``range``), otherwise *values* per state; *printed* holds the lines of

@@ -29,13 +29,12 @@ from __future__ import annotations
 import weakref
 from collections import OrderedDict
 from collections.abc import Callable
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds
@@ -60,7 +59,7 @@ class ConditionUnreachable(UndefinedResult):
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Condition:
     """``x = P(F b)`` per state with certified bounds, and where it is positive.
 
@@ -341,7 +340,7 @@ def _long_way(F: certify.AffineMap, solver: linalg.Factorization,
     return found
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Split(certify.AffineMap):
     """Two monotone maps that enclose the exact one: upper bounds from this one
     (largest offset and known values), lower bounds from *below* (smallest)."""

@@ -8,13 +8,13 @@ after it unchanged, with the model's variables, labels and rewards carried over.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.kernels.until import until_probs
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -23,7 +23,7 @@ if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ConditionedChain:
     """The conditioned DTMC of a model given ``F b``, and where each state starts in it.
 

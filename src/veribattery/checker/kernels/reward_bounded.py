@@ -29,13 +29,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
@@ -95,7 +94,7 @@ def integer_rewards(dtmc: DTMC, structure: RewardVectors, span: Span) -> IntArra
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Levels:
     """The moving states grouped by reward (in units of *unit*), and the zero-reward closure."""
 
@@ -226,7 +225,7 @@ def _certified_programme(P: CsrMatrix, target: BoolArray, levels: Levels, last: 
                          np.minimum(found.upper, 1.0))
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _BackwardGroup:
     """States with reward *r*: their value on level k is P_rows @ (successors' value on k-r).
 
@@ -270,7 +269,7 @@ class _BackwardGroup:
             self.history[i, slot] = vector[self.successors]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Closure:
     """The certified zero-reward closure of one level, over the columns its rows use."""
 
@@ -317,7 +316,7 @@ class _Closure:
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LevelMasses:
     """Probability mass absorbed per reward level, from :func:`absorption_by_level`.
 
@@ -415,7 +414,7 @@ def _columns_used(rows: CsrMatrix) -> tuple[IntArray, CsrMatrix]:
     return used, sp.csr_matrix(rows[:, used].T)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Ring:
     """The mass that left the states with reward *r* on each of the last *r* levels."""
 

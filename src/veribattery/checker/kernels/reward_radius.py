@@ -21,14 +21,13 @@ All radius arithmetic is on nonnegative numbers rounded upward by a factor
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
@@ -114,7 +113,7 @@ def group_rows(P: CsrMatrix, states: IntArray
     return successors, block, certify.error_coefficient(terms), terms * (2 * certify.ETA)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _RadiusGroup:
     """States with reward *r*: value ``B v_{k-r}``, radius ``B e_{k-r}`` plus rounding.
 
@@ -173,7 +172,7 @@ class _RadiusGroup:
         np.take(radius, self.successors, out=slot[1], mode="clip")
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _RadiusClosure:
     """The zero-reward closure of a level and its forward-error radius.
 

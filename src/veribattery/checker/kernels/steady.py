@@ -16,6 +16,7 @@ does not grow with the number of BSCCs.
 from __future__ import annotations
 
 import weakref
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -23,7 +24,6 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla  # a lazy package in the CLI: read when solving
 
-from veribattery._record import record
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Bsccs:
     """The BSCCs of a DTMC: *component* is each state's BSCC index, -1 if transient."""
 

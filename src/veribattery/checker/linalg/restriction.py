@@ -10,13 +10,13 @@ from __future__ import annotations
 import hashlib
 import weakref
 from collections import OrderedDict
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._sparse import csr_sharing
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 
@@ -161,7 +161,7 @@ def index_digest(indptr: npt.NDArray[np.integer], indices: npt.NDArray[np.intege
     return value
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _RestrictionPlan:
     """The index work of :func:`restricted_parts` for one pattern of *P* and *maybe*.
 

@@ -41,7 +41,7 @@ from __future__ import annotations
 import hashlib
 import itertools
 from collections.abc import Callable
-from dataclasses import field
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -49,7 +49,6 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
 
-from veribattery._record import record
 from veribattery._types import FloatArray
 
 #: Components up to this size are solved together with their neighbours in runs.
@@ -88,7 +87,7 @@ Inverse = Callable[[FloatArray], FloatArray]
 IntArray = npt.NDArray[np.int64]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Components:
     """The states in a topological order of the SCCs (successors first).
 
@@ -140,7 +139,7 @@ def segments(found: Components) -> list[tuple[int, int, bool]]:
             for lo, hi in itertools.pairwise(cuts)]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Segmented:
     """Block forward substitution over the segments (see :func:`segmented_inverse`).
 
@@ -289,7 +288,7 @@ def _jacobi(block: sp.csr_matrix) -> spla.LinearOperator:
     return spla.LinearOperator(block.shape, matvec=lambda v: inverse_diagonal * v)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Krylov:
     """Preconditioned BiCGSTAB, then restarted GMRES when BiCGSTAB stalls.
 
@@ -318,7 +317,7 @@ class _Krylov:
         return np.asarray(x, dtype=np.float64)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _KrylovFirst:
     """Krylov iteration on a dense component, and its LU (made once) wherever the
     iteration does not reach ``KRYLOV_RTOL``."""

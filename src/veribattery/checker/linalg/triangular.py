@@ -9,6 +9,7 @@ and the index work are planned once per sparsity pattern and kept in
 from __future__ import annotations
 
 import hashlib
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -18,7 +19,6 @@ from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
 
 from veribattery._memory import TRIM_MIN_STATES
-from veribattery._record import record
 from veribattery._sparse import csc_sharing
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.linalg.restriction import RESTRICTIONS_KEPT, index_digest
@@ -32,7 +32,7 @@ try:  # SuperLU's triangular solve, used by _substitution when it behaves as exp
     from scipy.sparse.linalg._dsolve import _superlu
 except ImportError:  # pragma: no cover -- scipy moved it: the public path is used
     _superlu = None
-@record
+@dataclass(frozen=True, slots=True)
 class _TriangularPlan:
     """What :func:`_triangular_inverse` derives from *A64*'s sparsity pattern alone.
 

@@ -31,11 +31,10 @@ the same order.
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile.expr import CompiledExpr
@@ -57,7 +56,7 @@ _NO_PROBABILITY = np.asarray(0.0)
 _NO_CHOICE = np.asarray(0, dtype=np.int64)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Expansion:
     """The branches out of a frontier, in order of source state, zero-probability ones dropped.
 
@@ -79,7 +78,7 @@ class Expansion:
     branches: int
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LayerExpr:
     """An expression evaluated per layer: on the frontier, or on *kinds*' rows if risky."""
 
@@ -88,7 +87,7 @@ class LayerExpr:
     kinds: IntArray
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ValueTable:
     """Where each branch kind's new variable values come from: rows of a per-layer table.
 
@@ -106,7 +105,7 @@ class ValueTable:
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FactorTable:
     """Branch probabilities: constants per branch kind, or per-part factor rows.
 
@@ -124,7 +123,7 @@ class FactorTable:
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LayerPlan:
     """The static tables of a program's fused layer expansion (see the module doc)."""
 

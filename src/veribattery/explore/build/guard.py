@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
+from dataclasses import dataclass
 
-from veribattery._record import record
 from veribattery.errors import ModelTooLarge
 
 __all__ = ["Footprint", "MemoryGuard", "available_memory"]
@@ -43,7 +43,7 @@ def available_memory() -> int | None:
         return None
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Footprint:
     """Bytes the builder holds per state and per transition, during the search and
     once the DTMC is assembled (measured on the mission of a 20x20 farm and a 60 Ah

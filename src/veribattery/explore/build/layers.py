@@ -8,11 +8,11 @@ consecutive small ones as the search goes.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import FloatArray, IntArray
 from veribattery.explore.build.fused import Expansion
 
@@ -21,7 +21,7 @@ __all__ = ["Layer", "Layers"]
 _INT32_MAX = int(np.iinfo(np.int32).max)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Layer:
     """The transitions out of one frontier and its states' choice counts.
 

@@ -13,10 +13,10 @@ from __future__ import annotations
 import itertools
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import IntArray
 from veribattery.explore.build.fused import (
     SUM_TOLERANCE,
@@ -41,7 +41,7 @@ MAX_BRANCH_KINDS = 4096
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Kind:
     action: str | None
     commands: tuple[int, ...]  # global command indices, one per part

@@ -12,10 +12,10 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.compile.program import (
@@ -30,7 +30,7 @@ __all__ = ["GroupSuccessors", "check_update_ranges", "expand_group", "format_sta
 _TOLERANCE = 1e-6  # allowed deviation of a choice's probabilities from 1
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class GroupSuccessors:
     """Branches of one group over a frontier.
 
@@ -46,7 +46,7 @@ class GroupSuccessors:
     choices: IntArray
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Choices:
     """The joint choices of a group: a source row and one pick per part."""
 
@@ -223,7 +223,7 @@ def _constant_row(
     return row[0], total
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _BranchLayout:
     """Per part and update, the branches (columns of a choice's row) that take it."""
 
@@ -343,7 +343,7 @@ def _expand_updates(group: ChoiceGroup, choices: _Choices) -> tuple[IntArray, li
     return choice, updates
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _PartTable:
     """A part's updates evaluated once per choice: ``(max_updates, n_choices)`` tables.
 

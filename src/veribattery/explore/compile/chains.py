@@ -14,9 +14,9 @@ them, with the same numpy operations.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Protocol
 
-from veribattery._record import record
 from veribattery._types import IntArray
 
 __all__ = ["SPINE_LIMIT", "Link", "Linked", "same_rows", "unrolled"]
@@ -36,7 +36,7 @@ class Linked(Protocol):
     def link(self) -> Link | None: ...
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Link:
     """How a node's value is made from the value of its operand *below*.
 

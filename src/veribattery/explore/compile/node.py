@@ -11,11 +11,11 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import BoolArray, IntArray
 from veribattery.explore.compile.chains import Link
 from veribattery.lang.nodes import (
@@ -38,7 +38,7 @@ CompiledExpr = Callable[[IntArray], np.ndarray]
 Fn = Callable[[IntArray], Any]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Node:
     """A compiled sub-expression: an evaluator, or a folded constant."""
 
@@ -59,7 +59,7 @@ class Node:
         return self.risky and not self.labels
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Scope:
     """What compilation needs besides the expression.
 

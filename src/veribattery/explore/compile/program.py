@@ -9,9 +9,8 @@ choice picks one enabled command from every part.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import field, replace
+from dataclasses import dataclass, field, replace
 
-from veribattery._record import record
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.explore.compile.bounds import value_bounds
 from veribattery.explore.compile.expr import (
@@ -32,7 +31,7 @@ __all__ = [
 ]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class CompiledUpdate:
     """One probabilistic branch: its probability and ``(column, right-hand side)`` pairs.
 
@@ -51,7 +50,7 @@ class CompiledUpdate:
     constants: tuple[int | None, ...] = ()
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class CompiledCommand:
     """A command of module *module*, compiled."""
 
@@ -69,7 +68,7 @@ class CompiledCommand:
         return self.command.span
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ChoiceGroup:
     """Commands that produce choices together: one part per participating module."""
 
@@ -77,7 +76,7 @@ class ChoiceGroup:
     parts: tuple[tuple[CompiledCommand, ...], ...]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Program:
     """Everything the explorer evaluates, compiled once."""
 
@@ -147,7 +146,7 @@ def _actions(model: FlatModel) -> list[str]:
     return list(seen)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class _Names:
     names: tuple[str, ...]
     ranges: dict[str, tuple[int, int]]

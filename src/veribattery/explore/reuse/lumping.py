@@ -35,13 +35,12 @@ points a worker checked before.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._sparse import csr_sharing
 from veribattery._types import IntArray
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -89,7 +88,7 @@ def dtmc_seeds(dtmc: DTMC, variables: Sequence[str]) -> IntArray:
     return np.stack(columns) if columns else np.zeros((0, n), dtype=np.int64)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Partition:
     """A stable partition of one structure's states at one point (module docstring).
 

@@ -8,14 +8,13 @@ what makes a partition exact).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
 
-from veribattery._record import record
 from veribattery._types import IntArray
 
 __all__ = [
@@ -91,7 +90,7 @@ def _ranges(starts: npt.NDArray[np.integer], lengths: npt.NDArray[np.integer]) -
     return offsets + np.arange(int(lengths.sum()), dtype=np.int64)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Round:
     """One partition of the rounds, with the index arrays that check it at other points.
 
@@ -144,7 +143,7 @@ def probability_bits(P: sp.csr_matrix) -> IntArray:
     return np.ascontiguousarray(P.data, dtype=np.float64).view(np.int64)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Levels:
     """The states by height (longest path to a state without other successors), and
     their entries in that order, so that each level is one slice.

@@ -33,11 +33,11 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from veribattery._record import record
 from veribattery._types import FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.builder import (
@@ -60,7 +60,7 @@ __all__ = ["Structure", "build_reusable", "reevaluate", "structure_key"]
 _CHUNK = 1 << 14
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Structure:
     """What a build leaves behind so that later models of the same key can reuse it.
 

@@ -2,10 +2,9 @@
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Literal, TypeAlias
 
-from veribattery._record import record
 from veribattery.errors import NO_SPAN, Span
 
 if TYPE_CHECKING:
@@ -37,7 +36,7 @@ ValueType: TypeAlias = Literal["int", "double", "bool"]
 Value: TypeAlias = int | float | bool
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class IntLit:
     """An integer literal."""
 
@@ -45,7 +44,7 @@ class IntLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class DoubleLit:
     """A double literal; *text* keeps the digits as written (for exact re-printing)."""
 
@@ -54,7 +53,7 @@ class DoubleLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class BoolLit:
     """``true`` or ``false``."""
 
@@ -62,7 +61,7 @@ class BoolLit:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Ident:
     """A name: a variable, constant or formula (resolved by semantic analysis)."""
 
@@ -70,7 +69,7 @@ class Ident:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LabelRef:
     """A quoted label in a property: ``"success"``, ``"init"``, ``"deadlock"``."""
 
@@ -84,7 +83,7 @@ BinaryOp: TypeAlias = Literal[
 ]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Unary:
     """``!a`` or ``-a``."""
 
@@ -93,7 +92,7 @@ class Unary:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Binary:
     """``a op b`` for the boolean, relational and arithmetic operators."""
 
@@ -103,7 +102,7 @@ class Binary:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Ite:
     """``cond ? then : otherwise``."""
 
@@ -116,7 +115,7 @@ class Ite:
 FunctionName: TypeAlias = Literal["min", "max", "floor", "ceil", "pow", "mod", "log", "round"]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Call:
     """A built-in function: ``min max floor ceil pow mod log round`` (``func(f, ...)`` too)."""
 

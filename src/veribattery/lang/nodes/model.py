@@ -3,10 +3,9 @@ layer semantic analysis produces for the state-space builder."""
 
 from __future__ import annotations
 
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Literal, TypeAlias
 
-from veribattery._record import record
 from veribattery.errors import NO_SPAN, Span
 from veribattery.lang.nodes.expr import (
     Value,
@@ -42,7 +41,7 @@ __all__ = [
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ConstDecl:
     """``const [int|double|bool] name [= value];`` -- *value* None means undefined."""
 
@@ -52,7 +51,7 @@ class ConstDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FormulaDecl:
     """``formula name = expr;``."""
 
@@ -61,7 +60,7 @@ class FormulaDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LabelDecl:
     """``label "name" = expr;``."""
 
@@ -70,7 +69,7 @@ class LabelDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class VarDecl:
     """``name : [low..high] init e;`` or ``name : bool init e;`` (``global`` if at top level)."""
 
@@ -82,7 +81,7 @@ class VarDecl:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Assignment:
     """``(x' = expr)``."""
 
@@ -91,7 +90,7 @@ class Assignment:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Update:
     """One probabilistic branch ``p : (x'=..) & (y'=..)``; ``true`` has no assignments."""
 
@@ -100,7 +99,7 @@ class Update:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Command:
     """``[action] guard -> updates;`` -- *action* None for ``[]``."""
 
@@ -110,7 +109,7 @@ class Command:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Module:
     """``module name ... endmodule``."""
 
@@ -120,7 +119,7 @@ class Module:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RenamedModule:
     """``module name = base [old=new, ...] endmodule``."""
 
@@ -130,7 +129,7 @@ class RenamedModule:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardItem:
     """``[action] guard : value;`` (transition reward) or ``guard : value;`` (state reward)."""
 
@@ -141,7 +140,7 @@ class RewardItem:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardStruct:
     """``rewards ["name"] ... endrewards`` -- *name* None when unnamed."""
 
@@ -153,7 +152,7 @@ class RewardStruct:
 ModelType: TypeAlias = Literal["dtmc"]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Model:
     """A whole PRISM model file, declarations in source order per kind."""
 
@@ -173,7 +172,7 @@ class Model:
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Property:
     """One property: ``["name":] formula``; *text* is the source text of the formula."""
 
@@ -187,7 +186,7 @@ class Property:
     unsupported: str | None = None
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class PropertiesFile:
     """A ``.props``/``.pctl`` file: its constants, labels and properties in order."""
 
@@ -202,7 +201,7 @@ class PropertiesFile:
 # ---------------------------------------------------------------------------
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Variable:
     """A state variable with constant integer bounds (bool is 0..1)."""
 
@@ -215,7 +214,7 @@ class Variable:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FlatModule:
     """A module after renaming: its own variables' names and its commands.
 
@@ -230,7 +229,7 @@ class FlatModule:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class FlatModel:
     """A checked, closed model: every expression uses only variables and literals.
 

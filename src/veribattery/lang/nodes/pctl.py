@@ -8,10 +8,9 @@ from __future__ import annotations
 
 import operator
 from collections.abc import Callable, Mapping
-from dataclasses import field
+from dataclasses import dataclass, field
 from typing import Any, Literal, TypeAlias
 
-from veribattery._record import record
 from veribattery.errors import NO_SPAN, Span
 from veribattery.lang.nodes.expr import (
     Binary,
@@ -72,7 +71,7 @@ BOUND_RELATIONS: Mapping[str, Callable[[Any, Any], Any]] = {
 QueryOp: TypeAlias = Literal["=?", "<", "<=", ">", ">="]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class TimeBound:
     """A step bound on a temporal operator: ``<=k``, ``<k``, ``>=k``, ``>k`` (``=k`` for I)."""
 
@@ -81,7 +80,7 @@ class TimeBound:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class TimeInterval:
     """A step interval ``[low,high]`` on a temporal operator (both ends included)."""
 
@@ -93,7 +92,7 @@ class TimeInterval:
 Bound: TypeAlias = TimeBound | TimeInterval
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Next:
     """``X phi``."""
 
@@ -101,7 +100,7 @@ class Next:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Until:
     """``left U right``, optionally step-bounded."""
 
@@ -111,7 +110,7 @@ class Until:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class WeakUntil:
     """``left W right``: ``left U right`` or ``G left``, optionally step-bounded."""
 
@@ -121,7 +120,7 @@ class WeakUntil:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Release:
     """``left R right``: *right* holds up to and including the first *left* state."""
 
@@ -131,7 +130,7 @@ class Release:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Eventually:
     """``F phi``, optionally step-bounded (equivalent to ``true U phi``)."""
 
@@ -140,7 +139,7 @@ class Eventually:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Globally:
     """``G phi``, optionally step-bounded."""
 
@@ -149,7 +148,7 @@ class Globally:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Cumulative:
     """Reward path ``C<=k``: reward accumulated over the first k steps."""
 
@@ -157,7 +156,7 @@ class Cumulative:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Instantaneous:
     """Reward path ``I=k``: expected state reward at step k."""
 
@@ -165,7 +164,7 @@ class Instantaneous:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Reach:
     """Reward path ``F phi``: reward accumulated until phi is first reached."""
 
@@ -173,21 +172,21 @@ class Reach:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Total:
     """Reward path ``C``: the total reward accumulated along the whole path."""
 
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class LongRun:
     """Reward path ``S``: the long-run average reward per step."""
 
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ReachUntil:
     """Reward path ``left U right``: reward until *right*, infinite unless it is sure."""
 
@@ -200,7 +199,7 @@ class ReachUntil:
 # --- checker/conditional.py).
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardBounded:
     """``left U{"r"}<=T right`` (``F{"r"}<=T right`` has *left* ``true``), as in Storm.
 
@@ -216,7 +215,7 @@ class RewardBounded:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ReachNext:
     """Reward path ``X phi``: the first step's reward, infinite unless ``X phi`` is sure."""
 
@@ -224,7 +223,7 @@ class ReachNext:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Conditional:
     """``P=? [ path || F condition ]``: *path* given that *condition* is reached (Storm)."""
 
@@ -233,7 +232,7 @@ class Conditional:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ConditionalReach:
     """Reward path ``F target || F condition``: reward to *target*, given ``F condition``."""
 
@@ -251,7 +250,7 @@ RewardPath: TypeAlias = (
 )
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class ProbOp:
     """``P=? [path]`` or ``P~p [path]``."""
 
@@ -261,7 +260,7 @@ class ProbOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class RewardOp:
     """``R{"name"}=? [path]``, ``R=? [path]`` (first structure), or with a bound.
 
@@ -276,7 +275,7 @@ class RewardOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class SteadyOp:
     """``S=? [phi]`` or ``S~p [phi]``: the long-run probability of being in *phi*."""
 
@@ -286,7 +285,7 @@ class SteadyOp:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Quantified:
     """CTL: ``A [path]`` (on all paths) or ``E [path]`` (on some path)."""
 
@@ -301,7 +300,7 @@ FilterOp: TypeAlias = Literal[
 ]
 
 
-@record
+@dataclass(frozen=True, slots=True)
 class Filter:
     """``filter(op, operand, states)``; *states* None means all states."""
 
