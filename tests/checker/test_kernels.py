@@ -212,7 +212,8 @@ def test_iterative_fallback_meets_residual_rule() -> None:
     assert x.tolist() == pytest.approx(expected, rel=1e-8)
 
 
-def test_direct_limit_zero_uses_iterative(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_direct_limit_zero_still_solves_small_cycles(monkeypatch: pytest.MonkeyPatch) -> None:
+    # Above the limit the die's small cycles are solved SCC by SCC (test_large_systems).
     monkeypatch.setattr(factorization, "DIRECT_LIMIT", 0)
     die = knuth_die()
     probs = kernels.until_probs(die.transitions, ALL13, die.labels["face3"],

@@ -27,6 +27,7 @@ from veribattery.cli.output import (
     set_option,
     user_errors,
 )
+from veribattery.cli.progress import limited
 from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
@@ -49,9 +50,13 @@ if TYPE_CHECKING:
     "--exact", is_flag=True,
     help="Compute in exact rational arithmetic; results as p/q, requirements decided exactly.",
 )
+@click.option(
+    "--max-states", type=click.IntRange(min=1), default=None, metavar="N",
+    help="Stop the build (exit 2) once more than N states are found.",
+)
 def check_command(
     config: Path, overrides: tuple[str, ...], output_format: str, emit_dir: Path | None,
-    force: bool, exact: bool,
+    force: bool, exact: bool, max_states: int | None,
 ) -> None:
     """Verify the mission of CONFIG (YAML); exit 1 if a requirement fails."""
     from veribattery.config import load_config
@@ -62,7 +67,8 @@ def check_command(
             check_output_dir(emit_dir, "--emit", force=force, names=EMITTED_FILES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            report = check_mission(cfg, progress=progress, exact=exact, keep="answers")
+            report = check_mission(cfg, progress=limited(progress, max_states), exact=exact,
+                                   keep="answers")
         if emit_dir is not None:
             write_files(mission_files(cfg), emit_dir, force=force)
     print_warnings(report.warnings)

@@ -9,12 +9,14 @@ from __future__ import annotations
 import math
 import os
 import sys
+import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import click
 
+from veribattery.cli.progress import PlainProgress, rate_text
 from veribattery.errors import VeribatteryError
 
 if TYPE_CHECKING:
@@ -123,9 +125,11 @@ class LiveStatus:
 
     def __init__(self, status: Any) -> None:
         self._status = status
+        self._start = time.monotonic()
 
     def __call__(self, states: int, frontier: int) -> None:
-        self._status.update(f"exploring states… {states:,} found, frontier {frontier:,}")
+        rate = rate_text(states, time.monotonic() - self._start)
+        self._status.update(f"exploring states… {states:,} found, frontier {frontier:,}, {rate}")
 
     def stage(self, text: str) -> None:
         """Say (above the spinner) that a new stage starts, and show it on the spinner."""
@@ -134,13 +138,18 @@ class LiveStatus:
 
 
 @contextmanager
-def build_progress() -> Iterator[LiveStatus | None]:
-    """A live state counter on stderr while the state space is explored (TTY only)."""
+def build_progress(plain: bool = False) -> Iterator[LiveStatus | PlainProgress | None]:
+    """A live state counter on stderr while the state space is explored (TTY), or with
+    *plain*, periodic lines when stderr is not a terminal (:class:`PlainProgress`)."""
     if not _may_be_terminal(sys.stderr) or not err.is_terminal:
-        yield None
+        yield PlainProgress(_stderr_line) if plain else None
         return
     with err.status("exploring states…") as status:
         yield LiveStatus(status)
+
+
+def _stderr_line(text: str) -> None:
+    click.echo(text, err=True)
 
 
 def json_value(value: object) -> object:

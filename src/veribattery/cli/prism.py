@@ -24,6 +24,7 @@ from veribattery.cli.output import (
     result_bounds,
     user_errors,
 )
+from veribattery.cli.progress import limited
 from veribattery.cli.tables import fit_text, print_table
 from veribattery.errors import OptionError
 
@@ -52,6 +53,10 @@ if TYPE_CHECKING:
     "--exact", is_flag=True,
     help="Compute in exact rational arithmetic; results as p/q (JSON: \"exact\").",
 )
+@click.option(
+    "--max-states", type=click.IntRange(min=1), default=None, metavar="N",
+    help="Stop the build (exit 2) once more than N states are found.",
+)
 @prism_analysis_options
 def prism_command(
     model: Path,
@@ -61,6 +66,7 @@ def prism_command(
     output_format: str | None,
     as_json: bool,
     exact: bool,
+    max_states: int | None,
     **analysis: Any,
 ) -> None:
     """Check PCTL properties of a PRISM DTMC MODEL file."""
@@ -80,11 +86,11 @@ def prism_command(
             constants = parse_constant_assignments(consts)
         prism_explain(model, constants, analysis["explain"], analysis["top"], as_json)
         return
-    with user_errors(), build_progress() as progress:
+    with user_errors(), build_progress(plain=True) as progress:
         constants = parse_constant_assignments(consts)
         run = check_prism_file(
-            model, props_source=props, selectors=selectors, constants=constants, progress=progress,
-            exact=exact, keep="answers",
+            model, props_source=props, selectors=selectors, constants=constants,
+            progress=limited(progress, max_states), exact=exact, keep="answers",
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)

@@ -15,8 +15,12 @@ A plain LU solve there loses digits (1e-6 relative error at n = 10⁶), so:
    times (2 with a Krylov segment), stopping once every component's
    correction is below ``REFINE_TOL`` relative. This recovers full float64
    accuracy while ``cond(A) * 1e-16 < 1``.
+   Above ``DIRECT_LIMIT`` unknowns no whole-system LU is tried: a system that
+   is not acyclic is solved SCC by SCC in topological order
+   (:class:`~veribattery.checker.linalg.topological.TopologicalSolver`) when
+   every component has at most ``DIRECT_LIMIT`` states.
 2. **Iterative fallback**, when the LU factorisation fails (out of memory,
-   singular) or the system has more than ``DIRECT_LIMIT`` unknowns:
+   singular) or a system above ``DIRECT_LIMIT`` has a larger component:
    Jacobi-preconditioned BiCGSTAB (``rtol = ITERATIVE_RTOL``, at most
    ``ITERATIVE_MAXITER`` iterations) from the best iterate so far, then
    restarted GMRES(60) if BiCGSTAB broke down.
@@ -39,16 +43,17 @@ from scipy.sparse import linalg as spla
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker.linalg.iterative import RESIDUAL_TOL, _norm, matrix_norm, solve_iterative
-from veribattery.checker.linalg.triangular import _triangular_inverse
+from veribattery.checker.linalg.topological import TopologicalSolver, direct_component
+from veribattery.checker.linalg.triangular import _Triangular, _triangular_inverse
 from veribattery.errors import CheckError
 
 if TYPE_CHECKING:
     from veribattery.checker.linalg import scc
     from veribattery.checker.linalg.restriction import ExtArray, SolverPlans
-    from veribattery.checker.linalg.triangular import _Triangular
 
 
-#: Systems with more unknowns than this skip the LU factorisation.
+#: Systems with more unknowns than this skip the whole-system LU factorisation
+#: (and the segmented solve): substitution, else the topological solve.
 DIRECT_LIMIT = 4_000_000
 #: A system solved by substitution with at least this many unknowns releases its
 #: matrix when it can make it again (see :meth:`Factorization._release`).
@@ -153,7 +158,7 @@ class Factorization:
         n = self._n
         if not b.any():
             return np.zeros(b.shape, dtype=np.float64)
-        inverse = self._inverse() if n <= DIRECT_LIMIT else None
+        inverse = self._inverse()
         if self._norm_a is None:
             self._norm_a = matrix_norm(self.A64) + matrix_norm(self.residue)
         steps = 2 if self._iterative else REFINE_STEPS
@@ -211,7 +216,7 @@ class Factorization:
         """
         if not b.any():
             return np.zeros(b.shape, dtype=np.float64)
-        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        inverse = self._inverse()
         if inverse is None:
             return None
         return _finite_solve(inverse, np.ascontiguousarray(b, dtype=np.float64))
@@ -225,7 +230,7 @@ class Factorization:
         """
         if not v.any():
             return np.zeros_like(v)
-        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        inverse = self._inverse()
         try:
             if inverse is not None:
                 return np.asarray(inverse(np.ascontiguousarray(v, dtype=np.float64)))
@@ -260,7 +265,7 @@ class Factorization:
     def margin(self, v: FloatArray) -> FloatArray | None:
         """:meth:`correction` for the quick certificate: with a Krylov segment, a
         loose solve of a lifted *v* (:meth:`scc.Segmented.margin`), else the same."""
-        inverse = self._inverse() if self._n <= DIRECT_LIMIT else None
+        inverse = self._inverse()
         if inverse is None or not self._iterative:  # iterative: a Krylov segment's inverse
             return self.correction(v)
         if not v.any():
@@ -273,14 +278,14 @@ class Factorization:
         """Whether the direct solver is a substitution (the matrix is triangular in a
         topological order, with a positive diagonal). Only that solver is tried here:
         a caller that drops a system that is not triangular pays for no factorisation."""
-        return self._n <= DIRECT_LIMIT and self._substitution() is not None
+        return self._substitution() is not None
 
     def pinned(self, mask: BoolArray) -> PinnedSolver | None:
         """A solver of this system with the rows of the states in *mask* replaced by
         identity rows, for the quick certificate of a query solved on it with those
         states' values known (``kernels``, "Shared systems" in docs/numerics.md);
         None unless the direct solver is a substitution."""
-        inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
+        inverse = self._substitution()
         return None if inverse is None else PinnedSolver(inverse.pinned(mask))
 
     def dual(self, v: FloatArray) -> FloatArray | None:
@@ -290,7 +295,7 @@ class Factorization:
         substitution, or when the answer is not finite. For the bounds at a few states
         (:mod:`~veribattery.checker.certify.focus`); accuracy affects only their tightness.
         """
-        inverse = self._substitution() if self._n <= DIRECT_LIMIT else None
+        inverse = self._substitution()
         if inverse is None:
             return None
         return _finite_solve(inverse.dual, np.asarray(v, dtype=np.float64))
@@ -304,21 +309,55 @@ class Factorization:
                 self._release()
         return self._substitute
 
+    def _factorised(self) -> _Inverse | None:
+        """At most ``DIRECT_LIMIT`` unknowns, with a cycle: SCC-wise, else one LU."""
+        from veribattery.checker.linalg import scc  # only for a graph with a cycle
+
+        found = scc.components(self.A64)
+        if found is not None:
+            segmented = scc.segmented_inverse(self.A64, found)
+            self._iterative = segmented is not None and segmented.iterative
+            if segmented is not None:
+                return segmented
+        return _lu_inverse(self.A64)
+
+    @property
+    def method(self) -> str | None:
+        """How the direct solver solves the system, once it is built: ``"substitution"``
+        (acyclic), ``"segmented"`` or ``"topological"`` (SCC by SCC), ``"lu"``; None
+        when there is none (the iterative fallback) or it is not built yet."""
+        if self._direct is None:
+            return None
+        if isinstance(self._direct, _Triangular):
+            return "substitution"
+        if isinstance(self._direct, TopologicalSolver):
+            return "topological"
+        from veribattery.checker.linalg import scc
+
+        return "segmented" if isinstance(self._direct, scc.Segmented) else "lu"
+
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
             self._direct_tried = True
             self._direct = self._substitution()
-            if self._direct is None:  # the graph has a cycle: segment it
-                from veribattery.checker.linalg import scc
-
-                found = scc.components(self.A64)
-                if found is not None:
-                    segmented = scc.segmented_inverse(self.A64, found)
-                    self._iterative = segmented is not None and segmented.iterative
-                    self._direct = segmented
-            if self._direct is None:
-                self._direct = _lu_inverse(self.A64)
+            if self._direct is None and self._n > DIRECT_LIMIT:
+                self._direct = _topological_inverse(self.A64)
+            elif self._direct is None:
+                self._direct = self._factorised()
         return self._direct
+
+
+def _topological_inverse(A64: sp.csr_matrix) -> TopologicalSolver | None:
+    """Above ``DIRECT_LIMIT``: the SCC-by-SCC solve when every component is small enough
+    to factorise (at most ``DIRECT_LIMIT`` states), else None (the iterative fallback)."""
+
+    def component(block: sp.csr_matrix) -> _Inverse | None:
+        return direct_component(block) if block.shape[0] <= DIRECT_LIMIT else None
+
+    try:
+        return TopologicalSolver(A64, component)
+    except (CheckError, MemoryError):
+        return None
 
 
 def _finite_solve(inverse: _Inverse, b: FloatArray) -> FloatArray | None:
