@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.errors import ModelError
+from veribattery.errors import ModelError, PrismSemanticError
 from veribattery.explore.build.fused import Expansion, LayerPlan
 from veribattery.explore.build.guard import Footprint, MemoryGuard
 from veribattery.explore.build.layers import Layer, Layers
@@ -87,6 +87,10 @@ def explore(
     :param guard: checked once per BFS layer (default: against the memory available).
     :raises ModelTooLarge: when the search would outgrow the memory available.
     """
+    if model.model_type != "dtmc":
+        raise PrismSemanticError(
+            f"this is an {model.model_type.upper()}: only 'veribattery prism' checks MDPs "
+            "(DTMC analyses need a 'dtmc' model)")
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rewarded = rewarded_actions(model.rewards)

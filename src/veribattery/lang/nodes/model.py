@@ -150,7 +150,7 @@ class RewardStruct:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-ModelType: TypeAlias = Literal["dtmc"]
+ModelType: TypeAlias = Literal["dtmc", "mdp"]
 
 
 @record
@@ -248,6 +248,8 @@ class FlatModel:
     formulas: tuple[FormulaDecl, ...]
     init: Expr | None = None
     source: str = "<string>"
+    #: ``"mdp"``: several enabled choices are the scheduler's, not a uniform draw.
+    model_type: ModelType = "dtmc"
 
     @property
     def variable_names(self) -> tuple[str, ...]:

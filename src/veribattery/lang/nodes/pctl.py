@@ -259,6 +259,9 @@ class ProbOp:
     bound: Expr | None
     path: PathFormula
     span: Span = field(default=NO_SPAN, compare=False)
+    #: ``Pmin``/``Rmin`` or ``Pmax``/``Rmax`` (None for plain ``P``/``R``): read on MDPs,
+    #: ignored on DTMCs (as PRISM does).
+    direction: Literal["min", "max"] | None = None
 
 
 @record
@@ -274,6 +277,9 @@ class RewardOp:
     bound: Expr | None
     path: RewardPath
     span: Span = field(default=NO_SPAN, compare=False)
+    #: ``Pmin``/``Rmin`` or ``Pmax``/``Rmax`` (None for plain ``P``/``R``): read on MDPs,
+    #: ignored on DTMCs (as PRISM does).
+    direction: Literal["min", "max"] | None = None
 
 
 @record
