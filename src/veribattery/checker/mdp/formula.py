@@ -59,7 +59,11 @@ from veribattery.lang.nodes import (
 
 __all__ = ["mdp_answer", "mdp_values"]
 
-_OPPOSITE: dict[Objective, Objective] = {"min": "max", "max": "min"}
+
+
+def _opposite(objective: Objective) -> Objective:
+    """The objective whose complement a dual formula (``G``, ``W``, ``R``) reads."""
+    return "max" if objective == "min" else "min"
 
 
 def mdp_answer(mdp: MDP, formula: Expr) -> filters.FilterOutcome:
@@ -145,13 +149,13 @@ def _path(mdp: MDP, path: PathFormula, objective: Objective) -> Bounds:
             return _until(mdp, _mask(mdp, left), _mask(mdp, right), bound, objective)
         case Globally(operand=operand, bound=bound):  # G a = !(F !a)
             inside = _mask(mdp, operand)
-            return _complement(_until(mdp, None, ~inside, bound, _OPPOSITE[objective]))
+            return _complement(_until(mdp, None, ~inside, bound, _opposite(objective)))
         case WeakUntil(left=left, right=right, bound=bound):  # a W b = !((a & !b) U (!a & !b))
             a, b = _mask(mdp, left), _mask(mdp, right)
-            return _complement(_until(mdp, a & ~b, ~a & ~b, bound, _OPPOSITE[objective]))
+            return _complement(_until(mdp, a & ~b, ~a & ~b, bound, _opposite(objective)))
         case Release(left=left, right=right, bound=bound):  # a R b = !(!a U !b)
             a, b = _mask(mdp, left), _mask(mdp, right)
-            return _complement(_until(mdp, ~a, ~b, bound, _OPPOSITE[objective]))
+            return _complement(_until(mdp, ~a, ~b, bound, _opposite(objective)))
     raise CheckError("this path formula is not supported on MDPs", path.span)
 
 
