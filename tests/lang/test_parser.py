@@ -225,17 +225,29 @@ def test_a_str_is_text_never_a_path(tmp_path: Path) -> None:
         parse_model(str(path))
 
 
-@pytest.mark.parametrize("kind", ["mdp", "ctmc", "nondeterministic"])
-def test_only_dtmc_models(kind: str) -> None:
+@pytest.mark.parametrize("kind", ["ctmc", "stochastic", "pta"])
+def test_only_dtmc_and_mdp_models(kind: str) -> None:
     with pytest.raises(
-        PrismSemanticError, match=f"^<string>:1:1: only DTMC models are supported, not '{kind}'"
+        PrismSemanticError,
+        match=f"^<string>:1:1: only DTMC and MDP models are supported, not '{kind}'",
     ):
         parse_model(MINI.replace("dtmc", kind))
 
 
-def test_model_without_type_is_mdp_in_prism() -> None:
-    with pytest.raises(PrismSemanticError, match="only DTMC"):
-        parse_model(MINI.replace("dtmc", ""))
+@pytest.mark.parametrize(("kind", "parsed"), [
+    ("dtmc", "dtmc"), ("probabilistic", "dtmc"), ("mdp", "mdp"), ("nondeterministic", "mdp"),
+    ("", "mdp"),  # PRISM: a model without a type is an MDP
+])
+def test_model_types(kind: str, parsed: str) -> None:
+    assert parse_model(MINI.replace("dtmc", kind)).model_type == parsed
+
+
+def test_the_dtmc_builder_refuses_an_mdp() -> None:
+    from veribattery.explore import build_dtmc
+    from veribattery.lang import flatten_model
+
+    with pytest.raises(PrismSemanticError, match="this is an MDP"):
+        build_dtmc(flatten_model(parse_model(MINI.replace("dtmc", "mdp"))))
 
 
 def test_temporal_operator_in_a_model_is_a_syntax_error() -> None:

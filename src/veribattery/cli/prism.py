@@ -30,7 +30,7 @@ from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from veribattery.checker import CheckResult
-    from veribattery.pipeline import ModelCheckRun
+    from veribattery.pipeline import MdpCheckRun, ModelCheckRun
 
 
 @click.command("prism", short_help="Check properties of any PRISM DTMC file.")
@@ -71,6 +71,7 @@ def prism_command(
 ) -> None:
     """Check PCTL properties of a PRISM DTMC MODEL file."""
     from veribattery.lang import parse_constant_assignments
+    from veribattery.pipeline import ModelCheckRun as ModelCheckRunType
     from veribattery.pipeline import check_prism_file
 
     with user_errors():
@@ -95,6 +96,10 @@ def prism_command(
     print_warnings(run.warnings)
     print_imprecise(run.results)
     if analysis["simulate"] is not None:
+        if not isinstance(run, ModelCheckRunType):
+            with user_errors():
+                raise OptionError("--simulate needs a DTMC model (this is an MDP)")
+            return
         prism_simulate(run, model, constants, analysis["simulate"], seed=analysis["seed"],
                        max_steps=analysis["max_steps"], paths_file=analysis["paths_file"],
                        path_count=analysis["path_count"], output_format=output_format)
@@ -115,7 +120,7 @@ def _format(output_format: str | None, as_json: bool) -> str:
     return "json" if as_json else output_format or "table"
 
 
-def print_prism_csv(run: ModelCheckRun) -> None:
+def print_prism_csv(run: ModelCheckRun | MdpCheckRun) -> None:
     """``property,name,value,lower,upper,exact`` rows, values with full precision."""
     import csv
     import sys
@@ -135,7 +140,7 @@ def _csv_value(value: object) -> str:
     return repr(value) if isinstance(value, float) else str(value)
 
 
-def prism_json(run: ModelCheckRun) -> dict[str, object]:
+def prism_json(run: ModelCheckRun | MdpCheckRun) -> dict[str, object]:
     """The ``prism --json`` document."""
     return {
         "model": run.model_summary,
@@ -182,11 +187,12 @@ def _labelled(result: CheckResult) -> str:
     return result.property.text if name is None else f'"{name}": {result.property.text}'
 
 
-def print_prism_run(run: ModelCheckRun) -> None:
+def print_prism_run(run: ModelCheckRun | MdpCheckRun) -> None:
     """Model size, then one table row per property."""
     size = run.model_summary
+    choices = f"{size['choices']:,} choices, " if "choices" in size else ""
     click.echo(
-        f"Model: {size['states']:,} states, {size['transitions']:,} transitions, "
+        f"Model: {size['states']:,} states, {choices}{size['transitions']:,} transitions, "
         f"{size['initial_states']} initial, {size['deadlocks']} deadlocks"
     )
     rows = [(_labelled(result), _shown(result)) for result in run.results]

@@ -7,9 +7,22 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.errors import PrismSemanticError
 
 #: Reward vectors at least this long are stored as one broadcast zero when all zero.
 _ZERO_VIEW_MIN = 1 << 16
+
+
+def require_dtmc(model_type: str) -> None:
+    """Refuse to build a DTMC of a model of another type: an MDP's choices are a
+    strategy's to make, not coin tosses.
+
+    :raises PrismSemanticError: when *model_type* is not ``dtmc``.
+    """
+    if model_type != "dtmc":
+        raise PrismSemanticError(
+            f"this is an {model_type.upper()}: only 'veribattery prism' checks MDPs "
+            "(DTMC analyses need a 'dtmc' model)")
 
 
 def _all_plus_zero(values: FloatArray) -> bool:

@@ -293,6 +293,8 @@ class ExprParser:
             return self.prob_op(start, self.query())
         if word in ("R", "Rmin", "Rmax"):
             reward = self.reward_name()
+            if word == "R" and reward is not None and self.at_word_ahead(0, "min", "max"):
+                self.i += 1  # R{"r"}min: the direction read by the rule from the text
             query = self.query()
             self.expect("[")
             children = [query, self.reward_path()]

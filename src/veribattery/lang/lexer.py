@@ -30,7 +30,7 @@ KEYWORDS = frozenset({
     "dtmc", "probabilistic", "mdp", "nondeterministic", "ctmc", "stochastic", "pta", "ctmdp",
     "smg", "const", "int", "double", "bool", "rate", "prob", "formula", "label", "global",
     "module", "endmodule", "rewards", "endrewards", "init", "endinit", "true", "false", "func",
-    "filter", "min", "max", "floor", "ceil", "pow", "mod", "log", "round",
+    "filter", "multi", "min", "max", "floor", "ceil", "pow", "mod", "log", "round",
     "P", "Pmin", "Pmax", "R", "Rmin", "Rmax", "S", "C", "I", "U", "W", "X", "F", "G", "A", "E",
 })
 

@@ -8,6 +8,7 @@ file always parses as a whole and ``--property`` can pick the others.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol, TypeAlias, cast
 
@@ -91,6 +92,10 @@ class _Legacy:
 Value = Expr | Temporal | Unsupported
 
 
+#: ``Pmin``, ``Rmax``, ``R{"r"}min``, ``R{2}max``: where a P or R operator names its direction.
+_DIRECTION = re.compile(r'[PR](min|max)?\s*(?:\{\s*(?:"[^"]*"|\d+)\s*\}\s*(min|max)?)?')
+
+
 class Meta(Protocol):
     """Where a rule's text starts and ends (lark's ``Meta`` or the fast parser's)."""
 
@@ -159,9 +164,16 @@ class PropertyRules:
     """
 
     _source: str
+    _text: str
 
     def _span(self, meta: Meta) -> Span:
         return Span(meta.line, meta.column, self._source)
+
+    def _direction(self, meta: Meta) -> Literal["min", "max"] | None:
+        """``min``/``max`` of ``Pmin``/``Rmax``: the operator word at the rule's start."""
+        found = _DIRECTION.match(self._text, meta.start_pos)
+        word = (found.group(1) or found.group(2)) if found is not None else None
+        return "min" if word == "min" else "max" if word == "max" else None
 
     def _wrap(self, node: Expr, legacy: _Legacy | None, meta: Meta) -> Expr:
         return node if legacy is None else _legacy_filter(legacy, node, self._span(meta))
@@ -216,7 +228,12 @@ class PropertyRules:
         formula = _path_formula(path)
         if isinstance(formula, Unsupported):
             return formula
-        return self._wrap(ProbOp(query[0], query[1], formula, self._span(meta)), legacy, meta)
+        node = ProbOp(query[0], query[1], formula, self._span(meta), self._direction(meta))
+        return self._wrap(node, legacy, meta)
+
+    def multi_objective(self, meta: Meta, children: list[Any]) -> Unsupported:
+        return Unsupported("multi-objective queries (multi(...)) are not supported yet",
+                           self._span(meta))
 
     def reward_by_name(self, meta: Meta, children: list[str]) -> str:
         return str(children[0])[1:-1]
@@ -269,7 +286,8 @@ class PropertyRules:
         for item in (query, path, legacy):
             if isinstance(item, Unsupported):
                 return item
-        node = RewardOp(reward, query[0], query[1], path, self._span(meta))
+        node = RewardOp(reward, query[0], query[1], path, self._span(meta),
+                        self._direction(meta))
         return self._wrap(node, legacy, meta)
 
     def steps_op(self, meta: Meta, children: list[Any]) -> Value:

@@ -345,6 +345,7 @@ def flatten_model(model: Model, constants: Mapping[str, Value | str] | None = No
         ),
         init=init,
         source=model.source,
+        model_type=model.model_type,
     )
 
 

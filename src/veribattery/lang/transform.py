@@ -36,6 +36,7 @@ from veribattery.lang.nodes import (
     LabelDecl,
     LabelRef,
     Model,
+    ModelType,
     Module,
     PropertiesFile,
     Property,
@@ -58,6 +59,7 @@ from veribattery.lang.property_rules import (
 )
 
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
+_MDP_TYPES = frozenset({"mdp", "nondeterministic"})
 
 
 @dataclass(frozen=True, slots=True)
@@ -294,30 +296,29 @@ class ToNodes(PropertyRules):
         return cast(Property, children[0])
 
 
-def _model_type(items: list[Any], source: str) -> None:
-    """Only DTMCs are supported; PRISM assumes mdp when no type is given."""
+def _model_type(items: list[Any], source: str) -> ModelType:
+    """DTMCs and MDPs are supported; PRISM assumes mdp when no type is given."""
     types = [item for item in items if isinstance(item, _ModelType)]
     if not types:
-        raise PrismSemanticError(
-            "no model type given (PRISM then assumes mdp); only DTMC models are supported: "
-            "start the file with 'dtmc'",
-            Span(1, 1, source),
-        )
+        return "mdp"
     if len(types) > 1:
         raise PrismSemanticError("the model type is given more than once", types[1].span)
-    if types[0].name not in _DTMC_TYPES:
-        raise PrismSemanticError(
-            f"only DTMC models are supported, not '{types[0].name}'", types[0].span
-        )
+    if types[0].name in _DTMC_TYPES:
+        return "dtmc"
+    if types[0].name in _MDP_TYPES:
+        return "mdp"
+    raise PrismSemanticError(
+        f"only DTMC and MDP models are supported, not '{types[0].name}'", types[0].span
+    )
 
 
 def _assemble_model(items: list[Any], source: str) -> Model:
-    _model_type(items, source)
+    model_type = _model_type(items, source)
     inits = [item for item in items if isinstance(item, _Init)]
     if len(inits) > 1:
         raise PrismSemanticError("more than one init ... endinit block", inits[1].span)
     return Model(
-        model_type="dtmc",
+        model_type=model_type,
         constants=tuple(i for i in items if isinstance(i, ConstDecl)),
         formulas=tuple(i for i in items if isinstance(i, FormulaDecl)),
         labels=tuple(i for i in items if isinstance(i, LabelDecl)),

@@ -17,10 +17,12 @@ generated mission model is checked by exactly the code that checks a user's own 
 
 Modules: :mod:`~veribattery.pipeline.run` (runs, options, the loop over properties),
 :mod:`~veribattery.pipeline.session` (float checks), :mod:`~veribattery.pipeline.exact`
-(exact checks), :mod:`~veribattery.pipeline.prism_file` (a user's file to results).
+(exact checks), :mod:`~veribattery.pipeline.mdp` (MDPs),
+:mod:`~veribattery.pipeline.prism_file` (a user's file to results).
 """
 
 from veribattery.pipeline.exact import check_model_exact
+from veribattery.pipeline.mdp import MdpCheckRun, check_mdp_model
 from veribattery.pipeline.prism_file import check_prism_file, select
 from veribattery.pipeline.run import (
     CheckOptions,
@@ -34,12 +36,14 @@ from veribattery.pipeline.session import ReusingBuilder, Rewards, Session, check
 __all__ = [
     "CheckOptions",
     "Keep",
+    "MdpCheckRun",
     "ModelCheckRun",
     "ProgressCallback",
     "ReusingBuilder",
     "Rewards",
     "Session",
     "Stopwatch",
+    "check_mdp_model",
     "check_model",
     "check_model_exact",
     "check_prism_file",

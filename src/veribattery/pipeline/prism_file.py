@@ -20,6 +20,7 @@ from veribattery.lang import (
 )
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.exact import check_model_exact
+from veribattery.pipeline.mdp import MdpCheckRun, check_mdp_model
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
@@ -80,7 +81,7 @@ def check_prism_file(
     progress: ProgressCallback | None = None,
     exact: bool = False,
     keep: Keep = "states",
-) -> ModelCheckRun:
+) -> ModelCheckRun | MdpCheckRun:
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
     :param model_source: a model file path, or PRISM text.
@@ -90,6 +91,9 @@ def check_prism_file(
     :param exact: check in exact rational arithmetic (``--exact``:
         :func:`~veribattery.pipeline.check_model_exact`), else in floating point
         (:func:`~veribattery.pipeline.check_model`).
+    An ``mdp`` model is checked by :func:`~veribattery.pipeline.check_mdp_model`
+    (floating point only: *exact* is refused, *keep* is always answers).
+
     :param keep: what each result keeps: ``"states"`` or ``"answers"`` (see
         :class:`~veribattery.pipeline.CheckOptions`).
     """
@@ -102,6 +106,12 @@ def check_prism_file(
         skipped: tuple[str, ...] = ()
         if not selectors:
             chosen, skipped = _supported(chosen)
+    if model.model_type == "mdp":
+        if exact:
+            raise PrismSemanticError("--exact is not supported for MDPs yet")
+        mdp_run = check_mdp_model(model, chosen, props_file=props, constants=constants,
+                                  progress=progress, stopwatch=watch)
+        return replace(mdp_run, warnings=skipped + mdp_run.warnings) if skipped else mdp_run
     way = check_model_exact if exact else check_model
     run = way(model, chosen, props_file=props, constants=constants, progress=progress,
               stopwatch=watch, options=CheckOptions(keep))

@@ -29,7 +29,7 @@ from veribattery.explore.build.plan import plan_layers
 from veribattery.explore.build.store import StateStore, radix_words
 from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr, may_fail
 from veribattery.explore.compile.program import Program, compile_program
-from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.explore.dtmc import DTMC, RewardVectors, require_dtmc
 from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 
 if TYPE_CHECKING:
@@ -82,13 +82,13 @@ def explore(
 ) -> tuple[IntArray, IntArray, list[Layer]]:
     """Breadth-first search: the states in numbering order, the initial ones, the layers.
 
-    Consecutive small layers are merged (see :class:`Layers`), so that the number of
-    layers, and the per-layer work of their users, does not grow with the BFS depth.
+    Consecutive small layers are merged (:class:`Layers`): their number stays small at any depth.
 
     :param progress: called once per BFS layer with (states found so far, frontier size).
     :param guard: checked once per BFS layer (default: against the memory available).
     :raises ModelTooLarge: when the search would outgrow the memory available.
     """
+    require_dtmc(model.model_type)
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rewarded = rewarded_actions(model.rewards)

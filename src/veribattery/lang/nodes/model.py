@@ -149,7 +149,7 @@ class RewardStruct:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-ModelType: TypeAlias = Literal["dtmc"]
+ModelType: TypeAlias = Literal["dtmc", "mdp"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -247,6 +247,8 @@ class FlatModel:
     formulas: tuple[FormulaDecl, ...]
     init: Expr | None = None
     source: str = "<string>"
+    #: ``"mdp"``: several enabled choices are the scheduler's, not a uniform draw.
+    model_type: ModelType = "dtmc"
 
     @property
     def variable_names(self) -> tuple[str, ...]:

@@ -258,6 +258,9 @@ class ProbOp:
     bound: Expr | None
     path: PathFormula
     span: Span = field(default=NO_SPAN, compare=False)
+    #: ``Pmin``/``Rmin`` or ``Pmax``/``Rmax`` (None for plain ``P``/``R``): read on MDPs,
+    #: ignored on DTMCs (as PRISM does).
+    direction: Literal["min", "max"] | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -273,6 +276,9 @@ class RewardOp:
     bound: Expr | None
     path: RewardPath
     span: Span = field(default=NO_SPAN, compare=False)
+    #: ``Pmin``/``Rmin`` or ``Pmax``/``Rmax`` (None for plain ``P``/``R``): read on MDPs,
+    #: ignored on DTMCs (as PRISM does).
+    direction: Literal["min", "max"] | None = None
 
 
 @dataclass(frozen=True, slots=True)

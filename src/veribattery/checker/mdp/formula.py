@@ -1,0 +1,295 @@
+"""PRISM properties on an MDP: ``Pmin``/``Pmax`` and ``Rmin``/``Rmax`` with certified
+bounds, and the state formulas, expressions and filters around them.
+
+PRISM's rules for MDPs: ``P=?`` and ``R=?`` are errors (the value depends on the
+strategy: say ``Pmin``/``Pmax``); ``P~p`` quantifies over every strategy, so
+``P>=p`` reads the minimum and ``P<=p`` the maximum (an explicit ``Pmin``/``Pmax``
+is kept). A bound is decided from the certified interval; a state whose interval
+straddles it is an error naming the property, never a guess.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import cast
+
+import numpy as np
+
+from veribattery._types import BoolArray, IntArray
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.formula import filters, intervals
+from veribattery.checker.formula.intervals import Result
+from veribattery.checker.formula.leaves import as_mask, has_operator, step_bound
+from veribattery.checker.mdp import stepped
+from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.reach import reach_probability
+from veribattery.checker.mdp.rewards import reach_reward, total_reward
+from veribattery.checker.mdp.system import Objective
+from veribattery.errors import CheckError
+from veribattery.explore.compile.expr import compile_expr
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    Cumulative,
+    DoubleLit,
+    Eventually,
+    Expr,
+    Filter,
+    Globally,
+    Ident,
+    Instantaneous,
+    IntLit,
+    Ite,
+    LabelRef,
+    Next,
+    PathFormula,
+    ProbOp,
+    Reach,
+    Release,
+    RewardOp,
+    TimeBound,
+    TimeInterval,
+    Total,
+    Unary,
+    Until,
+    WeakUntil,
+)
+
+__all__ = ["mdp_answer", "mdp_values"]
+
+
+
+def _opposite(objective: Objective) -> Objective:
+    """The objective whose complement a dual formula (``G``, ``W``, ``R``) reads."""
+    return "max" if objective == "min" else "min"
+
+
+def mdp_answer(mdp: MDP, formula: Expr) -> filters.FilterOutcome:
+    """The answer PRISM reports: a top-level filter's value, else the value at the
+    single initial state, the range over several, or ``forall`` for a boolean."""
+    printed: tuple[str, ...] = ()
+    if isinstance(formula, Filter):
+        outcome = _filter(mdp, formula)
+        if outcome.value is not None:
+            return outcome
+        per_state, printed = _as_result(outcome.values), outcome.printed
+    else:
+        per_state = mdp_values(mdp, formula)
+    if mdp.initial.size == 0:
+        raise CheckError("the model has no initial state", formula.span)
+    default = "forall" if not isinstance(per_state, Bounds) else (
+        "state" if mdp.initial.size == 1 else "range")
+    answer = filters.apply_filter(default, per_state, mdp.initial_mask, _states(mdp),
+                                  mdp.variable_names, formula.span)
+    return replace(answer, printed=printed)
+
+
+def mdp_values(mdp: MDP, formula: Expr) -> Result:
+    """Per-state value of *formula*: certified numbers or a boolean mask."""
+    match formula:
+        case ProbOp(op="=?"):
+            return _path(mdp, formula.path, _direction(formula))
+        case RewardOp(op="=?"):
+            return _reward(mdp, formula, _direction(formula))
+        case ProbOp() | RewardOp():
+            return _bounded(mdp, formula)
+        case Filter():
+            return _filter_everywhere(mdp, formula)
+    if not has_operator(formula):
+        return _leaf(mdp, formula)
+    return _compound(mdp, formula)
+
+
+def _direction(op: ProbOp | RewardOp) -> Objective:
+    """The objective of an operator: its own ``min``/``max``, else (``P~p``) the one
+    that quantifies over every strategy; ``P=?``/``R=?`` have none on an MDP."""
+    if op.direction is not None:
+        return op.direction
+    if op.op == "=?":
+        name = "P" if isinstance(op, ProbOp) else "R"
+        raise CheckError(f"{name}=? on an MDP has no single value: use {name}min=? or "
+                         f"{name}max=?", op.span)
+    return "max" if op.op in ("<", "<=") else "min"
+
+
+def _bounded(mdp: MDP, op: ProbOp | RewardOp) -> BoolArray:
+    """``P~p``/``R~r`` as a mask, decided from the certified interval."""
+    assert op.bound is not None
+    threshold = _number(op.bound)
+    query = replace(op, op="=?", bound=None, direction=_direction(op))
+    numbers = mdp_values(mdp, query)
+    assert isinstance(numbers, Bounds)
+    holds, undecided = numbers.compare(op.op, threshold)
+    if undecided.any():
+        state = int(np.flatnonzero(undecided)[0])
+        raise CheckError(
+            f"precision not enough to decide {op.op} {threshold:g}: in {int(undecided.sum())} "
+            f"state(s) the certified interval straddles the bound (state {state}: "
+            f"[{numbers.lower[state]!r}, {numbers.upper[state]!r}])", op.span)
+    return np.asarray(holds, dtype=bool)
+
+
+def _mask(mdp: MDP, expr: Expr) -> BoolArray:
+    result = mdp_values(mdp, expr)
+    if isinstance(result, Bounds):
+        return as_mask(result.value, expr)
+    return as_mask(result, expr)
+
+
+def _path(mdp: MDP, path: PathFormula, objective: Objective) -> Bounds:
+    """``Pmin``/``Pmax`` of a path formula in every state."""
+    match path:
+        case Next(operand=operand):
+            return stepped.next_probability(mdp, _mask(mdp, operand), objective=objective).bounds
+        case Eventually(operand=operand, bound=bound):
+            return _until(mdp, None, _mask(mdp, operand), bound, objective)
+        case Until(left=left, right=right, bound=bound):
+            return _until(mdp, _mask(mdp, left), _mask(mdp, right), bound, objective)
+        case Globally(operand=operand, bound=bound):  # G a = !(F !a)
+            inside = _mask(mdp, operand)
+            return _complement(_until(mdp, None, ~inside, bound, _opposite(objective)))
+        case WeakUntil(left=left, right=right, bound=bound):  # a W b = !((a & !b) U (!a & !b))
+            a, b = _mask(mdp, left), _mask(mdp, right)
+            return _complement(_until(mdp, a & ~b, ~a & ~b, bound, _opposite(objective)))
+        case Release(left=left, right=right, bound=bound):  # a R b = !(!a U !b)
+            a, b = _mask(mdp, left), _mask(mdp, right)
+            return _complement(_until(mdp, ~a, ~b, bound, _opposite(objective)))
+    raise CheckError("this path formula is not supported on MDPs", path.span)
+
+
+def _until(mdp: MDP, remain: BoolArray | None, target: BoolArray,
+           bound: TimeBound | TimeInterval | None, objective: Objective) -> Bounds:
+    """``remain U target`` within its step interval."""
+    if bound is None:
+        return reach_probability(mdp, target, objective=objective, remain=remain).bounds
+    if isinstance(bound, TimeInterval):
+        low, high = step_bound(bound.low), step_bound(bound.high)
+        if high < low:
+            return Bounds.exact(np.zeros(mdp.num_states))
+        return stepped.interval_reach_probability(mdp, target, low, high, objective=objective,
+                                                  remain=remain).bounds
+    steps = step_bound(bound.value)
+    if bound.op in ("<=", "<"):
+        steps -= bound.op == "<"
+        if steps < 0:
+            return Bounds.exact(np.zeros(mdp.num_states))
+        return stepped.bounded_reach_probability(mdp, target, steps, objective=objective,
+                                                 remain=remain).bounds
+    if bound.op == "=":
+        return stepped.interval_reach_probability(mdp, target, steps, steps,
+                                                  objective=objective, remain=remain).bounds
+    steps += bound.op == ">"
+    return stepped.later_reach_probability(mdp, target, steps, objective=objective,
+                                           remain=remain).bounds
+
+
+def _complement(b: Bounds) -> Bounds:
+    """``1 - b`` with its certified interval."""
+    one = Bounds.exact(np.ones(b.value.size))
+    return cast(Bounds, intervals.binary("-", one, b))
+
+
+def _reward(mdp: MDP, op: RewardOp, objective: Objective) -> Bounds:
+    """``Rmin``/``Rmax`` of a reward path in every state."""
+    try:
+        structure = mdp.reward(op.reward)
+    except (KeyError, IndexError):
+        raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+    path = op.path
+    match path:
+        case Reach(target=target):
+            return reach_reward(mdp, structure.per_choice(mdp), _mask(mdp, target),
+                                objective=objective).bounds
+        case Total():
+            return total_reward(mdp, structure.per_choice(mdp), objective=objective).bounds
+        case Cumulative(bound=bound):
+            return stepped.cumulative_reward(mdp, structure.per_choice(mdp), step_bound(bound),
+                                             objective=objective).bounds
+        case Instantaneous(time=time):
+            return stepped.instantaneous_reward(mdp, structure.state, step_bound(time),
+                                                objective=objective).bounds
+    raise CheckError("this reward formula is not supported on MDPs (F, C, C<=k, I=k are)",
+                     path.span)
+
+
+def _compound(mdp: MDP, expr: Expr) -> Result:
+    """Connectives, arithmetic and comparisons around operators, state by state."""
+    match expr:
+        case Unary(op=op, operand=operand):
+            return intervals.unary(op, mdp_values(mdp, operand), expr.span)
+        case Binary(op=op, left=left, right=right):
+            return intervals.binary(op, mdp_values(mdp, left), mdp_values(mdp, right),
+                                    expr.span)
+        case Ite(cond=cond, then=then, otherwise=otherwise):
+            return intervals.choose(_mask(mdp, cond), mdp_values(mdp, then),
+                                    mdp_values(mdp, otherwise))
+        case Call(func=func, args=args):
+            return intervals.call(func, [mdp_values(mdp, a) for a in args], expr.span)
+    raise CheckError("this operator is not supported on MDPs", expr.span)
+
+
+def _filter(mdp: MDP, formula: Filter) -> filters.FilterOutcome:
+    where = (np.ones(mdp.num_states, dtype=bool) if formula.states is None
+             else _mask(mdp, formula.states))
+    values = mdp_values(mdp, formula.operand)
+    return filters.apply_filter(formula.op, values, where, _states(mdp), mdp.variable_names,
+                                formula.span)
+
+
+def _filter_everywhere(mdp: MDP, formula: Filter) -> Result:
+    """A filter inside a formula: its one value in every state."""
+    outcome = _filter(mdp, formula)
+    value = outcome.value
+    if isinstance(value, tuple) or value is None:
+        raise CheckError(f"filter({formula.op}, ...) has no single value here", formula.span)
+    if isinstance(value, bool | np.bool_):
+        return np.full(mdp.num_states, bool(value))
+    low, high = outcome.interval or (float(value), float(value))
+    n = mdp.num_states
+    return Bounds(np.full(n, float(value)), np.full(n, low), np.full(n, high))
+
+
+def _as_result(per_state: object) -> Result:
+    if isinstance(per_state, Bounds):
+        return per_state
+    array = np.asarray(per_state)
+    if array.dtype == np.bool_:
+        return array
+    return Bounds.exact(array.astype(np.float64))
+
+
+def _leaf(mdp: MDP, expr: Expr) -> Result:
+    """An operator-free state expression in every state."""
+    for node in walk(expr):
+        if isinstance(node, LabelRef) and node.name not in mdp.labels:
+            raise CheckError(f'unknown label "{node.name}"', node.span)
+    if isinstance(expr, BoolLit):
+        return np.full(mdp.num_states, expr.value, dtype=bool)
+    used = {node.name for node in walk(expr) if isinstance(node, Ident)}
+    names = tuple(name for name in mdp.variable_names if name in used)
+    columns = [mdp.variable_names.index(name) for name in names]
+    rows = np.asarray(_states(mdp)[:, columns], dtype=np.int64)
+    result = np.asarray(compile_expr(expr, names, dict(mdp.labels))(rows))
+    result = np.broadcast_to(result, (mdp.num_states,)).copy()
+    if result.dtype == np.bool_:
+        return result
+    return Bounds.exact(result.astype(np.float64))
+
+
+def _states(mdp: MDP) -> IntArray:
+    if mdp.states is None:
+        return np.zeros((mdp.num_states, 0), dtype=np.int64)
+    return mdp.states
+
+
+def _number(expr: Expr) -> float:
+    """The value of a bound (constants are substituted before checking)."""
+    match expr:
+        case IntLit(value=value) | DoubleLit(value=value):
+            return float(value)
+        case Unary(op="-", operand=operand):
+            return -_number(operand)
+    raise CheckError("expected a numeric constant", expr.span)
+

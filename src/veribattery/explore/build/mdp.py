@@ -1,0 +1,196 @@
+"""Breadth-first construction of the MDP of a flat ``mdp`` model.
+
+PRISM's MDP semantics: in each state, every enabled command of a module, and every
+enabled combination of commands synchronising on an action (one per participating
+module), is a choice of its own, labelled by its action. The DTMC builder merges a
+state's choices into one uniform distribution; here each *atomic* group -- one
+command, or one combination of synchronising commands -- yields at most one choice
+per state, expanded by the same vectorised successor code (``successors``), and the
+choices stay separate rows of a choice matrix grouped by state. A state with no
+enabled choice gets a self-loop (reported, as PRISM fixes deadlocks).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.explore.build.builder import _labels, _over_states, initial_states
+from veribattery.explore.build.store import StateStore
+from veribattery.explore.build.successors import expand_group
+from veribattery.explore.compile.expr import CompileCache
+from veribattery.explore.compile.program import ChoiceGroup, Program, compile_program
+from veribattery.lang.nodes import FlatModel, RewardStruct
+
+__all__ = ["BuiltMdp", "MdpRewardVectors", "build_mdp"]
+
+#: Frontier states expanded at once.
+_CHUNK = 1 << 12
+
+
+@dataclass(frozen=True, slots=True)
+class MdpRewardVectors:
+    """One reward structure: per state (state rewards), per choice (transition rewards)."""
+
+    name: str | None
+    state: FloatArray
+    choice: FloatArray
+
+
+@dataclass(frozen=True, slots=True)
+class BuiltMdp:
+    """The parts of an MDP as explored (the checker's ``MDP`` is made from them).
+
+    :param transitions: ``choices x states`` CSR matrix, one row per choice.
+    :param row_groups: ``states + 1`` offsets of each state's choices.
+    :param choice_actions: per choice, its index in *actions* (``""``: unlabelled).
+    """
+
+    transitions: sp.csr_matrix
+    row_groups: IntArray
+    initial: IntArray
+    labels: dict[str, BoolArray]
+    choice_actions: IntArray
+    actions: tuple[str, ...]
+    rewards: tuple[MdpRewardVectors, ...]
+    states: IntArray
+    variable_names: tuple[str, ...]
+    deadlocks: int
+
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """What the build fixed, as PRISM reports it."""
+        if not self.deadlocks:
+            return ()
+        return (f"{self.deadlocks} deadlock states (self-loops added)",)
+
+
+def build_mdp(model: FlatModel, *,
+              progress: Callable[[int, int], None] | None = None) -> BuiltMdp:
+    """Explore the reachable states of the ``mdp`` *model*, one choice per enabled
+    command or synchronised combination of commands.
+
+    :raises ModelError: an update leaves a variable's range, a probability is
+        negative, or a choice's probabilities do not sum to 1.
+    """
+    program = compile_program(model)
+    atoms = _atomic_groups(program)
+    actions = ("", *sorted({g.action for g in atoms if g.action is not None}))
+    action_index = np.array([0 if g.action is None else actions.index(g.action)
+                             for g in atoms] + [0], dtype=np.int64)
+    store = StateStore(program.lows, program.highs)
+    initial = store.add(initial_states(model))
+    rows: list[sp.csr_matrix] = []
+    counts: list[IntArray] = []
+    kinds: list[IntArray] = []
+    low = 0
+    while low < store.count:
+        high = min(store.count, low + _CHUNK)
+        matrix, per_state, kind = _expand(program, atoms, store, low, high)
+        rows.append(matrix)
+        counts.append(per_state)
+        kinds.append(kind)
+        if progress is not None:
+            progress(store.count, high - low)
+        low = high
+    n = store.count
+    transitions = sp.vstack([_widen(m, n) for m in rows], format="csr")
+    per_state = np.concatenate(counts)
+    kind = np.concatenate(kinds)
+    states = store.states
+    dead = _dead_states(per_state, kind, len(atoms))
+    cache = CompileCache(memoise=False)
+    labels = _labels(model, (states, cache), initial, dead)
+    row_groups = np.concatenate([[0], np.cumsum(per_state)]).astype(np.int64)
+    owner = np.repeat(np.arange(n), per_state)
+    rewards = tuple(_reward_vectors(model, r, (states, cache), owner, kind, atoms)
+                    for r in model.rewards)
+    return BuiltMdp(transitions, row_groups, np.unique(initial), labels, action_index[kind],
+                    actions, rewards, states, model.variable_names, int(dead.sum()))
+
+
+def _atomic_groups(program: Program) -> list[ChoiceGroup]:
+    """One group per command of a lone module, one per combination of synchronising ones."""
+    atoms: list[ChoiceGroup] = []
+    for group in program.groups:
+        for combination in itertools.product(*group.parts):
+            atoms.append(ChoiceGroup(group.action, tuple((c,) for c in combination)))
+    return atoms
+
+
+def _expand(program: Program, atoms: list[ChoiceGroup], store: StateStore, low: int,
+            high: int) -> tuple[sp.csr_matrix, IntArray, IntArray]:
+    """The choices of states ``low..high-1`` (in state, then group order): their rows,
+    the number per state, and each one's atomic group (``len(atoms)``: a deadlock loop)."""
+    frontier = store.rows(low, high)
+    size = high - low
+    sources: list[IntArray] = []
+    groups: list[IntArray] = []
+    targets: list[IntArray] = []
+    probability: list[FloatArray] = []
+    for index, atom in enumerate(atoms):
+        found = expand_group(program, atom, frontier, True)
+        if found is None:
+            continue
+        sources.append(found.source)
+        groups.append(np.full(found.source.size, index, dtype=np.int64))
+        targets.append(found.targets)
+        probability.append(found.probability)
+    enabled = np.zeros(size, dtype=bool)
+    for source in sources:
+        enabled[source] = True
+    dead = np.flatnonzero(~enabled)
+    sources.append(dead)
+    groups.append(np.full(dead.size, len(atoms), dtype=np.int64))
+    targets.append(frontier[dead])
+    probability.append(np.ones(dead.size))
+    source = np.concatenate(sources)
+    group = np.concatenate(groups)
+    column = store.add(np.concatenate(targets))
+    p = np.concatenate(probability)
+    order = np.lexsort((group, source))  # stable: a choice's updates keep their order
+    source, group, column, p = source[order], group[order], column[order], p[order]
+    starts = np.flatnonzero(np.r_[True, (source[1:] != source[:-1]) | (group[1:] != group[:-1])])
+    row = np.cumsum(np.r_[False, (source[1:] != source[:-1]) | (group[1:] != group[:-1])])
+    keep = p > 0
+    matrix = sp.csr_matrix((p[keep], (row[keep], column[keep])),
+                           shape=(starts.size, store.count))
+    matrix.sum_duplicates()
+    per_state = np.bincount(source[starts], minlength=size)
+    return matrix, per_state.astype(np.int64), group[starts]
+
+
+def _widen(matrix: sp.csr_matrix, n: int) -> sp.csr_matrix:
+    """*matrix* with *n* columns (states found after its chunk was expanded)."""
+    return sp.csr_matrix((matrix.data, matrix.indices, matrix.indptr),
+                         shape=(matrix.shape[0], n))
+
+
+def _dead_states(per_state: IntArray, kind: IntArray, loop: int) -> BoolArray:
+    """States whose only choice is the self-loop added for a deadlock (group *loop*)."""
+    first = np.concatenate([[0], np.cumsum(per_state)[:-1]]).astype(np.int64)
+    return np.asarray(kind[first] == loop, dtype=bool)
+
+
+def _reward_vectors(model: FlatModel, struct: RewardStruct,
+                    over: tuple[IntArray, CompileCache], owner: IntArray, kind: IntArray,
+                    atoms: list[ChoiceGroup]) -> MdpRewardVectors:
+    """State rewards per state; transition rewards per choice, by the choice's action
+    (none on the self-loops added to deadlocks)."""
+    states = over[0]
+    state = np.zeros(states.shape[0], dtype=np.float64)
+    choice = np.zeros(owner.size, dtype=np.float64)
+    for item in struct.items:
+        guard = _over_states(model, item.guard, over, bool)
+        value = _over_states(model, item.value, over, np.float64, where=guard)
+        if not item.is_transition:
+            state += value
+            continue
+        matching = np.array([g.action == item.action for g in atoms] + [False])
+        choice += np.where(matching[kind], value[owner], 0.0)
+    return MdpRewardVectors(struct.name, state, choice)

@@ -1,0 +1,88 @@
+"""An ``mdp`` model and its properties to results: build the MDP, check each property
+(``Pmin``/``Pmax``, ``Rmin``/``Rmax`` and the state formulas around them)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from veribattery.checker import CheckResult
+from veribattery.checker.mdp import MDP, MdpRewards
+from veribattery.checker.mdp.formula import mdp_answer
+from veribattery.explore.build.mdp import BuiltMdp, build_mdp
+from veribattery.lang import Model, PropertiesFile, Property, flatten_model, resolve_property
+from veribattery.lang.nodes import Value
+from veribattery.pipeline.run import STAGES, ProgressCallback, Stopwatch
+
+__all__ = ["MdpCheckRun", "check_mdp_model"]
+
+
+@dataclass(frozen=True, slots=True)
+class MdpCheckRun:
+    """What one check of an MDP produced: the MDP, one result per property, timings."""
+
+    mdp: MDP
+    results: tuple[CheckResult, ...]
+    timings_s: dict[str, float]
+    warnings: tuple[str, ...] = ()
+
+    @property
+    def model_summary(self) -> dict[str, int]:
+        """Sizes as reported by ``--json``: states, choices, transitions, initial
+        states, deadlocks."""
+        return {
+            "states": self.mdp.num_states,
+            "choices": self.mdp.num_choices,
+            "transitions": self.mdp.num_transitions,
+            "initial_states": int(self.mdp.initial.size),
+            "deadlocks": self.mdp.deadlocks,
+        }
+
+
+def check_mdp_model(
+    model: Model,
+    properties: Sequence[Property],
+    *,
+    props_file: PropertiesFile | None = None,
+    constants: Mapping[str, Value | str] | None = None,
+    progress: ProgressCallback | None = None,
+    stopwatch: Stopwatch | None = None,
+) -> MdpCheckRun:
+    """Flatten the ``mdp`` *model*, build its MDP and check each property at the
+    initial states, in floating point with certified bounds.
+
+    :raises CheckError: ``P=?``/``R=?`` (no single value on an MDP), an operator
+        outside the supported ones, or a bound the certified interval cannot decide.
+    """
+    watch = stopwatch or Stopwatch(*STAGES)
+    with watch.stage("parse"):
+        flat = flatten_model(model, constants)
+        resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+    with watch.stage("build"):
+        built = build_mdp(flat, progress=progress)
+        mdp = as_checker_mdp(built)
+    results = []
+    with watch.stage("check"):
+        for prop in resolved:
+            start = time.perf_counter()
+            answer = mdp_answer(mdp, prop.formula)
+            result = CheckResult.of_answer(prop, answer, time.perf_counter() - start)
+            results.append(result.without_states())
+    return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings)
+
+
+def as_checker_mdp(built: BuiltMdp) -> MDP:
+    """The checker's :class:`~veribattery.checker.mdp.MDP` of an explored model."""
+    return MDP(
+        transitions=built.transitions,
+        row_groups=built.row_groups,
+        initial=built.initial,
+        labels=built.labels,
+        choice_actions=built.choice_actions,
+        actions=built.actions,
+        rewards=tuple(MdpRewards(r.name, r.state, r.choice) for r in built.rewards),
+        states=built.states,
+        variable_names=built.variable_names,
+        deadlocks=built.deadlocks,
+    )

@@ -1,0 +1,130 @@
+"""The MDP builder and the MDP path of ``veribattery prism``: choices kept apart,
+sizes as Storm counts them, values solved by hand."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from veribattery.cli import cli
+from veribattery.explore.build.mdp import build_mdp
+from veribattery.lang import flatten_model, parse_model
+
+#: s0 offers [a] (to s1 or s2 by halves) and [b] (to s3); s1 returns; s2 and s3 deadlock.
+CHOICE = """mdp
+module m
+  s : [0..3] init 0;
+  [a] s=0 -> 0.5:(s'=1) + 0.5:(s'=2);
+  [b] s=0 -> (s'=3);
+  [] s=1 -> (s'=0);
+endmodule
+rewards "r"
+  [a] true : 1;
+  s=2 : 5;
+endrewards
+label "goal" = s=2;
+"""
+
+#: Two modules synchronising on [go], each with two enabled commands: four choices.
+SYNC = """mdp
+module p
+  x : [0..2] init 0;
+  [go] x=0 -> (x'=1);
+  [go] x=0 -> (x'=2);
+endmodule
+module q
+  y : [0..2] init 0;
+  [go] y=0 -> 0.5:(y'=1) + 0.5:(y'=2);
+  [go] y=0 -> (y'=2);
+endmodule
+"""
+
+
+def test_each_enabled_command_is_a_choice() -> None:
+    built = build_mdp(flatten_model(parse_model(CHOICE)))
+    assert built.states.tolist() == [[0], [1], [2], [3]]
+    assert built.row_groups.tolist() == [0, 2, 3, 4, 5]
+    assert built.transitions.toarray().tolist() == [
+        [0, 0.5, 0.5, 0], [0, 0, 0, 1], [1, 0, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+    assert [built.actions[a] for a in built.choice_actions] == ["a", "b", "", "", ""]
+    assert built.deadlocks == 2
+    assert built.labels["deadlock"].tolist() == [False, False, True, True]
+    (r,) = built.rewards
+    assert r.state.tolist() == [0, 0, 5, 0]
+    assert r.choice.tolist() == [1, 0, 0, 0, 0]  # [a] only; no reward on deadlock loops
+
+
+def test_synchronised_combinations_are_choices() -> None:
+    built = build_mdp(flatten_model(parse_model(SYNC)))
+    assert built.row_groups[1] - built.row_groups[0] == 4
+    first = built.transitions.toarray()[:4]
+    assert sorted(np.count_nonzero(first, axis=1).tolist()) == [1, 1, 2, 2]
+
+
+@pytest.mark.parametrize("source", [CHOICE, SYNC])
+def test_sizes_as_storm_counts_them(source: str, tmp_path: Path) -> None:
+    stormpy = pytest.importorskip("stormpy")
+    path = tmp_path / "m.nm"
+    path.write_text(source)
+    model = stormpy.build_model(stormpy.parse_prism_program(str(path)))
+    built = build_mdp(flatten_model(parse_model(source)))
+    assert built.states.shape[0] == model.nr_states
+    assert built.transitions.shape[0] == model.nr_choices
+    assert built.transitions.nnz == model.nr_transitions
+
+
+@pytest.mark.parametrize(("prop", "expected"), [
+    ('Pmax=? [ F "goal" ]', 1.0),  # [a] forever reaches s2 almost surely
+    ('Pmin=? [ F "goal" ]', 0.0),  # [b] at once
+    ('Pmax=? [ X s=3 ]', 1.0),
+    ('Pmax=? [ F<=1 "goal" ]', 0.5),
+    ('Pmax=? [ F<=3 "goal" ]', 0.75),
+    ('Pmin=? [ G s!=2 ]', 0.0),  # = 1 - Pmax(F s=2)
+    ('R{"r"}max=? [ C<=3 ]', 6.5),  # 1 + 0.5*(0 + 1) + 0.5*(5 + 5)
+    ('Rmin=? [ F s=3 ]', 0.0),
+    ('Rmax=? [ F s=3 ]', math.inf),  # [a] may never reach s3
+    ('R{"r"}max=? [ I=1 ]', 2.5),
+    ('Pmax>=0.9 [ F "goal" ]', True),
+    ('P>=0.9 [ F "goal" ]', False),  # every strategy: Pmin = 0
+])
+def test_prism_values(prop: str, expected: object, tmp_path: Path) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(CHOICE)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop, "--json"])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.stdout)
+    assert document["model"]["choices"] == 5
+    value = document["results"][0]["value"]
+    if isinstance(expected, bool):
+        assert value is expected
+    elif math.isinf(float(expected)):  # type: ignore[arg-type]
+        assert value in ("Infinity", math.inf)
+    else:
+        assert value == pytest.approx(expected, abs=1e-9)
+
+
+@pytest.mark.parametrize(("prop", "message"), [
+    ('P=? [ F "goal" ]', "P=? on an MDP has no single value"),
+    ('R=? [ F s=3 ]', "R=? on an MDP has no single value"),
+    ('multi(Pmax=? [ F s=2 ], P>=0.5 [ F s=3 ])', "multi-objective"),
+])
+def test_refused_with_one_line(prop: str, message: str, tmp_path: Path) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(CHOICE)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop, "--json"])
+    assert result.exit_code == 2
+    assert message in result.output
+
+
+def test_exact_is_refused_for_mdps(tmp_path: Path) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(CHOICE)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", 'Pmax=? [ F s=2 ]',
+                                      "--exact"])
+    assert result.exit_code == 2
+    assert "--exact is not supported for MDPs" in result.output
