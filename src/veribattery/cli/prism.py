@@ -30,7 +30,8 @@ from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from veribattery.checker import CheckResult
-    from veribattery.pipeline import MdpCheckRun, ModelCheckRun
+    from veribattery.pipeline import ModelCheckRun
+    from veribattery.pipeline.mdp import MdpCheckRun
 
 
 @click.command("prism", short_help="Check properties of any PRISM DTMC file.")

@@ -22,7 +22,6 @@ Modules: :mod:`~veribattery.pipeline.run` (runs, options, the loop over properti
 """
 
 from veribattery.pipeline.exact import check_model_exact
-from veribattery.pipeline.mdp import MdpCheckRun, check_mdp_model
 from veribattery.pipeline.prism_file import check_prism_file, select
 from veribattery.pipeline.run import (
     CheckOptions,
@@ -36,14 +35,12 @@ from veribattery.pipeline.session import ReusingBuilder, Rewards, Session, check
 __all__ = [
     "CheckOptions",
     "Keep",
-    "MdpCheckRun",
     "ModelCheckRun",
     "ProgressCallback",
     "ReusingBuilder",
     "Rewards",
     "Session",
     "Stopwatch",
-    "check_mdp_model",
     "check_model",
     "check_model_exact",
     "check_prism_file",

@@ -6,6 +6,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import (
@@ -20,7 +21,6 @@ from veribattery.lang import (
 )
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.exact import check_model_exact
-from veribattery.pipeline.mdp import MdpCheckRun, check_mdp_model
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
@@ -30,6 +30,9 @@ from veribattery.pipeline.run import (
     Stopwatch,
 )
 from veribattery.pipeline.session import check_model
+
+if TYPE_CHECKING:
+    from veribattery.pipeline.mdp import MdpCheckRun
 
 __all__ = ["check_prism_file", "select"]
 
@@ -109,6 +112,8 @@ def check_prism_file(
     if model.model_type == "mdp":
         if exact:
             raise PrismSemanticError("--exact is not supported for MDPs yet")
+        from veribattery.pipeline.mdp import check_mdp_model  # the MDP engine when asked
+
         mdp_run = check_mdp_model(model, chosen, props_file=props, constants=constants,
                                   progress=progress, stopwatch=watch)
         return replace(mdp_run, warnings=skipped + mdp_run.warnings) if skipped else mdp_run

@@ -35,7 +35,6 @@ from typing import Literal
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.optimize import linprog
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.mdp.components import end_components
@@ -204,6 +203,8 @@ class _Programme:
         cost = np.zeros(self.flow.shape[1])
         if quantity is not None:
             cost = self.forms[id(quantity)] * (-1.0 if objective == "max" else 1.0)
+        from scipy.optimize import linprog  # HiGHS: only for multi-objective queries
+
         found = linprog(cost, A_ub=np.array(rows) if rows else None,
                         b_ub=np.array(bounds) if rows else None, A_eq=self.flow,
                         b_eq=self.initial, bounds=(0, None), method="highs")
