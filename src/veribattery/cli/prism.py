@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from veribattery.pipeline.mdp import MdpCheckRun
 
 
-@click.command("prism", short_help="Check properties of any PRISM DTMC file.")
+@click.command("prism", short_help="Check properties of any PRISM DTMC or MDP file.")
 @click.argument("model", type=click.Path(path_type=Path))
 @click.option("--props", "props", type=click.Path(path_type=Path), help="Properties file.")
 @click.option(
