@@ -87,6 +87,9 @@ def check_prism_file(
 ) -> ModelCheckRun | MdpCheckRun:
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
+    An ``mdp`` model is checked by :func:`~veribattery.pipeline.mdp.check_mdp_model`
+    (floating point only: *exact* is refused, *keep* is always answers).
+
     :param model_source: a model file path, or PRISM text.
     :param props_source: a properties file path, or properties text.
     :param selectors: properties to check, by 1-based index, name or text.
@@ -94,9 +97,6 @@ def check_prism_file(
     :param exact: check in exact rational arithmetic (``--exact``:
         :func:`~veribattery.pipeline.check_model_exact`), else in floating point
         (:func:`~veribattery.pipeline.check_model`).
-    An ``mdp`` model is checked by :func:`~veribattery.pipeline.check_mdp_model`
-    (floating point only: *exact* is refused, *keep* is always answers).
-
     :param keep: what each result keeps: ``"states"`` or ``"answers"`` (see
         :class:`~veribattery.pipeline.CheckOptions`).
     """
