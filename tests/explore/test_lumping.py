@@ -132,8 +132,8 @@ def test_certified_answers_on_the_quotient_contain_the_exact_values(seed: int) -
              ('R{"steps"}=? [ F "end" ]', chain.labels["end"], chain.rewards[0].total)]
     for text, target, reward in cases:
         exact = _exact_values(chain, target, reward)[0]
-        on_chain = check(chain, parse_property(text), states=False)
-        on_quotient = check(quotient, parse_property(text), states=False)
+        on_chain = check(chain, parse_property(text), keep="answers")
+        on_quotient = check(quotient, parse_property(text), keep="answers")
         assert Fraction(float(on_quotient.lower)) <= exact <= Fraction(float(on_quotient.upper))
         assert on_quotient.value == pytest.approx(on_chain.value, rel=1e-13, abs=0.0)
 

@@ -7,18 +7,18 @@ import time
 from veribattery._types import BoolArray
 from veribattery.checker.formula import pctl
 from veribattery.checker.formula.leaves import Result
-from veribattery.checker.result import CheckResult
+from veribattery.checker.result import CheckResult, Keep
 from veribattery.checker.workspace import Workspace
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr, Property
 
 
-def check(dtmc: DTMC, prop: Property | Expr, *, states: bool = True,
+def check(dtmc: DTMC, prop: Property | Expr, *, keep: Keep = "states",
           workspace: Workspace | None = None) -> CheckResult:
     """Check *prop* on *dtmc* and report PRISM's answer (at the initial states, unless
     the property is a filter).
 
-    With ``states=False`` only the answer is kept (:meth:`CheckResult.without_states`),
+    With ``keep="answers"`` only the answer is kept (:meth:`CheckResult.without_states`),
     and its certificate is made for the initial states alone where that is cheaper.
 
     Numeric results carry certified bounds (``result.lower``, ``result.upper``)
@@ -36,9 +36,9 @@ def check(dtmc: DTMC, prop: Property | Expr, *, states: bool = True,
     prop = prop if isinstance(prop, Property) else Property(prop)
     workspace = Workspace() if workspace is None else workspace
     start = time.perf_counter()
-    answer = pctl.property_answer(dtmc, workspace, prop.formula, initial_only=not states)
+    answer = pctl.property_answer(dtmc, workspace, prop.formula, keep=keep)
     result = CheckResult.of_answer(prop, answer, time.perf_counter() - start)
-    return result if states else result.without_states()
+    return result if keep == "states" else result.without_states()
 
 
 def values(dtmc: DTMC, formula: Expr, *, workspace: Workspace | None = None) -> Result:

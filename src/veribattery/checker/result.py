@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import builtins
 from dataclasses import dataclass, replace
+from typing import Literal
 
 import numpy as np
 
@@ -12,6 +13,12 @@ from veribattery.checker.certify.bounds import ABSOLUTE_PRECISION, RELATIVE_PREC
 from veribattery.checker.formula.filters import FilterOutcome
 from veribattery.errors import CheckError
 from veribattery.lang.nodes import Property
+
+#: What a check keeps: ``"states"``, every state's value and bounds; ``"answers"``,
+#: the answer at the initial states and its interval only
+#: (:meth:`CheckResult.without_states`), so that one property's per-state vectors are
+#: alive at a time (what the CLI prints needs no more).
+Keep = Literal["states", "answers"]
 
 
 @dataclass(frozen=True, slots=True)

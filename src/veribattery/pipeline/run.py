@@ -8,12 +8,12 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Literal, get_args
+from typing import get_args
 
 import numpy as np
 
 from veribattery._memory import trim_for
-from veribattery.checker import CheckResult, Workspace, check, state_set
+from veribattery.checker import CheckResult, Keep, Workspace, check, state_set
 from veribattery.errors import UndefinedResult
 from veribattery.explore import DTMC
 from veribattery.lang import Property
@@ -37,11 +37,6 @@ ProgressCallback = Callable[[int, int], None]
 #: The stages of a check, always reported (``Time: parse …, build …, check …``).
 STAGES = ("parse", "build", "check")
 
-#: What each result keeps: ``"states"``, every state's value and bounds; ``"answers"``,
-#: the answer at the initial states and its interval only
-#: (:meth:`~veribattery.checker.CheckResult.without_states`), so that one property's
-#: per-state vectors are alive at a time (what the CLI prints needs no more).
-Keep = Literal["states", "answers"]
 
 #: The operators a state formula needs the checker for (a plain predicate has none).
 _OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
@@ -176,7 +171,7 @@ def internal_results(
     """The answers of the *internal* properties on *dtmc* in floating point: the *live*
     ones checked, the others 0 exactly (see :func:`may_hold`)."""
     return tuple(
-        check(dtmc, p, states=False, workspace=workspace) if may
+        check(dtmc, p, keep="answers", workspace=workspace) if may
         else CheckResult(p, np.zeros(0), 0.0, 0.0, 0.0, 0.0)
         for p, may in zip(internal, live, strict=True)
     )

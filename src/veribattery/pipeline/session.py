@@ -147,8 +147,8 @@ class Session:
             with watch.stage("lump"):
                 quotient = _quotient(self.lumper, dtmc, formulas)
         checked = quotient if quotient is not None else dtmc
-        states = self.options.keep == "states"
-        checks = [functools.partial(check, checked, p, states=states, workspace=self.workspace)
+        checks = [functools.partial(check, checked, p, keep=self.options.keep,
+                                    workspace=self.workspace)
                   for p in resolved]
         with watch.stage("check"):
             trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's

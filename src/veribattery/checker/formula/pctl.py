@@ -73,6 +73,7 @@ from veribattery.lang.nodes import (
 
 if TYPE_CHECKING:
     from veribattery.checker.formula.leaves import Result
+    from veribattery.checker.result import Keep
     from veribattery.checker.workspace import Workspace
 
 
@@ -115,12 +116,12 @@ def values(dtmc: DTMC, workspace: Workspace, formula: Expr,
 
 
 def property_answer(dtmc: DTMC, workspace: Workspace, formula: Expr, *,
-                    initial_only: bool = False) -> filters.FilterOutcome:
+                    keep: Keep = "states") -> filters.FilterOutcome:
     """The answer PRISM reports for a property: a filter's value, or PRISM's default
     filter -- ``forall`` initial states for a boolean, the value of the single
     initial state, or the ``range`` over several initial states.
 
-    :param initial_only: the caller reads the answer, not the per-state values: then
+    :param keep: ``"answers"``: the caller reads the answer, not the per-state values: then
         the per-state bounds of a property without a filter may be trivial away from
         the initial states (the answer's own are certified as always).
     :raises CheckError: when the model has no initial state, or a filter fails.
@@ -136,7 +137,7 @@ def property_answer(dtmc: DTMC, workspace: Workspace, formula: Expr, *,
         # the other states true only where certified.
         per_state = _bounded_operator(dtmc, workspace, formula, must_decide=dtmc.initial)
     else:
-        per_state = values(dtmc, workspace, formula, dtmc.initial if initial_only else None)
+        per_state = values(dtmc, workspace, formula, dtmc.initial if keep == "answers" else None)
     if len(dtmc.initial) == 0:
         raise CheckError("the model has no initial state", formula.span)
     default = "forall" if not isinstance(per_state, Bounds) else (
