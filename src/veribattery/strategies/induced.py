@@ -1,0 +1,159 @@
+"""The DTMC a strategy induces, as a PRISM model and properties file.
+
+The encoding keeps the MDP's variables, so labels, rewards and properties read as
+they did on the MDP: one module, the model's variables with their ranges and initial
+values, and per state reachable under the strategy one command, guarded by the
+state's valuation, labelled by the action the strategy takes there, with the
+distribution of that choice. The model's labels and reward structures follow,
+closed (constants as literals, formulas inlined), so that ``[a]`` transition rewards
+apply to the chosen command exactly as they did to the chosen choice. A state that was
+a deadlock in the MDP gets no command here either: every tool fixes it with the same
+self-loop (and the built-in ``"deadlock"`` label keeps its meaning).
+
+The properties file holds the property in its DTMC form: ``Pmax=?``, ``Pmin=?`` and
+``P~p`` become ``P=?`` over the same path (``R`` likewise), whose value on the induced
+DTMC is the MDP's optimum.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+from veribattery.lang.nodes import Expr, ProbOp, RewardItem, RewardOp, RewardStruct, Variable
+from veribattery.lang.printing import expression_text, path_text, reward_path_text
+from veribattery.strategies.chosen import ChosenStrategy
+
+__all__ = [
+    "INDUCED_MODEL",
+    "INDUCED_PROPERTIES",
+    "dtmc_property_text",
+    "induced_model_text",
+    "induced_properties_text",
+]
+
+#: File names of the induced model and its properties inside ``--export-induced DIR``.
+INDUCED_MODEL = "induced.prism"
+INDUCED_PROPERTIES = "induced.props"
+
+
+def induced_model_text(chosen: ChosenStrategy) -> str:
+    """The induced DTMC as a PRISM ``dtmc`` model (see the module's description)."""
+    model = chosen.model
+    parts = [
+        _header(chosen),
+        "dtmc\n\nmodule strategy\n",
+        *(f"  {_declaration(v, model.init is None)}\n" for v in model.variables),
+        "\n",
+        *(f"  {command}\n" for command in _commands(chosen)),
+        "endmodule\n",
+    ]
+    if model.init is not None:
+        parts.append(f"\ninit\n  {expression_text(model.init)}\nendinit\n")
+    if model.labels:
+        parts.append("\n")
+        parts.extend(f'label "{lab.name}" = {expression_text(lab.expr)};\n'
+                     for lab in model.labels)
+    parts.extend(f"\n{_rewards(r)}" for r in model.rewards)
+    return "".join(parts)
+
+
+def induced_properties_text(chosen: ChosenStrategy) -> str:
+    """The chosen property in its DTMC form, with the MDP's property as a comment."""
+    prop = chosen.result.property
+    name = f'"{prop.name}": ' if prop.name is not None else ""
+    value = chosen.result.value
+    optimum = f" = {value!r}" if isinstance(value, float) else ""
+    return (f"// On the MDP {chosen.model.source}: {prop.text}{optimum} ({prop.span}).\n"
+            "// Its optimum is the value of this property on the induced DTMC:\n"
+            f"{name}{dtmc_property_text(prop.formula)};\n")
+
+
+def dtmc_property_text(formula: Expr) -> str:
+    """``P=? [ path ]`` or ``R{...}=? [ path ]`` for a P or R operator of the MDP."""
+    match formula:
+        case ProbOp(path=path):
+            return f"P=? [ {path_text(path)} ]"
+        case RewardOp(reward=reward, path=path):
+            return f"R{_reward_ref(reward)}=? [ {reward_path_text(path)} ]"
+    raise ValueError("only a P or R operator has a DTMC form")
+
+
+def _reward_ref(reward: str | int | None) -> str:
+    """``{"name"}``, ``{k}`` (1-based, as written) or nothing for the first structure."""
+    if reward is None:
+        return ""
+    return f'{{"{reward}"}}' if isinstance(reward, str) else f"{{{reward + 1}}}"
+
+
+def _header(chosen: ChosenStrategy) -> str:
+    prop = chosen.result.property
+    return (f"// The DTMC induced on {chosen.model.source} by an optimal strategy of\n"
+            f"// {prop.text} (written at {prop.span}), written by veribattery: one\n"
+            "// command per state reachable under the strategy, guarded by the state's\n"
+            "// valuation and labelled by the action taken there.\n\n")
+
+
+def _declaration(variable: Variable, with_init: bool) -> str:
+    kind = "bool" if variable.is_bool else f"[{variable.low}..{variable.high}]"
+    init = f" init {_value(variable, variable.init)}" if with_init else ""
+    return f"{variable.name} : {kind}{init};"
+
+
+def _commands(chosen: ChosenStrategy) -> Iterator[str]:
+    """One command per reachable state that had a choice in the MDP."""
+    mdp = chosen.mdp
+    dead = mdp.labels.get("deadlock")
+    rows = mdp.transitions
+    for state in chosen.reached_states:
+        if dead is not None and dead[state]:
+            continue
+        row = int(chosen.strategy.choices[state])
+        start, end = int(rows.indptr[row]), int(rows.indptr[row + 1])
+        targets = [(int(t), float(p)) for t, p in
+                   zip(rows.indices[start:end], rows.data[start:end], strict=True) if p > 0]
+        yield (f"[{chosen.action(state)}] {_guard(chosen, state)} -> "
+               f"{_distribution(chosen, state, targets)};")
+
+
+def _guard(chosen: ChosenStrategy, state: int) -> str:
+    variables = chosen.model.variables
+    values = chosen.valuation(state).values()
+    return " & ".join(_test(v, x) for v, x in zip(variables, values, strict=True)) or "true"
+
+
+def _test(variable: Variable, value: int | bool) -> str:
+    if variable.is_bool:
+        return variable.name if value else f"!{variable.name}"
+    return f"{variable.name}={value}"
+
+
+def _distribution(chosen: ChosenStrategy, state: int, targets: list[tuple[int, float]]) -> str:
+    if len(targets) == 1:
+        return _update(chosen, state, targets[0][0])
+    return " + ".join(f"{p!r}:{_update(chosen, state, t)}" for t, p in targets)
+
+
+def _update(chosen: ChosenStrategy, state: int, target: int) -> str:
+    """The assignments that take *state* to *target* (``true`` if none changes)."""
+    before, after = chosen.valuation(state), chosen.valuation(target)
+    variables = {v.name: v for v in chosen.model.variables}
+    changed = [f"({name}'={_value(variables[name], after[name])})"
+               for name in after if after[name] != before[name]]
+    return "&".join(changed) or "true"
+
+
+def _value(variable: Variable, value: int | bool) -> str:
+    if variable.is_bool:
+        return "true" if value else "false"
+    return str(int(value))
+
+
+def _rewards(structure: RewardStruct) -> str:
+    name = f' "{structure.name}"' if structure.name is not None else ""
+    items = "".join(f"  {_reward_item(item)}\n" for item in structure.items)
+    return f"rewards{name}\n{items}endrewards\n"
+
+
+def _reward_item(item: RewardItem) -> str:
+    action = f"[{item.action or ''}] " if item.is_transition else ""
+    return f"{action}{expression_text(item.guard)} : {expression_text(item.value)};"
