@@ -10,10 +10,10 @@ PRISM (``-exportstrat strat.txt``, actions form): one line per state,
 ``true``/``false``, an unlabelled choice as nothing after ``=``.
 
 Storm (``--exportscheduler sched.json``): a JSON list with one object per state,
-``{"s": {variable: value, ...}, "c": [{"labels": [action], "index": i, "prob": 1}]}``
+``{"s": {variable: value, ...}, "c": [{"labels": [action], "index": i, "prob": 1.0}]}``
 -- ``labels`` empty for an unlabelled choice, ``index`` the choice's number in this
 MDP (choices numbered state by state, as Storm numbers its rows; the numbering of
-Storm's own build may differ), ``prob`` 1 (the strategy is deterministic).
+Storm's own build may differ), ``prob`` 1.0 (the strategy is deterministic).
 """
 
 from __future__ import annotations
@@ -49,7 +49,7 @@ def storm_scheduler_json(chosen: ChosenStrategy) -> str:
 def _storm_entry(chosen: ChosenStrategy, state: int) -> dict[str, object]:
     action = chosen.action(state)
     choice = {"labels": [action] if action else [],
-              "index": int(chosen.strategy.choices[state]), "prob": 1}
+              "index": int(chosen.strategy.choices[state]), "prob": 1.0}
     return {"s": chosen.valuation(state), "c": [choice]}
 
 

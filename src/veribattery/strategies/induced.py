@@ -19,7 +19,20 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 
-from veribattery.lang.nodes import Expr, ProbOp, RewardItem, RewardOp, RewardStruct, Variable
+from veribattery.lang import FlatModel
+from veribattery.lang.nodes import (
+    Binary,
+    Expr,
+    ProbOp,
+    Release,
+    RewardItem,
+    RewardOp,
+    RewardStruct,
+    Unary,
+    Until,
+    Variable,
+    WeakUntil,
+)
 from veribattery.lang.printing import expression_text, path_text, reward_path_text
 from veribattery.strategies.chosen import ChosenStrategy
 
@@ -53,7 +66,8 @@ def induced_model_text(chosen: ChosenStrategy) -> str:
         parts.append("\n")
         parts.extend(f'label "{lab.name}" = {expression_text(lab.expr)};\n'
                      for lab in model.labels)
-    parts.extend(f"\n{_rewards(r)}" for r in model.rewards)
+    taken = {chosen.action(state) for state in chosen.reached_states}
+    parts.extend(f"\n{_rewards(r, taken)}" for r in model.rewards)
     return "".join(parts)
 
 
@@ -65,21 +79,48 @@ def induced_properties_text(chosen: ChosenStrategy) -> str:
     optimum = f" = {value!r}" if isinstance(value, float) else ""
     return (f"// On the MDP {chosen.model.source}: {prop.text}{optimum} ({prop.span}).\n"
             "// Its optimum is the value of this property on the induced DTMC:\n"
-            f"{name}{dtmc_property_text(prop.formula)};\n")
+            f"{_storm_note(prop.formula)}"
+            f"{name}{dtmc_property_text(prop.formula, chosen.model)};\n")
 
 
-def dtmc_property_text(formula: Expr) -> str:
+def _storm_note(formula: Expr) -> str:
+    """For ``W`` and ``R``, which Storm's parser lacks: the ``U`` whose complement they are."""
+    if not isinstance(formula, ProbOp):
+        return ""
+    match formula.path:
+        case WeakUntil(left=a, right=b, bound=None):  # a W b = !((a & !b) U (!a & !b))
+            path = Until(_and(a, _not(b)), _and(_not(a), _not(b)))
+        case Release(left=a, right=b, bound=None):  # a R b = !(!a U !b)
+            path = Until(_not(a), _not(b))
+        case _:
+            return ""
+    return f"// (Storm reads no W or R: the value is 1 - P=? [ {path_text(path)} ])\n"
+
+
+def _not(expr: Expr) -> Expr:
+    return Unary("!", expr)
+
+
+def _and(left: Expr, right: Expr) -> Expr:
+    return Binary("&", left, right)
+
+
+def dtmc_property_text(formula: Expr, model: FlatModel) -> str:
     """``P=? [ path ]`` or ``R{...}=? [ path ]`` for a P or R operator of the MDP."""
     match formula:
         case ProbOp(path=path):
             return f"P=? [ {path_text(path)} ]"
         case RewardOp(reward=reward, path=path):
-            return f"R{_reward_ref(reward)}=? [ {reward_path_text(path)} ]"
+            return f"R{_reward_ref(reward, model)}=? [ {reward_path_text(path)} ]"
     raise ValueError("only a P or R operator has a DTMC form")
 
 
-def _reward_ref(reward: str | int | None) -> str:
-    """``{"name"}``, ``{k}`` (1-based, as written) or nothing for the first structure."""
+def _reward_ref(reward: str | int | None, model: FlatModel) -> str:
+    """``{"name"}`` (also for a structure given by index, if it has a name: Storm reads
+    no ``R{k}``), ``{k}`` (1-based, as PRISM writes it), or nothing for the first."""
+    if isinstance(reward, int):
+        name = model.rewards[reward].name
+        reward = name if name is not None else reward
     if reward is None:
         return ""
     return f'{{"{reward}"}}' if isinstance(reward, str) else f"{{{reward + 1}}}"
@@ -148,12 +189,17 @@ def _value(variable: Variable, value: int | bool) -> str:
     return str(int(value))
 
 
-def _rewards(structure: RewardStruct) -> str:
+def _rewards(structure: RewardStruct, taken: set[str]) -> str:
+    """A reward structure; an item of an action the strategy never takes is kept as a
+    comment (Storm refuses a reward of an action no command has)."""
     name = f' "{structure.name}"' if structure.name is not None else ""
-    items = "".join(f"  {_reward_item(item)}\n" for item in structure.items)
+    items = "".join(f"  {_reward_item(item, taken)}\n" for item in structure.items)
     return f"rewards{name}\n{items}endrewards\n"
 
 
-def _reward_item(item: RewardItem) -> str:
+def _reward_item(item: RewardItem, taken: set[str]) -> str:
     action = f"[{item.action or ''}] " if item.is_transition else ""
-    return f"{action}{expression_text(item.guard)} : {expression_text(item.value)};"
+    text = f"{action}{expression_text(item.guard)} : {expression_text(item.value)};"
+    if item.is_transition and (item.action or "") not in taken:
+        return f"// {text}  (never taken under the strategy)"
+    return text
