@@ -194,12 +194,16 @@ def _rewards(structure: RewardStruct, taken: set[str]) -> str:
     comment (Storm refuses a reward of an action no command has)."""
     name = f' "{structure.name}"' if structure.name is not None else ""
     items = "".join(f"  {_reward_item(item, taken)}\n" for item in structure.items)
+    if all(_untaken(item, taken) for item in structure.items):  # Storm wants an item
+        items += "  true : 0;  // no item applies under the strategy\n"
     return f"rewards{name}\n{items}endrewards\n"
 
 
 def _reward_item(item: RewardItem, taken: set[str]) -> str:
     action = f"[{item.action or ''}] " if item.is_transition else ""
     text = f"{action}{expression_text(item.guard)} : {expression_text(item.value)};"
-    if item.is_transition and (item.action or "") not in taken:
-        return f"// {text}  (never taken under the strategy)"
-    return text
+    return f"// {text}  (never taken under the strategy)" if _untaken(item, taken) else text
+
+
+def _untaken(item: RewardItem, taken: set[str]) -> bool:
+    return item.is_transition and (item.action or "") not in taken

@@ -52,7 +52,8 @@ def property_strategy(mdp: MDP, formula: Expr) -> Strategy:
             result = _reward_result(mdp, formula, _direction(formula))
         case _:
             raise NoStrategyError("no strategy: the property has no P or R operator at its "
-                                  "top", formula.span)
+                                  "top (it is a filter, a comparison, arithmetic or a "
+                                  "constant)", formula.span)
     assert isinstance(result.strategy, Strategy)
     return result.strategy
 
