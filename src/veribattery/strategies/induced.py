@@ -128,10 +128,10 @@ def _reward_ref(reward: str | int | None, model: FlatModel) -> str:
 
 def _header(chosen: ChosenStrategy) -> str:
     prop = chosen.result.property
-    return (f"// The DTMC induced on {chosen.model.source} by an optimal strategy of\n"
-            f"// {prop.text} (written at {prop.span}), written by veribattery: one\n"
-            "// command per state reachable under the strategy, guarded by the state's\n"
-            "// valuation and labelled by the action taken there.\n\n")
+    return (f"// The DTMC that an optimal strategy of {prop.text} ({prop.span})\n"
+            f"// induces on {chosen.model.source}, exported by veribattery: one command per\n"
+            "// state reachable under the strategy, guarded by the state's valuation and\n"
+            "// labelled by the action taken there.\n\n")
 
 
 def _declaration(variable: Variable, with_init: bool) -> str:
