@@ -179,3 +179,19 @@ def test_options_that_would_be_ignored_are_refused(files: tuple[Path, Path],
                                                    extra: tuple[str, ...], message: str) -> None:
     model, props = files
     assert message in _refused(_prism(model, "--props", props, *extra))
+
+
+def test_explaining_the_induced_dtmc_shows_the_strategys_actions(files: tuple[Path, Path],
+                                                                 tmp_path: Path) -> None:
+    """Pmin reaches the goal only by a lucky risky jump from x=0: one path, 0.5."""
+    model, props = files
+    folder = tmp_path / "induced"
+    assert _prism(model, "--props", props, "--export-induced", folder,
+                  "--strategy-property", "2").exit_code == 0
+    result = _prism(folder / "induced.prism", "--explain", "goal", "--json")
+    assert result.exit_code == 0, result.stderr
+    explained = json.loads(result.stdout)
+    assert explained["p_goal"] == 0.5
+    (path,) = explained["paths"]
+    assert path["probability"] == 0.5
+    assert [step["action"] for step in path["states"]] == ["risky", ""]
