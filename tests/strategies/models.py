@@ -104,6 +104,20 @@ label "left" = z=-2;
 label "right" = z=2;
 """
 
+#: A zero-reward end component {0} (stay) beside a paying cycle: Rmax must leave it.
+IDLE = """mdp
+module m
+  s : [0..2] init 0;
+  [stay] s=0 -> true;
+  [go] s=0 -> (s'=1);
+  [hop] s=1 -> 0.5:(s'=0) + 0.5:(s'=2);
+  [] s=2 -> true;
+endmodule
+rewards
+  [go] true : 1;
+endrewards
+"""
+
 CASES = (
     Case("robot-pmax", ROBOT, 'Pmax=? [ F "goal" ]', 1.0),
     Case("robot-pmin", ROBOT, 'Pmin=? [ F "goal" ]', 0.5),
@@ -123,4 +137,7 @@ CASES = (
     Case("walk-pmax-until", WALK, 'Pmax=? [ !"left" U "right" ]'),
     Case("walk-pmin-release", WALK, 'Pmin=? [ "right" R z>=-1 ]'),
     Case("walk-pmax-globally", WALK, 'Pmax=? [ G z>-2 ]', 1.0),
+    Case("idle-rmax-total", IDLE, "Rmax=? [ C ]", 2.0),  # go pays 1, comes back half the time
+    Case("idle-rmin-total", IDLE, "Rmin=? [ C ]", 0.0),  # stay forever
+    Case("idle-pmin-globally", IDLE, "Pmin=? [ G s<2 ]", 0.0),  # go, hop until s=2
 )
