@@ -42,7 +42,7 @@ LAYERS: dict[str, int] = {
     "checker": 5,
     "pipeline": 6,
     "mission": 7,
-    "analyses": 8, "sweep": 8, "phm": 8, "report": 8, "synthesis": 8,
+    "analyses": 8, "sweep": 8, "phm": 8, "report": 8, "synthesis": 8, "strategies": 8,
     "cli": 9,
 }
 #: The package root, veribattery/__init__.py: the users' facade over every layer but cli.
@@ -56,6 +56,7 @@ SIBLINGS: dict[str, frozenset[str]] = {
     "phm": frozenset({"sweep"}),
     "report": frozenset({"analyses", "sweep"}),
     "synthesis": frozenset(),
+    "strategies": frozenset(),
 }
 #: Modules allowed over MAX_LINES, each with the reason it stays whole.
 LONG_MODULES: dict[str, str] = {}

@@ -236,7 +236,8 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
                      "--paths: the old name)."),
         click.option("--path-count", default=10, show_default=True,
                      callback=_positive("--path-count"), help="How many runs -o writes."),
-        click.option("--force", is_flag=True, help="Overwrite an existing -o file."),
+        click.option("--force", is_flag=True,
+                     help="Overwrite existing output files (-o; prism: --export-*)."),
     )):
         function = option(function)
     return function

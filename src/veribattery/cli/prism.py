@@ -25,6 +25,7 @@ from veribattery.cli.output import (
     user_errors,
 )
 from veribattery.cli.progress import limited
+from veribattery.cli.strategy import check_strategy_options, export_run_strategy, strategy_options
 from veribattery.cli.tables import fit_text, print_table
 from veribattery.errors import OptionError
 
@@ -59,6 +60,7 @@ if TYPE_CHECKING:
     help="Stop the build (exit 2) once more than N states are found.",
 )
 @prism_analysis_options
+@strategy_options
 def prism_command(
     model: Path,
     props: Path | None,
@@ -79,6 +81,7 @@ def prism_command(
         output_format = _format(output_format, as_json)
         check_output_file(analysis["paths_file"], "-o", force=analysis["force"],
                           suffixes=CSV_SUFFIXES)
+        check_strategy_options(analysis)
         if analysis["explain"] is not None and output_format == "csv":
             raise OptionError("--format csv: --explain prints a table or json; "
                               "use --format table or --format json")
@@ -96,6 +99,7 @@ def prism_command(
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)
+    export_run_strategy(run, analysis)
     if analysis["simulate"] is not None:
         if not isinstance(run, ModelCheckRunType):
             with user_errors():

@@ -8,10 +8,18 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from veribattery.checker import CheckResult
-from veribattery.checker.mdp import MDP, MdpRewards
+from veribattery.checker.mdp import MDP, MdpRewards, Strategy
 from veribattery.checker.mdp.formula import mdp_answer
+from veribattery.checker.mdp.witness import property_strategy
 from veribattery.explore.build.mdp import BuiltMdp, build_mdp
-from veribattery.lang import Model, PropertiesFile, Property, flatten_model, resolve_property
+from veribattery.lang import (
+    FlatModel,
+    Model,
+    PropertiesFile,
+    Property,
+    flatten_model,
+    resolve_property,
+)
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.run import STAGES, ProgressCallback, Stopwatch
 
@@ -20,12 +28,24 @@ __all__ = ["MdpCheckRun", "check_mdp_model"]
 
 @dataclass(frozen=True, slots=True)
 class MdpCheckRun:
-    """What one check of an MDP produced: the MDP, one result per property, timings."""
+    """What one check of an MDP produced: the MDP, one result per property, timings.
+
+    :param model: the flat model the MDP was built from (None if not kept).
+    """
 
     mdp: MDP
     results: tuple[CheckResult, ...]
     timings_s: dict[str, float]
     warnings: tuple[str, ...] = ()
+    model: FlatModel | None = None
+
+    def strategy(self, index: int) -> Strategy:
+        """The optimal memoryless strategy of the *index*-th result's property (0-based),
+        computed anew (the check keeps only values).
+
+        :raises NoStrategyError: the property has none (step-bounded, no P/R operator).
+        """
+        return property_strategy(self.mdp, self.results[index].property.formula)
 
     @property
     def model_summary(self) -> dict[str, int]:
@@ -69,7 +89,7 @@ def check_mdp_model(
             answer = mdp_answer(mdp, prop.formula)
             result = CheckResult.of_answer(prop, answer, time.perf_counter() - start)
             results.append(result.without_states())
-    return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings)
+    return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings, model=flat)
 
 
 def as_checker_mdp(built: BuiltMdp) -> MDP:

@@ -1,0 +1,121 @@
+"""Which property's strategy is exported, and the states it reaches."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from veribattery._types import BoolArray
+from veribattery.checker import CheckResult
+from veribattery.checker.mdp import MDP, Strategy, induced_chain
+from veribattery.checker.mdp.witness import NoStrategyError
+from veribattery.errors import OptionError
+from veribattery.lang import FlatModel
+from veribattery.pipeline.mdp import MdpCheckRun
+
+__all__ = ["ChosenStrategy", "choose_strategy", "reached_under"]
+
+
+@dataclass(frozen=True, slots=True)
+class ChosenStrategy:
+    """An optimal strategy, the property it attains and the model it acts on.
+
+    :param result: the checked property (its resolved formula and its optimum).
+    :param reached: the states reachable from the initial states under the strategy
+        (the ones whose choice matters; the exports list only these).
+    """
+
+    result: CheckResult
+    strategy: Strategy
+    mdp: MDP
+    model: FlatModel
+    reached: BoolArray
+
+    @property
+    def reached_states(self) -> list[int]:
+        """The indices of :attr:`reached`, in state order."""
+        return [int(s) for s in np.flatnonzero(self.reached)]
+
+    def valuation(self, state: int) -> dict[str, int | bool]:
+        """The variables' values in *state*, in declaration order (booleans as bool)."""
+        assert self.mdp.states is not None
+        row = self.mdp.states[state]
+        return {v.name: bool(x) if v.is_bool else int(x)
+                for v, x in zip(self.model.variables, row, strict=True)}
+
+    def action(self, state: int) -> str:
+        """The action of the choice the strategy takes in *state* (``""``: unlabelled)."""
+        return self.mdp.action_of(int(self.strategy.choices[state]))
+
+
+def choose_strategy(run: MdpCheckRun, selector: str | None = None) -> ChosenStrategy:
+    """The strategy of the property *selector* names: a 1-based index among the checked
+    properties or a property's name; None picks the first one that has a strategy.
+
+    :raises OptionError: *selector* names no checked property.
+    :raises NoStrategyError: the property has no memoryless optimal strategy (the
+        message names the property; with no *selector*: the first one).
+    """
+    if run.model is None:
+        raise OptionError("the run did not keep its model: no strategy can be exported")
+    if selector is not None:
+        index = _index(run, selector)
+        return _chosen(run, index, _strategy(run, index))
+    for index in range(len(run.results)):
+        try:
+            return _chosen(run, index, run.strategy(index))
+        except NoStrategyError:
+            continue
+    if not run.results:
+        raise OptionError("no property was checked: there is no strategy to export")
+    _strategy(run, 0)  # raises, naming the first property
+    raise AssertionError("unreachable")
+
+
+def _index(run: MdpCheckRun, selector: str) -> int:
+    """The 0-based position of the result *selector* names."""
+    count = len(run.results)
+    if selector.isdigit():
+        if not 1 <= int(selector) <= count:
+            raise OptionError(f"--strategy-property {selector}: there are {count} checked "
+                              "properties (1-based)")
+        return int(selector) - 1
+    for index, result in enumerate(run.results):
+        if result.property.name == selector:
+            return index
+    names = ", ".join(f'"{r.property.name}"' for r in run.results if r.property.name)
+    raise OptionError(f"--strategy-property {selector}: no checked property has that name "
+                      f"(names: {names or 'none'})")
+
+
+def _strategy(run: MdpCheckRun, index: int) -> Strategy:
+    """The strategy of result *index*; an error names the property where it is written."""
+    prop = run.results[index].property
+    try:
+        return run.strategy(index)
+    except NoStrategyError as exc:
+        raise NoStrategyError(f"{prop.text}: {exc.message}", prop.span) from None
+
+
+def _chosen(run: MdpCheckRun, index: int, strategy: Strategy) -> ChosenStrategy:
+    assert run.model is not None
+    if run.mdp.states is None or run.mdp.variable_names != run.model.variable_names:
+        raise OptionError("the MDP's states do not carry the model's variables: "
+                          "no strategy can be exported")
+    return ChosenStrategy(run.results[index], strategy, run.mdp, run.model,
+                          reached_under(run.mdp, strategy))
+
+
+def reached_under(mdp: MDP, strategy: Strategy) -> BoolArray:
+    """States reachable from the initial states when *strategy* picks every choice."""
+    chain = induced_chain(mdp, strategy)
+    reached = mdp.initial_mask
+    frontier = reached.copy()
+    while frontier.any():
+        step = np.zeros(mdp.num_states, dtype=bool)
+        rows = chain[frontier]
+        step[rows.indices[rows.data > 0]] = True
+        frontier = step & ~reached
+        reached |= frontier
+    return reached

@@ -1,0 +1,51 @@
+"""Writing a run's strategy files: the strategy and the induced DTMC, all or nothing."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from veribattery._files import write_texts
+from veribattery.pipeline.mdp import MdpCheckRun
+from veribattery.strategies.chosen import ChosenStrategy, choose_strategy
+from veribattery.strategies.formats import strategy_text
+from veribattery.strategies.induced import (
+    INDUCED_MODEL,
+    INDUCED_PROPERTIES,
+    induced_model_text,
+    induced_properties_text,
+)
+
+__all__ = ["export_strategy", "strategy_files"]
+
+
+def strategy_files(chosen: ChosenStrategy, strategy_file: Path | None,
+                   induced_dir: Path | None) -> dict[Path, str]:
+    """The text of each file asked for: the strategy (format by suffix, see
+    :mod:`~veribattery.strategies.formats`) and the induced model and properties."""
+    texts: dict[Path, str] = {}
+    if strategy_file is not None:
+        texts[strategy_file] = strategy_text(chosen, strategy_file)
+    if induced_dir is not None:
+        texts[induced_dir / INDUCED_MODEL] = induced_model_text(chosen)
+        texts[induced_dir / INDUCED_PROPERTIES] = induced_properties_text(chosen)
+    return texts
+
+
+def export_strategy(run: MdpCheckRun, *, selector: str | None = None,
+                    strategy_file: Path | None = None,
+                    induced_dir: Path | None = None) -> tuple[Path, ...]:
+    """Write the strategy of the property *selector* names (see
+    :func:`~veribattery.strategies.choose_strategy`) and/or its induced DTMC.
+
+    Every text is made before any file is written, and the files are replaced all
+    at once (:func:`veribattery._files.write_texts`): an error leaves none. Existing
+    files are overwritten; refusing them is the caller's choice.
+
+    :return: the paths written.
+    :raises NoStrategyError: the property has no memoryless optimal strategy.
+    """
+    texts = strategy_files(choose_strategy(run, selector), strategy_file, induced_dir)
+    if induced_dir is not None:
+        induced_dir.mkdir(parents=True, exist_ok=True)
+    write_texts(texts)
+    return tuple(texts)
