@@ -8,14 +8,15 @@ and ``R{"r"} [ C<=k ]`` (on the MDP unfolded with a step counter,
 as non-strict, ``Pmin=?``/``Rmin=?`` minimise over the strategies that meet the
 other objectives, and only strategies whose total rewards are finite count.
 
-The linear programme is solved in floating point by HiGHS, so no answer here is
-certified (``docs/mdp-numerics.md``): a numerical query reports its optimum with
-an error *estimate* of :data:`LP_TOLERANCE` (relative, 1 absolute at least) and
-``certified=False``; an achievability query is decided from the best margin by
-which a strategy meets every bound, and one whose margin is within that tolerance
-of 0 is reported as undecided (an error naming the property), never guessed. A
-numerical query whose other objectives no strategy meets is an error too (PRISM
-prints NaN).
+The linear programme is solved in floating point by HiGHS (``docs/mdp-numerics.md``):
+a numerical query reports its optimum with an error *estimate* of
+:data:`~veribattery.checker.mdp.multi.LP_TOLERANCE` (relative, absolute below 1)
+and ``certified=False``. An achievability query is decided from the best margin
+by which a strategy meets every bound: true and certified when the programme's
+vertex, solved again exactly, meets them all; otherwise true or false (not
+certified) when the margin is beyond the tolerance, and undecided -- an error
+naming the property, never a guess -- within it. A numerical query whose other
+objectives no strategy meets is an error too (PRISM prints NaN).
 """
 
 from __future__ import annotations
