@@ -170,8 +170,9 @@ def _numerical(mdp: MDP, model: MDP, goal: _Goal, constraints: list[Constraint],
                          f"or {name}max=?", goal.op.span)
     found = multi_optimum(model, goal.quantity, _towards(direction, goal.sign), constraints)
     if not found.achievable or found.value is None:
-        raise CheckError("multi(...) has no strategy that meets its bounded objectives, so "
-                         "the =? objective has no optimum (PRISM prints NaN)", query.span)
+        raise CheckError("multi(...) has no strategy that meets its bounded objectives with "
+                         "finite total rewards, so the =? objective has no optimum (PRISM "
+                         "prints NaN)", query.span)
     value = goal.offset + goal.sign * found.value
     error = LP_TOLERANCE * max(1.0, abs(value)) if np.isfinite(value) else 0.0
     values = _at_initial(mdp, value, error)
