@@ -4,6 +4,7 @@ the exact witness of achievability on the boundary."""
 
 from __future__ import annotations
 
+import json
 from fractions import Fraction
 from pathlib import Path
 
@@ -159,3 +160,23 @@ def test_numerical_queries_agree_with_storm(name: str, formula: str, tmp_path: P
     built = stormpy.build_model(program, props)
     theirs = stormpy.model_checking(built, props[0]).get_value(built.initial_states[0])
     assert check(MODELS[name], formula).value == pytest.approx(float(theirs), abs=1e-3)
+
+
+def test_prism_json_says_what_is_not_certified(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from veribattery.cli import cli
+
+    model, props = tmp_path / "fork.prism", tmp_path / "fork.props"
+    model.write_text(FORK, encoding="utf-8")
+    props.write_text('multi(Pmax=? [ F s=3 ], R{"cost"}<=0.4 [ C ]);\n'
+                     'multi(P>=0.2 [ F s=2 ], P>=0.2 [ F s=3 ]);\n'
+                     "(1.0 / 0.0) / (1.0 / 0.0);\n", encoding="utf-8")
+    result = CliRunner().invoke(cli, ["prism", str(model), "--props", str(props), "--json"])
+    assert result.exit_code == 0, result.output
+    numerical, achievable, undefined = json.loads(result.stdout)["results"]
+    assert numerical["certified"] is False and numerical["precise"] is False
+    assert numerical["bounds"] == pytest.approx([0.4 - 1e-6, 0.4 + 1e-6])
+    assert achievable == {"property": achievable["property"], "value": True}  # witnessed
+    assert undefined["value"] == "NaN"  # as PRISM prints it; null would read "no result"
+    assert "not certified" in result.stderr
