@@ -43,6 +43,10 @@ class CheckResult:
         different values) the lowest and highest value; *value* is then the lowest
         (*lower*/*upper* then enclose the whole range).
     :param printed: the state lines of a ``print``/``printall``/``argmin``/``argmax`` filter.
+    :param certified: False for an answer computed in floating point without a
+        certificate (``multi(...)``: a linear programme solved by HiGHS); *lower* and
+        *upper* then estimate its error and do not bound it, and a boolean may be
+        wrong when the query is within that error of its bounds.
 
     A result made by :meth:`without_states` has an empty *values* and no *bounds*.
     """
@@ -57,6 +61,7 @@ class CheckResult:
     bounds: Bounds | None = None
     value_range: tuple[float, float] | None = None
     printed: tuple[str, ...] = ()
+    certified: bool = True
 
     @classmethod
     def at_initial(cls, prop: Property, values: Bounds | BoolArray, initial: IntArray,
@@ -91,11 +96,12 @@ class CheckResult:
         bounds = per_state if isinstance(per_state, Bounds) else None
         points = per_state.value if isinstance(per_state, Bounds) else per_state
         if isinstance(value, bool):
-            return cls(prop, points, value, time_s, value_range=spread, printed=answer.printed)
+            return cls(prop, points, value, time_s, value_range=spread, printed=answer.printed,
+                       certified=answer.certified)
         number = float(value)
         low, high = answer.interval or (number, number)
         return cls(prop, points, number, time_s, low, high, answer.precise, bounds, spread,
-                   answer.printed)
+                   answer.printed, answer.certified)
 
     def without_states(self) -> CheckResult:
         """This result without its per-state arrays: *values* empty (same dtype), *bounds*

@@ -161,6 +161,15 @@ def json_value(value: object) -> object:
     return value
 
 
+def property_value(value: object) -> object:
+    """A property's value for ``prism --json``: :func:`json_value`, except that an
+    undefined value (``0/0``, ``inf/inf``) is the string ``"NaN"``, as PRISM prints it
+    (``null`` would read as "no result")."""
+    if isinstance(value, float) and math.isnan(value):
+        return "NaN"
+    return json_value(value)
+
+
 def format_value(value: object) -> str:
     """A result value for a table: booleans as true/false, numbers to 12 significant digits."""
     if isinstance(value, bool):
@@ -256,13 +265,20 @@ def result_bounds(result: CheckResult) -> list[object] | None:
 
 
 def print_imprecise(results: Sequence[CheckResult]) -> None:
-    """Warn on stderr about every result whose certified interval missed the precision."""
+    """Warn on stderr about every result whose certified interval missed the precision,
+    and every result computed without a certificate."""
     for result in results:
-        if not result.precise:
-            name = result.property.name or result.property.text
+        name = result.property.name or result.property.text
+        if not result.certified:
+            estimate = "" if result.lower is None else (
+                f", error estimated at [{result.lower!r}, {result.upper!r}]")
+            err.print(f"[yellow]warning:[/] {escape(name)}: not certified (a linear programme "
+                      f"solved in floating point{escape(estimate)})", markup=True)
+        elif not result.precise:
+            interval = escape(f"[{result.lower!r}, {result.upper!r}]")
             err.print(f"[yellow]warning:[/] {escape(name)}: imprecise result, certified "
-                      f"interval [{result.lower!r}, {result.upper!r}] is wider than 1e-9 "
-                      "relative / 1e-12 absolute", markup=True)
+                      f"interval {interval} is wider than 1e-9 relative / 1e-12 absolute",
+                      markup=True)
 
 
 def print_written(*paths: object) -> None:

@@ -16,11 +16,11 @@ from veribattery.cli.output import (
     exact_text,
     format_result,
     format_value,
-    json_value,
     print_dim,
     print_imprecise,
     print_timings,
     print_warnings,
+    property_value,
     result_bounds,
     user_errors,
 )
@@ -157,12 +157,13 @@ def prism_json(run: ModelCheckRun | MdpCheckRun) -> dict[str, object]:
 def _result_json(result: CheckResult) -> dict[str, object]:
     """One result: property (and its name, if it has one), value, ``exact`` under
     ``--exact``, for numbers the certified bounds and whether they meet the
-    precision, plus the range over several initial states and the states a
+    precision (``"certified": false`` when the answer has no certificate, e.g.
+    ``multi(...)``), plus the range over several initial states and the states a
     print/argmin/argmax filter listed."""
     entry: dict[str, object] = {"property": result.property.text}
     if result.property.name is not None:
         entry["name"] = result.property.name
-    entry["value"] = json_value(result.value)
+    entry["value"] = property_value(result.value)
     exact = exact_text(result)
     if exact is not None:
         entry["exact"] = exact
@@ -170,8 +171,10 @@ def _result_json(result: CheckResult) -> dict[str, object]:
     if bounds is not None:
         entry["bounds"] = bounds
         entry["precise"] = result.precise
+    if not result.certified:  # a floating-point answer: bounds estimate, not enclose
+        entry["certified"] = False
     if result.value_range is not None:
-        entry["range"] = [json_value(v) for v in result.value_range]
+        entry["range"] = [property_value(v) for v in result.value_range]
     if result.printed:
         entry["states"] = list(result.printed)
     return entry

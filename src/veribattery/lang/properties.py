@@ -17,6 +17,7 @@ from veribattery.lang.nodes import (
     Ident,
     Instantaneous,
     LabelRef,
+    Multi,
     ProbOp,
     PropertiesFile,
     Property,
@@ -199,7 +200,26 @@ def _check_interval(node: TimeBound | TimeInterval) -> None:
             node.span)
 
 
+def _check_multi(formula: Expr, model: FlatModel) -> None:
+    """PRISM's rules for ``multi(...)``: the whole property, on an MDP, at most one
+    objective asking ``=?`` (two or more ask for a Pareto curve: not supported)."""
+    found = [node for node in walk(formula) if isinstance(node, Multi)]
+    if not found:
+        return
+    multi = found[0]
+    if formula is not multi or len(found) > 1:
+        raise PrismSemanticError("multi(...) must be the whole property", found[-1].span)
+    if model.model_type != "mdp":
+        raise PrismSemanticError(
+            f"multi(...) is for MDPs (strategies), not a {model.model_type}", multi.span)
+    queried = [o for o in multi.objectives if isinstance(o, ProbOp | RewardOp) and o.op == "=?"]
+    if len(queried) > 1:
+        raise PrismSemanticError("Pareto queries (multi(...) with more than one =? objective) "
+                                 "are not supported", queried[1].span)
+
+
 def _check_operators(formula: Expr, model: FlatModel) -> None:
+    _check_multi(formula, model)
     for node in walk(formula):
         if isinstance(node, RewardOp | RewardBounded):
             _check_reward(node, model)

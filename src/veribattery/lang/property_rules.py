@@ -25,6 +25,7 @@ from veribattery.lang.nodes import (
     Globally,
     Instantaneous,
     LongRun,
+    Multi,
     Next,
     PathFormula,
     ProbOp,
@@ -231,9 +232,8 @@ class PropertyRules:
         node = ProbOp(query[0], query[1], formula, self._span(meta), self._direction(meta))
         return self._wrap(node, legacy, meta)
 
-    def multi_objective(self, meta: Meta, children: list[Any]) -> Unsupported:
-        return Unsupported("multi-objective queries (multi(...)) are not supported yet",
-                           self._span(meta))
+    def multi_objective(self, meta: Meta, children: list[Any]) -> Multi | Unsupported:
+        return first_bad(children) or Multi(tuple(children), self._span(meta))
 
     def reward_by_name(self, meta: Meta, children: list[str]) -> str:
         return str(children[0])[1:-1]

@@ -27,6 +27,7 @@ from veribattery.lang.nodes import (
     IntLit,
     Ite,
     LabelRef,
+    Multi,
     Next,
     ProbOp,
     Quantified,
@@ -283,6 +284,9 @@ def _extended_type(expr: Expr, env: TypeEnv) -> ValueType:
     if isinstance(expr, Filter):
         _not_in_model(expr, env, "filter(...)")
         return _filter_type(expr, env)
+    if isinstance(expr, Multi):
+        _not_in_model(expr, env, "multi(...)")
+        return _multi_type(expr, env)
     raise PrismSemanticError(f"unexpected expression {type(expr).__name__}", _span(expr))
 
 
@@ -298,6 +302,17 @@ def _filter_type(expr: Filter, env: TypeEnv) -> ValueType:
         raise PrismSemanticError(
             f"type error: filter({expr.op}, ...) needs a numeric property, not {kind}", expr.span)
     return "double" if expr.op == "avg" else kind
+
+
+def _multi_type(expr: Multi, env: TypeEnv) -> ValueType:
+    """Every objective a P or R operator; a boolean unless one of them asks ``=?``."""
+    for objective in expr.objectives:
+        if not isinstance(objective, ProbOp | RewardOp):
+            raise PrismSemanticError("the objectives of multi(...) must be P or R operators",
+                                     _span(objective))
+        _property_type(objective, env)
+    queried = any(o.op == "=?" for o in expr.objectives if isinstance(o, ProbOp | RewardOp))
+    return "double" if queried else "bool"
 
 
 def _check_query_bound(bound: Expr | None, env: TypeEnv) -> None:

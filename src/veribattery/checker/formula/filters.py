@@ -38,13 +38,16 @@ class FilterOutcome:
     ``print``, ``printall``, ``argmin`` and ``argmax``; *interval* encloses a
     numeric *value* (for ``range`` the whole range) with certified bounds, and
     *precise* says whether it meets the default precision (for ``range``: every
-    state's interval does)."""
+    state's interval does). *certified* is False for an answer computed in floating
+    point without a certificate (a multi-objective linear programme): its *interval*
+    is then an error estimate, not a bound."""
 
     value: Scalar | tuple[float, float] | None
     values: Bounds | Values
     printed: tuple[str, ...] = field(default=())
     interval: tuple[float, float] | None = None
     precise: bool = True
+    certified: bool = True
 
 
 def state_order(states: IntArray) -> IntArray:

@@ -11,6 +11,7 @@ straddles it is an error naming the property, never a guess.
 from __future__ import annotations
 
 from dataclasses import replace
+from functools import partial
 from typing import cast
 
 import numpy as np
@@ -20,8 +21,9 @@ from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.formula import filters, intervals
 from veribattery.checker.formula.intervals import Result
 from veribattery.checker.formula.leaves import as_mask, has_operator, step_bound
-from veribattery.checker.mdp import stepped
+from veribattery.checker.mdp import cosafe, stepped
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.multi_formula import multi_answer
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
 from veribattery.checker.mdp.system import Objective
@@ -43,10 +45,13 @@ from veribattery.lang.nodes import (
     IntLit,
     Ite,
     LabelRef,
+    Multi,
     Next,
     PathFormula,
     ProbOp,
     Reach,
+    ReachNext,
+    ReachUntil,
     Release,
     RewardOp,
     TimeBound,
@@ -70,6 +75,8 @@ def mdp_answer(mdp: MDP, formula: Expr) -> filters.FilterOutcome:
     """The answer PRISM reports: a top-level filter's value, else the value at the
     single initial state, the range over several, or ``forall`` for a boolean."""
     printed: tuple[str, ...] = ()
+    if isinstance(formula, Multi):
+        return multi_answer(mdp, formula, partial(_mask, mdp))
     if isinstance(formula, Filter):
         outcome = _filter(mdp, formula)
         if outcome.value is not None:
@@ -210,8 +217,14 @@ def _reward(mdp: MDP, op: RewardOp, objective: Objective) -> Bounds:
         case Instantaneous(time=time):
             return stepped.instantaneous_reward(mdp, structure.state, step_bound(time),
                                                 objective=objective).bounds
-    raise CheckError("this reward formula is not supported on MDPs (F, C, C<=k, I=k are)",
-                     path.span)
+        case ReachUntil(left=left, right=right):
+            return cosafe.until_reward(mdp, structure.per_choice(mdp), _mask(mdp, left),
+                                       _mask(mdp, right), objective=objective)
+        case ReachNext(target=target):
+            return cosafe.next_reward(mdp, structure.per_choice(mdp), _mask(mdp, target),
+                                      objective=objective)
+    raise CheckError("this reward formula is not supported on MDPs (F, U, X, C, C<=k, I=k "
+                     "are)", path.span)
 
 
 def _compound(mdp: MDP, expr: Expr) -> Result:

@@ -40,9 +40,13 @@ from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.mdp.components import end_components
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.multi_exact import exact_witness
 from veribattery.checker.mdp.system import Objective
 
-__all__ = ["Constraint", "MultiResult", "Reach", "Total", "multi_achievable", "multi_optimum"]
+__all__ = [
+    "LP_TOLERANCE", "Constraint", "Margin", "MultiResult", "Quantity", "Reach", "Total",
+    "multi_achievable", "multi_margin", "multi_optimum",
+]
 
 
 @dataclass(frozen=True, slots=True)
@@ -93,6 +97,39 @@ def multi_achievable(mdp: MDP, constraints: Sequence[Constraint]) -> MultiResult
     return programme.solve(constraints, None, "max")
 
 
+@dataclass(frozen=True, slots=True)
+class Margin:
+    """How far inside its constraints the best strategy can be (:func:`multi_margin`).
+
+    :param value: the largest *d* (at most 1) such that some strategy meets every
+        constraint with ``d * max(1, |bound|)`` to spare; negative when no strategy
+        meets them all (by that much, scaled alike); ``-inf`` when no strategy has
+        finite total rewards. In floating point: decisive only beyond
+        :data:`LP_TOLERANCE`.
+    :param witnessed: whether the programme's vertex, solved again in exact arithmetic,
+        meets every constraint (:mod:`~veribattery.checker.mdp.multi_exact`): then a
+        strategy provably does. Tried for every *value* not below ``-LP_TOLERANCE``.
+    """
+
+    value: float
+    witnessed: bool = False
+
+
+#: Relative error assumed of a value read off the linear programme (HiGHS's primal
+#: and dual feasibility tolerances are 1e-7; a factor of ten for the scaling).
+LP_TOLERANCE = 1e-6
+
+
+def multi_margin(mdp: MDP, constraints: Sequence[Constraint]) -> Margin:
+    """How far inside its constraints the best strategy can be (:class:`Margin`).
+
+    Achievability is ``margin >= 0``; a margin within :data:`LP_TOLERANCE` of 0
+    decides it only when an exact witness is found.
+    """
+    programme = _Programme.of(mdp, [c.quantity for c in constraints])
+    return programme.margin(constraints)
+
+
 def multi_optimum(mdp: MDP, quantity: Quantity, objective: Objective,
                   constraints: Sequence[Constraint]) -> MultiResult:
     """The minimum or maximum of *quantity* over the strategies that meet *constraints*."""
@@ -115,11 +152,7 @@ class _Product:
         if mdp.initial.size != 1:
             raise ValueError("multi-objective queries need a single initial state")
         start = np.array([int(mdp.initial[0]) * width + int(flags[mdp.initial[0]])])
-        codes, frontier = start, start
-        while frontier.size:
-            found = _successor_codes(mdp, frontier, flags, width)
-            frontier = np.setdiff1d(found, codes)
-            codes = np.union1d(codes, frontier)
+        codes = _reachable_codes(mdp, start, flags, width)
         product = _product_mdp(mdp, codes, flags, width)
         return cls(product, codes, int(np.searchsorted(codes, start[0])))
 
@@ -133,6 +166,31 @@ def _flags(n: int, targets: Sequence[BoolArray]) -> IntArray:
     for i, target in enumerate(targets):
         flags |= target.astype(np.int64) << i
     return flags
+
+
+#: Largest code space searched with a visited mask (one byte per code).
+_DENSE_CODES = 50_000_000
+
+
+def _reachable_codes(mdp: MDP, start: IntArray, flags: IntArray, width: int) -> IntArray:
+    """The product states reachable from *start*, sorted: breadth first, with a
+    visited mask over all codes when it fits (each layer then costs its own size,
+    not the size of everything found so far)."""
+    if mdp.num_states * width > _DENSE_CODES:
+        codes, frontier = start, start
+        while frontier.size:
+            found = _successor_codes(mdp, frontier, flags, width)
+            frontier = np.setdiff1d(found, codes)
+            codes = np.union1d(codes, frontier)
+        return codes
+    seen = np.zeros(mdp.num_states * width, dtype=bool)
+    seen[start] = True
+    frontier = start
+    while frontier.size:
+        found = _successor_codes(mdp, frontier, flags, width)
+        frontier = found[~seen[found]]
+        seen[frontier] = True
+    return np.flatnonzero(seen).astype(np.int64)
 
 
 def _successor_codes(mdp: MDP, codes: IntArray, flags: IntArray, width: int) -> IntArray:
@@ -207,7 +265,7 @@ class _Programme:
 
         found = linprog(cost, A_ub=np.array(rows) if rows else None,
                         b_ub=np.array(bounds) if rows else None, A_eq=self.flow,
-                        b_eq=self.initial, bounds=(0, None), method="highs")
+                        b_eq=self.initial, bounds=(0, None), method=_method(cost.size))
         if found.status == 2:
             return MultiResult(False, None, np.zeros(0))
         if found.status == 3 and quantity is not None:  # unbounded: a reward made as
@@ -216,6 +274,58 @@ class _Programme:
             raise ValueError(f"the linear programme failed: {found.message}")
         value = None if quantity is None else float(self.forms[id(quantity)] @ found.x)
         return MultiResult(True, value, np.asarray(found.x[: self.kept.size]))
+
+    def margin(self, constraints: Sequence[Constraint]) -> Margin:
+        """The programme of :func:`multi_margin`: maximise the margin, a free variable
+        capped at 1, next to the flow variables."""
+        from scipy.optimize import linprog  # HiGHS: only for multi-objective queries
+
+        size = self.flow.shape[1]
+        rows, bounds = _margin_rows(self, constraints)
+        cost = np.zeros(size + 1)
+        cost[-1] = -1.0
+        flow = sp.csr_matrix(sp.hstack([self.flow, sp.csr_matrix((self.flow.shape[0], 1))]))
+        found = linprog(cost, A_ub=rows if len(constraints) else None,
+                        b_ub=bounds if len(constraints) else None, A_eq=flow,
+                        b_eq=self.initial, bounds=[(0, None)] * size + [(None, 1.0)],
+                        method=_method(size + 1))
+        if found.status == 2:  # no strategy with finite total rewards at all
+            return Margin(-np.inf)
+        if found.status != 0:
+            raise ValueError(f"the linear programme failed: {found.message}")
+        value = float(found.x[-1])
+        if value < -LP_TOLERANCE:  # a witness of "no" would be a dual certificate
+            return Margin(value)
+        # The vertex of this programme, margin included (capped at 1: one row more),
+        # solved again exactly; a margin that comes out >= 0 proves achievability.
+        cap = np.zeros((1, size + 1))
+        cap[0, -1] = 1.0
+        return Margin(value, exact_witness(flow, self.initial, np.vstack([rows, cap]),
+                                           np.append(bounds, 1.0), found.x, LP_TOLERANCE))
+
+
+#: Programmes with more variables than this go to HiGHS's interior-point method
+#: (with crossover to a vertex): PRISM's consensus_multi5 (382k variables) takes it
+#: about 35 s of CPU, where the dual simplex had not finished after 10 minutes.
+INTERIOR_POINT_SIZE = 20_000
+
+
+def _method(size: int) -> str:
+    """HiGHS's simplex for small programmes, its interior-point method for large ones."""
+    return "highs-ipm" if size > INTERIOR_POINT_SIZE else "highs"
+
+
+def _margin_rows(programme: _Programme,
+                 constraints: Sequence[Constraint]) -> tuple[FloatArray, FloatArray]:
+    """``form <= bound`` per constraint (``>=`` negated), plus the margin's column:
+    each row asks for ``max(1, |bound|)`` times the margin to spare."""
+    rows, bounds = [], []
+    for constraint in constraints:
+        sign = -1.0 if constraint.relation in (">=", ">") else 1.0
+        scale = max(1.0, abs(constraint.bound))
+        rows.append(np.append(sign * programme.forms[id(constraint.quantity)], scale))
+        bounds.append(sign * constraint.bound)
+    return np.array(rows), np.array(bounds)
 
 
 def _assembled(product: _Product, graph: ChoiceGraph, component: IntArray,

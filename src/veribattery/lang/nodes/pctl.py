@@ -38,6 +38,7 @@ __all__ = [
     "Globally",
     "Instantaneous",
     "LongRun",
+    "Multi",
     "Next",
     "PathFormula",
     "ProbOp",
@@ -316,6 +317,17 @@ class Filter:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
+@dataclass(frozen=True, slots=True)
+class Multi:
+    """``multi(q1, q2, ...)``: a multi-objective query on an MDP (PRISM's), every
+    objective a ``P`` or ``R`` operator; all bounded (achievability: does one
+    strategy meet them all?) or one ``=?`` (its optimum over the strategies that
+    meet the others)."""
+
+    objectives: tuple[Expr, ...]
+    span: Span = field(default=NO_SPAN, compare=False)
+
+
 Expr: TypeAlias = (
     IntLit
     | DoubleLit
@@ -331,4 +343,5 @@ Expr: TypeAlias = (
     | SteadyOp
     | Quantified
     | Filter
+    | Multi
 )
