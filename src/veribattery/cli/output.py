@@ -167,10 +167,12 @@ class LiveStatus:
 
 def _one_line(text: str) -> Any:
     """*text* as the spinner shows it: literally (a formula's ``[`` is no markup), cut
-    with an ellipsis at the terminal's edge rather than wrapped."""
+    with an ellipsis at the terminal's edge rather than wrapped (the spinner and a
+    space take two columns)."""
     from rich.text import Text
 
-    return Text(text, no_wrap=True, overflow="ellipsis")
+    room = max(err.width - 2, 10)
+    return Text(text if len(text) <= room else text[:room - 1] + "…")
 
 
 @contextmanager
