@@ -90,7 +90,12 @@ class StateStore:
         # State index + 1 (0 = empty); int32 halves the table, the largest array here.
         self._resize(1 << 14)
         self.count = 0
-        self._recent: list[IntArray] = []  # rows of states recent_start.. in order
+        # Rows of states recent_start.. in order (the next frontier, and what is left of
+        # the current one), in the narrowest type of the ranges: int64 rows of a model of
+        # 32 variables take 256 bytes a state, two frontiers of crowds 5/20 220 MB.
+        top = self._lows + self._sizes - 1
+        self._row_type = narrowest_type(int(self._lows.min(initial=0)), int(top.max(initial=0)))
+        self._recent: list[npt.NDArray[np.signedinteger[Any]]] = []
         self._recent_start = 0
 
     @property
@@ -103,16 +108,14 @@ class StateStore:
         """:attr:`states` in the narrowest integer type (int8, int16, int32, else int64)
         that holds every variable's declared range, decoded a block at a time: the
         int64 table (8 bytes per state and variable) never exists at once."""
-        highs = self._lows + self._sizes - 1
-        kind = narrowest_type(int(self._lows.min(initial=0)), int(highs.max(initial=0)))
-        table = np.empty((self.count, self._lows.size), dtype=kind)
+        table = np.empty((self.count, self._lows.size), dtype=self._row_type)
         for low in range(0, self.count, _DECODE_BLOCK):
             high = min(self.count, low + _DECODE_BLOCK)
             table[low:high] = self._decode(low, high)
         return table
 
     def rows(self, low: int, high: int) -> IntArray:
-        """States ``low..high-1`` as rows of variable values.
+        """States ``low..high-1`` as rows of variable values (int64, a new array).
 
         Rows added since an earlier call are served as added (and forgotten once
         the search has moved past them); others are decoded from their keys.
@@ -122,7 +125,7 @@ class StateStore:
             rows = self._recent[0] if len(self._recent) == 1 else np.concatenate(self._recent)
             self._recent = [rows]
             if high <= self._recent_start + rows.shape[0]:
-                return rows[: high - low]
+                return rows[: high - low].astype(np.int64)
         return self._decode(low, high)
 
     def _forget_before(self, low: int) -> None:
@@ -264,7 +267,7 @@ class StateStore:
         self._keys[self.count + 1 : end + 1] = keys
         if not self._recent:
             self._recent_start = self.count
-        self._recent.append(rows)
+        self._recent.append(rows.astype(self._row_type))
         self.count = end
 
     def _reserve_table(self) -> bool:
