@@ -91,7 +91,7 @@ class PlainProgress:
 
     def __call__(self, states: int, frontier: int) -> None:
         now = self._clock()
-        if self._quiet(now):
+        if not self._line_due(now):
             return
         elapsed = now - self._start
         self._write(f"exploring states: {states:,} found, frontier {frontier:,}, "
@@ -108,7 +108,7 @@ class PlainProgress:
     def solving(self, done: int, total: int, unit: str) -> None:
         """A solve has *done* of *total* *unit* behind it."""
         now = self._clock()
-        if not self._quiet(now):
+        if self._line_due(now):
             self._write(solve_text(self._subject, done, total, unit, now - self._since))
 
     def stage(self, text: str) -> None:
@@ -120,13 +120,14 @@ class PlainProgress:
         if self._talking:
             self._tell_stage()
 
-    def _quiet(self, now: float) -> bool:
-        """Whether no line is due at *now*; if one is, the stage is written first."""
+    def _line_due(self, now: float) -> bool:
+        """Whether a count is due at *now*; if it is, the next is due *every* seconds
+        later and the stage (if not yet written) is written before it."""
         if now < self._due:
-            return True
+            return False
         self._due = now + self._every
         self._tell_stage()
-        return False
+        return True
 
     def _tell_stage(self) -> None:
         self._talking = True

@@ -35,18 +35,8 @@ from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 if TYPE_CHECKING:
     from veribattery.explore.build.successors import GroupSuccessors
 
-__all__ = [
-    "Expansion",
-    "Layer",
-    "assemble",
-    "build_compact_dtmc",
-    "build_dtmc",
-    "expand_frontier",
-    "explore",
-    "initial_states",
-    "memory_footprint",
-    "rewarded_actions",
-]
+__all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "expand_frontier", "explore",
+           "initial_states", "memory_footprint", "rewarded_actions"]
 
 #: Rows of the variables' domain enumerated at once when evaluating an ``init`` block.
 _INIT_CHUNK = 1 << 20
@@ -75,27 +65,11 @@ def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None 
     return assemble(model, states, initial, layers)
 
 
-def build_compact_dtmc(model: FlatModel, *,
-                       progress: Callable[[int, int], None] | None = None) -> DTMC:
-    """``build_dtmc(model).compact()``, the same DTMC, but the state table is made narrow
-    as it is decoded: its int64 form (8 bytes per state and variable: 528 MB of crowds
-    5/20's 32 variables, more than the rest of its DTMC) never exists.
-
-    For callers that read the table through :meth:`DTMC.column` only (see
-    :meth:`DTMC.compact`). Labels and rewards are evaluated on int64 copies of blocks
-    of states, so every value is the same as :func:`build_dtmc`'s.
-    """
-    states, initial, layers = explore(model, compile_program(model), progress, compact=True)
-    return assemble(model, states, initial, layers).compact()
-
-
 def explore(
     model: FlatModel,
     program: Program,
     progress: Callable[[int, int], None] | None = None,
-    guard: MemoryGuard | None = None,
-    *,
-    compact: bool = False,
+    guard: MemoryGuard | None = None, *, compact: bool = False,
 ) -> tuple[IntArray, IntArray, list[Layer]]:
     """Breadth-first search: the states in numbering order, the initial ones, the layers.
 
@@ -103,8 +77,7 @@ def explore(
 
     :param progress: called once per BFS layer with (states found so far, frontier size).
     :param guard: checked once per BFS layer (default: against the memory available).
-    :param compact: the states in the narrowest integer type of the variables'
-        ranges (:attr:`StateStore.compact_states`), else int64.
+    :param compact: the states in the narrowest type of the ranges, else in int64.
     :raises ModelTooLarge: when the search would outgrow the memory available.
     """
     require_dtmc(model.model_type)
@@ -130,8 +103,7 @@ def explore(
             progress(store.count, high - low)
         guard.layer_done(store.count, high, high - low, transitions)
         low = high
-    states = store.compact_states if compact else store.states
-    return states, initial, layers.done(store.count)
+    return store.compact_states if compact else store.states, initial, layers.done(store.count)
 
 
 def memory_footprint(program: Program) -> Footprint:
@@ -463,8 +435,7 @@ def _over_states(
 def _chunked(evaluate: CompiledExpr, states: IntArray, dtype: Any) -> np.ndarray:
     out = np.empty(states.shape[0], dtype=dtype)
     for start in range(0, states.shape[0], _EVAL_CHUNK):
-        # int64 as the expressions expect (a no-op on an int64 table; a compact one's
-        # values widened exactly, so arithmetic on them cannot wrap around)
+        # int64, as compiled expressions take (a no-op unless the table is compact)
         block = np.asarray(states[start : start + _EVAL_CHUNK], dtype=np.int64)
         out[start : start + _EVAL_CHUNK] = evaluate(block)
     return out
