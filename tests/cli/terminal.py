@@ -32,6 +32,9 @@ class Screen:
 
     status: int
     lines: tuple[str, ...]
+    #: Everything written, escapes removed, including what a transient spinner drew
+    #: and then erased.
+    drawn: str = ""
 
     @property
     def text(self) -> str:
@@ -57,7 +60,8 @@ def run_in_terminal(args: list[str], columns: int, cwd: Path,
     os.close(slave)
     raw = _read_all(master, process)
     os.close(master)
-    return Screen(process.wait(), tuple(_displayed(raw.decode("utf-8", "replace"))))
+    text = raw.decode("utf-8", "replace")
+    return Screen(process.wait(), tuple(_displayed(text)), _ESCAPES.sub("", text))
 
 
 def _read_all(master: int, process: subprocess.Popen[bytes]) -> bytes:

@@ -1,15 +1,22 @@
-"""Build progress on stderr when it is not a terminal, and ``--max-states``."""
+"""Progress on stderr -- plain lines when it is not a terminal, a spinner when it is --
+and ``--max-states``."""
 
 from __future__ import annotations
 
 import json
+import os
+import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from tests.cli.inputs import CASE1, SMALL
+from tests.cli.terminal import run_in_terminal
 from veribattery.cli import cli, progress
+from veribattery.errors import OptionError
 
 NAND = Path(__file__).resolve().parents[2] / "bench" / "qcomp" / "nand"
 #: nand N=5 K=1: 930 states, found over dozens of BFS layers.
@@ -81,3 +88,132 @@ def test_check_max_states_stops_a_mission_build() -> None:
     assert stopped.exit_code == 2 and stopped.stdout == ""
     assert f"--max-states {states // 2:,}" in stopped.stderr
     assert CliRunner().invoke(cli, [*base, "--max-states", str(states)]).exit_code == 0
+
+
+def test_stages_wait_for_the_first_line_then_are_told_as_they_begin() -> None:
+    lines: list[str] = []
+    clock = _Clock()
+    watch = progress.PlainProgress(lines.append, clock, first=5.0, every=10.0)
+    watch.starting("building the state space")
+    watch(100, 10)
+    clock.now += 1.0
+    watch.checking(1, 2, "P=? [ F a ]")
+    clock.now += 1.0
+    watch.solving(50, 400, "states")  # 2 s in: a short run says nothing
+    assert lines == []
+    clock.now += 3.5  # 5.5 s in: the first line, after the stage it belongs to
+    watch.solving(300, 400, "states")
+    clock.now += 1.0
+    watch.solving(400, 400, "states")  # within the interval: nothing
+    watch.checking(2, 2, 'R{"time"}=? [ F b ]')  # a long run: told at once
+    clock.now += 10.0
+    watch.solving(7, 20_000, "iterations")
+    assert lines == ["checking property 1 of 2: P=? [ F a ]",
+                     "solving P=? [ F a ]: 300 of 400 states, 4 s",
+                     'checking property 2 of 2: R{"time"}=? [ F b ]',
+                     'solving R{"time"}=? [ F b ]: 7 of 20,000 iterations, 10 s']
+
+
+def test_a_stage_before_the_first_build_line_is_written_with_it() -> None:
+    lines: list[str] = []
+    clock = _Clock()
+    watch = progress.PlainProgress(lines.append, clock, first=0.0, every=0.0)
+    watch.starting("building the state space")
+    watch(12, 3)
+    assert lines == ["building the state space",
+                     "exploring states: 12 found, frontier 3, … states/s, 0 s"]
+
+
+def test_the_state_limit_passes_stages_and_solves_on() -> None:
+    lines: list[str] = []
+    watch = progress.PlainProgress(lines.append, _Clock(), first=0.0, every=0.0)
+    limited = progress.limited(watch, 10)
+    assert limited is not None
+    limited.starting("building the state space")
+    limited(10, 1)
+    limited.checking(1, 1, "P=? [ F a ]")
+    limited.solving(3, 9, "states")
+    assert lines[0] == "building the state space" and lines[-1].startswith(
+        "solving P=? [ F a ]: 3 of 9 states, ")
+    with pytest.raises(Exception, match="--max-states 10"):
+        limited(11, 1)
+
+
+@pytest.mark.parametrize(("value", "expected"), [(None, (None, None)), ("0,0", (0.0, 0.0)),
+                                                  ("0.5, 2", (0.5, 2.0))])
+def test_the_intervals_come_from_the_environment(
+        monkeypatch: pytest.MonkeyPatch, value: str | None,
+        expected: tuple[float | None, float | None]) -> None:
+    if value is None:
+        monkeypatch.delenv(progress.INTERVALS_VARIABLE, raising=False)
+    else:
+        monkeypatch.setenv(progress.INTERVALS_VARIABLE, value)
+    assert progress.intervals() == expected
+
+
+@pytest.mark.parametrize("value", ["5", "a,b", "-1,2", "1,2,3"])
+def test_bad_intervals_are_a_user_error(monkeypatch: pytest.MonkeyPatch, value: str) -> None:
+    monkeypatch.setenv(progress.INTERVALS_VARIABLE, value)
+    with pytest.raises(OptionError, match=progress.INTERVALS_VARIABLE):
+        progress.intervals()
+
+
+#: What a check says on stderr, a line per report with intervals of 0.
+_SOLVING = re.compile(r"^solving P=\? \[ F s=4 & z/N<0\.1 \]: (\d+) of 668 states, \d+ s$")
+
+
+def _piped(env: dict[str, str]) -> subprocess.CompletedProcess[str]:
+    """``veribattery ARGS`` with stdout and stderr pipes (as in CI or ``2> log``)."""
+    command = [sys.executable, "-c", "from veribattery.cli import main; main()", *ARGS]
+    return subprocess.run(command, capture_output=True, text=True, check=True,
+                          env={**os.environ, **env})
+
+
+def test_a_long_check_tells_its_stages_and_solves_on_a_pipe() -> None:
+    quiet = _piped({})
+    assert quiet.stderr == ""  # a short run prints nothing
+    told = _piped({progress.INTERVALS_VARIABLE: "0,0"})
+    lines = told.stderr.splitlines()
+    assert lines[0] == "building the state space"
+    stages = [line for line in lines if not line.startswith(("exploring", "solving"))]
+    assert stages == ["building the state space", "preparing the linear systems",
+                      "checking property 1 of 1: P=? [ F s=4 & z/N<0.1 ]"]
+    solved = [int(m.group(1)) for m in map(_SOLVING.match, lines) if m is not None]
+    assert solved[:2] == [0, 668] and len(solved) == sum(1 for x in lines if "solving" in x)
+    document = json.loads(told.stdout)
+    assert document["results"] == json.loads(quiet.stdout)["results"]
+
+
+def test_check_tells_the_same_lines_as_prism_and_keeps_its_json(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    base = ["check", CASE1, *SMALL, "--format", "json"]
+    quiet = CliRunner().invoke(cli, base)
+    monkeypatch.setenv(progress.INTERVALS_VARIABLE, "0,0")
+    told = CliRunner().invoke(cli, base)
+    assert quiet.exit_code == told.exit_code == 0 and quiet.stderr == ""
+    lines = told.stderr.splitlines()
+    assert lines[0] == "building the state space"
+    assert any(line.startswith("exploring states: ") for line in lines)
+    checking = [line for line in lines if line.startswith("checking property ")]
+    count = len(json.loads(quiet.stdout)["results"])
+    assert checking and all(f" of {count}: " in line for line in checking)
+    assert any(line.startswith("solving ") and " states, " in line for line in lines)
+    assert json.loads(told.stdout)["results"] == json.loads(quiet.stdout)["results"]
+
+
+def test_the_spinner_shows_the_solve_and_leaves_a_clean_screen(tmp_path: Path) -> None:
+    screen = run_in_terminal(ARGS[:-1], 80, tmp_path)
+    assert screen.status == 0, screen.text
+    # The spinner's last text (rich draws it once more as it stops), then erased.
+    assert "solving P=? [ F s=4 & z/N<0.1 ]: " in screen.drawn, screen.drawn
+    assert " of 668 states, " in screen.drawn
+    assert "solving" not in screen.text and "0.587216625261" in screen.text
+
+
+def test_a_long_formula_is_cut_on_the_spinner_not_wrapped(tmp_path: Path) -> None:
+    formula = "P=? [ F s=4 & " + " & ".join(["z/N<0.1"] * 12) + " ]"
+    args = [arg if arg != "reliable" else formula for arg in ARGS[:-1]]
+    screen = run_in_terminal(args, 80, tmp_path)
+    assert screen.status == 0, screen.text
+    drawn = [part for part in re.split(r"[\r\n]", screen.drawn) if "solving" in part]
+    assert drawn and all(len(part) <= 80 and part.endswith("…") for part in drawn), drawn

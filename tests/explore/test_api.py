@@ -9,6 +9,7 @@ def test_all_is_exact() -> None:
     assert sorted(explore.__all__) == [
         "DTMC",
         "RewardVectors",
+        "build_compact_dtmc",
         "build_dtmc",
         "check_update_ranges_over_domain",
         "compile_expr",

@@ -37,7 +37,7 @@ class Workspace:
     Not for concurrent use: give each thread its own.
     """
 
-    __slots__ = ("_conditions", "_long_run", "kernels", "row_plans", "solvers")
+    __slots__ = ("_conditions", "_long_run", "kernels", "monitor", "row_plans", "solvers")
 
     def __init__(self) -> None:
         #: Per transition matrix: the 0/1 pre-pass (shared by matrices of one pattern),
@@ -47,6 +47,9 @@ class Workspace:
         self.solvers = linalg.SolverPlans()
         #: The index work of the certificates' maps (:class:`certify.RowPlans`).
         self.row_plans = certify.RowPlans()
+        #: Hears how far the long solves of this workspace's systems are: the caller
+        #: listens while it checks (:meth:`linalg.SolveMonitor.listening`). Not a cache.
+        self.monitor = linalg.SolveMonitor()
         # The caches of rarer kinds of property, made on first use (below): their
         # kernels' modules are imported only by checks that meet such a property.
         self._conditions: Conditions | None = None

@@ -66,7 +66,7 @@ def check_command(
         if emit_dir is not None:
             check_output_dir(emit_dir, "--emit", force=force, names=EMITTED_FILES)
         cfg = load_config(config, overrides)
-        with build_progress() as progress:
+        with build_progress(plain=True) as progress:
             report = check_mission(cfg, progress=limited(progress, max_states), exact=exact,
                                    keep="answers")
         if emit_dir is not None:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import click
 
-from veribattery.cli.progress import PlainProgress, rate_text
+from veribattery.cli.progress import PlainProgress, intervals, rate_text, solve_text
 from veribattery.errors import VeribatteryError
 
 if TYPE_CHECKING:
@@ -119,13 +119,20 @@ def print_dim(text: str) -> None:
         click.echo(text)
 
 
+#: Seconds between two updates of the spinner's text by a solve (it is redrawn 12.5
+#: times a second; a solve may report thousands of segments a second).
+SPINNER_EVERY_S = 0.1
+
+
 class LiveStatus:
     """The spinner line of :func:`build_progress`: a state counter while the state space
-    is explored, then the stage a longer command is in."""
+    is explored, then the stage a longer command is in, and how far a solve is."""
 
     def __init__(self, status: Any) -> None:
         self._status = status
-        self._start = time.monotonic()
+        self._start = self._since = time.monotonic()
+        self._next = self._start
+        self._subject = ""
 
     def __call__(self, states: int, frontier: int) -> None:
         rate = rate_text(states, time.monotonic() - self._start)
@@ -136,13 +143,49 @@ class LiveStatus:
         err.print(text, markup=False, style="dim")
         self._status.update(f"{text}…")
 
+    def starting(self, text: str) -> None:
+        """Show on the spinner that a stage of a check begins (nothing printed above it)."""
+        self._show(f"{text}…", "")
+
+    def checking(self, number: int, count: int, text: str) -> None:
+        """Show on the spinner which property is checked."""
+        self._show(f"checking property {number} of {count}: {text}…", text)
+
+    def solving(self, done: int, total: int, unit: str) -> None:
+        """Show how far the solve is (at most every :data:`SPINNER_EVERY_S`)."""
+        now = time.monotonic()
+        if now >= self._next:
+            self._next = now + SPINNER_EVERY_S
+            self._status.update(_one_line(solve_text(self._subject, done, total, unit,
+                                                     now - self._since)))
+
+    def _show(self, text: str, subject: str) -> None:
+        self._subject, self._since = subject, time.monotonic()
+        self._next = self._since
+        self._status.update(_one_line(text))
+
+
+def _one_line(text: str) -> Any:
+    """*text* as the spinner shows it: literally (a formula's ``[`` is no markup), cut
+    with an ellipsis at the terminal's edge rather than wrapped (the spinner and a
+    space take two columns)."""
+    from rich.text import Text
+
+    room = max(err.width - 2, 10)
+    return Text(text if len(text) <= room else text[:room - 1] + "…")
+
 
 @contextmanager
 def build_progress(plain: bool = False) -> Iterator[LiveStatus | PlainProgress | None]:
-    """A live state counter on stderr while the state space is explored (TTY), or with
-    *plain*, periodic lines when stderr is not a terminal (:class:`PlainProgress`)."""
+    """A live spinner on stderr while the state space is explored and the properties
+    checked (TTY), or with *plain*, periodic lines when stderr is not a terminal
+    (:class:`PlainProgress`, its intervals from ``VERIBATTERY_PROGRESS_S`` if set)."""
     if not _may_be_terminal(sys.stderr) or not err.is_terminal:
-        yield PlainProgress(_stderr_line) if plain else None
+        if not plain:
+            yield None
+            return
+        first, every = intervals()
+        yield PlainProgress(_stderr_line, first=first, every=every)
         return
     with err.status("exploring states…") as status:
         yield LiveStatus(status)

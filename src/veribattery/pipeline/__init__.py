@@ -25,6 +25,7 @@ from veribattery.pipeline.exact import check_model_exact
 from veribattery.pipeline.prism_file import check_prism_file, select
 from veribattery.pipeline.run import (
     CheckOptions,
+    CheckProgress,
     Keep,
     ModelCheckRun,
     ProgressCallback,
@@ -34,6 +35,7 @@ from veribattery.pipeline.session import ReusingBuilder, Rewards, Session, check
 
 __all__ = [
     "CheckOptions",
+    "CheckProgress",
     "Keep",
     "ModelCheckRun",
     "ProgressCallback",

@@ -26,6 +26,7 @@ from veribattery.pipeline.run import (
     internal_results,
     may_hold,
     run_checks,
+    stages_of,
 )
 
 if TYPE_CHECKING:
@@ -60,13 +61,16 @@ def check_model_exact(
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
         aside = [resolve_property(p, flat, props_file, constants) for p in internal]
+    stages = stages_of(progress)
     with watch.stage("build"):
+        if stages is not None:
+            stages.starting("building the state space")
         exact = _build_exact(model, flat, constants, progress)
     dtmc = exact.dtmc
     workspace = Workspace()  # this run's caches: the float pre-pass of exact solves
     checks = _exact_checks(exact, (properties, resolved), props_file, constants, workspace)
     with watch.stage("check"):
-        results, undefined = run_checks(checks, resolved, dtmc, options)
+        results, undefined = run_checks(checks, resolved, dtmc, options, stages)
         aside_results = internal_results(dtmc, aside, [may_hold(dtmc, p) for p in aside],
                                          workspace)
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined,

@@ -8,7 +8,7 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import get_args
+from typing import Protocol, get_args, runtime_checkable
 
 import numpy as np
 
@@ -28,11 +28,36 @@ from veribattery.lang.nodes import (
     Value,
 )
 
-__all__ = ["STAGES", "CheckOptions", "Keep", "ModelCheckRun", "ProgressCallback", "Stopwatch",
-           "internal_results", "may_hold", "run_checks"]
+__all__ = ["STAGES", "CheckOptions", "CheckProgress", "Keep", "ModelCheckRun", "ProgressCallback",
+           "Stopwatch", "internal_results", "may_hold", "run_checks", "stages_of"]
 
 #: Called while a state space is explored, with (states found, states explored).
 ProgressCallback = Callable[[int, int], None]
+
+
+@runtime_checkable
+class CheckProgress(Protocol):
+    """A *progress* that hears a whole check, not only the build: given where a
+    :data:`ProgressCallback` is, it is also told each stage and how far each long
+    solve is, so that a long run can be told from a hang."""
+
+    def __call__(self, states: int, frontier: int) -> None:
+        """After each BFS layer: the states found so far and the next frontier's size."""
+
+    def starting(self, text: str) -> None:
+        """A stage begins (``"building the state space"``)."""
+
+    def checking(self, number: int, count: int, text: str) -> None:
+        """Property *number* (1-based) of *count* is checked next; *text* is its formula."""
+
+    def solving(self, done: int, total: int, unit: str) -> None:
+        """A solve of the current property has *done* of *total* *unit* (``"states"``,
+        ``"iterations"``) behind it; told per segment or iteration, never per state."""
+
+
+def stages_of(progress: ProgressCallback | None) -> CheckProgress | None:
+    """*progress* if it hears stages and solves too (:class:`CheckProgress`), else None."""
+    return progress if isinstance(progress, CheckProgress) else None
 
 #: The stages of a check, always reported (``Time: parse …, build …, check …``).
 STAGES = ("parse", "build", "check")
@@ -126,17 +151,21 @@ class Stopwatch:
 
 def run_checks(
     checks: Sequence[Callable[[], CheckResult]], resolved: Sequence[Property], dtmc: DTMC,
-    options: CheckOptions,
+    options: CheckOptions, progress: CheckProgress | None = None,
 ) -> tuple[tuple[CheckResult, ...], tuple[str, ...]]:
     """Run each property's check, and the warnings about properties without a value.
 
     With *undefined_as_nan* a property without a value is NaN; with answers kept only,
     each result is reduced to its answer as soon as it is made.
+
+    :param progress: told which property is checked next.
     """
     per_state = options.keep == "states"
     results: list[CheckResult] = []
     warnings: list[str] = []
-    for run_one, prop in zip(checks, resolved, strict=True):
+    for number, (run_one, prop) in enumerate(zip(checks, resolved, strict=True), start=1):
+        if progress is not None:
+            progress.checking(number, len(resolved), prop.text or prop.name or "a formula")
         try:
             result = run_one()
             results.append(result if per_state else result.without_states())

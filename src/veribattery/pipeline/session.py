@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Literal, get_args
 
 from veribattery._memory import trim_for
 from veribattery.checker import Workspace, check
-from veribattery.explore import DTMC, build_dtmc
+from veribattery.explore import DTMC, build_compact_dtmc, build_dtmc
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -30,6 +30,7 @@ from veribattery.pipeline.run import (
     internal_results,
     may_hold,
     run_checks,
+    stages_of,
 )
 
 if TYPE_CHECKING:
@@ -124,6 +125,9 @@ class Session:
         :param props_file: the properties file the properties come from (its constants
             and labels), if any.
         :param constants: values of the model's and properties' undefined constants.
+        :param progress: told after each BFS layer of the build; a
+            :class:`~veribattery.pipeline.CheckProgress` also hears the stages and how
+            far each long solve is.
         :param internal: properties the caller reads (:attr:`ModelCheckRun.internal`)
             but does not report: checked after *properties* and together with them
             (shared linear systems, the quotient), answers only, never NaN. One that is
@@ -131,6 +135,7 @@ class Session:
             without a check, and shapes neither the shared systems nor the quotient.
         """
         watch = stopwatch or Stopwatch(*STAGES)
+        stages = stages_of(progress)
         with watch.stage("parse"):
             flat = flatten_model(model, constants)
             resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
@@ -138,6 +143,8 @@ class Session:
             if self.rewards == "named":
                 flat = _named_rewards_only(flat, resolved + aside)
         with watch.stage("build"):
+            if stages is not None:
+                stages.starting("building the state space")
             dtmc, reused = self._build(flat, progress)
         live = [may_hold(dtmc, p) for p in aside]
         formulas = [p.formula for p in resolved] + [
@@ -150,11 +157,14 @@ class Session:
         checks = [functools.partial(check, checked, p, keep=self.options.keep,
                                     workspace=self.workspace)
                   for p in resolved]
-        with watch.stage("check"):
+        listener = stages.solving if stages is not None else None
+        with watch.stage("check"), self.workspace.monitor.listening(listener):
             trim_for(dtmc.num_states)  # the builder's last temporaries, under the DTMC's
+            if stages is not None:
+                stages.starting("preparing the linear systems")
             self.workspace.prepare(checked, formulas)  # systems shared between the properties
             trim_for(dtmc.num_states)  # the pre-pass's freed temporaries
-            results, undefined = run_checks(checks, resolved, checked, self.options)
+            results, undefined = run_checks(checks, resolved, checked, self.options, stages)
             aside_results = internal_results(checked, aside, live, self.workspace)
         return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused,
                              quotient, aside_results, self.workspace)
@@ -163,13 +173,13 @@ class Session:
         """*flat*'s DTMC, and whether it re-used an earlier state space."""
         if self.builder is not None:
             return self.builder.build(flat, progress)
-        dtmc = build_dtmc(flat, progress=progress)
         if self.options.keep == "answers":
             # Answers only, and the DTMC not kept as a re-using builder's base: nothing
             # does arithmetic on whole state rows, so the table can be narrow (65 -> 17
-            # MB on the 11x11 mission).
-            dtmc = dtmc.compact()
-        return dtmc, False
+            # MB on the 11x11 mission), and is narrow from the start (528 -> 66 MB on
+            # crowds 5/20, whose int64 table was the peak of the build).
+            return build_compact_dtmc(flat, progress=progress), False
+        return build_dtmc(flat, progress=progress), False
 
 
 def check_model(

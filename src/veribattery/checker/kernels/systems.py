@@ -219,7 +219,7 @@ def _system(P: CsrMatrix, maybe: BoolArray, allowed: BoolArray | None = None, *,
         A64, residue, rows = linalg.restricted_parts(P, maybe, workspace.solvers)
         unknowns = maybe.copy()
         solver = linalg.Factorization(A64, residue, _rebuilder(P, unknowns),
-                                        workspace.solvers)
+                                        workspace.solvers, workspace.monitor)
         del A64, residue
         found = _System(rows, solver, unknowns, workspace.row_plans)
         systems[key] = found

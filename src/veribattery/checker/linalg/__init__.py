@@ -6,9 +6,10 @@
 - :mod:`~veribattery.checker.linalg.triangular`: substitution on acyclic systems;
 - :mod:`~veribattery.checker.linalg.iterative`: backward error and the iterative fallback;
 - :mod:`~veribattery.checker.linalg.scc`, :mod:`~veribattery.checker.linalg.topological`:
-  SCC-wise solves; :mod:`~veribattery.checker.linalg.rational`: the exact fallback.
+  SCC-wise solves; :mod:`~veribattery.checker.linalg.rational`: the exact fallback;
+- :mod:`~veribattery.checker.linalg.monitor`: how far a long solve is, for a listener.
 
-This package re-exports the public names of the first four modules.
+This package re-exports the public names of the first four modules and the monitor.
 """
 
 from veribattery.checker.linalg.factorization import (
@@ -19,6 +20,7 @@ from veribattery.checker.linalg.factorization import (
     solve,
 )
 from veribattery.checker.linalg.iterative import backward_error, matrix_norm, solve_iterative
+from veribattery.checker.linalg.monitor import SolveListener, SolveMonitor
 from veribattery.checker.linalg.restriction import (
     SolverPlans,
     index_digest,
@@ -31,6 +33,8 @@ __all__ = [
     "Factorization",
     "PinnedSolver",
     "QuickSolver",
+    "SolveListener",
+    "SolveMonitor",
     "SolverPlans",
     "backward_error",
     "extended_product",

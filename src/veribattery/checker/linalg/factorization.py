@@ -33,6 +33,7 @@ meets neither path's answer raises :class:`~veribattery.errors.CheckError`.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol, cast
 
@@ -43,6 +44,7 @@ from scipy.sparse import linalg as spla
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker.linalg.iterative import RESIDUAL_TOL, _norm, matrix_norm, solve_iterative
+from veribattery.checker.linalg.monitor import SolveMonitor
 from veribattery.checker.linalg.topological import TopologicalSolver, direct_component
 from veribattery.checker.linalg.triangular import _Triangular, _triangular_inverse
 from veribattery.errors import CheckError
@@ -93,11 +95,14 @@ class Factorization:
     :param rebuild: makes ``(A64, residue)`` again, bit for bit (see :meth:`_release`).
     :param plans: where substitution plans are kept for later matrices of the same
         pattern (None: nothing is kept).
+    :param monitor: told how far each solve is (after each segment of an SCC-wise
+        solve, each iteration of the iterative fallback; before and after a solve in
+        one call), when someone listens to it.
     """
 
     def __init__(self, A: sp.csr_matrix, residue: sp.csr_matrix | None = None,
                  rebuild: Callable[[], tuple[sp.csr_matrix, sp.csr_matrix]] | None = None,
-                 plans: SolverPlans | None = None) -> None:
+                 plans: SolverPlans | None = None, monitor: SolveMonitor | None = None) -> None:
         if residue is None:
             A, residue = _split(A)
         # (A itself when it is CSR already: a copy would not share the plan's indices)
@@ -106,12 +111,14 @@ class Factorization:
         self._n = int(A.shape[0])
         self._rebuild = rebuild
         self._plans = plans
+        self._monitor = monitor
         self._direct: _Inverse | None = None
         self._direct_tried = False
         self._substitute: _Triangular | None = None
         self._substitute_tried = False
         self._norm_a: float | None = None
         self._iterative = False
+        self._segmented = False  # the direct solver is an scc.Segmented
 
     @property
     def A64(self) -> sp.csr_matrix:
@@ -165,7 +172,8 @@ class Factorization:
         x = self._refined(inverse, b, steps) if inverse is not None else None
         if x is not None and self.backward_error(x, b) <= RESIDUAL_TOL:
             return x
-        x = solve_iterative(self.A64, b.astype(np.float64), x)
+        monitor = self._monitor if self._monitor is not None and self._monitor.heard else None
+        x = solve_iterative(self.A64, b.astype(np.float64), x, monitor)
         if not self.backward_error(x, b) <= RESIDUAL_TOL:
             raise CheckError(f"linear solver did not reach backward error {RESIDUAL_TOL:g} "
                              f"on {n} states")
@@ -196,6 +204,7 @@ class Factorization:
 
     def _refined(self, inverse: _Inverse, b: ExtArray, steps: int) -> FloatArray:
         """``inverse(b)``, refined with extended-precision residuals."""
+        inverse = self._reporting(inverse)
         x: FloatArray = inverse(b.astype(np.float64))
         for _ in range(steps):
             residual = self.residual(x, b)
@@ -219,7 +228,7 @@ class Factorization:
         inverse = self._inverse()
         if inverse is None:
             return None
-        return _finite_solve(inverse, np.ascontiguousarray(b, dtype=np.float64))
+        return _finite_solve(self._reporting(inverse), np.ascontiguousarray(b, dtype=np.float64))
 
     def correction(self, v: FloatArray) -> FloatArray | None:
         """An approximate ``A^{-1} v`` for certification margins (None if unavailable).
@@ -233,7 +242,8 @@ class Factorization:
         inverse = self._inverse()
         try:
             if inverse is not None:
-                return np.asarray(inverse(np.ascontiguousarray(v, dtype=np.float64)))
+                applied = self._reporting(inverse)
+                return np.asarray(applied(np.ascontiguousarray(v, dtype=np.float64)))
             return self.solve(v.astype(np.longdouble))
         except (CheckError, RuntimeError):
             return None
@@ -298,7 +308,7 @@ class Factorization:
         inverse = self._substitution()
         if inverse is None:
             return None
-        return _finite_solve(inverse.dual, np.asarray(v, dtype=np.float64))
+        return _finite_solve(self._reporting(inverse.dual), np.asarray(v, dtype=np.float64))
 
     def _substitution(self) -> _Triangular | None:
         """The substitution solver, tried once (None: the matrix's graph has a cycle)."""
@@ -318,6 +328,7 @@ class Factorization:
             segmented = scc.segmented_inverse(self.A64, found)
             self._iterative = segmented is not None and segmented.iterative
             if segmented is not None:
+                self._segmented = True
                 return segmented
         return _lu_inverse(self.A64)
 
@@ -335,6 +346,20 @@ class Factorization:
         from veribattery.checker.linalg import scc
 
         return "segmented" if isinstance(self._direct, scc.Segmented) else "lu"
+
+    def _reporting(self, inverse: _Inverse) -> _Inverse:
+        """*inverse*, telling the monitor how far each application is when someone
+        listens (else *inverse* itself: a short check pays nothing). SCC-wise solvers
+        report after each segment; a solve in one call (substitution, LU) before and
+        after, so that a long one shows its size."""
+        monitor = self._monitor
+        if monitor is None or not monitor.heard:
+            return inverse
+        if isinstance(inverse, TopologicalSolver):
+            return functools.partial(inverse.solve, progress=monitor)
+        if self._segmented and inverse is self._direct:
+            return functools.partial(cast("scc.Segmented", inverse), progress=monitor)
+        return functools.partial(_reported, inverse, monitor, self._n)
 
     def _inverse(self) -> _Inverse | None:
         if not self._direct_tried:
@@ -358,6 +383,14 @@ def _topological_inverse(A64: sp.csr_matrix) -> TopologicalSolver | None:
         return TopologicalSolver(A64, component)
     except (CheckError, MemoryError):
         return None
+
+
+def _reported(inverse: _Inverse, monitor: SolveMonitor, n: int, b: FloatArray) -> FloatArray:
+    """``inverse(b)`` of a system of *n* states, reported to *monitor* before and after."""
+    monitor(0, n)
+    x = inverse(b)
+    monitor(n, n)
+    return x
 
 
 def _finite_solve(inverse: _Inverse, b: FloatArray) -> FloatArray | None:

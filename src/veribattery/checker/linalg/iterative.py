@@ -7,6 +7,8 @@ restarted GMRES) is the fallback when no direct solver is available.
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -17,6 +19,7 @@ from scipy.sparse import linalg as spla
 from veribattery._types import FloatArray
 
 if TYPE_CHECKING:
+    from veribattery.checker.linalg.monitor import SolveListener
     from veribattery.checker.linalg.restriction import ExtArray
 
 
@@ -52,10 +55,14 @@ def _norm(v: npt.NDArray[np.floating]) -> float:
     return float(np.max(np.abs(v), initial=0.0))
 
 
-def solve_iterative(A: sp.csr_matrix, b: FloatArray, x0: FloatArray | None) -> FloatArray:
+def solve_iterative(A: sp.csr_matrix, b: FloatArray, x0: FloatArray | None,
+                    progress: SolveListener | None = None) -> FloatArray:
     """BiCGSTAB, then restarted GMRES if BiCGSTAB breaks down; Jacobi-preconditioned.
 
     Both start from *x0* when it is finite (a rejected LU answer is still a good guess).
+
+    :param progress: told ``(iterations, cap, "iterations")`` after each iteration
+        (the callback reads no iterate: the iterations are the same with or without it).
     """
     x = x0 if x0 is not None and np.all(np.isfinite(x0)) else np.zeros_like(b)
     inverse_diagonal = 1.0 / A.diagonal()
@@ -64,12 +71,28 @@ def solve_iterative(A: sp.csr_matrix, b: FloatArray, x0: FloatArray | None) -> F
     # A breakdown shows up as overflow inside BiCGSTAB; the result is judged below
     # by the backward-error rule, so the floating-point warnings carry no news.
     with np.errstate(all="ignore"):
-        candidate, _ = spla.bicgstab(A, b, x0=x, maxiter=ITERATIVE_MAXITER, **options)
+        candidate, _ = spla.bicgstab(A, b, x0=x, maxiter=ITERATIVE_MAXITER,
+                                     callback=_counter(progress, ITERATIVE_MAXITER), **options)
     if np.all(np.isfinite(candidate)):
         x = candidate
     if backward_error(A, x, b.astype(np.longdouble)) > RESIDUAL_TOL:
         restart = min(A.shape[0], 60)
         # GMRES counts restart cycles, so the cap is in inner iterations as well.
+        # callback_type "pr_norm": a call per inner iteration, the cap still in cycles.
         x, _ = spla.gmres(A, b, x0=x, restart=restart,
-                          maxiter=max(1, ITERATIVE_MAXITER // restart), **options)
+                          maxiter=max(1, ITERATIVE_MAXITER // restart),
+                          callback=_counter(progress, ITERATIVE_MAXITER),
+                          callback_type="pr_norm", **options)
     return np.asarray(x, dtype=np.float64)
+
+
+def _counter(progress: SolveListener | None, cap: int) -> Callable[[object], None] | None:
+    """A scipy callback that tells *progress* the iterations so far (None: no callback)."""
+    if progress is None:
+        return None
+    done = itertools.count(1)
+
+    def told(_: object) -> None:
+        progress(next(done), cap, "iterations")
+
+    return told

@@ -50,6 +50,7 @@ from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
 
 from veribattery._types import FloatArray
+from veribattery.checker.linalg.topological import Progress
 
 #: Components up to this size are solved together with their neighbours in runs.
 BLOCK_LIMIT = 4_096
@@ -157,14 +158,18 @@ class Segmented:
     #: quick path's solve and the refined path's first step are then one solve.
     last: dict[bytes, FloatArray] = field(default_factory=dict)
 
-    def __call__(self, b: FloatArray) -> FloatArray:
+    def __call__(self, b: FloatArray, progress: Progress | None = None) -> FloatArray:
+        """``A^-1 b`` approximately.
+
+        :param progress: told the states solved so far after each segment.
+        """
         if not self.iterative:
-            return self._apply(b, KRYLOV_RTOL)
+            return self._apply(b, KRYLOV_RTOL, progress)
         key = hashlib.blake2b(np.ascontiguousarray(b, dtype=np.float64).data,
                               digest_size=20).digest()
         if key not in self.last:
             self.last.clear()
-            self.last[key] = self._apply(b, KRYLOV_RTOL)
+            self.last[key] = self._apply(b, KRYLOV_RTOL, progress)
         return self.last[key].copy()
 
     def margin(self, v: FloatArray) -> FloatArray:
@@ -179,13 +184,15 @@ class Segmented:
         lifted = np.maximum(v, MARGIN_FLOOR * float(np.max(v, initial=0.0)))
         return self._apply(lifted, MARGIN_RTOL)
 
-    def _apply(self, b: FloatArray, rtol: float) -> FloatArray:
+    def _apply(self, b: FloatArray, rtol: float, progress: Progress | None = None) -> FloatArray:
         order = self.order
         y = np.zeros(order.size, dtype=np.float64)
         permuted_b = np.asarray(b, dtype=np.float64)[order]
         for lo, hi, rows, solver in self.parts:
             rhs = np.ascontiguousarray(permuted_b[lo:hi] - rows @ y if lo else permuted_b[lo:hi])
             y[lo:hi] = solver.solve(rhs, rtol) if isinstance(solver, _Krylov) else solver(rhs)
+            if progress is not None:
+                progress(hi, order.size)
         x = np.empty_like(y)
         x[order] = y
         return x

@@ -35,17 +35,8 @@ from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 if TYPE_CHECKING:
     from veribattery.explore.build.successors import GroupSuccessors
 
-__all__ = [
-    "Expansion",
-    "Layer",
-    "assemble",
-    "build_dtmc",
-    "expand_frontier",
-    "explore",
-    "initial_states",
-    "memory_footprint",
-    "rewarded_actions",
-]
+__all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "expand_frontier", "explore",
+           "initial_states", "memory_footprint", "rewarded_actions"]
 
 #: Rows of the variables' domain enumerated at once when evaluating an ``init`` block.
 _INIT_CHUNK = 1 << 20
@@ -78,7 +69,7 @@ def explore(
     model: FlatModel,
     program: Program,
     progress: Callable[[int, int], None] | None = None,
-    guard: MemoryGuard | None = None,
+    guard: MemoryGuard | None = None, *, compact: bool = False,
 ) -> tuple[IntArray, IntArray, list[Layer]]:
     """Breadth-first search: the states in numbering order, the initial ones, the layers.
 
@@ -86,6 +77,7 @@ def explore(
 
     :param progress: called once per BFS layer with (states found so far, frontier size).
     :param guard: checked once per BFS layer (default: against the memory available).
+    :param compact: the states in the narrowest type of the ranges, else in int64.
     :raises ModelTooLarge: when the search would outgrow the memory available.
     """
     require_dtmc(model.model_type)
@@ -111,7 +103,7 @@ def explore(
             progress(store.count, high - low)
         guard.layer_done(store.count, high, high - low, transitions)
         low = high
-    return store.states, initial, layers.done(store.count)
+    return store.compact_states if compact else store.states, initial, layers.done(store.count)
 
 
 def memory_footprint(program: Program) -> Footprint:
@@ -443,7 +435,9 @@ def _over_states(
 def _chunked(evaluate: CompiledExpr, states: IntArray, dtype: Any) -> np.ndarray:
     out = np.empty(states.shape[0], dtype=dtype)
     for start in range(0, states.shape[0], _EVAL_CHUNK):
-        out[start : start + _EVAL_CHUNK] = evaluate(states[start : start + _EVAL_CHUNK])
+        # int64, as compiled expressions take (a no-op unless the table is compact)
+        block = np.asarray(states[start : start + _EVAL_CHUNK], dtype=np.int64)
+        out[start : start + _EVAL_CHUNK] = evaluate(block)
     return out
 
 

@@ -17,12 +17,14 @@ keys are deduplicated and numbered by claiming their empty slots (no sort).
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from veribattery._types import BoolArray, IntArray
 
-__all__ = ["StateStore", "radix_words"]
+__all__ = ["StateStore", "narrowest_type", "radix_words"]
 
 _WORD_LIMIT = 1 << 62  # largest product of ranges packed into one signed word
 _QUADRUPLE_BELOW = 1 << 20  # slots of a table that grows fourfold, not twofold
@@ -34,6 +36,8 @@ _ONE = np.asarray(1, dtype=np.int64)
 #: Slots read at once by a key whose first slot holds another key.
 _WINDOW = 4
 _STEPS = np.arange(1, _WINDOW + 1, dtype=np.int64)
+#: States decoded at once into a narrow table (bounds the int64 rows of a block).
+_DECODE_BLOCK = 1 << 16
 #: Added to a batch position to mark a slot claimed during numbering (negative).
 _MARK = np.asarray(np.iinfo(np.int32).min, dtype=np.int32)
 
@@ -86,7 +90,12 @@ class StateStore:
         # State index + 1 (0 = empty); int32 halves the table, the largest array here.
         self._resize(1 << 14)
         self.count = 0
-        self._recent: list[IntArray] = []  # rows of states recent_start.. in order
+        # Rows of states recent_start.. in order (the next frontier, and what is left of
+        # the current one), in the narrowest type of the ranges: int64 rows of a model of
+        # 32 variables take 256 bytes a state, two frontiers of crowds 5/20 220 MB.
+        top = self._lows + self._sizes - 1
+        self._row_type = narrowest_type(int(self._lows.min(initial=0)), int(top.max(initial=0)))
+        self._recent: list[npt.NDArray[np.signedinteger[Any]]] = []
         self._recent_start = 0
 
     @property
@@ -94,8 +103,19 @@ class StateStore:
         """The known states, one row each, in numbering order (decoded: a new array)."""
         return self._decode(0, self.count)
 
+    @property
+    def compact_states(self) -> npt.NDArray[np.signedinteger[Any]]:
+        """:attr:`states` in the narrowest integer type (int8, int16, int32, else int64)
+        that holds every variable's declared range, decoded a block at a time: the
+        int64 table (8 bytes per state and variable) never exists at once."""
+        table = np.empty((self.count, self._lows.size), dtype=self._row_type)
+        for low in range(0, self.count, _DECODE_BLOCK):
+            high = min(self.count, low + _DECODE_BLOCK)
+            table[low:high] = self._decode(low, high)
+        return table
+
     def rows(self, low: int, high: int) -> IntArray:
-        """States ``low..high-1`` as rows of variable values.
+        """States ``low..high-1`` as rows of variable values (int64, a new array).
 
         Rows added since an earlier call are served as added (and forgotten once
         the search has moved past them); others are decoded from their keys.
@@ -105,7 +125,7 @@ class StateStore:
             rows = self._recent[0] if len(self._recent) == 1 else np.concatenate(self._recent)
             self._recent = [rows]
             if high <= self._recent_start + rows.shape[0]:
-                return rows[: high - low]
+                return rows[: high - low].astype(np.int64)
         return self._decode(low, high)
 
     def _forget_before(self, low: int) -> None:
@@ -247,7 +267,7 @@ class StateStore:
         self._keys[self.count + 1 : end + 1] = keys
         if not self._recent:
             self._recent_start = self.count
-        self._recent.append(rows)
+        self._recent.append(rows.astype(self._row_type))
         self.count = end
 
     def _reserve_table(self) -> bool:
@@ -319,6 +339,15 @@ class StateStore:
             placed = self._table[targets] == index[active] + 1
             active = active[~placed]
             slots[active] = (slots[active] + 1) & self._mask
+
+
+def narrowest_type(low: int, high: int) -> type[np.signedinteger[Any]]:
+    """The narrowest of int8, int16, int32 and int64 that holds *low* .. *high*."""
+    for kind in (np.int8, np.int16, np.int32):
+        limits = np.iinfo(kind)
+        if limits.min <= low and high <= limits.max:
+            return kind
+    return np.int64
 
 
 def _grown(array: IntArray, capacity: int) -> IntArray:
