@@ -111,7 +111,7 @@ def test_prism_values(prop: str, expected: object, tmp_path: Path) -> None:
 @pytest.mark.parametrize(("prop", "message"), [
     ('P=? [ F "goal" ]', "P=? on an MDP has no single value"),
     ('R=? [ F s=3 ]', "R=? on an MDP has no single value"),
-    ('multi(Pmax=? [ F s=2 ], P>=0.5 [ F s=3 ])', "multi-objective"),
+    ('multi(Pmax=? [ F s=2 ], Pmax=? [ F s=3 ])', "Pareto queries"),
 ])
 def test_refused_with_one_line(prop: str, message: str, tmp_path: Path) -> None:
     model = tmp_path / "m.nm"
