@@ -30,7 +30,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.mdp.solve import Evaluation
-from veribattery.checker.mdp.system import ChoiceSystem, Objective
+from veribattery.checker.mdp.system import BellmanImage, ChoiceSystem, Objective
 
 __all__ = ["certified_values"]
 
@@ -72,14 +72,9 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
         (1 for probabilities, ``inf`` for rewards); 0 is the trivial lower bound.
     """
 
-    def lower_image(v: FloatArray) -> FloatArray:
-        return system.best(system.bound_images(v, known, offset, up=False), objective)
-
-    def upper_image(v: FloatArray) -> FloatArray:
-        return system.best(system.bound_images(v, known, offset, up=True), objective)
-
-    images = _Images(lower_image, upper_image, np.zeros(system.size),
-                     np.full(system.size, ceiling))
+    images = _Images(BellmanImage(system, known, offset, objective, up=False),
+                     BellmanImage(system, known, offset, objective, up=True),
+                     np.zeros(system.size), np.full(system.size, ceiling))
     x, lower, upper = images.floor, images.floor, images.top
     if approximation is not None:
         x = np.clip(approximation.values, 0.0, ceiling)

@@ -35,6 +35,7 @@ __all__ = [
     "prob0e",
     "prob1a",
     "prob1e",
+    "segments",
 ]
 
 
@@ -79,10 +80,10 @@ class ChoiceGraph:
 
     def choices_into(self, states: IntArray) -> IntArray:
         """The choices with a positive entry into any of *states* (with repeats)."""
-        return self.predecessors[_segments(self.predecessor_ptr, states)]
+        return self.predecessors[segments(self.predecessor_ptr, states)]
 
 
-def _segments(indptr: IntArray, rows: IntArray) -> IntArray:
+def segments(indptr: IntArray, rows: IntArray) -> IntArray:
     """Positions ``indptr[r]:indptr[r + 1]`` of every row *r* of *rows*, concatenated."""
     starts = indptr[rows]
     lengths = indptr[rows + 1] - starts
