@@ -51,6 +51,9 @@ REPAIR_ROUNDS = 4
 TIE = 2.0**-30
 #: ... or this many times the state's spread defect.
 TIE_SPREADS = 1024.0
+#: Policy-iteration rounds for the tied rows' margin: a margin short of their optimum
+#: is still a candidate (the test decides, and pushing mends small shortfalls).
+TIED_ROUNDS = 2
 
 Image = Callable[[FloatArray], FloatArray]
 
@@ -127,9 +130,9 @@ def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
     of a minimum) fails where a row ties with the strategy's but spreads its mass
     differently: ``P_b d`` can exceed ``d``. Here ``d`` is the largest expected sum of
     *spread* over the tied rows, ``d = max_b (s_b spread + P'_b d) / s_b`` -- a maximal
-    reward problem on them, solved by policy iteration from the final strategy -- so
-    that ``P_b d / s_b <= d - spread`` for every tied row. The rows further from the
-    optimum than :data:`TIE` keep their distance.
+    reward problem on them, approximated by a few rounds of policy iteration from the
+    final strategy -- so that ``P_b d / s_b <= d - spread`` for every tied row. The
+    rows further from the optimum than :data:`TIE` keep their distance.
     """
     rows = system.images(x, known, offset)
     best = system.best(rows, objective)[system.row_class]
@@ -143,7 +146,8 @@ def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
         return None
     start = (np.cumsum(tied) - 1)[approximation.rows]
     reward = np.asarray(system.leave[tied] * spread[sub.row_class], dtype=np.float64)
-    found = policy_iteration(sub, "max", np.zeros(sub.known_states.size), reward, start)
+    found = policy_iteration(sub, "max", np.zeros(sub.known_states.size), reward, start,
+                             rounds=TIED_ROUNDS)
     if found is None or not np.all(np.isfinite(found.values)):
         return None
     return np.maximum(found.values, spread)
