@@ -191,9 +191,10 @@ def forced_into(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray) -> Boo
         entering = np.unique(graph.choices_into(frontier))
         entering = entering[~hit[entering]]
         hit[entering] = True
-        owners = graph.owner[entering]
-        pending -= np.bincount(owners, minlength=graph.num_states)
-        candidates = np.unique(owners)
+        # Per level, work in the size of the level (a bincount over every state per
+        # level cost O(levels x states): most of Rmax's pre-pass on the mission MDP).
+        candidates, counts = np.unique(graph.owner[entering], return_counts=True)
+        pending[candidates] -= counts
         joining = (pending[candidates] == 0) & through[candidates] & ~inside[candidates]
         frontier = candidates[joining]
         inside[frontier] = True
