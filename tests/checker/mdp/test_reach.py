@@ -86,3 +86,20 @@ def test_ill_conditioned_small_system_is_solved_exactly() -> None:
     exact = exact_reach_probability(mdp, goal, objective="max").values[0]
     assert Fraction(result.lower[0]) <= Fraction(int(exact.numerator), int(exact.denominator))
     assert Fraction(int(exact.numerator), int(exact.denominator)) <= Fraction(result.upper[0])
+
+
+def test_pmax_certified_through_a_long_chain_of_ties() -> None:
+    # State i may gamble (0.3 to the goal, 0.7 to a sink) or pass to i + 1, whose value
+    # is the same 0.3: every state ties two rows that spread their mass differently.
+    # The strategy's margin covers only the gamble; the passing rows need the margin of
+    # the tied rows, else the upper certificate falls back to interval iteration, which
+    # cannot cross 3,000 states in its sweeps (too many for the exact fallback, too).
+    n = 3_000
+    goal, sink = n, n + 1
+    gamble = [(goal, 0.3), (sink, 0.7)]
+    states = [[gamble, [(i + 1, 1.0)]] for i in range(n - 1)] + [[gamble]]
+    mdp = mdp_from([*states, [[(goal, 1.0)]], [[(sink, 1.0)]]], labels={"goal": [goal]})
+    result = reach_probability(mdp, mdp.labels["goal"], objective="max")
+    assert result.bounds.precise_states().all()
+    assert np.all(result.lower[:n] <= 0.3) and np.all(result.upper[:n] >= 0.3)
+    assert result.values[:n] == pytest.approx(np.full(n, 0.3), rel=1e-12)

@@ -29,8 +29,8 @@ import numpy as np
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.mdp.solve import Evaluation
-from veribattery.checker.mdp.system import ChoiceSystem, Objective
+from veribattery.checker.mdp.solve import Evaluation, policy_iteration
+from veribattery.checker.mdp.system import BellmanImage, ChoiceSystem, Objective
 
 __all__ = ["certified_values"]
 
@@ -46,6 +46,14 @@ PUSH_ROUNDS = 32
 FACTORS = (2.0, 16.0, 1024.0)
 #: Rounds of resetting failed states to the trivial bound before a factor is given up.
 REPAIR_ROUNDS = 4
+#: Rows whose image of the approximation is this close to the best, relative, count as
+#: tied with it (:func:`_tied_margin`) ...
+TIE = 2.0**-30
+#: ... or this many times the state's spread defect.
+TIE_SPREADS = 1024.0
+#: Policy-iteration rounds for the tied rows' margin: a margin short of their optimum
+#: is still a candidate (the test decides, and pushing mends small shortfalls).
+TIED_ROUNDS = 2
 
 Image = Callable[[FloatArray], FloatArray]
 
@@ -72,59 +80,104 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
         (1 for probabilities, ``inf`` for rewards); 0 is the trivial lower bound.
     """
 
-    def lower_image(v: FloatArray) -> FloatArray:
-        return system.best(system.bound_images(v, known, offset, up=False), objective)
-
-    def upper_image(v: FloatArray) -> FloatArray:
-        return system.best(system.bound_images(v, known, offset, up=True), objective)
-
-    images = _Images(lower_image, upper_image, np.zeros(system.size),
-                     np.full(system.size, ceiling))
+    images = _Images(BellmanImage(system, known, offset, objective, up=False),
+                     BellmanImage(system, known, offset, objective, up=True),
+                     np.zeros(system.size), np.full(system.size, ceiling))
     x, lower, upper = images.floor, images.floor, images.top
     if approximation is not None:
         x = np.clip(approximation.values, 0.0, ceiling)
-        lower, upper = _candidates(x, _margin(x, approximation, images), images)
+        spread = _spread(x, images)
+        margin = None if spread is None else _margin(spread, approximation)
+
+        def wider() -> FloatArray | None:
+            assert spread is not None and approximation is not None
+            return _tied_margin(system, objective, known, offset, x, spread, approximation)
+
+        lower, upper = _candidates(x, margin, images, wider, every_row_up=objective == "max")
     if not Bounds.around(x, lower, upper).precise_states().all():
         lower, upper = _tightened(system, images, x, lower, upper)
     return Bounds.around(x, lower, upper)
 
 
-def _margin(x: FloatArray, approximation: Evaluation, images: _Images) -> FloatArray | None:
-    """The margin ``d`` around *x*, or None.
-
-    The enclosed defect ``d0 = |B(x) - x|`` is spread a little to every state (so
-    that ``d`` is a strict super-solution and the solver's noise cannot break it),
-    then pushed through the final strategy's system: ``d = (I - B_sigma)^-1 d0'``.
-    """
+def _spread(x: FloatArray, images: _Images) -> FloatArray | None:
+    """The enclosed defect ``d0 = |B(x) - x|`` spread a little to every state (so that a
+    margin made from it is a strict super-solution and the solver's noise cannot break
+    it), or None where it is not finite."""
     with np.errstate(invalid="ignore", over="ignore"):
         defect = np.maximum(np.maximum(images.upper(x) - x, x - images.lower(x)), 0.0)
         defect = _above(defect)
     if not np.all(np.isfinite(defect)):
         return None
-    spread = defect + (SPREAD * float(np.max(defect, initial=0.0))
-                       + 4.0 * UNIT_ROUNDOFF * np.abs(x))
+    return defect + (SPREAD * float(np.max(defect, initial=0.0))
+                     + 4.0 * UNIT_ROUNDOFF * np.abs(x))
+
+
+def _margin(spread: FloatArray, approximation: Evaluation) -> FloatArray | None:
+    """The margin ``d`` around *x*, or None: the *spread* defect pushed through the
+    final strategy's system, ``d = (I - B_sigma)^-1 d0'``."""
     margin = approximation.correct(spread)
     if not np.all(np.isfinite(margin)):
         return None
     return np.maximum(margin, spread)  # (also drops the solver's negative noise)
 
 
-def _candidates(x: FloatArray, margin: FloatArray | None, images: _Images
+def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                 offset: FloatArray | None, x: FloatArray, spread: FloatArray,
+                 approximation: Evaluation) -> FloatArray | None:
+    """A margin that also covers the rows tied with the optimum, or None.
+
+    The side of the test that reads every row (the upper side of a maximum, the lower
+    of a minimum) fails where a row ties with the strategy's but spreads its mass
+    differently: ``P_b d`` can exceed ``d``. Here ``d`` is the largest expected sum of
+    *spread* over the tied rows, ``d = max_b (s_b spread + P'_b d) / s_b`` -- a maximal
+    reward problem on them, approximated by a few rounds of policy iteration from the
+    final strategy -- so that ``P_b d / s_b <= d - spread`` for every tied row. The
+    rows further from the optimum than :data:`TIE` keep their distance.
+    """
+    rows = system.images(x, known, offset)
+    best = system.best(rows, objective)[system.row_class]
+    tolerance = TIE * np.abs(best) + TIE_SPREADS * spread[system.row_class]
+    with np.errstate(invalid="ignore"):
+        tied = (rows >= best - tolerance) if objective == "max" else (rows <= best + tolerance)
+    tied[approximation.rows] = True
+    try:
+        sub = system.restricted(tied)
+    except ValueError:
+        return None
+    start = (np.cumsum(tied) - 1)[approximation.rows]
+    reward = np.asarray(system.leave[tied] * spread[sub.row_class], dtype=np.float64)
+    found = policy_iteration(sub, "max", np.zeros(sub.known_states.size), reward, start,
+                             rounds=TIED_ROUNDS)
+    if found is None or not np.all(np.isfinite(found.values)):
+        return None
+    return np.maximum(found.values, spread)
+
+
+def _candidates(x: FloatArray, margin: FloatArray | None, images: _Images,
+                wider: Callable[[], FloatArray | None], *, every_row_up: bool
                 ) -> tuple[FloatArray, FloatArray]:
     """Certified bounds around *x*: for growing factors *c*, ``x +- (c d + slack)``,
-    pushed where it fails (:func:`_pushed`); failing that, the last factor with the
+    pushed where it fails (:func:`_pushed`); failing that, on the side that reads every
+    row (above for a maximum: *every_row_up*), the same with the margin of the tied
+    rows (*wider*, :func:`_tied_margin`); failing that, the last factor with the
     states that fail set to the trivial bounds."""
     if margin is None:
         return images.floor, images.top
-    return (_side(images.lower, x, margin, images, up=False),
-            _side(images.upper, x, margin, images, up=True))
+    return (_side(images.lower, x, margin, images, None if every_row_up else wider, up=False),
+            _side(images.upper, x, margin, images, wider if every_row_up else None, up=True))
 
 
 def _side(image: Image, x: FloatArray, margin: FloatArray, images: _Images,
-          *, up: bool) -> FloatArray:
+          wider: Callable[[], FloatArray | None] | None, *, up: bool) -> FloatArray:
     trivial = images.top if up else images.floor
     for factor in FACTORS:
         pushed = _pushed(image, _around(x, margin, factor, images, up=up), trivial, up=up)
+        if pushed is not None:
+            return pushed
+    tied = None if wider is None else wider()
+    for factor in FACTORS if tied is not None else ():
+        assert tied is not None
+        pushed = _pushed(image, _around(x, tied, factor, images, up=up), trivial, up=up)
         if pushed is not None:
             return pushed
     repaired = _repaired(image, _around(x, margin, FACTORS[-1], images, up=up), trivial, up=up)

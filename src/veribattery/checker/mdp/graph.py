@@ -35,6 +35,7 @@ __all__ = [
     "prob0e",
     "prob1a",
     "prob1e",
+    "segments",
 ]
 
 
@@ -79,10 +80,10 @@ class ChoiceGraph:
 
     def choices_into(self, states: IntArray) -> IntArray:
         """The choices with a positive entry into any of *states* (with repeats)."""
-        return self.predecessors[_segments(self.predecessor_ptr, states)]
+        return self.predecessors[segments(self.predecessor_ptr, states)]
 
 
-def _segments(indptr: IntArray, rows: IntArray) -> IntArray:
+def segments(indptr: IntArray, rows: IntArray) -> IntArray:
     """Positions ``indptr[r]:indptr[r + 1]`` of every row *r* of *rows*, concatenated."""
     starts = indptr[rows]
     lengths = indptr[rows + 1] - starts
@@ -110,8 +111,9 @@ def can_reach(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
               allowed: BoolArray | None = None) -> BoolArray:
     """States with a path to *seeds* whose states before the last lie in *through*.
 
-    One breadth-first search in C over the reversed graph, from a virtual root
-    linked to every seed. The seeds themselves are included.
+    One breadth-first search in C over the reversed graph (the stored predecessor
+    lists, already grouped by state: no sort), from a virtual root linked to every
+    seed. The seeds themselves are included.
 
     :param allowed: the choices the paths may use (None: all).
     """
@@ -119,16 +121,25 @@ def can_reach(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
     moves = through[graph.owner]
     if allowed is not None:
         moves &= allowed
-    sizes = np.diff(graph.successor_ptr)
-    sources = np.repeat(moves, sizes)
-    heads = graph.successors[sources]
-    tails = np.repeat(graph.owner, sizes)[sources]
+    keep = moves[graph.predecessors]
+    kept = np.concatenate([[0], np.cumsum(keep)])
     roots = np.flatnonzero(seeds)
-    rows = np.concatenate([heads, np.full(roots.size, n, dtype=np.int64)])
-    columns = np.concatenate([tails, roots])
-    backwards = sp.csr_matrix((np.ones(rows.size, dtype=np.int8), (rows, columns)),
-                              shape=(n + 1, n + 1))
-    order = csgraph.breadth_first_order(backwards, n, directed=True, return_predecessors=False)
+    indptr = np.concatenate([kept[graph.predecessor_ptr], [kept[-1] + roots.size]])
+    indices = np.concatenate([graph.owner[graph.predecessors[keep]], roots])
+    return _breadth_first(indptr, indices, n)
+
+
+def _breadth_first(indptr: IntArray, indices: IntArray, n: int) -> BoolArray:
+    """The states reached from a root ``n`` in the graph of CSR arrays *indptr* and
+    *indices* over ``n + 1`` nodes: one breadth-first search in C.
+
+    Made in the dtypes csgraph works in (float64 weights, int32 indices), so that it
+    copies nothing.
+    """
+    index = np.int32 if n < 2**31 - 1 else np.int64
+    graph = sp.csr_matrix((np.ones(indices.size), indices.astype(index), indptr.astype(index)),
+                          shape=(n + 1, n + 1))
+    order = csgraph.breadth_first_order(graph, n, directed=True, return_predecessors=False)
     reached = np.zeros(n + 1, dtype=bool)
     reached[order] = True
     return reached[:n]
@@ -180,9 +191,10 @@ def forced_into(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray) -> Boo
         entering = np.unique(graph.choices_into(frontier))
         entering = entering[~hit[entering]]
         hit[entering] = True
-        owners = graph.owner[entering]
-        pending -= np.bincount(owners, minlength=graph.num_states)
-        candidates = np.unique(owners)
+        # Per level, work in the size of the level (a bincount over every state per
+        # level cost O(levels x states): most of Rmax's pre-pass on the mission MDP).
+        candidates, counts = np.unique(graph.owner[entering], return_counts=True)
+        pending[candidates] -= counts
         joining = (pending[candidates] == 0) & through[candidates] & ~inside[candidates]
         frontier = candidates[joining]
         inside[frontier] = True
@@ -218,19 +230,61 @@ def prob1e(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
 
     The nested fixpoint: the candidate set *u* shrinks to the states that reach
     *target* using only choices that never leave *u*, until it stops changing.
+    Both *u* and the choices that move (owned by ``remain & !target & u``, every
+    successor in *u*) only shrink, so each round updates them from the states it
+    removed, and searches only the edges of the choices still moving.
 
     :param allowed: the choices the strategy may use (None: all).
     """
     through = remain & ~target
     candidate = np.ones(graph.num_states, dtype=bool)
+    staying = np.ones(graph.num_choices, dtype=bool) if allowed is None else allowed.copy()
+    edges = _ReversedEdges.of(graph)
+    roots = np.flatnonzero(target)
     while True:
-        staying = all_successors_in(graph, candidate)
-        if allowed is not None:
-            staying &= allowed
-        shrunk = can_reach(graph, through & candidate, target, staying)
+        edges = edges.kept(staying & (through & candidate)[graph.owner])
+        shrunk = edges.reaching(roots)
         if np.array_equal(shrunk, candidate):
             return candidate
+        staying[graph.choices_into(np.flatnonzero(candidate & ~shrunk))] = False
         candidate = shrunk
+
+
+@dataclass(frozen=True, slots=True)
+class _ReversedEdges:
+    """Edges ``successor -> owner`` of a set of choices, grouped by successor.
+
+    :param num_states: the number of states.
+    :param owner: the state owning each choice of the graph.
+    :param heads: per edge, the successor (nondecreasing).
+    :param choices: per edge, its choice.
+    """
+
+    num_states: int
+    owner: IntArray
+    heads: IntArray
+    choices: IntArray
+
+    @classmethod
+    def of(cls, graph: ChoiceGraph) -> _ReversedEdges:
+        """Every edge of *graph*."""
+        heads = np.repeat(np.arange(graph.num_states, dtype=np.int64),
+                          np.diff(graph.predecessor_ptr))
+        return cls(graph.num_states, graph.owner, heads, graph.predecessors)
+
+    def kept(self, moves: BoolArray) -> _ReversedEdges:
+        """The edges of the choices *moves*."""
+        keep = moves[self.choices]
+        return _ReversedEdges(self.num_states, self.owner, self.heads[keep],
+                              self.choices[keep])
+
+    def reaching(self, roots: IntArray) -> BoolArray:
+        """The states with a path along the edges to *roots* (the roots included)."""
+        n = self.num_states
+        counts = np.bincount(self.heads, minlength=n)
+        indptr = np.concatenate([[0], np.cumsum(counts), [self.heads.size + roots.size]])
+        indices = np.concatenate([self.owner[self.choices], roots])
+        return _breadth_first(indptr, indices, n)
 
 
 def almost_surely(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,

@@ -19,6 +19,7 @@ import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.certify import UNIT_ROUNDOFF
 from veribattery.checker.mdp.graph import attractor
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 
@@ -105,7 +106,8 @@ class _Residual:
 
 
 def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArray,
-                     offset: FloatArray | None, start: IntArray) -> Evaluation | None:
+                     offset: FloatArray | None, start: IntArray,
+                     rounds: int = POLICY_ROUNDS) -> Evaluation | None:
     """Policy iteration from the strategy *start* (rows per class).
 
     A class switches only where its best row beats the current one by more than
@@ -115,10 +117,11 @@ def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArr
     For minimising expected rewards *start* must reach the known states almost
     surely (a proper strategy); improvements keep that (Bertsekas & Tsitsiklis 1991).
 
+    :param rounds: improvement rounds before the last strategy is taken as it is.
     :return: the last strategy's evaluation, or None if even *start* is singular.
     """
     current = evaluate(system, start, known, offset)
-    for _ in range(POLICY_ROUNDS):
+    for _ in range(rounds):
         if current is None:
             return None
         following = _improved(system, objective, current, known, offset)
@@ -131,12 +134,22 @@ def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArr
         if objective == "min":
             gain = -gain
         noise = POLICY_TOLERANCE * np.maximum(np.abs(candidate.values), np.abs(current.values))
-        if np.any(gain < -noise):  # worse somewhere: rounding has taken over
-            return current
+        if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
+            return current  # worse somewhere: rounding has taken over
         current = candidate
         if not np.any(gain > noise):  # no real progress: a switch between near-ties
             return current
     return current
+
+
+def _noise_floor(candidate: Evaluation, current: Evaluation) -> float:
+    """The rounding noise of values near 0: one unit roundoff of the largest value. A
+    state of value 0 may come out as -3e-32 (a cancellation in the LU solve), which
+    is no loss next to values of order 1 -- taking it for one stopped the iteration
+    at its first strategy (the mission MDP's most recharges: 36.7 for 200)."""
+    scale = max(float(np.max(np.abs(candidate.values), initial=0.0)),
+                float(np.max(np.abs(current.values), initial=0.0)))
+    return UNIT_ROUNDOFF * scale
 
 
 def _improper(values: FloatArray) -> bool:

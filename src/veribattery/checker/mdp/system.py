@@ -27,9 +27,9 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.certify import enclose_product, product_error, step_down, step_up
-from veribattery.checker.mdp.graph import ChoiceGraph
+from veribattery.checker.mdp.graph import ChoiceGraph, segments
 
-__all__ = ["ChoiceSystem", "Objective", "equations", "quotient_classes"]
+__all__ = ["BellmanImage", "ChoiceSystem", "Objective", "equations", "quotient_classes"]
 
 #: Which player the values are optimal for.
 Objective = Literal["min", "max"]
@@ -98,7 +98,7 @@ class ChoiceSystem:
             return np.asarray(numerator / self.leave, dtype=np.float64)
 
     def bound_images(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,
-                     *, up: bool) -> FloatArray:
+                     *, up: bool, rows: IntArray | None = None) -> FloatArray:
         """Rigorous bounds of ``G_a(x)`` per row: from above if *up*, else from below.
 
         *x*, *known* and *offset* must be nonnegative (so is every term). The
@@ -107,23 +107,17 @@ class ChoiceSystem:
         a row that reads only zeros has the exact image 0 -- which lets exact zeros
         pass the certificate's tests. The quotient is divided by the other side of
         ``s_a``'s enclosure and stepped one float outward (and clamped at 0 below).
+
+        :param rows: only these rows, in this order (None: all); each row's bound is
+            the same float either way.
         """
         full = np.concatenate([x, known])
-        numerator = np.asarray(self.off @ full, dtype=np.float64)
-        with np.errstate(invalid="ignore"):
-            terms = np.asarray(self.pattern @ (full != 0).astype(np.float64), dtype=np.float64)
-        if offset is not None:
-            numerator = numerator + offset
-            terms = terms + (offset != 0)
-        error = product_error(numerator, terms, terms)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            if up:
-                high = numerator + error
-                quotient = np.where(high == 0, 0.0, step_up(step_up(high) / self.leave_lower))
-                return np.where(np.isnan(quotient), np.inf, quotient)
-            low = np.maximum(step_down(numerator - error), 0.0)
-            quotient = step_down(low / self.leave_upper)
-        return np.maximum(np.where(np.isnan(quotient), 0.0, quotient), 0.0)
+        if rows is None:
+            return _bounded_images(self.off, self.pattern, full, offset, self.leave_lower,
+                                   self.leave_upper, up=up)
+        return _bounded_images(self.off[rows], self.pattern[rows], full,
+                               None if offset is None else offset[rows],
+                               self.leave_lower[rows], self.leave_upper[rows], up=up)
 
     def restricted(self, keep: BoolArray) -> ChoiceSystem:
         """The same classes with only the rows *keep* (each class must keep one)."""
@@ -143,12 +137,109 @@ class ChoiceSystem:
         reduce = np.maximum if objective == "max" else np.minimum
         return np.asarray(reduce.reduceat(row_values, self.groups[:-1]), dtype=np.float64)
 
+    def best_of(self, row_values: FloatArray, classes: IntArray,
+                objective: Objective) -> FloatArray:
+        """:meth:`best` of the (sorted, distinct) *classes* only."""
+        reduce = np.maximum if objective == "max" else np.minimum
+        positions = segments(self.groups, classes)
+        starts = np.cumsum(self.groups[classes + 1] - self.groups[classes]) - (
+            self.groups[classes + 1] - self.groups[classes])
+        return np.asarray(reduce.reduceat(row_values[positions], starts), dtype=np.float64)
+
     def best_rows(self, row_values: FloatArray, objective: Objective) -> IntArray:
         """Per class, the first row attaining :meth:`best`."""
         best = self.best(row_values, objective)
         hits = row_values == best[self.row_class]
         rows = np.where(hits, np.arange(row_values.size), row_values.size)
         return np.asarray(np.minimum.reduceat(rows, self.groups[:-1]), dtype=np.int64)
+
+
+#: Share of the rows above which :class:`BellmanImage` recomputes every row at once.
+RECOMPUTE_ALL = 0.25
+
+
+class BellmanImage:
+    """One side of the rigorous Bellman image of a system, ``x -> best_a bound(G_a(x))``,
+    remembering its last argument: the next call recomputes only the rows that read an
+    entry that changed (the others' bounds would be the same floats), and the best of
+    only their classes. The certificate's rounds change few entries at a time.
+
+    :param up: upper bounds (else lower bounds) of the images.
+    """
+
+    def __init__(self, system: ChoiceSystem, known: FloatArray, offset: FloatArray | None,
+                 objective: Objective, *, up: bool) -> None:
+        self._system, self._known, self._offset = system, known, offset
+        self._objective, self._up = objective, up
+        self._readers: tuple[IntArray, IntArray] | None = None
+        self._last: tuple[FloatArray, FloatArray, FloatArray] | None = None
+
+    def __call__(self, x: FloatArray) -> FloatArray:
+        """The image of *x* (a new array)."""
+        if self._last is not None:
+            argument, rows_now, _ = self._last
+            changed = np.flatnonzero(x.view(np.int64) != argument.view(np.int64))
+            if changed.size <= RECOMPUTE_ALL * x.size:
+                rows = self._rows_reading(changed)
+                if rows.size <= RECOMPUTE_ALL * rows_now.size:
+                    return self._updated(x, rows)
+        row_images = self._system.bound_images(x, self._known, self._offset, up=self._up)
+        best = self._system.best(row_images, self._objective)
+        self._last = (x.copy(), row_images, best)
+        return best.copy()
+
+    def _updated(self, x: FloatArray, rows: IntArray) -> FloatArray:
+        """The image of *x* from the last one, *rows* recomputed."""
+        assert self._last is not None
+        system = self._system
+        row_images, best = self._last[1].copy(), self._last[2].copy()
+        if rows.size:
+            row_images[rows] = system.bound_images(x, self._known, self._offset, up=self._up,
+                                                   rows=rows)
+            owners = system.row_class[rows]  # nondecreasing: rows are sorted
+            classes = owners[np.concatenate([[True], owners[1:] != owners[:-1]])]
+            best[classes] = system.best_of(row_images, classes, self._objective)
+        self._last = (x.copy(), row_images, best)
+        return best.copy()
+
+    def _rows_reading(self, columns: IntArray) -> IntArray:
+        """The rows with an entry in any of the class *columns* (sorted, once each)."""
+        if self._readers is None:
+            inner = sp.csc_matrix(self._system.off[:, : self._system.size])
+            self._readers = (inner.indptr.astype(np.int64), inner.indices.astype(np.int64))
+        indptr, rows = self._readers
+        reading = np.zeros(self._system.off.shape[0], dtype=bool)
+        reading[rows[segments(indptr, columns)]] = True
+        return np.flatnonzero(reading)
+
+
+def _bounded_images(off: CsrMatrix, pattern: CsrMatrix, full: FloatArray,
+                    offset: FloatArray | None, leave_lower: FloatArray,
+                    leave_upper: FloatArray, *, up: bool) -> FloatArray:
+    """:meth:`ChoiceSystem.bound_images` of the rows *off* (*pattern* their ones,
+    *full* the classes' then the known states' values)."""
+    numerator = np.asarray(off @ full, dtype=np.float64)
+    with np.errstate(invalid="ignore"):
+        terms = np.asarray(pattern @ (full != 0).astype(np.float64), dtype=np.float64)
+    if offset is not None:
+        numerator = numerator + offset
+        terms = terms + (offset != 0)
+    # A row without a nonzero term has the exact image 0 (every formula below gives
+    # 0 there, through subnormal steps that cost ~10x): compute the others only.
+    live = np.flatnonzero(terms)
+    numerator = numerator[live]
+    error = product_error(numerator, terms[live], terms[live])
+    images = np.zeros(terms.size, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        if up:
+            high = numerator + error
+            quotient = np.where(high == 0, 0.0, step_up(step_up(high) / leave_lower[live]))
+            images[live] = np.where(np.isnan(quotient), np.inf, quotient)
+            return images
+        low = np.maximum(step_down(numerator - error), 0.0)
+        quotient = step_down(low / leave_upper[live])
+    images[live] = np.maximum(np.where(np.isnan(quotient), 0.0, quotient), 0.0)
+    return images
 
 
 def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
