@@ -7,7 +7,8 @@ import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from veribattery.checker import CheckResult
+from veribattery.checker import CheckResult, UndecidedResult
+from veribattery.checker.formula.intervals import Undecided
 from veribattery.checker.mdp import MDP, MdpRewards
 from veribattery.checker.mdp.formula import mdp_answer
 from veribattery.explore.build.mdp import BuiltMdp, build_mdp
@@ -52,8 +53,12 @@ def check_mdp_model(
     """Flatten the ``mdp`` *model*, build its MDP and check each property at the
     initial states, in floating point with certified bounds.
 
-    :raises CheckError: ``P=?``/``R=?`` (no single value on an MDP), an operator
-        outside the supported ones, or a bound the certified interval cannot decide.
+    A property whose bound the certified interval cannot decide is an
+    :class:`~veribattery.checker.UndecidedResult` (:func:`check_prism_file` settles it
+    in exact arithmetic where the model allows).
+
+    :raises CheckError: ``P=?``/``R=?`` (no single value on an MDP), or an operator
+        outside the supported ones.
     """
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):
@@ -65,11 +70,18 @@ def check_mdp_model(
     results = []
     with watch.stage("check"):
         for prop in resolved:
-            start = time.perf_counter()
-            answer = mdp_answer(mdp, prop.formula)
-            result = CheckResult.of_answer(prop, answer, time.perf_counter() - start)
-            results.append(result.without_states())
+            results.append(_checked(mdp, prop))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings)
+
+
+def _checked(mdp: MDP, prop: Property) -> CheckResult:
+    """*prop*'s answer, or an :class:`UndecidedResult` if its bound is undecided."""
+    start = time.perf_counter()
+    try:
+        answer = mdp_answer(mdp, prop.formula)
+    except Undecided as exc:
+        return UndecidedResult.of(prop, exc.message)
+    return CheckResult.of_answer(prop, answer, time.perf_counter() - start).without_states()
 
 
 def as_checker_mdp(built: BuiltMdp) -> MDP:

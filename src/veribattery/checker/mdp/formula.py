@@ -124,7 +124,7 @@ def _bounded(mdp: MDP, op: ProbOp | RewardOp) -> BoolArray:
     holds, undecided = numbers.compare(op.op, threshold)
     if undecided.any():
         state = int(np.flatnonzero(undecided)[0])
-        raise CheckError(
+        raise intervals.Undecided(
             f"precision not enough to decide {op.op} {threshold:g}: in {int(undecided.sum())} "
             f"state(s) the certified interval straddles the bound (state {state}: "
             f"[{numbers.lower[state]!r}, {numbers.upper[state]!r}])", op.span)
