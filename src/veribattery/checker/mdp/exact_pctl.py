@@ -42,6 +42,7 @@ from veribattery.lang.nodes import (
     Cumulative,
     Eventually,
     Expr,
+    Filter,
     Globally,
     Instantaneous,
     Ite,
@@ -161,8 +162,12 @@ def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
         case Ite(cond=cond, then=then, otherwise=otherwise):
             return np.where(state_set(model, cond), state_set(model, then),
                             state_set(model, otherwise))
-    raise CheckError("in exact arithmetic on an MDP, P and R operators may only be combined "
-                     "with ! & | => <=> and ?:", expr.span)
+        case Filter():
+            raise CheckError("filter(...) has no exact MDP kernel: check it without --exact",
+                             expr.span)
+    raise CheckError("in exact arithmetic on an MDP, P and R operators are queried "
+                     "(Pmax=? ...) or bounded and combined with ! & | => <=> ?: only",
+                     expr.span)
 
 
 def _bounded(model: ExactMdpModel, op: ProbOp | RewardOp) -> BoolArray:
