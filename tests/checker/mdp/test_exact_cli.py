@@ -120,8 +120,45 @@ def test_decided_bounds_leave_the_run_unchanged() -> None:
     assert run.results[0].value is True and run.warnings == ()
 
 
+@pytest.mark.parametrize(("prop", "exact"), [
+    ("filter(max, Pmax=? [ F s=2 ])", "1"),  # s=2 is there already
+    ("filter(min, Pmax=? [ F s=2 ], s>0)", "0"),  # s=1 stays
+    ("filter(sum, Pmax=? [ F s=2 ])", "11/6"),  # 5/6 + 0 + 1
+    ("filter(avg, Pmax=? [ F s=2 ])", "11/18"),
+    ("Pmax=? [ F s=2 {s=0} ]", "5/6"),
+    ("filter(first, Rmin=? [ C ])", "1/7"),
+    ("filter(max, Rmax=? [ F s=1 ])", "Infinity"),
+])
+def test_exact_mdp_filters(prop: str, exact: str, tmp_path: Path) -> None:
+    code, results = _json(CHOICE, tmp_path, "--exact", "--property", prop)
+    assert code == 0
+    assert results[0]["exact"] == exact
+
+
+def test_exact_mdp_boolean_filter_and_bool_variable(tmp_path: Path) -> None:
+    """A bool variable as a target, and filters over state sets (3 steps, reward 1 each)."""
+    model = """mdp
+module w
+  t : [0..3] init 0;
+  goal : bool init false;
+  [tick] t<3 & !goal -> (t'=t+1);
+  [reach] t=3 & !goal -> (goal'=true) & (t'=0);
+  [loop] goal -> true;
+endmodule
+rewards "r"
+  !goal : 1;
+endrewards
+"""
+    props = ("Rmin=? [ F goal ]", "filter(forall, Pmin>=1 [ F goal ])",
+             "filter(count, Pmax<1 [ G !goal ])")
+    code, results = _json(model, tmp_path, "--exact", *(a for p in props
+                                                         for a in ("--property", p)))
+    assert code == 0
+    assert [r.get("exact", r["value"]) for r in results] == ["4", True, 5]
+
+
 @pytest.mark.parametrize(("prop", "message"), [
-    ("filter(max, Pmax=? [ F s=1 ])", "filter(...) has no exact MDP kernel"),
+    ("Pmax=? [ F filter(forall, s>0) ]", "filter(...) is answered at the top"),
     ("Pmax=? [ F s=1 ] + 1", "P and R operators are queried"),
     ("P=? [ F s=1 ]", "P=? on an MDP has no single value"),
 ])

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 
 import numpy as np
@@ -23,6 +23,7 @@ from veribattery._types import BoolArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.exact import ExactCheckResult, ExactValues
 from veribattery.checker.exact.numeric import exact_literal
+from veribattery.checker.formula import filters
 from veribattery.checker.formula.leaves import CONNECTIVES, as_mask, has_operator, step_bound
 from veribattery.checker.mdp.exact import (
     exact_reach_probability,
@@ -89,6 +90,8 @@ def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
         multi-objective queries, numeric expressions over operators) or ``P=?``/``R=?``.
     """
     start = time.perf_counter()
+    if isinstance(prop.formula, Filter):
+        return _filtered(model, prop, prop.formula, start)
     result = exact_values(model, prop.formula)
     initial = model.mdp.initial
     if initial.size == 0:
@@ -108,6 +111,64 @@ def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
     return ExactCheckResult(
         prop, plain.values, plain.value, time.perf_counter() - start, plain.lower, upper,
         plain.precise, plain.bounds, spread, exact=exact, exact_values=result)
+
+
+def _filtered(model: ExactMdpModel, prop: Property, node: Filter,
+              start: float) -> ExactCheckResult:
+    """A top-level ``filter(op, operand, states)``: the float outcome of its enclosure
+    (:func:`~veribattery.checker.formula.filters.apply_filter`: listings, counts, booleans,
+    which are exact), and for a number the exact value it picks or sums."""
+    mdp = model.mdp
+    where = (np.ones(mdp.num_states, dtype=bool) if node.states is None
+             else state_set(model, node.states))
+    inner = exact_values(model, node.operand)
+    per_state = _enclosure(inner) if isinstance(inner, ExactValues) else inner
+    states = _states(mdp)
+    outcome = filters.apply_filter(node.op, per_state, where, states, mdp.variable_names,
+                                   node.span)
+    if outcome.value is None and node.op.startswith("arg"):  # the listed states, as a set
+        mask = np.asarray(outcome.values, dtype=bool)
+        plain = CheckResult.at_initial(prop, mask, mdp.initial, time.perf_counter() - start)
+        return ExactCheckResult(prop, plain.values, plain.value, plain.time_s,
+                                printed=outcome.printed)
+    if outcome.value is None:  # print, printall: the listing, and the operand's answer
+        answer = check_mdp_exact(model, replace(prop, formula=node.operand))
+        return replace(answer, property=prop, printed=outcome.printed)
+    plain = CheckResult.of_answer(prop, outcome, time.perf_counter() - start)
+    if not isinstance(inner, ExactValues) or node.op not in _EXACT_FILTERS:
+        return ExactCheckResult(prop, plain.values, plain.value, plain.time_s, plain.lower,
+                                plain.upper, plain.precise, plain.bounds, plain.value_range,
+                                plain.printed)
+    value, infinite = _filter_exact(node.op, inner, where, states)
+    return ExactCheckResult(
+        prop, plain.values, plain.value, plain.time_s, plain.lower, plain.upper,
+        plain.precise, plain.bounds, plain.value_range, plain.printed,
+        exact=None if infinite else _fraction(value), exact_values=inner)
+
+
+#: The filters whose number is picked or summed exactly (``range``: its lowest value).
+_EXACT_FILTERS = frozenset({"state", "first", "min", "max", "range", "sum", "avg"})
+
+
+def _filter_exact(op: str, inner: ExactValues, where: BoolArray,
+                  states: np.ndarray) -> tuple[mpq, bool]:
+    """The exact number of a numeric filter over *where*, and whether it is infinite."""
+    picked = np.flatnonzero(where)
+    if op in ("sum", "avg"):
+        if inner.infinite[picked].any():
+            return _ZERO, True
+        total = sum(inner.values[picked], _ZERO)
+        return (total if op == "sum" else total / picked.size), False
+    if op == "first":
+        order = filters.state_order(states)
+        picked = order[where[order]][:1]
+    ranked = sorted(picked, key=lambda s: (bool(inner.infinite[s]), inner.values[s]))
+    state = ranked[-1] if op == "max" else ranked[0]
+    return inner.values[state], bool(inner.infinite[state])
+
+
+def _states(mdp: MDP) -> np.ndarray:
+    return np.zeros((mdp.num_states, 0), dtype=np.int64) if mdp.states is None else mdp.states
 
 
 def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray:
@@ -151,7 +212,8 @@ def _opposite(objective: Objective) -> Objective:
 def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
     if not has_operator(expr):
-        return as_mask(np.asarray(mdp_values(model.mdp, expr)), expr)
+        leaf = mdp_values(model.mdp, expr)  # a bool variable's values come as 0/1 numbers
+        return as_mask(leaf.value if isinstance(leaf, Bounds) else leaf, expr)
     match expr:
         case ProbOp() | RewardOp():
             return _bounded(model, expr)
@@ -163,8 +225,8 @@ def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
             return np.where(state_set(model, cond), state_set(model, then),
                             state_set(model, otherwise))
         case Filter():
-            raise CheckError("filter(...) has no exact MDP kernel: check it without --exact",
-                             expr.span)
+            raise CheckError("in exact arithmetic on an MDP, filter(...) is answered at the "
+                             "top of a property only", expr.span)
     raise CheckError("in exact arithmetic on an MDP, P and R operators are queried "
                      "(Pmax=? ...) or bounded and combined with ! & | => <=> ?: only",
                      expr.span)
