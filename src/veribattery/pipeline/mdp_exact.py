@@ -36,7 +36,11 @@ def check_mdp_model_exact(
     :raises ModelError: for a probability or reward without an exact rational value.
     """
     from veribattery.checker.exact import exact_bounds  # gmpy2 only when asked
-    from veribattery.checker.mdp.exact_pctl import ExactMdpModel, check_mdp_exact
+    from veribattery.checker.mdp.exact_pctl import (
+        ExactMdpModel,
+        check_mdp_exact,
+        closed_numbers,
+    )
     from veribattery.explore.exact.mdp import build_exact_mdp
     from veribattery.explore.exact.rational import exact_constants
 
@@ -52,7 +56,9 @@ def check_mdp_model_exact(
     results = []
     with watch.stage("check"):
         for original, prop in zip(properties, resolved, strict=True):
-            checked = ExactMdpModel(mdp, exact, exact_bounds(original.formula, values))
+            written = closed_numbers(original.formula, values)
+            written.update(exact_bounds(original.formula, values))
+            checked = ExactMdpModel(mdp, exact, written)
             results.append(check_mdp_exact(checked, prop))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, exact.built.warnings)
 

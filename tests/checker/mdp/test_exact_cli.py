@@ -135,6 +135,25 @@ def test_exact_mdp_filters(prop: str, exact: str, tmp_path: Path) -> None:
     assert results[0]["exact"] == exact
 
 
+@pytest.mark.parametrize(("prop", "value"), [
+    ("1 - Pmax=? [ F s=1 ]", "2/3"),
+    ("Pmax=? [ F s=1 ] + Pmin=? [ F s=1 ]", "1/2"),
+    ("Pmax=? [ F s=1 ] / Pmin=? [ F s>0 ]", "1/3"),  # Pmin(F s>0) = 1 in every state
+    ("1/3 < Pmax=? [ F s=1 ]", False),  # 1/3 as written, not the double below it
+    ("Pmax=? [ F s=1 ] * 3 = 1", True),
+])
+def test_exact_mdp_arithmetic_over_queries(prop: str, value: object, tmp_path: Path) -> None:
+    code, results = _json(CHOICE, tmp_path, "--exact", "--property", prop)
+    assert code == 0
+    assert results[0].get("exact", results[0]["value"]) == value
+
+
+def test_float_comparison_at_the_value_is_settled_exactly() -> None:
+    run = check_prism_file(CHOICE, selectors=("1/3 < Pmax=? [ F s=1 ]",
+                                              "Pmax=? [ F s=1 ] >= 1/3"))
+    assert [r.value for r in run.results] == [False, True]
+
+
 def test_exact_mdp_boolean_filter_and_bool_variable(tmp_path: Path) -> None:
     """A bool variable as a target, and filters over state sets (3 steps, reward 1 each)."""
     model = """mdp
@@ -159,7 +178,8 @@ endrewards
 
 @pytest.mark.parametrize(("prop", "message"), [
     ("Pmax=? [ F filter(forall, s>0) ]", "filter(...) is answered at the top"),
-    ("Pmax=? [ F s=1 ] + 1", "P and R operators are queried"),
+    ("Rmax=? [ F s=1 ] + 1", "an infinite expected reward has no exact arithmetic"),
+    ("Pmax=? [ F s=1 ] / Pmin=? [ F s=0 ]", "division by zero"),
     ("P=? [ F s=1 ]", "P=? on an MDP has no single value"),
 ])
 def test_exact_mdp_refusals_are_one_line(prop: str, message: str, tmp_path: Path) -> None:

@@ -6,15 +6,19 @@ probabilities and rewards are rationals (:class:`~veribattery.explore.exact.mdp.
 ``Rmin``/``Rmax`` of ``F``/``C`` by policy iteration in rationals with the final
 strategy's optimality verified exactly (:mod:`~veribattery.checker.mdp.exact`);
 ``X``, ``U<=k``, ``U>=k``, ``U[a,b]``, ``C<=k`` and ``I=k`` by *k* exact Bellman
-rounds. ``P~p``/``R~r`` compare the exact values with the exact bound.
+rounds (:mod:`~veribattery.checker.mdp.exact_steps`). ``P~p``/``R~r`` compare the
+exact values with the exact bound; ``+ - * /`` and comparisons over queries, and
+top-level filters, are computed exactly too.
 """
 
 from __future__ import annotations
 
+import operator
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from fractions import Fraction
+from typing import Any
 
 import numpy as np
 from gmpy2 import mpq
@@ -25,27 +29,29 @@ from veribattery.checker.exact import ExactCheckResult, ExactValues
 from veribattery.checker.exact.numeric import exact_literal
 from veribattery.checker.formula import filters
 from veribattery.checker.formula.leaves import CONNECTIVES, as_mask, has_operator, step_bound
-from veribattery.checker.mdp.exact import (
-    exact_reach_probability,
-    exact_reach_reward,
-    exact_total_reward,
-)
+from veribattery.checker.mdp.exact import exact_reach_reward, exact_total_reward
+from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
 from veribattery.checker.mdp.formula import mdp_values
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.rational import ObjectArray
 from veribattery.checker.mdp.system import Objective
 from veribattery.checker.result import CheckResult
-from veribattery.errors import CheckError, Span
+from veribattery.errors import CheckError, Span, VeribatteryError
 from veribattery.explore.exact.mdp import ExactMdp, ExactMdpRewards
+from veribattery.explore.exact.rational import ExactScalar, evaluate_rational
+from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,
     Binary,
     Cumulative,
+    DoubleLit,
     Eventually,
     Expr,
     Filter,
     Globally,
+    Ident,
     Instantaneous,
+    IntLit,
     Ite,
     Next,
     PathFormula,
@@ -62,7 +68,7 @@ from veribattery.lang.nodes import (
     WeakUntil,
 )
 
-__all__ = ["ExactMdpModel", "check_mdp_exact"]
+__all__ = ["ExactMdpModel", "check_mdp_exact", "closed_numbers"]
 
 _ZERO = mpq(0)
 _ONE = mpq(1)
@@ -74,7 +80,8 @@ class ExactMdpModel:
 
     :param mdp: the MDP (structure, labels, states) as the float engine reads it.
     :param exact: its probabilities and rewards as rationals (same entry order).
-    :param bounds: the exact value of each ``P~p``/``R~r`` bound, by its span.
+    :param bounds: the exact value of each ``P~p``/``R~r`` bound and closed number, by
+        its span (:func:`~veribattery.checker.exact.exact_bounds`, :func:`closed_numbers`).
     """
 
     mdp: MDP
@@ -180,6 +187,8 @@ def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray
         case RewardOp(op="=?"):
             return path_rewards(model, formula, _direction(formula))
     if has_operator(formula):
+        if _is_arithmetic(formula):
+            return numbers(model, formula)
         return state_set(model, formula)
     leaf = mdp_values(model.mdp, formula)
     if isinstance(leaf, Bounds):
@@ -224,6 +233,11 @@ def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
         case Ite(cond=cond, then=then, otherwise=otherwise):
             return np.where(state_set(model, cond), state_set(model, then),
                             state_set(model, otherwise))
+        case Binary(op=op, left=left, right=right) if op in _COMPARISONS:
+            a, b = numbers(model, left), numbers(model, right)
+            _finite(a, expr.span)
+            _finite(b, expr.span)
+            return np.asarray(_COMPARISONS[op](a.values, b.values), dtype=bool)
         case Filter():
             raise CheckError("in exact arithmetic on an MDP, filter(...) is answered at the "
                              "top of a property only", expr.span)
@@ -248,6 +262,94 @@ def _bounded(model: ExactMdpModel, op: ProbOp | RewardOp) -> BoolArray:
 
 
 # ---------------------------------------------------------------------------
+# Arithmetic over operators
+# ---------------------------------------------------------------------------
+
+_ARITHMETIC: dict[str, Callable[[Any, Any], Any]] = {
+    "+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv}
+_COMPARISONS: dict[str, Callable[[Any, Any], Any]] = {
+    **BOUND_RELATIONS, "=": operator.eq, "!=": operator.ne}
+
+
+def _is_arithmetic(expr: Expr) -> bool:
+    return (isinstance(expr, Binary) and expr.op in _ARITHMETIC) or (
+        isinstance(expr, Unary) and expr.op == "-")
+
+
+def numbers(model: ExactMdpModel, expr: Expr) -> ExactValues:
+    """A numeric expression over ``Pmin=?``/``Rmax=?``... queries, per state, exactly
+    (``1 - Pmax=? [ F err ]``); infinite operands have no exact arithmetic here."""
+    match expr:
+        case ProbOp(op="=?") | RewardOp(op="=?"):
+            result = exact_values(model, expr)
+            assert isinstance(result, ExactValues)
+            return result
+        case Unary(op="-", operand=operand):
+            inner = _finite(numbers(model, operand), expr.span)
+            return ExactValues.finite(np.asarray(-inner.values, dtype=object))
+        case Binary(op=op, left=left, right=right) if op in _ARITHMETIC:
+            a = _finite(numbers(model, left), expr.span)
+            b = _finite(numbers(model, right), expr.span)
+            if op == "/" and (b.values == _ZERO).any():
+                raise CheckError("division by zero in exact arithmetic", expr.span)
+            return ExactValues.finite(np.asarray(_ARITHMETIC[op](a.values, b.values),
+                                                 dtype=object))
+    if has_operator(expr):
+        raise CheckError("in exact arithmetic on an MDP, this operator has no exact value "
+                         "(+ - * / and comparisons over P and R queries have)", expr.span)
+    leaf = mdp_values(model.mdp, expr)
+    values = leaf.value if isinstance(leaf, Bounds) else None
+    if values is None or not np.all(np.isfinite(values)):
+        raise CheckError("expected a number", expr.span)
+    if not expr_is_closed(expr) and not np.all(values == np.round(values)):
+        raise CheckError("in exact arithmetic on an MDP, a state expression must be an "
+                         "integer or a constant", expr.span)
+    if expr_is_closed(expr):
+        exact = model.bounds.get(expr.span) if expr.span is not None else None
+        exact = evaluate_rational(expr, {}, {}, 1)[0] if exact is None else exact
+        return ExactValues.finite(np.full(mdp_size(model), exact, dtype=object))
+    return ExactValues.finite(np.asarray(_TO_MPQ(values.astype(np.int64)), dtype=object))
+
+
+def closed_numbers(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Span, mpq]:
+    """The exact value of each closed numeric expression of *formula* (before resolution),
+    by span: resolving folds ``1/3`` into the double nearest it; evaluated here, it stays
+    1/3. The outermost expression starting at a position wins."""
+    found: dict[Span, mpq] = {}
+    for node in walk(formula):
+        span = getattr(node, "span", None)
+        if span is None or span in found or has_operator(node) or not _numeric_node(node):
+            continue
+        try:
+            value = evaluate_rational(node, constants, {}, 1)[0]
+        except VeribatteryError:
+            continue  # reads a variable, or has no exact value: left to the float leaf
+        if not isinstance(value, bool | np.bool_):
+            found[span] = value
+    return found
+
+
+def _numeric_node(node: object) -> bool:
+    return isinstance(node, IntLit | DoubleLit | Ident | Binary | Unary) and not (
+        isinstance(node, Binary) and node.op not in _ARITHMETIC)
+
+
+def _finite(values: ExactValues, span: Span | None) -> ExactValues:
+    if values.infinite.any():
+        raise CheckError("an infinite expected reward has no exact arithmetic here", span)
+    return values
+
+
+def expr_is_closed(expr: Expr) -> bool:
+    """Whether *expr* reads no variable (constants are substituted before checking)."""
+    return not any(isinstance(node, Ident) for node in walk(expr))
+
+
+def mdp_size(model: ExactMdpModel) -> int:
+    return model.mdp.num_states
+
+
+# ---------------------------------------------------------------------------
 # Path formulas
 # ---------------------------------------------------------------------------
 
@@ -256,8 +358,8 @@ def path_probs(model: ExactMdpModel, path: PathFormula, objective: Objective) ->
     """Per-state exact ``Pmin``/``Pmax`` of *path*."""
     match path:
         case Next(operand=operand):
-            target = _indicator(state_set(model, operand))
-            return _bellman(model, target, objective)
+            return exact_next(model.mdp, model.exact.probabilities,
+                              state_set(model, operand), objective)
         case Eventually(operand=operand, bound=bound):
             return _until(model, None, state_set(model, operand), bound, objective)
         case Until(left=left, right=right, bound=bound):
@@ -278,34 +380,7 @@ def path_probs(model: ExactMdpModel, path: PathFormula, objective: Objective) ->
 
 def _until(model: ExactMdpModel, remain: BoolArray | None, target: BoolArray,
            bound: TimeBound | TimeInterval | None, objective: Objective) -> ObjectArray:
-    """``remain U target`` within its step interval."""
-    n = model.mdp.num_states
-    remain = np.ones(n, dtype=bool) if remain is None else remain
-    if bound is None:
-        return _reach(model, remain, target, objective)
-    if isinstance(bound, TimeInterval):
-        low, high = step_bound(bound.low), step_bound(bound.high)
-    elif bound.op in ("<=", "<"):
-        low, high = 0, step_bound(bound.value) - (bound.op == "<")
-    elif bound.op == "=":
-        low = high = step_bound(bound.value)
-    else:  # >= k, > k: remain for k steps, then remain U target
-        steps = step_bound(bound.value) + (bound.op == ">")
-        later = _reach(model, remain, target, objective)
-        return _rounds(model, later, remain, _zeros(n), objective, steps)
-    if high < low:
-        return _zeros(n)
-    start = _indicator(target)
-    window = _rounds(model, start, remain & ~target, start, objective, high - low)
-    return _rounds(model, window, remain, _zeros(n), objective, low)
-
-
-def _reach(model: ExactMdpModel, remain: BoolArray, target: BoolArray,
-           objective: Objective) -> ObjectArray:
-    """Unbounded ``remain U target`` by exact policy iteration."""
-    found = exact_reach_probability(model.mdp, target, objective=objective, remain=remain,
-                                    probabilities=model.exact.probabilities)
-    return found.values
+    return exact_until(model.mdp, model.exact.probabilities, remain, target, bound, objective)
 
 
 def _complement(values: ObjectArray) -> ObjectArray:
@@ -334,13 +409,13 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
                                        probabilities=probabilities)
             return ExactValues(found.values, found.infinite)
         case Cumulative(bound=bound):
-            zeros = _zeros(mdp.num_states)
-            return ExactValues.finite(_rounds(model, zeros, everywhere, zeros, objective,
-                                              step_bound(bound), per_choice))
+            zeros = np.full(mdp.num_states, _ZERO, dtype=object)
+            return ExactValues.finite(exact_rounds(mdp, probabilities, zeros, everywhere, zeros,
+                                                   objective, step_bound(bound), per_choice))
         case Instantaneous(time=time_):
             state = np.asarray(structure.state, dtype=object)
-            return ExactValues.finite(_rounds(model, state, everywhere, state, objective,
-                                              step_bound(time_)))
+            return ExactValues.finite(exact_rounds(mdp, probabilities, state, everywhere,
+                                                   state, objective, step_bound(time_)))
     raise CheckError("this reward formula has no exact MDP kernel (F, C, C<=k, I=k have)",
                      op.path.span)
 
@@ -350,42 +425,6 @@ def _structure(model: ExactMdpModel, op: RewardOp) -> ExactMdpRewards:
         return model.exact.reward(op.reward)
     except (KeyError, IndexError):
         raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
-
-
-# ---------------------------------------------------------------------------
-# Exact Bellman rounds
-# ---------------------------------------------------------------------------
-
-
-def _rounds(model: ExactMdpModel, start: ObjectArray, moving: BoolArray, fixed: ObjectArray,
-            objective: Objective, steps: int, offset: ObjectArray | None = None
-            ) -> ObjectArray:
-    """*steps* rounds of ``x(s) = opt_a (o_a + P_a x)`` on the *moving* states, the
-    others held at *fixed*."""
-    x = start
-    for _ in range(steps):
-        x = np.where(moving, _bellman(model, x, objective, offset), fixed)
-    return np.asarray(x, dtype=object)
-
-
-def _bellman(model: ExactMdpModel, x: ObjectArray, objective: Objective,
-             offset: ObjectArray | None = None) -> ObjectArray:
-    """One exact Bellman image: per state, the best choice's ``o_a + P_a x``."""
-    P = model.mdp.transitions
-    products = model.exact.probabilities * x[P.indices]
-    rows = np.add.reduceat(products, P.indptr[:-1])  # every choice has an entry
-    if offset is not None:
-        rows = rows + offset
-    reduce = np.maximum if objective == "max" else np.minimum
-    return np.asarray(reduce.reduceat(rows, model.mdp.row_groups[:-1]), dtype=object)
-
-
-def _indicator(mask: BoolArray) -> ObjectArray:
-    return np.asarray(np.where(mask, _ONE, _ZERO), dtype=object)
-
-
-def _zeros(n: int) -> ObjectArray:
-    return np.full(n, _ZERO, dtype=object)
 
 
 # ---------------------------------------------------------------------------
