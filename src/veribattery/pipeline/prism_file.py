@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
@@ -125,7 +126,8 @@ def check_prism_file(
         run = check_model(model, chosen, props_file=props, constants=constants,
                           progress=progress, stopwatch=watch,
                           options=CheckOptions(keep, report_undecided=True))
-        run = settle_undecided(run, chosen, _exact_dtmc_results, model, props, constants)
+        exact_check = functools.partial(_exact_dtmc_results, keep=keep)
+        run = settle_undecided(run, chosen, exact_check, model, props, constants)
     return replace(run, warnings=skipped + run.warnings) if skipped else run
 
 
@@ -148,10 +150,10 @@ def _check_mdp(
 
 def _exact_dtmc_results(
     model: Model, properties: Sequence[Property], props: PropertiesFile | None,
-    constants: Mapping[str, Value | str] | None,
+    constants: Mapping[str, Value | str] | None, *, keep: Keep,
 ) -> tuple[CheckResult, ...]:
     return check_model_exact(model, properties, props_file=props, constants=constants,
-                             options=CheckOptions("answers")).results
+                             options=CheckOptions(keep)).results
 
 
 def _exact_mdp_results(

@@ -141,6 +141,8 @@ def test_exact_mdp_filters(prop: str, exact: str, tmp_path: Path) -> None:
     ("Pmax=? [ F s=1 ] / Pmin=? [ F s>0 ]", "1/3"),  # Pmin(F s>0) = 1 in every state
     ("1/3 < Pmax=? [ F s=1 ]", False),  # 1/3 as written, not the double below it
     ("Pmax=? [ F s=1 ] * 3 = 1", True),
+    ("3.14", "157/50"),  # a literal as written
+    ("filter(sum, s/2)", "3/2"),  # 0 + 1/2 + 1
 ])
 def test_exact_mdp_arithmetic_over_queries(prop: str, value: object, tmp_path: Path) -> None:
     code, results = _json(CHOICE, tmp_path, "--exact", "--property", prop)

@@ -191,10 +191,7 @@ def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray
             return numbers(model, formula)
         return state_set(model, formula)
     leaf = mdp_values(model.mdp, formula)
-    if isinstance(leaf, Bounds):
-        raise CheckError("--exact checks P and R operators and boolean formulas; "
-                         "this is a numeric state expression", formula.span)
-    return leaf
+    return numbers(model, formula) if isinstance(leaf, Bounds) else leaf
 
 
 def _direction(op: ProbOp | RewardOp) -> Objective:
