@@ -190,3 +190,18 @@ def test_exact_mdp_refusals_are_one_line(prop: str, message: str, tmp_path: Path
     result = CliRunner().invoke(cli, ["prism", str(path), "--exact", "--property", prop])
     assert result.exit_code == 2
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+def test_several_initial_states_give_the_lowest_and_the_range(tmp_path: Path) -> None:
+    """From s=0 Pmax(F s=1) is 1/3, from s=2 it is 0; Rmin(F s=2) is 0 from s=2 and
+    infinite from s=0 (both choices may end in s=1): the lowest, and the range."""
+    model = CHOICE.replace("s : [0..2] init 0;", "s : [0..2];").replace(
+        "endmodule", "endmodule\ninit s=0 | s=2 endinit")
+    props = ("Pmax=? [ F s=1 ]", "Rmin=? [ F s=2 ]")
+    args = [a for p in props for a in ("--property", p)]
+    code, exact = _json(model, tmp_path, "--exact", *args)
+    assert code == 0
+    assert [(r["exact"], r["range"]) for r in exact] == [
+        ("0", [0.0, 1 / 3]), ("0", [0.0, "Infinity"])]
+    code, floats = _json(model, tmp_path, *args)
+    assert [r["range"] for r in floats] == [r["range"] for r in exact]

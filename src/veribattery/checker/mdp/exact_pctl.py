@@ -107,7 +107,7 @@ def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
         plain = CheckResult.at_initial(prop, result, initial, 0.0)
         return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
     enclosure = _enclosure(result)
-    lowest = min(initial, key=lambda s: (not result.infinite[s], result.values[s]))
+    lowest = min(initial, key=lambda s: (bool(result.infinite[s]), result.values[s]))
     highest = max(initial, key=lambda s: (bool(result.infinite[s]), result.values[s]))
     plain = CheckResult.at_initial(prop, enclosure, np.array([lowest]), 0.0)
     same = (result.infinite[lowest] == result.infinite[highest]
