@@ -1,8 +1,7 @@
 """The PRISM MDP peer suite (``prism-mdp``) through the `veribattery prism` CLI contract.
 
-MDP support is partial (issue 22: no multi-objective queries, no co-safe reward
-paths yet), so this counts the entries that pass and holds that count at
-:data:`~tests.peer_manifests.MDP_PASSING` or above: it can only go up.
+Every entry passes: this counts the entries that pass and holds that count at
+:data:`~tests.peer_manifests.MDP_PASSING` (all 163) or above.
 """
 
 from __future__ import annotations

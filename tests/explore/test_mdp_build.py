@@ -121,10 +121,13 @@ def test_refused_with_one_line(prop: str, message: str, tmp_path: Path) -> None:
     assert message in result.output
 
 
-def test_exact_is_refused_for_mdps(tmp_path: Path) -> None:
+def test_exact_checks_mdps(tmp_path: Path) -> None:
+    """Repeating [a] reaches s=2 surely, after 2 [a] steps on average; [b] never does."""
     model = tmp_path / "m.nm"
     model.write_text(CHOICE)
-    result = CliRunner().invoke(cli, ["prism", str(model), "--property", 'Pmax=? [ F s=2 ]',
-                                      "--exact"])
-    assert result.exit_code == 2
-    assert "--exact is not supported for MDPs" in result.output
+    props = ['Pmax=? [ F s=2 ]', 'Pmin=? [ F s=2 ]', 'Rmin=? [ F s=2 ]', 'Rmax=? [ F s=2 ]']
+    args = [a for p in props for a in ("--property", p)]
+    result = CliRunner().invoke(cli, ["prism", str(model), *args, "--exact", "--json"])
+    assert result.exit_code == 0, result.output
+    exact = [r["exact"] for r in json.loads(result.stdout)["results"]]
+    assert exact == ["1", "0", "2", "Infinity"]

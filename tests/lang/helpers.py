@@ -12,8 +12,7 @@ from tests.peer_manifests import manifest, missing
 PEER = PEER_TESTS
 SUITES = ("prism", "prism-examples")
 #: The suites of DTMC models, whose every file the front end must read. ``prism-mdp``
-#: (Markov decision processes) is left out: its MDP support is partial (issue 22; no
-#: multi(...) yet), and tests/test_peer_mdp.py holds its pass count at a floor.
+#: (Markov decision processes) is tested end to end by tests/test_peer_mdp.py.
 DTMC_SUITES = ("prism", "prism-examples", "prism-extended")
 
 

@@ -127,3 +127,20 @@ class CheckResult:
     def __str__(self) -> str:
         label = self.property.name or self.property.text or "property"
         return f"{label}: {self.value}"
+
+
+@dataclass(frozen=True, slots=True)
+class UndecidedResult(CheckResult):
+    """A property whose bound neither the certified interval nor exact arithmetic
+    decided: its *value* is NaN, and *reason* says why it stays open.
+
+    :param reason: the certified interval that straddled the bound, and why exact
+        arithmetic could not settle it.
+    """
+
+    reason: str = ""
+
+    @classmethod
+    def of(cls, prop: Property, reason: str) -> UndecidedResult:
+        """The undecided answer of *prop*, with no per-state values."""
+        return cls(prop, np.zeros(0), float("nan"), 0.0, reason=reason)

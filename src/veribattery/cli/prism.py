@@ -134,8 +134,9 @@ def print_prism_csv(run: ModelCheckRun | MdpCheckRun) -> None:
     writer.writerow(["property", "name", "value", "lower", "upper", "exact"])
     for result in run.results:
         bounds = result_bounds(result) or ["", ""]
-        writer.writerow([result.property.text, result.property.name or "",
-                         _csv_value(result.value), *map(_csv_value, bounds),
+        value = UNDECIDED if _undecided(result) is not None else _csv_value(result.value)
+        writer.writerow([result.property.text, result.property.name or "", value,
+                         *map(_csv_value, bounds),
                          exact_text(result) or ""])
 
 
@@ -155,15 +156,19 @@ def prism_json(run: ModelCheckRun | MdpCheckRun) -> dict[str, object]:
 
 
 def _result_json(result: CheckResult) -> dict[str, object]:
-    """One result: property (and its name, if it has one), value, ``exact`` under
-    ``--exact``, for numbers the certified bounds and whether they meet the
-    precision (``"certified": false`` when the answer has no certificate, e.g.
-    ``multi(...)``), plus the range over several initial states and the states a
-    print/argmin/argmax filter listed."""
+    """One result: property (and its name, if it has one), value (null, with the reason
+    under ``undecided``, for a bound left undecided), ``exact`` under ``--exact``, for
+    numbers the certified bounds and whether they meet the precision
+    (``"certified": false`` when the answer has no certificate, e.g. ``multi(...)``),
+    plus the range over several initial states and the states a print/argmin/argmax
+    filter listed."""
     entry: dict[str, object] = {"property": result.property.text}
     if result.property.name is not None:
         entry["name"] = result.property.name
-    entry["value"] = property_value(result.value)
+    reason = _undecided(result)
+    entry["value"] = property_value(result.value) if reason is None else None
+    if reason is not None:
+        entry["undecided"] = reason
     exact = exact_text(result)
     if exact is not None:
         entry["exact"] = exact
@@ -180,9 +185,22 @@ def _result_json(result: CheckResult) -> dict[str, object]:
     return entry
 
 
+#: How a property is shown whose bound neither floats nor exact arithmetic decided.
+UNDECIDED = "undecided"
+
+
+def _undecided(result: CheckResult) -> str | None:
+    """Why *result* is undecided (an :class:`~veribattery.checker.UndecidedResult`), or None."""
+    from veribattery.checker import UndecidedResult  # loaded already: the run made it
+
+    return result.reason if isinstance(result, UndecidedResult) else None
+
+
 def _shown(result: CheckResult) -> str:
-    """The value as PRISM reports it: ``[low, high]`` for a range, else
+    """The value as PRISM reports it: ``[low, high]`` for a range, ``undecided``, else
     :func:`format_result` (``value ± error`` or ``p/q ≈ value``)."""
+    if _undecided(result) is not None:
+        return UNDECIDED
     if result.value_range is not None:
         low, high = result.value_range
         return f"[{format_value(low)}, {format_value(high)}]"

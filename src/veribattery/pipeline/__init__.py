@@ -18,7 +18,9 @@ generated mission model is checked by exactly the code that checks a user's own 
 Modules: :mod:`~veribattery.pipeline.run` (runs, options, the loop over properties),
 :mod:`~veribattery.pipeline.session` (float checks), :mod:`~veribattery.pipeline.exact`
 (exact checks), :mod:`~veribattery.pipeline.mdp` (MDPs),
-:mod:`~veribattery.pipeline.prism_file` (a user's file to results).
+:mod:`~veribattery.pipeline.mdp_exact` (MDPs in rationals),
+:mod:`~veribattery.pipeline.undecided` (bounds the float interval cannot decide, settled
+exactly), :mod:`~veribattery.pipeline.prism_file` (a user's file to results).
 """
 
 from veribattery.pipeline.exact import check_model_exact

@@ -3,14 +3,19 @@
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
-from veribattery.checker import CheckResult
+import numpy as np
+
+from veribattery.checker import CheckResult, UndecidedResult
+from veribattery.checker.formula.intervals import Undecided
 from veribattery.checker.mdp import MDP, MdpRewards, Strategy
 from veribattery.checker.mdp.formula import mdp_answer
 from veribattery.checker.mdp.witness import property_strategy
+from veribattery.errors import UndefinedResult
 from veribattery.explore.build.mdp import BuiltMdp, build_mdp
 from veribattery.lang import (
     FlatModel,
@@ -72,8 +77,12 @@ def check_mdp_model(
     """Flatten the ``mdp`` *model*, build its MDP and check each property at the
     initial states, in floating point with certified bounds.
 
-    :raises CheckError: ``P=?``/``R=?`` (no single value on an MDP), an operator
-        outside the supported ones, or a bound the certified interval cannot decide.
+    A property whose bound the certified interval cannot decide is an
+    :class:`~veribattery.checker.UndecidedResult` (:func:`check_prism_file` settles it
+    in exact arithmetic where the model allows).
+
+    :raises CheckError: ``P=?``/``R=?`` (no single value on an MDP), or an operator
+        outside the supported ones.
     """
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):
@@ -83,13 +92,25 @@ def check_mdp_model(
         built = build_mdp(flat, progress=progress)
         mdp = as_checker_mdp(built)
     results = []
+    warnings = list(built.warnings)
     with watch.stage("check"):
         for prop in resolved:
-            start = time.perf_counter()
-            answer = mdp_answer(mdp, prop.formula)
-            result = CheckResult.of_answer(prop, answer, time.perf_counter() - start)
-            results.append(result.without_states())
-    return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings, model=flat)
+            results.append(_checked(mdp, prop, warnings))
+    return MdpCheckRun(mdp, tuple(results), watch.seconds, tuple(warnings), model=flat)
+
+
+def _checked(mdp: MDP, prop: Property, warnings: list[str]) -> CheckResult:
+    """*prop*'s answer; an :class:`UndecidedResult` if its bound is undecided; NaN,
+    with a warning added to *warnings*, if it has no value (an infeasible ``multi``)."""
+    start = time.perf_counter()
+    try:
+        answer = mdp_answer(mdp, prop.formula)
+    except Undecided as exc:
+        return UndecidedResult.of(prop, exc.message)
+    except UndefinedResult as exc:
+        warnings.append(f"{prop.name or prop.text}: undefined (NaN): {exc.message}")
+        return CheckResult(prop, np.zeros(0), math.nan, 0.0)
+    return CheckResult.of_answer(prop, answer, time.perf_counter() - start).without_states()
 
 
 def as_checker_mdp(built: BuiltMdp) -> MDP:

@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from veribattery.checker import CheckResult
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import (
     Model,
@@ -30,6 +32,7 @@ from veribattery.pipeline.run import (
     Stopwatch,
 )
 from veribattery.pipeline.session import check_model
+from veribattery.pipeline.undecided import settle_undecided
 
 if TYPE_CHECKING:
     from veribattery.pipeline.mdp import MdpCheckRun
@@ -88,7 +91,11 @@ def check_prism_file(
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
     An ``mdp`` model is checked by :func:`~veribattery.pipeline.mdp.check_mdp_model`
-    (floating point only: *exact* is refused, *keep* is always answers).
+    (*keep* is always answers), or with *exact* by
+    :func:`~veribattery.pipeline.mdp_exact.check_mdp_model_exact`. In floating point, a
+    bound the certified interval cannot decide is checked again in exact arithmetic
+    (:func:`~veribattery.pipeline.undecided.settle_undecided`), and stays an
+    :class:`~veribattery.checker.UndecidedResult` where the model has no exact form.
 
     :param model_source: a model file path, or PRISM text.
     :param props_source: a properties file path, or properties text.
@@ -110,17 +117,53 @@ def check_prism_file(
         if not selectors:
             chosen, skipped = _supported(chosen)
     if model.model_type == "mdp":
-        if exact:
-            raise PrismSemanticError("--exact is not supported for MDPs yet")
-        from veribattery.pipeline.mdp import check_mdp_model  # the MDP engine when asked
-
-        mdp_run = check_mdp_model(model, chosen, props_file=props, constants=constants,
-                                  progress=progress, stopwatch=watch)
+        mdp_run = _check_mdp(model, chosen, props, constants, progress, watch, exact)
         return replace(mdp_run, warnings=skipped + mdp_run.warnings) if skipped else mdp_run
-    way = check_model_exact if exact else check_model
-    run = way(model, chosen, props_file=props, constants=constants, progress=progress,
-              stopwatch=watch, options=CheckOptions(keep))
+    if exact:
+        run = check_model_exact(model, chosen, props_file=props, constants=constants,
+                                progress=progress, stopwatch=watch, options=CheckOptions(keep))
+    else:
+        run = check_model(model, chosen, props_file=props, constants=constants,
+                          progress=progress, stopwatch=watch,
+                          options=CheckOptions(keep, report_undecided=True))
+        exact_check = functools.partial(_exact_dtmc_results, keep=keep)
+        run = settle_undecided(run, chosen, exact_check, model, props, constants)
     return replace(run, warnings=skipped + run.warnings) if skipped else run
+
+
+def _check_mdp(
+    model: Model, chosen: Sequence[Property], props: PropertiesFile | None,
+    constants: Mapping[str, Value | str] | None, progress: ProgressCallback | None,
+    watch: Stopwatch, exact: bool,
+) -> MdpCheckRun:
+    """An ``mdp`` model's run: exact, or in floats with undecided bounds settled exactly."""
+    # The MDP engine is imported when a model is an MDP.
+    from veribattery.pipeline.mdp import check_mdp_model
+    from veribattery.pipeline.mdp_exact import check_mdp_model_exact
+
+    way = check_mdp_model_exact if exact else check_mdp_model
+    run = way(model, chosen, props_file=props, constants=constants, progress=progress,
+              stopwatch=watch)
+    return run if exact else settle_undecided(run, chosen, _exact_mdp_results, model, props,
+                                              constants)
+
+
+def _exact_dtmc_results(
+    model: Model, properties: Sequence[Property], props: PropertiesFile | None,
+    constants: Mapping[str, Value | str] | None, *, keep: Keep,
+) -> tuple[CheckResult, ...]:
+    return check_model_exact(model, properties, props_file=props, constants=constants,
+                             options=CheckOptions(keep)).results
+
+
+def _exact_mdp_results(
+    model: Model, properties: Sequence[Property], props: PropertiesFile | None,
+    constants: Mapping[str, Value | str] | None,
+) -> tuple[CheckResult, ...]:
+    from veribattery.pipeline.mdp_exact import check_mdp_model_exact
+
+    return check_mdp_model_exact(model, properties, props_file=props,
+                                 constants=constants).results
 
 
 def _reject_unknown_constants(

@@ -13,7 +13,8 @@ from typing import Protocol, get_args, runtime_checkable
 import numpy as np
 
 from veribattery._memory import trim_for
-from veribattery.checker import CheckResult, Keep, Workspace, check, state_set
+from veribattery.checker import CheckResult, Keep, UndecidedResult, Workspace, check, state_set
+from veribattery.checker.formula.intervals import Undecided
 from veribattery.errors import UndefinedResult
 from veribattery.explore import DTMC
 from veribattery.lang import Property
@@ -75,11 +76,15 @@ class CheckOptions:
     :param undefined_as_nan: report a property that has no value on the model
         (:class:`~veribattery.errors.UndefinedResult`: the conditional defaults of a
         mission that never succeeds) as NaN with a warning, instead of failing the run.
+    :param report_undecided: report a property whose bound the certified interval
+        cannot decide as an :class:`~veribattery.checker.UndecidedResult` (for the
+        caller to settle in exact arithmetic), instead of failing the run.
     :raises ValueError: for a *keep* outside :data:`Keep`.
     """
 
     keep: Keep = "states"
     undefined_as_nan: bool = False
+    report_undecided: bool = False
 
     def __post_init__(self) -> None:
         if self.keep not in get_args(Keep):
@@ -155,7 +160,8 @@ def run_checks(
 ) -> tuple[tuple[CheckResult, ...], tuple[str, ...]]:
     """Run each property's check, and the warnings about properties without a value.
 
-    With *undefined_as_nan* a property without a value is NaN; with answers kept only,
+    With *undefined_as_nan* a property without a value is NaN, with *report_undecided*
+    an undecided bound an :class:`~veribattery.checker.UndecidedResult`; with answers kept only,
     each result is reduced to its answer as soon as it is made.
 
     :param progress: told which property is checked next.
@@ -172,6 +178,10 @@ def run_checks(
             del result  # before the next property: its per-state arrays can go now
             if not per_state:
                 trim_for(dtmc.num_states)
+        except Undecided as exc:
+            if not options.report_undecided:
+                raise
+            results.append(UndecidedResult.of(prop, exc.message))
         except UndefinedResult as exc:
             if not options.undefined_as_nan:
                 raise

@@ -29,7 +29,8 @@ Values = npt.NDArray[Any]
 
 
 class Undecided(CheckError):
-    """A comparison of numbers whose intervals overlap in some state."""
+    """A comparison of numbers whose intervals overlap in some state, or a ``P~p``/``R~r``
+    bound that a state's certified interval straddles (at exact precision too)."""
 
 
 def _point(result: Result) -> Values:

@@ -347,7 +347,7 @@ def _bounded_operator(dtmc: DTMC, workspace: Workspace, op: ProbOp | RewardOp | 
             numbers, holds, undecided = _decide(dtmc, workspace, op, threshold, must_decide)
     if undecided.any():
         state = int(np.flatnonzero(undecided)[0])
-        raise CheckError(
+        raise intervals.Undecided(
             f"precision not enough to decide {op.op} {threshold:g}: in {int(undecided.sum())} "
             f"state(s) the certified interval straddles the bound (state {state}: "
             f"[{numbers.lower[state]!r}, {numbers.upper[state]!r}])", op.span)

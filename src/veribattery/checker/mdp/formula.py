@@ -5,7 +5,8 @@ PRISM's rules for MDPs: ``P=?`` and ``R=?`` are errors (the value depends on the
 strategy: say ``Pmin``/``Pmax``); ``P~p`` quantifies over every strategy, so
 ``P>=p`` reads the minimum and ``P<=p`` the maximum (an explicit ``Pmin``/``Pmax``
 is kept). A bound is decided from the certified interval; a state whose interval
-straddles it is an error naming the property, never a guess.
+straddles it raises :class:`~veribattery.checker.formula.intervals.Undecided`, never a
+guess (the pipeline settles it in exact arithmetic where the model allows).
 """
 
 from __future__ import annotations
@@ -131,7 +132,7 @@ def _bounded(mdp: MDP, op: ProbOp | RewardOp) -> BoolArray:
     holds, undecided = numbers.compare(op.op, threshold)
     if undecided.any():
         state = int(np.flatnonzero(undecided)[0])
-        raise CheckError(
+        raise intervals.Undecided(
             f"precision not enough to decide {op.op} {threshold:g}: in {int(undecided.sum())} "
             f"state(s) the certified interval straddles the bound (state {state}: "
             f"[{numbers.lower[state]!r}, {numbers.upper[state]!r}])", op.span)

@@ -30,6 +30,7 @@ import numpy as np
 from veribattery._types import BoolArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.formula.filters import FilterOutcome
+from veribattery.checker.formula.intervals import Undecided
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.multi import (
     LP_TOLERANCE,
@@ -42,7 +43,7 @@ from veribattery.checker.mdp.multi import (
 )
 from veribattery.checker.mdp.multi_steps import SteppedMdp
 from veribattery.checker.mdp.system import Objective
-from veribattery.errors import CheckError
+from veribattery.errors import CheckError, UndefinedResult
 from veribattery.lang.evaluate import evaluate
 from veribattery.lang.nodes import (
     BoolLit,
@@ -170,9 +171,9 @@ def _numerical(mdp: MDP, model: MDP, goal: _Goal, constraints: list[Constraint],
                          f"or {name}max=?", goal.op.span)
     found = multi_optimum(model, goal.quantity, _towards(direction, goal.sign), constraints)
     if not found.achievable or found.value is None:
-        raise CheckError("multi(...) has no strategy that meets its bounded objectives with "
-                         "finite total rewards, so the =? objective has no optimum (PRISM "
-                         "prints NaN)", query.span)
+        raise UndefinedResult("multi(...) has no strategy that meets its bounded objectives "
+                              "with finite total rewards, so the =? objective has no optimum "
+                              "(NaN, as PRISM reports it)", query.span)
     value = goal.offset + goal.sign * found.value
     error = LP_TOLERANCE * max(1.0, abs(value)) if np.isfinite(value) else 0.0
     values = _at_initial(mdp, value, error)
@@ -192,7 +193,7 @@ def _achievability(mdp: MDP, model: MDP, constraints: list[Constraint],
     """Whether one strategy meets every bound, decided only outside the tolerance."""
     margin = multi_margin(model, constraints)
     if abs(margin.value) <= LP_TOLERANCE and not margin.witnessed:
-        raise CheckError(
+        raise Undecided(
             f"multi(...) cannot be decided: the best strategy meets its bounds with a margin "
             f"of {margin.value:.1e}, within the linear programme's tolerance {LP_TOLERANCE:g}, "
             "and no exact witness was found", query.span)

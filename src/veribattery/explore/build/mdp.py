@@ -27,7 +27,7 @@ from veribattery.explore.compile.expr import CompileCache
 from veribattery.explore.compile.program import ChoiceGroup, Program, compile_program
 from veribattery.lang.nodes import FlatModel, RewardStruct
 
-__all__ = ["BuiltMdp", "MdpRewardVectors", "build_mdp"]
+__all__ = ["BuiltMdp", "MdpRewardVectors", "atomic_groups", "build_mdp"]
 
 #: Frontier states expanded at once.
 _CHUNK = 1 << 12
@@ -71,15 +71,18 @@ class BuiltMdp:
 
 
 def build_mdp(model: FlatModel, *,
-              progress: Callable[[int, int], None] | None = None) -> BuiltMdp:
+              progress: Callable[[int, int], None] | None = None,
+              program: Program | None = None) -> BuiltMdp:
     """Explore the reachable states of the ``mdp`` *model*, one choice per enabled
     command or synchronised combination of commands.
 
+    :param program: the compiled program to explore with (default:
+        ``compile_program(model)``; ``--exact`` gives one with guards decided exactly).
     :raises ModelError: an update leaves a variable's range, a probability is
         negative, or a choice's probabilities do not sum to 1.
     """
-    program = compile_program(model)
-    atoms = _atomic_groups(program)
+    program = program or compile_program(model)
+    atoms = atomic_groups(program)
     actions = ("", *sorted({g.action for g in atoms if g.action is not None}))
     action_index = np.array([0 if g.action is None else actions.index(g.action)
                              for g in atoms] + [0], dtype=np.int64)
@@ -114,8 +117,9 @@ def build_mdp(model: FlatModel, *,
                     actions, rewards, states, model.variable_names, int(dead.sum()))
 
 
-def _atomic_groups(program: Program) -> list[ChoiceGroup]:
-    """One group per command of a lone module, one per combination of synchronising ones."""
+def atomic_groups(program: Program) -> list[ChoiceGroup]:
+    """One group per command of a lone module, one per combination of synchronising ones:
+    at most one choice per state each, in the order of a state's rows."""
     atoms: list[ChoiceGroup] = []
     for group in program.groups:
         for combination in itertools.product(*group.parts):

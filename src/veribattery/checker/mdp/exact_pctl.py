@@ -1,0 +1,450 @@
+"""PRISM properties on an MDP in exact rational arithmetic (``--exact``).
+
+The recursion of :mod:`~veribattery.checker.mdp.formula` over an MDP whose
+probabilities and rewards are rationals (:class:`~veribattery.explore.exact.mdp.ExactMdp`):
+``Pmin``/``Pmax`` of ``F``/``U`` (and ``G``/``W``/``R`` by complement) and
+``Rmin``/``Rmax`` of ``F``/``C`` by policy iteration in rationals with the final
+strategy's optimality verified exactly (:mod:`~veribattery.checker.mdp.exact`);
+``X``, ``U<=k``, ``U>=k``, ``U[a,b]``, ``C<=k`` and ``I=k`` by *k* exact Bellman
+rounds (:mod:`~veribattery.checker.mdp.exact_steps`). ``P~p``/``R~r`` compare the
+exact values with the exact bound; ``+ - * /`` and comparisons over queries, and
+top-level filters, are computed exactly too.
+"""
+
+from __future__ import annotations
+
+import operator
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+from gmpy2 import mpq
+
+from veribattery._types import BoolArray
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.exact import ExactCheckResult, ExactValues
+from veribattery.checker.exact.numeric import exact_literal
+from veribattery.checker.formula import filters
+from veribattery.checker.formula.leaves import CONNECTIVES, as_mask, has_operator, step_bound
+from veribattery.checker.mdp.exact import exact_reach_reward, exact_total_reward
+from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
+from veribattery.checker.mdp.formula import mdp_values
+from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.rational import ObjectArray
+from veribattery.checker.mdp.system import Objective
+from veribattery.checker.result import CheckResult
+from veribattery.errors import CheckError, Span, VeribatteryError
+from veribattery.explore.exact.mdp import ExactMdp, ExactMdpRewards
+from veribattery.explore.exact.rational import ExactScalar, evaluate_rational
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import (
+    BOUND_RELATIONS,
+    Binary,
+    Cumulative,
+    DoubleLit,
+    Eventually,
+    Expr,
+    Filter,
+    Globally,
+    Ident,
+    Instantaneous,
+    IntLit,
+    Ite,
+    Next,
+    PathFormula,
+    ProbOp,
+    Property,
+    Reach,
+    Release,
+    RewardOp,
+    TimeBound,
+    TimeInterval,
+    Total,
+    Unary,
+    Until,
+    WeakUntil,
+)
+
+__all__ = ["ExactMdpModel", "check_mdp_exact", "closed_numbers"]
+
+_ZERO = mpq(0)
+_ONE = mpq(1)
+
+
+@dataclass(frozen=True, slots=True)
+class ExactMdpModel:
+    """The checker's MDP with its exact numbers and the property's exact bounds.
+
+    :param mdp: the MDP (structure, labels, states) as the float engine reads it.
+    :param exact: its probabilities and rewards as rationals (same entry order).
+    :param bounds: the exact value of each ``P~p``/``R~r`` bound and closed number, by
+        its span (:func:`~veribattery.checker.exact.exact_bounds`, :func:`closed_numbers`).
+    """
+
+    mdp: MDP
+    exact: ExactMdp
+    bounds: Mapping[Span, mpq]
+
+
+def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
+    """Check *prop* on *model* in exact arithmetic; the answer at the initial states
+    (the lowest, with the range over them, when several differ).
+
+    :raises CheckError: for an operator without an exact MDP kernel (filters,
+        multi-objective queries, numeric expressions over operators) or ``P=?``/``R=?``.
+    """
+    start = time.perf_counter()
+    if isinstance(prop.formula, Filter):
+        return _filtered(model, prop, prop.formula, start)
+    result = exact_values(model, prop.formula)
+    initial = model.mdp.initial
+    if initial.size == 0:
+        raise CheckError("the model has no initial state", prop.span)
+    if not isinstance(result, ExactValues):
+        plain = CheckResult.at_initial(prop, result, initial, 0.0)
+        return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
+    enclosure = _enclosure(result)
+    lowest = min(initial, key=lambda s: (bool(result.infinite[s]), result.values[s]))
+    highest = max(initial, key=lambda s: (bool(result.infinite[s]), result.values[s]))
+    plain = CheckResult.at_initial(prop, enclosure, np.array([lowest]), 0.0)
+    same = (result.infinite[lowest] == result.infinite[highest]
+            and result.values[lowest] == result.values[highest])
+    spread = None if same else (float(enclosure.value[lowest]), float(enclosure.value[highest]))
+    exact = None if result.infinite[lowest] else _fraction(result.values[lowest])
+    upper = plain.upper if spread is None else float(enclosure.upper[highest])
+    return ExactCheckResult(
+        prop, plain.values, plain.value, time.perf_counter() - start, plain.lower, upper,
+        plain.precise, plain.bounds, spread, exact=exact, exact_values=result)
+
+
+def _filtered(model: ExactMdpModel, prop: Property, node: Filter,
+              start: float) -> ExactCheckResult:
+    """A top-level ``filter(op, operand, states)``: the float outcome of its enclosure
+    (:func:`~veribattery.checker.formula.filters.apply_filter`: listings, counts, booleans,
+    which are exact), and for a number the exact value it picks or sums."""
+    mdp = model.mdp
+    where = (np.ones(mdp.num_states, dtype=bool) if node.states is None
+             else state_set(model, node.states))
+    inner = exact_values(model, node.operand)
+    per_state = _enclosure(inner) if isinstance(inner, ExactValues) else inner
+    states = _states(mdp)
+    outcome = filters.apply_filter(node.op, per_state, where, states, mdp.variable_names,
+                                   node.span)
+    if outcome.value is None and node.op.startswith("arg"):  # the listed states, as a set
+        mask = np.asarray(outcome.values, dtype=bool)
+        plain = CheckResult.at_initial(prop, mask, mdp.initial, time.perf_counter() - start)
+        return ExactCheckResult(prop, plain.values, plain.value, plain.time_s,
+                                printed=outcome.printed)
+    if outcome.value is None:  # print, printall: the listing, and the operand's answer
+        answer = check_mdp_exact(model, replace(prop, formula=node.operand))
+        return replace(answer, property=prop, printed=outcome.printed)
+    plain = CheckResult.of_answer(prop, outcome, time.perf_counter() - start)
+    if not isinstance(inner, ExactValues) or node.op not in _EXACT_FILTERS:
+        return ExactCheckResult(prop, plain.values, plain.value, plain.time_s, plain.lower,
+                                plain.upper, plain.precise, plain.bounds, plain.value_range,
+                                plain.printed)
+    value, infinite = _filter_exact(node.op, inner, where, states)
+    return ExactCheckResult(
+        prop, plain.values, plain.value, plain.time_s, plain.lower, plain.upper,
+        plain.precise, plain.bounds, plain.value_range, plain.printed,
+        exact=None if infinite else _fraction(value), exact_values=inner)
+
+
+#: The filters whose number is picked or summed exactly (``range``: its lowest value).
+_EXACT_FILTERS = frozenset({"state", "first", "min", "max", "range", "sum", "avg"})
+
+
+def _filter_exact(op: str, inner: ExactValues, where: BoolArray,
+                  states: np.ndarray) -> tuple[mpq, bool]:
+    """The exact number of a numeric filter over *where*, and whether it is infinite."""
+    picked = np.flatnonzero(where)
+    if op in ("sum", "avg"):
+        if inner.infinite[picked].any():
+            return _ZERO, True
+        total = sum(inner.values[picked], _ZERO)
+        return (total if op == "sum" else total / picked.size), False
+    if op == "first":
+        order = filters.state_order(states)
+        picked = order[where[order]][:1]
+    ranked = sorted(picked, key=lambda s: (bool(inner.infinite[s]), inner.values[s]))
+    state = ranked[-1] if op == "max" else ranked[0]
+    return inner.values[state], bool(inner.infinite[state])
+
+
+def _states(mdp: MDP) -> np.ndarray:
+    return np.zeros((mdp.num_states, 0), dtype=np.int64) if mdp.states is None else mdp.states
+
+
+def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray:
+    """Per-state value of *formula*: rationals for ``Pmin``/``Pmax``/``Rmin``/``Rmax=?``,
+    booleans for state formulas."""
+    match formula:
+        case ProbOp(op="=?"):
+            return ExactValues.finite(path_probs(model, formula.path, _direction(formula)))
+        case RewardOp(op="=?"):
+            return path_rewards(model, formula, _direction(formula))
+    if has_operator(formula):
+        if _is_arithmetic(formula):
+            return numbers(model, formula)
+        return state_set(model, formula)
+    leaf = mdp_values(model.mdp, formula)
+    return numbers(model, formula) if isinstance(leaf, Bounds) else leaf
+
+
+def _direction(op: ProbOp | RewardOp) -> Objective:
+    """As on the float engine: the operator's own ``min``/``max``, else the one that
+    quantifies over every strategy (``P>=p`` reads the minimum)."""
+    if op.direction is not None:
+        return op.direction
+    if op.op == "=?":
+        name = "P" if isinstance(op, ProbOp) else "R"
+        raise CheckError(f"{name}=? on an MDP has no single value: use {name}min=? or "
+                         f"{name}max=?", op.span)
+    return "max" if op.op in ("<", "<=") else "min"
+
+
+def _opposite(objective: Objective) -> Objective:
+    return "max" if objective == "min" else "min"
+
+
+# ---------------------------------------------------------------------------
+# State formulas
+# ---------------------------------------------------------------------------
+
+
+def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
+    """The states satisfying *expr*, bounded operators decided exactly."""
+    if not has_operator(expr):
+        leaf = mdp_values(model.mdp, expr)  # a bool variable's values come as 0/1 numbers
+        return as_mask(leaf.value if isinstance(leaf, Bounds) else leaf, expr)
+    match expr:
+        case ProbOp() | RewardOp():
+            return _bounded(model, expr)
+        case Unary(op="!", operand=operand):
+            return ~state_set(model, operand)
+        case Binary(op=op, left=left, right=right) if op in CONNECTIVES:
+            return CONNECTIVES[op](state_set(model, left), state_set(model, right))
+        case Ite(cond=cond, then=then, otherwise=otherwise):
+            return np.where(state_set(model, cond), state_set(model, then),
+                            state_set(model, otherwise))
+        case Binary(op=op, left=left, right=right) if op in _COMPARISONS:
+            a, b = numbers(model, left), numbers(model, right)
+            _finite(a, expr.span)
+            _finite(b, expr.span)
+            return np.asarray(_COMPARISONS[op](a.values, b.values), dtype=bool)
+        case Filter():
+            raise CheckError("in exact arithmetic on an MDP, filter(...) is answered at the "
+                             "top of a property only", expr.span)
+    raise CheckError("in exact arithmetic on an MDP, P and R operators are queried "
+                     "(Pmax=? ...) or bounded and combined with ! & | => <=> ?: only",
+                     expr.span)
+
+
+def _bounded(model: ExactMdpModel, op: ProbOp | RewardOp) -> BoolArray:
+    """``P~p``/``R~r``: the exact optimum against the exact bound."""
+    if op.op == "=?" or op.bound is None:
+        raise CheckError("a query (=?) cannot be used as a state formula", op.span)
+    objective = _direction(op)
+    if isinstance(op, ProbOp):
+        numbers = ExactValues.finite(path_probs(model, op.path, objective))
+    else:
+        numbers = path_rewards(model, op, objective)
+    bound = model.bounds.get(op.bound.span)
+    bound = exact_literal(op.bound) if bound is None else bound
+    holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, bound), dtype=bool)
+    return np.where(numbers.infinite, op.op in (">", ">="), holds)
+
+
+# ---------------------------------------------------------------------------
+# Arithmetic over operators
+# ---------------------------------------------------------------------------
+
+_ARITHMETIC: dict[str, Callable[[Any, Any], Any]] = {
+    "+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv}
+_COMPARISONS: dict[str, Callable[[Any, Any], Any]] = {
+    **BOUND_RELATIONS, "=": operator.eq, "!=": operator.ne}
+
+
+def _is_arithmetic(expr: Expr) -> bool:
+    return (isinstance(expr, Binary) and expr.op in _ARITHMETIC) or (
+        isinstance(expr, Unary) and expr.op == "-")
+
+
+def numbers(model: ExactMdpModel, expr: Expr) -> ExactValues:
+    """A numeric expression over ``Pmin=?``/``Rmax=?``... queries, per state, exactly
+    (``1 - Pmax=? [ F err ]``); infinite operands have no exact arithmetic here."""
+    match expr:
+        case ProbOp(op="=?") | RewardOp(op="=?"):
+            result = exact_values(model, expr)
+            assert isinstance(result, ExactValues)
+            return result
+        case Unary(op="-", operand=operand):
+            inner = _finite(numbers(model, operand), expr.span)
+            return ExactValues.finite(np.asarray(-inner.values, dtype=object))
+        case Binary(op=op, left=left, right=right) if op in _ARITHMETIC:
+            a = _finite(numbers(model, left), expr.span)
+            b = _finite(numbers(model, right), expr.span)
+            if op == "/" and (b.values == _ZERO).any():
+                raise CheckError("division by zero in exact arithmetic", expr.span)
+            return ExactValues.finite(np.asarray(_ARITHMETIC[op](a.values, b.values),
+                                                 dtype=object))
+    if has_operator(expr):
+        raise CheckError("in exact arithmetic on an MDP, this operator has no exact value "
+                         "(+ - * / and comparisons over P and R queries have)", expr.span)
+    leaf = mdp_values(model.mdp, expr)
+    values = leaf.value if isinstance(leaf, Bounds) else None
+    if values is None or not np.all(np.isfinite(values)):
+        raise CheckError("expected a number", expr.span)
+    if not expr_is_closed(expr) and not np.all(values == np.round(values)):
+        raise CheckError("in exact arithmetic on an MDP, a state expression must be an "
+                         "integer or a constant", expr.span)
+    if expr_is_closed(expr):
+        exact = model.bounds.get(expr.span) if expr.span is not None else None
+        exact = evaluate_rational(expr, {}, {}, 1)[0] if exact is None else exact
+        return ExactValues.finite(np.full(mdp_size(model), exact, dtype=object))
+    return ExactValues.finite(np.asarray(_TO_MPQ(values.astype(np.int64)), dtype=object))
+
+
+def closed_numbers(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Span, mpq]:
+    """The exact value of each closed numeric expression of *formula* (before resolution),
+    by span: resolving folds ``1/3`` into the double nearest it; evaluated here, it stays
+    1/3. The outermost expression starting at a position wins."""
+    found: dict[Span, mpq] = {}
+    for node in walk(formula):
+        span = getattr(node, "span", None)
+        if span is None or span in found or has_operator(node) or not _numeric_node(node):
+            continue
+        try:
+            value = evaluate_rational(node, constants, {}, 1)[0]
+        except VeribatteryError:
+            continue  # reads a variable, or has no exact value: left to the float leaf
+        if not isinstance(value, bool | np.bool_):
+            found[span] = value
+    return found
+
+
+def _numeric_node(node: object) -> bool:
+    return isinstance(node, IntLit | DoubleLit | Ident | Binary | Unary) and not (
+        isinstance(node, Binary) and node.op not in _ARITHMETIC)
+
+
+def _finite(values: ExactValues, span: Span | None) -> ExactValues:
+    if values.infinite.any():
+        raise CheckError("an infinite expected reward has no exact arithmetic here", span)
+    return values
+
+
+def expr_is_closed(expr: Expr) -> bool:
+    """Whether *expr* reads no variable (constants are substituted before checking)."""
+    return not any(isinstance(node, Ident) for node in walk(expr))
+
+
+def mdp_size(model: ExactMdpModel) -> int:
+    return model.mdp.num_states
+
+
+# ---------------------------------------------------------------------------
+# Path formulas
+# ---------------------------------------------------------------------------
+
+
+def path_probs(model: ExactMdpModel, path: PathFormula, objective: Objective) -> ObjectArray:
+    """Per-state exact ``Pmin``/``Pmax`` of *path*."""
+    match path:
+        case Next(operand=operand):
+            return exact_next(model.mdp, model.exact.probabilities,
+                              state_set(model, operand), objective)
+        case Eventually(operand=operand, bound=bound):
+            return _until(model, None, state_set(model, operand), bound, objective)
+        case Until(left=left, right=right, bound=bound):
+            return _until(model, state_set(model, left), state_set(model, right), bound,
+                          objective)
+        case Globally(operand=operand, bound=bound):  # G a = !(F !a)
+            avoid = ~state_set(model, operand)
+            return _complement(_until(model, None, avoid, bound, _opposite(objective)))
+        case WeakUntil(left=left, right=right, bound=bound):  # a W b = !((a & !b) U (!a & !b))
+            a, b = state_set(model, left), state_set(model, right)
+            return _complement(_until(model, a & ~b, ~a & ~b, bound, _opposite(objective)))
+        case Release(left=left, right=right, bound=bound):  # a R b = !(!a U !b)
+            a, b = state_set(model, left), state_set(model, right)
+            return _complement(_until(model, ~a, ~b, bound, _opposite(objective)))
+    raise CheckError("this path formula has no exact MDP kernel (X, U, F, G, W, R have)",
+                     path.span)
+
+
+def _until(model: ExactMdpModel, remain: BoolArray | None, target: BoolArray,
+           bound: TimeBound | TimeInterval | None, objective: Objective) -> ObjectArray:
+    return exact_until(model.mdp, model.exact.probabilities, remain, target, bound, objective)
+
+
+def _complement(values: ObjectArray) -> ObjectArray:
+    return np.asarray(_ONE - values, dtype=object)
+
+
+# ---------------------------------------------------------------------------
+# Rewards
+# ---------------------------------------------------------------------------
+
+
+def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> ExactValues:
+    """Per-state exact ``Rmin``/``Rmax`` over ``F``, ``C``, ``C<=k`` or ``I=k``."""
+    structure = _structure(model, op)
+    mdp = model.mdp
+    per_choice = structure.per_choice(mdp.choice_owner)
+    everywhere = np.ones(mdp.num_states, dtype=bool)
+    probabilities = model.exact.probabilities
+    match op.path:
+        case Reach(target=target):
+            found = exact_reach_reward(mdp, per_choice, state_set(model, target),
+                                       objective=objective, probabilities=probabilities)
+            return ExactValues(found.values, found.infinite)
+        case Total():
+            found = exact_total_reward(mdp, per_choice, objective=objective,
+                                       probabilities=probabilities)
+            return ExactValues(found.values, found.infinite)
+        case Cumulative(bound=bound):
+            zeros = np.full(mdp.num_states, _ZERO, dtype=object)
+            return ExactValues.finite(exact_rounds(mdp, probabilities, zeros, everywhere, zeros,
+                                                   objective, step_bound(bound), per_choice))
+        case Instantaneous(time=time_):
+            state = np.asarray(structure.state, dtype=object)
+            return ExactValues.finite(exact_rounds(mdp, probabilities, state, everywhere,
+                                                   state, objective, step_bound(time_)))
+    raise CheckError("this reward formula has no exact MDP kernel (F, C, C<=k, I=k have)",
+                     op.path.span)
+
+
+def _structure(model: ExactMdpModel, op: RewardOp) -> ExactMdpRewards:
+    try:
+        return model.exact.reward(op.reward)
+    except (KeyError, IndexError):
+        raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+
+
+# ---------------------------------------------------------------------------
+# Results
+# ---------------------------------------------------------------------------
+
+
+_TO_MPQ = np.frompyfunc(mpq, 1, 1)
+
+
+def _enclosure(values: ExactValues) -> Bounds:
+    """Certified float bounds of exact values: the nearest double, widened by one unit
+    in the last place unless it is the value itself (infinities stand for themselves)."""
+    floats = values.floats()
+    represented = values.infinite.copy()
+    finite = np.flatnonzero(~values.infinite)
+    if finite.size:
+        represented[finite] = np.asarray(_TO_MPQ(floats[finite]) == values.values[finite],
+                                         dtype=bool)
+    lower = np.where(represented, floats, np.nextafter(floats, -np.inf))
+    upper = np.where(represented, floats, np.nextafter(floats, np.inf))
+    return Bounds(floats, lower, upper)
+
+
+def _fraction(value: mpq) -> Fraction:
+    return Fraction(int(value.numerator), int(value.denominator))

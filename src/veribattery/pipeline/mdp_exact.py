@@ -1,0 +1,64 @@
+"""An ``mdp`` model checked in exact rational arithmetic (``--exact``): the MDP built with
+rational probabilities and rewards, each property checked by exact policy iteration or
+exact Bellman rounds (:mod:`~veribattery.checker.mdp.exact_pctl`)."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+
+from veribattery.lang import Model, PropertiesFile, Property, flatten_model, resolve_property
+from veribattery.lang.nodes import Value
+from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp
+from veribattery.pipeline.run import STAGES, ProgressCallback, Stopwatch
+
+__all__ = ["check_mdp_model_exact"]
+
+
+def check_mdp_model_exact(
+    model: Model,
+    properties: Sequence[Property],
+    *,
+    props_file: PropertiesFile | None = None,
+    constants: Mapping[str, Value | str] | None = None,
+    progress: ProgressCallback | None = None,
+    stopwatch: Stopwatch | None = None,
+) -> MdpCheckRun:
+    """:func:`~veribattery.pipeline.mdp.check_mdp_model` in exact rational arithmetic:
+    each result is an :class:`~veribattery.checker.exact.ExactCheckResult`.
+
+    The MDP is built with its guards decided exactly and its probabilities and rewards
+    as rationals; bounds such as ``P>=1/3`` are evaluated exactly from the properties
+    as written. The optimal values come with a strategy whose optimality is verified
+    in rationals (:mod:`~veribattery.checker.mdp.exact`).
+
+    :raises CheckError: for an operator without an exact MDP kernel (filters,
+        multi-objective queries, numeric expressions over operators).
+    :raises ModelError: for a probability or reward without an exact rational value.
+    """
+    from veribattery.checker.exact import exact_bounds  # gmpy2 only when asked
+    from veribattery.checker.mdp.exact_pctl import (
+        ExactMdpModel,
+        check_mdp_exact,
+        closed_numbers,
+    )
+    from veribattery.explore.exact.mdp import build_exact_mdp
+    from veribattery.explore.exact.rational import exact_constants
+
+    watch = stopwatch or Stopwatch(*STAGES)
+    with watch.stage("parse"):
+        flat = flatten_model(model, constants)
+        resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+    with watch.stage("build"):
+        exact = build_exact_mdp(model, flat, constants, progress)
+        mdp = as_checker_mdp(exact.built)
+    decls = props_file.constants if props_file is not None else ()
+    values = exact_constants(decls, dict(constants or {}), outer=exact.constants)
+    results = []
+    with watch.stage("check"):
+        for original, prop in zip(properties, resolved, strict=True):
+            written = closed_numbers(original.formula, values)
+            written.update(exact_bounds(original.formula, values))
+            checked = ExactMdpModel(mdp, exact, written)
+            results.append(check_mdp_exact(checked, prop))
+    return MdpCheckRun(mdp, tuple(results), watch.seconds, exact.built.warnings)
+
