@@ -6,6 +6,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from veribattery._named import by_key
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.errors import PrismSemanticError
 
@@ -124,9 +125,4 @@ class DTMC:
 
     def reward(self, key: str | int | None) -> RewardVectors:
         """The reward structure named *key*, at index *key*, or the first (None)."""
-        if key is None or isinstance(key, int):
-            return self.rewards[key or 0]
-        for structure in self.rewards:
-            if structure.name == key:
-                return structure
-        raise KeyError(key)
+        return by_key(self.rewards, key)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from veribattery._named import by_key
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 
 __all__ = ["MDP", "MdpRewards"]
@@ -116,12 +117,7 @@ class MDP:
 
     def reward(self, key: str | int | None) -> MdpRewards:
         """The reward structure named *key*, at index *key*, or the first (None)."""
-        if key is None or isinstance(key, int):
-            return self.rewards[key or 0]
-        for structure in self.rewards:
-            if structure.name == key:
-                return structure
-        raise KeyError(key)
+        return by_key(self.rewards, key)
 
 
 def _check_shape(transitions: CsrMatrix, groups: IntArray) -> None:

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 from gmpy2 import mpq
 
+from veribattery._named import by_key
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.builder import assemble, explore
@@ -82,12 +83,7 @@ class ExactDTMC:
 
     def reward(self, key: str | int | None) -> ExactRewards:
         """The reward structure named *key*, at index *key*, or the first (None)."""
-        if key is None or isinstance(key, int):
-            return self.rewards[key or 0]
-        for structure in self.rewards:
-            if structure.name == key:
-                return structure
-        raise KeyError(key)
+        return by_key(self.rewards, key)
 
 
 @dataclass(frozen=True, slots=True)

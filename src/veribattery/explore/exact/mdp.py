@@ -19,6 +19,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from gmpy2 import mpq
 
+from veribattery._named import by_key
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.mdp import BuiltMdp, atomic_groups, build_mdp
@@ -68,12 +69,7 @@ class ExactMdp:
 
     def reward(self, key: str | int | None) -> ExactMdpRewards:
         """The reward structure named *key*, at index *key*, or the first (None)."""
-        if key is None or isinstance(key, int):
-            return self.rewards[key or 0]
-        for structure in self.rewards:
-            if structure.name == key:
-                return structure
-        raise KeyError(key)
+        return by_key(self.rewards, key)
 
 
 def build_exact_mdp(
