@@ -117,6 +117,7 @@ class Factorization:
         self._substitute: _Triangular | None = None
         self._substitute_tried = False
         self._norm_a: float | None = None
+        self._wide: sp.csr_matrix | None = None  # A64 in extended precision, small systems
         self._iterative = False
         self._segmented = False  # the direct solver is an scc.Segmented
 
@@ -149,7 +150,7 @@ class Factorization:
         1.4M states) come back only if a refined solve is asked for.
         """
         if self._rebuild is not None and self._n >= RELEASE_MIN_STATES:
-            self._a64 = self._residue = None
+            self._a64 = self._residue = self._wide = None
 
     @property
     def A(self) -> sp.csr_matrix:
@@ -180,8 +181,23 @@ class Factorization:
         return x
 
     def residual(self, x: FloatArray, b: ExtArray) -> ExtArray:
-        """``b - A x`` in extended precision, a block of rows at a time."""
-        return b - _extended_product(self.A64, self.residue, x)
+        """``b - A x`` in extended precision, a block of rows at a time.
+
+        A system within one block keeps its widened matrix: a closure solved once per
+        reward level (a mission-time distribution: thousands of solves) would widen and
+        rebuild it twice per solve. The product is the same, bit for bit.
+        """
+        A64 = self.A64
+        if A64.nnz > _PRODUCT_BLOCK:
+            return b - _extended_product(A64, self.residue, x)
+        if self._wide is None:
+            self._wide = sp.csr_matrix((A64.data.astype(np.longdouble), A64.indices,
+                                        A64.indptr), shape=A64.shape)
+        x_ext = np.asarray(x, dtype=np.longdouble)
+        product: ExtArray = self._wide @ x_ext
+        if self.residue.nnz:
+            product += self.residue @ x_ext
+        return b - product
 
     def backward_error(self, x: FloatArray, b: ExtArray) -> float:
         """The normwise backward error of *x* (see :func:`backward_error`)."""
