@@ -26,7 +26,7 @@ from veribattery.config import MissionConfig, derive_parameters
 from veribattery.pipeline import ProgressCallback
 from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.synthesis.bs1_values import Bs1Values, bs1_points, bs1_values
-from veribattery.synthesis.fastest import Fastest, fastest, front
+from veribattery.synthesis.fastest import LP_TOLERANCE, Fastest, fastest, front
 from veribattery.synthesis.model import Certified, ModelSize, mission_mdp
 from veribattery.synthesis.optimal import (
     ChosenStrategy,
@@ -38,19 +38,29 @@ from veribattery.synthesis.pareto import Bs1Point, FrontPoint
 from veribattery.synthesis.strategy import strategy_frame
 from veribattery.synthesis.thresholds import ThresholdTable, threshold_table
 
-__all__ = ["FrontRequest", "SynthesisResult", "config_requirements", "synthesize"]
+__all__ = ["FRONT_SAFE_TS", "FrontRequest", "SynthesisResult", "config_requirements", "synthesize"]
 
 #: Told the name of each stage as it starts (``"Pmax"``, ``"BS1"``, ...).
 StageCallback = Callable[[str], None]
 
 
+#: BS1's ``safe_t`` values on the Pareto figure by default (the config's own is added).
+FRONT_SAFE_TS = (Fraction(1, 10), Fraction(2, 10), Fraction(3, 10), Fraction(4, 10))
+
+
 @dataclass(frozen=True, slots=True)
 class FrontRequest:
-    """Which Pareto front to compute: the required P(success) values (each at most
-    ``Pmax`` is asked; more are skipped) and BS1's ``safe_t`` values."""
+    """Which Pareto front to compute: *points* required P(success) values evenly up to
+    ``Pmax`` (the last a hair below it, :data:`~veribattery.synthesis.fastest.LP_TOLERANCE`,
+    so that the programme's tolerance cannot refuse it), and BS1 at each of *safe_ts*."""
 
-    ps: tuple[float, ...]
-    safe_ts: tuple[Fraction, ...]
+    points: int = 10
+    safe_ts: tuple[Fraction, ...] = FRONT_SAFE_TS
+
+    def ps(self, p_max: float) -> tuple[float, ...]:
+        """The required P(success) values, increasing."""
+        top = max(0.0, p_max - LP_TOLERANCE)
+        return tuple(top * i / self.points for i in range(1, self.points + 1))
 
 
 @dataclass(frozen=True, slots=True)
@@ -139,9 +149,10 @@ def _front(mdp: MDP, cfg: MissionConfig, best: Certified, request: FrontRequest 
     if request is None:
         return (), ()
     with clock.stage("front"):
-        points = front(mdp, [p for p in request.ps if p <= best.value])
+        points = front(mdp, request.ps(best.value))
+    safe_ts = sorted({*request.safe_ts, Fraction(cfg.strategy.safe_t)})
     with clock.stage("BS1 points"):
-        return points, bs1_points(cfg, request.safe_ts)
+        return points, bs1_points(cfg, safe_ts)
 
 
 class _Clock:
