@@ -156,6 +156,6 @@ def test_the_front_rises_to_pmax_and_bs1_lies_right_of_it() -> None:
 def test_a_requirement_must_be_a_probability() -> None:
     from veribattery.errors import OptionError
 
-    with pytest.raises(OptionError, match="--require 1.5: not a probability"):
+    with pytest.raises(OptionError, match=r"--require 1\.5: not a probability"):
         required_at_least(1.5)
     assert required_at_least(0.99).requirement == "p_success >= 0.99"
