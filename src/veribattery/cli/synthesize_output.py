@@ -105,31 +105,47 @@ def _versus_bs1(result: SynthesisResult, answer: Fastest) -> str:
 
 def _print_strategy(result: SynthesisResult) -> None:
     table, own = result.table, result.strategy
-    differ = _differing(table.rows)
+    bolder, warier = _bolder(table.rows), _warier(table.rows)
     click.echo(fit_text(
         f"The strategy (safest, then fastest) reaches {own.reached.size:,} states; its "
         f"threshold table has {len(table.rows):,} rows, {len(table.non_thresholds):,} of "
-        f"them not a threshold, {len(differ):,} going on from another charge than BS1. "
-        f"Charges in units of {table.charge_unit_ah} Ah."))
-    shown = [*table.non_thresholds[:SHOWN_ROWS], *differ[:SHOWN_ROWS]]
-    if shown:
-        click.echo()
-        print_table(("decision", "cell", "done", "wind", "rc", "level", "goes on ≥",
-                     "back ≤", "BS1 ≥", "threshold"), [_row(r) for r in shown], keys=2,
-                    title="Rows not a threshold, then those furthest from BS1:")
+        f"them not a threshold. Where BS1 would decide otherwise at a charge the strategy "
+        f"meets: {len(bolder):,} rows where it goes on below BS1's threshold, "
+        f"{len(warier):,} where it turns back at or above it. Charges in units of "
+        f"{table.charge_unit_ah} Ah."))
+    for title, rows in (("Not a threshold:", table.non_thresholds),
+                        ("Goes on where BS1 would not (furthest below BS1 first):", bolder),
+                        ("Turns back where BS1 would go on (furthest above first):", warier)):
+        if rows:
+            click.echo()
+            print_table(("decision", "cell", "done", "wind", "rc", "level", "goes on ≥",
+                         "back ≤", "BS1 ≥", "threshold"),
+                        [_row(r) for r in rows[:SHOWN_ROWS]], keys=2, title=title)
     print_dim(fit_text("The whole table: --csv FILE, or --format json."))
 
 
-def _differing(rows: Sequence[ThresholdRow]) -> list[ThresholdRow]:
-    """Rows where the strategy goes on from another charge than BS1, furthest first."""
-    def gap(row: ThresholdRow) -> float:
-        if row.least_go_on is None or row.bs1_least_go_on is None:
-            return -1.0  # one of the two never goes on: after the measurable gaps
-        return abs(row.least_go_on - row.bs1_least_go_on)
+def _bolder(rows: Sequence[ThresholdRow]) -> list[ThresholdRow]:
+    """Rows where the strategy goes on at a charge below BS1's least (or BS1 never
+    goes on), furthest below first."""
+    def below(row: ThresholdRow) -> int:
+        assert row.least_go_on is not None
+        top = row.level_to + 1 if row.bs1_least_go_on is None else row.bs1_least_go_on
+        return top - row.least_go_on
 
-    differ = [r for r in rows if r.least_go_on != r.bs1_least_go_on
-              and (r.least_go_on is not None or r.greatest_turn_back is not None)]
-    return sorted(differ, key=gap, reverse=True)
+    found = [r for r in rows if r.least_go_on is not None and below(r) > 0]
+    return sorted(found, key=below, reverse=True)
+
+
+def _warier(rows: Sequence[ThresholdRow]) -> list[ThresholdRow]:
+    """Rows where the strategy turns back at a charge from which BS1 goes on, furthest
+    above first."""
+    def above(row: ThresholdRow) -> int:
+        assert row.greatest_turn_back is not None and row.bs1_least_go_on is not None
+        return row.greatest_turn_back - row.bs1_least_go_on + 1
+
+    found = [r for r in rows if r.greatest_turn_back is not None
+             and r.bs1_least_go_on is not None and above(r) > 0]
+    return sorted(found, key=above, reverse=True)
 
 
 def _row(row: ThresholdRow) -> tuple[str, ...]:
