@@ -135,6 +135,7 @@ CASES: list[tuple[str, list[str]]] = [
     # synthesize
     ("synthesize-require-range", ["synthesize", CASE1, *SYNTHESIS, "--require", "1.5"]),
     ("synthesize-require-text", ["synthesize", CASE1, *SYNTHESIS, "--require", "high"]),
+    ("synthesize-require-nan", ["synthesize", CASE1, *SYNTHESIS, "--require", "nan"]),
     ("synthesize-format", ["synthesize", CASE1, *SYNTHESIS, "--format", "yaml"]),
     ("synthesize-exact", ["synthesize", CASE1, *SYNTHESIS, "--exact"]),
     ("synthesize-csv-exists", ["synthesize", CASE1, *SYNTHESIS, "--csv", "existing.csv"]),

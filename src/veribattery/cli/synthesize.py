@@ -30,9 +30,10 @@ if TYPE_CHECKING:
                short_help="The best return policy for a mission, and BS1 against it.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
-@click.option("--require", "required", type=float, multiple=True, metavar="P",
-              help="Also find the fastest strategy with P(success) >= P (repeatable); "
-                   "the config's requirements on p_success are always answered.")
+@click.option("--require", "required", multiple=True, metavar="P|bs1",
+              help="Also find the fastest strategy with P(success) >= P, or at least as "
+                   "safe as BS1 at the config's safe_t (bs1); repeatable. The config's "
+                   "requirements on p_success are always answered.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
               default="table", show_default=True, help="Output format.")
 @click.option("--csv", "csv_path", type=click.Path(path_type=Path), metavar="FILE",
@@ -49,7 +50,7 @@ if TYPE_CHECKING:
 @click.option("--max-states", type=click.IntRange(min=1), default=None, metavar="N",
               help="Stop the build (exit 2) once more than N states are found.")
 def synthesize_command(
-    config: Path, overrides: tuple[str, ...], required: tuple[float, ...], output_format: str,
+    config: Path, overrides: tuple[str, ...], required: tuple[str, ...], output_format: str,
     csv_path: Path | None, pareto_path: Path | None, pareto_csv: Path | None, force: bool,
     exact: bool, max_states: int | None,
 ) -> None:
@@ -72,6 +73,7 @@ def synthesize_command(
         with build_progress(plain=True) as progress:
             stage = getattr(progress, "stage", None)
             result = synthesize(cfg, questions, progress=limited(progress, max_states),
+                                as_safe_as_bs1="bs1" in required,
                                 front_request=FrontRequest() if wants_front else None,
                                 on_stage=None if stage is None else _stage_line(stage))
         _write_files(result, csv_path, pareto_path, pareto_csv)
@@ -113,11 +115,21 @@ def _check_outputs(csv_path: Path | None, pareto_path: Path | None,
     return pareto_csv
 
 
-def _questions(cfg: MissionConfig, required: tuple[float, ...]) -> list[FastestQuestion]:
+def _questions(cfg: MissionConfig, required: tuple[str, ...]) -> list[FastestQuestion]:
+    """The config's requirements on P(success), then each ``--require`` but ``bs1``."""
     from veribattery.synthesis.fastest import required_at_least
     from veribattery.synthesis.session import config_requirements
 
-    return [*config_requirements(cfg), *(required_at_least(p) for p in required)]
+    return [*config_requirements(cfg),
+            *(required_at_least(_probability(text)) for text in required if text != "bs1")]
+
+
+def _probability(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise OptionError(f"--require {text}: not a probability; give a number in [0, 1], "
+                          "or bs1") from None
 
 
 def _write_files(result: SynthesisResult, csv_path: Path | None, pareto_path: Path | None,

@@ -19,7 +19,8 @@ from veribattery.errors import OptionError
 from veribattery.render import FastestQuestion
 from veribattery.synthesis.pareto import FrontPoint
 
-__all__ = ["LP_TOLERANCE", "TIME_SLACK", "Fastest", "fastest", "front", "required_at_least"]
+__all__ = ["LP_TOLERANCE", "TIME_SLACK", "Fastest", "as_safe_as", "fastest", "front",
+           "required_at_least"]
 
 #: HiGHS's primal feasibility tolerance: how far an LP answer may be off a bound.
 LP_TOLERANCE = 1e-7
@@ -53,10 +54,16 @@ def required_at_least(p: float | Fraction) -> FastestQuestion:
 
     :raises OptionError: when *p* is not a probability.
     """
-    bound = Fraction(p).limit_denominator(10**12) if isinstance(p, float) else Fraction(p)
-    if not 0 <= bound <= 1:
+    if not 0 <= p <= 1:  # NaN included
         raise OptionError(f"--require {p}: not a probability; give a number in [0, 1]")
+    bound = Fraction(p).limit_denominator(10**12) if isinstance(p, float) else Fraction(p)
     return FastestQuestion("required", f"p_success >= {p}", ">=", bound)
+
+
+def as_safe_as(p_success: float) -> FastestQuestion:
+    """The requirement to be at least as safe as BS1, whose P(success) is *p_success*."""
+    return FastestQuestion("bs1", f"p_success >= BS1's {p_success:.12g}", ">=",
+                           Fraction(p_success))
 
 
 def fastest(mdp: MDP, question: FastestQuestion) -> Fastest:

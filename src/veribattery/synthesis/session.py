@@ -26,7 +26,7 @@ from veribattery.config import MissionConfig, derive_parameters
 from veribattery.pipeline import ProgressCallback
 from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.synthesis.bs1_values import Bs1Values, bs1_points, bs1_values
-from veribattery.synthesis.fastest import LP_TOLERANCE, Fastest, fastest, front
+from veribattery.synthesis.fastest import LP_TOLERANCE, Fastest, as_safe_as, fastest, front
 from veribattery.synthesis.model import Certified, ModelSize, mission_mdp
 from veribattery.synthesis.optimal import (
     ChosenStrategy,
@@ -108,13 +108,15 @@ def config_requirements(cfg: MissionConfig) -> tuple[FastestQuestion, ...]:
 
 
 def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (), *,
-               front_request: FrontRequest | None = None,
+               as_safe_as_bs1: bool = False, front_request: FrontRequest | None = None,
                progress: ProgressCallback | None = None,
                on_stage: StageCallback | None = None) -> SynthesisResult:
     """The best return policy for *cfg*'s mission, BS1 beside it.
 
     :param requirements: the requirements on P(success) to answer (e.g.
         :func:`config_requirements` and :func:`~veribattery.synthesis.fastest.required_at_least`).
+    :param as_safe_as_bs1: also find the fastest strategy at least as safe as BS1 (at
+        the config's ``safe_t``), after *requirements*.
     :param front_request: also compute the Pareto front and BS1's points on it.
     :param progress: told ``(states found, frontier)`` while the MDP is built.
     :param on_stage: told each stage's name as it starts.
@@ -130,8 +132,9 @@ def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (),
         table = _table(mdp, chosen, cfg)
     with clock.stage("BS1"):
         bs1 = bs1_values(cfg)
+    asked = [*requirements, *([as_safe_as(bs1.p_success.value)] if as_safe_as_bs1 else [])]
     with clock.stage("fastest"):
-        answers = tuple(fastest(mdp, question) for question in requirements)
+        answers = tuple(fastest(mdp, question) for question in asked)
     best = Certified.at_initial(mdp, pmax)
     points, bs1_front = _front(mdp, cfg, best, front_request, clock)
     return SynthesisResult(ModelSize.of(mdp), best, bs1, answers, chosen, table, points,
