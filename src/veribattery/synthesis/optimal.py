@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.mdp import MDP, MdpResult, reach_probability, reach_reward
+from veribattery.checker.mdp import MDP, MdpResult, MdpRewards, reach_probability, reach_reward
 from veribattery.synthesis.decisions import GIVE_UP, GO_ON, RETURN
 from veribattery.synthesis.model import Certified
 from veribattery.synthesis.strategy import STATE_VARIABLES
@@ -117,7 +117,7 @@ def _restricted(mdp: MDP, keep: BoolArray) -> tuple[MDP, IntArray]:
     restricted = MDP(
         sp.csr_matrix(mdp.transitions[rows]), groups, mdp.initial, labels=mdp.labels,
         choice_actions=mdp.choice_actions[rows], actions=mdp.actions,
-        rewards=tuple(type(r)(r.name, r.state, r.choice[rows]) for r in mdp.rewards),
+        rewards=tuple(MdpRewards(r.name, r.state, r.choice[rows]) for r in mdp.rewards),
         states=mdp.states, variable_names=mdp.variable_names)
     return restricted, rows
 
