@@ -69,3 +69,14 @@ def test_a_requirement_no_strategy_meets_exits_1() -> None:
     assert result.exit_code == 1, result.output
     assert "FAIL p_success >= 0.99: no strategy meets it; the best P(success) is 0.9384" \
         in result.stdout
+
+
+def test_the_configs_requirements_are_answered() -> None:
+    required = '["p_success >= 0.9", "exp_mission_time < 5000"]'
+    result = CliRunner().invoke(cli, ["synthesize", CASE1, *SYNTHESIS, "--set",
+                                      f"requirements={required}", "--format", "json"])
+    assert result.exit_code == 0, result.output
+    (answer,) = json.loads(result.stdout)["fastest"]
+    assert answer["requirement"] == "p_success >= 0.9"
+    assert answer["exp_mission_time"] == pytest.approx(628.545, rel=1e-5)
+    assert "requirement 'exp_mission_time < 5000' asks the MDP nothing" in result.stderr
