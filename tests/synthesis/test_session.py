@@ -159,3 +159,17 @@ def test_a_requirement_must_be_a_probability() -> None:
     with pytest.raises(OptionError, match=r"--require 1\.5: not a probability"):
         required_at_least(1.5)
     assert required_at_least(0.99).requirement == "p_success >= 0.99"
+
+
+@pytest.mark.parametrize("case", [CASES[0], CASES[2]], ids=["case1", "case3"])
+def test_the_fastest_at_pmax_is_the_tabulated_strategy(case: Path) -> None:
+    """Two methods, one answer: the linear programme at P(success) >= Pmax (less the
+    programme's tolerance) and the certified safest-then-fastest strategy."""
+    cfg = _config(case)
+    result = synthesize(cfg)
+    near_pmax = result.p_success_max.value - LP_TOLERANCE
+    answer = fastest(mission_mdp(cfg), required_at_least(near_pmax))
+    assert answer.exp_mission_time is not None
+    assert answer.exp_mission_time <= result.strategy.exp_mission_time.upper * (1 + 1e-9)
+    assert answer.exp_mission_time == pytest.approx(result.strategy.exp_mission_time.value,
+                                                    rel=1e-5)
