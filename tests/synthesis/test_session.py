@@ -82,7 +82,21 @@ def test_a_requirement_above_pmax_is_not_met(tmp_path: Path) -> None:
     assert result.p_success_max.value < 0.999
     (answer,) = result.fastest
     assert not answer.achievable and answer.exp_mission_time is None
+    assert answer.certified  # above Pmax's certified interval: no programme needed
     assert not result.all_requirements_met
+    # The LP agrees that no strategy meets it.
+    assert not fastest(mission_mdp(cfg), required_at_least(0.999)).achievable
+
+
+def test_a_requirement_at_pmax_is_the_tabulated_strategy() -> None:
+    cfg = _config(CASES[0])
+    pmax = synthesize(cfg).p_success_max.value
+    result = synthesize(cfg, [required_at_least(pmax)], as_safe_as_bs1=True)
+    at_pmax, as_bs1 = result.fastest
+    assert at_pmax.certified and at_pmax.achievable
+    assert at_pmax.exp_mission_time == result.strategy.exp_mission_time.value
+    assert at_pmax.exp_recharges == result.strategy.exp_recharges.value
+    assert as_bs1.p == result.bs1.p_success.value < pmax and not as_bs1.certified
 
 
 def _chain_values(cfg: MissionConfig) -> tuple[object, object, float, float, float]:

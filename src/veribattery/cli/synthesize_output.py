@@ -77,12 +77,16 @@ def _print_comparison(result: SynthesisResult) -> None:
 
 
 def _print_fastest(result: SynthesisResult) -> None:
-    rows = [(f.requirement, lp_text(f.exp_mission_time), lp_text(f.exp_recharges),
-             _versus_bs1(result, f)) for f in result.fastest]
+    rows = [(f.requirement, _answer_text(f, f.exp_mission_time),
+             _answer_text(f, f.exp_recharges), _versus_bs1(result, f)) for f in result.fastest]
     print_table(("fastest with", "E[time] (min)", "E[recharges]", "vs BS1"), rows,
                 title="The fastest strategy that meets each requirement:")
-    print_dim(fit_text("≈: linear programmes solved in floating point (HiGHS), not "
-                       "certified: good to about 1e-7. Such a strategy may randomise."))
+    if any(not f.certified for f in result.fastest):
+        print_dim(fit_text("≈: linear programmes solved in floating point (HiGHS), not "
+                           "certified: good to about 1e-7. Such a strategy may randomise."))
+    if any(f.certified and f.achievable for f in result.fastest):
+        print_dim(fit_text("Without ≈: the requirement is Pmax, within its certified "
+                           "interval: the strategy of the table below, certified."))
     if any(f.achievable and f.p > result.bs1.p_success.value for f in result.fastest):
         print_dim(fit_text("*: BS1 itself does not meet this requirement."))
     for answer in result.fastest:
@@ -90,6 +94,12 @@ def _print_fastest(result: SynthesisResult) -> None:
             out.print(f"[bold red]FAIL[/] {answer.requirement}: no strategy meets it; the "
                       f"best P(success) is {format_value(result.p_success_max.value)} (Pmax)",
                       highlight=False)
+
+
+def _answer_text(answer: Fastest, value: float | None) -> str:
+    if answer.certified and value is not None:
+        return format_value(value)
+    return lp_text(value)
 
 
 def _versus_bs1(result: SynthesisResult, answer: Fastest) -> str:
@@ -200,6 +210,7 @@ def synthesis_json(result: SynthesisResult) -> dict[str, object]:
 
 def _fastest_json(result: SynthesisResult, answer: Fastest) -> dict[str, object]:
     return {"requirement": answer.requirement, "p": answer.p, "achievable": answer.achievable,
+            "certified": answer.certified,
             "exp_mission_time": answer.exp_mission_time, "exp_recharges": answer.exp_recharges,
             "speedup_vs_bs1": result.speedup(answer),
             "best_p_success": json_value(result.p_success_max.value)}

@@ -1,5 +1,8 @@
 """The fastest strategy that is safe enough: ``multi(R{"mt"}min=? [ C ], P>=p [ F "success" ])``.
 
+Where *p* is not below ``Pmax``'s certified interval the answer needs no programme
+(:func:`fastest_near_pmax`); elsewhere it is one.
+
 Each answer is a linear programme over occupation measures solved in floating point by
 HiGHS (:func:`~veribattery.checker.mdp.multi_optimum`): *not* certified, good to about
 HiGHS's feasibility tolerance (:data:`LP_TOLERANCE`). Such a strategy may need to
@@ -17,10 +20,12 @@ from fractions import Fraction
 from veribattery.checker.mdp import MDP, Constraint, Reach, Total, multi_optimum
 from veribattery.errors import OptionError
 from veribattery.render import FastestQuestion
+from veribattery.synthesis.model import Certified
+from veribattery.synthesis.optimal import ChosenStrategy
 from veribattery.synthesis.pareto import FrontPoint
 
-__all__ = ["LP_TOLERANCE", "TIME_SLACK", "Fastest", "as_safe_as", "fastest", "front",
-           "required_at_least"]
+__all__ = ["LP_TOLERANCE", "TIME_SLACK", "Fastest", "as_safe_as", "fastest",
+           "fastest_near_pmax", "front", "required_at_least"]
 
 #: HiGHS's primal feasibility tolerance: how far an LP answer may be off a bound.
 LP_TOLERANCE = 1e-7
@@ -40,6 +45,10 @@ class Fastest:
         none does).
     :ivar exp_recharges: the expected recharges of such a strategy (None: none does,
         or the second programme found none within :data:`TIME_SLACK`).
+    :ivar certified: True when the answer comes from certified values rather than a
+        linear programme: *p* above ``Pmax``'s certified interval (none meets it), or
+        inside it (the safest-then-fastest strategy is the answer, to within that
+        interval's width).
     """
 
     requirement: str
@@ -47,6 +56,7 @@ class Fastest:
     achievable: bool
     exp_mission_time: float | None
     exp_recharges: float | None
+    certified: bool = False
 
 
 def required_at_least(p: float | Fraction) -> FastestQuestion:
@@ -66,8 +76,27 @@ def as_safe_as(p_success: float) -> FastestQuestion:
                            Fraction(p_success))
 
 
+def fastest_near_pmax(question: FastestQuestion, p_success_max: Certified,
+                      safest: ChosenStrategy) -> Fastest | None:
+    """The answer without a linear programme where *p* is not below ``Pmax``'s certified
+    interval, else None.
+
+    Above it, no strategy meets *p* (certified). Inside it, the strategies that meet *p*
+    are those that attain ``Pmax`` (up to the interval's width), and the fastest of them
+    is *safest*, the safest-then-fastest strategy, with its certified values.
+    """
+    p = float(question.bound)
+    if p > p_success_max.upper:
+        return Fastest(question.requirement, p, False, None, None, certified=True)
+    if p >= p_success_max.lower:
+        return Fastest(question.requirement, p, True, safest.exp_mission_time.value,
+                       safest.exp_recharges.value, certified=True)
+    return None
+
+
 def fastest(mdp: MDP, question: FastestQuestion) -> Fastest:
-    """The fastest strategy of *mdp* that meets *question* (its P(success) bound)."""
+    """The fastest strategy of *mdp* that meets *question* (its P(success) bound), by
+    linear programmes."""
     p = float(question.bound)
     success = Reach(mdp.labels["success"])
     time = Total(mdp.reward("mt").per_choice(mdp))

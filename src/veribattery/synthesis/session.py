@@ -7,7 +7,8 @@ beside it:
 - ``Pmax [ F "success" ]``, certified;
 - BS1's P(success), expected mission time and recharges, certified;
 - per requirement on P(success), the fastest strategy that meets it (linear
-  programmes, not certified: :mod:`~veribattery.synthesis.fastest`);
+  programmes, not certified, unless the requirement is at ``Pmax`` or above:
+  :mod:`~veribattery.synthesis.fastest`);
 - the threshold table of the safest-then-fastest strategy
   (:mod:`~veribattery.synthesis.optimal`), with that strategy's own values;
 - optionally, the Pareto front and BS1's points at several ``safe_t``.
@@ -26,7 +27,14 @@ from veribattery.config import MissionConfig, derive_parameters
 from veribattery.pipeline import ProgressCallback
 from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.synthesis.bs1_values import Bs1Values, bs1_points, bs1_values
-from veribattery.synthesis.fastest import LP_TOLERANCE, Fastest, as_safe_as, fastest, front
+from veribattery.synthesis.fastest import (
+    LP_TOLERANCE,
+    Fastest,
+    as_safe_as,
+    fastest,
+    fastest_near_pmax,
+    front,
+)
 from veribattery.synthesis.model import Certified, ModelSize, mission_mdp
 from veribattery.synthesis.optimal import (
     ChosenStrategy,
@@ -133,9 +141,10 @@ def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (),
     with clock.stage("BS1"):
         bs1 = bs1_values(cfg)
     asked = [*requirements, *([as_safe_as(bs1.p_success.value)] if as_safe_as_bs1 else [])]
-    with clock.stage("fastest"):
-        answers = tuple(fastest(mdp, question) for question in asked)
     best = Certified.at_initial(mdp, pmax)
+    with clock.stage("fastest"):
+        answers = tuple(fastest_near_pmax(question, best, chosen) or fastest(mdp, question)
+                        for question in asked)
     points, bs1_front = _front(mdp, cfg, best, front_request, clock)
     return SynthesisResult(ModelSize.of(mdp), best, bs1, answers, chosen, table, points,
                            bs1_front, clock.seconds)
