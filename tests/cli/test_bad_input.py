@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from tests.cli.inputs import CASE1, SMALL
+from tests.cli.inputs import CASE1, SMALL, SYNTHESIS
 from veribattery.cli import cli
 
 DIE = "dtmc\nmodule m\n  s : [0..2] init 0;\n  [] s<2 -> 0.5 : (s'=s+1) + 0.5 : (s'=0);\n" \
@@ -132,6 +132,23 @@ CASES: list[tuple[str, list[str]]] = [
     ("reproduce-what", ["reproduce", "fig9"]),
     ("reproduce-all-no-dir", ["reproduce", "all"]),
     ("reproduce-dir-is-file", ["reproduce", "fig6", "-o", "existing.csv"]),
+    # synthesize
+    ("synthesize-require-range", ["synthesize", CASE1, *SYNTHESIS, "--require", "1.5"]),
+    ("synthesize-require-text", ["synthesize", CASE1, *SYNTHESIS, "--require", "high"]),
+    ("synthesize-require-nan", ["synthesize", CASE1, *SYNTHESIS, "--require", "nan"]),
+    ("synthesize-format", ["synthesize", CASE1, *SYNTHESIS, "--format", "yaml"]),
+    ("synthesize-exact", ["synthesize", CASE1, *SYNTHESIS, "--exact"]),
+    ("synthesize-csv-exists", ["synthesize", CASE1, *SYNTHESIS, "--csv", "existing.csv"]),
+    ("synthesize-csv-type", ["synthesize", CASE1, *SYNTHESIS, "--csv", "table.txt"]),
+    ("synthesize-pareto-type", ["synthesize", CASE1, *SYNTHESIS, "--pareto", "front.xyz"]),
+    ("synthesize-pareto-csv-exists", ["synthesize", CASE1, *SYNTHESIS, "--pareto",
+                                      "existing.svg"]),
+    ("synthesize-same-file", ["synthesize", CASE1, *SYNTHESIS, "--csv", "t.csv",
+                              "--pareto-csv", "t.csv"]),
+    ("sweep-synthesis", ["sweep", CASE1, *SMALL, "--set", "strategy.mode=synthesize",
+                         "--vary", "battery.capacity_ah=10,11", "-o", "results.csv"]),
+    ("sweep-vary-mode", ["sweep", CASE1, *SMALL, "--vary", "strategy.mode=bs1,synthesize",
+                         "-o", "results.csv"]),
     # report
     ("report-no-output", ["report", CASE1, *SMALL]),
     ("report-output-type", ["report", CASE1, *SMALL, "-o", "r.pdf"]),

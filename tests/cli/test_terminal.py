@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.cli.inputs import CASE1, EXAMPLES, SMALL
+from tests.cli.inputs import CASE1, EXAMPLES, SMALL, SYNTHESIS
 from tests.cli.terminal import Screen, run_in_terminal
 from tests.cli.test_contracts import DIE
 
@@ -37,6 +37,10 @@ COMMANDS = [
     ("recheck", ["recheck", CASE1, *SMALL, "--cycles", "cycles.csv"], 0, ["before", "after"]),
     ("reproduce-table3", ["reproduce", "table3"], 0, ["exp_recharges", "42.7713"]),
     ("report", ["report", CASE1, *SMALL, "--runs", "50", "-o", "r.html"], 0, ["wrote r.html"]),
+    ("synthesize", ["synthesize", CASE1, *SYNTHESIS, "--require", "0.9", "--require", "0.99",
+                    "--require", "bs1"],
+     1, ["optimum (Pmax)", "p_success >= 0.9", "7.3% faster", "FAIL p_success >= 0.99",
+         "p_success >= BS1's 0.926991354356"]),
     ("help", ["--help"], 0, ["sweep", "130 interrupted"]),
 ]
 

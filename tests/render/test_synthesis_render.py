@@ -137,7 +137,8 @@ def test_check_refuses_synthesis_mode_in_one_line(tmp_path: Path) -> None:
     lines = result.stderr.strip().splitlines()
     assert len(lines) == 1 and "Traceback" not in result.output
     assert lines[0].startswith("error: strategy.mode: synthesize makes the mission an MDP, "
-                               "and this command verifies BS1's DTMC: use `veribattery emit`")
+                               "and this command verifies BS1's DTMC: use `veribattery "
+                               "synthesize CONFIG`")
     cfg = load_config(_config_path("case1"), [SYNTHESIZE])
     for refused in (check_mission, mission_dtmc, mission_files):
         with pytest.raises(ConfigError, match=r"^strategy\.mode: synthesize makes"):

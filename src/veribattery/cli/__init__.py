@@ -31,6 +31,7 @@ _COMMANDS = {
     "recheck": ("veribattery.cli.phm", "recheck_command"),
     "distribution": ("veribattery.cli.distribution", "distribution_command"),
     "report": ("veribattery.cli.report", "report_command"),
+    "synthesize": ("veribattery.cli.synthesize", "synthesize_command"),
 }
 
 

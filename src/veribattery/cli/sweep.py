@@ -71,6 +71,7 @@ def sweep_command(
     with user_errors():
         cfg = load_config(config, overrides)
         axes = axes_from(specs, cfg.sweep.vary)
+        _refuse_synthesis(cfg, axes)
         _check_plot_options(plot_path, plot_property, plot_x, axes, cfg.properties, force)
         frame = run_with_progress(
             config, axes, overrides, results, jobs=jobs or default_jobs(), scheduler=scheduler,
@@ -85,6 +86,16 @@ def sweep_command(
     print_sweep(frame, [axis.key for axis in axes], output_format)
     err.print(summary_line(frame), markup=False)
     sys.exit(1 if frame.attrs.get("failed") or any_requirement_fails(frame) else 0)
+
+
+def _refuse_synthesis(cfg: Any, axes: Sequence[Any]) -> None:
+    """Refuse, before any file is written, a grid with a point in synthesis mode: a
+    sweep checks BS1's DTMC at each point (``synthesize`` answers one config)."""
+    cfg.require_bs1()
+    for axis in axes:
+        if axis.key == "strategy.mode" and "synthesize" in map(str, axis.values):
+            raise OptionError("--vary strategy.mode: a sweep checks BS1's DTMC at each "
+                              "point; run `veribattery synthesize CONFIG` per config instead")
 
 
 def _check_plot_options(plot_path: Path | None, plot_property: str | None,

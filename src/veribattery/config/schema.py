@@ -463,8 +463,8 @@ class MissionConfig(_Section):
         if self.strategy.mode == "synthesize":
             raise ConfigError(
                 "strategy.mode: synthesize makes the mission an MDP, and this command verifies "
-                "BS1's DTMC: use `veribattery emit` and check the MDP with Storm or PRISM "
-                "(`veribattery synthesize` is not yet available), or set strategy.mode=bs1")
+                "BS1's DTMC: use `veribattery synthesize CONFIG` (or `veribattery emit` for "
+                "Storm or PRISM), or set strategy.mode=bs1")
 
     @property
     def parsed_requirements(self) -> tuple[Requirement, ...]:

@@ -1,0 +1,69 @@
+"""The mission MDP of a config, built by veribattery's own engine, and certified values
+at its initial state.
+
+Whatever the config's ``strategy.mode``, the model is the one ``emit`` writes in
+synthesis mode (:func:`~veribattery.render.render_synthesis_model`): parsed, flattened
+and explored like any PRISM file, into the checker's
+:class:`~veribattery.checker.mdp.MDP`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from veribattery.checker.mdp import MDP, MdpResult
+from veribattery.config import MissionConfig
+from veribattery.explore.build.mdp import build_mdp
+from veribattery.lang import flatten_model, parse_model
+from veribattery.mission import MODEL_FILE
+from veribattery.pipeline import ProgressCallback
+from veribattery.pipeline.mdp import as_checker_mdp
+from veribattery.render import render_synthesis_model
+
+__all__ = ["Certified", "ModelSize", "mission_mdp"]
+
+
+@dataclass(frozen=True, slots=True)
+class Certified:
+    """A value at the initial state inside a certified interval ``[lower, upper]``."""
+
+    value: float
+    lower: float
+    upper: float
+
+    @classmethod
+    def at_initial(cls, mdp: MDP, result: MdpResult) -> Certified:
+        """*result*'s value at *mdp*'s (single) initial state."""
+        start = int(mdp.initial[0])
+        return cls(float(result.values[start]), float(result.lower[start]),
+                   float(result.upper[start]))
+
+    @property
+    def error(self) -> float:
+        """The largest distance from the value to an end of the interval."""
+        return max(self.value - self.lower, self.upper - self.value)
+
+
+@dataclass(frozen=True, slots=True)
+class ModelSize:
+    """How large the mission MDP is."""
+
+    states: int
+    choices: int
+    transitions: int
+
+    @classmethod
+    def of(cls, mdp: MDP) -> ModelSize:
+        """The sizes of *mdp*."""
+        return cls(mdp.num_states, mdp.num_choices, mdp.num_transitions)
+
+
+def mission_mdp(cfg: MissionConfig, *, progress: ProgressCallback | None = None) -> MDP:
+    """The MDP of *cfg*'s farm, battery and wind (model-spec.md, "Synthesis").
+
+    :param progress: told ``(states found, frontier)`` after each layer of the build.
+    :raises ConfigError: when the config's numbers overflow PRISM's integers.
+    :raises ModelError: when the build fails (or *progress* stops it).
+    """
+    model = parse_model(render_synthesis_model(cfg), name=MODEL_FILE)
+    return as_checker_mdp(build_mdp(flatten_model(model), progress=progress))
