@@ -16,12 +16,13 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
-from scipy.sparse.linalg import splu
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify import UNIT_ROUNDOFF
+from veribattery.checker.linalg.topological import TopologicalSolver
 from veribattery.checker.mdp.graph import attractor
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
+from veribattery.errors import CheckError
 
 __all__ = ["Evaluation", "evaluate", "policy_iteration", "progress_rows"]
 
@@ -55,18 +56,22 @@ def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
     """The values of the strategy *rows*, or None if its system is singular (the
     strategy stays forever among the unknown states from somewhere).
 
-    One sparse LU factorisation, then iterative refinement with the residual
+    Solved SCC by SCC in topological order (:class:`TopologicalSolver`: a
+    strategy's induced system is mostly acyclic, and substitution there costs a
+    fraction of a sparse LU of the whole system, in time and in memory), then
+    iterative refinement with the residual
     computed in extended precision (``np.longdouble``, the leaving probabilities
     summed there too), so that the values are correct to about the last bit of a
     double wherever the system is not too ill-conditioned.
     """
     chosen = sp.csr_matrix(system.off[rows])
     leave = system.leave[rows]
-    matrix = sp.csc_matrix(sp.diags(leave) - chosen[:, : system.size])
+    matrix = sp.csr_matrix(sp.diags(leave) - chosen[:, : system.size])
     try:
-        factors = splu(matrix)
-    except RuntimeError:
+        factors = TopologicalSolver(matrix)
+    except CheckError:
         return None
+    del matrix
     residual = _Residual.of(chosen, system.size, known, None if offset is None else offset[rows])
     x = factors.solve(residual.rhs.astype(np.float64))
     for _ in range(REFINE_STEPS):
