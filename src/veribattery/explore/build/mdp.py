@@ -192,8 +192,8 @@ def _enabled_somewhere(atom: ChoiceGroup, frontier: IntArray,
             continue
         key = id(command)
         if key not in guards:
-            mask = np.asarray(command.guard(frontier), dtype=bool)
-            guards[key] = mask if mask.any() else None
+            holds = np.asarray(command.guard(frontier), dtype=bool)
+            guards[key] = holds if holds.any() else None
         mask = guards[key]
         if mask is None:
             return False
