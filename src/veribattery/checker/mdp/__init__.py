@@ -7,22 +7,12 @@ and a strategy that attains it. ``docs/mdp-numerics.md`` says how each operator 
 certified.
 """
 
-from veribattery.checker.mdp.exact import (
-    ExactMdpResult,
-    exact_probabilities,
-    exact_reach_probability,
-    exact_reach_reward,
-    exact_total_reward,
-)
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from veribattery.checker.mdp.model import MDP, MdpRewards
-from veribattery.checker.mdp.multi import (
-    Constraint,
-    MultiResult,
-    Reach,
-    Total,
-    multi_achievable,
-    multi_optimum,
-)
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
@@ -36,6 +26,41 @@ from veribattery.checker.mdp.stepped import (
 )
 from veribattery.checker.mdp.strategy import StepStrategy, Strategy, induced_chain
 from veribattery.checker.mdp.system import Objective
+
+if TYPE_CHECKING:
+    from veribattery.checker.mdp.exact import (
+        ExactMdpResult,
+        exact_probabilities,
+        exact_reach_probability,
+        exact_reach_reward,
+        exact_total_reward,
+    )
+    from veribattery.checker.mdp.multi import (
+        Constraint,
+        MultiResult,
+        Reach,
+        Total,
+        multi_achievable,
+        multi_optimum,
+    )
+
+# Imported on first use: the exact engine (gmpy2) and the multi-objective LP are not
+# needed to check a float property, and small models are dominated by start-up.
+_EXPORTS = {
+    "veribattery.checker.mdp.exact": ("ExactMdpResult", "exact_probabilities",
+                                      "exact_reach_probability", "exact_reach_reward",
+                                      "exact_total_reward"),
+    "veribattery.checker.mdp.multi": ("Constraint", "MultiResult", "Reach", "Total",
+                                      "multi_achievable", "multi_optimum"),
+}
+_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'veribattery.checker.mdp' has no attribute {name!r}")
+    return getattr(importlib.import_module(_HOME[name]), name)
+
 
 __all__ = [
     "MDP",

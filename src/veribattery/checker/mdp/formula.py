@@ -24,7 +24,6 @@ from veribattery.checker.formula.intervals import Result
 from veribattery.checker.formula.leaves import as_mask, has_operator, step_bound
 from veribattery.checker.mdp import cosafe, stepped
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.multi_formula import multi_answer
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
 from veribattery.checker.mdp.system import Objective
@@ -77,6 +76,9 @@ def mdp_answer(mdp: MDP, formula: Expr) -> filters.FilterOutcome:
     single initial state, the range over several, or ``forall`` for a boolean."""
     printed: tuple[str, ...] = ()
     if isinstance(formula, Multi):
+        # Imported here: the LP (scipy.optimize) is not needed for any other formula.
+        from veribattery.checker.mdp.multi_formula import multi_answer
+
         return multi_answer(mdp, formula, partial(_mask, mdp))
     if isinstance(formula, Filter):
         outcome = _filter(mdp, formula)
