@@ -181,12 +181,8 @@ class Factorization:
         return x
 
     def residual(self, x: FloatArray, b: ExtArray) -> ExtArray:
-        """``b - A x`` in extended precision, a block of rows at a time.
-
-        A system within one block keeps its widened matrix: a closure solved once per
-        reward level (a mission-time distribution: thousands of solves) would widen and
-        rebuild it twice per solve. The product is the same, bit for bit.
-        """
+        """``b - A x`` in extended precision, a block of rows at a time (a system within
+        one block keeps its widened matrix: a distribution solves one per level)."""
         A64 = self.A64
         if A64.nnz > _PRODUCT_BLOCK:
             return b - _extended_product(A64, self.residue, x)
