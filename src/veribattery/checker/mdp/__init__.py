@@ -10,6 +10,7 @@ certified.
 from __future__ import annotations
 
 import importlib
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from veribattery.checker.mdp.model import MDP, MdpRewards
@@ -46,14 +47,15 @@ if TYPE_CHECKING:
 
 # Imported on first use: the exact engine (gmpy2) and the multi-objective LP are not
 # needed to check a float property, and small models are dominated by start-up.
-_EXPORTS = {
-    "veribattery.checker.mdp.exact": ("ExactMdpResult", "exact_probabilities",
-                                      "exact_reach_probability", "exact_reach_reward",
-                                      "exact_total_reward"),
-    "veribattery.checker.mdp.multi": ("Constraint", "MultiResult", "Reach", "Total",
-                                      "multi_achievable", "multi_optimum"),
-}
-_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
+_EXPORTS = (
+    ("veribattery.checker.mdp.exact", ("ExactMdpResult", "exact_probabilities",
+                                       "exact_reach_probability", "exact_reach_reward",
+                                       "exact_total_reward")),
+    ("veribattery.checker.mdp.multi", ("Constraint", "MultiResult", "Reach", "Total",
+                                       "multi_achievable", "multi_optimum")),
+)
+# read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
+_HOME = MappingProxyType({name: module for module, names in _EXPORTS for name in names})
 
 
 def __getattr__(name: str) -> Any:
