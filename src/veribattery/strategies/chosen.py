@@ -21,12 +21,14 @@ __all__ = ["ChosenStrategy", "choose_strategy", "reached_under"]
 class ChosenStrategy:
     """An optimal strategy, the property it attains and the model it acts on.
 
-    :param result: the checked property (its resolved formula and its optimum).
+    :param result: the checked property (its resolved formula and its optimum); None
+        for a strategy found otherwise (``synthesize``'s), which has a model and no
+        single property.
     :param reached: the states reachable from the initial states under the strategy
         (the ones whose choice matters; the exports list only these).
     """
 
-    result: CheckResult
+    result: CheckResult | None
     strategy: Strategy
     mdp: MDP
     model: FlatModel
