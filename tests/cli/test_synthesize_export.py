@@ -65,6 +65,9 @@ def test_prism_reads_the_induced_files_to_the_same_values(
         exported: tuple[Path, dict[str, object]]) -> None:
     folder, document = exported
     induced = folder / "induced"
+    text = (induced / "induced.prism").read_text(encoding="utf-8")
+    assert text.startswith("// The DTMC that veribattery synthesize's strategy (safest, then "
+                           "fastest)\n// induces on model.prism")
     result = CliRunner().invoke(cli, ["prism", str(induced / "induced.prism"), "--props",
                                       str(induced / "induced.props"), "--json"])
     assert result.exit_code == 0, result.stderr

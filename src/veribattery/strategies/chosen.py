@@ -26,6 +26,7 @@ class ChosenStrategy:
         single property.
     :param reached: the states reachable from the initial states under the strategy
         (the ones whose choice matters; the exports list only these).
+    :param about: what the strategy is, for the files' headers when *result* is None.
     """
 
     result: CheckResult | None
@@ -33,6 +34,7 @@ class ChosenStrategy:
     mdp: MDP
     model: FlatModel
     reached: BoolArray
+    about: str = "the strategy"
 
     @property
     def reached_states(self) -> list[int]:

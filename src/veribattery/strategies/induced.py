@@ -133,7 +133,7 @@ def _reward_ref(reward: str | int | None, model: FlatModel) -> str:
 
 def _header(chosen: ChosenStrategy) -> str:
     if chosen.result is None:
-        whose = "the strategy"
+        whose = chosen.about
     else:
         prop = chosen.result.property
         whose = f"an optimal strategy of {prop.text} ({prop.span})"

@@ -36,6 +36,10 @@ INDUCED_QUESTIONS = (
 )
 
 
+#: The strategy, as the induced model's header names it.
+ABOUT = "veribattery synthesize's strategy (safest, then fastest)"
+
+
 @dataclass(frozen=True, slots=True)
 class StrategyExport:
     """Which files of the strategy to write (None: not that one).
@@ -53,7 +57,8 @@ def strategy_export_texts(model: FlatModel, mdp: MDP, chosen: ChosenStrategy,
     """The text of each file *export* asks for, of *chosen* on *mdp* (built from the
     flat *model*)."""
     strategy = Strategy(chosen.choices)
-    exported = ExportedStrategy(None, strategy, mdp, model, reached_under(mdp, strategy))
+    exported = ExportedStrategy(None, strategy, mdp, model, reached_under(mdp, strategy),
+                                about=ABOUT)
     texts: dict[Path, str] = {}
     if export.strategy_file is not None:
         texts[export.strategy_file] = strategy_text(exported, export.strategy_file)
