@@ -121,3 +121,11 @@ def test_an_existing_strategy_file_is_refused(tmp_path: Path) -> None:
     assert result.exit_code == 2
     assert "--export-strategy" in result.stderr
     assert strategy.read_text(encoding="utf-8") == "[]\n"
+
+
+def test_the_strategy_file_cannot_be_the_tables(tmp_path: Path) -> None:
+    same = tmp_path / "out.csv"
+    result = _synthesize("--csv", same, "--export-strategy", same)
+    assert result.exit_code == 2
+    assert "must name other files" in result.stderr
+    assert not same.exists()

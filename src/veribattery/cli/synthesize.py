@@ -83,6 +83,7 @@ def synthesize_command(
                               "are linear programmes solved in floating point); drop --exact")
         pareto_csv = _check_outputs(csv_path, pareto_path, pareto_csv, force)
         export = _check_strategy_outputs(strategy_file, induced_dir, force)
+        _check_distinct(csv_path, pareto_path, pareto_csv, export)
         cfg = load_config(config, overrides)
         questions = _questions(cfg, required)
         wants_front = pareto_path is not None or pareto_csv is not None
@@ -146,6 +147,22 @@ def _check_strategy_outputs(strategy_file: Path | None, induced_dir: Path | None
         check_output_dir(induced_dir, "--export-induced", force=force,
                          names=(INDUCED_MODEL, INDUCED_PROPERTIES))
     return StrategyExport(strategy_file, induced_dir)
+
+
+def _check_distinct(csv_path: Path | None, pareto_path: Path | None,
+                    pareto_csv: Path | None, export: StrategyExport | None) -> None:
+    """The strategy's files must not be the table's or the front's."""
+    if export is None:
+        return
+    from veribattery.strategies import INDUCED_MODEL, INDUCED_PROPERTIES
+
+    induced = () if export.induced_dir is None else (
+        export.induced_dir / INDUCED_MODEL, export.induced_dir / INDUCED_PROPERTIES)
+    others = {p.resolve() for p in (csv_path, pareto_path, pareto_csv) if p is not None}
+    mine = {p.resolve() for p in (export.strategy_file, *induced) if p is not None}
+    if others & mine:
+        raise OptionError("--export-strategy and --export-induced must name other files "
+                          "than --csv, --pareto and --pareto-csv")
 
 
 def _questions(cfg: MissionConfig, required: tuple[str, ...]) -> list[FastestQuestion]:
