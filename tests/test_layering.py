@@ -55,7 +55,7 @@ SIBLINGS: dict[str, frozenset[str]] = {
     "analyses": frozenset({"sweep"}),
     "phm": frozenset({"sweep"}),
     "report": frozenset({"analyses", "sweep"}),
-    "synthesis": frozenset(),
+    "synthesis": frozenset({"strategies"}),
     "strategies": frozenset(),
 }
 #: Modules allowed over MAX_LINES, each with the reason it stays whole.

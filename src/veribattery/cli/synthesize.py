@@ -9,7 +9,12 @@ from typing import TYPE_CHECKING
 
 import click
 
-from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, check_output_file
+from veribattery.cli.files import (
+    CSV_SUFFIXES,
+    FIGURE_SUFFIXES,
+    check_output_dir,
+    check_output_file,
+)
 from veribattery.cli.output import (
     build_progress,
     print_warnings,
@@ -23,6 +28,7 @@ from veribattery.errors import OptionError
 if TYPE_CHECKING:
     from veribattery.config import MissionConfig
     from veribattery.render import FastestQuestion
+    from veribattery.synthesis.exports import StrategyExport
     from veribattery.synthesis.session import SynthesisResult
 
 
@@ -43,6 +49,14 @@ if TYPE_CHECKING:
                    "CSV is written beside it unless --pareto-csv names another file.")
 @click.option("--pareto-csv", "pareto_csv", type=click.Path(path_type=Path), metavar="FILE",
               help="Write the Pareto front's points as CSV.")
+@click.option("--export-strategy", "strategy_file", type=click.Path(path_type=Path),
+              metavar="FILE",
+              help="Write the table's strategy (safest, then fastest); FILE.json in Storm's "
+                   "scheduler JSON, any other name in PRISM's -exportstrat actions form.")
+@click.option("--export-induced", "induced_dir", type=click.Path(path_type=Path),
+              metavar="DIR",
+              help="Write the DTMC that strategy induces and its P(success), expected "
+                   "mission time and recharges: DIR/induced.prism and DIR/induced.props.")
 @click.option("--force", is_flag=True, help="Overwrite existing output files.")
 @click.option("--exact", is_flag=True,
               help="Not available for synthesis (refused): the fastest strategies are "
@@ -51,8 +65,9 @@ if TYPE_CHECKING:
               help="Stop the build (exit 2) once more than N states are found.")
 def synthesize_command(
     config: Path, overrides: tuple[str, ...], required: tuple[str, ...], output_format: str,
-    csv_path: Path | None, pareto_path: Path | None, pareto_csv: Path | None, force: bool,
-    exact: bool, max_states: int | None,
+    csv_path: Path | None, pareto_path: Path | None, pareto_csv: Path | None,
+    strategy_file: Path | None, induced_dir: Path | None, force: bool, exact: bool,
+    max_states: int | None,
 ) -> None:
     """Synthesise the best return policy for CONFIG's mission (whatever its strategy.mode):
     Pmax of success beside BS1's values, the fastest strategy per requirement on
@@ -67,6 +82,8 @@ def synthesize_command(
             raise OptionError("--exact: not available for synthesize (the fastest strategies "
                               "are linear programmes solved in floating point); drop --exact")
         pareto_csv = _check_outputs(csv_path, pareto_path, pareto_csv, force)
+        export = _check_strategy_outputs(strategy_file, induced_dir, force)
+        _check_distinct(csv_path, pareto_path, pareto_csv, export)
         cfg = load_config(config, overrides)
         questions = _questions(cfg, required)
         wants_front = pareto_path is not None or pareto_csv is not None
@@ -75,8 +92,10 @@ def synthesize_command(
             result = synthesize(cfg, questions, progress=limited(progress, max_states),
                                 as_safe_as_bs1="bs1" in required,
                                 front_request=FrontRequest() if wants_front else None,
-                                on_stage=None if stage is None else _stage_line(stage))
+                                on_stage=None if stage is None else _stage_line(stage),
+                                export=export)
         _write_files(result, csv_path, pareto_path, pareto_csv)
+        _write_strategy_files(result, induced_dir)
     print_warnings(unasked_requirements(cfg))
     from veribattery.cli import synthesize_output as shown
 
@@ -115,6 +134,37 @@ def _check_outputs(csv_path: Path | None, pareto_path: Path | None,
     return pareto_csv
 
 
+def _check_strategy_outputs(strategy_file: Path | None, induced_dir: Path | None,
+                            force: bool) -> StrategyExport | None:
+    """The strategy's files checked before any work, as the export they ask for."""
+    if strategy_file is None and induced_dir is None:
+        return None
+    from veribattery.strategies import INDUCED_MODEL, INDUCED_PROPERTIES
+    from veribattery.synthesis.exports import StrategyExport
+
+    check_output_file(strategy_file, "--export-strategy", force=force)
+    if induced_dir is not None:
+        check_output_dir(induced_dir, "--export-induced", force=force,
+                         names=(INDUCED_MODEL, INDUCED_PROPERTIES))
+    return StrategyExport(strategy_file, induced_dir)
+
+
+def _check_distinct(csv_path: Path | None, pareto_path: Path | None,
+                    pareto_csv: Path | None, export: StrategyExport | None) -> None:
+    """The strategy's files must not be the table's or the front's."""
+    if export is None:
+        return
+    from veribattery.strategies import INDUCED_MODEL, INDUCED_PROPERTIES
+
+    induced = () if export.induced_dir is None else (
+        export.induced_dir / INDUCED_MODEL, export.induced_dir / INDUCED_PROPERTIES)
+    others = {p.resolve() for p in (csv_path, pareto_path, pareto_csv) if p is not None}
+    mine = {p.resolve() for p in (export.strategy_file, *induced) if p is not None}
+    if others & mine:
+        raise OptionError("--export-strategy and --export-induced must name other files "
+                          "than --csv, --pareto and --pareto-csv")
+
+
 def _questions(cfg: MissionConfig, required: tuple[str, ...]) -> list[FastestQuestion]:
     """The config's requirements on P(success), then each ``--require`` but ``bs1``."""
     from veribattery.synthesis.fastest import required_at_least
@@ -146,3 +196,15 @@ def _write_files(result: SynthesisResult, csv_path: Path | None, pareto_path: Pa
     if pareto_csv is not None:
         write_pareto_csv(pareto_csv, result.front, result.bs1_front)
         print_written(pareto_csv)
+
+
+def _write_strategy_files(result: SynthesisResult, induced_dir: Path | None) -> None:
+    """The strategy's files, all or nothing."""
+    if not result.strategy_files:
+        return
+    from veribattery._files import write_texts
+
+    if induced_dir is not None:
+        induced_dir.mkdir(parents=True, exist_ok=True)
+    write_texts(result.strategy_files)
+    print_written(*result.strategy_files)

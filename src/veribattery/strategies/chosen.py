@@ -21,16 +21,20 @@ __all__ = ["ChosenStrategy", "choose_strategy", "reached_under"]
 class ChosenStrategy:
     """An optimal strategy, the property it attains and the model it acts on.
 
-    :param result: the checked property (its resolved formula and its optimum).
+    :param result: the checked property (its resolved formula and its optimum); None
+        for a strategy found otherwise (``synthesize``'s), which has a model and no
+        single property.
     :param reached: the states reachable from the initial states under the strategy
         (the ones whose choice matters; the exports list only these).
+    :param about: what the strategy is, for the files' headers when *result* is None.
     """
 
-    result: CheckResult
+    result: CheckResult | None
     strategy: Strategy
     mdp: MDP
     model: FlatModel
     reached: BoolArray
+    about: str = "the strategy"
 
     @property
     def reached_states(self) -> list[int]:

@@ -72,7 +72,12 @@ def induced_model_text(chosen: ChosenStrategy) -> str:
 
 
 def induced_properties_text(chosen: ChosenStrategy) -> str:
-    """The chosen property in its DTMC form, with the MDP's property as a comment."""
+    """The chosen property in its DTMC form, with the MDP's property as a comment.
+
+    :raises ValueError: *chosen* has no property (its ``result`` is None).
+    """
+    if chosen.result is None:
+        raise ValueError("the strategy was not chosen for a property")
     prop = chosen.result.property
     name = f'"{prop.name}": ' if prop.name is not None else ""
     value = chosen.result.value
@@ -127,8 +132,12 @@ def _reward_ref(reward: str | int | None, model: FlatModel) -> str:
 
 
 def _header(chosen: ChosenStrategy) -> str:
-    prop = chosen.result.property
-    return (f"// The DTMC that an optimal strategy of {prop.text} ({prop.span})\n"
+    if chosen.result is None:
+        whose = chosen.about
+    else:
+        prop = chosen.result.property
+        whose = f"an optimal strategy of {prop.text} ({prop.span})"
+    return (f"// The DTMC that {whose}\n"
             f"// induces on {chosen.model.source}, exported by veribattery: one command per\n"
             "// state reachable under the strategy, guarded by the state's valuation and\n"
             "// labelled by the action taken there.\n\n")

@@ -12,6 +12,7 @@ Modules: :mod:`~veribattery.synthesis.files` (what ``emit`` writes),
 :mod:`~veribattery.synthesis.bs1_values` (BS1's values and its points on it),
 :mod:`~veribattery.synthesis.model` (the MDP built by veribattery's engine),
 :mod:`~veribattery.synthesis.optimal` (the safest, then fastest strategy),
+:mod:`~veribattery.synthesis.exports` (its strategy and induced DTMC as files),
 :mod:`~veribattery.synthesis.fastest` (the fastest strategy safe enough: linear
 programmes) and :mod:`~veribattery.synthesis.session` (:func:`synthesize`, what
 ``veribattery synthesize`` prints).

@@ -14,13 +14,13 @@ from dataclasses import dataclass
 from veribattery.checker.mdp import MDP, MdpResult
 from veribattery.config import MissionConfig
 from veribattery.explore.build.mdp import build_mdp
-from veribattery.lang import flatten_model, parse_model
+from veribattery.lang import FlatModel, flatten_model, parse_model
 from veribattery.mission import MODEL_FILE
 from veribattery.pipeline import ProgressCallback
 from veribattery.pipeline.mdp import as_checker_mdp
 from veribattery.render import render_synthesis_model
 
-__all__ = ["Certified", "ModelSize", "mission_mdp"]
+__all__ = ["Certified", "ModelSize", "mission_mdp", "mission_model"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -65,5 +65,12 @@ def mission_mdp(cfg: MissionConfig, *, progress: ProgressCallback | None = None)
     :raises ConfigError: when the config's numbers overflow PRISM's integers.
     :raises ModelError: when the build fails (or *progress* stops it).
     """
-    model = parse_model(render_synthesis_model(cfg), name=MODEL_FILE)
-    return as_checker_mdp(build_mdp(flatten_model(model), progress=progress))
+    return mission_model(cfg, progress=progress)[1]
+
+
+def mission_model(cfg: MissionConfig, *,
+                  progress: ProgressCallback | None = None) -> tuple[FlatModel, MDP]:
+    """:func:`mission_mdp` and the flat PRISM model it was built from (which the
+    induced DTMC's text needs: its variables, labels and rewards)."""
+    model = flatten_model(parse_model(render_synthesis_model(cfg), name=MODEL_FILE))
+    return model, as_checker_mdp(build_mdp(model, progress=progress))

@@ -21,12 +21,14 @@ from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from fractions import Fraction
+from pathlib import Path
 
 from veribattery.checker.mdp import MDP, reach_probability
 from veribattery.config import MissionConfig, derive_parameters
 from veribattery.pipeline import ProgressCallback
 from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.synthesis.bs1_values import Bs1Values, bs1_points, bs1_values
+from veribattery.synthesis.exports import StrategyExport, strategy_export_texts
 from veribattery.synthesis.fastest import (
     LP_TOLERANCE,
     Fastest,
@@ -35,7 +37,7 @@ from veribattery.synthesis.fastest import (
     fastest_near_pmax,
     front,
 )
-from veribattery.synthesis.model import Certified, ModelSize, mission_mdp
+from veribattery.synthesis.model import Certified, ModelSize, mission_model
 from veribattery.synthesis.optimal import (
     ChosenStrategy,
     chosen_actions,
@@ -83,6 +85,7 @@ class SynthesisResult:
     :ivar table: that strategy's threshold table.
     :ivar front: the Pareto front (empty unless asked); *bs1_front*: BS1's points.
     :ivar timings_s: seconds per stage.
+    :ivar strategy_files: the text of each strategy file asked for (path -> text).
     """
 
     size: ModelSize
@@ -94,6 +97,7 @@ class SynthesisResult:
     front: tuple[FrontPoint, ...] = ()
     bs1_front: tuple[Bs1Point, ...] = ()
     timings_s: dict[str, float] = field(default_factory=dict)
+    strategy_files: dict[Path, str] = field(default_factory=dict)
 
     @property
     def all_requirements_met(self) -> bool:
@@ -118,7 +122,8 @@ def config_requirements(cfg: MissionConfig) -> tuple[FastestQuestion, ...]:
 def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (), *,
                as_safe_as_bs1: bool = False, front_request: FrontRequest | None = None,
                progress: ProgressCallback | None = None,
-               on_stage: StageCallback | None = None) -> SynthesisResult:
+               on_stage: StageCallback | None = None,
+               export: StrategyExport | None = None) -> SynthesisResult:
     """The best return policy for *cfg*'s mission, BS1 beside it.
 
     :param requirements: the requirements on P(success) to answer (e.g.
@@ -128,11 +133,13 @@ def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (),
     :param front_request: also compute the Pareto front and BS1's points on it.
     :param progress: told ``(states found, frontier)`` while the MDP is built.
     :param on_stage: told each stage's name as it starts.
+    :param export: also make the texts of the strategy's files it asks for
+        (:attr:`SynthesisResult.strategy_files`; the caller writes them).
     :raises VeribatteryError: when the config cannot be rendered, built or checked.
     """
     clock = _Clock(on_stage)
     with clock.stage("build"):
-        mdp = mission_mdp(cfg, progress=progress)
+        model, mdp = mission_model(cfg, progress=progress)
     with clock.stage("Pmax"):
         pmax = reach_probability(mdp, mdp.labels["success"], objective="max")
     with clock.stage("strategy"):
@@ -146,8 +153,9 @@ def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (),
         answers = tuple(fastest_near_pmax(question, best, chosen) or fastest(mdp, question)
                         for question in asked)
     points, bs1_front = _front(mdp, cfg, best, front_request, clock)
+    texts = {} if export is None else strategy_export_texts(model, mdp, chosen, export)
     return SynthesisResult(ModelSize.of(mdp), best, bs1, answers, chosen, table, points,
-                           bs1_front, clock.seconds)
+                           bs1_front, clock.seconds, texts)
 
 
 def _table(mdp: MDP, chosen: ChosenStrategy, cfg: MissionConfig) -> ThresholdTable:
