@@ -146,7 +146,7 @@ def draw_fig6(frame: pd.DataFrame, directory: Path,
         ax.set_ylabel("P(mission success)")
     main.axvspan(*_ZOOM, color="0.85", zorder=0, label="zoomed (right)")
     main.set_title("Fig. 6: probability of mission success")
-    drawn = curves if best is None else curves.join(best, rsuffix=" Pmax")
+    drawn = curves if best is None else curves.join(best.add_suffix(" Pmax"))
     inside = drawn[(drawn.index >= _ZOOM[0]) & (drawn.index <= _ZOOM[1])]
     zoom.set_xlim(*_ZOOM)
     _fit_y(zoom, inside)
