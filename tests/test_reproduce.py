@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from fractions import Fraction
 from pathlib import Path
 
 import pandas as pd
@@ -136,3 +137,62 @@ def test_each_figure_checks_only_the_properties_it_draws() -> None:
                                          figures.GIVEN_SUCCESS]
     assert figures.capacity_results(["fig6", "fig8"]) == figures.CAPACITY_RESULTS
     assert figures.capacity_results(["fig8"]) == "fig8_sweep.csv"
+
+
+def _optimal(frame: pd.DataFrame) -> pd.DataFrame:
+    """A stand-in for Pmax: BS1's P(success) raised half-way to 1, within +-1e-9."""
+    points = frame[frame["property"] == "p_success"]
+    best = points[["battery.model", "battery.capacity_ah"]].reset_index(drop=True)
+    value = (points["value"].to_numpy() + 1) / 2
+    best["p_success_max"], best["p_success_max_lower"] = value, value - 1e-9
+    best["p_success_max_upper"] = value + 1e-9
+    return best
+
+
+def test_fig6_with_the_optimal_curves(frame: pd.DataFrame, tmp_path: Path) -> None:
+    optimal = _optimal(frame)
+    paths = figures.draw_fig6(frame, tmp_path, optimal)
+    table = pd.read_csv(paths[2], index_col="capacity_ah")
+    assert list(table.columns) == [f"{column}:{m}" for column in
+                                   ("p_success", *figures.OPTIMAL_COLUMNS)
+                                   for m in figures.MODELS]
+    bs1 = _value(frame, "basic_medium", 12.5, "p_success")
+    assert table.loc[12.5, "p_success:basic_medium"] == bs1
+    assert table.loc[12.5, "p_success_max:basic_medium"] == (bs1 + 1) / 2
+    assert table.loc[12.5, "p_success_max_upper:basic_medium"] == (bs1 + 1) / 2 + 1e-9
+
+
+def test_reproduce_fig6_optimal_asks_pmax_of_each_model_and_capacity(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Pmax of the paper's farm is too slow here (tests/synthesis/test_sweep_pmax.py
+    # checks the values): a stand-in records the configs asked, in the sweep's order.
+    from veribattery.synthesis import sweep_pmax
+    from veribattery.synthesis.model import Certified
+
+    asked = []
+
+    def pmax(cfgs: list[object], *, jobs: int, progress: object) -> list[Certified]:
+        asked.extend(cfgs)
+        return [Certified(0.9, 0.8, 1.0)] * len(cfgs)
+
+    monkeypatch.setattr(sweep_pmax, "pmax_of_configs", pmax)
+    sets = figures.capacity_sets(["fig6"])
+    _finished_sweep(tmp_path, figures.capacity_results(["fig6"]), figures.CAPACITY_AXES, sets)
+    args = ["reproduce", "fig6", "-o", str(tmp_path), "-j", "1", "--optimal"]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.output
+    assert "Pmax: 604 points" in result.stderr
+    assert len(asked) == 604
+    assert (asked[0].battery.model, asked[0].battery.capacity_ah) == ("advanced", 5.0)
+    assert (asked[-1].battery.model, asked[-1].battery.capacity_ah) == ("basic_low", 20.0)
+    assert {(c.strategy.safe_t, c.environment.p_wsp_c) for c in asked} == {
+        (Fraction(3, 10), Fraction(1, 10))}
+    assert asked[78].battery.capacity_ah == Fraction(64, 5)  # 12.8 exactly, as the sweep's
+    table = pd.read_csv(tmp_path / "fig6.csv", index_col="capacity_ah")
+    assert table.loc[12.8, "p_success_max_lower:advanced"] == 0.8
+
+
+def test_optimal_is_for_fig6() -> None:
+    result = CliRunner().invoke(cli, ["reproduce", "fig8", "-o", "x", "--optimal"])
+    assert result.exit_code == 2
+    assert "--optimal" in result.stderr

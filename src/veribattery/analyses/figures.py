@@ -31,9 +31,11 @@ if TYPE_CHECKING:
 __all__ = [
     "CAPACITY_AXES",
     "CAPACITY_RESULTS",
+    "CAPACITY_SETS",
     "FIGURE_PROPERTIES",
     "GIVEN_SUCCESS",
     "MODELS",
+    "OPTIMAL_COLUMNS",
     "TABLE3_AXES",
     "SweepOptions",
     "capacity_results",
@@ -61,6 +63,9 @@ FIGURES = ("fig6", "fig8")
 FIGURE_FILES = (".png", ".svg", ".csv")
 #: What each figure draws: a reproduction checks these properties only.
 FIGURE_PROPERTIES = {"fig6": ("p_success",), "fig8": ("exp_mission_time", GIVEN_SUCCESS)}
+#: The columns of Fig. 6's optimal curves: ``Pmax [ F "success" ]`` and its certified
+#: interval (the sweep's ``--optimal`` adds them).
+OPTIMAL_COLUMNS = ("p_success_max", "p_success_max_lower", "p_success_max_upper")
 _X = "battery.capacity_ah"
 _ZOOM = (11.5, 13.5)
 _STYLE = {"advanced": ("black", "-"), "basic_high": ("tab:blue", "--"),
@@ -121,22 +126,52 @@ def _curves(frame: pd.DataFrame, prop: str) -> pd.DataFrame:
     return table[[m for m in MODELS if m in table.columns]].rename_axis(None, axis=1)
 
 
-def draw_fig6(frame: pd.DataFrame, directory: Path) -> list[Path]:
-    """Fig. 6: P(success) vs capacity, with a zoom on 11.5-13.5 Ah; PNG, SVG and CSV."""
+def draw_fig6(frame: pd.DataFrame, directory: Path,
+              optimal: pd.DataFrame | None = None) -> list[Path]:
+    """Fig. 6: P(success) vs capacity, with a zoom on 11.5-13.5 Ah; PNG, SVG and CSV.
+
+    :param optimal: per model and capacity, the best policy's certified ``Pmax`` of
+        success (columns ``battery.model``, ``battery.capacity_ah`` and
+        :data:`OPTIMAL_COLUMNS`), drawn beside each model's BS1 curve and written to
+        the CSV; None: the paper's figure.
+    """
     curves = _curves(frame, "p_success")
+    best = None if optimal is None else _optimal_curves(optimal, OPTIMAL_COLUMNS[0])
     figure, (main, zoom) = _figure(2, (11, 4.6), width_ratios=(1.6, 1))
     for ax in (main, zoom):
         _plot_models(ax, curves, marker_size=3 if ax is zoom else 0)
+        if best is not None:
+            _plot_optimal(ax, best)
         ax.set_xlabel("new-battery capacity (Ah)")
         ax.set_ylabel("P(mission success)")
     main.axvspan(*_ZOOM, color="0.85", zorder=0, label="zoomed (right)")
     main.set_title("Fig. 6: probability of mission success")
-    inside = curves[(curves.index >= _ZOOM[0]) & (curves.index <= _ZOOM[1])]
+    drawn = curves if best is None else curves.join(best.add_suffix(" Pmax"))
+    inside = drawn[(drawn.index >= _ZOOM[0]) & (drawn.index <= _ZOOM[1])]
     zoom.set_xlim(*_ZOOM)
     _fit_y(zoom, inside)
     zoom.set_title(f"zoom {_ZOOM[0]}-{_ZOOM[1]} Ah: the advanced model's dip")
     main.legend(loc="lower right", fontsize="small")
-    return _save(figure, curves, directory, "fig6", "p_success")
+    if optimal is None:
+        return _save(figure, curves, directory, "fig6", "p_success")
+    table = curves.add_prefix("p_success:")
+    for column in OPTIMAL_COLUMNS:
+        table = table.join(_optimal_curves(optimal, column).add_prefix(f"{column}:"))
+    return _save(figure, table, directory, "fig6", None)
+
+
+def _optimal_curves(optimal: pd.DataFrame, column: str) -> pd.DataFrame:
+    """Capacity (rows) x model (columns) table of *optimal*'s *column*."""
+    table = optimal.pivot(index=_X, columns="battery.model", values=column).astype(float)
+    return table[[m for m in MODELS if m in table.columns]].rename_axis(None, axis=1)
+
+
+def _plot_optimal(ax: Axes, best: pd.DataFrame) -> None:
+    # thick and pale behind the BS1 curves: where they meet, BS1 is optimal
+    for model in best.columns:
+        series = best[model].dropna()
+        ax.plot(series.index, series, color=_STYLE[model][0], linestyle="-", linewidth=3.2,
+                alpha=0.35, label=f"{model} Pmax", zorder=1)
 
 
 def draw_fig8(frame: pd.DataFrame, directory: Path) -> list[Path]:

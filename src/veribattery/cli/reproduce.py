@@ -31,9 +31,12 @@ if TYPE_CHECKING:
               help="Run the sweeps on a Dask cluster.")
 @click.option("--force", is_flag=True,
               help="Overwrite the tables and figures of an earlier run in DIR.")
+@click.option("--optimal", is_flag=True,
+              help="Fig. 6 also draws the best policy's Pmax of success beside each BS1 "
+              "curve (one MDP per model and capacity).")
 def reproduce_command(
     what: str, output_format: str, out_dir: Path | None, jobs: int | None,
-    scheduler: str | None, force: bool,
+    scheduler: str | None, force: bool, optimal: bool,
 ) -> None:
     """Re-run the seed paper's Table 3, Fig. 6 and Fig. 8 (all: every one, into -o DIR).
 
@@ -43,7 +46,11 @@ def reproduce_command(
     DIR/capacity_sweep.csv (fig6 or fig8 alone: DIR/fig6_sweep.csv or
     DIR/fig8_sweep.csv), so an interrupted run resumes where it stopped.
     The files written are listed on stderr; stdout has only Table 3.
+    --optimal adds to Fig. 6 and its CSV, per model and capacity, the certified
+    Pmax of success over every return policy (veribattery synthesize's).
     """
+    if optimal and what not in ("fig6", "all"):
+        raise click.UsageError("--optimal draws on Fig. 6: use it with fig6 or all")
     if what == "table3" and out_dir is None:
         _table3_in_process(output_format)
         return
@@ -56,14 +63,15 @@ def reproduce_command(
         check_output_dir(directory, "-o", force=force, names=_products(what))
     options = _options(jobs or default_jobs(), scheduler)
     try:
-        _reproduce(what, directory, options, output_format)
+        _reproduce(what, directory, options, output_format, optimal)
     except KeyboardInterrupt:
         err.print(f"interrupted; finished points are kept in {directory}: rerun to resume",
                   markup=False)
         sys.exit(130)
 
 
-def _reproduce(what: str, directory: Path, options: Any, output_format: str) -> None:
+def _reproduce(what: str, directory: Path, options: Any, output_format: str,
+               optimal: bool) -> None:
     from veribattery.analyses import figures
 
     with user_errors():
@@ -76,9 +84,33 @@ def _reproduce(what: str, directory: Path, options: Any, output_format: str) -> 
             frame = figures.capacity_sweep(_mkdir(directory), options, drawn)
             _report_failures(frame, figures.capacity_results(drawn))
             if what in ("fig6", "all"):
-                print_written(*figures.draw_fig6(frame, directory))
+                best = _optimal_frame(frame, options.jobs) if optimal else None
+                print_written(*figures.draw_fig6(frame, directory, best))
             if what in ("fig8", "all"):
                 print_written(*figures.draw_fig8(frame, directory))
+
+
+def _optimal_frame(frame: Any, jobs: int) -> Any:
+    """Per model and capacity of the sweep *frame*, the certified Pmax of success."""
+    from veribattery.analyses.figures import CAPACITY_SETS, OPTIMAL_COLUMNS
+    from veribattery.config import load_config
+    from veribattery.synthesis.sweep_pmax import pmax_of_configs
+
+    keys = ["battery.model", "battery.capacity_ah"]
+    points = frame[keys].drop_duplicates().reset_index(drop=True)
+    cfgs = [load_config("", (*CAPACITY_SETS, f"battery.model={model}",
+                             f"battery.capacity_ah={float(capacity)!r}"))
+            for model, capacity in points.itertuples(index=False)]
+    err.print(f"Pmax: {len(cfgs)} points", markup=False, style="dim")
+    values = pmax_of_configs(cfgs, jobs=jobs, progress=_pmax_progress)
+    for column, part in zip(OPTIMAL_COLUMNS, ("value", "lower", "upper"), strict=True):
+        points[column] = [getattr(value, part) for value in values]
+    return points
+
+
+def _pmax_progress(done: int, total: int) -> None:
+    if done == total or done % 5 == 0:
+        err.print(f"Pmax: {done} of {total} models", markup=False, style="dim")
 
 
 def _table3_in_process(output_format: str) -> None:
