@@ -33,7 +33,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench_scale import Measured, measured
+from bench_scale import Measured, measured, ratio_cell
 
 HERE = Path(__file__).resolve().parent
 MODELS = HERE / "qcomp"
@@ -246,14 +246,8 @@ def row(instance: Instance, ours: Measured, storm: Measured) -> str:
     storm_states = (storm.output or {}).get("states", "") if storm.output else ""
     return (f"| {instance.label} | {instance.prop} | {sizes} | {storm_states} | {ours_cell} "
             f"| {storm_cell} | {_inside(bounds, value, theirs)} | {_show(instance.reference)} "
-            f"| {ours.wall_s:.1f} | {split} | {storm.wall_s:.1f} | {_ratio(time_ratio, ours)} "
-            f"| {ours.peak_mb:.0f} | {storm.peak_mb:.0f} | {_ratio(rss_ratio, ours)} |")
-
-
-def _ratio(ratio: float, ours: Measured) -> str:
-    if math.isnan(ratio):
-        return "-" if ours.output else "(ours failed)"
-    return f"{ratio:.2f}"
+            f"| {ours.wall_s:.1f} | {split} | {storm.wall_s:.1f} | {ratio_cell(time_ratio, ours)} "
+            f"| {ours.peak_mb:.0f} | {storm.peak_mb:.0f} | {ratio_cell(rss_ratio, ours)} |")
 
 
 HEADER = (

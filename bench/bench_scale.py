@@ -186,11 +186,12 @@ def row(instance: Instance, ours: Measured, storm: Measured) -> str:
     storm_states = (storm.output or {}).get("states", "")
     return (f"| {instance.label} | {states} | {storm_states} | {ours_cell} | {storm_cell} "
             f"| {inside} | {reference} | {ours.wall_s:.1f} | {storm.wall_s:.1f} "
-            f"| {_ratio(time_ratio, ours)} | {ours.peak_mb:.0f} | {storm.peak_mb:.0f} "
-            f"| {_ratio(rss_ratio, ours)} |")
+            f"| {ratio_cell(time_ratio, ours)} | {ours.peak_mb:.0f} | {storm.peak_mb:.0f} "
+            f"| {ratio_cell(rss_ratio, ours)} |")
 
 
-def _ratio(ratio: float, ours: Measured) -> str:
+def ratio_cell(ratio: float, ours: Measured) -> str:
+    """A ratio for the table: two decimals, '-' without one, or our failure."""
     if math.isnan(ratio):
         return "-" if ours.output else "(ours failed)"
     return f"{ratio:.2f}"
