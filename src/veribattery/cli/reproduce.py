@@ -32,8 +32,8 @@ if TYPE_CHECKING:
 @click.option("--force", is_flag=True,
               help="Overwrite the tables and figures of an earlier run in DIR.")
 @click.option("--optimal", is_flag=True,
-              help="Fig. 6 also draws the best policy's Pmax of success beside each BS1 "
-              "curve (one MDP per model and capacity).")
+              help="Fig. 6 also draws the best policy's Pmax of success beside each curve "
+              "of the BS1 strategy (one MDP per model and capacity).")
 def reproduce_command(
     what: str, output_format: str, out_dir: Path | None, jobs: int | None,
     scheduler: str | None, force: bool, optimal: bool,
