@@ -33,13 +33,13 @@ from veribattery.errors import VeribatteryError
 if TYPE_CHECKING:
     from veribattery._types import IntArray
     from veribattery.analyses.explain import Explanation, Grouping
-    from veribattery.analyses.mission_view import MissionView
+    from veribattery.analyses.mission_view import MissionModel, MissionView
     from veribattery.analyses.simulate import Simulation
     from veribattery.config import MissionConfig
     from veribattery.explore import DTMC
     from veribattery.lang import FlatModel
     from veribattery.lang.nodes import Value
-    from veribattery.pipeline import ModelCheckRun
+    from veribattery.pipeline import ModelCheckRun, ProgressCallback
 
 #: Rows shown per grouping in the table output (JSON has them all).
 GROUP_ROWS = 8
@@ -67,6 +67,25 @@ def _positive(name: str) -> Callable[[click.Context, click.Parameter, int], int]
     return check
 
 
+#: ``--strategy`` values: BS1 (the config's mission) or the synthesised strategy.
+STRATEGIES = ("bs1", "optimal")
+
+
+def _strategy_value(ctx: click.Context, param: click.Parameter, value: str) -> str:
+    """An option callback: an unknown strategy is bad input, reported on one line (exit 2)."""
+    if value not in STRATEGIES:
+        fail(f"--strategy must be one of {', '.join(STRATEGIES)}, not {value!r}")
+    return value
+
+
+#: ``--strategy bs1|optimal`` of ``explain``, ``simulate`` and ``distribution``.
+strategy_option = click.option(
+    "--strategy", "strategy", default="bs1", show_default=True, callback=_strategy_value,
+    metavar="[bs1|optimal]",
+    help="Analyse the mission under BS1 (the config's strategy) or under synthesize's "
+         "strategy (optimal: safest, then fastest; the DTMC it induces on the MDP).")
+
+
 def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
     """``--by cell,wind --by k+cell`` → ``(("cell",), ("wind",), ("k", "cell"))``."""
     return tuple(tuple(part.split("+")) for item in by for part in item.split(",") if part)
@@ -90,8 +109,10 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @click.option("--force", is_flag=True, help="Overwrite an existing -o file.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]),
               default="table", show_default=True, help="Output format.")
+@strategy_option
 def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tuple[str, ...],
-                    csv_file: Path | None, force: bool, output_format: str) -> None:
+                    csv_file: Path | None, force: bool, output_format: str,
+                    strategy: str) -> None:
     """Where the mission's failures come from: exact breakdown and most probable paths.
 
     The breakdown of P(failure) by cell, action, wind, voltage level and recharges is
@@ -106,7 +127,8 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         check_output_file(csv_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            mission = build_mission(cfg, progress=progress)
+            mission = (build_mission(cfg, progress=progress) if strategy == "bs1"
+                       else _optimal_mission(cfg, progress))
         view = MissionView(mission)
         explanation = explain_target(
             mission.dtmc, mission.dtmc.labels["failure"], name="failure",
@@ -122,6 +144,15 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         return
     _print_explanation(explanation, steps, MISSION_COLUMNS, marker="recharge")
     print_dim(fit_text(OOB_NOTE))
+
+
+def _optimal_mission(cfg: MissionConfig, progress: ProgressCallback | None) -> MissionModel:
+    """The mission under synthesize's strategy, as the mission view reads it."""
+    from veribattery.analyses.mission_view import MissionModel
+    from veribattery.synthesis.induced_dtmc import optimal_mission
+
+    induced = optimal_mission(cfg, progress=progress)
+    return MissionModel(cfg, induced.flat, induced.dtmc)
 
 
 #: What the mission's ``oob`` actions mean, under the tables that show them.
@@ -251,9 +282,10 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
 @_simulation_options
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
               default="table", show_default=True, help="Output format.")
+@strategy_option
 def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: int,
                      max_steps: int, paths_file: Path | None, path_count: int, force: bool,
-                     output_format: str) -> None:
+                     output_format: str, strategy: str) -> None:
     """Monte-Carlo estimates of the mission's named results, beside the exact values."""
     from veribattery.config import load_config
     from veribattery.mission import check_mission
@@ -261,14 +293,36 @@ def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: 
     with user_errors():
         check_output_file(paths_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
+        record = path_count if paths_file else 0
+        if strategy == "optimal":
+            _simulate_optimal(cfg, runs, seed, max_steps, record, paths_file, output_format)
+            return
         with build_progress() as progress:
             report = check_mission(cfg, progress=progress)
         flat = _mission_flat(cfg) if paths_file is not None else None
-        simulation = _simulate_run(report.run, runs, seed, max_steps,
-                                   path_count if paths_file else 0)
+        simulation = _simulate_run(report.run, runs, seed, max_steps, record)
         if paths_file is not None:
             _write_simulated_paths(paths_file, report.run.dtmc, simulation, flat)
     print_warnings(report.warnings)
+    _show_simulation(simulation, output_format)
+
+
+def _simulate_optimal(cfg: MissionConfig, runs: int, seed: int, max_steps: int, record: int,
+                      paths_file: Path | None, output_format: str) -> None:
+    """``simulate --strategy optimal``: synthesize's three values of its strategy,
+    estimated on the DTMC it induces, beside the exact values."""
+    from veribattery.analyses.simulate import simulate
+    from veribattery.synthesis.induced_dtmc import optimal_mission
+
+    with build_progress() as progress:
+        induced = optimal_mission(cfg, progress=progress)
+    own = induced.strategy
+    exact = {"p_success": own.p_success.value, "exp_mission_time": own.exp_mission_time.value,
+             "exp_recharges": own.exp_recharges.value}
+    simulation = simulate(induced.dtmc, induced.properties, runs=runs, seed=seed,
+                          max_steps=max_steps, exact=exact, record=record)
+    if paths_file is not None:
+        _write_simulated_paths(paths_file, induced.dtmc, simulation, induced.flat)
     _show_simulation(simulation, output_format)
 
 
