@@ -33,7 +33,7 @@ from veribattery.errors import VeribatteryError
 if TYPE_CHECKING:
     from veribattery._types import IntArray
     from veribattery.analyses.explain import Explanation, Grouping
-    from veribattery.analyses.mission_view import MissionModel, MissionView
+    from veribattery.analyses.mission_view import MissionView
     from veribattery.analyses.simulate import Simulation
     from veribattery.config import MissionConfig
     from veribattery.explore import DTMC
@@ -127,18 +127,17 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         check_output_file(csv_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            mission = (build_mission(cfg, progress=progress) if strategy == "bs1"
-                       else _optimal_mission(cfg, progress))
-        view = MissionView(mission)
+            view = (MissionView(build_mission(cfg, progress=progress)) if strategy == "bs1"
+                    else _optimal_view(cfg, progress))
         explanation = explain_target(
-            mission.dtmc, mission.dtmc.labels["failure"], name="failure",
+            view.dtmc, view.dtmc.labels["failure"], name="failure",
             describe=view.columns, by=_groupings(by) or DEFAULT_GROUPINGS, top=top,
         )
         steps = [_mission_steps(view, path.states) for path in explanation.paths]
         if csv_file is not None:
             _write_paths_csv(csv_file, explanation, steps)
             print_written(csv_file)
-    print_warnings(mission.dtmc.warnings)
+    print_warnings(view.dtmc.warnings)
     if output_format == "json":
         click.echo(json.dumps(_explanation_json(explanation, steps)))
         return
@@ -146,13 +145,14 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
     print_dim(fit_text(OOB_NOTE))
 
 
-def _optimal_mission(cfg: MissionConfig, progress: ProgressCallback | None) -> MissionModel:
-    """The mission under synthesize's strategy, as the mission view reads it."""
+def _optimal_view(cfg: MissionConfig, progress: ProgressCallback | None) -> MissionView:
+    """The mission under synthesize's strategy, in the paper's terms."""
     from veribattery.analyses.mission_view import MissionModel
+    from veribattery.analyses.strategy_view import StrategyView
     from veribattery.synthesis.induced_dtmc import optimal_mission
 
     induced = optimal_mission(cfg, progress=progress)
-    return MissionModel(cfg, induced.flat, induced.dtmc)
+    return StrategyView(MissionModel(cfg, induced.flat, induced.dtmc), induced.actions)
 
 
 #: What the mission's ``oob`` actions mean, under the tables that show them.

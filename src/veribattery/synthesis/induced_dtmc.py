@@ -15,6 +15,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 from veribattery.checker.mdp import MDP, reach_probability
@@ -30,6 +31,8 @@ from veribattery.synthesis.optimal import ChosenStrategy, safest_fastest
 
 __all__ = ["InducedMission", "induced_dtmc", "optimal_mission"]
 
+StrArray = npt.NDArray[np.str_]
+
 
 @dataclass(frozen=True, slots=True)
 class InducedMission:
@@ -40,12 +43,15 @@ class InducedMission:
     :ivar strategy: the strategy and its own certified values.
     :ivar properties: :data:`~veribattery.synthesis.exports.INDUCED_QUESTIONS`, resolved
         against *flat*.
+    :ivar actions: per state of *dtmc*, the action the strategy takes there (the MDP's
+        commands leave several enabled; this is the one chosen).
     """
 
     flat: FlatModel
     dtmc: DTMC
     strategy: ChosenStrategy
     properties: tuple[Property, ...]
+    actions: StrArray
 
 
 def optimal_mission(cfg: MissionConfig, *,
@@ -58,7 +64,8 @@ def optimal_mission(cfg: MissionConfig, *,
     flat, mdp = mission_model(cfg, progress=progress)
     chosen = safest_fastest(mdp, reach_probability(mdp, mdp.labels["success"],
                                                    objective="max"))
-    return InducedMission(flat, induced_dtmc(mdp, chosen), chosen, _questions(flat))
+    return InducedMission(flat, induced_dtmc(mdp, chosen), chosen, _questions(flat),
+                          _taken_actions(mdp, chosen))
 
 
 def induced_dtmc(mdp: MDP, chosen: ChosenStrategy) -> DTMC:
@@ -69,15 +76,21 @@ def induced_dtmc(mdp: MDP, chosen: ChosenStrategy) -> DTMC:
     rows = chosen.choices[reached]
     renumber = np.full(mdp.num_states, -1, dtype=np.int64)
     renumber[reached] = np.arange(reached.size)
-    transitions = sp.csr_matrix(mdp.transitions[rows][:, reached])
+    labels = {name: np.asarray(mask[reached], dtype=bool) for name, mask in mdp.labels.items()}
+    # A choice's transition reward is paid on the step its state takes under the strategy.
     rewards = tuple(RewardVectors(r.name, np.asarray(r.state[reached], dtype=np.float64),
                                   np.asarray(r.choice[rows], dtype=np.float64))
                     for r in mdp.rewards)
-    return DTMC(transitions, np.asarray(mdp.states[reached]), mdp.variable_names,
-                renumber[mdp.initial], {name: np.asarray(mask[reached], dtype=bool)
-                                        for name, mask in mdp.labels.items()},
-                rewards, deadlocks=int(mdp.labels.get("deadlock", np.zeros(0))[reached].sum())
-                if "deadlock" in mdp.labels else 0)
+    deadlocks = int(labels["deadlock"].sum()) if "deadlock" in labels else 0
+    return DTMC(sp.csr_matrix(mdp.transitions[rows][:, reached]),
+                np.asarray(mdp.states[reached]), mdp.variable_names, renumber[mdp.initial],
+                labels, rewards, deadlocks=deadlocks)
+
+
+def _taken_actions(mdp: MDP, chosen: ChosenStrategy) -> StrArray:
+    assert mdp.choice_actions is not None
+    picked = mdp.choice_actions[chosen.choices[chosen.reached]]
+    return np.asarray(mdp.actions, dtype=np.str_)[picked]
 
 
 def _questions(flat: FlatModel) -> tuple[Property, ...]:
