@@ -31,5 +31,9 @@ class StrategyView(MissionView):
         self._taken = actions
 
     def columns(self, idx: IntArray) -> dict[str, Column]:
-        """:meth:`MissionView.columns`, the action the strategy's."""
-        return {**super().columns(idx), "action": self._taken[idx]}
+        """:meth:`MissionView.columns`, the action the strategy's (an unlabelled command,
+        as in the success and failure states, named as the model's view names it)."""
+        columns = super().columns(idx)
+        taken = self._taken[idx]
+        columns["action"] = np.where(taken == "", columns["action"], taken)
+        return columns
