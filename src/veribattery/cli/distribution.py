@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from veribattery.cli.explain import strategy_option
+from veribattery.cli.explain import induced_mission, strategy_option
 from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     build_progress,
@@ -52,7 +52,6 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
     from veribattery.analyses.distribution import parse_deadlines, write_csv
     from veribattery.config import load_config
     from veribattery.mission import mission_dtmc
-    from veribattery.synthesis.induced_dtmc import optimal_mission
 
     with user_errors():
         _, limits = parse_deadlines(working_day, deadlines)
@@ -61,7 +60,7 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
         cfg = load_config(config, overrides)
         with build_progress() as progress:
             dtmc = (mission_dtmc(cfg, progress=progress) if strategy == "bs1"
-                    else optimal_mission(cfg, progress=progress).dtmc)
+                    else induced_mission(cfg, strategy, progress).dtmc)
         dist = _distribution(dtmc, reward, coverage, limits)
         if csv_path is not None:
             print_written(write_csv(dist, csv_path))

@@ -40,6 +40,7 @@ if TYPE_CHECKING:
     from veribattery.lang import FlatModel
     from veribattery.lang.nodes import Value
     from veribattery.pipeline import ModelCheckRun, ProgressCallback
+    from veribattery.synthesis.induced_dtmc import InducedMission
 
 #: Rows shown per grouping in the table output (JSON has them all).
 GROUP_ROWS = 8
@@ -67,23 +68,34 @@ def _positive(name: str) -> Callable[[click.Context, click.Parameter, int], int]
     return check
 
 
-#: ``--strategy`` values: BS1 (the config's mission) or the synthesised strategy.
+#: ``--strategy`` names: BS1 (the config's mission) or the synthesised strategy.
 STRATEGIES = ("bs1", "optimal")
 
 
 def _strategy_value(ctx: click.Context, param: click.Parameter, value: str) -> str:
-    """An option callback: an unknown strategy is bad input, reported on one line (exit 2)."""
-    if value not in STRATEGIES:
-        fail(f"--strategy must be one of {', '.join(STRATEGIES)}, not {value!r}")
+    """An option callback: neither a name nor a file is bad input, on one line (exit 2)."""
+    if value not in STRATEGIES and not Path(value).is_file():
+        fail(f"--strategy must be bs1, optimal or a strategy file; no file {value!r}")
     return value
 
 
-#: ``--strategy bs1|optimal`` of ``explain``, ``simulate`` and ``distribution``.
+#: ``--strategy bs1|optimal|FILE`` of ``explain``, ``simulate`` and ``distribution``.
 strategy_option = click.option(
     "--strategy", "strategy", default="bs1", show_default=True, callback=_strategy_value,
-    metavar="[bs1|optimal]",
-    help="Analyse the mission under BS1 (the config's strategy) or under synthesize's "
-         "strategy (optimal: safest, then fastest; the DTMC it induces on the MDP).")
+    metavar="bs1|optimal|FILE",
+    help="Analyse the mission under BS1 (the config's strategy), synthesize's strategy "
+         "(optimal: safest, then fastest) or a strategy FILE of synthesize "
+         "--export-strategy: the DTMC it induces on the mission MDP.")
+
+
+def induced_mission(cfg: MissionConfig, strategy: str,
+                    progress: ProgressCallback | None) -> InducedMission:
+    """The mission under the strategy ``--strategy`` names (not ``bs1``)."""
+    from veribattery.synthesis.induced_dtmc import file_mission, optimal_mission
+
+    if strategy == "optimal":
+        return optimal_mission(cfg, progress=progress)
+    return file_mission(cfg, Path(strategy), progress=progress)
 
 
 def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
@@ -128,7 +140,7 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         cfg = load_config(config, overrides)
         with build_progress() as progress:
             view = (MissionView(build_mission(cfg, progress=progress)) if strategy == "bs1"
-                    else _optimal_view(cfg, progress))
+                    else _strategy_view(cfg, strategy, progress))
         explanation = explain_target(
             view.dtmc, view.dtmc.labels["failure"], name="failure",
             describe=view.columns, by=_groupings(by) or DEFAULT_GROUPINGS, top=top,
@@ -145,13 +157,12 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
     print_dim(fit_text(OOB_NOTE))
 
 
-def _optimal_view(cfg: MissionConfig, progress: ProgressCallback | None) -> MissionView:
-    """The mission under synthesize's strategy, in the paper's terms."""
+def _strategy_view(cfg: MissionConfig, strategy: str,
+                   progress: ProgressCallback | None) -> MissionView:
+    """The mission under the strategy ``--strategy`` names, in the paper's terms."""
     from veribattery.analyses.mission_view import MissionModel
     from veribattery.analyses.strategy_view import StrategyView
-    from veribattery.synthesis.induced_dtmc import optimal_mission
-
-    induced = optimal_mission(cfg, progress=progress)
+    induced = induced_mission(cfg, strategy, progress)
     return StrategyView(MissionModel(cfg, induced.flat, induced.dtmc), induced.actions)
 
 
@@ -294,8 +305,9 @@ def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: 
         check_output_file(paths_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         record = path_count if paths_file else 0
-        if strategy == "optimal":
-            _simulate_optimal(cfg, runs, seed, max_steps, record, paths_file, output_format)
+        if strategy != "bs1":
+            _simulate_strategy(cfg, strategy, (runs, seed, max_steps, record), paths_file,
+                               output_format)
             return
         with build_progress() as progress:
             report = check_mission(cfg, progress=progress)
@@ -307,20 +319,20 @@ def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: 
     _show_simulation(simulation, output_format)
 
 
-def _simulate_optimal(cfg: MissionConfig, runs: int, seed: int, max_steps: int, record: int,
-                      paths_file: Path | None, output_format: str) -> None:
-    """``simulate --strategy optimal``: synthesize's three values of its strategy,
-    estimated on the DTMC it induces, beside the exact values."""
-    from veribattery.analyses.simulate import simulate
-    from veribattery.synthesis.induced_dtmc import optimal_mission
+def _simulate_strategy(cfg: MissionConfig, strategy: str, sampling: tuple[int, int, int, int],
+                       paths_file: Path | None, output_format: str) -> None:
+    """``simulate --strategy optimal|FILE``: synthesize's three values of the strategy,
+    estimated on the DTMC it induces, beside the exact values.
 
+    :param sampling: runs, seed, max steps, and how many runs to record.
+    """
+    from veribattery.analyses.simulate import simulate
+
+    runs, seed, max_steps, record = sampling
     with build_progress() as progress:
-        induced = optimal_mission(cfg, progress=progress)
-    own = induced.strategy
-    exact = {"p_success": own.p_success.value, "exp_mission_time": own.exp_mission_time.value,
-             "exp_recharges": own.exp_recharges.value}
+        induced = induced_mission(cfg, strategy, progress)
     simulation = simulate(induced.dtmc, induced.properties, runs=runs, seed=seed,
-                          max_steps=max_steps, exact=exact, record=record)
+                          max_steps=max_steps, exact=induced.values, record=record)
     if paths_file is not None:
         _write_simulated_paths(paths_file, induced.dtmc, simulation, induced.flat)
     _show_simulation(simulation, output_format)
