@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from veribattery.cli.explain import induced_mission, strategy_option
 from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     build_progress,
@@ -42,10 +43,11 @@ if TYPE_CHECKING:
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
               default="table", show_default=True,
               help="Output format (csv: the summary's quantity,value rows).")
+@strategy_option
 def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
                          deadlines: tuple[str, ...], working_day: str, coverage: float,
                          csv_path: Path | None, plot_path: Path | None, force: bool,
-                         output_format: str) -> None:
+                         output_format: str, strategy: str) -> None:
     """The distribution of mission time to success and to failure for CONFIG (YAML)."""
     from veribattery.analyses.distribution import parse_deadlines, write_csv
     from veribattery.config import load_config
@@ -57,7 +59,8 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
         check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            dtmc = mission_dtmc(cfg, progress=progress)
+            dtmc = (mission_dtmc(cfg, progress=progress) if strategy == "bs1"
+                    else induced_mission(cfg, strategy, progress).dtmc)
         dist = _distribution(dtmc, reward, coverage, limits)
         if csv_path is not None:
             print_written(write_csv(dist, csv_path))

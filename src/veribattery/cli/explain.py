@@ -39,7 +39,8 @@ if TYPE_CHECKING:
     from veribattery.explore import DTMC
     from veribattery.lang import FlatModel
     from veribattery.lang.nodes import Value
-    from veribattery.pipeline import ModelCheckRun
+    from veribattery.pipeline import ModelCheckRun, ProgressCallback
+    from veribattery.synthesis.induced_dtmc import InducedMission
 
 #: Rows shown per grouping in the table output (JSON has them all).
 GROUP_ROWS = 8
@@ -67,6 +68,36 @@ def _positive(name: str) -> Callable[[click.Context, click.Parameter, int], int]
     return check
 
 
+#: ``--strategy`` names: BS1 (the config's mission) or the synthesised strategy.
+STRATEGIES = ("bs1", "optimal")
+
+
+def _strategy_value(ctx: click.Context, param: click.Parameter, value: str) -> str:
+    """An option callback: neither a name nor a file is bad input, on one line (exit 2)."""
+    if value not in STRATEGIES and not Path(value).is_file():
+        fail(f"--strategy must be bs1, optimal or a strategy file; no file {value!r}")
+    return value
+
+
+#: ``--strategy bs1|optimal|FILE`` of ``explain``, ``simulate`` and ``distribution``.
+strategy_option = click.option(
+    "--strategy", "strategy", default="bs1", show_default=True, callback=_strategy_value,
+    metavar="bs1|optimal|FILE",
+    help="Analyse the mission under BS1 (the config's strategy), synthesize's strategy "
+         "(optimal: safest, then fastest) or a strategy FILE of synthesize "
+         "--export-strategy: the DTMC it induces on the mission MDP.")
+
+
+def induced_mission(cfg: MissionConfig, strategy: str,
+                    progress: ProgressCallback | None) -> InducedMission:
+    """The mission under the strategy ``--strategy`` names (not ``bs1``)."""
+    from veribattery.synthesis.induced_dtmc import file_mission, optimal_mission
+
+    if strategy == "optimal":
+        return optimal_mission(cfg, progress=progress)
+    return file_mission(cfg, Path(strategy), progress=progress)
+
+
 def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
     """``--by cell,wind --by k+cell`` → ``(("cell",), ("wind",), ("k", "cell"))``."""
     return tuple(tuple(part.split("+")) for item in by for part in item.split(",") if part)
@@ -90,8 +121,10 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @click.option("--force", is_flag=True, help="Overwrite an existing -o file.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]),
               default="table", show_default=True, help="Output format.")
+@strategy_option
 def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tuple[str, ...],
-                    csv_file: Path | None, force: bool, output_format: str) -> None:
+                    csv_file: Path | None, force: bool, output_format: str,
+                    strategy: str) -> None:
     """Where the mission's failures come from: exact breakdown and most probable paths.
 
     The breakdown of P(failure) by cell, action, wind, voltage level and recharges is
@@ -106,22 +139,31 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
         check_output_file(csv_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
-            mission = build_mission(cfg, progress=progress)
-        view = MissionView(mission)
+            view = (MissionView(build_mission(cfg, progress=progress)) if strategy == "bs1"
+                    else _strategy_view(cfg, strategy, progress))
         explanation = explain_target(
-            mission.dtmc, mission.dtmc.labels["failure"], name="failure",
+            view.dtmc, view.dtmc.labels["failure"], name="failure",
             describe=view.columns, by=_groupings(by) or DEFAULT_GROUPINGS, top=top,
         )
         steps = [_mission_steps(view, path.states) for path in explanation.paths]
         if csv_file is not None:
             _write_paths_csv(csv_file, explanation, steps)
             print_written(csv_file)
-    print_warnings(mission.dtmc.warnings)
+    print_warnings(view.dtmc.warnings)
     if output_format == "json":
         click.echo(json.dumps(_explanation_json(explanation, steps)))
         return
     _print_explanation(explanation, steps, MISSION_COLUMNS, marker="recharge")
     print_dim(fit_text(OOB_NOTE))
+
+
+def _strategy_view(cfg: MissionConfig, strategy: str,
+                   progress: ProgressCallback | None) -> MissionView:
+    """The mission under the strategy ``--strategy`` names, in the paper's terms."""
+    from veribattery.analyses.mission_view import MissionModel
+    from veribattery.analyses.strategy_view import StrategyView
+    induced = induced_mission(cfg, strategy, progress)
+    return StrategyView(MissionModel(cfg, induced.flat, induced.dtmc), induced.actions)
 
 
 #: What the mission's ``oob`` actions mean, under the tables that show them.
@@ -251,9 +293,10 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
 @_simulation_options
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
               default="table", show_default=True, help="Output format.")
+@strategy_option
 def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: int,
                      max_steps: int, paths_file: Path | None, path_count: int, force: bool,
-                     output_format: str) -> None:
+                     output_format: str, strategy: str) -> None:
     """Monte-Carlo estimates of the mission's named results, beside the exact values."""
     from veribattery.config import load_config
     from veribattery.mission import check_mission
@@ -261,14 +304,37 @@ def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: 
     with user_errors():
         check_output_file(paths_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
+        record = path_count if paths_file else 0
+        if strategy != "bs1":
+            _simulate_strategy(cfg, strategy, (runs, seed, max_steps, record), paths_file,
+                               output_format)
+            return
         with build_progress() as progress:
             report = check_mission(cfg, progress=progress)
         flat = _mission_flat(cfg) if paths_file is not None else None
-        simulation = _simulate_run(report.run, runs, seed, max_steps,
-                                   path_count if paths_file else 0)
+        simulation = _simulate_run(report.run, runs, seed, max_steps, record)
         if paths_file is not None:
             _write_simulated_paths(paths_file, report.run.dtmc, simulation, flat)
     print_warnings(report.warnings)
+    _show_simulation(simulation, output_format)
+
+
+def _simulate_strategy(cfg: MissionConfig, strategy: str, sampling: tuple[int, int, int, int],
+                       paths_file: Path | None, output_format: str) -> None:
+    """``simulate --strategy optimal|FILE``: synthesize's three values of the strategy,
+    estimated on the DTMC it induces, beside the exact values.
+
+    :param sampling: runs, seed, max steps, and how many runs to record.
+    """
+    from veribattery.analyses.simulate import simulate
+
+    runs, seed, max_steps, record = sampling
+    with build_progress() as progress:
+        induced = induced_mission(cfg, strategy, progress)
+    simulation = simulate(induced.dtmc, induced.properties, runs=runs, seed=seed,
+                          max_steps=max_steps, exact=induced.values, record=record)
+    if paths_file is not None:
+        _write_simulated_paths(paths_file, induced.dtmc, simulation, induced.flat)
     _show_simulation(simulation, output_format)
 
 

@@ -1,0 +1,137 @@
+"""A strategy file read back onto the mission MDP (``--strategy FILE``).
+
+The files are those ``synthesize --export-strategy`` (and ``prism --export-strategy``)
+writes: PRISM's actions form, ``(v1,...,vn)=action`` per line, or Storm's scheduler
+JSON (``.json``), each listing the states reachable under the strategy by their
+variables' values with the action taken (:mod:`veribattery.strategies.formats`).
+A file fits the MDP when every state it names is a state of the MDP, its action is
+exactly one choice there, the initial state is named, and every successor of a named
+state under its choice is named too (so the induced chain is closed).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from veribattery._types import IntArray
+from veribattery.checker.mdp import MDP
+from veribattery.synthesis.strategy import StrategyError
+
+__all__ = ["read_strategy_file"]
+
+#: A file's entries: per named state its variables' values (the MDP's order), and actions.
+Entries = tuple[IntArray, list[str]]
+
+
+def read_strategy_file(path: Path, mdp: MDP) -> IntArray:
+    """Per state of *mdp*, the choice (row) the strategy in *path* takes; -1 where the
+    file names no state (states it never reaches).
+
+    :raises StrategyError: when the file cannot be read or does not fit *mdp*.
+    :raises OSError: when the file cannot be opened.
+    """
+    text = path.read_text(encoding="utf-8")
+    values, actions = (_storm_entries(text, mdp, path) if path.suffix.lower() == ".json"
+                       else _prism_entries(text, mdp, path))
+    states = _states_of(values, mdp, path)
+    choices = np.full(mdp.num_states, -1, dtype=np.int64)
+    choices[states] = _choices_of(states, actions, mdp, path)
+    _require_closed(choices, states, mdp, path)
+    return choices
+
+
+def _prism_entries(text: str, mdp: MDP, path: Path) -> Entries:
+    rows, actions = [], []
+    for number, line in enumerate(text.splitlines(), 1):
+        if not line.strip():
+            continue
+        valuation, equals, action = line.strip().partition(")=")
+        if not valuation.startswith("(") or not equals:
+            raise StrategyError(f"{path}:{number}: not a strategy line '(v1,...,vn)=action'")
+        rows.append([_number(v, path, number) for v in valuation[1:].split(",")])
+        actions.append(action.strip())
+    return _table(rows, len(mdp.variable_names), path), actions
+
+
+def _storm_entries(text: str, mdp: MDP, path: Path) -> Entries:
+    try:
+        entries = json.loads(text)
+        rows = [[_number(e["s"][n], path, i + 1) for n in mdp.variable_names]
+                for i, e in enumerate(entries)]
+        actions = [str((e["c"][0]["labels"] or [""])[0]) for e in entries]
+    except (ValueError, KeyError, IndexError, TypeError) as exc:
+        raise StrategyError(f"{path}: not a Storm scheduler of this model's variables "
+                            f"{', '.join(mdp.variable_names)} ({exc!r})") from exc
+    return _table(rows, len(mdp.variable_names), path), actions
+
+
+def _number(value: object, path: Path, entry: int) -> int:
+    text = str(value).strip().lower()
+    if text in ("true", "false"):
+        return int(text == "true")
+    try:
+        return int(text)
+    except ValueError:
+        raise StrategyError(f"{path}:{entry}: {value!r} is not a variable's value") from None
+
+
+def _table(rows: list[list[int]], width: int, path: Path) -> IntArray:
+    if not rows:
+        raise StrategyError(f"{path}: names no state")
+    if any(len(row) != width for row in rows):
+        raise StrategyError(f"{path}: a state with other than the model's {width} variables")
+    return np.asarray(rows, dtype=np.int64)
+
+
+def _states_of(values: IntArray, mdp: MDP, path: Path) -> IntArray:
+    """The MDP's index of each named state (a mixed-radix code of the valuations)."""
+    assert mdp.states is not None
+    known = np.asarray(mdp.states, dtype=np.int64)
+    low, high = known.min(axis=0), known.max(axis=0)
+    outside = ((values < low) | (values > high)).any(axis=1)
+    if outside.any():
+        raise StrategyError(f"{path}: entry {int(np.argmax(outside)) + 1} is no state of "
+                            "the mission MDP")
+    dims = tuple(int(d) for d in high - low + 1)
+    codes = np.ravel_multi_index(tuple((known - low).T), dims)
+    wanted = np.ravel_multi_index(tuple((values - low).T), dims)
+    order = np.argsort(codes)
+    at = np.minimum(np.searchsorted(codes, wanted, sorter=order), codes.size - 1)
+    found = order[at]
+    missing = codes[found] != wanted
+    if missing.any():
+        raise StrategyError(f"{path}: entry {int(np.argmax(missing)) + 1} is no state of "
+                            "the mission MDP")
+    if np.unique(found).size != found.size:
+        raise StrategyError(f"{path}: names a state twice")
+    return np.asarray(found, dtype=np.int64)
+
+
+def _choices_of(states: IntArray, actions: list[str], mdp: MDP, path: Path) -> IntArray:
+    """The one choice of each named state with its named action."""
+    assert mdp.choice_actions is not None
+    index = {name: i for i, name in enumerate(mdp.actions)}
+    unknown = [a for a in actions if a not in index]
+    if unknown:
+        raise StrategyError(f"{path}: action '{unknown[0]}' is no action of the mission MDP")
+    wanted = states * len(mdp.actions) + np.asarray([index[a] for a in actions])
+    keys = mdp.choice_owner * len(mdp.actions) + mdp.choice_actions
+    order = np.argsort(keys, kind="stable")
+    first = np.searchsorted(keys, wanted, side="left", sorter=order)
+    last = np.searchsorted(keys, wanted, side="right", sorter=order)
+    if ((last - first) != 1).any():
+        bad = int(np.argmax((last - first) != 1))
+        raise StrategyError(f"{path}: entry {bad + 1}: '{actions[bad]}' is not exactly one "
+                            "choice of that state")
+    return np.asarray(order[first], dtype=np.int64)
+
+
+def _require_closed(choices: IntArray, states: IntArray, mdp: MDP, path: Path) -> None:
+    if (choices[mdp.initial] < 0).any():
+        raise StrategyError(f"{path}: does not name the mission's initial state")
+    successors = mdp.transitions[choices[states]].indices
+    if (choices[successors] < 0).any():
+        raise StrategyError(f"{path}: the strategy reaches states the file does not name")
