@@ -75,7 +75,7 @@ def operand_chain(expr: Binary, op: str) -> list[Expr]:
 
 def _reward_bound(bound: TimeBound) -> int:
     """The largest integer total reward that ``<=T`` / ``<T`` admits."""
-    value = _number(bound.value)
+    value = literal_number(bound.value)
     return math.floor(value) if bound.op == "<=" else math.ceil(value) - 1
 
 
@@ -120,19 +120,19 @@ def _reward_structure(dtmc: DTMC, op: RewardOp | RewardBounded) -> RewardVectors
     return structure
 
 
-def _number(expr: Expr) -> float:
+def literal_number(expr: Expr) -> float:
     """The value of a literal (constants are substituted before checking)."""
     match expr:
         case IntLit(value=value) | DoubleLit(value=value):
             return float(value)
         case Unary(op="-", operand=operand):
-            return -_number(operand)
+            return -literal_number(operand)
     raise CheckError("expected a numeric constant", expr.span)
 
 
 def step_bound(expr: Expr) -> int:
     """A step bound: a non-negative integer literal."""
-    value = _number(expr)
+    value = literal_number(expr)
     if value < 0 or value != int(value):
         raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
                          expr.span)

@@ -25,7 +25,6 @@ from veribattery.checker.formula.leaves import (
     _condition_name,
     _everywhere,
     _interval,
-    _number,
     _operands,
     _point,
     _reward_bound,
@@ -33,6 +32,7 @@ from veribattery.checker.formula.leaves import (
     as_mask,
     has_operator,
     leaf_values,
+    literal_number,
     operand_chain,
     step_bound,
 )
@@ -339,7 +339,7 @@ def _bounded_operator(dtmc: DTMC, workspace: Workspace, op: ProbOp | RewardOp | 
     """
     if op.op == "=?" or op.bound is None:
         raise CheckError("a query (=?) cannot be used as a state formula", op.span)
-    threshold = _number(op.bound)
+    threshold = literal_number(op.bound)
     numbers, holds, undecided = _decide(dtmc, workspace, op, threshold, must_decide)
     if undecided.any():
         # Escalate: ask the kernels for exact (or as tight as reachable) bounds.

@@ -40,7 +40,6 @@ from __future__ import annotations
 
 import hashlib
 import itertools
-from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -50,7 +49,7 @@ from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
 
 from veribattery._types import FloatArray
-from veribattery.checker.linalg.topological import Progress
+from veribattery.checker.linalg.topological import Inverse, Progress, superlu
 
 #: Components up to this size are solved together with their neighbours in runs.
 BLOCK_LIMIT = 4_096
@@ -84,7 +83,6 @@ MARGIN_RTOL = 1e-6
 MARGIN_FLOOR = 1e-3
 
 #: Applies an approximate inverse of a matrix to a float64 vector.
-Inverse = Callable[[FloatArray], FloatArray]
 IntArray = npt.NDArray[np.int64]
 
 
@@ -230,12 +228,12 @@ def dense(sizes: IntArray, inner: IntArray) -> npt.NDArray[np.bool_]:
 def _block_solver(block: sp.csr_matrix, *, large: bool) -> Inverse | None:
     """The solver of one segment's diagonal block, chosen by its estimated LU memory."""
     if not large:
-        return _lu(block, "NATURAL")
+        return superlu(block, "NATURAL")
     size = np.array([block.shape[0]])
     if dense(size, np.array([block.nnz]))[0]:
         return _KrylovFirst(krylov_solver(block, _jacobi(block)), block)
     if block.shape[0] <= LU_LIMIT or _thin(block):
-        return _lu(block, "MMD_AT_PLUS_A") or krylov_solver(block)
+        return superlu(block, "MMD_AT_PLUS_A") or krylov_solver(block)
     return krylov_solver(block)
 
 
@@ -255,20 +253,6 @@ def _thin(block: sp.csr_matrix) -> bool:
     lowest = np.minimum.reduceat(position[symmetric.indices], symmetric.indptr[:-1])
     envelope = int(np.sum(position - lowest, dtype=np.int64))
     return bool(2 * envelope + block.shape[0] <= ENVELOPE_LIMIT)
-
-
-def _lu(block: sp.csr_matrix | sp.csc_matrix, order: str) -> Inverse | None:
-    """SuperLU with column order *order* and diagonal pivots (None if it fails).
-
-    "NATURAL" keeps a topologically ordered run's fill-in inside each component;
-    "MMD_AT_PLUS_A" (minimum degree on ``A + A^T``) limits it in one large component.
-    """
-    try:
-        lu = spla.splu(sp.csc_matrix(block), permc_spec=order, diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
-    except (RuntimeError, MemoryError):
-        return None
-    return lu.solve  # type: ignore[no-any-return]
 
 
 def _preconditioner(block: sp.csr_matrix) -> spla.LinearOperator:
@@ -340,7 +324,7 @@ class _KrylovFirst:
         if np.all(np.isfinite(x)) and residual <= 100 * KRYLOV_RTOL * scale:
             return x
         if not self.lu:
-            self.lu.append(_lu(self.block, "MMD_AT_PLUS_A"))
+            self.lu.append(superlu(self.block, "MMD_AT_PLUS_A"))
         solve = self.lu[0]
         return x if solve is None else np.asarray(solve(b), dtype=np.float64)
 

@@ -198,10 +198,15 @@ def _joinable(first: Segment, second: Segment, small: int) -> bool:
 def direct_component(block: sp.csr_matrix) -> Inverse | None:
     """Sparse LU of one component (fill-reducing order, diagonal pivots: *block* is a
     nonsingular M-matrix), or None when the factorisation fails."""
-    return _lu(block, "MMD_AT_PLUS_A")
+    return superlu(block, "MMD_AT_PLUS_A")
 
 
-def _lu(block: sp.spmatrix, order: str) -> Inverse | None:
+def superlu(block: sp.spmatrix, order: str) -> Inverse | None:
+    """SuperLU with column order *order* and diagonal pivots (None if it fails).
+
+    "NATURAL" keeps a topologically ordered run's fill-in inside each component;
+    "MMD_AT_PLUS_A" (minimum degree on ``A + A^T``) limits it in one large component.
+    """
     try:
         lu = spla.splu(sp.csc_matrix(block), permc_spec=order, diag_pivot_thresh=0.0,
                        options={"SymmetricMode": True})
@@ -306,7 +311,7 @@ def _prepare(permuted: sp.csr_matrix, segment: Segment,
     if segment.method == "substitution":
         solve = _substitution(block, diagonal)
     elif segment.method == "blocks":
-        solve = _lu(block, "NATURAL")
+        solve = superlu(block, "NATURAL")
     else:
         solve = component_solver(block)
     if solve is None:

@@ -21,7 +21,7 @@ from veribattery._types import BoolArray, IntArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.formula import filters, intervals
 from veribattery.checker.formula.intervals import Result
-from veribattery.checker.formula.leaves import as_mask, has_operator, step_bound
+from veribattery.checker.formula.leaves import as_mask, has_operator, literal_number, step_bound
 from veribattery.checker.mdp import cosafe, stepped
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.reach import reach_probability
@@ -35,14 +35,12 @@ from veribattery.lang.nodes import (
     BoolLit,
     Call,
     Cumulative,
-    DoubleLit,
     Eventually,
     Expr,
     Filter,
     Globally,
     Ident,
     Instantaneous,
-    IntLit,
     Ite,
     LabelRef,
     Multi,
@@ -127,7 +125,7 @@ def _direction(op: ProbOp | RewardOp) -> Objective:
 def _bounded(mdp: MDP, op: ProbOp | RewardOp) -> BoolArray:
     """``P~p``/``R~r`` as a mask, decided from the certified interval."""
     assert op.bound is not None
-    threshold = _number(op.bound)
+    threshold = literal_number(op.bound)
     query = replace(op, op="=?", bound=None, direction=_direction(op))
     numbers = mdp_values(mdp, query)
     assert isinstance(numbers, Bounds)
@@ -299,13 +297,4 @@ def _states(mdp: MDP) -> IntArray:
         return np.zeros((mdp.num_states, 0), dtype=np.int64)
     return mdp.states
 
-
-def _number(expr: Expr) -> float:
-    """The value of a bound (constants are substituted before checking)."""
-    match expr:
-        case IntLit(value=value) | DoubleLit(value=value):
-            return float(value)
-        case Unary(op="-", operand=operand):
-            return -_number(operand)
-    raise CheckError("expected a numeric constant", expr.span)
 
