@@ -106,3 +106,43 @@ def test_a_monitor_relays_to_the_listener_of_the_moment_only() -> None:
     assert outer == [(1, 4, "states"), (3, 4, "states")]
     assert inner == [(2, 4, "iterations")]
     assert not monitor.heard
+
+
+def _walk(n: int) -> sp.csr_matrix:
+    """A walk on ``0..n-1`` that moves up with 1/2 and stays with 1/2; ``n-1`` absorbs."""
+    rows = np.repeat(np.arange(n - 1), 2)
+    cols = np.stack([np.arange(n - 1), np.arange(1, n)], axis=1).ravel()
+    P = sp.csr_matrix((np.full(rows.size, 0.5), (rows, cols)), shape=(n, n))
+    return sp.csr_matrix(P + sp.csr_matrix(([1.0], ([n - 1], [n - 1])), shape=(n, n)))
+
+
+def test_a_step_bounded_until_reports_each_step_and_keeps_its_bounds() -> None:
+    n, k = 4, 12
+    P = _walk(n)
+    everywhere, goal = np.ones(n, dtype=bool), np.arange(n) == n - 1
+    monitor = SolveMonitor()
+    heard: list[Report] = []
+    with monitor.listening(lambda *report: heard.append(report)):
+        told = kernels.bounded_until_probs(P, everywhere, goal, k, progress=monitor)
+    assert heard == [(step, k, "steps") for step in range(1, k + 1)]
+    assert _same(told, kernels.bounded_until_probs(P, everywhere, goal, k))
+    # From 0 the goal is 3 successes of a fair coin within 12 tosses.
+    exact = 1 - sum(Fraction(_binomial(k, i), 2**k) for i in range(3))
+    assert Fraction(float(told.lower[0])) <= exact <= Fraction(float(told.upper[0]))
+
+
+def _binomial(n: int, i: int) -> int:
+    from math import comb
+
+    return comb(n, i)
+
+
+def test_cumulative_and_instantaneous_rewards_report_each_step() -> None:
+    P = _walk(5)
+    heard: list[Report] = []
+    monitor = SolveMonitor()
+    with monitor.listening(lambda *report: heard.append(report)):
+        kernels.cumulative_rewards(P, np.ones(5), 7, progress=monitor)
+        kernels.instantaneous_rewards(P, np.arange(5.0), 3, progress=monitor)
+    assert heard == [(s, 7, "steps") for s in range(1, 8)] + [(s, 3, "steps")
+                                                               for s in range(1, 4)]

@@ -4,10 +4,12 @@ and ``--max-states``."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import subprocess
 import sys
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -217,3 +219,20 @@ def test_a_long_formula_is_cut_on_the_spinner_not_wrapped(tmp_path: Path) -> Non
     assert screen.status == 0, screen.text
     drawn = [part for part in re.split(r"[\r\n]", screen.drawn) if "solving" in part]
     assert drawn and all(len(part) <= 80 and part.endswith("…") for part in drawn), drawn
+
+
+def test_a_step_bounded_check_tells_its_steps_on_a_pipe(tmp_path: Path) -> None:
+    model = tmp_path / "walk.pm"
+    model.write_text("dtmc\nmodule w\n x : [0..50] init 0;\n"
+                     " [] x<50 -> 0.5:(x'=x+1) + 0.5:(x'=x);\n [] x=50 -> true;\nendmodule\n")
+    command = [sys.executable, "-c", "from veribattery.cli import main; main()", "prism",
+               str(model), "--property", "P=? [ F<=60 x=50 ]", "--json"]
+    told = subprocess.run(command, capture_output=True, text=True, check=True,
+                          env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+    steps = re.findall(r"^solving P=\? \[ F<=60 x=50 \]: (\d+) of 60 steps, \d+ s$",
+                       told.stderr, flags=re.MULTILINE)
+    assert [int(s) for s in steps] == list(range(1, 61))
+    # At least 50 heads in 60 fair tosses.
+    exact = sum(Fraction(math.comb(60, i), 2**60) for i in range(50, 61))
+    low, high = json.loads(told.stdout)["results"][0]["bounds"]
+    assert Fraction(low) <= exact <= Fraction(high) and high - low < 1e-12

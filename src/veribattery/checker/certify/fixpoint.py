@@ -36,6 +36,8 @@ INTERVAL_WORK = 400_000_000
 
 #: Solves ``(I - P_mm) d = v`` approximately (None: not available).
 Correction = Callable[[FloatArray], FloatArray | None]
+#: Told ``(done, total, unit)`` as a long loop goes (a ``linalg.SolveMonitor`` is one).
+Progress = Callable[[int, int, str], None]
 
 def quick_certificate(F: AffineMap, x: FloatArray, correct: Correction | None,
                       floor: FloatArray, ceiling: FloatArray
@@ -202,20 +204,23 @@ def _repair(image: Callable[[FloatArray], FloatArray], bound: FloatArray,
 
 
 def interval_iteration(F: AffineMap, lower: FloatArray, upper: FloatArray,
-                       value: FloatArray, precise: Callable[[Bounds], BoolArray]
-                       ) -> tuple[FloatArray, FloatArray]:
+                       value: FloatArray, precise: Callable[[Bounds], BoolArray],
+                       progress: Progress | None = None) -> tuple[FloatArray, FloatArray]:
     """Tighten certified bounds by applying *F* to each side until *precise* holds.
 
     Sound for any certified start: ``l <= x*`` implies ``F(l) <= F(x*) = x*``.
 
     :param precise: which states of a :class:`Bounds` meet the required precision.
+    :param progress: told ``(sweeps done, most sweeps, "sweeps")`` after each sweep.
     """
     sweeps = min(INTERVAL_SWEEPS, INTERVAL_WORK // max(1, 2 * F.rows.nnz))
-    for _ in range(sweeps):
+    for sweep in range(sweeps):
         if precise(Bounds.around(value, lower, upper)).all():
             break
         lower = np.maximum(lower, F.lower(lower))
         upper = np.minimum(upper, F.upper(upper))
+        if progress is not None:
+            progress(sweep + 1, sweeps, "sweeps")
     return lower, upper
 
 

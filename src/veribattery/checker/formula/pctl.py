@@ -229,9 +229,11 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
             return kernels.reach_rewards(P, structure.total, state_set(dtmc, workspace, target),
                                          focus_states, workspace=workspace)
         case Cumulative(bound=bound):
-            return kernels.cumulative_rewards(P, structure.total, step_bound(bound))
+            return kernels.cumulative_rewards(P, structure.total, step_bound(bound),
+                                              progress=workspace.monitor)
         case Instantaneous(time=time):
-            return kernels.instantaneous_rewards(P, structure.state, step_bound(time))
+            return kernels.instantaneous_rewards(P, structure.state, step_bound(time),
+                                                 progress=workspace.monitor)
         case Total():
             from veribattery.checker.kernels import steady
 
@@ -378,10 +380,11 @@ def _until(dtmc: DTMC, workspace: Workspace, remain: BoolArray, target: BoolArra
     if low == 0:
         if high is None:
             return kernels.until_probs(P, remain, target, focus_states, workspace=workspace)
-        return kernels.bounded_until_probs(P, remain, target, high)
+        return kernels.bounded_until_probs(P, remain, target, high, progress=workspace.monitor)
     if high is None:
         return kernels.lower_bounded_until_probs(P, remain, target, low, workspace=workspace)
-    return kernels.interval_until_probs(P, remain, target, low, high)
+    return kernels.interval_until_probs(P, remain, target, low, high,
+                                        progress=workspace.monitor)
 
 
 # ---------------------------------------------------------------------------

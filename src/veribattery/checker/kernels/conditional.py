@@ -335,7 +335,7 @@ def _long_way(F: certify.AffineMap, solver: linalg.Factorization,
     found = Bounds.around(point, lower, upper)
     if not found.precise_states().all():
         lower, upper = certify.interval_iteration(F, lower, upper, point,
-                                                  lambda b: b.precise_states())
+                                                  lambda b: b.precise_states(), solver.monitor)
         found = Bounds.around(point, lower, upper)
     return found
 

@@ -24,6 +24,7 @@ from veribattery.checker.certify.bounds import (
     round_down,
     round_up,
 )
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.kernels.prepass import prob0
 from veribattery.checker.kernels.systems import _restrict, _system
 from veribattery.checker.kernels.until import _certified, _spread, until_probs
@@ -37,13 +38,15 @@ if TYPE_CHECKING:
 # ---------------------------------------------------------------------------
 
 
-def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Bounds:
+def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
+                progress: Progress | None = None) -> Bounds:
     """``k`` steps of ``x <- offset + M x`` from *start*, with a certified radius.
 
     The radius *e* bounds ``|x - exact|`` componentwise: ``e <- M e + delta`` where
     *delta* bounds the rounding of the step (:func:`certify.enclose_product`).
     The iteration stops early at an exact fixpoint of the float map; the
     remaining steps are accounted normwise with ``||M||_inf`` (rounded up).
+    *progress* (if someone listens) is told ``(steps done, k, "steps")`` after each step.
     """
     if escalated() and np.array_equal(start.lower, start.upper):
         # Asked for exact bounds: iterate in rational arithmetic when small enough.
@@ -53,7 +56,7 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Boun
         if exact is not None:
             return Bounds(*exact)
     terms = certify.row_terms(M)
-    normwise = _step_power_normwise(M, start, offset, k, terms)
+    normwise = _step_power_normwise(M, start, offset, k, terms, progress)
     if normwise is not None:
         return normwise
     x = start.value
@@ -65,11 +68,13 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int) -> Boun
             return _finish(M, x, radius, rounding, k - step)
         radius = round_up(certify.enclose_product(M, radius, rounding, terms)[2])
         x = following
+        if progress is not None:
+            progress(step + 1, k, "steps")
     return _finish(M, x, radius, np.zeros_like(x), 0)
 
 
 def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
-                         terms: FloatArray) -> Bounds | None:
+                         terms: FloatArray, progress: Progress | None) -> Bounds | None:
     """:func:`_step_power` with one radius for every state: one product per step
     instead of two (the componentwise radius needs ``M e`` too), or None when that
     radius would not meet the required absolute precision everywhere.
@@ -93,6 +98,8 @@ def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int
         grown = math.nextafter(rho * radius, math.inf)  # each operation rounded up
         radius = math.nextafter(grown + rounding, math.inf)
         x = following
+        if progress is not None:
+            progress(step + 1, k, "steps")
     if not 2 * radius <= absolute:
         return None
     return _finish(M, x, np.full_like(x, radius), np.zeros_like(x), 0)
@@ -139,13 +146,14 @@ def next_probs(P: CsrMatrix, target: BoolArray) -> Bounds:
 
 
 def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                        k: int) -> Bounds:
+                        k: int, *, progress: Progress | None = None) -> Bounds:
     """Probability of reaching *target* within *k* steps while staying in *remain*.
 
     :param P: row-stochastic CSR transition matrix.
     :param remain: states that may be passed through before *target*.
     :param target: states to reach.
     :param k: step bound (``U<=k``), at least 0.
+    :param progress: told ``(steps done, k, "steps")`` as the iteration goes.
     """
     moving = _rows_in(P, remain & ~target)
     near = _within_steps(moving, target, k)
@@ -153,14 +161,14 @@ def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
         return Bounds.exact(np.zeros(P.shape[0]))
     hit = target.astype(np.float64)
     if near.all():
-        return _probabilities(_step_power(moving, Bounds.exact(hit), hit, k))
+        return _probabilities(_step_power(moving, Bounds.exact(hit), hit, k, progress))
     # States farther than k steps from the target have probability exactly 0, and
     # so has every such successor of a nearer state at each of the k iterations:
     # iterating on the near states alone gives the same values (Storm does the same).
     index = np.flatnonzero(near)
     sub = sp.csr_matrix(moving[index][:, index])
     del moving
-    found = _step_power(sub, Bounds.exact(hit[index]), hit[index], k)
+    found = _step_power(sub, Bounds.exact(hit[index]), hit[index], k, progress)
     return _probabilities(_spread(np.zeros(P.shape[0]), near, found))
 
 
@@ -188,12 +196,12 @@ def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray
     :param workspace: as for :func:`until_probs`.
     """
     later = until_probs(P, remain, target, workspace=workspace)
-    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), k)
+    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), k, workspace.monitor)
     return _probabilities(found)
 
 
 def interval_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                         low: int, high: int) -> Bounds:
+                         low: int, high: int, *, progress: Progress | None = None) -> Bounds:
     """Probability of ``remain U[low,high] target``: *remain* for the first *low* steps,
     then *target* within ``high - low`` more steps, passing through *remain*.
 
@@ -202,32 +210,37 @@ def interval_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param target: states to reach, at a step in ``[low, high]``.
     :param low: first step that counts, at least 0.
     :param high: last step that counts, at least *low*.
+    :param progress: as for :func:`bounded_until_probs`, per part.
     """
-    later = bounded_until_probs(P, remain, target, high - low)
-    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), low)
+    later = bounded_until_probs(P, remain, target, high - low, progress=progress)
+    found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), low, progress)
     return _probabilities(found)
 
 
-def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int) -> Bounds:
+def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int, *,
+                       progress: Progress | None = None) -> Bounds:
     """Expected reward of the first *k* steps (``C<=k``).
 
     :param P: row-stochastic CSR transition matrix.
     :param rewards: reward earned per step taken from each state (state + transition).
     :param k: number of steps, at least 0.
+    :param progress: as for :func:`bounded_until_probs`.
     """
     offset = np.asarray(rewards, dtype=np.float64)
-    return _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k)
+    return _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k, progress)
 
 
-def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int) -> Bounds:
+def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int, *,
+                          progress: Progress | None = None) -> Bounds:
     """Expected state reward of the state occupied at step *k* (``I=k``).
 
     :param P: row-stochastic CSR transition matrix.
     :param state_rewards: reward of being in each state.
     :param k: the step, at least 0.
+    :param progress: as for :func:`bounded_until_probs`.
     """
     start = np.asarray(state_rewards, dtype=np.float64)
-    return _step_power(P, Bounds.exact(start), np.zeros_like(start), k)
+    return _step_power(P, Bounds.exact(start), np.zeros_like(start), k, progress)
 
 
 def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds, *,

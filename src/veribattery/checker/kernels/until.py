@@ -295,7 +295,8 @@ def _certified(F: certify.AffineMap, system: _System, known: FloatArray | None,
     if exact is not None:
         return Bounds(*exact)
     low, high = certify.interval_iteration(F, low, high, found.value,
-                                           lambda b: b.precise_states())
+                                           lambda b: b.precise_states(),
+                                           system.factorization.monitor)
     if x is None:  # no float solution: the midpoint where the interval is finite
         with np.errstate(invalid="ignore", over="ignore"):
             middle = low + (high - low) / 2

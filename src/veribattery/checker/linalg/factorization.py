@@ -261,6 +261,12 @@ class Factorization:
             return None
 
     @property
+    def monitor(self) -> SolveMonitor | None:
+        """Where the solves of this system (and the sweeps that tighten their bounds)
+        report how far they are."""
+        return self._monitor
+
+    @property
     def iterative(self) -> bool:
         """Whether the direct solver has a Krylov segment (known once it is built)."""
         return self._iterative
