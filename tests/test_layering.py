@@ -44,6 +44,7 @@ LAYERS: dict[str, int] = {
     "mission": 7,
     "analyses": 8, "sweep": 8, "phm": 8, "report": 8, "synthesis": 8, "strategies": 8,
     "cli": 9,
+    "__main__": 10,
 }
 #: The package root, veribattery/__init__.py: the users' facade over every layer but cli.
 ROOT_LAYER = 8.5

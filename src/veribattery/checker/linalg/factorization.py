@@ -111,7 +111,7 @@ class Factorization:
         self._n = int(A.shape[0])
         self._rebuild = rebuild
         self._plans = plans
-        self._monitor = monitor
+        self.monitor = monitor
         self._direct: _Inverse | None = None
         self._direct_tried = False
         self._substitute: _Triangular | None = None
@@ -173,7 +173,7 @@ class Factorization:
         x = self._refined(inverse, b, steps) if inverse is not None else None
         if x is not None and self.backward_error(x, b) <= RESIDUAL_TOL:
             return x
-        monitor = self._monitor if self._monitor is not None and self._monitor.heard else None
+        monitor = self.monitor if self.monitor is not None and self.monitor.heard else None
         x = solve_iterative(self.A64, b.astype(np.float64), x, monitor)
         if not self.backward_error(x, b) <= RESIDUAL_TOL:
             raise CheckError(f"linear solver did not reach backward error {RESIDUAL_TOL:g} "
@@ -259,12 +259,6 @@ class Factorization:
             return self.solve(v.astype(np.longdouble))
         except (CheckError, RuntimeError):
             return None
-
-    @property
-    def monitor(self) -> SolveMonitor | None:
-        """Where the solves of this system (and the sweeps that tighten their bounds)
-        report how far they are."""
-        return self._monitor
 
     @property
     def iterative(self) -> bool:
@@ -370,7 +364,7 @@ class Factorization:
         listens (else *inverse* itself: a short check pays nothing). SCC-wise solvers
         report after each segment; a solve in one call (substitution, LU) before and
         after, so that a long one shows its size."""
-        monitor = self._monitor
+        monitor = self.monitor
         if monitor is None or not monitor.heard:
             return inverse
         if isinstance(inverse, TopologicalSolver):
