@@ -236,3 +236,21 @@ def test_a_step_bounded_check_tells_its_steps_on_a_pipe(tmp_path: Path) -> None:
     exact = sum(Fraction(math.comb(60, i), 2**60) for i in range(50, 61))
     low, high = json.loads(told.stdout)["results"][0]["bounds"]
     assert Fraction(low) <= exact <= Fraction(high) and high - low < 1e-12
+
+
+def test_an_mdp_check_tells_its_stages_on_a_pipe(tmp_path: Path) -> None:
+    model = tmp_path / "choice.nm"
+    model.write_text("mdp\nmodule m\n s : [0..2] init 0;\n [a] s=0 -> 0.5:(s'=1) + 0.5:(s'=2);\n"
+                     " [b] s=0 -> (s'=2);\n [] s>0 -> true;\nendmodule\n")
+    for exact in ((), ("--exact",)):
+        command = [sys.executable, "-c", "from veribattery.cli import main; main()", "prism",
+                   str(model), "--property", "Pmax=? [ F s=1 ]", "--property",
+                   "Pmin=? [ F s=1 ]", *exact]
+        told = subprocess.run(command, capture_output=True, text=True, check=True,
+                              env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+        stages = [line for line in told.stderr.splitlines() if not line.startswith("exploring")]
+        assert stages == ["building the state space",
+                          "checking property 1 of 2: Pmax=? [ F s=1 ]",
+                          "checking property 2 of 2: Pmin=? [ F s=1 ]"], exact
+        assert re.search(r"Pmax=\? \[ F s=1 \]\s+(0\.5|1/2)\b", told.stdout)
+        assert re.search(r"Pmin=\? \[ F s=1 \]\s+0\b", told.stdout)

@@ -26,7 +26,7 @@ from veribattery.lang import (
     resolve_property,
 )
 from veribattery.lang.nodes import Value
-from veribattery.pipeline.run import STAGES, ProgressCallback, Stopwatch
+from veribattery.pipeline.run import STAGES, ProgressCallback, Stopwatch, stages_of
 
 __all__ = ["MdpCheckRun", "check_mdp_model"]
 
@@ -88,13 +88,18 @@ def check_mdp_model(
     with watch.stage("parse"):
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+    stages = stages_of(progress)
     with watch.stage("build"):
+        if stages is not None:
+            stages.starting("building the state space")
         built = build_mdp(flat, progress=progress)
         mdp = as_checker_mdp(built)
     results = []
     warnings = list(built.warnings)
     with watch.stage("check"):
-        for prop in resolved:
+        for number, prop in enumerate(resolved, start=1):
+            if stages is not None:
+                stages.checking(number, len(resolved), prop.text or prop.name or "a formula")
             results.append(_checked(mdp, prop, warnings))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, tuple(warnings), model=flat)
 
