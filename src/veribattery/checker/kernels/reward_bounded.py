@@ -382,7 +382,7 @@ def _forward(P: CsrMatrix, levels: Levels, initial: FloatArray,
     # One product per level: the mass leaving every positive-reward state, each taken
     # from the level its reward reaches back to, moved by the transposed rows at once.
     movers = np.concatenate([states for _, states in levels.groups] or [np.zeros(0, np.int64)])
-    moved = sp.csr_matrix(P[movers].T)
+    moved = linalg.TransposedProduct(P[movers])
     zero_dest, zero_moves = _columns_used(levels.zero_rows)
     leaving = np.zeros(movers.size)
     total = float(initial.sum())
@@ -391,7 +391,7 @@ def _forward(P: CsrMatrix, levels: Levels, initial: FloatArray,
     never = 0.0
     for k in range(max_levels):
         _gather(rings, k, leaving)
-        here = np.asarray(moved @ leaving, dtype=np.float64)
+        here = moved(leaving)
         if k == 0:
             here += initial
         if levels.closure is not None:

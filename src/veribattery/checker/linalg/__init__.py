@@ -7,9 +7,11 @@
 - :mod:`~veribattery.checker.linalg.iterative`: backward error and the iterative fallback;
 - :mod:`~veribattery.checker.linalg.scc`, :mod:`~veribattery.checker.linalg.topological`:
   SCC-wise solves; :mod:`~veribattery.checker.linalg.rational`: the exact fallback;
-- :mod:`~veribattery.checker.linalg.monitor`: how far a long solve is, for a listener.
+- :mod:`~veribattery.checker.linalg.monitor`: how far a long solve is, for a listener;
+- :mod:`~veribattery.checker.linalg.scatter`: ``M^T x`` at the cost of *x*'s nonzeros.
 
-This package re-exports the public names of the first four modules and the monitor.
+This package re-exports the public names of the first four modules, the monitor and the
+transposed product.
 """
 
 from veribattery.checker.linalg.factorization import (
@@ -28,6 +30,7 @@ from veribattery.checker.linalg.restriction import (
     restricted_parts,
     unplanned_parts,
 )
+from veribattery.checker.linalg.scatter import TransposedProduct
 
 __all__ = [
     "Factorization",
@@ -36,6 +39,7 @@ __all__ = [
     "SolveListener",
     "SolveMonitor",
     "SolverPlans",
+    "TransposedProduct",
     "backward_error",
     "extended_product",
     "index_digest",
