@@ -364,7 +364,7 @@ class PropertyRules:
         if isinstance(target, Unsupported):
             return target
         node = ProbOp(query[0], query[1], Conditional(objective, target, self._span(meta)),
-                      self._span(meta))
+                      self._span(meta), self._direction(meta))
         return self._wrap(node, legacy, meta)
 
     def conditional_reach(self, meta: Meta, children: list[Any]) -> RewardPath | Unsupported:

@@ -34,6 +34,7 @@ from veribattery.lang.nodes import (
     Binary,
     BoolLit,
     Call,
+    Conditional,
     Cumulative,
     Eventually,
     Expr,
@@ -51,6 +52,7 @@ from veribattery.lang.nodes import (
     ReachNext,
     ReachUntil,
     Release,
+    RewardBounded,
     RewardOp,
     TimeBound,
     TimeInterval,
@@ -164,6 +166,14 @@ def _path(mdp: MDP, path: PathFormula, objective: Objective) -> Bounds:
         case Release(left=left, right=right, bound=bound):  # a R b = !(!a U !b)
             a, b = _mask(mdp, left), _mask(mdp, right)
             return _complement(_until(mdp, ~a, ~b, bound, _opposite(objective)))
+        case Conditional():
+            raise CheckError("conditional probabilities (Storm's 'path || F condition') are "
+                             "not supported on MDPs: check the DTMC a strategy induces instead "
+                             "(--export-induced)", path.span)
+        case RewardBounded():
+            raise CheckError("reward-bounded path formulas (Storm's F{\"r\"}<=T) are not "
+                             "supported on MDPs: use a step bound (F<=k) or a reward operator",
+                             path.span)
     raise CheckError("this path formula is not supported on MDPs", path.span)
 
 

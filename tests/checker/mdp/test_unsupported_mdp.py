@@ -1,0 +1,44 @@
+"""Storm's extra path formulas on an MDP: refused in one line (exit 2), never misread."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from veribattery.cli import cli
+from veribattery.lang import parse_properties
+from veribattery.lang.nodes import Conditional, ProbOp
+
+MODEL = """mdp
+module m
+ s : [0..2] init 0;
+ [a] s=0 -> 0.5:(s'=1) + 0.5:(s'=2);
+ [b] s=0 -> (s'=2);
+ [] s>0 -> true;
+endmodule
+rewards "r" true : 1; endrewards
+"""
+
+
+def test_a_conditional_keeps_its_direction() -> None:
+    (prop,) = parse_properties('Pmin=? [ F s=1 || F s>0 ]').properties
+    assert isinstance(prop.formula, ProbOp) and isinstance(prop.formula.path, Conditional)
+    assert prop.formula.direction == "min"
+
+
+@pytest.mark.parametrize(("formula", "says"), [
+    ('Pmax=? [ F s=1 || F s>0 ]', "conditional probabilities (Storm's 'path || F condition') "
+                                   "are not supported on MDPs"),
+    ('Pmax=? [ F{"r"}<=3 s=1 ]', "reward-bounded path formulas (Storm's F{\"r\"}<=T) are not "
+                                  "supported on MDPs"),
+])
+def test_storm_path_formulas_are_refused_on_one_line(tmp_path: Path, formula: str,
+                                                     says: str) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(MODEL)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", formula])
+    assert result.exit_code == 2
+    (line,) = result.output.strip().splitlines()
+    assert line.startswith("error: <property>:1:") and says in line
