@@ -23,7 +23,6 @@ from veribattery.checker.mdp.certificate import certified_values
 from veribattery.checker.mdp.components import EndComponents
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.rational import RationalSystem, exact_policy_iteration
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
 from veribattery.checker.mdp.strategy import Strategy, lifted
@@ -120,6 +119,9 @@ def _exactly(mdp: MDP, problem: Problem, found: Approximation,
     """The last resort of a small system whose certificate stays too wide: policy
     iteration in rationals on the same equations (the stored doubles read exactly),
     the exact values rounded to the floats either side."""
+    # (imported here: the exact engine is read only when a float certificate fails)
+    from veribattery.checker.mdp.rational import RationalSystem, exact_policy_iteration
+
     system = found.system
     probabilities = np.full(mdp.transitions.nnz, _ZERO, dtype=object)
     probabilities[system.positions] = [mpq(float(p)) for p in mdp.transitions.data[
