@@ -149,7 +149,7 @@ class FrontSearch:
                 found.append(middle)
                 segments += [(left, middle), (middle, right)]
         vertices = sorted(_distinct(found), key=lambda v: v.p.value)
-        return Front(tuple(vertices), pmax, complete, self.solves)
+        return Front(tuple(_undominated(vertices)), pmax, complete, self.solves)
 
     def least_total_at(self, p: float) -> CertifiedAnswer | None:
         """The least E[R] with ``P >= p`` (None: *p* lies within the certified interval
@@ -251,6 +251,13 @@ def _supporting(optimum: WeightedOptimum, p: float) -> float:
 def _steep(low: Point) -> float:
     """A weight under which missing the target costs more than any reward of *low*."""
     return 1e6 * max(1.0, low.total.value)
+
+
+def _undominated(vertices: list[Point]) -> list[Point]:
+    """*vertices* (by increasing P) without those a safer one matches in E[R]: the
+    weight 0 may pick, among the strategies of least E[R], one that is not the safest."""
+    return [v for v, w in zip(vertices, [*vertices[1:], None], strict=True)
+            if w is None or w.total.value > v.total.value]
 
 
 def _distinct(points: list[Point]) -> list[Point]:
