@@ -33,6 +33,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 
+from veribattery._types import IntArray
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.multi import Reach, Total
 from veribattery.checker.mdp.multi_weighted import (
@@ -112,13 +113,23 @@ class FrontSearch:
         return len(self._optima)
 
     def optimum(self, lam: float) -> WeightedOptimum:
-        """``min E[R] + lam (1 - P)`` (pre-passes shared between weights)."""
+        """``min E[R] + lam (1 - P)`` (pre-passes shared between weights; policy
+        iteration started from the strategy of the closest positive weight solved).
+        """
         if lam not in self._optima:
             positive = lam > 0
             if positive not in self._problems:
                 self._problems[positive] = self.stopping.problem(lam)
-            self._optima[lam] = self.stopping.optimum(lam, self._problems[positive])
+            self._optima[lam] = self.stopping.optimum(lam, self._problems[positive],
+                                                      self._closest(lam))
         return self._optima[lam]
+
+    def _closest(self, lam: float) -> IntArray | None:
+        """The rows of the solved positive weight closest to *lam* (by ratio)."""
+        solved = [o for w, o in self._optima.items() if w > 0 and o.rows is not None]
+        if lam <= 0 or not solved:
+            return None
+        return min(solved, key=lambda o: abs(math.log(o.lam / lam))).rows
 
     def fastest(self) -> Point | None:
         """*A*: the point of least E[R] (None: no strategy has a finite one)."""

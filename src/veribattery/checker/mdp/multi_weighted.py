@@ -30,13 +30,14 @@ from fractions import Fraction
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import breadth_first_order
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.mdp.components import end_components
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.multi import Reach, Total, _Product
-from veribattery.checker.mdp.optimum import Problem, solve
+from veribattery.checker.mdp.optimum import Problem, solve_from
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.rewards import reach_reward, reach_reward_problem
 from veribattery.checker.mdp.strategy import Strategy
@@ -76,6 +77,7 @@ class WeightedOptimum:
     lam: float
     value: Interval
     point: Point
+    rows: IntArray | None = None  # the strategy as rows of the problem's system
 
 
 @dataclass(frozen=True, slots=True)
@@ -141,15 +143,21 @@ class StoppingMdp:
         """Per choice, its reward plus *lam* on the stops into *missed*."""
         return np.asarray(self.rewards + lam * self.missing, dtype=np.float64)
 
-    def optimum(self, lam: float, problem: Problem | None = None) -> WeightedOptimum:
-        """``min E[R] + lam (1 - P)``, certified, and the point of its strategy."""
+    def optimum(self, lam: float, problem: Problem | None = None,
+                start: IntArray | None = None) -> WeightedOptimum:
+        """``min E[R] + lam (1 - P)``, certified, and the point of its strategy.
+
+        :param start: the rows of another weight's strategy on the same *problem*, to
+            start policy iteration from (the strategies of close weights are close).
+        """
         rewards = self.weighted(lam)
-        found = solve(self.mdp, self.graph, problem or self.problem(lam), rewards)
-        start = int(self.mdp.initial[0])
-        value = Interval(float(found.values[start]), float(found.lower[start]),
-                         float(found.upper[start]))
+        solved = solve_from(self.mdp, self.graph, problem or self.problem(lam), rewards, start)
+        found = solved.result
+        first = int(self.mdp.initial[0])
+        value = Interval(float(found.values[first]), float(found.lower[first]),
+                         float(found.upper[first]))
         assert isinstance(found.strategy, Strategy)
-        return WeightedOptimum(lam, value, self.point(found.strategy))
+        return WeightedOptimum(lam, value, self.point(found.strategy), solved.rows)
 
     def safest(self) -> tuple[Interval, Point]:
         """``Pmax`` of the *reached* sink (certified), and the lexicographic optimum of
@@ -169,13 +177,21 @@ class StoppingMdp:
         return best, self.point(Strategy(rows[fastest.strategy.choices]))
 
     def point(self, strategy: Strategy) -> Point:
-        """The strategy's own P, E[R] and extras at the initial state, certified."""
-        own, rows = _restricted(self.mdp, _only(self.mdp, strategy.choices))
-        start = int(self.mdp.initial[0])
-        p = reach_probability(own, self.reached, objective="max")
+        """The strategy's own P, E[R] and extras at the initial state, certified (on
+        the chain of its choices over the states it reaches)."""
+        chosen = sp.csr_matrix(self.mdp.transitions[strategy.choices])
+        first = int(self.mdp.initial[0])
+        reached = np.sort(np.asarray(breadth_first_order(
+            chosen, first, directed=True, return_predecessors=False), dtype=np.int64))
+        size = reached.size
+        own = MDP(sp.csr_matrix(chosen[reached][:, reached]), np.arange(size + 1),
+                  np.searchsorted(reached, [first]))
+        rows = strategy.choices[reached]
+        start = int(own.initial[0])
+        p = reach_probability(own, self.reached[reached], objective="max")
 
         def total(rewards: FloatArray) -> Interval:
-            found = reach_reward(own, rewards[rows], self.sinks, objective="min")
+            found = reach_reward(own, rewards[rows], self.sinks[reached], objective="min")
             return Interval(float(found.values[start]), float(found.lower[start]),
                             float(found.upper[start]))
 
@@ -206,12 +222,6 @@ def _with_stops(pm: MDP, resting: BoolArray,
     missing = np.zeros(int(groups[-1]), dtype=bool)
     missing[groups[stops + 1] - 1] = ~visited[stops]
     return MDP(transitions, groups, pm.initial), position, missing
-
-
-def _only(mdp: MDP, choices: IntArray) -> BoolArray:
-    keep = np.zeros(mdp.num_choices, dtype=bool)
-    keep[choices] = True
-    return keep
 
 
 def _restricted(mdp: MDP, keep: BoolArray) -> tuple[MDP, IntArray]:
