@@ -82,6 +82,18 @@ def test_the_extra_reward_is_the_mixed_strategys() -> None:
     assert _holds(answer.extras[0], Fraction(3, 2))
 
 
+@pytest.mark.parametrize("rewards", [[0, 0], [0, 1]], ids=["tied", "dominated"])
+def test_a_point_a_safer_one_matches_is_no_vertex(rewards: list[int]) -> None:
+    # 0 goes to the dead end 2 (free) or to the goal 1 (free, or at reward 1 -- then the
+    # dead end is a vertex); tied at 0, the safe choice alone is the front
+    mdp = mdp_from([[[(2, 1)], [(1, 1)]], [[(1, 1)]], [[(2, 1)]]],
+                   rewards=[rewards, [0], [0]])
+    total = Total(mdp.rewards[0].per_choice(mdp))
+    front = pareto_front(mdp, Reach(mask(3, [1])), total)
+    points = [(v.p.value, v.total.value) for v in front.vertices]
+    assert points == ([(1.0, 0.0)] if rewards == [0, 0] else [(0.0, 0.0), (1.0, 1.0)])
+
+
 def test_resting_without_the_target_is_an_option() -> None:
     # 0 may idle forever (free) or pay 5 to reach the goal: R = 5 p, from (0, 0) to (1, 5)
     mdp = mdp_from([[[(0, 1)], [(1, 1)]], [[(1, 1)]]], rewards=[[0, 5], [0]])

@@ -159,8 +159,7 @@ class FrontSearch:
             if middle is not None:
                 found.append(middle)
                 segments += [(left, middle), (middle, right)]
-        vertices = sorted(_distinct(found), key=lambda v: v.p.value)
-        return Front(tuple(_undominated(vertices)), pmax, complete, self.solves)
+        return Front(tuple(_undominated(found)), pmax, complete, self.solves)
 
     def least_total_at(self, p: float) -> CertifiedAnswer | None:
         """The least E[R] with ``P >= p`` (None: *p* lies within the certified interval
@@ -264,16 +263,12 @@ def _steep(low: Point) -> float:
     return 1e6 * max(1.0, low.total.value)
 
 
-def _undominated(vertices: list[Point]) -> list[Point]:
-    """*vertices* (by increasing P) without those a safer one matches in E[R]: the
-    weight 0 may pick, among the strategies of least E[R], one that is not the safest."""
-    return [v for v, w in zip(vertices, [*vertices[1:], None], strict=True)
-            if w is None or w.total.value > v.total.value]
-
-
-def _distinct(points: list[Point]) -> list[Point]:
-    """*points* without repeats of the same (P, E[R])."""
-    seen: dict[tuple[float, float], Point] = {}
-    for point in points:
-        seen.setdefault((point.p.value, point.total.value), point)
-    return list(seen.values())
+def _undominated(points: list[Point]) -> list[Point]:
+    """The *points* no other one beats (P at least as high, E[R] lower or P higher and
+    E[R] as low), by increasing P: the weight 0 may pick, among the strategies of
+    least E[R], one that is not the safest, and repeats go."""
+    kept: list[Point] = []
+    for point in sorted(points, key=lambda v: (-v.p.value, v.total.value)):
+        if not kept or point.total.value < kept[-1].total.value:
+            kept.append(point)
+    return kept[::-1]
