@@ -3,6 +3,7 @@ them, and agreement with the linear programme and with Storm on random MDPs."""
 
 from __future__ import annotations
 
+import itertools
 import random
 from fractions import Fraction
 from pathlib import Path
@@ -217,3 +218,24 @@ def test_each_vertex_is_the_linear_programmes_optimum_at_its_p(seed: int, count:
         lp = multi_optimum(mdp, total, "min",  # type: ignore[arg-type]
                            [Constraint(reach, ">=", vertex.p.lower)])
         assert lp.value == pytest.approx(vertex.total.value, rel=1e-6, abs=1e-9)
+
+
+def _on_line(points: list[tuple[float, float]], p: float) -> float:
+    """The polyline through *points* (by increasing P) at *p*."""
+    for (p0, r0), (p1, r1) in itertools.pairwise(points):
+        if p0 <= p <= p1:
+            return r0 + (r1 - r0) * (p - p0) / (p1 - p0)
+    raise AssertionError(p)
+
+
+@pytest.mark.parametrize(("tolerance", "count"), [(0.05, 5), (0.2, 4), (10.0, 3)])
+def test_a_front_with_a_tolerance_lies_that_close_above_the_exact_one(tolerance: float,
+                                                                     count: int) -> None:
+    mdp, reach, total = _as_mdp(_random_table(27))
+    exact = pareto_front(mdp, reach, total)  # type: ignore[arg-type]
+    rough = FrontSearch(mdp, reach, total).front(tolerance)  # type: ignore[arg-type]
+    assert len(rough.vertices) == count and len(exact.vertices) == 5
+    line = [(v.p.value, v.total.value) for v in rough.vertices]
+    for vertex in exact.vertices:
+        above = _on_line(line, vertex.p.value) - vertex.total.value
+        assert -1e-9 <= above <= tolerance * max(1.0, vertex.total.value)

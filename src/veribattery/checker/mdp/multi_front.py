@@ -142,8 +142,11 @@ class FrontSearch:
             self._safest = self.stopping.safest()
         return self._safest
 
-    def front(self) -> Front:
-        """All the vertices, from *A* to *B*."""
+    def front(self, tolerance: float = 0.0) -> Front:
+        """The vertices from *A* to *B*: all of them, or (*tolerance* > 0) enough that
+        the line through them lies above the front by at most *tolerance* times
+        ``max(1, E[R])`` (a segment is not searched further once the certified optimum
+        of its weight shows that; every point kept is still a strategy's own)."""
         low = self.fastest()
         pmax, high = self.safest()
         if low is None:
@@ -158,7 +161,8 @@ class FrontSearch:
             middle = self._split(left, right)
             if middle is not None:
                 found.append(middle)
-                segments += [(left, middle), (middle, right)]
+                if self._gap(left, right) > tolerance:
+                    segments += [(left, middle), (middle, right)]
         return Front(tuple(_undominated(found)), pmax, complete, self.solves)
 
     def least_total_at(self, p: float) -> CertifiedAnswer | None:
@@ -197,6 +201,14 @@ class FrontSearch:
         weighted = point.total.value + lam * (1.0 - point.p.value)
         inside = left.p.value < point.p.value < right.p.value
         return point if inside and weighted < line - BELOW * max(1.0, abs(line)) else None
+
+    def _gap(self, left: Point, right: Point) -> float:
+        """How far above the front the segment may lie, relative to ``max(1, E[R])`` of
+        its faster end: its weighted value less the certified lower bound of its weight's
+        optimum bounds the distance all along it."""
+        lam = (right.total.value - left.total.value) / (right.p.value - left.p.value)
+        line = left.total.value + lam * (1.0 - left.p.value)
+        return (line - self.optimum(lam).value.lower) / max(1.0, abs(left.total.value))
 
     def _answer(self, low: Point, high: Point, p: float) -> CertifiedAnswer:
         """*low* and *high* mixed to meet *p*, and the interval of the optimum."""
