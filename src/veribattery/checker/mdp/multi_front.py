@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from fractions import Fraction
 
 from veribattery._types import IntArray
@@ -54,6 +54,9 @@ __all__ = ["CertifiedAnswer", "Front", "FrontSearch", "least_total_at", "pareto_
 BELOW = 1e-10
 #: Bisection rounds of one numerical query before the bracket is taken as it is.
 MAX_SPLITS = 200
+#: Strategies kept to start policy iteration from (the most recent weights'; each is
+#: an array over the system's classes, tens of MB on the paper's baseline).
+STARTS_KEPT = 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,6 +107,7 @@ class FrontSearch:
                  extras: Sequence[Total] = ()) -> None:
         self.stopping = StoppingMdp.of(mdp, reach, total, extras)
         self._optima: dict[float, WeightedOptimum] = {}
+        self._starts: dict[float, IntArray] = {}  # positive weight -> rows, the latest
         self._problems: dict[bool, Problem] = {}
         self._safest: tuple[Interval, Point] | None = None
 
@@ -120,16 +124,19 @@ class FrontSearch:
             positive = lam > 0
             if positive not in self._problems:
                 self._problems[positive] = self.stopping.problem(lam)
-            self._optima[lam] = self.stopping.optimum(lam, self._problems[positive],
-                                                      self._closest(lam))
+            found = self.stopping.optimum(lam, self._problems[positive], self._closest(lam))
+            if positive and found.rows is not None:
+                self._starts[lam] = found.rows
+                while len(self._starts) > STARTS_KEPT:
+                    del self._starts[next(iter(self._starts))]
+            self._optima[lam] = replace(found, rows=None)
         return self._optima[lam]
 
     def _closest(self, lam: float) -> IntArray | None:
-        """The rows of the solved positive weight closest to *lam* (by ratio)."""
-        solved = [o for w, o in self._optima.items() if w > 0 and o.rows is not None]
-        if lam <= 0 or not solved:
+        """The rows of the kept positive weight closest to *lam* (by ratio)."""
+        if lam <= 0 or not self._starts:
             return None
-        return min(solved, key=lambda o: abs(math.log(o.lam / lam))).rows
+        return self._starts[min(self._starts, key=lambda w: abs(math.log(w / lam)))]
 
     def fastest(self) -> Point | None:
         """*A*: the point of least E[R] (None: no strategy has a finite one)."""
