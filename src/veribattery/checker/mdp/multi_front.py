@@ -45,6 +45,7 @@ from veribattery.checker.mdp.multi_weighted import (
     up,
 )
 from veribattery.checker.mdp.optimum import Problem
+from veribattery.checker.mdp.strategy import Strategy
 
 __all__ = ["CertifiedAnswer", "Front", "FrontSearch", "least_total_at", "pareto_front"]
 
@@ -132,10 +133,14 @@ class FrontSearch:
             self._optima[lam] = replace(found, rows=None)
         return self._optima[lam]
 
-    def _closest(self, lam: float) -> IntArray | None:
-        """The rows of the kept positive weight closest to *lam* (by ratio)."""
-        if lam <= 0 or not self._starts:
+    def _closest(self, lam: float) -> IntArray | Strategy | None:
+        """The rows of the kept positive weight closest to *lam* (by ratio); before
+        any, the strategy of *B* if known (on the paper's baseline the first weight
+        then takes 8 s instead of 120)."""
+        if lam <= 0:
             return None
+        if not self._starts:
+            return None if self._safest is None else self._safest[1].strategy
         return self._starts[min(self._starts, key=lambda w: abs(math.log(w / lam)))]
 
     def fastest(self) -> Point | None:

@@ -144,11 +144,12 @@ class StoppingMdp:
         return np.asarray(self.rewards + lam * self.missing, dtype=np.float64)
 
     def optimum(self, lam: float, problem: Problem | None = None,
-                start: IntArray | None = None) -> WeightedOptimum:
+                start: IntArray | Strategy | None = None) -> WeightedOptimum:
         """``min E[R] + lam (1 - P)``, certified, and the point of its strategy.
 
-        :param start: the rows of another weight's strategy on the same *problem*, to
-            start policy iteration from (the strategies of close weights are close).
+        :param start: where policy iteration starts: the rows of another weight's
+            strategy on the same *problem* (the strategies of close weights are close),
+            or a strategy over the states (:func:`~veribattery.checker.mdp.optimum.approximate`).
         """
         rewards = self.weighted(lam)
         solved = solve_from(self.mdp, self.graph, problem or self.problem(lam), rewards, start)

@@ -87,25 +87,39 @@ class Approximation:
 
 
 def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
-                start: IntArray | None = None) -> Approximation:
+                start: IntArray | Strategy | None = None) -> Approximation:
     """The equations of *problem*'s unknown classes and their approximate optimum.
 
     :param rewards: per choice, the reward of taking it (None: probabilities).
-    :param start: rows per class to start policy iteration from (a strategy found for
-        the same problem with other rewards); None, or one whose system is singular:
-        a strategy that makes progress towards the goal.
+    :param start: where policy iteration starts: rows per class (a strategy found for
+        the same problem with other rewards), or a strategy over the states (each class
+        takes the first of its rows that one of its states chooses, else a row that
+        makes progress); None, or one whose system is singular: a strategy that makes
+        progress towards the goal.
     """
     system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
     known = np.asarray(problem.known[system.known_states], dtype=np.float64)
     offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
+    progress = progress_rows(system, problem.goal[system.known_states])
+    if isinstance(start, Strategy):
+        start = _rows_of(mdp, system, start, progress)
     evaluation = None
     if start is not None and start.shape == (system.size,):
         evaluation = policy_iteration(system, problem.objective, known, offset, start)
     if evaluation is None:
-        start = progress_rows(system, problem.goal[system.known_states])
+        start = progress
         evaluation = policy_iteration(system, problem.objective, known, offset, start)
     assert start is not None
     return Approximation(system, known, offset, evaluation, start)
+
+
+def _rows_of(mdp: MDP, system: ChoiceSystem, strategy: Strategy,
+             progress: IntArray) -> IntArray:
+    """Per class, the first row that the state owning it chooses, else *progress*'s."""
+    chosen = strategy.choices[mdp.choice_owner[system.choices]] == system.choices
+    index = np.where(chosen, np.arange(system.choices.size), system.choices.size)
+    first = np.minimum.reduceat(index, system.groups[:-1])
+    return np.where(first < system.choices.size, first, progress).astype(np.int64)
 
 
 @dataclass(frozen=True, slots=True)
@@ -124,7 +138,7 @@ def solve(mdp: MDP, graph: ChoiceGraph, problem: Problem,
 
 
 def solve_from(mdp: MDP, graph: ChoiceGraph, problem: Problem, rewards: FloatArray | None,
-               start: IntArray | None) -> Solved:
+               start: IntArray | Strategy | None) -> Solved:
     """:func:`solve`, policy iteration started from *start* (:func:`approximate`)."""
     values = Bounds.exact(problem.known.copy())
     if not problem.unknown.any():
