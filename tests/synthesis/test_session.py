@@ -72,8 +72,11 @@ def test_values_equal_storms_on_the_emitted_mdp(case: Path, tmp_path: Path) -> N
             continue
         storm = _storm_value(cfg, tmp_path,
                              f'multi(R{{"mt"}}min=? [ C ], P>={answer.p!r} [ F "success" ])')
-        assert answer.achievable
-        assert answer.exp_mission_time == pytest.approx(storm, rel=LP_RELATIVE)
+        assert answer.achievable and answer.certified and answer.time_bounds is not None
+        # Storm's precision is 1e-8 (relative); the certified interval holds its value
+        low, high = answer.time_bounds
+        assert low * (1 - 1e-8) <= storm <= high * (1 + 1e-8)
+        assert answer.exp_mission_time == pytest.approx(storm, rel=1e-8)
 
 
 def test_a_requirement_above_pmax_is_not_met(tmp_path: Path) -> None:
@@ -96,7 +99,34 @@ def test_a_requirement_at_pmax_is_the_tabulated_strategy() -> None:
     assert at_pmax.certified and at_pmax.achievable
     assert at_pmax.exp_mission_time == result.strategy.exp_mission_time.value
     assert at_pmax.exp_recharges == result.strategy.exp_recharges.value
-    assert as_bs1.p == result.bs1.p_success.value < pmax and not as_bs1.certified
+    assert as_bs1.p == result.bs1.p_success.value < pmax and as_bs1.certified
+
+
+def test_the_fronts_answers_agree_with_the_linear_programmes() -> None:
+    """On the 3 x 2 farm: the least time (certified) holds the programme's value, and
+    the recharges of the strategy found are no fewer than the programme's fewest
+    among the strategies that fast."""
+    from veribattery.checker.mdp import Constraint, Reach, Total, multi_optimum
+
+    cfg = _config(CASES[0])
+    mdp = mission_mdp(cfg)
+    success = Reach(mdp.labels["success"])
+    time = Total(mdp.reward("mt").per_choice(mdp))
+    recharges = Total(mdp.reward("rc").per_choice(mdp))
+    for p in (0.5, 0.9, bs1_values(cfg).p_success.value):
+        answer = fastest(mdp, required_at_least(p))
+        assert answer.certified and answer.time_bounds is not None
+        assert answer.recharges_bounds is not None and answer.exp_recharges is not None
+        meets = Constraint(success, ">=", p)
+        lp = multi_optimum(mdp, time, "min", [meets]).value
+        assert lp is not None
+        low, high = answer.time_bounds
+        assert low - LP_RELATIVE * lp <= lp <= high + LP_RELATIVE * lp
+        assert high - low <= 1e-9 * high
+        fewest = multi_optimum(mdp, recharges, "min", [
+            meets, Constraint(time, "<=", high * (1 + 1e-9))]).value
+        assert fewest is not None
+        assert answer.recharges_bounds[1] >= fewest * (1 - LP_RELATIVE)
 
 
 def _chain_values(cfg: MissionConfig) -> tuple[object, object, float, float, float]:
@@ -155,16 +185,26 @@ def test_bs1_is_one_strategy_of_the_mdp(case: Path, extra: tuple[str, ...]) -> N
 
 def test_the_front_rises_to_pmax_and_bs1_lies_right_of_it() -> None:
     cfg = _config(CASES[2])
-    result = synthesize(cfg, front_request=FrontRequest(points=4))
+    result = synthesize(cfg, front_request=FrontRequest())
     ps = [point.p for point in result.front]
     times = [point.exp_mission_time for point in result.front]
-    assert len(ps) == 4 and ps == sorted(ps) and times == sorted(times)
-    assert ps[-1] == pytest.approx(result.p_success_max.value, abs=2 * LP_TOLERANCE)
+    assert len(ps) >= 3 and ps == sorted(ps) and times == sorted(times)
+    assert ps[-1] == pytest.approx(result.p_success_max.value, abs=1e-12)
+    # convex: the slopes between neighbouring vertices increase
+    pairs = zip(zip(ps, times, strict=True), zip(ps[1:], times[1:], strict=True), strict=False)
+    slopes = [(t1 - t0) / (p1 - p0) for (p0, t0), (p1, t1) in pairs]
+    assert slopes == sorted(slopes)
     assert [b.safe_t for b in result.bs1_front] == sorted({*FrontRequest().safe_ts,
                                                           cfg.strategy.safe_t})
     for bs1 in result.bs1_front:
-        below = [t for p, t in zip(ps, times, strict=True) if p <= bs1.p_success]
-        assert all(t <= bs1.exp_mission_time * (1 + LP_RELATIVE) for t in below)
+        if bs1.p_success <= ps[0]:
+            assert times[0] <= bs1.exp_mission_time * (1 + 1e-9)
+            continue
+        i = max(i for i, p in enumerate(ps) if p <= bs1.p_success)
+        if i + 1 == len(ps):
+            continue
+        w = (bs1.p_success - ps[i]) / (ps[i + 1] - ps[i])
+        assert times[i] + w * (times[i + 1] - times[i]) <= bs1.exp_mission_time * (1 + 1e-9)
 
 
 def test_a_requirement_must_be_a_probability() -> None:

@@ -101,3 +101,24 @@ def test_pareto_front_in_storm(tmp_path: Path) -> None:
         rows = list(csv.DictReader(stream))
     assert [float(r["exp_mission_time"]) for r in rows if r["series"] == "front"] == times
     assert [r["safe_t"] for r in rows if r["series"] == "bs1"] == ["0.05", "0.3"]
+
+
+def test_our_front_gives_storms_answers(tmp_path: Path) -> None:
+    """veribattery's certified answers (weighted sums) at Storm's p: the same least
+    times to Storm's precision (1e-6), and its front through the same region."""
+    from veribattery.synthesis.fastest import fastest, front, mission_front, required_at_least
+    from veribattery.synthesis.model import mission_mdp
+
+    storm = _Mdp(tmp_path)
+    mdp = mission_mdp(load_config("", FARM))
+    search = mission_front(mdp)
+    for p in REQUIRED:
+        answer = fastest(mdp, required_at_least(p), search)
+        assert answer.certified and answer.time_bounds is not None
+        theirs = float(storm.fastest(p))
+        assert answer.exp_mission_time == pytest.approx(theirs, rel=1e-6)
+        assert answer.time_bounds[0] <= theirs * (1 + 1e-6)  # Storm's is achievable
+    vertices = front(search)
+    assert vertices[-1].p == pytest.approx(float(storm.value('Pmax=? [ F "success" ]')),
+                                           rel=1e-12)
+    assert vertices[-1].exp_mission_time == pytest.approx(storm.cheapest()[1], rel=1e-6)

@@ -60,7 +60,7 @@ if TYPE_CHECKING:
 @click.option("--force", is_flag=True, help="Overwrite existing output files.")
 @click.option("--exact", is_flag=True,
               help="Not available for synthesis (refused): the fastest strategies are "
-                   "linear programmes solved in floating point.")
+                   "certified in floating point, with no exact path.")
 @click.option("--max-states", type=click.IntRange(min=1), default=None, metavar="N",
               help="Stop the build (exit 2) once more than N states are found.")
 def synthesize_command(
@@ -80,7 +80,8 @@ def synthesize_command(
     with user_errors():
         if exact:
             raise OptionError("--exact: not available for synthesize (the fastest strategies "
-                              "are linear programmes solved in floating point); drop --exact")
+                              "are certified in floating point, with no exact path); drop "
+                              "--exact")
         pareto_csv = _check_outputs(csv_path, pareto_path, pareto_csv, force)
         export = _check_strategy_outputs(strategy_file, induced_dir, force)
         _check_distinct(csv_path, pareto_path, pareto_csv, export)
@@ -107,8 +108,8 @@ def synthesize_command(
 def _stage_line(stage: Callable[[str], None]) -> Callable[[str], None]:
     labels = {"build": "building the mission MDP", "Pmax": "Pmax of success",
               "strategy": "the safest, fastest strategy", "BS1": "BS1 at the config's safe_t",
-              "fastest": "the fastest strategy per requirement (linear programmes)",
-              "front": "the Pareto front (linear programmes)",
+              "fastest": "the fastest strategy per requirement (weighted sums)",
+              "front": "the Pareto front (weighted sums)",
               "BS1 points": "BS1's points for the Pareto figure"}
 
     def say(name: str) -> None:

@@ -1,9 +1,9 @@
 """What ``synthesize`` prints: the table at a terminal, one JSON object, or CSV rows.
 
-Certified values (Pmax, BS1's, the table strategy's) are printed as ``check`` prints
-results, to 12 significant digits with ``± error`` where the certified error shows;
-the fastest strategies are linear programmes (not certified) and printed as ``≈``
-with 7 significant digits.
+Certified values (Pmax, BS1's, the table strategy's, the fastest strategies') are
+printed as ``check`` prints results, to 12 significant digits with ``± error`` where
+the certified error shows; a fastest strategy that only a linear programme answered
+(not certified) is printed as ``≈`` with 7 significant digits.
 """
 
 from __future__ import annotations
@@ -77,16 +77,19 @@ def _print_comparison(result: SynthesisResult) -> None:
 
 
 def _print_fastest(result: SynthesisResult) -> None:
-    rows = [(f.requirement, _answer_text(f, f.exp_mission_time),
-             _answer_text(f, f.exp_recharges), _versus_bs1(result, f)) for f in result.fastest]
+    rows = [(f.requirement, _answer_text(f, f.exp_mission_time, f.time_bounds),
+             _answer_text(f, f.exp_recharges, f.recharges_bounds), _versus_bs1(result, f))
+            for f in result.fastest]
     print_table(("fastest with", "E[time] (min)", "E[recharges]", "vs BS1"), rows,
                 title="The fastest strategy that meets each requirement:")
     if any(not f.certified for f in result.fastest):
         print_dim(fit_text("≈: linear programmes solved in floating point (HiGHS), not "
                            "certified: good to about 1e-7. Such a strategy may randomise."))
     if any(f.certified and f.achievable for f in result.fastest):
-        print_dim(fit_text("Without ≈: the requirement is Pmax, within its certified "
-                           "interval: the strategy of the table below, certified."))
+        print_dim(fit_text("Certified: the least expected time from the Pareto front "
+                           "(weighted sums), attained by a strategy that picks one of two "
+                           "deterministic strategies once at the start; its recharges are "
+                           "that strategy's. At Pmax: the strategy of the table below."))
     if any(f.achievable and f.p > result.bs1.p_success.value for f in result.fastest):
         print_dim(fit_text("*: BS1 itself does not meet this requirement."))
     for answer in result.fastest:
@@ -96,9 +99,14 @@ def _print_fastest(result: SynthesisResult) -> None:
                       highlight=False)
 
 
-def _answer_text(answer: Fastest, value: float | None) -> str:
+def _answer_text(answer: Fastest, value: float | None,
+                 bounds: tuple[float, float] | None = None) -> str:
     if answer.certified and value is not None:
-        return format_value(value)
+        if bounds is None:
+            return format_value(value)
+        from veribattery.synthesis.model import Certified
+
+        return certified_text(Certified(value, *bounds))
     return lp_text(value)
 
 
@@ -212,8 +220,15 @@ def _fastest_json(result: SynthesisResult, answer: Fastest) -> dict[str, object]
     return {"requirement": answer.requirement, "p": answer.p, "achievable": answer.achievable,
             "certified": answer.certified,
             "exp_mission_time": answer.exp_mission_time, "exp_recharges": answer.exp_recharges,
+            "exp_mission_time_bounds": _pair(answer.time_bounds),
+            "exp_recharges_bounds": _pair(answer.recharges_bounds),
+            "mixing": answer.mixing, "weighted_solves": answer.solves,
             "speedup_vs_bs1": result.speedup(answer),
             "best_p_success": json_value(result.p_success_max.value)}
+
+
+def _pair(bounds: tuple[float, float] | None) -> list[object] | None:
+    return None if bounds is None else [json_value(bounds[0]), json_value(bounds[1])]
 
 
 def print_json(result: SynthesisResult) -> None:
@@ -223,7 +238,7 @@ def print_json(result: SynthesisResult) -> None:
 
 def print_csv(result: SynthesisResult) -> None:
     """``quantity,requirement,value,lower,upper`` rows, full precision (a linear
-    programme's answer has no bounds; an unmet requirement no value)."""
+    programme's answer, or one at Pmax, has no bounds; an unmet requirement no value)."""
     bs1, own = result.bs1, result.strategy
     click.echo("quantity,requirement,value,lower,upper")
     for name, c in (("p_success_max", result.p_success_max),
@@ -235,6 +250,9 @@ def print_csv(result: SynthesisResult) -> None:
                     ("strategy_exp_recharges", own.exp_recharges)):
         click.echo(f"{name},,{c.value!r},{c.lower!r},{c.upper!r}")
     for f in result.fastest:
-        for name, value in (("fastest_exp_mission_time", f.exp_mission_time),
-                            ("fastest_exp_recharges", f.exp_recharges)):
-            click.echo(f"{name},{f.requirement},{'' if value is None else repr(value)},,")
+        for name, value, bounds in (
+                ("fastest_exp_mission_time", f.exp_mission_time, f.time_bounds),
+                ("fastest_exp_recharges", f.exp_recharges, f.recharges_bounds)):
+            low, high = ("", "") if bounds is None else (repr(bounds[0]), repr(bounds[1]))
+            click.echo(f"{name},{f.requirement},{'' if value is None else repr(value)},"
+                       f"{low},{high}")

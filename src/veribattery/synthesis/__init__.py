@@ -13,9 +13,9 @@ Modules: :mod:`~veribattery.synthesis.files` (what ``emit`` writes),
 :mod:`~veribattery.synthesis.model` (the MDP built by veribattery's engine),
 :mod:`~veribattery.synthesis.optimal` (the safest, then fastest strategy),
 :mod:`~veribattery.synthesis.exports` (its strategy and induced DTMC as files),
-:mod:`~veribattery.synthesis.fastest` (the fastest strategy safe enough: linear
-programmes) and :mod:`~veribattery.synthesis.session` (:func:`synthesize`, what
-``veribattery synthesize`` prints).
+:mod:`~veribattery.synthesis.fastest` (the fastest strategy safe enough, certified:
+weighted sums over the Pareto front) and :mod:`~veribattery.synthesis.session`
+(:func:`synthesize`, what ``veribattery synthesize`` prints).
 """
 
 from __future__ import annotations

@@ -1,8 +1,10 @@
 """The Pareto front of P(success) against expected mission time, with BS1 on it.
 
-Each front point is the answer to one multi-objective question of the mission MDP:
-the least expected mission time of a strategy whose P(success) is at least ``p``
-(``multi(R{"mt"}min=? [ C ], P>=p [ F "success" ])``), over a range of ``p``. BS1's
+The front is the least expected mission time of a strategy whose P(success) is at
+least ``p`` (``multi(R{"mt"}min=? [ C ], P>=p [ F "success" ])``) for every ``p``: a
+convex, piecewise-linear curve whose points here are its vertices (deterministic
+strategies, from weighted sums: :func:`~veribattery.synthesis.fastest.front`); every
+point between two neighbours is a mix of the two. BS1's
 points, one per ``safe_t``, are BS1's own DTMC values. Since BS1 is a strategy of the
 MDP, no BS1 point lies left of the front at its P(success) (model-spec.md, "Synthesis").
 Expected mission time counts failed missions too (docs/decisions.md, synthesis 9).
@@ -46,7 +48,7 @@ _TIME = "expected mission time (min), failed missions included"
 class FrontPoint:
     """The fastest strategy with P(success) >= *p*: its expected mission time.
 
-    :ivar p: the P(success) required.
+    :ivar p: the P(success) required (of a vertex of the front: its own P(success)).
     :ivar exp_mission_time: the least expected mission time of a strategy meeting it.
     """
 

@@ -6,9 +6,8 @@ beside it:
 
 - ``Pmax [ F "success" ]``, certified;
 - BS1's P(success), expected mission time and recharges, certified;
-- per requirement on P(success), the fastest strategy that meets it (linear
-  programmes, not certified, unless the requirement is at ``Pmax`` or above:
-  :mod:`~veribattery.synthesis.fastest`);
+- per requirement on P(success), the fastest strategy that meets it, certified (from
+  the Pareto front by weighted sums: :mod:`~veribattery.synthesis.fastest`);
 - the threshold table of the safest-then-fastest strategy
   (:mod:`~veribattery.synthesis.optimal`), with that strategy's own values;
 - optionally, the Pareto front and BS1's points at several ``safe_t``.
@@ -23,19 +22,19 @@ from dataclasses import dataclass, field
 from fractions import Fraction
 from pathlib import Path
 
-from veribattery.checker.mdp import MDP, reach_probability
+from veribattery.checker.mdp import MDP, FrontSearch, reach_probability
 from veribattery.config import MissionConfig, derive_parameters
 from veribattery.pipeline import ProgressCallback
 from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.synthesis.bs1_values import Bs1Values, bs1_points, bs1_values
 from veribattery.synthesis.exports import StrategyExport, strategy_export_texts
 from veribattery.synthesis.fastest import (
-    LP_TOLERANCE,
     Fastest,
     as_safe_as,
     fastest,
     fastest_near_pmax,
     front,
+    mission_front,
 )
 from veribattery.synthesis.model import Certified, ModelSize, mission_model
 from veribattery.synthesis.optimal import (
@@ -60,17 +59,10 @@ FRONT_SAFE_TS = (Fraction(1, 10), Fraction(2, 10), Fraction(3, 10), Fraction(4, 
 
 @dataclass(frozen=True, slots=True)
 class FrontRequest:
-    """Which Pareto front to compute: *points* required P(success) values evenly up to
-    ``Pmax`` (the last a hair below it, :data:`~veribattery.synthesis.fastest.LP_TOLERANCE`,
-    so that the programme's tolerance cannot refuse it), and BS1 at each of *safe_ts*."""
+    """The Pareto front asked for: all its vertices (from the fastest strategy up to
+    ``Pmax``), and BS1 at each of *safe_ts*."""
 
-    points: int = 10
     safe_ts: tuple[Fraction, ...] = FRONT_SAFE_TS
-
-    def ps(self, p_max: float) -> tuple[float, ...]:
-        """The required P(success) values, increasing."""
-        top = max(0.0, p_max - LP_TOLERANCE)
-        return tuple(top * i / self.points for i in range(1, self.points + 1))
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,10 +141,11 @@ def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (),
         bs1 = bs1_values(cfg)
     asked = [*requirements, *([as_safe_as(bs1.p_success.value)] if as_safe_as_bs1 else [])]
     best = Certified.at_initial(mdp, pmax)
+    search = _LazyFront(mdp)
     with clock.stage("fastest"):
-        answers = tuple(fastest_near_pmax(question, best, chosen) or fastest(mdp, question)
-                        for question in asked)
-    points, bs1_front = _front(mdp, cfg, best, front_request, clock)
+        answers = tuple(fastest_near_pmax(question, best, chosen)
+                        or fastest(mdp, question, search.get()) for question in asked)
+    points, bs1_front = _front(search, cfg, front_request, clock)
     texts = {} if export is None else strategy_export_texts(model, mdp, chosen, export)
     return SynthesisResult(ModelSize.of(mdp), best, bs1, answers, chosen, table, points,
                            bs1_front, clock.seconds, texts)
@@ -164,15 +157,29 @@ def _table(mdp: MDP, chosen: ChosenStrategy, cfg: MissionConfig) -> ThresholdTab
     return threshold_table(frame, derive_parameters(cfg))
 
 
-def _front(mdp: MDP, cfg: MissionConfig, best: Certified, request: FrontRequest | None,
+def _front(search: _LazyFront, cfg: MissionConfig, request: FrontRequest | None,
            clock: _Clock) -> tuple[tuple[FrontPoint, ...], tuple[Bs1Point, ...]]:
     if request is None:
         return (), ()
     with clock.stage("front"):
-        points = front(mdp, request.ps(best.value))
+        points = front(search.get())
     safe_ts = sorted({*request.safe_ts, Fraction(cfg.strategy.safe_t)})
     with clock.stage("BS1 points"):
         return points, bs1_points(cfg, safe_ts)
+
+
+class _LazyFront:
+    """The run's one front search, made on first use (its weighted optima are shared
+    by the requirements and the front)."""
+
+    def __init__(self, mdp: MDP) -> None:
+        self._mdp = mdp
+        self._search: FrontSearch | None = None
+
+    def get(self) -> FrontSearch:
+        if self._search is None:
+            self._search = mission_front(self._mdp)
+        return self._search
 
 
 class _Clock:

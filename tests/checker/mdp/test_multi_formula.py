@@ -187,3 +187,38 @@ def test_prism_json_says_what_is_not_certified(tmp_path: Path) -> None:
     assert achievable == {"property": achievable["property"], "value": True}  # witnessed
     assert undefined["value"] == "NaN"  # as PRISM prints it; null would read "no result"
     assert "not certified" in result.stderr
+
+
+@pytest.mark.parametrize(("formula", "expected"), [
+    ('multi(R{"cost"}min=? [ C ], P>=0.7 [ F s=3 ])', Fraction(7, 10)),  # p_b = 0.7
+    ('multi(R{"cost"}min=? [ C ], P>=0.7 [ F s=2 ])', Fraction(0)),  # p_a = 1 is free
+    ('multi(R{"cost"}min=? [ C<=1 ], P>=0.25 [ F s=3 ])', Fraction(1, 4)),  # stepped
+    # STEPS: 2 p_a + 5 p_b with p_b >= 1/2
+    ('multi(R{"r"}min=? [ C ], P>=0.5 [ F s=2 ])', Fraction(7, 2)),
+])
+def test_least_reward_under_a_probability_bound_is_certified(formula: str,
+                                                             expected: Fraction) -> None:
+    """The two-objective shape comes from the weighted-sum front: a certified interval
+    that holds the hand-solved value (every other shape stays a linear programme)."""
+    result = check(STEPS if '"r"' in formula else FORK, formula)
+    assert result.certified and result.precise
+    assert result.lower is not None and result.upper is not None
+    assert Fraction(result.lower) <= expected <= Fraction(result.upper)
+    assert result.value == pytest.approx(float(expected), abs=1e-12)
+
+
+def test_prism_json_of_a_certified_multi_answer(tmp_path: Path) -> None:
+    from click.testing import CliRunner
+
+    from veribattery.cli import cli
+
+    model, props = tmp_path / "fork.prism", tmp_path / "fork.props"
+    model.write_text(FORK, encoding="utf-8")
+    props.write_text('multi(R{"cost"}min=? [ C ], P>=0.7 [ F s=3 ]);\n', encoding="utf-8")
+    result = CliRunner().invoke(cli, ["prism", str(model), "--props", str(props), "--json"])
+    assert result.exit_code == 0, result.output
+    (answer,) = json.loads(result.stdout)["results"]
+    assert "certified" not in answer  # the key is there only for uncertified results
+    low, high = answer["bounds"]
+    assert low <= 0.7 <= high and high - low < 1e-12
+    assert "not certified" not in result.stderr

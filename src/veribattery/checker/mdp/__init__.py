@@ -44,6 +44,13 @@ if TYPE_CHECKING:
         multi_achievable,
         multi_optimum,
     )
+    from veribattery.checker.mdp.multi_front import (
+        CertifiedAnswer,
+        Front,
+        FrontSearch,
+        least_total_at,
+        pareto_front,
+    )
 
 # Imported on first use: the exact engine (gmpy2) and the multi-objective LP are not
 # needed to check a float property, and small models are dominated by start-up.
@@ -53,6 +60,8 @@ _EXPORTS = (
                                        "exact_total_reward")),
     ("veribattery.checker.mdp.multi", ("Constraint", "MultiResult", "Reach", "Total",
                                        "multi_achievable", "multi_optimum")),
+    ("veribattery.checker.mdp.multi_front", ("CertifiedAnswer", "Front", "FrontSearch",
+                                             "least_total_at", "pareto_front")),
 )
 # read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
 _HOME = MappingProxyType({name: module for module, names in _EXPORTS for name in names})
@@ -66,8 +75,11 @@ def __getattr__(name: str) -> Any:
 
 __all__ = [
     "MDP",
+    "CertifiedAnswer",
     "Constraint",
     "ExactMdpResult",
+    "Front",
+    "FrontSearch",
     "MdpResult",
     "MdpRewards",
     "MultiResult",
@@ -86,9 +98,11 @@ __all__ = [
     "instantaneous_reward",
     "interval_reach_probability",
     "later_reach_probability",
+    "least_total_at",
     "multi_achievable",
     "multi_optimum",
     "next_probability",
+    "pareto_front",
     "reach_probability",
     "reach_reward",
     "total_reward",

@@ -8,7 +8,11 @@ and ``R{"r"} [ C<=k ]`` (on the MDP unfolded with a step counter,
 as non-strict, ``Pmin=?``/``Rmin=?`` minimise over the strategies that meet the
 other objectives, and only strategies whose total rewards are finite count.
 
-The linear programme is solved in floating point by HiGHS (``docs/mdp-numerics.md``):
+A numerical query of the shape ``multi(R{"r"}min=? [ C ], P>=p [ F phi ])`` (one
+total reward minimised, one reachability bounded from below) is answered from the
+two-objective Pareto front by weighted sums (:mod:`~veribattery.checker.mdp.multi_front`):
+a certified interval, ``certified=True``. Every other shape is a linear programme,
+solved in floating point by HiGHS (``docs/mdp-numerics.md``):
 a numerical query reports its optimum with an error *estimate* of
 :data:`~veribattery.checker.mdp.multi.LP_TOLERANCE` (relative, absolute below 1)
 and ``certified=False``. An achievability query is decided from the best margin
@@ -41,6 +45,7 @@ from veribattery.checker.mdp.multi import (
     multi_margin,
     multi_optimum,
 )
+from veribattery.checker.mdp.multi_front import FrontSearch
 from veribattery.checker.mdp.multi_steps import SteppedMdp
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError, UndefinedResult
@@ -169,7 +174,11 @@ def _numerical(mdp: MDP, model: MDP, goal: _Goal, constraints: list[Constraint],
         name = "P" if isinstance(goal.op, ProbOp) else "R"
         raise CheckError(f"the =? objective of multi(...) needs a direction: {name}min=? "
                          f"or {name}max=?", goal.op.span)
-    found = multi_optimum(model, goal.quantity, _towards(direction, goal.sign), constraints)
+    objective = _towards(direction, goal.sign)
+    front = _front_answer(mdp, model, goal, objective, constraints, query)
+    if front is not None:
+        return front
+    found = multi_optimum(model, goal.quantity, objective, constraints)
     if not found.achievable or found.value is None:
         raise UndefinedResult("multi(...) has no strategy that meets its bounded objectives "
                               "with finite total rewards, so the =? objective has no optimum "
@@ -179,6 +188,34 @@ def _numerical(mdp: MDP, model: MDP, goal: _Goal, constraints: list[Constraint],
     values = _at_initial(mdp, value, error)
     return FilterOutcome(value, values, interval=(value - error, value + error),
                          precise=False, certified=False)
+
+
+def _front_answer(mdp: MDP, model: MDP, goal: _Goal, objective: Objective,
+                  constraints: list[Constraint], query: Multi) -> FilterOutcome | None:
+    """The certified answer of ``R min=? [ C ]`` under one ``P >= p`` constraint, or
+    None for any other shape (or where the front leaves it undecided: the programme
+    answers then)."""
+    if not (isinstance(goal.quantity, Total) and objective == "min" and goal.sign > 0
+            and len(constraints) == 1 and isinstance(constraints[0].quantity, Reach)
+            and constraints[0].relation == ">="):
+        return None
+    search = FrontSearch(model, constraints[0].quantity, goal.quantity)
+    answer = search.least_total_at(constraints[0].bound)
+    if answer is None:
+        return None
+    if not answer.achievable or answer.total is None:
+        raise UndefinedResult("multi(...) has no strategy that meets its bounded objectives "
+                              "with finite total rewards, so the =? objective has no optimum "
+                              "(NaN, as PRISM reports it)", query.span)
+    total = answer.total
+    point = np.full(mdp.num_states, np.nan)
+    lower, upper = point.copy(), point.copy()
+    point[mdp.initial], lower[mdp.initial], upper[mdp.initial] = (
+        total.value, total.lower, total.upper)
+    values = Bounds(point, lower, upper)
+    return FilterOutcome(total.value, values, interval=(total.lower, total.upper),
+                         precise=bool(values.at(mdp.initial).precise_states().all()),
+                         certified=True)
 
 
 def _towards(direction: Objective, sign: int) -> Objective:

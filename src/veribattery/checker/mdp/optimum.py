@@ -28,7 +28,7 @@ from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress
 from veribattery.checker.mdp.strategy import Strategy, lifted
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
 
-__all__ = ["Problem", "approximate", "solve", "spread"]
+__all__ = ["Problem", "Solved", "approximate", "solve", "solve_from", "spread"]
 
 #: Systems of at most this many classes are solved exactly when their certificate
 #: stays too wide (as the DTMC side's rational solve of small systems).
@@ -85,33 +85,71 @@ class Approximation:
         return self.start if self.evaluation is None else self.evaluation.rows
 
 
-def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None) -> Approximation:
+def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
+                start: IntArray | Strategy | None = None) -> Approximation:
     """The equations of *problem*'s unknown classes and their approximate optimum.
 
     :param rewards: per choice, the reward of taking it (None: probabilities).
+    :param start: where policy iteration starts: rows per class (a strategy found for
+        the same problem with other rewards), or a strategy over the states (each class
+        takes the first of its rows that one of its states chooses, else a row that
+        makes progress); None, or one whose system is singular: a strategy that makes
+        progress towards the goal.
     """
     system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
     known = np.asarray(problem.known[system.known_states], dtype=np.float64)
     offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
-    start = progress_rows(system, problem.goal[system.known_states])
-    evaluation = policy_iteration(system, problem.objective, known, offset, start)
+    progress = progress_rows(system, problem.goal[system.known_states])
+    if isinstance(start, Strategy):
+        start = _rows_of(mdp, system, start, progress)
+    evaluation = None
+    if start is not None and start.shape == (system.size,):
+        evaluation = policy_iteration(system, problem.objective, known, offset, start)
+    if evaluation is None:
+        start = progress
+        evaluation = policy_iteration(system, problem.objective, known, offset, start)
+    assert start is not None
     return Approximation(system, known, offset, evaluation, start)
+
+
+def _rows_of(mdp: MDP, system: ChoiceSystem, strategy: Strategy,
+             progress: IntArray) -> IntArray:
+    """Per class, the first row that the state owning it chooses, else *progress*'s."""
+    chosen = strategy.choices[mdp.choice_owner[system.choices]] == system.choices
+    index = np.where(chosen, np.arange(system.choices.size), system.choices.size)
+    first = np.minimum.reduceat(index, system.groups[:-1])
+    return np.where(first < system.choices.size, first, progress).astype(np.int64)
+
+
+@dataclass(frozen=True, slots=True)
+class Solved:
+    """A problem's result, and the rows of the system its strategy takes (None: no
+    unknown state), to start another solve of the same problem from."""
+
+    result: MdpResult
+    rows: IntArray | None
 
 
 def solve(mdp: MDP, graph: ChoiceGraph, problem: Problem,
           rewards: FloatArray | None) -> MdpResult:
     """*problem* solved: certified values in every state and an optimal strategy."""
+    return solve_from(mdp, graph, problem, rewards, None).result
+
+
+def solve_from(mdp: MDP, graph: ChoiceGraph, problem: Problem, rewards: FloatArray | None,
+               start: IntArray | Strategy | None) -> Solved:
+    """:func:`solve`, policy iteration started from *start* (:func:`approximate`)."""
     values = Bounds.exact(problem.known.copy())
     if not problem.unknown.any():
-        return MdpResult(values, Strategy(problem.choices))
-    found = approximate(mdp, problem, rewards)
+        return Solved(MdpResult(values, Strategy(problem.choices)), None)
+    found = approximate(mdp, problem, rewards, start)
     bounds = certified_values(found.system, problem.objective, found.known, found.offset,
                               found.evaluation, problem.ceiling)
     rows = found.rows
     if not bounds.precise_states().all() and found.system.size <= EXACT_LIMIT:
         rows, bounds = _exactly(mdp, problem, found, rewards)
     strategy = lifted(mdp, graph, found.system, rows, problem.components, problem.choices)
-    return MdpResult(spread(values, problem.classes, bounds), Strategy(strategy))
+    return Solved(MdpResult(spread(values, problem.classes, bounds), Strategy(strategy)), rows)
 
 
 def _exactly(mdp: MDP, problem: Problem, found: Approximation,
