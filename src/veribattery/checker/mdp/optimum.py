@@ -28,6 +28,7 @@ from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
 from veribattery.checker.mdp.strategy import Strategy, lifted
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
+from veribattery.checker.mdp.topological import topological_policy_iteration
 
 __all__ = ["Problem", "approximate", "solve", "spread"]
 
@@ -95,7 +96,9 @@ def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None) -> Appro
     known = np.asarray(problem.known[system.known_states], dtype=np.float64)
     offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
     start = progress_rows(system, problem.goal[system.known_states])
-    evaluation = policy_iteration(system, problem.objective, known, offset, start)
+    evaluation = topological_policy_iteration(system, problem.objective, known, offset, start)
+    if evaluation is None:
+        evaluation = policy_iteration(system, problem.objective, known, offset, start)
     return Approximation(system, known, offset, evaluation, start)
 
 

@@ -25,7 +25,8 @@ from veribattery.checker.mdp.graph import attractor
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 from veribattery.errors import CheckError
 
-__all__ = ["Evaluation", "evaluate", "policy_iteration", "progress_rows"]
+__all__ = ["Evaluation", "evaluate", "improve", "is_improper", "policy_iteration",
+           "progress_rows"]
 
 #: A row replaces the current one only if it is better by this much, relative (a few
 #: roundings of an image: the values are refined to about the last bit).
@@ -137,14 +138,21 @@ def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArr
     :return: the last strategy's evaluation, or None if even *start* is singular.
     """
     current = evaluate(system, start, known, offset)
+    return None if current is None else improve(system, objective, known, offset, current,
+                                                rounds)
+
+
+def improve(system: ChoiceSystem, objective: Objective, known: FloatArray,
+            offset: FloatArray | None, current: Evaluation,
+            rounds: int = POLICY_ROUNDS) -> Evaluation:
+    """Policy iteration from the evaluated strategy *current* (:func:`policy_iteration`'s
+    rounds): the last strategy's evaluation."""
     for _ in range(rounds):
-        if current is None:
-            return None
         following = _improved(system, objective, current, known, offset)
         if following is None:
             return current
         candidate = evaluate(system, following, known, offset)
-        if candidate is None or _improper(candidate.values):
+        if candidate is None or is_improper(candidate.values):
             return current
         gain = candidate.values - current.values
         if objective == "min":
@@ -168,7 +176,7 @@ def _noise_floor(candidate: Evaluation, current: Evaluation) -> float:
     return UNIT_ROUNDOFF * scale
 
 
-def _improper(values: FloatArray) -> bool:
+def is_improper(values: FloatArray) -> bool:
     """Whether values that must be >= 0 are clearly negative (more than rounding
     noise): the sign of a strategy that stays forever among the unknowns."""
     scale = float(np.max(np.abs(values), initial=1.0))
