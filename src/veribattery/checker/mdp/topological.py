@@ -126,6 +126,7 @@ def _longest_paths(count: int, src: IntArray, dst: IntArray) -> IntArray:
     graph = sp.csr_matrix((np.ones(src.size, dtype=np.int32), (src, dst)), shape=(count, count))
     graph.sum_duplicates()
     reverse = sp.csr_matrix(graph.T)
+    reverse_ptr = reverse.indptr.astype(np.int64)
     pending = np.diff(graph.indptr).astype(np.int64)  # successors not yet levelled
     depth = np.empty(count, dtype=np.int64)
     frontier = np.flatnonzero(pending == 0)
@@ -133,7 +134,7 @@ def _longest_paths(count: int, src: IntArray, dst: IntArray) -> IntArray:
     while frontier.size:
         depth[frontier] = level
         level += 1
-        predecessors = reverse.indices[segments(reverse.indptr.astype(np.int64), frontier)]
+        predecessors = reverse.indices[segments(reverse_ptr, frontier)]
         touched, times = np.unique(predecessors, return_counts=True)
         pending[touched] -= times
         frontier = touched[pending[touched] == 0]
