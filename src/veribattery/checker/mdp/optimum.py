@@ -4,9 +4,10 @@ Every unbounded operator ends here once its pre-pass has decided which states
 are known, which are unknown (and which end components among them are
 collapsed) and which choices may be used -- a :class:`Problem`. :func:`solve`
 builds the :class:`~veribattery.checker.mdp.system.ChoiceSystem` of the unknown
-classes, approximates the optimum by policy iteration from a strategy that makes
-progress towards the *goal* states, certifies it, and lifts the strategy from
-classes back to states. The exact engine (:mod:`~veribattery.checker.mdp.exact`)
+classes, approximates the optimum by policy iteration from the greedy strategy of
+topological value iteration (:mod:`~veribattery.checker.mdp.topological`; else
+from a strategy that makes progress towards the *goal* states), certifies it, and
+lifts the strategy from classes back to states. The exact engine (:mod:`~veribattery.checker.mdp.exact`)
 solves the same problems in rationals.
 """
 

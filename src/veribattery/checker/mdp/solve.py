@@ -6,6 +6,8 @@ best row beats its current one. Only the *approximation* comes from here: the
 bounds returned to users are certified afterwards from the Bellman operator
 itself (:mod:`~veribattery.checker.mdp.certificate`), so a rounding error or a
 tie broken the wrong way here can widen an interval but never falsify it.
+The first strategy usually comes from topological value iteration
+(:mod:`~veribattery.checker.mdp.topological`), which leaves few rounds or none.
 """
 
 from __future__ import annotations
