@@ -10,9 +10,8 @@ import numpy as np
 import pytest
 
 from tests.checker.mdp.models import mask, mdp_from
-from veribattery.checker.mdp import MDP, reach_probability, reach_reward
+from veribattery.checker.mdp import MDP, reach_probability, reach_reward, topological
 from veribattery.checker.mdp import solve as solve_module
-from veribattery.checker.mdp import topological
 from veribattery.checker.mdp.solve import policy_iteration, progress_rows
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
 from veribattery.checker.mdp.topological import (
@@ -165,3 +164,33 @@ def test_greedy_rows_keep_the_preferred_row_on_ties() -> None:
     assert greedy_rows(images, starts, "min", np.array([0, 4])).tolist() == [2, 3]
     nearly = np.array([0.5, 0.5 * (1 - 2.0**-50), 0.25])
     assert greedy_rows(nearly, np.array([0]), "max", np.array([1])).tolist() == [1]
+
+
+def test_an_improper_greedy_start_falls_back_to_progress(monkeypatch: pytest.MonkeyPatch) -> None:
+    # From values 0, the cycle (cost 1) looks cheaper than the exit (cost 5) in both
+    # states: that greedy strategy never reaches the goal, and is refused.
+    mdp = mdp_from([
+        [[(1, 1)], [(2, 1)]],
+        [[(0, 1)], [(2, 1)]],
+        [[(2, 1)]],
+    ])
+    rewards = np.array([1.0, 5.0, 1.0, 5.0, 0.0])
+    monkeypatch.setattr(topological, "topological_values",
+                        lambda system, *_: np.zeros(system.size))
+    system = _system(mdp, [0, 1])
+    offset = rewards[system.choices]
+    start = progress_rows(system, np.ones(system.known_states.size, dtype=bool))
+    known = np.zeros(system.known_states.size)
+    assert topological.topological_policy_iteration(system, "min", known, offset, start) is None
+    result = reach_reward(mdp, rewards, mask(3, [2]), objective="min")
+    assert result.values.tolist() == [5.0, 5.0, 0.0]
+
+
+def test_too_many_levels_fall_back_to_progress(monkeypatch: pytest.MonkeyPatch) -> None:
+    n = 20
+    mdp, exact = _chain(n)
+    monkeypatch.setattr(topological, "LEVEL_LIMIT", n - 1)
+    calls = _counted(monkeypatch)
+    result = reach_probability(mdp, mdp.labels["goal"], objective="max")
+    assert result.values[:n] == pytest.approx([float(v) for v in exact], rel=1e-13)
+    assert calls[0] >= n  # the progress start's rounds, one per state

@@ -7,8 +7,8 @@ builds the :class:`~veribattery.checker.mdp.system.ChoiceSystem` of the unknown
 classes, approximates the optimum by policy iteration from the greedy strategy of
 topological value iteration (:mod:`~veribattery.checker.mdp.topological`; else
 from a strategy that makes progress towards the *goal* states), certifies it, and
-lifts the strategy from classes back to states. The exact engine (:mod:`~veribattery.checker.mdp.exact`)
-solves the same problems in rationals.
+lifts the strategy from classes back to states. The exact engine
+(:mod:`~veribattery.checker.mdp.exact`) solves the same problems in rationals.
 """
 
 from __future__ import annotations
