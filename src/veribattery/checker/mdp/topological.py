@@ -36,7 +36,13 @@ from scipy.sparse.linalg import splu
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.linalg.topological import condensation
 from veribattery.checker.mdp.graph import segments
-from veribattery.checker.mdp.solve import Evaluation, evaluate, improve, is_improper
+from veribattery.checker.mdp.solve import (
+    Evaluation,
+    evaluate,
+    improve,
+    is_improper,
+    tightest_among_ties,
+)
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 
 __all__ = ["LEVEL_LIMIT", "Levels", "class_levels", "greedy_rows", "is_proper",
@@ -75,7 +81,8 @@ def topological_policy_iteration(system: ChoiceSystem, objective: Objective,
     first = evaluate(system, rows, known, offset)
     if first is None or is_improper(first.values):
         return None
-    return improve(system, objective, known, offset, first)
+    found = improve(system, objective, known, offset, first)
+    return tightest_among_ties(system, objective, known, offset, found)
 
 
 @dataclass(frozen=True, slots=True)
