@@ -40,7 +40,7 @@ REFINE_STEPS = 3
 #: A tied row replaces the strategy's if it shrinks the margin by this much, relative ...
 MARGIN_GAIN = 2.0**-20
 #: ... in at most this many rounds (each one evaluation).
-TIE_ROUNDS = 4
+TIE_ROUNDS = 2
 
 
 @dataclass(frozen=True, slots=True)
