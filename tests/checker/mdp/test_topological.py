@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tests.checker.mdp.models import mask, mdp_from
+from tests.checker.mdp.models import HALF, mask, mdp_from
 from veribattery.checker.mdp import MDP, reach_probability, reach_reward, topological
 from veribattery.checker.mdp import solve as solve_module
 from veribattery.checker.mdp.solve import policy_iteration, progress_rows
@@ -194,3 +194,21 @@ def test_too_many_levels_fall_back_to_progress(monkeypatch: pytest.MonkeyPatch) 
     result = reach_probability(mdp, mdp.labels["goal"], objective="max")
     assert result.values[:n] == pytest.approx([float(v) for v in exact], rel=1e-13)
     assert calls[0] >= n  # the progress start's rounds, one per state
+
+
+def test_ties_go_to_the_row_with_the_smaller_margin() -> None:
+    # State 0 gets 1/2 straight away (its second row) or through state 1 (its first):
+    # tied, but the detour adds state 1's defect to state 0's margin.
+    mdp = mdp_from([
+        [[(1, 1)], [(2, HALF), (3, HALF)]],
+        [[(2, HALF), (3, HALF)]],
+        [[(2, 1)]],
+        [[(3, 1)]],
+    ])
+    system = _system(mdp, [0, 1])
+    known = np.array([1.0, 0.0])
+    detour = solve_module.evaluate(system, np.array([0, 2]), known, None)
+    assert detour is not None and detour.values.tolist() == [0.5, 0.5]
+    found = solve_module.tightest_among_ties(system, "max", known, None, detour)
+    assert found.rows.tolist() == [1, 2] and found.values.tolist() == [0.5, 0.5]
+    assert solve_module.tightest_among_ties(system, "max", known, None, found) is found
