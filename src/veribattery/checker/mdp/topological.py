@@ -37,6 +37,7 @@ from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.linalg.topological import condensation
 from veribattery.checker.mdp.graph import segments
 from veribattery.checker.mdp.solve import (
+    POLICY_TOLERANCE,
     Evaluation,
     evaluate,
     improve,
@@ -55,9 +56,9 @@ LEVEL_LIMIT = 50_000
 SWEEPS = 100
 #: ... stopped early once no value moves by more than this, relative.
 SWEEP_TOLERANCE = 2.0**-48
-#: A row replaces the current one only if better by this much, relative (as in
-#: :mod:`~veribattery.checker.mdp.solve`); rows this close to the best count as tied.
-TIE = 2.0**-48
+#: A row replaces the current one only if better by this much, relative (policy
+#: iteration's tolerance); rows this close to the best count as tied.
+TIE = POLICY_TOLERANCE
 #: Policy-iteration rounds on one level's cyclic components.
 LOCAL_ROUNDS = 200
 
@@ -185,7 +186,6 @@ class _Ordered:
     off: sp.csr_matrix
     offset: FloatArray | None
     leave: FloatArray
-    rows: IntArray
     row_starts: IntArray  # per position in level order, its class's first row here
 
     @classmethod
@@ -195,7 +195,7 @@ class _Ordered:
         row_starts = np.zeros(levels.classes.size + 1, dtype=np.int64)
         np.cumsum(counts, out=row_starts[1:])
         return cls(sp.csr_matrix(system.off[rows]), None if offset is None else offset[rows],
-                   system.leave[rows], rows, row_starts)
+                   system.leave[rows], row_starts)
 
     def images(self, lo: int, hi: int, full: FloatArray) -> FloatArray:
         """``G_a(x)`` of the rows of the classes at positions ``lo..hi``."""
