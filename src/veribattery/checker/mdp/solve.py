@@ -193,7 +193,8 @@ def _tighter_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
                   offset: FloatArray | None, current: Evaluation) -> Evaluation | None:
     """*current* with each class's row replaced by the tied row (image within
     :data:`POLICY_TOLERANCE` of the best) that makes the margin smallest, re-evaluated;
-    None where no tied row does or the switch makes a value worse.
+    None where no tied row does or the switch makes a value worse by more than rounding
+    and the margin.
 
     With ``d`` the strategy's margin, ``d = d0 + P_sigma d / s``, a row *b* with ``P_b d
     / s_b`` smaller than the strategy's makes ``d`` a strict super-solution of the new
@@ -217,8 +218,10 @@ def _tighter_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
     gain = candidate.values - current.values
     if objective == "min":
         gain = -gain
+    # Tied rows may differ by rounding, and the values by as much as the margin allows
+    # for (they are approximations within it); worse than that is a real loss.
     noise = POLICY_TOLERANCE * np.maximum(np.abs(candidate.values), np.abs(current.values))
-    if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
+    if np.any(gain < -(np.maximum(noise, _noise_floor(candidate, current)) + margin)):
         return None
     return candidate
 
