@@ -170,18 +170,38 @@ def _candidates(x: FloatArray, margin: FloatArray | None, images: _Images,
 def _side(image: Image, x: FloatArray, margin: FloatArray, images: _Images,
           wider: Callable[[], FloatArray | None] | None, *, up: bool) -> FloatArray:
     trivial = images.top if up else images.floor
-    for factor in FACTORS:
+    first = _pushed(image, _around(x, margin, FACTORS[0], images, up=up), trivial, up=up)
+    if first is not None:
+        return first
+    found = [_first_passing(image, x, margin, FACTORS[1:], images, up=up)]
+    tied = None if wider is None else wider()
+    if tied is not None:
+        found.append(_first_passing(image, x, tied, FACTORS, images, up=up))
+    passing = [bound for bound in found if bound is not None]
+    if passing:
+        return _tightest(passing, up=up)
+    repaired = _repaired(image, _around(x, margin, FACTORS[-1], images, up=up), trivial, up=up)
+    return trivial if repaired is None else repaired
+
+
+def _first_passing(image: Image, x: FloatArray, margin: FloatArray,
+                   factors: tuple[float, ...], images: _Images, *, up: bool
+                   ) -> FloatArray | None:
+    """``x +- (c margin + slack)`` pushed, for the first factor *c* that passes."""
+    trivial = images.top if up else images.floor
+    for factor in factors:
         pushed = _pushed(image, _around(x, margin, factor, images, up=up), trivial, up=up)
         if pushed is not None:
             return pushed
-    tied = None if wider is None else wider()
-    for factor in FACTORS if tied is not None else ():
-        assert tied is not None
-        pushed = _pushed(image, _around(x, tied, factor, images, up=up), trivial, up=up)
-        if pushed is not None:
-            return pushed
-    repaired = _repaired(image, _around(x, margin, FACTORS[-1], images, up=up), trivial, up=up)
-    return trivial if repaired is None else repaired
+    return None
+
+
+def _tightest(bounds: list[FloatArray], *, up: bool) -> FloatArray:
+    """The tightest of certified bounds on each state: each bounds the fixed point, so
+    their minimum (maximum, below) does too (it need not pass the test itself, and
+    interval iteration from it stays sound: ``B`` is monotone)."""
+    reduce = np.minimum if up else np.maximum
+    return np.asarray(reduce.reduce(np.stack(bounds)), dtype=np.float64)
 
 
 def _pushed(image: Image, bound: FloatArray, trivial: FloatArray,

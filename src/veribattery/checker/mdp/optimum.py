@@ -4,10 +4,11 @@ Every unbounded operator ends here once its pre-pass has decided which states
 are known, which are unknown (and which end components among them are
 collapsed) and which choices may be used -- a :class:`Problem`. :func:`solve`
 builds the :class:`~veribattery.checker.mdp.system.ChoiceSystem` of the unknown
-classes, approximates the optimum by policy iteration from a strategy that makes
-progress towards the *goal* states, certifies it, and lifts the strategy from
-classes back to states. The exact engine (:mod:`~veribattery.checker.mdp.exact`)
-solves the same problems in rationals.
+classes, approximates the optimum by policy iteration from the greedy strategy of
+topological value iteration (:mod:`~veribattery.checker.mdp.topological`; else
+from a strategy that makes progress towards the *goal* states), certifies it, and
+lifts the strategy from classes back to states. The exact engine
+(:mod:`~veribattery.checker.mdp.exact`) solves the same problems in rationals.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
 from veribattery.checker.mdp.strategy import Strategy, lifted
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
+from veribattery.checker.mdp.topological import topological_policy_iteration
 
 __all__ = ["Problem", "Solved", "approximate", "solve", "solve_from", "spread"]
 
@@ -105,10 +107,14 @@ def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
     evaluation = None
     if start is not None and start.shape == (system.size,):
         evaluation = policy_iteration(system, problem.objective, known, offset, start)
+    else:
+        evaluation = topological_policy_iteration(system, problem.objective, known, offset,
+                                                  progress)
     if evaluation is None:
         start = progress
         evaluation = policy_iteration(system, problem.objective, known, offset, start)
-    assert start is not None
+    if start is None:
+        start = progress
     return Approximation(system, known, offset, evaluation, start)
 
 

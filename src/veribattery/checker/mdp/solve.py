@@ -6,6 +6,8 @@ best row beats its current one. Only the *approximation* comes from here: the
 bounds returned to users are certified afterwards from the Bellman operator
 itself (:mod:`~veribattery.checker.mdp.certificate`), so a rounding error or a
 tie broken the wrong way here can widen an interval but never falsify it.
+The first strategy usually comes from topological value iteration
+(:mod:`~veribattery.checker.mdp.topological`), which leaves few rounds or none.
 """
 
 from __future__ import annotations
@@ -25,7 +27,8 @@ from veribattery.checker.mdp.graph import attractor
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 from veribattery.errors import CheckError
 
-__all__ = ["Evaluation", "evaluate", "policy_iteration", "progress_rows"]
+__all__ = ["Evaluation", "evaluate", "improve", "is_improper", "policy_iteration",
+           "progress_rows", "tightest_among_ties"]
 
 #: A row replaces the current one only if it is better by this much, relative (a few
 #: roundings of an image: the values are refined to about the last bit).
@@ -34,6 +37,10 @@ POLICY_TOLERANCE = 2.0**-48
 POLICY_ROUNDS = 200
 #: Refinement steps after each LU solve (in float64).
 REFINE_STEPS = 3
+#: A tied row replaces the strategy's if it shrinks the margin by this much, relative ...
+MARGIN_GAIN = 2.0**-20
+#: ... in at most this many rounds (each one evaluation).
+TIE_ROUNDS = 2
 
 
 @dataclass(frozen=True, slots=True)
@@ -137,14 +144,21 @@ def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArr
     :return: the last strategy's evaluation, or None if even *start* is singular.
     """
     current = evaluate(system, start, known, offset)
+    return None if current is None else improve(system, objective, known, offset, current,
+                                                rounds)
+
+
+def improve(system: ChoiceSystem, objective: Objective, known: FloatArray,
+            offset: FloatArray | None, current: Evaluation,
+            rounds: int = POLICY_ROUNDS) -> Evaluation:
+    """Policy iteration from the evaluated strategy *current* (:func:`policy_iteration`'s
+    rounds): the last strategy's evaluation."""
     for _ in range(rounds):
-        if current is None:
-            return None
         following = _improved(system, objective, current, known, offset)
         if following is None:
             return current
         candidate = evaluate(system, following, known, offset)
-        if candidate is None or _improper(candidate.values):
+        if candidate is None or is_improper(candidate.values):
             return current
         gain = candidate.values - current.values
         if objective == "min":
@@ -158,6 +172,60 @@ def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArr
     return current
 
 
+def tightest_among_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                        offset: FloatArray | None, current: Evaluation) -> Evaluation:
+    """*current* after rounds of :func:`_tighter_ties` until no tied row is better.
+
+    Which of several optimal strategies policy iteration ends with is an accident of
+    its path, and the certificate's margin ``d = (I - B_sigma)^-1 d0`` (``d0`` the
+    enclosed defect of the values) depends on it: consensus's ``steps_max`` certified
+    -5.1e-10 below from one tied strategy and -4.4e-10 from the one found here.
+    """
+    for _ in range(TIE_ROUNDS):
+        following = _tighter_ties(system, objective, known, offset, current)
+        if following is None:
+            break
+        current = following
+    return current
+
+
+def _tighter_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                  offset: FloatArray | None, current: Evaluation) -> Evaluation | None:
+    """*current* with each class's row replaced by the tied row (image within
+    :data:`POLICY_TOLERANCE` of the best) that makes the margin smallest, re-evaluated;
+    None where no tied row does or the switch makes a value worse by more than rounding
+    and the margin.
+
+    With ``d`` the strategy's margin, ``d = d0 + P_sigma d / s``, a row *b* with ``P_b d
+    / s_b`` smaller than the strategy's makes ``d`` a strict super-solution of the new
+    strategy's margin equation (and so bounds it; a proper strategy stays proper).
+    """
+    margin = current.correct(system.defect(current.values, known, offset, objective))
+    if not np.all(np.isfinite(margin)):
+        return None
+    images = system.images(current.values, known, offset)
+    best = system.best(images, objective)[system.row_class]
+    with np.errstate(invalid="ignore"):
+        tied = np.abs(images - best) <= POLICY_TOLERANCE * np.abs(best)
+    after = system.images(margin, np.zeros(system.known_states.size), None)
+    rows = system.best_rows(np.where(tied, after, np.inf), "min")
+    smaller = tied[rows] & (after[rows] < after[current.rows] * (1.0 - MARGIN_GAIN))
+    if not smaller.any():
+        return None
+    candidate = evaluate(system, np.where(smaller, rows, current.rows), known, offset)
+    if candidate is None or is_improper(candidate.values):
+        return None
+    gain = candidate.values - current.values
+    if objective == "min":
+        gain = -gain
+    # Tied rows may differ by rounding, and the values by as much as the margin allows
+    # for (they are approximations within it); worse than that is a real loss.
+    noise = POLICY_TOLERANCE * np.maximum(np.abs(candidate.values), np.abs(current.values))
+    if np.any(gain < -(np.maximum(noise, _noise_floor(candidate, current)) + margin)):
+        return None
+    return candidate
+
+
 def _noise_floor(candidate: Evaluation, current: Evaluation) -> float:
     """The rounding noise of values near 0: one unit roundoff of the largest value. A
     state of value 0 may come out as -3e-32 (a cancellation in the LU solve), which
@@ -168,7 +236,7 @@ def _noise_floor(candidate: Evaluation, current: Evaluation) -> float:
     return UNIT_ROUNDOFF * scale
 
 
-def _improper(values: FloatArray) -> bool:
+def is_improper(values: FloatArray) -> bool:
     """Whether values that must be >= 0 are clearly negative (more than rounding
     noise): the sign of a strategy that stays forever among the unknowns."""
     scale = float(np.max(np.abs(values), initial=1.0))

@@ -26,7 +26,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker.certify import enclose_product, product_error, step_down, step_up
+from veribattery.checker.certify import (
+    UNIT_ROUNDOFF,
+    enclose_product,
+    product_error,
+    step_down,
+    step_up,
+)
 from veribattery.checker.mdp.graph import ChoiceGraph, segments
 
 __all__ = ["BellmanImage", "ChoiceSystem", "Objective", "equations", "quotient_classes"]
@@ -118,6 +124,17 @@ class ChoiceSystem:
         return _bounded_images(self.off[rows], self.pattern[rows], full,
                                None if offset is None else offset[rows],
                                self.leave_lower[rows], self.leave_upper[rows], up=up)
+
+    def defect(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,
+               objective: Objective) -> FloatArray:
+        """An upper bound of ``|B(x) - x|`` per class from the rigorous images (plus four
+        units of roundoff of *x*, the certificate's floor): the defect its margin is
+        made of (*x* is clipped at 0)."""
+        x = np.maximum(x, 0.0)
+        with np.errstate(invalid="ignore", over="ignore"):
+            above = self.best(self.bound_images(x, known, offset, up=True), objective) - x
+            below = x - self.best(self.bound_images(x, known, offset, up=False), objective)
+        return np.maximum(np.maximum(above, below), 0.0) + 4.0 * UNIT_ROUNDOFF * x
 
     def restricted(self, keep: BoolArray) -> ChoiceSystem:
         """The same classes with only the rows *keep* (each class must keep one)."""
