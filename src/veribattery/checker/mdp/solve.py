@@ -160,10 +160,7 @@ def improve(system: ChoiceSystem, objective: Objective, known: FloatArray,
         candidate = evaluate(system, following, known, offset)
         if candidate is None or is_improper(candidate.values):
             return current
-        gain = candidate.values - current.values
-        if objective == "min":
-            gain = -gain
-        noise = POLICY_TOLERANCE * np.maximum(np.abs(candidate.values), np.abs(current.values))
+        gain, noise = _change(candidate, current, objective)
         if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
             return current  # worse somewhere: rounding has taken over
         current = candidate
@@ -215,15 +212,23 @@ def _tighter_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
     candidate = evaluate(system, np.where(smaller, rows, current.rows), known, offset)
     if candidate is None or is_improper(candidate.values):
         return None
-    gain = candidate.values - current.values
-    if objective == "min":
-        gain = -gain
+    gain, noise = _change(candidate, current, objective)
     # Tied rows may differ by rounding, and the values by as much as the margin allows
     # for (they are approximations within it); worse than that is a real loss.
-    noise = POLICY_TOLERANCE * np.maximum(np.abs(candidate.values), np.abs(current.values))
     if np.any(gain < -(np.maximum(noise, _noise_floor(candidate, current)) + margin)):
         return None
     return candidate
+
+
+def _change(candidate: Evaluation, current: Evaluation,
+            objective: Objective) -> tuple[FloatArray, FloatArray]:
+    """How much better *candidate* is than *current* per class (towards the objective),
+    and the relative rounding noise (:data:`POLICY_TOLERANCE`) below which it is none."""
+    gain = candidate.values - current.values
+    if objective == "min":
+        gain = -gain
+    noise = POLICY_TOLERANCE * np.maximum(np.abs(candidate.values), np.abs(current.values))
+    return gain, noise
 
 
 def _noise_floor(candidate: Evaluation, current: Evaluation) -> float:
