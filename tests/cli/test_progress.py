@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from tests.cli.inputs import CASE1, SMALL
+from tests.cli.inputs import CASE1, SMALL, SYNTHESIS
 from tests.cli.terminal import run_in_terminal
 from veribattery.cli import cli, progress
 from veribattery.errors import OptionError
@@ -254,3 +254,23 @@ def test_an_mdp_check_tells_its_stages_on_a_pipe(tmp_path: Path) -> None:
                           "checking property 2 of 2: Pmin=? [ F s=1 ]"], exact
         assert re.search(r"Pmax=\? \[ F s=1 \]\s+(0\.5|1/2)\b", told.stdout)
         assert re.search(r"Pmin=\? \[ F s=1 \]\s+0\b", told.stdout)
+
+
+def test_synthesize_tells_each_weighted_solve_of_its_front() -> None:
+    command = [sys.executable, "-c", "from veribattery.cli import main; main()", "synthesize",
+               CASE1, *SYNTHESIS, "--require", "0.9", "--format", "json"]
+    told = subprocess.run(command, capture_output=True, text=True, check=True,
+                          env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+    solves = [int(n) for n in re.findall(r"^solving: weighted solve (\d+), \d+ s$",
+                                         told.stderr, flags=re.MULTILINE)]
+    document = json.loads(told.stdout)
+    (answer,) = document["fastest"]
+    assert solves == list(range(1, answer["weighted_solves"] + 1)) and len(solves) >= 2
+    assert "the fastest strategy per requirement (weighted sums)" in told.stderr
+
+
+def test_a_count_without_a_total_is_told_as_such() -> None:
+    assert progress.solve_text("", 3, 0, "weighted solve", 12.4) == (
+        "solving: weighted solve 3, 12 s")
+    assert progress.solve_text("P=? [ F a ]", 3, 9, "steps", 1.0) == (
+        "solving P=? [ F a ]: 3 of 9 steps, 1 s")

@@ -142,6 +142,7 @@ class LiveStatus:
         """Say (above the spinner) that a new stage starts, and show it on the spinner."""
         err.print(text, markup=False, style="dim")
         self._status.update(f"{text}…")
+        self._subject, self._since = "", time.monotonic()
 
     def starting(self, text: str) -> None:
         """Show on the spinner that a stage of a check begins (nothing printed above it)."""

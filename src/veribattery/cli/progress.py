@@ -58,8 +58,11 @@ def intervals() -> tuple[float | None, float | None]:
 
 
 def solve_text(subject: str, done: int, total: int, unit: str, seconds: float) -> str:
-    """``"solving P=? [ F x ]: 3,210 of 9,420 states, 12 s"`` (no subject: ``"solving: …"``)."""
+    """``"solving P=? [ F x ]: 3,210 of 9,420 states, 12 s"`` (no subject: ``"solving: …"``;
+    a *total* of 0, not known beforehand: ``"solving: weighted solve 12, 40 s"``)."""
     about = f" {subject}" if subject else ""
+    if total <= 0:
+        return f"solving{about}: {unit} {done:,}, {seconds:.0f} s"
     return f"solving{about}: {done:,} of {total:,} {unit}, {seconds:.0f} s"
 
 
@@ -112,8 +115,10 @@ class PlainProgress:
             self._write(solve_text(self._subject, done, total, unit, now - self._since))
 
     def stage(self, text: str) -> None:
-        """Say that a new stage starts (at once, however short the run so far)."""
+        """Say that a new stage starts (at once, however short the run so far); a solve
+        within it is counted from now."""
         self._write(text)
+        self._subject, self._since = "", self._clock()
 
     def _begin(self, text: str, subject: str) -> None:
         self._stage, self._subject, self._since = text, subject, self._clock()

@@ -16,6 +16,7 @@ is the answer a linear programme (HiGHS, not certified, :data:`LP_TOLERANCE`).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from fractions import Fraction
 
@@ -115,11 +116,12 @@ def fastest_near_pmax(question: FastestQuestion, p_success_max: Certified,
     return None
 
 
-def mission_front(mdp: MDP) -> FrontSearch:
+def mission_front(mdp: MDP, on_solve: Callable[[int], None] | None = None) -> FrontSearch:
     """The front search of *mdp*: P(success) against E[mission time], E[recharges]
-    carried along (one per synthesis run: its weighted optima are kept)."""
+    carried along (one per synthesis run: its weighted optima are kept); *on_solve* is
+    told the weighted solves made so far after each."""
     return FrontSearch(mdp, Reach(mdp.labels["success"]), _total(mdp, "mt"),
-                       [_total(mdp, "rc")])
+                       [_total(mdp, "rc")], on_solve)
 
 
 def fastest(mdp: MDP, question: FastestQuestion, search: FrontSearch | None = None) -> Fastest:

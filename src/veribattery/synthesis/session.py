@@ -24,7 +24,7 @@ from pathlib import Path
 
 from veribattery.checker.mdp import MDP, FrontSearch, reach_probability
 from veribattery.config import MissionConfig, derive_parameters
-from veribattery.pipeline import ProgressCallback
+from veribattery.pipeline import CheckProgress, ProgressCallback
 from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.synthesis.bs1_values import Bs1Values, bs1_points, bs1_values
 from veribattery.synthesis.exports import StrategyExport, strategy_export_texts
@@ -141,7 +141,7 @@ def synthesize(cfg: MissionConfig, requirements: Sequence[FastestQuestion] = (),
         bs1 = bs1_values(cfg)
     asked = [*requirements, *([as_safe_as(bs1.p_success.value)] if as_safe_as_bs1 else [])]
     best = Certified.at_initial(mdp, pmax)
-    search = _LazyFront(mdp)
+    search = _LazyFront(mdp, _solves_told(progress))
     with clock.stage("fastest"):
         answers = tuple(fastest_near_pmax(question, best, chosen)
                         or fastest(mdp, question, search.get()) for question in asked)
@@ -168,17 +168,27 @@ def _front(search: _LazyFront, cfg: MissionConfig, request: FrontRequest | None,
         return points, bs1_points(cfg, safe_ts)
 
 
+def _solves_told(progress: ProgressCallback | None) -> Callable[[int], None] | None:
+    """Each weighted solve of the front search told as a solve's progress (its number is
+    not known beforehand), when *progress* hears solves."""
+    if not isinstance(progress, CheckProgress):
+        return None
+    stages = progress
+    return lambda solves: stages.solving(solves, 0, "weighted solve")
+
+
 class _LazyFront:
     """The run's one front search, made on first use (its weighted optima are shared
     by the requirements and the front)."""
 
-    def __init__(self, mdp: MDP) -> None:
+    def __init__(self, mdp: MDP, on_solve: Callable[[int], None] | None) -> None:
         self._mdp = mdp
+        self._on_solve = on_solve
         self._search: FrontSearch | None = None
 
     def get(self) -> FrontSearch:
         if self._search is None:
-            self._search = mission_front(self._mdp)
+            self._search = mission_front(self._mdp, self._on_solve)
         return self._search
 
 

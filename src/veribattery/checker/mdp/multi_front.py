@@ -29,7 +29,7 @@ Ties between optimal strategies are broken by the engine's policy iteration
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from fractions import Fraction
 
@@ -105,8 +105,12 @@ class FrontSearch:
     """Weighted optima of one MDP, solved as needed and kept (the caller owns it)."""
 
     def __init__(self, mdp: MDP, reach: Reach, total: Total,
-                 extras: Sequence[Total] = ()) -> None:
+                 extras: Sequence[Total] = (),
+                 on_solve: Callable[[int], None] | None = None) -> None:
+        """:param on_solve: told the number of weighted optima solved after each (a
+            search may take minutes at the paper's scale)."""
         self.stopping = StoppingMdp.of(mdp, reach, total, extras)
+        self._on_solve = on_solve
         self._optima: dict[float, WeightedOptimum] = {}
         self._starts: dict[float, IntArray] = {}  # positive weight -> rows, the latest
         self._problems: dict[bool, Problem] = {}
@@ -131,6 +135,8 @@ class FrontSearch:
                 while len(self._starts) > STARTS_KEPT:
                     del self._starts[next(iter(self._starts))]
             self._optima[lam] = replace(found, rows=None)
+            if self._on_solve is not None:
+                self._on_solve(self.solves)
         return self._optima[lam]
 
     def _closest(self, lam: float) -> IntArray | Strategy | None:
