@@ -248,7 +248,8 @@ def test_an_mdp_check_tells_its_stages_on_a_pipe(tmp_path: Path) -> None:
                    "Pmin=? [ F s=1 ]", *exact]
         told = subprocess.run(command, capture_output=True, text=True, check=True,
                               env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
-        stages = [line for line in told.stderr.splitlines() if not line.startswith("exploring")]
+        stages = [line for line in told.stderr.splitlines()
+                  if not line.startswith(("exploring", "solving"))]
         assert stages == ["building the state space",
                           "checking property 1 of 2: Pmax=? [ F s=1 ]",
                           "checking property 2 of 2: Pmin=? [ F s=1 ]"], exact
@@ -274,3 +275,23 @@ def test_a_count_without_a_total_is_told_as_such() -> None:
         "solving: weighted solve 3, 12 s")
     assert progress.solve_text("P=? [ F a ]", 3, 9, "steps", 1.0) == (
         "solving P=? [ F a ]: 3 of 9 steps, 1 s")
+
+
+def test_an_mdp_solve_tells_its_levels_and_keeps_its_values(tmp_path: Path) -> None:
+    model = tmp_path / "ladder.nm"
+    model.write_text("mdp\nmodule m\n s : [0..31] init 0;\n"
+                     " [up] s<30 -> 0.9:(s'=s+1) + 0.1:(s'=31);\n"
+                     " [risky] s<30 -> 0.5:(s'=s+1) + 0.5:(s'=31);\n [] s>=30 -> true;\n"
+                     "endmodule\n")
+    command = [sys.executable, "-c", "from veribattery.cli import main; main()", "prism",
+               str(model), "--property", "Pmax=? [ F s=30 ]", "--json"]
+    quiet = subprocess.run(command, capture_output=True, text=True, check=True)
+    told = subprocess.run(command, capture_output=True, text=True, check=True,
+                          env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+    levels = re.findall(r"^solving Pmax=\? \[ F s=30 \]: (\d+) of (\d+) levels, \d+ s$",
+                        told.stderr, flags=re.MULTILINE)
+    assert levels and [int(done) for done, _ in levels] == list(range(1, len(levels) + 1))
+    assert {int(total) for _, total in levels} == {len(levels)}
+    assert json.loads(told.stdout)["results"] == json.loads(quiet.stdout)["results"]
+    low, high = json.loads(quiet.stdout)["results"][0]["bounds"]
+    assert Fraction(low) <= Fraction(9, 10) ** 30 <= Fraction(high)

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from veribattery.checker import CheckResult, UndecidedResult
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.formula.intervals import Undecided
 from veribattery.checker.mdp import MDP, MdpRewards, Strategy
 from veribattery.checker.mdp.formula import mdp_answer
@@ -100,16 +101,18 @@ def check_mdp_model(
         for number, prop in enumerate(resolved, start=1):
             if stages is not None:
                 stages.checking(number, len(resolved), prop.text or prop.name or "a formula")
-            results.append(_checked(mdp, prop, warnings))
+            results.append(_checked(mdp, prop, warnings,
+                                    None if stages is None else stages.solving))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, tuple(warnings), model=flat)
 
 
-def _checked(mdp: MDP, prop: Property, warnings: list[str]) -> CheckResult:
+def _checked(mdp: MDP, prop: Property, warnings: list[str],
+             progress: Progress | None = None) -> CheckResult:
     """*prop*'s answer; an :class:`UndecidedResult` if its bound is undecided; NaN,
     with a warning added to *warnings*, if it has no value (an infeasible ``multi``)."""
     start = time.perf_counter()
     try:
-        answer = mdp_answer(mdp, prop.formula)
+        answer = mdp_answer(mdp, prop.formula, progress)
     except Undecided as exc:
         return UndecidedResult.of(prop, exc.message)
     except UndefinedResult as exc:

@@ -176,7 +176,7 @@ def test_an_improper_greedy_start_falls_back_to_progress(monkeypatch: pytest.Mon
     ])
     rewards = np.array([1.0, 5.0, 1.0, 5.0, 0.0])
     monkeypatch.setattr(topological, "topological_values",
-                        lambda system, *_: np.zeros(system.size))
+                        lambda system, *_, **__: np.zeros(system.size))
     system = _system(mdp, [0, 1])
     offset = rewards[system.choices]
     start = progress_rows(system, np.ones(system.known_states.size, dtype=bool))

@@ -29,6 +29,7 @@ import numpy as np
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp.solve import Evaluation, policy_iteration
 from veribattery.checker.mdp.system import BellmanImage, ChoiceSystem, Objective
 
@@ -70,7 +71,7 @@ class _Images:
 
 def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArray,
                      offset: FloatArray | None, approximation: Evaluation | None,
-                     ceiling: float) -> Bounds:
+                     ceiling: float, *, progress: Progress | None = None) -> Bounds:
     """Certified bounds of the unique fixed point of the system's Bellman operator.
 
     :param known: the exact values of ``system.known_states`` (nonnegative).
@@ -78,6 +79,8 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
     :param approximation: policy iteration's result, or None.
     :param ceiling: a trivial upper bound that passes the test by itself
         (1 for probabilities, ``inf`` for rewards); 0 is the trivial lower bound.
+    :param progress: told ``(sweeps done, most sweeps, "sweeps")`` while interval
+        iteration tightens the bounds.
     """
 
     images = _Images(BellmanImage(system, known, offset, objective, up=False),
@@ -95,7 +98,7 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
 
         lower, upper = _candidates(x, margin, images, wider, every_row_up=objective == "max")
     if not Bounds.around(x, lower, upper).precise_states().all():
-        lower, upper = _tightened(system, images, x, lower, upper)
+        lower, upper = _tightened(system, images, x, lower, upper, progress)
     return Bounds.around(x, lower, upper)
 
 
@@ -271,13 +274,15 @@ def _repaired(image: Image, bound: FloatArray, trivial: FloatArray,
     return None
 
 
-def _tightened(system: ChoiceSystem, images: _Images, x: FloatArray,
-               lower: FloatArray, upper: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _tightened(system: ChoiceSystem, images: _Images, x: FloatArray, lower: FloatArray,
+               upper: FloatArray, progress: Progress | None) -> tuple[FloatArray, FloatArray]:
     """Interval iteration from a certified pair until precise (or out of sweeps)."""
     sweeps = min(INTERVAL_SWEEPS, INTERVAL_WORK // max(1, 2 * system.off.nnz))
-    for _ in range(sweeps):
+    for sweep in range(sweeps):
         if Bounds.around(x, lower, upper).precise_states().all():
             break
         lower = np.maximum(lower, images.lower(lower))
         upper = np.minimum(upper, images.upper(upper))
+        if progress is not None:
+            progress(sweep + 1, sweeps, "sweeps")
     return lower, upper

@@ -19,6 +19,7 @@ import numpy as np
 
 from veribattery._types import BoolArray, IntArray
 from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.formula import filters, intervals
 from veribattery.checker.formula.intervals import Result
 from veribattery.checker.formula.leaves import as_mask, has_operator, literal_number, step_bound
@@ -71,22 +72,26 @@ def _opposite(objective: Objective) -> Objective:
     return "max" if objective == "min" else "min"
 
 
-def mdp_answer(mdp: MDP, formula: Expr) -> filters.FilterOutcome:
+def mdp_answer(mdp: MDP, formula: Expr,
+               progress: Progress | None = None) -> filters.FilterOutcome:
     """The answer PRISM reports: a top-level filter's value, else the value at the
-    single initial state, the range over several, or ``forall`` for a boolean."""
+    single initial state, the range over several, or ``forall`` for a boolean.
+
+    :param progress: told how far each long solve is (:func:`mdp_values`).
+    """
     printed: tuple[str, ...] = ()
     if isinstance(formula, Multi):
         # Imported here: the LP (scipy.optimize) is not needed for any other formula.
         from veribattery.checker.mdp.multi_formula import multi_answer
 
-        return multi_answer(mdp, formula, partial(_mask, mdp))
+        return multi_answer(mdp, formula, partial(_mask, mdp, progress))
     if isinstance(formula, Filter):
-        outcome = _filter(mdp, formula)
+        outcome = _filter(mdp, progress, formula)
         if outcome.value is not None:
             return outcome
         per_state, printed = _as_result(outcome.values), outcome.printed
     else:
-        per_state = mdp_values(mdp, formula)
+        per_state = _values(mdp, progress, formula)
     if mdp.initial.size == 0:
         raise CheckError("the model has no initial state", formula.span)
     default = "forall" if not isinstance(per_state, Bounds) else (
@@ -96,20 +101,27 @@ def mdp_answer(mdp: MDP, formula: Expr) -> filters.FilterOutcome:
     return replace(answer, printed=printed)
 
 
-def mdp_values(mdp: MDP, formula: Expr) -> Result:
-    """Per-state value of *formula*: certified numbers or a boolean mask."""
+def mdp_values(mdp: MDP, formula: Expr, progress: Progress | None = None) -> Result:
+    """Per-state value of *formula*: certified numbers or a boolean mask.
+
+    :param progress: told how far each long solve is (``(done, total, unit)``).
+    """
+    return _values(mdp, progress, formula)
+
+
+def _values(mdp: MDP, progress: Progress | None, formula: Expr) -> Result:
     match formula:
         case ProbOp(op="=?"):
-            return _path(mdp, formula.path, _direction(formula))
+            return _path(mdp, progress, formula.path, _direction(formula))
         case RewardOp(op="=?"):
-            return _reward(mdp, formula, _direction(formula))
+            return _reward(mdp, progress, formula, _direction(formula))
         case ProbOp() | RewardOp():
-            return _bounded(mdp, formula)
+            return _bounded(mdp, progress, formula)
         case Filter():
-            return _filter_everywhere(mdp, formula)
+            return _filter_everywhere(mdp, progress, formula)
     if not has_operator(formula):
         return _leaf(mdp, formula)
-    return _compound(mdp, formula)
+    return _compound(mdp, progress, formula)
 
 
 def _direction(op: ProbOp | RewardOp) -> Objective:
@@ -124,12 +136,12 @@ def _direction(op: ProbOp | RewardOp) -> Objective:
     return "max" if op.op in ("<", "<=") else "min"
 
 
-def _bounded(mdp: MDP, op: ProbOp | RewardOp) -> BoolArray:
+def _bounded(mdp: MDP, progress: Progress | None, op: ProbOp | RewardOp) -> BoolArray:
     """``P~p``/``R~r`` as a mask, decided from the certified interval."""
     assert op.bound is not None
     threshold = literal_number(op.bound)
     query = replace(op, op="=?", bound=None, direction=_direction(op))
-    numbers = mdp_values(mdp, query)
+    numbers = _values(mdp, progress, query)
     assert isinstance(numbers, Bounds)
     holds, undecided = numbers.compare(op.op, threshold)
     if undecided.any():
@@ -141,31 +153,35 @@ def _bounded(mdp: MDP, op: ProbOp | RewardOp) -> BoolArray:
     return np.asarray(holds, dtype=bool)
 
 
-def _mask(mdp: MDP, expr: Expr) -> BoolArray:
-    result = mdp_values(mdp, expr)
+def _mask(mdp: MDP, progress: Progress | None, expr: Expr) -> BoolArray:
+    result = _values(mdp, progress, expr)
     if isinstance(result, Bounds):
         return as_mask(result.value, expr)
     return as_mask(result, expr)
 
 
-def _path(mdp: MDP, path: PathFormula, objective: Objective) -> Bounds:
+def _path(mdp: MDP, progress: Progress | None, path: PathFormula,
+          objective: Objective) -> Bounds:
     """``Pmin``/``Pmax`` of a path formula in every state."""
     match path:
         case Next(operand=operand):
-            return stepped.next_probability(mdp, _mask(mdp, operand), objective=objective).bounds
+            return stepped.next_probability(mdp, _mask(mdp, progress, operand),
+                                            objective=objective).bounds
         case Eventually(operand=operand, bound=bound):
-            return _until(mdp, None, _mask(mdp, operand), bound, objective)
+            return _until(mdp, progress, None, _mask(mdp, progress, operand), bound, objective)
         case Until(left=left, right=right, bound=bound):
-            return _until(mdp, _mask(mdp, left), _mask(mdp, right), bound, objective)
+            return _until(mdp, progress, _mask(mdp, progress, left),
+                          _mask(mdp, progress, right), bound, objective)
         case Globally(operand=operand, bound=bound):  # G a = !(F !a)
-            inside = _mask(mdp, operand)
-            return _complement(_until(mdp, None, ~inside, bound, _opposite(objective)))
+            inside = _mask(mdp, progress, operand)
+            return _complement(_until(mdp, progress, None, ~inside, bound, _opposite(objective)))
         case WeakUntil(left=left, right=right, bound=bound):  # a W b = !((a & !b) U (!a & !b))
-            a, b = _mask(mdp, left), _mask(mdp, right)
-            return _complement(_until(mdp, a & ~b, ~a & ~b, bound, _opposite(objective)))
+            a, b = _mask(mdp, progress, left), _mask(mdp, progress, right)
+            return _complement(_until(mdp, progress, a & ~b, ~a & ~b, bound,
+                                      _opposite(objective)))
         case Release(left=left, right=right, bound=bound):  # a R b = !(!a U !b)
-            a, b = _mask(mdp, left), _mask(mdp, right)
-            return _complement(_until(mdp, ~a, ~b, bound, _opposite(objective)))
+            a, b = _mask(mdp, progress, left), _mask(mdp, progress, right)
+            return _complement(_until(mdp, progress, ~a, ~b, bound, _opposite(objective)))
         case Conditional():
             raise CheckError("conditional probabilities (Storm's 'path || F condition') are "
                              "not supported on MDPs: check the DTMC a strategy induces instead "
@@ -177,11 +193,12 @@ def _path(mdp: MDP, path: PathFormula, objective: Objective) -> Bounds:
     raise CheckError("this path formula is not supported on MDPs", path.span)
 
 
-def _until(mdp: MDP, remain: BoolArray | None, target: BoolArray,
+def _until(mdp: MDP, progress: Progress | None, remain: BoolArray | None, target: BoolArray,
            bound: TimeBound | TimeInterval | None, objective: Objective) -> Bounds:
     """``remain U target`` within its step interval."""
     if bound is None:
-        return reach_probability(mdp, target, objective=objective, remain=remain).bounds
+        return reach_probability(mdp, target, objective=objective, remain=remain,
+                                 progress=progress).bounds
     if isinstance(bound, TimeInterval):
         low, high = step_bound(bound.low), step_bound(bound.high)
         if high < low:
@@ -209,7 +226,8 @@ def _complement(b: Bounds) -> Bounds:
     return cast(Bounds, intervals.binary("-", one, b))
 
 
-def _reward(mdp: MDP, op: RewardOp, objective: Objective) -> Bounds:
+def _reward(mdp: MDP, progress: Progress | None, op: RewardOp,
+            objective: Objective) -> Bounds:
     """``Rmin``/``Rmax`` of a reward path in every state."""
     try:
         structure = mdp.reward(op.reward)
@@ -218,10 +236,11 @@ def _reward(mdp: MDP, op: RewardOp, objective: Objective) -> Bounds:
     path = op.path
     match path:
         case Reach(target=target):
-            return reach_reward(mdp, structure.per_choice(mdp), _mask(mdp, target),
-                                objective=objective).bounds
+            return reach_reward(mdp, structure.per_choice(mdp), _mask(mdp, progress, target),
+                                objective=objective, progress=progress).bounds
         case Total():
-            return total_reward(mdp, structure.per_choice(mdp), objective=objective).bounds
+            return total_reward(mdp, structure.per_choice(mdp), objective=objective,
+                                progress=progress).bounds
         case Cumulative(bound=bound):
             return stepped.cumulative_reward(mdp, structure.per_choice(mdp), step_bound(bound),
                                              objective=objective).bounds
@@ -229,42 +248,45 @@ def _reward(mdp: MDP, op: RewardOp, objective: Objective) -> Bounds:
             return stepped.instantaneous_reward(mdp, structure.state, step_bound(time),
                                                 objective=objective).bounds
         case ReachUntil(left=left, right=right):
-            return cosafe.until_reward(mdp, structure.per_choice(mdp), _mask(mdp, left),
-                                       _mask(mdp, right), objective=objective)
+            return cosafe.until_reward(mdp, structure.per_choice(mdp),
+                                       _mask(mdp, progress, left),
+                                       _mask(mdp, progress, right), objective=objective)
         case ReachNext(target=target):
-            return cosafe.next_reward(mdp, structure.per_choice(mdp), _mask(mdp, target),
+            return cosafe.next_reward(mdp, structure.per_choice(mdp),
+                                      _mask(mdp, progress, target),
                                       objective=objective)
     raise CheckError("this reward formula is not supported on MDPs (F, U, X, C, C<=k, I=k "
                      "are)", path.span)
 
 
-def _compound(mdp: MDP, expr: Expr) -> Result:
+def _compound(mdp: MDP, progress: Progress | None, expr: Expr) -> Result:
     """Connectives, arithmetic and comparisons around operators, state by state."""
     match expr:
         case Unary(op=op, operand=operand):
-            return intervals.unary(op, mdp_values(mdp, operand), expr.span)
+            return intervals.unary(op, _values(mdp, progress, operand), expr.span)
         case Binary(op=op, left=left, right=right):
-            return intervals.binary(op, mdp_values(mdp, left), mdp_values(mdp, right),
+            return intervals.binary(op, _values(mdp, progress, left),
+                                    _values(mdp, progress, right),
                                     expr.span)
         case Ite(cond=cond, then=then, otherwise=otherwise):
-            return intervals.choose(_mask(mdp, cond), mdp_values(mdp, then),
-                                    mdp_values(mdp, otherwise))
+            return intervals.choose(_mask(mdp, progress, cond), _values(mdp, progress, then),
+                                    _values(mdp, progress, otherwise))
         case Call(func=func, args=args):
-            return intervals.call(func, [mdp_values(mdp, a) for a in args], expr.span)
+            return intervals.call(func, [_values(mdp, progress, a) for a in args], expr.span)
     raise CheckError("this operator is not supported on MDPs", expr.span)
 
 
-def _filter(mdp: MDP, formula: Filter) -> filters.FilterOutcome:
+def _filter(mdp: MDP, progress: Progress | None, formula: Filter) -> filters.FilterOutcome:
     where = (np.ones(mdp.num_states, dtype=bool) if formula.states is None
-             else _mask(mdp, formula.states))
-    values = mdp_values(mdp, formula.operand)
+             else _mask(mdp, progress, formula.states))
+    values = _values(mdp, progress, formula.operand)
     return filters.apply_filter(formula.op, values, where, _states(mdp), mdp.variable_names,
                                 formula.span)
 
 
-def _filter_everywhere(mdp: MDP, formula: Filter) -> Result:
+def _filter_everywhere(mdp: MDP, progress: Progress | None, formula: Filter) -> Result:
     """A filter inside a formula: its one value in every state."""
-    outcome = _filter(mdp, formula)
+    outcome = _filter(mdp, progress, formula)
     value = outcome.value
     if isinstance(value, tuple) or value is None:
         raise CheckError(f"filter({formula.op}, ...) has no single value here", formula.span)

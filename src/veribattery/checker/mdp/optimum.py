@@ -20,6 +20,7 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp.certificate import certified_values
 from veribattery.checker.mdp.components import EndComponents
 from veribattery.checker.mdp.graph import ChoiceGraph
@@ -88,7 +89,8 @@ class Approximation:
 
 
 def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
-                start: IntArray | Strategy | None = None) -> Approximation:
+                start: IntArray | Strategy | None = None, *,
+                progress: Progress | None = None) -> Approximation:
     """The equations of *problem*'s unknown classes and their approximate optimum.
 
     :param rewards: per choice, the reward of taking it (None: probabilities).
@@ -101,20 +103,22 @@ def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
     system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
     known = np.asarray(problem.known[system.known_states], dtype=np.float64)
     offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
-    progress = progress_rows(system, problem.goal[system.known_states])
+    moving = progress_rows(system, problem.goal[system.known_states])
     if isinstance(start, Strategy):
-        start = _rows_of(mdp, system, start, progress)
+        start = _rows_of(mdp, system, start, moving)
     evaluation = None
     if start is not None and start.shape == (system.size,):
-        evaluation = policy_iteration(system, problem.objective, known, offset, start)
+        evaluation = policy_iteration(system, problem.objective, known, offset, start,
+                                      progress=progress)
     else:
         evaluation = topological_policy_iteration(system, problem.objective, known, offset,
-                                                  progress)
+                                                  moving, progress=progress)
     if evaluation is None:
-        start = progress
-        evaluation = policy_iteration(system, problem.objective, known, offset, start)
+        start = moving
+        evaluation = policy_iteration(system, problem.objective, known, offset, start,
+                                      progress=progress)
     if start is None:
-        start = progress
+        start = moving
     return Approximation(system, known, offset, evaluation, start)
 
 
@@ -137,20 +141,25 @@ class Solved:
 
 
 def solve(mdp: MDP, graph: ChoiceGraph, problem: Problem,
-          rewards: FloatArray | None) -> MdpResult:
-    """*problem* solved: certified values in every state and an optimal strategy."""
-    return solve_from(mdp, graph, problem, rewards, None).result
+          rewards: FloatArray | None, *, progress: Progress | None = None) -> MdpResult:
+    """*problem* solved: certified values in every state and an optimal strategy.
+
+    :param progress: told ``(done, total, unit)`` as the solve goes: the levels of the
+        topological start, the improvement rounds, the certificate's sweeps.
+    """
+    return solve_from(mdp, graph, problem, rewards, None, progress=progress).result
 
 
 def solve_from(mdp: MDP, graph: ChoiceGraph, problem: Problem, rewards: FloatArray | None,
-               start: IntArray | Strategy | None) -> Solved:
+               start: IntArray | Strategy | None, *,
+               progress: Progress | None = None) -> Solved:
     """:func:`solve`, policy iteration started from *start* (:func:`approximate`)."""
     values = Bounds.exact(problem.known.copy())
     if not problem.unknown.any():
         return Solved(MdpResult(values, Strategy(problem.choices)), None)
-    found = approximate(mdp, problem, rewards, start)
+    found = approximate(mdp, problem, rewards, start, progress=progress)
     bounds = certified_values(found.system, problem.objective, found.known, found.offset,
-                              found.evaluation, problem.ceiling)
+                              found.evaluation, problem.ceiling, progress=progress)
     rows = found.rows
     if not bounds.precise_states().all() and found.system.size <= EXACT_LIMIT:
         rows, bounds = _exactly(mdp, problem, found, rewards)

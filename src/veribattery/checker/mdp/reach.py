@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from veribattery._types import BoolArray
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp import graph as qualitative
 from veribattery.checker.mdp.components import end_components
 from veribattery.checker.mdp.graph import ChoiceGraph, all_successors_in
@@ -27,7 +28,8 @@ __all__ = ["reach_probability", "reach_problem"]
 
 
 def reach_probability(mdp: MDP, target: BoolArray, *, objective: Objective,
-                      remain: BoolArray | None = None) -> MdpResult:
+                      remain: BoolArray | None = None,
+                      progress: Progress | None = None) -> MdpResult:
     """Minimal or maximal probability of ``remain U target`` (``F target`` without
     *remain*) in every state, with certified bounds and an optimal strategy.
 
@@ -35,11 +37,13 @@ def reach_probability(mdp: MDP, target: BoolArray, *, objective: Objective,
     :param target: states to reach.
     :param objective: ``"min"`` (Pmin) or ``"max"`` (Pmax).
     :param remain: states that may be passed through before *target* (None: all).
+    :param progress: told how far the solve is (:func:`~veribattery.checker.mdp.optimum.solve`).
     :return: probabilities, their enclosures, and a memoryless deterministic strategy
         attaining them (for Pmax: one that also makes progress inside end components).
     """
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
-    return solve(mdp, graph, reach_problem(mdp, graph, target, objective, remain), None)
+    return solve(mdp, graph, reach_problem(mdp, graph, target, objective, remain), None,
+                 progress=progress)
 
 
 def reach_problem(mdp: MDP, graph: ChoiceGraph, target: BoolArray, objective: Objective,

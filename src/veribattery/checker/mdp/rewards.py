@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp import graph as qualitative
 from veribattery.checker.mdp.components import EndComponents, end_components
 from veribattery.checker.mdp.graph import ChoiceGraph, all_successors_in, attractor
@@ -35,7 +36,7 @@ __all__ = ["reach_reward", "reach_reward_problem", "total_reward", "total_reward
 
 
 def reach_reward(mdp: MDP, rewards: FloatArray, target: BoolArray, *,
-                 objective: Objective) -> MdpResult:
+                 objective: Objective, progress: Progress | None = None) -> MdpResult:
     """Minimal or maximal expected reward accumulated until *target* (``R [ F target ]``).
 
     :param mdp: the model.
@@ -47,10 +48,11 @@ def reach_reward(mdp: MDP, rewards: FloatArray, target: BoolArray, *,
     """
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
     problem = reach_reward_problem(mdp, graph, rewards, target, objective)
-    return solve(mdp, graph, problem, rewards)
+    return solve(mdp, graph, problem, rewards, progress=progress)
 
 
-def total_reward(mdp: MDP, rewards: FloatArray, *, objective: Objective) -> MdpResult:
+def total_reward(mdp: MDP, rewards: FloatArray, *, objective: Objective,
+                 progress: Progress | None = None) -> MdpResult:
     """Minimal or maximal expected total reward (``R [ C ]``), every step counted forever.
 
     Rmax is infinite where some strategy reaches, with positive probability, an end
@@ -61,7 +63,8 @@ def total_reward(mdp: MDP, rewards: FloatArray, *, objective: Objective) -> MdpR
     :param rewards: per choice, the reward of one step taken with it (nonnegative).
     """
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
-    return solve(mdp, graph, total_reward_problem(mdp, graph, rewards, objective), rewards)
+    return solve(mdp, graph, total_reward_problem(mdp, graph, rewards, objective), rewards,
+                 progress=progress)
 
 
 def reach_reward_problem(mdp: MDP, graph: ChoiceGraph, rewards: FloatArray,

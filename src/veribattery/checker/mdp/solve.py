@@ -22,6 +22,7 @@ from scipy.sparse.linalg import splu
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify import UNIT_ROUNDOFF
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.linalg.topological import TopologicalSolver
 from veribattery.checker.mdp.graph import attractor
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
@@ -130,7 +131,8 @@ class _Residual:
 
 def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArray,
                      offset: FloatArray | None, start: IntArray,
-                     rounds: int = POLICY_ROUNDS) -> Evaluation | None:
+                     rounds: int = POLICY_ROUNDS, *,
+                     progress: Progress | None = None) -> Evaluation | None:
     """Policy iteration from the strategy *start* (rows per class).
 
     A class switches only where its best row beats the current one by more than
@@ -141,19 +143,22 @@ def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArr
     surely (a proper strategy); improvements keep that (Bertsekas & Tsitsiklis 1991).
 
     :param rounds: improvement rounds before the last strategy is taken as it is.
+    :param progress: told ``(rounds done, rounds, "improvement rounds")`` after each.
     :return: the last strategy's evaluation, or None if even *start* is singular.
     """
     current = evaluate(system, start, known, offset)
     return None if current is None else improve(system, objective, known, offset, current,
-                                                rounds)
+                                                rounds, progress=progress)
 
 
 def improve(system: ChoiceSystem, objective: Objective, known: FloatArray,
             offset: FloatArray | None, current: Evaluation,
-            rounds: int = POLICY_ROUNDS) -> Evaluation:
+            rounds: int = POLICY_ROUNDS, *, progress: Progress | None = None) -> Evaluation:
     """Policy iteration from the evaluated strategy *current* (:func:`policy_iteration`'s
     rounds): the last strategy's evaluation."""
-    for _ in range(rounds):
+    for done in range(rounds):
+        if progress is not None:
+            progress(done, rounds, "improvement rounds")
         following = _improved(system, objective, current, known, offset)
         if following is None:
             return current

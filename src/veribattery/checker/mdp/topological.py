@@ -34,6 +34,7 @@ from scipy.sparse import csgraph
 from scipy.sparse.linalg import splu
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.linalg.topological import condensation
 from veribattery.checker.mdp.graph import segments
 from veribattery.checker.mdp.solve import (
@@ -65,7 +66,8 @@ LOCAL_ROUNDS = 200
 
 def topological_policy_iteration(system: ChoiceSystem, objective: Objective,
                                  known: FloatArray, offset: FloatArray | None,
-                                 preferred: IntArray) -> Evaluation | None:
+                                 preferred: IntArray, *,
+                                 progress: Progress | None = None) -> Evaluation | None:
     """Policy iteration on the whole system from the greedy strategy of
     :func:`topological_values` (ties kept on *preferred*), or None where that does not
     apply: more than :data:`LEVEL_LIMIT` levels, or a greedy strategy that does not
@@ -74,7 +76,8 @@ def topological_policy_iteration(system: ChoiceSystem, objective: Objective,
     levels = class_levels(system)
     if levels.count > LEVEL_LIMIT:
         return None
-    values = topological_values(system, objective, known, offset, preferred, levels)
+    values = topological_values(system, objective, known, offset, preferred, levels,
+                                progress=progress)
     rows = greedy_rows(system.images(values, known, offset), system.groups[:-1], objective,
                        preferred)
     if objective == "min" and offset is not None and not is_proper(system, rows):
@@ -82,7 +85,7 @@ def topological_policy_iteration(system: ChoiceSystem, objective: Objective,
     first = evaluate(system, rows, known, offset)
     if first is None or is_improper(first.values):
         return None
-    found = improve(system, objective, known, offset, first)
+    found = improve(system, objective, known, offset, first, progress=progress)
     return tightest_among_ties(system, objective, known, offset, found)
 
 
@@ -151,12 +154,13 @@ def _longest_paths(count: int, src: IntArray, dst: IntArray) -> IntArray:
 
 def topological_values(system: ChoiceSystem, objective: Objective, known: FloatArray,
                        offset: FloatArray | None, preferred: IntArray,
-                       levels: Levels) -> FloatArray:
+                       levels: Levels, *, progress: Progress | None = None) -> FloatArray:
     """Approximately optimal values of the classes, level by level.
 
     :param preferred: per class, a row kept wherever it ties with the best (the
         progress strategy); for minimal rewards also the start of every local policy
         iteration, as it must be proper there.
+    :param progress: told ``(levels done, levels, "levels")`` after each level.
     """
     ordered = _Ordered.of(system, offset, levels)
     full = np.concatenate([np.zeros(system.size), known])
@@ -176,6 +180,8 @@ def topological_values(system: ChoiceSystem, objective: Objective, known: FloatA
             proper_only = objective == "min" and offset is not None
             start = ordered.preferred(system, preferred, classes, mid)
             full[classes] = local.optimum(objective, start, proper_only=proper_only)
+        if progress is not None:
+            progress(k + 1, levels.count, "levels")
     return full[: system.size]
 
 

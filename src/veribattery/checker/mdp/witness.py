@@ -66,18 +66,19 @@ def _path_result(mdp: MDP, path: PathFormula, objective: Objective) -> MdpResult
         raise _step_bounded(path)
     match path:
         case Eventually(operand=operand):
-            return reach_probability(mdp, _mask(mdp, operand), objective=objective)
+            return reach_probability(mdp, _mask(mdp, None, operand), objective=objective)
         case Until(left=left, right=right):
-            return reach_probability(mdp, _mask(mdp, right), objective=objective,
-                                     remain=_mask(mdp, left))
+            return reach_probability(mdp, _mask(mdp, None, right), objective=objective,
+                                     remain=_mask(mdp, None, left))
         case Globally(operand=operand):
-            return reach_probability(mdp, ~_mask(mdp, operand), objective=_opposite(objective))
+            return reach_probability(mdp, ~_mask(mdp, None, operand),
+                                     objective=_opposite(objective))
         case WeakUntil(left=left, right=right):
-            a, b = _mask(mdp, left), _mask(mdp, right)
+            a, b = _mask(mdp, None, left), _mask(mdp, None, right)
             return reach_probability(mdp, ~a & ~b, objective=_opposite(objective),
                                      remain=a & ~b)
     assert isinstance(path, Release)
-    a, b = _mask(mdp, path.left), _mask(mdp, path.right)
+    a, b = _mask(mdp, None, path.left), _mask(mdp, None, path.right)
     return reach_probability(mdp, ~b, objective=_opposite(objective), remain=~a)
 
 
@@ -88,7 +89,7 @@ def _reward_result(mdp: MDP, op: RewardOp, objective: Objective) -> MdpResult:
         raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
     match op.path:
         case Reach(target=target):
-            return reach_reward(mdp, structure.per_choice(mdp), _mask(mdp, target),
+            return reach_reward(mdp, structure.per_choice(mdp), _mask(mdp, None, target),
                                 objective=objective)
         case Total():
             return total_reward(mdp, structure.per_choice(mdp), objective=objective)
