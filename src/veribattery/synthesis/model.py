@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from veribattery.checker.mdp import MDP, MdpResult
+from veribattery.checker.mdp.multi_weighted import Interval
 from veribattery.config import MissionConfig
 from veribattery.explore.build.mdp import build_mdp
 from veribattery.lang import FlatModel, flatten_model, parse_model
@@ -23,13 +24,10 @@ from veribattery.render import render_synthesis_model
 __all__ = ["Certified", "ModelSize", "mission_mdp", "mission_model"]
 
 
-@dataclass(frozen=True, slots=True)
-class Certified:
+class Certified(Interval):
     """A value at the initial state inside a certified interval ``[lower, upper]``."""
 
-    value: float
-    lower: float
-    upper: float
+    __slots__ = ()
 
     @classmethod
     def at_initial(cls, mdp: MDP, result: MdpResult) -> Certified:
@@ -37,11 +35,6 @@ class Certified:
         start = int(mdp.initial[0])
         return cls(float(result.values[start]), float(result.lower[start]),
                    float(result.upper[start]))
-
-    @property
-    def error(self) -> float:
-        """The largest distance from the value to an end of the interval."""
-        return max(self.value - self.lower, self.upper - self.value)
 
 
 @dataclass(frozen=True, slots=True)

@@ -53,6 +53,11 @@ class Interval:
     lower: float
     upper: float
 
+    @property
+    def error(self) -> float:
+        """The largest distance from the value to an end of the interval."""
+        return max(self.value - self.lower, self.upper - self.value)
+
 
 @dataclass(frozen=True, slots=True)
 class Point:
