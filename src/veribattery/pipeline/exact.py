@@ -27,6 +27,7 @@ from veribattery.pipeline.run import (
     may_hold,
     run_checks,
     stages_of,
+    tell_building,
 )
 
 if TYPE_CHECKING:
@@ -63,8 +64,7 @@ def check_model_exact(
         aside = [resolve_property(p, flat, props_file, constants) for p in internal]
     stages = stages_of(progress)
     with watch.stage("build"):
-        if stages is not None:
-            stages.starting("building the state space")
+        tell_building(stages)
         exact = _build_exact(model, flat, constants, progress)
     dtmc = exact.dtmc
     workspace = Workspace()  # this run's caches: the float pre-pass of exact solves

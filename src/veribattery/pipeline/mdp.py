@@ -27,7 +27,14 @@ from veribattery.lang import (
     resolve_property,
 )
 from veribattery.lang.nodes import Value
-from veribattery.pipeline.run import STAGES, ProgressCallback, Stopwatch, stages_of
+from veribattery.pipeline.run import (
+    STAGES,
+    ProgressCallback,
+    Stopwatch,
+    stages_of,
+    tell_building,
+    tell_checking,
+)
 
 __all__ = ["MdpCheckRun", "check_mdp_model"]
 
@@ -91,16 +98,14 @@ def check_mdp_model(
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
     stages = stages_of(progress)
     with watch.stage("build"):
-        if stages is not None:
-            stages.starting("building the state space")
+        tell_building(stages)
         built = build_mdp(flat, progress=progress)
         mdp = as_checker_mdp(built)
     results = []
     warnings = list(built.warnings)
     with watch.stage("check"):
         for number, prop in enumerate(resolved, start=1):
-            if stages is not None:
-                stages.checking(number, len(resolved), prop.text or prop.name or "a formula")
+            tell_checking(stages, number, len(resolved), prop)
             results.append(_checked(mdp, prop, warnings,
                                     None if stages is None else stages.solving))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, tuple(warnings), model=flat)

@@ -9,7 +9,14 @@ from collections.abc import Mapping, Sequence
 from veribattery.lang import Model, PropertiesFile, Property, flatten_model, resolve_property
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp
-from veribattery.pipeline.run import STAGES, ProgressCallback, Stopwatch, stages_of
+from veribattery.pipeline.run import (
+    STAGES,
+    ProgressCallback,
+    Stopwatch,
+    stages_of,
+    tell_building,
+    tell_checking,
+)
 
 __all__ = ["check_mdp_model_exact"]
 
@@ -50,8 +57,7 @@ def check_mdp_model_exact(
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
     stages = stages_of(progress)
     with watch.stage("build"):
-        if stages is not None:
-            stages.starting("building the state space")
+        tell_building(stages)
         exact = build_exact_mdp(model, flat, constants, progress)
         mdp = as_checker_mdp(exact.built)
     decls = props_file.constants if props_file is not None else ()
@@ -59,8 +65,7 @@ def check_mdp_model_exact(
     results = []
     with watch.stage("check"):
         for number, (original, prop) in enumerate(zip(properties, resolved, strict=True), 1):
-            if stages is not None:
-                stages.checking(number, len(resolved), prop.text or prop.name or "a formula")
+            tell_checking(stages, number, len(resolved), prop)
             written = closed_numbers(original.formula, values)
             written.update(exact_bounds(original.formula, values))
             checked = ExactMdpModel(mdp, exact, written)

@@ -30,7 +30,8 @@ from veribattery.lang.nodes import (
 )
 
 __all__ = ["STAGES", "CheckOptions", "CheckProgress", "Keep", "ModelCheckRun", "ProgressCallback",
-           "Stopwatch", "internal_results", "may_hold", "run_checks", "stages_of"]
+           "Stopwatch", "internal_results", "may_hold", "run_checks", "stages_of",
+           "tell_building", "tell_checking"]
 
 #: Called while a state space is explored, with (states found, states explored).
 ProgressCallback = Callable[[int, int], None]
@@ -59,6 +60,19 @@ class CheckProgress(Protocol):
 def stages_of(progress: ProgressCallback | None) -> CheckProgress | None:
     """*progress* if it hears stages and solves too (:class:`CheckProgress`), else None."""
     return progress if isinstance(progress, CheckProgress) else None
+
+
+def tell_building(stages: CheckProgress | None) -> None:
+    """Tell *stages*, if any, that the state space is being built."""
+    if stages is not None:
+        stages.starting("building the state space")
+
+
+def tell_checking(stages: CheckProgress | None, number: int, count: int,
+                  prop: Property) -> None:
+    """Tell *stages*, if any, that property *number* (1-based) of *count* comes next."""
+    if stages is not None:
+        stages.checking(number, count, prop.text or prop.name or "a formula")
 
 #: The stages of a check, always reported (``Time: parse …, build …, check …``).
 STAGES = ("parse", "build", "check")
@@ -170,8 +184,7 @@ def run_checks(
     results: list[CheckResult] = []
     warnings: list[str] = []
     for number, (run_one, prop) in enumerate(zip(checks, resolved, strict=True), start=1):
-        if progress is not None:
-            progress.checking(number, len(resolved), prop.text or prop.name or "a formula")
+        tell_checking(progress, number, len(resolved), prop)
         try:
             result = run_one()
             results.append(result if per_state else result.without_states())

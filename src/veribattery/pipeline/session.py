@@ -31,6 +31,7 @@ from veribattery.pipeline.run import (
     may_hold,
     run_checks,
     stages_of,
+    tell_building,
 )
 
 if TYPE_CHECKING:
@@ -143,8 +144,7 @@ class Session:
             if self.rewards == "named":
                 flat = _named_rewards_only(flat, resolved + aside)
         with watch.stage("build"):
-            if stages is not None:
-                stages.starting("building the state space")
+            tell_building(stages)
             dtmc, reused = self._build(flat, progress)
         live = [may_hold(dtmc, p) for p in aside]
         formulas = [p.formula for p in resolved] + [
