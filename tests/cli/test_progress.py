@@ -164,17 +164,23 @@ def test_bad_intervals_are_a_user_error(monkeypatch: pytest.MonkeyPatch, value: 
 _SOLVING = re.compile(r"^solving P=\? \[ F s=4 & z/N<0\.1 \]: (\d+) of 668 states, \d+ s$")
 
 
-def _piped(env: dict[str, str]) -> subprocess.CompletedProcess[str]:
-    """``veribattery ARGS`` with stdout and stderr pipes (as in CI or ``2> log``)."""
-    command = [sys.executable, "-c", "from veribattery.cli import main; main()", *ARGS]
+def _piped(env: dict[str, str], *args: str) -> subprocess.CompletedProcess[str]:
+    """``veribattery ARGS`` (or *args*) with stdout and stderr pipes (as in CI or
+    ``2> log``)."""
+    command = [sys.executable, "-c", "from veribattery.cli import main; main()",
+               *(args or ARGS)]
     return subprocess.run(command, capture_output=True, text=True, check=True,
                           env={**os.environ, **env})
+
+
+#: The environment that makes every report a line.
+_EVERY = {progress.INTERVALS_VARIABLE: "0,0"}
 
 
 def test_a_long_check_tells_its_stages_and_solves_on_a_pipe() -> None:
     quiet = _piped({})
     assert quiet.stderr == ""  # a short run prints nothing
-    told = _piped({progress.INTERVALS_VARIABLE: "0,0"})
+    told = _piped(_EVERY)
     lines = told.stderr.splitlines()
     assert lines[0] == "building the state space"
     stages = [line for line in lines if not line.startswith(("exploring", "solving"))]
@@ -225,10 +231,7 @@ def test_a_step_bounded_check_tells_its_steps_on_a_pipe(tmp_path: Path) -> None:
     model = tmp_path / "walk.pm"
     model.write_text("dtmc\nmodule w\n x : [0..50] init 0;\n"
                      " [] x<50 -> 0.5:(x'=x+1) + 0.5:(x'=x);\n [] x=50 -> true;\nendmodule\n")
-    command = [sys.executable, "-c", "from veribattery.cli import main; main()", "prism",
-               str(model), "--property", "P=? [ F<=60 x=50 ]", "--json"]
-    told = subprocess.run(command, capture_output=True, text=True, check=True,
-                          env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+    told = _piped(_EVERY, "prism", str(model), "--property", "P=? [ F<=60 x=50 ]", "--json")
     steps = re.findall(r"^solving P=\? \[ F<=60 x=50 \]: (\d+) of 60 steps, \d+ s$",
                        told.stderr, flags=re.MULTILINE)
     assert [int(s) for s in steps] == list(range(1, 61))
@@ -243,11 +246,8 @@ def test_an_mdp_check_tells_its_stages_on_a_pipe(tmp_path: Path) -> None:
     model.write_text("mdp\nmodule m\n s : [0..2] init 0;\n [a] s=0 -> 0.5:(s'=1) + 0.5:(s'=2);\n"
                      " [b] s=0 -> (s'=2);\n [] s>0 -> true;\nendmodule\n")
     for exact in ((), ("--exact",)):
-        command = [sys.executable, "-c", "from veribattery.cli import main; main()", "prism",
-                   str(model), "--property", "Pmax=? [ F s=1 ]", "--property",
-                   "Pmin=? [ F s=1 ]", *exact]
-        told = subprocess.run(command, capture_output=True, text=True, check=True,
-                              env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+        told = _piped(_EVERY, "prism", str(model), "--property", "Pmax=? [ F s=1 ]",
+                      "--property", "Pmin=? [ F s=1 ]", *exact)
         stages = [line for line in told.stderr.splitlines()
                   if not line.startswith(("exploring", "solving"))]
         assert stages == ["building the state space",
@@ -258,10 +258,8 @@ def test_an_mdp_check_tells_its_stages_on_a_pipe(tmp_path: Path) -> None:
 
 
 def test_synthesize_tells_each_weighted_solve_of_its_front() -> None:
-    command = [sys.executable, "-c", "from veribattery.cli import main; main()", "synthesize",
-               CASE1, *SYNTHESIS, "--require", "0.9", "--format", "json"]
-    told = subprocess.run(command, capture_output=True, text=True, check=True,
-                          env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+    told = _piped(_EVERY, "synthesize", CASE1, *SYNTHESIS, "--require", "0.9", "--format",
+                  "json")
     solves = [int(n) for n in re.findall(r"^solving: weighted solve (\d+), \d+ s$",
                                          told.stderr, flags=re.MULTILINE)]
     document = json.loads(told.stdout)
@@ -283,11 +281,8 @@ def test_an_mdp_solve_tells_its_levels_and_keeps_its_values(tmp_path: Path) -> N
                      " [up] s<30 -> 0.9:(s'=s+1) + 0.1:(s'=31);\n"
                      " [risky] s<30 -> 0.5:(s'=s+1) + 0.5:(s'=31);\n [] s>=30 -> true;\n"
                      "endmodule\n")
-    command = [sys.executable, "-c", "from veribattery.cli import main; main()", "prism",
-               str(model), "--property", "Pmax=? [ F s=30 ]", "--json"]
-    quiet = subprocess.run(command, capture_output=True, text=True, check=True)
-    told = subprocess.run(command, capture_output=True, text=True, check=True,
-                          env={**os.environ, progress.INTERVALS_VARIABLE: "0,0"})
+    args = ("prism", str(model), "--property", "Pmax=? [ F s=30 ]", "--json")
+    quiet, told = _piped({}, *args), _piped(_EVERY, *args)
     levels = re.findall(r"^solving Pmax=\? \[ F s=30 \]: (\d+) of (\d+) levels, \d+ s$",
                         told.stderr, flags=re.MULTILINE)
     assert levels and [int(done) for done, _ in levels] == list(range(1, len(levels) + 1))
