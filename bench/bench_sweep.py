@@ -1,6 +1,6 @@
 """Bench: the Fig. 6 sweep end to end against a serial loop of Storm over the emitted files.
 
-    python bench/bench_sweep.py [-j 2] [--stride K]
+    python bench/bench_sweep.py [-j 2] [--stride K] [--optimal]
 
 Like for like: veribattery runs what ``veribattery reproduce fig6`` runs -- the same
 axes and ``--set`` strings (:func:`veribattery.analyses.figures.capacity_sets`: the
@@ -14,6 +14,11 @@ Wall and CPU seconds are reported for both sides. Values are compared (1e-6 rela
 Storm's default solver precision). The run's row replaces the previous run's with the
 same points (the whole grid, or one subset) in ``docs/_bench/bench_sweep.md``, which
 the documentation's performance page includes.
+
+``--optimal`` measures ``reproduce fig6 --optimal``: each point is also swept in
+synthesis mode (``--vary strategy.mode=bs1,synthesize``: BS1's P(success) and the
+mission MDP's certified ``Pmax``), and Storm's loop also parses, builds and checks
+``Pmax=? [ F "success" ]`` on each emitted MDP (its row is marked "+ Pmax").
 """
 
 from __future__ import annotations
@@ -56,14 +61,16 @@ def fig6_sets() -> tuple[str, ...]:
     return capacity_sets(["fig6"])
 
 
-def run_ours(config: Path, stride: int, jobs: int, results: Path) -> tuple[float, float, float]:
+def run_ours(config: Path, stride: int, jobs: int, results: Path,
+             optimal: bool) -> tuple[float, float, float]:
     """Wall seconds, CPU seconds (all processes) and peak RSS (MB, largest process) of
     the whole sweep command."""
     exe = str(Path(sys.executable).parent / "veribattery")
     step = Decimal(stride) / 10
     sets = [arg for item in fig6_sets() for arg in ("--set", item)]
+    modes = ["--vary", "strategy.mode=bs1,synthesize"] if optimal else []
     argv = [exe, "sweep", str(config), "--vary", f"battery.model={','.join(MODELS)}",
-            "--vary", f"battery.capacity_ah=5:20:{step}", *sets, "-j", str(jobs),
+            "--vary", f"battery.capacity_ah=5:20:{step}", *modes, *sets, "-j", str(jobs),
             "-o", str(results), "--format", "csv"]
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     started = time.perf_counter()
@@ -74,57 +81,69 @@ def run_ours(config: Path, stride: int, jobs: int, results: Path) -> tuple[float
     return seconds, cpu, after.ru_maxrss / 1024
 
 
-def emit_all(config: Path, caps: list[Decimal], folder: Path) -> list[tuple[str, Decimal, Path]]:
-    """Emit every point's files (not timed)."""
+#: The emitted files of one point: (model, capacity, property name, folder, formula).
+Emitted = tuple[str, Decimal, str, Path, str]
+
+
+def emit_all(config: Path, caps: list[Decimal], folder: Path,
+             optimal: bool) -> list[Emitted]:
+    """Emit every point's files (not timed): BS1's DTMC, and with *optimal* the MDP."""
     from veribattery.config import load_config
+    from veribattery.config.schema import PAPER_PROPERTIES
     from veribattery.mission import mission_files, write_files
+    from veribattery.synthesis import synthesis_files
 
     points = []
     for model in MODELS:
         for cap in caps:
-            where = folder / f"{model}-{cap}"
             cfg = load_config(config, [*fig6_sets(), f"battery.model={model}",
                                        f"battery.capacity_ah={cap}"])
+            where = folder / f"{model}-{cap}"
             write_files(mission_files(cfg), where)
-            points.append((model, cap, where))
+            points.append((model, cap, "p_success", where, PAPER_PROPERTIES["p_success"]))
+            if optimal:
+                write_files(synthesis_files(cfg), where / "mdp")
+                points.append((model, cap, "p_success_max", where / "mdp",
+                               'Pmax=? [ F "success" ]'))
     return points
 
 
-Values = dict[tuple[str, str], list[float]]
+Values = dict[tuple[str, str, str], float]
 
 
-def run_storm(points: list[tuple[str, Decimal, Path]]) -> tuple[float, float, Values]:
-    """Wall and CPU seconds of Storm's serial loop (parse, build, check P(success)) and
-    its values per point."""
+def run_storm(points: list[Emitted]) -> tuple[float, float, Values]:
+    """Wall and CPU seconds of Storm's serial loop (parse, build, check) and its value
+    per point and property."""
     import stormpy
 
-    from veribattery.config.schema import PAPER_PROPERTIES
-
-    text = PAPER_PROPERTIES["p_success"]
     values: Values = {}
     started, cpu = time.perf_counter(), time.process_time()
-    for model, cap, folder in points:
+    for model, cap, name, folder, text in points:
         program = stormpy.parse_prism_program(str(folder / "model.prism"))
         props = stormpy.parse_properties(text, program)
         built = stormpy.build_model(program, props)
         init = built.initial_states[0]
-        values[(model, str(cap))] = [float(stormpy.model_checking(built, p).get_value(init))
-                                     for p in props]
+        values[(model, _capacity(cap), name)] = float(
+            stormpy.model_checking(built, props[0]).get_value(init))
     return time.perf_counter() - started, time.process_time() - cpu, values
+
+
+def _capacity(text: object) -> str:
+    return str(Decimal(str(text)).normalize())
 
 
 def agree(results: Path, storm: Values) -> bool:
     """Every value within 1e-6 relative of Storm's."""
-    ours: dict[tuple[str, str], list[float]] = {}
+    ours: dict[tuple[str, str, str], float] = {}
     with results.open() as stream:
         for row in csv.DictReader(stream):
-            key = (row["battery.model"], str(Decimal(row["battery.capacity_ah"]).normalize()))
-            ours.setdefault(key, []).append(float(row["value"]))
-    for (model, cap), theirs in storm.items():
-        mine = ours[(model, str(Decimal(cap).normalize()))]
-        for a, b in zip(mine, theirs, strict=True):
-            if abs(a - b) > 1e-6 * max(abs(a), abs(b), 1e-300):
-                return False
+            key = (row["battery.model"], _capacity(row["battery.capacity_ah"]), row["property"])
+            ours[key] = float(row["value"])
+    for key, theirs in storm.items():
+        mine = ours[key]
+        if abs(mine - theirs) > 1e-6 * max(abs(mine), abs(theirs), 1e-300):
+            print(f"disagree at {key}: ours {mine!r}, Storm {theirs!r}", file=sys.stderr)
+            return False
     return True
 
 
@@ -133,18 +152,22 @@ def main() -> None:
     parser.add_argument("-j", "--jobs", type=int, default=2)
     parser.add_argument("--stride", type=int, default=1,
                         help="keep every K-th capacity (a subset when the machine is busy)")
+    parser.add_argument("--optimal", action="store_true",
+                        help="also Pmax of the mission MDP at each point (fig6 --optimal)")
     args = parser.parse_args()
     caps = capacities(args.stride)
     subset = "" if args.stride == 1 else f" (SUBSET: every {args.stride}th capacity)"
+    subset += " + Pmax" if args.optimal else ""
     print(f"{len(caps) * 4} points{subset}; load average {os.getloadavg()[0]:.1f}", flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         config = Path(tmp) / "fig6.yaml"
         config.write_text("{}\n")  # reproduce fig6 sweeps the baseline with --set strings
         ours_s, ours_cpu, peak = run_ours(config, args.stride, args.jobs,
-                                          Path(tmp) / "results.csv")
+                                          Path(tmp) / "results.csv", args.optimal)
         print(f"veribattery sweep -j {args.jobs}: {ours_s:.1f} s wall, {ours_cpu:.1f} s CPU "
               f"(peak RSS {peak:.0f} MB)", flush=True)
-        storm_s, storm_cpu, values = run_storm(emit_all(config, caps, Path(tmp) / "emitted"))
+        emitted = emit_all(config, caps, Path(tmp) / "emitted", args.optimal)
+        storm_s, storm_cpu, values = run_storm(emitted)
         same = agree(Path(tmp) / "results.csv", values)
     ratio = ours_s / storm_s
     print(f"Storm serial loop: {storm_s:.1f} s wall, {storm_cpu:.1f} s CPU; wall ratio "

@@ -52,7 +52,7 @@ ROOT_LAYER = 8.5
 #: the grid runner the others use; a report draws on the analyses. analyses and phm do
 #: not import each other.
 SIBLINGS: dict[str, frozenset[str]] = {
-    "sweep": frozenset(),
+    "sweep": frozenset({"synthesis"}),
     "analyses": frozenset({"sweep"}),
     "phm": frozenset({"sweep"}),
     "report": frozenset({"analyses", "sweep"}),

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from fractions import Fraction
 from pathlib import Path
 
 import pandas as pd
@@ -162,34 +161,41 @@ def test_fig6_with_the_optimal_curves(frame: pd.DataFrame, tmp_path: Path) -> No
     assert table.loc[12.5, "p_success_max_upper:basic_medium"] == (bs1 + 1) / 2 + 1e-9
 
 
-def test_reproduce_fig6_optimal_asks_pmax_of_each_model_and_capacity(
+def test_reproduce_fig6_optimal_sweeps_pmax_of_each_model_and_capacity_resumably(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    # Pmax of the paper's farm is too slow here (tests/synthesis/test_sweep_pmax.py
-    # checks the values): a stand-in records the configs asked, in the sweep's order.
+    # Pmax of the paper's farm is too slow here (tests/sweep/test_synthesis_points.py
+    # checks the values): a stand-in records the MDPs asked, in the sweep's order.
     from veribattery.synthesis import sweep_pmax
-    from veribattery.synthesis.model import Certified
+    from veribattery.synthesis.model import Certified, ModelSize
 
-    asked = []
+    asked: list[str] = []
 
-    def pmax(cfgs: list[object], *, jobs: int, progress: object) -> list[Certified]:
-        asked.extend(cfgs)
-        return [Certified(0.9, 0.8, 1.0)] * len(cfgs)
+    def pmax(text: str) -> sweep_pmax.MissionPmax:
+        asked.append(text)
+        return sweep_pmax.MissionPmax(Certified(0.9, 0.8, 1.0), ModelSize(3, 4, 5))
 
-    monkeypatch.setattr(sweep_pmax, "pmax_of_configs", pmax)
+    monkeypatch.setattr(sweep_pmax, "pmax_of_model", pmax)
     sets = figures.capacity_sets(["fig6"])
     _finished_sweep(tmp_path, figures.capacity_results(["fig6"]), figures.CAPACITY_AXES, sets)
     args = ["reproduce", "fig6", "-o", str(tmp_path), "-j", "1", "--optimal"]
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
-    assert "Pmax: 604 points" in result.stderr
+    assert "Pmax of success" in result.stderr
     assert len(asked) == 604
-    assert (asked[0].battery.model, asked[0].battery.capacity_ah) == ("advanced", 5.0)
-    assert (asked[-1].battery.model, asked[-1].battery.capacity_ah) == ("basic_low", 20.0)
-    assert {(c.strategy.safe_t, c.environment.p_wsp_c) for c in asked} == {
-        (Fraction(3, 10), Fraction(1, 10))}
-    assert asked[78].battery.capacity_ah == Fraction(64, 5)  # 12.8 exactly, as the sweep's
+    assert "Synthesis mode" in asked[0] and "[abort]" in asked[0]  # the mission MDP
+    swept = pd.read_csv(tmp_path / figures.OPTIMAL_RESULTS)
+    assert len(swept) == 604 * 3
+    first, last = swept.iloc[0], swept.iloc[-1]
+    assert (first["battery.model"], first["battery.capacity_ah"]) == ("advanced", 5.0)
+    assert (last["battery.model"], last["battery.capacity_ah"]) == ("basic_low", 20.0)
     table = pd.read_csv(tmp_path / "fig6.csv", index_col="capacity_ah")
     assert table.loc[12.8, "p_success_max_lower:advanced"] == 0.8
+    assert table.loc[12.8, "p_success_max_upper:basic_low"] == 1.0
+    # a rerun resumes the finished Pmax sweep: nothing is asked again
+    again = CliRunner().invoke(cli, [*args, "--force"])
+    assert again.exit_code == 0, again.output
+    assert len(asked) == 604
+    assert "604 of 604 points already done" in again.stderr
 
 
 def test_optimal_is_for_fig6() -> None:

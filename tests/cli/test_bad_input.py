@@ -145,10 +145,10 @@ CASES: list[tuple[str, list[str]]] = [
                                       "existing.svg"]),
     ("synthesize-same-file", ["synthesize", CASE1, *SYNTHESIS, "--csv", "t.csv",
                               "--pareto-csv", "t.csv"]),
-    ("sweep-synthesis", ["sweep", CASE1, *SMALL, "--set", "strategy.mode=synthesize",
-                         "--vary", "battery.capacity_ah=10,11", "-o", "results.csv"]),
-    ("sweep-vary-mode", ["sweep", CASE1, *SMALL, "--vary", "strategy.mode=bs1,synthesize",
-                         "-o", "results.csv"]),
+    # a synthesis point gives p_success_max and its interval, not BS1's p_success
+    ("sweep-synthesis-plot", ["sweep", CASE1, *SMALL, "--set", "strategy.mode=synthesize",
+                              "--vary", "battery.capacity_ah=10,11", "-o", "results.csv",
+                              "--plot", "p.png", "--plot-property", "p_success"]),
     # report
     ("report-no-output", ["report", CASE1, *SMALL]),
     ("report-output-type", ["report", CASE1, *SMALL, "-o", "r.pdf"]),

@@ -36,6 +36,7 @@ __all__ = [
     "GIVEN_SUCCESS",
     "MODELS",
     "OPTIMAL_COLUMNS",
+    "OPTIMAL_RESULTS",
     "TABLE3_AXES",
     "SweepOptions",
     "capacity_results",
@@ -43,6 +44,8 @@ __all__ = [
     "capacity_sweep",
     "draw_fig6",
     "draw_fig8",
+    "optimal_curves",
+    "optimal_sweep",
     "table3_frame",
     "table3_sweep",
 ]
@@ -66,6 +69,8 @@ FIGURE_PROPERTIES = {"fig6": ("p_success",), "fig8": ("exp_mission_time", GIVEN_
 #: The columns of Fig. 6's optimal curves: ``Pmax [ F "success" ]`` and its certified
 #: interval (the sweep's ``--optimal`` adds them).
 OPTIMAL_COLUMNS = ("p_success_max", "p_success_max_lower", "p_success_max_upper")
+#: Where ``--optimal``'s sweep (the capacity sweep in synthesis mode) keeps its rows.
+OPTIMAL_RESULTS = "fig6_optimal_sweep.csv"
 _X = "battery.capacity_ah"
 _ZOOM = (11.5, 13.5)
 _STYLE = {"advanced": ("black", "-"), "basic_high": ("tab:blue", "--"),
@@ -96,6 +101,23 @@ def capacity_sweep(
     properties they draw, resumable in ``directory/`` :func:`capacity_results`."""
     return options.run(CAPACITY_AXES, capacity_sets(figures),
                        directory / capacity_results(figures))
+
+
+def optimal_sweep(directory: Path, options: SweepOptions) -> pd.DataFrame:
+    """The capacity sweep in synthesis mode, resumable in ``directory/``
+    :data:`OPTIMAL_RESULTS`: at each model and capacity, the best return policy's certified
+    ``Pmax`` of success (rows named by :data:`OPTIMAL_COLUMNS`; one MDP per point, which
+    does not depend on ``safe_t``)."""
+    return options.run(CAPACITY_AXES, (*CAPACITY_SETS, "strategy.mode=synthesize"),
+                       directory / OPTIMAL_RESULTS)
+
+
+def optimal_curves(frame: pd.DataFrame) -> pd.DataFrame:
+    """:func:`optimal_sweep`'s rows as :func:`draw_fig6` takes them: one row per model and
+    capacity, with the columns :data:`OPTIMAL_COLUMNS`."""
+    rows = frame[frame["property"].isin(OPTIMAL_COLUMNS)]
+    table = rows.pivot(index=["battery.model", _X], columns="property", values="value")
+    return table[list(OPTIMAL_COLUMNS)].astype(float).rename_axis(None, axis=1).reset_index()
 
 
 def capacity_sets(figures: Sequence[str]) -> tuple[str, ...]:

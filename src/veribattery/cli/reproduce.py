@@ -47,7 +47,8 @@ def reproduce_command(
     DIR/fig8_sweep.csv), so an interrupted run resumes where it stopped.
     The files written are listed on stderr; stdout has only Table 3.
     --optimal adds to Fig. 6 and its CSV, per model and capacity, the certified
-    Pmax of success over every return policy (veribattery synthesize's).
+    Pmax of success over every return policy (veribattery synthesize's), from a
+    second sweep in synthesis mode, resumable in DIR/fig6_optimal_sweep.csv.
     """
     if optimal and what not in ("fig6", "all"):
         raise click.UsageError("--optimal draws on Fig. 6: use it with fig6 or all")
@@ -84,33 +85,21 @@ def _reproduce(what: str, directory: Path, options: Any, output_format: str,
             frame = figures.capacity_sweep(_mkdir(directory), options, drawn)
             _report_failures(frame, figures.capacity_results(drawn))
             if what in ("fig6", "all"):
-                best = _optimal_frame(frame, options.jobs) if optimal else None
+                best = _optimal_frame(directory, options) if optimal else None
                 print_written(*figures.draw_fig6(frame, directory, best))
             if what in ("fig8", "all"):
                 print_written(*figures.draw_fig8(frame, directory))
 
 
-def _optimal_frame(frame: Any, jobs: int) -> Any:
-    """Per model and capacity of the sweep *frame*, the certified Pmax of success."""
-    from veribattery.analyses.figures import CAPACITY_SETS, OPTIMAL_COLUMNS
-    from veribattery.config import load_config
-    from veribattery.synthesis.sweep_pmax import pmax_of_configs
+def _optimal_frame(directory: Path, options: Any) -> Any:
+    """Per model and capacity of Fig. 6, the best policy's certified Pmax of success."""
+    from veribattery.analyses import figures
 
-    keys = ["battery.model", "battery.capacity_ah"]
-    points = frame[keys].drop_duplicates().reset_index(drop=True)
-    cfgs = [load_config("", (*CAPACITY_SETS, f"battery.model={model}",
-                             f"battery.capacity_ah={float(capacity)!r}"))
-            for model, capacity in points.itertuples(index=False)]
-    err.print(f"Pmax: {len(cfgs)} points", markup=False, style="dim")
-    values = pmax_of_configs(cfgs, jobs=jobs, progress=_pmax_progress)
-    for column, part in zip(OPTIMAL_COLUMNS, ("value", "lower", "upper"), strict=True):
-        points[column] = [getattr(value, part) for value in values]
-    return points
-
-
-def _pmax_progress(done: int, total: int) -> None:
-    if done == total or done % 5 == 0:
-        err.print(f"Pmax: {done} of {total} models", markup=False, style="dim")
+    err.print("Pmax of success: the mission MDP at each model and capacity", markup=False,
+              style="dim")
+    frame = figures.optimal_sweep(directory, options)
+    _report_failures(frame, figures.OPTIMAL_RESULTS)
+    return figures.optimal_curves(frame)
 
 
 def _table3_in_process(output_format: str) -> None:

@@ -67,12 +67,13 @@ def sweep_command(
     """
     from veribattery.config import load_config
     from veribattery.sweep import any_requirement_fails, axes_from, default_jobs, summary_line
+    from veribattery.sweep.synthesis_point import swept_properties
 
     with user_errors():
         cfg = load_config(config, overrides)
         axes = axes_from(specs, cfg.sweep.vary)
-        _refuse_synthesis(cfg, axes)
-        _check_plot_options(plot_path, plot_property, plot_x, axes, cfg.properties, force)
+        properties = swept_properties(cfg, axes)
+        _check_plot_options(plot_path, plot_property, plot_x, axes, properties, force)
         frame = run_with_progress(
             config, axes, overrides, results, jobs=jobs or default_jobs(), scheduler=scheduler,
             force=force,
@@ -81,21 +82,11 @@ def sweep_command(
             name = plot_property or str(frame["property"].dropna().iloc[0])
             from veribattery.sweep import plot_sweep
 
-            print_written(plot_sweep(frame, plot_x, name, plot_path, properties=cfg.properties))
+            print_written(plot_sweep(frame, plot_x, name, plot_path, properties=properties))
     print_warnings(frame.attrs.get("warnings", ()))
     print_sweep(frame, [axis.key for axis in axes], output_format)
     err.print(summary_line(frame), markup=False)
     sys.exit(1 if frame.attrs.get("failed") or any_requirement_fails(frame) else 0)
-
-
-def _refuse_synthesis(cfg: Any, axes: Sequence[Any]) -> None:
-    """Refuse, before any file is written, a grid with a point in synthesis mode: a
-    sweep checks BS1's DTMC at each point (``synthesize`` answers one config)."""
-    cfg.require_bs1()
-    for axis in axes:
-        if axis.key == "strategy.mode" and "synthesize" in map(str, axis.values):
-            raise OptionError("--vary strategy.mode: a sweep checks BS1's DTMC at each "
-                              "point; run `veribattery synthesize CONFIG` per config instead")
 
 
 def _check_plot_options(plot_path: Path | None, plot_property: str | None,
@@ -103,7 +94,7 @@ def _check_plot_options(plot_path: Path | None, plot_property: str | None,
                         force: bool) -> None:
     """Every plot option checked before the first point: file, x key, property."""
     if plot_property is not None and plot_property not in properties:
-        raise OptionError(f"--plot-property {plot_property}: the config has no such property "
+        raise OptionError(f"--plot-property {plot_property}: the sweep has no such property "
                           f"(properties: {', '.join(properties)})")
     if plot_path is None:
         return

@@ -54,6 +54,24 @@ class RenderedMission:
         cfg.require_bs1()
         return cls(cfg, render_model(cfg), render_properties(cfg))
 
+    @classmethod
+    def of_point(cls, cfg: MissionConfig) -> RenderedMission:
+        """*cfg* rendered as a sweep point of either mode: as :meth:`of`, or in synthesis
+        mode the mission MDP and no properties (such a point is asked ``Pmax`` of success).
+
+        :raises ConfigError: when the config's numbers overflow PRISM's integers.
+        """
+        if cfg.strategy.mode != "synthesize":
+            return cls.of(cfg)
+        from veribattery.render import render_synthesis_model
+
+        return cls(cfg, render_synthesis_model(cfg), "")
+
+    @property
+    def is_mdp(self) -> bool:
+        """Whether the model is the mission MDP (``strategy.mode: synthesize``)."""
+        return self.config.strategy.mode == "synthesize"
+
 
 def check_mission(
     cfg: MissionConfig, *, progress: ProgressCallback | None = None, exact: bool = False,
@@ -167,12 +185,14 @@ def reuse_key(mission: RenderedMission, parses: ParseCache | None = None) -> str
     variables, initial states, guards and assignments (every constant they use
     appears by value), and leaves out update probabilities, rewards and labels.
     Equal keys are necessary for re-use; a :class:`MissionSession` still falls back
-    to a full build where a probability becomes 0 or 1.
+    to a full build where a probability becomes 0 or 1. The mission MDP has no key.
 
     :param parses: the parse cache to use (a sweep asks for the keys of many similar
         missions in a row).
     """
     from veribattery.explore.reuse.structure import structure_key  # sweeps only
 
+    if mission.is_mdp:
+        return None  # an MDP's build is not re-used
     model = (parses or ParseCache()).model(mission.model)
     return structure_key(flatten_model(model))

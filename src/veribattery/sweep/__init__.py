@@ -8,7 +8,9 @@ module importing matplotlib, loaded on first use of :func:`plot_sweep`)::
     frame = run_sweep("mission.yaml", axes, jobs=2, results="sweep.csv")  # durable, resumable
 
 Modules: :mod:`~veribattery.sweep.grid` (axes and grids), :mod:`~veribattery.sweep.tasks`
-(units of work), :mod:`~veribattery.sweep.execute` (in-process, process pool, Dask),
+(units of work; what a point gives back: :mod:`~veribattery.sweep.point_result`, and a
+point in synthesis mode: :mod:`~veribattery.sweep.synthesis_point`),
+:mod:`~veribattery.sweep.execute` (in-process, process pool, Dask),
 :mod:`~veribattery.sweep.store` (durable RESULTS files), :mod:`~veribattery.sweep.fingerprint`
 (which sweep a RESULTS file belongs to), :mod:`~veribattery.sweep.summary` (warnings),
 :mod:`~veribattery.sweep.run` (the orchestration) and :mod:`~veribattery.sweep.plot`.

@@ -54,6 +54,9 @@ PROPERTY_LABELS: dict[str, str] = {
     "exp_recharges": "expected recharges",
     "exp_mission_time_given_success": "expected mission time given success (min)",
     "exp_recharges_given_success": "expected recharges given success",
+    "p_success_max": "Pmax(success), best return policy",
+    "p_success_max_lower": "Pmax(success), certified lower end",
+    "p_success_max_upper": "Pmax(success), certified upper end",
 }
 
 
@@ -69,8 +72,9 @@ def property_label(name: str, formula: str | None = None) -> str:
         used only if *formula* is the paper's (a config may give the name another meaning).
     """
     label = PROPERTY_LABELS.get(name)
-    if label is None or (formula is not None and _squash(formula) != _squash(
-            PAPER_PROPERTIES.get(name, ""))):
+    paper = PAPER_PROPERTIES.get(name)
+    if label is None or (formula is not None and paper is not None
+                         and _squash(formula) != _squash(paper)):
         return name
     return label
 

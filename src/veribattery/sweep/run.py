@@ -138,7 +138,8 @@ class _Sweep:
             retried = len(self.rows) - len(done)
             notes(f"{len(done)} of {total} points already done"
                   + (f"; {retried} failed points are retried" if retried else ""))
-        pending = [(i, RenderedMission.of(c)) for i, c in enumerate(self.configs) if i not in done]
+        pending = [(i, RenderedMission.of_point(c)) for i, c in enumerate(self.configs)
+                   if i not in done]
         whole = list(enumerate(self.configs)) if done else None
         tasks, plan = plan_tasks(pending, jobs, whole, self.parses)
         if pending:

@@ -26,6 +26,7 @@ from veribattery.mission import (
     RenderedMission,
     reuse_key,
 )
+from veribattery.sweep.point_result import PointResult, PropertyValue
 
 if TYPE_CHECKING:
     from multiprocessing.connection import Connection
@@ -33,30 +34,6 @@ if TYPE_CHECKING:
 
 __all__ = ["PointCheck", "PointResult", "PointStream", "PropertyValue", "ReusePlan", "Task",
            "Worker", "plan_tasks", "run_task", "start_worker"]
-
-
-@dataclass(frozen=True, slots=True)
-class PropertyValue:
-    """One property's value at a point, with the requirements on it and their verdict."""
-
-    name: str
-    value: float | bool
-    requirement: str | None
-    holds: bool | None
-
-
-@dataclass(frozen=True, slots=True)
-class PointResult:
-    """The outcome of checking one grid point (*error* set, and no values, if it failed)."""
-
-    index: int
-    values: tuple[PropertyValue, ...] = ()
-    states: int | None = None
-    transitions: int | None = None
-    seconds: float = 0.0
-    recharge_cap_probability: float | None = None
-    warnings: tuple[str, ...] = ()
-    error: str | None = None
 
 
 #: A grid point to check: its index and its rendered mission.
@@ -145,7 +122,7 @@ def _in_shared_runs(points: Sequence[Point], keys: dict[int, str | None],
             if key is not None and 0 <= near < len(grid):
                 other, cfg = grid[near]
                 if other not in keys:
-                    keys[other] = reuse_key(RenderedMission.of(cfg), parses)
+                    keys[other] = reuse_key(RenderedMission.of_point(cfg), parses)
                 if keys[other] == key:
                     found.add(index)
     return found
@@ -280,9 +257,15 @@ def run_task(task: Task, check: PointCheck | None = None) -> list[PointResult]:
 
 
 def check_point(session: MissionSession, index: int, mission: RenderedMission) -> PointResult:
-    """Check one point; any failure becomes the point's *error* and the sweep goes on."""
+    """Check one point; any failure becomes the point's *error* and the sweep goes on.
+
+    A point in synthesis mode asks its MDP for ``Pmax`` of success
+    (:mod:`~veribattery.sweep.synthesis_point`).
+    """
     started = time.perf_counter()
     try:
+        if mission.is_mdp:
+            return _synthesis_point(index, mission, started)
         report = session.check(mission)
     except MemoryError:
         return PointResult(index, seconds=time.perf_counter() - started, error="out of memory")
@@ -290,6 +273,15 @@ def check_point(session: MissionSession, index: int, mission: RenderedMission) -
         return PointResult(index, seconds=time.perf_counter() - started,
                            error=one_line(f"{type(exc).__name__}: {exc}"))
     return point_result(index, report, time.perf_counter() - started)
+
+
+def _synthesis_point(index: int, mission: RenderedMission, started: float) -> PointResult:
+    # imported here: BS1 sweeps never load the MDP engine
+    from veribattery.sweep.synthesis_point import synthesis_point
+    from veribattery.synthesis.sweep_pmax import pmax_of_model
+
+    answer = pmax_of_model(mission.model)
+    return synthesis_point(index, mission.config, answer, time.perf_counter() - started)
 
 
 def point_result(index: int, report: MissionReport, seconds: float) -> PointResult:

@@ -21,7 +21,7 @@ from veribattery.pipeline import ProgressCallback
 from veribattery.pipeline.mdp import as_checker_mdp
 from veribattery.render import render_synthesis_model
 
-__all__ = ["Certified", "ModelSize", "mission_mdp", "mission_model"]
+__all__ = ["Certified", "ModelSize", "built_model", "mission_mdp", "mission_model"]
 
 
 class Certified(Interval):
@@ -65,5 +65,13 @@ def mission_model(cfg: MissionConfig, *,
                   progress: ProgressCallback | None = None) -> tuple[FlatModel, MDP]:
     """:func:`mission_mdp` and the flat PRISM model it was built from (which the
     induced DTMC's text needs: its variables, labels and rewards)."""
-    model = flatten_model(parse_model(render_synthesis_model(cfg), name=MODEL_FILE))
+    return built_model(render_synthesis_model(cfg), progress=progress)
+
+
+def built_model(text: str, *,
+                progress: ProgressCallback | None = None) -> tuple[FlatModel, MDP]:
+    """The flat model and the MDP of the mission MDP *text* (as
+    :func:`~veribattery.render.render_synthesis_model` writes it; a sweep point renders
+    it once, where the point is planned)."""
+    model = flatten_model(parse_model(text, name=MODEL_FILE))
     return model, as_checker_mdp(build_mdp(model, progress=progress))
