@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+from contextlib import suppress
 from pathlib import Path
 
 import pandas as pd
@@ -166,3 +167,43 @@ def test_unreachable_scheduler_is_one_line() -> None:
     with pytest.raises(ConfigError, match=r"^--scheduler tcp://127.0.0.1:9: cannot reach"),\
             open_executor(1, "tcp://127.0.0.1:9"):
         pass
+
+
+def _children(pid: int) -> set[int]:
+    """The live child processes of *pid* (Linux /proc)."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            with suppress(OSError):
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+                if int(fields[1]) == pid and fields[0] != "Z":
+                    found.add(int(entry.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_a_killed_sweep_leaves_no_worker_running(tmp_path: Path) -> None:
+    # kill -9 of the sweep's process (a CI timeout): its pool's workers notice the
+    # orphaning and exit, instead of checking the rest of their tasks for no one.
+    import subprocess
+    import sys
+    import time
+
+    argv = [sys.executable, "-m", "veribattery", "sweep", "configs/paper/case1.yaml",
+            "--vary", "battery.capacity_ah=12:14:0.1", "-j", "2", "--format", "csv"]
+    sweep = subprocess.Popen(argv, cwd=Path(__file__).parents[2], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while len(workers := _children(sweep.pid)) < 2 and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert len(workers) >= 2, "the sweep started no pool"
+    finally:
+        sweep.kill()
+        sweep.wait()
+    deadline = time.monotonic() + 60
+    while (alive := {w for w in workers if Path(f"/proc/{w}").exists()
+                     and "Z" not in (Path(f"/proc/{w}/stat").read_text().rsplit(")", 1)[1]
+                                     .split()[:1])}) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not alive, f"workers {sorted(alive)} outlived the sweep"

@@ -12,6 +12,9 @@ another in one process.
 from __future__ import annotations
 
 import math
+import multiprocessing
+import os
+import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -236,11 +239,33 @@ class Worker:
 _WORKER: Worker | None = None
 
 
+#: How often a pool's worker looks whether the sweep's process is still there (seconds).
+PARENT_POLL_S = 1.0
+
+
 def start_worker(stream: PointStream | None) -> None:
     """Make this process a worker that reports every point to *stream* (a pool's
-    initializer)."""
+    initializer), and that exits when the sweep's process is gone."""
     global _WORKER
     _WORKER = Worker(stream)
+    _exit_with_parent()
+
+
+def _exit_with_parent() -> None:
+    """Exit at once when the parent process dies. A sweep killed by a signal it cannot
+    handle (``kill``, a CI job's timeout) leaves its pool's workers orphaned: without
+    this they would finish their tasks, on every core, for no one. The parent is the one
+    that started this process (it may have died already, while this one started)."""
+    started_by = multiprocessing.parent_process()
+    if started_by is None:
+        return
+
+    def watch() -> None:
+        while os.getppid() == started_by.pid:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def process_worker() -> Worker:
