@@ -218,6 +218,14 @@ def test_the_spinner_shows_the_solve_and_leaves_a_clean_screen(tmp_path: Path) -
     assert "solving" not in screen.text and "0.587216625261" in screen.text
 
 
+def test_bad_intervals_are_refused_on_a_terminal_too(tmp_path: Path) -> None:
+    # the spinner does not use them, but a value the user set and mistyped is reported
+    screen = run_in_terminal(ARGS[:-1], 80, tmp_path, env={progress.INTERVALS_VARIABLE: "oops"})
+    assert screen.status == 2, screen.text
+    assert screen.lines == (f"error: {progress.INTERVALS_VARIABLE}='oops': give FIRST,EVERY "
+                            "seconds, e.g. 0,1",), screen.text
+
+
 def test_a_long_formula_is_cut_on_the_spinner_not_wrapped(tmp_path: Path) -> None:
     formula = "P=? [ F s=4 & " + " & ".join(["z/N<0.1"] * 12) + " ]"
     args = [arg if arg != "reliable" else formula for arg in ARGS[:-1]]

@@ -180,12 +180,13 @@ def _one_line(text: str) -> Any:
 def build_progress(plain: bool = False) -> Iterator[LiveStatus | PlainProgress | None]:
     """A live spinner on stderr while the state space is explored and the properties
     checked (TTY), or with *plain*, periodic lines when stderr is not a terminal
-    (:class:`PlainProgress`, its intervals from ``VERIBATTERY_PROGRESS_S`` if set)."""
+    (:class:`PlainProgress`, its intervals from ``VERIBATTERY_PROGRESS_S`` if set; a
+    bad value is refused on a terminal too, where the spinner does not use it)."""
+    first, every = intervals()
     if not _may_be_terminal(sys.stderr) or not err.is_terminal:
         if not plain:
             yield None
             return
-        first, every = intervals()
         yield PlainProgress(_stderr_line, first=first, every=every)
         return
     with err.status("exploring states…") as status:
