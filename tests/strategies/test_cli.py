@@ -130,6 +130,16 @@ def test_no_property_with_a_strategy_names_the_first(files: tuple[Path, Path],
     assert not (tmp_path / "s.txt").exists()
 
 
+def test_a_multi_objective_query_says_its_strategy_is_randomised(
+        files: tuple[Path, Path], tmp_path: Path) -> None:
+    model, _ = files
+    line = _refused(_prism(model, "--property",
+                           'multi(Pmax=? [ F "goal" ], P>=0.5 [ F "goal" ])',
+                           "--export-strategy", tmp_path / "s.txt"))
+    assert "a multi-objective optimum is attained by a randomised strategy" in line
+    assert not (tmp_path / "s.txt").exists()
+
+
 def test_existing_files_need_force(files: tuple[Path, Path], tmp_path: Path) -> None:
     model, props = files
     out = tmp_path / "strat.txt"

@@ -4,7 +4,8 @@ attains a ``Pmin``/``Pmax``/``Rmin``/``Rmax`` over an unbounded path.
 Only these have one strategy that is optimal from every state at once. A step-bounded
 objective (``F<=k``, ``X``, ``C<=k``, ``I=k``) needs the number of steps taken
 (:class:`~veribattery.checker.mdp.StepStrategy`), and a formula with no P or R operator
-at its top has no strategy: both are refused with :class:`NoStrategyError`.
+at its top has no strategy, and a ``multi(...)`` optimum needs randomisation: all are
+refused with :class:`NoStrategyError`.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from veribattery.lang.nodes import (
     Eventually,
     Expr,
     Globally,
+    Multi,
     PathFormula,
     ProbOp,
     Reach,
@@ -50,6 +52,10 @@ def property_strategy(mdp: MDP, formula: Expr) -> Strategy:
             result = _path_result(mdp, path, _direction(formula))
         case RewardOp():
             result = _reward_result(mdp, formula, _direction(formula))
+        case Multi():
+            raise NoStrategyError("no memoryless strategy: a multi-objective optimum is "
+                                  "attained by a randomised strategy (deterministic ones "
+                                  "mixed), which is not exported", formula.span)
         case _:
             raise NoStrategyError("no strategy: the property has no P or R operator at its "
                                   "top (it is a filter, a comparison, arithmetic or a "
