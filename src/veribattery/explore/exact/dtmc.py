@@ -260,8 +260,10 @@ def _choices(group: ChoiceGroup, states: IntArray) -> tuple[IntArray, list[IntAr
         if not part:
             return None
         enabled = np.empty((source.size, len(part)), dtype=bool)
+        # once per part (every command's guard reads the same rows); no copy for the first
+        here = states if source.size == states.shape[0] else states[source]
         for j, command in enumerate(part):
-            enabled[:, j] = np.broadcast_to(command.guard(states[source]), source.shape)
+            enabled[:, j] = np.broadcast_to(command.guard(here), source.shape)
         rows, columns = np.nonzero(enabled)
         source = source[rows]
         picks = [p[rows] for p in picks] + [columns.astype(np.int64)]
