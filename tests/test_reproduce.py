@@ -165,6 +165,7 @@ def test_reproduce_fig6_optimal_sweeps_pmax_of_each_model_and_capacity_resumably
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # Pmax of the paper's farm is too slow here (tests/sweep/test_synthesis_points.py
     # checks the values): a stand-in records the MDPs asked, in the sweep's order.
+    from veribattery.cli import reproduce
     from veribattery.synthesis import sweep_pmax
     from veribattery.synthesis.model import Certified, ModelSize
 
@@ -175,12 +176,14 @@ def test_reproduce_fig6_optimal_sweeps_pmax_of_each_model_and_capacity_resumably
         return sweep_pmax.MissionPmax(Certified(0.9, 0.8, 1.0), ModelSize(3, 4, 5))
 
     monkeypatch.setattr(sweep_pmax, "pmax_of_model", pmax)
+    monkeypatch.setattr(reproduce, "PROGRESS_EVERY_S", 0.0)  # a line per point, not per 25
     sets = figures.capacity_sets(["fig6"])
     _finished_sweep(tmp_path, figures.capacity_results(["fig6"]), figures.CAPACITY_AXES, sets)
     args = ["reproduce", "fig6", "-o", str(tmp_path), "-j", "1", "--optimal"]
     result = CliRunner().invoke(cli, args)
     assert result.exit_code == 0, result.output
     assert "Pmax of success" in result.stderr
+    assert "\n1 of 604 points\n2 of 604 points\n" in result.stderr
     assert len(asked) == 604
     assert "Synthesis mode" in asked[0] and "[abort]" in asked[0]  # the mission MDP
     swept = pd.read_csv(tmp_path / figures.OPTIMAL_RESULTS)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import sys
+import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -16,6 +17,9 @@ from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
     from veribattery.analyses.table3 import Table3Comparison
+
+#: Off a terminal, a progress line at least this often (seconds) while points finish.
+PROGRESS_EVERY_S = 60.0
 
 
 @click.command("reproduce", short_help="Re-run the paper's Table 3, Fig. 6 and Fig. 8.")
@@ -119,9 +123,14 @@ def _options(jobs: int, scheduler: str | None) -> Any:
     def note(text: str) -> None:
         err.print(text, markup=False, style="dim")
 
+    told = [time.monotonic()]
+
     def progress(done: int, total: int) -> None:
-        if done and (done == total or done % 25 == 0):
+        # every 25 points, or a minute after the last line (a Pmax point takes 5-20 s)
+        now = time.monotonic()
+        if done and (done == total or done % 25 == 0 or now - told[0] >= PROGRESS_EVERY_S):
             err.print(f"{done} of {total} points", markup=False, style="dim")
+            told[0] = now
 
     return SweepOptions(jobs, scheduler, progress, note)
 
