@@ -37,6 +37,7 @@ import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
+from veribattery.explore.build.lookup import NARROW, Lookup, TabulatedGuards
 from veribattery.explore.compile.expr import CompiledExpr
 
 __all__ = [
@@ -103,6 +104,11 @@ class ValueTable:
     kind_exprs: tuple[frozenset[int], ...]
     #: The expressions needed per set of present kinds (see ``_needed``).
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
+    #: The expressions looked up at once on a narrow frontier (see ``lookup``), if any:
+    #: their rows of the table (in the lookup's unit order) and their indices.
+    lookup: Lookup | None = None
+    lookup_rows: IntArray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
+    looked_up: frozenset[int] = frozenset()
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,6 +151,8 @@ class LayerPlan:
     members: dict[frozenset[str | None], list[tuple[str | None, list[int]]]] = field(
         default_factory=dict, compare=False
     )
+    #: The guards looked up at once on a narrow frontier (see ``lookup``), if any.
+    tabulated: TabulatedGuards | None = None
 
     @property
     def kinds(self) -> int:
@@ -203,20 +211,35 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
     (``successors``: a group whose first modules enable nothing stops there), so
     that both paths evaluate, and may fail on, the same guards.
     """
-    guards = np.ones((plan.commands + 1, states.shape[0]), dtype=bool)  # always-true stay
+    guards, evaluated = _tabulated_guards(plan, states)
     table = plan.kind_commands
-    for i, guard, _ in plan.guards[0]:
+    for i, guard, _ in evaluated[0]:
         guards[i] = guard(states)
     enabled = guards[table[:, 0]]
-    for p in range(1, len(plan.guards)):
+    for p in range(1, len(evaluated)):
         alive = np.logical_or.reduce(enabled, axis=1).tolist()
-        for i, guard, kinds in plan.guards[p]:
+        for i, guard, kinds in evaluated[p]:
             if any(map(alive.__getitem__, kinds)):
                 guards[i] = guard(states)
         enabled &= guards[table[:, p]]
     choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
     np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
     return enabled, choices
+
+
+def _tabulated_guards(
+    plan: LayerPlan, states: IntArray
+) -> tuple[BoolArray, tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...]]:
+    """``(commands + 1, n)`` guards, those looked up already filled in (on a narrow
+    frontier, see ``lookup``) and the others true; and the guards left to evaluate.
+
+    A tabulated guard has a value in every state of the ranges, so looking it up
+    where a part before it enables nothing raises nothing the expansion would not.
+    """
+    tabulated = plan.tabulated
+    if tabulated is not None and states.shape[0] <= NARROW:
+        return tabulated.guards(states), tabulated.residual
+    return np.ones((plan.commands + 1, states.shape[0]), dtype=bool), plan.guards
 
 
 def _positions(enabled: BoolArray) -> tuple[IntArray, IntArray]:
@@ -245,13 +268,17 @@ def _fill(
     states: IntArray,
     enabled: BoolArray,
     present: list[int],
+    skip: frozenset[int] = frozenset(),
 ) -> None:
-    """Evaluate the expressions the present kinds need into rows ``base + e`` of *table*.
+    """Evaluate the expressions the present kinds need into rows ``base + e`` of *table*,
+    but those in *skip* (filled in already).
 
     :raises ModelError: an integer table receives floats (the slow path reports it).
     """
     integer = table.dtype.kind == "i"
     for e in _needed(exprs, present):
+        if e in skip:
+            continue
         expr = exprs.exprs[e]
         if expr.risky:  # only where a kind using it is enabled
             rows = np.flatnonzero(np.logical_or.reduce(enabled[expr.kinds], axis=0))
@@ -304,7 +331,12 @@ def _targets(
     table = np.empty((base + len(values.exprs), n), dtype=np.int64)
     table[:width] = states.T
     table[width:base] = values.constants[:, None]
-    _fill(table, base, values, states, enabled, present)
+    skip: frozenset[int] = frozenset()
+    if values.lookup is not None and n <= NARROW:
+        # Every tabulated right-hand side, present kind or not: none can fail.
+        table[values.lookup_rows] = values.lookup.evaluate(states)
+        skip = values.looked_up
+    _fill(table, base, values, states, enabled, present, skip)
     targets: IntArray = _gather(table, values.rows, at)
     return targets
 

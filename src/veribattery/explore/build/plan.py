@@ -25,8 +25,15 @@ from veribattery.explore.build.fused import (
     LayerPlan,
     ValueTable,
 )
+from veribattery.explore.build.lookup import (
+    Lookup,
+    LookupBuilder,
+    TabulatedGuards,
+    tabulate_guards,
+)
 from veribattery.explore.compile.expr import CompiledExpr, may_fail
 from veribattery.explore.compile.program import CompiledCommand, Program
+from veribattery.lang.nodes import Expr, Ident
 
 __all__ = ["MAX_BRANCH_KINDS", "MAX_KINDS", "plan_layers"]
 
@@ -56,20 +63,36 @@ def plan_layers(program: Program) -> LayerPlan | None:
     if len(kinds) > MAX_KINDS or sum(widths) > MAX_BRANCH_KINDS:
         return None
     branches = _branch_updates(commands, kinds)
+    guards = _part_guards(commands, kinds)
     return LayerPlan(
-        guards=_part_guards(commands, kinds),
+        guards=guards,
         commands=len(commands),
         kind_commands=_kind_commands(kinds, len(commands)),
         widths=np.array(widths, dtype=np.int64),
         starts=np.cumsum([0, *widths[:-1]]).astype(np.int64),
-        values=_values(program.variable_names, commands, kinds, branches),
+        values=_values(program, commands, kinds, branches),
         factors=_factors(commands, kinds, branches),
         unchecked_sums=_unchecked_sums(commands, kinds),
         action_kinds=_action_kinds(kinds),
         lows=np.array(program.lows, dtype=np.int64),
         highs=np.array(program.highs, dtype=np.int64),
         spans=_spans(program.lows, program.highs),
+        tabulated=_tabulated(program, commands, guards),
     )
+
+
+def _tabulated(
+    program: Program,
+    commands: Sequence[CompiledCommand],
+    guards: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...],
+) -> TabulatedGuards | None:
+    """The guards looked up at once on a narrow frontier (see ``lookup``); none if the
+    program evaluates some in rationals (its tables would be of the doubles)."""
+    if program.exact:
+        return None
+    builder = LookupBuilder(program.variable_names, _ranges(program), np.bool_)
+    exprs = {c: commands[c].command.guard for part in guards for c, _, _ in part}
+    return tabulate_guards(guards, exprs, builder, len(commands))
 
 
 def _spans(lows: Sequence[int], highs: Sequence[int]) -> np.ndarray | None:
@@ -137,13 +160,16 @@ class _Registry:
         self._exprs: list[tuple[CompiledExpr, bool]] = []
         self._users: list[set[int]] = []
         self._by_kind: dict[int, set[int]] = {}
+        #: Each expression's source (None if not known): what a lookup tabulates.
+        self.sources: list[Expr | None] = []
 
-    def add(self, fn: CompiledExpr, kind: int) -> int:
+    def add(self, fn: CompiledExpr, kind: int, source: Expr | None = None) -> int:
         index = self._index.get(id(fn))
         if index is None:
             index = self._index[id(fn)] = len(self._exprs)
             self._exprs.append((fn, may_fail(fn)))
             self._users.append(set())
+            self.sources.append(source)
         self._users[index].add(kind)
         self._by_kind.setdefault(kind, set()).add(index)
         return index
@@ -159,12 +185,13 @@ class _Registry:
 
 
 def _values(
-    names: Sequence[str],
+    program: Program,
     commands: Sequence[CompiledCommand],
     kinds: Sequence[_Kind],
     branches: Sequence[Sequence[tuple[int, ...]]],
 ) -> ValueTable:
     """Each branch kind's source row per variable (later parts' assignments win)."""
+    names = program.variable_names
     registry = _Registry()
     assigned = [
         _assigned(commands, kind, picks, (registry, k))
@@ -182,8 +209,36 @@ def _values(
                 rows[b, column] = len(names) + constants.setdefault(source, len(constants))
     exprs = rows < 0
     rows[exprs] = len(names) + len(constants) - 1 - rows[exprs]
-    return ValueTable(rows, np.array(list(constants), dtype=np.int64), registry.finish(),
-                   registry.kind_exprs(len(kinds) + 1))
+    exprs_found = registry.finish()
+    lookup, looked_up = _value_lookup(program, registry.sources, exprs_found)
+    return ValueTable(rows, np.array(list(constants), dtype=np.int64), exprs_found,
+                      registry.kind_exprs(len(kinds) + 1), lookup=lookup,
+                      lookup_rows=looked_up + len(names) + len(constants),
+                      looked_up=frozenset(looked_up.tolist()))
+
+
+def _value_lookup(
+    program: Program, sources: Sequence[Expr | None], exprs: Sequence[LayerExpr]
+) -> tuple[Lookup | None, IntArray]:
+    """The assignments' right-hand sides looked up at once on a narrow frontier (see
+    ``lookup``), and which expressions they are; risky ones are left to be evaluated
+    where their kinds are enabled, and all if the program evaluates some in rationals."""
+    if program.exact:
+        return None, np.empty(0, dtype=np.int64)
+    builder = LookupBuilder(program.variable_names, _ranges(program), np.int64)
+    found: dict[int, int] = {}  # expression -> unit (equal expressions share one)
+    for e, (source, expr) in enumerate(zip(sources, exprs, strict=True)):
+        unit = builder.add(source) if source is not None and not expr.risky else None
+        if unit is not None:
+            found[e] = unit
+    if not found:
+        return None, np.empty(0, dtype=np.int64)
+    return builder.finish(list(found.values())), np.array(list(found), dtype=np.int64)
+
+
+def _ranges(program: Program) -> dict[str, tuple[int, int]]:
+    return dict(zip(program.variable_names,
+                    zip(program.lows, program.highs, strict=True), strict=True))
 
 
 def _assigned(
@@ -197,13 +252,21 @@ def _assigned(
     found: dict[int, int | tuple[int]] = {}
     for c, u in zip(kind.commands, picks, strict=True):
         update = commands[c].updates[u]
+        sources = _sources(commands[c], u)
         for i, (column, rhs) in enumerate(update.assignments):
             constant = update.constants[i] if update.constants else None
             if constant is not None:
                 found[column] = int(constant)
             else:
-                found[column] = (registry.add(rhs, k),)
+                found[column] = (registry.add(rhs, k, sources[i]),)
     return found
+
+
+def _sources(command: CompiledCommand, u: int) -> list[Expr]:
+    """The right-hand sides of update *u*'s compiled assignments: its written ones but
+    ``(x'=x)``, which ``compile_program`` leaves out."""
+    return [a.expr for a in command.command.updates[u].assignments
+            if not (isinstance(a.expr, Ident) and a.expr.name == a.variable)]
 
 
 def _factors(
