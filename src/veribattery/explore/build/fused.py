@@ -211,6 +211,18 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
     (``successors``: a group whose first modules enable nothing stops there), so
     that both paths evaluate, and may fail on, the same guards.
     """
+    tabulated = plan.tabulated
+    if tabulated is not None and tabulated.kinds is not None and states.shape[0] <= NARROW:
+        enabled = tabulated.enabled(states)  # every guard looked up: one gather
+    else:
+        enabled = _evaluated(plan, states)
+    choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
+    np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
+    return enabled, choices
+
+
+def _evaluated(plan: LayerPlan, states: IntArray) -> BoolArray:
+    """:func:`_enabled`'s matrix (the last row unset), part by part."""
     guards, evaluated = _tabulated_guards(plan, states)
     table = plan.kind_commands
     for i, guard, _ in evaluated[0]:
@@ -222,9 +234,7 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
             if any(map(alive.__getitem__, kinds)):
                 guards[i] = guard(states)
         enabled &= guards[table[:, p]]
-    choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
-    np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
-    return enabled, choices
+    return enabled
 
 
 def _tabulated_guards(

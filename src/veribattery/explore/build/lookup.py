@@ -211,11 +211,14 @@ class TabulatedGuards:
         guard (padded with unit 0; unit 0 only for a guard left to be evaluated).
     :param residual: per part position, the guards that were not tabulated, as
         ``LayerPlan.guards`` lists them.
+    :param kinds: when every guard is tabulated, ``(kinds + 1, m)``: the units whose
+        conjunction is each choice kind's enabledness (the last row: any).
     """
 
     lookup: Lookup
     units: IntArray
     residual: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...]
+    kinds: IntArray | None = None
 
     def guards(self, states: IntArray) -> BoolArray:
         """``(commands + 1, n)``: each tabulated guard in each state, true elsewhere."""
@@ -223,18 +226,38 @@ class TabulatedGuards:
         if values.shape[1] == 1:
             found: BoolArray = values[:, 0]
             return found
-        conjunction: BoolArray = np.logical_and.reduce(values, axis=1)
-        return conjunction
+        return _conjunction(values)
+
+    def enabled(self, states: IntArray) -> BoolArray:
+        """``(kinds + 1, n)``: whether each choice kind is enabled in each state (the
+        last row unset); only when every guard is tabulated (*kinds* is set)."""
+        assert self.kinds is not None
+        return _conjunction(self.lookup.evaluate(states)[self.kinds])
+
+
+def _conjunction(values: BoolArray) -> BoolArray:
+    """``(rows, n)``: the conjunction of *values* ``(rows, m, n)`` over its middle axis."""
+    if values.shape[1] == 1:
+        found: BoolArray = values[:, 0]
+        return found
+    conjunction: BoolArray = np.logical_and.reduce(values, axis=1)
+    return conjunction
 
 
 def tabulate_guards(
     guards: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...],
     exprs: Mapping[int, Expr],
     builder: LookupBuilder,
-    commands: int,
+    kind_commands: IntArray,
 ) -> TabulatedGuards | None:
     """*guards* (per part position, as ``LayerPlan.guards``) tabulated where they can be;
-    None if none can. *exprs*: each command's guard expression."""
+    None if none can.
+
+    :param exprs: each command's guard expression.
+    :param kind_commands: ``(kinds + 1, parts)``: each choice kind's command per
+        part (as ``LayerPlan.kind_commands``; the number of commands for none).
+    """
+    commands = int(kind_commands.max(initial=0))
     true = builder.add(BoolLit(True))
     found: dict[int, list[int]] = {}
     for part in guards:
@@ -249,7 +272,17 @@ def tabulate_guards(
     for c, units in found.items():
         table[c, : len(units)] = units
     residual = tuple(tuple(g for g in part if g[0] not in found) for part in guards)
-    return TabulatedGuards(builder.finish(), table, residual)
+    kinds = None if any(residual) else _kind_units(kind_commands, found, true)
+    return TabulatedGuards(builder.finish(), table, residual, kinds)
+
+
+def _kind_units(kind_commands: IntArray, found: Mapping[int, list[int]], true: int) -> IntArray:
+    """Per choice kind, the units of all its commands' guards (padded with *true*)."""
+    rows = [[u for c in row for u in found.get(c, ())] for row in kind_commands.tolist()]
+    table = np.full((len(rows), max(1, *map(len, rows))), true, dtype=np.int64)
+    for k, units in enumerate(rows):
+        table[k, : len(units)] = units
+    return table
 
 
 def _guard_units(guard: Expr, builder: LookupBuilder) -> list[int] | None:

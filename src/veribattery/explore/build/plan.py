@@ -64,10 +64,11 @@ def plan_layers(program: Program) -> LayerPlan | None:
         return None
     branches = _branch_updates(commands, kinds)
     guards = _part_guards(commands, kinds)
+    kind_commands = _kind_commands(kinds, len(commands))
     return LayerPlan(
         guards=guards,
         commands=len(commands),
-        kind_commands=_kind_commands(kinds, len(commands)),
+        kind_commands=kind_commands,
         widths=np.array(widths, dtype=np.int64),
         starts=np.cumsum([0, *widths[:-1]]).astype(np.int64),
         values=_values(program, commands, kinds, branches),
@@ -77,7 +78,7 @@ def plan_layers(program: Program) -> LayerPlan | None:
         lows=np.array(program.lows, dtype=np.int64),
         highs=np.array(program.highs, dtype=np.int64),
         spans=_spans(program.lows, program.highs),
-        tabulated=_tabulated(program, commands, guards),
+        tabulated=_tabulated(program, commands, guards, kind_commands),
     )
 
 
@@ -85,6 +86,7 @@ def _tabulated(
     program: Program,
     commands: Sequence[CompiledCommand],
     guards: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...],
+    kind_commands: IntArray,
 ) -> TabulatedGuards | None:
     """The guards looked up at once on a narrow frontier (see ``lookup``); none if the
     program evaluates some in rationals (its tables would be of the doubles)."""
@@ -92,7 +94,7 @@ def _tabulated(
         return None
     builder = LookupBuilder(program.variable_names, _ranges(program), np.bool_)
     exprs = {c: commands[c].command.guard for part in guards for c, _, _ in part}
-    return tabulate_guards(guards, exprs, builder, len(commands))
+    return tabulate_guards(guards, exprs, builder, kind_commands)
 
 
 def _spans(lows: Sequence[int], highs: Sequence[int]) -> np.ndarray | None:
