@@ -175,8 +175,11 @@ class LayerPlan:
 def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
     enabled, choices = _enabled(plan, states)
     src, kind = _positions(enabled)
-    alive = np.logical_or.reduce(enabled, axis=1).tolist()
-    present = [k for k, on in enumerate(alive) if on]
+    alive: list[bool] = []
+    present: list[int] = []
+    if _reads_kinds(plan, states.shape[0], rewarded):
+        alive = np.logical_or.reduce(enabled, axis=1).tolist()
+        present = [k for k, on in enumerate(alive) if on]
     widths = plan.widths[kind]
     total = int(widths.sum())
     if total == src.size:  # one branch per choice
@@ -200,6 +203,18 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
         source, targets, probability = source[keep], targets[keep], probability[keep]
     actions = _action_choices(plan, enabled, alive, rewarded)
     return Expansion(source, targets, probability, choices, actions, dropped, total)
+
+
+def _reads_kinds(plan: LayerPlan, n: int, rewarded: set[str | None]) -> bool:
+    """Whether expanding *n* states needs to know which kinds are enabled in some state:
+    to evaluate the expressions those kinds use, check their sums or count the rewarded
+    actions' choices (a narrow layer of a program whose expressions are all looked up
+    and probabilities constant needs none of it)."""
+    values = plan.values
+    return bool(
+        (len(values.looked_up) < len(values.exprs) or (values.exprs and n > NARROW))
+        or plan.factors.constant is None or plan.unchecked_sums or rewarded
+    )
 
 
 def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
@@ -254,10 +269,7 @@ def _tabulated_guards(
 
 def _positions(enabled: BoolArray) -> tuple[IntArray, IntArray]:
     """Source state and kind of every enabled choice, in (source, kind) order."""
-    flat = np.flatnonzero(enabled.T)
-    width = np.asarray(enabled.shape[0], dtype=np.int64)  # 0-d: see ``_NO_CHOICE``
-    source = flat // width
-    kind = flat - source * width
+    source, kind = enabled.T.nonzero()  # row-major over the transpose: by source first
     return source, kind
 
 
