@@ -20,7 +20,7 @@ import pytest
 
 from veribattery.checker import check
 from veribattery.explore import build_dtmc
-from veribattery.explore.build import fused
+from veribattery.explore.build import lookup as lookup_module
 from veribattery.explore.build.lookup import LookupBuilder, conjuncts
 from veribattery.explore.build.plan import plan_layers
 from veribattery.explore.compile.program import compile_program
@@ -56,6 +56,13 @@ def _flat(text: str) -> FlatModel:
     return flatten_model(parse_model(text), {})
 
 
+@pytest.fixture
+def at_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Lookups from the first narrow layer on (not only after ``DEEP`` of them)."""
+    monkeypatch.setattr(lookup_module, "DEEP", 0)
+
+
+@pytest.mark.usefixtures("at_once")
 def test_the_chain_has_its_hand_counted_states_and_value() -> None:
     dtmc = build_dtmc(_flat(CHAIN))
     assert dtmc.num_states == 2 * N + 1
@@ -64,11 +71,14 @@ def test_the_chain_has_its_hand_counted_states_and_value() -> None:
     assert check(dtmc, parse_property('P=? [ F "top" ]')).value == pytest.approx(0.3, abs=1e-9)
 
 
+@pytest.mark.parametrize("deep", [0, 100])
 def test_the_lookup_path_builds_the_same_dtmc_as_evaluating(
-    monkeypatch: pytest.MonkeyPatch,
+    monkeypatch: pytest.MonkeyPatch, deep: int
 ) -> None:
+    """Looked up from the first layer, or from the 101st (both paths in one search)."""
+    monkeypatch.setattr(lookup_module, "DEEP", deep)
     looked_up = build_dtmc(_flat(CHAIN))
-    monkeypatch.setattr(fused, "NARROW", 0)  # no frontier is narrow: every guard evaluated
+    monkeypatch.setattr(lookup_module, "NARROW", 0)  # no frontier is narrow: all evaluated
     evaluated = build_dtmc(_flat(CHAIN))
     assert np.array_equal(looked_up.states, evaluated.states)
     for part in ("indptr", "indices", "data"):
@@ -79,16 +89,28 @@ def test_the_lookup_path_builds_the_same_dtmc_as_evaluating(
         assert np.array_equal(mask, evaluated.labels[name])
 
 
-def test_the_plan_tabulates_whole_guards_conjuncts_and_leaves_a_failing_one() -> None:
+@pytest.mark.usefixtures("at_once")
+def test_the_plan_tabulates_conjuncts_and_leaves_a_failing_guard() -> None:
     program = compile_program(_flat(CHAIN))
     plan = plan_layers(program)
-    assert plan is not None and plan.tabulated is not None
-    residual = [c for part in plan.tabulated.residual for c, _, _ in part]
+    assert plan is not None and plan.narrow is not None
+    assert plan.narrow.lookups(lookup_module.NARROW + 1) is None  # a wide frontier
+    lookups = plan.narrow.lookups(1)
+    assert lookups is not None and lookups.guards is not None
+    residual = [c for part in lookups.guards.residual for c, _, _ in part]
     assert len(residual) == 1  # the tick's guard: mod(x, w) fails at w=0
-    assert plan.tabulated.kinds is None  # so the enabledness is combined part by part
-    assert plan.values.lookup is not None
-    left = [e for e in range(len(plan.values.exprs)) if e not in plan.values.looked_up]
+    assert lookups.guards.kinds is None  # so the enabledness is combined part by part
+    assert lookups.values is not None
+    left = [e for e in range(len(plan.values.exprs)) if e not in lookups.looked_up]
     assert [plan.values.exprs[e].risky for e in left] == [True]  # mod(x, w) only
+
+
+def test_lookups_are_made_after_deep_narrow_layers(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(lookup_module, "DEEP", 3)
+    plan = plan_layers(compile_program(_flat(CHAIN)))
+    assert plan is not None and plan.narrow is not None
+    found = [plan.narrow.lookups(n) for n in (1, 1000, 2, 3, 4)]
+    assert [f is None for f in found] == [True, True, True, True, False]
 
 
 def test_a_lookup_gives_the_expression_s_values() -> None:

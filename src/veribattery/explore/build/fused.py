@@ -37,7 +37,7 @@ import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.build.lookup import NARROW, Lookup, TabulatedGuards
+from veribattery.explore.build.lookup import NarrowLookups, NarrowPath, TabulatedGuards
 from veribattery.explore.compile.expr import CompiledExpr
 
 __all__ = [
@@ -104,11 +104,6 @@ class ValueTable:
     kind_exprs: tuple[frozenset[int], ...]
     #: The expressions needed per set of present kinds (see ``_needed``).
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
-    #: The expressions looked up at once on a narrow frontier (see ``lookup``), if any:
-    #: their rows of the table (in the lookup's unit order) and their indices.
-    lookup: Lookup | None = None
-    lookup_rows: IntArray = field(default_factory=lambda: np.empty(0, dtype=np.int64))
-    looked_up: frozenset[int] = frozenset()
 
 
 @dataclass(frozen=True, slots=True)
@@ -151,8 +146,8 @@ class LayerPlan:
     members: dict[frozenset[str | None], list[tuple[str | None, list[int]]]] = field(
         default_factory=dict, compare=False
     )
-    #: The guards looked up at once on a narrow frontier (see ``lookup``), if any.
-    tabulated: TabulatedGuards | None = None
+    #: The lookups of a deep search's narrow layers (see ``lookup``), if any.
+    narrow: NarrowPath | None = field(default=None, compare=False)
 
     @property
     def kinds(self) -> int:
@@ -173,11 +168,12 @@ class LayerPlan:
 
 
 def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
-    enabled, choices = _enabled(plan, states)
+    lookups = plan.narrow.lookups(states.shape[0]) if plan.narrow is not None else None
+    enabled, choices = _enabled(plan, states, lookups)
     src, kind = _positions(enabled)
     alive: list[bool] = []
     present: list[int] = []
-    if _reads_kinds(plan, states.shape[0], rewarded):
+    if _reads_kinds(plan, lookups, rewarded):
         alive = np.logical_or.reduce(enabled, axis=1).tolist()
         present = [k for k, on in enumerate(alive) if on]
     widths = plan.widths[kind]
@@ -188,7 +184,7 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
         firsts = np.cumsum(widths) - widths
         branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(total)
         source = np.repeat(src, widths)
-    targets = _targets(plan.values, states, enabled, present, (branch, source))
+    targets = _targets(plan.values, (states, lookups), enabled, present, (branch, source))
     probability = _probabilities(plan.factors, states, enabled, present, (branch, source))
     if probability is None or not _sums_ok(plan, present, probability, firsts, kind):
         return None
@@ -205,19 +201,21 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
     return Expansion(source, targets, probability, choices, actions, dropped, total)
 
 
-def _reads_kinds(plan: LayerPlan, n: int, rewarded: set[str | None]) -> bool:
-    """Whether expanding *n* states needs to know which kinds are enabled in some state:
-    to evaluate the expressions those kinds use, check their sums or count the rewarded
-    actions' choices (a narrow layer of a program whose expressions are all looked up
-    and probabilities constant needs none of it)."""
-    values = plan.values
-    return bool(
-        (len(values.looked_up) < len(values.exprs) or (values.exprs and n > NARROW))
-        or plan.factors.constant is None or plan.unchecked_sums or rewarded
-    )
+def _reads_kinds(
+    plan: LayerPlan, lookups: NarrowLookups | None, rewarded: set[str | None]
+) -> bool:
+    """Whether a layer needs to know which kinds are enabled in some state: to evaluate
+    the expressions those kinds use, check their sums or count the rewarded actions'
+    choices (a narrow layer of a program whose expressions are all looked up and
+    probabilities constant needs none of it)."""
+    looked_up = len(lookups.looked_up) if lookups is not None else 0
+    return bool(looked_up < len(plan.values.exprs) or plan.factors.constant is None
+                or plan.unchecked_sums or rewarded)
 
 
-def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
+def _enabled(
+    plan: LayerPlan, states: IntArray, lookups: NarrowLookups | None = None
+) -> tuple[BoolArray, IntArray]:
     """Enabledness ``(kinds + 1, n)`` (the last row: deadlock) and choices per state.
 
     Kind-major rows keep every reduction over contiguous memory. Guards are
@@ -226,19 +224,28 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
     (``successors``: a group whose first modules enable nothing stops there), so
     that both paths evaluate, and may fail on, the same guards.
     """
-    tabulated = plan.tabulated
-    if tabulated is not None and tabulated.kinds is not None and states.shape[0] <= NARROW:
+    tabulated = lookups.guards if lookups is not None else None
+    if tabulated is not None and tabulated.kinds is not None:
         enabled = tabulated.enabled(states)  # every guard looked up: one gather
     else:
-        enabled = _evaluated(plan, states)
+        enabled = _evaluated(plan, states, tabulated)
     choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
     np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
     return enabled, choices
 
 
-def _evaluated(plan: LayerPlan, states: IntArray) -> BoolArray:
-    """:func:`_enabled`'s matrix (the last row unset), part by part."""
-    guards, evaluated = _tabulated_guards(plan, states)
+def _evaluated(plan: LayerPlan, states: IntArray, tabulated: TabulatedGuards | None) -> BoolArray:
+    """:func:`_enabled`'s matrix (the last row unset), part by part; the *tabulated*
+    guards (if any) looked up.
+
+    A tabulated guard has a value in every state of the ranges, so looking it up
+    where a part before it enables nothing raises nothing the expansion would not.
+    """
+    if tabulated is not None:
+        guards, evaluated = tabulated.guards(states), tabulated.residual
+    else:
+        guards = np.ones((plan.commands + 1, states.shape[0]), dtype=bool)  # always-true stay
+        evaluated = plan.guards
     table = plan.kind_commands
     for i, guard, _ in evaluated[0]:
         guards[i] = guard(states)
@@ -250,21 +257,6 @@ def _evaluated(plan: LayerPlan, states: IntArray) -> BoolArray:
                 guards[i] = guard(states)
         enabled &= guards[table[:, p]]
     return enabled
-
-
-def _tabulated_guards(
-    plan: LayerPlan, states: IntArray
-) -> tuple[BoolArray, tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...]]:
-    """``(commands + 1, n)`` guards, those looked up already filled in (on a narrow
-    frontier, see ``lookup``) and the others true; and the guards left to evaluate.
-
-    A tabulated guard has a value in every state of the ranges, so looking it up
-    where a part before it enables nothing raises nothing the expansion would not.
-    """
-    tabulated = plan.tabulated
-    if tabulated is not None and states.shape[0] <= NARROW:
-        return tabulated.guards(states), tabulated.residual
-    return np.ones((plan.commands + 1, states.shape[0]), dtype=bool), plan.guards
 
 
 def _positions(enabled: BoolArray) -> tuple[IntArray, IntArray]:
@@ -343,21 +335,22 @@ def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) ->
 
 def _targets(
     values: ValueTable,
-    states: IntArray,
+    over: tuple[IntArray, NarrowLookups | None],
     enabled: BoolArray,
     present: list[int],
     at: tuple[IntArray, IntArray],
 ) -> IntArray:
+    states, lookups = over
     n, width = states.shape
     base = width + values.constants.size
     table = np.empty((base + len(values.exprs), n), dtype=np.int64)
     table[:width] = states.T
     table[width:base] = values.constants[:, None]
     skip: frozenset[int] = frozenset()
-    if values.lookup is not None and n <= NARROW:
+    if lookups is not None and lookups.values is not None:
         # Every tabulated right-hand side, present kind or not: none can fail.
-        table[values.lookup_rows] = values.lookup.evaluate(states)
-        skip = values.looked_up
+        table[lookups.value_rows] = lookups.values.evaluate(states)
+        skip = lookups.looked_up
     _fill(table, base, values, states, enabled, present, skip)
     targets: IntArray = _gather(table, values.rows, at)
     return targets

@@ -17,7 +17,7 @@ the same value. An expression that fails on some valuation (``mod(x, y)`` at
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -34,8 +34,8 @@ from veribattery.explore.compile.expr import (
 from veribattery.explore.compile.tables import valuation_grid
 from veribattery.lang.nodes import Binary, BoolLit, Expr
 
-__all__ = ["NARROW", "UNIT_LIMIT", "Lookup", "LookupBuilder", "TabulatedGuards", "conjuncts",
-           "tabulate_guards"]
+__all__ = ["DEEP", "NARROW", "UNIT_LIMIT", "Lookup", "LookupBuilder", "NarrowLookups",
+           "NarrowPath", "TabulatedGuards", "conjuncts", "tabulate_guards"]
 
 #: Largest number of valuations a unit's table may have.
 UNIT_LIMIT = 1 << 16
@@ -200,6 +200,51 @@ def conjuncts(expr: Expr) -> list[Expr]:
 #: The largest frontier whose guards are looked up all at once: the product costs
 #: about 0.2 us per state and unit, a guard's own lookup a few calls per layer.
 NARROW = 128
+#: Narrow layers expanded before the lookups are made (tens of ms for a mission's
+#: large guards): a search still narrow after as many is deep (brp: thousands of
+#: layers), a mission's has 136 of its 709 layers.
+DEEP = 256
+
+
+@dataclass(frozen=True, slots=True)
+class NarrowLookups:
+    """What a narrow layer looks up: the guards, and the right-hand sides.
+
+    :param guards: the tabulated guards, or None.
+    :param values: the tabulated right-hand sides' lookup, or None.
+    :param value_rows: each looked-up right-hand side's row in the layer's table of
+        values (see ``fused.ValueTable``), in the lookup's unit order.
+    :param looked_up: their indices among the plan's value expressions.
+    """
+
+    guards: TabulatedGuards | None
+    values: Lookup | None
+    value_rows: IntArray
+    looked_up: frozenset[int]
+
+
+class NarrowPath:
+    """A plan's lookups, made once its search has proven deep and narrow.
+
+    :param make: makes the lookups (once).
+    """
+
+    def __init__(self, make: Callable[[], NarrowLookups]) -> None:
+        self._make = make
+        self._made: NarrowLookups | None = None
+        self._narrow = 0
+
+    def lookups(self, n: int) -> NarrowLookups | None:
+        """The lookups for a frontier of *n* states: None if it is wide, or until
+        ``DEEP`` narrow frontiers have been expanded without them."""
+        if n > NARROW:
+            return None
+        if self._made is None:
+            self._narrow += 1
+            if self._narrow <= DEEP:
+                return None
+            self._made = self._make()
+        return self._made
 
 
 @dataclass(frozen=True, slots=True)

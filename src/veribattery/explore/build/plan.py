@@ -10,6 +10,7 @@ layer with.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Sequence
@@ -28,6 +29,8 @@ from veribattery.explore.build.fused import (
 from veribattery.explore.build.lookup import (
     Lookup,
     LookupBuilder,
+    NarrowLookups,
+    NarrowPath,
     TabulatedGuards,
     tabulate_guards,
 )
@@ -65,21 +68,42 @@ def plan_layers(program: Program) -> LayerPlan | None:
     branches = _branch_updates(commands, kinds)
     guards = _part_guards(commands, kinds)
     kind_commands = _kind_commands(kinds, len(commands))
+    values, sources = _values(program, commands, kinds, branches)
+    # A program with rational guards or assignments: tables of its expressions'
+    # doubles would not be its functions' values.
+    narrow = None if program.exact else NarrowPath(functools.partial(
+        _narrow_lookups, program, (commands, guards, kind_commands), values, sources))
     return LayerPlan(
         guards=guards,
         commands=len(commands),
         kind_commands=kind_commands,
         widths=np.array(widths, dtype=np.int64),
         starts=np.cumsum([0, *widths[:-1]]).astype(np.int64),
-        values=_values(program, commands, kinds, branches),
+        values=values,
         factors=_factors(commands, kinds, branches),
         unchecked_sums=_unchecked_sums(commands, kinds),
         action_kinds=_action_kinds(kinds),
         lows=np.array(program.lows, dtype=np.int64),
         highs=np.array(program.highs, dtype=np.int64),
         spans=_spans(program.lows, program.highs),
-        tabulated=_tabulated(program, commands, guards, kind_commands),
+        narrow=narrow,
     )
+
+
+def _narrow_lookups(
+    program: Program,
+    structure: tuple[Sequence[CompiledCommand],
+                     tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...], IntArray],
+    values: ValueTable,
+    sources: Sequence[Expr | None],
+) -> NarrowLookups:
+    """The lookups of a narrow layer: the guards (of the commands, per part and per kind:
+    *structure*) and the right-hand sides of *values* (their *sources*)."""
+    commands, guards, kind_commands = structure
+    tabulated = _tabulated(program, commands, guards, kind_commands)
+    lookup, looked_up = _value_lookup(program, sources, values.exprs)
+    base = len(program.variable_names) + values.constants.size
+    return NarrowLookups(tabulated, lookup, looked_up + base, frozenset(looked_up.tolist()))
 
 
 def _tabulated(
@@ -88,10 +112,7 @@ def _tabulated(
     guards: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...],
     kind_commands: IntArray,
 ) -> TabulatedGuards | None:
-    """The guards looked up at once on a narrow frontier (see ``lookup``); none if the
-    program evaluates some in rationals (its tables would be of the doubles)."""
-    if program.exact:
-        return None
+    """The guards looked up at once on a narrow frontier (see ``lookup``)."""
     builder = LookupBuilder(program.variable_names, _ranges(program), np.bool_)
     exprs = {c: commands[c].command.guard for part in guards for c, _, _ in part}
     return tabulate_guards(guards, exprs, builder, kind_commands)
@@ -191,8 +212,9 @@ def _values(
     commands: Sequence[CompiledCommand],
     kinds: Sequence[_Kind],
     branches: Sequence[Sequence[tuple[int, ...]]],
-) -> ValueTable:
-    """Each branch kind's source row per variable (later parts' assignments win)."""
+) -> tuple[ValueTable, list[Expr | None]]:
+    """Each branch kind's source row per variable (later parts' assignments win), and
+    each value expression's source."""
     names = program.variable_names
     registry = _Registry()
     assigned = [
@@ -211,12 +233,9 @@ def _values(
                 rows[b, column] = len(names) + constants.setdefault(source, len(constants))
     exprs = rows < 0
     rows[exprs] = len(names) + len(constants) - 1 - rows[exprs]
-    exprs_found = registry.finish()
-    lookup, looked_up = _value_lookup(program, registry.sources, exprs_found)
-    return ValueTable(rows, np.array(list(constants), dtype=np.int64), exprs_found,
-                      registry.kind_exprs(len(kinds) + 1), lookup=lookup,
-                      lookup_rows=looked_up + len(names) + len(constants),
-                      looked_up=frozenset(looked_up.tolist()))
+    table = ValueTable(rows, np.array(list(constants), dtype=np.int64), registry.finish(),
+                       registry.kind_exprs(len(kinds) + 1))
+    return table, registry.sources
 
 
 def _value_lookup(
@@ -224,9 +243,7 @@ def _value_lookup(
 ) -> tuple[Lookup | None, IntArray]:
     """The assignments' right-hand sides looked up at once on a narrow frontier (see
     ``lookup``), and which expressions they are; risky ones are left to be evaluated
-    where their kinds are enabled, and all if the program evaluates some in rationals."""
-    if program.exact:
-        return None, np.empty(0, dtype=np.int64)
+    where their kinds are enabled."""
     builder = LookupBuilder(program.variable_names, _ranges(program), np.int64)
     found: dict[int, int] = {}  # expression -> unit (equal expressions share one)
     for e, (source, expr) in enumerate(zip(sources, exprs, strict=True)):
