@@ -42,6 +42,7 @@ from veribattery.explore.compile.expr import CompiledExpr
 
 __all__ = [
     "SUM_TOLERANCE",
+    "AssignedEntries",
     "Expansion",
     "FactorTable",
     "LayerExpr",
@@ -104,6 +105,29 @@ class ValueTable:
     kind_exprs: tuple[frozenset[int], ...]
     #: The expressions needed per set of present kinds (see ``_needed``).
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
+    #: The variables each branch kind assigns (None if a range spans 2**63 or more).
+    assigned: AssignedEntries | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class AssignedEntries:
+    """Per branch kind, the variables it assigns, padded to the same number *K*.
+
+    A branch copies its source state and overwrites these: a model of 32 variables
+    whose updates assign three (crowds) gathers and range-checks three values per
+    branch, not 32. A padding entry repeats one of the kind's entries (or copies
+    variable 0 from the source), so writing it changes nothing.
+
+    :param columns: ``(branch kinds, K)``: the variables' columns.
+    :param rows: ``(branch kinds, K)``: their rows of the layer's value table.
+    :param lows: ``(branch kinds, K)``: their lower bounds.
+    :param spans: ``(branch kinds, K)``: their ranges' spans, as uint64.
+    """
+
+    columns: IntArray
+    rows: IntArray
+    lows: IntArray
+    spans: np.ndarray
 
 
 @dataclass(frozen=True, slots=True)
@@ -188,7 +212,8 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
     probability = _probabilities(plan.factors, states, enabled, present, (branch, source))
     if probability is None or not _sums_ok(plan, present, probability, firsts, kind):
         return None
-    if _out_of_range(plan, targets):
+    checked = plan.values.assigned is not None and lookups is None  # by ``_targets``
+    if targets is None or (not checked and _out_of_range(plan, targets)):
         return None
     if src.size > states.shape[0]:  # some state has several choices (or n = 0)
         probability /= np.maximum(choices, 1)[source]
@@ -339,7 +364,10 @@ def _targets(
     enabled: BoolArray,
     present: list[int],
     at: tuple[IntArray, IntArray],
-) -> IntArray:
+) -> IntArray | None:
+    """The successor rows of the branches *at* (branch kind, source); None if a value
+    assigned leaves its variable's range (checked here when the plan lists the
+    variables each kind assigns, else by the caller)."""
     states, lookups = over
     n, width = states.shape
     base = width + values.constants.size
@@ -352,7 +380,20 @@ def _targets(
         table[lookups.value_rows] = lookups.values.evaluate(states)
         skip = lookups.looked_up
     _fill(table, base, values, states, enabled, present, skip)
-    targets: IntArray = _gather(table, values.rows, at)
+    assigned = values.assigned
+    if assigned is None or lookups is not None:
+        # A narrow layer (with lookups): fewer calls to gather every variable at once.
+        gathered: IntArray = _gather(table, values.rows, at)
+        return gathered
+    branch, source = at
+    new = _gather(table, assigned.rows, at)
+    # ``value - low`` read unsigned exceeds the span exactly when the value is below
+    # *low* or above *high* (it wraps modulo 2**64; spans are below 2**63).
+    offsets = new - assigned.lows[branch]
+    if np.count_nonzero(offsets.view(np.uint64) > assigned.spans[branch]):
+        return None
+    targets: IntArray = states[source]  # the source's values, in range, then the new ones
+    np.put_along_axis(targets, assigned.columns[branch], new, axis=1)
     return targets
 
 

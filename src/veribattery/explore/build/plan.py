@@ -21,6 +21,7 @@ import numpy as np
 from veribattery._types import IntArray
 from veribattery.explore.build.fused import (
     SUM_TOLERANCE,
+    AssignedEntries,
     FactorTable,
     LayerExpr,
     LayerPlan,
@@ -234,8 +235,29 @@ def _values(
     exprs = rows < 0
     rows[exprs] = len(names) + len(constants) - 1 - rows[exprs]
     table = ValueTable(rows, np.array(list(constants), dtype=np.int64), registry.finish(),
-                       registry.kind_exprs(len(kinds) + 1))
+                       registry.kind_exprs(len(kinds) + 1),
+                       assigned=_assigned_entries(rows, program.lows, program.highs))
     return table, registry.sources
+
+
+def _assigned_entries(
+    rows: IntArray, lows: Sequence[int], highs: Sequence[int]
+) -> AssignedEntries | None:
+    """Per branch kind (a row of *rows*), the variables it assigns, padded (see
+    :class:`AssignedEntries`); None if a range spans 2**63 or more."""
+    spans = _spans(lows, highs)
+    if spans is None:
+        return None
+    own = rows != np.arange(rows.shape[1])
+    width = max(1, int(own.sum(axis=1).max(initial=0)))
+    columns = np.zeros((rows.shape[0], width), dtype=np.int64)  # none: variable 0, copied
+    for b, assigns in enumerate(own):
+        found = np.flatnonzero(assigns)
+        if found.size:
+            columns[b, : found.size] = found
+            columns[b, found.size :] = found[-1]  # repeated: the same value written again
+    return AssignedEntries(columns, np.take_along_axis(rows, columns, axis=1),
+                           np.asarray(lows, dtype=np.int64)[columns], spans[columns])
 
 
 def _value_lookup(
