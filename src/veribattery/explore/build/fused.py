@@ -371,8 +371,12 @@ def _targets(
     states, lookups = over
     n, width = states.shape
     base = width + values.constants.size
+    assigned = values.assigned if lookups is None else None  # narrow: one gather, fewer calls
     table = np.empty((base + len(values.exprs), n), dtype=np.int64)
-    table[:width] = states.T
+    if assigned is None:
+        table[:width] = states.T
+    else:  # only a kind that assigns nothing reads a variable's row: variable 0's
+        table[0] = states[:, 0]
     table[width:base] = values.constants[:, None]
     skip: frozenset[int] = frozenset()
     if lookups is not None and lookups.values is not None:
@@ -380,9 +384,7 @@ def _targets(
         table[lookups.value_rows] = lookups.values.evaluate(states)
         skip = lookups.looked_up
     _fill(table, base, values, states, enabled, present, skip)
-    assigned = values.assigned
-    if assigned is None or lookups is not None:
-        # A narrow layer (with lookups): fewer calls to gather every variable at once.
+    if assigned is None:
         gathered: IntArray = _gather(table, values.rows, at)
         return gathered
     branch, source = at
@@ -392,8 +394,11 @@ def _targets(
     offsets = new - assigned.lows[branch]
     if np.count_nonzero(offsets.view(np.uint64) > assigned.spans[branch]):
         return None
-    targets: IntArray = states[source]  # the source's values, in range, then the new ones
-    np.put_along_axis(targets, assigned.columns[branch], new, axis=1)
+    # The source's values (in range), then the new ones written at their flat positions.
+    targets: IntArray = np.take(states, source, axis=0)
+    where = assigned.columns[branch]
+    where += (np.arange(source.size) * width)[:, None]
+    targets.ravel()[where] = new
     return targets
 
 
