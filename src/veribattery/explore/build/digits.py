@@ -6,7 +6,7 @@ subtraction per variable and state: 1.2 s for the two million states of crowds
 5/20 with 32 variables. Consecutive variables of one word whose ranges multiply to
 at most ``GROUP_LIMIT`` form one wider digit, decoded with the same arithmetic
 and then looked up in a table of its variables' values: crowds' 32 variables take
-eight lookups. A variable wider than the limit is decoded alone, arithmetically.
+seven lookups. A variable wider than the limit is decoded alone, arithmetically.
 """
 
 from __future__ import annotations
