@@ -100,7 +100,7 @@ def test_the_plan_tabulates_conjuncts_and_leaves_a_failing_guard() -> None:
     residual = [c for part in lookups.guards.residual for c, _, _ in part]
     assert len(residual) == 1  # the tick's guard: mod(x, w) fails at w=0
     assert lookups.guards.kinds is None  # so the enabledness is combined part by part
-    assert lookups.values is not None
+    assert lookups.lookup.units == lookups.first_value + len(lookups.looked_up)
     left = [e for e in range(len(plan.values.exprs)) if e not in lookups.looked_up]
     assert [plan.values.exprs[e].risky for e in left] == [True]  # mod(x, w) only
 

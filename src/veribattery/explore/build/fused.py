@@ -37,7 +37,7 @@ import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.build.lookup import NarrowLookups, NarrowPath, TabulatedGuards
+from veribattery.explore.build.lookup import NarrowLookups, NarrowPath
 from veribattery.explore.compile.expr import CompiledExpr
 
 __all__ = [
@@ -193,7 +193,8 @@ class LayerPlan:
 
 def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
     lookups = plan.narrow.lookups(states.shape[0]) if plan.narrow is not None else None
-    enabled, choices = _enabled(plan, states, lookups)
+    looked = None if lookups is None else (lookups, lookups.lookup.evaluate(states))
+    enabled, choices = _enabled(plan, states, looked)
     src, kind = _positions(enabled)
     alive: list[bool] = []
     present: list[int] = []
@@ -208,11 +209,11 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
         firsts = np.cumsum(widths) - widths
         branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(total)
         source = np.repeat(src, widths)
-    targets = _targets(plan.values, (states, lookups), enabled, present, (branch, source))
+    targets = _targets(plan.values, (states, looked), enabled, present, (branch, source))
     probability = _probabilities(plan.factors, states, enabled, present, (branch, source))
     if probability is None or not _sums_ok(plan, present, probability, firsts, kind):
         return None
-    checked = plan.values.assigned is not None and lookups is None  # by ``_targets``
+    checked = plan.values.assigned is not None and looked is None  # by ``_targets``
     if targets is None or (not checked and _out_of_range(plan, targets)):
         return None
     if src.size > states.shape[0]:  # some state has several choices (or n = 0)
@@ -224,6 +225,10 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
         source, targets, probability = source[keep], targets[keep], probability[keep]
     actions = _action_choices(plan, enabled, alive, rewarded)
     return Expansion(source, targets, probability, choices, actions, dropped, total)
+
+
+#: A narrow layer's lookups and their values on its frontier ``(units, n)``.
+_Looked = tuple[NarrowLookups, IntArray]
 
 
 def _reads_kinds(
@@ -239,7 +244,7 @@ def _reads_kinds(
 
 
 def _enabled(
-    plan: LayerPlan, states: IntArray, lookups: NarrowLookups | None = None
+    plan: LayerPlan, states: IntArray, looked: _Looked | None = None
 ) -> tuple[BoolArray, IntArray]:
     """Enabledness ``(kinds + 1, n)`` (the last row: deadlock) and choices per state.
 
@@ -249,25 +254,26 @@ def _enabled(
     (``successors``: a group whose first modules enable nothing stops there), so
     that both paths evaluate, and may fail on, the same guards.
     """
-    tabulated = lookups.guards if lookups is not None else None
-    if tabulated is not None and tabulated.kinds is not None:
-        enabled = tabulated.enabled(states)  # every guard looked up: one gather
+    tabulated = looked[0].guards if looked is not None else None
+    if looked is not None and tabulated is not None and tabulated.kinds is not None:
+        enabled = tabulated.enabled(looked[1])  # every guard looked up: one gather
     else:
-        enabled = _evaluated(plan, states, tabulated)
+        enabled = _evaluated(plan, states, looked)
     choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
     np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
     return enabled, choices
 
 
-def _evaluated(plan: LayerPlan, states: IntArray, tabulated: TabulatedGuards | None) -> BoolArray:
-    """:func:`_enabled`'s matrix (the last row unset), part by part; the *tabulated*
-    guards (if any) looked up.
+def _evaluated(plan: LayerPlan, states: IntArray, looked: _Looked | None) -> BoolArray:
+    """:func:`_enabled`'s matrix (the last row unset), part by part; the tabulated
+    guards (if any) read from the *looked* up values.
 
     A tabulated guard has a value in every state of the ranges, so looking it up
     where a part before it enables nothing raises nothing the expansion would not.
     """
-    if tabulated is not None:
-        guards, evaluated = tabulated.guards(states), tabulated.residual
+    tabulated = looked[0].guards if looked is not None else None
+    if looked is not None and tabulated is not None:
+        guards, evaluated = tabulated.guards(looked[1]), tabulated.residual
     else:
         guards = np.ones((plan.commands + 1, states.shape[0]), dtype=bool)  # always-true stay
         evaluated = plan.guards
@@ -360,7 +366,7 @@ def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) ->
 
 def _targets(
     values: ValueTable,
-    over: tuple[IntArray, NarrowLookups | None],
+    over: tuple[IntArray, _Looked | None],
     enabled: BoolArray,
     present: list[int],
     at: tuple[IntArray, IntArray],
@@ -368,10 +374,10 @@ def _targets(
     """The successor rows of the branches *at* (branch kind, source); None if a value
     assigned leaves its variable's range (checked here when the plan lists the
     variables each kind assigns, else by the caller)."""
-    states, lookups = over
+    states, looked = over
     n, width = states.shape
     base = width + values.constants.size
-    assigned = values.assigned if lookups is None else None  # narrow: one gather, fewer calls
+    assigned = values.assigned if looked is None else None  # narrow: one gather, fewer calls
     table = np.empty((base + len(values.exprs), n), dtype=np.int64)
     if assigned is None:
         table[:width] = states.T
@@ -379,9 +385,10 @@ def _targets(
         table[0] = states[:, 0]
     table[width:base] = values.constants[:, None]
     skip: frozenset[int] = frozenset()
-    if lookups is not None and lookups.values is not None:
+    if looked is not None:
         # Every tabulated right-hand side, present kind or not: none can fail.
-        table[lookups.value_rows] = lookups.values.evaluate(states)
+        lookups, values_looked = looked
+        table[lookups.value_rows] = values_looked[lookups.first_value :]
         skip = lookups.looked_up
     _fill(table, base, values, states, enabled, present, skip)
     if assigned is None:

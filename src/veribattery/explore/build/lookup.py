@@ -114,6 +114,11 @@ class LookupBuilder:
         self._size += table.size
         return unit
 
+    @property
+    def units(self) -> int:
+        """The number of units added so far."""
+        return len(self._tables)
+
     def finish(self, order: Sequence[int] | None = None) -> Lookup:
         """The lookup of the units in *order* (a unit may repeat; default: each unit
         added, in order)."""
@@ -210,17 +215,18 @@ DEEP = 256
 class NarrowLookups:
     """What a narrow layer looks up: the guards, and the right-hand sides.
 
-    :param guards: the tabulated guards, or None.
-    :param values: the tabulated right-hand sides' lookup, or None.
+    :param lookup: the tables of the guards' units, then of the right-hand sides.
+    :param guards: the tabulated guards (their units: the lookup's first rows), or None.
     :param value_rows: each looked-up right-hand side's row in the layer's table of
-        values (see ``fused.ValueTable``), in the lookup's unit order.
+        values (see ``fused.ValueTable``), in the lookup's order, from row *first_value*.
     :param looked_up: their indices among the plan's value expressions.
     """
 
+    lookup: Lookup
     guards: TabulatedGuards | None
-    values: Lookup | None
     value_rows: IntArray
     looked_up: frozenset[int]
+    first_value: int
 
 
 class NarrowPath:
@@ -251,39 +257,36 @@ class NarrowPath:
 class TabulatedGuards:
     """The guards of a program's commands, looked up at once on a narrow frontier.
 
-    :param lookup: the tables of the guards' units (unit 0 is true).
+    Its methods take a lookup's values ``(units, n)`` on the frontier (0 is false).
+
     :param units: ``(commands + 1, m)``: the units whose conjunction is each command's
-        guard (padded with unit 0; unit 0 only for a guard left to be evaluated).
+        guard (padded with a true unit, only that for a guard left to be evaluated).
     :param residual: per part position, the guards that were not tabulated, as
         ``LayerPlan.guards`` lists them.
     :param kinds: when every guard is tabulated, ``(kinds + 1, m)``: the units whose
         conjunction is each choice kind's enabledness (the last row: any).
     """
 
-    lookup: Lookup
     units: IntArray
     residual: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...]
     kinds: IntArray | None = None
 
-    def guards(self, states: IntArray) -> BoolArray:
+    def guards(self, looked: IntArray) -> BoolArray:
         """``(commands + 1, n)``: each tabulated guard in each state, true elsewhere."""
-        values = self.lookup.evaluate(states)[self.units]
-        if values.shape[1] == 1:
-            found: BoolArray = values[:, 0]
-            return found
-        return _conjunction(values)
+        return _conjunction(looked[self.units])
 
-    def enabled(self, states: IntArray) -> BoolArray:
+    def enabled(self, looked: IntArray) -> BoolArray:
         """``(kinds + 1, n)``: whether each choice kind is enabled in each state (the
         last row unset); only when every guard is tabulated (*kinds* is set)."""
         assert self.kinds is not None
-        return _conjunction(self.lookup.evaluate(states)[self.kinds])
+        return _conjunction(looked[self.kinds])
 
 
-def _conjunction(values: BoolArray) -> BoolArray:
-    """``(rows, n)``: the conjunction of *values* ``(rows, m, n)`` over its middle axis."""
+def _conjunction(values: IntArray) -> BoolArray:
+    """``(rows, n)``: the conjunction of *values* ``(rows, m, n)`` over its middle axis,
+    as a new bool array."""
     if values.shape[1] == 1:
-        found: BoolArray = values[:, 0]
+        found: BoolArray = values[:, 0] != 0
         return found
     conjunction: BoolArray = np.logical_and.reduce(values, axis=1)
     return conjunction
@@ -295,8 +298,8 @@ def tabulate_guards(
     builder: LookupBuilder,
     kind_commands: IntArray,
 ) -> TabulatedGuards | None:
-    """*guards* (per part position, as ``LayerPlan.guards``) tabulated where they can be;
-    None if none can.
+    """*guards* (per part position, as ``LayerPlan.guards``) tabulated where they can be,
+    as units of *builder* (int64: 0 is false); None if none can.
 
     :param exprs: each command's guard expression.
     :param kind_commands: ``(kinds + 1, parts)``: each choice kind's command per
@@ -318,7 +321,7 @@ def tabulate_guards(
         table[c, : len(units)] = units
     residual = tuple(tuple(g for g in part if g[0] not in found) for part in guards)
     kinds = None if any(residual) else _kind_units(kind_commands, found, true)
-    return TabulatedGuards(builder.finish(), table, residual, kinds)
+    return TabulatedGuards(table, residual, kinds)
 
 
 def _kind_units(kind_commands: IntArray, found: Mapping[int, list[int]], true: int) -> IntArray:

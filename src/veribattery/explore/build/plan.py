@@ -28,11 +28,9 @@ from veribattery.explore.build.fused import (
     ValueTable,
 )
 from veribattery.explore.build.lookup import (
-    Lookup,
     LookupBuilder,
     NarrowLookups,
     NarrowPath,
-    TabulatedGuards,
     tabulate_guards,
 )
 from veribattery.explore.compile.expr import CompiledExpr, may_fail
@@ -101,22 +99,15 @@ def _narrow_lookups(
     """The lookups of a narrow layer: the guards (of the commands, per part and per kind:
     *structure*) and the right-hand sides of *values* (their *sources*)."""
     commands, guards, kind_commands = structure
-    tabulated = _tabulated(program, commands, guards, kind_commands)
-    lookup, looked_up = _value_lookup(program, sources, values.exprs)
-    base = len(program.variable_names) + values.constants.size
-    return NarrowLookups(tabulated, lookup, looked_up + base, frozenset(looked_up.tolist()))
-
-
-def _tabulated(
-    program: Program,
-    commands: Sequence[CompiledCommand],
-    guards: tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...],
-    kind_commands: IntArray,
-) -> TabulatedGuards | None:
-    """The guards looked up at once on a narrow frontier (see ``lookup``)."""
-    builder = LookupBuilder(program.variable_names, _ranges(program), np.bool_)
+    # One lookup for both (int64, guards 0 or 1): the guards' units, then the values'.
+    builder = LookupBuilder(program.variable_names, _ranges(program), np.int64)
     exprs = {c: commands[c].command.guard for part in guards for c, _, _ in part}
-    return tabulate_guards(guards, exprs, builder, kind_commands)
+    tabulated = tabulate_guards(guards, exprs, builder, kind_commands)
+    first = builder.units
+    value_units, looked_up = _value_units(builder, sources, values.exprs)
+    base = len(program.variable_names) + values.constants.size
+    return NarrowLookups(builder.finish([*range(first), *value_units]), tabulated,
+                         looked_up + base, frozenset(looked_up.tolist()), first)
 
 
 def _spans(lows: Sequence[int], highs: Sequence[int]) -> np.ndarray | None:
@@ -260,21 +251,18 @@ def _assigned_entries(
                            np.asarray(lows, dtype=np.int64)[columns], spans[columns])
 
 
-def _value_lookup(
-    program: Program, sources: Sequence[Expr | None], exprs: Sequence[LayerExpr]
-) -> tuple[Lookup | None, IntArray]:
-    """The assignments' right-hand sides looked up at once on a narrow frontier (see
-    ``lookup``), and which expressions they are; risky ones are left to be evaluated
-    where their kinds are enabled."""
-    builder = LookupBuilder(program.variable_names, _ranges(program), np.int64)
+def _value_units(
+    builder: LookupBuilder, sources: Sequence[Expr | None], exprs: Sequence[LayerExpr]
+) -> tuple[list[int], IntArray]:
+    """The units of the assignments' right-hand sides that *builder* can tabulate, and
+    which expressions they are; risky ones are left to be evaluated where their kinds
+    are enabled."""
     found: dict[int, int] = {}  # expression -> unit (equal expressions share one)
     for e, (source, expr) in enumerate(zip(sources, exprs, strict=True)):
         unit = builder.add(source) if source is not None and not expr.risky else None
         if unit is not None:
             found[e] = unit
-    if not found:
-        return None, np.empty(0, dtype=np.int64)
-    return builder.finish(list(found.values())), np.array(list(found), dtype=np.int64)
+    return list(found.values()), np.array(list(found), dtype=np.int64)
 
 
 def _ranges(program: Program) -> dict[str, tuple[int, int]]:
