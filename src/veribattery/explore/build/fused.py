@@ -111,17 +111,13 @@ class ValueTable:
 
 @dataclass(frozen=True, slots=True)
 class AssignedEntries:
-    """Per branch kind, the variables it assigns, padded to the same number *K*.
-
-    A branch copies its source state and overwrites these: a model of 32 variables
-    whose updates assign three (crowds) gathers and range-checks three values per
-    branch, not 32. A padding entry repeats one of the kind's entries (or copies
+    """Per branch kind ``(branch kinds, K)``, the *columns* of the variables it assigns,
+    their *rows* of the layer's value table, their *lows* and their ranges' *spans*
+    (uint64), padded: a padding entry repeats one of the kind's entries (or copies
     variable 0 from the source), so writing it changes nothing.
 
-    :param columns: ``(branch kinds, K)``: the variables' columns.
-    :param rows: ``(branch kinds, K)``: their rows of the layer's value table.
-    :param lows: ``(branch kinds, K)``: their lower bounds.
-    :param spans: ``(branch kinds, K)``: their ranges' spans, as uint64.
+    A branch copies its source state and overwrites these: crowds' updates assign
+    three of its 32 variables, so three values per branch are gathered and checked.
     """
 
     columns: IntArray
@@ -196,11 +192,9 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
     looked = None if lookups is None else (lookups, lookups.lookup.evaluate(states))
     enabled, choices = _enabled(plan, states, looked)
     src, kind = _positions(enabled)
-    alive: list[bool] = []
-    present: list[int] = []
-    if _reads_kinds(plan, lookups, rewarded):
-        alive = np.logical_or.reduce(enabled, axis=1).tolist()
-        present = [k for k, on in enumerate(alive) if on]
+    alive: list[bool] = (np.logical_or.reduce(enabled, axis=1).tolist()
+                         if _reads_kinds(plan, lookups, rewarded) else [])
+    present = [k for k, on in enumerate(alive) if on]
     widths = plan.widths[kind]
     total = int(widths.sum())
     if total == src.size:  # one branch per choice
@@ -265,12 +259,9 @@ def _enabled(
 
 
 def _evaluated(plan: LayerPlan, states: IntArray, looked: _Looked | None) -> BoolArray:
-    """:func:`_enabled`'s matrix (the last row unset), part by part; the tabulated
-    guards (if any) read from the *looked* up values.
-
-    A tabulated guard has a value in every state of the ranges, so looking it up
-    where a part before it enables nothing raises nothing the expansion would not.
-    """
+    """:func:`_enabled`'s matrix (the last row unset), part by part; the tabulated guards
+    (if any) read from the *looked* up values: they have a value in every state of
+    the ranges, so reading them where a part before enables nothing raises nothing."""
     tabulated = looked[0].guards if looked is not None else None
     if looked is not None and tabulated is not None:
         guards, evaluated = tabulated.guards(looked[1]), tabulated.residual
