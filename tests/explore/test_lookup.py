@@ -134,3 +134,10 @@ def test_a_guard_of_too_many_valuations_is_split_into_conjuncts() -> None:
     builder = LookupBuilder(("x", "y"), {"x": (0, 1000), "y": (0, 1000)}, np.bool_)
     assert builder.add(guard) is None  # 1001 * 1001 valuations
     assert [builder.add(c) for c in conjuncts(guard)] == [0, None]  # y<=x: as many
+
+
+@pytest.mark.usefixtures("at_once")
+def test_a_model_without_variables_has_one_state() -> None:
+    """No variable to assign or look up: one state, its self-loop (PRISM's too)."""
+    dtmc = build_dtmc(_flat("dtmc\nmodule m\n [] true -> true;\nendmodule\n"))
+    assert (dtmc.num_states, dtmc.num_transitions, dtmc.deadlocks) == (1, 1, 0)

@@ -235,9 +235,10 @@ def _assigned_entries(
     rows: IntArray, lows: Sequence[int], highs: Sequence[int]
 ) -> AssignedEntries | None:
     """Per branch kind (a row of *rows*), the variables it assigns, padded (see
-    :class:`AssignedEntries`); None if a range spans 2**63 or more."""
+    :class:`AssignedEntries`); None if a range spans 2**63 or more, or there is no
+    variable (a padding entry copies variable 0)."""
     spans = _spans(lows, highs)
-    if spans is None:
+    if spans is None or not len(lows):
         return None
     own = rows != np.arange(rows.shape[1])
     width = max(1, int(own.sum(axis=1).max(initial=0)))
