@@ -37,10 +37,12 @@ import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
+from veribattery.explore.build.lookup import NarrowLookups, NarrowPath
 from veribattery.explore.compile.expr import CompiledExpr
 
 __all__ = [
     "SUM_TOLERANCE",
+    "AssignedEntries",
     "Expansion",
     "FactorTable",
     "LayerExpr",
@@ -103,6 +105,25 @@ class ValueTable:
     kind_exprs: tuple[frozenset[int], ...]
     #: The expressions needed per set of present kinds (see ``_needed``).
     needed: dict[tuple[int, ...], tuple[int, ...]] = field(default_factory=dict, compare=False)
+    #: The variables each branch kind assigns (None if a range spans 2**63 or more).
+    assigned: AssignedEntries | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class AssignedEntries:
+    """Per branch kind ``(branch kinds, K)``, the *columns* of the variables it assigns,
+    their *rows* of the layer's value table, their *lows* and their ranges' *spans*
+    (uint64), padded: a padding entry repeats one of the kind's entries (or copies
+    variable 0 from the source), so writing it changes nothing.
+
+    A branch copies its source state and overwrites these: crowds' updates assign
+    three of its 32 variables, so three values per branch are gathered and checked.
+    """
+
+    columns: IntArray
+    rows: IntArray
+    lows: IntArray
+    spans: np.ndarray
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,6 +166,8 @@ class LayerPlan:
     members: dict[frozenset[str | None], list[tuple[str | None, list[int]]]] = field(
         default_factory=dict, compare=False
     )
+    #: The lookups of a deep search's narrow layers (see ``lookup``), if any.
+    narrow: NarrowPath | None = field(default=None, compare=False)
 
     @property
     def kinds(self) -> int:
@@ -165,9 +188,12 @@ class LayerPlan:
 
 
 def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
-    enabled, choices = _enabled(plan, states)
+    lookups = plan.narrow.lookups(states.shape[0]) if plan.narrow is not None else None
+    looked = None if lookups is None else (lookups, lookups.lookup.evaluate(states))
+    enabled, choices = _enabled(plan, states, looked)
     src, kind = _positions(enabled)
-    alive = np.logical_or.reduce(enabled, axis=1).tolist()
+    alive: list[bool] = (np.logical_or.reduce(enabled, axis=1).tolist()
+                         if _reads_kinds(plan, lookups, rewarded) else [])
     present = [k for k, on in enumerate(alive) if on]
     widths = plan.widths[kind]
     total = int(widths.sum())
@@ -177,11 +203,12 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
         firsts = np.cumsum(widths) - widths
         branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(total)
         source = np.repeat(src, widths)
-    targets = _targets(plan.values, states, enabled, present, (branch, source))
+    targets = _targets(plan.values, (states, looked), enabled, present, (branch, source))
     probability = _probabilities(plan.factors, states, enabled, present, (branch, source))
     if probability is None or not _sums_ok(plan, present, probability, firsts, kind):
         return None
-    if _out_of_range(plan, targets):
+    checked = plan.values.assigned is not None and looked is None  # by ``_targets``
+    if targets is None or (not checked and _out_of_range(plan, targets)):
         return None
     if src.size > states.shape[0]:  # some state has several choices (or n = 0)
         probability /= np.maximum(choices, 1)[source]
@@ -194,7 +221,25 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
     return Expansion(source, targets, probability, choices, actions, dropped, total)
 
 
-def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
+#: A narrow layer's lookups and their values on its frontier ``(units, n)``.
+_Looked = tuple[NarrowLookups, IntArray]
+
+
+def _reads_kinds(
+    plan: LayerPlan, lookups: NarrowLookups | None, rewarded: set[str | None]
+) -> bool:
+    """Whether a layer needs to know which kinds are enabled in some state: to evaluate
+    the expressions those kinds use, check their sums or count the rewarded actions'
+    choices (a narrow layer of a program whose expressions are all looked up and
+    probabilities constant needs none of it)."""
+    looked_up = len(lookups.looked_up) if lookups is not None else 0
+    return bool(looked_up < len(plan.values.exprs) or plan.factors.constant is None
+                or plan.unchecked_sums or rewarded)
+
+
+def _enabled(
+    plan: LayerPlan, states: IntArray, looked: _Looked | None = None
+) -> tuple[BoolArray, IntArray]:
     """Enabledness ``(kinds + 1, n)`` (the last row: deadlock) and choices per state.
 
     Kind-major rows keep every reduction over contiguous memory. Guards are
@@ -203,28 +248,42 @@ def _enabled(plan: LayerPlan, states: IntArray) -> tuple[BoolArray, IntArray]:
     (``successors``: a group whose first modules enable nothing stops there), so
     that both paths evaluate, and may fail on, the same guards.
     """
-    guards = np.ones((plan.commands + 1, states.shape[0]), dtype=bool)  # always-true stay
-    table = plan.kind_commands
-    for i, guard, _ in plan.guards[0]:
-        guards[i] = guard(states)
-    enabled = guards[table[:, 0]]
-    for p in range(1, len(plan.guards)):
-        alive = np.logical_or.reduce(enabled, axis=1).tolist()
-        for i, guard, kinds in plan.guards[p]:
-            if any(map(alive.__getitem__, kinds)):
-                guards[i] = guard(states)
-        enabled &= guards[table[:, p]]
+    tabulated = looked[0].guards if looked is not None else None
+    if looked is not None and tabulated is not None and tabulated.kinds is not None:
+        enabled = tabulated.enabled(looked[1])  # every guard looked up: one gather
+    else:
+        enabled = _evaluated(plan, states, looked)
     choices = np.add.reduce(enabled[: plan.kinds], axis=0, dtype=np.int64)
     np.equal(choices, _NO_CHOICE, out=enabled[plan.kinds])
     return enabled, choices
 
 
+def _evaluated(plan: LayerPlan, states: IntArray, looked: _Looked | None) -> BoolArray:
+    """:func:`_enabled`'s matrix (the last row unset), part by part; the tabulated guards
+    (if any) read from the *looked* up values: they have a value in every state of
+    the ranges, so reading them where a part before enables nothing raises nothing."""
+    tabulated = looked[0].guards if looked is not None else None
+    if looked is not None and tabulated is not None:
+        guards, evaluated = tabulated.guards(looked[1]), tabulated.residual
+    else:
+        guards = np.ones((plan.commands + 1, states.shape[0]), dtype=bool)  # always-true stay
+        evaluated = plan.guards
+    table = plan.kind_commands
+    for i, guard, _ in evaluated[0]:
+        guards[i] = guard(states)
+    enabled = guards[table[:, 0]]
+    for p in range(1, len(evaluated)):
+        alive = np.logical_or.reduce(enabled, axis=1).tolist()
+        for i, guard, kinds in evaluated[p]:
+            if any(map(alive.__getitem__, kinds)):
+                guards[i] = guard(states)
+        enabled &= guards[table[:, p]]
+    return enabled
+
+
 def _positions(enabled: BoolArray) -> tuple[IntArray, IntArray]:
     """Source state and kind of every enabled choice, in (source, kind) order."""
-    flat = np.flatnonzero(enabled.T)
-    width = np.asarray(enabled.shape[0], dtype=np.int64)  # 0-d: see ``_NO_CHOICE``
-    source = flat // width
-    kind = flat - source * width
+    source, kind = enabled.T.nonzero()  # row-major over the transpose: by source first
     return source, kind
 
 
@@ -245,13 +304,17 @@ def _fill(
     states: IntArray,
     enabled: BoolArray,
     present: list[int],
+    skip: frozenset[int] = frozenset(),
 ) -> None:
-    """Evaluate the expressions the present kinds need into rows ``base + e`` of *table*.
+    """Evaluate the expressions the present kinds need into rows ``base + e`` of *table*,
+    but those in *skip* (filled in already).
 
     :raises ModelError: an integer table receives floats (the slow path reports it).
     """
     integer = table.dtype.kind == "i"
     for e in _needed(exprs, present):
+        if e in skip:
+            continue
         expr = exprs.exprs[e]
         if expr.risky:  # only where a kind using it is enabled
             rows = np.flatnonzero(np.logical_or.reduce(enabled[expr.kinds], axis=0))
@@ -294,18 +357,46 @@ def _gather(table: np.ndarray, rows: IntArray, at: tuple[IntArray, IntArray]) ->
 
 def _targets(
     values: ValueTable,
-    states: IntArray,
+    over: tuple[IntArray, _Looked | None],
     enabled: BoolArray,
     present: list[int],
     at: tuple[IntArray, IntArray],
-) -> IntArray:
+) -> IntArray | None:
+    """The successor rows of the branches *at* (branch kind, source); None if a value
+    assigned leaves its variable's range (checked here when the plan lists the
+    variables each kind assigns, else by the caller)."""
+    states, looked = over
     n, width = states.shape
     base = width + values.constants.size
+    assigned = values.assigned if looked is None else None  # narrow: one gather, fewer calls
     table = np.empty((base + len(values.exprs), n), dtype=np.int64)
-    table[:width] = states.T
+    if assigned is None:
+        table[:width] = states.T
+    else:  # only a kind that assigns nothing reads a variable's row: variable 0's
+        table[0] = states[:, 0]
     table[width:base] = values.constants[:, None]
-    _fill(table, base, values, states, enabled, present)
-    targets: IntArray = _gather(table, values.rows, at)
+    skip: frozenset[int] = frozenset()
+    if looked is not None:
+        # Every tabulated right-hand side, present kind or not: none can fail.
+        lookups, values_looked = looked
+        table[lookups.value_rows] = values_looked[lookups.first_value :]
+        skip = lookups.looked_up
+    _fill(table, base, values, states, enabled, present, skip)
+    if assigned is None:
+        gathered: IntArray = _gather(table, values.rows, at)
+        return gathered
+    branch, source = at
+    new = _gather(table, assigned.rows, at)
+    # ``value - low`` read unsigned exceeds the span exactly when the value is below
+    # *low* or above *high* (it wraps modulo 2**64; spans are below 2**63).
+    offsets = new - assigned.lows[branch]
+    if np.count_nonzero(offsets.view(np.uint64) > assigned.spans[branch]):
+        return None
+    # The source's values (in range), then the new ones written at their flat positions.
+    targets: IntArray = np.take(states, source, axis=0)
+    where = assigned.columns[branch]
+    where += (np.arange(source.size) * width)[:, None]
+    targets.ravel()[where] = new
     return targets
 
 

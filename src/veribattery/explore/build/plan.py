@@ -10,6 +10,7 @@ layer with.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from collections.abc import Sequence
@@ -20,13 +21,21 @@ import numpy as np
 from veribattery._types import IntArray
 from veribattery.explore.build.fused import (
     SUM_TOLERANCE,
+    AssignedEntries,
     FactorTable,
     LayerExpr,
     LayerPlan,
     ValueTable,
 )
+from veribattery.explore.build.lookup import (
+    LookupBuilder,
+    NarrowLookups,
+    NarrowPath,
+    tabulate_guards,
+)
 from veribattery.explore.compile.expr import CompiledExpr, may_fail
 from veribattery.explore.compile.program import CompiledCommand, Program
+from veribattery.lang.nodes import Expr, Ident
 
 __all__ = ["MAX_BRANCH_KINDS", "MAX_KINDS", "plan_layers"]
 
@@ -56,20 +65,49 @@ def plan_layers(program: Program) -> LayerPlan | None:
     if len(kinds) > MAX_KINDS or sum(widths) > MAX_BRANCH_KINDS:
         return None
     branches = _branch_updates(commands, kinds)
+    guards = _part_guards(commands, kinds)
+    kind_commands = _kind_commands(kinds, len(commands))
+    values, sources = _values(program, commands, kinds, branches)
+    # A program with rational guards or assignments: tables of its expressions'
+    # doubles would not be its functions' values.
+    narrow = None if program.exact else NarrowPath(functools.partial(
+        _narrow_lookups, program, (commands, guards, kind_commands), values, sources))
     return LayerPlan(
-        guards=_part_guards(commands, kinds),
+        guards=guards,
         commands=len(commands),
-        kind_commands=_kind_commands(kinds, len(commands)),
+        kind_commands=kind_commands,
         widths=np.array(widths, dtype=np.int64),
         starts=np.cumsum([0, *widths[:-1]]).astype(np.int64),
-        values=_values(program.variable_names, commands, kinds, branches),
+        values=values,
         factors=_factors(commands, kinds, branches),
         unchecked_sums=_unchecked_sums(commands, kinds),
         action_kinds=_action_kinds(kinds),
         lows=np.array(program.lows, dtype=np.int64),
         highs=np.array(program.highs, dtype=np.int64),
         spans=_spans(program.lows, program.highs),
+        narrow=narrow,
     )
+
+
+def _narrow_lookups(
+    program: Program,
+    structure: tuple[Sequence[CompiledCommand],
+                     tuple[tuple[tuple[int, CompiledExpr, tuple[int, ...]], ...], ...], IntArray],
+    values: ValueTable,
+    sources: Sequence[Expr | None],
+) -> NarrowLookups:
+    """The lookups of a narrow layer: the guards (of the commands, per part and per kind:
+    *structure*) and the right-hand sides of *values* (their *sources*)."""
+    commands, guards, kind_commands = structure
+    # One lookup for both (int64, guards 0 or 1): the guards' units, then the values'.
+    builder = LookupBuilder(program.variable_names, _ranges(program), np.int64)
+    exprs = {c: commands[c].command.guard for part in guards for c, _, _ in part}
+    tabulated = tabulate_guards(guards, exprs, builder, kind_commands)
+    first = builder.units
+    value_units, looked_up = _value_units(builder, sources, values.exprs)
+    base = len(program.variable_names) + values.constants.size
+    return NarrowLookups(builder.finish([*range(first), *value_units]), tabulated,
+                         looked_up + base, frozenset(looked_up.tolist()), first)
 
 
 def _spans(lows: Sequence[int], highs: Sequence[int]) -> np.ndarray | None:
@@ -137,13 +175,16 @@ class _Registry:
         self._exprs: list[tuple[CompiledExpr, bool]] = []
         self._users: list[set[int]] = []
         self._by_kind: dict[int, set[int]] = {}
+        #: Each expression's source (None if not known): what a lookup tabulates.
+        self.sources: list[Expr | None] = []
 
-    def add(self, fn: CompiledExpr, kind: int) -> int:
+    def add(self, fn: CompiledExpr, kind: int, source: Expr | None = None) -> int:
         index = self._index.get(id(fn))
         if index is None:
             index = self._index[id(fn)] = len(self._exprs)
             self._exprs.append((fn, may_fail(fn)))
             self._users.append(set())
+            self.sources.append(source)
         self._users[index].add(kind)
         self._by_kind.setdefault(kind, set()).add(index)
         return index
@@ -159,12 +200,14 @@ class _Registry:
 
 
 def _values(
-    names: Sequence[str],
+    program: Program,
     commands: Sequence[CompiledCommand],
     kinds: Sequence[_Kind],
     branches: Sequence[Sequence[tuple[int, ...]]],
-) -> ValueTable:
-    """Each branch kind's source row per variable (later parts' assignments win)."""
+) -> tuple[ValueTable, list[Expr | None]]:
+    """Each branch kind's source row per variable (later parts' assignments win), and
+    each value expression's source."""
+    names = program.variable_names
     registry = _Registry()
     assigned = [
         _assigned(commands, kind, picks, (registry, k))
@@ -182,8 +225,50 @@ def _values(
                 rows[b, column] = len(names) + constants.setdefault(source, len(constants))
     exprs = rows < 0
     rows[exprs] = len(names) + len(constants) - 1 - rows[exprs]
-    return ValueTable(rows, np.array(list(constants), dtype=np.int64), registry.finish(),
-                   registry.kind_exprs(len(kinds) + 1))
+    table = ValueTable(rows, np.array(list(constants), dtype=np.int64), registry.finish(),
+                       registry.kind_exprs(len(kinds) + 1),
+                       assigned=_assigned_entries(rows, program.lows, program.highs))
+    return table, registry.sources
+
+
+def _assigned_entries(
+    rows: IntArray, lows: Sequence[int], highs: Sequence[int]
+) -> AssignedEntries | None:
+    """Per branch kind (a row of *rows*), the variables it assigns, padded (see
+    :class:`AssignedEntries`); None if a range spans 2**63 or more, or there is no
+    variable (a padding entry copies variable 0)."""
+    spans = _spans(lows, highs)
+    if spans is None or not len(lows):
+        return None
+    own = rows != np.arange(rows.shape[1])
+    width = max(1, int(own.sum(axis=1).max(initial=0)))
+    columns = np.zeros((rows.shape[0], width), dtype=np.int64)  # none: variable 0, copied
+    for b, assigns in enumerate(own):
+        found = np.flatnonzero(assigns)
+        if found.size:
+            columns[b, : found.size] = found
+            columns[b, found.size :] = found[-1]  # repeated: the same value written again
+    return AssignedEntries(columns, np.take_along_axis(rows, columns, axis=1),
+                           np.asarray(lows, dtype=np.int64)[columns], spans[columns])
+
+
+def _value_units(
+    builder: LookupBuilder, sources: Sequence[Expr | None], exprs: Sequence[LayerExpr]
+) -> tuple[list[int], IntArray]:
+    """The units of the assignments' right-hand sides that *builder* can tabulate, and
+    which expressions they are; risky ones are left to be evaluated where their kinds
+    are enabled."""
+    found: dict[int, int] = {}  # expression -> unit (equal expressions share one)
+    for e, (source, expr) in enumerate(zip(sources, exprs, strict=True)):
+        unit = builder.add(source) if source is not None and not expr.risky else None
+        if unit is not None:
+            found[e] = unit
+    return list(found.values()), np.array(list(found), dtype=np.int64)
+
+
+def _ranges(program: Program) -> dict[str, tuple[int, int]]:
+    return dict(zip(program.variable_names,
+                    zip(program.lows, program.highs, strict=True), strict=True))
 
 
 def _assigned(
@@ -197,13 +282,21 @@ def _assigned(
     found: dict[int, int | tuple[int]] = {}
     for c, u in zip(kind.commands, picks, strict=True):
         update = commands[c].updates[u]
+        sources = _sources(commands[c], u)
         for i, (column, rhs) in enumerate(update.assignments):
             constant = update.constants[i] if update.constants else None
             if constant is not None:
                 found[column] = int(constant)
             else:
-                found[column] = (registry.add(rhs, k),)
+                found[column] = (registry.add(rhs, k, sources[i]),)
     return found
+
+
+def _sources(command: CompiledCommand, u: int) -> list[Expr]:
+    """The right-hand sides of update *u*'s compiled assignments: its written ones but
+    ``(x'=x)``, which ``compile_program`` leaves out."""
+    return [a.expr for a in command.command.updates[u].assignments
+            if not (isinstance(a.expr, Ident) and a.expr.name == a.variable)]
 
 
 def _factors(

@@ -23,6 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from veribattery._types import BoolArray, IntArray
+from veribattery.explore.build.digits import decode, digit_groups
 
 __all__ = ["StateStore", "narrowest_type", "radix_words"]
 
@@ -75,7 +76,8 @@ class StateStore:
         self._lows = np.asarray(lows, dtype=np.int64)
         self._sizes = np.asarray(highs, dtype=np.int64) - self._lows + 1
         self._multipliers = radix_words(lows, highs)
-        self._word = self._multipliers.argmax(axis=1)  # each variable's key word
+        self._groups = digit_groups(self._multipliers, self._lows.tolist(),
+                                    self._sizes.tolist())
         # One key word (the usual case) is kept as a flat array: a comparison of flat
         # keys is one call, of key rows two or three.
         self._words = words = self._multipliers.shape[1]
@@ -137,16 +139,7 @@ class StateStore:
 
     def _decode(self, low: int, high: int) -> IntArray:
         keys = self._keys[low + 1 : high + 1].reshape(high - low, self._words)
-        rows = np.empty((keys.shape[0], self._lows.size), dtype=np.int64)
-        for i, (word, size) in enumerate(zip(self._word, self._sizes, strict=True)):
-            column = keys[:, word] // self._multipliers[i, word] if i else keys[:, word].copy()
-            if i + 1 < self._lows.size and self._word[i + 1] == word:
-                # Variables packed above this one are still in the word. (numpy divides
-                # by a scalar with libdivide, but its % is a plain division: 4x slower.)
-                column -= column // size * size
-            rows[:, i] = column
-        rows += self._lows
-        return rows
+        return decode(keys, self._groups, self._lows.size)
 
     def add(self, rows: IntArray) -> IntArray:
         """Index of each row, numbering unseen rows in order of first occurrence."""

@@ -84,6 +84,9 @@ class Program:
     lows: tuple[int, ...]
     highs: tuple[int, ...]
     groups: tuple[ChoiceGroup, ...]
+    #: Some guards or assignments are evaluated in rationals (``exact.program``): the
+    #: functions are then not all those the commands' expressions compile to.
+    exact: bool = False
 
 
 def compile_program(model: FlatModel) -> Program:

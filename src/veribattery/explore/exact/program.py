@@ -154,7 +154,7 @@ def exact_program(program: Program, flat: FlatModel, source: ExactSource) -> Pro
         replace(g, parts=tuple(tuple(command(c) for c in part) for part in g.parts))
         for g in program.groups
     )
-    return replace(program, groups=groups)
+    return replace(program, groups=groups, exact=True)
 
 
 def _exact_command(
