@@ -217,19 +217,29 @@ def _pushed(image: Image, bound: FloatArray, trivial: FloatArray,
     then absorb the change in their own margins. Every vector tried is tested
     whole; only one that passes everywhere is returned.
     """
+    bound = bound.copy()
     for _ in range(PUSH_ROUNDS):
         mapped = image(bound)
         with np.errstate(invalid="ignore"):
             failing = ((mapped > bound) if up else (mapped < bound)) & (bound != trivial)
-        if not failing.any():
+        at = np.flatnonzero(failing)
+        if not at.size:
             return bound
-        with np.errstate(invalid="ignore", over="ignore"):
-            if up:
-                moved = np.minimum(_above(mapped + (mapped - bound)), trivial)
-            else:
-                moved = np.maximum(step_down(mapped - (bound - mapped)), trivial)
-        bound = np.where(failing, np.where(np.isnan(moved), trivial, moved), bound)
+        # Only the failing states move: the rounds after the first touch few of them.
+        bound[at] = _moved_outward(mapped[at], bound[at], trivial[at], up=up)
     return None
+
+
+def _moved_outward(mapped: FloatArray, bound: FloatArray, trivial: FloatArray,
+                   *, up: bool) -> FloatArray:
+    """Failing states' bounds moved past their images by as much again (clipped to
+    *trivial*, which also replaces NaN)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        if up:
+            moved = np.minimum(_above(mapped + (mapped - bound)), trivial)
+        else:
+            moved = np.maximum(step_down(mapped - (bound - mapped)), trivial)
+    return np.where(np.isnan(moved), trivial, moved)
 
 
 def _around(x: FloatArray, margin: FloatArray, factor: float, images: _Images,

@@ -119,9 +119,13 @@ class ChoiceSystem:
         """
         full = np.concatenate([x, known])
         if rows is None:
-            return _bounded_images(self.off, self.pattern, full, offset, self.leave_lower,
+            with np.errstate(invalid="ignore"):
+                terms = np.asarray(self.pattern @ (full != 0).astype(np.float64),
+                                   dtype=np.float64)
+            return _bounded_images(self.off, terms, full, offset, self.leave_lower,
                                    self.leave_upper, up=up)
-        return _bounded_images(self.off[rows], self.pattern[rows], full,
+        off = self.off[rows]
+        return _bounded_images(off, _nonzero_terms(off, full), full,
                                None if offset is None else offset[rows],
                                self.leave_lower[rows], self.leave_upper[rows], up=up)
 
@@ -189,6 +193,7 @@ class BellmanImage:
         self._system, self._known, self._offset = system, known, offset
         self._objective, self._up = objective, up
         self._readers: tuple[IntArray, IntArray] | None = None
+        self._row_class = np.empty(0, dtype=np.int64)  # (made with the readers)
         self._last: tuple[FloatArray, FloatArray, FloatArray] | None = None
 
     def __call__(self, x: FloatArray) -> FloatArray:
@@ -199,24 +204,26 @@ class BellmanImage:
             if changed.size <= RECOMPUTE_ALL * x.size:
                 rows = self._rows_reading(changed)
                 if rows.size <= RECOMPUTE_ALL * rows_now.size:
-                    return self._updated(x, rows)
+                    return self._updated(x, changed, rows)
         row_images = self._system.bound_images(x, self._known, self._offset, up=self._up)
         best = self._system.best(row_images, self._objective)
         self._last = (x.copy(), row_images, best)
         return best.copy()
 
-    def _updated(self, x: FloatArray, rows: IntArray) -> FloatArray:
-        """The image of *x* from the last one, *rows* recomputed."""
+    def _updated(self, x: FloatArray, changed: IntArray, rows: IntArray) -> FloatArray:
+        """The image of *x* from the last one, whose argument differs at *changed*:
+        *rows* recomputed, the remembered vectors updated in place (a copy of each
+        would cost more than the rows themselves)."""
         assert self._last is not None
         system = self._system
-        row_images, best = self._last[1].copy(), self._last[2].copy()
+        argument, row_images, best = self._last
         if rows.size:
             row_images[rows] = system.bound_images(x, self._known, self._offset, up=self._up,
                                                    rows=rows)
-            owners = system.row_class[rows]  # nondecreasing: rows are sorted
+            owners = self._row_class[rows]  # nondecreasing: rows are sorted
             classes = owners[np.concatenate([[True], owners[1:] != owners[:-1]])]
             best[classes] = system.best_of(row_images, classes, self._objective)
-        self._last = (x.copy(), row_images, best)
+        argument[changed] = x[changed]
         return best.copy()
 
     def _rows_reading(self, columns: IntArray) -> IntArray:
@@ -224,20 +231,25 @@ class BellmanImage:
         if self._readers is None:
             inner = sp.csc_matrix(self._system.off[:, : self._system.size])
             self._readers = (inner.indptr.astype(np.int64), inner.indices.astype(np.int64))
+            self._row_class = self._system.row_class
         indptr, rows = self._readers
-        reading = np.zeros(self._system.off.shape[0], dtype=bool)
-        reading[rows[segments(indptr, columns)]] = True
-        return np.flatnonzero(reading)
+        return np.asarray(np.unique(rows[segments(indptr, columns)]), dtype=np.int64)
 
 
-def _bounded_images(off: CsrMatrix, pattern: CsrMatrix, full: FloatArray,
+def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:
+    """Per row of *off*, how many of its stored entries read a nonzero of *full* (as
+    floats: the same counts as the pattern's product, which sums ones exactly)."""
+    with np.errstate(invalid="ignore"):
+        read = np.concatenate([[0], np.cumsum(full[off.indices] != 0)])
+    return np.asarray(read[off.indptr[1:]] - read[off.indptr[:-1]], dtype=np.float64)
+
+
+def _bounded_images(off: CsrMatrix, terms: FloatArray, full: FloatArray,
                     offset: FloatArray | None, leave_lower: FloatArray,
                     leave_upper: FloatArray, *, up: bool) -> FloatArray:
-    """:meth:`ChoiceSystem.bound_images` of the rows *off* (*pattern* their ones,
+    """:meth:`ChoiceSystem.bound_images` of the rows *off* (*terms* their nonzero terms,
     *full* the classes' then the known states' values)."""
     numerator = np.asarray(off @ full, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        terms = np.asarray(pattern @ (full != 0).astype(np.float64), dtype=np.float64)
     if offset is not None:
         numerator = numerator + offset
         terms = terms + (offset != 0)
