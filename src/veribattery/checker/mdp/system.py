@@ -30,8 +30,8 @@ from veribattery.checker.certify import (
     UNIT_ROUNDOFF,
     enclose_product,
     product_error,
-    step_down,
-    step_up,
+    step_down_in_place,
+    step_up_in_place,
 )
 from veribattery.checker.mdp.graph import ChoiceGraph, segments
 
@@ -256,19 +256,53 @@ def _bounded_images(off: CsrMatrix, terms: FloatArray, full: FloatArray,
     # A row without a nonzero term has the exact image 0 (every formula below gives
     # 0 there, through subnormal steps that cost ~10x): compute the others only.
     live = np.flatnonzero(terms)
-    numerator = numerator[live]
-    error = product_error(numerator, terms[live], terms[live])
-    images = np.zeros(terms.size, dtype=np.float64)
+    numerator_rows = terms.size
+    every = live.size == numerator_rows
+    if not every:
+        numerator, terms = numerator[live], terms[live]
+        leave_lower, leave_upper = leave_lower[live], leave_upper[live]
+    error = product_error(numerator, terms, terms)
+    # The formulas of the docstring, in place on the vectors made here: the same
+    # operations on the same floats, without a temporary per step.
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        if up:
-            high = numerator + error
-            quotient = np.where(high == 0, 0.0, step_up(step_up(high) / leave_lower[live]))
-            images[live] = np.where(np.isnan(quotient), np.inf, quotient)
-            return images
-        low = np.maximum(step_down(numerator - error), 0.0)
-        quotient = step_down(low / leave_upper[live])
-    images[live] = np.maximum(np.where(np.isnan(quotient), 0.0, quotient), 0.0)
+        quotient = (_upper_quotient(numerator, error, leave_lower) if up
+                    else _lower_quotient(numerator, error, leave_upper))
+    if every:
+        return quotient
+    images = np.zeros(numerator_rows, dtype=np.float64)
+    images[live] = quotient
     return images
+
+
+def _upper_quotient(numerator: FloatArray, error: FloatArray,
+                    leave_lower: FloatArray) -> FloatArray:
+    """``step_up(step_up(numerator + error) / leave_lower)``, 0 where the sum is 0 and
+    ``inf`` where NaN (in *error*'s storage; every entry is >= 0, NaN or ``+inf``)."""
+    error += numerator
+    zero = error == 0
+    step_up_in_place(error)
+    error /= leave_lower
+    step_up_in_place(error)
+    error[zero] = 0.0
+    error[np.isnan(error)] = np.inf
+    return error
+
+
+def _lower_quotient(numerator: FloatArray, error: FloatArray,
+                    leave_upper: FloatArray) -> FloatArray:
+    """``max(step_down(max(step_down(numerator - error), 0) / leave_upper), 0)``, 0 where
+    NaN (in *numerator*'s storage)."""
+    numerator -= error
+    # A difference <= 0 steps down below 0 and is clipped to 0: clipping it first
+    # gives the same 0 and leaves only entries >= 0 (or NaN) to step down.
+    np.maximum(numerator, 0.0, out=numerator)
+    step_down_in_place(numerator)
+    np.maximum(numerator, 0.0, out=numerator)
+    numerator /= leave_upper
+    step_down_in_place(numerator)
+    numerator[np.isnan(numerator)] = 0.0
+    np.maximum(numerator, 0.0, out=numerator)
+    return numerator
 
 
 def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
