@@ -46,13 +46,13 @@ def test_remembered_images_are_the_fresh_ones(monkeypatch: pytest.MonkeyPatch, s
     rng = np.random.default_rng(seed)
     system, known = _random_system(rng, 300)
     partial = []
-    original = ChoiceSystem.bound_images
+    original = ChoiceSystem.extended_bound_images
 
     def spying(self: ChoiceSystem, *args: Any, **kwargs: Any) -> Any:
         partial.append(kwargs.get("rows") is not None)
         return original(self, *args, **kwargs)
 
-    monkeypatch.setattr(ChoiceSystem, "bound_images", spying)
+    monkeypatch.setattr(ChoiceSystem, "extended_bound_images", spying)
     image = BellmanImage(system, known, None, objective, up=up)
     x = rng.random(system.size)
     before_last = x.copy()

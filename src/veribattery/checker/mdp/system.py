@@ -117,15 +117,20 @@ class ChoiceSystem:
         :param rows: only these rows, in this order (None: all); each row's bound is
             the same float either way.
         """
-        full = np.concatenate([x, known])
+        return self.extended_bound_images(np.concatenate([x, known]), offset, up=up,
+                                          rows=rows)
+
+    def extended_bound_images(self, extended: FloatArray, offset: FloatArray | None,
+                              *, up: bool, rows: IntArray | None = None) -> FloatArray:
+        """:meth:`bound_images` of ``ext(x)``: *x* followed by the known values."""
         if rows is None:
             with np.errstate(invalid="ignore"):
-                terms = np.asarray(self.pattern @ (full != 0).astype(np.float64),
+                terms = np.asarray(self.pattern @ (extended != 0).astype(np.float64),
                                    dtype=np.float64)
-            return _bounded_images(self.off, terms, full, offset, self.leave_lower,
+            return _bounded_images(self.off, terms, extended, offset, self.leave_lower,
                                    self.leave_upper, up=up)
         off = self.off[rows]
-        return _bounded_images(off, _nonzero_terms(off, full), full,
+        return _bounded_images(off, _nonzero_terms(off, extended), extended,
                                None if offset is None else offset[rows],
                                self.leave_lower[rows], self.leave_upper[rows], up=up)
 
@@ -199,15 +204,17 @@ class BellmanImage:
     def __call__(self, x: FloatArray) -> FloatArray:
         """The image of *x* (a new array)."""
         if self._last is not None:
-            argument, rows_now, _ = self._last
+            extended, rows_now, _ = self._last
+            argument = extended[: x.size]
             changed = np.flatnonzero(x.view(np.int64) != argument.view(np.int64))
             if changed.size <= RECOMPUTE_ALL * x.size:
                 rows = self._rows_reading(changed)
                 if rows.size <= RECOMPUTE_ALL * rows_now.size:
                     return self._updated(x, changed, rows)
-        row_images = self._system.bound_images(x, self._known, self._offset, up=self._up)
+        extended = np.concatenate([x, self._known])
+        row_images = self._system.extended_bound_images(extended, self._offset, up=self._up)
         best = self._system.best(row_images, self._objective)
-        self._last = (x.copy(), row_images, best)
+        self._last = (extended, row_images, best)
         return best.copy()
 
     def _updated(self, x: FloatArray, changed: IntArray, rows: IntArray) -> FloatArray:
@@ -216,14 +223,14 @@ class BellmanImage:
         would cost more than the rows themselves)."""
         assert self._last is not None
         system = self._system
-        argument, row_images, best = self._last
+        extended, row_images, best = self._last
+        extended[changed] = x[changed]
         if rows.size:
-            row_images[rows] = system.bound_images(x, self._known, self._offset, up=self._up,
-                                                   rows=rows)
+            row_images[rows] = system.extended_bound_images(extended, self._offset,
+                                                            up=self._up, rows=rows)
             owners = self._row_class[rows]  # nondecreasing: rows are sorted
             classes = owners[np.concatenate([[True], owners[1:] != owners[:-1]])]
             best[classes] = system.best_of(row_images, classes, self._objective)
-        argument[changed] = x[changed]
         return best.copy()
 
     def _rows_reading(self, columns: IntArray) -> IntArray:
