@@ -30,6 +30,7 @@ __all__ = [
     "any_successor_in",
     "attractor",
     "can_reach",
+    "distinct",
     "forced_into",
     "prob0a",
     "prob0e",
@@ -93,6 +94,16 @@ def segments(indptr: IntArray, rows: IntArray) -> IntArray:
     ends = np.cumsum(lengths)
     offsets = np.arange(total, dtype=np.int64) - np.repeat(ends - lengths, lengths)
     return np.asarray(np.repeat(starts, lengths) + offsets, dtype=np.int64)
+
+
+def distinct(values: IntArray) -> IntArray:
+    """The distinct *values*, sorted: ``np.unique`` by a sort, which numpy 2.4's hashing
+    ``unique`` of integers is many times slower than (it was most of the attractor's
+    time on the mission MDP)."""
+    ordered = np.sort(values)
+    first = np.ones(ordered.size, dtype=bool)
+    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
+    return np.asarray(ordered[first], dtype=np.int64)
 
 
 def all_successors_in(graph: ChoiceGraph, states: BoolArray) -> BoolArray:
@@ -162,7 +173,7 @@ def attractor(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
     via = np.full(graph.num_states, -1, dtype=np.int64)
     frontier = np.flatnonzero(seeds)
     while frontier.size:
-        entering = np.unique(graph.choices_into(frontier))
+        entering = distinct(graph.choices_into(frontier))
         owners = graph.owner[entering]
         usable = through[owners] & ~reached[owners]
         if allowed is not None:
@@ -188,7 +199,7 @@ def forced_into(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray) -> Boo
     inside = seeds.copy()
     frontier = np.flatnonzero(seeds)
     while frontier.size:
-        entering = np.unique(graph.choices_into(frontier))
+        entering = distinct(graph.choices_into(frontier))
         entering = entering[~hit[entering]]
         hit[entering] = True
         # Per level, work in the size of the level (a bincount over every state per

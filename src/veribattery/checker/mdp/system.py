@@ -33,7 +33,7 @@ from veribattery.checker.certify import (
     step_down_in_place,
     step_up_in_place,
 )
-from veribattery.checker.mdp.graph import ChoiceGraph, segments
+from veribattery.checker.mdp.graph import ChoiceGraph, distinct, segments
 
 __all__ = ["BellmanImage", "ChoiceSystem", "Objective", "equations", "quotient_classes"]
 
@@ -240,7 +240,7 @@ class BellmanImage:
             self._readers = (inner.indptr.astype(np.int64), inner.indices.astype(np.int64))
             self._row_class = self._system.row_class
         indptr, rows = self._readers
-        return np.asarray(np.unique(rows[segments(indptr, columns)]), dtype=np.int64)
+        return distinct(rows[segments(indptr, columns)])
 
 
 def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:
