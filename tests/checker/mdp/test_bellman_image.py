@@ -19,12 +19,17 @@ from veribattery.checker.mdp.system import (
 
 def _random_system(rng: np.random.Generator, n: int) -> tuple[ChoiceSystem, np.ndarray]:
     """States 0..n-1 unknown, two known states after them (values 0 and 1); each unknown
-    state has one to three choices of one to four successors with random weights."""
+    state has one to three choices of one to four successors with random weights, the
+    first of which reaches a known state (so that the first choices' system is
+    nonsingular)."""
     states = []
     for _ in range(n):
         state = []
-        for _ in range(int(rng.integers(1, 4))):
-            successors = sorted(set(rng.integers(0, n + 2, size=int(rng.integers(1, 5))).tolist()))
+        for i in range(int(rng.integers(1, 4))):
+            drawn = rng.integers(0, n + 2, size=int(rng.integers(1, 5))).tolist()
+            if i == 0:
+                drawn.append(n + int(rng.integers(0, 2)))
+            successors = sorted(set(drawn))
             weights = rng.random(len(successors)) + 0.1
             state.append([(t, float(w)) for t, w in zip(successors, weights / weights.sum(),
                                                         strict=True)])

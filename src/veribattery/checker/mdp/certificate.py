@@ -30,7 +30,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
-from veribattery.checker.mdp.solve import Evaluation, policy_iteration
+from veribattery.checker.mdp.solve import Evaluation, evaluate, improve
 from veribattery.checker.mdp.system import BellmanImage, ChoiceSystem, Objective
 
 __all__ = ["certified_values"]
@@ -149,8 +149,12 @@ def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
         return None
     start = (np.cumsum(tied) - 1)[approximation.rows]
     reward = np.asarray(system.leave[tied] * spread[sub.row_class], dtype=np.float64)
-    found = policy_iteration(sub, "max", np.zeros(sub.known_states.size), reward, start,
-                             rounds=TIED_ROUNDS)
+    zeros = np.zeros(sub.known_states.size)
+    # Policy iteration, its start evaluated with the approximation's solver: the same
+    # rows of the same entries.
+    first = evaluate(sub, start, zeros, reward, approximation.solver)
+    found = None if first is None else improve(sub, "max", zeros, reward, first,
+                                               rounds=TIED_ROUNDS)
     if found is None or not np.all(np.isfinite(found.values)):
         return None
     return np.maximum(found.values, spread)
