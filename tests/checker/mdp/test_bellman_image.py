@@ -17,15 +17,16 @@ from veribattery.checker.mdp.system import (
 )
 
 
-def _random_system(rng: np.random.Generator, n: int) -> tuple[ChoiceSystem, np.ndarray]:
+def _random_system(rng: np.random.Generator, n: int,
+                   most_choices: int = 3) -> tuple[ChoiceSystem, np.ndarray]:
     """States 0..n-1 unknown, two known states after them (values 0 and 1); each unknown
-    state has one to three choices of one to four successors with random weights, the
+    state has one to *most_choices* choices of one to four successors with random weights, the
     first of which reaches a known state (so that the first choices' system is
     nonsingular)."""
     states = []
     for _ in range(n):
         state = []
-        for i in range(int(rng.integers(1, 4))):
+        for i in range(int(rng.integers(1, most_choices + 1))):
             drawn = rng.integers(0, n + 2, size=int(rng.integers(1, 5))).tolist()
             if i == 0:
                 drawn.append(n + int(rng.integers(0, 2)))
@@ -78,3 +79,17 @@ def test_remembered_images_are_the_fresh_ones(monkeypatch: pytest.MonkeyPatch, s
         assert x_before.tolist() != x.tolist()
         got[:] = -1.0  # a caller's changes to its image must not reach the memory
     assert sum(partial) >= 10
+
+
+@pytest.mark.parametrize("objective", ["max", "min"])
+@pytest.mark.parametrize("up", [True, False])
+@pytest.mark.parametrize("most_choices", [1, 3, 20])
+def test_image_is_the_best_row_bound(up: bool, objective: Objective, most_choices: int) -> None:
+    rng = np.random.default_rng(most_choices)
+    system, known = _random_system(rng, 300, most_choices)
+    x = rng.random(system.size)
+    x[rng.random(system.size) < 0.2] = 0.0
+    x[:3] = np.inf if up else 0.0
+    expected = system.best(system.bound_images(x, known, None, up=up), objective)
+    got = BellmanImage(system, known, None, objective, up=up)(x)
+    assert got.view(np.int64).tolist() == expected.view(np.int64).tolist()
