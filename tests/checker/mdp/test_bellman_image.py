@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from tests.checker.mdp.models import mdp_from
+from veribattery.checker.mdp.image import BellmanImage
 from veribattery.checker.mdp.system import (
-    BellmanImage,
     ChoiceSystem,
     Objective,
     equations,
@@ -84,12 +84,21 @@ def test_remembered_images_are_the_fresh_ones(monkeypatch: pytest.MonkeyPatch, s
 @pytest.mark.parametrize("objective", ["max", "min"])
 @pytest.mark.parametrize("up", [True, False])
 @pytest.mark.parametrize("most_choices", [1, 3, 20])
-def test_image_is_the_best_row_bound(up: bool, objective: Objective, most_choices: int) -> None:
+@pytest.mark.parametrize("rewarded", [False, True])
+def test_image_is_the_best_row_bound(up: bool, objective: Objective, most_choices: int,
+                                     rewarded: bool) -> None:
     rng = np.random.default_rng(most_choices)
     system, known = _random_system(rng, 300, most_choices)
-    x = rng.random(system.size)
-    x[rng.random(system.size) < 0.2] = 0.0
-    x[:3] = np.inf if up else 0.0
-    expected = system.best(system.bound_images(x, known, None, up=up), objective)
-    got = BellmanImage(system, known, None, objective, up=up)(x)
-    assert got.view(np.int64).tolist() == expected.view(np.int64).tolist()
+    offset = None
+    if rewarded:  # rewards on half the rows: rows reading only zeros come alive
+        offset = np.where(rng.random(system.choices.size) < 0.5, rng.random(system.choices.size),
+                          0.0)
+    image = BellmanImage(system, known, offset, objective, up=up)
+    for _ in range(3):  # the last live rows kept, then made again for other zeros
+        x = rng.random(system.size)
+        x[rng.random(system.size) < 0.6] = 0.0
+        x[:3] = np.inf if up else 0.0
+        expected = system.best(system.bound_images(x, known, offset, up=up), objective)
+        image(x * (1 + rng.random(system.size)))  # every entry moves, the zeros stay
+        got = image(x)
+        assert got.view(np.int64).tolist() == expected.view(np.int64).tolist()

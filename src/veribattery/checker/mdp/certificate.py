@@ -30,8 +30,9 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
+from veribattery.checker.mdp.image import BellmanImage
 from veribattery.checker.mdp.solve import Evaluation, evaluate, improve
-from veribattery.checker.mdp.system import BellmanImage, ChoiceSystem, Objective
+from veribattery.checker.mdp.system import ChoiceSystem, Objective
 
 __all__ = ["certified_values"]
 

@@ -33,9 +33,9 @@ from veribattery.checker.certify import (
     step_down_in_place,
     step_up_in_place,
 )
-from veribattery.checker.mdp.graph import ChoiceGraph, distinct, segments
+from veribattery.checker.mdp.graph import ChoiceGraph, segments
 
-__all__ = ["BellmanImage", "ChoiceSystem", "Objective", "equations", "quotient_classes"]
+__all__ = ["ChoiceSystem", "LiveRows", "Objective", "equations", "quotient_classes"]
 
 #: Which player the values are optimal for.
 Objective = Literal["min", "max"]
@@ -122,24 +122,27 @@ class ChoiceSystem:
 
     def extended_bound_images(self, extended: FloatArray, offset: FloatArray | None,
                               *, up: bool, rows: IntArray | None = None,
-                              terms: FloatArray | None = None) -> FloatArray:
+                              live: LiveRows | None = None) -> FloatArray:
         """:meth:`bound_images` of ``ext(x)``: *x* followed by the known values.
 
-        :param terms: with every row, :meth:`nonzero_terms` of *extended*, if known.
+        :param live: with every row, :meth:`live_rows` of *extended* and *offset*, if known.
         """
         if rows is None:
-            if terms is None:
-                terms = self.nonzero_terms(extended != 0)
-            return _bounded_images(self.off, terms, extended, offset, self.leave_lower,
-                                   self.leave_upper, up=up)
+            if live is None:
+                live = self.live_rows(extended != 0, offset, up=up)
+            return _bounded_images(self.off, live, extended, offset)
         off = self.off[rows]
-        return _bounded_images(off, _nonzero_terms(off, extended), extended,
-                               None if offset is None else offset[rows],
-                               self.leave_lower[rows], self.leave_upper[rows], up=up)
+        offset = None if offset is None else offset[rows]
+        return _bounded_images(off, LiveRows.of(_nonzero_terms(off, extended), offset,
+                                                self.leave_lower[rows],
+                                                self.leave_upper[rows], up=up),
+                               extended, offset)
 
-    def nonzero_terms(self, nonzero: BoolArray) -> FloatArray:
-        """Per row, how many of its entries read an entry of *nonzero* (as floats)."""
-        return np.asarray(self.pattern @ nonzero.astype(np.float64), dtype=np.float64)
+    def live_rows(self, nonzero: BoolArray, offset: FloatArray | None, *,
+                  up: bool) -> LiveRows:
+        """The rows with a nonzero term when the entries *nonzero* of ``ext(x)`` are."""
+        terms = np.asarray(self.pattern @ nonzero.astype(np.float64), dtype=np.float64)
+        return LiveRows.of(terms, offset, self.leave_lower, self.leave_upper, up=up)
 
     def defect(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,
                objective: Objective) -> FloatArray:
@@ -187,136 +190,6 @@ class ChoiceSystem:
         return np.asarray(np.minimum.reduceat(rows, self.groups[:-1]), dtype=np.int64)
 
 
-#: Share of the rows above which :class:`BellmanImage` recomputes every row at once.
-RECOMPUTE_ALL = 0.25
-#: Classes of at most this many rows take the best of their rows a row at a time
-#: (:class:`_ClassRows`); larger ones by ``reduceat``.
-FEW_ROWS = 8
-
-
-@dataclass(frozen=True, slots=True)
-class _ClassRows:
-    """Where each class's rows lie, to take the best of rigorous row images quickly.
-
-    ``reduceat`` pays some 15 ns per class, more than the comparisons themselves on a
-    system of many classes of one to three rows (a third of a full image of the
-    mission MDP); here each class's first row is read, then its second, third, ... in
-    whole-array operations. Rigorous images hold no NaN and no -0.0 (the bounds
-    replace NaN and clip at +0.0), so their maximum or minimum is the same float in
-    any order -- the one ``reduceat`` finds.
-
-    :param firsts: per class, its first row.
-    :param later: per row position ``k = 1, 2, ...``: the classes of at most
-        :data:`FEW_ROWS` rows that have a row there, and that row.
-    :param large: the classes of more rows; *large_rows* their rows, class by class,
-        and *large_starts* where each class begins in them.
-    """
-
-    firsts: IntArray
-    later: tuple[tuple[IntArray, IntArray], ...]
-    large: IntArray
-    large_rows: IntArray
-    large_starts: IntArray
-
-    @classmethod
-    def of(cls, groups: IntArray) -> _ClassRows:
-        """The layout of the classes whose rows start at *groups* (then the end)."""
-        firsts, sizes = groups[:-1], np.diff(groups)
-        few = sizes <= FEW_ROWS
-        later = []
-        for k in range(1, int(np.max(np.where(few, sizes, 0), initial=0))):
-            classes = np.flatnonzero(few & (sizes > k))
-            later.append((classes, firsts[classes] + k))
-        large = np.flatnonzero(~few)
-        lengths = sizes[large]
-        return cls(firsts, tuple(later), large, segments(groups, large),
-                   np.cumsum(lengths) - lengths)
-
-    def best(self, row_images: FloatArray, objective: Objective) -> FloatArray:
-        """Per class, the maximum or minimum of its rigorous *row_images*."""
-        reduce = np.maximum if objective == "max" else np.minimum
-        best = row_images[self.firsts]
-        for classes, rows in self.later:
-            best[classes] = reduce(best[classes], row_images[rows])
-        if self.large.size:
-            best[self.large] = reduce.reduceat(row_images[self.large_rows], self.large_starts)
-        return best
-
-
-class BellmanImage:
-    """One side of the rigorous Bellman image of a system, ``x -> best_a bound(G_a(x))``,
-    remembering its last argument: the next call recomputes only the rows that read an
-    entry that changed (the others' bounds would be the same floats), and the best of
-    only their classes. The certificate's rounds change few entries at a time.
-
-    :param up: upper bounds (else lower bounds) of the images.
-    """
-
-    def __init__(self, system: ChoiceSystem, known: FloatArray, offset: FloatArray | None,
-                 objective: Objective, *, up: bool) -> None:
-        self._system, self._known, self._offset = system, known, offset
-        self._objective, self._up = objective, up
-        self._readers: tuple[IntArray, IntArray] | None = None
-        self._row_class = np.empty(0, dtype=np.int64)  # (made with the readers)
-        self._last: tuple[FloatArray, FloatArray, FloatArray] | None = None
-        self._rows: _ClassRows | None = None
-        self._terms: tuple[BoolArray, FloatArray] | None = None
-
-    def __call__(self, x: FloatArray) -> FloatArray:
-        """The image of *x* (a new array)."""
-        if self._last is not None:
-            extended, rows_now, _ = self._last
-            argument = extended[: x.size]
-            changed = np.flatnonzero(x.view(np.int64) != argument.view(np.int64))
-            if not changed.size:  # (the certificate maps a vector again as it hands over)
-                return self._last[2].copy()
-            if changed.size <= RECOMPUTE_ALL * x.size:
-                rows = self._rows_reading(changed)
-                if rows.size <= RECOMPUTE_ALL * rows_now.size:
-                    return self._updated(x, changed, rows)
-        extended = np.concatenate([x, self._known])
-        row_images = self._system.extended_bound_images(extended, self._offset, up=self._up,
-                                                        terms=self._terms_of(extended))
-        if self._rows is None:
-            self._rows = _ClassRows.of(self._system.groups)
-        best = self._rows.best(row_images, self._objective)
-        self._last = (extended, row_images, best)
-        return best.copy()
-
-    def _terms_of(self, extended: FloatArray) -> FloatArray:
-        """The rows' nonzero terms of *extended*: the last ones while the same entries
-        are 0 (interval iteration moves every bound, rarely off or onto 0)."""
-        nonzero = extended != 0
-        if self._terms is None or not np.array_equal(nonzero, self._terms[0]):
-            self._terms = (nonzero, self._system.nonzero_terms(nonzero))
-        return self._terms[1]
-
-    def _updated(self, x: FloatArray, changed: IntArray, rows: IntArray) -> FloatArray:
-        """The image of *x* from the last one, whose argument differs at *changed*:
-        *rows* recomputed, the remembered vectors updated in place (a copy of each
-        would cost more than the rows themselves)."""
-        assert self._last is not None
-        system = self._system
-        extended, row_images, best = self._last
-        extended[changed] = x[changed]
-        if rows.size:
-            row_images[rows] = system.extended_bound_images(extended, self._offset,
-                                                            up=self._up, rows=rows)
-            owners = self._row_class[rows]  # nondecreasing: rows are sorted
-            classes = owners[np.concatenate([[True], owners[1:] != owners[:-1]])]
-            best[classes] = system.best_of(row_images, classes, self._objective)
-        return best.copy()
-
-    def _rows_reading(self, columns: IntArray) -> IntArray:
-        """The rows with an entry in any of the class *columns* (sorted, once each)."""
-        if self._readers is None:
-            inner = sp.csc_matrix(self._system.off[:, : self._system.size])
-            self._readers = (inner.indptr.astype(np.int64), inner.indices.astype(np.int64))
-            self._row_class = self._system.row_class
-        indptr, rows = self._readers
-        return distinct(rows[segments(indptr, columns)])
-
-
 def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:
     """Per row of *off*, how many of its stored entries read a nonzero of *full* (as
     floats: the same counts as the pattern's product, which sums ones exactly)."""
@@ -325,33 +198,60 @@ def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:
     return np.asarray(read[off.indptr[1:]] - read[off.indptr[:-1]], dtype=np.float64)
 
 
-def _bounded_images(off: CsrMatrix, terms: FloatArray, full: FloatArray,
-                    offset: FloatArray | None, leave_lower: FloatArray,
-                    leave_upper: FloatArray, *, up: bool) -> FloatArray:
-    """:meth:`ChoiceSystem.bound_images` of the rows *off* (*terms* their nonzero terms,
-    *full* the classes' then the known states' values)."""
+@dataclass(frozen=True, slots=True)
+class LiveRows:
+    """The rows of a rigorous image that read a nonzero term, and what their bounds
+    read: the same while the same entries of the argument are 0.
+
+    A row without a nonzero term has the exact image 0 (every formula of
+    :func:`_bounded_images` gives 0 there, through subnormal steps that cost ~10x):
+    only the others are computed.
+
+    :param rows: the live rows (None: every row).
+    :param count: the number of rows in all.
+    :param terms: per live row, its nonzero terms (the offset's included).
+    :param leave: per live row, the side of ``s_a``'s enclosure the bound divides by.
+    :param up: whether the bounds are upper bounds.
+    """
+
+    rows: IntArray | None
+    count: int
+    terms: FloatArray
+    leave: FloatArray
+    up: bool
+
+    @classmethod
+    def of(cls, terms: FloatArray, offset: FloatArray | None, leave_lower: FloatArray,
+           leave_upper: FloatArray, *, up: bool) -> LiveRows:
+        """The live rows of the per-row nonzero *terms* (and *offset*)."""
+        if offset is not None:
+            terms = terms + (offset != 0)
+        leave = leave_lower if up else leave_upper
+        live = np.flatnonzero(terms)
+        if live.size == terms.size:
+            return cls(None, terms.size, terms, leave, up)
+        return cls(live, terms.size, terms[live], leave[live], up)
+
+
+def _bounded_images(off: CsrMatrix, live: LiveRows, full: FloatArray,
+                    offset: FloatArray | None) -> FloatArray:
+    """:meth:`ChoiceSystem.bound_images` of the rows *off* (*full* the classes' then the
+    known states' values), on the side of *live*."""
     numerator = np.asarray(off @ full, dtype=np.float64)
     if offset is not None:
         numerator = numerator + offset
-        terms = terms + (offset != 0)
-    # A row without a nonzero term has the exact image 0 (every formula below gives
-    # 0 there, through subnormal steps that cost ~10x): compute the others only.
-    live = np.flatnonzero(terms)
-    numerator_rows = terms.size
-    every = live.size == numerator_rows
-    if not every:
-        numerator, terms = numerator[live], terms[live]
-        leave_lower, leave_upper = leave_lower[live], leave_upper[live]
-    error = product_error(numerator, terms, terms)
+    if live.rows is not None:
+        numerator = numerator[live.rows]
+    error = product_error(numerator, live.terms, live.terms)
     # The formulas of the docstring, in place on the vectors made here: the same
     # operations on the same floats, without a temporary per step.
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        quotient = (_upper_quotient(numerator, error, leave_lower) if up
-                    else _lower_quotient(numerator, error, leave_upper))
-    if every:
+        quotient = (_upper_quotient(numerator, error, live.leave) if live.up
+                    else _lower_quotient(numerator, error, live.leave))
+    if live.rows is None:
         return quotient
-    images = np.zeros(numerator_rows, dtype=np.float64)
-    images[live] = quotient
+    images = np.zeros(live.count, dtype=np.float64)
+    images[live.rows] = quotient
     return images
 
 
