@@ -301,9 +301,10 @@ def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
         candidate &= allowed
     rows = np.flatnonzero(candidate)
     rows = rows[np.argsort(class_of[owner[rows]], kind="stable")]
-    leaving = _leaving_entries(transitions, owner, class_of, rows)[2]
-    rows = rows[leaving > 0]
-    positions, row_of, _ = _leaving_entries(transitions, owner, class_of, rows)
+    positions, row_of, leaving = _leaving_entries(transitions, owner, class_of, rows)
+    # Every entry found belongs to a row that leaves: dropping the others renumbers them.
+    kept = leaving > 0
+    rows, row_of = rows[kept], (np.cumsum(kept) - 1)[row_of]
     counts = np.bincount(class_of[owner[rows]], minlength=size)
     if np.any(counts == 0):
         raise ValueError(f"{int(np.sum(counts == 0))} classes have no choice leaving them")
