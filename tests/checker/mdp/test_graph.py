@@ -12,6 +12,7 @@ from veribattery.checker.mdp.components import end_components
 from veribattery.checker.mdp.graph import (
     ChoiceGraph,
     almost_surely,
+    distinct,
     forced_into,
     prob0a,
     prob0e,
@@ -97,3 +98,10 @@ def test_model_validation() -> None:
     good = MDP(P, np.array([0, 1, 2]), np.array([0]))
     assert (good.num_states, good.num_choices, good.num_transitions) == (2, 2, 2)
     assert good.choice_owner.tolist() == [0, 1] and good.action_of(1) == ""
+
+
+@pytest.mark.parametrize("size", [0, 1, 2, 50, 5000])
+def test_distinct_is_numpys_unique(size: int) -> None:
+    values = np.random.default_rng(size).integers(0, max(size // 3, 1), size=size)
+    assert distinct(values).tolist() == sorted(set(values.tolist()))
+    assert distinct(values).dtype == np.int64

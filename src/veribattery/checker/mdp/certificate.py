@@ -30,8 +30,9 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
-from veribattery.checker.mdp.solve import Evaluation, policy_iteration
-from veribattery.checker.mdp.system import BellmanImage, ChoiceSystem, Objective
+from veribattery.checker.mdp.image import BellmanImage
+from veribattery.checker.mdp.solve import Evaluation, evaluate, improve
+from veribattery.checker.mdp.system import ChoiceSystem, Objective
 
 __all__ = ["certified_values"]
 
@@ -149,8 +150,12 @@ def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
         return None
     start = (np.cumsum(tied) - 1)[approximation.rows]
     reward = np.asarray(system.leave[tied] * spread[sub.row_class], dtype=np.float64)
-    found = policy_iteration(sub, "max", np.zeros(sub.known_states.size), reward, start,
-                             rounds=TIED_ROUNDS)
+    zeros = np.zeros(sub.known_states.size)
+    # Policy iteration, its start evaluated with the approximation's solver: the same
+    # rows of the same entries.
+    first = evaluate(sub, start, zeros, reward, approximation.solver)
+    found = None if first is None else improve(sub, "max", zeros, reward, first,
+                                               rounds=TIED_ROUNDS)
     if found is None or not np.all(np.isfinite(found.values)):
         return None
     return np.maximum(found.values, spread)
@@ -217,19 +222,29 @@ def _pushed(image: Image, bound: FloatArray, trivial: FloatArray,
     then absorb the change in their own margins. Every vector tried is tested
     whole; only one that passes everywhere is returned.
     """
+    bound = bound.copy()
     for _ in range(PUSH_ROUNDS):
         mapped = image(bound)
         with np.errstate(invalid="ignore"):
             failing = ((mapped > bound) if up else (mapped < bound)) & (bound != trivial)
-        if not failing.any():
+        at = np.flatnonzero(failing)
+        if not at.size:
             return bound
-        with np.errstate(invalid="ignore", over="ignore"):
-            if up:
-                moved = np.minimum(_above(mapped + (mapped - bound)), trivial)
-            else:
-                moved = np.maximum(step_down(mapped - (bound - mapped)), trivial)
-        bound = np.where(failing, np.where(np.isnan(moved), trivial, moved), bound)
+        # Only the failing states move: the rounds after the first touch few of them.
+        bound[at] = _moved_outward(mapped[at], bound[at], trivial[at], up=up)
     return None
+
+
+def _moved_outward(mapped: FloatArray, bound: FloatArray, trivial: FloatArray,
+                   *, up: bool) -> FloatArray:
+    """Failing states' bounds moved past their images by as much again (clipped to
+    *trivial*, which also replaces NaN)."""
+    with np.errstate(invalid="ignore", over="ignore"):
+        if up:
+            moved = np.minimum(_above(mapped + (mapped - bound)), trivial)
+        else:
+            moved = np.maximum(step_down(mapped - (bound - mapped)), trivial)
+    return np.where(np.isnan(moved), trivial, moved)
 
 
 def _around(x: FloatArray, margin: FloatArray, factor: float, images: _Images,

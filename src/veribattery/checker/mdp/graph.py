@@ -30,6 +30,7 @@ __all__ = [
     "any_successor_in",
     "attractor",
     "can_reach",
+    "distinct",
     "forced_into",
     "prob0a",
     "prob0e",
@@ -93,6 +94,16 @@ def segments(indptr: IntArray, rows: IntArray) -> IntArray:
     ends = np.cumsum(lengths)
     offsets = np.arange(total, dtype=np.int64) - np.repeat(ends - lengths, lengths)
     return np.asarray(np.repeat(starts, lengths) + offsets, dtype=np.int64)
+
+
+def distinct(values: IntArray) -> IntArray:
+    """The distinct *values*, sorted: ``np.unique`` by a sort, which numpy 2.4's hashing
+    ``unique`` of integers is many times slower than (it was most of the attractor's
+    time on the mission MDP)."""
+    ordered = np.sort(values)
+    first = np.ones(ordered.size, dtype=bool)
+    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
+    return np.asarray(ordered[first], dtype=np.int64)
 
 
 def all_successors_in(graph: ChoiceGraph, states: BoolArray) -> BoolArray:
@@ -162,7 +173,7 @@ def attractor(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
     via = np.full(graph.num_states, -1, dtype=np.int64)
     frontier = np.flatnonzero(seeds)
     while frontier.size:
-        entering = np.unique(graph.choices_into(frontier))
+        entering = distinct(graph.choices_into(frontier))
         owners = graph.owner[entering]
         usable = through[owners] & ~reached[owners]
         if allowed is not None:
@@ -188,7 +199,7 @@ def forced_into(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray) -> Boo
     inside = seeds.copy()
     frontier = np.flatnonzero(seeds)
     while frontier.size:
-        entering = np.unique(graph.choices_into(frontier))
+        entering = distinct(graph.choices_into(frontier))
         entering = entering[~hit[entering]]
         hit[entering] = True
         # Per level, work in the size of the level (a bincount over every state per
@@ -232,7 +243,10 @@ def prob1e(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
     *target* using only choices that never leave *u*, until it stops changing.
     Both *u* and the choices that move (owned by ``remain & !target & u``, every
     successor in *u*) only shrink, so each round updates them from the states it
-    removed, and searches only the edges of the choices still moving.
+    removed, and searches only the edges of the choices still moving. The states a
+    search misses take with them every state they leave without a moving choice
+    (:func:`_stranded_removed`): the next search would miss those too, and peeling
+    them one round each costs a search per layer (hundreds on the mission MDP).
 
     :param allowed: the choices the strategy may use (None: all).
     """
@@ -242,12 +256,54 @@ def prob1e(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
     edges = _ReversedEdges.of(graph)
     roots = np.flatnonzero(target)
     while True:
-        edges = edges.kept(staying & (through & candidate)[graph.owner])
+        moving = staying & (through & candidate)[graph.owner]
+        edges = edges.kept(moving)
         shrunk = edges.reaching(roots)
         if np.array_equal(shrunk, candidate):
             return candidate
-        staying[graph.choices_into(np.flatnonzero(candidate & ~shrunk))] = False
-        candidate = shrunk
+        missed = np.flatnonzero(candidate & ~shrunk)
+        candidate = _stranded_removed(graph, shrunk, moving & shrunk[graph.owner], staying,
+                                      missed)
+
+
+def _stranded_removed(graph: ChoiceGraph, candidate: BoolArray, moving: BoolArray,
+                      staying: BoolArray, removed: IntArray) -> BoolArray:
+    """*candidate* (from which *removed* has left) less every state left without a
+    moving choice once the choices into removed states stop staying (updated in place).
+
+    A state of *candidate* is one of *target* (it owns no moving choice and never
+    leaves) or owns a moving choice. Each state counts its moving choices still
+    staying; level by level, a removed state's entering choices stop staying, their
+    owners' counts drop, and an owner at 0 is removed in turn -- each choice is
+    looked at once, so all levels cost one pass over the matrix.
+
+    :param moving: the choices of *candidate*'s states that moved in the last search.
+    """
+    left = np.bincount(graph.owner[moving], minlength=graph.num_states)
+    choice_seen = np.empty(graph.num_choices, dtype=np.int64)
+    state_seen = np.empty(graph.num_states, dtype=np.int64)
+    frontier = removed
+    while frontier.size:
+        entering = graph.choices_into(frontier)
+        entering = _distinct(entering[staying[entering]], choice_seen)
+        staying[entering] = False
+        owners = graph.owner[entering[moving[entering]]]
+        owners = owners[candidate[owners]]
+        np.subtract.at(left, owners, 1)
+        frontier = _distinct(owners[left[owners] == 0], state_seen)
+        candidate[frontier] = False
+    return candidate
+
+
+def _distinct(values: IntArray, seen: IntArray) -> IntArray:
+    """*values* once each, in linear time (*seen*: scratch indexed by value).
+
+    Of a repeated value's writes into *seen* exactly one lands (whichever), so exactly
+    one of its occurrences reads its own position back.
+    """
+    order = np.arange(values.size, dtype=np.int64)
+    seen[values] = order
+    return np.asarray(values[seen[values] == order], dtype=np.int64)
 
 
 @dataclass(frozen=True, slots=True)

@@ -53,15 +53,19 @@ class Evaluation:
     :param correct: ``delta -> (I - B)^-1 delta`` for the strategy's map
         ``x -> G_rows(x)`` (``B`` its linear part): how far a defect *delta* of that map
         moves its fixed point.
+    :param solver: the solver of the strategy's system ``diag(s) - P'_inner`` (the same
+        for every system with the same rows: see :func:`evaluate`).
     """
 
     values: FloatArray
     rows: IntArray
     correct: Callable[[FloatArray], FloatArray]
+    solver: TopologicalSolver
 
 
 def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
-             offset: FloatArray | None) -> Evaluation | None:
+             offset: FloatArray | None,
+             solver: TopologicalSolver | None = None) -> Evaluation | None:
     """The values of the strategy *rows*, or None if its system is singular (the
     strategy stays forever among the unknown states from somewhere).
 
@@ -72,15 +76,16 @@ def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
     computed in extended precision (``np.longdouble``, the leaving probabilities
     summed there too), so that the values are correct to about the last bit of a
     double wherever the system is not too ill-conditioned.
+
+    :param solver: the :attr:`Evaluation.solver` of an evaluation of the same rows --
+        the same entries of the same classes, as in a system restricted to some rows
+        (:meth:`ChoiceSystem.restricted`) -- reused rather than made again.
     """
     chosen = sp.csr_matrix(system.off[rows])
     leave = system.leave[rows]
-    matrix = sp.csr_matrix(sp.diags(leave) - chosen[:, : system.size])
-    try:
-        factors = TopologicalSolver(matrix, _component_lu)
-    except CheckError:
+    factors = solver if solver is not None else _solver(chosen, leave, system.size)
+    if factors is None:
         return None
-    del matrix
     residual = _Residual.of(chosen, system.size, known, None if offset is None else offset[rows])
     x = factors.solve(residual.rhs.astype(np.float64))
     for _ in range(REFINE_STEPS):
@@ -93,7 +98,16 @@ def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
     def correct(delta: FloatArray) -> FloatArray:
         return np.asarray(factors.solve(leave * delta), dtype=np.float64)
 
-    return Evaluation(np.asarray(x, dtype=np.float64), rows, correct)
+    return Evaluation(np.asarray(x, dtype=np.float64), rows, correct, factors)
+
+
+def _solver(chosen: sp.csr_matrix, leave: FloatArray, size: int) -> TopologicalSolver | None:
+    """The solver of ``diag(leave) - chosen_inner``, or None where it is singular."""
+    matrix = sp.csr_matrix(sp.diags(leave) - chosen[:, :size])
+    try:
+        return TopologicalSolver(matrix, _component_lu)
+    except CheckError:
+        return None
 
 
 def _component_lu(block: sp.csr_matrix) -> Callable[[FloatArray], FloatArray] | None:

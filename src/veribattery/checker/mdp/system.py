@@ -30,12 +30,12 @@ from veribattery.checker.certify import (
     UNIT_ROUNDOFF,
     enclose_product,
     product_error,
-    step_down,
-    step_up,
+    step_down_in_place,
+    step_up_in_place,
 )
 from veribattery.checker.mdp.graph import ChoiceGraph, segments
 
-__all__ = ["BellmanImage", "ChoiceSystem", "Objective", "equations", "quotient_classes"]
+__all__ = ["ChoiceSystem", "LiveRows", "Objective", "equations", "quotient_classes"]
 
 #: Which player the values are optimal for.
 Objective = Literal["min", "max"]
@@ -117,13 +117,32 @@ class ChoiceSystem:
         :param rows: only these rows, in this order (None: all); each row's bound is
             the same float either way.
         """
-        full = np.concatenate([x, known])
+        return self.extended_bound_images(np.concatenate([x, known]), offset, up=up,
+                                          rows=rows)
+
+    def extended_bound_images(self, extended: FloatArray, offset: FloatArray | None,
+                              *, up: bool, rows: IntArray | None = None,
+                              live: LiveRows | None = None) -> FloatArray:
+        """:meth:`bound_images` of ``ext(x)``: *x* followed by the known values.
+
+        :param live: with every row, :meth:`live_rows` of *extended* and *offset*, if known.
+        """
         if rows is None:
-            return _bounded_images(self.off, self.pattern, full, offset, self.leave_lower,
-                                   self.leave_upper, up=up)
-        return _bounded_images(self.off[rows], self.pattern[rows], full,
-                               None if offset is None else offset[rows],
-                               self.leave_lower[rows], self.leave_upper[rows], up=up)
+            if live is None:
+                live = self.live_rows(extended != 0, offset, up=up)
+            return _bounded_images(self.off, live, extended, offset)
+        off = self.off[rows]
+        offset = None if offset is None else offset[rows]
+        return _bounded_images(off, LiveRows.of(_nonzero_terms(off, extended), offset,
+                                                self.leave_lower[rows],
+                                                self.leave_upper[rows], up=up),
+                               extended, offset)
+
+    def live_rows(self, nonzero: BoolArray, offset: FloatArray | None, *,
+                  up: bool) -> LiveRows:
+        """The rows with a nonzero term when the entries *nonzero* of ``ext(x)`` are."""
+        terms = np.asarray(self.pattern @ nonzero.astype(np.float64), dtype=np.float64)
+        return LiveRows.of(terms, offset, self.leave_lower, self.leave_upper, up=up)
 
     def defect(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,
                objective: Objective) -> FloatArray:
@@ -171,92 +190,100 @@ class ChoiceSystem:
         return np.asarray(np.minimum.reduceat(rows, self.groups[:-1]), dtype=np.int64)
 
 
-#: Share of the rows above which :class:`BellmanImage` recomputes every row at once.
-RECOMPUTE_ALL = 0.25
+def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:
+    """Per row of *off*, how many of its stored entries read a nonzero of *full* (as
+    floats: the same counts as the pattern's product, which sums ones exactly)."""
+    with np.errstate(invalid="ignore"):
+        read = np.concatenate([[0], np.cumsum(full[off.indices] != 0)])
+    return np.asarray(read[off.indptr[1:]] - read[off.indptr[:-1]], dtype=np.float64)
 
 
-class BellmanImage:
-    """One side of the rigorous Bellman image of a system, ``x -> best_a bound(G_a(x))``,
-    remembering its last argument: the next call recomputes only the rows that read an
-    entry that changed (the others' bounds would be the same floats), and the best of
-    only their classes. The certificate's rounds change few entries at a time.
+@dataclass(frozen=True, slots=True)
+class LiveRows:
+    """The rows of a rigorous image that read a nonzero term, and what their bounds
+    read: the same while the same entries of the argument are 0.
 
-    :param up: upper bounds (else lower bounds) of the images.
+    A row without a nonzero term has the exact image 0 (every formula of
+    :func:`_bounded_images` gives 0 there, through subnormal steps that cost ~10x):
+    only the others are computed.
+
+    :param rows: the live rows (None: every row).
+    :param count: the number of rows in all.
+    :param terms: per live row, its nonzero terms (the offset's included).
+    :param leave: per live row, the side of ``s_a``'s enclosure the bound divides by.
+    :param up: whether the bounds are upper bounds.
     """
 
-    def __init__(self, system: ChoiceSystem, known: FloatArray, offset: FloatArray | None,
-                 objective: Objective, *, up: bool) -> None:
-        self._system, self._known, self._offset = system, known, offset
-        self._objective, self._up = objective, up
-        self._readers: tuple[IntArray, IntArray] | None = None
-        self._last: tuple[FloatArray, FloatArray, FloatArray] | None = None
+    rows: IntArray | None
+    count: int
+    terms: FloatArray
+    leave: FloatArray
+    up: bool
 
-    def __call__(self, x: FloatArray) -> FloatArray:
-        """The image of *x* (a new array)."""
-        if self._last is not None:
-            argument, rows_now, _ = self._last
-            changed = np.flatnonzero(x.view(np.int64) != argument.view(np.int64))
-            if changed.size <= RECOMPUTE_ALL * x.size:
-                rows = self._rows_reading(changed)
-                if rows.size <= RECOMPUTE_ALL * rows_now.size:
-                    return self._updated(x, rows)
-        row_images = self._system.bound_images(x, self._known, self._offset, up=self._up)
-        best = self._system.best(row_images, self._objective)
-        self._last = (x.copy(), row_images, best)
-        return best.copy()
-
-    def _updated(self, x: FloatArray, rows: IntArray) -> FloatArray:
-        """The image of *x* from the last one, *rows* recomputed."""
-        assert self._last is not None
-        system = self._system
-        row_images, best = self._last[1].copy(), self._last[2].copy()
-        if rows.size:
-            row_images[rows] = system.bound_images(x, self._known, self._offset, up=self._up,
-                                                   rows=rows)
-            owners = system.row_class[rows]  # nondecreasing: rows are sorted
-            classes = owners[np.concatenate([[True], owners[1:] != owners[:-1]])]
-            best[classes] = system.best_of(row_images, classes, self._objective)
-        self._last = (x.copy(), row_images, best)
-        return best.copy()
-
-    def _rows_reading(self, columns: IntArray) -> IntArray:
-        """The rows with an entry in any of the class *columns* (sorted, once each)."""
-        if self._readers is None:
-            inner = sp.csc_matrix(self._system.off[:, : self._system.size])
-            self._readers = (inner.indptr.astype(np.int64), inner.indices.astype(np.int64))
-        indptr, rows = self._readers
-        reading = np.zeros(self._system.off.shape[0], dtype=bool)
-        reading[rows[segments(indptr, columns)]] = True
-        return np.flatnonzero(reading)
+    @classmethod
+    def of(cls, terms: FloatArray, offset: FloatArray | None, leave_lower: FloatArray,
+           leave_upper: FloatArray, *, up: bool) -> LiveRows:
+        """The live rows of the per-row nonzero *terms* (and *offset*)."""
+        if offset is not None:
+            terms = terms + (offset != 0)
+        leave = leave_lower if up else leave_upper
+        live = np.flatnonzero(terms)
+        if live.size == terms.size:
+            return cls(None, terms.size, terms, leave, up)
+        return cls(live, terms.size, terms[live], leave[live], up)
 
 
-def _bounded_images(off: CsrMatrix, pattern: CsrMatrix, full: FloatArray,
-                    offset: FloatArray | None, leave_lower: FloatArray,
-                    leave_upper: FloatArray, *, up: bool) -> FloatArray:
-    """:meth:`ChoiceSystem.bound_images` of the rows *off* (*pattern* their ones,
-    *full* the classes' then the known states' values)."""
+def _bounded_images(off: CsrMatrix, live: LiveRows, full: FloatArray,
+                    offset: FloatArray | None) -> FloatArray:
+    """:meth:`ChoiceSystem.bound_images` of the rows *off* (*full* the classes' then the
+    known states' values), on the side of *live*."""
     numerator = np.asarray(off @ full, dtype=np.float64)
-    with np.errstate(invalid="ignore"):
-        terms = np.asarray(pattern @ (full != 0).astype(np.float64), dtype=np.float64)
     if offset is not None:
         numerator = numerator + offset
-        terms = terms + (offset != 0)
-    # A row without a nonzero term has the exact image 0 (every formula below gives
-    # 0 there, through subnormal steps that cost ~10x): compute the others only.
-    live = np.flatnonzero(terms)
-    numerator = numerator[live]
-    error = product_error(numerator, terms[live], terms[live])
-    images = np.zeros(terms.size, dtype=np.float64)
+    if live.rows is not None:
+        numerator = numerator[live.rows]
+    error = product_error(numerator, live.terms, live.terms)
+    # The formulas of the docstring, in place on the vectors made here: the same
+    # operations on the same floats, without a temporary per step.
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        if up:
-            high = numerator + error
-            quotient = np.where(high == 0, 0.0, step_up(step_up(high) / leave_lower[live]))
-            images[live] = np.where(np.isnan(quotient), np.inf, quotient)
-            return images
-        low = np.maximum(step_down(numerator - error), 0.0)
-        quotient = step_down(low / leave_upper[live])
-    images[live] = np.maximum(np.where(np.isnan(quotient), 0.0, quotient), 0.0)
+        quotient = (_upper_quotient(numerator, error, live.leave) if live.up
+                    else _lower_quotient(numerator, error, live.leave))
+    if live.rows is None:
+        return quotient
+    images = np.zeros(live.count, dtype=np.float64)
+    images[live.rows] = quotient
     return images
+
+
+def _upper_quotient(numerator: FloatArray, error: FloatArray,
+                    leave_lower: FloatArray) -> FloatArray:
+    """``step_up(step_up(numerator + error) / leave_lower)``, 0 where the sum is 0 and
+    ``inf`` where NaN (in *error*'s storage; every entry is >= 0, NaN or ``+inf``)."""
+    error += numerator
+    zero = error == 0
+    step_up_in_place(error)
+    error /= leave_lower
+    step_up_in_place(error)
+    error[zero] = 0.0
+    error[np.isnan(error)] = np.inf
+    return error
+
+
+def _lower_quotient(numerator: FloatArray, error: FloatArray,
+                    leave_upper: FloatArray) -> FloatArray:
+    """``max(step_down(max(step_down(numerator - error), 0) / leave_upper), 0)``, 0 where
+    NaN (in *numerator*'s storage)."""
+    numerator -= error
+    # A difference <= 0 steps down below 0 and is clipped to 0: clipping it first
+    # gives the same 0 and leaves only entries >= 0 (or NaN) to step down.
+    np.maximum(numerator, 0.0, out=numerator)
+    step_down_in_place(numerator)
+    np.maximum(numerator, 0.0, out=numerator)
+    numerator /= leave_upper
+    step_down_in_place(numerator)
+    numerator[np.isnan(numerator)] = 0.0
+    np.maximum(numerator, 0.0, out=numerator)
+    return numerator
 
 
 def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
@@ -274,9 +301,10 @@ def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
         candidate &= allowed
     rows = np.flatnonzero(candidate)
     rows = rows[np.argsort(class_of[owner[rows]], kind="stable")]
-    leaving = _leaving_entries(transitions, owner, class_of, rows)[2]
-    rows = rows[leaving > 0]
-    positions, row_of, _ = _leaving_entries(transitions, owner, class_of, rows)
+    positions, row_of, leaving = _leaving_entries(transitions, owner, class_of, rows)
+    # Every entry found belongs to a row that leaves: dropping the others renumbers them.
+    kept = leaving > 0
+    rows, row_of = rows[kept], (np.cumsum(kept) - 1)[row_of]
     counts = np.bincount(class_of[owner[rows]], minlength=size)
     if np.any(counts == 0):
         raise ValueError(f"{int(np.sum(counts == 0))} classes have no choice leaving them")

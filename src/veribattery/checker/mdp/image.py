@@ -1,0 +1,151 @@
+"""The rigorous Bellman image of a :class:`~veribattery.checker.mdp.system.ChoiceSystem`,
+remembering its last argument.
+
+The certificate (:mod:`~veribattery.checker.mdp.certificate`) maps one vector after
+another that differ in a few entries (its push rounds) or in all of them (interval
+iteration); :class:`BellmanImage` recomputes only the rows that read a changed entry,
+and a whole image with as few passes over the rows as it can. Every image is the
+same float that ``system.best(system.bound_images(x, ...))`` gives.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.mdp.graph import distinct, segments
+from veribattery.checker.mdp.system import ChoiceSystem, LiveRows, Objective
+
+__all__ = ["BellmanImage"]
+
+#: Share of the rows above which :class:`BellmanImage` recomputes every row at once.
+RECOMPUTE_ALL = 0.25
+#: Classes of at most this many rows take the best of their rows a row at a time
+#: (:class:`_ClassRows`); larger ones by ``reduceat``.
+FEW_ROWS = 8
+
+
+@dataclass(frozen=True, slots=True)
+class _ClassRows:
+    """Where each class's rows lie, to take the best of rigorous row images quickly.
+
+    ``reduceat`` pays some 15 ns per class, more than the comparisons themselves on a
+    system of many classes of one to three rows (a third of a full image of the
+    mission MDP); here each class's first row is read, then its second, third, ... in
+    whole-array operations. Rigorous images hold no NaN and no -0.0 (the bounds
+    replace NaN and clip at +0.0), so their maximum or minimum is the same float in
+    any order -- the one ``reduceat`` finds.
+
+    :param firsts: per class, its first row.
+    :param later: per row position ``k = 1, 2, ...``: the classes of at most
+        :data:`FEW_ROWS` rows that have a row there, and that row.
+    :param large: the classes of more rows; *large_rows* their rows, class by class,
+        and *large_starts* where each class begins in them.
+    """
+
+    firsts: IntArray
+    later: tuple[tuple[IntArray, IntArray], ...]
+    large: IntArray
+    large_rows: IntArray
+    large_starts: IntArray
+
+    @classmethod
+    def of(cls, groups: IntArray) -> _ClassRows:
+        """The layout of the classes whose rows start at *groups* (then the end)."""
+        firsts, sizes = groups[:-1], np.diff(groups)
+        few = sizes <= FEW_ROWS
+        later = []
+        for k in range(1, int(np.max(np.where(few, sizes, 0), initial=0))):
+            classes = np.flatnonzero(few & (sizes > k))
+            later.append((classes, firsts[classes] + k))
+        large = np.flatnonzero(~few)
+        lengths = sizes[large]
+        return cls(firsts, tuple(later), large, segments(groups, large),
+                   np.cumsum(lengths) - lengths)
+
+    def best(self, row_images: FloatArray, objective: Objective) -> FloatArray:
+        """Per class, the maximum or minimum of its rigorous *row_images*."""
+        reduce = np.maximum if objective == "max" else np.minimum
+        best = row_images[self.firsts]
+        for classes, rows in self.later:
+            best[classes] = reduce(best[classes], row_images[rows])
+        if self.large.size:
+            best[self.large] = reduce.reduceat(row_images[self.large_rows], self.large_starts)
+        return best
+
+
+class BellmanImage:
+    """One side of the rigorous Bellman image of a system, ``x -> best_a bound(G_a(x))``,
+    remembering its last argument: the next call recomputes only the rows that read an
+    entry that changed (the others' bounds would be the same floats), and the best of
+    only their classes. The certificate's rounds change few entries at a time.
+
+    :param up: upper bounds (else lower bounds) of the images.
+    """
+
+    def __init__(self, system: ChoiceSystem, known: FloatArray, offset: FloatArray | None,
+                 objective: Objective, *, up: bool) -> None:
+        self._system, self._known, self._offset = system, known, offset
+        self._objective, self._up = objective, up
+        self._readers: tuple[IntArray, IntArray] | None = None
+        self._row_class = np.empty(0, dtype=np.int64)  # (made with the readers)
+        self._last: tuple[FloatArray, FloatArray, FloatArray] | None = None
+        self._rows: _ClassRows | None = None
+        self._live: tuple[BoolArray, LiveRows] | None = None
+
+    def __call__(self, x: FloatArray) -> FloatArray:
+        """The image of *x* (a new array)."""
+        if self._last is not None:
+            extended, rows_now, _ = self._last
+            argument = extended[: x.size]
+            changed = np.flatnonzero(x.view(np.int64) != argument.view(np.int64))
+            if not changed.size:  # (the certificate maps a vector again as it hands over)
+                return self._last[2].copy()
+            if changed.size <= RECOMPUTE_ALL * x.size:
+                rows = self._rows_reading(changed)
+                if rows.size <= RECOMPUTE_ALL * rows_now.size:
+                    return self._updated(x, changed, rows)
+        extended = np.concatenate([x, self._known])
+        row_images = self._system.extended_bound_images(extended, self._offset, up=self._up,
+                                                        live=self._live_of(extended))
+        if self._rows is None:
+            self._rows = _ClassRows.of(self._system.groups)
+        best = self._rows.best(row_images, self._objective)
+        self._last = (extended, row_images, best)
+        return best.copy()
+
+    def _live_of(self, extended: FloatArray) -> LiveRows:
+        """The live rows of *extended*: the last ones while the same entries are 0
+        (interval iteration moves every bound, rarely off or onto 0)."""
+        nonzero = extended != 0
+        if self._live is None or not np.array_equal(nonzero, self._live[0]):
+            self._live = (nonzero, self._system.live_rows(nonzero, self._offset, up=self._up))
+        return self._live[1]
+
+    def _updated(self, x: FloatArray, changed: IntArray, rows: IntArray) -> FloatArray:
+        """The image of *x* from the last one, whose argument differs at *changed*:
+        *rows* recomputed, the remembered vectors updated in place (a copy of each
+        would cost more than the rows themselves)."""
+        assert self._last is not None
+        system = self._system
+        extended, row_images, best = self._last
+        extended[changed] = x[changed]
+        if rows.size:
+            row_images[rows] = system.extended_bound_images(extended, self._offset,
+                                                            up=self._up, rows=rows)
+            owners = self._row_class[rows]  # nondecreasing: rows are sorted
+            classes = owners[np.concatenate([[True], owners[1:] != owners[:-1]])]
+            best[classes] = system.best_of(row_images, classes, self._objective)
+        return best.copy()
+
+    def _rows_reading(self, columns: IntArray) -> IntArray:
+        """The rows with an entry in any of the class *columns* (sorted, once each)."""
+        if self._readers is None:
+            inner = sp.csc_matrix(self._system.off[:, : self._system.size])
+            self._readers = (inner.indptr.astype(np.int64), inner.indices.astype(np.int64))
+            self._row_class = self._system.row_class
+        indptr, rows = self._readers
+        return distinct(rows[segments(indptr, columns)])
