@@ -28,6 +28,7 @@ from gmpy2 import mpq
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, IntArray
+from veribattery._unique import distinct
 from veribattery.explore.exact.rational import ObjectArray
 
 __all__ = ["BATCH_LIMIT", "ExactSystem", "Prepared", "prepare", "restrict", "row_products", "solve"]
@@ -128,7 +129,7 @@ def _order(system: ExactSystem) -> _Order:
 def _levels(count: int, tails: IntArray, heads: IntArray) -> IntArray:
     """Longest-path distance of each component to a sink of the condensation (Kahn, peeled)."""
     cross = tails != heads
-    pairs = np.unique(tails[cross].astype(np.int64) * count + heads[cross])
+    pairs = distinct(tails[cross].astype(np.int64) * count + heads[cross])
     tail, head = pairs // count, pairs % count
     out_degree = np.bincount(tail, minlength=count)
     by_head = np.argsort(head, kind="stable")

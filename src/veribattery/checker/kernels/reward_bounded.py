@@ -36,6 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery._unique import distinct
 from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.kernels import reward_radius
@@ -278,7 +279,7 @@ class _Closure:
 
     @classmethod
     def of(cls, levels: Levels, n: int) -> _Closure:
-        used = np.union1d(np.unique(levels.zero_rows.indices), levels.zero)
+        used = distinct(np.concatenate([levels.zero_rows.indices, levels.zero]))
         local = np.searchsorted(used, levels.zero)
         rows = sp.csr_matrix(levels.zero_rows[:, used])
         empty = np.zeros(used.size)
@@ -410,7 +411,7 @@ def _forward(P: CsrMatrix, levels: Levels, initial: FloatArray,
 
 def _columns_used(rows: CsrMatrix) -> tuple[IntArray, CsrMatrix]:
     """The columns *rows* reach, and the transposed block over just those columns."""
-    used = np.unique(rows.indices)
+    used = distinct(rows.indices)
     return used, sp.csr_matrix(rows[:, used].T)
 
 

@@ -29,6 +29,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery._unique import distinct
 from veribattery.checker import certify, linalg
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 
@@ -107,7 +108,7 @@ def group_rows(P: CsrMatrix, states: IntArray
         for nonnegative terms is at most ``coefficient * magnitude + underflow``.
     """
     rows = sp.csr_matrix(P[states])
-    successors = np.unique(rows.indices)
+    successors = distinct(rows.indices)
     block = sp.csr_matrix(rows[:, successors])
     terms = certify.row_terms(block)
     return successors, block, certify.error_coefficient(terms), terms * (2 * certify.ETA)
@@ -199,7 +200,7 @@ class _RadiusClosure:
     def of(cls, levels: Levels) -> _RadiusClosure | None:
         """The closure, or None if ``tau`` is not certified finite (a stiff closure)."""
         assert levels.closure is not None
-        used = np.union1d(np.unique(levels.zero_rows.indices), levels.zero)
+        used = distinct(np.concatenate([levels.zero_rows.indices, levels.zero]))
         local = np.searchsorted(used, levels.zero)
         empty = np.zeros(used.size)
         shape = certify.AffineMap.of(sp.csr_matrix(levels.zero_rows[:, used]), local,

@@ -42,6 +42,7 @@ from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
 
 from veribattery._types import FloatArray, IntArray
+from veribattery._unique import distinct
 from veribattery.errors import CheckError
 
 __all__ = [
@@ -136,7 +137,7 @@ def _topological_labels(count: int, labels: IntArray, src: IntArray,
         predecessors = reverse.indices[np.concatenate(
             [np.arange(reverse.indptr[c], reverse.indptr[c + 1]) for c in frontier])]
         np.subtract.at(pending, predecessors, 1)
-        candidates = np.unique(predecessors)
+        candidates = distinct(predecessors)
         frontier = candidates[pending[candidates] == 0]
     if done != count:
         raise CheckError("the condensation of a linear system has a cycle")

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from scipy.sparse import csgraph
 
 from veribattery._types import BoolArray, CsrMatrix, IntArray
+from veribattery._unique import distinct, distinct_first
 
 __all__ = [
     "ChoiceGraph",
@@ -30,7 +31,6 @@ __all__ = [
     "any_successor_in",
     "attractor",
     "can_reach",
-    "distinct",
     "forced_into",
     "prob0a",
     "prob0e",
@@ -94,16 +94,6 @@ def segments(indptr: IntArray, rows: IntArray) -> IntArray:
     ends = np.cumsum(lengths)
     offsets = np.arange(total, dtype=np.int64) - np.repeat(ends - lengths, lengths)
     return np.asarray(np.repeat(starts, lengths) + offsets, dtype=np.int64)
-
-
-def distinct(values: IntArray) -> IntArray:
-    """The distinct *values*, sorted: ``np.unique`` by a sort, which numpy 2.4's hashing
-    ``unique`` of integers is many times slower than (it was most of the attractor's
-    time on the mission MDP)."""
-    ordered = np.sort(values)
-    first = np.ones(ordered.size, dtype=bool)
-    np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
-    return np.asarray(ordered[first], dtype=np.int64)
 
 
 def all_successors_in(graph: ChoiceGraph, states: BoolArray) -> BoolArray:
@@ -179,7 +169,7 @@ def attractor(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
         if allowed is not None:
             usable &= allowed[entering]
         entering, owners = entering[usable], owners[usable]
-        owners, first = np.unique(owners, return_index=True)
+        owners, first = distinct_first(owners)
         via[owners] = entering[first]
         reached[owners] = True
         frontier = owners

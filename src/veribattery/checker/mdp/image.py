@@ -16,7 +16,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.mdp.graph import distinct, segments
+from veribattery._unique import distinct
+from veribattery.checker.mdp.graph import segments
 from veribattery.checker.mdp.system import ChoiceSystem, LiveRows, Objective
 
 __all__ = ["BellmanImage"]

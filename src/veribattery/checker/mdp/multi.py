@@ -37,6 +37,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery._unique import distinct
 from veribattery.checker.mdp.components import end_components
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
@@ -199,7 +200,7 @@ def _successor_codes(mdp: MDP, codes: IntArray, flags: IntArray, width: int) -> 
     owner = np.repeat(np.arange(states.size), np.diff(mdp.row_groups)[states])
     entry_owner = np.repeat(owner, np.diff(rows.indptr))
     successors = rows.indices.astype(np.int64)
-    return np.unique(successors * width + (bits[entry_owner] | flags[successors]))
+    return distinct(successors * width + (bits[entry_owner] | flags[successors]))
 
 
 def _choices_of(mdp: MDP, states: IntArray) -> IntArray:

@@ -22,6 +22,7 @@ import math
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery._unique import distinct_first
 from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp import graph as qualitative
 from veribattery.checker.mdp.components import EndComponents, end_components
@@ -197,7 +198,7 @@ def _collecting(mdp: MDP, graph: ChoiceGraph, components: EndComponents, paying:
     component with a paying inside choice, then that choice again and again."""
     choices = mdp.row_groups[:-1].copy()
     paid = np.flatnonzero(paying)
-    first = np.unique(components.component[graph.owner[paid]], return_index=True)[1]
+    first = distinct_first(components.component[graph.owner[paid]])[1]
     payers = paid[first]
     hubs = np.zeros(mdp.num_states, dtype=bool)
     hubs[graph.owner[payers]] = True

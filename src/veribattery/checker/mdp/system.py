@@ -26,6 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery._unique import distinct_inverse
 from veribattery.checker.certify import (
     UNIT_ROUNDOFF,
     enclose_product,
@@ -339,7 +340,7 @@ def _local_columns(class_of: IntArray, columns: IntArray, size: int) -> tuple[In
     """Columns renumbered: a class keeps its index, a known state gets ``size + k``."""
     column_class = class_of[columns]
     known = column_class < 0
-    known_states, inverse = np.unique(columns[known], return_inverse=True)
+    known_states, inverse = distinct_inverse(columns[known])
     local = column_class.copy()
     local[known] = size + inverse
     return local, known_states.astype(np.int64)

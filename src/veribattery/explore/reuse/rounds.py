@@ -16,6 +16,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 
 from veribattery._types import IntArray
+from veribattery._unique import distinct
 
 __all__ = [
     "SALTS",
@@ -74,12 +75,6 @@ def _firsts(block: IntArray, count: int) -> IntArray:
     first = np.empty(count, dtype=np.int64)
     first[block[::-1]] = np.arange(block.size - 1, -1, -1, dtype=np.int64)
     return first
-
-
-def _distinct(values: npt.NDArray[np.integer]) -> IntArray:
-    """The distinct *values*, ascending."""
-    ranked = np.sort(values)
-    return ranked[np.concatenate([[True], ranked[1:] != ranked[:-1]])] if ranked.size else ranked
 
 
 def _ranges(starts: npt.NDArray[np.integer], lengths: npt.NDArray[np.integer]) -> IntArray:
@@ -275,7 +270,7 @@ def _described(P: sp.csr_matrix, block: IntArray, tags: IntArray, bits: IntArray
     ranks = np.arange(rows.size, dtype=np.int64) - np.repeat(P.indptr[:-1], degree)
     rep_entry = np.repeat(P.indptr[representative[block]], degree) + ranks
     twin = (rows[1:] == rows[:-1]) & (keys[1:] == keys[:-1])
-    tie_rows = _distinct(rows[1:][twin])
+    tie_rows = distinct(rows[1:][twin])
     return Round(block, tags, representative, order.astype(np.int64), keys,
                   rep_entry.astype(np.int64), _ranges(P.indptr[tie_rows], degree[tie_rows]),
                   np.repeat(tie_rows, degree[tie_rows]),
@@ -289,7 +284,7 @@ def _entry_order(rows: IntArray, keys: IntArray, bits: IntArray, width: int) -> 
     rows, keys = rows[order], keys[order]
     tied = np.flatnonzero((rows[1:] == rows[:-1]) & (keys[1:] == keys[:-1]))
     if tied.size:
-        where = _distinct(np.concatenate([tied, tied + 1]))
+        where = distinct(np.concatenate([tied, tied + 1]))
         order[where] = order[where][np.lexsort((bits[order[where]], keys[where], rows[where]))]
     return order
 
@@ -378,7 +373,7 @@ def shared_successors(P: sp.csr_matrix, found: Round) -> IntArray:
     keys = found.keys[ties]
     twin = np.flatnonzero((rows[1:] == rows[:-1]) & (keys[1:] == keys[:-1]))
     columns = P.indices[found.order[ties]]
-    return _distinct(np.maximum(columns[twin], columns[twin + 1])).astype(np.int64)
+    return distinct(np.maximum(columns[twin], columns[twin + 1])).astype(np.int64)
 
 
 def quotient_plan(P: sp.csr_matrix, last: Round) -> tuple[IntArray, IndexArray, IndexArray]:

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from veribattery._types import FloatArray, IntArray
+from veribattery._unique import distinct_first
 from veribattery.errors import ModelError
 from veribattery.explore.build.builder import (
     Layer,
@@ -265,7 +266,7 @@ def _global_dropped(layers: list[Layer]) -> IntArray:
 
 def _first_occurrences(indices: IntArray) -> IntArray:
     """*indices* without repeats, in order of first occurrence (the numbering order)."""
-    _, first = np.unique(indices, return_index=True)
+    first = distinct_first(indices)[1]
     return indices[np.sort(first)]
 
 
