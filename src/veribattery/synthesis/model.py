@@ -9,7 +9,7 @@ and explored like any PRISM file, into the checker's
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from veribattery.checker.mdp import MDP, MdpResult
 from veribattery.checker.mdp.multi_weighted import Interval
@@ -68,10 +68,16 @@ def mission_model(cfg: MissionConfig, *,
     return built_model(render_synthesis_model(cfg), progress=progress)
 
 
-def built_model(text: str, *,
-                progress: ProgressCallback | None = None) -> tuple[FlatModel, MDP]:
+def built_model(text: str, *, progress: ProgressCallback | None = None,
+                rewards: bool = True) -> tuple[FlatModel, MDP]:
     """The flat model and the MDP of the mission MDP *text* (as
     :func:`~veribattery.render.render_synthesis_model` writes it; a sweep point renders
-    it once, where the point is planned)."""
+    it once, where the point is planned).
+
+    :param rewards: build the reward structures (``Pmax`` alone needs none: the flat
+        model returned then has none either).
+    """
     model = flatten_model(parse_model(text, name=MODEL_FILE))
+    if not rewards:
+        model = replace(model, rewards=())
     return model, as_checker_mdp(build_mdp(model, progress=progress))

@@ -29,6 +29,6 @@ def pmax_of_model(text: str) -> MissionPmax:
 
     :raises VeribatteryError: when the model cannot be parsed, built or checked.
     """
-    mdp = built_model(text)[1]
+    mdp = built_model(text, rewards=False)[1]
     value = reach_probability(mdp, mdp.labels["success"], objective="max")
     return MissionPmax(Certified.at_initial(mdp, value), ModelSize.of(mdp))
