@@ -87,9 +87,12 @@ def test_interrupted_check_exits_130(workdir: Path) -> None:
     import sys
     import time
 
+    # 357 points: far more than the 0.2 s before the signal can check (21 points of this
+    # small farm once finished first, and the sweep exited 0)
     process = subprocess.Popen(
         [sys.executable, "-c", "from veribattery.cli import main; main()", "sweep", CASE1,
-         *SMALL, "--vary", "battery.capacity_ah=10:20:0.5", "-j", "1"],
+         *SMALL, "--vary", "battery.capacity_ah=10:20:0.5",
+         "--vary", "environment.p_wsp_c=0.1:0.9:0.05", "-j", "1"],
         cwd=workdir, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     assert process.stderr is not None
     process.stderr.readline()  # the first point's line: the sweep is under way
