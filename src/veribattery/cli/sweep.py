@@ -63,6 +63,10 @@ def sweep_command(
 ) -> None:
     """Check CONFIG at every point of a parameter grid.
 
+    A point in synthesis mode (strategy.mode=synthesize, also as --vary
+    strategy.mode=bs1,synthesize) gives the best return policy's certified Pmax of
+    success: p_success_max and its interval's ends.
+
     Exit 1 if a point failed or a requirement fails anywhere (a summary line says which).
     """
     from veribattery.config import load_config
