@@ -14,7 +14,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from veribattery.config import MissionConfig
-from veribattery.render import synthesis_questions
+from veribattery.lang.nodes import BOUND_RELATIONS
+from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.sweep.grid import Axis
 from veribattery.sweep.point_result import PointResult, PropertyValue
 from veribattery.synthesis.model import Certified
@@ -33,25 +34,23 @@ def synthesis_point(index: int, cfg: MissionConfig, answer: MissionPmax,
                     seconds: float) -> PointResult:
     """The result of the point *index* whose mission MDP gave *answer*."""
     value = answer.p_success_max
-    judged = _requirements(cfg, value)
+    questions, unasked = synthesis_questions(cfg)
     best, lower, upper = SYNTHESIS_PROPERTIES
-    rows = (PropertyValue(best, value.value, *judged),
+    rows = (PropertyValue(best, value.value, *_requirements(questions, value)),
             PropertyValue(lower, value.lower, None, None),
             PropertyValue(upper, value.upper, None, None))
-    skipped = tuple(f"{s.requirement} asks nothing of the MDP: {s.reason}"
-                    for s in synthesis_questions(cfg)[1])
+    skipped = tuple(f"{s.requirement} asks nothing of the MDP: {s.reason}" for s in unasked)
     return PointResult(index, rows, answer.size.states, answer.size.transitions, seconds,
                        warnings=skipped)
 
 
-def _requirements(cfg: MissionConfig, value: Certified) -> tuple[str | None, bool | None]:
+def _requirements(questions: Sequence[FastestQuestion],
+                  value: Certified) -> tuple[str | None, bool | None]:
     """The requirements on P(success) as written, and whether some policy certainly
     meets them all (None: there are none)."""
-    questions = synthesis_questions(cfg)[0]
     if not questions:
         return None, None
-    met = all(value.lower > q.bound if q.op == ">" else value.lower >= q.bound
-              for q in questions)
+    met = all(BOUND_RELATIONS[q.op](value.lower, q.bound) for q in questions)
     return " and ".join(q.requirement for q in questions), met
 
 
