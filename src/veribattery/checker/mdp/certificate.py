@@ -189,12 +189,13 @@ def _side(image: Image, x: FloatArray, margin: FloatArray, images: _Images,
     if first is not None:
         return first
     found = [_first_passing(image, x, margin, FACTORS[1:], images, up=up)]
-    for rounds in TIED_ROUNDS:
-        tied = None if wider is None else wider(rounds)
-        if tied is not None:
-            found.append(_first_passing(image, x, tied, FACTORS, images, up=up))
-        if wider is None or any(bound is not None for bound in found):
-            break  # (more rounds only while nothing passes)
+    if wider is not None:
+        for rounds in TIED_ROUNDS:
+            tied = wider(rounds)
+            if tied is not None:
+                found.append(_first_passing(image, x, tied, FACTORS, images, up=up))
+            if any(bound is not None for bound in found):
+                break  # more rounds only while nothing passes
     passing = [bound for bound in found if bound is not None]
     if passing:
         return _tightest(passing, up=up)
