@@ -12,8 +12,11 @@ from veribattery.cli.explain import prism_analysis_options, prism_explain, prism
 from veribattery.cli.files import CSV_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     build_progress,
+    err,
+    escape,
     exact_notes,
     exact_text,
+    fail,
     format_result,
     format_value,
     print_dim,
@@ -99,7 +102,9 @@ def prism_command(
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)
-    export_run_strategy(run, analysis)
+    errors = getattr(run, "errors", ())
+    if not errors:
+        export_run_strategy(run, analysis)
     if analysis["simulate"] is not None:
         if not isinstance(run, ModelCheckRunType):
             with user_errors():
@@ -115,6 +120,18 @@ def prism_command(
         print_prism_csv(run)
     else:
         print_prism_run(run)
+    fail_ill_posed(errors)
+
+
+def fail_ill_posed(errors: tuple[str, ...]) -> None:
+    """After the results (the values PRISM would print), the properties the issue counts
+    as bad input (an infeasible ``multi``, an ``Rmin`` of an unreachable target): one
+    ``error:`` line each, exit status 2, and no strategy files written."""
+    if not errors:
+        return
+    for message in errors[:-1]:
+        err.print(f"[bold red]error:[/] {escape(message)}", markup=True, highlight=False)
+    fail(errors[-1])
 
 
 def _format(output_format: str | None, as_json: bool) -> str:

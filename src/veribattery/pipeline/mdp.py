@@ -15,8 +15,9 @@ from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.formula.intervals import Undecided
 from veribattery.checker.mdp import MDP, MdpRewards, Strategy
 from veribattery.checker.mdp.formula import mdp_answer
+from veribattery.checker.mdp.ill_posed import unreachable_reward_target
 from veribattery.checker.mdp.witness import property_strategy
-from veribattery.errors import UndefinedResult
+from veribattery.errors import Span, UndefinedResult
 from veribattery.explore.build.mdp import BuiltMdp, build_mdp
 from veribattery.lang import (
     FlatModel,
@@ -44,6 +45,10 @@ class MdpCheckRun:
     """What one check of an MDP produced: the MDP, one result per property, timings.
 
     :param model: the flat model the MDP was built from (None if not kept).
+    :param errors: properties answered as PRISM answers them whose answer the issue
+        counts as bad input (an infeasible ``multi(...)``: NaN; an ``Rmin [ F phi ]``
+        that no strategy can reach: Infinity), each ``file:line:col: why``; the CLI
+        shows the results, then these, and exits 2.
     """
 
     mdp: MDP
@@ -51,6 +56,7 @@ class MdpCheckRun:
     timings_s: dict[str, float]
     warnings: tuple[str, ...] = ()
     model: FlatModel | None = None
+    errors: tuple[str, ...] = ()
 
     def strategy(self, index: int) -> Strategy:
         """The optimal memoryless strategy of the *index*-th result's property (0-based),
@@ -102,28 +108,43 @@ def check_mdp_model(
         built = build_mdp(flat, progress=progress)
         mdp = as_checker_mdp(built)
     results = []
-    warnings = list(built.warnings)
+    errors: list[str] = []
     with watch.stage("check"):
         for number, prop in enumerate(resolved, start=1):
             tell_checking(stages, number, len(resolved), prop)
-            results.append(_checked(mdp, prop, warnings,
+            results.append(_checked(mdp, prop, errors,
                                     None if stages is None else stages.solving))
-    return MdpCheckRun(mdp, tuple(results), watch.seconds, tuple(warnings), model=flat)
+            errors.extend(ill_posed_errors(mdp, prop))
+    return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings, model=flat,
+                       errors=tuple(errors))
 
 
-def _checked(mdp: MDP, prop: Property, warnings: list[str],
+def _checked(mdp: MDP, prop: Property, errors: list[str],
              progress: Progress | None = None) -> CheckResult:
     """*prop*'s answer; an :class:`UndecidedResult` if its bound is undecided; NaN,
-    with a warning added to *warnings*, if it has no value (an infeasible ``multi``)."""
+    with the reason added to *errors*, if it has no value (an infeasible ``multi``)."""
     start = time.perf_counter()
     try:
         answer = mdp_answer(mdp, prop.formula, progress)
     except Undecided as exc:
         return UndecidedResult.of(prop, exc.message)
     except UndefinedResult as exc:
-        warnings.append(f"{prop.name or prop.text}: undefined (NaN): {exc.message}")
+        errors.append(property_error(prop, f"undefined (NaN): {exc.message}", exc.span))
         return CheckResult(prop, np.zeros(0), math.nan, 0.0)
     return CheckResult.of_answer(prop, answer, time.perf_counter() - start).without_states()
+
+
+def ill_posed_errors(mdp: MDP, prop: Property) -> list[str]:
+    """*prop*'s entry for :attr:`MdpCheckRun.errors` if it is ill-posed (see
+    :mod:`~veribattery.checker.mdp.ill_posed`), else none."""
+    why = unreachable_reward_target(mdp, prop.formula)
+    return [] if why is None else [property_error(prop, why, None)]
+
+
+def property_error(prop: Property, why: str, span: Span | None) -> str:
+    """``file:line:col: property: why``, at *span* or else at the property."""
+    where = span if span is not None and span.line > 0 else prop.span
+    return f"{where}: {prop.name or prop.text}: {why}"
 
 
 def as_checker_mdp(built: BuiltMdp) -> MDP:

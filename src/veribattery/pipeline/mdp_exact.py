@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 
 from veribattery.lang import Model, PropertiesFile, Property, flatten_model, resolve_property
 from veribattery.lang.nodes import Value
-from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp
+from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp, ill_posed_errors
 from veribattery.pipeline.run import (
     STAGES,
     ProgressCallback,
@@ -63,6 +63,7 @@ def check_mdp_model_exact(
     decls = props_file.constants if props_file is not None else ()
     values = exact_constants(decls, dict(constants or {}), outer=exact.constants)
     results = []
+    errors: list[str] = []
     with watch.stage("check"):
         for number, (original, prop) in enumerate(zip(properties, resolved, strict=True), 1):
             tell_checking(stages, number, len(resolved), prop)
@@ -70,5 +71,7 @@ def check_mdp_model_exact(
             written.update(exact_bounds(original.formula, values))
             checked = ExactMdpModel(mdp, exact, written)
             results.append(check_mdp_exact(checked, prop))
-    return MdpCheckRun(mdp, tuple(results), watch.seconds, exact.built.warnings)
+            errors.extend(ill_posed_errors(mdp, prop))
+    return MdpCheckRun(mdp, tuple(results), watch.seconds, exact.built.warnings,
+                       errors=tuple(errors))
 

@@ -113,14 +113,16 @@ def test_step_bounded_rewards_need_the_step_count(formula: str, expected: Fracti
     assert check(STEPS, formula).value == pytest.approx(float(expected), abs=1e-6)
 
 
-def test_infeasible_numerical_query_is_nan_with_a_warning_naming_the_property() -> None:
-    # PRISM's own regression suite expects NaN here (multi-general/test2.nm.props#2)
+def test_infeasible_numerical_query_is_nan_with_an_error_naming_the_property() -> None:
+    # PRISM's own regression suite expects NaN here (multi-general/test2.nm.props#2); the
+    # issue counts it as bad input: the run carries an error at the property's position
     text = "multi(Pmax=? [ F s=3 ], P>=0.95 [ F s=2 ], P>=0.1 [ F s=3 ])"
     run = check_mdp_model(parse_model(FORK), parse_properties(text, name="t.props").properties)
     assert math.isnan(run.results[0].value)
-    assert run.warnings == (f"{text}: undefined (NaN): multi(...) has no strategy that meets its "
-                            "bounded objectives with finite total rewards, so the =? objective "
-                            "has no optimum (NaN, as PRISM reports it)",)
+    assert run.warnings == ()
+    assert run.errors == (f"t.props:1:1: {text}: undefined (NaN): multi(...) has no strategy "
+                          "that meets its bounded objectives with finite total rewards, so the "
+                          "=? objective has no optimum (NaN, as PRISM reports it)",)
 
 
 @pytest.mark.parametrize(("model", "formula", "message"), [
