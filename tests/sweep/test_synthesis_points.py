@@ -122,3 +122,17 @@ def test_the_cli_sweeps_both_modes_and_plots_pmax(tmp_path: Path) -> None:
     wrong = CliRunner().invoke(cli, [*args[:-1], "nope"])
     assert wrong.exit_code == 2
     assert "p_success_max" in wrong.stderr  # the names a synthesis point gives
+
+
+def test_the_table_marks_the_cells_a_mode_does_not_give(tmp_path: Path) -> None:
+    config = tmp_path / "mission.yaml"
+    config.write_text("farm: {cols: 3, rows: 2, base: [0, 0]}\n"
+                      "battery: {max_recharges: 8}\n")
+    result = CliRunner().invoke(cli, ["sweep", str(config), "--vary", "battery.capacity_ah=6",
+                                      "--vary", "strategy.mode=bs1,synthesize", "-j", "1"])
+    assert result.exit_code == 0, result.output
+    assert "None" not in result.stdout
+    bs1 = next(line for line in result.stdout.splitlines() if " bs1 " in line
+               and "—" in line)  # the bs1 row of the p_success_max columns
+    assert bs1.split()[:2] == ["6", "bs1"]
+    assert "—: no value there" in result.stdout

@@ -16,6 +16,7 @@ from veribattery.cli.output import (
     err,
     format_value,
     json_value,
+    print_dim,
     print_warnings,
     print_written,
     rich_console,
@@ -188,5 +189,13 @@ def print_sweep(frame: Any, keys: Sequence[str], output_format: str) -> None:
         click.echo(json.dumps({"axes": list(keys), "results": tidy}))
     else:
         points = wide(frame, keys)
-        cells = [[format_value(v) for v in row.values()] for row in records(points)]
+        cells = [[NO_VALUE if v is None else format_value(v) for v in row.values()]
+                 for row in records(points)]
         print_table([str(c) for c in points.columns], cells, keys=len(keys))
+        if any(NO_VALUE in row for row in cells):
+            print_dim(f"{NO_VALUE}: no value there (undefined, e.g. given P(success) = 0, "
+                      "or not in that mode)")
+
+
+#: A table cell without a value (NaN or absent in the tidy rows).
+NO_VALUE = "—"
