@@ -202,3 +202,43 @@ def test_dense_components_go_to_krylov_first(monkeypatch: pytest.MonkeyPatch,
     slack = 1e-12 * np.abs(reference)  # the dense reference's own rounding
     assert np.all(found.lower[:n] <= reference + slack)
     assert np.all(reference - slack <= found.upper[:n])
+
+
+def pairs_in_series(pairs: int, seed: int) -> sp.csr_matrix:
+    """``I - P`` of *pairs* two-state cycles in series, each left with a dyadic
+    probability towards the next pair (the last to an absorbing goal, not a row)."""
+    rng = np.random.default_rng(seed)
+    n = 2 * pairs
+    rows: dict[int, dict[int, float]] = {}
+    for k in range(pairs):
+        a, b, onward = 2 * k, 2 * k + 1, 2 * k + 2
+        leave = int(rng.integers(1, 4)) / 8
+        rows[a] = {b: 1 - leave, **({onward: leave} if onward < n else {})}
+        rows[b] = {a: 0.5, **({onward: 0.5} if onward < n else {})}
+    P = matrix(rows, n)
+    return sp.csr_matrix(sp.identity(n) - P)
+
+
+def test_a_long_run_of_small_components_is_factorised_in_pieces(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(scc, "RUN_LIMIT", 50)
+    A = pairs_in_series(200, seed=3)
+    found = scc.components(A)
+    assert found is not None
+    pieces = scc.segments(found)
+    assert len(pieces) == 8 and not any(large for _, _, large in pieces)
+    assert [lo for lo, _, _ in pieces] == [0, 50, 100, 150, 200, 250, 300, 350]
+    assert pieces[-1][1] == 400
+    inverse = scc.segmented_inverse(A, found)
+    assert inverse is not None and len(inverse.parts) == 8
+    b = np.random.default_rng(4).random(400)
+    whole = sp.linalg.spsolve(A.tocsc(), b)
+    assert np.allclose(inverse(b), whole, rtol=1e-12, atol=0)
+
+
+def test_a_cut_never_splits_a_component(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(scc, "RUN_LIMIT", 51)  # odd: 51 falls inside a pair
+    found = scc.components(pairs_in_series(200, seed=5))
+    assert found is not None
+    starts = set(found.starts.tolist())
+    assert all(lo in starts and hi in starts for lo, hi, _ in scc.segments(found))
