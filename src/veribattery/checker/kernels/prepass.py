@@ -102,7 +102,7 @@ def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray,
     lengths = np.diff(indptr)
     kept = indices[np.repeat(expand, lengths)]
     seed_idx = np.flatnonzero(seeds).astype(kept.dtype)
-    pointer = np.zeros(n + 2, dtype=np.int64)
+    pointer = np.zeros(n + 2, dtype=indptr.dtype)  # csgraph's own index type: no copy
     np.cumsum(np.where(expand, lengths, 0), out=pointer[1 : n + 1])
     pointer[n + 1] = pointer[n] + seed_idx.size
     graph = sp.csr_matrix((np.ones(pointer[-1]), np.concatenate([kept, seed_idx]), pointer),
@@ -114,7 +114,7 @@ def _backward_reach(P: CsrMatrix, through: BoolArray, seeds: BoolArray,
 
 
 def _reversed(P: CsrMatrix, workspace: Workspace
-              ) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]]:
+              ) -> tuple[npt.NDArray[np.integer], npt.NDArray[np.integer]]:
     """The predecessors of every state along positive entries (CSR of the transposed
     pattern), built once per matrix."""
     memo = workspace.kernels.of(P)
@@ -123,8 +123,15 @@ def _reversed(P: CsrMatrix, workspace: Workspace
                                 shape=P.shape)  # shares P's index arrays: not edited
         by_column = pattern.tocsc()  # new arrays: column j lists the i with P[i, j] stored
         by_column.eliminate_zeros()  # then only the positive ones
-        memo.reversed = (by_column.indptr.astype(np.int64), by_column.indices)
+        memo.reversed = (_narrow(by_column.indptr), by_column.indices)
     return memo.reversed
+
+
+def _narrow(indptr: npt.NDArray[np.integer]) -> npt.NDArray[np.integer]:
+    """*indptr* as int32 when its last entry (and a seed per state more) fits, as
+    scipy's graph searches index with int32; int64 otherwise."""
+    fits = int(indptr[-1]) + indptr.size < np.iinfo(np.int32).max
+    return indptr.astype(np.int32 if fits else np.int64, copy=False)
 
 
 def prob0(P: CsrMatrix, remain: BoolArray, target: BoolArray, *,

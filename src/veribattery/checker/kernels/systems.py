@@ -96,7 +96,7 @@ class _Memo:
     #: Keyed by the operands, escalation and the focus states (b"": every state).
     results: OrderedDict[tuple[bytes, bytes, bool, bytes], Bounds] = field(
         default_factory=OrderedDict)
-    reversed: tuple[npt.NDArray[np.int64], npt.NDArray[np.integer]] | None = None
+    reversed: tuple[npt.NDArray[np.integer], npt.NDArray[np.integer]] | None = None
     #: Untils (keys of ``remain``, ``target``) that some query needs in every state.
     whole: set[tuple[bytes, bytes]] = field(default_factory=set)
     #: The exact checker's prepared systems and conditions (:mod:`~veribattery.checker.exact.pctl`).

@@ -103,6 +103,7 @@ def _until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     known = np.where(system.unknowns, 0.0, result)
     F = system.affine(known, known, None)
     found = _certified(F, system, known, None, (0.0, 1.0), focus_states)
+    del F, known  # full-length: not alive beside the answer's three (8 MB each per 10^6 states)
     return _spread(result, maybe, _restrict(found, system.unknowns, maybe))
 
 
@@ -330,7 +331,8 @@ def focus_rows(system: _System, F: certify.AffineMap, focus_states: IntArray | N
 
 
 def _spread(known: FloatArray, unknown: BoolArray, found: Bounds) -> Bounds:
-    """Full-length bounds: *known* (exact) outside *unknown*, *found* inside."""
-    value, lower, upper = known.copy(), known.copy(), known.copy()
+    """Full-length bounds: *known* (exact) outside *unknown*, *found* inside. *known*
+    becomes the value (every caller passes a vector of its own: one copy fewer)."""
+    value, lower, upper = known, known.copy(), known.copy()
     value[unknown], lower[unknown], upper[unknown] = found.value, found.lower, found.upper
     return Bounds(value, lower, upper)
