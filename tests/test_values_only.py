@@ -47,3 +47,16 @@ def test_sweep_checker_gives_the_values_of_check_mission() -> None:
     assert lean.values == full.values
     assert lean.recharge_cap_probability == full.recharge_cap_probability
     assert lean.run.dtmc.rewards == () and len(full.run.dtmc.rewards) == 2
+
+
+def test_a_reward_by_index_empties_the_others_in_place() -> None:
+    model, _ = _model_and_props()
+    props = parse_properties('R{2}=? [ F "done" ]')
+    full = check_model(model, props.properties)
+    lean = Session(reuse=False, rewards="named").check(model, props.properties)
+    assert [r.name for r in lean.dtmc.rewards] == ["mt", "rc"]  # R{2} still names "rc"
+    mt, rc = lean.dtmc.rewards
+    assert not mt.state.any() and not mt.transition.any()  # "mt" was not evaluated
+    assert full.dtmc.rewards[0].transition.any()
+    assert (rc.transition == full.dtmc.rewards[1].transition).all()
+    assert [r.value for r in lean.results] == [r.value for r in full.results]

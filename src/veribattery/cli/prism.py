@@ -99,6 +99,8 @@ def prism_command(
         run = check_prism_file(
             model, props_source=props, selectors=selectors, constants=constants,
             progress=limited(progress, max_states), exact=exact, keep="answers",
+            # --simulate -o writes every structure's totals along the paths
+            rewards="all" if analysis["simulate"] is not None else "named",
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)

@@ -31,7 +31,7 @@ from veribattery.pipeline.run import (
     ProgressCallback,
     Stopwatch,
 )
-from veribattery.pipeline.session import check_model
+from veribattery.pipeline.session import Rewards, check_model
 from veribattery.pipeline.undecided import settle_undecided
 
 if TYPE_CHECKING:
@@ -87,6 +87,7 @@ def check_prism_file(
     progress: ProgressCallback | None = None,
     exact: bool = False,
     keep: Keep = "states",
+    rewards: Rewards = "all",
 ) -> ModelCheckRun | MdpCheckRun:
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
@@ -106,6 +107,9 @@ def check_prism_file(
         (:func:`~veribattery.pipeline.check_model`).
     :param keep: what each result keeps: ``"states"`` or ``"answers"`` (see
         :class:`~veribattery.pipeline.CheckOptions`).
+    :param rewards: a DTMC's reward structures built in floating point: ``"all"``, or
+        ``"named"``, only those the properties use (see
+        :class:`~veribattery.pipeline.Session`).
     """
     watch = Stopwatch(*STAGES)
     with watch.stage("parse"):
@@ -125,7 +129,7 @@ def check_prism_file(
     else:
         run = check_model(model, chosen, props_file=props, constants=constants,
                           progress=progress, stopwatch=watch,
-                          options=CheckOptions(keep, report_undecided=True))
+                          options=CheckOptions(keep, report_undecided=True), rewards=rewards)
         exact_check = functools.partial(_exact_dtmc_results, keep=keep)
         run = settle_undecided(run, chosen, exact_check, model, props, constants)
     return replace(run, warnings=skipped + run.warnings) if skipped else run

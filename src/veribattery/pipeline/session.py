@@ -192,14 +192,17 @@ def check_model(
     stopwatch: Stopwatch | None = None,
     options: CheckOptions | None = None,
     internal: Sequence[Property] = (),
+    rewards: Rewards = "all",
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states, in
     floating point with certified bounds: :meth:`Session.check` in a session of its own.
 
     :param options: what each result keeps, and how a property without a value is
         reported (default: :class:`CheckOptions` ``()``).
+    :param rewards: the reward structures built: ``"all"``, or ``"named"``, those the
+        properties use (the DTMC's other structures are then missing or empty).
     """
-    return Session(options, reuse=False).check(
+    return Session(options, reuse=False, rewards=rewards).check(
         model, properties, props_file=props_file, constants=constants, progress=progress,
         stopwatch=stopwatch, internal=internal)
 
@@ -221,14 +224,24 @@ def _quotient(lumper: Lumper, dtmc: DTMC, formulas: Sequence[Expr]) -> DTMC | No
 
 
 def _named_rewards_only(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:
-    """*flat* without the reward structures no property uses (all of them kept when a
-    property refers to one by index or by default)."""
+    """*flat* with only the reward structures the properties use: the others dropped
+    when every property names its structure, else (``R{2}``, or ``R`` for the first)
+    left without items, so that every position still names the same structure and no
+    unused structure is evaluated (egl's two: most of its build)."""
     names: set[str] = set()
+    positions: set[int] = set()
     for prop in properties:
         for node in walk(prop.formula):
             if isinstance(node, RewardOp | RewardBounded):
-                if not isinstance(node.reward, str):
-                    return flat
-                names.add(node.reward)
-    kept = tuple(r for r in flat.rewards if r.name in names)
-    return flat if len(kept) == len(flat.rewards) else replace(flat, rewards=kept)
+                if isinstance(node.reward, str):
+                    names.add(node.reward)
+                else:
+                    positions.add(0 if node.reward is None else node.reward)
+    used = [r.name in names or i in positions for i, r in enumerate(flat.rewards)]
+    if all(used):
+        return flat
+    if not positions:
+        return replace(flat, rewards=tuple(r for r, u in zip(flat.rewards, used, strict=True)
+                                           if u))
+    return replace(flat, rewards=tuple(r if u else replace(r, items=())
+                                       for r, u in zip(flat.rewards, used, strict=True)))
