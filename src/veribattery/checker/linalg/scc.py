@@ -164,8 +164,9 @@ class Segmented:
     """Block forward substitution over the segments (see :func:`segmented_inverse`).
 
     :param order: the states in topological order of their components.
-    :param parts: per segment ``(lo, hi, rows, solver)``: its positions, its rows
-        of the permuted matrix (columns renumbered) and its diagonal block's solver.
+    :param parts: per segment ``(lo, hi, coupling, solver)``: its positions, its rows
+        of the permuted matrix in the columns before *lo* (renumbered) and its
+        diagonal block's solver.
     :param iterative: whether some segment is solved by a Krylov method (each
         application is then a full iterative solve, not a pair of substitutions).
     """
@@ -208,7 +209,8 @@ class Segmented:
         y = np.zeros(order.size, dtype=np.float64)
         permuted_b = np.asarray(b, dtype=np.float64)[order]
         for lo, hi, rows, solver in self.parts:
-            rhs = np.ascontiguousarray(permuted_b[lo:hi] - rows @ y if lo else permuted_b[lo:hi])
+            rhs = np.ascontiguousarray(permuted_b[lo:hi] - rows @ y[:lo] if lo
+                                       else permuted_b[lo:hi])
             y[lo:hi] = solver.solve(rhs, rtol) if isinstance(solver, _Krylov) else solver(rhs)
             if progress is not None:
                 progress(hi, order.size)
@@ -236,9 +238,17 @@ def segmented_inverse(A64: sp.csr_matrix, found: Components) -> Segmented | None
         solver = _block_solver(block, large=large)
         if solver is None:
             return None
+        del block
         iterative = iterative or isinstance(solver, _Krylov)
-        parts.append((lo, hi, rows, solver))
+        parts.append((lo, hi, _coupling(rows, lo), solver))
     return Segmented(order, tuple(parts), iterative)
+
+
+def _coupling(rows: sp.csr_matrix, lo: int) -> sp.csr_matrix:
+    """The entries of a segment's *rows* in columns before *lo*: all that ``rows @ y``
+    reads while ``y`` is still 0 from *lo* on (the diagonal block is in its solver).
+    The same sums in the same order, without a second copy of the block's entries."""
+    return sp.csr_matrix(rows[:, :lo]) if lo else sp.csr_matrix((rows.shape[0], 0))
 
 
 def dense(sizes: IntArray, inner: IntArray) -> npt.NDArray[np.bool_]:
