@@ -9,7 +9,6 @@ import numpy as np
 from veribattery._types import BoolArray
 from veribattery.checker import CheckResult
 from veribattery.checker.mdp import MDP, Strategy, induced_chain
-from veribattery.checker.mdp.multi_strategy import multi_strategy
 from veribattery.checker.mdp.witness import NoStrategyError
 from veribattery.errors import OptionError
 from veribattery.lang import FlatModel
@@ -101,6 +100,9 @@ def _chosen_multi(run: MdpCheckRun, index: int) -> ChosenMulti:
     if run.mdp.states is None or run.mdp.variable_names != run.model.variable_names:
         raise OptionError("the MDP's states do not carry the model's variables: "
                           "no strategy can be exported")
+    # Imported here: the LP (scipy.optimize) is needed for multi(...) properties only.
+    from veribattery.checker.mdp.multi_strategy import multi_strategy
+
     try:
         strategy = multi_strategy(run.mdp, formula, result.value)
     except NoStrategyError as exc:

@@ -21,6 +21,8 @@ be and its value on the chain as veribattery found it, certified.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from veribattery.lang.nodes import ProbOp, RewardOp, Variable
@@ -69,8 +71,16 @@ def induced_multi_properties_text(chosen: ChosenMulti) -> str:
     for op, found in zip(objectives, chosen.strategy.values, strict=True):
         lines.append(f"\n// {found.text}: must be {found.requirement}; here {found.value!r} "
                      f"(certified in [{found.lower!r}, {found.upper!r}])\n")
-        lines.append(f"{dtmc_property_text(op, chosen.model)};\n")
+        lines.append(f"{dtmc_property_text(_named(op), chosen.model)};\n")
     return "".join(lines)
+
+
+def _named(op: ProbOp | RewardOp) -> ProbOp | RewardOp:
+    """``R`` (the first structure) as ``R{"name"}``, or ``R{1}`` if it has none: Storm
+    refuses a plain ``R`` when the model has several structures, as this one may."""
+    if isinstance(op, RewardOp) and op.reward is None:
+        return replace(op, reward=0)
+    return op
 
 
 def _header(chosen: ChosenMulti) -> str:

@@ -32,11 +32,14 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from veribattery.checker import CheckResult
 from veribattery.checker.mdp import MDP
-from veribattery.checker.mdp.multi_strategy import MultiStrategy
 from veribattery.lang import FlatModel
+
+if TYPE_CHECKING:  # its module (and the LP's) is imported only for multi(...) properties
+    from veribattery.checker.mdp.multi_strategy import MultiStrategy
 
 __all__ = ["ChosenMulti", "memory_names", "multi_strategy_text"]
 
