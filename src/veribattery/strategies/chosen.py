@@ -104,7 +104,9 @@ def _chosen_multi(run: MdpCheckRun, index: int) -> ChosenMulti:
     from veribattery.checker.mdp.multi_strategy import multi_strategy
 
     try:
-        strategy = multi_strategy(run.mdp, formula, result.value)
+        enclosure = None if not result.certified or result.lower is None or (
+            result.upper is None) else (result.lower, result.upper)
+        strategy = multi_strategy(run.mdp, formula, result.value, enclosure)
     except NoStrategyError as exc:
         raise NoStrategyError(f"{prop.text}: {exc.message}", prop.span) from None
     return ChosenMulti.of(result, strategy, run.mdp, run.model)

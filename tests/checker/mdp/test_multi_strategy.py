@@ -139,3 +139,58 @@ def test_refusals(props: str, message: str) -> None:
     run = _run(REST.replace("[go] true : 1;", "[go] true : 1;\n  [wait] true : 1;"), props)
     with pytest.raises(NoStrategyError, match=message):
         _strategy(run)
+
+
+#: A zero-reward end component {1, 2, 3} entered at s=1; "pay" at s=2 (reward 1)
+#: keeps the run inside it. The programme's uses of "pay" circulate between s=2 and
+#: s=3 while the runs could stop at s=1 where they enter: the flows must be spread
+#: over the component's inside choices before a run ever pays.
+LOOP = """mdp
+module m
+  s : [0..3] init 0;
+  [go] s=0 -> (s'=1);
+  [wait] s=1 -> (s'=1);
+  [move] s=1 -> (s'=2);
+  [back] s=2 -> (s'=1);
+  [pay] s=2 -> 0.5:(s'=2) + 0.5:(s'=3);
+  [ret] s=3 -> (s'=2);
+endmodule
+rewards "r"
+  [pay] true : 1;
+endrewards
+"""
+
+#: Reward is earned only in a paying cycle at s=2, entered by a risk that reaches "a"
+#: half the time; staying at s=0 is safe. Pmin [F a] subject to R>=1 [C] is 0 as an
+#: infimum (risk with probability e, pay 2/e times), attained by no strategy with
+#: finite reward (Storm: no Pareto-optimal scheduler with finite reward).
+UNATTAINED = """mdp
+module m
+  s : [0..3] init 0;
+  [safe] s=0 -> (s'=0);
+  [risk] s=0 -> 0.5:(s'=1) + 0.5:(s'=2);
+  [pay] s=2 -> (s'=2);
+  [leave] s=2 -> (s'=3);
+  [] s=1 | s=3 -> true;
+endmodule
+rewards "r"
+  [pay] true : 1;
+endrewards
+label "a" = s=1;
+"""
+
+
+def test_a_paying_cycle_inside_a_resting_component_is_fed_from_its_entry() -> None:
+    run = _run(LOOP, 'multi(R{"r"}>=2 [ C ], P>=1 [ F s=1 ])')
+    strategy = _strategy(run)
+    reward, _ = strategy.values
+    assert reward.lower >= 2 - 1e-9
+    entry = _moves(run, strategy, _node(run, strategy, 1))
+    assert entry.get(("move", False), 0.0) > 0  # runs do go on from where they enter
+
+
+def test_an_optimum_no_strategy_attains_is_refused() -> None:
+    run = _run(UNATTAINED, 'multi(Pmin=? [ F "a" ], R{"r"}>=1 [ C ])')
+    assert run.results[0].value == pytest.approx(0.0, abs=1e-6)
+    with pytest.raises(NoStrategyError, match="never reaches"):
+        _strategy(run)

@@ -43,12 +43,25 @@ from veribattery.checker.mdp.multi_formula import (
     _steps,
     _towards,
 )
-from veribattery.checker.mdp.multi_strategy_check import ObjectiveValue, verified_values
-from veribattery.checker.mdp.multi_strategy_flow import Flows, WitnessFailed, witness_flows
+from veribattery.checker.mdp.multi_strategy_check import (
+    ObjectiveValue,
+    Reported,
+    verified_values,
+)
+from veribattery.checker.mdp.multi_strategy_flow import (
+    Flows,
+    WitnessFailed,
+    uncollapsed,
+    witness_flows,
+)
 from veribattery.checker.mdp.witness import NoStrategyError
 from veribattery.lang.nodes import Multi, ProbOp
 
 __all__ = ["MultiStrategy", "multi_strategy"]
+
+#: Expected uses, in all, on states the strategy never reaches, beyond which the
+#: programme's solution is refused as unattained (far above HiGHS's crumbs).
+UNREACHED = 1e-6
 
 #: A probability below this share of a state's flow is dropped (and the rest
 #: renormalised): HiGHS leaves crumbs of the order of its tolerances.
@@ -113,11 +126,13 @@ class MultiStrategy:
                           dtype=np.float64)
 
 
-def multi_strategy(mdp: MDP, query: Multi, reported: object) -> MultiStrategy:
+def multi_strategy(mdp: MDP, query: Multi, reported: object,
+                   enclosure: tuple[float, float] | None = None) -> MultiStrategy:
     """A strategy that attains *reported*, the checked answer of *query* on *mdp*
     (True for achievability, the optimum of a numerical query), verified on its
     induced chain (see the module's description).
 
+    :param enclosure: the certified interval of the optimum, when the check has one.
     :raises NoStrategyError: a ``C<=k`` objective, an answer no strategy attains (false,
         NaN, infinite, undecided), several initial states, or a strategy that fails
         its check (the message says which objective, by how much).
@@ -133,8 +148,13 @@ def multi_strategy(mdp: MDP, query: Multi, reported: object) -> MultiStrategy:
     except WitnessFailed as exc:
         raise NoStrategyError(f"no strategy: {exc}", query.span) from None
     strategy = _strategy(mdp, flows)
+    if _stray(flows, strategy) > UNREACHED:  # a paying cycle inside a resting class
+        flows = uncollapsed(flows, spread=True)
+        strategy = _strategy(mdp, flows)
+    _refuse_unreached(flows, strategy, query)
     values = verified_values(strategy.chain, strategy.initial, strategy.node_state,
-                             strategy.expected_rewards, goals, reported)
+                             strategy.expected_rewards, goals,
+                             Reported(reported, enclosure, flows.optimum))
     return MultiStrategy(mdp, strategy.targets, strategy.node_state, strategy.node_visited,
                          strategy.node_stopped, strategy.initial, strategy.move_ptr,
                          strategy.move_choice, strategy.move_probability,
@@ -161,6 +181,32 @@ def _refuse_answer(query: Multi, reported: object) -> None:
         raise NoStrategyError(f"no strategy: the optimum of multi(...) is {reported} "
                               "(undefined or infinite), which no strategy attains",
                               query.span)
+
+
+def _stray(flows: Flows, strategy: MultiStrategy) -> float:
+    """The flow, in all, on product states that no running memory state reaches."""
+    pm = flows.product.mdp
+    width = 1 << flows.targets
+    running = ~strategy.node_stopped
+    codes = strategy.node_state[running] * width + strategy.node_visited[running]
+    reached = np.zeros(pm.num_states, dtype=bool)
+    reached[np.searchsorted(flows.product.codes, codes)] = True
+    return float(flows.out_of[~reached].sum(initial=0.0))
+
+
+def _refuse_unreached(flows: Flows, strategy: MultiStrategy, query: Multi) -> None:
+    """Flow on a state no run of the strategy reaches is a circulation the programme
+    counts and its strategy never collects (rewards in a cycle fed by no path, outside
+    the resting classes, where spreading cannot feed it): the programme counts a value
+    that this strategy does not attain."""
+    stray = _stray(flows, strategy)
+    if stray > UNREACHED:
+        raise NoStrategyError(
+            "no strategy exported: the linear programme's solution puts expected uses "
+            f"(in all {stray:.3g}) on states its strategy never reaches -- rewards "
+            "collected in a cycle that no path feeds -- so its strategy does not attain it "
+            "(such an optimum may be approached by strategies and attained by none)",
+            query.span)
 
 
 def _flows(mdp: MDP, goals: list[_Goal]) -> Flows:

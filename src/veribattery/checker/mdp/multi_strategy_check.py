@@ -30,7 +30,24 @@ from veribattery.lang.evaluate import evaluate
 from veribattery.lang.nodes import ProbOp, RewardOp
 from veribattery.lang.printing import expression_text, path_text, reward_path_text
 
-__all__ = ["ObjectiveValue", "objective_text", "verified_values"]
+__all__ = ["ObjectiveValue", "Reported", "objective_text", "verified_values"]
+
+
+@dataclass(frozen=True, slots=True)
+class Reported:
+    """The checked answer a strategy must attain.
+
+    :param value: True (achievability) or the optimum of the ``=?`` objective.
+    :param enclosure: a certified interval of the optimum, if the check has one (the
+        two-objective front's); a strategy whose value lies in it and equals the
+        programme's optimum passes even where the point *value* is less precise.
+    :param programme: the linear programme's optimum of the ``=?`` objective (the
+        strategy is built from it), or None.
+    """
+
+    value: object
+    enclosure: tuple[float, float] | None = None
+    programme: float | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -53,12 +70,12 @@ class ObjectiveValue:
 
 def verified_values(chain: CsrMatrix, initial: int, node_state: IntArray,
                     expected_rewards: Callable[[FloatArray], FloatArray],
-                    goals: Sequence[_Goal], reported: object) -> tuple[ObjectiveValue, ...]:
+                    goals: Sequence[_Goal], reported: Reported) -> tuple[ObjectiveValue, ...]:
     """Each goal's value on *chain* from node *initial*, checked (module description).
 
     :param node_state: per node of *chain*, its MDP state (where targets are read).
     :param expected_rewards: per node, the expected reward of a per-choice vector.
-    :param reported: the query's answer: True, or the optimum of its ``=?`` objective.
+    :param reported: the query's answer (:class:`Reported`).
     :raises NoStrategyError: an objective misses its bound or the optimum.
     """
     workspace = Workspace()
@@ -86,15 +103,11 @@ def _quantity(chain: CsrMatrix, initial: int, node_state: IntArray,
 
 
 def _judged(goal: _Goal, point: float, low: float, high: float,
-            reported: object) -> ObjectiveValue:
+            reported: Reported) -> ObjectiveValue:
     """The goal's value if it passes its check, else the refusal naming it."""
     text = objective_text(goal.op)
     if goal.op.op == "=?":
-        assert isinstance(reported, float | int)
-        target = float(reported)
-        slack = LP_TOLERANCE * max(1.0, abs(target))
-        requirement = f"= {target!r} (the optimum)"
-        passed = target - slack <= low and high <= target + slack
+        requirement, passed = _optimal(goal, point, low, high, reported)
     else:
         assert goal.op.bound is not None
         bound = float(evaluate(goal.op.bound, {}))
@@ -108,6 +121,25 @@ def _judged(goal: _Goal, point: float, low: float, high: float,
             f"gives {text} the value {point!r} (certified in [{low!r}, {high!r}]) on its "
             f"induced chain, not {requirement} within {LP_TOLERANCE:g}", goal.op.span)
     return ObjectiveValue(text, point, low, high, requirement)
+
+
+def _optimal(goal: _Goal, point: float, low: float, high: float,
+             reported: Reported) -> tuple[str, bool]:
+    """What the optimised goal had to be, and whether it is: the reported optimum
+    within the tolerance, or (where the check has a certified enclosure) inside it and
+    equal to the programme's optimum it was built from."""
+    assert isinstance(reported.value, float | int)
+    target = float(reported.value)
+    slack = LP_TOLERANCE * max(1.0, abs(target))
+    if target - slack <= low and high <= target + slack:
+        return f"= {target!r} (the optimum)", True
+    if reported.enclosure is None or reported.programme is None:
+        return f"= {target!r} (the optimum)", False
+    lower, upper = reported.enclosure
+    programme = goal.offset + goal.sign * reported.programme
+    inside = lower - slack <= low and high <= upper + slack
+    return (f"= {target!r} (the optimum, certified in [{lower!r}, {upper!r}]; the "
+            f"programme's {programme!r})", inside and abs(point - programme) <= slack)
 
 
 def objective_text(op: ProbOp | RewardOp) -> str:

@@ -13,7 +13,12 @@ second, small programme on the resting states alone ("uncollapsing"): per state
         = start(s) + uses of kept choices into s - uses of kept choices out of s,
 
 with the inside choices' uses *w* >= 0 and ``stay(s)`` >= 0, minimising the sum of
-*w* (so that no flow circulates for nothing). Summed over a class, the right-hand
+*w* (so that no flow circulates for nothing). When that leaves a paying choice
+inside a class unreached (the programme's uses of it circulate within the class
+while the runs stop where they enter), the programme is solved again with a small
+use of every inside choice of each entered class (:func:`uncollapsed`): a
+circulation at reward 0 that changes no objective and makes every state of the
+class reachable from its entries. Summed over a class, the right-hand
 side is the class's *z* (the first programme's flow row), and the inside choices
 make a class strongly connected, so the programme is feasible (up to the first
 one's tolerance, which is absorbed at the class's largest entry).
@@ -29,7 +34,7 @@ Thm. 6.9.1). Whatever this module computes is checked on the induced chain
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -50,7 +55,7 @@ from veribattery.checker.mdp.multi import (
     _Programme,
 )
 
-__all__ = ["Flows", "WitnessFailed", "witness_flows"]
+__all__ = ["Flows", "WitnessFailed", "uncollapsed", "witness_flows"]
 
 
 class WitnessFailed(Exception):
@@ -71,6 +76,8 @@ class Flows:
     :param stop_choice: per product state, a choice that keeps a run inside its resting
         class (the one taken once stopped), or -1 outside the resting classes.
     :param targets: the number of visited bits (reachability quantities).
+    :param optimum: the programme's optimum of the optimised quantity (None for
+        achievability).
     """
 
     product: _Product
@@ -80,6 +87,7 @@ class Flows:
     inside: BoolArray
     stop_choice: IntArray
     targets: int
+    optimum: float | None = None
 
     @property
     def out_of(self) -> FloatArray:
@@ -103,20 +111,50 @@ def witness_flows(mdp: MDP, quantities: Sequence[Quantity],
     """
     programme = _Programme.of(mdp, quantities)
     x = _solution(programme, constraints, optimised, objective)
-    kept, pm = programme.kept, programme.product.mdp
-    y = np.maximum(x[: kept.size], 0.0)
+    pm = programme.product.mdp
     resting, inside = _resting(programme, quantities)
     uses = np.zeros(pm.num_choices)
-    uses[kept] = y
-    inflow = _inflow(programme, uses)
-    w, stays = _uncollapsed(pm, resting, inside, inflow, uses)
-    uses[inside] = w
+    uses[programme.kept] = np.maximum(x[: programme.kept.size], 0.0)
     stop = np.full(pm.num_states, -1, dtype=np.int64)
     marked = np.where(inside, np.arange(pm.num_choices), pm.num_choices)
     first = np.minimum.reduceat(marked, pm.row_groups[:-1])
     stop[resting >= 0] = first[resting >= 0]
     targets = sum(isinstance(q, Reach) for q in quantities)
-    return Flows(programme.product, uses, stays, resting, inside, stop, targets)
+    optimum = None if optimised is None else float(programme.forms[id(optimised)] @ x)
+    kept_only = Flows(programme.product, uses, np.zeros(pm.num_states), resting, inside,
+                      stop, targets, optimum)
+    return uncollapsed(kept_only, spread=False)
+
+
+def uncollapsed(flows: Flows, *, spread: bool) -> Flows:
+    """*flows* with the uses of the inside choices and the stays solved anew.
+
+    :param spread: give every inside choice of a class that runs enter a use of at
+        least a thousandth of the class's entries over its number of inside choices.
+        Such uses circulate at reward 0 inside the class and change no objective,
+        but make every state of the class reachable from where runs enter it -- which
+        a paying choice the programme uses inside the class needs, when the plain
+        solution stays at the entry (a circulation no run feeds).
+    """
+    pm = flows.product.mdp
+    uses = np.where(flows.inside, 0.0, flows.uses)
+    inflow = np.asarray(pm.transitions.T @ uses, dtype=np.float64)
+    inflow[flows.product.initial] += 1.0
+    floor = _floors(flows, inflow) if spread else np.zeros(int(flows.inside.sum()))
+    w, stays = _inside_flows(pm, flows.resting, flows.inside, inflow, uses, floor)
+    uses[flows.inside] = w
+    return replace(flows, uses=uses, stays=stays)
+
+
+def _floors(flows: Flows, inflow: FloatArray) -> FloatArray:
+    """Per inside choice, the least use :func:`uncollapsed` gives it when spreading."""
+    pm = flows.product.mdp
+    count = int(flows.resting.max(initial=-1)) + 1
+    members = flows.resting >= 0
+    entries = np.bincount(flows.resting[members], weights=inflow[members], minlength=count)
+    owner_class = flows.resting[pm.choice_owner[flows.inside]]
+    choices = np.bincount(owner_class, minlength=count)
+    return np.asarray(1e-3 * entries[owner_class] / choices[owner_class], dtype=np.float64)
 
 
 def _solution(programme: _Programme, constraints: Sequence[Constraint],
@@ -171,18 +209,10 @@ def _resting(programme: _Programme,
     return resting, inside
 
 
-def _inflow(programme: _Programme, uses: FloatArray) -> FloatArray:
-    """Per product state: the start, plus what the kept choices' uses bring in."""
-    pm = programme.product.mdp
-    inflow = np.asarray(pm.transitions.T @ uses, dtype=np.float64)
-    inflow[programme.product.initial] += 1.0
-    return inflow
-
-
-def _uncollapsed(pm: MDP, resting: IntArray, inside: BoolArray, inflow: FloatArray,
-                 uses: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """The inside choices' uses and the stays, per state of the resting classes (the
-    second programme of the module's description)."""
+def _inside_flows(pm: MDP, resting: IntArray, inside: BoolArray, inflow: FloatArray,
+                  uses: FloatArray, floor: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The inside choices' uses (each at least its *floor*) and the stays, per state of
+    the resting classes (the second programme of the module's description)."""
     from scipy.optimize import linprog  # HiGHS: only for multi-objective queries
 
     states = np.flatnonzero(resting >= 0)
@@ -202,7 +232,9 @@ def _uncollapsed(pm: MDP, resting: IntArray, inside: BoolArray, inflow: FloatArr
                         shape=(choices.size, states.size))
     balance = sp.hstack([(out - into).T, sp.identity(states.size)])
     cost = np.concatenate([np.ones(choices.size), np.zeros(states.size)])
-    found = linprog(cost, A_eq=sp.csr_matrix(balance), b_eq=demand, bounds=(0, None),
+    lower = np.concatenate([floor, np.zeros(states.size)])
+    found = linprog(cost, A_eq=sp.csr_matrix(balance), b_eq=demand,
+                    bounds=np.column_stack([lower, np.full(cost.size, np.inf)]),
                     method=_method(cost.size))
     if found.status != 0:
         raise WitnessFailed("no flow inside the zero-reward end components matches the "
