@@ -194,3 +194,18 @@ def test_an_optimum_no_strategy_attains_is_refused() -> None:
     assert run.results[0].value == pytest.approx(0.0, abs=1e-6)
     with pytest.raises(NoStrategyError, match="never reaches"):
         _strategy(run)
+
+
+def test_a_certified_enclosure_of_the_optimum_admits_the_programmes_optimum() -> None:
+    """The two-objective front reports a certified interval whose point value may be
+    off the optimum: a strategy attaining the programme's optimum (0.7) inside the
+    interval passes; outside it, it is refused."""
+    run = _run(FORK, 'multi(Pmax=? [ F "a" ], P>=0.3 [ F "b" ])')
+    formula = run.results[0].property.formula
+    assert isinstance(formula, Multi)
+    passed = multi_strategy(run.mdp, formula, 0.71, (0.69, 0.72))
+    assert passed.values[0].value == pytest.approx(0.7, abs=1e-9)
+    with pytest.raises(NoStrategyError, match=r"certified in \[0\.705, 0\.72\]"):
+        multi_strategy(run.mdp, formula, 0.71, (0.705, 0.72))
+    with pytest.raises(NoStrategyError, match="the optimum"):
+        multi_strategy(run.mdp, formula, 0.71)
