@@ -35,7 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 import scipy.sparse as sp
@@ -162,32 +162,46 @@ def _solution(programme: _Programme, constraints: Sequence[Constraint],
     """The programme's solution: the optimum of *optimised*, or, for achievability,
     the strategy with the largest margin (as :func:`~.multi.multi_margin` finds it:
     the one furthest inside its bounds)."""
-    from scipy.optimize import linprog  # HiGHS: only for multi-objective queries
-
-    size = programme.flow.shape[1]
     if optimised is None:
-        rows, bounds = _margin_rows(programme, constraints)
-        cost = np.zeros(size + 1)
-        cost[-1] = -1.0
-        flow = sp.hstack([programme.flow, sp.csr_matrix((programme.flow.shape[0], 1))])
-        found = linprog(cost, A_ub=rows if len(constraints) else None,
-                        b_ub=bounds if len(constraints) else None, A_eq=sp.csr_matrix(flow),
-                        b_eq=programme.initial, bounds=[(0, None)] * size + [(None, 1.0)],
-                        method=_method(size + 1))
+        found = _margin_solution(programme, constraints)
     else:
-        rows_list = [(-1.0 if c.relation in (">=", ">") else 1.0) for c in constraints]
-        a_ub = np.array([s * programme.forms[id(c.quantity)]
-                         for s, c in zip(rows_list, constraints, strict=True)])
-        b_ub = np.array([s * c.bound for s, c in zip(rows_list, constraints, strict=True)])
-        cost = programme.forms[id(optimised)] * (-1.0 if objective == "max" else 1.0)
-        found = linprog(cost, A_ub=a_ub if len(constraints) else None,
-                        b_ub=b_ub if len(constraints) else None, A_eq=programme.flow,
-                        b_eq=programme.initial, bounds=(0, None), method=_method(size))
+        found = _optimum_solution(programme, constraints, optimised, objective)
     if found.status == 3:
         raise WitnessFailed("the optimum is unbounded: no strategy attains it")
     if found.status != 0:
         raise WitnessFailed(f"the linear programme found no strategy ({found.message})")
-    return np.asarray(found.x[:size], dtype=np.float64)
+    return np.asarray(found.x[: programme.flow.shape[1]], dtype=np.float64)
+
+
+def _margin_solution(programme: _Programme, constraints: Sequence[Constraint]) -> Any:
+    """HiGHS's answer to :meth:`~.multi._Programme.margin`'s programme."""
+    from scipy.optimize import linprog  # HiGHS: only for multi-objective queries
+
+    size = programme.flow.shape[1]
+    rows, bounds = _margin_rows(programme, constraints)
+    cost = np.zeros(size + 1)
+    cost[-1] = -1.0
+    flow = sp.hstack([programme.flow, sp.csr_matrix((programme.flow.shape[0], 1))])
+    return linprog(cost, A_ub=rows if len(constraints) else None,
+                   b_ub=bounds if len(constraints) else None, A_eq=sp.csr_matrix(flow),
+                   b_eq=programme.initial, bounds=[(0, None)] * size + [(None, 1.0)],
+                   method=_method(size + 1))
+
+
+def _optimum_solution(programme: _Programme, constraints: Sequence[Constraint],
+                      optimised: Quantity, objective: Literal["min", "max"]) -> Any:
+    """HiGHS's answer to :meth:`~.multi._Programme.solve`'s programme."""
+    from scipy.optimize import linprog  # HiGHS: only for multi-objective queries
+
+    signs = [-1.0 if c.relation in (">=", ">") else 1.0 for c in constraints]
+    rows = np.array([sign * programme.forms[id(c.quantity)]
+                     for sign, c in zip(signs, constraints, strict=True)])
+    bounds = np.array([sign * c.bound for sign, c in zip(signs, constraints, strict=True)])
+    cost = programme.forms[id(optimised)] * (-1.0 if objective == "max" else 1.0)
+    return linprog(cost, A_ub=rows if len(constraints) else None,
+                   b_ub=bounds if len(constraints) else None, A_eq=programme.flow,
+                   b_eq=programme.initial, bounds=(0, None),
+                   method=_method(programme.flow.shape[1]))
 
 
 def _resting(programme: _Programme,
