@@ -26,7 +26,7 @@ count) are refused, as is a query no strategy meets.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -155,10 +155,7 @@ def multi_strategy(mdp: MDP, query: Multi, reported: object,
     values = verified_values(strategy.chain, strategy.initial, strategy.node_state,
                              strategy.expected_rewards, goals,
                              Reported(reported, enclosure, flows.optimum))
-    return MultiStrategy(mdp, strategy.targets, strategy.node_state, strategy.node_visited,
-                         strategy.node_stopped, strategy.initial, strategy.move_ptr,
-                         strategy.move_choice, strategy.move_probability,
-                         strategy.move_stops, strategy.chain, values)
+    return replace(strategy, values=values)
 
 
 def _refuse_steps(query: Multi) -> None:
@@ -259,7 +256,8 @@ def _move_matrix(flows: Flows) -> sp.csr_matrix:
     resting = flows.resting >= 0
     stay = np.divide(flows.stays, total, out=np.zeros(n), where=total > 0)
     stopping = resting & (stay > NEGLIGIBLE)
-    switch = _mixed(flows)[np.maximum(flows.resting, 0)] & resting
+    mixed = _mixed(flows)
+    switch = resting & (mixed[np.maximum(flows.resting, 0)] if mixed.size else False)
     rows.append(np.flatnonzero(stopping))
     cols.append(flows.stop_choice[stopping] + np.where(switch[stopping], m, 0))
     probs.append(stay[stopping])
