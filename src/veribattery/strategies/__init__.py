@@ -6,9 +6,11 @@ the DTMC it induces as a PRISM model with its property (:func:`induced_model_tex
 :func:`induced_properties_text`), so that PRISM, Storm or ``veribattery prism`` can
 confirm the optimum on it. :func:`export_strategy` writes them, all or nothing.
 
-Only memoryless deterministic strategies of unbounded ``Pmin``/``Pmax``/``Rmin``/``Rmax``
-properties are exported; step-bounded ones (their strategy depends on the step) and
-multi-objective ones (randomised) are not.
+Memoryless deterministic strategies of unbounded ``Pmin``/``Pmax``/``Rmin``/``Rmax``
+properties, and the randomised strategies with finite memory that attain a
+``multi(...)`` answer (:mod:`~veribattery.strategies.randomised`,
+:mod:`~veribattery.strategies.induced_multi`) are exported; step-bounded ones (their
+strategy depends on the step, also ``C<=k`` in ``multi(...)``) are not.
 """
 
 from veribattery.strategies.chosen import ChosenStrategy, choose_strategy, reached_under
@@ -25,16 +27,25 @@ from veribattery.strategies.induced import (
     induced_model_text,
     induced_properties_text,
 )
+from veribattery.strategies.induced_multi import (
+    induced_multi_model_text,
+    induced_multi_properties_text,
+)
+from veribattery.strategies.randomised import ChosenMulti, multi_strategy_text
 
 __all__ = [
     "INDUCED_MODEL",
     "INDUCED_PROPERTIES",
+    "ChosenMulti",
     "ChosenStrategy",
     "choose_strategy",
     "dtmc_property_text",
     "export_strategy",
     "induced_model_text",
+    "induced_multi_model_text",
+    "induced_multi_properties_text",
     "induced_properties_text",
+    "multi_strategy_text",
     "prism_strategy_text",
     "reached_under",
     "storm_scheduler_json",

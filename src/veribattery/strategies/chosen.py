@@ -12,7 +12,9 @@ from veribattery.checker.mdp import MDP, Strategy, induced_chain
 from veribattery.checker.mdp.witness import NoStrategyError
 from veribattery.errors import OptionError
 from veribattery.lang import FlatModel
+from veribattery.lang.nodes import Multi
 from veribattery.pipeline.mdp import MdpCheckRun
+from veribattery.strategies.randomised import ChosenMulti
 
 __all__ = ["ChosenStrategy", "choose_strategy", "reached_under"]
 
@@ -53,28 +55,61 @@ class ChosenStrategy:
         return self.mdp.action_of(int(self.strategy.choices[state]))
 
 
-def choose_strategy(run: MdpCheckRun, selector: str | None = None) -> ChosenStrategy:
+def choose_strategy(run: MdpCheckRun,
+                    selector: str | None = None) -> ChosenStrategy | ChosenMulti:
     """The strategy of the property *selector* names: a 1-based index among the checked
     properties or a property's name; None picks the first one that has a strategy.
+    A ``multi(...)`` property's is randomised, with memory (:class:`ChosenMulti`).
 
     :raises OptionError: *selector* names no checked property.
-    :raises NoStrategyError: the property has no memoryless optimal strategy (the
-        message names the property; with no *selector*: the first one).
+    :raises NoStrategyError: the property has no strategy to export (the message
+        names the property; with no *selector*: the first one).
     """
     if run.model is None:
         raise OptionError("the run did not keep its model: no strategy can be exported")
     if selector is not None:
         index = _index(run, selector)
+        if _is_multi(run, index):
+            return _chosen_multi(run, index)
         return _chosen(run, index, _strategy(run, index))
     for index in range(len(run.results)):
         try:
+            if _is_multi(run, index):
+                return _chosen_multi(run, index)
             return _chosen(run, index, run.strategy(index))
         except NoStrategyError:
             continue
     if not run.results:
         raise OptionError("no property was checked: there is no strategy to export")
+    if _is_multi(run, 0):
+        _chosen_multi(run, 0)  # raises, naming the first property
     _strategy(run, 0)  # raises, naming the first property
     raise AssertionError("unreachable")
+
+
+def _is_multi(run: MdpCheckRun, index: int) -> bool:
+    return isinstance(run.results[index].property.formula, Multi)
+
+
+def _chosen_multi(run: MdpCheckRun, index: int) -> ChosenMulti:
+    """The verified witness strategy of the ``multi(...)`` result *index*; an error
+    names the property where it is written."""
+    result = run.results[index]
+    prop, formula = result.property, result.property.formula
+    assert run.model is not None and isinstance(formula, Multi)
+    if run.mdp.states is None or run.mdp.variable_names != run.model.variable_names:
+        raise OptionError("the MDP's states do not carry the model's variables: "
+                          "no strategy can be exported")
+    # Imported here: the LP (scipy.optimize) is needed for multi(...) properties only.
+    from veribattery.checker.mdp.multi_strategy import multi_strategy
+
+    try:
+        enclosure = None if not result.certified or result.lower is None or (
+            result.upper is None) else (result.lower, result.upper)
+        strategy = multi_strategy(run.mdp, formula, result.value, enclosure)
+    except NoStrategyError as exc:
+        raise NoStrategyError(f"{prop.text}: {exc.message}", prop.span) from None
+    return ChosenMulti.of(result, strategy, run.mdp, run.model)
 
 
 def _index(run: MdpCheckRun, selector: str) -> int:

@@ -14,20 +14,39 @@ from veribattery.strategies.induced import (
     induced_model_text,
     induced_properties_text,
 )
+from veribattery.strategies.induced_multi import (
+    induced_multi_model_text,
+    induced_multi_properties_text,
+)
+from veribattery.strategies.randomised import ChosenMulti, multi_strategy_text
 
 __all__ = ["export_strategy", "strategy_files"]
 
 
-def strategy_files(chosen: ChosenStrategy, strategy_file: Path | None,
+def strategy_files(chosen: ChosenStrategy | ChosenMulti, strategy_file: Path | None,
                    induced_dir: Path | None) -> dict[Path, str]:
     """The text of each file asked for: the strategy (format by suffix, see
-    :mod:`~veribattery.strategies.formats`) and the induced model and properties."""
+    :mod:`~veribattery.strategies.formats`, or :mod:`~veribattery.strategies.randomised`
+    for a ``multi(...)`` property's) and the induced model and properties."""
+    if isinstance(chosen, ChosenMulti):
+        return _multi_files(chosen, strategy_file, induced_dir)
     texts: dict[Path, str] = {}
     if strategy_file is not None:
         texts[strategy_file] = strategy_text(chosen, strategy_file)
     if induced_dir is not None:
         texts[induced_dir / INDUCED_MODEL] = induced_model_text(chosen)
         texts[induced_dir / INDUCED_PROPERTIES] = induced_properties_text(chosen)
+    return texts
+
+
+def _multi_files(chosen: ChosenMulti, strategy_file: Path | None,
+                 induced_dir: Path | None) -> dict[Path, str]:
+    texts: dict[Path, str] = {}
+    if strategy_file is not None:
+        texts[strategy_file] = multi_strategy_text(chosen, strategy_file)
+    if induced_dir is not None:
+        texts[induced_dir / INDUCED_MODEL] = induced_multi_model_text(chosen)
+        texts[induced_dir / INDUCED_PROPERTIES] = induced_multi_properties_text(chosen)
     return texts
 
 
@@ -42,7 +61,7 @@ def export_strategy(run: MdpCheckRun, *, selector: str | None = None,
     files are overwritten; refusing them is the caller's choice.
 
     :return: the paths written.
-    :raises NoStrategyError: the property has no memoryless optimal strategy.
+    :raises NoStrategyError: the property has no strategy to export.
     """
     texts = strategy_files(choose_strategy(run, selector), strategy_file, induced_dir)
     if induced_dir is not None:

@@ -4,8 +4,9 @@ attains a ``Pmin``/``Pmax``/``Rmin``/``Rmax`` over an unbounded path.
 Only these have one strategy that is optimal from every state at once. A step-bounded
 objective (``F<=k``, ``X``, ``C<=k``, ``I=k``) needs the number of steps taken
 (:class:`~veribattery.checker.mdp.StepStrategy`), and a formula with no P or R operator
-at its top has no strategy, and a ``multi(...)`` optimum needs randomisation: all are
-refused with :class:`NoStrategyError`.
+at its top has no strategy, and a ``multi(...)`` answer needs randomisation and memory
+(:mod:`~veribattery.checker.mdp.multi_strategy` builds that one): all are refused here
+with :class:`NoStrategyError`.
 """
 
 from __future__ import annotations
@@ -53,9 +54,9 @@ def property_strategy(mdp: MDP, formula: Expr) -> Strategy:
         case RewardOp():
             result = _reward_result(mdp, formula, _direction(formula))
         case Multi():
-            raise NoStrategyError("no memoryless strategy: a multi-objective optimum is "
-                                  "attained by a randomised strategy (deterministic ones "
-                                  "mixed), which is not exported", formula.span)
+            raise NoStrategyError("no memoryless deterministic strategy: a multi-objective "
+                                  "answer is attained by a randomised strategy with memory "
+                                  "(see multi_strategy)", formula.span)
         case _:
             raise NoStrategyError("no strategy: the property has no P or R operator at its "
                                   "top (it is a filter, a comparison, arithmetic or a "
