@@ -207,3 +207,52 @@ def test_explaining_the_induced_dtmc_shows_the_strategys_actions(files: tuple[Pa
     (path,) = explained["paths"]
     assert path["probability"] == 0.5
     assert [step["action"] for step in path["states"]] == ["risky", ""]
+
+
+@pytest.fixture
+def no_build(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Any model build fails the test: a refusal must come before the work starts."""
+    def refuse(*_: object, **__: object) -> None:
+        raise AssertionError("the model was built")
+
+    import veribattery.pipeline.mdp as mdp_pipeline
+    import veribattery.pipeline.session as dtmc_pipeline
+
+    monkeypatch.setattr(mdp_pipeline, "build_mdp", refuse)
+    monkeypatch.setattr(dtmc_pipeline.Session, "_build", refuse)
+
+
+@pytest.mark.usefixtures("no_build")
+@pytest.mark.parametrize(("args", "says"), [
+    (("--strategy-property", "fast"), "step-bounded"),
+    (("--property", 'Pmax=? [ F<=2 "goal" ] + 1'), "no P or R operator at its top"),
+    (("--property", 'multi(R{"steps"}min=? [ C<=3 ], P>=0.5 [ F "goal" ])'),
+     "a C<=k objective in multi(...)"),
+    (("--property", "fast", "--property", 'R{"steps"}max=? [ I=2 ]'), "step-bounded"),
+])
+def test_a_hopeless_export_is_refused_before_the_build(files: tuple[Path, Path], tmp_path: Path,
+                                                       args: tuple[str, ...], says: str) -> None:
+    model, props = files
+    line = _refused(_prism(model, "--props", props, *args,
+                           "--export-strategy", tmp_path / "s.txt"))
+    assert says in line
+    assert not (tmp_path / "s.txt").exists()
+
+
+@pytest.mark.usefixtures("no_build")
+def test_a_dtmc_export_is_refused_before_the_build(tmp_path: Path) -> None:
+    model = tmp_path / "chain.pm"
+    model.write_text(DTMC, encoding="utf-8")
+    assert "only an MDP has strategies" in _refused(
+        _prism(model, "--property", "P=? [ F s=1 ]", "--export-induced", tmp_path / "ind"))
+
+
+def test_a_reference_to_a_property_is_judged_once_resolved(files: tuple[Path, Path],
+                                                          tmp_path: Path) -> None:
+    model, props = files
+    props.write_text(PROPS + '"again": "reach";\n', encoding="utf-8")
+    out = tmp_path / "s.txt"
+    result = _prism(model, "--props", props, "--strategy-property", "again",
+                    "--export-strategy", out)
+    assert result.exit_code == 0, result.stderr
+    assert out.read_text(encoding="utf-8").startswith("(0,false)=east\n")

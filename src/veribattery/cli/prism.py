@@ -28,7 +28,12 @@ from veribattery.cli.output import (
     user_errors,
 )
 from veribattery.cli.progress import limited
-from veribattery.cli.strategy import check_strategy_options, export_run_strategy, strategy_options
+from veribattery.cli.strategy import (
+    check_strategy_options,
+    export_run_strategy,
+    hopeless_export_check,
+    strategy_options,
+)
 from veribattery.cli.tables import fit_text, print_table
 from veribattery.errors import OptionError
 
@@ -101,6 +106,7 @@ def prism_command(
             progress=limited(progress, max_states), exact=exact, keep="answers",
             # --simulate -o writes every structure's totals along the paths
             rewards="all" if analysis["simulate"] is not None else "named",
+            before_build=hopeless_export_check(analysis),
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)

@@ -3,7 +3,8 @@ an MDP property's optimal strategy and the DTMC it induces, written to files."""
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+import functools
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -14,10 +15,12 @@ from veribattery.cli.output import print_written, user_errors
 from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
+    from veribattery.lang import Property
     from veribattery.pipeline import ModelCheckRun
     from veribattery.pipeline.mdp import MdpCheckRun
 
-__all__ = ["check_strategy_options", "export_run_strategy", "strategy_options"]
+__all__ = ["check_strategy_options", "export_run_strategy", "hopeless_export_check",
+           "strategy_options"]
 
 
 def strategy_options(function: Callable[..., None]) -> Callable[..., None]:
@@ -61,6 +64,18 @@ def check_strategy_options(options: Mapping[str, Any]) -> None:
                          names=(INDUCED_MODEL, INDUCED_PROPERTIES))
 
 
+def hopeless_export_check(options: Mapping[str, Any]
+                          ) -> Callable[[str, Sequence[Property]], None] | None:
+    """What refuses, once the properties are parsed and before the model is built, a
+    strategy export that cannot succeed (a DTMC; a property with no strategy, see
+    :func:`~veribattery.strategies.refuse_hopeless_export`); None without an export."""
+    if options["strategy_file"] is None and options["induced_dir"] is None:
+        return None
+    from veribattery.strategies import refuse_hopeless_export
+
+    return functools.partial(refuse_hopeless_export, selector=options["strategy_property"])
+
+
 def export_run_strategy(run: ModelCheckRun | MdpCheckRun, options: Mapping[str, Any]) -> None:
     """Write the files the strategy options ask for (nothing if none), or exit 2
     naming the property that has no strategy."""
@@ -72,8 +87,9 @@ def export_run_strategy(run: ModelCheckRun | MdpCheckRun, options: Mapping[str, 
 
     with user_errors():
         if not isinstance(run, MdpRun):
-            raise OptionError("--export-strategy/--export-induced: the model is a DTMC; "
-                              "only an MDP has strategies")
+            from veribattery.strategies import DTMC_HAS_NO_STRATEGY
+
+            raise OptionError(DTMC_HAS_NO_STRATEGY)
         written = export_strategy(run, selector=options["strategy_property"],
                                   strategy_file=strategy_file, induced_dir=induced_dir)
     print_written(*written)

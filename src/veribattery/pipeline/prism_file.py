@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 import functools
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -88,6 +88,7 @@ def check_prism_file(
     exact: bool = False,
     keep: Keep = "states",
     rewards: Rewards = "all",
+    before_build: Callable[[str, Sequence[Property]], None] | None = None,
 ) -> ModelCheckRun | MdpCheckRun:
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
@@ -110,6 +111,9 @@ def check_prism_file(
     :param rewards: a DTMC's reward structures built in floating point: ``"all"``, or
         ``"named"``, only those the properties use (see
         :class:`~veribattery.pipeline.Session`).
+    :param before_build: told the model type and the properties to check once they
+        are parsed, before any state is built: it may raise to refuse the work (the
+        CLI refuses a strategy export that cannot succeed).
     """
     watch = Stopwatch(*STAGES)
     with watch.stage("parse"):
@@ -120,6 +124,8 @@ def check_prism_file(
         skipped: tuple[str, ...] = ()
         if not selectors:
             chosen, skipped = _supported(chosen)
+        if before_build is not None:
+            before_build(model.model_type, chosen)
     if model.model_type == "mdp":
         mdp_run = _check_mdp(model, chosen, props, constants, progress, watch, exact)
         return replace(mdp_run, warnings=skipped + mdp_run.warnings) if skipped else mdp_run

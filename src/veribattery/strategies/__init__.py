@@ -13,7 +13,13 @@ properties, and the randomised strategies with finite memory that attain a
 strategy depends on the step, also ``C<=k`` in ``multi(...)``) are not.
 """
 
-from veribattery.strategies.chosen import ChosenStrategy, choose_strategy, reached_under
+from veribattery.strategies.chosen import (
+    DTMC_HAS_NO_STRATEGY,
+    ChosenStrategy,
+    choose_strategy,
+    reached_under,
+    refuse_hopeless_export,
+)
 from veribattery.strategies.export import export_strategy, strategy_files
 from veribattery.strategies.formats import (
     prism_strategy_text,
@@ -34,6 +40,7 @@ from veribattery.strategies.induced_multi import (
 from veribattery.strategies.randomised import ChosenMulti, multi_strategy_text
 
 __all__ = [
+    "DTMC_HAS_NO_STRATEGY",
     "INDUCED_MODEL",
     "INDUCED_PROPERTIES",
     "ChosenMulti",
@@ -48,6 +55,7 @@ __all__ = [
     "multi_strategy_text",
     "prism_strategy_text",
     "reached_under",
+    "refuse_hopeless_export",
     "storm_scheduler_json",
     "strategy_files",
     "strategy_text",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -9,14 +10,15 @@ import numpy as np
 from veribattery._types import BoolArray
 from veribattery.checker import CheckResult
 from veribattery.checker.mdp import MDP, Strategy, induced_chain
-from veribattery.checker.mdp.witness import NoStrategyError
+from veribattery.checker.mdp.witness import NoStrategyError, strategy_refusal
 from veribattery.errors import OptionError
-from veribattery.lang import FlatModel
-from veribattery.lang.nodes import Multi
+from veribattery.lang import FlatModel, Property
+from veribattery.lang.nodes import Ident, LabelRef, Multi
 from veribattery.pipeline.mdp import MdpCheckRun
 from veribattery.strategies.randomised import ChosenMulti
 
-__all__ = ["ChosenStrategy", "choose_strategy", "reached_under"]
+__all__ = ["DTMC_HAS_NO_STRATEGY", "ChosenStrategy", "choose_strategy", "reached_under",
+           "refuse_hopeless_export"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -114,18 +116,59 @@ def _chosen_multi(run: MdpCheckRun, index: int) -> ChosenMulti:
 
 def _index(run: MdpCheckRun, selector: str) -> int:
     """The 0-based position of the result *selector* names."""
-    count = len(run.results)
+    return _position([r.property for r in run.results], selector)
+
+
+def _position(properties: Sequence[Property], selector: str) -> int:
+    """The 0-based position among *properties* of the one *selector* names (a 1-based
+    index, or a name)."""
+    count = len(properties)
     if selector.isdigit():
         if not 1 <= int(selector) <= count:
             raise OptionError(f"--strategy-property {selector}: there are {count} checked "
                               "properties (1-based)")
         return int(selector) - 1
-    for index, result in enumerate(run.results):
-        if result.property.name == selector:
+    for index, prop in enumerate(properties):
+        if prop.name == selector:
             return index
-    names = ", ".join(f'"{r.property.name}"' for r in run.results if r.property.name)
+    names = ", ".join(f'"{p.name}"' for p in properties if p.name)
     raise OptionError(f"--strategy-property {selector}: no checked property has that name "
                       f"(names: {names or 'none'})")
+
+
+def refuse_hopeless_export(model_type: str, properties: Sequence[Property],
+                           selector: str | None = None) -> None:
+    """Refuse, before the model is built, a strategy export that cannot succeed: a DTMC,
+    or a property (the one *selector* names; with none, every one) whose shape has no
+    strategy (:func:`~veribattery.checker.mdp.witness.strategy_refusal`). A property
+    that is only a reference to another (``"name"``) is judged after the check.
+
+    :raises OptionError: a DTMC, or a *selector* that names no property.
+    :raises NoStrategyError: naming the property where it is written.
+    """
+    if model_type != "mdp":
+        raise OptionError(DTMC_HAS_NO_STRATEGY)
+    if selector is not None:
+        candidates = [properties[_position(properties, selector)]]
+    else:
+        candidates = list(properties)
+    refusals = [_refusal(p) for p in candidates]
+    first = refusals[0] if refusals else None
+    if first is not None and all(r is not None for r in refusals):
+        raise first
+
+
+def _refusal(prop: Property) -> NoStrategyError | None:
+    if isinstance(prop.formula, LabelRef | Ident):
+        return None  # a reference: its property's shape is known once resolved
+    refusal = strategy_refusal(prop.formula)
+    return None if refusal is None else NoStrategyError(f"{prop.text}: {refusal.message}",
+                                                         prop.span)
+
+
+#: Why a DTMC has no strategy to export.
+DTMC_HAS_NO_STRATEGY = ("--export-strategy/--export-induced: the model is a DTMC; only an "
+                        "MDP has strategies")
 
 
 def _strategy(run: MdpCheckRun, index: int) -> Strategy:

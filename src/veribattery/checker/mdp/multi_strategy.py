@@ -39,8 +39,6 @@ from veribattery.checker.mdp.multi_formula import (
     _constraint,
     _Goal,
     _goals,
-    _operators,
-    _steps,
     _towards,
 )
 from veribattery.checker.mdp.multi_strategy_check import (
@@ -54,7 +52,7 @@ from veribattery.checker.mdp.multi_strategy_flow import (
     uncollapsed,
     witness_flows,
 )
-from veribattery.checker.mdp.witness import NoStrategyError
+from veribattery.checker.mdp.witness import NoStrategyError, strategy_refusal
 from veribattery.lang.nodes import Multi, ProbOp
 
 __all__ = ["MultiStrategy", "multi_strategy"]
@@ -159,12 +157,9 @@ def multi_strategy(mdp: MDP, query: Multi, reported: object,
 
 
 def _refuse_steps(query: Multi) -> None:
-    for op in _operators(query):
-        if _steps(op) is not None:
-            raise NoStrategyError(
-                "no strategy exported: a C<=k objective in multi(...) needs a strategy that "
-                "also counts the steps taken; only F, G, state-formula and C objectives "
-                "have exported multi-objective strategies", op.span)
+    refusal = strategy_refusal(query)
+    if refusal is not None:
+        raise refusal
 
 
 def _refuse_answer(query: Multi, reported: object) -> None:

@@ -20,6 +20,7 @@ from veribattery.checker.mdp.strategy import Strategy
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError
 from veribattery.lang.nodes import (
+    Cumulative,
     Eventually,
     Expr,
     Globally,
@@ -34,11 +35,38 @@ from veribattery.lang.nodes import (
     WeakUntil,
 )
 
-__all__ = ["NoStrategyError", "property_strategy"]
+__all__ = ["NoStrategyError", "property_strategy", "strategy_refusal"]
 
 
 class NoStrategyError(CheckError):
     """The property has no memoryless optimal strategy to show (the message says why)."""
+
+
+def strategy_refusal(formula: Expr) -> NoStrategyError | None:
+    """Why *formula* has no strategy to export as far as its shape tells, before any
+    model is built (``--export-strategy`` is refused before the work starts), or None
+    when it may have one (a ``multi(...)`` answer can still be false or unattained).
+
+    No P or R operator at the top, a step-bounded path (``X``, a bounded
+    ``F``/``U``/``G``/``W``/``R``, ``C<=k``, ``I=k``), or a ``C<=k`` objective in
+    ``multi(...)``.
+    """
+    match formula:
+        case ProbOp(path=path):
+            unbounded = getattr(path, "bound", None) is None and isinstance(
+                path, Eventually | Until | Globally | WeakUntil | Release)
+            return None if unbounded else _step_bounded(path)
+        case RewardOp(path=path):
+            return None if isinstance(path, Reach | Total) else _step_bounded(path)
+        case Multi(objectives=objectives):
+            counting = [op for op in objectives
+                        if isinstance(op, RewardOp) and isinstance(op.path, Cumulative)]
+            return None if not counting else NoStrategyError(
+                "no strategy exported: a C<=k objective in multi(...) needs a strategy that "
+                "also counts the steps taken; only F, G, state-formula and C objectives "
+                "have exported multi-objective strategies", counting[0].span)
+    return NoStrategyError("no strategy: the property has no P or R operator at its top (it "
+                           "is a filter, a comparison, arithmetic or a constant)", formula.span)
 
 
 def property_strategy(mdp: MDP, formula: Expr) -> Strategy:
@@ -48,19 +76,18 @@ def property_strategy(mdp: MDP, formula: Expr) -> Strategy:
     :raises NoStrategyError: a step-bounded path, or no P/R operator at the top.
     :raises CheckError: as checking the property would (an unknown reward structure, ...).
     """
+    refusal = strategy_refusal(formula)
+    if refusal is not None:
+        raise refusal
     match formula:
         case ProbOp(path=path):
             result = _path_result(mdp, path, _direction(formula))
         case RewardOp():
             result = _reward_result(mdp, formula, _direction(formula))
-        case Multi():
+        case _:
             raise NoStrategyError("no memoryless deterministic strategy: a multi-objective "
                                   "answer is attained by a randomised strategy with memory "
                                   "(see multi_strategy)", formula.span)
-        case _:
-            raise NoStrategyError("no strategy: the property has no P or R operator at its "
-                                  "top (it is a filter, a comparison, arithmetic or a "
-                                  "constant)", formula.span)
     assert isinstance(result.strategy, Strategy)
     return result.strategy
 
