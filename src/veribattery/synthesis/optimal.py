@@ -24,6 +24,7 @@ from scipy.sparse.csgraph import breadth_first_order
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.mdp import MDP, MdpResult, MdpRewards, reach_probability, reach_reward
+from veribattery.checker.mdp.attain import may_attain
 from veribattery.synthesis.decisions import GIVE_UP, GO_ON, RETURN
 from veribattery.synthesis.model import Certified
 from veribattery.synthesis.strategy import STATE_VARIABLES
@@ -95,8 +96,7 @@ def _per_choice(mdp: MDP, name: str) -> FloatArray:
 def _possibly_optimal(mdp: MDP, pmax: MdpResult) -> BoolArray:
     """The choices whose certified value may reach the state's Pmax, and the engine's
     own optimal choice in every state (so each state keeps one)."""
-    choice_upper = mdp.transitions @ pmax.upper
-    keep = np.asarray(choice_upper >= pmax.lower[mdp.choice_owner], dtype=bool)
+    keep = may_attain(mdp, pmax.upper, pmax.lower)
     keep[pmax.strategy.choices] = True  # type: ignore[union-attr]
     return keep
 

@@ -239,3 +239,22 @@ def test_a_front_with_a_tolerance_lies_that_close_above_the_exact_one(tolerance:
     for vertex in exact.vertices:
         above = _on_line(line, vertex.p.value) - vertex.total.value
         assert -1e-9 <= above <= tolerance * max(1.0, vertex.total.value)
+
+
+# 0 chooses: a (reward 3) to 1, which reaches the goal 6 surely; b (reward 1) to 2, 3, 4
+# with 1/7, 4/7, 2/7, each of which reaches 6 surely; c (free) to the dead end 5. In
+# doubles 1/7 + 4/7 + 2/7 sums to 0.9999999999999999 < 1 = Pmax, yet b attains Pmax:
+# the fastest safest strategy is b, (1, 1), not a, (1, 3).
+SEVENTHS = mdp_from([[[(1, 1)], [(2, 1 / 7), (3, 4 / 7), (4, 2 / 7)], [(5, 1)]],
+                     [[(6, 1)]], [[(6, 1)]], [[(6, 1)]], [[(6, 1)]], [[(5, 1)]], [[(6, 1)]]],
+                    rewards=[[3, 1, 0], [0], [0], [0], [0], [0], [0]])
+
+
+def test_a_choice_whose_float_sum_rounds_below_pmax_still_attains_it() -> None:
+    goal, cost = Reach(mask(7, [6])), Total(SEVENTHS.rewards[0].per_choice(SEVENTHS))
+    front = pareto_front(SEVENTHS, goal, cost)
+    assert [(v.p.value, v.total.value) for v in front.vertices] == [(0.0, 0.0), (1.0, 1.0)]
+    answer = least_total_at(SEVENTHS, goal, cost, 0.5)
+    assert answer is not None and answer.total is not None
+    assert answer.total.lower <= 0.5 <= answer.total.upper
+    assert answer.total.upper - answer.total.lower < 1e-12  # was [0.5, 1.5]

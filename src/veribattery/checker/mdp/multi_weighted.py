@@ -33,6 +33,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import breadth_first_order
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery.checker.mdp.attain import may_attain
 from veribattery.checker.mdp.components import end_components
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
@@ -173,8 +174,7 @@ class StoppingMdp:
         start = int(self.mdp.initial[0])
         best = Interval(float(pmax.values[start]), float(pmax.lower[start]),
                         float(pmax.upper[start]))
-        keep = np.asarray(self.mdp.transitions @ pmax.upper
-                          >= pmax.lower[self.mdp.choice_owner], dtype=bool)
+        keep = may_attain(self.mdp, pmax.upper, pmax.lower)
         assert isinstance(pmax.strategy, Strategy)
         keep[pmax.strategy.choices] = True
         restricted, rows = _restricted(self.mdp, keep)
