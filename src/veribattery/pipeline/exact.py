@@ -7,7 +7,7 @@ import functools
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
-from veribattery.checker import CheckResult, Workspace
+from veribattery.checker import CheckResult
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -31,6 +31,7 @@ from veribattery.pipeline.run import (
 )
 
 if TYPE_CHECKING:
+    from veribattery.checker import Workspace
     from veribattery.explore.exact.dtmc import ExactDTMC
 
 __all__ = ["check_model_exact"]
@@ -67,6 +68,8 @@ def check_model_exact(
         tell_building(stages)
         exact = _build_exact(model, flat, constants, progress)
     dtmc = exact.dtmc
+    from veribattery.checker import Workspace  # the DTMC checker: not imported for MDPs
+
     workspace = Workspace()  # this run's caches: the float pre-pass of exact solves
     checks = _exact_checks(exact, (properties, resolved), props_file, constants, workspace)
     with watch.stage("check"):
