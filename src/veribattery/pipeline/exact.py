@@ -57,6 +57,8 @@ def check_model_exact(
     :meth:`~veribattery.pipeline.Session.check`, in floating point on the model's DTMC
     (they feed warnings, not results).
     """
+    from veribattery.checker import Workspace  # the DTMC checker: not imported for MDPs
+
     options = options or CheckOptions()
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):
@@ -68,8 +70,6 @@ def check_model_exact(
         tell_building(stages)
         exact = _build_exact(model, flat, constants, progress)
     dtmc = exact.dtmc
-    from veribattery.checker import Workspace  # the DTMC checker: not imported for MDPs
-
     workspace = Workspace()  # this run's caches: the float pre-pass of exact solves
     checks = _exact_checks(exact, (properties, resolved), props_file, constants, workspace)
     with watch.stage("check"):
