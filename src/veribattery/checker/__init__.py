@@ -8,6 +8,7 @@ MDP's check, which shares the results and the formula leaves only, does not impo
 from __future__ import annotations
 
 import importlib
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 from veribattery.checker.result import CheckResult, Keep, UndecidedResult
@@ -16,11 +17,13 @@ if TYPE_CHECKING:
     from veribattery.checker.api import check, state_set, values
     from veribattery.checker.workspace import Workspace
 
-_EXPORTS = {
+_EXPORTS = MappingProxyType({
     "veribattery.checker.api": ("check", "state_set", "values"),
     "veribattery.checker.workspace": ("Workspace",),
-}
-_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
+})
+# read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
+_HOME = MappingProxyType(
+    {name: module for module, names in _EXPORTS.items() for name in names})
 
 
 def __getattr__(name: str) -> Any:

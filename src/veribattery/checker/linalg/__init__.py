@@ -20,6 +20,7 @@ reads :mod:`~veribattery.checker.linalg.topological` only.
 from __future__ import annotations
 
 import importlib
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
@@ -41,7 +42,7 @@ if TYPE_CHECKING:
     )
     from veribattery.checker.linalg.scatter import TransposedProduct
 
-_EXPORTS = {
+_EXPORTS = MappingProxyType({
     "veribattery.checker.linalg.factorization": (
         "Factorization", "PinnedSolver", "QuickSolver", "extended_product", "solve"),
     "veribattery.checker.linalg.iterative": ("backward_error", "matrix_norm", "solve_iterative"),
@@ -50,8 +51,10 @@ _EXPORTS = {
         "SolverPlans", "index_digest", "restricted_matrix", "restricted_parts",
         "unplanned_parts"),
     "veribattery.checker.linalg.scatter": ("TransposedProduct",),
-}
-_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
+})
+# read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
+_HOME = MappingProxyType(
+    {name: module for module, names in _EXPORTS.items() for name in names})
 
 
 def __getattr__(name: str) -> Any:
