@@ -26,6 +26,9 @@ else turns it back on) and installs two kinds of deferral
   as SuperLU's import as usual); the names listed for it are served from the module
   that defines them (the very objects the package re-exports); reading any other name
   runs the ``__init__`` then, once, and the package is the ordinary one from there on.
+  The direct solvers (``splu``, ``spsolve`` ...) are served too: most checks, DTMC
+  and MDP, solve with SuperLU only, and the Krylov solvers' package runs when a
+  large system first reads ``gmres`` or ``bicgstab``.
 """
 
 from __future__ import annotations
@@ -54,8 +57,13 @@ DEFERRED_MODULES = frozenset({
 #: Package -> {name: module defining it}: the names served without the package's
 #: ``__init__``.
 LAZY_PACKAGES: Mapping[str, Mapping[str, str]] = {
-    # Read by scipy.sparse.csgraph's __init__ (for `laplacian`).
-    "scipy.sparse.linalg": {"LinearOperator": "scipy.sparse.linalg._interface"},
+    # Read by scipy.sparse.csgraph's __init__ (for `laplacian`); the direct solvers
+    # (SuperLU, triangular substitution) are what a check reads from it.
+    "scipy.sparse.linalg": {
+        "LinearOperator": "scipy.sparse.linalg._interface",
+        **dict.fromkeys(("splu", "spilu", "spsolve", "spsolve_triangular"),
+                        "scipy.sparse.linalg._dsolve"),
+    },
     # Read by scipy.sparse.linalg._dsolve (SuperLU's wrapper): numpy's exception.
     "scipy.linalg": {"LinAlgError": "numpy.linalg"},
 }

@@ -148,9 +148,11 @@ def test_a_check_without_a_linear_solve_imports_no_solver_package(tmp_path: Path
     assert solvers == []
 
 
-def test_a_check_with_sparse_lu_loads_the_solvers_it_reads(tmp_path: Path) -> None:
+def test_a_check_with_sparse_lu_runs_no_krylov_solver_package(tmp_path: Path) -> None:
     # Gambler's ruin from 10 of 20, up-probability 0.6: a cyclic system (SuperLU, and
     # the steady-state solver reads spsolve). Exact: (1 - r^10) / (1 - r^20), r = 2/3.
+    # The direct solvers are served without running scipy.sparse.linalg's __init__
+    # (every Krylov and eigen solver, all of scipy.linalg).
     model = tmp_path / "ruin.prism"
     model.write_text("dtmc\nmodule m\n x : [0..20] init 10;\n"
                      " [] x>0 & x<20 -> 0.4:(x'=x-1) + 0.6:(x'=x+1);\n"
@@ -162,6 +164,47 @@ def test_a_check_with_sparse_lu_loads_the_solvers_it_reads(tmp_path: Path) -> No
     exact = float((1 - r**10) / (1 - r**20))
     values = [result["value"] for result in json.loads(output)["results"]]
     assert values == [pytest.approx(exact, rel=1e-12)] * 2
-    assert "scipy.sparse.linalg._isolve" in modules  # the package ran when read
+    assert "scipy.sparse.linalg._dsolve._superlu" in modules  # SuperLU solved it
+    krylov = [m for m in modules if m.startswith(("scipy.sparse.linalg._isolve",
+                                                  "scipy.sparse.linalg._eigen",
+                                                  "scipy.linalg."))]
+    assert krylov == []
     # The cold modules load when met: steady state for S, segments for a cyclic system.
     assert {"veribattery.checker.kernels.steady", "veribattery.checker.linalg.scc"} <= set(modules)
+
+
+#: What an MDP's float check does not use: the DTMC checker (formula recursion, kernels,
+#: DTMC solvers, their workspace, the DTMC session), the exact engine (gmpy2, a last
+#: resort), rich for output into a pipe, and scipy's Krylov and dense solvers.
+MDP_COLD = (
+    "veribattery.checker.api", "veribattery.checker.formula.pctl",
+    "veribattery.checker.kernels", "veribattery.checker.linalg.factorization",
+    "veribattery.checker.linalg.triangular", "veribattery.checker.workspace",
+    "veribattery.pipeline.session", "veribattery.checker.exact", "gmpy2",
+    "scipy.sparse.linalg._isolve", "scipy.linalg._basic", "rich",
+)
+
+_COIN_MDP = """mdp
+module m
+ x : [0..3] init 0;
+ [safe]  x=0 -> 0.5:(x'=1) + 0.5:(x'=0);
+ [risky] x=0 -> 0.7:(x'=1) + 0.3:(x'=2);
+ [] x>0 -> (x'=3);
+ [] x=3 -> true;
+endmodule
+"""
+
+
+def test_an_mdp_float_check_imports_no_dtmc_checker_or_exact_engine(tmp_path: Path) -> None:
+    # From x=0, "safe" retries until x=1 (probability 1); "risky" reaches x=1 with 0.7.
+    # So Pmax [ F x=1 ] = 1 and Pmin = 0.7 (risky once, then x=2 forever misses x=1).
+    model = tmp_path / "coin.prism"
+    model.write_text(_COIN_MDP)
+    modules, output = _modules_after(_run_cli(
+        "prism", str(model), "--property", "Pmax=? [ F x=1 ]", "--property",
+        "Pmin=? [ F x=1 ]", "--json"))
+    values = [result["value"] for result in json.loads(output)["results"]]
+    assert values == [pytest.approx(1.0, abs=1e-12), pytest.approx(0.7, abs=1e-12)]
+    assert "veribattery.checker.mdp.optimum" in modules  # the case is real: the MDP engine ran
+    unused = [m for m in modules if m.startswith(MDP_COLD)]
+    assert unused == []

@@ -339,9 +339,17 @@ def print_timings(timings_s: dict[str, float]) -> None:
 
 
 def print_warnings(warnings: Sequence[str]) -> None:
-    """Print the model's warnings (deadlocks, nondeterminism) to stderr."""
+    """Print the model's warnings (deadlocks, nondeterminism) to stderr, the label
+    yellow on a terminal.
+
+    Off a terminal rich prints printable text unchanged, so it is echoed as is there,
+    without importing rich (as :func:`print_dim`).
+    """
     for warning in warnings:
-        err.print(f"[yellow]warning:[/] {escape(warning)}", markup=True)
+        if warning.isprintable() and not _may_be_terminal(sys.stderr):
+            click.echo(f"warning: {warning}", err=True)
+        else:
+            err.print(f"[yellow]warning:[/] {escape(warning)}", markup=True)
 
 
 

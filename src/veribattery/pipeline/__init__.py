@@ -21,19 +21,46 @@ Modules: :mod:`~veribattery.pipeline.run` (runs, options, the loop over properti
 :mod:`~veribattery.pipeline.mdp_exact` (MDPs in rationals),
 :mod:`~veribattery.pipeline.undecided` (bounds the float interval cannot decide, settled
 exactly), :mod:`~veribattery.pipeline.prism_file` (a user's file to results).
+
+The modules are imported when a name is first read from this package: an MDP's check
+does not import the DTMC session, and the ``prism`` command imports
+:mod:`~veribattery.pipeline.prism_file` only.
 """
 
-from veribattery.pipeline.exact import check_model_exact
-from veribattery.pipeline.prism_file import check_prism_file, select
-from veribattery.pipeline.run import (
-    CheckOptions,
-    CheckProgress,
-    Keep,
-    ModelCheckRun,
-    ProgressCallback,
-    Stopwatch,
-)
-from veribattery.pipeline.session import ReusingBuilder, Rewards, Session, check_model
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from veribattery.pipeline.exact import check_model_exact
+    from veribattery.pipeline.prism_file import check_prism_file, select
+    from veribattery.pipeline.run import (
+        CheckOptions,
+        CheckProgress,
+        Keep,
+        ModelCheckRun,
+        ProgressCallback,
+        Stopwatch,
+    )
+    from veribattery.pipeline.session import ReusingBuilder, Rewards, Session, check_model
+
+_EXPORTS = {
+    "veribattery.pipeline.exact": ("check_model_exact",),
+    "veribattery.pipeline.prism_file": ("check_prism_file", "select"),
+    "veribattery.pipeline.run": (
+        "CheckOptions", "CheckProgress", "Keep", "ModelCheckRun", "ProgressCallback",
+        "Stopwatch"),
+    "veribattery.pipeline.session": ("ReusingBuilder", "Rewards", "Session", "check_model"),
+}
+_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'veribattery.pipeline' has no attribute {name!r}")
+    return getattr(importlib.import_module(_HOME[name]), name)
+
 
 __all__ = [
     "CheckOptions",

@@ -7,7 +7,7 @@ import functools
 from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
-from veribattery.checker import CheckResult, Workspace
+from veribattery.checker import CheckResult
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -31,6 +31,7 @@ from veribattery.pipeline.run import (
 )
 
 if TYPE_CHECKING:
+    from veribattery.checker import Workspace
     from veribattery.explore.exact.dtmc import ExactDTMC
 
 __all__ = ["check_model_exact"]
@@ -56,6 +57,8 @@ def check_model_exact(
     :meth:`~veribattery.pipeline.Session.check`, in floating point on the model's DTMC
     (they feed warnings, not results).
     """
+    from veribattery.checker import Workspace  # the DTMC checker: not imported for MDPs
+
     options = options or CheckOptions()
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):

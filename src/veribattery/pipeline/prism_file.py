@@ -31,11 +31,11 @@ from veribattery.pipeline.run import (
     ProgressCallback,
     Stopwatch,
 )
-from veribattery.pipeline.session import Rewards, check_model
 from veribattery.pipeline.undecided import settle_undecided
 
 if TYPE_CHECKING:
     from veribattery.pipeline.mdp import MdpCheckRun
+    from veribattery.pipeline.session import Rewards
 
 __all__ = ["check_prism_file", "select"]
 
@@ -129,6 +129,8 @@ def check_prism_file(
     if model.model_type == "mdp":
         mdp_run = _check_mdp(model, chosen, props, constants, progress, watch, exact)
         return replace(mdp_run, warnings=skipped + mdp_run.warnings) if skipped else mdp_run
+    from veribattery.pipeline.session import check_model  # the DTMC checker: for DTMCs only
+
     if exact:
         run = check_model_exact(model, chosen, props_file=props, constants=constants,
                                 progress=progress, stopwatch=watch, options=CheckOptions(keep))

@@ -8,12 +8,12 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import Protocol, get_args, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, get_args, runtime_checkable
 
 import numpy as np
 
 from veribattery._memory import trim_for
-from veribattery.checker import CheckResult, Keep, UndecidedResult, Workspace, check, state_set
+from veribattery.checker import CheckResult, Keep, UndecidedResult
 from veribattery.checker.formula.intervals import Undecided
 from veribattery.errors import UndefinedResult
 from veribattery.explore import DTMC
@@ -28,6 +28,9 @@ from veribattery.lang.nodes import (
     SteadyOp,
     Value,
 )
+
+if TYPE_CHECKING:
+    from veribattery.checker import Workspace
 
 __all__ = ["STAGES", "CheckOptions", "CheckProgress", "Keep", "ModelCheckRun", "ProgressCallback",
            "Stopwatch", "internal_results", "may_hold", "run_checks", "stages_of",
@@ -214,6 +217,8 @@ def may_hold(dtmc: DTMC, prop: Property) -> bool:
     if not isinstance(path, Eventually) or path.bound is not None or any(
             isinstance(node, _OPERATORS) for node in walk(path.operand)):
         return True
+    from veribattery.checker import state_set  # the DTMC checker: not imported for MDPs
+
     return bool(state_set(dtmc, path.operand).any())
 
 
@@ -222,6 +227,8 @@ def internal_results(
 ) -> tuple[CheckResult, ...]:
     """The answers of the *internal* properties on *dtmc* in floating point: the *live*
     ones checked, the others 0 exactly (see :func:`may_hold`)."""
+    from veribattery.checker import check  # the DTMC checker: not imported for MDPs
+
     return tuple(
         check(dtmc, p, keep="answers", workspace=workspace) if may
         else CheckResult(p, np.zeros(0), 0.0, 0.0, 0.0, 0.0)

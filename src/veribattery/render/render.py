@@ -3,10 +3,20 @@
 Templates live in the top-level ``prism_templates/`` folder, which the wheel ships as
 ``veribattery/prism_templates``. They only lay out numbers that
 :func:`~veribattery.config.params.derive_parameters` has already computed.
+
+Compiling the templates to Python is a fixed cost of every process that renders (about
+a tenth of a small ``check``), so the compiled code is kept in Jinja's bytecode cache:
+a directory of the user's own in the system temp directory (``_jinja2-cache-<uid>``,
+mode 0700, checked by Jinja). An entry is used only for the same template file with the
+same source (Jinja compares a checksum of it) under the same Jinja bytecode format and
+Python version; anything else compiles afresh, and so does every process when the cache
+cannot be made, read or written.
 """
 
 from __future__ import annotations
 
+import contextlib
+import pickle
 import re
 from fractions import Fraction
 from functools import cache
@@ -14,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 import jinja2
+from jinja2.bccache import Bucket
 
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.config.load import config_to_yaml
@@ -55,10 +66,34 @@ def times(coefficient: int, term: str) -> str:
     return term if coefficient == 1 else f"{coefficient}*{term}"
 
 
+class _BestEffortBytecodeCache(jinja2.FileSystemBytecodeCache):
+    """Jinja's per-user bytecode cache, read and written if the disk allows: a cache
+    file that cannot be read or written means a compile, never an error."""
+
+    def load_bytecode(self, bucket: Bucket) -> None:
+        try:
+            super().load_bytecode(bucket)
+        except (OSError, EOFError, ValueError, pickle.UnpicklingError):  # a damaged file
+            bucket.reset()
+
+    def dump_bytecode(self, bucket: Bucket) -> None:
+        with contextlib.suppress(OSError):  # a read-only or full disk: compiled next time
+            super().dump_bytecode(bucket)
+
+
+def _bytecode_cache() -> jinja2.BytecodeCache | None:
+    """The compiled templates' cache, or None where no safe directory can be had."""
+    try:
+        return _BestEffortBytecodeCache()
+    except (OSError, RuntimeError):  # RuntimeError: Jinja found the directory unsafe
+        return None
+
+
 @cache
 def _environment(folder: str) -> jinja2.Environment:
     env = jinja2.Environment(
         loader=jinja2.FileSystemLoader(folder),
+        bytecode_cache=_bytecode_cache(),
         undefined=jinja2.StrictUndefined,
         trim_blocks=True,
         lstrip_blocks=True,

@@ -12,25 +12,56 @@
 
 This package re-exports the public names of the first four modules, the monitor and the
 transposed product.
+
+The modules are imported when a name is first read from this package: an MDP's check
+reads :mod:`~veribattery.checker.linalg.topological` only.
 """
 
-from veribattery.checker.linalg.factorization import (
-    Factorization,
-    PinnedSolver,
-    QuickSolver,
-    extended_product,
-    solve,
-)
-from veribattery.checker.linalg.iterative import backward_error, matrix_norm, solve_iterative
-from veribattery.checker.linalg.monitor import SolveListener, SolveMonitor
-from veribattery.checker.linalg.restriction import (
-    SolverPlans,
-    index_digest,
-    restricted_matrix,
-    restricted_parts,
-    unplanned_parts,
-)
-from veribattery.checker.linalg.scatter import TransposedProduct
+from __future__ import annotations
+
+import importlib
+from types import MappingProxyType
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from veribattery.checker.linalg.factorization import (
+        Factorization,
+        PinnedSolver,
+        QuickSolver,
+        extended_product,
+        solve,
+    )
+    from veribattery.checker.linalg.iterative import backward_error, matrix_norm, solve_iterative
+    from veribattery.checker.linalg.monitor import SolveListener, SolveMonitor
+    from veribattery.checker.linalg.restriction import (
+        SolverPlans,
+        index_digest,
+        restricted_matrix,
+        restricted_parts,
+        unplanned_parts,
+    )
+    from veribattery.checker.linalg.scatter import TransposedProduct
+
+_EXPORTS = MappingProxyType({
+    "veribattery.checker.linalg.factorization": (
+        "Factorization", "PinnedSolver", "QuickSolver", "extended_product", "solve"),
+    "veribattery.checker.linalg.iterative": ("backward_error", "matrix_norm", "solve_iterative"),
+    "veribattery.checker.linalg.monitor": ("SolveListener", "SolveMonitor"),
+    "veribattery.checker.linalg.restriction": (
+        "SolverPlans", "index_digest", "restricted_matrix", "restricted_parts",
+        "unplanned_parts"),
+    "veribattery.checker.linalg.scatter": ("TransposedProduct",),
+})
+# read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
+_HOME = MappingProxyType(
+    {name: module for module, names in _EXPORTS.items() for name in names})
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module 'veribattery.checker.linalg' has no attribute {name!r}")
+    return getattr(importlib.import_module(_HOME[name]), name)
+
 
 __all__ = [
     "Factorization",

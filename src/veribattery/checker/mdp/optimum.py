@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
@@ -36,8 +35,6 @@ __all__ = ["Problem", "Solved", "approximate", "solve", "solve_from", "spread"]
 #: Systems of at most this many classes are solved exactly when their certificate
 #: stays too wide (as the DTMC side's rational solve of small systems).
 EXACT_LIMIT = 2_000
-
-_ZERO = mpq(0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -173,16 +170,18 @@ def _exactly(mdp: MDP, problem: Problem, found: Approximation,
     iteration in rationals on the same equations (the stored doubles read exactly),
     the exact values rounded to the floats either side."""
     # (imported here: the exact engine is read only when a float certificate fails)
+    from gmpy2 import mpq
+
     from veribattery.checker.mdp.rational import RationalSystem, exact_policy_iteration
 
     system = found.system
-    probabilities = np.full(mdp.transitions.nnz, _ZERO, dtype=object)
+    probabilities = np.full(mdp.transitions.nnz, mpq(0), dtype=object)
     probabilities[system.positions] = [mpq(float(p)) for p in mdp.transitions.data[
         system.positions]]
     known = np.array([mpq(float(v)) for v in found.known], dtype=object)
     exact_rewards = None
     if rewards is not None:
-        exact_rewards = np.full(mdp.num_choices, _ZERO, dtype=object)
+        exact_rewards = np.full(mdp.num_choices, mpq(0), dtype=object)
         exact_rewards[system.choices] = [mpq(float(r)) for r in rewards[system.choices]]
     rational = RationalSystem.of(system, probabilities, known, exact_rewards)
     rows, x = exact_policy_iteration(rational, problem.objective, found.rows)
@@ -192,6 +191,8 @@ def _exactly(mdp: MDP, problem: Problem, found: Approximation,
 def _rounded(values: np.ndarray) -> Bounds:
     """Rationals as floats: the nearest one, inside the floats either side (exactly
     the value where it is a float)."""
+    from gmpy2 import mpq  # the exact engine: only after an exact solve
+
     point = np.array([float(v) for v in values], dtype=np.float64)
     exact = np.array([mpq(p) == v for p, v in zip(point, values, strict=True)], dtype=bool)
     return Bounds(point, np.where(exact, point, round_down(point)),
