@@ -21,7 +21,7 @@ bound and the test is repeated; then interval iteration tightens what is left.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,7 +31,7 @@ from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp.image import BellmanImage
-from veribattery.checker.mdp.solve import Evaluation, evaluate, improve
+from veribattery.checker.mdp.solve import Evaluation, evaluate, improvements
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 
 __all__ = ["certified_values"]
@@ -49,7 +49,7 @@ FACTORS = (2.0, 16.0, 1024.0)
 #: Rounds of resetting failed states to the trivial bound before a factor is given up.
 REPAIR_ROUNDS = 4
 #: Rows whose image of the approximation is this close to the best, relative, count as
-#: tied with it (:func:`_tied_margin`) ...
+#: tied with it (:class:`_TiedMargin`) ...
 TIE = 2.0**-30
 #: ... or this many times the state's spread defect.
 TIE_SPREADS = 1024.0
@@ -96,13 +96,10 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
         x = np.clip(approximation.values, 0.0, ceiling)
         spread = _spread(x, images)
         margin = None if spread is None else _margin(spread, approximation)
-
-        def wider(rounds: int) -> FloatArray | None:
-            assert spread is not None and approximation is not None
-            return _tied_margin(system, objective, known, offset, x, spread, approximation,
-                                rounds)
-
-        lower, upper = _candidates(x, margin, images, wider, every_row_up=objective == "max")
+        if spread is not None and margin is not None:
+            wider = _TiedMargin(system, objective, known, offset, x, spread, approximation)
+            lower, upper = _candidates(x, margin, images, wider,
+                                       every_row_up=objective == "max")
     if not Bounds.around(x, lower, upper).precise_states().all():
         lower, upper = _tightened(system, images, x, lower, upper, progress)
     return Bounds.around(x, lower, upper)
@@ -130,11 +127,10 @@ def _margin(spread: FloatArray, approximation: Evaluation) -> FloatArray | None:
     return np.maximum(margin, spread)  # (also drops the solver's negative noise)
 
 
-def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
-                 offset: FloatArray | None, x: FloatArray, spread: FloatArray,
-                 approximation: Evaluation, rounds: int) -> FloatArray | None:
-    """A margin that also covers the rows tied with the optimum (after *rounds* of
-    policy iteration), or None.
+class _TiedMargin:
+    """A margin that also covers the rows tied with the optimum, after a number of
+    rounds of policy iteration: called with more rounds, it goes on from the rounds
+    already done (the same strategies as starting again, without evaluating them twice).
 
     The side of the test that reads every row (the upper side of a maximum, the lower
     of a minimum) fails where a row ties with the strategy's but spreads its mass
@@ -144,6 +140,37 @@ def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
     final strategy -- so that ``P_b d / s_b <= d - spread`` for every tied row. The
     rows further from the optimum than :data:`TIE` keep their distance.
     """
+
+    def __init__(self, system: ChoiceSystem, objective: Objective, known: FloatArray,
+                 offset: FloatArray | None, x: FloatArray, spread: FloatArray,
+                 approximation: Evaluation) -> None:
+        self._spread = spread
+        # (lazy: nothing is evaluated before the first call)
+        self._steps = _tied_rounds(system, objective, known, offset, x, spread, approximation)
+        self._found: Evaluation | None = None
+        self._done = -1  # rounds done; -1: not even the start evaluated
+        self._stopped = False
+
+    def __call__(self, rounds: int) -> FloatArray | None:
+        """The margin after *rounds* rounds in all, or None: none found, or the same as
+        the last call's (the caller asks again only when that one's candidates failed)."""
+        moved = False
+        while not self._stopped and self._done < rounds:
+            following = next(self._steps, None)
+            if following is None:
+                self._stopped = True
+            else:
+                self._found, self._done, moved = following, self._done + 1, True
+        if not moved or self._found is None or not np.all(np.isfinite(self._found.values)):
+            return None
+        return np.maximum(self._found.values, self._spread)
+
+
+def _tied_rounds(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                 offset: FloatArray | None, x: FloatArray, spread: FloatArray,
+                 approximation: Evaluation) -> Iterator[Evaluation]:
+    """The final strategy evaluated on the maximal reward problem of the tied rows
+    (:class:`_TiedMargin`), then the strategies of policy iteration's rounds on it."""
     rows = system.images(x, known, offset)
     best = system.best(rows, objective)[system.row_class]
     tolerance = TIE * np.abs(best) + TIE_SPREADS * spread[system.row_class]
@@ -153,31 +180,28 @@ def _tied_margin(system: ChoiceSystem, objective: Objective, known: FloatArray,
     try:
         sub = system.restricted(tied)
     except ValueError:
-        return None
+        return
     start = (np.cumsum(tied) - 1)[approximation.rows]
     reward = np.asarray(system.leave[tied] * spread[sub.row_class], dtype=np.float64)
     zeros = np.zeros(sub.known_states.size)
-    # Policy iteration, its start evaluated with the approximation's solver: the same
-    # rows of the same entries.
+    # Its start evaluated with the approximation's solver: the same rows of the same
+    # entries.
     first = evaluate(sub, start, zeros, reward, approximation.solver)
-    found = None if first is None else improve(sub, "max", zeros, reward, first,
-                                               rounds=rounds)
-    if found is None or not np.all(np.isfinite(found.values)):
-        return None
-    return np.maximum(found.values, spread)
+    if first is None:
+        return
+    yield first
+    yield from improvements(sub, "max", zeros, reward, first)
 
 
-def _candidates(x: FloatArray, margin: FloatArray | None, images: _Images,
+def _candidates(x: FloatArray, margin: FloatArray, images: _Images,
                 wider: Callable[[int], FloatArray | None], *, every_row_up: bool
                 ) -> tuple[FloatArray, FloatArray]:
     """Certified bounds around *x*: for growing factors *c*, ``x +- (c d + slack)``,
     pushed where it fails (:func:`_pushed`); failing that, on the side that reads every
     row (above for a maximum: *every_row_up*), the same with the margin of the tied
-    rows (*wider*, :func:`_tied_margin`, with more rounds while none passes); failing
+    rows (*wider*, :class:`_TiedMargin`, with more rounds while none passes); failing
     that, the last factor with the
     states that fail set to the trivial bounds."""
-    if margin is None:
-        return images.floor, images.top
     return (_side(images.lower, x, margin, images, None if every_row_up else wider, up=False),
             _side(images.upper, x, margin, images, wider if every_row_up else None, up=True))
 
