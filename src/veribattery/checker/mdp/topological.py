@@ -45,7 +45,7 @@ from veribattery.checker.mdp.solve import (
     is_improper,
     tightest_among_ties,
 )
-from veribattery.checker.mdp.system import ChoiceSystem, Objective
+from veribattery.checker.mdp.system import ChoiceSystem, ClassRows, Objective
 
 __all__ = ["LEVEL_LIMIT", "Levels", "class_levels", "greedy_rows", "is_proper",
            "topological_policy_iteration", "topological_values"]
@@ -232,6 +232,7 @@ class _Local:
     constant: FloatArray
     leave: FloatArray
     starts: IntArray
+    layout: ClassRows
 
     @classmethod
     def of(cls, ordered: _Ordered, lo: int, hi: int, full: FloatArray,
@@ -248,7 +249,9 @@ class _Local:
         inner = sp.csr_matrix((np.where(inside, block.data, 0.0), np.maximum(local, 0),
                                block.indptr), shape=(last - first, hi - lo))
         inner.eliminate_zeros()
-        return cls(inner, constant, ordered.leave[first:last], ordered.local_starts(lo, hi))
+        starts = ordered.local_starts(lo, hi)
+        return cls(inner, constant, ordered.leave[first:last], starts,
+                   ClassRows.of(np.append(starts, last - first)))
 
     @property
     def size(self) -> int:
@@ -261,10 +264,9 @@ class _Local:
                 proper_only: bool) -> FloatArray:
         """Sweeps, then policy iteration from their greedy strategy (from *preferred*
         if *proper_only*, or if the greedy one is singular)."""
-        reduce = np.maximum if objective == "max" else np.minimum
         x = np.zeros(self.size)
         for _ in range(SWEEPS):
-            following = reduce.reduceat(self.images(x), self.starts)
+            following = self.layout.best(self.images(x), objective)
             settled = np.all(np.abs(following - x) <= SWEEP_TOLERANCE * np.abs(following))
             x = following
             if settled:
