@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from functools import partial
 
 import numpy as np
 
@@ -31,8 +32,9 @@ from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds, current_precision
 from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp.image import BellmanImage
-from veribattery.checker.mdp.solve import Evaluation, evaluate, improvements
+from veribattery.checker.mdp.solve import Evaluation, evaluate, improvements, switched
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
+from veribattery.checker.mdp.topological import rows_after_sweeps
 
 __all__ = ["certified_values"]
 
@@ -142,15 +144,19 @@ def _margin(spread: FloatArray, approximation: Evaluation) -> FloatArray | None:
 class _TiedMargin:
     """A margin that also covers the rows tied with the optimum, after a number of
     rounds of policy iteration: called with more rounds, it goes on from the rounds
-    already done (the same strategies as starting again, without evaluating them twice).
+    already done.
 
     The side of the test that reads every row (the upper side of a maximum, the lower
     of a minimum) fails where a row ties with the strategy's but spreads its mass
     differently: ``P_b d`` can exceed ``d``. Here ``d`` is the largest expected sum of
     *spread* over the tied rows, ``d = max_b (s_b spread + P'_b d) / s_b`` -- a maximal
-    reward problem on them, approximated by a few rounds of policy iteration from the
-    final strategy -- so that ``P_b d / s_b <= d - spread`` for every tied row. The
-    rows further from the optimum than :data:`TIE` keep their distance.
+    reward problem on them (:class:`_TiedProblem`), approximated by a few rounds of
+    policy iteration from the final strategy -- so that ``P_b d / s_b <= d - spread`` for
+    every tied row. The rows further from the optimum than :data:`TIE` keep their
+    distance. Called again for more rounds (the first ones' candidates failed), it first
+    sweeps the values towards the maximum and goes on from their greedy strategy where
+    that is no worse (:meth:`_TiedProblem.swept`): on the tied rows of zeroconf (K=4),
+    policy iteration alone moved one switch a round, twenty rounds of an evaluation each.
     """
 
     def __init__(self, system: ChoiceSystem, objective: Objective, known: FloatArray,
@@ -158,15 +164,19 @@ class _TiedMargin:
                  approximation: Evaluation) -> None:
         self._spread = spread
         # (lazy: nothing is evaluated before the first call)
-        self._steps = _tied_rounds(system, objective, known, offset, x, spread, approximation)
+        self._setup = partial(_tied_problem, system, objective, known, offset, x, spread,
+                              approximation)
+        self._problem: _TiedProblem | None = None
         self._found: Evaluation | None = None
+        self._steps: Iterator[Evaluation] = iter(())
         self._done = -1  # rounds done; -1: not even the start evaluated
         self._stopped = False
+        self._swept = False
 
     def __call__(self, rounds: int) -> FloatArray | None:
         """The margin after *rounds* rounds in all, or None: none found, or the same as
         the last call's (the caller asks again only when that one's candidates failed)."""
-        moved = False
+        moved = self._restarted()
         while not self._stopped and self._done < rounds:
             following = next(self._steps, None)
             if following is None:
@@ -177,12 +187,58 @@ class _TiedMargin:
             return None
         return np.maximum(self._found.values, self._spread)
 
+    def _restarted(self) -> bool:
+        """Whether a new strategy starts the rounds: on the first call the final one,
+        on the second the greedy one of the swept values (where no worse)."""
+        if self._done < 0:
+            made = self._setup()
+            self._done = 0
+            if made is None:
+                self._stopped = True
+                return False
+            self._problem, self._found = made
+        elif self._swept or self._problem is None or self._found is None:
+            return False
+        else:
+            self._swept = True
+            swept = self._problem.swept(self._found)
+            if swept is None:
+                return False
+            self._found, self._done, self._stopped = swept, self._done + 1, False
+        self._steps = self._problem.rounds(self._found)
+        return True
 
-def _tied_rounds(system: ChoiceSystem, objective: Objective, known: FloatArray,
-                 offset: FloatArray | None, x: FloatArray, spread: FloatArray,
-                 approximation: Evaluation) -> Iterator[Evaluation]:
-    """The final strategy evaluated on the maximal reward problem of the tied rows
-    (:class:`_TiedMargin`), then the strategies of policy iteration's rounds on it."""
+
+@dataclass(frozen=True, slots=True)
+class _TiedProblem:
+    """The maximal expected sum of *reward* over the rows *system* keeps (the tied ones)."""
+
+    system: ChoiceSystem
+    reward: FloatArray
+
+    @property
+    def zeros(self) -> FloatArray:
+        return np.zeros(self.system.known_states.size)
+
+    def rounds(self, start: Evaluation) -> Iterator[Evaluation]:
+        """The strategies of policy iteration's rounds from *start*."""
+        return improvements(self.system, "max", self.zeros, self.reward, start)
+
+    def swept(self, current: Evaluation) -> Evaluation | None:
+        """The greedy strategy of *current*'s values swept towards the maximum
+        (:func:`~veribattery.checker.mdp.topological.rows_after_sweeps`), evaluated, or
+        None where it is *current*'s own or worse somewhere."""
+        greedy = rows_after_sweeps(self.system, self.zeros, self.reward, current)
+        if np.array_equal(greedy, current.rows):
+            return None
+        return switched(self.system, "max", self.zeros, self.reward, current, greedy)
+
+
+def _tied_problem(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                  offset: FloatArray | None, x: FloatArray, spread: FloatArray,
+                  approximation: Evaluation) -> tuple[_TiedProblem, Evaluation] | None:
+    """The maximal reward problem of the tied rows (:class:`_TiedMargin`) and the final
+    strategy evaluated on it, or None where that fails."""
     rows = system.images(x, known, offset)
     best = system.best(rows, objective)[system.row_class]
     tolerance = TIE * np.abs(best) + TIE_SPREADS * spread[system.row_class]
@@ -192,17 +248,14 @@ def _tied_rounds(system: ChoiceSystem, objective: Objective, known: FloatArray,
     try:
         sub = system.restricted(tied)
     except ValueError:
-        return
+        return None
     start = (np.cumsum(tied) - 1)[approximation.rows]
-    reward = np.asarray(system.leave[tied] * spread[sub.row_class], dtype=np.float64)
-    zeros = np.zeros(sub.known_states.size)
+    problem = _TiedProblem(sub, np.asarray(system.leave[tied] * spread[sub.row_class],
+                                           dtype=np.float64))
     # Its start evaluated with the approximation's solver: the same rows of the same
     # entries.
-    first = evaluate(sub, start, zeros, reward, approximation.solver)
-    if first is None:
-        return
-    yield first
-    yield from improvements(sub, "max", zeros, reward, first)
+    first = evaluate(sub, start, problem.zeros, problem.reward, approximation.solver)
+    return None if first is None else (problem, first)
 
 
 def _candidates(x: FloatArray, margin: FloatArray, images: _Images,

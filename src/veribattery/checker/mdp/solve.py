@@ -29,7 +29,7 @@ from veribattery.checker.mdp.system import ChoiceSystem, Objective
 from veribattery.errors import CheckError
 
 __all__ = ["Evaluation", "evaluate", "improve", "improvements", "is_improper", "policy_iteration",
-           "progress_rows", "tightest_among_ties"]
+           "progress_rows", "switched", "tightest_among_ties"]
 
 #: A row replaces the current one only if it is better by this much, relative (a few
 #: roundings of an image: the values are refined to about the last bit).
@@ -200,6 +200,21 @@ def improvements(system: ChoiceSystem, objective: Objective, known: FloatArray,
         yield current
         if not np.any(gain > noise):  # no real progress: a switch between near-ties
             return
+
+
+def switched(system: ChoiceSystem, objective: Objective, known: FloatArray,
+             offset: FloatArray | None, current: Evaluation,
+             rows: IntArray) -> Evaluation | None:
+    """The strategy *rows* evaluated, or None where its system is singular, its values
+    are improper, or some value is worse than *current*'s by more than rounding (the
+    tests of a round of :func:`improvements`, for a switch made elsewhere)."""
+    candidate = evaluate(system, rows, known, offset)
+    if candidate is None or is_improper(candidate.values):
+        return None
+    gain, noise = _change(candidate, current, objective)
+    if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
+        return None
+    return candidate
 
 
 def tightest_among_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
