@@ -44,6 +44,31 @@ module q
 endmodule
 """
 
+#: Three modules synchronising on [go] with several commands each, most combinations
+#: enabled nowhere together (and a guard that is always true in the middle module): the
+#: builder walks the combinations as a tree of prefixes and must keep exactly Storm's.
+SYNC3 = """mdp
+module p
+  x : [0..3] init 0;
+  [go] x=0 -> (x'=1);
+  [go] x=1 -> (x'=2);
+  [go] x=2 -> (x'=3);
+  [go] x=3 -> (x'=0);
+endmodule
+module q
+  y : [0..3] init 0;
+  [go] y=x -> 0.5:(y'=mod(y+1,4)) + 0.5:(y'=y);
+  [go] y!=x -> (y'=mod(y+2,4));
+  [go] true -> (y'=0);
+endmodule
+module r
+  z : [0..1] init 0;
+  [go] z=0 & x<2 -> (z'=1);
+  [go] z=1 -> (z'=0);
+  [go] x=3 -> true;
+endmodule
+"""
+
 
 def test_each_enabled_command_is_a_choice() -> None:
     built = build_mdp(flatten_model(parse_model(CHOICE)))
@@ -66,7 +91,7 @@ def test_synchronised_combinations_are_choices() -> None:
     assert sorted(np.count_nonzero(first, axis=1).tolist()) == [1, 1, 2, 2]
 
 
-@pytest.mark.parametrize("source", [CHOICE, SYNC])
+@pytest.mark.parametrize("source", [CHOICE, SYNC, SYNC3], ids=["choice", "sync", "sync3"])
 def test_sizes_as_storm_counts_them(source: str, tmp_path: Path) -> None:
     stormpy = pytest.importorskip("stormpy")
     path = tmp_path / "m.nm"

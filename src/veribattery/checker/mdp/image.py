@@ -10,8 +10,6 @@ same float that ``system.best(system.bound_images(x, ...))`` gives.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 
@@ -24,58 +22,6 @@ __all__ = ["BellmanImage"]
 
 #: Share of the rows above which :class:`BellmanImage` recomputes every row at once.
 RECOMPUTE_ALL = 0.25
-#: Classes of at most this many rows take the best of their rows a row at a time
-#: (:class:`_ClassRows`); larger ones by ``reduceat``.
-FEW_ROWS = 8
-
-
-@dataclass(frozen=True, slots=True)
-class _ClassRows:
-    """Where each class's rows lie, to take the best of rigorous row images quickly.
-
-    ``reduceat`` pays some 15 ns per class, more than the comparisons themselves on a
-    system of many classes of one to three rows (a third of a full image of the
-    mission MDP); here each class's first row is read, then its second, third, ... in
-    whole-array operations. Rigorous images hold no NaN and no -0.0 (the bounds
-    replace NaN and clip at +0.0), so their maximum or minimum is the same float in
-    any order -- the one ``reduceat`` finds.
-
-    :param firsts: per class, its first row.
-    :param later: per row position ``k = 1, 2, ...``: the classes of at most
-        :data:`FEW_ROWS` rows that have a row there, and that row.
-    :param large: the classes of more rows; *large_rows* their rows, class by class,
-        and *large_starts* where each class begins in them.
-    """
-
-    firsts: IntArray
-    later: tuple[tuple[IntArray, IntArray], ...]
-    large: IntArray
-    large_rows: IntArray
-    large_starts: IntArray
-
-    @classmethod
-    def of(cls, groups: IntArray) -> _ClassRows:
-        """The layout of the classes whose rows start at *groups* (then the end)."""
-        firsts, sizes = groups[:-1], np.diff(groups)
-        few = sizes <= FEW_ROWS
-        later = []
-        for k in range(1, int(np.max(np.where(few, sizes, 0), initial=0))):
-            classes = np.flatnonzero(few & (sizes > k))
-            later.append((classes, firsts[classes] + k))
-        large = np.flatnonzero(~few)
-        lengths = sizes[large]
-        return cls(firsts, tuple(later), large, segments(groups, large),
-                   np.cumsum(lengths) - lengths)
-
-    def best(self, row_images: FloatArray, objective: Objective) -> FloatArray:
-        """Per class, the maximum or minimum of its rigorous *row_images*."""
-        reduce = np.maximum if objective == "max" else np.minimum
-        best = row_images[self.firsts]
-        for classes, rows in self.later:
-            best[classes] = reduce(best[classes], row_images[rows])
-        if self.large.size:
-            best[self.large] = reduce.reduceat(row_images[self.large_rows], self.large_starts)
-        return best
 
 
 class BellmanImage:
@@ -94,7 +40,6 @@ class BellmanImage:
         self._readers: tuple[IntArray, IntArray] | None = None
         self._row_class = np.empty(0, dtype=np.int64)  # (made with the readers)
         self._last: tuple[FloatArray, FloatArray, FloatArray] | None = None
-        self._rows: _ClassRows | None = None
         self._live: tuple[BoolArray, LiveRows] | None = None
 
     def __call__(self, x: FloatArray) -> FloatArray:
@@ -112,9 +57,7 @@ class BellmanImage:
         extended = np.concatenate([x, self._known])
         row_images = self._system.extended_bound_images(extended, self._offset, up=self._up,
                                                         live=self._live_of(extended))
-        if self._rows is None:
-            self._rows = _ClassRows.of(self._system.groups)
-        best = self._rows.best(row_images, self._objective)
+        best = self._system.layout.best(row_images, self._objective)
         self._last = (extended, row_images, best)
         return best.copy()
 

@@ -12,7 +12,7 @@ The first strategy usually comes from topological value iteration
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,8 +28,8 @@ from veribattery.checker.mdp.graph import attractor
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
 from veribattery.errors import CheckError
 
-__all__ = ["Evaluation", "evaluate", "improve", "is_improper", "policy_iteration",
-           "progress_rows", "tightest_among_ties"]
+__all__ = ["Evaluation", "evaluate", "improve", "improvements", "is_improper", "policy_iteration",
+           "progress_rows", "switched", "tightest_among_ties"]
 
 #: A row replaces the current one only if it is better by this much, relative (a few
 #: roundings of an image: the values are refined to about the last bit).
@@ -170,22 +170,51 @@ def improve(system: ChoiceSystem, objective: Objective, known: FloatArray,
             rounds: int = POLICY_ROUNDS, *, progress: Progress | None = None) -> Evaluation:
     """Policy iteration from the evaluated strategy *current* (:func:`policy_iteration`'s
     rounds): the last strategy's evaluation."""
+    steps = improvements(system, objective, known, offset, current)
     for done in range(rounds):
         if progress is not None:
             progress(done, rounds, "improvement rounds")
-        following = _improved(system, objective, current, known, offset)
+        following = next(steps, None)
         if following is None:
             return current
+        current = following
+    return current
+
+
+def improvements(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                 offset: FloatArray | None, current: Evaluation) -> Iterator[Evaluation]:
+    """The strategies policy iteration moves to from *current*, one per round, until it
+    stops (:func:`improve` takes as many rounds of them as it is given; a caller that
+    wants more rounds later goes on from where it stopped instead of starting again)."""
+    while True:
+        following = _improved(system, objective, current, known, offset)
+        if following is None:
+            return
         candidate = evaluate(system, following, known, offset)
         if candidate is None or is_improper(candidate.values):
-            return current
+            return
         gain, noise = _change(candidate, current, objective)
         if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
-            return current  # worse somewhere: rounding has taken over
+            return  # worse somewhere: rounding has taken over
         current = candidate
+        yield current
         if not np.any(gain > noise):  # no real progress: a switch between near-ties
-            return current
-    return current
+            return
+
+
+def switched(system: ChoiceSystem, objective: Objective, known: FloatArray,
+             offset: FloatArray | None, current: Evaluation,
+             rows: IntArray) -> Evaluation | None:
+    """The strategy *rows* evaluated, or None where its system is singular, its values
+    are improper, or some value is worse than *current*'s by more than rounding (the
+    tests of a round of :func:`improvements`, for a switch made elsewhere)."""
+    candidate = evaluate(system, rows, known, offset)
+    if candidate is None or is_improper(candidate.values):
+        return None
+    gain, noise = _change(candidate, current, objective)
+    if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
+        return None
+    return candidate
 
 
 def tightest_among_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
