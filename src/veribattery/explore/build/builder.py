@@ -99,6 +99,10 @@ def explore(
             size = _next_chunk(size, branches, stop - start, len(program.lows))
             transitions += branches
             start = stop
+            if start < high:  # a wide layer (herman's first: every state) reports as it goes
+                if progress is not None:
+                    progress(store.count, high - start)
+                guard.chunk_done(store.count, transitions, start - low, high - low)
         if progress is not None:
             progress(store.count, high - low)
         guard.layer_done(store.count, high, high - low, transitions)

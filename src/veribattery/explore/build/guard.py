@@ -103,17 +103,35 @@ class MemoryGuard:
         later_transitions = transitions + int(upcoming * transitions / max(expanded, 1))
         need = (self.footprint.assembled(later_states, later_transitions)
                 - self.footprint.searching(states, transitions))
+        trend = "growing" if growth >= 1 else "shrinking"
+        self._check(need, f"{states:,} states and {transitions:,} transitions found so far, "
+                          f"the frontier {trend} {growth:.2f}x per layer",
+                    f"for about {later_states:,} states")
+
+    def chunk_done(self, states: int, transitions: int, done: int, frontier: int) -> None:
+        """Check inside a BFS layer, after *done* of its *frontier* states: the DTMC of
+        what is found already must still fit. (The rest of a layer is not projected
+        from its start: herman's first layer holds every state, those with many tokens
+        first, and the rate of its first chunk overstates the whole layer's
+        transitions twentyfold.)
+
+        :raises ModelTooLarge: if it would not.
+        """
+        need = (self.footprint.assembled(states, transitions)
+                - self.footprint.searching(states, transitions))
+        self._check(need, f"{states:,} states and {transitions:,} transitions found so far, "
+                          f"{done:,} of a layer of {frontier:,} states expanded",
+                    "to assemble what is found")
+
+    def _check(self, need: int, found: str, target: str) -> None:
         if need < _NEGLIGIBLE:
             return
         if self._known is None or 4 * need > self._known:  # near the limit: look again
             self._known = self._available()
         if self._known is not None and need > _USABLE * self._known:
-            trend = "growing" if growth >= 1 else "shrinking"
             raise ModelTooLarge(
-                f"model too large for the memory available: {states:,} states and "
-                f"{transitions:,} transitions found so far, the frontier {trend} "
-                f"{growth:.2f}x per layer; going on needs about {_gb(need)} more "
-                f"(for about {later_states:,} states), {_gb(self._known)} available"
+                f"model too large for the memory available: {found}; going on needs "
+                f"about {_gb(need)} more ({target}), {_gb(self._known)} available"
             )
 
 
