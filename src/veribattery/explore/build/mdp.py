@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery._unique import distinct
 from veribattery.explore.build.builder import _labels, _over_states, initial_states
 from veribattery.explore.build.store import StateStore
 from veribattery.explore.build.successors import expand_group
@@ -119,7 +120,7 @@ def build_mdp(model: FlatModel, *,
     owner = np.repeat(np.arange(n), per_state)
     rewards = tuple(_reward_vectors(model, r, (states, cache), owner, kind, atoms)
                     for r in model.rewards)
-    return BuiltMdp(transitions, row_groups, np.unique(initial), labels, action_index[kind],
+    return BuiltMdp(transitions, row_groups, distinct(initial), labels, action_index[kind],
                     actions, rewards, states, model.variable_names, int(dead.sum()))
 
 
