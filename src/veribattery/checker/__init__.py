@@ -7,10 +7,10 @@ MDP's check, which shares the results and the formula leaves only, does not impo
 
 from __future__ import annotations
 
-import importlib
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from veribattery._lazy import lazy_exports
 from veribattery.checker.result import CheckResult, Keep, UndecidedResult
 
 if TYPE_CHECKING:
@@ -21,15 +21,7 @@ _EXPORTS = MappingProxyType({
     "veribattery.checker.api": ("check", "state_set", "values"),
     "veribattery.checker.workspace": ("Workspace",),
 })
-# read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
-_HOME = MappingProxyType(
-    {name: module for module, names in _EXPORTS.items() for name in names})
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _HOME:
-        raise AttributeError(f"module 'veribattery.checker' has no attribute {name!r}")
-    return getattr(importlib.import_module(_HOME[name]), name)
+__getattr__ = lazy_exports(__name__, _EXPORTS)
 
 
 __all__ = ["CheckResult", "Keep", "UndecidedResult", "Workspace", "check", "state_set", "values"]

@@ -29,8 +29,9 @@ does not import the DTMC session, and the ``prism`` command imports
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from veribattery._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from veribattery.pipeline.exact import check_model_exact
@@ -53,13 +54,7 @@ _EXPORTS = {
         "Stopwatch"),
     "veribattery.pipeline.session": ("ReusingBuilder", "Rewards", "Session", "check_model"),
 }
-_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _HOME:
-        raise AttributeError(f"module 'veribattery.pipeline' has no attribute {name!r}")
-    return getattr(importlib.import_module(_HOME[name]), name)
+__getattr__ = lazy_exports(__name__, _EXPORTS)
 
 
 __all__ = [

@@ -22,6 +22,7 @@ import json
 from pathlib import Path
 
 from veribattery.strategies.chosen import ChosenStrategy
+from veribattery.strategies.randomised import state_text
 
 __all__ = ["prism_strategy_text", "storm_scheduler_json", "strategy_text"]
 
@@ -35,7 +36,7 @@ def strategy_text(chosen: ChosenStrategy, path: Path) -> str:
 
 def prism_strategy_text(chosen: ChosenStrategy) -> str:
     """PRISM's actions form: ``(v1,...,vn)=action`` per reachable state."""
-    lines = (f"{_tuple(chosen.valuation(s))}={chosen.action(s)}"
+    lines = (f"{state_text(chosen.valuation(s))}={chosen.action(s)}"
              for s in chosen.reached_states)
     return "".join(f"{line}\n" for line in lines)
 
@@ -51,14 +52,3 @@ def _storm_entry(chosen: ChosenStrategy, state: int) -> dict[str, object]:
     choice = {"labels": [action] if action else [],
               "index": int(chosen.strategy.choices[state]), "prob": 1.0}
     return {"s": chosen.valuation(state), "c": [choice]}
-
-
-def _tuple(valuation: dict[str, int | bool]) -> str:
-    """``(1,0,true)``: PRISM's text of a state."""
-    return "(" + ",".join(_value(v) for v in valuation.values()) + ")"
-
-
-def _value(value: int | bool) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return str(value)

@@ -41,7 +41,7 @@ from veribattery.lang import FlatModel
 if TYPE_CHECKING:  # its module (and the LP's) is imported only for multi(...) properties
     from veribattery.checker.mdp.multi_strategy import MultiStrategy
 
-__all__ = ["ChosenMulti", "memory_names", "multi_strategy_text"]
+__all__ = ["ChosenMulti", "memory_names", "multi_strategy_text", "state_text"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,7 +107,7 @@ def multi_strategy_text(chosen: ChosenMulti, path: Path) -> str:
     if path.suffix.lower() == ".json":
         entries = [_storm_entry(chosen, node) for node in chosen.nodes]
         return json.dumps(entries, indent=4) + "\n"
-    lines = (f"{_tuple(chosen.valuation(node))}={_moves_text(chosen, node)}"
+    lines = (f"{state_text(chosen.valuation(node))}={_moves_text(chosen, node)}"
              for node in chosen.nodes)
     return "".join(f"{line}\n" for line in lines)
 
@@ -142,8 +142,8 @@ def _switches(chosen: ChosenMulti, node: int, move: int) -> bool:
     return bool(strategy.move_stops[move] and not strategy.node_stopped[node])
 
 
-def _tuple(valuation: dict[str, int | bool]) -> str:
-    """``(1,0,true)``: PRISM's text of a state."""
+def state_text(valuation: dict[str, int | bool]) -> str:
+    """``(1,0,true)``: PRISM's text of a state (both strategy formats write it)."""
     return "(" + ",".join(_value(v) for v in valuation.values()) + ")"
 
 

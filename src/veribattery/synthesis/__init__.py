@@ -20,9 +20,9 @@ weighted sums over the Pareto front) and :mod:`~veribattery.synthesis.session`
 
 from __future__ import annotations
 
-import importlib
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from veribattery._lazy import lazy_exports
 from veribattery.synthesis.files import synthesis_files, unasked_requirements
 
 if TYPE_CHECKING:
@@ -68,13 +68,7 @@ _EXPORTS = {
                                           "write_threshold_json"),
     "veribattery.synthesis.thresholds": ("ThresholdRow", "ThresholdTable", "threshold_table"),
 }
-_HOME = {name: module for module, names in _EXPORTS.items() for name in names}
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _HOME:
-        raise AttributeError(f"module 'veribattery.synthesis' has no attribute {name!r}")
-    return getattr(importlib.import_module(_HOME[name]), name)
+__getattr__ = lazy_exports(__name__, _EXPORTS)
 
 
 __all__ = [

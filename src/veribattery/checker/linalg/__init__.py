@@ -19,9 +19,10 @@ reads :mod:`~veribattery.checker.linalg.topological` only.
 
 from __future__ import annotations
 
-import importlib
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
+
+from veribattery._lazy import lazy_exports
 
 if TYPE_CHECKING:
     from veribattery.checker.linalg.factorization import (
@@ -52,15 +53,7 @@ _EXPORTS = MappingProxyType({
         "unplanned_parts"),
     "veribattery.checker.linalg.scatter": ("TransposedProduct",),
 })
-# read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
-_HOME = MappingProxyType(
-    {name: module for module, names in _EXPORTS.items() for name in names})
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _HOME:
-        raise AttributeError(f"module 'veribattery.checker.linalg' has no attribute {name!r}")
-    return getattr(importlib.import_module(_HOME[name]), name)
+__getattr__ = lazy_exports(__name__, _EXPORTS)
 
 
 __all__ = [

@@ -9,10 +9,10 @@ certified.
 
 from __future__ import annotations
 
-import importlib
 from types import MappingProxyType
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
+from veribattery._lazy import lazy_exports
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
@@ -54,23 +54,16 @@ if TYPE_CHECKING:
 
 # Imported on first use: the exact engine (gmpy2) and the multi-objective LP are not
 # needed to check a float property, and small models are dominated by start-up.
-_EXPORTS = (
-    ("veribattery.checker.mdp.exact", ("ExactMdpResult", "exact_probabilities",
-                                       "exact_reach_probability", "exact_reach_reward",
-                                       "exact_total_reward")),
-    ("veribattery.checker.mdp.multi", ("Constraint", "MultiResult", "Reach", "Total",
-                                       "multi_achievable", "multi_optimum")),
-    ("veribattery.checker.mdp.multi_front", ("CertifiedAnswer", "Front", "FrontSearch",
-                                             "least_total_at", "pareto_front")),
-)
-# read-only: the checker keeps no mutable module state (tests/checker/test_workspace.py)
-_HOME = MappingProxyType({name: module for module, names in _EXPORTS for name in names})
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _HOME:
-        raise AttributeError(f"module 'veribattery.checker.mdp' has no attribute {name!r}")
-    return getattr(importlib.import_module(_HOME[name]), name)
+_EXPORTS = MappingProxyType({
+    "veribattery.checker.mdp.exact": ("ExactMdpResult", "exact_probabilities",
+                                      "exact_reach_probability", "exact_reach_reward",
+                                      "exact_total_reward"),
+    "veribattery.checker.mdp.multi": ("Constraint", "MultiResult", "Reach", "Total",
+                                      "multi_achievable", "multi_optimum"),
+    "veribattery.checker.mdp.multi_front": ("CertifiedAnswer", "Front", "FrontSearch",
+                                            "least_total_at", "pareto_front"),
+})
+__getattr__ = lazy_exports(__name__, _EXPORTS)
 
 
 __all__ = [
