@@ -125,7 +125,7 @@ def test_a_resumed_sweep_lumps_the_points_it_would_have_lumped(
 def _local_cluster() -> object:
     distributed = pytest.importorskip("distributed")
     return distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                    host="127.0.0.1", dashboard_address=None)
+                                    host="127.0.0.1", dashboard_address=":0")
 
 
 @pytest.mark.filterwarnings("ignore::DeprecationWarning")

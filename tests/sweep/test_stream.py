@@ -87,7 +87,7 @@ def test_dask_keeps_finished_points_of_a_task_whose_worker_dies() -> None:
     # No retries: the first worker death gives the task up (KilledWorker).
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
             distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                     host="127.0.0.1", dashboard_address=None) as cluster, \
+                                     host="127.0.0.1", dashboard_address=":0") as cluster, \
             distributed.Client(cluster) as client:
         executor = DaskExecutor(client, "test", check=dies_at_point_one)
         results = list(executor.results(tasks))

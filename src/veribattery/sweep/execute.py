@@ -298,7 +298,7 @@ def _dask_client(scheduler: str, jobs: int) -> Iterator[Client]:
     if scheduler == "local":
         with LocalCluster(  # type: ignore[no-untyped-call]
             n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
-            dashboard_address=None,
+            dashboard_address=":0",
         ) as cluster, Client(cluster) as client:  # type: ignore[no-untyped-call]
             yield client
         return
