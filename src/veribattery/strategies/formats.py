@@ -22,7 +22,7 @@ import json
 from pathlib import Path
 
 from veribattery.strategies.chosen import ChosenStrategy
-from veribattery.strategies.randomised import state_text
+from veribattery.strategies.valuation_text import state_text
 
 __all__ = ["prism_strategy_text", "storm_scheduler_json", "strategy_text"]
 

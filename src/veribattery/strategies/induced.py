@@ -35,6 +35,7 @@ from veribattery.lang.nodes import (
 )
 from veribattery.lang.printing import expression_text, path_text, reward_path_text
 from veribattery.strategies.chosen import ChosenStrategy
+from veribattery.strategies.valuation_text import distribution_text, guard_text, value_text
 
 __all__ = [
     "INDUCED_MODEL",
@@ -145,7 +146,8 @@ def _header(chosen: ChosenStrategy) -> str:
 
 def _declaration(variable: Variable, with_init: bool) -> str:
     kind = "bool" if variable.is_bool else f"[{variable.low}..{variable.high}]"
-    init = f" init {_value(variable, variable.init)}" if with_init else ""
+    value = bool(variable.init) if variable.is_bool else variable.init
+    init = f" init {value_text(value)}" if with_init else ""
     return f"{variable.name} : {kind}{init};"
 
 
@@ -161,41 +163,8 @@ def _commands(chosen: ChosenStrategy) -> Iterator[str]:
         start, end = int(rows.indptr[row]), int(rows.indptr[row + 1])
         targets = [(int(t), float(p)) for t, p in
                    zip(rows.indices[start:end], rows.data[start:end], strict=True) if p > 0]
-        yield (f"[{chosen.action(state)}] {_guard(chosen, state)} -> "
-               f"{_distribution(chosen, state, targets)};")
-
-
-def _guard(chosen: ChosenStrategy, state: int) -> str:
-    variables = chosen.model.variables
-    values = chosen.valuation(state).values()
-    return " & ".join(_test(v, x) for v, x in zip(variables, values, strict=True)) or "true"
-
-
-def _test(variable: Variable, value: int | bool) -> str:
-    if variable.is_bool:
-        return variable.name if value else f"!{variable.name}"
-    return f"{variable.name}={value}"
-
-
-def _distribution(chosen: ChosenStrategy, state: int, targets: list[tuple[int, float]]) -> str:
-    if len(targets) == 1:
-        return _update(chosen, state, targets[0][0])
-    return " + ".join(f"{p!r}:{_update(chosen, state, t)}" for t, p in targets)
-
-
-def _update(chosen: ChosenStrategy, state: int, target: int) -> str:
-    """The assignments that take *state* to *target* (``true`` if none changes)."""
-    before, after = chosen.valuation(state), chosen.valuation(target)
-    variables = {v.name: v for v in chosen.model.variables}
-    changed = [f"({name}'={_value(variables[name], after[name])})"
-               for name in after if after[name] != before[name]]
-    return "&".join(changed) or "true"
-
-
-def _value(variable: Variable, value: int | bool) -> str:
-    if variable.is_bool:
-        return "true" if value else "false"
-    return str(int(value))
+        yield (f"[{chosen.action(state)}] {guard_text(chosen.valuation(state))} -> "
+               f"{distribution_text(chosen.valuation, state, targets)};")
 
 
 def _rewards(structure: RewardStruct, taken: set[str]) -> str:

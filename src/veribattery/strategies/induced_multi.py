@@ -29,6 +29,7 @@ from veribattery.lang.nodes import ProbOp, RewardOp, Variable
 from veribattery.lang.printing import expression_text
 from veribattery.strategies.induced import dtmc_property_text
 from veribattery.strategies.randomised import ChosenMulti
+from veribattery.strategies.valuation_text import distribution_text, guard_text, value_text
 
 __all__ = ["induced_multi_model_text", "induced_multi_properties_text"]
 
@@ -41,7 +42,7 @@ def induced_multi_model_text(chosen: ChosenMulti) -> str:
         _header(chosen),
         "dtmc\n\nmodule strategy\n",
         *(f"  {_declaration(v, start[v.name])}\n" for v in model.variables),
-        *(f"  {name} : bool init {_text(start[name])};\n" for name in chosen.visited),
+        *(f"  {name} : bool init {value_text(start[name])};\n" for name in chosen.visited),
         *([f"  {chosen.mode} : [0..1] init 0;\n"] if chosen.mode is not None else []),
         "\n",
         *(f"  {command}\n" for command in _commands(chosen)),
@@ -96,7 +97,7 @@ def _header(chosen: ChosenMulti) -> str:
 
 def _declaration(variable: Variable, value: int | bool) -> str:
     kind = "bool" if variable.is_bool else f"[{variable.low}..{variable.high}]"
-    return f"{variable.name} : {kind} init {_text(value)};"
+    return f"{variable.name} : {kind} init {value_text(value)};"
 
 
 def _commands(chosen: ChosenMulti) -> list[str]:
@@ -111,32 +112,9 @@ def _commands(chosen: ChosenMulti) -> list[str]:
         start, end = int(chain.indptr[node]), int(chain.indptr[node + 1])
         targets = [(int(t), float(p)) for t, p in
                    zip(chain.indices[start:end], chain.data[start:end], strict=True) if p > 0]
-        commands.append(f"[] {_guard(chosen, node)} -> {_distribution(chosen, node, targets)};")
+        commands.append(f"[] {guard_text(chosen.valuation(node))} -> "
+                        f"{distribution_text(chosen.valuation, node, targets)};")
     return commands
-
-
-def _guard(chosen: ChosenMulti, node: int) -> str:
-    return " & ".join(_test(name, value) for name, value in chosen.valuation(node).items())
-
-
-def _test(name: str, value: int | bool) -> str:
-    if isinstance(value, bool):
-        return name if value else f"!{name}"
-    return f"{name}={value}"
-
-
-def _distribution(chosen: ChosenMulti, node: int, targets: list[tuple[int, float]]) -> str:
-    if len(targets) == 1:
-        return _update(chosen, node, targets[0][0])
-    return " + ".join(f"{p!r}:{_update(chosen, node, t)}" for t, p in targets)
-
-
-def _update(chosen: ChosenMulti, node: int, target: int) -> str:
-    """The assignments that take *node* to *target* (``true`` if none changes)."""
-    before, after = chosen.valuation(node), chosen.valuation(target)
-    changed = [f"({name}'={_text(after[name])})"
-               for name in after if after[name] != before[name]]
-    return "&".join(changed) or "true"
 
 
 def _rewards(chosen: ChosenMulti, index: int) -> str:
@@ -144,13 +122,7 @@ def _rewards(chosen: ChosenMulti, index: int) -> str:
     structure = chosen.mdp.rewards[index]
     per_node = chosen.strategy.expected_rewards(structure.per_choice(chosen.mdp))
     name = f' "{structure.name}"' if structure.name is not None else ""
-    items = "".join(f"  {_guard(chosen, int(node))} : {float(per_node[node])!r};\n"
+    items = "".join(f"  {guard_text(chosen.valuation(int(node)))} : {float(per_node[node])!r};\n"
                     for node in np.flatnonzero(per_node != 0))
     items = items or "  true : 0;\n"  # Storm wants an item
     return f"rewards{name}\n{items}endrewards\n"
-
-
-def _text(value: int | bool) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return str(int(value))

@@ -37,11 +37,12 @@ from typing import TYPE_CHECKING
 from veribattery.checker import CheckResult
 from veribattery.checker.mdp import MDP
 from veribattery.lang import FlatModel
+from veribattery.strategies.valuation_text import state_text
 
 if TYPE_CHECKING:  # its module (and the LP's) is imported only for multi(...) properties
     from veribattery.checker.mdp.multi_strategy import MultiStrategy
 
-__all__ = ["ChosenMulti", "memory_names", "multi_strategy_text", "state_text"]
+__all__ = ["ChosenMulti", "memory_names", "multi_strategy_text"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -140,14 +141,3 @@ def _switches(chosen: ChosenMulti, node: int, move: int) -> bool:
     """Whether *move* sets the mode to stopped (from running)."""
     strategy = chosen.strategy
     return bool(strategy.move_stops[move] and not strategy.node_stopped[node])
-
-
-def state_text(valuation: dict[str, int | bool]) -> str:
-    """``(1,0,true)``: PRISM's text of a state (both strategy formats write it)."""
-    return "(" + ",".join(_value(v) for v in valuation.values()) + ")"
-
-
-def _value(value: int | bool) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return str(value)
