@@ -70,27 +70,24 @@ def choose_strategy(run: MdpCheckRun,
     if run.model is None:
         raise OptionError("the run did not keep its model: no strategy can be exported")
     if selector is not None:
-        index = _index(run, selector)
-        if _is_multi(run, index):
-            return _chosen_multi(run, index)
-        return _chosen(run, index, _strategy(run, index))
+        return _chosen_at(run, _index(run, selector))
     for index in range(len(run.results)):
         try:
-            if _is_multi(run, index):
-                return _chosen_multi(run, index)
-            return _chosen(run, index, run.strategy(index))
+            return _chosen_at(run, index)
         except NoStrategyError:
             continue
     if not run.results:
         raise OptionError("no property was checked: there is no strategy to export")
-    if _is_multi(run, 0):
-        _chosen_multi(run, 0)  # raises, naming the first property
-    _strategy(run, 0)  # raises, naming the first property
+    _chosen_at(run, 0)  # raises, naming the first property
     raise AssertionError("unreachable")
 
 
-def _is_multi(run: MdpCheckRun, index: int) -> bool:
-    return isinstance(run.results[index].property.formula, Multi)
+def _chosen_at(run: MdpCheckRun, index: int) -> ChosenStrategy | ChosenMulti:
+    """Result *index*'s strategy: randomised with memory for a ``multi(...)``, else
+    memoryless deterministic; a :class:`NoStrategyError` names the property."""
+    if isinstance(run.results[index].property.formula, Multi):
+        return _chosen_multi(run, index)
+    return _chosen(run, index, _strategy(run, index))
 
 
 def _chosen_multi(run: MdpCheckRun, index: int) -> ChosenMulti:
@@ -110,7 +107,7 @@ def _chosen_multi(run: MdpCheckRun, index: int) -> ChosenMulti:
             result.upper is None) else (result.lower, result.upper)
         strategy = multi_strategy(run.mdp, formula, result.value, enclosure)
     except NoStrategyError as exc:
-        raise NoStrategyError(f"{prop.text}: {exc.message}", prop.span) from None
+        raise _naming(prop, exc) from None
     return ChosenMulti.of(result, strategy, run.mdp, run.model)
 
 
@@ -162,8 +159,7 @@ def _refusal(prop: Property) -> NoStrategyError | None:
     if isinstance(prop.formula, LabelRef | Ident):
         return None  # a reference: its property's shape is known once resolved
     refusal = strategy_refusal(prop.formula)
-    return None if refusal is None else NoStrategyError(f"{prop.text}: {refusal.message}",
-                                                         prop.span)
+    return None if refusal is None else _naming(prop, refusal)
 
 
 #: Why a DTMC has no strategy to export.
@@ -173,11 +169,15 @@ DTMC_HAS_NO_STRATEGY = ("--export-strategy/--export-induced: the model is a DTMC
 
 def _strategy(run: MdpCheckRun, index: int) -> Strategy:
     """The strategy of result *index*; an error names the property where it is written."""
-    prop = run.results[index].property
     try:
         return run.strategy(index)
     except NoStrategyError as exc:
-        raise NoStrategyError(f"{prop.text}: {exc.message}", prop.span) from None
+        raise _naming(run.results[index].property, exc) from None
+
+
+def _naming(prop: Property, refusal: NoStrategyError) -> NoStrategyError:
+    """*refusal* as the property's own: its text first, at its position."""
+    return NoStrategyError(f"{prop.text}: {refusal.message}", prop.span)
 
 
 def _chosen(run: MdpCheckRun, index: int, strategy: Strategy) -> ChosenStrategy:
