@@ -73,16 +73,17 @@ def escape(text: str) -> str:
     return rich_escape(text)
 
 
-def fail(message: str) -> None:
-    """Report a user error on one line and exit with status 2.
+def fail(*messages: str) -> None:
+    """Report user errors, one line each, and exit with status 2.
 
-    Context lines after the first (a syntax error's source line and caret) are
-    shown on a terminal only, so logs and pipes get exactly one line.
+    Context lines after a message's first (a syntax error's source line and caret)
+    are shown on a terminal only, so logs and pipes get exactly one line per error.
     """
-    first, _, context = message.partition("\n")
-    err.print(f"[bold red]error:[/] {escape(first)}", markup=True, highlight=False)
-    if context and err.is_terminal:
-        err.print(context, markup=False, highlight=False)
+    for message in messages:
+        first, _, context = message.partition("\n")
+        err.print(f"[bold red]error:[/] {escape(first)}", markup=True, highlight=False)
+        if context and err.is_terminal:
+            err.print(context, markup=False, highlight=False)
     sys.exit(2)
 
 

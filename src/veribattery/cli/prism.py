@@ -12,8 +12,6 @@ from veribattery.cli.explain import prism_analysis_options, prism_explain, prism
 from veribattery.cli.files import CSV_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     build_progress,
-    err,
-    escape,
     exact_notes,
     exact_text,
     fail,
@@ -128,18 +126,8 @@ def prism_command(
         print_prism_csv(run)
     else:
         print_prism_run(run)
-    fail_ill_posed(errors)
-
-
-def fail_ill_posed(errors: tuple[str, ...]) -> None:
-    """After the results (the values PRISM would print), the properties the issue counts
-    as bad input (an infeasible ``multi``, an ``Rmin`` of an unreachable target): one
-    ``error:`` line each, exit status 2, and no strategy files written."""
-    if not errors:
-        return
-    for message in errors[:-1]:
-        err.print(f"[bold red]error:[/] {escape(message)}", markup=True, highlight=False)
-    fail(errors[-1])
+    if errors:  # after the values PRISM would print (an infeasible multi's NaN, ...)
+        fail(*errors)
 
 
 def _format(output_format: str | None, as_json: bool) -> str:
