@@ -114,7 +114,7 @@ def check_mdp_model(
             tell_checking(stages, number, len(resolved), prop)
             results.append(_checked(mdp, prop, errors,
                                     None if stages is None else stages.solving))
-            errors.extend(ill_posed_errors(mdp, prop))
+            errors.extend(ill_posed_errors(mdp, results[-1]))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings, model=flat,
                        errors=tuple(errors))
 
@@ -134,11 +134,15 @@ def _checked(mdp: MDP, prop: Property, errors: list[str],
     return CheckResult.of_answer(prop, answer, time.perf_counter() - start).without_states()
 
 
-def ill_posed_errors(mdp: MDP, prop: Property) -> list[str]:
-    """*prop*'s entry for :attr:`MdpCheckRun.errors` if it is ill-posed (see
-    :mod:`~veribattery.checker.mdp.ill_posed`), else none."""
-    why = unreachable_reward_target(mdp, prop.formula)
-    return [] if why is None else [property_error(prop, why, None)]
+def ill_posed_errors(mdp: MDP, result: CheckResult) -> list[str]:
+    """*result*'s entry for :attr:`MdpCheckRun.errors` if its property is ill-posed (see
+    :mod:`~veribattery.checker.mdp.ill_posed`), else none. A finite value cannot be
+    one: the graph search is made only for an infinite value or a bound's truth."""
+    value = result.value
+    if isinstance(value, float) and math.isfinite(value):
+        return []
+    why = unreachable_reward_target(mdp, result.property.formula)
+    return [] if why is None else [property_error(result.property, why, None)]
 
 
 def property_error(prop: Property, why: str, span: Span | None) -> str:

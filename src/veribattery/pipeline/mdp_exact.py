@@ -71,7 +71,7 @@ def check_mdp_model_exact(
             written.update(exact_bounds(original.formula, values))
             checked = ExactMdpModel(mdp, exact, written)
             results.append(check_mdp_exact(checked, prop))
-            errors.extend(ill_posed_errors(mdp, prop))
+            errors.extend(ill_posed_errors(mdp, results[-1]))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, exact.built.warnings,
                        errors=tuple(errors))
 
