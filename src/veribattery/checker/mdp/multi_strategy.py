@@ -31,6 +31,7 @@ from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import breadth_first_order
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.mdp.formula import _mask
@@ -286,13 +287,9 @@ def _mixed(flows: Flows) -> BoolArray:
 
 
 def _reached(chain: sp.csr_matrix, initial: int) -> IntArray:
-    """The memory states reachable from the running initial one, sorted."""
-    seen = np.zeros(chain.shape[0], dtype=bool)
-    seen[initial] = True
-    frontier = np.array([initial])
-    while frontier.size:
-        rows = chain[frontier]
-        found = np.unique(rows.indices[rows.data > 0])
-        frontier = found[~seen[found]]
-        seen[frontier] = True
-    return np.flatnonzero(seen)
+    """The memory states reachable from the running initial one, sorted: one
+    breadth-first search in C along the positive entries."""
+    positive = sp.csr_matrix((chain.data > 0, chain.indices, chain.indptr), shape=chain.shape)
+    positive.eliminate_zeros()
+    order = breadth_first_order(positive, initial, directed=True, return_predecessors=False)
+    return np.sort(order).astype(np.int64)
