@@ -190,13 +190,10 @@ def improvements(system: ChoiceSystem, objective: Objective, known: FloatArray,
         following = _improved(system, objective, current, known, offset)
         if following is None:
             return
-        candidate = evaluate(system, following, known, offset)
-        if candidate is None or is_improper(candidate.values):
+        accepted = _accepted(system, objective, known, offset, current, following)
+        if accepted is None:
             return
-        gain, noise = _change(candidate, current, objective)
-        if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
-            return  # worse somewhere: rounding has taken over
-        current = candidate
+        current, gain, noise = accepted
         yield current
         if not np.any(gain > noise):  # no real progress: a switch between near-ties
             return
@@ -208,13 +205,23 @@ def switched(system: ChoiceSystem, objective: Objective, known: FloatArray,
     """The strategy *rows* evaluated, or None where its system is singular, its values
     are improper, or some value is worse than *current*'s by more than rounding (the
     tests of a round of :func:`improvements`, for a switch made elsewhere)."""
+    accepted = _accepted(system, objective, known, offset, current, rows)
+    return None if accepted is None else accepted[0]
+
+
+def _accepted(system: ChoiceSystem, objective: Objective, known: FloatArray,
+              offset: FloatArray | None, current: Evaluation, rows: IntArray
+              ) -> tuple[Evaluation, FloatArray, FloatArray] | None:
+    """The strategy *rows* evaluated, with its gain over *current* and the noise of that
+    gain; None where its system is singular, its values are improper, or it is worse
+    somewhere by more than rounding (rounding has taken over)."""
     candidate = evaluate(system, rows, known, offset)
     if candidate is None or is_improper(candidate.values):
         return None
     gain, noise = _change(candidate, current, objective)
     if np.any(gain < -np.maximum(noise, _noise_floor(candidate, current))):
         return None
-    return candidate
+    return candidate, gain, noise
 
 
 def tightest_among_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
