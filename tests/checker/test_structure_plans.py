@@ -49,6 +49,29 @@ def test_restriction_plan_equals_a_fresh_computation(seed: int) -> None:
     assert next(iter(plans.restrictions.values())) is not None
 
 
+@pytest.mark.parametrize("seed", range(40))
+def test_diagonal_slotted_into_sorted_rows_equals_sorting(seed: int) -> None:
+    """Rows of P in column order: the diagonal is put in its place instead of every
+    row being sorted; the same arrays bit for bit, and the matrix is I - P restricted."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(2, 60))
+    P = _random_chain(rng, n, acyclic=bool(seed % 2))
+    maybe = rng.random(n) < 0.7
+    idx = np.flatnonzero(maybe)
+    slotted = restriction._restricted_parts(P, maybe)[0]
+    unsorted = P.copy()
+    unsorted.has_sorted_indices = False  # as if unknown: the sorting path
+    for i in range(n):  # reverse each row's entries, so that a sort is needed
+        lo, hi = unsorted.indptr[i], unsorted.indptr[i + 1]
+        unsorted.indices[lo:hi] = unsorted.indices[lo:hi][::-1].copy()
+        unsorted.data[lo:hi] = unsorted.data[lo:hi][::-1].copy()
+    assert not unsorted.has_sorted_indices
+    assert _same(slotted, restriction._restricted_parts(unsorted, maybe)[0])
+    assert slotted.has_sorted_indices
+    expected = np.eye(idx.size) - P.toarray()[np.ix_(idx, idx)]
+    np.testing.assert_allclose(slotted.toarray(), expected, rtol=0, atol=1e-15)
+
+
 def _reweighted(P: sp.csr_matrix, rng: np.random.Generator) -> sp.csr_matrix:
     """Same positions, other probabilities (rows renormalised)."""
     Q = P.copy()

@@ -121,7 +121,10 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
     leave64 = leave.astype(np.float64)
     keep = moves & (column >= 0) & (rows.data != 0)
     del moves, position, idx
-    A64 = _with_diagonal(row_of[keep], column[keep], -rows.data[keep], leave64)
+    # Renumbering keeps each row's order (position is increasing), so sorted rows of P
+    # give sorted rows here.
+    A64 = _with_diagonal(row_of[keep], column[keep], -rows.data[keep], leave64,
+                         columns_sorted=bool(rows.has_sorted_indices))
     del row_of, column, keep  # before the residue: these are per entry
     leave -= leave64  # the residue, in place (leave64 widens exactly)
     return A64, _diagonal_residue(leave), rows
@@ -277,22 +280,38 @@ def _new_restriction(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
 
 
 def _with_diagonal(row: npt.NDArray[np.integer], col: npt.NDArray[np.integer],
-                   data: FloatArray, diagonal: FloatArray) -> sp.csr_matrix:
-    """The CSR matrix of the row-sorted entries *(row, col, data)* plus *diagonal*
-    (zeros not stored), indices sorted in place."""
+                   data: FloatArray, diagonal: FloatArray, columns_sorted: bool = False
+                   ) -> sp.csr_matrix:
+    """The CSR matrix of the row-sorted off-diagonal entries *(row, col, data)* plus
+    *diagonal* (zeros not stored), indices sorted.
+
+    :param columns_sorted: the entries of each row come in increasing column order;
+        the diagonal is then slotted in its place and nothing is sorted (a sort of
+        every row costs more than the rest at 10^7 entries).
+    """
     n = diagonal.size
     counts = np.bincount(row, minlength=n) + 1
     indptr = np.zeros(n + 1, dtype=col.dtype)
     np.cumsum(counts, out=indptr[1:])
-    # Entry k of row r goes to k + r (one diagonal slot at the end of each earlier row).
+    # Entry k of row r goes to k + r: one diagonal slot per earlier row, and before
+    # the entry or after it (the last of the row when the columns are not sorted).
     slots = np.arange(row.size, dtype=col.dtype) + row
+    if columns_sorted:
+        after = col > row
+        slots += after
+        diagonal_slots = indptr[:-1] + (counts - 1) - np.bincount(row[after], minlength=n)
+    else:
+        diagonal_slots = indptr[1:] - 1
     indices = np.empty(indptr[-1], dtype=col.dtype)
     values = np.empty(indptr[-1], dtype=np.float64)
     indices[slots], values[slots] = col, data
-    indices[indptr[1:] - 1] = np.arange(n, dtype=col.dtype)
-    values[indptr[1:] - 1] = diagonal
+    indices[diagonal_slots] = np.arange(n, dtype=col.dtype)
+    values[diagonal_slots] = diagonal
     matrix = sp.csr_matrix((values, indices, indptr), shape=(n, n))
-    matrix.sort_indices()
+    if columns_sorted:
+        matrix.has_sorted_indices = True
+    else:
+        matrix.sort_indices()
     matrix.eliminate_zeros()
     return matrix
 
