@@ -24,8 +24,10 @@ from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.fused import Expansion, LayerPlan
 from veribattery.explore.build.guard import Footprint, MemoryGuard
+from veribattery.explore.build.initial import initial_states
 from veribattery.explore.build.layers import Layer, Layers
 from veribattery.explore.build.plan import plan_layers
+from veribattery.explore.build.sample import BranchSample, sampled_branches
 from veribattery.explore.build.store import StateStore, radix_words
 from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr, may_fail
 from veribattery.explore.compile.program import Program, compile_program
@@ -38,8 +40,6 @@ if TYPE_CHECKING:
 __all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "expand_frontier", "explore",
            "initial_states", "memory_footprint", "rewarded_actions"]
 
-#: Rows of the variables' domain enumerated at once when evaluating an ``init`` block.
-_INIT_CHUNK = 1 << 20
 #: Frontier states expanded at once, at most.
 _CHUNK = 1 << 14
 #: The first chunk of a search: its branches per state are not known yet.
@@ -93,6 +93,8 @@ def explore(
         # Chunks bound the memory of wide layers; sources stay in order, so the
         # numbering is the same as for the whole layer at once.
         start = low
+        if low == 0 and high > _CHUNK:  # a wide first layer: no branching known yet
+            guard.wide_layer(store.count, high, _sampler(program, store, rewarded, high))
         while start < high:
             stop = min(start + size, high)
             branches = _explore_chunk(program, store, (start, stop), rewarded, layers)
@@ -129,47 +131,21 @@ def _explore_chunk(
     return found.branches
 
 
+def _sampler(program: Program, store: StateStore, rewarded: set[str | None],
+             high: int) -> Callable[[], BranchSample | None]:
+    """The branches of a uniform sample of the states ``0..high-1``."""
+    def branches_of(rows: IntArray) -> IntArray:
+        found = expand_frontier(program, rows, rewarded)
+        return np.bincount(found.source, minlength=rows.shape[0])
+    return lambda: sampled_branches(store.rows_at, branches_of, 0, high)
+
+
 def _next_chunk(size: int, branches: int, states: int, width: int) -> int:
     """The next chunk's size: at most four times this one's (the branching may grow),
     at most ``_CHUNK``, and about ``_BRANCH_WORDS`` words of successor rows at this
     chunk's branches per state."""
     words = max(branches, 1) * (width + 2) / states  # rows, plus source and probability
     return max(1, min(_CHUNK, 4 * size, int(_BRANCH_WORDS / words)))
-
-
-def initial_states(model: FlatModel) -> IntArray:
-    """The initial states of *model*: its variables' init values, or the domain
-    states that satisfy its ``init`` block (enumerated in chunks, first variable
-    most significant).
-    """
-    if model.init is None:
-        return np.array([[v.init for v in model.variables]], dtype=np.int64)
-    lows = np.array([v.low for v in model.variables], dtype=np.int64)
-    sizes = np.array([v.high - v.low + 1 for v in model.variables], dtype=np.int64)
-    total = int(np.prod(sizes.astype(object)))  # exact: the product may overflow int64
-    if total > 1 << 40:
-        raise ModelError(f"init block ranges over {total} states: too many to enumerate")
-    predicate = compile_expr(model.init, model.variable_names)
-    found = [
-        rows[predicate(rows).astype(bool)]
-        for rows in (
-            _domain_rows(lows, sizes, s, min(s + _INIT_CHUNK, total))
-            for s in range(0, total, _INIT_CHUNK)
-        )
-    ]
-    result = np.concatenate(found) if found else np.empty((0, lows.size), dtype=np.int64)
-    if result.shape[0] == 0:
-        raise ModelError("the init block is satisfied by no state")
-    return result
-
-
-def _domain_rows(lows: IntArray, sizes: IntArray, start: int, stop: int) -> IntArray:
-    """Rows ``start..stop-1`` of the domain in mixed-radix order."""
-    flat = np.arange(start, stop, dtype=np.int64)
-    rows = np.empty((flat.size, sizes.size), dtype=np.int64)
-    for i in range(sizes.size - 1, -1, -1):
-        flat, rows[:, i] = np.divmod(flat, sizes[i])
-    return rows + lows
 
 
 # ---------------------------------------------------------------------------

@@ -8,7 +8,8 @@ of the search so far and of the DTMC after the next layer come from what the
 builder keeps per state and per transition (:class:`Footprint`). If what the next
 layer and the assembly would add exceeds the memory the system has available
 (``MemAvailable`` of ``/proc/meminfo``), the search stops with
-:class:`~veribattery.errors.ModelTooLarge`.
+:class:`~veribattery.errors.ModelTooLarge`. A layer wider than one chunk is also
+checked chunk by chunk, and at its start from a uniform sample of its states.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from veribattery.errors import ModelTooLarge
+from veribattery.explore.build.sample import BranchSample
 
 __all__ = ["Footprint", "MemoryGuard", "available_memory"]
 
@@ -26,6 +28,9 @@ _NEGLIGIBLE = 64 << 20
 #: Share of the memory available that the build may plan to use (the rest: the
 #: estimate's error, the other processes, the stages after the build).
 _USABLE = 0.9
+#: Standard errors below a sample's mean that a wide layer is judged at (see
+#: :meth:`MemoryGuard.wide_layer`): a one-sided bound that holds with near certainty.
+_SAMPLE_Z = 4.0
 
 
 def available_memory() -> int | None:
@@ -123,16 +128,52 @@ class MemoryGuard:
                           f"{done:,} of a layer of {frontier:,} states expanded",
                     "to assemble what is found")
 
-    def _check(self, need: int, found: str, target: str) -> None:
-        if need < _NEGLIGIBLE:
+    def wide_layer(self, states: int, layer: int,
+                   sample: Callable[[], BranchSample | None]) -> None:
+        """Check before the search expands a first layer of *layer* states wider than a
+        chunk (an ``init`` block of many states), whose branching nothing tells yet.
+
+        Its first chunk would be no guide (see :mod:`~veribattery.explore.build.sample`),
+        and on herman's ring of 21 it alone holds gigabytes of successors. A uniform
+        *sample* of the layer is expanded instead; the layer is refused if even the
+        sample's mean less ``_SAMPLE_Z`` standard errors would not fit. (Otherwise the
+        chunks go on, each checked by :meth:`chunk_done`.)
+
+        :raises ModelTooLarge: if the sample says the layer would not fit.
+        """
+        found = sample()
+        if found is None:
             return
+        least = found.at_least(layer, _SAMPLE_Z)
+        need = self._assembly(states, 0, least)
+        if self._exceeds(need):
+            raise self._refusal(
+                need, f"{states:,} states found; the {layer:,} states of the first layer have "
+                      f"about {found.mean * layer:,.0f} transitions (at least {least:,.0f}, from "
+                      f"a uniform sample of {found.size:,} of them)", "to assemble those alone")
+
+    def _assembly(self, states: int, transitions: int, more: float) -> int:
+        """Bytes added by *more* transitions and assembling the DTMC of them all."""
+        total = transitions + int(more)
+        return (self.footprint.assembled(states, total)
+                - self.footprint.searching(states, transitions))
+
+    def _check(self, need: int, found: str, target: str) -> None:
+        if self._exceeds(need):
+            raise self._refusal(need, found, target)
+
+    def _exceeds(self, need: int) -> bool:
+        """Whether *need* more bytes exceed the usable share of the memory available."""
+        if need < _NEGLIGIBLE:
+            return False
         if self._known is None or 4 * need > self._known:  # near the limit: look again
             self._known = self._available()
-        if self._known is not None and need > _USABLE * self._known:
-            raise ModelTooLarge(
-                f"model too large for the memory available: {found}; going on needs "
-                f"about {_gb(need)} more ({target}), {_gb(self._known)} available"
-            )
+        return self._known is not None and need > _USABLE * self._known
+
+    def _refusal(self, need: int, found: str, target: str) -> ModelTooLarge:
+        return ModelTooLarge(
+            f"model too large for the memory available: {found}; going on needs "
+            f"about {_gb(need)} more ({target}), {_gb(self._known or 0)} available")
 
 
 def _gb(size: int) -> str:

@@ -130,6 +130,11 @@ class StateStore:
                 return rows[: high - low].astype(np.int64)
         return self._decode(low, high)
 
+    def rows_at(self, index: IntArray) -> IntArray:
+        """The states numbered *index*, as rows (int64, decoded from their keys)."""
+        keys = self._keys[np.asarray(index, dtype=np.int64) + 1]
+        return decode(keys.reshape(index.size, self._words), self._groups, self._lows.size)
+
     def _forget_before(self, low: int) -> None:
         while self._recent and self._recent_start + self._recent[0].shape[0] <= low:
             self._recent_start += self._recent.pop(0).shape[0]
