@@ -74,12 +74,19 @@ class _LazyGroup(click.Group):
 
     def invoke(self, ctx: click.Context) -> object:
         """Run the command; Ctrl-C ends it with status 130 (not click's 1, which is a
-        failed requirement here) and one line, never a traceback."""
+        failed requirement here) and one line, never a traceback; so does running out
+        of memory, with status 2 (as a model the build's guard refuses)."""
         try:
             return super().invoke(ctx)
         except KeyboardInterrupt:
             click.echo("\ninterrupted", err=True)
             sys.exit(130)
+        except MemoryError as exc:  # past the build's guard: a solve's arrays, say
+            detail = str(exc).rstrip(".")
+            click.echo(f"error: out of memory{': ' + detail if detail else ''}: the model or "
+                       "its analysis needs more memory than this machine has available",
+                       err=True)
+            sys.exit(2)
 
 
 @click.group(cls=_LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
