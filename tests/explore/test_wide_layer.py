@@ -2,9 +2,14 @@
 herman's) reports progress and is watched for memory chunk by chunk, not only at its
 end: herman 19's first layer of 524,288 states took minutes with nothing printed. A
 wide first layer is first judged from a uniform sample of its states: herman 21's first
-chunk alone held 15 GB of successors before it could be refused."""
+chunk alone held 15 GB of successors before it could be refused. The MDP builder is
+watched chunk by chunk too."""
 
 from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +23,7 @@ from veribattery.explore.build.builder import (
     initial_states,
     memory_footprint,
 )
+from veribattery.explore.build.mdp import build_mdp
 from veribattery.explore.build.store import StateStore
 from veribattery.explore.compile.program import compile_program
 from veribattery.lang import flatten_model, parse_model
@@ -137,3 +143,48 @@ def test_a_wide_first_layer_is_refused_from_its_sample_before_any_chunk(
     room = footprint.assembled(20_000, 50_000) - footprint.searching(20_000, 0)
     states, _, _ = explore(flat, program, guard=guard.MemoryGuard(footprint, lambda: room))
     assert states.shape[0] == 20_000
+
+
+# An MDP of 20,000 states in a ring, two choices each (one step either way, or stay).
+MDP_RING = """mdp
+const int N = 20000;
+module m
+  x : [0..N-1] init 0;
+  [go] true -> 0.5:(x'=mod(x+1, N)) + 0.5:(x'=mod(x+2, N));
+  [stay] true -> (x'=x);
+endmodule
+"""
+
+
+def test_an_mdp_build_is_refused_once_what_it_found_would_not_fit(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    flat = flatten_model(parse_model(MDP_RING))
+    footprint = memory_footprint(compile_program(flat))
+    monkeypatch.setattr(guard, "_NEGLIGIBLE", 0)
+    monkeypatch.setattr(guard, "_USABLE", 1.0)
+    # Room for the first chunks' transitions, not for all 60,000.
+    room = footprint.assembled(20_000, 20_000) - footprint.searching(20_000, 20_000)
+    with pytest.raises(ModelTooLarge, match=r"transitions found so far, [\d,]+ states "
+                                            r"expanded; going on needs about"):
+        build_mdp(flat, guard=guard.MemoryGuard(footprint, lambda: room))
+    roomy = footprint.assembled(20_000, 60_000)
+    built = build_mdp(flat, guard=guard.MemoryGuard(footprint, lambda: roomy))
+    assert built.transitions.shape == (40_000, 20_000) and built.transitions.nnz == 60_000
+
+
+def test_an_mdp_too_large_for_memory_is_one_line_and_status_2(tmp_path: Path) -> None:
+    """As a user meets it: ``veribattery prism`` on the MDP, with the memory the
+    system reports made small (the guard reads MemAvailable)."""
+    (tmp_path / "ring.nm").write_text(MDP_RING)
+    starve = ("from veribattery.explore.build import guard\n"
+              "guard._NEGLIGIBLE = 0\n"
+              "guard.available_memory = lambda: 1 << 20\n"
+              "from veribattery.cli import main\nmain()\n")
+    done = subprocess.run([sys.executable, "-c", starve, "prism", "ring.nm", "--property",
+                           'Pmax=? [ F x=N-1 ]'], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 2, done.stderr
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: model too large for the memory available: ") and (
+        "states expanded; going on needs about" in last and "0.0 GB available" in last), last
+    assert "Traceback" not in done.stderr

@@ -128,6 +128,18 @@ class MemoryGuard:
                           f"{done:,} of a layer of {frontier:,} states expanded",
                     "to assemble what is found")
 
+    def expanded(self, states: int, transitions: int, done: int) -> None:
+        """Check after a chunk of a search that keeps no layers (the MDP builder's):
+        what is found already must still fit once assembled.
+
+        :param done: states expanded so far.
+        :raises ModelTooLarge: if it would not.
+        """
+        need = (self.footprint.assembled(states, transitions)
+                - self.footprint.searching(states, transitions))
+        self._check(need, f"{states:,} states and {transitions:,} transitions found so far, "
+                          f"{done:,} states expanded", "to assemble what is found")
+
     def wide_layer(self, states: int, layer: int,
                    sample: Callable[[], BranchSample | None]) -> None:
         """Check before the search expands a first layer of *layer* states wider than a

@@ -22,7 +22,13 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery._unique import distinct
-from veribattery.explore.build.builder import _labels, _over_states, initial_states
+from veribattery.explore.build.builder import (
+    _labels,
+    _over_states,
+    initial_states,
+    memory_footprint,
+)
+from veribattery.explore.build.guard import MemoryGuard
 from veribattery.explore.build.store import StateStore
 from veribattery.explore.build.successors import expand_group
 from veribattery.explore.compile.expr import CompileCache
@@ -79,16 +85,19 @@ class BuiltMdp:
 
 def build_mdp(model: FlatModel, *,
               progress: Callable[[int, int], None] | None = None,
-              program: Program | None = None) -> BuiltMdp:
+              program: Program | None = None, guard: MemoryGuard | None = None) -> BuiltMdp:
     """Explore the reachable states of the ``mdp`` *model*, one choice per enabled
     command or synchronised combination of commands.
 
     :param program: the compiled program to explore with (default:
         ``compile_program(model)``; ``--exact`` gives one with guards decided exactly).
+    :param guard: checked after each chunk (default: against the memory available).
     :raises ModelError: an update leaves a variable's range, a probability is
         negative, or a choice's probabilities do not sum to 1.
+    :raises ModelTooLarge: when what is found would not fit in the memory available.
     """
     program = program or compile_program(model)
+    guard = guard or MemoryGuard(memory_footprint(program))
     atoms = atomic_groups(program)
     actions = ("", *sorted({g.action for g in atoms if g.action is not None}))
     action_index = np.array([0 if g.action is None else actions.index(g.action)
@@ -98,7 +107,7 @@ def build_mdp(model: FlatModel, *,
     rows: list[sp.csr_matrix] = []
     counts: list[IntArray] = []
     kinds: list[IntArray] = []
-    low = 0
+    low = found = 0
     while low < store.count:
         high = min(store.count, low + _CHUNK)
         matrix, per_state, kind = _expand(program, atoms, store, low, high)
@@ -107,6 +116,8 @@ def build_mdp(model: FlatModel, *,
         kinds.append(kind)
         if progress is not None:
             progress(store.count, high - low)
+        found += matrix.nnz
+        guard.expanded(store.count, found, high)
         low = high
     n = store.count
     transitions = sp.vstack([_widen(m, n) for m in rows], format="csr")
