@@ -11,7 +11,7 @@ import hashlib
 import weakref
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
@@ -116,18 +116,62 @@ def _restricted_parts(P: CsrMatrix, maybe: BoolArray
     position[idx] = np.arange(n, dtype=index)
     row_of = np.repeat(np.arange(n, dtype=index), np.diff(rows.indptr))
     column = position[rows.indices]
+    del position, idx
     moves = column != row_of
-    leave = _row_sums(row_of[moves], rows.data[moves], n)
-    leave64 = leave.astype(np.float64)
-    keep = moves & (column >= 0) & (rows.data != 0)
-    del moves, position, idx
-    # Renumbering keeps each row's order (position is increasing), so sorted rows of P
-    # give sorted rows here.
-    A64 = _with_diagonal(row_of[keep], column[keep], -rows.data[keep], leave64,
-                         columns_sorted=bool(rows.has_sorted_indices))
-    del row_of, column, keep  # before the residue: these are per entry
+    if rows.has_sorted_indices:
+        # Renumbering keeps each row's order (position is increasing): the rows here
+        # are sorted too, and the diagonal is slotted into them (no sort, no scatter).
+        A64, leave, leave64 = _sorted_system(rows, row_of, column, moves, index)
+    else:
+        leave = _row_sums(row_of[moves], rows.data[moves], n)
+        leave64 = leave.astype(np.float64)
+        keep = moves & (column >= 0) & (rows.data != 0)
+        del moves
+        A64 = _with_diagonal(row_of[keep], column[keep], -rows.data[keep], leave64)
+    del row_of, column  # before the residue: these are per entry
     leave -= leave64  # the residue, in place (leave64 widens exactly)
     return A64, _diagonal_residue(leave), rows
+
+
+def _sorted_system(rows: sp.csr_matrix, row_of: npt.NDArray[Any],
+                   column: npt.NDArray[Any], moves: BoolArray, index: type[np.integer[Any]]
+                   ) -> tuple[sp.csr_matrix, ExtArray, FloatArray]:
+    """``A64`` of rows in column order, with the leaving probabilities (extended, and
+    rounded to float64): the same arrays as :func:`_with_diagonal` and :func:`_row_sums`
+    give, in a few whole-array passes per entry.
+
+    A row's leaving probability is the sum of its movers, in extended precision and
+    over the same segments as :func:`_row_sums` (numpy's reductions pair the terms
+    by position: zeros in place of the other entries would change the last bits).
+    Each row's kept entries are then laid out with its diagonal between those of
+    smaller and of larger column.
+    """
+    n = rows.shape[0]
+    nonempty = np.flatnonzero(np.diff(rows.indptr))
+    firsts = rows.indptr[nonempty]
+    leave = _mover_sums(rows.data[moves], nonempty,
+                        np.add.reduceat(moves, firsts, dtype=np.int64), n)
+    leave64 = leave.astype(np.float64)
+    keep = moves & (column >= 0) & (rows.data != 0)
+    kept = np.zeros(n, dtype=np.int64)
+    below = np.zeros(n, dtype=np.int64)
+    kept[nonempty] = np.add.reduceat(keep, firsts, dtype=np.int64)
+    below[nonempty] = np.add.reduceat(keep & (column < row_of), firsts, dtype=np.int64)
+    indptr = np.zeros(n + 1, dtype=index)
+    np.cumsum(kept + 1, out=indptr[1:])
+    diagonal_at = indptr[:-1] + below
+    off_diagonal = np.ones(int(indptr[-1]), dtype=bool)
+    off_diagonal[diagonal_at] = False
+    indices = np.empty(int(indptr[-1]), dtype=index)
+    values = np.empty(int(indptr[-1]), dtype=np.float64)
+    indices[off_diagonal] = column[keep]
+    values[off_diagonal] = np.negative(rows.data[keep])
+    indices[diagonal_at] = np.arange(n, dtype=index)
+    values[diagonal_at] = leave64
+    matrix = sp.csr_matrix((values, indices, indptr), shape=(n, n))
+    matrix.has_sorted_indices = True
+    matrix.eliminate_zeros()
+    return matrix, leave, leave64
 
 
 #: Index-array digests kept by a :class:`SolverPlans` (see :func:`index_digest`).
@@ -280,40 +324,35 @@ def _new_restriction(P: CsrMatrix, maybe: BoolArray) -> _RestrictionPlan | None:
 
 
 def _with_diagonal(row: npt.NDArray[np.integer], col: npt.NDArray[np.integer],
-                   data: FloatArray, diagonal: FloatArray, columns_sorted: bool = False
-                   ) -> sp.csr_matrix:
-    """The CSR matrix of the row-sorted off-diagonal entries *(row, col, data)* plus
-    *diagonal* (zeros not stored), indices sorted.
-
-    :param columns_sorted: the entries of each row come in increasing column order;
-        the diagonal is then slotted in its place and nothing is sorted (a sort of
-        every row costs more than the rest at 10^7 entries).
-    """
+                   data: FloatArray, diagonal: FloatArray) -> sp.csr_matrix:
+    """The CSR matrix of the row-sorted entries *(row, col, data)* plus *diagonal*
+    (zeros not stored), indices sorted in place."""
     n = diagonal.size
     counts = np.bincount(row, minlength=n) + 1
     indptr = np.zeros(n + 1, dtype=col.dtype)
     np.cumsum(counts, out=indptr[1:])
-    # Entry k of row r goes to k + r: one diagonal slot per earlier row, and before
-    # the entry or after it (the last of the row when the columns are not sorted).
+    # Entry k of row r goes to k + r (one diagonal slot at the end of each earlier row).
     slots = np.arange(row.size, dtype=col.dtype) + row
-    if columns_sorted:
-        after = col > row
-        slots += after
-        diagonal_slots = indptr[:-1] + (counts - 1) - np.bincount(row[after], minlength=n)
-    else:
-        diagonal_slots = indptr[1:] - 1
     indices = np.empty(indptr[-1], dtype=col.dtype)
     values = np.empty(indptr[-1], dtype=np.float64)
     indices[slots], values[slots] = col, data
-    indices[diagonal_slots] = np.arange(n, dtype=col.dtype)
-    values[diagonal_slots] = diagonal
+    indices[indptr[1:] - 1] = np.arange(n, dtype=col.dtype)
+    values[indptr[1:] - 1] = diagonal
     matrix = sp.csr_matrix((values, indices, indptr), shape=(n, n))
-    if columns_sorted:
-        matrix.has_sorted_indices = True
-    else:
-        matrix.sort_indices()
+    matrix.sort_indices()
     matrix.eliminate_zeros()
     return matrix
+
+
+def _mover_sums(movers: FloatArray, rows: npt.NDArray[np.intp], counts: npt.NDArray[np.int64],
+                n: int) -> ExtArray:
+    """Per row, the sum of its *counts* consecutive entries of *movers* (the rows
+    *rows*, in order), in extended precision: :func:`_row_sums`' segments and sums."""
+    sums = np.zeros(n, dtype=np.longdouble)
+    present = counts > 0
+    starts = np.cumsum(counts) - counts
+    sums[rows[present]] = np.add.reduceat(movers, starts[present], dtype=np.longdouble)
+    return sums
 
 
 def _diagonal_residue(residue: ExtArray) -> sp.csr_matrix:
