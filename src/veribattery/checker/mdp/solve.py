@@ -91,7 +91,10 @@ def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
     for _ in range(REFINE_STEPS):
         if not np.all(np.isfinite(x)):
             return None
-        x = x + factors.solve(residual.of_values(x))
+        refined = x + factors.solve(residual.of_values(x))
+        if np.array_equal(refined, x):
+            break  # a fixed point: every later step would compute x again, bit for bit
+        x = refined
     if not np.all(np.isfinite(x)):
         return None
 
