@@ -71,6 +71,10 @@ INSTANCES: list[Instance] = [
     Instance("crowds/crowds.prism", "crowds/crowds.props", "positive",
              {"TotalRuns": 6, "CrowdSize": 15}, 0.12865369542143604),
     Instance("brp/brp.prism", "brp/brp.props", "p1", {"N": 16384, "MAX": 10}, None, False),
+    # The largest published crowds (10,291,282 states by Storm's count, which makes
+    # decided states absorbing); QComp records no exact value for it.
+    Instance("crowds/crowds.prism", "crowds/crowds.props", "positive",
+             {"TotalRuns": 6, "CrowdSize": 20}),
     Instance("egl/egl.prism", "egl/egl.props", "unfairA", {"N": 7, "L": 8}, None, False),
     Instance(NAND, NAND_PROPS, "reliable", {"N": 60, "K": 2}, 0.5175335545543008),
     # Herman's ring of N has 2^N states but 3^N + 1 transitions (a state with k tokens
