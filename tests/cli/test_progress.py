@@ -298,3 +298,23 @@ def test_an_mdp_solve_tells_its_levels_and_keeps_its_values(tmp_path: Path) -> N
     assert json.loads(told.stdout)["results"] == json.loads(quiet.stdout)["results"]
     low, high = json.loads(quiet.stdout)["results"][0]["bounds"]
     assert Fraction(low) <= Fraction(9, 10) ** 30 <= Fraction(high)
+
+
+def test_distribution_tells_its_reward_levels_and_keeps_its_json(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The level pass of ``distribution`` (11 s of the paper's case) was silent."""
+    base = ["distribution", CASE1, *SMALL, "--format", "json"]
+    quiet = CliRunner().invoke(cli, base)
+    monkeypatch.setenv(progress.INTERVALS_VARIABLE, "0,0")
+    told = CliRunner().invoke(cli, base)
+    assert quiet.exit_code == told.exit_code == 0 and quiet.stderr == ""
+    lines = told.stderr.splitlines()
+    assert lines[0] == "building the state space"
+    assert "computing the distribution of 'mt'" in lines
+    levels = [int(m.group(1).replace(",", "")) for m in
+              (re.match(r"solving: reward level ([\d,]+), \d+ s$", line) for line in lines)
+              if m is not None]
+    # One line per level here (every report is a line), up to the distribution's last.
+    document = json.loads(told.stdout)
+    assert levels == list(range(1, document["levels"] + 1)) and document["levels"] > 10
+    assert document == json.loads(quiet.stdout)

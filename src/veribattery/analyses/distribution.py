@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -150,7 +150,8 @@ def parse_deadlines(working_day: str,
 def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success",
                         failure: str = "failure", *, coverage: float = 0.999,
                         horizon: float = 0.0, max_levels: int = MAX_LEVELS,
-                        workspace: Workspace | None = None) -> Distribution:
+                        workspace: Workspace | None = None,
+                        progress: Callable[[int], None] | None = None) -> Distribution:
     """The distribution of reward *reward* accumulated until *success* or *failure*.
 
     From the (first) initial state of *dtmc*; the reward structure must have
@@ -162,6 +163,7 @@ def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success"
     :param max_levels: give up (CheckError) after this many levels.
     :param workspace: the checker's caches to share (those a check of *dtmc* filled:
         its linear systems); None: new ones for this distribution.
+    :param progress: told the number of reward levels done after each one.
     :raises CheckError: for unknown labels or reward structures, non-integer
         rewards, or a pass that does not reach *coverage* within *max_levels*.
     """
@@ -176,8 +178,8 @@ def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success"
     initial = np.zeros(dtmc.num_states)
     initial[start] = 1.0
     masses = reward_bounded.absorption_by_level(
-        dtmc.transitions, initial, masks, levels, _stop_rule(exact, coverage, horizon, levels),
-        max_levels, workspace=workspace)
+        dtmc.transitions, initial, masks, levels,
+        _stop_rule(exact, coverage, horizon, levels, progress), max_levels, workspace=workspace)
     if not _covered(masses.absorbed.sum(axis=1), exact, coverage):
         raise CheckError(f"the distribution did not reach {coverage:g} of its mass within "
                          f"{max_levels:,} reward levels")
@@ -187,11 +189,14 @@ def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success"
 
 
 def _stop_rule(exact: Sequence[float], coverage: float, horizon: float,
-               levels: np.ndarray) -> reward_bounded.StopRule:
+               levels: np.ndarray, progress: Callable[[int], None] | None = None
+               ) -> reward_bounded.StopRule:
     positive = levels[levels > 0]
     unit = math.gcd(*(int(v) for v in np.unique(positive))) if positive.size else 1
 
     def stop(level: int, absorbed: FloatArray, pending: float) -> bool:
+        if progress is not None:
+            progress(level + 1)
         return level * unit >= horizon and (
             _covered(absorbed, exact, coverage) or pending <= ROUNDING)
 

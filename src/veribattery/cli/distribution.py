@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -58,10 +59,14 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
         check_output_file(csv_path, "-o", force=force, suffixes=CSV_SUFFIXES)
         check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
         cfg = load_config(config, overrides)
-        with build_progress() as progress:
+        with build_progress(plain=True) as progress:
             dtmc = (mission_dtmc(cfg, progress=progress) if strategy == "bs1"
                     else induced_mission(cfg, strategy, progress).dtmc)
-        dist = _distribution(dtmc, reward, coverage, limits)
+            if progress is not None:
+                progress.starting(f"computing the distribution of {reward!r}")
+            levels = None if progress is None else (
+                lambda done: progress.solving(done, 0, "reward level"))
+            dist = _distribution(dtmc, reward, coverage, limits, levels)
         if csv_path is not None:
             print_written(write_csv(dist, csv_path))
         if plot_path is not None:
@@ -79,14 +84,15 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
         _print_table(dist, limits)
 
 
-def _distribution(dtmc: object, reward: str, coverage: float,
-                  limits: tuple[Deadline, ...]) -> Distribution:
+def _distribution(dtmc: object, reward: str, coverage: float, limits: tuple[Deadline, ...],
+                  progress: Callable[[int], None] | None) -> Distribution:
     from veribattery.analyses.distribution import reward_distribution
     from veribattery.explore.dtmc import DTMC
 
     assert isinstance(dtmc, DTMC)
     horizon = max((d.value for d in limits), default=0.0)
-    return reward_distribution(dtmc, reward, coverage=coverage, horizon=horizon)
+    return reward_distribution(dtmc, reward, coverage=coverage, horizon=horizon,
+                               progress=progress)
 
 
 def _summary(dist: Distribution, limits: tuple[Deadline, ...]) -> list[tuple[str, float]]:
