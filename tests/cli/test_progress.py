@@ -13,7 +13,7 @@ from fractions import Fraction
 from pathlib import Path
 
 import pytest
-from click.testing import CliRunner
+from click.testing import CliRunner, Result
 
 from tests.cli.inputs import CASE1, SMALL, SYNTHESIS
 from tests.cli.terminal import run_in_terminal
@@ -194,13 +194,7 @@ def test_a_long_check_tells_its_stages_and_solves_on_a_pipe() -> None:
 
 def test_check_tells_the_same_lines_as_prism_and_keeps_its_json(
         monkeypatch: pytest.MonkeyPatch) -> None:
-    base = ["check", CASE1, *SMALL, "--format", "json"]
-    quiet = CliRunner().invoke(cli, base)
-    monkeypatch.setenv(progress.INTERVALS_VARIABLE, "0,0")
-    told = CliRunner().invoke(cli, base)
-    assert quiet.exit_code == told.exit_code == 0 and quiet.stderr == ""
-    lines = told.stderr.splitlines()
-    assert lines[0] == "building the state space"
+    quiet, told, lines = _quiet_then_told(monkeypatch, "check")
     assert any(line.startswith("exploring states: ") for line in lines)
     checking = [line for line in lines if line.startswith("checking property ")]
     count = len(json.loads(quiet.stdout)["results"])
@@ -303,13 +297,7 @@ def test_an_mdp_solve_tells_its_levels_and_keeps_its_values(tmp_path: Path) -> N
 def test_distribution_tells_its_reward_levels_and_keeps_its_json(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """The level pass of ``distribution`` (11 s of the paper's case) was silent."""
-    base = ["distribution", CASE1, *SMALL, "--format", "json"]
-    quiet = CliRunner().invoke(cli, base)
-    monkeypatch.setenv(progress.INTERVALS_VARIABLE, "0,0")
-    told = CliRunner().invoke(cli, base)
-    assert quiet.exit_code == told.exit_code == 0 and quiet.stderr == ""
-    lines = told.stderr.splitlines()
-    assert lines[0] == "building the state space"
+    quiet, told, lines = _quiet_then_told(monkeypatch, "distribution")
     assert "computing the distribution of 'mt'" in lines
     levels = [int(m.group(1).replace(",", "")) for m in
               (re.match(r"solving: reward level ([\d,]+), \d+ s$", line) for line in lines)
@@ -318,3 +306,18 @@ def test_distribution_tells_its_reward_levels_and_keeps_its_json(
     document = json.loads(told.stdout)
     assert levels == list(range(1, document["levels"] + 1)) and document["levels"] > 10
     assert document == json.loads(quiet.stdout)
+
+
+def _quiet_then_told(monkeypatch: pytest.MonkeyPatch, command: str
+                     ) -> tuple[Result, Result, list[str]]:
+    """*command* on the small case1 farm in JSON, silent with the default intervals,
+    then telling every report; both succeed, and the told run's stderr lines begin
+    with the build."""
+    base = [command, CASE1, *SMALL, "--format", "json"]
+    quiet = CliRunner().invoke(cli, base)
+    monkeypatch.setenv(progress.INTERVALS_VARIABLE, "0,0")
+    told = CliRunner().invoke(cli, base)
+    assert quiet.exit_code == told.exit_code == 0 and quiet.stderr == ""
+    lines = told.stderr.splitlines()
+    assert lines[0] == "building the state space"
+    return quiet, told, lines
