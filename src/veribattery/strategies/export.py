@@ -28,26 +28,22 @@ def strategy_files(chosen: ChosenStrategy | ChosenMulti, strategy_file: Path | N
     """The text of each file asked for: the strategy (format by suffix, see
     :mod:`~veribattery.strategies.formats`, or :mod:`~veribattery.strategies.randomised`
     for a ``multi(...)`` property's) and the induced model and properties."""
+    texts: dict[Path, str] = {}
+    if strategy_file is not None:
+        texts[strategy_file] = (multi_strategy_text(chosen, strategy_file)
+                                if isinstance(chosen, ChosenMulti)
+                                else strategy_text(chosen, strategy_file))
+    if induced_dir is not None:
+        texts[induced_dir / INDUCED_MODEL], texts[induced_dir / INDUCED_PROPERTIES] = (
+            _induced_texts(chosen))
+    return texts
+
+
+def _induced_texts(chosen: ChosenStrategy | ChosenMulti) -> tuple[str, str]:
+    """The induced DTMC's model and properties texts."""
     if isinstance(chosen, ChosenMulti):
-        return _multi_files(chosen, strategy_file, induced_dir)
-    texts: dict[Path, str] = {}
-    if strategy_file is not None:
-        texts[strategy_file] = strategy_text(chosen, strategy_file)
-    if induced_dir is not None:
-        texts[induced_dir / INDUCED_MODEL] = induced_model_text(chosen)
-        texts[induced_dir / INDUCED_PROPERTIES] = induced_properties_text(chosen)
-    return texts
-
-
-def _multi_files(chosen: ChosenMulti, strategy_file: Path | None,
-                 induced_dir: Path | None) -> dict[Path, str]:
-    texts: dict[Path, str] = {}
-    if strategy_file is not None:
-        texts[strategy_file] = multi_strategy_text(chosen, strategy_file)
-    if induced_dir is not None:
-        texts[induced_dir / INDUCED_MODEL] = induced_multi_model_text(chosen)
-        texts[induced_dir / INDUCED_PROPERTIES] = induced_multi_properties_text(chosen)
-    return texts
+        return induced_multi_model_text(chosen), induced_multi_properties_text(chosen)
+    return induced_model_text(chosen), induced_properties_text(chosen)
 
 
 def export_strategy(run: MdpCheckRun, *, selector: str | None = None,
