@@ -113,32 +113,22 @@ class MemoryGuard:
                           f"the frontier {trend} {growth:.2f}x per layer",
                     f"for about {later_states:,} states")
 
-    def chunk_done(self, states: int, transitions: int, done: int, frontier: int) -> None:
-        """Check inside a BFS layer, after *done* of its *frontier* states: the DTMC of
-        what is found already must still fit. (The rest of a layer is not projected
-        from its start: herman's first layer holds every state, those with many tokens
-        first, and the rate of its first chunk overstates the whole layer's
-        transitions twentyfold.)
+    def chunk_done(self, states: int, transitions: int, done: int,
+                   frontier: int | None = None) -> None:
+        """Check after a chunk, *done* states expanded so far (of a BFS layer of
+        *frontier* states; None: the MDP builder's search, which keeps no layers): the
+        DTMC or MDP of what is found already must still fit. (The rest of a layer is
+        not projected from its start: herman's first layer holds every state, those
+        with many tokens first, and the rate of its first chunk overstates the whole
+        layer's transitions twentyfold.)
 
         :raises ModelTooLarge: if it would not.
         """
-        need = (self.footprint.assembled(states, transitions)
-                - self.footprint.searching(states, transitions))
-        self._check(need, f"{states:,} states and {transitions:,} transitions found so far, "
-                          f"{done:,} of a layer of {frontier:,} states expanded",
+        where = (f"{done:,} states expanded" if frontier is None
+                 else f"{done:,} of a layer of {frontier:,} states expanded")
+        self._check(self._assembly(states, transitions, 0),
+                    f"{states:,} states and {transitions:,} transitions found so far, {where}",
                     "to assemble what is found")
-
-    def expanded(self, states: int, transitions: int, done: int) -> None:
-        """Check after a chunk of a search that keeps no layers (the MDP builder's):
-        what is found already must still fit once assembled.
-
-        :param done: states expanded so far.
-        :raises ModelTooLarge: if it would not.
-        """
-        need = (self.footprint.assembled(states, transitions)
-                - self.footprint.searching(states, transitions))
-        self._check(need, f"{states:,} states and {transitions:,} transitions found so far, "
-                          f"{done:,} states expanded", "to assemble what is found")
 
     def wide_layer(self, states: int, layer: int,
                    sample: Callable[[], BranchSample | None]) -> None:

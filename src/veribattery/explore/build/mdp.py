@@ -117,7 +117,7 @@ def build_mdp(model: FlatModel, *,
         if progress is not None:
             progress(store.count, high - low)
         found += matrix.nnz
-        guard.expanded(store.count, found, high)
+        guard.chunk_done(store.count, found, high)
         low = high
     n = store.count
     transitions = sp.vstack([_widen(m, n) for m in rows], format="csr")
