@@ -33,6 +33,17 @@ def csc_sharing(data: FloatArray, indices: npt.NDArray[np.integer],
     return _sharing(sp.csc_matrix((data, indices, indptr), shape=shape), indices, indptr)
 
 
+def csr_rows(matrix: sp.csr_matrix, first: int, last: int,
+             dtype: npt.DTypeLike | None = None) -> sp.csr_matrix:
+    """Rows ``first..last-1`` of *matrix* holding views of its entries (row slicing
+    copies them); with *dtype*, those rows' values converted to it."""
+    start, stop = int(matrix.indptr[first]), int(matrix.indptr[last])
+    data = matrix.data[start:stop]
+    return sp.csr_matrix((data if dtype is None else data.astype(dtype),
+                          matrix.indices[start:stop], matrix.indptr[first:last + 1] - start),
+                         shape=(last - first, matrix.shape[1]))
+
+
 def _sharing(matrix: _Matrix, indices: npt.NDArray[np.integer],
              indptr: npt.NDArray[np.integer]) -> _Matrix:
     # (the constructor has checked them; a copy of equal dtype has equal contents)

@@ -42,6 +42,7 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import linalg as spla
 
+from veribattery._sparse import csr_rows
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker.linalg.iterative import RESIDUAL_TOL, _norm, matrix_norm, solve_iterative
 from veribattery.checker.linalg.monitor import SolveMonitor
@@ -472,11 +473,7 @@ def _extended_product(A64: sp.csr_matrix, residue: sp.csr_matrix | None,
     step = max(1, _PRODUCT_BLOCK * n // max(A64.nnz, 1))
     for lo in range(0, n, step):
         hi = min(n, lo + step)
-        start, stop = A64.indptr[lo], A64.indptr[hi]
-        block = sp.csr_matrix((A64.data[start:stop].astype(np.longdouble),
-                               A64.indices[start:stop], A64.indptr[lo:hi + 1] - start),
-                              shape=(hi - lo, A64.shape[1]))
-        out[lo:hi] = block @ x_ext
+        out[lo:hi] = csr_rows(A64, lo, hi, np.longdouble) @ x_ext
     if residue is not None and residue.nnz:
         out += residue @ x_ext
     return out
