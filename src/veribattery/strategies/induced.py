@@ -43,6 +43,7 @@ __all__ = [
     "dtmc_property_text",
     "induced_model_text",
     "induced_properties_text",
+    "labels_text",
 ]
 
 #: File names of the induced model and its properties inside ``--export-induced DIR``.
@@ -63,13 +64,18 @@ def induced_model_text(chosen: ChosenStrategy) -> str:
     ]
     if model.init is not None:
         parts.append(f"\ninit\n  {expression_text(model.init)}\nendinit\n")
-    if model.labels:
-        parts.append("\n")
-        parts.extend(f'label "{lab.name}" = {expression_text(lab.expr)};\n'
-                     for lab in model.labels)
+    parts.append(labels_text(model))
     taken = {chosen.action(state) for state in chosen.reached_states}
     parts.extend(f"\n{_rewards(r, taken)}" for r in model.rewards)
     return "".join(parts)
+
+
+def labels_text(model: FlatModel) -> str:
+    """The model's labels as PRISM text, after a blank line (nothing if it has none)."""
+    if not model.labels:
+        return ""
+    return "\n" + "".join(f'label "{lab.name}" = {expression_text(lab.expr)};\n'
+                          for lab in model.labels)
 
 
 def induced_properties_text(chosen: ChosenStrategy) -> str:

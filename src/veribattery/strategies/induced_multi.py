@@ -26,8 +26,7 @@ from dataclasses import replace
 import numpy as np
 
 from veribattery.lang.nodes import ProbOp, RewardOp, Variable
-from veribattery.lang.printing import expression_text
-from veribattery.strategies.induced import dtmc_property_text
+from veribattery.strategies.induced import dtmc_property_text, labels_text
 from veribattery.strategies.randomised import ChosenMulti
 from veribattery.strategies.valuation_text import distribution_text, guard_text, value_text
 
@@ -47,11 +46,8 @@ def induced_multi_model_text(chosen: ChosenMulti) -> str:
         "\n",
         *(f"  {command}\n" for command in _commands(chosen)),
         "endmodule\n",
+        labels_text(model),
     ]
-    if model.labels:
-        parts.append("\n")
-        parts.extend(f'label "{lab.name}" = {expression_text(lab.expr)};\n'
-                     for lab in model.labels)
     parts.extend(f"\n{_rewards(chosen, index)}" for index in range(len(chosen.mdp.rewards)))
     return "".join(parts)
 
