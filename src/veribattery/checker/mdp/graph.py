@@ -36,6 +36,7 @@ __all__ = [
     "prob0e",
     "prob1a",
     "prob1e",
+    "reached_from",
     "segments",
 ]
 
@@ -128,6 +129,16 @@ def can_reach(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
     indptr = np.concatenate([kept[graph.predecessor_ptr], [kept[-1] + roots.size]])
     indices = np.concatenate([graph.owner[graph.predecessors[keep]], roots])
     return _breadth_first(indptr, indices, n)
+
+
+def reached_from(chain: CsrMatrix, start: int) -> IntArray:
+    """The states of the square matrix *chain* reachable from *start* along its positive
+    entries (*start* included), sorted: one breadth-first search in C."""
+    positive = sp.csr_matrix((chain.data > 0, chain.indices, chain.indptr), shape=chain.shape)
+    positive.eliminate_zeros()
+    order = csgraph.breadth_first_order(positive, start, directed=True,
+                                        return_predecessors=False)
+    return np.sort(order).astype(np.int64)
 
 
 def _breadth_first(indptr: IntArray, indices: IntArray, n: int) -> BoolArray:

@@ -31,10 +31,10 @@ from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.mdp.formula import _mask
+from veribattery.checker.mdp.graph import reached_from
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.multi_formula import (
     _constraint,
@@ -224,7 +224,7 @@ def _strategy(mdp: MDP, flows: Flows) -> MultiStrategy:
     moves = _move_matrix(flows)
     blocks = sp.csr_matrix(sp.block_diag([pm.transitions, pm.transitions]))
     chain = sp.csr_matrix(moves @ blocks)
-    reached = _reached(chain, flows.product.initial)
+    reached = reached_from(chain, flows.product.initial)
     chain = sp.csr_matrix(chain[reached][:, reached])
     chosen = sp.csr_matrix(moves[reached])
     chosen.sort_indices()
@@ -284,12 +284,3 @@ def _mixed(flows: Flows) -> BoolArray:
     left = np.bincount(owner_class[moving_on], weights=flows.uses[moving_on], minlength=count)
     stayed = np.bincount(flows.resting[members], weights=flows.stays[members], minlength=count)
     return np.asarray((left > 0) & (stayed > 0), dtype=bool)
-
-
-def _reached(chain: sp.csr_matrix, initial: int) -> IntArray:
-    """The memory states reachable from the running initial one, sorted: one
-    breadth-first search in C along the positive entries."""
-    positive = sp.csr_matrix((chain.data > 0, chain.indices, chain.indptr), shape=chain.shape)
-    positive.eliminate_zeros()
-    order = breadth_first_order(positive, initial, directed=True, return_predecessors=False)
-    return np.sort(order).astype(np.int64)

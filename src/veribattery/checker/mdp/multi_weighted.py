@@ -30,12 +30,11 @@ from fractions import Fraction
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import breadth_first_order
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.mdp.attain import may_attain
 from veribattery.checker.mdp.components import end_components
-from veribattery.checker.mdp.graph import ChoiceGraph
+from veribattery.checker.mdp.graph import ChoiceGraph, reached_from
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.multi import Reach, Total, _Product
 from veribattery.checker.mdp.optimum import Problem, solve_from
@@ -187,8 +186,7 @@ class StoppingMdp:
         the chain of its choices over the states it reaches)."""
         chosen = sp.csr_matrix(self.mdp.transitions[strategy.choices])
         first = int(self.mdp.initial[0])
-        reached = np.sort(np.asarray(breadth_first_order(
-            chosen, first, directed=True, return_predecessors=False), dtype=np.int64))
+        reached = reached_from(chosen, first)
         size = reached.size
         own = MDP(sp.csr_matrix(chosen[reached][:, reached]), np.arange(size + 1),
                   np.searchsorted(reached, [first]))
