@@ -45,10 +45,10 @@ class MdpCheckRun:
     """What one check of an MDP produced: the MDP, one result per property, timings.
 
     :param model: the flat model the MDP was built from (None if not kept).
-    :param errors: properties answered as PRISM answers them whose answer the issue
-        counts as bad input (an infeasible ``multi(...)``: NaN; an ``Rmin [ F phi ]``
-        that no strategy can reach: Infinity), each ``file:line:col: why``; the CLI
-        shows the results, then these, and exits 2.
+    :param errors: properties answered as PRISM answers them, but ill-posed: an input
+        error (an infeasible ``multi(...)``: NaN; an ``Rmin [ F phi ]`` whose target no
+        strategy can reach: Infinity), each ``file:line:col: why``; the CLI shows the
+        results, then these, and exits 2.
     """
 
     mdp: MDP
