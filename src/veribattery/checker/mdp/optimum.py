@@ -20,6 +20,7 @@ import numpy as np
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.certify.fixpoint import Progress
+from veribattery.checker.mdp.acyclic import acyclic_optimum
 from veribattery.checker.mdp.certificate import certified_values
 from veribattery.checker.mdp.components import EndComponents
 from veribattery.checker.mdp.graph import ChoiceGraph
@@ -28,7 +29,7 @@ from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
 from veribattery.checker.mdp.strategy import Strategy, lifted
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
-from veribattery.checker.mdp.topological import topological_policy_iteration
+from veribattery.checker.mdp.topological import class_levels, topological_policy_iteration
 
 __all__ = ["Problem", "Solved", "approximate", "solve", "solve_from", "spread"]
 
@@ -71,13 +72,16 @@ class Problem:
 
 @dataclass(frozen=True, slots=True)
 class Approximation:
-    """A problem's equations and policy iteration's answer on them (None: none found)."""
+    """A problem's equations and policy iteration's answer on them (None: none found),
+    or, on an acyclic system, the certified values of its one pass (*certified*; then
+    *start* is the strategy found)."""
 
     system: ChoiceSystem
     known: FloatArray
     offset: FloatArray | None
     evaluation: Evaluation | None
     start: IntArray
+    certified: Bounds | None = None
 
     @property
     def rows(self) -> IntArray:
@@ -108,8 +112,14 @@ def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
         evaluation = policy_iteration(system, problem.objective, known, offset, start,
                                       progress=progress)
     else:
+        levels = class_levels(system)
+        if levels.within_limit and levels.acyclic:
+            bounds, rows = acyclic_optimum(system, problem.objective, known, offset, levels,
+                                           moving, problem.ceiling, progress=progress)
+            if bounds.precise_states().all():
+                return Approximation(system, known, offset, None, rows, bounds)
         evaluation = topological_policy_iteration(system, problem.objective, known, offset,
-                                                  moving, progress=progress)
+                                                  moving, levels, progress=progress)
     if evaluation is None:
         start = moving
         evaluation = policy_iteration(system, problem.objective, known, offset, start,
@@ -155,8 +165,10 @@ def solve_from(mdp: MDP, graph: ChoiceGraph, problem: Problem, rewards: FloatArr
     if not problem.unknown.any():
         return Solved(MdpResult(values, Strategy(problem.choices)), None)
     found = approximate(mdp, problem, rewards, start, progress=progress)
-    bounds = certified_values(found.system, problem.objective, found.known, found.offset,
-                              found.evaluation, problem.ceiling, progress=progress)
+    bounds = found.certified
+    if bounds is None:
+        bounds = certified_values(found.system, problem.objective, found.known, found.offset,
+                                  found.evaluation, problem.ceiling, progress=progress)
     rows = found.rows
     if not bounds.precise_states().all() and found.system.size <= EXACT_LIMIT:
         rows, bounds = _exactly(mdp, problem, found, rewards)

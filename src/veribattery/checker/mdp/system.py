@@ -36,7 +36,8 @@ from veribattery.checker.certify import (
 )
 from veribattery.checker.mdp.graph import ChoiceGraph, segments
 
-__all__ = ["ChoiceSystem", "ClassRows", "LiveRows", "Objective", "equations", "quotient_classes"]
+__all__ = ["ChoiceSystem", "ClassRows", "LiveRows", "Objective", "bounded_row_images", "equations",
+           "quotient_classes"]
 
 #: Which player the values are optimal for.
 Objective = Literal["min", "max"]
@@ -190,12 +191,9 @@ class ChoiceSystem:
             if live is None:
                 live = self.live_rows(extended != 0, offset, up=up)
             return _bounded_images(self.off, live, extended, offset)
-        off = self.off[rows]
-        offset = None if offset is None else offset[rows]
-        return _bounded_images(off, LiveRows.of(_nonzero_terms(off, extended), offset,
-                                                self.leave_lower[rows],
-                                                self.leave_upper[rows], up=up),
-                               extended, offset)
+        return bounded_row_images(self.off[rows], extended,
+                                  None if offset is None else offset[rows],
+                                  self.leave_lower[rows], self.leave_upper[rows], up=up)
 
     def live_rows(self, nonzero: BoolArray, offset: FloatArray | None, *,
                   up: bool) -> LiveRows:
@@ -247,6 +245,16 @@ class ChoiceSystem:
         hits = row_values == best[self.row_class]
         rows = np.where(hits, np.arange(row_values.size), row_values.size)
         return np.asarray(self.layout.best(rows, "min"), dtype=np.int64)
+
+
+def bounded_row_images(off: CsrMatrix, extended: FloatArray, offset: FloatArray | None,
+                       leave_lower: FloatArray, leave_upper: FloatArray, *,
+                       up: bool) -> FloatArray:
+    """:meth:`ChoiceSystem.bound_images` of some rows of a system: *off* their entries,
+    *offset* their rewards (or None) and ``leave_lower..leave_upper`` the enclosures of
+    their ``s_a``; each bound is the same float as the whole system's for that row."""
+    live = LiveRows.of(_nonzero_terms(off, extended), offset, leave_lower, leave_upper, up=up)
+    return _bounded_images(off, live, extended, offset)
 
 
 def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:

@@ -48,7 +48,7 @@ from veribattery.checker.mdp.solve import (
 )
 from veribattery.checker.mdp.system import ChoiceSystem, ClassRows, Objective
 
-__all__ = ["LEVEL_LIMIT", "Levels", "class_levels", "greedy_rows", "is_proper",
+__all__ = ["LEVEL_LIMIT", "LevelOrder", "Levels", "class_levels", "greedy_rows", "is_proper",
            "rows_after_sweeps", "topological_policy_iteration", "topological_values"]
 
 #: Systems with more levels than this are left to policy iteration from the progress
@@ -67,15 +67,17 @@ LOCAL_ROUNDS = 200
 
 def topological_policy_iteration(system: ChoiceSystem, objective: Objective,
                                  known: FloatArray, offset: FloatArray | None,
-                                 preferred: IntArray, *,
+                                 preferred: IntArray, levels: Levels | None = None, *,
                                  progress: Progress | None = None) -> Evaluation | None:
     """Policy iteration on the whole system from the greedy strategy of
     :func:`topological_values` (ties kept on *preferred*), or None where that does not
     apply: more than :data:`LEVEL_LIMIT` levels, or a greedy strategy that does not
     reach the known states (minimal rewards) or whose system is singular. The caller
-    then starts from *preferred*, the progress strategy."""
-    levels = class_levels(system)
-    if levels.count > LEVEL_LIMIT:
+    then starts from *preferred*, the progress strategy.
+
+    :param levels: the system's :func:`class_levels`, if the caller has them."""
+    levels = class_levels(system) if levels is None else levels
+    if not levels.within_limit:
         return None
     values = topological_values(system, objective, known, offset, preferred, levels,
                                 progress=progress)
@@ -108,6 +110,16 @@ class Levels:
     def count(self) -> int:
         """The number of levels."""
         return int(self.starts.size - 1)
+
+    @property
+    def within_limit(self) -> bool:
+        """Whether there are few enough levels to take them one by one (:data:`LEVEL_LIMIT`)."""
+        return self.count <= LEVEL_LIMIT
+
+    @property
+    def acyclic(self) -> bool:
+        """Whether every component is trivial (the class graph has no cycle)."""
+        return bool(np.array_equal(self.cyclic_from, self.starts[1:]))
 
 
 def class_levels(system: ChoiceSystem) -> Levels:
@@ -163,7 +175,7 @@ def topological_values(system: ChoiceSystem, objective: Objective, known: FloatA
         iteration, as it must be proper there.
     :param progress: told ``(levels done, levels, "levels")`` after each level.
     """
-    ordered = _Ordered.of(system, offset, levels)
+    ordered = LevelOrder.of(system, offset, levels)
     full = np.concatenate([np.zeros(system.size), known])
     rank = np.full(full.size, -1, dtype=np.int64)  # scratch: a class's local index
     reduce = np.maximum if objective == "max" else np.minimum
@@ -187,26 +199,36 @@ def topological_values(system: ChoiceSystem, objective: Objective, known: FloatA
 
 
 @dataclass(frozen=True, slots=True)
-class _Ordered:
-    """The rows of a system permuted into level order (each level's rows contiguous)."""
+class LevelOrder:
+    """The rows of a system permuted into level order (each level's rows contiguous).
+
+    :param rows: per position in level order, the row of the system there.
+    :param row_starts: per class position in level order, its first row here (then the
+        number of rows).
+    """
 
     off: sp.csr_matrix
     offset: FloatArray | None
     leave: FloatArray
-    row_starts: IntArray  # per position in level order, its class's first row here
+    rows: IntArray
+    row_starts: IntArray
 
     @classmethod
-    def of(cls, system: ChoiceSystem, offset: FloatArray | None, levels: Levels) -> _Ordered:
+    def of(cls, system: ChoiceSystem, offset: FloatArray | None, levels: Levels) -> LevelOrder:
         rows = segments(system.groups, levels.classes)
         counts = np.diff(system.groups)[levels.classes]
         row_starts = np.zeros(levels.classes.size + 1, dtype=np.int64)
         np.cumsum(counts, out=row_starts[1:])
         return cls(sp.csr_matrix(system.off[rows]), None if offset is None else offset[rows],
-                   system.leave[rows], row_starts)
+                   system.leave[rows], rows, row_starts)
+
+    def row_range(self, lo: int, hi: int) -> tuple[int, int]:
+        """The rows (here) of the classes at positions ``lo..hi``."""
+        return int(self.row_starts[lo]), int(self.row_starts[hi])
 
     def images(self, lo: int, hi: int, full: FloatArray) -> FloatArray:
         """``G_a(x)`` of the rows of the classes at positions ``lo..hi``."""
-        first, last = int(self.row_starts[lo]), int(self.row_starts[hi])
+        first, last = self.row_range(lo, hi)
         # (a view of the rows: slicing copied them, and a model of a thousand levels sliced
         # its whole matrix piece by piece: the mission MDP, 0.2 s)
         numerator = csr_rows(self.off, first, last) @ full
@@ -238,9 +260,9 @@ class _Local:
     layout: ClassRows
 
     @classmethod
-    def of(cls, ordered: _Ordered, lo: int, hi: int, full: FloatArray,
+    def of(cls, ordered: LevelOrder, lo: int, hi: int, full: FloatArray,
            rank: IntArray) -> _Local:
-        first, last = int(ordered.row_starts[lo]), int(ordered.row_starts[hi])
+        first, last = ordered.row_range(lo, hi)
         block = ordered.off[first:last]
         local = rank[block.indices]
         inside = local >= 0
