@@ -19,15 +19,15 @@ Every strategy of an acyclic system reaches the known states, so none is imprope
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 import numpy.typing as npt
-import scipy.sparse as sp
 
-from veribattery._sparse import csr_rows
-from veribattery._types import CsrMatrix, FloatArray, IntArray
+from veribattery._types import FloatArray, IntArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
-from veribattery.checker.mdp.system import ChoiceSystem, Objective, bounded_row_images
+from veribattery.checker.mdp.system import ChoiceSystem, Objective, enclosed_quotients
 from veribattery.checker.mdp.topological import LevelOrder, Levels, greedy_rows
 
 __all__ = ["acyclic_optimum"]
@@ -58,30 +58,59 @@ def acyclic_optimum(system: ChoiceSystem, objective: Objective, known: FloatArra
     for k in range(levels.count):
         lo, hi = int(levels.starts[k]), int(levels.starts[k + 1])
         first, last = order.row_range(lo, hi)
-        block = csr_rows(order.off, first, last)
-        rewards = None if order.offset is None else order.offset[first:last]
+        rows = _LevelRows.of(order, first, last)
         starts, classes = order.local_starts(lo, hi), levels.classes[lo:hi]
-        value[classes] = reduce.reduceat(_extended_images(block, value, rewards), starts)
-        for bound, up in ((lower, False), (upper, True)):
-            images = bounded_row_images(block, bound, rewards, leave_lower[first:last],
-                                        leave_upper[first:last], up=up)
-            bound[classes] = reduce.reduceat(images, starts)
-        upper[classes] = np.minimum(upper[classes], ceiling)
+        value[classes] = reduce.reduceat(rows.extended_images(value), starts)
+        lower[classes] = reduce.reduceat(
+            rows.enclosed_images(lower, leave_upper[first:last], up=False), starts)
+        upper[classes] = np.minimum(reduce.reduceat(
+            rows.enclosed_images(upper, leave_lower[first:last], up=True), starts), ceiling)
         if progress is not None:
             progress(k + 1, levels.count, "levels")
     x = value[: system.size].astype(np.float64)
-    rows = greedy_rows(system.images(x, known, offset), system.groups[:-1], objective,
-                       preferred)
-    return Bounds.around(x, lower[: system.size], upper[: system.size]), rows
+    rows_taken = greedy_rows(system.images(x, known, offset), system.groups[:-1], objective,
+                             preferred)
+    return Bounds.around(x, lower[: system.size], upper[: system.size]), rows_taken
 
 
-def _extended_images(block: CsrMatrix, value: LongArray, rewards: FloatArray | None) -> LongArray:
-    """``G_a(x)`` of the rows *block* in extended precision, ``s_a`` summed there too: a
-    row whose entries all lead to the same value gives exactly that value, whatever the
-    rounding of its stored probabilities."""
-    extended = sp.csr_matrix((block.data.astype(np.longdouble), block.indices, block.indptr),
-                             shape=block.shape)
-    numerator = extended @ value
-    if rewards is not None:
-        numerator = numerator + rewards
-    return np.asarray(numerator / (extended @ np.ones(block.shape[1], dtype=np.longdouble)))
+@dataclass(frozen=True, slots=True)
+class _LevelRows:
+    """The entries of one level's rows, as plain arrays: a level of the mission MDP has
+    a few hundred rows, where a sparse matrix's construction and product cost more than
+    the arithmetic. Every row has an entry (it leaves its class).
+
+    :param starts: per row, where its entries begin in *data*.
+    """
+
+    data: FloatArray
+    columns: IntArray
+    starts: IntArray
+    rewards: FloatArray | None
+
+    @classmethod
+    def of(cls, order: LevelOrder, first: int, last: int) -> _LevelRows:
+        begin, end = int(order.off.indptr[first]), int(order.off.indptr[last])
+        rewards = None if order.offset is None else order.offset[first:last]
+        return cls(order.off.data[begin:end], order.off.indices[begin:end],
+                   order.off.indptr[first:last] - begin, rewards)
+
+    def extended_images(self, value: LongArray) -> LongArray:
+        """``G_a(value)`` in extended precision, ``s_a`` summed there too: a row whose
+        entries all lead to the same value gives exactly that value, whatever the
+        rounding of its stored probabilities."""
+        data = self.data.astype(np.longdouble)
+        numerator = np.add.reduceat(data * value[self.columns], self.starts)
+        if self.rewards is not None:
+            numerator += self.rewards
+        return np.asarray(numerator / np.add.reduceat(data, self.starts))
+
+    def enclosed_images(self, bound: FloatArray, leave: FloatArray, *, up: bool) -> FloatArray:
+        """Rigorous bounds of ``G_a(bound)`` from above if *up*, else from below (the
+        enclosure of ``s_a`` on the side to divide by: *leave*)."""
+        read = bound[self.columns]
+        numerator = np.add.reduceat(self.data * read, self.starts)
+        terms = np.add.reduceat((read != 0).astype(np.float64), self.starts)
+        if self.rewards is not None:
+            numerator += self.rewards
+            terms += self.rewards != 0
+        return enclosed_quotients(numerator, terms, leave, up=up)

@@ -92,14 +92,15 @@ class Approximation:
 def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
                 start: IntArray | Strategy | None = None, *,
                 progress: Progress | None = None) -> Approximation:
-    """The equations of *problem*'s unknown classes and their approximate optimum.
+    """The equations of *problem*'s unknown classes and their approximate optimum (or,
+    where the class graph is acyclic and its one pass precise, its certified optimum).
 
     :param rewards: per choice, the reward of taking it (None: probabilities).
     :param start: where policy iteration starts: rows per class (a strategy found for
         the same problem with other rewards), or a strategy over the states (each class
         takes the first of its rows that one of its states chooses, else a row that
         makes progress); None, or one whose system is singular: a strategy that makes
-        progress towards the goal.
+        progress towards the goal. An acyclic system keeps its rows on ties.
     """
     system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
     known = np.asarray(problem.known[system.known_states], dtype=np.float64)
@@ -107,17 +108,20 @@ def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
     moving = progress_rows(system, problem.goal[system.known_states])
     if isinstance(start, Strategy):
         start = _rows_of(mdp, system, start, moving)
+    if start is not None and start.shape != (system.size,):
+        start = None
+    levels = class_levels(system)
+    if levels.within_limit and levels.acyclic:
+        bounds, rows = acyclic_optimum(system, problem.objective, known, offset, levels,
+                                       moving if start is None else start, problem.ceiling,
+                                       progress=progress)
+        if bounds.precise_states().all():
+            return Approximation(system, known, offset, None, rows, bounds)
     evaluation = None
-    if start is not None and start.shape == (system.size,):
+    if start is not None:
         evaluation = policy_iteration(system, problem.objective, known, offset, start,
                                       progress=progress)
     else:
-        levels = class_levels(system)
-        if levels.within_limit and levels.acyclic:
-            bounds, rows = acyclic_optimum(system, problem.objective, known, offset, levels,
-                                           moving, problem.ceiling, progress=progress)
-            if bounds.precise_states().all():
-                return Approximation(system, known, offset, None, rows, bounds)
         evaluation = topological_policy_iteration(system, problem.objective, known, offset,
                                                   moving, levels, progress=progress)
     if evaluation is None:

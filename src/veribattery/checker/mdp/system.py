@@ -36,7 +36,7 @@ from veribattery.checker.certify import (
 )
 from veribattery.checker.mdp.graph import ChoiceGraph, segments
 
-__all__ = ["ChoiceSystem", "ClassRows", "LiveRows", "Objective", "bounded_row_images", "equations",
+__all__ = ["ChoiceSystem", "ClassRows", "LiveRows", "Objective", "enclosed_quotients", "equations",
            "quotient_classes"]
 
 #: Which player the values are optimal for.
@@ -191,9 +191,12 @@ class ChoiceSystem:
             if live is None:
                 live = self.live_rows(extended != 0, offset, up=up)
             return _bounded_images(self.off, live, extended, offset)
-        return bounded_row_images(self.off[rows], extended,
-                                  None if offset is None else offset[rows],
-                                  self.leave_lower[rows], self.leave_upper[rows], up=up)
+        off = self.off[rows]
+        offset = None if offset is None else offset[rows]
+        return _bounded_images(off, LiveRows.of(_nonzero_terms(off, extended), offset,
+                                                self.leave_lower[rows],
+                                                self.leave_upper[rows], up=up),
+                               extended, offset)
 
     def live_rows(self, nonzero: BoolArray, offset: FloatArray | None, *,
                   up: bool) -> LiveRows:
@@ -245,16 +248,6 @@ class ChoiceSystem:
         hits = row_values == best[self.row_class]
         rows = np.where(hits, np.arange(row_values.size), row_values.size)
         return np.asarray(self.layout.best(rows, "min"), dtype=np.int64)
-
-
-def bounded_row_images(off: CsrMatrix, extended: FloatArray, offset: FloatArray | None,
-                       leave_lower: FloatArray, leave_upper: FloatArray, *,
-                       up: bool) -> FloatArray:
-    """:meth:`ChoiceSystem.bound_images` of some rows of a system: *off* their entries,
-    *offset* their rewards (or None) and ``leave_lower..leave_upper`` the enclosures of
-    their ``s_a``; each bound is the same float as the whole system's for that row."""
-    live = LiveRows.of(_nonzero_terms(off, extended), offset, leave_lower, leave_upper, up=up)
-    return _bounded_images(off, live, extended, offset)
 
 
 def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:
@@ -309,17 +302,26 @@ def _bounded_images(off: CsrMatrix, live: LiveRows, full: FloatArray,
         numerator = numerator + offset
     if live.rows is not None:
         numerator = numerator[live.rows]
-    error = product_error(numerator, live.terms, live.terms)
-    # The formulas of the docstring, in place on the vectors made here: the same
-    # operations on the same floats, without a temporary per step.
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        quotient = (_upper_quotient(numerator, error, live.leave) if live.up
-                    else _lower_quotient(numerator, error, live.leave))
+    quotient = enclosed_quotients(numerator, live.terms, live.leave, up=live.up)
     if live.rows is None:
         return quotient
     images = np.zeros(live.count, dtype=np.float64)
     images[live.rows] = quotient
     return images
+
+
+def enclosed_quotients(numerator: FloatArray, terms: FloatArray, leave: FloatArray, *,
+                       up: bool) -> FloatArray:
+    """Rigorous bounds of the rows' ``G_a`` from their float *numerator* (``P'_a ext(x)``
+    plus the reward, >= 0; overwritten), their nonzero *terms* (the reward's included)
+    and the side of ``s_a``'s enclosure to divide by (*leave*: its lower bound if *up*,
+    else its upper bound)."""
+    error = product_error(numerator, terms, terms)
+    # The formulas of :meth:`ChoiceSystem.bound_images`, in place on the vectors made
+    # here: the same operations on the same floats, without a temporary per step.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return (_upper_quotient(numerator, error, leave) if up
+                else _lower_quotient(numerator, error, leave))
 
 
 def _upper_quotient(numerator: FloatArray, error: FloatArray,
