@@ -21,7 +21,7 @@ from gmpy2 import mpq
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.optimum import Problem, approximate
+from veribattery.checker.mdp.optimum import Equations, Problem, approximate
 from veribattery.checker.mdp.rational import (
     ObjectArray,
     RationalSystem,
@@ -108,7 +108,8 @@ def _solved(mdp: MDP, graph: ChoiceGraph, problem: Problem, probabilities: Objec
     if not problem.unknown.any():
         return ExactMdpResult(values, infinite, Strategy(problem.choices))
     exact = exact_probabilities(mdp) if probabilities is None else probabilities
-    found = approximate(mdp, problem, None if rewards is None else _floats(rewards))
+    found = approximate(mdp, Equations.of(mdp, problem),
+                        None if rewards is None else _floats(rewards))
     rational = RationalSystem.of(found.system, exact, values[found.system.known_states], rewards)
     rows, x = exact_policy_iteration(rational, problem.objective, found.rows)
     class_of = problem.classes

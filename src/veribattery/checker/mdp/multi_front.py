@@ -44,7 +44,7 @@ from veribattery.checker.mdp.multi_weighted import (
     down,
     up,
 )
-from veribattery.checker.mdp.optimum import Problem
+from veribattery.checker.mdp.optimum import Equations, Problem
 from veribattery.checker.mdp.strategy import Strategy
 
 __all__ = ["CertifiedAnswer", "Front", "FrontSearch", "least_total_at", "pareto_front"]
@@ -113,7 +113,7 @@ class FrontSearch:
         self._on_solve = on_solve
         self._optima: dict[float, WeightedOptimum] = {}
         self._starts: dict[float, IntArray] = {}  # positive weight -> rows, the latest
-        self._problems: dict[bool, Problem] = {}
+        self._problems: dict[bool, tuple[Problem, Equations | None]] = {}
         self._safest: tuple[Interval, Point] | None = None
 
     @property
@@ -122,14 +122,18 @@ class FrontSearch:
         return len(self._optima)
 
     def optimum(self, lam: float) -> WeightedOptimum:
-        """``min E[R] + lam (1 - P)`` (pre-passes shared between weights; policy
-        iteration started from the strategy of the closest positive weight solved).
+        """``min E[R] + lam (1 - P)`` (pre-passes and equations shared between weights;
+        policy iteration started from the strategy of the closest positive weight solved).
         """
         if lam not in self._optima:
             positive = lam > 0
             if positive not in self._problems:
-                self._problems[positive] = self.stopping.problem(lam)
-            found = self.stopping.optimum(lam, self._problems[positive], self._closest(lam))
+                problem = self.stopping.problem(lam)
+                equations = (Equations.of(self.stopping.mdp, problem)
+                             if problem.unknown.any() else None)
+                self._problems[positive] = (problem, equations)
+            problem, equations = self._problems[positive]
+            found = self.stopping.optimum(lam, problem, self._closest(lam), equations)
             if positive and found.rows is not None:
                 self._starts[lam] = found.rows
                 while len(self._starts) > STARTS_KEPT:

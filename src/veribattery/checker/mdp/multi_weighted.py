@@ -37,7 +37,7 @@ from veribattery.checker.mdp.components import end_components
 from veribattery.checker.mdp.graph import ChoiceGraph, reached_from
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.multi import Reach, Total, _Product
-from veribattery.checker.mdp.optimum import Problem, solve_from
+from veribattery.checker.mdp.optimum import Equations, Problem, solve_from
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.rewards import reach_reward, reach_reward_problem
 from veribattery.checker.mdp.strategy import Strategy
@@ -149,15 +149,18 @@ class StoppingMdp:
         return np.asarray(self.rewards + lam * self.missing, dtype=np.float64)
 
     def optimum(self, lam: float, problem: Problem | None = None,
-                start: IntArray | Strategy | None = None) -> WeightedOptimum:
+                start: IntArray | Strategy | None = None,
+                equations: Equations | None = None) -> WeightedOptimum:
         """``min E[R] + lam (1 - P)``, certified, and the point of its strategy.
 
         :param start: where policy iteration starts: the rows of another weight's
             strategy on the same *problem* (the strategies of close weights are close),
             or a strategy over the states (:func:`~veribattery.checker.mdp.optimum.approximate`).
+        :param equations: *problem*'s equations, if the caller keeps them.
         """
         rewards = self.weighted(lam)
-        solved = solve_from(self.mdp, self.graph, problem or self.problem(lam), rewards, start)
+        solved = solve_from(self.mdp, self.graph, problem or self.problem(lam), rewards, start,
+                            equations=equations)
         found = solved.result
         first = int(self.mdp.initial[0])
         value = Interval(float(found.values[first]), float(found.lower[first]),

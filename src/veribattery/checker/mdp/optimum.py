@@ -29,9 +29,13 @@ from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.solve import Evaluation, policy_iteration, progress_rows
 from veribattery.checker.mdp.strategy import Strategy, lifted
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
-from veribattery.checker.mdp.topological import class_levels, topological_policy_iteration
+from veribattery.checker.mdp.topological import (
+    Levels,
+    class_levels,
+    topological_policy_iteration,
+)
 
-__all__ = ["Problem", "Solved", "approximate", "solve", "solve_from", "spread"]
+__all__ = ["Equations", "Problem", "Solved", "approximate", "solve", "solve_from", "spread"]
 
 #: Systems of at most this many classes are solved exactly when their certificate
 #: stays too wide (as the DTMC side's rational solve of small systems).
@@ -71,6 +75,30 @@ class Problem:
 
 
 @dataclass(frozen=True, slots=True)
+class Equations:
+    """A problem's equations and what every solve of them shares whatever the rewards:
+    the known values, a strategy that makes progress, the class levels. Made once by a
+    caller that solves one problem with many rewards (``multi(...)``'s weights).
+
+    :param moving: per class, a row that moves towards the problem's goal.
+    """
+
+    problem: Problem
+    system: ChoiceSystem
+    known: FloatArray
+    moving: IntArray
+    levels: Levels
+
+    @classmethod
+    def of(cls, mdp: MDP, problem: Problem) -> Equations:
+        """The equations of *problem*'s unknown classes (it must have some)."""
+        system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
+        known = np.asarray(problem.known[system.known_states], dtype=np.float64)
+        moving = progress_rows(system, problem.goal[system.known_states])
+        return cls(problem, system, known, moving, class_levels(system))
+
+
+@dataclass(frozen=True, slots=True)
 class Approximation:
     """A problem's equations and policy iteration's answer on them (None: none found),
     or, on an acyclic system, the certified values of its one pass (*certified*; then
@@ -89,11 +117,11 @@ class Approximation:
         return self.start if self.evaluation is None else self.evaluation.rows
 
 
-def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
+def approximate(mdp: MDP, found: Equations, rewards: FloatArray | None,
                 start: IntArray | Strategy | None = None, *,
                 progress: Progress | None = None) -> Approximation:
-    """The equations of *problem*'s unknown classes and their approximate optimum (or,
-    where the class graph is acyclic and its one pass precise, its certified optimum).
+    """The approximate optimum of a problem's equations *found* (or, where the class
+    graph is acyclic and its one pass precise, its certified optimum).
 
     :param rewards: per choice, the reward of taking it (None: probabilities).
     :param start: where policy iteration starts: rows per class (a strategy found for
@@ -102,31 +130,29 @@ def approximate(mdp: MDP, problem: Problem, rewards: FloatArray | None,
         makes progress); None, or one whose system is singular: a strategy that makes
         progress towards the goal. An acyclic system keeps its rows on ties.
     """
-    system = equations(mdp.transitions, mdp.choice_owner, problem.classes, problem.allowed)
-    known = np.asarray(problem.known[system.known_states], dtype=np.float64)
+    system, known, moving, levels = found.system, found.known, found.moving, found.levels
+    objective = found.problem.objective
     offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
-    moving = progress_rows(system, problem.goal[system.known_states])
     if isinstance(start, Strategy):
         start = _rows_of(mdp, system, start, moving)
     if start is not None and start.shape != (system.size,):
         start = None
-    levels = class_levels(system)
     if levels.within_limit and levels.acyclic:
-        bounds, rows = acyclic_optimum(system, problem.objective, known, offset, levels,
-                                       moving if start is None else start, problem.ceiling,
-                                       progress=progress)
+        bounds, rows = acyclic_optimum(system, objective, known, offset, levels,
+                                       moving if start is None else start,
+                                       found.problem.ceiling, progress=progress)
         if bounds.precise_states().all():
             return Approximation(system, known, offset, None, rows, bounds)
     evaluation = None
     if start is not None:
-        evaluation = policy_iteration(system, problem.objective, known, offset, start,
+        evaluation = policy_iteration(system, objective, known, offset, start,
                                       progress=progress)
     else:
-        evaluation = topological_policy_iteration(system, problem.objective, known, offset,
+        evaluation = topological_policy_iteration(system, objective, known, offset,
                                                   moving, levels, progress=progress)
     if evaluation is None:
         start = moving
-        evaluation = policy_iteration(system, problem.objective, known, offset, start,
+        evaluation = policy_iteration(system, objective, known, offset, start,
                                       progress=progress)
     if start is None:
         start = moving
@@ -162,13 +188,17 @@ def solve(mdp: MDP, graph: ChoiceGraph, problem: Problem,
 
 
 def solve_from(mdp: MDP, graph: ChoiceGraph, problem: Problem, rewards: FloatArray | None,
-               start: IntArray | Strategy | None, *,
+               start: IntArray | Strategy | None, *, equations: Equations | None = None,
                progress: Progress | None = None) -> Solved:
-    """:func:`solve`, policy iteration started from *start* (:func:`approximate`)."""
+    """:func:`solve`, policy iteration started from *start* (:func:`approximate`).
+
+    :param equations: ``Equations.of(mdp, problem)``, if the caller keeps them.
+    """
     values = Bounds.exact(problem.known.copy())
     if not problem.unknown.any():
         return Solved(MdpResult(values, Strategy(problem.choices)), None)
-    found = approximate(mdp, problem, rewards, start, progress=progress)
+    equations = Equations.of(mdp, problem) if equations is None else equations
+    found = approximate(mdp, equations, rewards, start, progress=progress)
     bounds = found.certified
     if bounds is None:
         bounds = certified_values(found.system, problem.objective, found.known, found.offset,
