@@ -5,8 +5,8 @@ The QComp MDPs (consensus, csma, wlan, zeroconf, firewire; vendored in
 (``veribattery emit configs/paper/case1.yaml --set strategy.mode=synthesize``,
 issue #23's model, emitted afresh into a temporary folder). Each instance runs
 ``veribattery prism MODEL --props FILE --property P --const ... --json`` and a
-stormpy script (default engine and solver, float; the model built for that one
-property, as Storm does) in fresh processes, one after the other, each under a
+stormpy script (default engine and environment -- Storm's sound one, precision 1e-6
+relative -- float; the model built for that one property, as Storm does) in fresh processes, one after the other, each under a
 wall-clock timeout and an address-space cap, ``--repeat`` times; the minimum wall
 time of each is reported (the machine is shared), with the load average before
 and after. The table has states, choices and transitions, our value and certified
@@ -108,13 +108,19 @@ props = [p for p in stormpy.parse_properties(open(sys.argv[2]).read(), prog)
          if p.get_name() == sys.argv[3]]
 model = stormpy.build_model(prog, props)
 result = stormpy.model_checking(model, props[0])
+intervals = []
 if not hasattr(result, "get_truth_values_vector"):
     found = [float(result.get_value(s)) for s in model.initial_states]
+    for s in model.initial_states:
+        bounded = result[s]  # stormpy's sound default: the value with its interval
+        intervals.append([float(bounded.lower), float(bounded.upper)]
+                         if bounded.has_lower and bounded.has_upper else None)
 else:
     truth = result.get_truth_values_vector()
     found = [bool(truth[s]) for s in model.initial_states]
 print(json.dumps({"states": model.nr_states, "choices": model.nr_choices,
-                  "transitions": model.nr_transitions, "values": found}))
+                  "transitions": model.nr_transitions, "values": found,
+                  "intervals": intervals}))
 """
 
 
@@ -200,26 +206,33 @@ def _show(value: float | bool | None) -> str:
     return f"{value:.12g}"
 
 
-def _storm_value(storm: Measured, ours: float | bool | None) -> float | bool | None:
-    """Storm's value at the initial states (the end of its range nearer to ours)."""
-    found = [_number(v) for v in (storm.output or {}).get("values") or []]  # type: ignore[union-attr]
-    found = [v for v in found if v is not None]
-    if not found:
-        return None
-    if isinstance(ours, float) and all(isinstance(v, float) for v in found):
-        found.sort(key=lambda v: abs(float(v) - ours))
-    return found[0]
+def _storm_value(storm: Measured, ours: float | bool | None
+                 ) -> tuple[float | bool | None, list[float] | None]:
+    """Storm's value at the initial states (the one nearer to ours) and its interval."""
+    output = storm.output or {}
+    found = [_number(v) for v in output.get("values") or []]  # type: ignore[union-attr]
+    intervals = list(output.get("intervals") or [])  # type: ignore[union-attr]
+    pairs = [(v, intervals[k] if k < len(intervals) else None)
+             for k, v in enumerate(found) if v is not None]
+    if not pairs:
+        return None, None
+    if isinstance(ours, float) and all(isinstance(v, float) for v, _ in pairs):
+        pairs.sort(key=lambda pair: abs(float(pair[0]) - ours))  # type: ignore[arg-type]
+    return pairs[0]
 
 
-def _inside(bounds: object, value: float | bool | None, theirs: float | bool | None) -> str:
+def _meet(bounds: object, value: float | bool | None, theirs: float | bool | None,
+          interval: list[float] | None) -> str:
+    """Whether Storm's interval (its value if it gave none) meets our certified one."""
     if theirs is None or value is None:
         return ""
     if isinstance(theirs, bool) or isinstance(value, bool):
         return "yes" if theirs == value else "**no**"
     if isinstance(bounds, list):
         low, high = _number(bounds[0]), _number(bounds[1])
+        their_low, their_high = interval if interval else (theirs, theirs)
         if isinstance(low, float) and isinstance(high, float):
-            return "yes" if low <= theirs <= high else "**no**"
+            return "yes" if low <= their_high and their_low <= high else "**no**"
     return ""
 
 
@@ -233,7 +246,7 @@ def row(instance: Instance, ours: Measured, storm: Measured) -> str:
     assert isinstance(timings, dict)
     bounds = result.get("bounds")
     value = _number(result.get("value"))
-    theirs = _storm_value(storm, value)
+    theirs, interval = _storm_value(storm, value)
     if value is None:
         ours_cell = ours.failure or "-"
     elif isinstance(bounds, list):
@@ -241,6 +254,8 @@ def row(instance: Instance, ours: Measured, storm: Measured) -> str:
     else:
         ours_cell = _show(value)
     storm_cell = _show(theirs) if theirs is not None else (storm.failure or "-")
+    if interval:
+        storm_cell += f" [{_show(interval[0])}, {_show(interval[1])}]"
     time_ratio = ours.wall_s / storm.wall_s if ours.output and storm.output else math.nan
     rss_ratio = ours.peak_mb / storm.peak_mb if ours.output and storm.output else math.nan
     split = (f"{timings.get('build', math.nan):.1f} + {timings.get('check', math.nan):.1f}"
@@ -248,14 +263,16 @@ def row(instance: Instance, ours: Measured, storm: Measured) -> str:
     sizes = " | ".join(str(model.get(k, "")) for k in ("states", "choices", "transitions"))
     storm_states = (storm.output or {}).get("states", "") if storm.output else ""
     return (f"| {instance.label} | {instance.prop} | {sizes} | {storm_states} | {ours_cell} "
-            f"| {storm_cell} | {_inside(bounds, value, theirs)} | {_show(instance.reference)} "
+            f"| {storm_cell} | {_meet(bounds, value, theirs, interval)} "
+            f"| {_show(instance.reference)} "
             f"| {ours.wall_s:.1f} | {split} | {storm.wall_s:.1f} | {ratio_cell(time_ratio, ours)} "
             f"| {ours.peak_mb:.0f} | {storm.peak_mb:.0f} | {ratio_cell(rss_ratio, ours)} |")
 
 
 HEADER = (
     "| instance | property | states | choices | transitions | Storm states "
-    "| veribattery value [certified interval] | Storm value | Storm inside | QComp "
+    "| veribattery value [certified interval] | Storm value [its interval] "
+    "| intervals meet | QComp "
     "| ours s | ours build + check s | Storm s | time ratio | ours MB | Storm MB "
     "| RSS ratio |\n"
     "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n"
@@ -271,11 +288,11 @@ def write(out: Path, rows: list[str], settings: str) -> None:
         "(default engine, float, the model built for the one property), each in a fresh "
         f"process, one after the other. {settings}\n\n"
         "Ratios are veribattery / Storm; \"ours build + check\" is veribattery's own split "
-        "of its time (the rest is start-up and parsing). \"Storm inside\" says whether "
-        "Storm's value lies in veribattery's certified interval: Storm's default value "
-        "iteration stops when two iterates differ by 1e-6 (relative), which is no bound "
-        "on its error, so \"no\" is Storm's error where the QComp column (an exact "
-        "engine's result where QComp has one) agrees with ours. \"QComp\": the result "
+        "of its time (the rest is start-up and parsing). Both answers are certified: "
+        "stormpy's default environment is Storm's sound one, whose value comes with an "
+        "interval of relative width at most 1e-6 (Storm's default precision), where "
+        "veribattery's is at most 1e-9. \"intervals meet\" says whether the two "
+        "intervals overlap, as they must if both are right. \"QComp\": the result "
         "QComp records for the instance (Storm 1.2.4; exact where QComp has the exact "
         "engine's run: zeroconf, firewire).\n\n"
         + HEADER + "\n".join(rows) + "\n")

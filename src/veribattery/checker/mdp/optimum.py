@@ -4,10 +4,12 @@ Every unbounded operator ends here once its pre-pass has decided which states
 are known, which are unknown (and which end components among them are
 collapsed) and which choices may be used -- a :class:`Problem`. :func:`solve`
 builds the :class:`~veribattery.checker.mdp.system.ChoiceSystem` of the unknown
-classes, approximates the optimum by policy iteration from the greedy strategy of
-topological value iteration (:mod:`~veribattery.checker.mdp.topological`; else
-from a strategy that makes progress towards the *goal* states), certifies it, and
-lifts the strategy from classes back to states. The exact engine
+classes (:class:`Equations`). Where their class graph is acyclic, one pass over its
+levels certifies the optimum (:mod:`~veribattery.checker.mdp.acyclic`); otherwise
+policy iteration from the greedy strategy of topological value iteration
+(:mod:`~veribattery.checker.mdp.topological`; else from a strategy that makes
+progress towards the *goal* states) approximates it and the certificate bounds it.
+Either way the strategy is lifted from classes back to states. The exact engine
 (:mod:`~veribattery.checker.mdp.exact`) solves the same problems in rationals.
 """
 
