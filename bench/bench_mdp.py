@@ -5,15 +5,16 @@ The QComp MDPs (consensus, csma, wlan, zeroconf, firewire; vendored in
 (``veribattery emit configs/paper/case1.yaml --set strategy.mode=synthesize``,
 issue #23's model, emitted afresh into a temporary folder). Each instance runs
 ``veribattery prism MODEL --props FILE --property P --const ... --json`` and a
-stormpy script (default engine and environment -- Storm's sound one, precision 1e-6
-relative -- float; the model built for that one property, as Storm does) in fresh processes, one after the other, each under a
-wall-clock timeout and an address-space cap, ``--repeat`` times; the minimum wall
-time of each is reported (the machine is shared), with the load average before
-and after. The table has states, choices and transitions, our value and certified
-interval, Storm's value and whether it lies inside our interval, QComp's recorded
-result (Storm's, exact where QComp has the exact engine's), wall time and peak RSS
-of both and their ratios (veribattery / Storm); it is rewritten after every
-instance, so a stopped run keeps what it measured.
+stormpy script (default engine and environment -- Storm's sound one, precision
+1e-6 relative -- float; the model built for that one property, as Storm does) in
+fresh processes, one after the other, each under a wall-clock timeout and an
+address-space cap, ``--repeat`` times; the minimum wall time of each is reported
+(the machine is shared), with the load average before and after. The table has
+states, choices and transitions, our value and certified interval, Storm's value
+and its interval and whether the two meet, QComp's recorded result (Storm's, exact
+where QComp has the exact engine's), wall time and peak RSS of both and their
+ratios (veribattery / Storm); it is rewritten after every instance, so a stopped
+run keeps what it measured.
 
     python bench/bench_mdp.py [--only consensus] [--repeat 3] [--timeout 900]
         [--memory-gb 8] [--out docs/_bench/mdp.md]
@@ -223,16 +224,18 @@ def _storm_value(storm: Measured, ours: float | bool | None
 
 def _meet(bounds: object, value: float | bool | None, theirs: float | bool | None,
           interval: list[float] | None) -> str:
-    """Whether Storm's interval (its value if it gave none) meets our certified one."""
+    """Whether Storm's interval meets our certified one (Storm gives none for multi(...):
+    its default method approximates the Pareto front to 1e-4, absolute)."""
     if theirs is None or value is None:
         return ""
     if isinstance(theirs, bool) or isinstance(value, bool):
         return "yes" if theirs == value else "**no**"
+    if not interval:
+        return "(Storm: no interval)"
     if isinstance(bounds, list):
         low, high = _number(bounds[0]), _number(bounds[1])
-        their_low, their_high = interval if interval else (theirs, theirs)
         if isinstance(low, float) and isinstance(high, float):
-            return "yes" if low <= their_high and their_low <= high else "**no**"
+            return "yes" if low <= interval[1] and interval[0] <= high else "**no**"
     return ""
 
 
@@ -292,7 +295,9 @@ def write(out: Path, rows: list[str], settings: str) -> None:
         "stormpy's default environment is Storm's sound one, whose value comes with an "
         "interval of relative width at most 1e-6 (Storm's default precision), where "
         "veribattery's is at most 1e-9. \"intervals meet\" says whether the two "
-        "intervals overlap, as they must if both are right. \"QComp\": the result "
+        "intervals overlap, as they must if both are right; for `multi(...)` Storm gives a "
+        "value without an interval, from a Pareto approximation of default precision 1e-4 "
+        "(absolute). \"QComp\": the result "
         "QComp records for the instance (Storm 1.2.4; exact where QComp has the exact "
         "engine's run: zeroconf, firewire).\n\n"
         + HEADER + "\n".join(rows) + "\n")

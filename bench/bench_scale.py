@@ -2,13 +2,13 @@
 
 Each instance runs ``veribattery prism MODEL --props FILE --property P --const ...
 --json`` and a stormpy script (default engine and environment -- Storm's sound one,
-precision 1e-6 relative -- float; the model built for that one property, as Storm does) in fresh processes, one after the other,
-each under a wall-clock timeout and an address-space cap (``ulimit -v``). It
-reports states, our value and certified interval, Storm's value and whether it
-lies inside our interval, the reference value from QComp's property files where
-there is one, whole-process wall time and peak RSS of both and the ratios, as a
-markdown table (rewritten after every instance, so a stopped run keeps what it
-measured).
+precision 1e-6 relative -- float; the model built for that one property, as Storm
+does) in fresh processes, one after the other, each under a wall-clock timeout and
+an address-space cap (``ulimit -v``). It reports states, our value and certified
+interval, Storm's value and whether it lies inside our interval, the reference value
+from QComp's property files where there is one, whole-process wall time and peak RSS
+of both and the ratios, as a markdown table (rewritten after every instance, so a
+stopped run keeps what it measured).
 
 The models are vendored in ``bench/qcomp/`` (CC-BY 4.0, origin in its README;
 ``bench/fetch_qcomp.sh`` refreshes them). brp and egl have no published instance

@@ -78,7 +78,7 @@ def prism_command(
     max_states: int | None,
     **analysis: Any,
 ) -> None:
-    """Check PCTL properties of a PRISM DTMC MODEL file."""
+    """Check PCTL properties of a PRISM DTMC or MDP MODEL file."""
     from veribattery.lang import parse_constant_assignments
     from veribattery.pipeline import ModelCheckRun as ModelCheckRunType
     from veribattery.pipeline import check_prism_file
