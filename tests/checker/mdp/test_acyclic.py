@@ -4,16 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from fractions import Fraction
-from typing import Any
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tests.checker.mdp.counting import counted_evaluations
 from tests.checker.mdp.models import mask, mdp_from
-from veribattery.checker.mdp import MDP, reach_probability, reach_reward, topological
-from veribattery.checker.mdp import solve as solve_module
+from veribattery.checker.mdp import MDP, reach_probability, reach_reward
 from veribattery.checker.mdp.acyclic import acyclic_optimum
 from veribattery.checker.mdp.system import equations, quotient_classes
 from veribattery.checker.mdp.topological import class_levels
@@ -114,15 +113,7 @@ def test_a_row_into_equal_values_gives_that_value_exactly() -> None:
 
 
 def test_acyclic_systems_take_no_lu_solve(monkeypatch: pytest.MonkeyPatch) -> None:
-    calls = [0]
-    evaluate: Callable[..., Any] = solve_module.evaluate
-
-    def counting(*args: Any, **kwargs: Any) -> Any:
-        calls[0] += 1
-        return evaluate(*args, **kwargs)
-
-    monkeypatch.setattr(solve_module, "evaluate", counting)
-    monkeypatch.setattr(topological, "evaluate", counting)
+    calls = counted_evaluations(monkeypatch)
     mdp = mdp_from([
         [[(1, 0.5), (3, 0.5)], [(2, 1.0)]],
         [[(2, 0.25), (1, 0.75)]],

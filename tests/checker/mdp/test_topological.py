@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from fractions import Fraction
-from typing import Any
 
 import numpy as np
 import pytest
 
+from tests.checker.mdp.counting import counted_evaluations
 from tests.checker.mdp.models import HALF, mask, mdp_from
 from veribattery.checker.mdp import MDP, reach_probability, reach_reward, topological
 from veribattery.checker.mdp import solve as solve_module
@@ -48,20 +47,6 @@ def _system(mdp: MDP, unknown: list[int]) -> ChoiceSystem:
     return equations(mdp.transitions, mdp.choice_owner, class_of)
 
 
-def _counted(monkeypatch: pytest.MonkeyPatch) -> list[int]:
-    """Counts the strategy evaluations (sparse LU solves of the whole system)."""
-    calls = [0]
-    evaluate: Callable[..., Any] = solve_module.evaluate
-
-    def counting(*args: Any, **kwargs: Any) -> Any:
-        calls[0] += 1
-        return evaluate(*args, **kwargs)
-
-    monkeypatch.setattr(solve_module, "evaluate", counting)
-    monkeypatch.setattr(topological, "evaluate", counting)
-    return calls
-
-
 def test_levels_put_the_cycle_first_and_the_chain_above_it() -> None:
     system = _system(LADDER, [0, 1, 2, 3, 4])
     levels = class_levels(system)
@@ -84,7 +69,7 @@ def test_topological_values_solve_the_ladder(objective: Objective,
 
 
 def test_ladder_end_to_end_with_one_evaluation(monkeypatch: pytest.MonkeyPatch) -> None:
-    calls = _counted(monkeypatch)
+    calls = counted_evaluations(monkeypatch)
     high = reach_probability(LADDER, LADDER.labels["goal"], objective="max")
     assert high.values[:5] == pytest.approx(LADDER_MAX, rel=1e-14)
     assert high.strategy.choices[:5].tolist() == [0, 3, 6, 7, 10]
@@ -114,7 +99,7 @@ def test_an_acyclic_mdp_needs_no_evaluation_where_progress_needed_many(
         monkeypatch: pytest.MonkeyPatch) -> None:
     n = 20
     mdp, exact = _chain(n)
-    calls = _counted(monkeypatch)
+    calls = counted_evaluations(monkeypatch)
     result = reach_probability(mdp, mdp.labels["goal"], objective="max")
     assert result.values[:n] == pytest.approx([float(v) for v in exact], rel=1e-13)
     assert result.strategy.choices[:n].tolist() == list(range(0, 2 * n, 2))  # advance
@@ -190,7 +175,7 @@ def test_too_many_levels_fall_back_to_progress(monkeypatch: pytest.MonkeyPatch) 
     n = 20
     mdp, exact = _chain(n)
     monkeypatch.setattr(topological, "LEVEL_LIMIT", n - 1)
-    calls = _counted(monkeypatch)
+    calls = counted_evaluations(monkeypatch)
     result = reach_probability(mdp, mdp.labels["goal"], objective="max")
     assert result.values[:n] == pytest.approx([float(v) for v in exact], rel=1e-13)
     assert calls[0] >= n  # the progress start's rounds, one per state
