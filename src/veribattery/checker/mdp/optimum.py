@@ -119,11 +119,11 @@ class Approximation:
         return self.start if self.evaluation is None else self.evaluation.rows
 
 
-def approximate(mdp: MDP, found: Equations, rewards: FloatArray | None,
+def approximate(mdp: MDP, equations: Equations, rewards: FloatArray | None,
                 start: IntArray | Strategy | None = None, *,
                 progress: Progress | None = None) -> Approximation:
-    """The approximate optimum of a problem's equations *found* (or, where the class
-    graph is acyclic and its one pass precise, its certified optimum).
+    """The approximate optimum of a problem's *equations* (or, where their class graph
+    is acyclic and its one pass precise, their certified optimum).
 
     :param rewards: per choice, the reward of taking it (None: probabilities).
     :param start: where policy iteration starts: rows per class (a strategy found for
@@ -132,8 +132,9 @@ def approximate(mdp: MDP, found: Equations, rewards: FloatArray | None,
         makes progress); None, or one whose system is singular: a strategy that makes
         progress towards the goal. An acyclic system keeps its rows on ties.
     """
-    system, known, moving, levels = found.system, found.known, found.moving, found.levels
-    objective = found.problem.objective
+    system, known, moving, levels = (equations.system, equations.known, equations.moving,
+                                     equations.levels)
+    objective = equations.problem.objective
     offset = None if rewards is None else np.asarray(rewards[system.choices], dtype=np.float64)
     if isinstance(start, Strategy):
         start = _rows_of(mdp, system, start, moving)
@@ -142,7 +143,7 @@ def approximate(mdp: MDP, found: Equations, rewards: FloatArray | None,
     if levels.within_limit and levels.acyclic:
         bounds, rows = acyclic_optimum(system, objective, known, offset, levels,
                                        moving if start is None else start,
-                                       found.problem.ceiling, progress=progress)
+                                       equations.problem.ceiling, progress=progress)
         if bounds.precise_states().all():
             return Approximation(system, known, offset, None, rows, bounds)
     evaluation = None
