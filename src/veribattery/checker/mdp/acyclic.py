@@ -50,6 +50,18 @@ def acyclic_optimum(system: ChoiceSystem, objective: Objective, known: FloatArra
     """
     if not levels.acyclic:
         raise ValueError("the class graph has a cycle")
+    value, lower, upper = _level_pass(system, objective, known, offset, levels, ceiling,
+                                      progress)
+    rows = greedy_rows(system.images(value, known, offset), system.groups[:-1], objective,
+                       preferred)
+    return Bounds.around(value, lower, upper), rows
+
+
+def _level_pass(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                offset: FloatArray | None, levels: Levels, ceiling: float,
+                progress: Progress | None) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The point values and the lower and upper bounds of every class, level by level
+    (the rows in level order are let go before the caller's greedy strategy)."""
     order = LevelOrder.of(system, offset, levels)
     leave_lower, leave_upper = system.leave_lower[order.rows], system.leave_upper[order.rows]
     lower = np.concatenate([np.zeros(system.size), known])
@@ -67,10 +79,8 @@ def acyclic_optimum(system: ChoiceSystem, objective: Objective, known: FloatArra
             rows.enclosed_images(upper, leave_lower[first:last], up=True), starts), ceiling)
         if progress is not None:
             progress(k + 1, levels.count, "levels")
-    x = value[: system.size].astype(np.float64)
-    rows_taken = greedy_rows(system.images(x, known, offset), system.groups[:-1], objective,
-                             preferred)
-    return Bounds.around(x, lower[: system.size], upper[: system.size]), rows_taken
+    n = system.size
+    return value[:n].astype(np.float64), lower[:n].copy(), upper[:n].copy()
 
 
 @dataclass(frozen=True, slots=True)

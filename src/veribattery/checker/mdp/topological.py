@@ -125,15 +125,11 @@ class Levels:
 def class_levels(system: ChoiceSystem) -> Levels:
     """The levels of the condensation of *system*'s class graph."""
     n = system.size
-    inner = sp.coo_matrix(system.inner)
-    src = system.row_class[inner.row]
-    graph = sp.csr_matrix((np.ones(inner.nnz, dtype=np.int32), (src, inner.col)),
-                          shape=(n, n))
+    graph = _class_graph(system)
     found = condensation(graph)
     component = np.empty(n, dtype=np.int64)
     component[found.order] = np.repeat(np.arange(found.count, dtype=np.int64), found.sizes)
-    across = component[src] != component[inner.col]
-    depth = _longest_paths(found.count, component[src][across], component[inner.col][across])
+    depth = _longest_paths(found.count, *_edges_across(graph, component))
     level = depth[component]
     cyclic = found.sizes[component] > 1
     order = np.lexsort((cyclic, level)).astype(np.int64)
@@ -142,6 +138,28 @@ def class_levels(system: ChoiceSystem) -> Levels:
     np.cumsum(np.bincount(level, minlength=count), out=starts[1:])
     trivial = np.bincount(level[~cyclic], minlength=count)
     return Levels(order, starts, starts[:-1] + trivial)
+
+
+def _class_graph(system: ChoiceSystem) -> sp.csr_matrix:
+    """The class graph: an entry ``c -> d`` for each entry of a row of class *c* in the
+    column of class *d* (repeats kept). A class's rows are contiguous, so its entries
+    are read from the system's matrix as they lie, without a copy of its columns."""
+    off = system.off
+    inner = off.indices < system.size
+    kept = np.zeros(inner.size + 1, dtype=np.int64)
+    np.cumsum(inner, out=kept[1:])
+    indptr = kept[off.indptr[system.groups]]
+    indices = off.indices[inner]
+    return sp.csr_matrix((np.ones(indices.size, dtype=np.int8), indices, indptr),
+                         shape=(system.size, system.size))
+
+
+def _edges_across(graph: sp.csr_matrix, component: IntArray) -> tuple[IntArray, IntArray]:
+    """The edges of *graph* between different components, as component pairs."""
+    src = component[np.repeat(np.arange(graph.shape[0], dtype=np.int64), np.diff(graph.indptr))]
+    dst = component[graph.indices]
+    across = src != dst
+    return src[across], dst[across]
 
 
 def _longest_paths(count: int, src: IntArray, dst: IntArray) -> IntArray:
