@@ -141,16 +141,6 @@ class ChoiceSystem:
         """The class of each row."""
         return np.repeat(np.arange(self.size, dtype=np.int64), np.diff(self.groups))
 
-    @property
-    def inner(self) -> CsrMatrix:
-        """The columns of the classes: entries between unknowns."""
-        return sp.csr_matrix(self.off[:, : self.size])
-
-    @property
-    def outer(self) -> CsrMatrix:
-        """The columns of the known states."""
-        return sp.csr_matrix(self.off[:, self.size:])
-
     def graph(self) -> ChoiceGraph:
         """The rows as a choice graph over classes then known states."""
         return ChoiceGraph.of(self.off, self.row_class)
