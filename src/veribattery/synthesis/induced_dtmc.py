@@ -112,7 +112,7 @@ def induced_dtmc(mdp: MDP, choices: IntArray, reached: IntArray) -> DTMC:
                     for r in mdp.rewards)
     deadlocks = int(labels["deadlock"].sum()) if "deadlock" in labels else 0
     return DTMC(sp.csr_matrix(mdp.transitions[rows][:, reached]),
-                np.asarray(mdp.states[reached]), mdp.variable_names, renumber[mdp.initial],
+                np.asarray(mdp.states[reached], dtype=np.int64), mdp.variable_names, renumber[mdp.initial],
                 labels, rewards, deadlocks=deadlocks)
 
 

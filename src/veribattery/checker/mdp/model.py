@@ -55,7 +55,8 @@ class MDP:
     :param choice_actions: per choice, the index of its action in *actions*.
     :param actions: action names; ``""`` is the unlabelled action.
     :param rewards: the reward structures, in declaration order.
-    :param states: one row per state, one column per variable (values), if known.
+    :param states: one row per state, one column per variable (values), if known; it may
+        be stored narrower than int64 (read columns through int64 copies).
     :param variable_names: the columns of *states*.
     :param deadlocks: number of states that had no enabled choice (given a self-loop).
     """

@@ -88,7 +88,8 @@ def build_exact_mdp(
     """
     source = _source(model, flat, constants)
     program = exact_program(compile_program(flat), flat, source)
-    built = _exact_labels(build_mdp(flat, progress=progress, program=program), flat, source)
+    built = _exact_labels(build_mdp(flat, progress=progress, program=program).wide(), flat,
+                          source)
     updates = {k: tuple(u.probability for u in c.updates) for k, c in source.commands.items()}
     context = _Context(source.constants, source.columns, updates, source.ranges)
     atoms = atomic_groups(program)
