@@ -61,7 +61,7 @@ LAZY_PACKAGES: Mapping[str, Mapping[str, str]] = {
     # (SuperLU, triangular substitution) are what a check reads from it.
     "scipy.sparse.linalg": {
         "LinearOperator": "scipy.sparse.linalg._interface",
-        **dict.fromkeys(("splu", "spilu", "spsolve", "spsolve_triangular"),
+        **dict.fromkeys(("splu", "spilu", "spsolve", "spsolve_triangular", "SuperLU"),
                         "scipy.sparse.linalg._dsolve"),
     },
     # Read by scipy.sparse.linalg._dsolve (SuperLU's wrapper): numpy's exception.

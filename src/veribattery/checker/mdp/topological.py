@@ -31,7 +31,6 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
-from scipy.sparse.linalg import splu
 
 from veribattery._sparse import csr_rows
 from veribattery._types import BoolArray, FloatArray, IntArray
@@ -44,6 +43,7 @@ from veribattery.checker.mdp.solve import (
     evaluate,
     improve,
     is_improper,
+    strategy_lu,
     tightest_among_ties,
 )
 from veribattery.checker.mdp.system import ChoiceSystem, ClassRows, Objective
@@ -344,7 +344,7 @@ class _Local:
         values are not finite and nonnegative (it stays among these classes)."""
         matrix = sp.csc_matrix(sp.diags(self.leave[rows]) - self.inner[rows])
         try:
-            values = np.asarray(splu(matrix).solve(self.constant[rows]), dtype=np.float64)
+            values = np.asarray(strategy_lu(matrix).solve(self.constant[rows]), dtype=np.float64)
         except RuntimeError:
             return None
         scale = float(np.max(np.abs(values), initial=1.0))
