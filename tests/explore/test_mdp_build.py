@@ -156,3 +156,46 @@ def test_exact_checks_mdps(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     exact = [r["exact"] for r in json.loads(result.stdout)["results"]]
     assert exact == ["1", "0", "2", "Infinity"]
+
+
+#: x up to 120: its square (14,400) does not fit the int8 the state table is kept in.
+WIDE_SQUARES = """mdp
+module m
+  x : [0..120] init 0;
+  [inc] x<120 -> (x'=x+1);
+  [jump] x<100 -> 0.5:(x'=120) + 0.5:(x'=x);
+endmodule
+rewards "sq"
+  true : x*x;
+endrewards
+label "far" = x*x >= 14400;
+"""
+
+
+def test_state_table_is_narrow_and_read_wide() -> None:
+    built = build_mdp(flatten_model(parse_model(WIDE_SQUARES)))
+    assert built.states.dtype == np.int8
+    wide = built.wide()
+    assert wide.states.dtype == np.int64
+    assert np.array_equal(wide.states, built.states)
+    x = wide.states[:, 0]
+    assert sorted(x.tolist()) == list(range(121))
+    # Labels and rewards are evaluated on int64 rows: 120 * 120 in int8 would be 64.
+    assert np.flatnonzero(built.labels["far"]).tolist() == np.flatnonzero(x == 120).tolist()
+    assert np.array_equal(built.rewards[0].state, (x * x).astype(np.float64))
+
+
+@pytest.mark.parametrize(("prop", "expected"), [
+    ("Pmax=? [ X x*x>=14400 ]", 0.5),  # [jump] from x=0
+    ("Pmin=? [ X x*x>=14400 ]", 0.0),  # [inc]
+    ('R{"sq"}max=? [ I=1 ]', 0.5 * 14400 + 0.5 * 0),
+])
+def test_properties_read_the_narrow_table_wide(prop: str, expected: float,
+                                                tmp_path: Path) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(WIDE_SQUARES)
+    for exact in ([], ["--exact"]):
+        result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop, "--json",
+                                          *exact])
+        assert result.exit_code == 0, result.output
+        assert json.loads(result.stdout)["results"][0]["value"] == pytest.approx(expected)
