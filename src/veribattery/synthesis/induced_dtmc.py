@@ -112,8 +112,8 @@ def induced_dtmc(mdp: MDP, choices: IntArray, reached: IntArray) -> DTMC:
                     for r in mdp.rewards)
     deadlocks = int(labels["deadlock"].sum()) if "deadlock" in labels else 0
     return DTMC(sp.csr_matrix(mdp.transitions[rows][:, reached]),
-                np.asarray(mdp.states[reached], dtype=np.int64), mdp.variable_names, renumber[mdp.initial],
-                labels, rewards, deadlocks=deadlocks)
+                np.asarray(mdp.states[reached], dtype=np.int64), mdp.variable_names,
+                renumber[mdp.initial], labels, rewards, deadlocks=deadlocks)
 
 
 def _reached(mdp: MDP, choices: IntArray) -> IntArray:
