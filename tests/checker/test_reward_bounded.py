@@ -138,3 +138,45 @@ def test_small_mission_against_storm(tmp_path: Path) -> None:
     storm = _storm(text, props, tmp_path)
     assert storm[2] > 0  # some success within the bounds checked
     assert _ours(text, props) == pytest.approx(storm, rel=1e-8, abs=1e-12)
+
+
+# ---------------------------------------------------------------------------
+# Storm's bound lists: F^{rew{"r"}<=T}, F^{steps<=k} (the QVBS property files' spelling)
+# ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("storm", "ours"), [
+    ('P=? [ F^{rew{"t"}<=5} "succ" ]', 'P=? [ F{"t"}<=5 "succ" ]'),
+    ('P=? [ F^{{"t"}<6} "fail" ]', 'P=? [ F{"t"}<6 "fail" ]'),
+    ('P=? [ s=0 U^{rew{"t"}<=50} s=1 ]', 'P=? [ s=0 U{"t"}<=50 s=1 ]'),
+    ('P=? [ F^{steps<=3} "succ" ]', 'P=? [ F<=3 "succ" ]'),
+    ('P=? [ F^{time<=3} "succ" ]', 'P=? [ F<=3 "succ" ]'),
+    ('P=? [ F^{<=3} "succ" ]', 'P=? [ F<=3 "succ" ]'),
+    ('P=? [ F^{steps[2,4]} "succ" ]', 'P=? [ F[2,4] "succ" ]'),
+    ('P=? [ s<2 U^{steps<=4} "succ" ]', 'P=? [ s<2 U<=4 "succ" ]'),
+])
+def test_storm_bound_lists_read_as_the_bounds_they_spell(storm: str, ours: str) -> None:
+    assert parse_property(storm).formula == parse_property(ours).formula
+    assert _value(storm) == _value(ours)
+
+
+@pytest.mark.parametrize(("prop", "message"), [
+    ('P=? [ F^{rew{"t"}<=5, steps<=3} "succ" ]', "several bounds in one ^{...}"),
+    ('P=? [ F^{rew{"t"}>=5} "succ" ]', "a reward bound must be <=T or <T"),
+])
+def test_storm_bound_lists_outside_the_language(prop: str, message: str) -> None:
+    assert message in str(parse_property(prop).unsupported)
+
+
+def test_storm_bound_list_with_an_unknown_reference_is_a_syntax_error() -> None:
+    from veribattery.errors import PrismSyntaxError
+
+    with pytest.raises(PrismSyntaxError, match=r"1:10: unknown bound reference 'cost' "
+                                               r'\(expected rew\{"name"\}, steps or time\)'):
+        parse_property('P=? [ F^{cost<=5} "succ" ]')
+
+
+def test_storm_bound_lists_against_storm(tmp_path: Path) -> None:
+    props = ['P=? [ F^{rew{"t"}<=6} "succ" ]', 'P=? [ s<2 U^{rew{"t"}<=9} "succ" ]',
+             'P=? [ F^{steps<=4} "fail" ]']
+    assert _ours(CHAIN, props) == pytest.approx(_storm(CHAIN, props, tmp_path), abs=1e-12)

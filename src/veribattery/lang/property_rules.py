@@ -58,6 +58,8 @@ _FILTER_OPS = frozenset({
 _FILTER_ALIASES = {"+": "sum", "&": "forall", "|": "exists"}
 #: The Storm operator ``T=? [F phi]`` is ``R=? [F phi]`` for this reward structure name.
 STEPS_REWARD = "\0steps"
+#: Storm's expected-steps operators and the objective each names on an MDP.
+_STEPS_DIRECTIONS: dict[str, str | None] = {"T": None, "Tmin": "min", "Tmax": "max"}
 
 
 @dataclass(frozen=True, slots=True)
@@ -292,16 +294,18 @@ class PropertyRules:
 
     def steps_op(self, meta: Meta, children: list[Any]) -> Value:
         name, _query, *rest = children
-        if str(name) != "T":
-            raise PrismSyntaxError(f"unknown operator '{name}' (expected P, R, S or T)",
-                                   self._span(meta))
+        direction = _STEPS_DIRECTIONS.get(str(name), "unknown")
+        if direction == "unknown":
+            raise PrismSyntaxError(f"unknown operator '{name}' (expected P, R, S, T, Tmin "
+                                   "or Tmax)", self._span(meta))
         rest, legacy = _split_legacy(rest)
         for item in (rest[0], legacy):
             if isinstance(item, Unsupported):
                 return item
         if not isinstance(rest[0], Reach):
             return Unsupported("T=? takes F phi", self._span(meta))
-        node = RewardOp(STEPS_REWARD, "=?", None, rest[0], self._span(meta))
+        node = RewardOp(STEPS_REWARD, "=?", None, rest[0], self._span(meta),
+                        direction=cast(Literal["min", "max"] | None, direction))
         return self._wrap(node, legacy, meta)
 
     def steady_op(self, meta: Meta, children: list[Any]) -> Value:
@@ -349,6 +353,33 @@ class PropertyRules:
         left, _op, reward, bound, right = children
         return _reward_bounded(left, right, reward, bound, self._span(meta))
 
+    def storm_bounded_unop(self, meta: Meta, children: list[Any]) -> Value:
+        """``F^{rew{"r"}<=T} phi`` or ``F^{steps<=k} phi`` (Storm's bound lists)."""
+        op, _power, *bounds, right = children
+        return _storm_bounded(str(op), BoolLit(True, self._span(meta)), bounds, right,
+                              self._span(meta))
+
+    def storm_bounded_binop(self, meta: Meta, children: list[Any]) -> Value:
+        left, op, _power, *bounds, right = children
+        return _storm_bounded(str(op), left, bounds, right, self._span(meta))
+
+    def named_reward_bound(self, meta: Meta, children: list[Any]) -> _StormBound:
+        name, reward, bound = children
+        return _StormBound(_bound_reference(str(name), ("rew",), self._span(meta)), reward,
+                           bound)
+
+    def reward_bound(self, meta: Meta, children: list[Any]) -> _StormBound:
+        reward, bound = children
+        return _StormBound("rew", reward, bound)
+
+    def named_step_bound(self, meta: Meta, children: list[Any]) -> _StormBound:
+        name, bound = children
+        return _StormBound(_bound_reference(str(name), ("steps", "time"), self._span(meta)),
+                           None, bound)
+
+    def step_bound(self, meta: Meta, children: list[Any]) -> _StormBound:
+        return _StormBound("steps", None, children[0])
+
     def conditional_prob_op(self, meta: Meta, children: list[Any]) -> Value:
         children, legacy = _split_legacy(children)
         query, path, _cond, condition = children
@@ -389,6 +420,40 @@ def _reward_bounded(left: Any, right: Any, reward: Any, bound: Any, span: Span) 
     if not isinstance(bound, TimeBound) or bound.op not in ("<=", "<"):
         return Unsupported("a reward bound must be <=T or <T", span)
     return Temporal("RB", bound, left, right, span, reward)
+
+
+@dataclass(frozen=True, slots=True)
+class _StormBound:
+    """One bound of Storm's ``^{...}`` list: on accumulated reward *reward* (``rew``),
+    or on steps (``steps``; ``time`` is the same in discrete time)."""
+
+    reference: str
+    reward: Any
+    bound: Any
+
+
+def _bound_reference(name: str, allowed: tuple[str, ...], span: Span) -> str:
+    if name not in allowed:
+        raise PrismSyntaxError(f"unknown bound reference '{name}' (expected rew{{\"name\"}}, "
+                               "steps or time)", span)
+    return "rew" if name == "rew" else "steps"
+
+
+def _storm_bounded(op: str, left: Any, bounds: list[_StormBound], right: Any,
+                   span: Span) -> Value:
+    """``F^{...} phi`` / ``a U^{...} b`` with one bound: a reward bound as ``F{"r"}<=T``,
+    a step bound as ``F<=k``; several at once (Storm's multi-dimensional bounds) are
+    outside the language."""
+    if len(bounds) != 1:
+        return Unsupported("several bounds in one ^{...} (Storm's multi-dimensional "
+                           "bounds) are not supported: give one", span)
+    (bound,) = bounds
+    if bound.reference == "rew":
+        return _reward_bounded(left, right, bound.reward, bound.bound, span)
+    bad = first_bad([left, right, bound.bound])
+    if bad is not None:
+        return bad
+    return Temporal(op, bound.bound, None if op == "F" else left, right, span)
 
 
 def _condition_target(condition: Any) -> Expr | Unsupported:

@@ -33,6 +33,8 @@ def test_a_conditional_keeps_its_direction() -> None:
                                    "are not supported on MDPs"),
     ('Pmax=? [ F{"r"}<=3 s=1 ]', "reward-bounded path formulas (Storm's F{\"r\"}<=T) are not "
                                   "supported on MDPs"),
+    ('Pmax=? [ F^{rew{"r"}<=3} s=1 ]', "reward-bounded path formulas (Storm's F{\"r\"}<=T) "
+                                        "are not supported on MDPs"),
 ])
 def test_storm_path_formulas_are_refused_on_one_line(tmp_path: Path, formula: str,
                                                      says: str) -> None:
