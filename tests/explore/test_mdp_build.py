@@ -114,6 +114,9 @@ def test_sizes_as_storm_counts_them(source: str, tmp_path: Path) -> None:
     ('Rmin=? [ F s=3 ]', 0.0),
     ('Rmax=? [ F s=3 ]', math.inf),  # [a] may never reach s3
     ('R{"r"}max=? [ I=1 ]', 2.5),
+    ('Tmin=? [ F s=2 ]', 3.0),  # [a]: E = 1 + 0.5 (1 + E), Storm's expected steps
+    ('Tmax=? [ F s=2 ]', math.inf),  # [b] never reaches s2
+    ('Pmax=? [ F^{steps<=3} "goal" ]', 0.75),  # Storm's spelling of F<=3
     ('Pmax>=0.9 [ F "goal" ]', True),
     ('P>=0.9 [ F "goal" ]', False),  # every strategy: Pmin = 0
 ])
@@ -136,6 +139,7 @@ def test_prism_values(prop: str, expected: object, tmp_path: Path) -> None:
 @pytest.mark.parametrize(("prop", "message"), [
     ('P=? [ F "goal" ]', "P=? on an MDP has no single value"),
     ('R=? [ F s=3 ]', "R=? on an MDP has no single value"),
+    ('T=? [ F s=2 ]', "T=? on an MDP has no single value: use Tmin=? or Tmax=?"),
     ('multi(Pmax=? [ F s=2 ], Pmax=? [ F s=3 ])', "Pareto queries"),
 ])
 def test_refused_with_one_line(prop: str, message: str, tmp_path: Path) -> None:
@@ -150,12 +154,13 @@ def test_exact_checks_mdps(tmp_path: Path) -> None:
     """Repeating [a] reaches s=2 surely, after 2 [a] steps on average; [b] never does."""
     model = tmp_path / "m.nm"
     model.write_text(CHOICE)
-    props = ['Pmax=? [ F s=2 ]', 'Pmin=? [ F s=2 ]', 'Rmin=? [ F s=2 ]', 'Rmax=? [ F s=2 ]']
+    props = ['Pmax=? [ F s=2 ]', 'Pmin=? [ F s=2 ]', 'Rmin=? [ F s=2 ]', 'Rmax=? [ F s=2 ]',
+             'Tmin=? [ F s=2 ]', 'Tmax=? [ F s=2 ]']
     args = [a for p in props for a in ("--property", p)]
     result = CliRunner().invoke(cli, ["prism", str(model), *args, "--exact", "--json"])
     assert result.exit_code == 0, result.output
     exact = [r["exact"] for r in json.loads(result.stdout)["results"]]
-    assert exact == ["1", "0", "2", "Infinity"]
+    assert exact == ["1", "0", "2", "Infinity", "3", "Infinity"]
 
 
 #: x up to 120: its square (14,400) does not fit the int8 the state table is kept in.

@@ -33,6 +33,7 @@ from veribattery.checker.mdp.exact import exact_reach_reward, exact_total_reward
 from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
 from veribattery.checker.mdp.formula import mdp_values
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.operators import operator_objective
 from veribattery.checker.mdp.rational import ObjectArray
 from veribattery.checker.mdp.system import Objective
 from veribattery.checker.result import CheckResult
@@ -67,6 +68,7 @@ from veribattery.lang.nodes import (
     Until,
     WeakUntil,
 )
+from veribattery.lang.property_rules import STEPS_REWARD
 
 __all__ = ["ExactMdpModel", "check_mdp_exact", "closed_numbers"]
 
@@ -183,27 +185,16 @@ def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray
     booleans for state formulas."""
     match formula:
         case ProbOp(op="=?"):
-            return ExactValues.finite(path_probs(model, formula.path, _direction(formula)))
+            objective = operator_objective(formula)
+            return ExactValues.finite(path_probs(model, formula.path, objective))
         case RewardOp(op="=?"):
-            return path_rewards(model, formula, _direction(formula))
+            return path_rewards(model, formula, operator_objective(formula))
     if has_operator(formula):
         if _is_arithmetic(formula):
             return numbers(model, formula)
         return state_set(model, formula)
     leaf = mdp_values(model.mdp, formula)
     return numbers(model, formula) if isinstance(leaf, Bounds) else leaf
-
-
-def _direction(op: ProbOp | RewardOp) -> Objective:
-    """As on the float engine: the operator's own ``min``/``max``, else the one that
-    quantifies over every strategy (``P>=p`` reads the minimum)."""
-    if op.direction is not None:
-        return op.direction
-    if op.op == "=?":
-        name = "P" if isinstance(op, ProbOp) else "R"
-        raise CheckError(f"{name}=? on an MDP has no single value: use {name}min=? or "
-                         f"{name}max=?", op.span)
-    return "max" if op.op in ("<", "<=") else "min"
 
 
 def _opposite(objective: Objective) -> Objective:
@@ -247,7 +238,7 @@ def _bounded(model: ExactMdpModel, op: ProbOp | RewardOp) -> BoolArray:
     """``P~p``/``R~r``: the exact optimum against the exact bound."""
     if op.op == "=?" or op.bound is None:
         raise CheckError("a query (=?) cannot be used as a state formula", op.span)
-    objective = _direction(op)
+    objective = operator_objective(op)
     if isinstance(op, ProbOp):
         numbers = ExactValues.finite(path_probs(model, op.path, objective))
     else:
@@ -418,6 +409,11 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
 
 
 def _structure(model: ExactMdpModel, op: RewardOp) -> ExactMdpRewards:
+    """As :func:`~veribattery.checker.mdp.formula.reward_structure`, in rationals."""
+    if op.reward == STEPS_REWARD:
+        states, choices = model.mdp.num_states, model.mdp.num_choices
+        return ExactMdpRewards(None, np.full(states, _ONE, dtype=object),
+                               np.full(choices, _ZERO, dtype=object))
     try:
         return model.exact.reward(op.reward)
     except (KeyError, IndexError):

@@ -25,6 +25,7 @@ from veribattery.checker.formula.intervals import Result
 from veribattery.checker.formula.leaves import as_mask, has_operator, literal_number, step_bound
 from veribattery.checker.mdp import cosafe, stepped
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.operators import operator_objective, reward_structure
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
 from veribattery.checker.mdp.system import Objective
@@ -112,9 +113,9 @@ def mdp_values(mdp: MDP, formula: Expr, progress: Progress | None = None) -> Res
 def _values(mdp: MDP, progress: Progress | None, formula: Expr) -> Result:
     match formula:
         case ProbOp(op="=?"):
-            return _path(mdp, progress, formula.path, _direction(formula))
+            return _path(mdp, progress, formula.path, operator_objective(formula))
         case RewardOp(op="=?"):
-            return _reward(mdp, progress, formula, _direction(formula))
+            return _reward(mdp, progress, formula, operator_objective(formula))
         case ProbOp() | RewardOp():
             return _bounded(mdp, progress, formula)
         case Filter():
@@ -124,23 +125,11 @@ def _values(mdp: MDP, progress: Progress | None, formula: Expr) -> Result:
     return _compound(mdp, progress, formula)
 
 
-def _direction(op: ProbOp | RewardOp) -> Objective:
-    """The objective of an operator: its own ``min``/``max``, else (``P~p``) the one
-    that quantifies over every strategy; ``P=?``/``R=?`` have none on an MDP."""
-    if op.direction is not None:
-        return op.direction
-    if op.op == "=?":
-        name = "P" if isinstance(op, ProbOp) else "R"
-        raise CheckError(f"{name}=? on an MDP has no single value: use {name}min=? or "
-                         f"{name}max=?", op.span)
-    return "max" if op.op in ("<", "<=") else "min"
-
-
 def _bounded(mdp: MDP, progress: Progress | None, op: ProbOp | RewardOp) -> BoolArray:
     """``P~p``/``R~r`` as a mask, decided from the certified interval."""
     assert op.bound is not None
     threshold = literal_number(op.bound)
-    query = replace(op, op="=?", bound=None, direction=_direction(op))
+    query = replace(op, op="=?", bound=None, direction=operator_objective(op))
     numbers = _values(mdp, progress, query)
     assert isinstance(numbers, Bounds)
     holds, undecided = numbers.compare(op.op, threshold)
@@ -229,10 +218,7 @@ def _complement(b: Bounds) -> Bounds:
 def _reward(mdp: MDP, progress: Progress | None, op: RewardOp,
             objective: Objective) -> Bounds:
     """``Rmin``/``Rmax`` of a reward path in every state."""
-    try:
-        structure = mdp.reward(op.reward)
-    except (KeyError, IndexError):
-        raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+    structure = reward_structure(mdp, op)
     path = op.path
     match path:
         case Reach(target=target):

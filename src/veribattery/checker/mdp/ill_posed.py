@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from veribattery.checker.mdp.formula import _direction, _mask
+from veribattery.checker.mdp.formula import _mask
 from veribattery.checker.mdp.graph import ChoiceGraph, can_reach
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.operators import operator_objective
 from veribattery.lang.nodes import Expr, Reach, RewardOp
 from veribattery.lang.printing import expression_text
 
@@ -27,7 +28,7 @@ def unreachable_reward_target(mdp: MDP, formula: Expr) -> str | None:
         return None
     if formula.op == "=?" and formula.direction is None:
         return None  # R=? is an error of its own (no single value on an MDP)
-    if _direction(formula) != "min":
+    if operator_objective(formula) != "min":
         return None
     target = _mask(mdp, None, formula.path.target)
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)

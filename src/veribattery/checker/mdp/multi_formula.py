@@ -47,6 +47,7 @@ from veribattery.checker.mdp.multi import (
 )
 from veribattery.checker.mdp.multi_front import FrontSearch
 from veribattery.checker.mdp.multi_steps import SteppedMdp
+from veribattery.checker.mdp.operators import reward_structure
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError, UndefinedResult
 from veribattery.lang.evaluate import evaluate
@@ -140,10 +141,7 @@ def _goal(mdp: MDP, stepped: SteppedMdp | None, op: ProbOp | RewardOp,
 
 def _reward_goal(mdp: MDP, stepped: SteppedMdp | None, op: RewardOp) -> _Goal:
     """A reward objective: its structure's rewards per choice (on the unfolded MDP)."""
-    try:
-        per_choice = mdp.reward(op.reward).per_choice(mdp)
-    except (KeyError, IndexError):
-        raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+    per_choice = reward_structure(mdp, op).per_choice(mdp)
     if np.any(per_choice < 0):
         raise CheckError("multi(...) needs nonnegative rewards", op.span)
     if isinstance(op.path, TotalPath):

@@ -11,8 +11,9 @@ with :class:`NoStrategyError`.
 
 from __future__ import annotations
 
-from veribattery.checker.mdp.formula import _direction, _mask, _opposite
+from veribattery.checker.mdp.formula import _mask, _opposite
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.operators import operator_objective, reward_structure
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
@@ -81,9 +82,9 @@ def property_strategy(mdp: MDP, formula: Expr) -> Strategy:
         raise refusal
     match formula:
         case ProbOp(path=path):
-            result = _path_result(mdp, path, _direction(formula))
+            result = _path_result(mdp, path, operator_objective(formula))
         case RewardOp():
-            result = _reward_result(mdp, formula, _direction(formula))
+            result = _reward_result(mdp, formula, operator_objective(formula))
         case _:
             raise NoStrategyError("no memoryless deterministic strategy: a multi-objective "
                                   "answer is attained by a randomised strategy with memory "
@@ -117,10 +118,7 @@ def _path_result(mdp: MDP, path: PathFormula, objective: Objective) -> MdpResult
 
 
 def _reward_result(mdp: MDP, op: RewardOp, objective: Objective) -> MdpResult:
-    try:
-        structure = mdp.reward(op.reward)
-    except (KeyError, IndexError):
-        raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+    structure = reward_structure(mdp, op)
     match op.path:
         case Reach(target=target):
             return reach_reward(mdp, structure.per_choice(mdp), _mask(mdp, None, target),

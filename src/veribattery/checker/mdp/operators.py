@@ -1,0 +1,39 @@
+"""What a property's ``P``/``R``/``T`` operator names on an MDP: the objective it
+optimises and the reward structure it reads."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from veribattery.checker.mdp.model import MDP, MdpRewards
+from veribattery.checker.mdp.system import Objective
+from veribattery.errors import CheckError
+from veribattery.lang.nodes import ProbOp, RewardOp
+from veribattery.lang.property_rules import STEPS_REWARD
+
+__all__ = ["operator_objective", "reward_structure"]
+
+
+def reward_structure(mdp: MDP, op: RewardOp) -> MdpRewards:
+    """The reward structure *op* reads; Storm's ``Tmin``/``Tmax`` count each step as 1.
+
+    :raises CheckError: the model has no such structure.
+    """
+    if op.reward == STEPS_REWARD:
+        return MdpRewards(None, np.ones(mdp.num_states), np.zeros(mdp.num_choices))
+    try:
+        return mdp.reward(op.reward)
+    except (KeyError, IndexError):
+        raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+
+
+def operator_objective(op: ProbOp | RewardOp) -> Objective:
+    """The objective of an operator: its own ``min``/``max``, else (``P~p``) the one
+    that quantifies over every strategy; ``P=?``/``R=?``/``T=?`` have none on an MDP."""
+    if op.direction is not None:
+        return op.direction
+    if op.op == "=?":
+        name = "P" if isinstance(op, ProbOp) else "T" if op.reward == STEPS_REWARD else "R"
+        raise CheckError(f"{name}=? on an MDP has no single value: use {name}min=? or "
+                         f"{name}max=?", op.span)
+    return "max" if op.op in ("<", "<=") else "min"
