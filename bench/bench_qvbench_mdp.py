@@ -14,10 +14,10 @@ property of the properties file runs in a fresh process,
 with this tree's ``src`` first on ``PYTHONPATH``, a wall-clock timeout, and a build
 capped at BUILD_CAP_FACTOR times ``--max-states`` states (index.json's count may be
 mcsta's, far below the PRISM model's: rabin.5 has 157,464 there, 27 million in
-Storm's run). A
-properties file with a line veribattery cannot parse fails every property in it:
-then each property's text is passed inline (``--property TEXT``, with the
-properties file's own constants written in) and the row says so. Our value is
+Storm's run). Each properties file is parsed first (``parse_properties``): one that
+veribattery cannot parse would fail every property in it, so then each property's
+text is passed inline (``--property TEXT``, with the properties file's own constants
+written in) and the row says so. Our value is
 compared with the reference QVBS records (an exact result if there is one, else
 Storm's, else any): relative tolerance 1e-6 (absolute 1e-9 near 0), truth values
 exactly, infinities equal. A refusal (exit 2, an ``error:`` line) is a row, not a
@@ -400,24 +400,36 @@ def outcome_row(instance: Instance, prop: str, command: list[str], done: Process
     return row
 
 
+def parse_error(props: str, folder: Path, timeout: float) -> str | None:
+    """The first line of veribattery's error for the properties file *props* (under
+    *folder*), or None where it parses. A property that parses but is outside the
+    language, or that a model refuses, is that property's row, not the file's."""
+    command = [sys.executable, "-c", "import sys; from pathlib import Path; from "
+               "veribattery.lang import parse_properties; parse_properties(Path(sys.argv[1]))",
+               props]
+    done = run_process(command, folder, timeout)
+    if done.returncode == 0:
+        return None
+    return next((line for line in reversed(done.stderr.splitlines()) if line.strip()),
+                "(no message)")
+
+
 def check(instance: Instance, prop: str, folder: Path, timeout: float, cap: int,
-          unreadable: dict[str, str]) -> Row:
-    """Run *prop* of *instance* (files under *folder*); inline if its properties file is
-    in *unreadable* or turns out to be (its refusal points into the file)."""
+          unreadable: dict[str, str | None]) -> Row:
+    """Run *prop* of *instance* (files under *folder*), inline if its properties file
+    does not parse (:func:`parse_error`, asked once per file and kept in *unreadable*)."""
     model = f"{instance.family}/{instance.model}"
     props = f"{instance.family}/{instance.props}"
     base = [sys.executable, "-m", "veribattery", "prism", model]
     tail = ["--json", "--max-states", str(cap)]
     if props not in unreadable:
+        unreadable[props] = parse_error(props, folder, timeout)
+    if unreadable[props] is None:
         consts = [arg for k, v in instance.constants.items()
                   for arg in ("--const", f"{k}={literal(v)}")]
         command = [*base, "--props", props, "--property", prop, *consts, *tail]
-        done = run_process(command, folder, timeout)
-        line = _error_line(done.stderr)
-        if not (done.returncode == 2 and line.startswith(f"error: {props}:")
-                and "Traceback" not in done.stderr):
-            return outcome_row(instance, prop, command, done, inline=False)
-        unreadable[props] = line
+        return outcome_row(instance, prop, command, run_process(command, folder, timeout),
+                           inline=False)
     text = (folder / props).read_text(encoding="utf-8-sig")
     own = {k: v for k, v in instance.constants.items() if k in undefined_constants(text)}
     consts = [arg for k, v in instance.constants.items() if k not in own
@@ -482,7 +494,8 @@ def _shown(command: list[str]) -> str:
     return shlex.join(["python", *command[1:]])
 
 
-def write(out: Path, rows: list[Row], settings: str, unreadable: dict[str, str]) -> None:
+def write(out: Path, rows: list[Row], settings: str,
+          unreadable: dict[str, str | None]) -> None:
     """The whole report: header, table, then the problems, the inline files, the warnings."""
     tally = ", ".join(f"{n} {name}" for name, n in counts(rows).items()
                       if n or name != "without reference")
@@ -512,9 +525,10 @@ def write(out: Path, rows: list[Row], settings: str, unreadable: dict[str, str])
             if tail:
                 lines.append("  ```\n" + "\n".join(f"  {t}" for t in tail.splitlines())
                              + "\n  ```")
-    if unreadable:
+    failed = {props: line for props, line in unreadable.items() if line is not None}
+    if failed:
         lines.append("\n## Properties files veribattery cannot parse\n")
-        lines += [f"- `{props}`: `{_cell(line)}`" for props, line in unreadable.items()]
+        lines += [f"- `{props}`: `{_cell(line)}`" for props, line in failed.items()]
     warned = [row for row in rows if row.warnings]
     if warned:
         lines.append("\n## Warnings\n")
@@ -577,7 +591,7 @@ def main() -> None:
               f"{args.max_states} states in index.json and a recorded result. "
               f"Run {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
     rows: list[Row] = []
-    unreadable: dict[str, str] = {}
+    unreadable: dict[str, str | None] = {}
 
     def save(finished: bool) -> None:
         took = f"{time.perf_counter() - start:.0f} s {'in all' if finished else 'so far'}"
