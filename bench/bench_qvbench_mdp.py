@@ -257,10 +257,6 @@ def substituted(text: str, values: dict[str, object]) -> str:
 
 def reference_value(value: object) -> Number:
     """A value as QVBS writes it (a number, ``{"num", "den", "approx"}``, ``"true"``, ...)."""
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, (int, float)):
-        return float(value)
     if isinstance(value, dict):
         if "num" in value and "den" in value:
             return float(Fraction(int(value["num"]), int(value["den"])))
@@ -269,11 +265,8 @@ def reference_value(value: object) -> Number:
         word = value.strip().lower()
         if word in ("true", "false"):
             return word == "true"
-        try:
-            return float(word.replace("∞", "inf"))
-        except ValueError:
-            return None
-    return None
+        return our_value(word.replace("∞", "inf"))
+    return our_value(value)
 
 
 def our_value(value: object) -> Number:
