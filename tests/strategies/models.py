@@ -122,6 +122,7 @@ CASES = (
     Case("robot-pmax", ROBOT, 'Pmax=? [ F "goal" ]', 1.0),
     Case("robot-pmin", ROBOT, 'Pmin=? [ F "goal" ]', 0.5),
     Case("robot-rmin", ROBOT, 'R{"steps"}min=? [ F "goal" ]', 3.75),
+    Case("robot-tmin", ROBOT, 'Tmin=? [ F "goal" ]', 3.75),  # Storm's expected steps: east
     Case("robot-rmax-time", ROBOT, 'R{"time"}max=? [ F "goal" ]', math.inf),  # risky breaks
     Case("robot-pmax-globally", ROBOT, 'Pmax=? [ G !"broken" ]', 1.0),
     Case("robot-bounded-p", ROBOT, 'P>=0.4 [ F "goal" ]', 0.5),

@@ -34,6 +34,7 @@ from veribattery.lang.nodes import (
     WeakUntil,
 )
 from veribattery.lang.printing import expression_text, path_text, reward_path_text
+from veribattery.lang.property_rules import STEPS_REWARD
 from veribattery.strategies.chosen import ChosenStrategy
 from veribattery.strategies.valuation_text import distribution_text, guard_text, value_text
 
@@ -118,10 +119,13 @@ def _and(left: Expr, right: Expr) -> Expr:
 
 
 def dtmc_property_text(formula: Expr, model: FlatModel) -> str:
-    """``P=? [ path ]`` or ``R{...}=? [ path ]`` for a P or R operator of the MDP."""
+    """``P=? [ path ]``, ``R{...}=? [ path ]`` or ``T=? [ F phi ]`` for a P, R or T
+    operator of the MDP."""
     match formula:
         case ProbOp(path=path):
             return f"P=? [ {path_text(path)} ]"
+        case RewardOp(reward=reward, path=path) if reward == STEPS_REWARD:
+            return f"T=? [ {reward_path_text(path)} ]"  # Storm's expected steps
         case RewardOp(reward=reward, path=path):
             return f"R{_reward_ref(reward, model)}=? [ {reward_path_text(path)} ]"
     raise ValueError("only a P or R operator has a DTMC form")
