@@ -1,4 +1,5 @@
-"""Storm's extra path formulas on an MDP: refused in one line (exit 2), never misread."""
+"""Storm's conditional formulas on an MDP: refused in one line (exit 2), never misread
+(its reward-bounded ones are checked: tests/checker/mdp/test_reward_bounded_mdp.py)."""
 
 from __future__ import annotations
 
@@ -31,10 +32,6 @@ def test_a_conditional_keeps_its_direction() -> None:
 @pytest.mark.parametrize(("formula", "says"), [
     ('Pmax=? [ F s=1 || F s>0 ]', "conditional probabilities (Storm's 'path || F condition') "
                                    "are not supported on MDPs"),
-    ('Pmax=? [ F{"r"}<=3 s=1 ]', "reward-bounded path formulas (Storm's F{\"r\"}<=T) are not "
-                                  "supported on MDPs"),
-    ('Pmax=? [ F^{rew{"r"}<=3} s=1 ]', "reward-bounded path formulas (Storm's F{\"r\"}<=T) "
-                                        "are not supported on MDPs"),
 ])
 def test_storm_path_formulas_are_refused_on_one_line(tmp_path: Path, formula: str,
                                                      says: str) -> None:

@@ -32,6 +32,17 @@ class Undecided(CheckError):
     """A comparison of numbers whose intervals overlap in some state, or a ``P~p``/``R~r``
     bound that a state's certified interval straddles (at exact precision too)."""
 
+    @classmethod
+    def straddled(cls, relation: str, threshold: float, numbers: Bounds,
+                  undecided: BoolArray, span: Span | None) -> Undecided:
+        """The bound ``relation threshold`` that the intervals of the *undecided* states
+        straddle, naming the first of them and its interval."""
+        state = int(np.flatnonzero(undecided)[0])
+        low, high = float(numbers.lower[state]), float(numbers.upper[state])
+        return cls(f"precision not enough to decide {relation} {threshold:g}: in "
+                   f"{int(undecided.sum())} state(s) the certified interval straddles the "
+                   f"bound (state {state}: [{low!r}, {high!r}])", span)
+
 
 def _point(result: Result) -> Values:
     return result.value if isinstance(result, Bounds) else result

@@ -348,11 +348,7 @@ def _bounded_operator(dtmc: DTMC, workspace: Workspace, op: ProbOp | RewardOp | 
         with required_precision(0.0, 0.0):
             numbers, holds, undecided = _decide(dtmc, workspace, op, threshold, must_decide)
     if undecided.any():
-        state = int(np.flatnonzero(undecided)[0])
-        raise intervals.Undecided(
-            f"precision not enough to decide {op.op} {threshold:g}: in {int(undecided.sum())} "
-            f"state(s) the certified interval straddles the bound (state {state}: "
-            f"[{numbers.lower[state]!r}, {numbers.upper[state]!r}])", op.span)
+        raise intervals.Undecided.straddled(op.op, threshold, numbers, undecided, op.span)
     return holds
 
 

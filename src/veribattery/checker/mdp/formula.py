@@ -22,11 +22,18 @@ from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.formula import filters, intervals
 from veribattery.checker.formula.intervals import Result
-from veribattery.checker.formula.leaves import as_mask, has_operator, literal_number, step_bound
+from veribattery.checker.formula.leaves import (
+    _reward_bound,
+    as_mask,
+    has_operator,
+    literal_number,
+    step_bound,
+)
 from veribattery.checker.mdp import cosafe, stepped
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.operators import operator_objective, reward_structure
 from veribattery.checker.mdp.reach import reach_probability
+from veribattery.checker.mdp.reward_bounded import reward_bounded_reach
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError
@@ -134,11 +141,7 @@ def _bounded(mdp: MDP, progress: Progress | None, op: ProbOp | RewardOp) -> Bool
     assert isinstance(numbers, Bounds)
     holds, undecided = numbers.compare(op.op, threshold)
     if undecided.any():
-        state = int(np.flatnonzero(undecided)[0])
-        raise intervals.Undecided(
-            f"precision not enough to decide {op.op} {threshold:g}: in {int(undecided.sum())} "
-            f"state(s) the certified interval straddles the bound (state {state}: "
-            f"[{numbers.lower[state]!r}, {numbers.upper[state]!r}])", op.span)
+        raise intervals.Undecided.straddled(op.op, threshold, numbers, undecided, op.span)
     return np.asarray(holds, dtype=bool)
 
 
@@ -175,10 +178,10 @@ def _path(mdp: MDP, progress: Progress | None, path: PathFormula,
             raise CheckError("conditional probabilities (Storm's 'path || F condition') are "
                              "not supported on MDPs: check the DTMC a strategy induces instead "
                              "(--export-induced)", path.span)
-        case RewardBounded():
-            raise CheckError("reward-bounded path formulas (Storm's F{\"r\"}<=T) are not "
-                             "supported on MDPs: use a step bound (F<=k) or a reward operator",
-                             path.span)
+        case RewardBounded(left=left, right=right, bound=bound):
+            return reward_bounded_reach(mdp, reward_structure(mdp, path), _reward_bound(bound),
+                                        _mask(mdp, progress, left), _mask(mdp, progress, right),
+                                        objective=objective, span=path.span)
     raise CheckError("this path formula is not supported on MDPs", path.span)
 
 

@@ -8,14 +8,15 @@ import numpy as np
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError
-from veribattery.lang.nodes import ProbOp, RewardOp
+from veribattery.lang.nodes import ProbOp, RewardBounded, RewardOp
 from veribattery.lang.property_rules import STEPS_REWARD
 
 __all__ = ["operator_objective", "reward_structure"]
 
 
-def reward_structure(mdp: MDP, op: RewardOp) -> MdpRewards:
-    """The reward structure *op* reads; Storm's ``Tmin``/``Tmax`` count each step as 1.
+def reward_structure(mdp: MDP, op: RewardOp | RewardBounded) -> MdpRewards:
+    """The reward structure *op* (an R operator or a reward bound) reads; Storm's
+    ``Tmin``/``Tmax`` count each step as 1.
 
     :raises CheckError: the model has no such structure.
     """

@@ -30,6 +30,7 @@ from veribattery.lang.nodes import (
     ProbOp,
     Reach,
     Release,
+    RewardBounded,
     RewardOp,
     Total,
     Until,
@@ -130,6 +131,11 @@ def _reward_result(mdp: MDP, op: RewardOp, objective: Objective) -> MdpResult:
 
 def _step_bounded(path: object) -> NoStrategyError:
     span = getattr(path, "span", None)
+    if isinstance(path, RewardBounded):
+        return NoStrategyError(
+            "no memoryless strategy: the objective is reward-bounded (F{\"r\"}<=T), so "
+            "the optimal choice depends on the reward budget left; such strategies are not "
+            "exported", span)
     return NoStrategyError(
         "no memoryless strategy: the objective is step-bounded (X, a bounded F/U/G/W/R, "
         "C<=k or I=k), so the optimal choice depends on the steps left; such strategies "

@@ -1,0 +1,139 @@
+"""Reward-bounded reachability on MDPs, ``Pmin``/``Pmax`` of ``F{"r"}<=T``: solved by
+hand, against QVBS's exact results on firewire, against Storm, and its refusals."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from tests.strategies.models import ROBOT
+from veribattery.checker.mdp import reward_bounded
+from veribattery.cli import cli
+from veribattery.errors import CheckError
+from veribattery.pipeline import check_prism_file
+
+REPO = Path(__file__).resolve().parents[3]
+
+#: s0: [a] (cost 1) reaches the goal s2 or s1 by halves, s1 returns for free; [b]
+#: gives up (s3). The goal's own state reward (5) is never paid: it is not left.
+MODEL = """mdp
+module m
+  s : [0..3] init 0;
+  [a] s=0 -> 0.5:(s'=1) + 0.5:(s'=2);
+  [b] s=0 -> (s'=3);
+  [] s=1 -> (s'=0);
+endmodule
+rewards "r"
+  [a] true : 1;
+  s=2 : 5;
+endrewards
+label "goal" = s=2;
+"""
+
+
+def _value(prop: str, model: str = MODEL) -> float:
+    return float(check_prism_file(model, props_source=prop).results[0].value)
+
+
+@pytest.mark.parametrize("budget", [0, 1, 2, 3, 7])
+def test_hand_solved(budget: int) -> None:
+    # k paid [a] steps reach the goal with 1 - 2^-k; the free return costs nothing.
+    expected = 1 - 0.5**budget
+    assert _value(f'Pmax=? [ F{{"r"}}<={budget} "goal" ]') == pytest.approx(expected,
+                                                                            abs=1e-12)
+    assert _value(f'Pmax=? [ F{{"r"}}<{budget + 1} "goal" ]') == pytest.approx(expected,
+                                                                              abs=1e-12)
+    assert _value(f'Pmax=? [ s<3 U^{{rew{{"r"}}<={budget}}} s=2 ]') == pytest.approx(
+        expected, abs=1e-12)
+    assert _value(f'Pmin=? [ F{{"r"}}<={budget} "goal" ]') == 0.0  # [b]
+
+
+def test_a_state_in_the_goal_needs_no_budget() -> None:
+    assert _value('Pmax=? [ F{"r"}<=0 s=0 ]') == 1.0  # reached before any step
+
+
+@pytest.mark.parametrize(("deadline", "expected"), [(200, 0.5), (400, 0.78125)])
+def test_firewire_deadline_as_qvbs_records_it(deadline: int, expected: float) -> None:
+    """QVBS's exact results (Storm, exact engine) for firewire.false, delay 3."""
+    folder = REPO / "bench/qcomp/firewire"
+    run = check_prism_file(folder / "firewire.false.prism",
+                           props_source=folder / "firewire.false.props",
+                           selectors=("deadline",),
+                           constants={"delay": "3", "deadline": str(deadline)})
+    assert float(run.results[0].value) == pytest.approx(expected, rel=1e-9)
+
+
+def test_non_integer_rewards_are_an_error() -> None:
+    with pytest.raises(CheckError, match=r'reward structure "r" gives 1.5 to a choice of '
+                                         r"state \(s=0\)"):
+        _value('Pmax=? [ F{"r"}<=3 "goal" ]', MODEL.replace(": 1;", ": 1.5;"))
+
+
+def test_a_product_too_large_is_one_line(tmp_path: Path,
+                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(reward_bounded, "PRODUCT_LIMIT", 30)
+    model = tmp_path / "m.nm"
+    model.write_text(MODEL)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
+                                      'Pmax=? [ F{"r"}<=9 "goal" ]'])
+    assert result.exit_code == 2
+    (line,) = result.output.strip().splitlines()
+    assert "a reward bound of 9 makes a product of 60 transitions" in line
+
+
+def test_no_strategy_is_exported(tmp_path: Path) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(MODEL)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
+                                      'Pmax=? [ F{"r"}<=3 "goal" ]', "--export-strategy",
+                                      str(tmp_path / "s.txt")])
+    assert result.exit_code == 2
+    assert "the objective is reward-bounded" in result.output
+    assert not (tmp_path / "s.txt").exists()
+
+
+def test_a_bound_its_interval_straddles_is_undecided(tmp_path: Path) -> None:
+    """0.875 exactly: the float interval cannot decide, and the exact engine has no
+    reward-bounded MDP kernel, so the answer is undecided (not an input error)."""
+    model = tmp_path / "m.nm"
+    model.write_text(MODEL)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
+                                      'Pmax>=0.875 [ F{"r"}<=3 "goal" ]', "--json"])
+    assert result.exit_code == 0, result.output
+    (answer,) = json.loads(result.stdout)["results"]
+    assert answer["value"] is None
+    assert "straddles the bound (state 0: [0.87" in answer["undecided"]
+    assert "np.float64" not in result.output  # plain floats in the message
+
+
+# ---------------------------------------------------------------------------
+# Storm
+# ---------------------------------------------------------------------------
+
+
+def _storm(text: str, props: list[str], tmp_path: Path) -> list[float]:
+    stormpy = pytest.importorskip("stormpy")
+    path = tmp_path / "model.nm"
+    path.write_text(text)
+    program = stormpy.parse_prism_program(str(path))
+    parsed = stormpy.parse_properties(";".join(props), program)
+    model = stormpy.build_model(program, parsed)
+    init = model.initial_states[0]
+    # (Storm computes reward-bounded MDP objectives for the initial states only)
+    return [float(stormpy.model_checking(model, p, only_initial_states=True)
+                  .get_value_vector()[init]) for p in parsed]
+
+
+@pytest.mark.parametrize(("text", "props"), [
+    (MODEL, [f'P{d}=? [ F{{"r"}}<={k} "goal" ]' for d in ("min", "max") for k in (0, 2, 5)]),
+    (ROBOT, [f'P{d}=? [ F{{"{r}"}}<={k} "goal" ]' for d in ("min", "max") for k in (1, 3, 6)
+             for r in ("steps", "time")]
+     + ['Pmax=? [ !"broken" U{"steps"}<=4 "goal" ]']),
+], ids=["hand", "robot"])
+def test_against_storm(text: str, props: list[str], tmp_path: Path) -> None:
+    storm = _storm(text, props, tmp_path)
+    ours = [_value(p, text) for p in props]
+    assert ours == pytest.approx(storm, rel=1e-6, abs=1e-9)
