@@ -73,7 +73,7 @@ def operand_chain(expr: Binary, op: str) -> list[Expr]:
     return operands
 
 
-def _reward_bound(bound: TimeBound) -> int:
+def reward_bound(bound: TimeBound) -> int:
     """The largest integer total reward that ``<=T`` / ``<T`` admits."""
     value = literal_number(bound.value)
     return math.floor(value) if bound.op == "<=" else math.ceil(value) - 1

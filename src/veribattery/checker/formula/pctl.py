@@ -27,13 +27,13 @@ from veribattery.checker.formula.leaves import (
     _interval,
     _operands,
     _point,
-    _reward_bound,
     _reward_structure,
     as_mask,
     has_operator,
     leaf_values,
     literal_number,
     operand_chain,
+    reward_bound,
     step_bound,
 )
 from veribattery.errors import CheckError
@@ -274,7 +274,7 @@ def _reward_bounded_probs(dtmc: DTMC, workspace: Workspace, path: RewardBounded)
     levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
     return reward_bounded.reward_bounded_until_bounds(
         dtmc.transitions, state_set(dtmc, workspace, path.left),
-        state_set(dtmc, workspace, path.right), levels, _reward_bound(path.bound),
+        state_set(dtmc, workspace, path.right), levels, reward_bound(path.bound),
         workspace=workspace)
 
 

@@ -22,7 +22,6 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, IntArray
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.kernels.reward_bounded import NonIntegerReward, integer_levels
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.system import Objective
@@ -62,6 +61,10 @@ def reward_bounded_reach(mdp: MDP, structure: MdpRewards, budget: int, left: Boo
 
 def _step_costs(mdp: MDP, structure: MdpRewards, span: Span) -> IntArray:
     """Each choice's step reward (its state's plus its own) as a non-negative integer."""
+    # (the DTMC kernels' package, imported only when a reward bound is checked: an MDP's
+    # other checks do not read it)
+    from veribattery.checker.kernels.reward_bounded import NonIntegerReward, integer_levels
+
     try:
         return integer_levels(structure.per_choice(mdp))
     except NonIntegerReward as exc:
