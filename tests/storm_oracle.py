@@ -112,6 +112,20 @@ def run_storm(
     )
 
 
+def storm_initial_values(text: str, props: list[str], folder: Path) -> list[float]:
+    """Storm's exact value of each of *props* at the first initial state of the PRISM
+    model *text* (written into *folder*), built for those properties; only there, as
+    Storm computes reward-bounded MDP objectives for the initial states only."""
+    path = folder / "model.prism"
+    path.write_text(text, encoding="utf-8")
+    program = stormpy.parse_prism_program(str(path))
+    parsed = stormpy.parse_properties(";".join(props), program)
+    model = stormpy.build_model[stormpy.Rational](program, parsed)
+    init = model.initial_states[0]
+    return [float(storm_number(stormpy.model_checking(model, p, only_initial_states=True)
+                               .get_value_vector()[init])) for p in parsed]
+
+
 def run_storm_exact_or_float(
     model: Path | str, properties: str, constants: Mapping[str, str] | None = None
 ) -> StormRun:

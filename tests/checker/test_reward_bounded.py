@@ -103,17 +103,10 @@ def test_unknown_reward_structure_is_an_error() -> None:
 
 
 def _storm(text: str, props: list[str], tmp_path: Path) -> list[float]:
-    stormpy = pytest.importorskip("stormpy")
-    from tests.storm_oracle import storm_number
+    pytest.importorskip("stormpy")
+    from tests.storm_oracle import storm_initial_values
 
-    path = tmp_path / "model.prism"
-    path.write_text(text)
-    program = stormpy.parse_prism_program(str(path))
-    parsed = stormpy.parse_properties(";".join(props), program)
-    model = stormpy.build_model[stormpy.Rational](program, parsed)
-    init = model.initial_states[0]
-    return [float(storm_number(stormpy.model_checking(model, p, only_initial_states=True)
-                               .get_value_vector()[init])) for p in parsed]
+    return storm_initial_values(text, props, tmp_path)
 
 
 def _ours(text: str, props: list[str]) -> list[float]:

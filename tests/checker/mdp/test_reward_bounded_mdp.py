@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
+from tests.explore.test_mdp_build import CHOICE
 from tests.strategies.models import ROBOT
 from veribattery.checker.mdp import reward_bounded
 from veribattery.cli import cli
@@ -19,19 +20,7 @@ REPO = Path(__file__).resolve().parents[3]
 
 #: s0: [a] (cost 1) reaches the goal s2 or s1 by halves, s1 returns for free; [b]
 #: gives up (s3). The goal's own state reward (5) is never paid: it is not left.
-MODEL = """mdp
-module m
-  s : [0..3] init 0;
-  [a] s=0 -> 0.5:(s'=1) + 0.5:(s'=2);
-  [b] s=0 -> (s'=3);
-  [] s=1 -> (s'=0);
-endmodule
-rewards "r"
-  [a] true : 1;
-  s=2 : 5;
-endrewards
-label "goal" = s=2;
-"""
+MODEL = CHOICE
 
 
 def _value(prop: str, model: str = MODEL) -> float:
@@ -115,16 +104,10 @@ def test_a_bound_its_interval_straddles_is_undecided(tmp_path: Path) -> None:
 
 
 def _storm(text: str, props: list[str], tmp_path: Path) -> list[float]:
-    stormpy = pytest.importorskip("stormpy")
-    path = tmp_path / "model.nm"
-    path.write_text(text)
-    program = stormpy.parse_prism_program(str(path))
-    parsed = stormpy.parse_properties(";".join(props), program)
-    model = stormpy.build_model(program, parsed)
-    init = model.initial_states[0]
-    # (Storm computes reward-bounded MDP objectives for the initial states only)
-    return [float(stormpy.model_checking(model, p, only_initial_states=True)
-                  .get_value_vector()[init]) for p in parsed]
+    pytest.importorskip("stormpy")
+    from tests.storm_oracle import storm_initial_values
+
+    return storm_initial_values(text, props, tmp_path)
 
 
 @pytest.mark.parametrize(("text", "props"), [
