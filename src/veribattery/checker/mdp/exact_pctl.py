@@ -409,7 +409,7 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
 
 
 def _structure(model: ExactMdpModel, op: RewardOp) -> ExactMdpRewards:
-    """As :func:`~veribattery.checker.mdp.formula.reward_structure`, in rationals."""
+    """As :func:`~veribattery.checker.mdp.operators.reward_structure`, in rationals."""
     if op.reward == STEPS_REWARD:
         states, choices = model.mdp.num_states, model.mdp.num_choices
         return ExactMdpRewards(None, np.full(states, _ONE, dtype=object),

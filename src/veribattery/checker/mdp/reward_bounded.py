@@ -26,6 +26,7 @@ from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError, Span
+from veribattery.explore.build.successors import format_state
 
 __all__ = ["PRODUCT_LIMIT", "reward_bounded_reach"]
 
@@ -55,8 +56,7 @@ def reward_bounded_reach(mdp: MDP, structure: MdpRewards, budget: int, left: Boo
     target = np.concatenate([np.tile(right, budget + 1), spent])
     remain = np.concatenate([np.tile(left, budget + 1), spent])
     found = reach_probability(product, target, objective=objective, remain=remain).bounds
-    full = slice(budget * n, (budget + 1) * n)
-    return Bounds(found.value[full], found.lower[full], found.upper[full])
+    return found.at(np.arange(budget * n, (budget + 1) * n))
 
 
 def _step_costs(mdp: MDP, structure: MdpRewards, span: Span) -> IntArray:
@@ -76,11 +76,10 @@ def _step_costs(mdp: MDP, structure: MdpRewards, span: Span) -> IntArray:
 
 
 def _state_text(mdp: MDP, state: int) -> str:
+    """``(x=1, y=2)``, or the state's index where the MDP has no valuations."""
     if mdp.states is None:
         return str(state)
-    values = ", ".join(f"{name}={int(value)}" for name, value in
-                       zip(mdp.variable_names, mdp.states[state], strict=True))
-    return f"({values})"
+    return f"({format_state(mdp.variable_names, mdp.states[state])})"
 
 
 def _budget_product(mdp: MDP, costs: IntArray, budget: int) -> MDP:
