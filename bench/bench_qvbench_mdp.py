@@ -1,9 +1,10 @@
-"""veribattery against the results QVBS records for its PRISM-language MDPs.
+"""veribattery against the results QVBS records for its PRISM-language MDPs and DTMCs.
 
 A correctness sweep on public models that are not copied here: point ``--root`` at
 the Quantitative Verification Benchmark Set (https://github.com/ahartmanns/qcomp),
-either a checkout (the folder that holds ``benchmarks/mdp``) or a bare git
-directory, read at its HEAD. Per family (the PRISM-language ones in FAMILIES), the
+either a checkout (the folder that holds ``benchmarks/``) or a bare git
+directory, read at its HEAD. ``--type`` picks ``benchmarks/mdp`` (the default) or
+``benchmarks/dtmc``. Per family (the PRISM-language ones in FAMILIES), the
 instances that ``index.json`` gives at most ``--max-states`` states and at least
 one recorded result are taken, smallest first, at most ``--per-family`` of them;
 their model and properties files are written into a temporary folder. Each named
@@ -25,8 +26,10 @@ failure; a mismatch, a traceback (an exit status other than 0 and 2, or
 ``Traceback`` on stderr) or a timeout makes the exit status 1. The Markdown table
 is rewritten after every row, so a stopped run keeps its rows.
 
-    python bench/bench_qvbench_mdp.py --root ~/qcomp [--only firewire] [--max-states 300000]
-        [--per-family 2] [--timeout 300] [--out docs/_bench/qvbench_mdp.md]
+    python bench/bench_qvbench_mdp.py --root ~/qcomp [--type dtmc] [--only firewire]
+        [--max-states 300000] [--per-family 2] [--timeout 300] [--out FILE]
+
+The report goes to ``docs/_bench/qvbench_mdp.md`` (``qvbench_dtmc.md`` for DTMCs).
 """
 
 from __future__ import annotations
@@ -51,12 +54,15 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 
-#: The QVBS MDP families written in the PRISM language (model and properties file).
-FAMILIES = (
-    "eajs", "ij", "pacman", "philosophers-mdp", "pnueli-zuck", "rabin", "resource-gathering",
-    "firewire_abst", "firewire_dl", "wlan_dl", "zeroconf_dl", "consensus", "csma", "wlan",
-    "zeroconf", "firewire",
-)
+#: The QVBS families written in the PRISM language (model and properties file), by type.
+FAMILIES = {
+    "mdp": ("eajs", "ij", "pacman", "philosophers-mdp", "pnueli-zuck", "rabin",
+            "resource-gathering", "firewire_abst", "firewire_dl", "wlan_dl", "zeroconf_dl",
+            "consensus", "csma", "wlan", "zeroconf", "firewire"),
+    "dtmc": ("bluetooth", "brp", "coupon", "crowds", "egl", "haddad-monmege", "herman",
+             "leader_sync", "nand", "oscillators"),
+}
+TITLES = {"mdp": "MDPs", "dtmc": "DTMCs"}
 MODEL_SUFFIXES = (".prism", ".nm", ".pm")
 #: A build stops (exit 2, a refusal) past this many times ``--max-states`` states.
 BUILD_CAP_FACTOR = 10
@@ -69,16 +75,17 @@ Number = float | bool | None
 
 
 class Source:
-    """The ``benchmarks/mdp`` folder of QVBS: in a checkout's work tree, or at HEAD of a
+    """A ``benchmarks/TYPE`` folder of QVBS: in a checkout's work tree, or at HEAD of a
     bare git directory."""
 
-    def __init__(self, root: Path) -> None:
+    def __init__(self, root: Path, kind: str) -> None:
         self.root = root
-        self.folder: Path | None = root / "benchmarks" / "mdp"
+        self.kind = kind
+        self.folder: Path | None = root / "benchmarks" / kind
         if not self.folder.is_dir():
             self.folder = None
             if self._git("rev-parse", "--is-bare-repository") is None:
-                raise SystemExit(f"--root {root}: neither a checkout holding benchmarks/mdp "
+                raise SystemExit(f"--root {root}: neither a checkout holding benchmarks/{kind} "
                                  "nor a git directory")
 
     def _git(self, *args: str) -> bytes | None:
@@ -93,10 +100,10 @@ class Source:
         return head.decode().strip() if head else "unknown (not a git checkout)"
 
     def read(self, path: str) -> bytes:
-        """The file *path* (relative to ``benchmarks/mdp``); FileNotFoundError if absent."""
+        """The file *path* (relative to ``benchmarks/TYPE``); FileNotFoundError if absent."""
         if self.folder:
             return (self.folder / path).read_bytes()
-        found = self._git("show", f"HEAD:benchmarks/mdp/{path}")
+        found = self._git("show", f"HEAD:benchmarks/{self.kind}/{path}")
         if found is None:
             raise FileNotFoundError(errno.ENOENT, "not at HEAD", path)
         return found
@@ -487,13 +494,13 @@ def _shown(command: list[str]) -> str:
     return shlex.join(["python", *command[1:]])
 
 
-def write(out: Path, rows: list[Row], settings: str,
+def write(out: Path, kind: str, rows: list[Row], settings: str,
           unreadable: dict[str, str | None]) -> None:
     """The whole report: header, table, then the problems, the inline files, the warnings."""
     tally = ", ".join(f"{n} {name}" for name, n in counts(rows).items()
                       if n or name != "without reference")
     lines = [
-        "# veribattery on the PRISM-language MDPs of QVBS\n",
+        f"# veribattery on the PRISM-language {TITLES[kind]} of QVBS\n",
         "Generated by `bench/bench_qvbench_mdp.py` (do not edit by hand). " + settings,
         f"\n**{len(rows)} properties: {tally}.**\n",
         "States: ours / index.json's (the tool that counted; **bold**: ours differs, then a "
@@ -501,7 +508,7 @@ def write(out: Path, rows: list[Row], settings: str,
         "interval; the reference is an exact result where QVBS has one, else Storm's, else "
         "any. \"(inline)\": the properties file has a line veribattery cannot parse, so the "
         "property's text was passed with `--property TEXT`. Paths are relative to "
-        "`benchmarks/mdp`.\n",
+        f"`benchmarks/{kind}`.\n",
         "| family | instance | property | states (ours / QVBS) | our value [interval] "
         "| reference (tool) | agree | wall s |",
         "|---|---|---|---|---|---|---|---|",
@@ -565,15 +572,20 @@ def progress(number: int, row: Row) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--root", type=Path, required=True,
-                        help="QVBS: a checkout (holding benchmarks/mdp) or a bare git dir")
+                        help="QVBS: a checkout (holding benchmarks/) or a bare git dir")
+    parser.add_argument("--type", choices=tuple(FAMILIES), default="mdp", dest="kind",
+                        help="the model type: benchmarks/mdp or benchmarks/dtmc")
     parser.add_argument("--only", default="", help="families whose name contains this")
     parser.add_argument("--max-states", type=int, default=300_000,
                         help="largest instance taken, by index.json's state count")
     parser.add_argument("--per-family", type=int, default=2, help="instances per family")
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds per process")
-    parser.add_argument("--out", type=Path, default=ROOT / "docs/_bench/qvbench_mdp.md")
+    parser.add_argument("--out", type=Path, help="the report (default: "
+                        "docs/_bench/qvbench_TYPE.md)")
     args = parser.parse_args()
-    source = Source(args.root.expanduser())
+    sys.set_int_max_str_digits(0)  # (oscillators' index.json has integers of 6,000 digits)
+    source = Source(args.root.expanduser(), args.kind)
+    out = args.out or ROOT / f"docs/_bench/qvbench_{args.kind}.md"
     cap = BUILD_CAP_FACTOR * args.max_states
     start = time.perf_counter()
     families = f"the families whose name contains `{args.only}`" if args.only else "all families"
@@ -588,11 +600,11 @@ def main() -> None:
 
     def save(finished: bool) -> None:
         took = f"{time.perf_counter() - start:.0f} s {'in all' if finished else 'so far'}"
-        write(args.out, rows, f"{header}, {took}. Agreement: relative tolerance 1e-6 "
+        write(out, args.kind, rows, f"{header}, {took}. Agreement: relative tolerance 1e-6 "
               "(absolute 1e-9 near 0), truth values exactly.", unreadable)
 
     with tempfile.TemporaryDirectory() as tmp:
-        for family in (f for f in FAMILIES if args.only in f):
+        for family in (f for f in FAMILIES[args.kind] if args.only in f):
             try:
                 found = family_instances(source, family)
             except FileNotFoundError as missing:

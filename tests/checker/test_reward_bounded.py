@@ -155,7 +155,7 @@ def test_storm_bound_lists_read_as_the_bounds_they_spell(storm: str, ours: str) 
 
 @pytest.mark.parametrize(("prop", "message"), [
     ('P=? [ F^{rew{"t"}<=5, steps<=3} "succ" ]', "several bounds in one ^{...}"),
-    ('P=? [ F^{rew{"t"}>=5} "succ" ]', "a reward bound must be <=T or <T"),
+    ('P=? [ F^{rew{"t"}[2,4]} "succ" ]', "a reward bound must be one of <=T, <T, >=B, >B"),
 ])
 def test_storm_bound_lists_outside_the_language(prop: str, message: str) -> None:
     assert message in str(parse_property(prop).unsupported)

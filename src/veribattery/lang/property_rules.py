@@ -413,12 +413,17 @@ class PropertyRules:
 
 
 def _reward_bounded(left: Any, right: Any, reward: Any, bound: Any, span: Span) -> Value:
-    """``U{"r"}<=T`` / ``F{"r"}<=T``: only upper bounds (``<=``, ``<``) are supported."""
+    """``U{"r"}<=T`` / ``F{"r"}>=B``: one bound (``<=``, ``<``, ``>=``, ``>``), not an
+    interval."""
     bad = first_bad([left, right, bound])
     if bad is not None:
         return bad
-    if not isinstance(bound, TimeBound) or bound.op not in ("<=", "<"):
-        return Unsupported("a reward bound must be <=T or <T", span)
+    if not isinstance(bound, TimeBound) or bound.op == "=":
+        return Unsupported("a reward bound must be one of <=T, <T, >=B, >B", span)
+    if bound.op in (">=", ">") and left != BoolLit(True):
+        # (Storm's own limit: what the left operand must do on the way is not settled)
+        return Unsupported("a lower reward bound (>=B, >B) is supported on F only, as in "
+                           "Storm: write F{\"r\"}>=B phi", span)
     return Temporal("RB", bound, left, right, span, reward)
 
 

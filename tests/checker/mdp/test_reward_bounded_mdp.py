@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from tests.explore.test_mdp_build import CHOICE
 from tests.strategies.models import ROBOT
-from veribattery.checker.mdp import reward_bounded
+from veribattery.checker.kernels import reward_layers
 from veribattery.cli import cli
 from veribattery.errors import CheckError
 from veribattery.pipeline import check_prism_file
@@ -63,7 +63,7 @@ def test_non_integer_rewards_are_an_error() -> None:
 
 def test_a_product_too_large_is_one_line(tmp_path: Path,
                                          monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(reward_bounded, "PRODUCT_LIMIT", 30)
+    monkeypatch.setattr(reward_layers, "PRODUCT_LIMIT", 30)
     model = tmp_path / "m.nm"
     model.write_text(MODEL)
     result = CliRunner().invoke(cli, ["prism", str(model), "--property",

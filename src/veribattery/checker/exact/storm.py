@@ -7,7 +7,8 @@ The same constructions as the float checker (:mod:`~veribattery.checker.kernels.
   the numerators solved exactly SCC by SCC; states where ``F b`` is impossible hold
   NaN (undefined), and an initial one is :class:`ConditionUnreachable`;
 * ``U{"r"}<=T``: the backward programme over reward levels, each level's
-  zero-reward closure solved exactly.
+  zero-reward closure solved exactly; ``U{"r"}>=B``: unbounded until on the product
+  with the reward still needed.
 
 Objectives of a conditional with a step or reward bound are not supported here.
 """
@@ -31,9 +32,11 @@ from veribattery.checker.exact.numeric import (
     until_probs,
 )
 from veribattery.checker.exact.solve import row_products, solve
+from veribattery.checker.formula.leaves import integer_limit
 from veribattery.checker.kernels.conditional import ConditionUnreachable
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult
+from veribattery.explore.dtmc import DTMC
 from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
 from veribattery.explore.exact.rational import ObjectArray
 from veribattery.lang.nodes import (
@@ -46,7 +49,6 @@ from veribattery.lang.nodes import (
     Next,
     Release,
     RewardBounded,
-    TimeBound,
     Until,
     WeakUntil,
 )
@@ -194,11 +196,16 @@ def _divide(numerator: ObjectArray, x: ObjectArray, possible: BoolArray) -> Obje
 
 def reward_bounded_probs(model: ExactDTMC, workspace: Workspace, path: RewardBounded, *,
                          state_set: StateSet) -> ObjectArray:
-    """``remain U{"r"}<=T target`` per state exactly (Storm's semantics, see reward_bounded)."""
+    """``remain U{"r"}<=T target`` (or ``>=B``) per state exactly (Storm's semantics, see
+    reward_bounded and reward_layers)."""
     rewards = _integer_rewards(model, path)
-    bound = _reward_bound(path.bound)
+    limit = integer_limit(path.bound.op, exact_literal(path.bound.value))
     remain = state_set(model, workspace, path.left)
     target = state_set(model, workspace, path.right)
+    if limit.gather:
+        return _gathered(model, workspace, remain, target, rewards, max(limit.total, 0),
+                         path.span)
+    bound = limit.total
     n = model.dtmc.num_states
     if bound < 0:
         return indicator(np.zeros(n, dtype=bool))
@@ -250,7 +257,21 @@ def model_reward(model: ExactDTMC, path: RewardBounded) -> ExactRewards:
                          path.span) from None
 
 
-def _reward_bound(bound: TimeBound) -> int:
-    """The largest integer total reward that ``<=T`` / ``<T`` admits (T read exactly)."""
-    value = exact_literal(bound.value)
-    return int(math.floor(value) if bound.op == "<=" else math.ceil(value) - 1)
+def _gathered(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: BoolArray,
+              rewards: IntArray, need: int, span: Span) -> ObjectArray:
+    """``remain U{"r"}>=need target``: unbounded until on the gather product
+    (:mod:`~veribattery.checker.kernels.reward_layers`), from layer *need*."""
+    from veribattery.checker.kernels.reward_layers import layered_rows, require_product_size
+
+    dtmc = model.dtmc
+    n = dtmc.num_states
+    require_product_size(dtmc.transitions.nnz, need, need, span)
+    layers = need + 1
+    # (each row keeps its entries' order, so the rationals are the model's, tiled)
+    product = DTMC(layered_rows(dtmc.transitions, rewards, need, gather=True),
+                   np.zeros((layers * n, 0), dtype=np.int64), (), need * n + dtmc.initial,
+                   {}, ())
+    laid = ExactDTMC(product, np.tile(model.probabilities, layers), (), model.constants)
+    met = np.concatenate([target, np.zeros(need * n, dtype=bool)])
+    found = until_probs(laid, workspace, np.tile(remain, layers), met)
+    return np.asarray(found[need * n:], dtype=object)

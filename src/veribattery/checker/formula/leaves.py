@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterator
-from typing import TypeAlias
+from typing import NamedTuple, Protocol, TypeAlias
 
 import numpy as np
 
@@ -73,10 +73,38 @@ def operand_chain(expr: Binary, op: str) -> list[Expr]:
     return operands
 
 
-def reward_bound(bound: TimeBound) -> int:
-    """The largest integer total reward that ``<=T`` / ``<T`` admits."""
-    value = literal_number(bound.value)
-    return math.floor(value) if bound.op == "<=" else math.ceil(value) - 1
+class Roundable(Protocol):
+    """A number ``math.floor`` and ``math.ceil`` take: a float, or an exact rational."""
+
+    def __floor__(self) -> int: ...
+
+    def __ceil__(self) -> int: ...
+
+
+class RewardLimit(NamedTuple):
+    """A reward bound on integer rewards: the largest total that ``<=T`` / ``<T`` admits,
+    or (*gather*) the smallest that ``>=B`` / ``>B`` requires."""
+
+    total: int
+    gather: bool
+
+
+def reward_limit(bound: TimeBound) -> RewardLimit:
+    """The integer limit of the reward bound *bound* (see :func:`integer_limit`)."""
+    return integer_limit(bound.op, literal_number(bound.value))
+
+
+def integer_limit(op: str, value: Roundable) -> RewardLimit:
+    """The integer limit of a reward bound ``op value``: a fractional T or B is rounded
+    inward, as the total is an integer (*value* may be a rational, read exactly)."""
+    match op:
+        case "<=":
+            return RewardLimit(math.floor(value), gather=False)
+        case "<":
+            return RewardLimit(math.ceil(value) - 1, gather=False)
+        case ">=":
+            return RewardLimit(math.ceil(value), gather=True)
+    return RewardLimit(math.floor(value) + 1, gather=True)
 
 
 def _condition_name(condition: Expr) -> str:

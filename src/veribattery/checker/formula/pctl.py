@@ -33,7 +33,7 @@ from veribattery.checker.formula.leaves import (
     leaf_values,
     literal_number,
     operand_chain,
-    reward_bound,
+    reward_limit,
     step_bound,
 )
 from veribattery.errors import CheckError
@@ -267,15 +267,20 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
 
 
 def _reward_bounded_probs(dtmc: DTMC, workspace: Workspace, path: RewardBounded) -> Bounds:
-    """``U{"r"}<=T`` / ``F{"r"}<=T``, certified."""
+    """``U{"r"}<=T`` / ``F{"r"}<=T`` (and ``>=B``), certified."""
     from veribattery.checker.kernels import reward_bounded
 
     structure = _reward_structure(dtmc, path)
     levels = reward_bounded.integer_rewards(dtmc, structure, path.span)
-    return reward_bounded.reward_bounded_until_bounds(
-        dtmc.transitions, state_set(dtmc, workspace, path.left),
-        state_set(dtmc, workspace, path.right), levels, reward_bound(path.bound),
-        workspace=workspace)
+    remain, target = state_set(dtmc, workspace, path.left), state_set(dtmc, workspace, path.right)
+    limit = reward_limit(path.bound)
+    if limit.gather:
+        from veribattery.checker.kernels.reward_layers import gathered_until_bounds
+
+        return gathered_until_bounds(dtmc.transitions, remain, target, levels, limit.total,
+                                     path.span, workspace=workspace)
+    return reward_bounded.reward_bounded_until_bounds(dtmc.transitions, remain, target, levels,
+                                                      limit.total, workspace=workspace)
 
 
 def _conditional_probs(dtmc: DTMC, workspace: Workspace, path: Conditional) -> Bounds:

@@ -26,7 +26,7 @@ from veribattery.checker.formula.leaves import (
     as_mask,
     has_operator,
     literal_number,
-    reward_bound,
+    reward_limit,
     step_bound,
 )
 from veribattery.checker.mdp import cosafe, stepped
@@ -179,7 +179,7 @@ def _path(mdp: MDP, progress: Progress | None, path: PathFormula,
                              "not supported on MDPs: check the DTMC a strategy induces instead "
                              "(--export-induced)", path.span)
         case RewardBounded(left=left, right=right, bound=bound):
-            return reward_bounded_reach(mdp, reward_structure(mdp, path), reward_bound(bound),
+            return reward_bounded_reach(mdp, reward_structure(mdp, path), reward_limit(bound),
                                         _mask(mdp, progress, left), _mask(mdp, progress, right),
                                         objective=objective, span=path.span)
     raise CheckError("this path formula is not supported on MDPs", path.span)

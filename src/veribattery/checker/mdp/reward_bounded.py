@@ -1,62 +1,76 @@
-"""Reward-bounded reachability on an MDP: ``Pmin``/``Pmax`` of ``left U{"r"}<=T right``.
+"""Reward-bounded reachability on an MDP: ``Pmin``/``Pmax`` of ``left U{"r"}<=T right``
+and of ``left U{"r"}>=B right``.
 
 As on the DTMC side (and in Storm), *right* must be reached through *left* states with
-at most T of reward accumulated, the step that enters *right* included; each step costs
-its state's reward plus its choice's action reward, a non-negative integer. The budget
-left is part of the state: the product MDP has a copy of the model per budget
-``0..T`` and one absorbing *spent* state, and a choice taken with budget ``b`` leads to
-its successors with budget ``b - r`` (to *spent* if that is negative). Its optimum
-from ``(s, T)`` is the reward-bounded optimum from ``s``, so the product is solved by
-:func:`~veribattery.checker.mdp.reach.reach_probability` with its certified bounds (a
-strategy on the product depends on the budget left: none is exported).
+at most T (at least B) of reward accumulated, the step that enters *right* included;
+each step costs its state's reward plus its choice's action reward, a non-negative
+integer. The reward left to spend (still to gather) is part of the state: the product
+MDP has a copy of the model per layer ``0..T`` (``0..B``), built by
+:mod:`~veribattery.checker.kernels.reward_layers`. With an upper bound a choice taken
+with budget ``b`` leads to its successors with budget ``b - r`` (to an absorbing
+*spent* state if that is negative); with a lower bound, to ``max(0, b - r)``, and
+*right* counts only on layer 0 (elsewhere the path goes on, through *left*). The
+product's optimum from ``(s, T)`` is the reward-bounded optimum from ``s``, so the
+product is solved by :func:`~veribattery.checker.mdp.reach.reach_probability` with its
+certified bounds (a strategy on the product depends on the layer: none is exported).
 
 The product has ``T + 1`` times the model's transitions; one that would pass
-:data:`PRODUCT_LIMIT` is refused with its size (Storm's epoch-by-epoch algorithm keeps
-one copy at a time, which this one does not).
+:data:`~veribattery.checker.kernels.reward_layers.PRODUCT_LIMIT` is refused with its
+size (Storm's epoch-by-epoch algorithm keeps one copy at a time, which this one does
+not).
 """
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from veribattery._types import BoolArray, IntArray
 from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.formula.leaves import RewardLimit
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError, Span
 from veribattery.explore.build.successors import format_state
 
-__all__ = ["PRODUCT_LIMIT", "reward_bounded_reach"]
-
-#: The most transitions the product of budgets may have (about 20 bytes each while it
-#: is solved, several times over: some 2 GB at the limit).
-PRODUCT_LIMIT = 20_000_000
+__all__ = ["reward_bounded_reach"]
 
 
-def reward_bounded_reach(mdp: MDP, structure: MdpRewards, budget: int, left: BoolArray,
-                         right: BoolArray, *, objective: Objective, span: Span) -> Bounds:
-    """Certified ``Pmin``/``Pmax`` of ``left U{"r"}<=budget right`` in every state.
+def reward_bounded_reach(mdp: MDP, structure: MdpRewards, limit: RewardLimit,
+                         left: BoolArray, right: BoolArray, *, objective: Objective,
+                         span: Span) -> Bounds:
+    """Certified ``Pmin``/``Pmax`` of ``left U{"r"}<=T right`` (``>=B``: *limit*) in every
+    state.
 
     :raises CheckError: a step's reward is negative or not an integer, or the product
-        would have more than :data:`PRODUCT_LIMIT` transitions.
+        would be too large (:func:`~veribattery.checker.kernels.reward_layers.
+        require_product_size`).
     """
+    # (the DTMC kernels' package, imported only when a reward bound is checked: an MDP's
+    # other checks do not read it)
+    from veribattery.checker.kernels.reward_layers import (
+        layered_groups,
+        layered_rows,
+        require_product_size,
+    )
+
     n = mdp.num_states
-    if budget < 0:
+    if not limit.gather and limit.total < 0:
         return Bounds.exact(np.zeros(n))
+    top = max(limit.total, 0)
     costs = _step_costs(mdp, structure, span)
-    size = (budget + 1) * mdp.transitions.nnz
-    if size > PRODUCT_LIMIT:
-        raise CheckError(f"a reward bound of {budget} makes a product of {size:,} transitions "
-                         f"on this MDP (at most {PRODUCT_LIMIT:,}): use a smaller bound",
-                         span)
-    product = _budget_product(mdp, costs, budget)
-    spent = np.zeros(1, dtype=bool)
-    target = np.concatenate([np.tile(right, budget + 1), spent])
-    remain = np.concatenate([np.tile(left, budget + 1), spent])
+    require_product_size(mdp.transitions.nnz, top, limit.total, span)
+    product = MDP(layered_rows(mdp.transitions, costs, top, gather=limit.gather),
+                  layered_groups(mdp.row_groups, top, gather=limit.gather),
+                  (top * n + mdp.initial).astype(np.int64))
+    if limit.gather:
+        target = np.concatenate([right, np.zeros(top * n, dtype=bool)])
+        remain = np.tile(left, top + 1)
+    else:
+        target = np.concatenate([np.tile(right, top + 1), [False]])
+        remain = np.concatenate([np.tile(left, top + 1), [False]])
     found = reach_probability(product, target, objective=objective, remain=remain).bounds
-    return found.at(np.arange(budget * n, (budget + 1) * n))
+    return found.at(np.arange(top * n, (top + 1) * n))
 
 
 def _step_costs(mdp: MDP, structure: MdpRewards, span: Span) -> IntArray:
@@ -80,24 +94,3 @@ def _state_text(mdp: MDP, state: int) -> str:
     if mdp.states is None:
         return str(state)
     return f"({format_state(mdp.variable_names, mdp.states[state])})"
-
-
-def _budget_product(mdp: MDP, costs: IntArray, budget: int) -> MDP:
-    """The MDP over (state, budget left) pairs, ``b * n + s``, then the *spent* state."""
-    n, m = mdp.num_states, mdp.num_choices
-    matrix = sp.csr_matrix(mdp.transitions)
-    per_row = np.diff(matrix.indptr)
-    entry_cost = np.repeat(costs, per_row)
-    spent = (budget + 1) * n
-    columns = [np.where(b - entry_cost >= 0, (b - entry_cost) * n + matrix.indices, spent)
-               for b in range(budget + 1)]
-    indices = np.concatenate([*columns, [spent]]).astype(np.int64)
-    data = np.concatenate([np.tile(matrix.data, budget + 1), [1.0]])
-    layers = np.arange(budget + 1, dtype=np.int64)[:, None]
-    entries, rows = (budget + 1) * matrix.nnz, (budget + 1) * m
-    indptr = np.concatenate([(layers * matrix.nnz + matrix.indptr[:-1]).ravel(),
-                             [entries, entries + 1]])
-    groups = np.concatenate([(layers * m + mdp.row_groups[:-1]).ravel(), [rows, rows + 1]])
-    transitions = sp.csr_matrix((data, indices, indptr), shape=(rows + 1, spent + 1))
-    initial = budget * n + mdp.initial
-    return MDP(transitions, groups.astype(np.int64), initial.astype(np.int64))

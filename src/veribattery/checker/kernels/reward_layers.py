@@ -1,0 +1,120 @@
+"""A model's product with the reward left to spend or still to gather.
+
+A reward bound on reachability (Storm's ``F^{rew{"r"}<=T} phi`` and
+``F^{rew{"r"}>=B} phi``) becomes plain reachability on a product whose state is a
+model state and a *layer*: a count of reward units. Every row of the model (a
+state's, or a choice's on an MDP) is copied once per layer, and an entry whose
+step costs ``c`` leads from layer ``k`` to layer ``k - c`` of its successor:
+
+* **spend** (an upper bound T; layers ``0..T``, the budget left): where ``k - c`` is
+  negative the entry leads to one absorbing *spent* state instead, numbered last;
+* **gather** (a lower bound B; layers ``0..B``, the reward still needed): the layer
+  stops at 0 (``max(0, k - c)``), so layer 0 is the model itself and the bound is
+  met there.
+
+A state is numbered ``k * n + s``. Both the DTMC and the MDP checks build on this
+(:mod:`~veribattery.checker.kernels.reward_bounded`,
+:mod:`~veribattery.checker.mdp.reward_bounded`); rows are kept in layer-major order,
+so an MDP's row groups follow from its own.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, CsrMatrix, IntArray
+from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels.until import until_probs
+from veribattery.errors import CheckError, Span
+
+if TYPE_CHECKING:
+    from veribattery.checker.workspace import Workspace
+
+__all__ = ["PRODUCT_LIMIT", "gathered_until_bounds", "layered_groups", "layered_rows",
+           "require_product_size"]
+
+#: The most transitions a product may have (about 20 bytes each while it is solved,
+#: several times over: some 2 GB at the limit).
+PRODUCT_LIMIT = 20_000_000
+
+
+def require_product_size(transitions: int, top: int, bound: int, span: Span) -> None:
+    """Refuse a product of layers ``0..top`` of a model of *transitions* past the limit.
+
+    :raises CheckError: naming the bound and the product's size.
+    """
+    size = (top + 1) * transitions
+    if size > PRODUCT_LIMIT:
+        raise CheckError(f"a reward bound of {bound} makes a product of {size:,} transitions "
+                         f"on this model (at most {PRODUCT_LIMIT:,}): use a smaller bound",
+                         span)
+
+
+def gathered_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
+                          rewards: IntArray, need: int, span: Span, *,
+                          workspace: Workspace) -> Bounds:
+    """Probability of ``remain U{r}>=need target`` on a DTMC in every state, certified:
+    *target* reached through *remain* states once at least *need* of reward is
+    gathered, the entering step included (a target met earlier is passed through, if
+    it is a *remain* state). Unbounded until on the gather product, from layer *need*.
+
+    :param rewards: the non-negative integer reward of the step leaving each state.
+    :raises CheckError: the product would pass :data:`PRODUCT_LIMIT` transitions.
+    """
+    n = P.shape[0]
+    top = max(need, 0)
+    require_product_size(P.nnz, top, need, span)
+    product = layered_rows(P, rewards, top, gather=True)
+    met = np.concatenate([target, np.zeros(top * n, dtype=bool)])
+    found = until_probs(product, np.tile(remain, top + 1), met, workspace=workspace)
+    return found.at(np.arange(top * n, (top + 1) * n))
+
+
+def layered_rows(matrix: CsrMatrix, costs: IntArray, top: int, *, gather: bool
+                 ) -> CsrMatrix:
+    """The rows of *matrix* (columns: its *n* states) copied for layers ``0..top``.
+
+    :param costs: each row's integer cost (non-negative).
+    :param gather: the layer counts reward still needed (stops at 0), not budget left
+        (a negative budget leads to the *spent* state, which gets the last row).
+    :return: ``(top + 1) * rows`` rows, and one more for *spent* unless *gather*; as
+        many columns as rows have states: ``(top + 1) * n``, plus *spent*.
+    """
+    matrix = sp.csr_matrix(matrix)
+    n = matrix.shape[1]
+    entry_cost = np.repeat(np.asarray(costs, dtype=np.int64), np.diff(matrix.indptr))
+    spent = (top + 1) * n
+    columns = []
+    for layer in range(top + 1):
+        left = layer - entry_cost
+        if gather:
+            columns.append(np.maximum(left, 0) * n + matrix.indices)
+        else:
+            columns.append(np.where(left >= 0, left * n + matrix.indices, spent))
+    layers = np.arange(top + 1, dtype=np.int64)[:, None]
+    entries = (top + 1) * matrix.nnz
+    indptr = (layers * matrix.nnz + matrix.indptr[:-1]).ravel()
+    data = np.tile(matrix.data, top + 1)
+    if gather:
+        shape = ((top + 1) * matrix.shape[0], spent)
+        indptr = np.concatenate([indptr, [entries]])
+    else:
+        shape = ((top + 1) * matrix.shape[0] + 1, spent + 1)
+        columns.append(np.array([spent], dtype=np.int64))
+        data = np.concatenate([data, [1.0]])
+        indptr = np.concatenate([indptr, [entries, entries + 1]])
+    return sp.csr_matrix((data, np.concatenate(columns).astype(np.int64), indptr), shape=shape)
+
+
+def layered_groups(groups: IntArray, top: int, *, gather: bool) -> IntArray:
+    """An MDP's row groups (``groups[s]..groups[s+1]`` are state *s*'s choices) for
+    :func:`layered_rows` of its choices: layer-major, with *spent*'s one row last
+    unless *gather*."""
+    rows = int(groups[-1])
+    layers = np.arange(top + 1, dtype=np.int64)[:, None]
+    laid = (layers * rows + np.asarray(groups[:-1], dtype=np.int64)).ravel()
+    ends = [(top + 1) * rows] if gather else [(top + 1) * rows, (top + 1) * rows + 1]
+    return np.concatenate([laid, ends]).astype(np.int64)
