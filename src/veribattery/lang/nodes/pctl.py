@@ -204,9 +204,9 @@ class ReachUntil:
 class RewardBounded:
     """``left U{"r"}<=T right`` (``F{"r"}<=T right`` has *left* ``true``), as in Storm.
 
-    *right* is reached through *left* states with at most T of reward structure
-    *reward* accumulated, the step that enters *right* included. *reward* is a name
-    or a 0-based index, as in :class:`RewardOp`.
+    *right* is reached through *left* states with at most T (``>=B``: at least B; then
+    *left* is ``true``) of reward structure *reward* accumulated, the step that enters
+    *right* included. *reward* is a name or a 0-based index, as in :class:`RewardOp`.
     """
 
     left: Expr
