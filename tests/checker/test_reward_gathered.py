@@ -16,6 +16,7 @@ from click.testing import CliRunner
 
 from tests.checker.test_conditional import CHAIN
 from tests.checker.test_reward_bounded import REWARD, ROWS
+from tests.explore.test_mdp_build import CHOICE
 from veribattery.checker.kernels import reward_layers
 from veribattery.cli import cli
 from veribattery.lang import parse_property
@@ -123,16 +124,19 @@ def test_layers_gather_down_to_zero_and_spend_into_spent() -> None:
     assert groups.tolist() == [0, 2, 3, 5, 6, 7]
 
 
-def test_a_product_too_large_is_one_line(tmp_path: Path,
+@pytest.mark.parametrize(("text", "prop", "size"), [
+    (CHAIN, 'P=? [ F{"t"}>=9 "succ" ]', 90),  # 10 layers of 9 transitions
+    (CHOICE, 'Pmax=? [ F{"r"}<=9 "goal" ]', 60),  # 10 layers of 6, upper bounds alike
+], ids=["dtmc-gather", "mdp-spend"])
+def test_a_product_too_large_is_one_line(text: str, prop: str, size: int, tmp_path: Path,
                                          monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(reward_layers, "PRODUCT_LIMIT", 30)
-    model = tmp_path / "m.pm"
-    model.write_text(CHAIN)
-    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
-                                      'P=? [ F{"t"}>=9 "succ" ]'])
+    model = tmp_path / "m.prism"
+    model.write_text(text)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop])
     assert result.exit_code == 2
     (line,) = result.output.strip().splitlines()
-    assert "a reward bound of 9 makes a product of 90 transitions" in line
+    assert f"a reward bound of 9 makes a product of {size} transitions" in line
 
 
 # ---------------------------------------------------------------------------

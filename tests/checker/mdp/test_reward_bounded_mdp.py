@@ -11,7 +11,6 @@ from click.testing import CliRunner
 
 from tests.explore.test_mdp_build import CHOICE
 from tests.strategies.models import ROBOT
-from veribattery.checker.kernels import reward_layers
 from veribattery.cli import cli
 from veribattery.errors import CheckError
 from veribattery.pipeline import check_prism_file
@@ -59,18 +58,6 @@ def test_non_integer_rewards_are_an_error() -> None:
     with pytest.raises(CheckError, match=r'reward structure "r" gives 1.5 to a choice of '
                                          r"state \(s=0\)"):
         _value('Pmax=? [ F{"r"}<=3 "goal" ]', MODEL.replace(": 1;", ": 1.5;"))
-
-
-def test_a_product_too_large_is_one_line(tmp_path: Path,
-                                         monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(reward_layers, "PRODUCT_LIMIT", 30)
-    model = tmp_path / "m.nm"
-    model.write_text(MODEL)
-    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
-                                      'Pmax=? [ F{"r"}<=9 "goal" ]'])
-    assert result.exit_code == 2
-    (line,) = result.output.strip().splitlines()
-    assert "a reward bound of 9 makes a product of 60 transitions" in line
 
 
 def test_no_strategy_is_exported(tmp_path: Path) -> None:
