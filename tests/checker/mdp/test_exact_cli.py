@@ -109,6 +109,7 @@ def test_bound_without_exact_form_is_undecided(kind: str, tmp_path: Path) -> Non
     code, results = _json(model, tmp_path, "--property", "P>1/3 [ F s=1 ]")
     assert code == 0
     assert results[0]["value"] is None and "straddles" in str(results[0]["undecided"])
+    assert "np.float64" not in str(results[0]["undecided"])  # plain floats in the message
     path = tmp_path / "m.prism"
     table = CliRunner().invoke(cli, ["prism", str(path), "--property", "P>1/3 [ F s=1 ]"])
     assert table.exit_code == 0 and "undecided" in table.stdout

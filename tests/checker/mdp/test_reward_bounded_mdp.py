@@ -4,6 +4,7 @@ hand, against QVBS's exact results on firewire, against Storm, and its refusals.
 from __future__ import annotations
 
 import json
+from fractions import Fraction
 from pathlib import Path
 
 import pytest
@@ -11,6 +12,7 @@ from click.testing import CliRunner
 
 from tests.explore.test_mdp_build import CHOICE
 from tests.strategies.models import ROBOT
+from veribattery.checker.exact import ExactCheckResult
 from veribattery.cli import cli
 from veribattery.errors import CheckError
 from veribattery.pipeline import check_prism_file
@@ -71,18 +73,38 @@ def test_no_strategy_is_exported(tmp_path: Path) -> None:
     assert not (tmp_path / "s.txt").exists()
 
 
-def test_a_bound_its_interval_straddles_is_undecided(tmp_path: Path) -> None:
-    """0.875 exactly: the float interval cannot decide, and the exact engine has no
-    reward-bounded MDP kernel, so the answer is undecided (not an input error)."""
+@pytest.mark.parametrize(("prop", "holds"), [
+    ('Pmax>=0.875 [ F{"r"}<=3 "goal" ]', True), ('Pmax>0.875 [ F{"r"}<=3 "goal" ]', False),
+])
+def test_a_bound_its_interval_straddles_is_decided_exactly(prop: str, holds: bool,
+                                                          tmp_path: Path) -> None:
+    """0.875 exactly: the float interval cannot decide, the exact product can."""
     model = tmp_path / "m.nm"
     model.write_text(MODEL)
-    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
-                                      'Pmax>=0.875 [ F{"r"}<=3 "goal" ]', "--json"])
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop, "--json"])
     assert result.exit_code == 0, result.output
     (answer,) = json.loads(result.stdout)["results"]
-    assert answer["value"] is None
-    assert "straddles the bound (state 0: [0.87" in answer["undecided"]
-    assert "np.float64" not in result.output  # plain floats in the message
+    assert answer["value"] is holds
+    assert "decided in exact arithmetic" in result.stderr
+
+
+@pytest.mark.parametrize(("prop", "value"), [
+    ('Pmax=? [ F{"r"}<=3 "goal" ]', Fraction(7, 8)),
+    ('Pmin=? [ F{"r"}<=3 "goal" ]', Fraction(0)),
+    ('Pmax=? [ F{"r"}>=2 "goal" ]', Fraction(1)),  # the goal's deadlock loop pays 5
+    ('Pmax=? [ F{"r"}>=2 s=1 ]', Fraction(1, 4)),  # [a] twice, to s1 both times
+])
+def test_exact_mode(prop: str, value: Fraction) -> None:
+    (result,) = check_prism_file(MODEL, props_source=prop, exact=True).results
+    assert isinstance(result, ExactCheckResult)
+    assert result.exact == value
+
+
+def test_exact_mode_needs_integer_rewards_exactly() -> None:
+    # 1 + 2^-40 passes the float check's tolerance, not the exact one
+    with pytest.raises(CheckError, match=r'structure "r" gives 1 to a choice of state \(s=0\)'):
+        check_prism_file(MODEL.replace(": 1;", ": 1 + 1/1099511627776;"),
+                         props_source='Pmax=? [ F{"r"}<=3 "goal" ]', exact=True)
 
 
 # ---------------------------------------------------------------------------
@@ -101,9 +123,13 @@ def _storm(text: str, props: list[str], tmp_path: Path) -> list[float]:
     (MODEL, [f'P{d}=? [ F{{"r"}}<={k} "goal" ]' for d in ("min", "max") for k in (0, 2, 5)]),
     (ROBOT, [f'P{d}=? [ F{{"{r}"}}<={k} "goal" ]' for d in ("min", "max") for k in (1, 3, 6)
              for r in ("steps", "time")]
-     + ['Pmax=? [ !"broken" U{"steps"}<=4 "goal" ]']),
+     + ['Pmax=? [ !"broken" U{"steps"}<=4 "goal" ]']
+     + [f'P{d}=? [ F{{"time"}}>={k} "goal" ]' for d in ("min", "max") for k in (2, 5)]),
 ], ids=["hand", "robot"])
 def test_against_storm(text: str, props: list[str], tmp_path: Path) -> None:
+    """Storm's exact values, to 1e-6 in float and to the last bit in ``--exact``."""
     storm = _storm(text, props, tmp_path)
     ours = [_value(p, text) for p in props]
     assert ours == pytest.approx(storm, rel=1e-6, abs=1e-9)
+    exact = check_prism_file(text, props_source=";".join(props), exact=True).results
+    assert [float(r.exact) for r in exact if isinstance(r, ExactCheckResult)] == storm

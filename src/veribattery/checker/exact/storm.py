@@ -261,17 +261,21 @@ def _gathered(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target:
               rewards: IntArray, need: int, span: Span) -> ObjectArray:
     """``remain U{"r"}>=need target``: unbounded until on the gather product
     (:mod:`~veribattery.checker.kernels.reward_layers`), from layer *need*."""
-    from veribattery.checker.kernels.reward_layers import layered_rows, require_product_size
+    from veribattery.checker.kernels.reward_layers import (
+        layered_data,
+        layered_rows,
+        require_product_size,
+    )
 
     dtmc = model.dtmc
     n = dtmc.num_states
     require_product_size(dtmc.transitions.nnz, need, need, span)
     layers = need + 1
-    # (each row keeps its entries' order, so the rationals are the model's, tiled)
     product = DTMC(layered_rows(dtmc.transitions, rewards, need, gather=True),
                    np.zeros((layers * n, 0), dtype=np.int64), (), need * n + dtmc.initial,
                    {}, ())
-    laid = ExactDTMC(product, np.tile(model.probabilities, layers), (), model.constants)
+    laid = ExactDTMC(product, layered_data(model.probabilities, need, gather=True, one=_ONE),
+                     (), model.constants)
     met = np.concatenate([target, np.zeros(need * n, dtype=bool)])
     found = until_probs(laid, workspace, np.tile(remain, layers), met)
     return np.asarray(found[need * n:], dtype=object)

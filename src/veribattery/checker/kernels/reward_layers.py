@@ -33,8 +33,8 @@ from veribattery.errors import CheckError, Span
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
 
-__all__ = ["PRODUCT_LIMIT", "gathered_until_bounds", "layered_groups", "layered_rows",
-           "require_product_size"]
+__all__ = ["PRODUCT_LIMIT", "gathered_until_bounds", "layered_data", "layered_groups",
+           "layered_rows", "require_product_size"]
 
 #: The most transitions a product may have (about 20 bytes each while it is solved,
 #: several times over: some 2 GB at the limit).
@@ -97,16 +97,23 @@ def layered_rows(matrix: CsrMatrix, costs: IntArray, top: int, *, gather: bool
     layers = np.arange(top + 1, dtype=np.int64)[:, None]
     entries = (top + 1) * matrix.nnz
     indptr = (layers * matrix.nnz + matrix.indptr[:-1]).ravel()
-    data = np.tile(matrix.data, top + 1)
     if gather:
         shape = ((top + 1) * matrix.shape[0], spent)
         indptr = np.concatenate([indptr, [entries]])
     else:
         shape = ((top + 1) * matrix.shape[0] + 1, spent + 1)
         columns.append(np.array([spent], dtype=np.int64))
-        data = np.concatenate([data, [1.0]])
         indptr = np.concatenate([indptr, [entries, entries + 1]])
+    data = layered_data(matrix.data, top, gather=gather, one=1.0)
     return sp.csr_matrix((data, np.concatenate(columns).astype(np.int64), indptr), shape=shape)
+
+
+def layered_data(data: np.ndarray, top: int, *, gather: bool, one: object) -> np.ndarray:
+    """The entries of :func:`layered_rows` in its order, from the model's entries *data*
+    (floats, or exact rationals: the product keeps every entry's value): one copy per
+    layer, then *one* for *spent*'s loop unless *gather*."""
+    laid = np.tile(data, top + 1)
+    return laid if gather else np.concatenate([laid, np.array([one], dtype=data.dtype)])
 
 
 def layered_groups(groups: IntArray, top: int, *, gather: bool) -> IntArray:

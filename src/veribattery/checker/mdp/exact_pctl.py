@@ -28,8 +28,15 @@ from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.exact import ExactCheckResult, ExactValues
 from veribattery.checker.exact.numeric import exact_literal
 from veribattery.checker.formula import filters
-from veribattery.checker.formula.leaves import CONNECTIVES, as_mask, has_operator, step_bound
+from veribattery.checker.formula.leaves import (
+    CONNECTIVES,
+    as_mask,
+    has_operator,
+    integer_limit,
+    step_bound,
+)
 from veribattery.checker.mdp.exact import exact_reach_reward, exact_total_reward
+from veribattery.checker.mdp.exact_reward_bounded import exact_reward_bounded
 from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
 from veribattery.checker.mdp.formula import mdp_values
 from veribattery.checker.mdp.model import MDP
@@ -60,6 +67,7 @@ from veribattery.lang.nodes import (
     Property,
     Reach,
     Release,
+    RewardBounded,
     RewardOp,
     TimeBound,
     TimeInterval,
@@ -362,8 +370,14 @@ def path_probs(model: ExactMdpModel, path: PathFormula, objective: Objective) ->
         case Release(left=left, right=right, bound=bound):  # a R b = !(!a U !b)
             a, b = state_set(model, left), state_set(model, right)
             return _complement(_until(model, ~a, ~b, bound, _opposite(objective)))
-    raise CheckError("this path formula has no exact MDP kernel (X, U, F, G, W, R have)",
-                     path.span)
+        case RewardBounded(left=left, right=right, bound=bound):
+            limit = integer_limit(bound.op, exact_literal(bound.value))
+            return exact_reward_bounded(model.mdp, model.exact.probabilities,
+                                        _structure(model, path), limit, state_set(model, left),
+                                        state_set(model, right), objective=objective,
+                                        span=path.span)
+    raise CheckError("this path formula has no exact MDP kernel (X, U, F, G, W, R and "
+                     "reward-bounded F, U have)", path.span)
 
 
 def _until(model: ExactMdpModel, remain: BoolArray | None, target: BoolArray,
@@ -408,7 +422,7 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
                      op.path.span)
 
 
-def _structure(model: ExactMdpModel, op: RewardOp) -> ExactMdpRewards:
+def _structure(model: ExactMdpModel, op: RewardOp | RewardBounded) -> ExactMdpRewards:
     """As :func:`~veribattery.checker.mdp.operators.reward_structure`, in rationals."""
     if op.reward == STEPS_REWARD:
         states, choices = model.mdp.num_states, model.mdp.num_choices

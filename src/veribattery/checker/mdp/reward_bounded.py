@@ -22,6 +22,8 @@ not).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from veribattery._types import BoolArray, IntArray
@@ -33,7 +35,24 @@ from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError, Span
 from veribattery.explore.build.successors import format_state
 
-__all__ = ["reward_bounded_reach"]
+__all__ = ["BudgetProduct", "budget_product", "non_integer_reward", "reward_bounded_reach"]
+
+
+@dataclass(frozen=True, slots=True)
+class BudgetProduct:
+    """The product MDP of a reward bound, and where to read the answer in it.
+
+    :param answer: per model state, its product state with the whole bound ahead.
+    :param top: the last layer (T or B).
+    :param gather: the layers count reward still needed (``>=B``), not budget left.
+    """
+
+    mdp: MDP
+    target: BoolArray
+    remain: BoolArray
+    answer: IntArray
+    top: int
+    gather: bool
 
 
 def reward_bounded_reach(mdp: MDP, structure: MdpRewards, limit: RewardLimit,
@@ -43,8 +62,24 @@ def reward_bounded_reach(mdp: MDP, structure: MdpRewards, limit: RewardLimit,
     state.
 
     :raises CheckError: a step's reward is negative or not an integer, or the product
-        would be too large (:func:`~veribattery.checker.kernels.reward_layers.
-        require_product_size`).
+        would be too large (:func:`budget_product`).
+    """
+    if not limit.gather and limit.total < 0:
+        return Bounds.exact(np.zeros(mdp.num_states))
+    product = budget_product(mdp, _step_costs(mdp, structure, span), limit, left, right, span)
+    found = reach_probability(product.mdp, product.target, objective=objective,
+                              remain=product.remain).bounds
+    return found.at(product.answer)
+
+
+def budget_product(mdp: MDP, costs: IntArray, limit: RewardLimit, left: BoolArray,
+                   right: BoolArray, span: Span) -> BudgetProduct:
+    """The product of *mdp* with the budget left (the reward still needed) of *limit*, a
+    bound that admits some path (not ``<=T`` with ``T < 0``).
+
+    :param costs: each choice's step reward, a non-negative integer.
+    :raises CheckError: the product would be too large (:func:`~veribattery.checker.
+        kernels.reward_layers.require_product_size`).
     """
     # (the DTMC kernels' package, imported only when a reward bound is checked: an MDP's
     # other checks do not read it)
@@ -54,39 +89,40 @@ def reward_bounded_reach(mdp: MDP, structure: MdpRewards, limit: RewardLimit,
         require_product_size,
     )
 
-    n = mdp.num_states
-    if not limit.gather and limit.total < 0:
-        return Bounds.exact(np.zeros(n))
-    top = max(limit.total, 0)
-    costs = _step_costs(mdp, structure, span)
+    n, top, gather = mdp.num_states, max(limit.total, 0), limit.gather
     require_product_size(mdp.transitions.nnz, top, limit.total, span)
-    product = MDP(layered_rows(mdp.transitions, costs, top, gather=limit.gather),
-                  layered_groups(mdp.row_groups, top, gather=limit.gather),
+    product = MDP(layered_rows(mdp.transitions, costs, top, gather=gather),
+                  layered_groups(mdp.row_groups, top, gather=gather),
                   (top * n + mdp.initial).astype(np.int64))
-    if limit.gather:
+    if gather:
         target = np.concatenate([right, np.zeros(top * n, dtype=bool)])
         remain = np.tile(left, top + 1)
     else:
         target = np.concatenate([np.tile(right, top + 1), [False]])
         remain = np.concatenate([np.tile(left, top + 1), [False]])
-    found = reach_probability(product, target, objective=objective, remain=remain).bounds
-    return found.at(np.arange(top * n, (top + 1) * n))
+    return BudgetProduct(product, target, remain, np.arange(top * n, (top + 1) * n), top,
+                         gather)
 
 
 def _step_costs(mdp: MDP, structure: MdpRewards, span: Span) -> IntArray:
     """Each choice's step reward (its state's plus its own) as a non-negative integer."""
-    # (the DTMC kernels' package, imported only when a reward bound is checked: an MDP's
-    # other checks do not read it)
     from veribattery.checker.kernels.reward_bounded import NonIntegerReward, integer_levels
 
     try:
         return integer_levels(structure.per_choice(mdp))
     except NonIntegerReward as exc:
-        state = int(mdp.choice_owner[exc.state])
-        name = f'"{structure.name}"' if structure.name else "(unnamed)"
-        raise CheckError(f"a reward bound needs non-negative integer rewards, but reward "
-                         f"structure {name} gives {exc.value:g} to a choice of state "
-                         f"{_state_text(mdp, state)}", span) from None
+        raise non_integer_reward(mdp, structure.name, exc.state, exc.value, span) from None
+
+
+def non_integer_reward(mdp: MDP, name: str | None, choice: int, value: float,
+                       span: Span) -> CheckError:
+    """The error for a reward bound on a structure that gives *choice* a step reward
+    that is negative or not an integer."""
+    state = int(mdp.choice_owner[choice])
+    shown = f'"{name}"' if name else "(unnamed)"
+    return CheckError(f"a reward bound needs non-negative integer rewards, but reward "
+                      f"structure {shown} gives {value:g} to a choice of state "
+                      f"{_state_text(mdp, state)}", span)
 
 
 def _state_text(mdp: MDP, state: int) -> str:
