@@ -120,6 +120,9 @@ def test_reward_operator_without_reward_structures() -> None:
     [
         ("P>1.5 [ F x=1 ]", "t.props:1:3: the probability bound 1.5 is not in [0, 1]"),
         ("P=? [ F<=-1 x=1 ]", "t.props:1:10: a step bound cannot be negative"),
+        ('P=? [ F{"steps"}<=-1 x=1 ]', "t.props:1:19: a reward bound cannot be negative"),
+        ('P=? [ F{"steps"}<0 x=1 ]', "the reward bound holds for no total (the interval "
+                                     "[0,-1] is empty)"),
         ("P=? [ F<=0.5 x=1 ]", "t.props:1:10: type error: a step bound must be an int"),
         ("P=? [ F x+1 ]", "t.props:1:9: type error: the operand of F or G must be a bool, not int"),
         ("P>=true [ F x=1 ]", "type error: the bound of a P or R operator must be a number"),

@@ -177,15 +177,16 @@ def _check_bound(op: ProbOp | RewardOp | SteadyOp) -> None:
         raise PrismSemanticError(f"the probability bound {value} is not in [0, 1]", op.bound.span)
 
 
-def _check_steps(value: Expr) -> None:
+def _check_steps(value: Expr, kind: str = "step") -> None:
     if evaluate(value, {}) < 0:
-        raise PrismSemanticError("a step bound cannot be negative", value.span)
+        raise PrismSemanticError(f"a {kind} bound cannot be negative", value.span)
 
 
-def _check_interval(node: TimeBound | TimeInterval) -> None:
-    """PRISM rejects a step interval that holds no step (``F<0``, ``G[1,0]``)."""
+def _check_interval(node: TimeBound | TimeInterval, kind: str = "step") -> None:
+    """PRISM rejects a step interval that holds no step (``F<0``, ``G[1,0]``); a reward
+    bound (*kind* ``reward``) that admits no total alike."""
     for value in (node.low, node.high) if isinstance(node, TimeInterval) else (node.value,):
-        _check_steps(value)
+        _check_steps(value, kind)
     if isinstance(node, TimeInterval):
         low, high = evaluate(node.low, {}), evaluate(node.high, {})
     elif node.op == "=":
@@ -196,7 +197,8 @@ def _check_interval(node: TimeBound | TimeInterval) -> None:
         low, high = evaluate(node.value, {}) + (node.op == ">"), None
     if high is not None and high < low:
         raise PrismSemanticError(
-            f"the step bound holds for no step (the interval [{low},{high}] is empty)",
+            f"the {kind} bound holds for no {'total' if kind == 'reward' else 'step'} (the "
+            f"interval [{low},{high}] is empty)",
             node.span)
 
 
@@ -220,13 +222,14 @@ def _check_multi(formula: Expr, model: FlatModel) -> None:
 
 def _check_operators(formula: Expr, model: FlatModel) -> None:
     _check_multi(formula, model)
+    on_rewards = {id(node.bound) for node in walk(formula) if isinstance(node, RewardBounded)}
     for node in walk(formula):
         if isinstance(node, RewardOp | RewardBounded):
             _check_reward(node, model)
         if isinstance(node, ProbOp | RewardOp | SteadyOp):
             _check_bound(node)
         elif isinstance(node, TimeBound | TimeInterval):
-            _check_interval(node)
+            _check_interval(node, "reward" if id(node) in on_rewards else "step")
         elif isinstance(node, Cumulative):
             _check_steps(node.bound)
         elif isinstance(node, Instantaneous):
