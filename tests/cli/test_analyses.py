@@ -160,6 +160,18 @@ def test_prism_bad_input(loop: Path) -> None:
                     "--top must be at least 1")
     _one_line_error(run("prism", str(loop), "--property", "P=? [ F x=3 ]", "--simulate", "0"),
                     "--simulate must be at least 1")
+    # more runs than any memory holds (numpy cannot even size them past 2^63)
+    _one_line_error(run("prism", str(loop), "--property", "P=? [ F x=3 ]", "--simulate",
+                        "99999999999999999999"),
+                    "--simulate must be at most 1,000,000,000,000, not "
+                    "99,999,999,999,999,999,999")
+    _one_line_error(run("prism", str(loop), "--property", "P=? [ F x=3 ]", "--simulate", "5",
+                        "--seed", "-1"),
+                    "Invalid value for '--seed': -1 is not in the range x>=0")
+    _one_line_error(run("prism", str(loop), "--property", "P=? [ F x=3 ]", "-o",
+                        str(loop.with_suffix(".csv"))),
+                    "-o writes the sampled paths of --simulate N: give --simulate")
+    assert not loop.with_suffix(".csv").exists()
 
 
 def test_prism_simulate_reports_undecided_runs(loop: Path) -> None:

@@ -17,7 +17,6 @@ import pytest
 from click.testing import CliRunner, Result
 
 from veribattery.cli import cli
-from veribattery.cli.report import report_command
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = str(REPO / "configs" / "example.yaml")
@@ -32,10 +31,9 @@ SECTIONS = ("verdict", "mission", "failures", "time", "simulation", "sweep", "re
 
 
 def report(*args: str) -> Result:
-    """``veribattery report ARGS`` through click's runner (the command is not yet listed in
-    ``veribattery.cli``, so it is invoked directly: its errors go through the same
-    one-line ``user_errors``)."""
-    return CliRunner().invoke(report_command, list(args))
+    """``veribattery report ARGS`` through click's runner and the CLI group, as a user
+    runs it (click's own option errors become one line there)."""
+    return CliRunner().invoke(cli, ["report", *args])
 
 
 def command(*args: str) -> Result:

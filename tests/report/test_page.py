@@ -126,6 +126,9 @@ def test_an_existing_output_is_kept_without_force(tmp_path: Path) -> None:
     (("-o", "{tmp}/report.pdf"), "unsupported file type '.pdf'"),
     (("-o", "{tmp}/nofolder/report.html"), "does not exist"),
     (("-o", "{tmp}/r.html", "--runs", "-1"), "--runs must be at least 0"),
+    (("-o", "{tmp}/r.html", "--runs", "10000000000001"), "--runs must be at most "
+                                                          "1,000,000,000,000"),
+    (("-o", "{tmp}/r.html", "--seed", "-1"), "'--seed': -1 is not in the range x>=0"),
     (("-o", "{tmp}/r.html", "--top", "0"), "--top must be at least 1"),
     (("-o", "{tmp}/r.html", "--deadline", "3 weeks"), "--deadline '3 weeks'"),
     (("-o", "{tmp}/r.html", "--working-day", "0h"), "--working-day 0h"),

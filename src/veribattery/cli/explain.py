@@ -57,12 +57,21 @@ CSV_COLUMNS = ("path", "probability", "step", "action", "state", "s", "k", "j", 
                "wsp", "b", "rc", "charge_ah", "soc", "level")
 
 
-def _positive(name: str) -> Callable[[click.Context, click.Parameter, int], int]:
-    """An option callback: a count below 1 is bad input, reported on one line (exit 2)."""
+#: The most simulated runs asked for at once: each keeps a few bytes of state, so more
+#: would not fit in memory anyway (and numpy cannot even size the arrays past 2^63).
+MOST_RUNS = 10**12
+
+
+def _positive(name: str, most: int | None = None
+              ) -> Callable[[click.Context, click.Parameter, int], int]:
+    """An option callback: a count below 1 (or above *most*) is bad input, reported on
+    one line (exit 2)."""
 
     def check(ctx: click.Context, param: click.Parameter, value: int) -> int:
         if value is not None and value < 1:
             fail(f"{name} must be at least 1, not {value}")
+        if value is not None and most is not None and value > most:
+            fail(f"{name} must be at most {most:,}, not {value:,}")
         return value
 
     return check
@@ -269,7 +278,8 @@ def _print_path(rows: Sequence[Mapping[str, object]], columns: Sequence[tuple[st
 
 def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
     for option in reversed((
-        click.option("--seed", default=0, show_default=True, help="Random seed."),
+        click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+                     help="Random seed (a non-negative integer)."),
         click.option("--max-steps", default=100_000, show_default=True,
                      callback=_positive("--max-steps"),
                      help="Steps after which an undecided run stops (and is reported)."),
@@ -288,7 +298,7 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
 @click.command("simulate", short_help="Monte-Carlo estimates beside the exact values.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
-@click.option("--runs", required=True, type=int, callback=_positive("--runs"),
+@click.option("--runs", required=True, type=int, callback=_positive("--runs", MOST_RUNS),
               help="Number of simulated runs.")
 @_simulation_options
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
@@ -435,7 +445,8 @@ def prism_analysis_options(function: Callable[..., None]) -> Callable[..., None]
                      help="Break P(F LABEL) down by variable values; show the top paths."),
         click.option("--top", default=3, show_default=True, callback=_positive("--top"),
                      help="With --explain: how many most probable paths."),
-        click.option("--simulate", type=int, metavar="N", callback=_positive("--simulate"),
+        click.option("--simulate", type=int, metavar="N",
+                     callback=_positive("--simulate", MOST_RUNS),
                      help="Also estimate the properties from N simulated runs."),
     )):
         function = option(function)

@@ -88,6 +88,9 @@ def prism_command(
         check_output_file(analysis["paths_file"], "-o", force=analysis["force"],
                           suffixes=CSV_SUFFIXES)
         check_strategy_options(analysis)
+        if analysis["paths_file"] is not None and analysis["simulate"] is None:
+            raise OptionError("-o writes the sampled paths of --simulate N: give --simulate, "
+                              "or leave out -o")
         if analysis["explain"] is not None and output_format == "csv":
             raise OptionError("--format csv: --explain prints a table or json; "
                               "use --format table or --format json")

@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
+from veribattery.cli.explain import MOST_RUNS
 from veribattery.cli.files import check_output_file
 from veribattery.cli.output import (
     build_progress,
@@ -37,7 +38,8 @@ def _note(text: str) -> None:
                    "its RESULTS.sweep.json) to draw, requirements' turning points marked.")
 @click.option("--runs", default=1000, show_default=True, type=int,
               help="Monte-Carlo runs beside the exact values (0: none).")
-@click.option("--seed", default=0, show_default=True, help="The simulation's random seed.")
+@click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
+              help="The simulation's random seed (a non-negative integer).")
 @click.option("--top", default=3, show_default=True, type=int,
               help="How many most probable failure paths.")
 @click.option("--deadline", "deadlines", multiple=True, metavar="D",
@@ -80,6 +82,8 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
 def _check_counts(runs: int, top: int) -> None:
     if runs < 0:
         raise OptionError(f"--runs must be at least 0, not {runs}")
+    if runs > MOST_RUNS:
+        raise OptionError(f"--runs must be at most {MOST_RUNS:,}, not {runs:,}")
     if top < 1:
         raise OptionError(f"--top must be at least 1, not {top}")
 

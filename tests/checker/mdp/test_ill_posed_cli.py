@@ -79,3 +79,50 @@ def test_exact_mode_reports_an_unreachable_rmin_target_too(tmp_path: Path) -> No
     code, out, err = _run(tmp_path, "--property", "2", "--exact", "--json")
     assert code == 2 and json.loads(out)["results"][0]["value"] == "Infinity"
     assert "no strategy reaches the target (s = 3)" in err
+
+
+# ---------------------------------------------------------------------------
+# Rewards PRISM does not allow: negative ones (at the property), infinite or NaN ones
+# (at the model's reward item), in every kind of reward property
+# ---------------------------------------------------------------------------
+
+NEGATIVE = """mdp
+module m
+  s : [0..1] init 0;
+  [a] s=0 -> (s'=1);
+  [a] s=1 -> (s'=1);
+endmodule
+rewards "r"
+  s=0 : -1;
+endrewards
+"""
+
+
+@pytest.mark.parametrize(("prop", "mode"), [
+    ('Rmin=? [ F s=1 ]', ()), ('Rmax=? [ C ]', ()), ('Rmax=? [ C<=3 ]', ()),
+    ('Rmin=? [ I=0 ]', ()), ('Rmin=? [ F s=1 ]', ("--exact",)),
+    ('multi(R{"r"}max=? [ C ], P>=0.5 [ F s=1 ])', ()),
+    ('Pmax=? [ F{"r"}<=2 s=1 ]', ()),
+])
+def test_negative_rewards_are_one_line(prop: str, mode: tuple[str, ...],
+                                       tmp_path: Path) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(NEGATIVE)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop, *mode])
+    assert result.exit_code == 2, result.output
+    (line,) = result.output.strip().splitlines()
+    assert line.startswith("error: <property>:1:")
+    assert line.endswith('the reward structure "r" has negative rewards, which PRISM does not '
+                         "allow")
+
+
+@pytest.mark.parametrize("value", ["0/0", "1/0"])
+def test_a_reward_that_is_not_finite_names_the_model_line(value: str, tmp_path: Path) -> None:
+    model = tmp_path / "m.nm"
+    model.write_text(NEGATIVE.replace("s=0 : -1;", f"[a] true : {value};"))
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
+                                      'multi(R{"r"}max=? [ C ])'])
+    assert result.exit_code == 2, result.output
+    (line,) = result.output.strip().splitlines()
+    assert line.startswith(f"error: {model}:8:14: reward structure \"r\" is not finite at "
+                           "state (s=0): ")

@@ -141,11 +141,21 @@ def _reward_structure(dtmc: DTMC, op: RewardOp | RewardBounded) -> RewardVectors
     except (KeyError, IndexError):
         key = "" if op.reward is None else f" {op.reward!r}"
         raise CheckError(f"the model has no reward structure{key}", op.span) from None
-    if np.any(structure.state < 0) or np.any(structure.transition < 0):
-        name = "" if structure.name is None else f' "{structure.name}"'
-        raise CheckError(f"the reward structure{name} has negative rewards, which PRISM "
-                         "does not allow", op.span)
+    require_nonnegative_rewards(structure.name, (structure.state, structure.transition), op)
     return structure
+
+
+def require_nonnegative_rewards(name: str | None, values: tuple[FloatArray, ...],
+                                op: RewardOp | RewardBounded) -> None:
+    """Refuse a reward structure with a negative reward (PRISM does not allow them),
+    naming the operator that reads it (the build refuses infinite and NaN ones).
+
+    :raises CheckError: at *op*.
+    """
+    if any(np.any(array < 0) for array in values):
+        shown = "" if name is None else f' "{name}"'
+        raise CheckError(f"the reward structure{shown} has negative rewards, which PRISM "
+                         "does not allow", op.span)
 
 
 def literal_number(expr: Expr) -> float:

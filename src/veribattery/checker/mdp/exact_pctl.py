@@ -40,7 +40,7 @@ from veribattery.checker.mdp.exact_reward_bounded import exact_reward_bounded
 from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
 from veribattery.checker.mdp.formula import mdp_values
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.operators import operator_objective
+from veribattery.checker.mdp.operators import operator_objective, reward_structure
 from veribattery.checker.mdp.rational import ObjectArray
 from veribattery.checker.mdp.system import Objective
 from veribattery.checker.result import CheckResult
@@ -428,10 +428,8 @@ def _structure(model: ExactMdpModel, op: RewardOp | RewardBounded) -> ExactMdpRe
         states, choices = model.mdp.num_states, model.mdp.num_choices
         return ExactMdpRewards(None, np.full(states, _ONE, dtype=object),
                                np.full(choices, _ZERO, dtype=object))
-    try:
-        return model.exact.reward(op.reward)
-    except (KeyError, IndexError):
-        raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+    reward_structure(model.mdp, op)  # (its checks: the floats are the rationals' shadows)
+    return model.exact.reward(op.reward)
 
 
 # ---------------------------------------------------------------------------

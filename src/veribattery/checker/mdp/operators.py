@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from veribattery.checker.formula.leaves import require_nonnegative_rewards
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError
@@ -18,14 +19,16 @@ def reward_structure(mdp: MDP, op: RewardOp | RewardBounded) -> MdpRewards:
     """The reward structure *op* (an R operator or a reward bound) reads; Storm's
     ``Tmin``/``Tmax`` count each step as 1.
 
-    :raises CheckError: the model has no such structure.
+    :raises CheckError: the model has no such structure, or it has a negative reward.
     """
     if op.reward == STEPS_REWARD:
         return MdpRewards(None, np.ones(mdp.num_states), np.zeros(mdp.num_choices))
     try:
-        return mdp.reward(op.reward)
+        structure = mdp.reward(op.reward)
     except (KeyError, IndexError):
         raise CheckError(f"unknown reward structure {op.reward!r}", op.span) from None
+    require_nonnegative_rewards(structure.name, (structure.state, structure.choice), op)
+    return structure
 
 
 def operator_objective(op: ProbOp | RewardOp) -> Objective:

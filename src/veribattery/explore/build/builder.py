@@ -37,8 +37,9 @@ from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 if TYPE_CHECKING:
     from veribattery.explore.build.successors import GroupSuccessors
 
-__all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "expand_frontier", "explore",
-           "initial_states", "memory_footprint", "rewarded_actions"]
+__all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "check_finite_reward",
+           "expand_frontier", "explore", "initial_states", "memory_footprint",
+           "rewarded_actions"]
 
 #: Frontier states expanded at once, at most.
 _CHUNK = 1 << 14
@@ -440,7 +441,7 @@ def _reward_vectors(
     for item in struct.items:
         guard = _over_states(model, item.guard, over, bool)
         value = _over_states(model, item.value, over, np.float64, where=guard)
-        _check_finite(struct, item, value, model, states)
+        check_finite_reward(struct, item, value, model, states)
         if not item.is_transition:
             state += value
             continue
@@ -450,8 +451,8 @@ def _reward_vectors(
     return RewardVectors(struct.name, state, transition)
 
 
-def _check_finite(struct: RewardStruct, item: RewardItem, value: FloatArray, model: FlatModel,
-                  states: IntArray) -> None:
+def check_finite_reward(struct: RewardStruct, item: RewardItem, value: FloatArray,
+                        model: FlatModel, states: IntArray) -> None:
     """A reward that is infinite or NaN in a state is an error, as in PRISM."""
     bad = np.flatnonzero(~np.isfinite(value))
     if bad.size:

@@ -25,6 +25,7 @@ from veribattery._unique import distinct
 from veribattery.explore.build.builder import (
     _labels,
     _over_states,
+    check_finite_reward,
     initial_states,
     memory_footprint,
 )
@@ -274,6 +275,7 @@ def _reward_vectors(model: FlatModel, struct: RewardStruct,
     for item in struct.items:
         guard = _over_states(model, item.guard, over, bool)
         value = _over_states(model, item.value, over, np.float64, where=guard)
+        check_finite_reward(struct, item, value, model, states)
         if not item.is_transition:
             state += value
             continue
