@@ -158,3 +158,29 @@ def test_resolved_yaml_is_the_text_of_pythons_emitter() -> None:
         expected = yaml.dump(loader._plain(cfg), Dumper=PythonDumper, sort_keys=False,
                              allow_unicode=True, width=100)
         assert config_to_yaml(cfg) == expected
+
+
+def test_a_sub_section_given_in_part_keeps_its_other_defaults(tmp_path: Path) -> None:
+    """Every key is optional: one level of a consumption row, in the file or by --set,
+    leaves the row's other levels (and Eq. 2's sections) at their defaults."""
+    from fractions import Fraction
+
+    from veribattery.config.schema import ConsumptionEq2, ConsumptionTable
+
+    baseline = load_config("").battery.consumption
+    assert isinstance(baseline, ConsumptionTable)
+    by_set = load_config("", ["battery.consumption.cell.low=0.6"])
+    path = tmp_path / "c.yaml"
+    path.write_text("battery:\n  consumption:\n    cell: {low: 0.6}\n")
+    for config in (by_set, load_config(path)):
+        table = config.battery.consumption
+        assert isinstance(table, ConsumptionTable)
+        assert (table.cell.low, table.cell.medium, table.cell.high) == (
+            Fraction(3, 5), Fraction(2, 5), Fraction(3, 10))
+        assert table.inspection == baseline.inspection
+    eq2 = load_config("", ["battery.consumption.voltages_v.low=21"]).battery.consumption
+    assert isinstance(eq2, ConsumptionEq2)
+    assert (eq2.voltages_v.low, eq2.voltages_v.medium, eq2.energy_wh) == (
+        Fraction(21), Fraction(22), Fraction(180))
+    with pytest.raises(ConfigError, match=r"battery.consumption.cell.low: must be > 0, got -1"):
+        load_config("", ["battery.consumption.cell.low=-1"])

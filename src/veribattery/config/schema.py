@@ -15,7 +15,7 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Annotated, Literal, Self
+from typing import Annotated, Any, Literal, Self
 
 from pydantic import (
     AfterValidator,
@@ -114,11 +114,28 @@ Positive = Annotated[Exact, AfterValidator(_positive)]
 
 
 class _Section(BaseModel):
-    """Every config section: immutable, unknown keys rejected."""
+    """Every config section: immutable, unknown keys rejected; a sub-section given in part
+    takes its other keys from its default."""
 
     model_config = ConfigDict(
         extra="forbid", frozen=True, arbitrary_types_allowed=True, validate_default=False
     )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _partial_sections(cls, data: Any) -> Any:
+        """``cell: {low: 0.6}`` keeps the default cell's ``medium`` and ``high``: every key
+        is optional, as an empty file is the baseline. (A mapping with keys the default's
+        kind lacks, such as Eq. 2's in ``consumption``, is left to its own kind.)"""
+        if not isinstance(data, dict):
+            return data
+        merged = dict(data)
+        for name, field in cls.model_fields.items():
+            default, given = field.default, data.get(name)
+            if (isinstance(default, BaseModel) and isinstance(given, Mapping)
+                    and set(given) <= set(type(default).model_fields)):
+                merged[name] = {**dict(default), **given}
+        return merged
 
 
 class FarmConfig(_Section):
