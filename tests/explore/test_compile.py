@@ -9,8 +9,8 @@ from tests.explore.models import expr
 from veribattery.errors import ModelError, PrismSemanticError, Span
 from veribattery.explore import compile_expr
 from veribattery.explore.compile.bounds import value_bounds
-from veribattery.explore.compile.expr import constant_value
-from veribattery.lang.nodes import Eventually, Ident, LabelRef, ProbOp
+from veribattery.explore.compile.expr import CompileCache, constant_value
+from veribattery.lang.nodes import DoubleLit, Eventually, Ident, IntLit, LabelRef, ProbOp
 
 NAMES = ("x", "y")
 STATES = np.array([[0, 3], [2, 5], [-3, 4], [7, -2]], dtype=np.int64)
@@ -135,3 +135,10 @@ def test_value_bounds(text: str, bounds: tuple[float, float] | None) -> None:
 def test_constant_value() -> None:
     assert constant_value(expr("1 / 4 + 0.5"), NAMES) == 0.75
     assert constant_value(expr("x + 1"), NAMES) is None
+
+
+def test_cache_keys_tell_the_zeros_of_doubles_apart() -> None:
+    cache = CompileCache()
+    assert cache.key(DoubleLit(0.0, "0.0")) != cache.key(DoubleLit(-0.0, "-0.0"))
+    assert cache.key(IntLit(10**400)) == cache.key(IntLit(10**400))
+    assert cache.key(IntLit(10**400)) != cache.key(IntLit(-(10**400)))
