@@ -13,7 +13,6 @@ from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
-from fractions import Fraction
 
 import numpy as np
 
@@ -68,6 +67,8 @@ def rational_bounds(values: Iterable[numbers.Rational]) -> Bounds:
     """Exact rationals as certified floats: the nearest double (:func:`nearest_float`),
     inside the doubles either side unless it is the value itself. A value beyond the
     largest double is ``inf`` in ``[largest double, inf]`` (its sign mirrored)."""
+    from fractions import Fraction  # only after an exact solve (a small check needs none)
+
     exact = list(values)
     value = np.array([nearest_float(q) for q in exact], dtype=np.float64)
     above = np.array([f > q if math.isinf(f) else Fraction(f) > q
