@@ -177,3 +177,19 @@ def test_mdp_float_reward_beyond_doubles(prop: str) -> None:
 def test_mdp_float_cumulative_reward_has_no_nan_bound(prop: str) -> None:
     result = _one(BIG_REWARD.replace("dtmc", "mdp"), prop)
     assert (result.value, result.lower, result.upper) == (math.inf, 0.0, math.inf)
+
+
+ONE_STEP_REWARD = BIG_REWARD.replace("0.5:(x'=1) + 0.5:(x'=0)", "(x'=1)").replace(
+    "true : 1e308", "x=0 : 1e308")
+
+
+@pytest.mark.parametrize("prop", ["R=? [ F x=1 ] + R=? [ F x=1 ]", "R=? [ F x=1 ] * 10",
+                                  "R=? [ F x=1 ] - (-1e308)", "R=? [ F x=1 ] / 1e-10"])
+def test_expressions_overflowing_the_doubles(prop: str) -> None:
+    """1e308 (exactly, one step) doubled or multiplied is finite: no [inf, inf] claim."""
+    _beyond(_one(ONE_STEP_REWARD, prop))
+
+
+def test_negated_sum_beyond_the_doubles() -> None:
+    result = _one(ONE_STEP_REWARD, "-R=? [ F x=1 ] - R=? [ F x=1 ]")
+    assert (result.value, result.lower, result.upper) == (-math.inf, -math.inf, -MAX)
