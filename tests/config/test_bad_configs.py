@@ -99,7 +99,51 @@ PROPERTIES = [
         ('properties.bad=R{"mt"}=? [ F "nosuch" ]',)),
 ]
 
-CASES = ENCODING + DUPLICATES + PROPERTIES
+#: Numbers the model holds as PRISM ints (decimals are exact: 1e-30 is 1/10^30, and the
+#: guards multiply the charge by that denominator), refused before anything is rendered.
+NUMBERS = [
+    Bad("safe-t-too-fine", b"", "strategy.safe_t: 1e-30 is too fine: BS1's guards multiply "
+        "the charge (up to 246 units) by safe_t's denominator (10^30), and PRISM's 32-bit "
+        "integers hold products below 2^31; give a denominator of at most 8729608 (e.g. at "
+        "most 6 decimal places)", ("strategy.safe_t=1e-30",)),
+    Bad("safe-t-subnormal", b"strategy: {safe_t: 1e-320}\n", "strategy.safe_t: 1e-320 is too "
+        "fine: BS1's guards multiply the charge (up to 246 units) by safe_t's denominator "
+        "(10^320), and"),
+    Bad("safe-t-7-places", b"", "strategy.safe_t: 0.0000001 is too fine: BS1's guards multiply "
+        "the charge (up to 246 units) by safe_t's denominator (10000000), and",
+        ("strategy.safe_t=0.0000001",)),
+    Bad("threshold-too-fine", b"", "battery.voltage_thresholds.low: 1e-320 is too fine: the "
+        "voltage guards multiply the charge (up to 110 units) by the thresholds' common "
+        "denominator (10^320), and PRISM's 32-bit integers hold products below 2^31; give a "
+        "denominator of at most 19522578 (e.g. at most 7 decimal places)",
+        ("battery.voltage_thresholds.low=1e-320",)),
+    Bad("cell-cost", b"", "battery.consumption.cell.low: 1e+308 is too large: a take-off, the "
+        "flight to the farthest cell (4 cells) and an inspection would need about 8e+309 units "
+        "of resolution_ah (0.1), which must stay below 2^30 for PRISM's 32-bit integers",
+        ("battery.consumption.cell={low: 1e308, medium: 0.4, high: 0.3}",)),
+    Bad("high-wind-factor", b"", "battery.consumption.high_wind_factor: 1e+300 is too large: "
+        "a take-off, the flight to the farthest cell (4 cells) and an inspection would need "
+        "about 6.8e+301 units", ("battery.consumption.high_wind_factor=1e300",)),
+    Bad("eq2-energy", b"", "battery.consumption: too large: a take-off, the flight to the "
+        "farthest cell (4 cells) and an inspection would need about 8e+299 units",
+        ("battery.consumption.energy_wh=1e300",)),
+    Bad("time-beyond-64-bits", b"", "times_min.recharge: 9223372036854775808 is too large: "
+        "minutes must stay at most 2147483647 for PRISM's 32-bit integers",
+        ("times_min.recharge=9223372036854775808",)),
+    Bad("time-1e308", b"", "times_min.wait: 1e+308 is too large: minutes must stay at most "
+        "2147483647 for PRISM's 32-bit integers", ("times_min.wait=1e308",)),
+    Bad("time-per-cell", b"", "times_min.per_cell: 1000000000 is too large: minutes x the "
+        "longest flight in cells must stay at most 536870911 for PRISM's 32-bit integers",
+        ("times_min.per_cell=1000000000",)),
+    Bad("time-denominator", b"", "times_min.wait: 1/3000000000000000000000 has a denominator "
+        "too large for PRISM's 32-bit integers: give a decimal, or p/q with q at most "
+        "2147483647", ("times_min.wait=1/3000000000000000000000",)),
+    Bad("max-recharges", b"battery: {model: basic_low}\n", "battery.max_recharges: must be "
+        "below 2^31 - 1 for PRISM's 32-bit integers, got 100000000000000000000",
+        ("battery.max_recharges=100000000000000000000",)),
+]
+
+CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS
 
 
 def _write(tmp_path: Path, case: Bad) -> Path:
@@ -177,6 +221,14 @@ def test_bad_property_is_refused_before_any_model_is_built(
     for step in (check_mission, mission_files):
         with pytest.raises(ConfigError, match=r'properties\.bad: unknown label "nosuch"'):
             step(cfg)
+
+
+@pytest.mark.parametrize(("key", "value"), [("strategy.safe_t", "0.000001"),
+                                            ("battery.voltage_thresholds.low", "0.0000001"),
+                                            ("times_min.per_cell", "536870911"),
+                                            ("times_min.wait", "1/2147483647")])
+def test_numbers_just_within_prisms_ints_are_rendered(key: str, value: str) -> None:
+    validate_properties(load_config("", [f"{key}={value}"]))
 
 
 def test_config_built_in_python_names_the_key() -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 
 import pydantic
@@ -164,6 +165,16 @@ def test_requirements_parse() -> None:
     assert str(first) == "p_success >= 0.99"
     with pytest.raises(ValueError, match="bound must be a number"):
         parse_requirement("p_success >= lots")
+
+
+def test_requirements_compare_exactly_with_their_rational_bound() -> None:
+    huge = parse_requirement("exp_mission_time < 1e400")  # no double: float() overflows
+    assert huge.holds(1.7976931348623157e308) and not huge.holds(math.inf)
+    assert not parse_requirement("t <= 1e400").holds(math.inf)  # infinite, not 1e400
+    third = parse_requirement("p >= 1/3")
+    assert not third.holds(1 / 3)  # the double nearest 1/3 is below it
+    assert third.holds(math.nextafter(1 / 3, 1.0))
+    assert not third.holds(math.nan)
 
 
 def test_custom_properties_replace_the_papers() -> None:

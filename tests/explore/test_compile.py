@@ -9,8 +9,8 @@ from tests.explore.models import expr
 from veribattery.errors import ModelError, PrismSemanticError, Span
 from veribattery.explore import compile_expr
 from veribattery.explore.compile.bounds import value_bounds
-from veribattery.explore.compile.expr import constant_value
-from veribattery.lang.nodes import Eventually, Ident, LabelRef, ProbOp
+from veribattery.explore.compile.expr import CompileCache, constant_value
+from veribattery.lang.nodes import Binary, DoubleLit, Eventually, Ident, IntLit, LabelRef, ProbOp
 
 NAMES = ("x", "y")
 STATES = np.array([[0, 3], [2, 5], [-3, 4], [7, -2]], dtype=np.int64)
@@ -135,3 +135,32 @@ def test_value_bounds(text: str, bounds: tuple[float, float] | None) -> None:
 def test_constant_value() -> None:
     assert constant_value(expr("1 / 4 + 0.5"), NAMES) == 0.75
     assert constant_value(expr("x + 1"), NAMES) is None
+
+
+RANGE_MESSAGE = ("is out of the int range -2^63..2^63-1 (ints are 64-bit here; PRISM's are "
+                 "32-bit): use a smaller int, or a double such as 1e19")
+
+
+@pytest.mark.parametrize("value", [2**63, -(2**63) - 1, 10**22, 10**320])
+@pytest.mark.parametrize("cached", [False, True])
+def test_int_literal_beyond_64_bits(value: int, cached: bool) -> None:
+    literal = IntLit(value, Span(3, 7, "m.pm"))
+    node = Binary("=", Ident("x"), literal)
+    cache = CompileCache() if cached else None  # its key of a huge int is no float
+    with pytest.raises(PrismSemanticError) as info:
+        compile_expr(node, NAMES, cache=cache)
+    shown = str(value) if value < 10**40 else "<321 digits>"
+    assert str(info.value) == f"m.pm:3:7: {shown} {RANGE_MESSAGE}"
+
+
+@pytest.mark.parametrize("value", [2**63 - 1, -(2**63)])
+def test_int_literals_at_the_64_bit_limits(value: int) -> None:
+    fn = compile_expr(Binary("+", Ident("x"), IntLit(value)), NAMES, cache=CompileCache())
+    assert fn(np.zeros((1, 2), dtype=np.int64)).tolist() == [value]
+
+
+def test_cache_keys_tell_the_zeros_of_doubles_apart() -> None:
+    cache = CompileCache()
+    assert cache.key(DoubleLit(0.0, "0.0")) != cache.key(DoubleLit(-0.0, "-0.0"))
+    assert cache.key(IntLit(10**400)) == cache.key(IntLit(10**400))
+    assert cache.key(IntLit(10**400)) != cache.key(IntLit(-(10**400)))

@@ -102,6 +102,39 @@ def test_given_value_of_wrong_type(decl: str, value: object, message: str) -> No
         flat(f"dtmc\n{decl}\nmodule m x : bool; endmodule\n", {"n": value})
 
 
+INT_RANGE = ("is out of the int range -2^63..2^63-1 (ints are 64-bit here; PRISM's are "
+             "32-bit): use a smaller int, or a double such as 1e19")
+
+
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ("99999999999999999999",
+         f"constant 'n' (--const n=99999999999999999999): 99999999999999999999 {INT_RANGE}"),
+        ("2*4611686018427387904",
+         f"constant 'n' (--const n=2*4611686018427387904): 9223372036854775808 {INT_RANGE}"),
+        (-(2**63) - 1, f"constant 'n' (--const n=-9223372036854775809): "
+                       f"-9223372036854775809 {INT_RANGE}"),
+    ],
+)
+def test_given_int_beyond_64_bits(value: object, message: str) -> None:
+    with pytest.raises(PrismSemanticError) as info:
+        flat("dtmc\nconst int n;\nmodule m x : bool; endmodule\n", {"n": value})
+    assert str(info.value) == message
+
+
+def test_int_constants_at_the_64_bit_limits() -> None:
+    assert const_value("pow(2, 62) - 1 + pow(2, 62)", "int") == 2**63 - 1
+    assert const_value("-pow(2, 62) - pow(2, 62)", "int") == -(2**63)
+    assert const_value("pow(2, 62) * 4", "double") == 2.0**64  # a double may be larger
+
+
+def test_defined_int_constant_beyond_64_bits() -> None:
+    with pytest.raises(PrismSemanticError) as info:
+        const_value("pow(2, 62) * 4", "int")
+    assert str(info.value) == f"t.prism:2:15: constant 'c': 18446744073709551616 {INT_RANGE}"
+
+
 def test_undefined_constant_not_given() -> None:
     text = "dtmc\nconst int N;\nconst int K = 2;\nconst double p;\nmodule m x : bool; endmodule\n"
     assert undefined_constants(parse_model(text)) == ("N", "p")
@@ -323,10 +356,27 @@ def test_same_variable_assigned_twice() -> None:
         ("[0..N]", "[N..0]", "t.prism:4:3: variable 'x' has an empty range [3..0]"),
         ("init 0", "init 7", "t.prism:4:3: initial value 7 of 'x' is outside its range [0..3]"),
         ("[0..N]", "[0..N/2]", "type error: the upper bound of 'x' must be an int"),
+        ("[0..N]", "[0..10000000000000000000000]",
+         "t.prism:4:3: variable 'x' has the range [0..10000000000000000000000], too wide for "
+         "the 64-bit ints states are stored in: its bounds must lie in -2^63..2^63-1, and it "
+         "must hold fewer than 2^63 values"),
+        ("[0..N]", "[0..pow(2,62)*2-1]", "[0..9223372036854775807], too wide"),
+        ("[0..N]", "[-pow(2,62)..pow(2,62)]", "[-4611686018427387904..4611686018427387904], too"),
+        ("[0..N]", "[-pow(2,62)*2-1..0]", "[-9223372036854775809..0], too wide"),
+        ("[0..N]", f"[0..{10**39}]", f"[0..{10**39}], too wide"),  # 40 digits: shown
+        ("[0..N]", f"[0..{10**40}]", "[0..<41 digits>], too wide"),
     ],
 )
 def test_range_errors(old: str, new: str, message: str) -> None:
     assert message in error(MINI.replace(old, new))
+
+
+@pytest.mark.parametrize("bounds", ["[0..pow(2,62)*2-2]", "[-pow(2,62)*2..-2]",
+                                    "[pow(2,62)*2-2..pow(2,62)*2-1]"])
+def test_ranges_at_the_64_bit_limits(bounds: str) -> None:
+    low = bounds[1:].split("..")[0]
+    model = flat(MINI.replace("[0..N] init 0", f"{bounds} init {low}"))
+    assert model.variables[0].high - model.variables[0].low <= 2**63 - 2
 
 
 def test_cyclic_formulas() -> None:

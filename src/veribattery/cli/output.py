@@ -246,8 +246,20 @@ def format_result(result: CheckResult) -> str:
     """
     exact = exact_text(result)
     if exact is not None and exact != "Infinity":
-        return format_exact(exact, format_value(result.value))
+        return format_exact(exact, _approximate(exact, result.value))
     return _certified_text(result)
+
+
+def _approximate(exact: str, value: object) -> str:
+    """The value of an exact ``p/q`` for a table: its double's text, or, where that is
+    infinite (``p/q`` beyond the largest double), ``p/q`` itself to as many digits."""
+    if not (isinstance(value, float) and math.isinf(value)):
+        return format_value(value)
+    from decimal import Decimal  # only for such a value
+
+    numerator, _, denominator = exact.partition("/")
+    quotient = (Decimal(numerator) / Decimal(denominator or 1)).normalize()
+    return f"{quotient:.{TABLE_DIGITS}g}"
 
 
 #: Longest exact ``p/q`` printed in full in a table.
@@ -289,11 +301,23 @@ def _certified_text(result: CheckResult) -> str:
     """
     text = format_value(result.value)
     error = result.error
+    if isinstance(result.value, float) and math.isinf(result.value):
+        return _beyond_doubles(result) or text
     if isinstance(result.value, bool) or not math.isfinite(result.value) or error <= 0:
         return text
     if math.isinf(error) or error >= _half_last_digit(result.value):
         return f"{text} ± {error:.2g}"
     return text
+
+
+def _beyond_doubles(result: CheckResult) -> str | None:
+    """``>= largest double`` for a finite value beyond the doubles (an infinite point
+    value whose certified interval starts at a finite bound), else None."""
+    positive = result.value > 0
+    bound = result.lower if positive else result.upper
+    if bound is None or not math.isfinite(bound):
+        return None
+    return f"{'≥' if positive else '≤'} {format_value(bound)}"
 
 
 def _half_last_digit(value: float) -> float:
@@ -320,7 +344,7 @@ def print_imprecise(results: Sequence[CheckResult]) -> None:
                 f", error estimated at [{result.lower!r}, {result.upper!r}]")
             err.print(f"[yellow]warning:[/] {escape(name)}: not certified (a linear programme "
                       f"solved in floating point{escape(estimate)})", markup=True)
-        elif not result.precise:
+        elif not result.precise and exact_text(result) in (None, "Infinity"):
             interval = escape(f"[{result.lower!r}, {result.upper!r}]")
             err.print(f"[yellow]warning:[/] {escape(name)}: imprecise result, certified "
                       f"interval {interval} is wider than 1e-9 relative / 1e-12 absolute",

@@ -14,15 +14,13 @@ from fractions import Fraction
 from veribattery.config.battery import FIXED_LEVEL, CostTable, capacity_units, consumption_units
 from veribattery.config.exact import show
 from veribattery.config.farm import FarmLayout, derive_layout
+from veribattery.config.limits import PRISM_INT_MAX, check_int_ranges
 from veribattery.config.schema import MissionConfig
-from veribattery.errors import ConfigError
 
 __all__ = ["J_MAX", "PRISM_INT_MAX", "ModelParameters", "Ratio", "Run", "derive_parameters", "runs"]
 
 #: Largest value of ``j``: a cell has at most four turbines at its corners.
 J_MAX = 4
-#: PRISM's integers are Java ``int``: intermediate products must stay below this.
-PRISM_INT_MAX = 2**31 - 1
 
 
 @dataclass(frozen=True, slots=True)
@@ -126,15 +124,6 @@ def _cost_source(cfg: MissionConfig) -> str:
     return "Eq. 2, C = E_spec·t / (V·T), for each wind and level, rounded half up"
 
 
-def _check_int_range(c_new: int, fade: Ratio) -> None:
-    """``cap`` multiplies C_NEW by the fade denominator: keep it inside PRISM's ``int``."""
-    if c_new * fade.den > PRISM_INT_MAX // 2:
-        raise ConfigError(
-            "battery.fade_per_recharge: capacity_ah/resolution_ah x the fade's denominator "
-            f"({c_new} x {fade.den}) must stay below 2^30 for PRISM's 32-bit integers"
-        )
-
-
 def derive_parameters(cfg: MissionConfig) -> ModelParameters:
     """Derive the template's data from a validated config.
 
@@ -144,7 +133,8 @@ def derive_parameters(cfg: MissionConfig) -> ModelParameters:
     layout = derive_layout(cfg.farm)
     fade = Ratio.of(battery.fade)
     c_new = capacity_units(battery)
-    _check_int_range(c_new, fade)
+    costs = consumption_units(battery)
+    check_int_ranges(cfg, c_new, costs, layout)
     thresholds = battery.voltage_thresholds
     den = math.lcm(thresholds.high.denominator, thresholds.low.denominator)
     return ModelParameters(
@@ -158,7 +148,7 @@ def derive_parameters(cfg: MissionConfig) -> ModelParameters:
         v_high=Ratio.of(thresholds.high, den),
         v_low=Ratio.of(thresholds.low, den),
         safe=Ratio.of(cfg.strategy.safe_t),
-        costs=consumption_units(battery),
+        costs=costs,
         cost_source=_cost_source(cfg),
         layout=layout,
         n_runs=runs(layout.n),

@@ -11,6 +11,8 @@ Validation problems are reported by :func:`validate_config` as one-line
 
 from __future__ import annotations
 
+import math
+import operator
 import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -396,14 +398,15 @@ class Requirement:
     bound: Fraction
 
     def holds(self, value: float) -> bool:
-        """Whether a checked *value* meets this requirement."""
-        ops: dict[str, Callable[[float, float], bool]] = {
-            "<": float.__lt__,
-            "<=": float.__le__,
-            ">": float.__gt__,
-            ">=": float.__ge__,
-        }
-        return ops[self.op](float(value), float(self.bound))
+        """Whether a checked *value* meets this requirement, compared exactly with the
+        rational bound (which a float may not hold: ``1/3``, or ``1e400`` beyond the
+        doubles); NaN meets none."""
+        ops: dict[str, Callable[[Any, Any], bool]] = {
+            "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge}
+        value = float(value)
+        if value != value:
+            return False
+        return ops[self.op](value if math.isinf(value) else Fraction(value), self.bound)
 
     def __str__(self) -> str:
         return f"{self.prop} {self.op} {show(self.bound)}"

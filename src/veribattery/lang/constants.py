@@ -23,6 +23,7 @@ from veribattery.lang.nodes import (
     Value,
     ValueType,
 )
+from veribattery.lang.ops import INT_MAX, INT_MIN, out_of_int_range
 from veribattery.lang.typecheck import TypeEnv, type_of
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
@@ -210,7 +211,8 @@ class ConstantTable:
         if decl.value is None:
             if decl.name not in self.given:
                 raise _missing_error([decl])
-            self.values[name] = coerce_value(decl, self.given[decl.name])
+            given = self.given[decl.name]
+            self.values[name] = _in_int_range(decl, coerce_value(decl, given), given)
             return []
         kind = type_of(decl.value, self.env)
         if not _assignable(decl.type, kind):
@@ -226,7 +228,20 @@ class ConstantTable:
     def _evaluate(self, decl: ConstDecl) -> Value:
         assert decl.value is not None
         value = evaluate(decl.value, self.values)
-        return float(value) if decl.type == "double" else value
+        return float(value) if decl.type == "double" else _in_int_range(decl, value)
+
+
+def _in_int_range(decl: ConstDecl, value: Value, given: Value | str | None = None) -> Value:
+    """*value* of constant *decl*, unless it is an int the engine's ints cannot hold:
+    then an error at its definition, or quoting the ``--const`` that *given* it."""
+    if type(value) is not int or INT_MIN <= value <= INT_MAX:
+        return value
+    if decl.value is not None:
+        raise PrismSemanticError(f"constant '{decl.name}': {out_of_int_range(value)}",
+                                 decl.value.span)
+    shown = given if isinstance(given, str) else value
+    raise PrismSemanticError(f"constant '{decl.name}' (--const {decl.name}={shown}): "
+                             f"{out_of_int_range(value)}")
 
 
 def _type_of_value(value: Value) -> ValueType:

@@ -58,7 +58,9 @@ __all__ = [
     "java_pow",
     "modulo",
     "not_an_int",
+    "out_of_int_range",
     "round_int",
+    "show_int",
 ]
 
 
@@ -79,6 +81,21 @@ NEGATIVE_EXPONENT = "negative exponent in integer pow (for a real power write a 
 POW_OVERFLOW = "integer pow out of the int range"
 MOD_DIVISOR = "modulo with non-positive divisor"
 MOD_INTEGERS = "mod requires integer arguments"
+
+
+def show_int(value: int) -> str:
+    """*value* in digits, or its number of digits if it has more than 40."""
+    digits = str(abs(value))
+    if len(digits) <= 40:
+        return str(value)
+    return f"{'-' if value < 0 else ''}<{len(digits)} digits>"
+
+
+def out_of_int_range(value: int) -> str:
+    """The message for an int (a literal, a constant, a folded expression) that the
+    engine's 64-bit ints cannot hold."""
+    return (f"{show_int(value)} is out of the int range -2^63..2^63-1 (ints are 64-bit "
+            "here; PRISM's are 32-bit): use a smaller int, or a double such as 1e19")
 
 
 def not_an_int(name: str, value: float) -> str:

@@ -36,6 +36,7 @@ from veribattery.lang.nodes import (
     VarDecl,
     Variable,
 )
+from veribattery.lang.ops import INT_MAX, INT_MIN, show_int
 from veribattery.lang.typecheck import TypeEnv, expect, type_of
 
 BUILTIN_LABELS = frozenset({"init", "deadlock"})
@@ -204,6 +205,7 @@ def _variable(decl: VarDecl, module: str | None, scope: _Scope, has_init_block: 
             raise PrismSemanticError(
                 f"variable '{decl.name}' has an empty range [{low}..{high}]", decl.span
             )
+        _check_wide(decl, low, high)
     init = _initial(decl, low, scope, has_init_block)
     if not low <= init <= high:
         raise PrismSemanticError(
@@ -211,6 +213,17 @@ def _variable(decl: VarDecl, module: str | None, scope: _Scope, has_init_block: 
             decl.span,
         )
     return Variable(decl.name, low, high, init, decl.type == "bool", module, decl.span)
+
+
+def _check_wide(decl: VarDecl, low: int, high: int) -> None:
+    """States are stored as 64-bit ints: a range must lie in the int range and hold
+    fewer than 2^63 values."""
+    if low >= INT_MIN and high <= INT_MAX and high - low < INT_MAX:
+        return
+    raise PrismSemanticError(
+        f"variable '{decl.name}' has the range [{show_int(low)}..{show_int(high)}], too wide "
+        "for the 64-bit ints states are stored in: its bounds must lie in -2^63..2^63-1, "
+        "and it must hold fewer than 2^63 values", decl.span)
 
 
 def _initial(decl: VarDecl, low: int, scope: _Scope, has_init_block: bool) -> int:

@@ -7,7 +7,9 @@ taken as exact numbers); ``docs/numerics.md`` gives the argument for each kernel
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+import math
+import numbers
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import contextmanager
 from contextvars import ContextVar
 from dataclasses import dataclass
@@ -50,6 +52,32 @@ def round_down(x: FloatArray) -> FloatArray:
 def round_up(x: FloatArray) -> FloatArray:
     """The next float above each entry (covers one rounding to nearest)."""
     return np.nextafter(x, np.inf)
+
+
+def nearest_float(q: numbers.Rational) -> float:
+    """The double nearest an exact rational (:class:`~fractions.Fraction` or ``mpq``);
+    ``+inf`` or ``-inf`` beyond the largest double, where ``float()`` raises."""
+    try:
+        return float(q)
+    except OverflowError:
+        return math.inf if int(q.numerator) > 0 else -math.inf
+
+
+def rational_bounds(values: Iterable[numbers.Rational]) -> Bounds:
+    """Exact rationals as certified floats: the nearest double (:func:`nearest_float`),
+    inside the doubles either side unless it is the value itself. A value beyond the
+    largest double is ``inf`` in ``[largest double, inf]`` (its sign mirrored)."""
+    from fractions import Fraction  # only after an exact solve (a small check needs none)
+
+    exact = list(values)
+    value = np.array([nearest_float(q) for q in exact], dtype=np.float64)
+    above = np.array([f > q if math.isinf(f) else Fraction(f) > q
+                      for f, q in zip(value.tolist(), exact, strict=True)], dtype=bool)
+    below = np.array([f < q if math.isinf(f) else Fraction(f) < q
+                      for f, q in zip(value.tolist(), exact, strict=True)], dtype=bool)
+    with np.errstate(over="ignore"):  # (the largest double's neighbour, where unused)
+        return Bounds(value, np.where(above, round_down(value), value),
+                      np.where(below, round_up(value), value))
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,12 +131,15 @@ class Bounds:
                        absolute: float | None = None) -> BoolArray:
         """States whose interval meets the precision (relative *or* absolute).
 
+        An infinite value is precise only as the interval of that infinity itself: one
+        that starts at a finite bound (a value beyond the largest double) is not.
         Unset arguments come from :func:`required_precision` (default 1e-9, 1e-12).
         """
         default_relative, default_absolute = _PRECISION.get()
         relative = default_relative if relative is None else relative
         absolute = default_absolute if absolute is None else absolute
-        allowed = np.maximum(relative * np.abs(self.value), absolute)
+        magnitude = np.abs(self.value)
+        allowed = np.maximum(relative * np.where(np.isinf(magnitude), 0.0, magnitude), absolute)
         return np.asarray(self.width <= allowed, dtype=np.bool_)
 
     def complement(self) -> Bounds:

@@ -141,8 +141,9 @@ def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = Non
     else:
         count = terms
     if offset is not None:
-        y = y + offset
-        magnitude = magnitude + np.abs(offset)
+        with np.errstate(over="ignore"):  # beyond the doubles: inf, enclosed as such below
+            y = y + offset
+            magnitude = magnitude + np.abs(offset)
         count = count + (offset != 0)
     roundings = np.maximum(count - 1.0, 0.0) if exact else count
     error = product_error(magnitude, roundings, np.zeros_like(y) if exact else count)

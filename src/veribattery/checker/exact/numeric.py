@@ -17,6 +17,7 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
+from veribattery.checker.certify.bounds import nearest_float
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
 from veribattery.checker.formula.leaves import step_bound
 from veribattery.checker.workspace import Workspace
@@ -42,14 +43,14 @@ class ExactValues:
         return cls(np.asarray(values, dtype=object), np.zeros(values.size, dtype=bool))
 
     def floats(self) -> FloatArray:
-        """The nearest doubles (``inf`` where infinite)."""
+        """The nearest doubles (``inf`` where infinite, and beyond the largest double)."""
         result = np.asarray(_TO_FLOAT(self.values), dtype=np.float64).reshape(-1)
         result[self.infinite] = np.inf
         return result
 
 
 #: Elementwise ``float``/``mpq``/power-of-two-denominator over object arrays (C loops).
-_TO_FLOAT = np.frompyfunc(float, 1, 1)
+_TO_FLOAT = np.frompyfunc(nearest_float, 1, 1)
 _TO_MPQ = np.frompyfunc(mpq, 1, 1)
 _DYADIC = np.frompyfunc(lambda q: q.denominator.bit_count() == 1, 1, 1)
 

@@ -125,12 +125,13 @@ def _enclosure(values: ExactValues) -> Bounds:
     A rational's conversion to float64 is within one unit in the last place of it
     (correctly rounded or truncated), so the neighbouring floats enclose it; values
     that a float represents exactly (0, 1, halves, infinities) are their own bounds.
+    A finite rational beyond the largest double is ``inf`` in ``[largest double, inf]``.
     """
     floats = values.floats()
     # Only a rational with a power-of-two denominator can be a double: test those exactly.
     # A NaN float is an undefined (conditional) value: it stands for itself.
     undefined = np.isnan(floats)
-    defined = np.flatnonzero(~values.infinite & ~undefined)
+    defined = np.flatnonzero(~values.infinite & np.isfinite(floats))
     candidates = defined[_DYADIC(values.values[defined]).astype(bool)]
     represented = values.infinite | undefined
     represented[candidates] = _TO_MPQ(floats[candidates]) == values.values[candidates]

@@ -49,7 +49,8 @@ def binary(op: str, left: Values, right: Values, span: Span | None = None) -> Va
     if op not in arrays.BINARY:
         raise CheckError(f"unknown operator '{op}'", span)
     _check_types(op, left, right, span)
-    with np.errstate(divide="ignore", invalid="ignore"):  # values may be infinite
+    # values may be infinite, and doubles overflow to infinity (as in PRISM's Java)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         return np.asarray(arrays.BINARY[op](left, right))
 
 

@@ -71,14 +71,16 @@ def unary(op: str, operand: Result, span: Span | None = None) -> Result:
 
 
 def _sum(a: FloatArray, b: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``a + b`` rounded down and up (TwoSum finds the exact rounding error)."""
+    """``a + b`` rounded down and up (TwoSum finds the exact rounding error). A sum of
+    finite numbers that overflows is beyond the largest double, not infinite."""
     with np.errstate(invalid="ignore", over="ignore"):
         s = a + b
         back = s - a
         error = (a - (s - back)) + (b - back)
     finite = np.isfinite(s) & np.isfinite(error)
-    low = np.where(finite & (error < 0), round_down(s), s)
-    high = np.where(finite & (error > 0), round_up(s), s)
+    overflow = np.isinf(s) & np.isfinite(a) & np.isfinite(b)
+    low = np.where((finite & (error < 0)) | (overflow & (s > 0)), round_down(s), s)
+    high = np.where((finite & (error > 0)) | (overflow & (s < 0)), round_up(s), s)
     return low, high
 
 

@@ -15,6 +15,7 @@ does not grow with the number of BSCCs.
 
 from __future__ import annotations
 
+import warnings
 import weakref
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -92,6 +93,8 @@ def stationary(P: CsrMatrix, parts: Bsccs) -> FloatArray:
     weight = _weights(inner, first)
     if not _balanced(inner, weight, comp, parts.count):
         weight = _heaviest_first(inner, weight, comp, parts.count)
+    if not np.all(np.isfinite(weight)):
+        weight = _averaged(inner, comp, parts.count)
     totals = np.bincount(comp, weights=weight, minlength=parts.count)
     result[states] = weight / totals[comp]
     return result
@@ -112,8 +115,33 @@ def _weights(inner: sp.csr_matrix, fixed: IntArray) -> FloatArray:
         balance = inner - sp.identity(m, format="csr")
         A = sp.csc_matrix(balance[rest][:, rest])
         b = -np.asarray(inner[rest][:, fixed] @ np.ones(fixed.size)).ravel()
-        weight[rest] = np.clip(spla.spsolve(A, b), 0.0, None)
+        weight[rest] = np.clip(_solved(A, b), 0.0, None)
     return weight
+
+
+def _solved(A: sp.spmatrix, b: FloatArray) -> FloatArray:
+    """``spsolve(A, b)``; a singular *A* (a probability far below the doubles' precision,
+    1e-320 beside 1 - 1e-320 = 1) gives NaN, which the callers test, not a warning."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", spla.MatrixRankWarning)
+        return np.asarray(spla.spsolve(sp.csc_matrix(A), b), dtype=np.float64)
+
+
+#: Steps averaged by :func:`_averaged`.
+_AVERAGED_STEPS = 256
+
+
+def _averaged(inner: sp.csr_matrix, comp: IntArray, count: int) -> FloatArray:
+    """Stationary weights as the Cesàro average of the distributions of the first
+    :data:`_AVERAGED_STEPS` steps from the uniform one in each BSCC: the last resort
+    when both solves fail. Only the point value and the renewal's reference state
+    depend on the weights; the certified bounds do not."""
+    x = 1.0 / np.bincount(comp, minlength=count)[comp]
+    total = np.zeros_like(x)
+    for _ in range(_AVERAGED_STEPS):
+        x = np.asarray(inner @ x, dtype=np.float64)
+        total += x
+    return total / _AVERAGED_STEPS
 
 
 def _normalised(weight: FloatArray, comp: IntArray, count: int) -> FloatArray:
@@ -143,7 +171,7 @@ def _heaviest_first(inner: sp.csr_matrix, weight: FloatArray, comp: IntArray,
     A = sp.diags(keep, format="csr") @ (inner - sp.identity(m, format="csr")) + normalise
     b = np.zeros(m)
     b[first] = 1.0
-    pi = np.clip(spla.spsolve(sp.csc_matrix(A), b), 0.0, None)
+    pi = np.clip(_solved(A, b), 0.0, None)
     order = np.lexsort((-pi, comp))
     heaviest = order[np.searchsorted(comp[order], np.arange(count))]
     better = _weights(inner, np.asarray(heaviest))

@@ -63,7 +63,8 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
     radius = np.maximum(round_up(x - start.lower), round_up(start.upper - x))
     for step in range(k):
         following, low, high = certify.enclose_product(M, x, offset, terms)
-        rounding = np.maximum(high - following, following - low)
+        with np.errstate(invalid="ignore"):  # inf - inf beyond the doubles: NaN, unbounded
+            rounding = np.maximum(high - following, following - low)
         if np.array_equal(following, x):
             return _finish(M, x, radius, rounding, k - step)
         radius = round_up(certify.enclose_product(M, radius, rounding, terms)[2])
@@ -92,7 +93,9 @@ def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int
         if not 2 * radius <= absolute:  # (NaN too) the componentwise radius may still be
             return None
         following, low, high = certify.enclose_product(M, x, offset, terms)
-        rounding = float(np.max(np.maximum(high - following, following - low), initial=0.0))
+        with np.errstate(invalid="ignore"):  # NaN beyond the doubles: the test above fails
+            rounding = float(np.max(np.maximum(high - following, following - low),
+                                    initial=0.0))
         if np.array_equal(following, x):
             return _finish(M, x, np.full_like(x, radius), np.full_like(x, rounding), k - step)
         grown = math.nextafter(rho * radius, math.inf)  # each operation rounded up
@@ -117,7 +120,10 @@ def _finish(M: CsrMatrix, x: FloatArray, radius: FloatArray, rounding: FloatArra
         extra = growth * (float(np.max(radius)) + remaining * float(np.max(rounding)))
         radius = round_up(np.full_like(x, extra)) if extra > 0 else radius
     with np.errstate(invalid="ignore"):
-        return Bounds(x, round_down(x - radius), round_up(x + radius))
+        lower, upper = round_down(x - radius), round_up(x + radius)
+    # A value beyond the doubles is inf with an infinite (or NaN) radius: no bound then.
+    return Bounds(x, np.where(np.isnan(lower), -np.inf, lower),
+                  np.where(np.isnan(upper), np.inf, upper))
 
 
 def _rows_in(P: CsrMatrix, mask: BoolArray) -> CsrMatrix:
@@ -227,7 +233,10 @@ def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int, *,
     :param progress: as for :func:`bounded_until_probs`.
     """
     offset = np.asarray(rewards, dtype=np.float64)
-    return _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k, progress)
+    found = _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k, progress)
+    if np.all(offset >= 0):  # a sum of such rewards is never negative (nor one overflown)
+        return Bounds(found.value, np.maximum(found.lower, 0.0), found.upper)
+    return found
 
 
 def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int, *,

@@ -224,7 +224,8 @@ class Factorization:
             if self._iterative and self._accepted(x, b, residual):
                 break  # each correction would be a whole Krylov solve: only when needed
             correction: FloatArray = inverse(residual.astype(np.float64))
-            x = x + correction
+            with np.errstate(invalid="ignore"):  # inf - inf: not finite, stops below
+                x = x + correction
             if not np.all(np.isfinite(x)) or _converged(correction, x):
                 break
         return x

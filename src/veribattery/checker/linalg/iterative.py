@@ -66,15 +66,21 @@ def solve_iterative(A: sp.csr_matrix, b: FloatArray, x0: FloatArray | None,
     :param progress: told ``(iterations, cap, "iterations")`` after each iteration
         (the callback reads no iterate: the iterations are the same with or without it).
     """
+    # A breakdown shows up as overflow inside BiCGSTAB or GMRES, and so does a solution
+    # beyond the largest double (an expected reward of 1e308 per step); the result is
+    # judged by the backward-error rule, so the floating-point warnings carry no news.
+    with np.errstate(all="ignore"):
+        return _iterated(A, b, x0, progress)
+
+
+def _iterated(A: sp.csr_matrix, b: FloatArray, x0: FloatArray | None,
+              progress: SolveListener | None) -> FloatArray:
     x = x0 if x0 is not None and np.all(np.isfinite(x0)) else np.zeros_like(b)
     inverse_diagonal = 1.0 / A.diagonal()
     jacobi = spla.LinearOperator(A.shape, matvec=lambda v: inverse_diagonal * v)
     options = {"rtol": ITERATIVE_RTOL, "atol": 0.0, "M": jacobi}
-    # A breakdown shows up as overflow inside BiCGSTAB; the result is judged below
-    # by the backward-error rule, so the floating-point warnings carry no news.
-    with np.errstate(all="ignore"):
-        candidate, _ = spla.bicgstab(A, b, x0=x, maxiter=ITERATIVE_MAXITER,
-                                     callback=_counter(progress, ITERATIVE_MAXITER), **options)
+    candidate, _ = spla.bicgstab(A, b, x0=x, maxiter=ITERATIVE_MAXITER,
+                                 callback=_counter(progress, ITERATIVE_MAXITER), **options)
     if np.all(np.isfinite(candidate)):
         x = candidate
     if backward_error(A, x, b.astype(np.longdouble)) > RESIDUAL_TOL:

@@ -23,7 +23,7 @@ from scipy.sparse import linalg as spla
 
 from veribattery._types import FloatArray, IntArray
 from veribattery.checker.certify.affine import AffineMap
-from veribattery.checker.certify.bounds import round_down, round_up
+from veribattery.checker.certify.bounds import rational_bounds
 
 #: Largest number of unknowns solved exactly.
 EXACT_LIMIT = 5_000
@@ -134,15 +134,9 @@ def _back_substitute(rows: list[_Row], rhs: list[Fraction], order: IntArray) -> 
 
 
 def _rounded(solution: list[Fraction]) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Nearest floats (``float(Fraction)`` rounds correctly) and directed neighbours."""
-    value = np.array([float(v) for v in solution], dtype=np.float64)
-    above = np.array([Fraction(float(f)) > v for f, v in zip(value, solution, strict=True)],
-                     dtype=bool)
-    below = np.array([Fraction(float(f)) < v for f, v in zip(value, solution, strict=True)],
-                     dtype=bool)
-    lower = np.where(above, round_down(value), value)
-    upper = np.where(below, round_up(value), value)
-    return value, lower, upper
+    """Nearest floats and directed neighbours (``inf`` above the largest double)."""
+    found = rational_bounds(solution)
+    return found.value, found.lower, found.upper
 
 
 #: Largest ``steps * stored entries`` of a step-bounded iteration done exactly.

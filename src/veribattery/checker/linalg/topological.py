@@ -339,7 +339,8 @@ def _substitution(block: sp.csr_matrix, diagonal: FloatArray) -> Inverse:
         # (overwrite_A: it sets the diagonal to 1, where it is already)
         y = spla.spsolve_triangular(lower, b, lower=True, unit_diagonal=True,
                                     overwrite_A=True, overwrite_b=True)
-        return np.asarray(y, dtype=np.float64) * scale
+        with np.errstate(over="ignore"):  # beyond the doubles: inf, rejected or certified
+            return np.asarray(y, dtype=np.float64) * scale
 
     return solve
 

@@ -153,11 +153,14 @@ def _triangular_inverse(A64: sp.csr_matrix, plans: SolverPlans | None = None
     diagonal = np.asarray(A64.data[plan.diagonal_at], dtype=np.float64)
     if not np.all(diagonal > 0):
         return None
-    scale = 1.0 / diagonal
     # Columns scaled to a unit diagonal: L y = b, then x = y / diagonal (each
-    # column's scale repeated over its entries: no per-entry index array).
+    # column's scale repeated over its entries: no per-entry index array). A
+    # subnormal diagonal overflows the scale: the solution is then not finite, and
+    # is rejected as such, so the overflow needs no warning.
     data = A64.data[plan.gather]
-    data *= np.repeat(scale, np.diff(plan.indptr))
+    with np.errstate(over="ignore", invalid="ignore"):
+        scale = 1.0 / diagonal
+        data *= np.repeat(scale, np.diff(plan.indptr))
     n = A64.shape[0]
     lower = csc_sharing(data, plan.indices, plan.indptr, (n, n))
     return _Triangular(lower, plan.order, scale, plans)
@@ -193,8 +196,10 @@ class _Triangular:
         return np.take(np.asarray(b, dtype=np.float64), self._forward)
 
     def _from_order(self, y: FloatArray) -> FloatArray:
-        """The answer of the substitution's *y* (scaled in place) in state order."""
-        y *= self._scale
+        """The answer of the substitution's *y* (scaled in place) in state order; beyond
+        the largest double it is infinite, which its callers reject or certify."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            y *= self._scale
         return self._in_state_order(y)
 
     def _in_state_order(self, y: FloatArray) -> FloatArray:

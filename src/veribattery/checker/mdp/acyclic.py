@@ -80,7 +80,9 @@ def _level_pass(system: ChoiceSystem, objective: Objective, known: FloatArray,
         if progress is not None:
             progress(k + 1, levels.count, "levels")
     n = system.size
-    return value[:n].astype(np.float64), lower[:n].copy(), upper[:n].copy()
+    with np.errstate(over="ignore"):  # a value beyond the doubles is inf, as its bounds say
+        point = value[:n].astype(np.float64)
+    return point, lower[:n].copy(), upper[:n].copy()
 
 
 @dataclass(frozen=True, slots=True)

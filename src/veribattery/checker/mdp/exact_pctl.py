@@ -442,10 +442,11 @@ _TO_MPQ = np.frompyfunc(mpq, 1, 1)
 
 def _enclosure(values: ExactValues) -> Bounds:
     """Certified float bounds of exact values: the nearest double, widened by one unit
-    in the last place unless it is the value itself (infinities stand for themselves)."""
+    in the last place unless it is the value itself (infinities stand for themselves;
+    a finite value beyond the largest double is ``inf`` in ``[largest double, inf]``)."""
     floats = values.floats()
     represented = values.infinite.copy()
-    finite = np.flatnonzero(~values.infinite)
+    finite = np.flatnonzero(~values.infinite & np.isfinite(floats))
     if finite.size:
         represented[finite] = np.asarray(_TO_MPQ(floats[finite]) == values.values[finite],
                                          dtype=bool)

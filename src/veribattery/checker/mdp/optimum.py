@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
-from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify.bounds import Bounds, rational_bounds
 from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp.acyclic import acyclic_optimum
 from veribattery.checker.mdp.certificate import certified_values
@@ -239,13 +239,8 @@ def _exactly(mdp: MDP, problem: Problem, found: Approximation,
 
 def _rounded(values: np.ndarray) -> Bounds:
     """Rationals as floats: the nearest one, inside the floats either side (exactly
-    the value where it is a float)."""
-    from gmpy2 import mpq  # the exact engine: only after an exact solve
-
-    point = np.array([float(v) for v in values], dtype=np.float64)
-    exact = np.array([mpq(p) == v for p, v in zip(point, values, strict=True)], dtype=bool)
-    return Bounds(point, np.where(exact, point, round_down(point)),
-                  np.where(exact, point, round_up(point)))
+    the value where it is a float; ``inf`` above the largest double)."""
+    return rational_bounds(values.tolist())
 
 
 def spread(values: Bounds, class_of: IntArray, found: Bounds) -> Bounds:

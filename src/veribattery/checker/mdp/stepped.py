@@ -143,9 +143,12 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
             decisions += [choice] * (steps - len(decisions))  # every later round is this one
             break
         value, radius = following, grown
-    with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
-        lower = np.where(radius == 0, value, np.maximum(round_down(value - radius), 0.0))
+    # (a radius of 0: the value is exact; an infinite value with an infinite radius, of a
+    # value beyond the doubles, is bounded by 0 below: fmax drops the NaN of inf - inf)
+    with np.errstate(invalid="ignore"):
+        lower = np.where(radius == 0, value, np.fmax(round_down(value - radius), 0.0))
         upper = np.where(radius == 0, value, round_up(value + radius))
+    upper = np.where(np.isnan(upper), np.inf, upper)
     return MdpResult(Bounds(value, lower, upper), _compact(mdp, decisions, then))
 
 
@@ -196,7 +199,8 @@ class _Rows:
             return y, _up(np.maximum(high - y, y - low))
         y = np.asarray(self.matrix @ x, dtype=np.float64)
         if offset is not None:
-            y += offset
+            with np.errstate(over="ignore"):  # beyond the doubles: inf, and so its radius
+                y += offset
         error = self.coefficient * y
         error += self.underflow
         step_up_in_place(error)

@@ -150,7 +150,7 @@ class ChoiceSystem:
         numerator = self.off @ np.concatenate([x, known])
         if offset is not None:
             numerator = numerator + offset
-        with np.errstate(divide="ignore", invalid="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             return np.asarray(numerator / self.leave, dtype=np.float64)
 
     def bound_images(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,

@@ -252,7 +252,8 @@ class LevelOrder:
         numerator = csr_rows(self.off, first, last) @ full
         if self.offset is not None:
             numerator = numerator + self.offset[first:last]
-        return np.asarray(numerator / self.leave[first:last], dtype=np.float64)
+        with np.errstate(over="ignore"):  # (not rigorous: beyond the doubles, inf)
+            return np.asarray(numerator / self.leave[first:last], dtype=np.float64)
 
     def local_starts(self, lo: int, hi: int) -> IntArray:
         """The first row of each class at positions ``lo..hi``, from the first one's."""

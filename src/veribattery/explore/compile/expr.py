@@ -255,7 +255,7 @@ def _own_noise(expr: Expr, operands: list[Node], node: Node, double: bool) -> bo
 def _built(expr: Expr, operands: list[Node], scope: Scope) -> Node:
     """The node of *expr* made from its compiled *operands*."""
     if isinstance(expr, IntLit):
-        return constant_node(np.int64(expr.value))
+        return constant_node(_int64(expr))
     if isinstance(expr, DoubleLit):
         return constant_node(np.float64(expr.value))
     if isinstance(expr, BoolLit):
@@ -271,6 +271,14 @@ def _built(expr: Expr, operands: list[Node], scope: Scope) -> Node:
     if isinstance(expr, Ite):
         return ite_node(operands[0], operands[1], operands[2])
     return call_node(cast(Call, expr), operands)
+
+
+def _int64(expr: IntLit) -> np.int64:
+    """An int literal (also a substituted constant or a folded sub-expression) as the
+    64-bit int the engine computes in."""
+    if not ops.INT_MIN <= expr.value <= ops.INT_MAX:
+        raise PrismSemanticError(ops.out_of_int_range(expr.value), expr.span)
+    return np.int64(expr.value)
 
 
 def _variable(expr: Ident, columns: Mapping[str, int]) -> Node:

@@ -130,8 +130,7 @@ class CompileCache:
         elif isinstance(expr, Ident):
             parts = (Ident, expr.name)
         elif isinstance(expr, IntLit | DoubleLit | BoolLit):
-            # -0.0 == 0.0, but 1/-0.0 is -inf: the sign of a zero tells them apart
-            parts = (type(expr), type(expr.value), expr.value, math.copysign(1, expr.value))
+            parts = (type(expr), type(expr.value), expr.value, _zero_sign(expr.value))
         elif isinstance(expr, Ite):
             parts = (Ite, self.key(expr.cond), self.key(expr.then), self.key(expr.otherwise))
         elif isinstance(expr, Unary):
@@ -149,6 +148,13 @@ class CompileCache:
         if _is_node(value):
             return (Expr, self.key(value))
         return (type(value), value)
+
+
+def _zero_sign(value: bool | int | float) -> float:
+    """The sign of a float (-0.0 == 0.0, but 1/-0.0 is -inf: the sign tells them
+    apart); 1 for an int or bool, which has no negative zero and may be too large for
+    a float."""
+    return math.copysign(1.0, value) if isinstance(value, float) else 1.0
 
 
 def _is_node(value: Any) -> bool:

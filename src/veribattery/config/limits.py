@@ -1,0 +1,160 @@
+"""The integers of the generated model stay within PRISM's 32-bit ``int``.
+
+The model compares charge on integers (decisions.md, 5): ``C_NEW``, the costs in
+units, and the guards of BS1 and of the voltage levels, which multiply the charge by
+the denominator of ``safe_t`` or of the thresholds. A config whose numbers would make
+these products overflow PRISM's ints (a ``safe_t`` of ``1e-30`` is a denominator of
+10^30) is refused here, naming the key, before any model is rendered: PRISM would
+compute wrong guards, and even veribattery's 64-bit ints cannot hold such literals.
+"""
+
+from __future__ import annotations
+
+import math
+from decimal import Decimal
+from fractions import Fraction
+
+from veribattery.config.battery import ACTIONS, CostTable
+from veribattery.config.exact import fraction_to_decimal, show
+from veribattery.config.farm import FarmLayout
+from veribattery.config.schema import ConsumptionTable, MissionConfig
+from veribattery.errors import ConfigError
+
+__all__ = ["PRISM_INT_MAX", "check_int_ranges"]
+
+#: PRISM's integers are Java ``int``: intermediate products must stay below this.
+PRISM_INT_MAX = 2**31 - 1
+#: Bound of a single quantity of charge (C_NEW, the most a decision predicts), so that
+#: their sums and differences stay below PRISM_INT_MAX.
+_CHARGE_MAX = PRISM_INT_MAX // 2
+_LEVELS = ("low", "medium", "high")
+
+
+def check_int_ranges(cfg: MissionConfig, c_new: int, costs: CostTable,
+                     layout: FarmLayout) -> None:
+    """Refuse a config whose numbers overflow the model's integers (see the module).
+
+    :raises ConfigError: naming the key to change, and what it must stay below.
+    """
+    _check_fade(cfg, c_new)
+    if cfg.battery.max_recharges >= PRISM_INT_MAX:
+        raise ConfigError(f"battery.max_recharges: must be below 2^31 - 1 for PRISM's 32-bit "
+                          f"integers, got {_short(Fraction(cfg.battery.max_recharges))}")
+    reach = max((*layout.dist, *layout.step), default=0)
+    predicted = _check_costs(cfg, costs, reach)
+    _check_guards(cfg, c_new, predicted)
+    _check_times(cfg, reach)
+    _check_ratio("environment.p_wsp_c", cfg.environment.p_wsp_c)
+
+
+def _check_costs(cfg: MissionConfig, costs: CostTable, reach: int) -> int:
+    """The most charge a decision predicts, which must stay below 2^30."""
+    predicted = max(_most_predicted(costs, reach, wind) for wind in (0, 1))
+    if predicted <= _CHARGE_MAX:
+        return predicted
+    key, value = _cost_key(cfg, costs, reach)
+    raise ConfigError(
+        f"{key}: {'' if value is None else _short(value) + ' is '}too large: a take-off, "
+        f"the flight to the farthest cell ({reach} cells) and an inspection would need "
+        f"{_digits(predicted)} units of resolution_ah ({show(cfg.battery.resolution_ah)}), "
+        "which must stay below 2^30 for PRISM's 32-bit integers")
+
+
+def _check_guards(cfg: MissionConfig, c_new: int, predicted: int) -> None:
+    """BS1's guards (``den*(b - pred) >= num*cap``) and the voltage levels'."""
+    if cfg.strategy.mode == "bs1":
+        safe_t = cfg.strategy.safe_t
+        _check_fine("strategy.safe_t", safe_t, safe_t.denominator, c_new + predicted,
+                    "BS1's guards multiply the charge", "safe_t's denominator")
+    if cfg.battery.model == "advanced":
+        levels = cfg.battery.voltage_thresholds
+        finer = max(("high", "low"), key=lambda k: getattr(levels, k).denominator)
+        common = math.lcm(levels.high.denominator, levels.low.denominator)
+        _check_fine(f"battery.voltage_thresholds.{finer}", getattr(levels, finer), common,
+                    c_new, "the voltage guards multiply the charge",
+                    "the thresholds' common denominator")
+
+
+def _check_fade(cfg: MissionConfig, c_new: int) -> None:
+    """``cap`` multiplies C_NEW by the fade's denominator."""
+    den = cfg.battery.fade.denominator
+    if c_new * den > _CHARGE_MAX:
+        raise ConfigError(
+            "battery.fade_per_recharge: capacity_ah/resolution_ah x the fade's denominator "
+            f"({c_new} x {_digits(den)}) must stay below 2^30 for PRISM's 32-bit integers"
+        )
+
+
+def _most_predicted(costs: CostTable, reach: int, wind: int) -> int:
+    """An upper bound of the charge one decision predicts in *wind*: a take-off, the
+    flight across *reach* cells and an inspection."""
+    most = {a: max(costs.of(a)[wind]) for a in ACTIONS}
+    return most["takeoff_land"] + reach * most["cell"] + most["inspection"]
+
+
+def _cost_key(cfg: MissionConfig, costs: CostTable, reach: int) -> tuple[str, Fraction | None]:
+    """The consumption key that makes the prediction too large, and its value: the
+    table's entry that weighs most at low wind, its high-wind factor if low wind alone
+    fits, or the section (no value) for Eq. 2's parameters."""
+    table = cfg.battery.consumption
+    if not isinstance(table, ConsumptionTable):
+        return "battery.consumption", None
+    if _most_predicted(costs, reach, 0) <= _CHARGE_MAX:
+        return "battery.consumption.high_wind_factor", table.high_wind_factor
+    weight = {"takeoff_land": 1, "cell": max(reach, 1), "inspection": 1}
+    _, action, level = max((costs.of(a)[0][i] * weight[a], a, i)
+                           for a in ACTIONS for i in range(3))
+    key = f"{action}.{_LEVELS[level]}"
+    return f"battery.consumption.{key}", getattr(getattr(table, action), _LEVELS[level])
+
+
+def _check_fine(key: str, value: Fraction, den: int, charge: int, guards: str,
+                den_name: str) -> None:
+    """Guards ``den*charge > num*cap``: *den* times *charge* must stay below 2^31."""
+    if den * charge <= PRISM_INT_MAX:
+        return
+    limit = PRISM_INT_MAX // charge
+    raise ConfigError(
+        f"{key}: {_short(value)} is too fine: {guards} (up to {charge} units) by {den_name} "
+        f"({_digits(den)}), and PRISM's 32-bit integers hold products below 2^31; give a "
+        f"denominator of at most {limit} (e.g. at most {len(str(limit)) - 1} decimal places)"
+    )
+
+
+def _check_times(cfg: MissionConfig, reach: int) -> None:
+    """A whole number of minutes is an int constant (``T_CELL`` is multiplied by a
+    distance in cells)."""
+    for name, value in cfg.times_min:
+        key = f"times_min.{name}"
+        most = PRISM_INT_MAX // max(reach, 1) if name == "per_cell" else PRISM_INT_MAX
+        if value > most:
+            scaled = " x the longest flight in cells" if name == "per_cell" else ""
+            raise ConfigError(f"{key}: {_short(value)} is too large: minutes{scaled} must "
+                              f"stay at most {most} for PRISM's 32-bit integers")
+        _check_ratio(key, value)
+
+
+def _check_ratio(key: str, value: Fraction) -> None:
+    """A value that is no decimal is written ``(p/q)``: q must be an int too."""
+    if fraction_to_decimal(value) is None and value.denominator > PRISM_INT_MAX:
+        raise ConfigError(f"{key}: {_short(value)} has a denominator too large for PRISM's "
+                          f"32-bit integers: give a decimal, or p/q with q at most "
+                          f"{PRISM_INT_MAX}")
+
+
+def _short(value: Fraction) -> str:
+    """*value* as written, or in scientific notation when that would be long."""
+    text = show(value)
+    if len(text) <= (20 if "." in text else 40):
+        return text
+    return f"{(Decimal(value.numerator) / Decimal(value.denominator)).normalize():.6g}"
+
+
+def _digits(value: int) -> str:
+    """*value*, or 10^n for a long power of ten, or about so much."""
+    text = str(value)
+    if len(text) <= 20:
+        return text
+    if text == "1" + "0" * (len(text) - 1):
+        return f"10^{len(text) - 1}"
+    return f"about {Decimal(value).normalize():.3g}"
