@@ -46,6 +46,7 @@ from veribattery.checker.certify.rounding import (
     step_down_in_place,
     step_up,
     step_up_in_place,
+    sums_at_most_one,
 )
 
 __all__ = [
@@ -70,4 +71,5 @@ __all__ = [
     "step_down_in_place",
     "step_up",
     "step_up_in_place",
+    "sums_at_most_one",
 ]
