@@ -11,6 +11,7 @@ undecided bound then raised the rational matrix to the 10^15th power. TENTH's ro
 
 from __future__ import annotations
 
+import json
 import time
 from fractions import Fraction
 from pathlib import Path
@@ -19,6 +20,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 from click.testing import CliRunner
+from gmpy2 import mpz
 
 from tests.checker import exact_reference as ref
 from veribattery.checker import UndecidedResult, Workspace, kernels
@@ -239,3 +241,22 @@ def test_imprecise_radius_is_carried_on_alone(seed: int) -> None:
         found = kernels.bounded_until_probs(P, everywhere, target, 400)
     assert _contains(found, _exact(P, target, 400))
     assert float(np.max(found.width)) < 1e-12
+
+
+def test_exact_results_of_more_than_4300_digits_print(tmp_path: Path) -> None:
+    """10^4 exact steps with thirds: P(F<=k x>0) = 1 - (1/3)^k has a 4,772-digit
+    denominator, past Python's guard on int -> str (a ValueError traceback before)."""
+    model = tmp_path / "thirds.pm"
+    model.write_text("dtmc\nmodule m\n  x : [0..2] init 0;\n"
+                     "  [] x=0 -> 1/3:(x'=0) + 1/3:(x'=1) + 1/3:(x'=2);\n"
+                     "  [] x>0 -> (x'=2);\nendmodule\n")
+    runner = CliRunner()
+    args = ["prism", str(model), "--exact", "--property", "P=? [ F<=2 x>0 ]",
+            "--property", "P=? [ F<=10000 x>0 ]"]
+    table = runner.invoke(cli, args)
+    assert table.exit_code == 0
+    assert "8/9 ≈ 0.888888888889" in table.stdout and "(p/q: 4772/4772 digits)" in table.stdout
+    result = runner.invoke(cli, [*args, "--json"])
+    assert result.exit_code == 0
+    power = mpz(3) ** 10000  # (gmpy2 prints it: Python's int would refuse too)
+    assert json.loads(result.stdout)["results"][1]["exact"] == f"{power - 1}/{power}"
