@@ -151,12 +151,11 @@ def _settled(M: CsrMatrix, at: _Fixpoint, remaining: int, budget: int,
         grown = round_up(certify.enclose_product(M, radius, at.rounding, at.terms)[2])
         if done & (done - 1) == 0 or bool(np.all(grown <= radius)):
             drift = horizon.drifted(radius, grown, rho, left)
-            found = _around(at.x, drift)
-            # Stop once precise, or when no narrower than at the last (finite) check.
-            if bool(found.precise_states().all()) or (
-                    np.isfinite(widest) and not np.max(drift) < widest):
+            if np.isfinite(widest) and not np.max(drift) < widest:
+                break  # no narrower than at the last (finite) check: keep that one
+            found, widest = _around(at.x, drift), float(np.max(drift))
+            if bool(found.precise_states().all()):
                 break
-            widest = float(np.max(drift))
         radius, left = grown, left - 1
     else:
         grown = round_up(certify.enclose_product(M, radius, at.rounding, at.terms)[2])
