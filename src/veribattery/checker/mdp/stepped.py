@@ -162,7 +162,7 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
     rows = _Rows.of(mdp)
     decisions = _Decisions()
     budget = horizon.rounds(steps, mdp.transitions.nnz)
-    widest = np.inf
+    best: Bounds | None = None  # the last check's bounds, while only the radius moves
     for done in range(1, budget + 1):
         following, grown, choice = _round(mdp, rounds, value, radius, fixed_radius, rows)
         decisions.add(choice)
@@ -172,13 +172,11 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
         if horizon.checkpoint(done, steps) or done == budget < steps:
             found = _beyond(mdp, rounds.trend, (value, radius), (following, grown),
                             steps - done + 1)
-            # Stop once precise, or when only the radius moves and no longer narrows
-            # (than at the last, finite, check).
-            width = float(np.max(found.width))
-            if done == budget or bool(found.precise_states().all()) or (
-                    steady and np.isfinite(widest) and not width < widest):
+            if best is not None and steady and not _narrower(found, best):
+                found = best  # only the radius moves, and it no longer narrows
+            if found is best or done == budget or bool(found.precise_states().all()):
                 return MdpResult(found, decisions.strategy(mdp, steps, then))
-            widest = width if steady else np.inf
+            best = found if steady else None
         value, radius = following, grown
     with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
         upper = np.where(radius == 0, value, round_up(value + radius))
@@ -204,6 +202,11 @@ def _beyond(mdp: MDP, trend: Trend, before: tuple[FloatArray, FloatArray],
     with np.errstate(invalid="ignore"):
         found = Bounds(value, _lower(value, drift), round_up(value + drift))
     return horizon.meet(found, value, lower, trend)
+
+
+def _narrower(found: Bounds, than: Bounds) -> bool:
+    """Whether the widest interval of *found* is narrower than that of *than*."""
+    return bool(np.max(found.width) < np.max(than.width))
 
 
 def _lower(value: FloatArray, radius: FloatArray) -> FloatArray:
