@@ -234,7 +234,21 @@ def exact_text(result: object) -> str | None:
     if getattr(result, "exact_values", None) is None:
         return None  # a boolean result, or not an exact run
     exact = getattr(result, "exact", None)
-    return "Infinity" if exact is None else str(exact)
+    if exact is None:
+        return "Infinity"
+    numerator, denominator = _digits(exact.numerator), _digits(exact.denominator)
+    return numerator if denominator == "1" else f"{numerator}/{denominator}"
+
+
+def _digits(n: int) -> str:
+    """*n* in decimal, however long (Python refuses ``str`` past 4,300 digits: a
+    thousand exact steps of a chain with thirds give 4,771)."""
+    try:
+        return str(n)
+    except ValueError:
+        from gmpy2 import mpz  # (not limited; only for such numbers)
+
+        return str(mpz(n))
 
 
 def format_result(result: CheckResult) -> str:

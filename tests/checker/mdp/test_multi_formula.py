@@ -113,6 +113,17 @@ def test_step_bounded_rewards_need_the_step_count(formula: str, expected: Fracti
     assert check(STEPS, formula).value == pytest.approx(float(expected), abs=1e-6)
 
 
+def test_a_step_bound_too_large_to_unfold_is_refused() -> None:
+    """``C<=10^15`` would unfold STEPS (5 transitions) into 10^15 + 1 copies: refused,
+    naming the bound, instead of building them."""
+    formula = 'multi(R{"r"}max=? [ C<=1 ], R{"r"}>=3 [ C<=1000000000000000 ])'
+    with pytest.raises(CheckError) as raised:
+        check(STEPS, formula)
+    assert str(raised.value) == ("t.props:1:44: a step bound of 1000000000000000 unfolds the "
+                                 "model into 5,000,000,000,000,005 transitions (at most "
+                                 "20,000,000): use a smaller bound")
+
+
 def test_infeasible_numerical_query_is_nan_with_an_error_naming_the_property() -> None:
     # PRISM's own regression suite expects NaN here (multi-general/test2.nm.props#2); the
     # issue counts it as bad input: the run carries an error at the property's position

@@ -20,8 +20,9 @@ The modules: :mod:`~veribattery.checker.certify.bounds` (the :class:`Bounds` eve
 kernel returns, and the precision rules), :mod:`~veribattery.checker.certify.rounding`
 (directed rounding, enclosed products), :mod:`~veribattery.checker.certify.affine` (the
 enclosed fixed-point maps), :mod:`~veribattery.checker.certify.fixpoint` (their
-certificates) and :mod:`~veribattery.checker.certify.focus` (certificates at a few
-states). This package re-exports the public names of rounding, affine and fixpoint.
+certificates), :mod:`~veribattery.checker.certify.focus` (certificates at a few
+states) and :mod:`~veribattery.checker.certify.horizon` (step bounds too large to
+iterate). This package re-exports the public names of rounding, affine and fixpoint.
 """
 
 from veribattery.checker.certify.affine import AffineMap, PinnedMap, RowPlans
@@ -46,6 +47,7 @@ from veribattery.checker.certify.rounding import (
     step_down_in_place,
     step_up,
     step_up_in_place,
+    sums_at_most_one,
 )
 
 __all__ = [
@@ -70,4 +72,5 @@ __all__ = [
     "step_down_in_place",
     "step_up",
     "step_up_in_place",
+    "sums_at_most_one",
 ]

@@ -4,13 +4,14 @@
 ulp away; :func:`product_error` bounds the rounding error of a sparse product
 ``fl(M x)`` (Higham, *Accuracy and Stability of Numerical Algorithms*, §3.1 and §3.4),
 and :func:`enclose_product` turns a product into a certified enclosure.
+:func:`sums_at_most_one` decides exactly which rows of a matrix sum to at most 1.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from veribattery._types import CsrMatrix, FloatArray
+from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker.certify.bounds import round_up
 
 UNIT_ROUNDOFF = 2.0**-53
@@ -171,3 +172,24 @@ def _nonzero_terms(M: CsrMatrix, x: FloatArray) -> FloatArray:
 
 def _nonnegative(x: FloatArray) -> bool:
     return bool(np.all(x >= 0))
+
+
+def sums_at_most_one(M: CsrMatrix) -> BoolArray:
+    """Per row of *M* (nonnegative), whether the exact sum of its stored entries is at
+    most 1.
+
+    The enclosed float sum decides most rows; a row whose enclosure holds 1 (every row
+    that sums to exactly 1, for one) is summed again in rationals, its entries' dyadic
+    values (:class:`gmpy2.mpq`, over object arrays).
+    """
+    _, low, high = enclose_product(M, np.ones(M.shape[1]))
+    result = np.asarray(high <= 1.0, dtype=np.bool_)
+    unsure = np.flatnonzero(~result & (low <= 1.0))
+    if unsure.size:  # (at least two entries each: one entry's sum is exact)
+        from gmpy2 import mpq
+
+        rows = M[unsure]
+        exact = np.frompyfunc(mpq, 1, 1)(rows.data)
+        sums = np.add.reduceat(exact, rows.indptr[:-1])
+        result[unsure] = np.asarray(sums <= 1, dtype=np.bool_)
+    return result

@@ -19,7 +19,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import nearest_float
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.formula.leaves import step_bound
+from veribattery.checker.formula.leaves import exact_step_bound
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError
 from veribattery.explore.exact.dtmc import ExactDTMC
@@ -72,12 +72,12 @@ def _until(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: Bo
     if bound is None:
         return until_probs(model, workspace, remain, target)
     if isinstance(bound, TimeInterval):  # U[a,b]: remain for a steps, then U<=b-a
-        low, high = step_bound(bound.low), step_bound(bound.high)
+        low, high = exact_step_bound(bound.low), exact_step_bound(bound.high)
         if high < low:
             return indicator(np.zeros_like(target))
         later = _within(model, workspace, remain, target, high - low)
         return _power(model, remain, later, indicator(np.zeros_like(target)), low)
-    k = step_bound(bound.value)
+    k = exact_step_bound(bound.value)
     match bound.op:
         case "<=" | "<":
             steps = k if bound.op == "<=" else k - 1

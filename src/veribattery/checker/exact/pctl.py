@@ -41,10 +41,10 @@ from veribattery.checker.exact.numeric import (
 from veribattery.checker.formula.leaves import (
     CONNECTIVES,
     as_mask,
+    exact_step_bound,
     has_operator,
     leaf_values,
     operand_chain,
-    step_bound,
 )
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
@@ -281,11 +281,11 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
             reached = state_set(model, workspace, target)
             return reach_rewards(model, workspace, structure.total, reached)
         case Cumulative(bound=bound):
-            total = structure.total
-            return ExactValues.finite(_power(model, everywhere, zero, total, step_bound(bound)))
+            steps = exact_step_bound(bound)
+            return ExactValues.finite(_power(model, everywhere, zero, structure.total, steps))
         case Instantaneous(time=time_):
-            state = structure.state
-            return ExactValues.finite(_power(model, everywhere, state, zero, step_bound(time_)))
+            steps = exact_step_bound(time_)
+            return ExactValues.finite(_power(model, everywhere, structure.state, zero, steps))
         case ConditionalReach():
             return storm.conditional_reach_rewards(model, workspace, structure, op.path,
                                                    state_set=state_set)

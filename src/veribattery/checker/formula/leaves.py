@@ -168,13 +168,37 @@ def literal_number(expr: Expr) -> float:
     raise CheckError("expected a numeric constant", expr.span)
 
 
+#: The largest step bound: PRISM's integers are 64-bit (an int constant above it is
+#: refused here, where it would otherwise wrap or overflow elsewhere).
+MAX_STEP_BOUND = 2**63 - 1
+#: The most steps the exact engines iterate: their rationals grow with each step, and so
+#: does its cost (``F<=k`` on a three-state chain whose values never settle: 10^4 steps
+#: take 1 s, 10^5 a minute, 10^6 more than an hour).
+EXACT_STEP_LIMIT = 100_000
+
+
 def step_bound(expr: Expr) -> int:
-    """A step bound: a non-negative integer literal."""
-    value = literal_number(expr)
+    """A step bound: a non-negative integer literal, at most :data:`MAX_STEP_BOUND`."""
+    if isinstance(expr, IntLit):  # exactly: a float would round bounds above 2^53
+        value: float | int = expr.value
+    else:
+        value = literal_number(expr)
     if value < 0 or value != int(value):
         raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
                          expr.span)
+    if value > MAX_STEP_BOUND:
+        raise CheckError(f"step bound {value} is too large (at most 2^63 - 1)", expr.span)
     return int(value)
+
+
+def exact_step_bound(expr: Expr) -> int:
+    """A step bound for the exact engines: :func:`step_bound`, at most
+    :data:`EXACT_STEP_LIMIT`."""
+    steps = step_bound(expr)
+    if steps > EXACT_STEP_LIMIT:
+        raise CheckError(f"step bound {steps} is too large for exact arithmetic (at most "
+                         f"{EXACT_STEP_LIMIT:,} steps)", expr.span)
+    return steps
 
 
 def _operands(path: PathFormula) -> tuple[Expr, ...]:

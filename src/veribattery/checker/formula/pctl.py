@@ -381,11 +381,12 @@ def _until(dtmc: DTMC, workspace: Workspace, remain: BoolArray, target: BoolArra
     if low == 0:
         if high is None:
             return kernels.until_probs(P, remain, target, focus_states, workspace=workspace)
-        return kernels.bounded_until_probs(P, remain, target, high, progress=workspace.monitor)
+        return kernels.bounded_until_probs(P, remain, target, high, progress=workspace.monitor,
+                                           workspace=workspace)
     if high is None:
         return kernels.lower_bounded_until_probs(P, remain, target, low, workspace=workspace)
     return kernels.interval_until_probs(P, remain, target, low, high,
-                                        progress=workspace.monitor)
+                                        progress=workspace.monitor, workspace=workspace)
 
 
 # ---------------------------------------------------------------------------

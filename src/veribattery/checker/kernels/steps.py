@@ -2,21 +2,24 @@
 
 Each iterates one sparse matrix-vector product per step, plus one on the error
 radius, and stops early only at an exact fixpoint of the float map (the next iterate
-equal to the current one in every bit). :func:`absorption` finishes a system whose
-values are known outside it.
+equal to the current one in every bit) or, for a step bound too large to iterate, as
+:mod:`~veribattery.checker.certify.horizon` says. :func:`absorption` finishes a system
+whose values are known outside it.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._types import BoolArray, CsrMatrix, FloatArray
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker import certify
+from veribattery.checker.certify import horizon
 from veribattery.checker.certify.bounds import (
     Bounds,
     current_precision,
@@ -25,6 +28,7 @@ from veribattery.checker.certify.bounds import (
     round_up,
 )
 from veribattery.checker.certify.fixpoint import Progress
+from veribattery.checker.certify.horizon import Trend
 from veribattery.checker.kernels.prepass import prob0
 from veribattery.checker.kernels.systems import _restrict, _system
 from veribattery.checker.kernels.until import _certified, _spread, until_probs
@@ -39,13 +43,14 @@ if TYPE_CHECKING:
 
 
 def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
-                progress: Progress | None = None) -> Bounds:
+                progress: Progress | None = None, trend: Trend = horizon.NONNEGATIVE) -> Bounds:
     """``k`` steps of ``x <- offset + M x`` from *start*, with a certified radius.
 
     The radius *e* bounds ``|x - exact|`` componentwise: ``e <- M e + delta`` where
     *delta* bounds the rounding of the step (:func:`certify.enclose_product`).
-    The iteration stops early at an exact fixpoint of the float map; the
-    remaining steps are accounted normwise with ``||M||_inf`` (rounded up).
+    The iteration stops early at an exact fixpoint of the float map (:func:`_settled`).
+    A bound beyond :data:`horizon.ROUND_LIMIT` runs at most :func:`horizon.rounds`
+    rounds, the steps left enclosed by what *trend* knows of the exact iterates.
     *progress* (if someone listens) is told ``(steps done, k, "steps")`` after each step.
     """
     if escalated() and np.array_equal(start.lower, start.upper):
@@ -56,21 +61,30 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
         if exact is not None:
             return Bounds(*exact)
     terms = certify.row_terms(M)
-    normwise = _step_power_normwise(M, start, offset, k, terms, progress)
-    if normwise is not None:
-        return normwise
+    if k <= horizon.ROUND_LIMIT:
+        normwise = _step_power_normwise(M, start, offset, k, terms, progress)
+        if normwise is not None:
+            return normwise
     x = start.value
     radius = np.maximum(round_up(x - start.lower), round_up(start.upper - x))
-    for step in range(k):
+    budget = horizon.rounds(k, M.nnz)
+    for step in range(budget):
         following, low, high = certify.enclose_product(M, x, offset, terms)
         with np.errstate(invalid="ignore"):  # inf - inf beyond the doubles: NaN, unbounded
             rounding = np.maximum(high - following, following - low)
         if np.array_equal(following, x):
-            return _finish(M, x, radius, rounding, k - step)
+            fixpoint = _Fixpoint(x, radius, rounding, terms)
+            return _settled(M, fixpoint, k - step, budget - step, trend)
         radius = round_up(certify.enclose_product(M, radius, rounding, terms)[2])
         x = following
         if progress is not None:
             progress(step + 1, k, "steps")
+        if horizon.checkpoint(step + 1, k):
+            found = horizon.early(x, round_down(x - radius), trend)
+            if found is not None:
+                return found
+    if budget < k:
+        return horizon.beyond(x, round_down(x - radius), trend)
     return _finish(M, x, radius, np.zeros_like(x), 0)
 
 
@@ -97,7 +111,8 @@ def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int
             rounding = float(np.max(np.maximum(high - following, following - low),
                                     initial=0.0))
         if np.array_equal(following, x):
-            return _finish(M, x, np.full_like(x, radius), np.full_like(x, rounding), k - step)
+            found = _finish(M, x, np.full_like(x, radius), np.full_like(x, rounding), k - step)
+            return found if bool(found.precise_states().all()) else None
         grown = math.nextafter(rho * radius, math.inf)  # each operation rounded up
         radius = math.nextafter(grown + rounding, math.inf)
         x = following
@@ -106,6 +121,55 @@ def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int
     if not 2 * radius <= absolute:
         return None
     return _finish(M, x, np.full_like(x, radius), np.zeros_like(x), 0)
+
+
+@dataclass(frozen=True, slots=True)
+class _Fixpoint:
+    """An iterate *x* that the float map sends to itself: its radius, the rounding
+    bound of its step, and the matrix's row terms."""
+
+    x: FloatArray
+    radius: FloatArray
+    rounding: FloatArray
+    terms: FloatArray
+
+
+def _settled(M: CsrMatrix, at: _Fixpoint, remaining: int, budget: int,
+             trend: Trend) -> Bounds:
+    """Bounds after *remaining* more steps from a float fixpoint.
+
+    The remaining steps bounded normwise (:func:`_finish`), if precise. Else every
+    later step has the same value and rounding, so only the radius moves: it is
+    iterated alone (at most *budget* rounds) until what it still moves by, carried
+    over the steps left (:func:`horizon.drifted`), is precise or stops narrowing (checked
+    after 1, 2, 4, ... rounds), or the steps run out; what is found is narrowed by
+    *trend*.
+    """
+    found = _finish(M, at.x, at.radius, at.rounding, remaining)
+    if bool(found.precise_states().all()):
+        return found
+    rho = max(1.0, certify.spectral_cap(M))
+    radius, left, widest = at.radius, remaining, np.inf
+    for done in range(1, min(remaining, budget) + 1):
+        grown = round_up(certify.enclose_product(M, radius, at.rounding, at.terms)[2])
+        if done & (done - 1) == 0 or bool(np.all(grown <= radius)):
+            drift = horizon.drifted(radius, grown, rho, left)
+            if np.isfinite(widest) and not np.max(drift) < widest:
+                break  # no narrower than at the last (finite) check: keep that one
+            found, widest = _around(at.x, drift), float(np.max(drift))
+            if bool(found.precise_states().all()):
+                break
+        radius, left = grown, left - 1
+    else:
+        grown = round_up(certify.enclose_product(M, radius, at.rounding, at.terms)[2])
+        found = _around(at.x, horizon.drifted(radius, grown, rho, left))
+    return horizon.meet(found, at.x, round_down(at.x - at.radius), trend)
+
+
+def _around(x: FloatArray, radius: FloatArray) -> Bounds:
+    """*x* with the radius *radius*, rounded outward."""
+    with np.errstate(invalid="ignore"):
+        return Bounds(x, round_down(x - radius), round_up(x + radius))
 
 
 def _finish(M: CsrMatrix, x: FloatArray, radius: FloatArray, rounding: FloatArray,
@@ -152,7 +216,8 @@ def next_probs(P: CsrMatrix, target: BoolArray) -> Bounds:
 
 
 def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                        k: int, *, progress: Progress | None = None) -> Bounds:
+                        k: int, *, progress: Progress | None = None,
+                        workspace: Workspace | None = None) -> Bounds:
     """Probability of reaching *target* within *k* steps while staying in *remain*.
 
     :param P: row-stochastic CSR transition matrix.
@@ -160,22 +225,38 @@ def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param target: states to reach.
     :param k: step bound (``U<=k``), at least 0.
     :param progress: told ``(steps done, k, "steps")`` as the iteration goes.
+    :param workspace: as for :func:`until_probs`; with one, the unbounded until may
+        bound the steps of a bound too large to iterate (:func:`_ceiling`).
     """
     moving = _rows_in(P, remain & ~target)
     near = _within_steps(moving, target, k)
     if not near.any():
         return Bounds.exact(np.zeros(P.shape[0]))
     hit = target.astype(np.float64)
+    index = np.flatnonzero(near)
+    trend = Trend.up_to(lambda: _ceiling(P, remain, target, index, workspace))
     if near.all():
-        return _probabilities(_step_power(moving, Bounds.exact(hit), hit, k, progress))
+        return _probabilities(_step_power(moving, Bounds.exact(hit), hit, k, progress, trend))
     # States farther than k steps from the target have probability exactly 0, and
     # so has every such successor of a nearer state at each of the k iterations:
     # iterating on the near states alone gives the same values (Storm does the same).
-    index = np.flatnonzero(near)
     sub = sp.csr_matrix(moving[index][:, index])
     del moving
-    found = _step_power(sub, Bounds.exact(hit[index]), hit[index], k, progress)
+    found = _step_power(sub, Bounds.exact(hit[index]), hit[index], k, progress, trend)
     return _probabilities(_spread(np.zeros(P.shape[0]), near, found))
+
+
+def _ceiling(P: CsrMatrix, remain: BoolArray, target: BoolArray, index: IntArray,
+             workspace: Workspace | None) -> FloatArray | None:
+    """An upper bound of ``remain U<=k target`` for every *k*, on the states *index*:
+    the unbounded until's, when each row that moves sums to at most 1 exactly (None
+    otherwise, or without a workspace). ``docs/numerics.md`` has the argument."""
+    if workspace is None:
+        return None
+    moves = index[remain[index] & ~target[index]]
+    if not bool(certify.sums_at_most_one(P[moves]).all()):
+        return None
+    return until_probs(P, remain, target, workspace=workspace).upper[index]
 
 
 def _within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
@@ -187,7 +268,7 @@ def _within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
         return np.zeros(n, dtype=bool)
     # The transpose is a CSC view of the same arrays; csgraph makes one CSR copy.
     distance = csgraph.dijkstra(moving.T, directed=True, indices=np.flatnonzero(target),
-                                unweighted=True, min_only=True, limit=k + 0.5)
+                                unweighted=True, min_only=True, limit=min(k, n) + 0.5)
     return np.asarray(np.isfinite(distance), dtype=bool)
 
 
@@ -207,7 +288,8 @@ def lower_bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray
 
 
 def interval_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
-                         low: int, high: int, *, progress: Progress | None = None) -> Bounds:
+                         low: int, high: int, *, progress: Progress | None = None,
+                         workspace: Workspace | None = None) -> Bounds:
     """Probability of ``remain U[low,high] target``: *remain* for the first *low* steps,
     then *target* within ``high - low`` more steps, passing through *remain*.
 
@@ -217,8 +299,10 @@ def interval_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param low: first step that counts, at least 0.
     :param high: last step that counts, at least *low*.
     :param progress: as for :func:`bounded_until_probs`, per part.
+    :param workspace: as for :func:`bounded_until_probs`.
     """
-    later = bounded_until_probs(P, remain, target, high - low, progress=progress)
+    later = bounded_until_probs(P, remain, target, high - low, progress=progress,
+                                workspace=workspace)
     found = _step_power(_rows_in(P, remain), later, np.zeros(P.shape[0]), low, progress)
     return _probabilities(found)
 
@@ -233,7 +317,8 @@ def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int, *,
     :param progress: as for :func:`bounded_until_probs`.
     """
     offset = np.asarray(rewards, dtype=np.float64)
-    found = _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k, progress)
+    found = _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k, progress,
+                        horizon.RISING)
     if np.all(offset >= 0):  # a sum of such rewards is never negative (nor one overflown)
         return Bounds(found.value, np.maximum(found.lower, 0.0), found.upper)
     return found

@@ -31,9 +31,9 @@ from veribattery.checker.formula import filters
 from veribattery.checker.formula.leaves import (
     CONNECTIVES,
     as_mask,
+    exact_step_bound,
     has_operator,
     integer_limit,
-    step_bound,
 )
 from veribattery.checker.mdp.exact import exact_reach_reward, exact_total_reward
 from veribattery.checker.mdp.exact_reward_bounded import exact_reward_bounded
@@ -413,11 +413,11 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
         case Cumulative(bound=bound):
             zeros = np.full(mdp.num_states, _ZERO, dtype=object)
             return ExactValues.finite(exact_rounds(mdp, probabilities, zeros, everywhere, zeros,
-                                                   objective, step_bound(bound), per_choice))
+                                                   objective, exact_step_bound(bound), per_choice))
         case Instantaneous(time=time_):
             state = np.asarray(structure.state, dtype=object)
             return ExactValues.finite(exact_rounds(mdp, probabilities, state, everywhere,
-                                                   state, objective, step_bound(time_)))
+                                                   state, objective, exact_step_bound(time_)))
     raise CheckError("this reward formula has no exact MDP kernel (F, C, C<=k, I=k have)",
                      op.path.span)
 

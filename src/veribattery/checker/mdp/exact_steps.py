@@ -13,7 +13,7 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray
-from veribattery.checker.formula.leaves import step_bound
+from veribattery.checker.formula.leaves import exact_step_bound
 from veribattery.checker.mdp.exact import exact_reach_probability
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.rational import ObjectArray
@@ -39,13 +39,13 @@ def exact_until(mdp: MDP, probabilities: ObjectArray, remain: BoolArray | None,
     if bound is None:
         return _reach(mdp, probabilities, remain, target, objective)
     if isinstance(bound, TimeInterval):
-        low, high = step_bound(bound.low), step_bound(bound.high)
+        low, high = exact_step_bound(bound.low), exact_step_bound(bound.high)
     elif bound.op in ("<=", "<"):
-        low, high = 0, step_bound(bound.value) - (bound.op == "<")
+        low, high = 0, exact_step_bound(bound.value) - (bound.op == "<")
     elif bound.op == "=":
-        low = high = step_bound(bound.value)
+        low = high = exact_step_bound(bound.value)
     else:  # >= k, > k: remain for k steps, then remain U target
-        steps = step_bound(bound.value) + (bound.op == ">")
+        steps = exact_step_bound(bound.value) + (bound.op == ">")
         later = _reach(mdp, probabilities, remain, target, objective)
         return exact_rounds(mdp, probabilities, later, remain, _zeros(n), objective, steps)
     if high < low:

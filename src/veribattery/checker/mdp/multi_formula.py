@@ -35,6 +35,7 @@ from veribattery._types import BoolArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.formula.filters import FilterOutcome
 from veribattery.checker.formula.intervals import Undecided
+from veribattery.checker.kernels.reward_layers import PRODUCT_LIMIT
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.multi import (
     LP_TOLERANCE,
@@ -104,10 +105,27 @@ def multi_answer(mdp: MDP, query: Multi, mask: StateMask) -> FilterOutcome:
 def _goals(mdp: MDP, query: Multi, mask: StateMask) -> tuple[list[_Goal], MDP]:
     """The objectives, and the MDP their quantities live on (unfolded with a step
     counter when one of them is step-bounded)."""
-    bounds = [steps for steps in map(_steps, _operators(query)) if steps is not None]
-    stepped = SteppedMdp.of(mdp, max(bounds)) if bounds else None
+    stepped = _unfolded(mdp, query)
     goals = [_goal(mdp, stepped, op, mask) for op in _operators(query)]
     return goals, mdp if stepped is None else stepped.mdp
+
+
+def _unfolded(mdp: MDP, query: Multi) -> SteppedMdp | None:
+    """*mdp* unfolded up to the largest step bound of *query* (None: it has none).
+
+    :raises CheckError: the unfolded MDP would pass the products' size limit.
+    """
+    bounds = [(steps, op) for op in _operators(query) if (steps := _steps(op)) is not None]
+    if not bounds:
+        return None
+    steps, op = max(bounds, key=lambda pair: pair[0])
+    size = (steps + 1) * mdp.transitions.nnz
+    if size > PRODUCT_LIMIT:
+        assert isinstance(op.path, Cumulative)
+        raise CheckError(f"a step bound of {steps} unfolds the model into {size:,} "
+                         f"transitions (at most {PRODUCT_LIMIT:,}): use a smaller bound",
+                         op.path.bound.span)
+    return SteppedMdp.of(mdp, steps)
 
 
 def _operators(query: Multi) -> list[ProbOp | RewardOp]:

@@ -9,12 +9,12 @@ strategy returned is step-dependent (:class:`StepStrategy`).
 A rigorous error radius is carried through the rounds, as on the DTMC side
 (:func:`_round`: the rounding of each round enclosed by :func:`enclose_product`,
 the inherited error pushed through the worst row). As there, these operators
-read the stored entries as they are.
+read the stored entries as they are. A bound too large to iterate runs as
+:mod:`~veribattery.checker.certify.horizon` says (``docs/mdp-numerics.md``).
 """
 
 from __future__ import annotations
 
-import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,11 +24,15 @@ from veribattery.checker.certify import (
     TERM_FLOOR,
     enclose_product,
     error_coefficient,
+    horizon,
     row_terms,
+    spectral_cap,
     step_up,
     step_up_in_place,
+    sums_at_most_one,
 )
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify.horizon import Trend
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
@@ -47,12 +51,14 @@ __all__ = [
 
 @dataclass(frozen=True, slots=True)
 class _Rounds:
-    """What the recursion needs besides the start: who moves, what the others hold."""
+    """What the recursion needs besides the start: who moves, what the others hold,
+    and what is known of the values of the rounds a large bound does not run."""
 
     moving: BoolArray
     fixed: Bounds
     offset: FloatArray | None
     objective: Objective
+    trend: Trend = horizon.NONNEGATIVE
 
 
 def next_probability(mdp: MDP, target: BoolArray, *, objective: Objective) -> MdpResult:
@@ -73,8 +79,22 @@ def bounded_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
     """
     remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
     start = Bounds.exact(target.astype(np.float64))
-    rounds = _Rounds(remain & ~target, start, None, objective)
+    below = remain  # (the name the closure keeps: mypy would widen *remain* again)
+    trend = Trend.up_to(lambda: _ceiling(mdp, target, below, objective))
+    rounds = _Rounds(remain & ~target, start, None, objective, trend)
     return _iterated(mdp, start, rounds, steps, None)
+
+
+def _ceiling(mdp: MDP, target: BoolArray, remain: BoolArray,
+             objective: Objective) -> FloatArray | None:
+    """An upper bound of the optimal ``remain U<=k target`` for every *k*: the unbounded
+    optimum's, when each choice of a state that moves sums to at most 1 exactly (None
+    otherwise). ``docs/mdp-numerics.md`` has the argument."""
+    choices = np.flatnonzero((remain & ~target)[mdp.choice_owner])
+    if not bool(sums_at_most_one(mdp.transitions[choices]).all()):
+        return None
+    found = reach_probability(mdp, target, objective=objective, remain=remain)
+    return found.bounds.upper
 
 
 def later_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
@@ -110,7 +130,8 @@ def cumulative_reward(mdp: MDP, rewards: FloatArray, steps: int, *,
     everywhere = np.ones(mdp.num_states, dtype=bool)
     start = Bounds.exact(np.zeros(mdp.num_states))
     offset = np.asarray(rewards, dtype=np.float64)
-    return _iterated(mdp, start, _Rounds(everywhere, start, offset, objective), steps, None)
+    rounds = _Rounds(everywhere, start, offset, objective, horizon.RISING)
+    return _iterated(mdp, start, rounds, steps, None)
 
 
 def instantaneous_reward(mdp: MDP, state_rewards: FloatArray, steps: int, *,
@@ -131,25 +152,70 @@ def _blocked(mdp: MDP, remain: BoolArray, objective: Objective) -> _Rounds:
 
 def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
               then: Strategy | StepStrategy | None) -> MdpResult:
-    """*steps* rounds from *start*; the strategy of the last round is taken first."""
+    """*steps* rounds from *start*; the strategy of the last round is taken first.
+
+    A bound beyond :data:`horizon.ROUND_LIMIT` runs at most :func:`horizon.rounds`
+    rounds (:func:`_beyond`); the rounds not run take the last round's choices.
+    """
     value, radius = start.value, _radius(start)
     fixed_radius = _radius(rounds.fixed)
     rows = _Rows.of(mdp)
-    decisions: list[IntArray] = []
-    for _ in range(steps):
+    decisions = _Decisions()
+    budget = horizon.rounds(steps, mdp.transitions.nnz)
+    best: Bounds | None = None  # the last check's bounds, while only the radius moves
+    for done in range(1, budget + 1):
         following, grown, choice = _round(mdp, rounds, value, radius, fixed_radius, rows)
-        decisions.append(choice)
-        if np.array_equal(following, value) and np.array_equal(grown, radius):
-            decisions += [choice] * (steps - len(decisions))  # every later round is this one
-            break
+        decisions.add(choice)
+        steady = np.array_equal(following, value)
+        if steady and np.array_equal(grown, radius):
+            break  # every later round is this one
+        if horizon.checkpoint(done, steps) or done == budget < steps:
+            found = _beyond(mdp, rounds.trend, (value, radius), (following, grown),
+                            steps - done + 1)
+            if best is not None and steady and not _narrower(found, best):
+                found = best  # only the radius moves, and it no longer narrows
+            if found is best or done == budget or bool(found.precise_states().all()):
+                return MdpResult(found, decisions.strategy(mdp, steps, then))
+            best = found if steady else None
         value, radius = following, grown
-    # (a radius of 0: the value is exact; an infinite value with an infinite radius, of a
-    # value beyond the doubles, is bounded by 0 below: fmax drops the NaN of inf - inf)
-    with np.errstate(invalid="ignore"):
-        lower = np.where(radius == 0, value, np.fmax(round_down(value - radius), 0.0))
+    with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
         upper = np.where(radius == 0, value, round_up(value + radius))
-    upper = np.where(np.isnan(upper), np.inf, upper)
-    return MdpResult(Bounds(value, lower, upper), _compact(mdp, decisions, then))
+    upper = np.where(np.isnan(upper), np.inf, upper)  # (inf - inf: beyond the doubles)
+    return MdpResult(Bounds(value, _lower(value, radius), upper),
+                     decisions.strategy(mdp, steps, then))
+
+
+def _beyond(mdp: MDP, trend: Trend, before: tuple[FloatArray, FloatArray],
+            after: tuple[FloatArray, FloatArray], remaining: int) -> Bounds:
+    """Bounds of the value *remaining* rounds after *before* (value, radius), whose
+    next round gave *after*.
+
+    If the round left the values as they were, only the radius moves in the rounds
+    left (:func:`horizon.drifted`), narrowed by the trend; else what the trend knows
+    (:func:`horizon.beyond`).
+    """
+    (value, radius), (following, grown) = before, after
+    lower = _lower(value, radius)
+    if not np.array_equal(following, value):
+        return horizon.beyond(value, lower, trend)
+    rho = max(1.0, spectral_cap(mdp.transitions))
+    drift = horizon.drifted(radius, grown, rho, remaining)
+    with np.errstate(invalid="ignore"):
+        found = Bounds(value, _lower(value, drift), round_up(value + drift))
+    return horizon.meet(found, value, lower, trend)
+
+
+def _narrower(found: Bounds, than: Bounds) -> bool:
+    """Whether the widest interval of *found* is narrower than that of *than*."""
+    return bool(np.max(found.width) < np.max(than.width))
+
+
+def _lower(value: FloatArray, radius: FloatArray) -> FloatArray:
+    """The certified lower bound of nonnegative values with their radius (a radius of 0:
+    the value is exact; an infinite value with an infinite radius, of a value beyond the
+    doubles, is bounded by 0 below: fmax drops the NaN of inf - inf)."""
+    with np.errstate(invalid="ignore"):
+        return np.where(radius == 0, value, np.fmax(round_down(value - radius), 0.0))
 
 
 def _up(total: FloatArray) -> FloatArray:
@@ -235,13 +301,35 @@ def _first_best(mdp: MDP, images: FloatArray, best: FloatArray) -> IntArray:
     return np.asarray(np.minimum.reduceat(rows, mdp.row_groups[:-1]), dtype=np.int64)
 
 
-def _compact(mdp: MDP, decisions: list[IntArray],
-             then: Strategy | StepStrategy | None) -> StepStrategy:
-    """The decisions of rounds 1..k (round r: r steps to go) as a :class:`StepStrategy`."""
-    if not decisions:
-        return StepStrategy(0, mdp.row_groups[:-1].copy(), (), then)
-    changes = []
-    for before, now in itertools.pairwise(decisions):
-        differ = np.flatnonzero(before != now)
-        changes.append((differ, now[differ]))
-    return StepStrategy(len(decisions), decisions[0], tuple(changes), then)
+class _Decisions:
+    """The choices of rounds 1, 2, ... (round r: r steps to go), kept as a
+    :class:`StepStrategy` keeps them: the first, then what each round changes."""
+
+    __slots__ = ("_changes", "_first", "_last")
+
+    def __init__(self) -> None:
+        self._first: IntArray | None = None
+        self._last: IntArray | None = None
+        self._changes: list[tuple[IntArray, IntArray]] = []
+
+    def add(self, choice: IntArray) -> None:
+        """The choices of the next round."""
+        if self._last is None:
+            self._first = choice
+        else:
+            differ = np.flatnonzero(self._last != choice)
+            self._changes.append(_NO_CHANGE if not differ.size else (differ, choice[differ]))
+        self._last = choice
+
+    def strategy(self, mdp: MDP, steps: int, then: Strategy | StepStrategy | None
+                 ) -> StepStrategy:
+        """The strategy for *steps* steps: the rounds not run repeat the last one."""
+        if self._first is None:
+            return StepStrategy(0, mdp.row_groups[:-1].copy(), (), then)
+        return StepStrategy(steps, self._first, tuple(self._changes), then)
+
+
+#: A round that changes no choice (one shared object: a bound of 10^6 rounds keeps
+#: 10^6 references, not 10^6 pairs of arrays).
+_NO_CHANGE: tuple[IntArray, IntArray] = (np.zeros(0, dtype=np.int64),
+                                         np.zeros(0, dtype=np.int64))
