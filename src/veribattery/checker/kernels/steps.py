@@ -72,6 +72,9 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
         following, low, high = certify.enclose_product(M, x, offset, terms)
         with np.errstate(invalid="ignore"):  # inf - inf beyond the doubles: NaN, unbounded
             rounding = np.maximum(high - following, following - low)
+        if not bool(np.all(np.isfinite(following))):
+            # beyond the doubles (a reward sum): what the trend knows from the last step
+            return horizon.beyond(following, _lower(x, radius), trend)
         if np.array_equal(following, x):
             fixpoint = _Fixpoint(x, radius, rounding, terms)
             return _settled(M, fixpoint, k - step, budget - step, trend)
@@ -80,11 +83,11 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
         if progress is not None:
             progress(step + 1, k, "steps")
         if horizon.checkpoint(step + 1, k):
-            found = horizon.early(x, round_down(x - radius), trend)
+            found = horizon.early(x, _lower(x, radius), trend)
             if found is not None:
                 return found
     if budget < k:
-        return horizon.beyond(x, round_down(x - radius), trend)
+        return horizon.beyond(x, _lower(x, radius), trend)
     return _finish(M, x, radius, np.zeros_like(x), 0)
 
 
@@ -163,7 +166,15 @@ def _settled(M: CsrMatrix, at: _Fixpoint, remaining: int, budget: int,
     else:
         grown = round_up(certify.enclose_product(M, radius, at.rounding, at.terms)[2])
         found = _around(at.x, horizon.drifted(radius, grown, rho, left))
-    return horizon.meet(found, at.x, round_down(at.x - at.radius), trend)
+    return horizon.meet(found, at.x, _lower(at.x, at.radius), trend)
+
+
+def _lower(x: FloatArray, radius: FloatArray) -> FloatArray:
+    """``x - radius`` rounded down; -inf where that is ``inf - inf`` (a value beyond the
+    doubles, whose radius is infinite too)."""
+    with np.errstate(invalid="ignore"):
+        lower = round_down(x - radius)
+    return np.where(np.isnan(lower), -np.inf, lower)
 
 
 def _around(x: FloatArray, radius: FloatArray) -> Bounds:
