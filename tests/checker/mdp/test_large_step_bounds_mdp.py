@@ -167,3 +167,28 @@ def test_bounds_beyond_the_rounds_run_contain_the_exact_values(
     with required_precision(*precision):
         found = bounded_reach_probability(mdp, goal, 300, objective=objective)
     assert _contains(found.bounds, _exact(mdp, goal, objective, 300))
+
+
+#: Rows stored a little above 1 (0.9 + 0.1 is 1 + 2^-55 in doubles), so the bounds of
+#: F<=k may pass 1 a little: those of G<=k, its complement, must stay in [0, 1].
+ABOVE_ONE = """{kind}
+module m
+  x : [0..1] init 0;
+  [a] x=0 -> 0.9:(x'=0) + 0.1:(x'=1);
+  [b] x=0 -> 0.5:(x'=0) + 0.5:(x'=1);
+  [] x=1 -> (x'=1);
+endmodule
+"""
+
+
+@pytest.mark.parametrize(("kind", "prop"), [
+    ("mdp", "Pmin=? [ G<=1000000000000000 x=0 ]"),
+    ("mdp", "Pmax=? [ G<=1000000000000000 x=0 ]"),
+    ("dtmc", "P=? [ G<=1000000000000000 x=0 ]"),
+])
+def test_complements_stay_probabilities(kind: str, prop: str) -> None:
+    model = ABOVE_ONE.format(kind=kind)
+    if kind == "dtmc":
+        model = model.replace("  [b] x=0 -> 0.5:(x'=0) + 0.5:(x'=1);\n", "")
+    (result,) = check_prism_file(model, selectors=(prop,)).results
+    assert 0.0 == result.lower <= result.value <= result.upper < 1e-13

@@ -143,9 +143,12 @@ class Bounds:
         return np.asarray(self.width <= allowed, dtype=np.bool_)
 
     def complement(self) -> Bounds:
-        """``1 - x`` with outward rounding (``G phi`` from ``F !phi``)."""
-        return Bounds(1.0 - self.value, _one_minus(self.upper, round_down),
-                      _one_minus(self.lower, round_up))
+        """``1 - x`` with outward rounding (``G phi`` from ``F !phi``), kept in [0, 1]: a
+        probability's bounds (an upper bound a little above 1, of rows stored a little
+        above 1, would give a lower bound below 0)."""
+        lower = np.maximum(_one_minus(self.upper, round_down), 0.0)
+        upper = np.minimum(_one_minus(self.lower, round_up), 1.0)
+        return Bounds.around(1.0 - self.value, lower, upper)
 
     def compare(self, op: str, threshold: float) -> tuple[BoolArray, BoolArray]:
         """``value op threshold`` decided from the interval.

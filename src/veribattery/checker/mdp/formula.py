@@ -213,9 +213,11 @@ def _until(mdp: MDP, progress: Progress | None, remain: BoolArray | None, target
 
 
 def _complement(b: Bounds) -> Bounds:
-    """``1 - b`` with its certified interval."""
+    """``1 - b`` with its certified interval, kept in [0, 1] (a probability's)."""
     one = Bounds.exact(np.ones(b.value.size))
-    return cast(Bounds, intervals.binary("-", one, b))
+    found = cast(Bounds, intervals.binary("-", one, b))
+    return Bounds.around(found.value, np.maximum(found.lower, 0.0),
+                         np.minimum(found.upper, 1.0))
 
 
 def _reward(mdp: MDP, progress: Progress | None, op: RewardOp,
