@@ -17,7 +17,7 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
-from veribattery.checker.certify.bounds import nearest_float
+from veribattery.checker.certify.bounds import Bounds, nearest_float
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
 from veribattery.checker.formula.leaves import exact_step_bound
 from veribattery.checker.workspace import Workspace
@@ -47,6 +47,26 @@ class ExactValues:
         result = np.asarray(_TO_FLOAT(self.values), dtype=np.float64).reshape(-1)
         result[self.infinite] = np.inf
         return result
+
+    def enclosure(self) -> Bounds:
+        """Certified float bounds of the values.
+
+        A rational's conversion to float64 is within one unit in the last place of it
+        (correctly rounded or truncated), so the neighbouring floats enclose it; values
+        that a float represents exactly (0, 1, halves, infinities) are their own bounds.
+        A finite rational beyond the largest double is ``inf`` in ``[largest double,
+        inf]``; a NaN (an undefined conditional value) stands for itself.
+        """
+        floats = self.floats()
+        # Only a rational with a power-of-two denominator can be a double: test those.
+        undefined = np.isnan(floats)
+        defined = np.flatnonzero(~self.infinite & np.isfinite(floats))
+        candidates = defined[_DYADIC(self.values[defined]).astype(bool)]
+        represented = self.infinite | undefined
+        represented[candidates] = _TO_MPQ(floats[candidates]) == self.values[candidates]
+        lower = np.where(represented, floats, np.nextafter(floats, -np.inf))
+        upper = np.where(represented, floats, np.nextafter(floats, np.inf))
+        return Bounds(floats, lower, upper)
 
 
 #: Elementwise ``float``/``mpq``/power-of-two-denominator over object arrays (C loops).

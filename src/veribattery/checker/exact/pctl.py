@@ -24,12 +24,9 @@ import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray
-from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.exact import storm
 from veribattery.checker.exact.numeric import (
-    _DYADIC,
     _ONE,
-    _TO_MPQ,
     ExactValues,
     _next,
     _power,
@@ -109,7 +106,7 @@ def check_exact(
     result = exact_values(model, prop.formula, bounds or {}, workspace=workspace)
     initial = model.dtmc.initial
     if isinstance(result, ExactValues):
-        plain = CheckResult.at_initial(prop, _enclosure(result), initial, 0.0)
+        plain = CheckResult.at_initial(prop, result.enclosure(), initial, 0.0)
         first = int(initial[0])
         exact = None if result.infinite[first] else _fraction(result.values[first])
         return ExactCheckResult(
@@ -117,27 +114,6 @@ def check_exact(
             plain.upper, plain.precise, plain.bounds, exact=exact, exact_values=result)
     plain = CheckResult.at_initial(prop, result, initial, 0.0)
     return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
-
-
-def _enclosure(values: ExactValues) -> Bounds:
-    """Certified float bounds of exact values.
-
-    A rational's conversion to float64 is within one unit in the last place of it
-    (correctly rounded or truncated), so the neighbouring floats enclose it; values
-    that a float represents exactly (0, 1, halves, infinities) are their own bounds.
-    A finite rational beyond the largest double is ``inf`` in ``[largest double, inf]``.
-    """
-    floats = values.floats()
-    # Only a rational with a power-of-two denominator can be a double: test those exactly.
-    # A NaN float is an undefined (conditional) value: it stands for itself.
-    undefined = np.isnan(floats)
-    defined = np.flatnonzero(~values.infinite & np.isfinite(floats))
-    candidates = defined[_DYADIC(values.values[defined]).astype(bool)]
-    represented = values.infinite | undefined
-    represented[candidates] = _TO_MPQ(floats[candidates]) == values.values[candidates]
-    lower = np.where(represented, floats, np.nextafter(floats, -np.inf))
-    upper = np.where(represented, floats, np.nextafter(floats, np.inf))
-    return Bounds(floats, lower, upper)
 
 
 def _fraction(value: mpq) -> Fraction:

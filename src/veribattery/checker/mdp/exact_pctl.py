@@ -116,7 +116,7 @@ def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
     if not isinstance(result, ExactValues):
         plain = CheckResult.at_initial(prop, result, initial, 0.0)
         return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
-    enclosure = _enclosure(result)
+    enclosure = result.enclosure()
     lowest = min(initial, key=lambda s: (bool(result.infinite[s]), result.values[s]))
     highest = max(initial, key=lambda s: (bool(result.infinite[s]), result.values[s]))
     plain = CheckResult.at_initial(prop, enclosure, np.array([lowest]), 0.0)
@@ -139,7 +139,7 @@ def _filtered(model: ExactMdpModel, prop: Property, node: Filter,
     where = (np.ones(mdp.num_states, dtype=bool) if node.states is None
              else state_set(model, node.states))
     inner = exact_values(model, node.operand)
-    per_state = _enclosure(inner) if isinstance(inner, ExactValues) else inner
+    per_state = inner.enclosure() if isinstance(inner, ExactValues) else inner
     states = _states(mdp)
     outcome = filters.apply_filter(node.op, per_state, where, states, mdp.variable_names,
                                    node.span)
@@ -438,21 +438,6 @@ def _structure(model: ExactMdpModel, op: RewardOp | RewardBounded) -> ExactMdpRe
 
 
 _TO_MPQ = np.frompyfunc(mpq, 1, 1)
-
-
-def _enclosure(values: ExactValues) -> Bounds:
-    """Certified float bounds of exact values: the nearest double, widened by one unit
-    in the last place unless it is the value itself (infinities stand for themselves;
-    a finite value beyond the largest double is ``inf`` in ``[largest double, inf]``)."""
-    floats = values.floats()
-    represented = values.infinite.copy()
-    finite = np.flatnonzero(~values.infinite & np.isfinite(floats))
-    if finite.size:
-        represented[finite] = np.asarray(_TO_MPQ(floats[finite]) == values.values[finite],
-                                         dtype=bool)
-    lower = np.where(represented, floats, np.nextafter(floats, -np.inf))
-    upper = np.where(represented, floats, np.nextafter(floats, np.inf))
-    return Bounds(floats, lower, upper)
 
 
 def _fraction(value: mpq) -> Fraction:
