@@ -262,6 +262,7 @@ def _gathered(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target:
     """``remain U{"r"}>=need target``: unbounded until on the gather product
     (:mod:`~veribattery.checker.kernels.reward_layers`), from layer *need*."""
     from veribattery.checker.kernels.reward_layers import (
+        LayeredSets,
         layered_data,
         layered_rows,
         require_product_size,
@@ -276,6 +277,6 @@ def _gathered(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target:
                    {}, ())
     laid = ExactDTMC(product, layered_data(model.probabilities, need, gather=True, one=_ONE),
                      (), model.constants)
-    met = np.concatenate([target, np.zeros(need * n, dtype=bool)])
-    found = until_probs(laid, workspace, np.tile(remain, layers), met)
-    return np.asarray(found[need * n:], dtype=object)
+    sets = LayeredSets.of(remain, target, need, gather=True)
+    found = until_probs(laid, workspace, sets.remain, sets.target)
+    return np.asarray(found[sets.answer], dtype=object)

@@ -20,6 +20,7 @@ so an MDP's row groups follow from its own.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,8 +34,8 @@ from veribattery.errors import CheckError, Span
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
 
-__all__ = ["PRODUCT_LIMIT", "gathered_until_bounds", "layered_data", "layered_groups",
-           "layered_rows", "require_product_size"]
+__all__ = ["PRODUCT_LIMIT", "LayeredSets", "gathered_until_bounds", "layered_data",
+           "layered_groups", "layered_rows", "require_product_size"]
 
 #: The most transitions a product may have (about 20 bytes each while it is solved,
 #: several times over: some 2 GB at the limit).
@@ -64,13 +65,42 @@ def gathered_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     :param rewards: the non-negative integer reward of the step leaving each state.
     :raises CheckError: the product would pass :data:`PRODUCT_LIMIT` transitions.
     """
-    n = P.shape[0]
     top = max(need, 0)
     require_product_size(P.nnz, top, need, span)
     product = layered_rows(P, rewards, top, gather=True)
-    met = np.concatenate([target, np.zeros(top * n, dtype=bool)])
-    found = until_probs(product, np.tile(remain, top + 1), met, workspace=workspace)
-    return found.at(np.arange(top * n, (top + 1) * n))
+    sets = LayeredSets.of(remain, target, top, gather=True)
+    found = until_probs(product, sets.remain, sets.target, workspace=workspace)
+    return found.at(sets.answer)
+
+
+@dataclass(frozen=True, slots=True)
+class LayeredSets:
+    """A reward-bounded until's state sets on the product of :func:`layered_rows`.
+
+    :param remain: the product states that may be passed through (a *remain* state on
+        any layer; not *spent*).
+    :param target: the product states that meet the bound: a *target* state on any
+        layer (budget left), or on layer 0 only (*gather*: nothing more needed).
+    :param answer: per model state, its product state with the whole bound ahead
+        (layer *top*).
+    """
+
+    remain: BoolArray
+    target: BoolArray
+    answer: IntArray
+
+    @classmethod
+    def of(cls, remain: BoolArray, target: BoolArray, top: int, *, gather: bool
+           ) -> LayeredSets:
+        """The sets for a model's *remain* and *target* states, layers ``0..top``."""
+        n = target.size
+        if gather:
+            laid_target = np.concatenate([target, np.zeros(top * n, dtype=bool)])
+            laid_remain = np.tile(remain, top + 1)
+        else:
+            laid_target = np.concatenate([np.tile(target, top + 1), [False]])
+            laid_remain = np.concatenate([np.tile(remain, top + 1), [False]])
+        return cls(laid_remain, laid_target, np.arange(top * n, (top + 1) * n))
 
 
 def layered_rows(matrix: CsrMatrix, costs: IntArray, top: int, *, gather: bool

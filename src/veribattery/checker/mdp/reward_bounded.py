@@ -84,6 +84,7 @@ def budget_product(mdp: MDP, costs: IntArray, limit: RewardLimit, left: BoolArra
     # (the DTMC kernels' package, imported only when a reward bound is checked: an MDP's
     # other checks do not read it)
     from veribattery.checker.kernels.reward_layers import (
+        LayeredSets,
         layered_groups,
         layered_rows,
         require_product_size,
@@ -94,14 +95,8 @@ def budget_product(mdp: MDP, costs: IntArray, limit: RewardLimit, left: BoolArra
     product = MDP(layered_rows(mdp.transitions, costs, top, gather=gather),
                   layered_groups(mdp.row_groups, top, gather=gather),
                   (top * n + mdp.initial).astype(np.int64))
-    if gather:
-        target = np.concatenate([right, np.zeros(top * n, dtype=bool)])
-        remain = np.tile(left, top + 1)
-    else:
-        target = np.concatenate([np.tile(right, top + 1), [False]])
-        remain = np.concatenate([np.tile(left, top + 1), [False]])
-    return BudgetProduct(product, target, remain, np.arange(top * n, (top + 1) * n), top,
-                         gather)
+    sets = LayeredSets.of(left, right, top, gather=gather)
+    return BudgetProduct(product, sets.target, sets.remain, sets.answer, top, gather)
 
 
 def _step_costs(mdp: MDP, structure: MdpRewards, span: Span) -> IntArray:
