@@ -178,9 +178,11 @@ def _lower(x: FloatArray, radius: FloatArray) -> FloatArray:
 
 
 def _around(x: FloatArray, radius: FloatArray) -> Bounds:
-    """*x* with the radius *radius*, rounded outward."""
+    """*x* with the radius *radius*, rounded outward (a value beyond the doubles is inf
+    with an infinite or NaN radius: no bound then)."""
     with np.errstate(invalid="ignore"):
-        return Bounds(x, round_down(x - radius), round_up(x + radius))
+        upper = round_up(x + radius)
+    return Bounds(x, _lower(x, radius), np.where(np.isnan(upper), np.inf, upper))
 
 
 def _finish(M: CsrMatrix, x: FloatArray, radius: FloatArray, rounding: FloatArray,
@@ -194,11 +196,7 @@ def _finish(M: CsrMatrix, x: FloatArray, radius: FloatArray, rounding: FloatArra
             growth = np.inf
         extra = growth * (float(np.max(radius)) + remaining * float(np.max(rounding)))
         radius = round_up(np.full_like(x, extra)) if extra > 0 else radius
-    with np.errstate(invalid="ignore"):
-        lower, upper = round_down(x - radius), round_up(x + radius)
-    # A value beyond the doubles is inf with an infinite (or NaN) radius: no bound then.
-    return Bounds(x, np.where(np.isnan(lower), -np.inf, lower),
-                  np.where(np.isnan(upper), np.inf, upper))
+    return _around(x, radius)
 
 
 def _rows_in(P: CsrMatrix, mask: BoolArray) -> CsrMatrix:
