@@ -46,6 +46,7 @@ from veribattery.lang.nodes import (
     Until,
     WeakUntil,
 )
+from veribattery.lang.ops import INT_MAX
 from veribattery.lang.property_rules import STEPS_REWARD
 
 _OPERATORS = (ProbOp, RewardOp, SteadyOp, Quantified, Filter)
@@ -168,9 +169,6 @@ def literal_number(expr: Expr) -> float:
     raise CheckError("expected a numeric constant", expr.span)
 
 
-#: The largest step bound: PRISM's integers are 64-bit (an int constant above it is
-#: refused here, where it would otherwise wrap or overflow elsewhere).
-MAX_STEP_BOUND = 2**63 - 1
 #: The most steps the exact engines iterate: their rationals grow with each step, and so
 #: does its cost (``F<=k`` on a three-state chain whose values never settle: 10^4 steps
 #: take 1 s, 10^5 a minute, 10^6 more than an hour).
@@ -178,7 +176,8 @@ EXACT_STEP_LIMIT = 100_000
 
 
 def step_bound(expr: Expr) -> int:
-    """A step bound: a non-negative integer literal, at most :data:`MAX_STEP_BOUND`."""
+    """A step bound: a non-negative integer literal, at most the engine's largest int
+    (:data:`~veribattery.lang.ops.INT_MAX`; above it a bound would wrap or overflow)."""
     if isinstance(expr, IntLit):  # exactly: a float would round bounds above 2^53
         value: float | int = expr.value
     else:
@@ -186,7 +185,7 @@ def step_bound(expr: Expr) -> int:
     if value < 0 or value != int(value):
         raise CheckError(f"step bound must be a non-negative integer, not {value:g}",
                          expr.span)
-    if value > MAX_STEP_BOUND:
+    if value > INT_MAX:
         raise CheckError(f"step bound {value} is too large (at most 2^63 - 1)", expr.span)
     return int(value)
 
