@@ -159,9 +159,7 @@ def _goal(mdp: MDP, stepped: SteppedMdp | None, op: ProbOp | RewardOp,
 
 def _reward_goal(mdp: MDP, stepped: SteppedMdp | None, op: RewardOp) -> _Goal:
     """A reward objective: its structure's rewards per choice (on the unfolded MDP)."""
-    per_choice = reward_structure(mdp, op).per_choice(mdp)
-    if np.any(per_choice < 0):
-        raise CheckError("multi(...) needs nonnegative rewards", op.span)
+    per_choice = reward_structure(mdp, op).per_choice(mdp)  # (which refuses negative ones)
     if isinstance(op.path, TotalPath):
         lifted = per_choice if stepped is None else stepped.rewards(per_choice)
         return _Goal(op, Total(lifted))
