@@ -65,6 +65,17 @@ def test_risky_operands_only_evaluated_where_needed() -> None:
     assert run("x = 0 | y / x > 1").tolist() == [True, True, False, False]
 
 
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [("false & pow(0, -1) = 0", False), ("true | pow(0, -1) = 0", True),
+     ("false => pow(0, -1) = 0", True), ("x > 9 | (false & mod(1, 0) = 0)", False)],
+)
+def test_a_constant_left_operand_short_circuits(text: str, expected: bool) -> None:
+    """PRISM never evaluates the right operand a constant left one decides, even when
+    folding it would fail (found by test_operator_agreement)."""
+    assert run(text).tolist() == [expected] * 4
+
+
 def test_division_by_zero_is_infinite_as_in_java() -> None:
     """PRISM divides doubles: y/0 is +-inf by the signs, 0/0 NaN; no error."""
     got = run("y / (x - x)")

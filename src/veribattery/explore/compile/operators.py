@@ -123,7 +123,11 @@ def _logical(op: str, left: Node, right: Node, big: bool = False) -> Node:
     if op == "=>":
         left = lift(arrays.UNARY["!"], [left])
     combine = arrays.BINARY["&" if op == "&" else "|"]
-    if not right.subsettable or left.is_const:
+    if left.is_const:  # PRISM short-circuits: ``false & pow(0, -1)=0`` is false
+        if bool(left.const) == (op != "&"):
+            return constant_node(np.bool_(op != "&"))
+        return lift(combine, [left, right])
+    if not right.subsettable:
         if big and not (left.is_const or right.is_const):
             return _skipping(combine, op != "&", left, right)
         return lift(combine, [left, right])
