@@ -33,6 +33,7 @@ from veribattery.checker.certify import (
 )
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.certify.horizon import Trend
+from veribattery.checker.mdp.levels import ChoiceLevels
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
@@ -59,6 +60,13 @@ class _Rounds:
     offset: FloatArray | None
     objective: Objective
     trend: Trend = horizon.NONNEGATIVE
+
+    def laid_out(self, levels: ChoiceLevels) -> _Rounds:
+        """These rounds in the order of *levels*' states and rows."""
+        fixed = Bounds(*(levels.states(v) for v in (self.fixed.value, self.fixed.lower,
+                                                      self.fixed.upper)))
+        offset = None if self.offset is None else levels.choices(self.offset)
+        return _Rounds(levels.states(self.moving), fixed, offset, self.objective, self.trend)
 
 
 def next_probability(mdp: MDP, target: BoolArray, *, objective: Objective) -> MdpResult:
@@ -157,20 +165,23 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
     A bound beyond :data:`horizon.ROUND_LIMIT` runs at most :func:`horizon.rounds`
     rounds (:func:`_beyond`); the rounds not run take the last round's choices.
     """
-    value, radius = start.value, _radius(start)
+    levels = ChoiceLevels.of(mdp)
+    rounds = rounds.laid_out(levels)
+    value, radius = levels.states(start.value), levels.states(_radius(start))
     fixed_radius = _radius(rounds.fixed)
-    rows = _Rows.of(mdp)
-    decisions = _Decisions()
+    rows = _Rows.of(levels)
+    decisions = _Decisions(levels)
     budget = horizon.rounds(steps, mdp.transitions.nnz)
     best: Bounds | None = None  # the last check's bounds, while only the radius moves
     for done in range(1, budget + 1):
-        following, grown, choice = _round(mdp, rounds, value, radius, fixed_radius, rows)
-        decisions.add(choice)
+        following, grown, rank = _round(levels, rounds, value, radius, fixed_radius, rows)
+        decisions.add(rank)
         steady = np.array_equal(following, value)
         if steady and np.array_equal(grown, radius):
             break  # every later round is this one
         if horizon.checkpoint(done, steps) or done == budget < steps:
-            found = _beyond(mdp, rounds.trend, (value, radius), (following, grown),
+            found = _beyond(mdp, rounds.trend, (levels.restored(value), levels.restored(radius)),
+                            (levels.restored(following), levels.restored(grown)),
                             steps - done + 1)
             if best is not None and steady and not _narrower(found, best):
                 found = best  # only the radius moves, and it no longer narrows
@@ -178,6 +189,7 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
                 return MdpResult(found, decisions.strategy(mdp, steps, then))
             best = found if steady else None
         value, radius = following, grown
+    value, radius = levels.restored(value), levels.restored(radius)
     with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
         upper = np.where(radius == 0, value, round_up(value + radius))
     upper = np.where(np.isnan(upper), np.inf, upper)  # (inf - inf: beyond the doubles)
@@ -245,10 +257,10 @@ class _Rows:
     underflow: FloatArray
 
     @classmethod
-    def of(cls, mdp: MDP) -> _Rows:
-        terms = row_terms(mdp.transitions)
+    def of(cls, levels: ChoiceLevels) -> _Rows:
+        terms = row_terms(levels.matrix)
         counted = terms + 1.0
-        return cls(mdp.transitions, terms, error_coefficient(counted), counted * TERM_FLOOR)
+        return cls(levels.matrix, terms, error_coefficient(counted), counted * TERM_FLOOR)
 
     def enclosed(self, x: FloatArray, offset: FloatArray | None) -> tuple[FloatArray, FloatArray]:
         """``y = fl(P x + o)`` and a bound of ``|y - (P x + o)|`` per row (*x*, *o* >= 0).
@@ -273,60 +285,62 @@ class _Rows:
         return y, error
 
 
-def _round(mdp: MDP, rounds: _Rounds, value: FloatArray, radius: FloatArray,
+def _round(levels: ChoiceLevels, rounds: _Rounds, value: FloatArray, radius: FloatArray,
            fixed_radius: FloatArray, rows: _Rows
            ) -> tuple[FloatArray, FloatArray, IntArray]:
-    """One Bellman round: the point values, their error radius, the choices taken.
+    """One Bellman round, in *levels*' order: the point values, their error radius, the
+    choices taken (each state's rank among its choices).
 
     ``|opt_a y_a - opt_a f_a(x*)| <= max_a |y_a - f_a(x*)| <= max_a (err_a + P_a r)``
     for the float images ``y_a`` of the point values (rounding ``err_a``, enclosed)
     and their radius ``r``, whichever optimum is taken: two products per round.
     """
     reduce = np.maximum if rounds.objective == "max" else np.minimum
-    starts = mdp.row_groups[:-1]
     images, rounding = rows.enclosed(value, rounds.offset)
     spread, error = rows.enclosed(radius, rounding)
     grown = _up(spread + error)  # (0 only where both are: an exact value stays exact)
-    best = reduce.reduceat(images, starts)
+    best = levels.optimum(images, reduce)
     moving, fixed = rounds.moving, rounds.fixed
     return (np.where(moving, best, fixed.value),
-            np.where(moving, np.maximum.reduceat(grown, starts), fixed_radius),
-            np.where(moving, _first_best(mdp, images, best), starts))
-
-
-def _first_best(mdp: MDP, images: FloatArray, best: FloatArray) -> IntArray:
-    """Per state, its first choice whose image equals *best*."""
-    hits = images == best[mdp.choice_owner]
-    rows = np.where(hits, np.arange(images.size), images.size)
-    return np.asarray(np.minimum.reduceat(rows, mdp.row_groups[:-1]), dtype=np.int64)
+            np.where(moving, levels.optimum(grown, np.maximum), fixed_radius),
+            np.where(moving, levels.first_attaining(images, best), 0))
 
 
 class _Decisions:
     """The choices of rounds 1, 2, ... (round r: r steps to go), kept as a
-    :class:`StepStrategy` keeps them: the first, then what each round changes."""
+    :class:`StepStrategy` keeps them: the first, then what each round changes (as ranks
+    in *levels*' order while the rounds run)."""
 
-    __slots__ = ("_changes", "_first", "_last")
+    __slots__ = ("_changes", "_first", "_last", "_levels")
 
-    def __init__(self) -> None:
+    def __init__(self, levels: ChoiceLevels) -> None:
+        self._levels = levels
         self._first: IntArray | None = None
         self._last: IntArray | None = None
         self._changes: list[tuple[IntArray, IntArray]] = []
 
-    def add(self, choice: IntArray) -> None:
-        """The choices of the next round."""
+    def add(self, rank: IntArray) -> None:
+        """The choices of the next round, as ranks in *levels*' order."""
         if self._last is None:
-            self._first = choice
+            self._first = rank
         else:
-            differ = np.flatnonzero(self._last != choice)
-            self._changes.append(_NO_CHANGE if not differ.size else (differ, choice[differ]))
-        self._last = choice
+            differ = np.flatnonzero(self._last != rank)
+            self._changes.append(_NO_CHANGE if not differ.size else (differ, rank[differ]))
+        self._last = rank
 
     def strategy(self, mdp: MDP, steps: int, then: Strategy | StepStrategy | None
                  ) -> StepStrategy:
         """The strategy for *steps* steps: the rounds not run repeat the last one."""
         if self._first is None:
             return StepStrategy(0, mdp.row_groups[:-1].copy(), (), then)
-        return StepStrategy(steps, self._first, tuple(self._changes), then)
+        changes = tuple(change if change is _NO_CHANGE else self._chosen(*change)
+                        for change in self._changes)
+        return StepStrategy(steps, self._levels.chosen(self._first), changes, then)
+
+    def _chosen(self, positions: IntArray, ranks: IntArray) -> tuple[IntArray, IntArray]:
+        """The states at *positions* of the layout and their choices of *ranks*."""
+        states = self._levels.order[positions]
+        return states, self._levels.groups[states] + ranks
 
 
 #: A round that changes no choice (one shared object: a bound of 10^6 rounds keeps

@@ -1,0 +1,139 @@
+"""The choice matrix laid out for many Bellman rounds: an optimum without ``reduceat``.
+
+A round takes, per state, the best image of its choices. ``np.maximum.reduceat``
+does that over the rows grouped by state, but pays about 10 ns per state: on
+958,894 states of 3,080,702 choices, 13 ms per call, three calls a round, more than
+the two products of the round together. :class:`ChoiceLevels` lays the rows out by
+*level* instead: level *j* holds the *j*-th choice of every state that has more
+than *j*, and the states are ordered by their number of choices, most first, so
+that the states of every level are a prefix of that order. The optimum is then
+one elementwise maximum per level over contiguous slices (about 2 ms there).
+
+Values stay bit for bit what they were: each row keeps its stored entries in their
+order, so every product sums the same terms in the same order, and a maximum does
+not depend on the order it is taken in. Ties go to the first choice, as before.
+A model whose states have very many choices (more than :data:`DEEPEST` levels)
+keeps its own layout and ``reduceat`` (:meth:`ChoiceLevels.grouped`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TypeVar
+
+import numpy as np
+import scipy.sparse as sp
+
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery.checker.mdp.model import MDP
+
+__all__ = ["DEEPEST", "ChoiceLevels"]
+
+_Array = TypeVar("_Array", FloatArray, BoolArray, IntArray)
+
+#: At most this many levels (choices of one state) are laid out; a Python step per
+#: level and round costs a few microseconds.
+DEEPEST = 64
+
+
+@dataclass(frozen=True, slots=True)
+class ChoiceLevels:
+    """The rows of an MDP's choice matrix by level, its states by choices, most first.
+
+    :param matrix: the choice matrix, rows in level order and columns in state order.
+    :param order: per position, the state there (identity in the grouped layout).
+    :param widths: per level, how many states have a choice there (a prefix of *order*).
+    :param groups: the model's ``row_groups`` (for the grouped layout and the choices).
+    :param leveled: whether the rows are by level (else grouped by state, as stored).
+    """
+
+    matrix: CsrMatrix
+    order: IntArray
+    widths: tuple[int, ...]
+    groups: IntArray
+    leveled: bool
+
+    @classmethod
+    def of(cls, mdp: MDP) -> ChoiceLevels:
+        """The level layout of *mdp*, or the grouped one where it has too many levels."""
+        counts = np.diff(mdp.row_groups)
+        if not mdp.num_states or int(counts.max()) > DEEPEST:
+            return cls.grouped(mdp)
+        order = np.argsort(-counts, kind="stable")
+        ranked = counts[order]
+        widths = tuple(int(np.count_nonzero(ranked > j)) for j in range(int(ranked[0])))
+        levels = cls(mdp.transitions, order, widths, mdp.row_groups, True)
+        matrix = _rows_taken(mdp.transitions, levels.choices(np.arange(mdp.num_choices)), order)
+        return cls(matrix, order, widths, mdp.row_groups, True)
+
+    @classmethod
+    def grouped(cls, mdp: MDP) -> ChoiceLevels:
+        """The model's own layout: rows grouped by state, reduced by ``reduceat``."""
+        return cls(mdp.transitions, np.arange(mdp.num_states), (), mdp.row_groups, False)
+
+    def states(self, values: _Array) -> _Array:
+        """Per-state *values* in this layout's order."""
+        return values[self.order] if self.leveled else values
+
+    def choices(self, values: _Array) -> _Array:
+        """Per-choice *values* in this layout's row order."""
+        if not self.leveled:
+            return values
+        return np.concatenate([values[self.groups[self.order[:width]] + level]
+                               for level, width in enumerate(self.widths)])
+
+    def restored(self, values: _Array) -> _Array:
+        """Per-state *values* of this layout's order back in the model's order."""
+        if not self.leveled:
+            return values
+        back = np.empty_like(values)
+        back[self.order] = values
+        return back
+
+    def optimum(self, images: FloatArray, reduce: np.ufunc) -> FloatArray:
+        """Per state (this layout's order), *reduce* of its choices' *images*."""
+        if not self.leveled:
+            return np.asarray(reduce.reduceat(images, self.groups[:-1]), dtype=images.dtype)
+        best = images[: self.widths[0]].copy()
+        start = self.widths[0]
+        for width in self.widths[1:]:
+            reduce(best[:width], images[start: start + width], out=best[:width])
+            start += width
+        return best
+
+    def first_attaining(self, images: FloatArray, best: FloatArray) -> IntArray:
+        """Per state (this layout's order), the rank among its choices of the first
+        whose image equals *best* (0 where none does: a NaN optimum)."""
+        if not self.leveled:
+            owner = np.repeat(np.arange(best.size), np.diff(self.groups))
+            ranks = np.arange(images.size) - self.groups[owner]
+            marked = np.where(images == best[owner], ranks, np.iinfo(np.int64).max)
+            first = np.minimum.reduceat(marked, self.groups[:-1])
+            return np.where(first == np.iinfo(np.int64).max, 0, first)
+        rank = np.zeros(self.widths[0], dtype=np.int64)
+        ends = np.cumsum(self.widths)
+        for level in range(len(self.widths) - 1, -1, -1):
+            width = self.widths[level]
+            block = images[ends[level] - width: ends[level]]
+            np.copyto(rank[:width], level, where=block == best[:width])
+        return rank
+
+    def chosen(self, rank: IntArray) -> IntArray:
+        """The model's choices, per state in the model's order, of *rank* per state in
+        this layout's order."""
+        return np.asarray(self.restored(rank) + self.groups[:-1], dtype=np.int64)
+
+
+def _rows_taken(matrix: CsrMatrix, rows: IntArray, order: IntArray) -> CsrMatrix:
+    """*matrix*'s *rows*, columns renumbered to positions in *order*, each row's entries
+    kept in their stored order (so every product sums in the same order)."""
+    lengths = np.diff(matrix.indptr)[rows]
+    indptr = np.zeros(rows.size + 1, dtype=np.int64)
+    np.cumsum(lengths, out=indptr[1:])
+    taken = np.repeat(matrix.indptr[rows] - indptr[:-1], lengths) + np.arange(indptr[-1])
+    position = np.empty(order.size, dtype=np.int64)
+    position[order] = np.arange(order.size)
+    indices = position[matrix.indices[taken]]
+    dtype = np.int32 if max(indptr[-1], order.size) < 2**31 else np.int64
+    return sp.csr_matrix((matrix.data[taken], indices.astype(dtype), indptr.astype(dtype)),
+                         shape=(rows.size, order.size))
