@@ -12,8 +12,8 @@ from veribattery.checker.mdp import (
     bounded_reach_probability,
     cumulative_reward,
     instantaneous_reward,
+    stepped,
 )
-from veribattery.checker.mdp import stepped
 from veribattery.checker.mdp.levels import DEEPEST, ChoiceLevels
 
 
