@@ -130,13 +130,17 @@ def test_layers_gather_down_to_zero_and_spend_into_spent() -> None:
 ], ids=["dtmc-gather", "mdp-spend"])
 def test_a_product_too_large_is_one_line(text: str, prop: str, size: int, tmp_path: Path,
                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """Past both limits: too large a product, too many layers to solve one at a time."""
     monkeypatch.setattr(reward_layers, "PRODUCT_LIMIT", 30)
+    monkeypatch.setattr(reward_layers, "EPOCH_LIMIT", 9)
     model = tmp_path / "m.prism"
     model.write_text(text)
     result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop])
     assert result.exit_code == 2
     (line,) = result.output.strip().splitlines()
-    assert f"a reward bound of 9 makes a product of {size} transitions" in line
+    assert (f"a reward bound of 9 makes a product of {size} transitions on this model (at "
+            "most 30) and 10 layers to solve one at a time (at most 9): use a smaller "
+            "bound") in line
 
 
 # ---------------------------------------------------------------------------

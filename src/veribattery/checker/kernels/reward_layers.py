@@ -28,6 +28,7 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, IntArray
 from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.kernels.reward_epochs import RewardEpochs
 from veribattery.checker.kernels.until import until_probs
 from veribattery.errors import CheckError, Span
 
@@ -35,19 +36,42 @@ if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
 
 __all__ = ["PRODUCT_LIMIT", "LayeredSets", "gathered_until_bounds", "layered_data",
-           "layered_groups", "layered_rows", "require_product_size"]
+           "layered_groups", "layered_rows", "product_built", "require_product_size"]
 
 #: The most transitions a product may have (about 20 bytes each while it is solved,
 #: several times over: some 2 GB at the limit).
 PRODUCT_LIMIT = 20_000_000
 
 
+#: Past :data:`PRODUCT_LIMIT`, at most this many layers are solved one at a time
+#: (:mod:`.reward_epochs`: two certified solves a layer, milliseconds on a small model).
+EPOCH_LIMIT = 10_000
+
+
+def product_built(transitions: int, top: int, bound: int, span: Span) -> bool:
+    """Whether layers ``0..top`` of a model of *transitions* are built as one product
+    (True) or solved one at a time, past :data:`PRODUCT_LIMIT` (False).
+
+    :raises CheckError: too many layers for either, naming the bound and both limits.
+    """
+    size = (int(top) + 1) * int(transitions)  # (ints: --exact's bounds are gmpy2's)
+    if size <= PRODUCT_LIMIT:
+        return True
+    if top + 1 <= EPOCH_LIMIT:
+        return False
+    raise CheckError(f"a reward bound of {bound} makes a product of {size:,} transitions on "
+                     f"this model (at most {PRODUCT_LIMIT:,}) and {int(top) + 1:,} layers to "
+                     f"solve one at a time (at most {EPOCH_LIMIT:,}): use a smaller bound",
+                     span)
+
+
 def require_product_size(transitions: int, top: int, bound: int, span: Span) -> None:
-    """Refuse a product of layers ``0..top`` of a model of *transitions* past the limit.
+    """Refuse a product of layers ``0..top`` of a model of *transitions* past the limit
+    (exact arithmetic builds the product whatever its size).
 
     :raises CheckError: naming the bound and the product's size.
     """
-    size = (top + 1) * transitions
+    size = (int(top) + 1) * int(transitions)  # (ints: --exact's bounds are gmpy2's)
     if size > PRODUCT_LIMIT:
         raise CheckError(f"a reward bound of {bound} makes a product of {size:,} transitions "
                          f"on this model (at most {PRODUCT_LIMIT:,}): use a smaller bound",
@@ -60,13 +84,18 @@ def gathered_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     """Probability of ``remain U{r}>=need target`` on a DTMC in every state, certified:
     *target* reached through *remain* states once at least *need* of reward is
     gathered, the entering step included (a target met earlier is passed through, if
-    it is a *remain* state). Unbounded until on the gather product, from layer *need*.
+    it is a *remain* state). Unbounded until on the gather product, from layer *need*;
+    past :data:`PRODUCT_LIMIT` transitions, one layer at a time (:mod:`.reward_epochs`).
 
     :param rewards: the non-negative integer reward of the step leaving each state.
-    :raises CheckError: the product would pass :data:`PRODUCT_LIMIT` transitions.
+    :raises CheckError: too many layers (:func:`product_built`).
     """
     top = max(need, 0)
-    require_product_size(P.nnz, top, need, span)
+    if not product_built(P.nnz, top, need, span):
+        def layer_until(rows: CsrMatrix, passed: BoolArray, reached: BoolArray) -> Bounds:
+            return until_probs(rows, passed, reached, workspace=workspace)
+
+        return RewardEpochs(P, rewards, remain, target, gather=True).bounds(top, layer_until)
     product = layered_rows(P, rewards, top, gather=True)
     sets = LayeredSets.of(remain, target, top, gather=True)
     found = until_probs(product, sets.remain, sets.target, workspace=workspace)

@@ -181,7 +181,7 @@ def _path(mdp: MDP, progress: Progress | None, path: PathFormula,
         case RewardBounded(left=left, right=right, bound=bound):
             return reward_bounded_reach(mdp, reward_structure(mdp, path), reward_limit(bound),
                                         _mask(mdp, progress, left), _mask(mdp, progress, right),
-                                        objective=objective, span=path.span)
+                                        objective=objective, span=path.span, progress=progress)
     raise CheckError("this path formula is not supported on MDPs", path.span)
 
 

@@ -14,26 +14,32 @@ product's optimum from ``(s, T)`` is the reward-bounded optimum from ``s``, so t
 product is solved by :func:`~veribattery.checker.mdp.reach.reach_probability` with its
 certified bounds (a strategy on the product depends on the layer: none is exported).
 
-The product has ``T + 1`` times the model's transitions; one that would pass
-:data:`~veribattery.checker.kernels.reward_layers.PRODUCT_LIMIT` is refused with its
-size (Storm's epoch-by-epoch algorithm keeps one copy at a time, which this one does
-not).
+The product has ``T + 1`` times the model's transitions; past
+:data:`~veribattery.checker.kernels.reward_layers.PRODUCT_LIMIT` the layers are solved
+one at a time instead, from layer 0 up, as Storm's epoch-based algorithm does
+(:mod:`~veribattery.checker.kernels.reward_epochs`). ``--exact`` builds the product
+(:mod:`.exact_reward_bounded`) and refuses one past the limit.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from veribattery._types import BoolArray, IntArray
+from veribattery._types import BoolArray, CsrMatrix, IntArray
 from veribattery.checker.certify.bounds import Bounds
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.formula.leaves import RewardLimit
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError, Span
 from veribattery.explore.build.successors import format_state
+
+if TYPE_CHECKING:
+    from veribattery.checker.kernels.reward_epochs import LayerSolve
 
 __all__ = ["BudgetProduct", "budget_product", "non_integer_reward", "reward_bounded_reach"]
 
@@ -57,19 +63,44 @@ class BudgetProduct:
 
 def reward_bounded_reach(mdp: MDP, structure: MdpRewards, limit: RewardLimit,
                          left: BoolArray, right: BoolArray, *, objective: Objective,
-                         span: Span) -> Bounds:
+                         span: Span, progress: Progress | None = None) -> Bounds:
     """Certified ``Pmin``/``Pmax`` of ``left U{"r"}<=T right`` (``>=B``: *limit*) in every
     state.
 
-    :raises CheckError: a step's reward is negative or not an integer, or the product
-        would be too large (:func:`budget_product`).
+    :param progress: told how many layers are solved, where they are solved one at a time.
+    :raises CheckError: a step's reward is negative or not an integer, or the bound
+        makes too many layers (:func:`~veribattery.checker.kernels.reward_layers.
+        product_built`).
     """
     if not limit.gather and limit.total < 0:
         return Bounds.exact(np.zeros(mdp.num_states))
-    product = budget_product(mdp, _step_costs(mdp, structure, span), limit, left, right, span)
+    costs = _step_costs(mdp, structure, span)
+    # (the DTMC kernels' package, imported only when a reward bound is checked: an MDP's
+    # other checks do not read it)
+    from veribattery.checker.kernels.reward_epochs import RewardEpochs
+    from veribattery.checker.kernels.reward_layers import product_built
+
+    top = max(limit.total, 0)
+    if not product_built(mdp.transitions.nnz, top, limit.total, span):
+        epochs = RewardEpochs(mdp.transitions, costs, left, right, limit.gather)
+        return epochs.bounds(top, _layer_until(mdp, objective), progress)
+    product = budget_product(mdp, costs, limit, left, right, span)
     found = reach_probability(product.mdp, product.target, objective=objective,
                               remain=product.remain).bounds
     return found.at(product.answer)
+
+
+def _layer_until(mdp: MDP, objective: Objective) -> LayerSolve:
+    """The optimum of ``remain U target`` on one layer's choices (the model's, then one
+    each for the *yes* and *no* states of :mod:`~veribattery.checker.kernels.reward_epochs`)."""
+    rows = mdp.num_choices
+    groups = np.concatenate([mdp.row_groups, [rows + 1, rows + 2]])
+
+    def solve(choices: CsrMatrix, remain: BoolArray, target: BoolArray) -> Bounds:
+        layer = MDP(choices, groups, mdp.initial)
+        return reach_probability(layer, target, objective=objective, remain=remain).bounds
+
+    return solve
 
 
 def budget_product(mdp: MDP, costs: IntArray, limit: RewardLimit, left: BoolArray,
