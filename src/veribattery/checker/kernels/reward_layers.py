@@ -92,10 +92,17 @@ def gathered_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     """
     top = max(need, 0)
     if not product_built(P.nnz, top, need, span):
-        def layer_until(rows: CsrMatrix, passed: BoolArray, reached: BoolArray) -> Bounds:
-            return until_probs(rows, passed, reached, workspace=workspace)
+        # (the layers' own workspace: nothing of one layer serves another, and the
+        # caller's listener hears the layers, not each layer's solve)
+        from veribattery.checker.workspace import Workspace
 
-        return RewardEpochs(P, rewards, remain, target, gather=True).bounds(top, layer_until)
+        layers = Workspace()
+
+        def layer_until(rows: CsrMatrix, passed: BoolArray, reached: BoolArray) -> Bounds:
+            return until_probs(rows, passed, reached, workspace=layers)
+
+        epochs = RewardEpochs(P, rewards, remain, target, gather=True)
+        return epochs.bounds(top, layer_until, workspace.monitor)
     product = layered_rows(P, rewards, top, gather=True)
     sets = LayeredSets.of(remain, target, top, gather=True)
     found = until_probs(product, sets.remain, sets.target, workspace=workspace)
