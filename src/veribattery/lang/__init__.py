@@ -48,7 +48,7 @@ from veribattery.lang.nodes import (
     Variable,
 )
 from veribattery.lang.parser import parse_model, parse_properties, parse_property
-from veribattery.lang.properties import resolve_property, select_properties
+from veribattery.lang.properties import resolve_property, select_properties, with_used_rewards
 from veribattery.lang.semantics import flatten_model, undefined_constants
 
 __all__ = [
@@ -99,4 +99,5 @@ __all__ = [
     "resolve_property",
     "select_properties",
     "undefined_constants",
+    "with_used_rewards",
 ]

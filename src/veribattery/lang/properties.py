@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
+from collections.abc import Mapping, Sequence
 from typing import Any, cast
 
 from veribattery.errors import PrismSemanticError
@@ -259,3 +260,27 @@ def resolve_property(
     formula = cast(Expr, fold(formula))
     _check_operators(formula, model)
     return Property(formula, prop.name, prop.text, prop.span)
+
+
+def with_used_rewards(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:
+    """*flat* with only the reward structures the properties use: the others dropped
+    when every property names its structure, else (``R{2}``, or ``R`` for the first)
+    left without items, so that every position still names the same structure and no
+    unused structure is evaluated (egl's two: most of its build)."""
+    names: set[str] = set()
+    positions: set[int] = set()
+    for prop in properties:
+        for node in walk(prop.formula):
+            if isinstance(node, RewardOp | RewardBounded):
+                if isinstance(node.reward, str):
+                    names.add(node.reward)
+                else:
+                    positions.add(0 if node.reward is None else node.reward)
+    used = [r.name in names or i in positions for i, r in enumerate(flat.rewards)]
+    if all(used):
+        return flat
+    pairs = zip(flat.rewards, used, strict=True)
+    if not positions:
+        return dataclasses.replace(flat, rewards=tuple(r for r, u in pairs if u))
+    return dataclasses.replace(
+        flat, rewards=tuple(r if u else dataclasses.replace(r, items=()) for r, u in pairs))

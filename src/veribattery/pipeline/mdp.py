@@ -26,6 +26,7 @@ from veribattery.lang import (
     Property,
     flatten_model,
     resolve_property,
+    with_used_rewards,
 )
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.run import (
@@ -105,7 +106,9 @@ def check_mdp_model(
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)
-        built = build_mdp(flat, progress=progress)
+        # (the structures no property reads are not built: the MDP is read by these
+        # properties' checks and strategies only; the run keeps the whole model)
+        built = build_mdp(with_used_rewards(flat, resolved), progress=progress)
         mdp = as_checker_mdp(built)
     results = []
     errors: list[str] = []

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Mapping, Sequence
-from dataclasses import replace
 from typing import TYPE_CHECKING, Literal, get_args
 
 from veribattery._memory import trim_for
@@ -18,9 +17,10 @@ from veribattery.lang import (
     Property,
     flatten_model,
     resolve_property,
+    with_used_rewards,
 )
 from veribattery.lang.expressions import walk
-from veribattery.lang.nodes import Expr, Filter, Ident, RewardBounded, RewardOp, Value
+from veribattery.lang.nodes import Expr, Filter, Ident, Value
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
@@ -142,7 +142,7 @@ class Session:
             resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
             aside = [resolve_property(p, flat, props_file, constants) for p in internal]
             if self.rewards == "named":
-                flat = _named_rewards_only(flat, resolved + aside)
+                flat = with_used_rewards(flat, resolved + aside)
         with watch.stage("build"):
             tell_building(stages)
             dtmc, reused = self._build(flat, progress)
@@ -221,27 +221,3 @@ def _quotient(lumper: Lumper, dtmc: DTMC, formulas: Sequence[Expr]) -> DTMC | No
                     return None
                 variables.add(node.name)
     return lumper.quotient(dtmc, sorted(variables))
-
-
-def _named_rewards_only(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:
-    """*flat* with only the reward structures the properties use: the others dropped
-    when every property names its structure, else (``R{2}``, or ``R`` for the first)
-    left without items, so that every position still names the same structure and no
-    unused structure is evaluated (egl's two: most of its build)."""
-    names: set[str] = set()
-    positions: set[int] = set()
-    for prop in properties:
-        for node in walk(prop.formula):
-            if isinstance(node, RewardOp | RewardBounded):
-                if isinstance(node.reward, str):
-                    names.add(node.reward)
-                else:
-                    positions.add(0 if node.reward is None else node.reward)
-    used = [r.name in names or i in positions for i, r in enumerate(flat.rewards)]
-    if all(used):
-        return flat
-    if not positions:
-        return replace(flat, rewards=tuple(r for r, u in zip(flat.rewards, used, strict=True)
-                                           if u))
-    return replace(flat, rewards=tuple(r if u else replace(r, items=())
-                                       for r, u in zip(flat.rewards, used, strict=True)))

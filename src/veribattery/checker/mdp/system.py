@@ -113,7 +113,6 @@ class ChoiceSystem:
     :param leave: per row, ``s_a`` in floating point.
     :param leave_lower: a rigorous lower bound of ``s_a`` (its exact sum).
     :param leave_upper: a rigorous upper bound of ``s_a``.
-    :param pattern: *off* with its stored entries set to 1.
     :param layout: the rows of each class (``ClassRows.of(groups)``).
     """
 
@@ -126,8 +125,6 @@ class ChoiceSystem:
     leave: FloatArray
     leave_lower: FloatArray
     leave_upper: FloatArray
-    #: *off* with every stored entry 1 (counts the nonzero terms of a product).
-    pattern: CsrMatrix
     #: Where each class's rows lie (:meth:`best` reads it).
     layout: ClassRows
 
@@ -191,8 +188,8 @@ class ChoiceSystem:
     def live_rows(self, nonzero: BoolArray, offset: FloatArray | None, *,
                   up: bool) -> LiveRows:
         """The rows with a nonzero term when the entries *nonzero* of ``ext(x)`` are."""
-        terms = np.asarray(self.pattern @ nonzero.astype(np.float64), dtype=np.float64)
-        return LiveRows.of(terms, offset, self.leave_lower, self.leave_upper, up=up)
+        return LiveRows.of(_nonzero_terms(self.off, nonzero), offset, self.leave_lower,
+                           self.leave_upper, up=up)
 
     def defect(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,
                objective: Objective) -> FloatArray:
@@ -212,11 +209,10 @@ class ChoiceSystem:
             raise ValueError("every class needs a row")
         entries = np.repeat(keep, np.diff(self.off.indptr))
         off = sp.csr_matrix(self.off[np.flatnonzero(keep)])
-        pattern = sp.csr_matrix((np.ones(off.nnz), off.indices, off.indptr), shape=off.shape)
         groups = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
         return ChoiceSystem(self.class_of, self.choices[keep], groups, off,
                             self.positions[entries], self.known_states, self.leave[keep],
-                            self.leave_lower[keep], self.leave_upper[keep], pattern,
+                            self.leave_lower[keep], self.leave_upper[keep],
                             ClassRows.of(groups))
 
     def best(self, row_values: FloatArray, objective: Objective) -> FloatArray:
@@ -240,9 +236,9 @@ class ChoiceSystem:
         return np.asarray(self.layout.best(rows, "min"), dtype=np.int64)
 
 
-def _nonzero_terms(off: CsrMatrix, full: FloatArray) -> FloatArray:
+def _nonzero_terms(off: CsrMatrix, full: FloatArray | BoolArray) -> FloatArray:
     """Per row of *off*, how many of its stored entries read a nonzero of *full* (as
-    floats: the same counts as the pattern's product, which sums ones exactly)."""
+    floats, as the terms of a product are counted; no matrix of ones is kept for it)."""
     with np.errstate(invalid="ignore"):
         read = np.concatenate([[0], np.cumsum(full[off.indices] != 0)])
     return np.asarray(read[off.indptr[1:]] - read[off.indptr[:-1]], dtype=np.float64)
@@ -373,10 +369,8 @@ def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
                         shape=(rows.size, size + known_states.size))
     leave, leave_lower, leave_upper = enclose_product(off, np.ones(off.shape[1]))
     groups = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
-    pattern = sp.csr_matrix((np.ones(off.nnz), off.indices, off.indptr), shape=off.shape)
     return ChoiceSystem(class_of, rows, groups, off, positions, known_states, leave,
-                        np.maximum(leave_lower, 0.0), leave_upper, pattern,
-                        ClassRows.of(groups))
+                        np.maximum(leave_lower, 0.0), leave_upper, ClassRows.of(groups))
 
 
 def _leaving_entries(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
