@@ -21,7 +21,7 @@ keeps its own layout and ``reduceat`` (:meth:`ChoiceLevels.grouped`).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TypeVar
 
 import numpy as np
@@ -55,6 +55,14 @@ class ChoiceLevels:
     widths: tuple[int, ...]
     groups: IntArray
     leveled: bool
+    #: Per level, the last first: its number, its first row and its width.
+    spans: tuple[tuple[int, int, int], ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        ends = np.cumsum(self.widths, dtype=np.int64).tolist()
+        spans = [(level, end - width, width)
+                 for level, (end, width) in enumerate(zip(ends, self.widths, strict=True))]
+        object.__setattr__(self, "spans", tuple(reversed(spans)))
 
     @classmethod
     def of(cls, mdp: MDP) -> ChoiceLevels:
@@ -95,10 +103,8 @@ class ChoiceLevels:
         if not self.leveled:
             return np.asarray(reduce.reduceat(images, self.groups[:-1]), dtype=images.dtype)
         best = images[: self.widths[0]].copy()
-        start = self.widths[0]
-        for width in self.widths[1:]:
+        for _, start, width in self.spans[:-1]:
             reduce(best[:width], images[start: start + width], out=best[:width])
-            start += width
         return best
 
     def first_attaining(self, images: FloatArray, best: FloatArray) -> IntArray:
@@ -111,11 +117,8 @@ class ChoiceLevels:
             first = np.minimum.reduceat(marked, self.groups[:-1])
             return np.where(first == np.iinfo(np.int64).max, 0, first)
         rank = np.zeros(self.widths[0], dtype=np.int64)
-        ends = np.cumsum(self.widths)
-        for level in range(len(self.widths) - 1, -1, -1):
-            width = self.widths[level]
-            block = images[ends[level] - width: ends[level]]
-            np.copyto(rank[:width], level, where=block == best[:width])
+        for level, start, width in self.spans:
+            np.copyto(rank[:width], level, where=images[start: start + width] == best[:width])
         return rank
 
     def chosen(self, rank: IntArray) -> IntArray:
