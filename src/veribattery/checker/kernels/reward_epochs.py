@@ -99,10 +99,10 @@ class RewardEpochs:
         probability in *leaving* and to *no* with the rest; then *yes*'s and *no*'s
         loops. (No entry of 0 is stored: an entry is an edge to the graph searches.)"""
         n, rows = self.matrix.shape[1], self.matrix.shape[0]
-        staying = self.matrix[exits.staying].tocoo()
+        staying = exits.staying
         yes, no = leaving > 0, leaving < 1
-        row = np.concatenate([exits.staying[staying.row], exits.leaving[yes],
-                              exits.leaving[no], [rows, rows + 1]])
+        row = np.concatenate([staying.row, exits.leaving[yes], exits.leaving[no],
+                              [rows, rows + 1]])
         column = np.concatenate([staying.col, np.full(int(yes.sum()), n),
                                  np.full(int(no.sum()), n + 1), [n, n + 1]])
         data = np.concatenate([staying.data, leaving[yes], 1.0 - leaving[no], [1.0, 1.0]])
@@ -113,13 +113,14 @@ class RewardEpochs:
 class _Exits:
     """The rows that cost something, by cost, and their products' matrices.
 
-    :param staying: the rows that cost nothing (they stay in their layer).
+    :param staying: the entries of the rows that cost nothing (they stay in their
+        layer), numbered by the model's rows.
     :param leaving: the others, by cost.
     :param by_cost: per cost, its rows' positions in *leaving* and their matrix.
     :param deepest: the largest cost (how far below a layer its values are read).
     """
 
-    staying: IntArray
+    staying: sp.coo_matrix
     leaving: IntArray
     by_cost: tuple[tuple[int, IntArray, CsrMatrix], ...]
     deepest: int
@@ -132,13 +133,14 @@ class _Exits:
         ends = np.append(starts[1:], leaving.size)
         by_cost = tuple((int(c), np.arange(s, e), sp.csr_matrix(matrix[leaving[s:e]]))
                         for c, s, e in zip(kinds, starts, ends, strict=True))
-        return cls(np.flatnonzero(costs == 0), leaving, by_cost,
+        return cls(_rows_of(matrix, np.flatnonzero(costs == 0)), leaving, by_cost,
                    int(kinds[-1]) if kinds.size else 0)
 
     @classmethod
     def none(cls, matrix: CsrMatrix) -> _Exits:
         """Every row of *matrix* staying."""
-        return cls(np.arange(matrix.shape[0]), np.zeros(0, dtype=np.int64), (), 0)
+        return cls(_rows_of(matrix, np.arange(matrix.shape[0])), np.zeros(0, dtype=np.int64),
+                   (), 0)
 
     def values(self, layer: int, known: dict[int, tuple[FloatArray, FloatArray]], *,
                gather: bool) -> tuple[FloatArray, FloatArray]:
@@ -153,3 +155,9 @@ class _Exits:
             low[positions] = enclose_product(rows, lower)[1]
             high[positions] = enclose_product(rows, upper)[2]
         return np.clip(low, 0.0, 1.0), np.clip(high, 0.0, 1.0)
+
+
+def _rows_of(matrix: CsrMatrix, rows: IntArray) -> sp.coo_matrix:
+    """The entries of *matrix*'s *rows*, each numbered by its row in *matrix*."""
+    taken = sp.csr_matrix(matrix[rows]).tocoo()
+    return sp.coo_matrix((taken.data, (rows[taken.row], taken.col)), shape=matrix.shape)
