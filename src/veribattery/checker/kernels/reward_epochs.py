@@ -66,20 +66,19 @@ class RewardEpochs:
 
         :param progress: told ``(layers done, layers, "reward layers")``.
         """
-        n = self.matrix.shape[1]
         exits = _Exits.of(self.matrix, self.costs)
         known: dict[int, tuple[FloatArray, FloatArray]] = {}
-        found = Bounds.exact(np.zeros(n))
+        found = Bounds.exact(np.zeros(self.matrix.shape[1]))
+        asked: tuple[FloatArray, FloatArray] | None = None  # the last layer's exit values
         for layer in range(top + 1):
             # (gathering, layer 0 is the model itself: every step stays there)
             within = _Exits.none(self.matrix) if self.gather and layer == 0 else exits
             low, high = within.values(layer, known, gather=self.gather)
-            remain, target = self._sets(layer)
-            below = solve(self._rows(within, low), remain, target)
-            above = below if np.array_equal(low, high) else solve(self._rows(within, high),
-                                                                   remain, target)
-            middle = 0.5 * below.value[:n] + 0.5 * above.value[:n]
-            found = Bounds.around(middle, below.lower[:n], above.upper[:n])
+            same = (asked is not None and layer > 1 and np.array_equal(low, asked[0])
+                    and np.array_equal(high, asked[1]))
+            if not same:  # (else the layer is the last one over again: low layers of 0s)
+                found = self._layer(layer, within, (low, high), solve)
+            asked = (low, high)
             known[layer] = (found.lower, found.upper)
             stale = layer - exits.deepest  # (no step reaches further down from the next)
             if stale > 0 or not self.gather:  # (gathering reads layer 0 from every layer)
@@ -87,6 +86,17 @@ class RewardEpochs:
             if progress is not None:
                 progress(layer + 1, top + 1, "reward layers")
         return found
+
+    def _layer(self, layer: int, within: _Exits, leaving: tuple[FloatArray, FloatArray],
+               solve: LayerSolve) -> Bounds:
+        """The bounds of *layer* whose exits lead to values within *leaving*."""
+        n = self.matrix.shape[1]
+        (low, high), (remain, target) = leaving, self._sets(layer)
+        below = solve(self._rows(within, low), remain, target)
+        above = below if np.array_equal(low, high) else solve(self._rows(within, high),
+                                                               remain, target)
+        middle = 0.5 * below.value[:n] + 0.5 * above.value[:n]
+        return Bounds.around(middle, below.lower[:n], above.upper[:n])
 
     def _sets(self, layer: int) -> tuple[BoolArray, BoolArray]:
         """The layer's *remain* and *target* states, then *yes* (a target) and *no*."""
