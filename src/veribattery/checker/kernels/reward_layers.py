@@ -92,17 +92,14 @@ def gathered_until_bounds(P: CsrMatrix, remain: BoolArray, target: BoolArray,
     """
     top = max(need, 0)
     if not product_built(P.nnz, top, need, span):
-        # (the layers' own workspace: nothing of one layer serves another, and the
-        # caller's listener hears the layers, not each layer's solve)
-        from veribattery.checker.workspace import Workspace
-
-        layers = Workspace()
+        monitor = workspace.monitor
 
         def layer_until(rows: CsrMatrix, passed: BoolArray, reached: BoolArray) -> Bounds:
-            return until_probs(rows, passed, reached, workspace=layers)
+            with monitor.listening(None):  # (the listener hears the layers, not each solve)
+                return until_probs(rows, passed, reached, workspace=workspace)
 
         epochs = RewardEpochs(P, rewards, remain, target, gather=True)
-        return epochs.bounds(top, layer_until, workspace.monitor)
+        return epochs.bounds(top, layer_until, monitor)
     product = layered_rows(P, rewards, top, gather=True)
     sets = LayeredSets.of(remain, target, top, gather=True)
     found = until_probs(product, sets.remain, sets.target, workspace=workspace)
