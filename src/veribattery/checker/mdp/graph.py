@@ -62,13 +62,23 @@ class ChoiceGraph:
     def of(cls, transitions: CsrMatrix, owner: IntArray) -> ChoiceGraph:
         """The graph of *transitions* (choices x states), whose choice *c* belongs to
         state ``owner[c]``."""
-        pattern = sp.csr_matrix(transitions, copy=True)
-        pattern.data = (pattern.data > 0).astype(np.int8)
-        pattern.eliminate_zeros()
-        pattern.sum_duplicates()
+        positive = transitions.data > 0
+        if transitions.has_canonical_format and bool(positive.all()):
+            # (a model with an entry per positive probability is its own pattern: its
+            # arrays are shared, not copied)
+            forwards = transitions
+            pattern = sp.csr_matrix((positive.view(np.int8), transitions.indices,
+                                     transitions.indptr), shape=transitions.shape)
+        else:
+            forwards = pattern = sp.csr_matrix(transitions, copy=True)
+            pattern.data = (pattern.data > 0).astype(np.int8)
+            pattern.eliminate_zeros()
+            pattern.sum_duplicates()
         backwards = pattern.tocsc()
-        return cls(owner, pattern.indptr.astype(np.int64), pattern.indices.astype(np.int64),
-                   backwards.indptr.astype(np.int64), backwards.indices.astype(np.int64))
+        # (states and choices as scipy keeps them, int32 where they fit: in int64 the
+        # graph was a fifth of the mission MDP's peak)
+        return cls(owner, forwards.indptr, forwards.indices, backwards.indptr,
+                   backwards.indices)
 
     @property
     def num_states(self) -> int:

@@ -369,6 +369,8 @@ def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
                         shape=(rows.size, size + known_states.size))
     leave, leave_lower, leave_upper = enclose_product(off, np.ones(off.shape[1]))
     groups = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    if transitions.nnz < 2**31:  # (kept while the system lives: an int32 where it fits)
+        positions = positions.astype(np.int32)
     return ChoiceSystem(class_of, rows, groups, off, positions, known_states, leave,
                         np.maximum(leave_lower, 0.0), leave_upper, ClassRows.of(groups))
 
