@@ -221,12 +221,25 @@ def test_bad_intervals_are_refused_on_a_terminal_too(tmp_path: Path) -> None:
 
 
 def test_a_long_formula_is_cut_on_the_spinner_not_wrapped(tmp_path: Path) -> None:
+    """The formula is cut, not the count: how far the solve is stays in view."""
     formula = "P=? [ F s=4 & " + " & ".join(["z/N<0.1"] * 12) + " ]"
     args = [arg if arg != "reliable" else formula for arg in ARGS[:-1]]
     screen = run_in_terminal(args, 80, tmp_path)
     assert screen.status == 0, screen.text
     drawn = [part for part in re.split(r"[\r\n]", screen.drawn) if "solving" in part]
-    assert drawn and all(len(part) <= 80 and part.endswith("…") for part in drawn), drawn
+    assert drawn and all(len(part) <= 80 for part in drawn), drawn
+    assert any(re.search(r"z/N…: \d+ of 668 states, \d+ s$", part) for part in drawn), drawn
+
+
+def test_a_long_subject_keeps_the_count_in_the_room_given() -> None:
+    subject = "Pmin=? [ F^{rew{\"time\"}<=deadline} ((s1=8) & (s2=7)) | ((s1=7) & (s2=8))]"
+    line = progress.solve_text(subject, 113, 201, "reward layers", 4.2, room=78)
+    assert line == ("solving Pmin=? [ F^{rew{\"time\"}<=deadline} ((s…: 113 of 201 reward "
+                    "layers, 4 s")
+    assert len(line) == 78
+    assert progress.solve_text("P=? [ F a ]", 3, 9, "steps", 1.0, room=78) == (
+        "solving P=? [ F a ]: 3 of 9 steps, 1 s")
+    assert progress.solve_text(subject, 3, 9, "steps", 1.0, room=20) == "solving: 3 of 9 steps, 1 s"
 
 
 def test_a_step_bounded_check_tells_its_steps_on_a_pipe(tmp_path: Path) -> None:

@@ -159,7 +159,7 @@ class LiveStatus:
         if now >= self._next:
             self._next = now + SPINNER_EVERY_S
             self._status.update(_one_line(solve_text(self._subject, done, total, unit,
-                                                     now - self._since)))
+                                                     now - self._since, _room())))
 
     def _show(self, text: str, subject: str) -> None:
         self._subject, self._since = subject, time.monotonic()
@@ -173,8 +173,13 @@ def _one_line(text: str) -> Any:
     space take two columns)."""
     from rich.text import Text
 
-    room = max(err.width - 2, 10)
+    room = _room()
     return Text(text if len(text) <= room else text[:room - 1] + "…")
+
+
+def _room() -> int:
+    """The columns of the spinner's text (the spinner and a space take two)."""
+    return max(err.width - 2, 10)
 
 
 @contextmanager

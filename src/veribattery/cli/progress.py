@@ -57,13 +57,21 @@ def intervals() -> tuple[float | None, float | None]:
     return first, every
 
 
-def solve_text(subject: str, done: int, total: int, unit: str, seconds: float) -> str:
+def solve_text(subject: str, done: int, total: int, unit: str, seconds: float,
+               room: int | None = None) -> str:
     """``"solving P=? [ F x ]: 3,210 of 9,420 states, 12 s"`` (no subject: ``"solving: …"``;
-    a *total* of 0, not known beforehand: ``"solving: weighted solve 12, 40 s"``)."""
+    a *total* of 0, not known beforehand: ``"solving: weighted solve 12, 40 s"``).
+
+    :param room: the most characters the line may take: a longer subject is cut with an
+        ellipsis, so that the count stays in view (a spinner's line at 80 columns).
+    """
+    count = f"{unit} {done:,}" if total <= 0 else f"{done:,} of {total:,} {unit}"
+    tail = f": {count}, {seconds:.0f} s"
     about = f" {subject}" if subject else ""
-    if total <= 0:
-        return f"solving{about}: {unit} {done:,}, {seconds:.0f} s"
-    return f"solving{about}: {done:,} of {total:,} {unit}, {seconds:.0f} s"
+    if room is not None and len("solving") + len(about) + len(tail) > room:
+        keep = room - len("solving") - len(tail) - 2  # (the space and the ellipsis)
+        about = f" {subject[:keep]}…" if keep > 0 else ""
+    return f"solving{about}{tail}"
 
 
 class PlainProgress:
