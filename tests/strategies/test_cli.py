@@ -256,3 +256,23 @@ def test_a_reference_to_a_property_is_judged_once_resolved(files: tuple[Path, Pa
                     "--export-strategy", out)
     assert result.exit_code == 0, result.stderr
     assert out.read_text(encoding="utf-8").startswith("(0,false)=east\n")
+
+
+def test_a_check_builds_only_the_rewards_it_reads_an_export_every_one(
+        files: tuple[Path, Path], tmp_path: Path) -> None:
+    """``R{"steps"}``: "time" is not built for the check (memory, time), but the induced
+    DTMC of a ``multi`` strategy, written from the built MDP, keeps both structures."""
+    from veribattery.pipeline import check_prism_file
+
+    model, _ = files
+    prop = 'R{"steps"}min=? [ F "goal" ]'
+    named = check_prism_file(model, props_source=prop, rewards="named")
+    every = check_prism_file(model, props_source=prop, rewards="all")
+    assert [r.name for r in named.mdp.rewards] == ["steps"]  # type: ignore[union-attr]
+    assert [r.name for r in every.mdp.rewards] == ["steps", "time"]  # type: ignore[union-attr]
+    assert named.results[0].value == every.results[0].value == pytest.approx(3.75, rel=1e-12)
+    folder = tmp_path / "induced"
+    multi = 'multi(R{"steps"}<=5 [ C ], P>=0.5 [ F "goal" ])'
+    assert _prism(model, "--property", multi, "--export-induced", folder).exit_code == 0
+    written = (folder / "induced.prism").read_text(encoding="utf-8")
+    assert 'rewards "steps"' in written and 'rewards "time"' in written

@@ -105,8 +105,10 @@ def prism_command(
         run = check_prism_file(
             model, props_source=props, selectors=selectors, constants=constants,
             progress=limited(progress, max_states), exact=exact, keep="answers",
-            # --simulate -o writes every structure's totals along the paths
-            rewards="all" if analysis["simulate"] is not None else "named",
+            # --simulate -o writes every structure's totals along the paths, and an
+            # induced export every structure of the model
+            rewards="all" if (analysis["simulate"] is not None
+                              or analysis["induced_dir"] is not None) else "named",
             before_build=hopeless_export_check(analysis),
         )
     print_warnings(run.warnings)

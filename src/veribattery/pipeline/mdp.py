@@ -7,6 +7,7 @@ import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -37,6 +38,9 @@ from veribattery.pipeline.run import (
     tell_building,
     tell_checking,
 )
+
+if TYPE_CHECKING:
+    from veribattery.pipeline.session import Rewards
 
 __all__ = ["MdpCheckRun", "check_mdp_model"]
 
@@ -88,6 +92,7 @@ def check_mdp_model(
     constants: Mapping[str, Value | str] | None = None,
     progress: ProgressCallback | None = None,
     stopwatch: Stopwatch | None = None,
+    rewards: Rewards = "all",
 ) -> MdpCheckRun:
     """Flatten the ``mdp`` *model*, build its MDP and check each property at the
     initial states, in floating point with certified bounds.
@@ -95,6 +100,10 @@ def check_mdp_model(
     A property whose bound the certified interval cannot decide is an
     :class:`~veribattery.checker.UndecidedResult` (:func:`check_prism_file` settles it
     in exact arithmetic where the model allows).
+
+    :param rewards: the reward structures built: ``"all"`` (the run's MDP has every one,
+        as an induced export of a ``multi`` strategy writes them), or ``"named"``, only
+        those the properties read (the others cost memory and time for nothing).
 
     :raises CheckError: ``P=?``/``R=?`` (no single value on an MDP), or an operator
         outside the supported ones.
@@ -106,9 +115,8 @@ def check_mdp_model(
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)
-        # (the structures no property reads are not built: the MDP is read by these
-        # properties' checks and strategies only; the run keeps the whole model)
-        built = build_mdp(with_used_rewards(flat, resolved), progress=progress)
+        built = build_mdp(with_used_rewards(flat, resolved) if rewards == "named" else flat,
+                          progress=progress)
         mdp = as_checker_mdp(built)
     results = []
     errors: list[str] = []

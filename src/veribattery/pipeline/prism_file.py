@@ -108,9 +108,9 @@ def check_prism_file(
         (:func:`~veribattery.pipeline.check_model`).
     :param keep: what each result keeps: ``"states"`` or ``"answers"`` (see
         :class:`~veribattery.pipeline.CheckOptions`).
-    :param rewards: a DTMC's reward structures built in floating point: ``"all"``, or
+    :param rewards: the reward structures built in floating point: ``"all"``, or
         ``"named"``, only those the properties use (see
-        :class:`~veribattery.pipeline.Session`).
+        :class:`~veribattery.pipeline.Session`; an MDP's likewise).
     :param before_build: told the model type and the properties to check once they
         are parsed, before any state is built: it may raise to refuse the work (the
         CLI refuses a strategy export that cannot succeed).
@@ -127,7 +127,7 @@ def check_prism_file(
         if before_build is not None:
             before_build(model.model_type, chosen)
     if model.model_type == "mdp":
-        mdp_run = _check_mdp(model, chosen, props, constants, progress, watch, exact)
+        mdp_run = _check_mdp(model, chosen, props, constants, progress, watch, exact, rewards)
         return replace(mdp_run, warnings=skipped + mdp_run.warnings) if skipped else mdp_run
     from veribattery.pipeline.session import check_model  # the DTMC checker: for DTMCs only
 
@@ -146,18 +146,19 @@ def check_prism_file(
 def _check_mdp(
     model: Model, chosen: Sequence[Property], props: PropertiesFile | None,
     constants: Mapping[str, Value | str] | None, progress: ProgressCallback | None,
-    watch: Stopwatch, exact: bool,
+    watch: Stopwatch, exact: bool, rewards: Rewards,
 ) -> MdpCheckRun:
     """An ``mdp`` model's run: exact, or in floats with undecided bounds settled exactly."""
     # The MDP engine is imported when a model is an MDP.
     from veribattery.pipeline.mdp import check_mdp_model
     from veribattery.pipeline.mdp_exact import check_mdp_model_exact
 
-    way = check_mdp_model_exact if exact else check_mdp_model
-    run = way(model, chosen, props_file=props, constants=constants, progress=progress,
-              stopwatch=watch)
-    return run if exact else settle_undecided(run, chosen, _exact_mdp_results, model, props,
-                                              constants)
+    if exact:
+        return check_mdp_model_exact(model, chosen, props_file=props, constants=constants,
+                                     progress=progress, stopwatch=watch)
+    run = check_mdp_model(model, chosen, props_file=props, constants=constants,
+                          progress=progress, stopwatch=watch, rewards=rewards)
+    return settle_undecided(run, chosen, _exact_mdp_results, model, props, constants)
 
 
 def _exact_dtmc_results(
