@@ -69,8 +69,10 @@ def test_table_one_row_per_point(config: str) -> None:
         # a property the model cannot resolve: bad input, not a failure of every point
         ("--vary", "strategy.safe_t=0.3", "--set", 'properties.x=P=? [ F "nosuch" ]'),
         ("--vary", "properties.x=a,b"),
+        # nesting beyond PyYAML's recursion: one line, not a RecursionError
+        ("--vary", "battery.capacity_ah=" + "[" * 3000),
     ],
-    ids=["range", "key", "point", "plot-x", "set", "property", "varied-property"],
+    ids=["range", "key", "point", "plot-x", "set", "property", "varied-property", "nesting"],
 )
 def test_bad_input_exits_2_and_writes_nothing(
     config: str, tmp_path: Path, args: tuple[str, ...]
