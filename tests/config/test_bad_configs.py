@@ -143,7 +143,16 @@ NUMBERS = [
         ("battery.max_recharges=100000000000000000000",)),
 ]
 
-CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS
+#: Farms too large to lay out (deriving the route of 10^12 turbines never ended).
+SIZES = [
+    Bad("farm-too-large", b"farm: {cols: 1000000000000, rows: 3, base: [0, 0]}\n",
+        "{path}:1:8: farm.cols: 1000000000000 x 3 turbines is too large a farm: cols x rows "
+        "must be at most 100,000"),
+    Bad("farm-too-large-set", b"", "farm.cols: 1000 x 101 turbines is too large a farm",
+        ("farm.cols=1000", "farm.rows=101")),
+]
+
+CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES
 
 
 def _write(tmp_path: Path, case: Bad) -> Path:
@@ -248,3 +257,4 @@ def test_where_a_config_came_from_does_not_change_it(tmp_path: Path) -> None:
     from_set = load_config("", ["properties={p: 'P=? [ F \"done\" ]'}"])
     assert from_file == from_text == from_set == MissionConfig(
         properties={"p": 'P=? [ F "done" ]'})
+
