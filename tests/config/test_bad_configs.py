@@ -8,6 +8,7 @@ overrides, and the message expected, ``{path}`` standing for the file's path.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -258,3 +259,27 @@ def test_where_a_config_came_from_does_not_change_it(tmp_path: Path) -> None:
     assert from_file == from_text == from_set == MissionConfig(
         properties={"p": 'P=? [ F "done" ]'})
 
+
+@pytest.mark.parametrize(("content", "overrides", "expected"), [
+    (("a: " + "[" * 2000 + "]" * 2000 + "\n").encode(), (),
+     r"{path}:1:\d+: YAML nested too deeply: "),
+    (b"farm:\n" + "".join("  " * i + f"a{i}:\n" for i in range(1, 600)).encode(), (),
+     r"{path}:\d+:\d+: YAML nested too deeply: "),
+    (b"", ("farm.base=" + "[" * 3000,),
+     r"--set 'farm.base=\[+': value is not valid YAML: YAML nested too deeply: "),
+], ids=["flow", "block", "set"])
+def test_deep_nesting_is_one_located_line(tmp_path: Path, content: bytes,
+                                          overrides: tuple[str, ...], expected: str) -> None:
+    """PyYAML composes nested nodes recursively: past a few hundred levels it raised
+    RecursionError, a traceback; now it is a config error placed where the nesting is."""
+    path = tmp_path / "mission.yaml"
+    path.write_bytes(content)
+    sets = [arg for item in overrides for arg in ("--set", item)]
+    for command in (["check", str(path), *sets], ["emit", str(path), *sets, "-o", "out"]):
+        result = CliRunner().invoke(cli, command)
+        assert result.exit_code == 2, result.output
+        assert result.stdout == "" and "Traceback" not in result.stderr
+        assert len(result.stderr.splitlines()) == 1, result.stderr
+        assert re.match("error: " + expected.replace("{path}", re.escape(str(path))),
+                        result.stderr), result.stderr
+    assert not (tmp_path / "out").exists()
