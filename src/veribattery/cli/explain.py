@@ -390,9 +390,10 @@ def _show_simulation(simulation: Simulation, output_format: str) -> None:
     rows = []
     for e in simulation.estimates:
         exact = format_value(e.exact) if e.exact is not None else "-"
-        ci = f"[{e.ci95[0]:.6g}, {e.ci95[1]:.6g}]"
+        estimate = f"{e.estimate:.6g}" if e.runs else "-"  # every run undecided: no nan
+        ci = f"[{e.ci95[0]:.6g}, {e.ci95[1]:.6g}]" if e.runs else "-"
         runs = f"{e.runs:,}" + (f" ({e.undecided:,} undecided)" if e.undecided else "")
-        rows.append((e.name, exact, f"{e.estimate:.6g}", ci, runs))
+        rows.append((e.name, exact, estimate, ci, runs))
     print_table(("property", "exact", "estimate", "95% CI", "runs"), rows)
     out.print(f"{simulation.runs:,} runs, seed {simulation.seed}, "
               f"longest {simulation.steps:,} steps", style="dim", markup=False)
@@ -407,8 +408,9 @@ def _simulation_csv(simulation: Simulation) -> None:
     writer.writerow(["property", "value", "estimate", "ci95_low", "ci95_high", "runs",
                      "undecided"])
     for e in simulation.estimates:
-        writer.writerow([e.name, "" if e.exact is None else repr(e.exact), repr(e.estimate),
-                         repr(e.ci95[0]), repr(e.ci95[1]), e.runs, e.undecided])
+        writer.writerow([e.name, "" if e.exact is None else repr(e.exact),
+                         *("" if math.isnan(x) else repr(x) for x in (e.estimate, *e.ci95)),
+                         e.runs, e.undecided])
 
 
 def _number(value: float | None) -> object:
