@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import IO
 
-from veribattery._files import staged, write_text
+from veribattery._files import can_create_in, staged, write_text
 from veribattery.errors import ConfigError
 from veribattery.sweep.fingerprint import SweepFingerprint
 
@@ -108,7 +108,8 @@ def _check_writable(path: Path) -> None:
     if not folder.is_dir():
         raise ConfigError(f"-o {str(path)!r}: folder {str(folder)!r} does not exist")
     target = path if path.exists() else folder
-    if not os.access(target, os.W_OK) or (path.exists() and not path.is_file()):
+    if (not os.access(target, os.W_OK) or not can_create_in(folder)  # the journal, meta
+            or (path.exists() and not path.is_file())):
         raise ConfigError(f"-o {str(path)!r}: cannot write there (read-only or permission denied)")
 
 
