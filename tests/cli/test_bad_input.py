@@ -114,6 +114,10 @@ CASES: list[tuple[str, list[str]]] = [
     # analyses
     ("explain-top", ["explain", CASE1, *SMALL, "--top", "0"]),
     ("explain-by", ["explain", CASE1, *SMALL, "--by", "nosuch"]),
+    # a million paths took minutes and gigabytes: at most 1,000
+    ("explain-top-huge", ["explain", CASE1, *SMALL, "--top", "1000000"]),
+    ("prism-explain-top-huge", ["prism", "die.pm", "--explain", "two", "--top", "1001"]),
+    ("report-top-huge", ["report", CASE1, *SMALL, "-o", "r.html", "--top", "1001"]),
     ("explain-output-exists", ["explain", CASE1, *SMALL, "-o", "existing.csv"]),
     ("explain-output-folder", ["explain", CASE1, *SMALL, "-o", "a_folder.csv"]),
     ("simulate-runs", ["simulate", CASE1, *SMALL, "--runs", "0"]),
