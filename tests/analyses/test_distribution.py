@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -183,7 +184,8 @@ def test_cli(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("args", [["--deadline", "5x"], ["--reward", "nope"],
-                                  ["--working-day", "8y"]])
+                                  ["--working-day", "8y"], ["--coverage", "0"],
+                                  ["--coverage", "-0.0"], ["--coverage", "nan"]])
 def test_cli_bad_input(args: list[str]) -> None:
     result = CliRunner().invoke(cli, ["distribution", *MISSION_ARGS, *args])
     assert result.exit_code == 2
@@ -195,3 +197,25 @@ def test_cli_keeps_existing_files(tmp_path: Path) -> None:
     csv.write_text("mine")
     result = CliRunner().invoke(cli, ["distribution", *MISSION_ARGS, "-o", str(csv)])
     assert result.exit_code == 2 and csv.read_text() == "mine"
+
+
+@pytest.mark.parametrize("output_format", ["table", "json", "csv"])
+def test_cli_when_success_is_unreachable(tmp_path: Path, output_format: str) -> None:
+    """No recharge allowed: every mission fails. The quantiles and E[mt | success] are
+    undefined: shown as such (and the plot drawn), not a CheckError traceback (exit 1)
+    nor nan printed as a value."""
+    png = tmp_path / "d.png"
+    result = CliRunner().invoke(cli, ["distribution", *MISSION_ARGS, "--set",
+                                      "battery.max_recharges=0", "--plot", str(png),
+                                      "--format", output_format])
+    assert result.exit_code == 0, (result.output, result.exception)
+    assert "nan" not in result.stdout.lower() and png.exists()
+    if output_format == "json":
+        doc = json.loads(result.stdout)
+        assert doc["p_success"] == 0 and doc["expected_given_success"] is None
+        assert set(doc["quantiles"].values()) == {None}
+    elif output_format == "csv":
+        assert '"50% quantile of mt to success",\n' in result.stdout
+    else:
+        assert re.search(r"^50% quantile of mt to success +—$", result.stdout, re.M)
+        assert "—: undefined: success is unreachable" in result.stdout

@@ -94,14 +94,22 @@ class Distribution:
 
         :raises CheckError: when success is impossible or the pass stopped before q.
         """
-        if self.p_success <= 0:
+        value = self.quantile_or_none(q)
+        if value is None and self.p_success <= 0:
             raise CheckError("success is unreachable, so its quantiles are undefined")
+        if value is None:
+            raise CheckError(f"the distribution was cut before its {q:.4g} quantile")
+        return value
+
+    def quantile_or_none(self, q: float) -> float | None:
+        """:meth:`quantile`, or None where it is undefined: success is impossible, or the
+        pass stopped (at its *coverage*) before q."""
+        if self.p_success <= 0:
+            return None
         cdf = self.success_cdf / self.p_success
         # Rounding may leave the last value a hair below the exact 1.
         index = int(np.searchsorted(cdf, q * (1 - 1e-12), side="left"))
-        if index >= cdf.size:
-            raise CheckError(f"the distribution was cut before its {q:.4g} quantile")
-        return float(self.values[index])
+        return float(self.values[index]) if index < cdf.size else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -166,7 +174,10 @@ def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success"
     :param progress: told the number of reward levels done after each one.
     :raises CheckError: for unknown labels or reward structures, non-integer
         rewards, or a pass that does not reach *coverage* within *max_levels*.
+    :raises ConfigError: when *coverage* is not in (0, 1].
     """
+    if not 0 < coverage <= 1:  # 0 (or nan) stops at once: no quantile is ever reached
+        raise ConfigError(f"coverage must be in (0, 1], got {coverage}")
     workspace = Workspace() if workspace is None else workspace
     structure = _structure(dtmc, reward)
     levels = reward_bounded.integer_rewards(dtmc, structure, _NO_SPAN)
@@ -272,7 +283,9 @@ def plot_distribution(dist: Distribution, deadlines: Sequence[Deadline],
     # from the top, so that labels at equal or near abscissae never overprint.
     where = ax.get_xaxis_transform()
     for i, q in enumerate(QUANTILES):
-        value = dist.quantile(q)
+        value = dist.quantile_or_none(q)
+        if value is None:  # success unreachable, or beyond the coverage: no line
+            continue
         ax.axvline(value, color="tab:green", linestyle=":", linewidth=1)
         ax.text(value, 0.04 + 0.07 * i, f" {q:.0%} quantile: {value:g}", transform=where,
                 fontsize=8, color="tab:green")
@@ -285,8 +298,9 @@ def plot_distribution(dist: Distribution, deadlines: Sequence[Deadline],
     ax.set_xlabel(f"accumulated reward {dist.reward!r}")
     ax.set_ylabel("probability (cumulative)")
     ax.set_ylim(0, 1.02)
+    given = dist.expected_given_success
     ax.set_title(f"P(done with {dist.reward} <= T)   E[{dist.reward} | success] = "
-                 f"{dist.expected_given_success:.6g}")
+                 + ("undefined (success unreachable)" if math.isnan(given) else f"{given:.6g}"))
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left")
     with staged(path, suffix=path.suffix) as temporary:
