@@ -7,9 +7,10 @@ total reward of exactly each value, by one forward pass over reward levels
 (:func:`veribattery.checker.kernels.reward_bounded.absorption_by_level`): exact up to
 floating-point rounding, not sampled. The pass stops once the CDF of the time to
 success has reached *coverage* of ``P(F success)`` (and likewise for failure) and
-every requested horizon has been passed; what is cut off is reported as
-:attr:`Distribution.pending` — the probability of being still under way after
-the last level, an upper bound on every CDF's missing tail.
+every requested horizon has been passed, or as soon as nothing is still under way
+(up to rounding); what is cut off is reported as :attr:`Distribution.pending` — the
+probability of being still under way after the last level, an upper bound on every
+CDF's missing tail.
 
 The reward counted is the one Storm counts for ``F{"r"}<=T``: every step up to and
 including the step that enters the success or failure state.
@@ -167,7 +168,8 @@ def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success"
 
     :param coverage: continue until this fraction of ``P(F success)`` and of
         ``P(F failure)`` has been absorbed.
-    :param horizon: and at least up to this total reward (the largest deadline).
+    :param horizon: and at least up to this total reward (the largest deadline), unless
+        the pending mass has fallen to rounding noise before it.
     :param max_levels: give up (CheckError) after this many levels.
     :param workspace: the checker's caches to share (those a check of *dtmc* filled:
         its linear systems); None: new ones for this distribution.
@@ -208,8 +210,10 @@ def _stop_rule(exact: Sequence[float], coverage: float, horizon: float,
     def stop(level: int, absorbed: FloatArray, pending: float) -> bool:
         if progress is not None:
             progress(level + 1)
-        return level * unit >= horizon and (
-            _covered(absorbed, exact, coverage) or pending <= ROUNDING)
+        # Once nothing is under way (up to rounding) no later level adds mass: stop even
+        # short of the horizon (a deadline of 10^8 minutes ran a million empty levels).
+        return pending <= ROUNDING or (
+            level * unit >= horizon and _covered(absorbed, exact, coverage))
 
     return stop
 
