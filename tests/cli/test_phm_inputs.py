@@ -180,3 +180,28 @@ def test_simulate_output_checked_before_pybamm(tmp_path: Path) -> None:
     afile.write_text("")
     assert_one_error(run("phm", "simulate", "--power-w", "10", "-o", str(afile)),
                      "is a file, not a folder")
+
+
+@pytest.mark.parametrize("command", ["fade", "recheck", "forecast"])
+@pytest.mark.parametrize(("capacities", "expected"), [
+    # squaring 1e308 overflowed in the fit's AIC: an OverflowError traceback
+    ((1e308, 1e308, 1e308), "no meaningful fade fit"),
+    # a fit beyond the model's integers, whose fade was written as 0
+    ((1e300, 9e299, 8e299, 7e299), "7e+300 units of battery.resolution_ah (0.1); the model's "
+                                   "32-bit integers hold at most 1,073,741,823"),
+    ((1.1e7, 1.09e7, 1.08e7, 1.07e7), "the fitted fade 0.000935/cycle would round to 0"),
+], ids=["1e308", "1e300", "1e7"])
+def test_capacities_beyond_the_model_are_refused(tmp_path: Path, mission: Path, command: str,
+                                                 capacities: tuple[float, ...],
+                                                 expected: str) -> None:
+    log = tmp_path / "cycles.csv"
+    log.write_text("cycle,capacity_ah\n" + "".join(
+        f"{10 * i},{c!r}\n" for i, c in enumerate(capacities)))
+    args = {"fade": ["phm", "fade", str(log)],
+            "recheck": ["recheck", str(mission), "--cycles", str(log), *SMALL],
+            "forecast": ["phm", "forecast", str(mission), "--cycles", str(log), "--horizon",
+                         "10", *SMALL]}[command]
+    before = files(tmp_path)
+    assert_one_error(run(*args), expected)
+    assert files(tmp_path) == before
+
