@@ -213,3 +213,16 @@ def test_levels_soc_step_too_fine_for_the_search(step: str) -> None:
     assert_one_error(run("phm", "levels", str(EXAMPLES / "discharge.csv"), "--soc-step", step),
                      f"a SOC step of {float(step):g} puts more than 2,000 grid points",
                      "give a coarser step")
+
+
+@pytest.mark.parametrize("command", ["levels", "recheck"])
+def test_a_flat_discharge_curve_is_refused(tmp_path: Path, mission: Path, command: str) -> None:
+    """Every threshold pair fits a constant voltage equally well: the thresholds written
+    (0.02/0.87) were arbitrary, with three equal levels; now a located error."""
+    curve = tmp_path / "discharge.csv"
+    curve.write_text("soc,voltage_v\n1,3.7\n0.5,3.7\n0,3.7\n")
+    args = (["phm", "levels", str(curve)] if command == "levels" else
+            ["recheck", str(mission), "--cycles", str(EXAMPLES / "cycles.csv"),
+             "--discharge", str(curve), *SMALL])
+    assert_one_error(run(*args), f"{curve}:4: row 3, column 'voltage_v': the voltage stays "
+                                 "at 3.7 V over the whole log")
