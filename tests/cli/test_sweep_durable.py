@@ -48,8 +48,10 @@ def test_sweep_section_in_config_and_vary_overrides_it(tmp_path: Path) -> None:
 
 def test_failed_point_exits_1_with_summary(tmp_path: Path) -> None:
     path = tmp_path / "mission.yaml"
+    # The second formula resolves but cannot be evaluated (pow(b,-1) of an int): that point
+    # fails; an unknown label would be bad input, refused before any point.
     path.write_text("sweep:\n  vary: ['properties.extra=\"P=? [ F \\\"success\\\" ]\",\"P=? "
-                    "[ F \\\"nope\\\" ]\"']\n")
+                    "[ F pow(b,-1)=0 ]\"']\n")
     result = run("sweep", str(path), *SMALL_FARM, "--format", "csv")
     assert result.exit_code == 1, result.output
     assert result.stderr.splitlines()[-1] == "2 points: 1 checked, 1 failed"
@@ -107,3 +109,4 @@ def test_unreachable_scheduler_exit_2_within_10_s(config: str, tmp_path: Path) -
     assert result.stderr.startswith("error: --scheduler tcp://127.0.0.1:9: cannot reach")
     assert result.stderr.count("\n") == 1
     assert list(tmp_path.iterdir()) == [Path(config)]
+
