@@ -136,6 +136,8 @@ CASES: list[tuple[str, list[str]]] = [
     ("reproduce-what", ["reproduce", "fig9"]),
     ("reproduce-all-no-dir", ["reproduce", "all"]),
     ("reproduce-dir-is-file", ["reproduce", "fig6", "-o", "existing.csv"]),
+    # the folder was made before the scheduler was found unreachable, and left behind
+    ("reproduce-scheduler", ["reproduce", "fig6", "--scheduler", "nosuch", "-o", "out/figs"]),
     # synthesize
     ("synthesize-require-range", ["synthesize", CASE1, *SYNTHESIS, "--require", "1.5"]),
     ("synthesize-require-text", ["synthesize", CASE1, *SYNTHESIS, "--require", "high"]),
