@@ -283,3 +283,27 @@ def test_deep_nesting_is_one_located_line(tmp_path: Path, content: bytes,
         assert re.match("error: " + expected.replace("{path}", re.escape(str(path))),
                         result.stderr), result.stderr
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("content", "overrides", "expected"), [
+    (SMALL + b'properties:\n  ok: P=? [ F "success" ]\n  bad: P=? [ F mod(b,0)=1 ]\n', (),
+     "{path}:4:16: properties.bad: modulo with non-positive divisor"),
+    (SMALL + b"properties:\n  bad: |\n    P=? [\n      F mod(b,0)=1 ]\n", (),
+     "{path}:5:9: properties.bad: modulo with non-positive divisor"),
+    (SMALL, ("properties.x=P=? [ F pow(b,-1)=0 ]",),
+     "--set properties.x: column 9 of the formula: negative exponent in integer pow"),
+], ids=["file", "block", "set"])
+@pytest.mark.parametrize("exact", [False, True], ids=["float", "exact"])
+def test_a_formula_failing_in_the_check_is_placed_in_the_config(
+        tmp_path: Path, content: bytes, overrides: tuple[str, ...], expected: str,
+        exact: bool) -> None:
+    """A formula that resolves but cannot be evaluated fails in the check, where the
+    error was placed in the rendered 'properties.props:3:14', a file the user never
+    wrote; now at the formula's place in the config, or its --set."""
+    path = tmp_path / "mission.yaml"
+    path.write_bytes(content)
+    sets = [arg for item in overrides for arg in ("--set", item)]
+    result = CliRunner().invoke(cli, ["check", str(path), *sets, *(["--exact"] * exact)])
+    assert result.exit_code == 2, result.output
+    assert result.stderr.startswith("error: " + expected.replace("{path}", str(path)))
+    assert "properties.props" not in result.stderr and result.stdout == ""
