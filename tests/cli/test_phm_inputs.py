@@ -226,3 +226,17 @@ def test_a_flat_discharge_curve_is_refused(tmp_path: Path, mission: Path, comman
              "--discharge", str(curve), *SMALL])
     assert_one_error(run(*args), f"{curve}:4: row 3, column 'voltage_v': the voltage stays "
                                  "at 3.7 V over the whole log")
+
+
+def test_recheck_change_of_an_undefined_value_is_blank(tmp_path: Path, mission: Path) -> None:
+    """A discharge curve in single-cell volts makes every mission fail: the conditional
+    expectations become undefined (nan, as check prints them) and their change was
+    printed '+nan'; now it is left blank (JSON: null)."""
+    curve = tmp_path / "discharge.csv"
+    curve.write_text("soc,voltage_v\n1,4.2\n0.75,3.9\n0.5,3.7\n0.25,3.5\n0,3.0\n")
+    result = run("recheck", str(mission), "--cycles", str(EXAMPLES / "cycles.csv"),
+                 "--discharge", str(curve), *SMALL)
+    assert result.exit_code == 0, result.output  # the mission states no requirement
+    row = next(line for line in result.stdout.splitlines()
+               if line.startswith("exp_mission_time_given_success"))
+    assert row.split()[2:] == ["nan"] and "+nan" not in result.stdout
