@@ -153,7 +153,20 @@ SIZES = [
         ("farm.cols=1000", "farm.rows=101")),
 ]
 
-CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES
+#: Keys YAML allows but a config cannot name: they said '{path}:1:1: [1]: Keys should be
+#: strings', at the file's start, naming no key.
+KEYS = [
+    Bad("number-key", SMALL + b"1: 2\n", "{path}:2:1: 1: a key must be a name, got 1 "
+        "(allowed: battery, environment, farm, properties, requirements, strategy, sweep, "
+        "times_min)"),
+    Bad("number-key-in-section", b"farm: {cols: 3, rows: 3, base: [0, 0], 7: 1}\n",
+        "{path}:1:40: farm.7: a key must be a name, got 7 (allowed: base, cols, route, rows, "
+        "spacing_m)"),
+    Bad("number-property-name", SMALL + b"properties: {1: 'P=? [ F \"success\" ]'}\n",
+        "{path}:2:14: properties.1: a key must be a name, got 1"),
+]
+
+CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS
 
 
 def _write(tmp_path: Path, case: Bad) -> Path:
