@@ -15,7 +15,7 @@ from collections.abc import Iterator, Mapping
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
-__all__ = ["new_file_mode", "staged", "write_text", "write_texts"]
+__all__ = ["can_create_in", "new_file_mode", "staged", "write_text", "write_texts"]
 
 
 def new_file_mode() -> int:
@@ -23,6 +23,18 @@ def new_file_mode() -> int:
     umask = os.umask(0o022)
     os.umask(umask)
     return 0o666 & ~umask
+
+
+def can_create_in(folder: Path) -> bool:
+    """True when a file can be made in *folder*: tried (and removed at once), since
+    ``os.access`` says yes to root everywhere (``/proc``) and cannot tell a full disk."""
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return False
+    try:
+        with tempfile.TemporaryFile(dir=folder):
+            return True
+    except OSError:
+        return False
 
 
 @contextmanager
@@ -33,8 +45,11 @@ def staged(path: Path, *, suffix: str | None = None) -> Iterator[Path]:
         suffix, such as matplotlib or pandas, need the target's); default ``.tmp``.
     """
     directory = path.parent if str(path.parent) else Path(".")
-    handle, name = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.",
-                                    suffix=suffix or ".tmp")
+    try:
+        handle, name = tempfile.mkstemp(dir=directory, prefix=f".{path.name}.",
+                                        suffix=suffix or ".tmp")
+    except OSError as exc:  # name the user's file, not the temporary one
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     os.close(handle)
     temporary = Path(name)
     try:

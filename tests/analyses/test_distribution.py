@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -53,7 +54,9 @@ def test_every_level_agrees_with_the_backward_kernel(mission: DTMC) -> None:
             kernel = reward_bounded_until_probs(mission.transitions, everywhere,
                                                 mission.labels[label], levels, t,
                                                 workspace=Workspace())[start]
-            assert cdf[t] == pytest.approx(kernel, abs=1e-13), (label, t)
+            # The pass stops once nothing is under way, which may be short of the horizon:
+            # past the last level the CDF stays at its last value.
+            assert cdf[min(t, cdf.size - 1)] == pytest.approx(kernel, abs=1e-13), (label, t)
     assert dist.p_success == pytest.approx(0.406, abs=1e-12)
     assert dist.success_cdf[-1] + dist.failure_cdf[-1] + dist.pending == pytest.approx(1.0)
 
@@ -70,7 +73,8 @@ def test_against_storm_at_several_deadlines(mission: DTMC, tmp_path: Path) -> No
     storm = _storm(text, props, tmp_path)
     dist = reward_distribution(mission, horizon=max(bounds))
     ours = [dist.p_success_within(t) if label == "success"
-            else float(dist.failure_cdf[t]) for t in bounds for label in ("success", "failure")]
+            else float(dist.failure_cdf[min(t, dist.failure_cdf.size - 1)])  # see above
+            for t in bounds for label in ("success", "failure")]
     assert ours == pytest.approx(storm, rel=1e-8, abs=1e-12)
     assert any(0 < v < 1 for v in storm)
 
@@ -183,7 +187,8 @@ def test_cli(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("args", [["--deadline", "5x"], ["--reward", "nope"],
-                                  ["--working-day", "8y"]])
+                                  ["--working-day", "8y"], ["--coverage", "0"],
+                                  ["--coverage", "-0.0"], ["--coverage", "nan"]])
 def test_cli_bad_input(args: list[str]) -> None:
     result = CliRunner().invoke(cli, ["distribution", *MISSION_ARGS, *args])
     assert result.exit_code == 2
@@ -195,3 +200,37 @@ def test_cli_keeps_existing_files(tmp_path: Path) -> None:
     csv.write_text("mine")
     result = CliRunner().invoke(cli, ["distribution", *MISSION_ARGS, "-o", str(csv)])
     assert result.exit_code == 2 and csv.read_text() == "mine"
+
+
+@pytest.mark.parametrize("output_format", ["table", "json", "csv"])
+def test_cli_when_success_is_unreachable(tmp_path: Path, output_format: str) -> None:
+    """No recharge allowed: every mission fails. The quantiles and E[mt | success] are
+    undefined: shown as such (and the plot drawn), not a CheckError traceback (exit 1)
+    nor nan printed as a value."""
+    png = tmp_path / "d.png"
+    result = CliRunner().invoke(cli, ["distribution", *MISSION_ARGS, "--set",
+                                      "battery.max_recharges=0", "--plot", str(png),
+                                      "--format", output_format])
+    assert result.exit_code == 0, (result.output, result.exception)
+    assert "nan" not in result.stdout.lower() and png.exists()
+    if output_format == "json":
+        doc = json.loads(result.stdout)
+        assert doc["p_success"] == 0 and doc["expected_given_success"] is None
+        assert set(doc["quantiles"].values()) == {None}
+    elif output_format == "csv":
+        assert '"50% quantile of mt to success",\n' in result.stdout
+    else:
+        assert re.search(r"^50% quantile of mt to success +—$", result.stdout, re.M)
+        assert "—: undefined: success is unreachable" in result.stdout
+
+
+def test_a_far_deadline_stops_once_nothing_is_under_way() -> None:
+    """A deadline of 10^8 minutes ran all of MAX_LEVELS (a million) empty levels, minutes
+    on the paper's farm; the pass now stops once the pending mass is rounding noise."""
+    result = CliRunner().invoke(cli, ["distribution", *MISSION_ARGS, "--deadline", "100000000",
+                                      "--format", "json"])
+    assert result.exit_code == 0, result.output
+    doc = json.loads(result.stdout)
+    assert doc["levels"] < 100_000 and doc["pending"] <= 1e-12
+    (deadline,) = doc["deadlines"]
+    assert deadline["p_success_within"] == pytest.approx(doc["p_success"], abs=1e-12)

@@ -182,3 +182,21 @@ def test_prism_simulate_reports_undecided_runs(loop: Path) -> None:
     # After one step only runs at x=1 are undecided (x=2, x=3 decide at once).
     assert entry["runs"] + entry["undecided"] == 50 and entry["undecided"] > 0
     assert "undecided after 1 steps" in result.stderr
+
+
+@pytest.mark.parametrize("output_format", ["table", "csv"])
+def test_simulate_with_every_run_undecided_prints_no_nan(output_format: str) -> None:
+    """No run decides within one step: no estimate, shown as '-' (table) or an empty cell
+    (csv), as JSON gives null, never 'nan' printed as if it were a value."""
+    result = run("simulate", str(EXAMPLE), *SMALL_ARGS, "--runs", "5", "--max-steps", "1",
+                 "--format", output_format)
+    assert result.exit_code == 0, result.output
+    assert "nan" not in result.stdout.lower()
+    if output_format == "csv":
+        rows = list(csv.DictReader(result.stdout.splitlines()))
+        assert {(r["estimate"], r["ci95_low"], r["ci95_high"], r["runs"]) for r in rows} == {
+            ("", "", "", "0")}
+    else:
+        row = result.stdout.splitlines()[2].split()
+        assert row[0] == "p_success" and row[2:4] == ["-", "-"]
+    assert "5 of 5 runs undecided after 1 steps" in result.stderr

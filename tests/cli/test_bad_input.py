@@ -114,6 +114,10 @@ CASES: list[tuple[str, list[str]]] = [
     # analyses
     ("explain-top", ["explain", CASE1, *SMALL, "--top", "0"]),
     ("explain-by", ["explain", CASE1, *SMALL, "--by", "nosuch"]),
+    # a million paths took minutes and gigabytes: at most 1,000
+    ("explain-top-huge", ["explain", CASE1, *SMALL, "--top", "1000000"]),
+    ("prism-explain-top-huge", ["prism", "die.pm", "--explain", "two", "--top", "1001"]),
+    ("report-top-huge", ["report", CASE1, *SMALL, "-o", "r.html", "--top", "1001"]),
     ("explain-output-exists", ["explain", CASE1, *SMALL, "-o", "existing.csv"]),
     ("explain-output-folder", ["explain", CASE1, *SMALL, "-o", "a_folder.csv"]),
     ("simulate-runs", ["simulate", CASE1, *SMALL, "--runs", "0"]),
@@ -132,6 +136,8 @@ CASES: list[tuple[str, list[str]]] = [
     ("reproduce-what", ["reproduce", "fig9"]),
     ("reproduce-all-no-dir", ["reproduce", "all"]),
     ("reproduce-dir-is-file", ["reproduce", "fig6", "-o", "existing.csv"]),
+    # the folder was made before the scheduler was found unreachable, and left behind
+    ("reproduce-scheduler", ["reproduce", "fig6", "--scheduler", "nosuch", "-o", "out/figs"]),
     # synthesize
     ("synthesize-require-range", ["synthesize", CASE1, *SYNTHESIS, "--require", "1.5"]),
     ("synthesize-require-text", ["synthesize", CASE1, *SYNTHESIS, "--require", "high"]),
@@ -182,6 +188,16 @@ CASES: list[tuple[str, list[str]]] = [
     ("unknown-command", ["chek", CASE1]),
     ("check-format", ["check", CASE1, "--format", "yaml"]),
     ("check-emit-exists", ["check", CASE1, *SMALL, "--emit", "existing.csv"]),
+    # a folder no file can be made in (/proc, even for root): refused before any work
+    ("explain-output-proc", ["explain", CASE1, *SMALL, "-o", "/proc/x.csv"]),
+    ("simulate-output-proc", ["simulate", CASE1, *SMALL, "--runs", "5", "-o", "/proc/x.csv"]),
+    ("distribution-output-proc", ["distribution", CASE1, *SMALL, "-o", "/proc/x.csv"]),
+    ("report-output-proc", ["report", CASE1, *SMALL, "-o", "/proc/r.html"]),
+    ("emit-output-proc", ["emit", CASE1, *SMALL, "-o", "/proc/out"]),
+    ("sweep-output-proc", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                           "-o", "/proc/r.csv"]),
+    ("sweep-plot-proc", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                         "--plot", "/proc/p.png"]),
 ]
 
 
@@ -211,3 +227,16 @@ def test_bad_input_is_one_line_exit_2_nothing_written(workdir: Path, args: list[
     assert "Traceback" not in result.stderr
     assert _snapshot(workdir) == before
     assert not [name for name in os.listdir(workdir) if name.startswith(".")]
+
+
+@pytest.mark.parametrize("args", [c[1] for c in CASES if c[0].endswith("-proc")],
+                         ids=[c[0] for c in CASES if c[0].endswith("-proc")])
+def test_an_unwritable_folder_is_named_with_its_option_before_any_work(
+        workdir: Path, args: list[str]) -> None:
+    """``os.access`` says yes to root in /proc: the folder is tried instead, so the refusal
+    comes first and names the option, not a hidden temporary file after the work."""
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2, result.output
+    option = args[args.index(next(a for a in args if a.startswith("/proc/"))) - 1]
+    assert result.stderr.startswith(f"error: {option} "), result.stderr
+    assert ".tmp" not in result.stderr and "checking" not in result.stderr

@@ -180,3 +180,63 @@ def test_simulate_output_checked_before_pybamm(tmp_path: Path) -> None:
     afile.write_text("")
     assert_one_error(run("phm", "simulate", "--power-w", "10", "-o", str(afile)),
                      "is a file, not a folder")
+
+
+@pytest.mark.parametrize("command", ["fade", "recheck", "forecast"])
+@pytest.mark.parametrize(("capacities", "expected"), [
+    # squaring 1e308 overflowed in the fit's AIC: an OverflowError traceback
+    ((1e308, 1e308, 1e308), "no meaningful fade fit"),
+    # a fit beyond the model's integers, whose fade was written as 0
+    ((1e300, 9e299, 8e299, 7e299), "7e+300 units of battery.resolution_ah (0.1); the model's "
+                                   "32-bit integers hold at most 1,073,741,823"),
+    ((1.1e7, 1.09e7, 1.08e7, 1.07e7), "the fitted fade 0.000935/cycle would round to 0"),
+], ids=["1e308", "1e300", "1e7"])
+def test_capacities_beyond_the_model_are_refused(tmp_path: Path, mission: Path, command: str,
+                                                 capacities: tuple[float, ...],
+                                                 expected: str) -> None:
+    log = tmp_path / "cycles.csv"
+    log.write_text("cycle,capacity_ah\n" + "".join(
+        f"{10 * i},{c!r}\n" for i, c in enumerate(capacities)))
+    args = {"fade": ["phm", "fade", str(log)],
+            "recheck": ["recheck", str(mission), "--cycles", str(log), *SMALL],
+            "forecast": ["phm", "forecast", str(mission), "--cycles", str(log), "--horizon",
+                         "10", *SMALL]}[command]
+    before = files(tmp_path)
+    assert_one_error(run(*args), expected)
+    assert files(tmp_path) == before
+
+
+@pytest.mark.parametrize("step", ["1e-320", "0.000001", "0.0001"])
+def test_levels_soc_step_too_fine_for_the_search(step: str) -> None:
+    """The best thresholds are searched over m x m grid pairs: 1e-320 overflowed (a
+    traceback), 0.0001 took 25 s and gigabytes, 0.000001 asked for 7 TiB."""
+    assert_one_error(run("phm", "levels", str(EXAMPLES / "discharge.csv"), "--soc-step", step),
+                     f"a SOC step of {float(step):g} puts more than 2,000 grid points",
+                     "give a coarser step")
+
+
+@pytest.mark.parametrize("command", ["levels", "recheck"])
+def test_a_flat_discharge_curve_is_refused(tmp_path: Path, mission: Path, command: str) -> None:
+    """Every threshold pair fits a constant voltage equally well: the thresholds written
+    (0.02/0.87) were arbitrary, with three equal levels; now a located error."""
+    curve = tmp_path / "discharge.csv"
+    curve.write_text("soc,voltage_v\n1,3.7\n0.5,3.7\n0,3.7\n")
+    args = (["phm", "levels", str(curve)] if command == "levels" else
+            ["recheck", str(mission), "--cycles", str(EXAMPLES / "cycles.csv"),
+             "--discharge", str(curve), *SMALL])
+    assert_one_error(run(*args), f"{curve}:4: row 3, column 'voltage_v': the voltage stays "
+                                 "at 3.7 V over the whole log")
+
+
+def test_recheck_change_of_an_undefined_value_is_blank(tmp_path: Path, mission: Path) -> None:
+    """A discharge curve in single-cell volts makes every mission fail: the conditional
+    expectations become undefined (nan, as check prints them) and their change was
+    printed '+nan'; now it is left blank (JSON: null)."""
+    curve = tmp_path / "discharge.csv"
+    curve.write_text("soc,voltage_v\n1,4.2\n0.75,3.9\n0.5,3.7\n0.25,3.5\n0,3.0\n")
+    result = run("recheck", str(mission), "--cycles", str(EXAMPLES / "cycles.csv"),
+                 "--discharge", str(curve), *SMALL)
+    assert result.exit_code == 0, result.output  # the mission states no requirement
+    row = next(line for line in result.stdout.splitlines()
+               if line.startswith("exp_mission_time_given_success"))
+    assert row.split()[2:] == ["nan"] and "+nan" not in result.stdout

@@ -131,6 +131,30 @@ def test_a_strategy_file_of_another_model_is_refused(exported: Path, tmp_path: P
     assert "'fly' is not exactly one choice of that state" in result.stderr
 
 
+@pytest.mark.parametrize("command", ["explain", "simulate", "distribution"])
+@pytest.mark.parametrize(("name", "edit", "expected"), [
+    ("strategy.txt", lambda data: data.replace(b"(0,", b"(99999999999999999999,", 1),
+     ":1: '99999999999999999999' is not a variable's value"),
+    ("strategy.json", lambda data: data.replace(b'"b": 60', b'"b": 99999999999999999999', 1),
+     ":1: 99999999999999999999 is not a variable's value"),
+    # the line after the file's last: its count of newlines + 1
+    ("strategy.txt", lambda data: data + b"(\xff)=x\n", ":{end}:2: not UTF-8 text (byte 0xff)"),
+], ids=["beyond-int64", "json-beyond-int64", "not-utf8"])
+def test_a_damaged_strategy_file_is_one_line_exit_2(exported: Path, tmp_path: Path,
+                                                    command: str, name: str, edit: Any,
+                                                    expected: str) -> None:
+    """A value beyond numpy's int64 raised OverflowError, a byte that is not UTF-8 a
+    UnicodeDecodeError: tracebacks, exit 1."""
+    damaged = tmp_path / name
+    damaged.write_bytes(edit((exported / name).read_bytes()))
+    expected = expected.replace("{end}", str((exported / name).read_bytes().count(b"\n") + 1))
+    extra = ("--runs", "5") if command == "simulate" else ()
+    result = _run(command, "--strategy", str(damaged), *extra)
+    assert result.exit_code == 2, result.output
+    assert result.stderr.strip().splitlines() == [result.stderr.strip()]
+    assert result.stderr.startswith(f"error: {damaged}{expected}"), result.stderr
+
+
 def test_the_strategy_view_names_the_action_taken() -> None:
     """Unit check of the view: the strategy's action, the model's name where unlabelled."""
     from veribattery.analyses.mission_view import MissionModel

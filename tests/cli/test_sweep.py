@@ -66,8 +66,13 @@ def test_table_one_row_per_point(config: str) -> None:
         ("--vary", "strategy.safe_t=0.3,1.5"),  # invalid at a point: found before checking
         ("--vary", "strategy.safe_t=0.3", "--plot-x", "battery.model"),
         ("--vary", "strategy.safe_t=0.3", "--set", "nope=1"),
+        # a property the model cannot resolve: bad input, not a failure of every point
+        ("--vary", "strategy.safe_t=0.3", "--set", 'properties.x=P=? [ F "nosuch" ]'),
+        ("--vary", "properties.x=a,b"),
+        # nesting beyond PyYAML's recursion: one line, not a RecursionError
+        ("--vary", "battery.capacity_ah=" + "[" * 3000),
     ],
-    ids=["range", "key", "point", "plot-x", "set"],
+    ids=["range", "key", "point", "plot-x", "set", "property", "varied-property", "nesting"],
 )
 def test_bad_input_exits_2_and_writes_nothing(
     config: str, tmp_path: Path, args: tuple[str, ...]
@@ -87,3 +92,14 @@ def test_unsupported_plot_type_and_missing_vary(config: str, tmp_path: Path) -> 
     result = run("sweep", config)
     assert result.exit_code == 2
     assert "--vary" in result.stderr
+
+
+def test_a_failed_point_leaves_no_nan_column(config: str) -> None:
+    """The failed point's row has no property: the table has no column named 'nan'."""
+    result = run("sweep", config, *SMALL_FARM, "--vary",
+                 """properties.x='P=? [ F "success" ]','P=? [ F pow(b,-1)=0 ]'""")
+    assert result.exit_code == 1, result.output
+    header = result.stdout.splitlines()[0].split()
+    assert header == ["properties.x", "states", "transitions", "x"]
+    assert "nan" not in result.stdout.lower()
+    assert "1 failed" in result.stderr

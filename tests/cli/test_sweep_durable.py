@@ -48,8 +48,10 @@ def test_sweep_section_in_config_and_vary_overrides_it(tmp_path: Path) -> None:
 
 def test_failed_point_exits_1_with_summary(tmp_path: Path) -> None:
     path = tmp_path / "mission.yaml"
+    # The second formula resolves but cannot be evaluated (pow(b,-1) of an int): that point
+    # fails; an unknown label would be bad input, refused before any point.
     path.write_text("sweep:\n  vary: ['properties.extra=\"P=? [ F \\\"success\\\" ]\",\"P=? "
-                    "[ F \\\"nope\\\" ]\"']\n")
+                    "[ F pow(b,-1)=0 ]\"']\n")
     result = run("sweep", str(path), *SMALL_FARM, "--format", "csv")
     assert result.exit_code == 1, result.output
     assert result.stderr.splitlines()[-1] == "2 points: 1 checked, 1 failed"
@@ -107,3 +109,47 @@ def test_unreachable_scheduler_exit_2_within_10_s(config: str, tmp_path: Path) -
     assert result.stderr.startswith("error: --scheduler tcp://127.0.0.1:9: cannot reach")
     assert result.stderr.count("\n") == 1
     assert list(tmp_path.iterdir()) == [Path(config)]
+
+
+def test_a_boolean_property_resumes_from_csv(config: str, tmp_path: Path) -> None:
+    """A P>0.5 [...] property's value is written True: reading it back evaluated
+    float('True') and a rerun died with a ValueError traceback."""
+    out = tmp_path / "r.csv"
+    args = ("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", "-o", str(out),
+            "--set", 'properties.b=P>0.5 [ F "success" ]', "--format", "csv")
+    assert run(*args).exit_code == 0
+    header, first, _ = out.read_text().splitlines()
+    out.write_text(f"{header}\n{first}\n")  # interrupted after the first point
+    again = run(*args)
+    assert again.exit_code == 0, again.output
+    assert "1 of 2 points already done" in again.stderr
+    assert [row["value"] for row in csv.DictReader(again.stdout.splitlines())] == ["True"] * 2
+
+
+@pytest.mark.parametrize(("suffix", "edit", "line", "why"), [
+    (".csv", lambda text: text.replace("\n0,", "\nx,", 1), 2,
+     "invalid literal for int() with base 10: 'x'"),
+    (".csv", lambda text: text.replace(",10,", ",10,nan1,", 1), 2,
+     "12 cells, the header has 11"),
+    (".csv", lambda text: text.rstrip("\n").rsplit(",", 3)[0] + "\n", 11,
+     "8 cells, the header has 11"),
+    (".csv", lambda text: text + "\xff\n", 12, "not UTF-8 text"),
+    (".jsonl", lambda text: text + "{not json\n", 11, "not JSON"),
+    (".jsonl", lambda text: text + "[1, 2]\n", 11, "not an object with this sweep's columns"),
+], ids=["point", "extra-cell", "missing-cells", "not-utf8", "not-json", "json-list"])
+def test_a_damaged_results_file_is_refused_on_one_line(
+        config: str, tmp_path: Path, suffix: str, edit: object, line: int, why: str) -> None:
+    """Rows the sweep did not write (edited by hand, a stray byte) gave tracebacks on
+    resume (ValueError, UnicodeDecodeError); now one line naming the file's line."""
+    out = tmp_path / f"r{suffix}"
+    args = ("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", "-o", str(out))
+    assert run(*args).exit_code == 0
+    damaged = edit(out.read_text())  # type: ignore[operator]
+    out.write_bytes(damaged.encode().replace("\xff".encode(), b"\xff"))  # a raw 0xff byte
+    before = out.read_bytes()
+    again = run(*args)
+    assert again.exit_code == 2, again.output
+    assert again.stderr.startswith(f"error: -o '{out}': line {line} is not a row this sweep "
+                                   f"wrote ({why}"), again.stderr
+    assert again.stderr.endswith("; use --force to start afresh, or pick another -o\n")
+    assert again.stderr.count("\n") == 1 and out.read_bytes() == before

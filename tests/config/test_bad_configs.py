@@ -8,6 +8,7 @@ overrides, and the message expected, ``{path}`` standing for the file's path.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -143,7 +144,29 @@ NUMBERS = [
         ("battery.max_recharges=100000000000000000000",)),
 ]
 
-CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS
+#: Farms too large to lay out (deriving the route of 10^12 turbines never ended).
+SIZES = [
+    Bad("farm-too-large", b"farm: {cols: 1000000000000, rows: 3, base: [0, 0]}\n",
+        "{path}:1:8: farm.cols: 1000000000000 x 3 turbines is too large a farm: cols x rows "
+        "must be at most 100,000"),
+    Bad("farm-too-large-set", b"", "farm.cols: 1000 x 101 turbines is too large a farm",
+        ("farm.cols=1000", "farm.rows=101")),
+]
+
+#: Keys YAML allows but a config cannot name: they said '{path}:1:1: [1]: Keys should be
+#: strings', at the file's start, naming no key.
+KEYS = [
+    Bad("number-key", SMALL + b"1: 2\n", "{path}:2:1: 1: a key must be a name, got 1 "
+        "(allowed: battery, environment, farm, properties, requirements, strategy, sweep, "
+        "times_min)"),
+    Bad("number-key-in-section", b"farm: {cols: 3, rows: 3, base: [0, 0], 7: 1}\n",
+        "{path}:1:40: farm.7: a key must be a name, got 7 (allowed: base, cols, route, rows, "
+        "spacing_m)"),
+    Bad("number-property-name", SMALL + b"properties: {1: 'P=? [ F \"success\" ]'}\n",
+        "{path}:2:14: properties.1: a key must be a name, got 1"),
+]
+
+CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS
 
 
 def _write(tmp_path: Path, case: Bad) -> Path:
@@ -248,3 +271,52 @@ def test_where_a_config_came_from_does_not_change_it(tmp_path: Path) -> None:
     from_set = load_config("", ["properties={p: 'P=? [ F \"done\" ]'}"])
     assert from_file == from_text == from_set == MissionConfig(
         properties={"p": 'P=? [ F "done" ]'})
+
+
+@pytest.mark.parametrize(("content", "overrides", "expected"), [
+    (("a: " + "[" * 2000 + "]" * 2000 + "\n").encode(), (),
+     r"{path}:1:\d+: YAML nested too deeply: "),
+    (b"farm:\n" + "".join("  " * i + f"a{i}:\n" for i in range(1, 600)).encode(), (),
+     r"{path}:\d+:\d+: YAML nested too deeply: "),
+    (b"", ("farm.base=" + "[" * 3000,),
+     r"--set 'farm.base=\[+': value is not valid YAML: YAML nested too deeply: "),
+], ids=["flow", "block", "set"])
+def test_deep_nesting_is_one_located_line(tmp_path: Path, content: bytes,
+                                          overrides: tuple[str, ...], expected: str) -> None:
+    """PyYAML composes nested nodes recursively: past a few hundred levels it raised
+    RecursionError, a traceback; now it is a config error placed where the nesting is."""
+    path = tmp_path / "mission.yaml"
+    path.write_bytes(content)
+    sets = [arg for item in overrides for arg in ("--set", item)]
+    for command in (["check", str(path), *sets], ["emit", str(path), *sets, "-o", "out"]):
+        result = CliRunner().invoke(cli, command)
+        assert result.exit_code == 2, result.output
+        assert result.stdout == "" and "Traceback" not in result.stderr
+        assert len(result.stderr.splitlines()) == 1, result.stderr
+        assert re.match("error: " + expected.replace("{path}", re.escape(str(path))),
+                        result.stderr), result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("content", "overrides", "expected"), [
+    (SMALL + b'properties:\n  ok: P=? [ F "success" ]\n  bad: P=? [ F mod(b,0)=1 ]\n', (),
+     "{path}:4:16: properties.bad: modulo with non-positive divisor"),
+    (SMALL + b"properties:\n  bad: |\n    P=? [\n      F mod(b,0)=1 ]\n", (),
+     "{path}:5:9: properties.bad: modulo with non-positive divisor"),
+    (SMALL, ("properties.x=P=? [ F pow(b,-1)=0 ]",),
+     "--set properties.x: column 9 of the formula: negative exponent in integer pow"),
+], ids=["file", "block", "set"])
+@pytest.mark.parametrize("exact", [False, True], ids=["float", "exact"])
+def test_a_formula_failing_in_the_check_is_placed_in_the_config(
+        tmp_path: Path, content: bytes, overrides: tuple[str, ...], expected: str,
+        exact: bool) -> None:
+    """A formula that resolves but cannot be evaluated fails in the check, where the
+    error was placed in the rendered 'properties.props:3:14', a file the user never
+    wrote; now at the formula's place in the config, or its --set."""
+    path = tmp_path / "mission.yaml"
+    path.write_bytes(content)
+    sets = [arg for item in overrides for arg in ("--set", item)]
+    result = CliRunner().invoke(cli, ["check", str(path), *sets, *(["--exact"] * exact)])
+    assert result.exit_code == 2, result.output
+    assert result.stderr.startswith("error: " + expected.replace("{path}", str(path)))
+    assert "properties.props" not in result.stderr and result.stdout == ""

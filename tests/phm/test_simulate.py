@@ -54,3 +54,23 @@ def test_power_beyond_the_cell_is_one_line(tmp_path: Path) -> None:
     assert "PyBaMM could not solve the experiment at 2000 W per cell" in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(("args", "expected"), [
+    (["--power-w", "nan"], "--power-w: must be a number of watts > 0, got nan"),
+    (["--power-w", "inf"], "--power-w: must be a number of watts > 0, got inf"),
+    (["--power-w", "10", "--period-s", "nan"], "--period-s: must be a number of seconds >= 1"),
+    (["--power-w", "10", "--period-s", "inf"], "--period-s: must be a number of seconds >= 1"),
+    # PyBaMM reads '1e+308 W' as '1e' watts: a ValueError traceback; now it is solved
+    (["--power-w", "1e308"], "PyBaMM could not solve the experiment at 1e+308 W per cell"),
+    # 24 h at 0.1 W leaves the cell at 4.09 V: a partial discharge was written as if whole
+    (["--power-w", "0.1"], "--power-w 0.1: after 86400 s the cells are still at 4.09 V, "
+                           "above their 2.5 V cut-off: not a whole discharge"),
+], ids=["nan", "inf", "period-nan", "period-inf", "1e308", "too-low"])
+def test_powers_and_periods_pybamm_cannot_use(tmp_path: Path, args: list[str],
+                                              expected: str) -> None:
+    result = CliRunner().invoke(cli, ["phm", "simulate", *args, "-o", str(tmp_path / "out")])
+    assert result.exit_code == 2, (result.output, result.exception)
+    assert result.stderr.startswith(f"error: {expected}"), result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()

@@ -131,14 +131,15 @@ def test_bad_targets(tmp_path: Path, name: str, expected: str) -> None:
 
 
 def test_failed_point_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> None:
-    # A property with an undeclared label fails at the second point only.
-    axis = Axis("properties.extra", ('P=? [ F "success" ]', 'P=? [ F "nope" ]'))
+    # A property that resolves but cannot be evaluated fails at the second point only (one
+    # naming an undeclared label is bad input: refused before any point is checked).
+    axis = Axis("properties.extra", ('P=? [ F "success" ]', "P=? [ F pow(b,-1)=0 ]"))
     path = tmp_path / "r.jsonl"
     frame = run_sweep("", [axis], SMALL_FARM, results=path)
     assert frame.attrs["failed"] == 1
     failed = frame[frame["point"] == 1]
     assert len(failed) == 1 and failed["property"].isna().all()
-    assert "nope" in str(failed["error"].iloc[0])
+    assert "negative exponent" in str(failed["error"].iloc[0])
     # Setting properties.extra replaces the default properties: one property per point.
     good = frame[frame["point"] == 0].set_index("property")["value"]
     assert good["extra"] == pytest.approx(0.9999999998513445, rel=1e-9)  # as `check` gives

@@ -7,9 +7,10 @@ total reward of exactly each value, by one forward pass over reward levels
 (:func:`veribattery.checker.kernels.reward_bounded.absorption_by_level`): exact up to
 floating-point rounding, not sampled. The pass stops once the CDF of the time to
 success has reached *coverage* of ``P(F success)`` (and likewise for failure) and
-every requested horizon has been passed; what is cut off is reported as
-:attr:`Distribution.pending` — the probability of being still under way after
-the last level, an upper bound on every CDF's missing tail.
+every requested horizon has been passed, or as soon as nothing is still under way
+(up to rounding); what is cut off is reported as :attr:`Distribution.pending` — the
+probability of being still under way after the last level, an upper bound on every
+CDF's missing tail.
 
 The reward counted is the one Storm counts for ``F{"r"}<=T``: every step up to and
 including the step that enters the success or failure state.
@@ -94,14 +95,22 @@ class Distribution:
 
         :raises CheckError: when success is impossible or the pass stopped before q.
         """
-        if self.p_success <= 0:
+        value = self.quantile_or_none(q)
+        if value is None and self.p_success <= 0:
             raise CheckError("success is unreachable, so its quantiles are undefined")
+        if value is None:
+            raise CheckError(f"the distribution was cut before its {q:.4g} quantile")
+        return value
+
+    def quantile_or_none(self, q: float) -> float | None:
+        """:meth:`quantile`, or None where it is undefined: success is impossible, or the
+        pass stopped (at its *coverage*) before q."""
+        if self.p_success <= 0:
+            return None
         cdf = self.success_cdf / self.p_success
         # Rounding may leave the last value a hair below the exact 1.
         index = int(np.searchsorted(cdf, q * (1 - 1e-12), side="left"))
-        if index >= cdf.size:
-            raise CheckError(f"the distribution was cut before its {q:.4g} quantile")
-        return float(self.values[index])
+        return float(self.values[index]) if index < cdf.size else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -159,14 +168,18 @@ def reward_distribution(dtmc: DTMC, reward: str = "mt", success: str = "success"
 
     :param coverage: continue until this fraction of ``P(F success)`` and of
         ``P(F failure)`` has been absorbed.
-    :param horizon: and at least up to this total reward (the largest deadline).
+    :param horizon: and at least up to this total reward (the largest deadline), unless
+        the pending mass has fallen to rounding noise before it.
     :param max_levels: give up (CheckError) after this many levels.
     :param workspace: the checker's caches to share (those a check of *dtmc* filled:
         its linear systems); None: new ones for this distribution.
     :param progress: told the number of reward levels done after each one.
     :raises CheckError: for unknown labels or reward structures, non-integer
         rewards, or a pass that does not reach *coverage* within *max_levels*.
+    :raises ConfigError: when *coverage* is not in (0, 1].
     """
+    if not 0 < coverage <= 1:  # 0 (or nan) stops at once: no quantile is ever reached
+        raise ConfigError(f"coverage must be in (0, 1], got {coverage}")
     workspace = Workspace() if workspace is None else workspace
     structure = _structure(dtmc, reward)
     levels = reward_bounded.integer_rewards(dtmc, structure, _NO_SPAN)
@@ -197,8 +210,10 @@ def _stop_rule(exact: Sequence[float], coverage: float, horizon: float,
     def stop(level: int, absorbed: FloatArray, pending: float) -> bool:
         if progress is not None:
             progress(level + 1)
-        return level * unit >= horizon and (
-            _covered(absorbed, exact, coverage) or pending <= ROUNDING)
+        # Once nothing is under way (up to rounding) no later level adds mass: stop even
+        # short of the horizon (a deadline of 10^8 minutes ran a million empty levels).
+        return pending <= ROUNDING or (
+            level * unit >= horizon and _covered(absorbed, exact, coverage))
 
     return stop
 
@@ -272,7 +287,9 @@ def plot_distribution(dist: Distribution, deadlines: Sequence[Deadline],
     # from the top, so that labels at equal or near abscissae never overprint.
     where = ax.get_xaxis_transform()
     for i, q in enumerate(QUANTILES):
-        value = dist.quantile(q)
+        value = dist.quantile_or_none(q)
+        if value is None:  # success unreachable, or beyond the coverage: no line
+            continue
         ax.axvline(value, color="tab:green", linestyle=":", linewidth=1)
         ax.text(value, 0.04 + 0.07 * i, f" {q:.0%} quantile: {value:g}", transform=where,
                 fontsize=8, color="tab:green")
@@ -285,8 +302,9 @@ def plot_distribution(dist: Distribution, deadlines: Sequence[Deadline],
     ax.set_xlabel(f"accumulated reward {dist.reward!r}")
     ax.set_ylabel("probability (cumulative)")
     ax.set_ylim(0, 1.02)
+    given = dist.expected_given_success
     ax.set_title(f"P(done with {dist.reward} <= T)   E[{dist.reward} | success] = "
-                 f"{dist.expected_given_success:.6g}")
+                 + ("undefined (success unreachable)" if math.isnan(given) else f"{given:.6g}"))
     ax.grid(True, alpha=0.3)
     ax.legend(loc="upper left")
     with staged(path, suffix=path.suffix) as temporary:

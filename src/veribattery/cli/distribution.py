@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -13,6 +14,7 @@ from veribattery.cli.explain import induced_mission, strategy_option
 from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, check_output_file
 from veribattery.cli.output import (
     build_progress,
+    print_dim,
     print_warnings,
     print_written,
     set_option,
@@ -34,7 +36,8 @@ if TYPE_CHECKING:
                    "(5d); repeatable.")
 @click.option("--working-day", default="8h", show_default=True,
               help="Length of a working day 'd' (e.g. 8h, 480, 24h).")
-@click.option("--coverage", default=0.999, show_default=True, type=click.FloatRange(0, 1),
+@click.option("--coverage", default=0.999, show_default=True,
+              type=click.FloatRange(0, 1, min_open=True),
               help="Compute the CDF until this fraction of P(success) and P(failure).")
 @click.option("-o", "--output", "csv_path", type=click.Path(path_type=Path),
               help="Write the CDF as CSV (one row per reward level).")
@@ -79,7 +82,7 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
     elif output_format == "csv":
         click.echo("quantity,value")
         for name, value in _summary(dist, limits):
-            click.echo(f'"{name}",{value!r}')
+            click.echo(f'"{name}",{"" if value is None else repr(value)}')
     else:
         _print_table(dist, limits)
 
@@ -95,12 +98,16 @@ def _distribution(dtmc: object, reward: str, coverage: float, limits: tuple[Dead
                                progress=progress)
 
 
-def _summary(dist: Distribution, limits: tuple[Deadline, ...]) -> list[tuple[str, float]]:
+def _summary(dist: Distribution, limits: tuple[Deadline, ...]
+             ) -> list[tuple[str, float | None]]:
+    """The quantities shown; None where undefined (success unreachable, or a quantile
+    beyond the coverage)."""
     from veribattery.analyses.distribution import QUANTILES
 
-    rows = [("P(success)", dist.p_success), ("P(failure)", dist.p_failure),
-            (f"E[{dist.reward} | success]", dist.expected_given_success)]
-    rows += [(f"{q:.0%} quantile of {dist.reward} to success", dist.quantile(q))
+    rows: list[tuple[str, float | None]] = [
+        ("P(success)", dist.p_success), ("P(failure)", dist.p_failure),
+        (f"E[{dist.reward} | success]", _defined(dist.expected_given_success))]
+    rows += [(f"{q:.0%} quantile of {dist.reward} to success", dist.quantile_or_none(q))
              for q in QUANTILES]
     rows += [(f"P(success within {d.text} = {d.value:g})", dist.p_success_within(d.value))
              for d in limits]
@@ -111,8 +118,16 @@ def _summary(dist: Distribution, limits: tuple[Deadline, ...]) -> list[tuple[str
 def _print_table(dist: Distribution, limits: tuple[Deadline, ...]) -> None:
     click.echo(f"Distribution of {dist.reward!r} to success/failure: {dist.values.size:,} "
                f"levels, up to {dist.values[-1]:g}")
-    print_table(("quantity", "value"), [(name, f"{value:.10g}")
-                                        for name, value in _summary(dist, limits)])
+    rows = _summary(dist, limits)
+    print_table(("quantity", "value"), [(name, "—" if value is None else f"{value:.10g}")
+                                        for name, value in rows])
+    if any(value is None for _, value in rows):
+        print_dim("—: undefined: success is unreachable, or the quantile lies beyond the "
+                  "levels computed (raise --coverage)")
+
+
+def _defined(value: float) -> float | None:
+    return None if math.isnan(value) else value
 
 
 def _json(dist: Distribution, limits: tuple[Deadline, ...]) -> dict[str, object]:
@@ -122,8 +137,8 @@ def _json(dist: Distribution, limits: tuple[Deadline, ...]) -> dict[str, object]
         "reward": dist.reward,
         "p_success": dist.p_success,
         "p_failure": dist.p_failure,
-        "expected_given_success": dist.expected_given_success,
-        "quantiles": {str(q): dist.quantile(q) for q in QUANTILES},
+        "expected_given_success": _defined(dist.expected_given_success),
+        "quantiles": {str(q): dist.quantile_or_none(q) for q in QUANTILES},
         "deadlines": [{"deadline": d.text, "value": d.value,
                        "p_success_within": dist.p_success_within(d.value)} for d in limits],
         "levels": int(dist.values.size),

@@ -57,9 +57,9 @@ CSV_COLUMNS = ("path", "probability", "step", "action", "state", "s", "k", "j", 
                "wsp", "b", "rc", "charge_ah", "soc", "level")
 
 
-#: The most simulated runs asked for at once: each keeps a few bytes of state, so more
-#: would not fit in memory anyway (and numpy cannot even size the arrays past 2^63).
-MOST_RUNS = 10**12
+#: The most simulated runs asked for at once (each keeps a few bytes of state; numpy cannot
+#: size arrays past 2^63), and the most paths shown (10,000 take a minute and a gigabyte).
+MOST_RUNS, MOST_PATHS = 10**12, 1000
 
 
 def _positive(name: str, most: int | None = None
@@ -120,7 +120,7 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @click.command("explain", short_help="Where failures come from: breakdown and paths.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
-@click.option("--top", default=3, show_default=True, callback=_positive("--top"),
+@click.option("--top", default=3, show_default=True, callback=_positive("--top", MOST_PATHS),
               help="How many most probable failure paths.")
 @click.option("--by", "by", multiple=True, metavar="KEYS",
               help="Groupings, comma-separated; join keys with + for a joint grouping "
@@ -390,9 +390,10 @@ def _show_simulation(simulation: Simulation, output_format: str) -> None:
     rows = []
     for e in simulation.estimates:
         exact = format_value(e.exact) if e.exact is not None else "-"
-        ci = f"[{e.ci95[0]:.6g}, {e.ci95[1]:.6g}]"
+        estimate = f"{e.estimate:.6g}" if e.runs else "-"  # every run undecided: no nan
+        ci = f"[{e.ci95[0]:.6g}, {e.ci95[1]:.6g}]" if e.runs else "-"
         runs = f"{e.runs:,}" + (f" ({e.undecided:,} undecided)" if e.undecided else "")
-        rows.append((e.name, exact, f"{e.estimate:.6g}", ci, runs))
+        rows.append((e.name, exact, estimate, ci, runs))
     print_table(("property", "exact", "estimate", "95% CI", "runs"), rows)
     out.print(f"{simulation.runs:,} runs, seed {simulation.seed}, "
               f"longest {simulation.steps:,} steps", style="dim", markup=False)
@@ -407,8 +408,9 @@ def _simulation_csv(simulation: Simulation) -> None:
     writer.writerow(["property", "value", "estimate", "ci95_low", "ci95_high", "runs",
                      "undecided"])
     for e in simulation.estimates:
-        writer.writerow([e.name, "" if e.exact is None else repr(e.exact), repr(e.estimate),
-                         repr(e.ci95[0]), repr(e.ci95[1]), e.runs, e.undecided])
+        writer.writerow([e.name, "" if e.exact is None else repr(e.exact),
+                         *("" if math.isnan(x) else repr(x) for x in (e.estimate, *e.ci95)),
+                         e.runs, e.undecided])
 
 
 def _number(value: float | None) -> object:
@@ -443,7 +445,7 @@ def prism_analysis_options(function: Callable[..., None]) -> Callable[..., None]
     for option in reversed((
         click.option("--explain", metavar="LABEL",
                      help="Break P(F LABEL) down by variable values; show the top paths."),
-        click.option("--top", default=3, show_default=True, callback=_positive("--top"),
+        click.option("--top", default=3, show_default=True, callback=_positive("--top", MOST_PATHS),
                      help="With --explain: how many most probable paths."),
         click.option("--simulate", type=int, metavar="N",
                      callback=_positive("--simulate", MOST_RUNS),

@@ -8,10 +8,10 @@ Writing itself goes through :mod:`veribattery._files` (atomic, modes from the um
 
 from __future__ import annotations
 
-import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
+from veribattery._files import can_create_in
 from veribattery.errors import OptionError
 
 __all__ = [
@@ -59,7 +59,7 @@ def check_output_dir(path: Path, option: str, *, force: bool,
     if path.exists() and not path.is_dir():
         raise OptionError(f"{where}: is a file, not a folder")
     existing = _nearest_existing(path)
-    if not os.access(existing, os.W_OK | os.X_OK):
+    if not can_create_in(existing):
         raise OptionError(f"{where}: cannot write into {existing}")
     clashes = [name for name in names if (path / name).exists()]
     if clashes and not force:
@@ -71,7 +71,7 @@ def _check_folder(folder: Path, where: str) -> None:
     folder = folder if str(folder) else Path(".")
     if not folder.is_dir():
         raise OptionError(f"{where}: folder {folder} does not exist; create it first")
-    if not os.access(folder, os.W_OK | os.X_OK):
+    if not can_create_in(folder):
         raise OptionError(f"{where}: cannot write into folder {folder}")
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from veribattery.cli.explain import MOST_RUNS
+from veribattery.cli.explain import MOST_PATHS, MOST_RUNS
 from veribattery.cli.files import check_output_file
 from veribattery.cli.output import (
     build_progress,
@@ -86,6 +86,8 @@ def _check_counts(runs: int, top: int) -> None:
         raise OptionError(f"--runs must be at most {MOST_RUNS:,}, not {runs:,}")
     if top < 1:
         raise OptionError(f"--top must be at least 1, not {top}")
+    if top > MOST_PATHS:
+        raise OptionError(f"--top must be at most {MOST_PATHS:,}, not {top:,}")
 
 
 def _command_line(ctx: click.Context) -> str:

@@ -67,8 +67,13 @@ def reproduce_command(
     with user_errors():
         check_output_dir(directory, "-o", force=force, names=_products(what))
     options = _options(jobs or default_jobs(), scheduler)
+    new = [folder for folder in (directory, *directory.parents) if not folder.exists()]
     try:
         _reproduce(what, directory, options, output_format, optimal)
+    except SystemExit as exc:
+        if exc.code:  # bad input (an unreachable scheduler): leave no empty folder behind
+            _remove_empty(new)
+        raise
     except KeyboardInterrupt:
         err.print(f"interrupted; finished points are kept in {directory}: rerun to resume",
                   markup=False)
@@ -133,6 +138,13 @@ def _options(jobs: int, scheduler: str | None) -> Any:
             told[0] = now
 
     return SweepOptions(jobs, scheduler, progress, note)
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove *folders* (deepest first) that this run made and left empty."""
+    for folder in folders:
+        if folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
 
 
 def _mkdir(directory: Path) -> Path:

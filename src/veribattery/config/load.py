@@ -201,7 +201,7 @@ def _locate(node: yaml.Node | None, path: Path, source: str) -> Span | None:
 def _child(node: yaml.Node | None, part: str | int) -> tuple[Any, yaml.Node] | None:
     if isinstance(node, yaml.MappingNode):
         for key, value in node.value:
-            if key.value == part:
+            if key.value == str(part):  # an int part: a key written as a number
                 return key.start_mark, value
     if isinstance(node, yaml.SequenceNode) and isinstance(part, int) and part < len(node.value):
         item = node.value[part]

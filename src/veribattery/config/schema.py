@@ -39,6 +39,7 @@ from veribattery.config.origin import PropertyOrigins
 from veribattery.errors import ConfigError, Span
 
 __all__ = [
+    "MAX_TURBINES",
     "BatteryConfig",
     "Cell",
     "ConsumptionEq2",
@@ -140,6 +141,10 @@ class _Section(BaseModel):
         return merged
 
 
+#: The most turbines a farm may have (a 300 x 300 farm is emitted in about 20 s).
+MAX_TURBINES = 100_000
+
+
 class FarmConfig(_Section):
     """The wind farm: a lattice of ``cols x rows`` turbines and the cells between them."""
 
@@ -156,7 +161,6 @@ class FarmConfig(_Section):
             raise problem(f"must be at least 2 turbines, got {value}")
         return value
 
-
     @property
     def cells(self) -> tuple[int, int]:
         """Number of cells across and up: one fewer than the turbines."""
@@ -164,6 +168,9 @@ class FarmConfig(_Section):
 
     @model_validator(mode="after")
     def _cells_fit(self) -> Self:
+        if self.cols * self.rows > MAX_TURBINES:  # else deriving the route takes forever
+            raise problem(f"{self.cols} x {self.rows} turbines is too large a farm: cols x rows "
+                          f"must be at most {MAX_TURBINES:,}", "cols")
         if not self._inside(self.base):
             raise problem(f"cell {show(self.base)} is outside the {self._extent()}", "base")
         if isinstance(self.route, tuple):

@@ -36,11 +36,22 @@ def compose(text: str, source: str | None, prefix: str = "") -> yaml.Node | None
     :raises ConfigError: on YAML syntax errors and on a key given twice in a mapping.
     """
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        loader = yaml.SafeLoader(text)
+    except yaml.YAMLError as exc:  # the reader refuses control characters at once
+        raise yaml_error(exc, text, source) from None
+    try:
+        root = loader.get_single_node()
+        if root is not None:
+            _check_unique_keys(root, prefix, (yaml.constructor.SafeConstructor(), source))
     except yaml.YAMLError as exc:
         raise yaml_error(exc, text, source) from None
-    if root is not None:
-        _check_unique_keys(root, prefix, (yaml.constructor.SafeConstructor(), source))
+    except RecursionError:  # PyYAML composes nested lists and mappings recursively
+        mark = loader.get_mark()
+        raise ConfigError("YAML nested too deeply: a config's lists and mappings nest a few "
+                          "levels, not hundreds", Span(mark.line + 1, mark.column + 1, source)
+                          if source is not None else None) from None
+    finally:
+        loader.dispose()
     return root
 
 

@@ -67,10 +67,14 @@ def _suggest(path: Path) -> str:
     close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
     if close:
         return f"unknown key (did you mean '{close[0]}'?)"
+    return f"unknown key (allowed: {_allowed(path)})"
+
+
+def _allowed(path: Path) -> str:
+    """The keys that may stand where the last key of *path* does."""
     parent = dotted(path[:-1]) + "." if len(path) > 1 else ""
     siblings = [k[len(parent) :] for k in known_keys() if k.startswith(parent)]
-    allowed = sorted({k.split(".")[0] for k in siblings})
-    return f"unknown key (allowed: {', '.join(allowed)})"
+    return ", ".join(sorted({k.split(".")[0] for k in siblings}))
 
 
 _TYPE_WORDS = {
@@ -93,6 +97,11 @@ def _describe(error: Mapping[str, Any]) -> tuple[Path, str]:
             subkey: Path = tuple(int(p) if p.isdigit() else p for p in ctx["key"].split("."))
             path = path + subkey
         return path, str(ctx["message"])
+    if kind == "invalid_key" and path:  # YAML allows 1: or ~: as a key; a config does not
+        path = (*path[:-1], str(path[-1]))
+        return path, f"a key must be a name, got {show(error['input'])} (allowed: {_allowed(path)})"
+    if path and path[-1] == "[key]" and len(path) > 1:  # a dict's key (properties: {1: ...})
+        return (*path[:-2], str(path[-2])), f"a key must be a name, got {show(error['input'])}"
     if kind == "extra_forbidden":
         return path, _suggest(path)
     if kind == "literal_error":

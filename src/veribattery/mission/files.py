@@ -28,8 +28,8 @@ from veribattery.lang.property_rules import STEPS_REWARD
 from veribattery.lang.semantics import BUILTIN_LABELS
 
 __all__ = ["CONFIG_FILE", "EMITTED_FILES", "MODEL_FILE", "PROPERTIES_FILE", "STORM_ONLY_FILE",
-           "MissionFiles", "is_storm_only", "mission_files", "validate_properties",
-           "write_files"]
+           "MissionFiles", "is_storm_only", "mission_files", "placed_in_config",
+           "validate_properties", "write_files"]
 
 MODEL_FILE = "model.prism"
 #: The properties PRISM and Storm both read.
@@ -140,6 +140,26 @@ def _placed(cfg: MissionConfig, name: str) -> Iterator[None]:
     except VeribatteryError as exc:
         at = exc.span if exc.span is not None and exc.span.source == _FORMULA else None
         raise cfg.property_error(name, exc.message.split("\n")[0], at) from None
+
+
+@contextmanager
+def placed_in_config(cfg: MissionConfig, props: PropertiesFile) -> Iterator[None]:
+    """Errors the check finds in the rendered properties file (``properties.props:8:14``,
+    a file the user never wrote), placed where the property was written instead."""
+    try:
+        yield
+    except VeribatteryError as exc:
+        span = exc.span
+        named = [p for p in props.properties if p.name in cfg.properties
+                 and span is not None and span.source == PROPERTIES_FILE
+                 and p.span.line <= span.line]
+        if span is None or not named:
+            raise
+        prop = named[-1]
+        line = span.line - prop.span.line + 1
+        column = span.col - (prop.span.col - 1 + len(f'"{prop.name}": ') if line == 1 else 0)
+        raise cfg.property_error(str(prop.name), exc.message.split("\n")[0],
+                                 Span(line, max(column, 1), _FORMULA)) from None
 
 
 def is_storm_only(formula: object) -> bool:

@@ -14,7 +14,7 @@ from veribattery.config import MissionConfig
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang import flatten_model, parse_model
 from veribattery.lang.nodes import Model, PropertiesFile
-from veribattery.mission.files import MODEL_FILE, mission_files
+from veribattery.mission.files import MODEL_FILE, mission_files, placed_in_config
 from veribattery.mission.parses import ParseCache
 from veribattery.mission.report import MissionReport, mission_report, recharge_cap_property
 from veribattery.pipeline import (
@@ -90,9 +90,10 @@ def check_mission(
     if not exact:
         return MissionSession(keep=keep, reuse=False).check(mission, progress=progress)
     model, props = _parsed(ParseCache(), mission)
-    run = check_model_exact(model, props.properties, props_file=props, progress=progress,
-                            options=CheckOptions(keep, undefined_as_nan=True),
-                            internal=(recharge_cap_property(cfg),))
+    with placed_in_config(cfg, props):
+        run = check_model_exact(model, props.properties, props_file=props, progress=progress,
+                                options=CheckOptions(keep, undefined_as_nan=True),
+                                internal=(recharge_cap_property(cfg),))
     return mission_report(cfg, run)
 
 
@@ -158,9 +159,10 @@ class MissionSession:
         if isinstance(mission, MissionConfig):
             mission = RenderedMission.of(mission)
         model, props = _parsed(self.parses, mission)
-        run = self.session.check(model, props.properties, props_file=props,
-                                 progress=progress,
-                                 internal=(recharge_cap_property(mission.config),))
+        with placed_in_config(mission.config, props):
+            run = self.session.check(model, props.properties, props_file=props,
+                                     progress=progress,
+                                     internal=(recharge_cap_property(mission.config),))
         return mission_report(mission.config, run)
 
 

@@ -344,6 +344,11 @@ def _check_soc_monotone(table: Table, soc: FloatArray, order: IntArray, column: 
 
 def _check_voltage_falls(table: Table, voltage: FloatArray, order: IntArray) -> None:
     ordered = voltage[order]
+    if float(np.ptp(ordered)) <= 1e-9 * max(float(np.max(np.abs(ordered))), 1.0):
+        # Every threshold pair fits a flat curve equally: the fitted ones would be arbitrary.
+        raise table.error(len(table) - 1, "voltage_v",
+                          f"the voltage stays at {ordered[0]:g} V over the whole log, so no "
+                          "voltage levels can be told apart; log a discharge whose voltage falls")
     tolerance = VOLTAGE_NOISE * max(float(np.ptp(ordered)), 1e-9)
     lowest = np.minimum.accumulate(ordered)
     rises = np.flatnonzero(ordered - lowest > tolerance)

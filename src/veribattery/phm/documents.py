@@ -8,6 +8,8 @@ strings).
 
 from __future__ import annotations
 
+import math
+
 from veribattery.phm.fade import FadeReport
 from veribattery.phm.forecast import Forecast
 from veribattery.phm.levels import LEVELS, WINDS, StepFit
@@ -99,9 +101,11 @@ def recheck_document(result: Recheck) -> dict[str, object]:
 
 
 def _change(before: object, after: object) -> float | None:
-    """``after - before`` for two numbers, else None (booleans are not numbers here)."""
+    """``after - before`` for two numbers, else None (booleans are not numbers here, and an
+    undefined value, NaN, has no change)."""
     if isinstance(before, bool) or isinstance(after, bool):
         return None
     if isinstance(before, int | float) and isinstance(after, int | float):
-        return float(after) - float(before)
+        change = float(after) - float(before)
+        return None if math.isnan(change) else change  # undefined on one side: no change
     return None

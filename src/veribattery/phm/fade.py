@@ -120,8 +120,10 @@ _CURVES: dict[str, Curve] = {"linear": _linear, "exponential": _exponential, "kn
 def _aic(residuals: FloatArray, k: int, scale: float) -> float:
     """Gaussian AIC; SSE is floored so exact (synthetic) data does not give ``-inf``."""
     n = len(residuals)
-    sse = max(float(residuals @ residuals), n * (1e-12 * scale) ** 2)
-    return n * math.log(sse / n) + 2 * k
+    # In logs: squaring a capacity near the float range (1e308 Ah) overflowed.
+    floor = 2 * math.log(1e-12 * scale)
+    mse = float(np.mean(np.square(residuals / scale))) * scale * scale
+    return n * max(math.log(mse) if mse > 0 else -math.inf, floor) + 2 * k
 
 
 def _finish(name: str, formula: str, names: tuple[str, ...], theta: FloatArray,

@@ -23,6 +23,9 @@ __all__ = ["Eq2Inputs", "StepFit", "eq2_table", "fit_steps", "resample", "step_e
 
 LEVELS = ("low", "medium", "high")
 WINDS = ("low_wind", "high_wind")
+#: The most SOC grid points a fit searches (its arrays are m x m: 2,000 take 32 MB each;
+#: 1e-320 as a step overflowed, 0.0001 took 25 s and gigabytes).
+MAX_GRID = 2000
 
 
 def resample(curve: DischargeCurve, step: Fraction) -> tuple[FloatArray, FloatArray, int]:
@@ -31,6 +34,10 @@ def resample(curve: DischargeCurve, step: Fraction) -> tuple[FloatArray, FloatAr
     :returns: (soc grid, voltage, the grid index of its first point, in units of step).
     """
     lowest, highest = float(curve.soc.min()), float(curve.soc.max())
+    if (highest - lowest) / float(step) > MAX_GRID:  # the best pair is searched in m x m
+        raise PhmDataError(f"{curve.source}: a SOC step of {float(step):g} puts more than "
+                           f"{MAX_GRID:,} grid points on the SOC range {lowest:.3g}.."
+                           f"{highest:.3g}; give a coarser step, e.g. 0.01")
     first = int(np.ceil(lowest / float(step) - 1e-9))
     last = int(np.floor(highest / float(step) + 1e-9))
     if last - first < 2:

@@ -16,6 +16,7 @@ import numpy as np
 
 from veribattery.config import MissionConfig
 from veribattery.config.exact import show
+from veribattery.config.params import PRISM_INT_MAX
 from veribattery.config.schema import ConsumptionEq2
 from veribattery.phm.data import CycleLog, DischargeCurve, PhmDataError
 from veribattery.phm.fade import FadeFit, FadeReport, choose
@@ -83,8 +84,20 @@ def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = 
         raise PhmDataError(f"{where}: the {fit.name} fit has the capacity rising at cycle "
                            f"{cycle:g} (fade {fade:.3g}/cycle); not a meaningful fade fit")
     grid = on_grid(capacity, cfg.battery.resolution_ah)
+    units = grid / cfg.battery.resolution_ah
+    if units > PRISM_INT_MAX // 2:  # else fade_value keeps no digit: a fade of 0, silently
+        raise PhmDataError(
+            f"{where}: the {fit.name} fit gives capacity {capacity:.4g} Ah at cycle {cycle:g}, "
+            f"{float(units):.3g} units of battery.resolution_ah "
+            f"({show(cfg.battery.resolution_ah)}); the model's 32-bit integers hold at most "
+            f"{PRISM_INT_MAX // 2:,}: is the log in Ah?")
     value = fade_value(fade, cfg, grid)
     rc_max = cfg.battery.max_recharges
+    if value == 0 < fade and units * fade * rc_max >= 1:
+        raise PhmDataError(  # rounded to 0 for the integers, yet it costs whole units
+            f"{where}: the fitted fade {fade:.3g}/cycle would round to 0: with "
+            f"{float(units):.3g} units of battery.resolution_ah ({show(cfg.battery.resolution_ah)})"
+            " the model's 32-bit integers hold no digit of it; raise battery.resolution_ah")
     if value * rc_max >= 1:
         raise PhmDataError(
             f"{where}: the fitted fade {show(value)}/recharge x battery.max_recharges {rc_max} "

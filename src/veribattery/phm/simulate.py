@@ -10,6 +10,7 @@ watts; the pack voltage is ``S`` times the cell's and its current ``P`` times th
 
 from __future__ import annotations
 
+import math
 import os
 import shlex
 from collections.abc import Iterator, Sequence
@@ -93,12 +94,17 @@ def _discharge(pybamm: ModuleType, pack: Pack, period_s: float) -> tuple[FloatAr
     params = _parameters(pybamm, pack.parameter_set)
     cutoff = params["Lower voltage cut-off [V]"]
     experiment = pybamm.Experiment(
-        [f"Discharge at {pack.cell_power_w:.6g} W until {cutoff} V"], period=f"{period_s} seconds")
+        [f"Discharge at {_plain(pack.cell_power_w)} W until {cutoff} V"],
+        period=f"{_plain(period_s)} seconds")
     solution = pybamm.Simulation(pybamm.lithium_ion.SPMe(), parameter_values=params,
                                  experiment=experiment).solve(initial_soc=1)
     time = np.asarray(solution["Time [s]"].entries, dtype=np.float64)
     voltage = np.asarray(solution["Voltage [V]"].entries, dtype=np.float64)
     current = np.asarray(solution["Current [A]"].entries, dtype=np.float64)
+    if voltage[-1] > 1.01 * float(cutoff):  # PyBaMM stops a step after 24 h, emptied or not
+        raise PhmDataError(f"--power-w {pack.power_w:g}: after {time[-1] - time[0]:g} s the "
+                           f"cells are still at {voltage[-1]:.3g} V, above their {cutoff} V "
+                           "cut-off: not a whole discharge; raise the power")
     return time - time[0], voltage * pack.series, current * pack.parallel
 
 
@@ -110,7 +116,7 @@ def _ageing(pybamm: ModuleType, pack: Pack, cycles: int) -> tuple[FloatArray, Fl
     """
     params = _parameters(pybamm, pack.parameter_set)
     low, high = params["Lower voltage cut-off [V]"], params["Upper voltage cut-off [V]"]
-    cycle = (f"Discharge at {pack.cell_power_w:.6g} W until {low} V",
+    cycle = (f"Discharge at {_plain(pack.cell_power_w)} W until {low} V",
              f"Charge at 1C until {high} V", f"Hold at {high} V until C/20")
     model = pybamm.lithium_ion.SPM({"SEI": pack.sei})
     solution = pybamm.Simulation(model, parameter_values=params,
@@ -119,6 +125,13 @@ def _ageing(pybamm: ModuleType, pack: Pack, cycles: int) -> tuple[FloatArray, Fl
                                  ).solve(initial_soc=1)
     capacity = [_discharged(c.steps[0]) for c in solution.cycles[1:] if c is not None]
     return np.arange(1, len(capacity) + 1, dtype=np.float64), np.asarray(capacity) * pack.parallel
+
+
+def _plain(value: float) -> str:
+    """*value* for PyBaMM's experiment strings, which cannot read an exponent: ``1e+06 W``
+    was read as ``1e`` watts and raised a ValueError."""
+    return str(np.format_float_positional(value, precision=6, unique=False, fractional=False,
+                                          trim="-"))
 
 
 def _discharged(step: Any) -> float:
@@ -149,9 +162,11 @@ def simulate(pack: Pack, cycles: int | None = None, period_s: float = 30.0) -> S
     :raises PhmDataError: without PyBaMM, for an unknown parameter set, or when the
         solver fails (e.g. the power is more than the cells can give).
     """
+    if not (math.isfinite(pack.power_w) and pack.power_w > 0):
+        raise PhmDataError(f"--power-w: must be a number of watts > 0, got {pack.power_w:g}")
+    if not (math.isfinite(period_s) and period_s >= 1):
+        raise PhmDataError(f"--period-s: must be a number of seconds >= 1, got {period_s:g}")
     pybamm = _pybamm()
-    if pack.power_w <= 0:
-        raise PhmDataError(f"--power-w: must be > 0, got {pack.power_w:g}")
     try:
         with _quiet_stderr():
             time, voltage, current = _discharge(pybamm, pack, period_s)

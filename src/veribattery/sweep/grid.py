@@ -164,7 +164,7 @@ def _items(text: str, spec: str) -> tuple[object, ...]:
     """``a,b,c``: the items of a YAML flow sequence, so ``[0,0],[1,1]`` is two lists."""
     try:
         items = yaml.safe_load(f"[{spec}]")
-    except yaml.YAMLError:
+    except (yaml.YAMLError, RecursionError):  # PyYAML nests recursively: [[[[...
         items = None
     if not isinstance(items, list) or not items or any(item is None for item in items):
         raise _bad(text, f"{spec!r} is not START:STOP:STEP or a comma list of YAML values a,b,c")

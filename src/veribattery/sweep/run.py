@@ -33,7 +33,7 @@ import pandas as pd
 
 from veribattery.config import ConfigDocument, MissionConfig, read_config
 from veribattery.errors import VeribatteryError
-from veribattery.mission import ParseCache, RenderedMission
+from veribattery.mission import ParseCache, RenderedMission, validate_properties
 from veribattery.sweep.execute import Executor, InProcess, open_executor
 from veribattery.sweep.fingerprint import fingerprint
 from veribattery.sweep.grid import Axis, Point, grid, point_values, yaml_text
@@ -102,6 +102,7 @@ def run_sweep(
     points = grid(axes)
     document = read_config(config, overrides)
     configs = [_at(document, point) for point in points]
+    _check_properties(points, configs)
     columns = ["point", *(axis.key for axis in axes), *FIXED_COLUMNS]
     cells = [_cells(point) for point in points]
     if results is not None:
@@ -222,6 +223,27 @@ def _at(document: ConfigDocument, point: Point) -> MissionConfig:
         raise type(exc)(f"at {describe_point(point)}: {exc.message}", exc.span) from None
 
 
+def _check_properties(points: list[Point], configs: list[MissionConfig]) -> None:
+    """Refuse, before any point is checked, a property that does not parse or names what
+    the model lacks (as ``check`` does): it is bad input, not a failure of every point.
+
+    Each distinct set of properties is resolved once, against the first BS1 point's model
+    that has it (a synthesis point asks its MDP for Pmax, not the config's properties).
+    """
+    seen: set[tuple[tuple[str, str], ...]] = set()
+    for point, cfg in zip(points, configs, strict=True):
+        key = tuple(cfg.properties.items())
+        if cfg.strategy.mode != "bs1" or key in seen:
+            continue
+        seen.add(key)
+        try:
+            validate_properties(cfg)
+        except VeribatteryError as exc:
+            if not any(name.startswith("properties") for name in point):
+                raise
+            raise type(exc)(f"at {describe_point(point)}: {exc.message}", exc.span) from None
+
+
 def describe_point(point: Point) -> str:
     """``key=value, key=value`` for messages."""
     return ", ".join(f"{key}={yaml_text(value)}" for key, value in point.items()) or "the config"
@@ -239,7 +261,7 @@ def wide(frame: pd.DataFrame, keys: Sequence[str]) -> pd.DataFrame:
     """
     first = frame.drop_duplicates("point").set_index("point")
     result = first[[*keys, "states", "transitions"]].copy()
-    for name in frame["property"].drop_duplicates():
+    for name in frame["property"].dropna().drop_duplicates():  # a failed point has none
         rows = frame[frame["property"] == name].set_index("point")
         result[name] = rows["value"]
     judged = frame.dropna(subset=["holds"])

@@ -21,7 +21,7 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import IO
 
-from veribattery._files import staged, write_text
+from veribattery._files import can_create_in, staged, write_text
 from veribattery.errors import ConfigError
 from veribattery.sweep.fingerprint import SweepFingerprint
 
@@ -108,7 +108,8 @@ def _check_writable(path: Path) -> None:
     if not folder.is_dir():
         raise ConfigError(f"-o {str(path)!r}: folder {str(folder)!r} does not exist")
     target = path if path.exists() else folder
-    if not os.access(target, os.W_OK) or (path.exists() and not path.is_file()):
+    if (not os.access(target, os.W_OK) or not can_create_in(folder)  # the journal, meta
+            or (path.exists() and not path.is_file())):
         raise ConfigError(f"-o {str(path)!r}: cannot write there (read-only or permission denied)")
 
 
@@ -175,14 +176,50 @@ def _csv_cell(value: object) -> object:
 
 
 def _read_rows(journal: Path, columns: Sequence[str]) -> list[Row]:
-    text = journal.read_text(encoding="utf-8")
+    """The rows of *journal*; a line that is not one this sweep wrote is a one-line
+    refusal naming it (a row edited by hand, a byte that is not UTF-8, a torn cell)."""
+    try:
+        text = journal.read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise _not_ours(journal, _text_line(exc), "not UTF-8 text") from None
     lines = text[: text.rfind("\n") + 1]
     if journal.suffix != ".csv":
-        return [json.loads(line) for line in lines.splitlines() if line.strip()]
+        return [_json_row(journal, number, line, columns)
+                for number, line in enumerate(lines.splitlines(), 1) if line.strip()]
     reader = csv.DictReader(io.StringIO(lines))
     if reader.fieldnames is not None and tuple(reader.fieldnames) != tuple(columns):
         raise ConfigError(f"-o {str(journal)!r}: its columns are not this sweep's; use --force")
-    return [{c: _parse_cell(c, row[c]) for c in columns} for row in reader]
+    rows = []
+    for row in reader:
+        try:
+            if None in row or None in row.values():  # cells beyond the header, or missing
+                cells = sum(v is not None for k, v in row.items() if k is not None)
+                raise ValueError(f"{cells + len(row.get(None) or ())} cells, the header has "
+                                 f"{len(columns)}")
+            rows.append({c: _parse_cell(c, row[c]) for c in columns})
+        except ValueError as exc:
+            raise _not_ours(journal, reader.line_num, str(exc)) from None
+    return rows
+
+
+def _json_row(journal: Path, number: int, line: str, columns: Sequence[str]) -> Row:
+    try:
+        row = json.loads(line)
+    except ValueError as exc:
+        raise _not_ours(journal, number, f"not JSON ({exc.args[0]})") from None
+    if not isinstance(row, dict) or set(row) != set(columns) or type(row["point"]) is not int:
+        raise _not_ours(journal, number, "not an object with this sweep's columns")
+    return row
+
+
+def _not_ours(journal: Path, line: int, why: str) -> ConfigError:
+    return ConfigError(f"-o {str(journal)!r}: line {line} is not a row this sweep wrote "
+                       f"({why}); use --force to start afresh, or pick another -o")
+
+
+def _text_line(exc: UnicodeDecodeError) -> int:
+    """The line (from 1) of the byte *exc* failed on."""
+    return bytes(exc.object[: exc.start]).count(b"\n") + 1
 
 
 def _parse_cell(column: str, text: str) -> object:
@@ -193,15 +230,21 @@ def _parse_cell(column: str, text: str) -> object:
         return int(text)
     if column in _FLOAT_COLUMNS:
         return float(text)
-    if column in ("value", "holds"):
-        return {"True": True, "False": False}.get(text, float(text) if column == "value" else None)
-    return text
+    if text in ("True", "False"):  # a boolean property's value, or holds
+        return text == "True"
+    if column == "value":
+        return float(text)
+    return None if column == "holds" else text
 
 
 def _read_parquet(path: Path) -> list[Row]:
     import pandas as pd
 
-    frame = pd.read_parquet(path)
+    try:
+        frame = pd.read_parquet(path)
+    except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
+        raise ConfigError(f"-o {str(path)!r}: cannot read it as Parquet ({exc}); use --force "
+                          "to start afresh, or pick another -o") from None
     rows: list[Row] = frame.astype(object).where(frame.notna(), None).to_dict("records")
     return rows
 

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from veribattery._text import decode_text
 from veribattery._types import IntArray
 from veribattery.checker.mdp import MDP
 from veribattery.synthesis.strategy import StrategyError
@@ -33,7 +34,7 @@ def read_strategy_file(path: Path, mdp: MDP) -> IntArray:
     :raises StrategyError: when the file cannot be read or does not fit *mdp*.
     :raises OSError: when the file cannot be opened.
     """
-    text = path.read_text(encoding="utf-8")
+    text = decode_text(path.read_bytes(), str(path), StrategyError)
     values, actions = (_storm_entries(text, mdp, path) if path.suffix.lower() == ".json"
                        else _prism_entries(text, mdp, path))
     states = _states_of(values, mdp, path)
@@ -73,9 +74,12 @@ def _number(value: object, path: Path, entry: int) -> int:
     if text in ("true", "false"):
         return int(text == "true")
     try:
-        return int(text)
+        number = int(text)
     except ValueError:
-        raise StrategyError(f"{path}:{entry}: {value!r} is not a variable's value") from None
+        number = None
+    if number is None or not -(2**63) <= number < 2**63:  # no int64 (numpy's states)
+        raise StrategyError(f"{path}:{entry}: {value!r} is not a variable's value")
+    return number
 
 
 def _table(rows: list[list[int]], width: int, path: Path) -> IntArray:
