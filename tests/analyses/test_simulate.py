@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 
 from tests.checker.chains import dtmc
-from veribattery.analyses.simulate import _Sampler, path_table, simulate
+from veribattery.analyses import simulate as simulation
+from veribattery.analyses.observers import Observer
+from veribattery.analyses.simulate import _Sampler, _Tally, path_table, simulate
 from veribattery.checker import check
 from veribattery.errors import CheckError
 from veribattery.explore import build_dtmc
@@ -50,6 +52,45 @@ def test_estimates_agree_with_exact_values() -> None:
         assert e.ci999[0] <= e.exact <= e.ci999[1], e
         assert not e.disagrees
     assert sim.warnings() == ()
+
+
+def test_runs_in_batches_agree_with_exact_values(monkeypatch: pytest.MonkeyPatch) -> None:
+    """20 batches of 1,000 runs: every run counted, every estimate where one batch of
+    20,000 puts it (within its 99.9 % interval), infinite rewards still infinite, and the
+    paths recorded from the first batch."""
+    chain = _loop()
+    props = [*_props(), parse_property('R{"r"}=? [ F "bad" ]')]
+    exact = {p.text: check(chain, p).value for p in props}
+    monkeypatch.setattr(simulation, "BATCH_RUNS", 1_000)
+    sim = simulate(chain, props, runs=20_000, seed=7, exact=exact, record=3)
+    for e in sim.estimates:
+        assert e.runs == 20_000 and e.undecided == 0
+        assert not e.disagrees, e
+    assert sim.estimates[-1].estimate == math.inf
+    assert len(sim.paths) == 3 and all(path[0] == 0 for path in sim.paths)
+
+
+def test_pooled_batches_are_the_whole_sample_s_statistics() -> None:
+    """The pooled mean and standard deviation of uneven batches, against numpy's over all
+    values; one batch is numpy's own arithmetic, bit for bit."""
+    rng = np.random.default_rng(5)
+    values = rng.exponential(3.0, 10_000)
+    decided = rng.random(values.size) < 0.9
+    tally, whole = _Tally(), _Tally()
+    for lo, hi in ((0, 17), (17, 4_000), (4_000, 4_001), (4_001, 10_000)):
+        tally.add(_observer(values[lo:hi], decided[lo:hi]))
+    whole.add(_observer(values, decided))
+    kept = values[decided]
+    assert tally.n == whole.n == kept.size and tally.undecided == int((~decided).sum())
+    assert tally.mean == pytest.approx(np.mean(kept), rel=1e-14)
+    assert tally.std == pytest.approx(np.std(kept, ddof=1), rel=1e-12)
+    assert (whole.mean, whole.std) == (float(np.mean(kept)), float(np.std(kept, ddof=1)))
+
+
+def _observer(values: np.ndarray, decided: np.ndarray) -> Observer:
+    obs = Observer(values.size, np.zeros(1, dtype=bool), np.zeros(1, dtype=bool))
+    obs.values, obs.decided = values, decided
+    return obs
 
 
 def test_same_seed_same_estimates() -> None:
