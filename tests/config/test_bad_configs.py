@@ -320,3 +320,22 @@ def test_a_formula_failing_in_the_check_is_placed_in_the_config(
     assert result.exit_code == 2, result.output
     assert result.stderr.startswith("error: " + expected.replace("{path}", str(path)))
     assert "properties.props" not in result.stderr and result.stdout == ""
+
+
+@pytest.mark.parametrize("written", ["1:05", "010", "0o12"])
+def test_a_number_yaml_1_1_reads_otherwise_is_refused_not_misread(written: str,
+                                                                    tmp_path: Path) -> None:
+    """PyYAML's YAML 1.1 read ``1:05`` as 65 (base 60) and ``010`` as 8 (octal)."""
+    config = tmp_path / "c.yaml"
+    config.write_text(f"battery:\n  max_recharges: {written}\n", encoding="utf-8")
+    with pytest.raises(ConfigError, match=f"battery.max_recharges: must be an integer, "
+                                          f"got '{written}'"):
+        load_config(config)
+
+
+@pytest.mark.parametrize(("written", "value"), [("12", 12), ("1_2", 12), ("0x0c", 12)])
+def test_integers_as_yaml_1_2_writes_them(written: str, value: int, tmp_path: Path) -> None:
+    config = tmp_path / "c.yaml"
+    config.write_text(f"battery:\n  max_recharges: {written}\n", encoding="utf-8")
+    assert load_config(config).battery.max_recharges == value
+    assert load_config(config, [f"battery.max_recharges={written}"]).battery.max_recharges == value

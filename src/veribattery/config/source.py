@@ -3,10 +3,15 @@
 YAML alone lets a key appear twice in a mapping (the last one wins, silently); a
 config refuses that, naming both places. The document is composed once: its nodes
 tell :mod:`veribattery.config.load` where each key is written.
+
+Numbers are read as YAML 1.2 reads them, not as PyYAML's YAML 1.1: ``010`` is ten
+(1.1: octal, eight) and ``1:05`` is text (1.1: base 60, sixty-five), so a typed
+value is never silently another number; text where a number belongs is a config error.
 """
 
 from __future__ import annotations
 
+import re
 from typing import Any
 
 import yaml
@@ -17,6 +22,25 @@ from veribattery.errors import ConfigError, Span
 __all__ = ["compose", "construct", "decode", "yaml_error"]
 
 _MERGE_TAG = "tag:yaml.org,2002:merge"
+_INT_TAG, _FLOAT_TAG = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+
+
+class _ConfigLoader(yaml.SafeLoader):  # type: ignore[misc]
+    """PyYAML's safe loader with YAML 1.2's numbers (see the module's docstring)."""
+
+
+_ConfigLoader.yaml_implicit_resolvers = {
+    first: [(tag, pattern) for tag, pattern in resolvers if tag not in (_INT_TAG, _FLOAT_TAG)]
+    for first, resolvers in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_ConfigLoader.add_implicit_resolver(
+    _INT_TAG, re.compile(r"^(?:[-+]?0b[0-1_]+|[-+]?(?:0|[1-9][0-9_]*)|[-+]?0x[0-9a-fA-F_]+)$"),
+    list("-+0123456789"))
+_ConfigLoader.add_implicit_resolver(
+    _FLOAT_TAG, re.compile(r"^(?:[-+]?(?:[0-9][0-9_]*)\.[0-9_]*(?:[eE][-+][0-9]+)?"
+                           r"|\.[0-9][0-9_]*(?:[eE][-+][0-9]+)?"
+                           r"|[-+]?\.(?:inf|Inf|INF)|\.(?:nan|NaN|NAN))$"),
+    list("-+0123456789."))
 
 
 def decode(data: bytes, source: str) -> str:
@@ -36,7 +60,7 @@ def compose(text: str, source: str | None, prefix: str = "") -> yaml.Node | None
     :raises ConfigError: on YAML syntax errors and on a key given twice in a mapping.
     """
     try:
-        loader = yaml.SafeLoader(text)
+        loader = _ConfigLoader(text)
     except yaml.YAMLError as exc:  # the reader refuses control characters at once
         raise yaml_error(exc, text, source) from None
     try:
