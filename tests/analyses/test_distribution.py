@@ -148,14 +148,19 @@ def test_errors() -> None:
 
 
 @pytest.mark.parametrize(("text", "minutes"), [("4800", 4800), ("4800m", 4800), ("90min", 90),
-                                               ("80h", 4800), ("5d", 2400), ("1.5h", 90)])
+                                               ("80h", 4800), ("5d", 2400), ("1.5h", 90),
+                                               ("4.8e3", 4800), ("1e1h", 600)])
 def test_deadlines(text: str, minutes: float) -> None:
     assert parse_deadline(text, working_day_minutes=480).value == minutes
 
 
-@pytest.mark.parametrize("text", ["5x", "d", "", "-3", "5 days"])
-def test_bad_deadlines(text: str) -> None:
-    with pytest.raises(ConfigError, match="--deadline"):
+@pytest.mark.parametrize(("text", "why"), [
+    ("5x", "unknown unit 'x'"), ("d", "not a number"), ("", "not a number"),
+    ("5 days", "unknown unit 'days'"), ("-3", "a time cannot be negative"),
+    ("1e400", "a time cannot be beyond the largest number"), ("inf", "not a number"),
+])
+def test_bad_deadlines(text: str, why: str) -> None:
+    with pytest.raises(ConfigError, match=f"--deadline '{text}': {why}"):
         parse_deadline(text)
 
 

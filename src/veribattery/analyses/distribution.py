@@ -122,7 +122,7 @@ class Deadline:
 
 
 _UNITS = {"": 1.0, "m": 1.0, "min": 1.0, "h": 60.0}
-_DEADLINE = re.compile(r"^\s*([0-9]+(?:\.[0-9]*)?|\.[0-9]+)\s*([a-z]*)\s*$")
+_DEADLINE = re.compile(r"^\s*(-?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:e[-+]?[0-9]+)?)\s*([a-z]*)\s*$")
 
 
 def parse_deadline(text: str, working_day_minutes: float = 480.0,
@@ -140,7 +140,12 @@ def parse_deadline(text: str, working_day_minutes: float = 480.0,
         what = f"unknown unit '{unit}'" if unit else "not a number"
         raise ConfigError(f"{option} '{text}': {what}; give minutes (4800, 4800m), hours "
                           "(80h) or working days (5d)")
-    return Deadline(text, float(match.group(1)) * units[match.group(2)])
+    value = float(match.group(1)) * units[match.group(2)]
+    if not 0 <= value < math.inf:
+        what = "negative" if value < 0 else "beyond the largest number"
+        raise ConfigError(f"{option} '{text}': a time cannot be {what}; give minutes (4800, "
+                          "4800m), hours (80h) or working days (5d)")
+    return Deadline(text, value)
 
 
 def parse_deadlines(working_day: str,
