@@ -67,6 +67,8 @@ BAD_CYCLES = [
      r"c.csv:4: row 3, column 'capacity_ah': capacity increases overall"),
     ("cycle,capacity_ah\n0,11\n5,-1\n10,10.9\n",
      r"c.csv:3: row 2, column 'capacity_ah': must be > 0"),
+    ("cycle,capacity_ah\n-5,11\n0,10.9\n10,10.8\n",
+     r"c.csv:2: row 1, column 'cycle': must be a cycle number >= 0, got -5"),
     ("# only a comment\n", r"c.csv: no header line"),
 ]
 

@@ -216,8 +216,9 @@ class CycleLog:
 def read_cycles(path: str | Path) -> CycleLog:
     """Read a ``cycle,capacity_ah`` log and check it is a fade log one can fit.
 
-    :raises PhmDataError: fewer than 3 rows, cycles not strictly increasing, a capacity
-        that is not positive, or a capacity that increases overall (last above first).
+    :raises PhmDataError: fewer than 3 rows, a negative cycle, cycles not strictly
+        increasing, a capacity that is not positive, or a capacity that increases overall
+        (last above first).
     """
     table = read_table(path, [CYCLE_COLUMNS])
     if len(table) < 3:
@@ -225,6 +226,8 @@ def read_cycles(path: str | Path) -> CycleLog:
             f"{table.source}: {len(table)} data row(s); a fade fit needs at least 3 cycles"
         )
     cycle, capacity = table.columns["cycle"], table.columns["capacity_ah"]
+    if cycle[0] < 0:  # (increasing from there: the first is the only one to look at)
+        raise table.error(0, "cycle", f"must be a cycle number >= 0, got {cycle[0]:g}")
     _check_increasing(table, "cycle", cycle)
     bad = np.flatnonzero(capacity <= 0)
     if bad.size:
