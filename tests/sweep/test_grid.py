@@ -68,6 +68,8 @@ def test_grid_is_the_product_first_axis_slowest() -> None:
         ("battery.capacity_ah=1:1000:0.01", "at most 10,000"),
         ("farm.base=[0,", "is not START:STOP:STEP or a comma list"),
         ("battery.model=a,,b", "is not START:STOP:STEP or a comma list"),
+        ("battery.max_recharges=10,10", "10 is given twice (each point runs once)"),
+        ("farm.base=[0,0],[1,1],[0,0]", "[0, 0] is given twice"),
     ],
 )
 def test_bad_specs_name_the_option(spec: str, message: str) -> None:
@@ -84,3 +86,9 @@ def test_grid_rejects_a_key_varied_twice_and_huge_grids() -> None:
         grid([Axis("a", (1,)), Axis("a", (2,))])
     with pytest.raises(ConfigError, match="at most 10,000"):
         grid([Axis("a", tuple(range(200))), Axis("b", tuple(range(200)))])
+
+
+def test_a_list_reads_numbers_as_a_config_does() -> None:
+    """YAML 1.2's numbers, as in a config file: not octal ``010``, not base-60 ``1:05``."""
+    assert parse_axis("battery.max_recharges=12,0x0c0,1_3").values == (12, 192, 13)
+    assert parse_axis("battery.max_recharges=010,1:05").values == ("010", "1:05")

@@ -20,6 +20,7 @@ import yaml
 
 from veribattery.config import known_keys
 from veribattery.config.exact import fraction_to_decimal
+from veribattery.config.source import compose, construct
 from veribattery.errors import ConfigError
 
 __all__ = [
@@ -161,14 +162,20 @@ def _number(text: str, value: Fraction) -> int | float:
 
 
 def _items(text: str, spec: str) -> tuple[object, ...]:
-    """``a,b,c``: the items of a YAML flow sequence, so ``[0,0],[1,1]`` is two lists."""
+    """``a,b,c``: the items of a YAML flow sequence, so ``[0,0],[1,1]`` is two lists (read
+    as a config's values are: YAML 1.2's numbers, ``010`` is not eight)."""
+    flow = f"[{spec}]"
     try:
-        items = yaml.safe_load(f"[{spec}]")
-    except (yaml.YAMLError, RecursionError):  # PyYAML nests recursively: [[[[...
+        items = construct(compose(flow, None), flow, None)
+    except ConfigError:
         items = None
     if not isinstance(items, list) or not items or any(item is None for item in items):
         raise _bad(text, f"{spec!r} is not START:STOP:STEP or a comma list of YAML values a,b,c")
-    return tuple(_freeze(item) for item in items)
+    frozen = tuple(_freeze(item) for item in items)
+    twice = next((item for n, item in enumerate(frozen) if item in frozen[:n]), None)
+    if twice is not None:
+        raise _bad(text, f"{_thaw(twice)!r} is given twice (each point runs once)")
+    return frozen
 
 
 def _freeze(value: object) -> object:
