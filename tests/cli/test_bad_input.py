@@ -240,3 +240,16 @@ def test_an_unwritable_folder_is_named_with_its_option_before_any_work(
     option = args[args.index(next(a for a in args if a.startswith("/proc/"))) - 1]
     assert result.stderr.startswith(f"error: {option} "), result.stderr
     assert ".tmp" not in result.stderr and "checking" not in result.stderr
+
+
+@pytest.mark.parametrize("args", [
+    ["check", CASE1, "--set", "farm.name=" + "x" * 100_000],  # the library's error
+    ["sweep", CASE1, "--jobs", "x" * 5_000],  # click's usage error
+], ids=["library", "usage"])
+def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
+    """One line still, with where and what at its ends, not 100,000 characters of it."""
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2
+    (line,) = result.stderr.strip().splitlines()
+    assert line.startswith("error: ") and len(line) < 1_100
+    assert " characters) … " in line

@@ -62,7 +62,10 @@ class _LazyGroup(click.Group):
             result = super().main(args, prog_name, complete_var, False, **extra)
         except click.UsageError as exc:
             hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
-            click.echo(f"error: {exc.format_message().rstrip('.')}{hint}", err=True)
+            from veribattery.cli.output import shortened
+
+            message = shortened(f"{exc.format_message().rstrip('.')}{hint}")
+            click.echo(f"error: {message}", err=True)
             sys.exit(2)
         except click.exceptions.Abort:  # Ctrl-C before the command ran
             click.echo("interrupted", err=True)

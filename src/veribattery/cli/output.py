@@ -73,6 +73,19 @@ def escape(text: str) -> str:
     return rich_escape(text)
 
 
+#: An error line longer than this is cut in its middle (a value of 100,000 characters
+#: repeated in full made a line nobody reads); where and what stay at its ends.
+LONGEST_ERROR = 1_000
+
+
+def shortened(line: str) -> str:
+    """*line*, its middle cut where it is longer than :data:`LONGEST_ERROR`."""
+    if len(line) <= LONGEST_ERROR:
+        return line
+    head, tail = LONGEST_ERROR * 3 // 5, LONGEST_ERROR // 5
+    return f"{line[:head]} … ({len(line) - head - tail:,} characters) … {line[-tail:]}"
+
+
 def fail(*messages: str) -> None:
     """Report user errors, one line each, and exit with status 2.
 
@@ -81,7 +94,8 @@ def fail(*messages: str) -> None:
     """
     for message in messages:
         first, _, context = message.partition("\n")
-        err.print(f"[bold red]error:[/] {escape(first)}", markup=True, highlight=False)
+        err.print(f"[bold red]error:[/] {escape(shortened(first))}", markup=True,
+                  highlight=False)
         if context and err.is_terminal:
             err.print(context, markup=False, highlight=False)
     sys.exit(2)
