@@ -62,14 +62,14 @@ CSV_COLUMNS = ("path", "probability", "step", "action", "state", "s", "k", "j", 
 MOST_RUNS, MOST_PATHS = 10**12, 1000
 
 
-def _positive(name: str, most: int | None = None
-              ) -> Callable[[click.Context, click.Parameter, int], int]:
-    """An option callback: a count below 1 (or above *most*) is bad input, reported on
-    one line (exit 2)."""
+def counted(name: str, most: int | None = None, least: int = 1
+            ) -> Callable[[click.Context, click.Parameter, int], int]:
+    """An option callback: a count below *least* (or above *most*) is bad input,
+    reported on one line (exit 2)."""
 
     def check(ctx: click.Context, param: click.Parameter, value: int) -> int:
-        if value is not None and value < 1:
-            fail(f"{name} must be at least 1, not {value}")
+        if value is not None and value < least:
+            fail(f"{name} must be at least {least}, not {value}")
         if value is not None and most is not None and value > most:
             fail(f"{name} must be at most {most:,}, not {value:,}")
         return value
@@ -120,7 +120,7 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @click.command("explain", short_help="Where failures come from: breakdown and paths.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
-@click.option("--top", default=3, show_default=True, callback=_positive("--top", MOST_PATHS),
+@click.option("--top", default=3, show_default=True, callback=counted("--top", MOST_PATHS),
               help="How many most probable failure paths.")
 @click.option("--by", "by", multiple=True, metavar="KEYS",
               help="Groupings, comma-separated; join keys with + for a joint grouping "
@@ -281,13 +281,13 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
         click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
                      help="Random seed (a non-negative integer)."),
         click.option("--max-steps", default=100_000, show_default=True,
-                     callback=_positive("--max-steps"),
+                     callback=counted("--max-steps"),
                      help="Steps after which an undecided run stops (and is reported)."),
         click.option("-o", "--output", "--paths", "paths_file", type=click.Path(path_type=Path),
                      help="Write sampled paths here as CSV (PRISM simulator columns; "
                      "--paths: the old name)."),
         click.option("--path-count", default=10, show_default=True,
-                     callback=_positive("--path-count"), help="How many runs -o writes."),
+                     callback=counted("--path-count"), help="How many runs -o writes."),
         click.option("--force", is_flag=True,
                      help="Overwrite existing output files (-o; prism: --export-*)."),
     )):
@@ -298,7 +298,7 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
 @click.command("simulate", short_help="Monte-Carlo estimates beside the exact values.")
 @click.argument("config", type=click.Path(path_type=Path))
 @set_option
-@click.option("--runs", required=True, type=int, callback=_positive("--runs", MOST_RUNS),
+@click.option("--runs", required=True, type=int, callback=counted("--runs", MOST_RUNS),
               help="Number of simulated runs.")
 @_simulation_options
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
@@ -445,10 +445,10 @@ def prism_analysis_options(function: Callable[..., None]) -> Callable[..., None]
     for option in reversed((
         click.option("--explain", metavar="LABEL",
                      help="Break P(F LABEL) down by variable values; show the top paths."),
-        click.option("--top", default=3, show_default=True, callback=_positive("--top", MOST_PATHS),
+        click.option("--top", default=3, show_default=True, callback=counted("--top", MOST_PATHS),
                      help="With --explain: how many most probable paths."),
         click.option("--simulate", type=int, metavar="N",
-                     callback=_positive("--simulate", MOST_RUNS),
+                     callback=counted("--simulate", MOST_RUNS),
                      help="Also estimate the properties from N simulated runs."),
     )):
         function = option(function)

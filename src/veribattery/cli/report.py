@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from veribattery.cli.explain import MOST_PATHS, MOST_RUNS
+from veribattery.cli.explain import MOST_PATHS, MOST_RUNS, counted
 from veribattery.cli.files import check_output_file
 from veribattery.cli.output import (
     build_progress,
@@ -18,7 +18,6 @@ from veribattery.cli.output import (
     set_option,
     user_errors,
 )
-from veribattery.errors import OptionError
 
 #: The file types the report is written as.
 HTML_SUFFIXES = (".html", ".htm")
@@ -37,10 +36,12 @@ def _note(text: str) -> None:
               help="A sweep's results of this config (RESULTS.csv, .jsonl or .parquet, with "
                    "its RESULTS.sweep.json) to draw, requirements' turning points marked.")
 @click.option("--runs", default=1000, show_default=True, type=int,
+              callback=counted("--runs", MOST_RUNS, least=0),
               help="Monte-Carlo runs beside the exact values (0: none).")
 @click.option("--seed", default=0, show_default=True, type=click.IntRange(min=0),
               help="The simulation's random seed (a non-negative integer).")
 @click.option("--top", default=3, show_default=True, type=int,
+              callback=counted("--top", MOST_PATHS),
               help="How many most probable failure paths.")
 @click.option("--deadline", "deadlines", multiple=True, metavar="D",
               help="P(success within D): minutes (4800), hours (80h) or working days (10d); "
@@ -64,7 +65,6 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
 
     with user_errors():
         check_output_file(output, "-o", force=force, suffixes=HTML_SUFFIXES)
-        _check_counts(runs, top)
         day, limits = parse_deadlines(working_day, deadlines)
         cfg = load_config(config, overrides)
         sweep = read_sweep(sweep_file, config, cfg) if sweep_file is not None else None
@@ -77,17 +77,6 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
     print_warnings(data.verdict.warnings)
     print_written(output)
     sys.exit(0 if data.verdict.all_hold else 1)
-
-
-def _check_counts(runs: int, top: int) -> None:
-    if runs < 0:
-        raise OptionError(f"--runs must be at least 0, not {runs}")
-    if runs > MOST_RUNS:
-        raise OptionError(f"--runs must be at most {MOST_RUNS:,}, not {runs:,}")
-    if top < 1:
-        raise OptionError(f"--top must be at least 1, not {top}")
-    if top > MOST_PATHS:
-        raise OptionError(f"--top must be at most {MOST_PATHS:,}, not {top:,}")
 
 
 def _command_line(ctx: click.Context) -> str:
