@@ -11,7 +11,7 @@ import pytest
 from tests.phm.helpers import cycles_csv, knee_curve
 from veribattery.config import load_config
 from veribattery.phm.data import PhmDataError, read_cycles
-from veribattery.phm.fade import fit_all, fit_exponential, fit_knee, fit_linear
+from veribattery.phm.fade import _aic, fit_all, fit_exponential, fit_knee, fit_linear
 from veribattery.phm.refit import fade_parameters
 
 RNG_SEED = 20190101
@@ -162,3 +162,14 @@ def test_flat_noisy_log_gives_zero_fade(tmp_path: Path) -> None:
             clamped += 1
         assert params.fade_per_recharge >= 0 and params.capacity_ah == 11
     assert clamped > 0, "some seed should give an insignificant rising slope"
+
+
+
+def test_aic_of_residuals_near_the_largest_double_is_finite() -> None:
+    """Residuals and scale times 10^300 shift the AIC by n ln(10^600) only (the mean square
+    scaled back overflowed: every fit's AIC was inf, the penalty 2k lost)."""
+    residuals = np.array([0.01, -0.02, 0.003, 0.015])
+    shift = residuals.size * 600 * np.log(10.0)
+    for k in (2, 3):
+        small, large = _aic(residuals, k, 11.0), _aic(residuals * 1e300, k, 11.0e300)
+        assert large - shift == pytest.approx(small, abs=1e-9)

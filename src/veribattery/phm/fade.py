@@ -120,10 +120,12 @@ _CURVES: dict[str, Curve] = {"linear": _linear, "exponential": _exponential, "kn
 def _aic(residuals: FloatArray, k: int, scale: float) -> float:
     """Gaussian AIC; SSE is floored so exact (synthetic) data does not give ``-inf``."""
     n = len(residuals)
-    # In logs: squaring a capacity near the float range (1e308 Ah) overflowed.
+    # In logs: squaring a capacity near the float range (1e308 Ah) overflowed, and so did
+    # scaling the mean square back (every fit's AIC was inf, the choice arbitrary).
     floor = 2 * math.log(1e-12 * scale)
-    mse = float(np.mean(np.square(residuals / scale))) * scale * scale
-    return n * max(math.log(mse) if mse > 0 else -math.inf, floor) + 2 * k
+    scaled = float(np.mean(np.square(residuals / scale)))
+    log_mse = math.log(scaled) + 2 * math.log(scale) if scaled > 0 else -math.inf
+    return n * max(log_mse, floor) + 2 * k
 
 
 def _finish(name: str, formula: str, names: tuple[str, ...], theta: FloatArray,
