@@ -136,7 +136,7 @@ def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = Non
     magnitude = y if _nonnegative(x) else np.asarray(M @ np.abs(x), dtype=np.float64)
     exact = bool(np.all((x == 0) | (x == 1)))
     if exact:
-        count = _nonzero_terms(M, x)
+        count = nonzero_terms(M, x)
     elif terms is None:
         count = row_terms(M)
     else:
@@ -155,8 +155,9 @@ def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = Non
     return y, np.where(np.isnan(lower), -np.inf, lower), np.where(np.isnan(upper), np.inf, upper)
 
 
-def _nonzero_terms(M: CsrMatrix, x: FloatArray) -> FloatArray:
-    """Per row, the stored entries of *M* whose column has ``x != 0``.
+def nonzero_terms(M: CsrMatrix, x: FloatArray | BoolArray) -> FloatArray:
+    """Per row, the stored entries of *M* whose column has ``x != 0`` (as floats, as the
+    terms of a product are counted).
 
     One byte per nonzero of temporary memory (a matrix of ones would take eight).
     """

@@ -30,6 +30,7 @@ from veribattery._unique import distinct_inverse
 from veribattery.checker.certify import (
     UNIT_ROUNDOFF,
     enclose_product,
+    nonzero_terms,
     product_error,
     step_down_in_place,
     step_up_in_place,
@@ -180,7 +181,7 @@ class ChoiceSystem:
             return _bounded_images(self.off, live, extended, offset)
         off = self.off[rows]
         offset = None if offset is None else offset[rows]
-        return _bounded_images(off, LiveRows.of(_nonzero_terms(off, extended), offset,
+        return _bounded_images(off, LiveRows.of(nonzero_terms(off, extended), offset,
                                                 self.leave_lower[rows],
                                                 self.leave_upper[rows], up=up),
                                extended, offset)
@@ -188,7 +189,7 @@ class ChoiceSystem:
     def live_rows(self, nonzero: BoolArray, offset: FloatArray | None, *,
                   up: bool) -> LiveRows:
         """The rows with a nonzero term when the entries *nonzero* of ``ext(x)`` are."""
-        return LiveRows.of(_nonzero_terms(self.off, nonzero), offset, self.leave_lower,
+        return LiveRows.of(nonzero_terms(self.off, nonzero), offset, self.leave_lower,
                            self.leave_upper, up=up)
 
     def defect(self, x: FloatArray, known: FloatArray, offset: FloatArray | None,
@@ -234,14 +235,6 @@ class ChoiceSystem:
         hits = row_values == best[self.row_class]
         rows = np.where(hits, np.arange(row_values.size), row_values.size)
         return np.asarray(self.layout.best(rows, "min"), dtype=np.int64)
-
-
-def _nonzero_terms(off: CsrMatrix, full: FloatArray | BoolArray) -> FloatArray:
-    """Per row of *off*, how many of its stored entries read a nonzero of *full* (as
-    floats, as the terms of a product are counted; no matrix of ones is kept for it)."""
-    with np.errstate(invalid="ignore"):
-        read = np.concatenate([[0], np.cumsum(full[off.indices] != 0)])
-    return np.asarray(read[off.indptr[1:]] - read[off.indptr[:-1]], dtype=np.float64)
 
 
 @dataclass(frozen=True, slots=True)
