@@ -335,7 +335,7 @@ def test_a_number_yaml_1_1_reads_otherwise_is_refused_not_misread(written: str,
 
 
 @pytest.mark.parametrize(("written", "value"), [("12", 12), ("1_2", 12), ("0x0c", 12)])
-def test_integers_as_yaml_1_2_writes_them(written: str, value: int, tmp_path: Path) -> None:
+def test_decimal_and_hex_integers_are_read(written: str, value: int, tmp_path: Path) -> None:
     config = tmp_path / "c.yaml"
     config.write_text(f"battery:\n  max_recharges: {written}\n", encoding="utf-8")
     assert load_config(config).battery.max_recharges == value

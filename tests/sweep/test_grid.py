@@ -89,6 +89,6 @@ def test_grid_rejects_a_key_varied_twice_and_huge_grids() -> None:
 
 
 def test_a_list_reads_numbers_as_a_config_does() -> None:
-    """YAML 1.2's numbers, as in a config file: not octal ``010``, not base-60 ``1:05``."""
+    """Numbers as in a config file: not octal ``010``, not base-60 ``1:05`` (text instead)."""
     assert parse_axis("battery.max_recharges=12,0x0c0,1_3").values == (12, 192, 13)
     assert parse_axis("battery.max_recharges=010,1:05").values == ("010", "1:05")

@@ -4,8 +4,8 @@ YAML alone lets a key appear twice in a mapping (the last one wins, silently); a
 config refuses that, naming both places. The document is composed once: its nodes
 tell :mod:`veribattery.config.load` where each key is written.
 
-Numbers are read as YAML 1.2 reads them, not as PyYAML's YAML 1.1: ``010`` is ten
-(1.1: octal, eight) and ``1:05`` is text (1.1: base 60, sixty-five), so a typed
+Numbers are read without YAML 1.1's octal and base-60 forms, which YAML 1.2 dropped
+too: ``010`` and ``1:05`` are text (PyYAML reads eight and sixty-five), so a typed
 value is never silently another number; text where a number belongs is a config error.
 """
 
@@ -26,7 +26,8 @@ _INT_TAG, _FLOAT_TAG = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
 
 
 class _ConfigLoader(yaml.SafeLoader):  # type: ignore[misc]
-    """PyYAML's safe loader with YAML 1.2's numbers (see the module's docstring)."""
+    """PyYAML's safe loader without YAML 1.1's octal and base-60 numbers (see the
+    module's docstring)."""
 
 
 _ConfigLoader.yaml_implicit_resolvers = {

@@ -163,7 +163,7 @@ def _number(text: str, value: Fraction) -> int | float:
 
 def _items(text: str, spec: str) -> tuple[object, ...]:
     """``a,b,c``: the items of a YAML flow sequence, so ``[0,0],[1,1]`` is two lists (read
-    as a config's values are: YAML 1.2's numbers, ``010`` is not eight)."""
+    as a config's values are: ``010`` is not the octal eight)."""
     flow = f"[{spec}]"
     try:
         items = construct(compose(flow, None), flow, None)
