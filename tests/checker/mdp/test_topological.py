@@ -14,6 +14,7 @@ from veribattery.checker.mdp import solve as solve_module
 from veribattery.checker.mdp.solve import policy_iteration, progress_rows
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
 from veribattery.checker.mdp.topological import (
+    LevelOrder,
     class_levels,
     greedy_rows,
     is_proper,
@@ -56,6 +57,27 @@ def test_levels_put_the_cycle_first_and_the_chain_above_it() -> None:
     assert per_level == [[3, 4], [2], [1], [0]]  # classes are the states here
     # Level 0 is all cyclic; the others all trivial (their cyclic part starts at their end).
     assert levels.cyclic_from.tolist() == [0, 3, 4, 5]
+
+
+def test_level_blocks_are_the_system_s_rows_in_level_order() -> None:
+    """A level's block, gathered from the system (no copy of the matrix in level order),
+    holds the same rows with the same entries in the same order as the system's rows
+    indexed in level order: products over it sum the same terms alike."""
+    system = _system(LADDER, [0, 1, 2, 3, 4])
+    levels = class_levels(system)
+    order = LevelOrder.of(system, None, levels)
+    whole = system.off[order.rows]
+    assert not np.array_equal(order.rows, np.arange(order.rows.size))  # rows permuted
+    spans = [(0, order.rows.size), *(order.row_range(lo, hi) for lo, hi in
+                                     zip(levels.starts[:-1], levels.starts[1:], strict=True))]
+    for first, last in spans:
+        block, expected = order.block(first, last), whole[first:last]
+        assert block.shape == expected.shape
+        assert np.array_equal(block.indptr, expected.indptr)
+        assert np.array_equal(block.indices, expected.indices)
+        assert np.array_equal(block.data, expected.data)
+        assert np.array_equal(order.per_row(system.leave, first, last),
+                              system.leave[order.rows[first:last]])
 
 
 @pytest.mark.parametrize(("objective", "expected"), [("max", LADDER_MAX), ("min", LADDER_MIN)])

@@ -63,7 +63,6 @@ def _level_pass(system: ChoiceSystem, objective: Objective, known: FloatArray,
     """The point values and the lower and upper bounds of every class, level by level
     (the rows in level order are let go before the caller's greedy strategy)."""
     order = LevelOrder.of(system, offset, levels)
-    leave_lower, leave_upper = system.leave_lower[order.rows], system.leave_upper[order.rows]
     lower = np.concatenate([np.zeros(system.size), known])
     upper, value = lower.copy(), lower.astype(np.longdouble)
     reduce = np.maximum if objective == "max" else np.minimum
@@ -73,10 +72,10 @@ def _level_pass(system: ChoiceSystem, objective: Objective, known: FloatArray,
         rows = _LevelRows.of(order, first, last)
         starts, classes = order.local_starts(lo, hi), levels.classes[lo:hi]
         value[classes] = reduce.reduceat(rows.extended_images(value), starts)
-        lower[classes] = reduce.reduceat(
-            rows.enclosed_images(lower, leave_upper[first:last], up=False), starts)
-        upper[classes] = np.minimum(reduce.reduceat(
-            rows.enclosed_images(upper, leave_lower[first:last], up=True), starts), ceiling)
+        lower[classes] = reduce.reduceat(rows.enclosed_images(
+            lower, order.per_row(system.leave_upper, first, last), up=False), starts)
+        upper[classes] = np.minimum(reduce.reduceat(rows.enclosed_images(
+            upper, order.per_row(system.leave_lower, first, last), up=True), starts), ceiling)
         if progress is not None:
             progress(k + 1, levels.count, "levels")
     n = system.size
@@ -101,10 +100,9 @@ class _LevelRows:
 
     @classmethod
     def of(cls, order: LevelOrder, first: int, last: int) -> _LevelRows:
-        begin, end = int(order.off.indptr[first]), int(order.off.indptr[last])
-        rewards = None if order.offset is None else order.offset[first:last]
-        return cls(order.off.data[begin:end], order.off.indices[begin:end],
-                   order.off.indptr[first:last] - begin, rewards)
+        block = order.block(first, last)
+        rewards = None if order.offset is None else order.per_row(order.offset, first, last)
+        return cls(block.data, block.indices, block.indptr[:-1], rewards)
 
     def extended_images(self, value: LongArray) -> LongArray:
         """``G_a(value)`` in extended precision, ``s_a`` summed there too: a row whose

@@ -349,29 +349,25 @@ def equations(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
         candidate &= allowed
     rows = np.flatnonzero(candidate)
     rows = rows[np.argsort(class_of[owner[rows]], kind="stable")]
-    positions, row_of, leaving = _leaving_entries(transitions, owner, class_of, rows)
-    # Every entry found belongs to a row that leaves: dropping the others renumbers them.
-    kept = leaving > 0
-    rows, row_of = rows[kept], (np.cumsum(kept) - 1)[row_of]
+    positions, leaving = _leaving_entries(transitions, owner, class_of, rows)
+    # Every entry found belongs to a row that leaves: dropping the others keeps the rest.
+    rows, leaving = rows[leaving > 0], leaving[leaving > 0]
     counts = np.bincount(class_of[owner[rows]], minlength=size)
     if np.any(counts == 0):
         raise ValueError(f"{int(np.sum(counts == 0))} classes have no choice leaving them")
-    columns, known_states = _local_columns(class_of, transitions.indices[positions], size)
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(row_of, minlength=rows.size))])
-    off = sp.csr_matrix((transitions.data[positions], columns, indptr),
-                        shape=(rows.size, size + known_states.size))
-    leave, leave_lower, leave_upper = enclose_product(off, np.ones(off.shape[1]))
-    groups = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     if transitions.nnz < 2**31:  # (kept while the system lives: an int32 where it fits)
         positions = positions.astype(np.int32)
+    off, known_states = _matrix(transitions, class_of, positions, leaving, size)
+    leave, leave_lower, leave_upper = enclose_product(off, np.ones(off.shape[1]))
+    groups = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
     return ChoiceSystem(class_of, rows, groups, off, positions, known_states, leave,
                         np.maximum(leave_lower, 0.0), leave_upper, ClassRows.of(groups))
 
 
 def _leaving_entries(transitions: CsrMatrix, owner: IntArray, class_of: IntArray,
-                     rows: IntArray) -> tuple[IntArray, IntArray, IntArray]:
-    """Positions of the positive entries of *rows* outside the row's class, the index
-    in *rows* of each, and how many each row has."""
+                     rows: IntArray) -> tuple[IntArray, IntArray]:
+    """Positions of the positive entries of *rows* outside the row's class (row by row,
+    in their stored order), and how many each row has."""
     starts = transitions.indptr[rows].astype(np.int64)
     lengths = transitions.indptr[rows + 1].astype(np.int64) - starts
     row_of = np.repeat(np.arange(rows.size, dtype=np.int64), lengths)
@@ -380,8 +376,20 @@ def _leaving_entries(transitions: CsrMatrix, owner: IntArray, class_of: IntArray
                                                                                  lengths))
     column_class = class_of[transitions.indices[positions]]
     keep = (transitions.data[positions] > 0) & (column_class != class_of[owner[rows]][row_of])
-    positions, row_of = positions[keep], row_of[keep]
-    return positions, row_of, np.bincount(row_of, minlength=rows.size)
+    return positions[keep], np.bincount(row_of[keep], minlength=rows.size)
+
+
+def _matrix(transitions: CsrMatrix, class_of: IntArray, positions: IntArray,
+            lengths: IntArray, size: int) -> tuple[sp.csr_matrix, IntArray]:
+    """The entries at *positions*, *lengths* a row, in the classes' columns (see
+    :func:`_local_columns`), and the known states of the columns past *size*. (Its own
+    function so that the int64 columns die here, before the caller's enclosure.)"""
+    columns, known_states = _local_columns(class_of, transitions.indices[positions], size)
+    indptr = np.zeros(lengths.size + 1, dtype=np.int64)
+    np.cumsum(lengths, out=indptr[1:])
+    off = sp.csr_matrix((transitions.data[positions], columns, indptr),
+                        shape=(lengths.size, size + known_states.size))
+    return off, known_states
 
 
 def _local_columns(class_of: IntArray, columns: IntArray, size: int) -> tuple[IntArray, IntArray]:
