@@ -34,7 +34,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench_scale import Measured, measured, ratio_cell
+from bench_scale import Measured, byte_compile_sources, measured, ratio_cell
 
 HERE = Path(__file__).resolve().parent
 MODELS = HERE / "qcomp"
@@ -317,6 +317,7 @@ def main() -> None:
                         help="address-space cap per process (ulimit -v)")
     parser.add_argument("--out", type=Path, default=ROOT / "docs/_bench/mdp.md")
     args = parser.parse_args()
+    byte_compile_sources()
     memory_kb = int(args.memory_gb * 1024 * 1024)
     start_load = _load()
     rows: list[str] = []

@@ -23,6 +23,8 @@ import sys
 import tempfile
 from pathlib import Path
 
+from bench_scale import byte_compile_sources
+
 #: (model file, properties file, constants): the smaller published instances.
 INSTANCES: list[tuple[str, str, dict[str, object]]] = [
     ("brp/brp.prism", "brp/brp.props", {"N": 64, "MAX": 5}),
@@ -118,6 +120,7 @@ def main() -> None:
     parser.add_argument("--only", default="", help="run instances whose file contains this")
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds per process")
     args = parser.parse_args()
+    byte_compile_sources()
     for instance in INSTANCES:
         if args.only in instance[0]:
             run(args.root, instance, args.timeout)

@@ -51,6 +51,8 @@ from datetime import UTC, datetime
 from fractions import Fraction
 from pathlib import Path
 
+from bench_scale import byte_compile_sources
+
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 
@@ -583,6 +585,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="the report (default: "
                         "docs/_bench/qvbench_TYPE.md)")
     args = parser.parse_args()
+    byte_compile_sources()
     sys.set_int_max_str_digits(0)  # (oscillators' index.json has integers of 6,000 digits)
     source = Source(args.root.expanduser(), args.kind)
     out = args.out or ROOT / f"docs/_bench/qvbench_{args.kind}.md"
