@@ -121,24 +121,36 @@ def _exact_labels(built: BuiltMdp, flat: FlatModel, source: ExactSource) -> Buil
 def _probabilities(built: BuiltMdp, atoms: list[ChoiceGroup], program: Program,
                    context: _Context) -> tuple[ObjectArray, IntArray]:
     """The exact value of every stored entry, and each row's atomic group
-    (``len(atoms)``: the self-loop of a deadlock)."""
+    (``len(atoms)``: the self-loop of a deadlock).
+
+    A state's rows follow the group order, so a group's row in a state is the number
+    of groups before it enabled there: counted group by group (a states-by-groups table
+    of them took 150 MB on csma.3-2's 36,850 states and 500 groups)."""
     states = built.states
-    n = states.shape[0]
-    found = [_group_branches(atom, states, context) for atom in atoms]
-    enabled = np.zeros((n, len(atoms) + 1), dtype=bool)
-    for index, branches in enumerate(found):
-        if branches is not None:
-            enabled[:, index] = branches[1] > 0
-    enabled[:, -1] = ~enabled[:, :-1].any(axis=1)
-    rank = np.cumsum(enabled, axis=1) - 1  # a group's position among its state's rows
     start = built.row_groups[:-1]
-    parts = [_Branches(d, states[d], _ones(d.size)) for d in [np.flatnonzero(enabled[:, -1])]]
-    rows = [start[parts[0].source] + rank[parts[0].source, -1]]
-    for index, branches in enumerate(found):
-        if branches is not None:
-            parts.append(branches[0])
-            rows.append(start[branches[0].source] + rank[branches[0].source, index])
-    kind = np.nonzero(enabled)[1]  # row-major: state by state, groups in order
+    taken = np.zeros(states.shape[0], dtype=np.int64)  # per state, its rows placed so far
+    parts: list[_Branches] = []
+    rows: list[IntArray] = []
+    placed: list[tuple[IntArray, int]] = []  # (rows, atomic group)
+    for index, atom in enumerate(atoms):
+        branches = _group_branches(atom, states, context)
+        if branches is None:
+            continue
+        part, counts = branches
+        parts.append(part)
+        rows.append(start[part.source] + taken[part.source])
+        enabled = np.flatnonzero(counts > 0)
+        placed.append((start[enabled] + taken[enabled], index))
+        taken[enabled] += 1
+    dead = np.flatnonzero(taken == 0)
+    parts.append(_Branches(dead, states[dead], _ones(dead.size)))
+    rows.append(start[dead])
+    placed.append((start[dead], len(atoms)))
+    if int(taken.sum()) + dead.size != built.transitions.shape[0]:
+        raise _mismatch()
+    kind = np.empty(built.transitions.shape[0], dtype=np.int64)
+    for at, index in placed:
+        kind[at] = index
     return _aligned(built, program, parts, np.concatenate(rows)), kind
 
 
@@ -161,13 +173,17 @@ def _aligned(built: BuiltMdp, program: Program, parts: list[_Branches],
     expected += P.indices
     placed = np.argsort(expected, kind="stable")
     if store.count != n or not np.array_equal(key[starts], expected[placed]):
-        raise ModelError(
-            "the exact re-expansion of the MDP does not match its float state space "
-            "(a guard or assignment evaluates differently in rational arithmetic)"
-        )
+        raise _mismatch()
     result = np.empty(expected.size, dtype=object)
     result[placed] = summed
     return result
+
+
+def _mismatch() -> ModelError:
+    return ModelError(
+        "the exact re-expansion of the MDP does not match its float state space "
+        "(a guard or assignment evaluates differently in rational arithmetic)"
+    )
 
 
 def _ones(size: int) -> ObjectArray:
