@@ -150,24 +150,26 @@ def readable_props(props: Path, folder: Path) -> Path:
     return path
 
 
-def _cli_constant(value: int | bool) -> str:
+def cli_constant(value: int | bool) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
 def run_ours(instance: Instance, files: tuple[Path, Path], timeout: float,
-             memory_kb: int) -> Measured:
+             memory_kb: int, *options: str) -> Measured:
+    """``veribattery prism`` on *instance*, with *options* (``--exact``) added."""
     exe = str(Path(sys.executable).parent / "veribattery")
     consts = [arg for k, v in instance.constants.items()
-              for arg in ("--const", f"{k}={_cli_constant(v)}")]
+              for arg in ("--const", f"{k}={cli_constant(v)}")]
     return measured([exe, "prism", str(files[0]), "--props", str(files[1]), "--property",
-                     instance.prop, *consts, "--json"], timeout, memory_kb)
+                     instance.prop, *consts, *options, "--json"], timeout, memory_kb)
 
 
 def run_storm(instance: Instance, files: tuple[Path, Path], timeout: float,
-              memory_kb: int) -> Measured:
+              memory_kb: int, script: str = STORM_SCRIPT) -> Measured:
+    """The stormpy *script* on *instance* (the model with its constants written in)."""
     with tempfile.TemporaryDirectory() as tmp:
         model = with_constants(files[0], instance.constants, Path(tmp))
-        return measured([sys.executable, "-c", STORM_SCRIPT, str(model), str(files[1]),
+        return measured([sys.executable, "-c", script, str(model), str(files[1]),
                          instance.prop], timeout, memory_kb)
 
 
