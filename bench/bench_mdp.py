@@ -306,22 +306,37 @@ def write(out: Path, rows: list[str], settings: str) -> None:
         + HEADER + "\n".join(rows) + "\n")
 
 
-def _load() -> str:
+def load_average() -> str:
     return "/".join(f"{x:.1f}" for x in os.getloadavg())
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def parsed_options(description: str, timeout: float, out: Path) -> argparse.Namespace:
+    """The options of an MDP benchmark, parsed (src/ byte-compiled before any timing)."""
+    parser = argparse.ArgumentParser(description=description)
     parser.add_argument("--only", default="", help="instances whose label contains this")
     parser.add_argument("--repeat", type=int, default=1, help="runs per tool; the min counts")
-    parser.add_argument("--timeout", type=float, default=900.0, help="seconds per process")
+    parser.add_argument("--timeout", type=float, default=timeout, help="seconds per process")
     parser.add_argument("--memory-gb", type=float, default=8.0,
                         help="address-space cap per process (ulimit -v)")
-    parser.add_argument("--out", type=Path, default=ROOT / "docs/_bench/mdp.md")
+    parser.add_argument("--out", type=Path, default=out)
     args = parser.parse_args()
     byte_compile_sources()
+    return args
+
+
+def settings_text(args: argparse.Namespace, start_load: str) -> str:
+    """How a table's runs were made: repeats, limits, machine and load, and when."""
+    return (f"Best of {args.repeat} run(s) each; timeout {args.timeout:.0f} s and "
+            f"`ulimit -v` {args.memory_gb:g} GB per process; machine: {os.cpu_count()} "
+            f"cores shared with other work, load average (1/5/15 min) {start_load} at the "
+            f"start and {load_average()} at the last row; run "
+            f"{time.strftime('%Y-%m-%d %H:%M %Z')}.")
+
+
+def main() -> None:
+    args = parsed_options(__doc__.splitlines()[0], 900.0, ROOT / "docs/_bench/mdp.md")
     memory_kb = int(args.memory_gb * 1024 * 1024)
-    start_load = _load()
+    start_load = load_average()
     rows: list[str] = []
     args.out.with_suffix(".jsonl").unlink(missing_ok=True)  # raw measurements of this run
     with tempfile.TemporaryDirectory() as tmp:
@@ -342,12 +357,7 @@ def main() -> None:
             ours, storm = best_of(ours_runs), best_of(storm_runs)
             rows.append(row(instance, ours, storm))
             print(rows[-1], flush=True)
-            settings = (f"Best of {args.repeat} run(s) each; timeout {args.timeout:.0f} s and "
-                        f"`ulimit -v` {args.memory_gb:g} GB per process; machine: "
-                        f"{os.cpu_count()} cores shared with other work, load average "
-                        f"(1/5/15 min) {start_load} at the start and {_load()} at the last "
-                        f"row; run {time.strftime('%Y-%m-%d %H:%M %Z')}.")
-            write(args.out, rows, settings)
+            write(args.out, rows, settings_text(args, start_load))
             with args.out.with_suffix(".jsonl").open("a") as raw:
                 raw.write(json.dumps({"instance": instance.label, "property": instance.prop,
                                       "ours": [vars(r) for r in ours_runs],

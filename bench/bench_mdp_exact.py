@@ -15,16 +15,24 @@ values must be the same rational: "equal" says whether they are.
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
 import tempfile
-import time
 from fractions import Fraction
 from pathlib import Path
 
-from bench_mdp import INSTANCES, MODELS, Instance, best_of, readable_props, run_ours, run_storm
-from bench_scale import Measured, byte_compile_sources, ratio_cell
+from bench_mdp import (
+    INSTANCES,
+    MODELS,
+    Instance,
+    best_of,
+    load_average,
+    parsed_options,
+    readable_props,
+    run_ours,
+    run_storm,
+    settings_text,
+)
+from bench_scale import Measured, ratio_cell
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The models whose exact runs finish in seconds to minutes on both tools.
@@ -109,17 +117,9 @@ def write(out: Path, rows: list[str], settings: str) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--only", default="", help="instances whose label contains this")
-    parser.add_argument("--repeat", type=int, default=1, help="runs per tool; the min counts")
-    parser.add_argument("--timeout", type=float, default=600.0, help="seconds per process")
-    parser.add_argument("--memory-gb", type=float, default=8.0,
-                        help="address-space cap per process (ulimit -v)")
-    parser.add_argument("--out", type=Path, default=ROOT / "docs/_bench/mdp_exact.md")
-    args = parser.parse_args()
-    byte_compile_sources()
+    args = parsed_options(__doc__.splitlines()[0], 600.0, ROOT / "docs/_bench/mdp_exact.md")
     memory_kb = int(args.memory_gb * 1024 * 1024)
-    start_load = "/".join(f"{x:.1f}" for x in os.getloadavg())
+    start_load = load_average()
     rows: list[str] = []
     with tempfile.TemporaryDirectory() as tmp:
         for instance in exact_instances(args.only):
@@ -130,13 +130,7 @@ def main() -> None:
                              for _ in range(args.repeat)])
             rows.append(row(instance, ours, storm))
             print(rows[-1], flush=True)
-            load = "/".join(f"{x:.1f}" for x in os.getloadavg())
-            write(args.out, rows,
-                  f"Best of {args.repeat} run(s) each; timeout {args.timeout:.0f} s and "
-                  f"`ulimit -v` {args.memory_gb:g} GB per process; machine: {os.cpu_count()} "
-                  f"cores shared with other work, load average (1/5/15 min) {start_load} at "
-                  f"the start and {load} at the last row; run "
-                  f"{time.strftime('%Y-%m-%d %H:%M %Z')}.")
+            write(args.out, rows, settings_text(args, start_load))
 
 
 if __name__ == "__main__":
