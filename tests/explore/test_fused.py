@@ -70,13 +70,13 @@ endmodule
 
 
 def _layers(model: FlatModel, fused: bool) -> tuple[np.ndarray, np.ndarray, list[Layer]]:
-    saved = builder_module._plan
+    saved = builder_module.layer_plan
     if not fused:
-        builder_module._plan = lambda program: None  # type: ignore[assignment]
+        builder_module.layer_plan = lambda program: None  # type: ignore[assignment]
     try:
         return explore(model, compile_program(model))
     finally:
-        builder_module._plan = saved
+        builder_module.layer_plan = saved
 
 
 def _assert_same_exploration(model: FlatModel) -> None:

@@ -38,7 +38,7 @@ if TYPE_CHECKING:
     from veribattery.explore.build.successors import GroupSuccessors
 
 __all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "check_finite_reward",
-           "expand_frontier", "explore", "initial_states", "memory_footprint",
+           "expand_frontier", "explore", "initial_states", "layer_plan", "memory_footprint",
            "rewarded_actions"]
 
 #: Frontier states expanded at once, at most.
@@ -173,7 +173,7 @@ def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | No
     the frontier expanded again with per-update checks, which raise the located
     error.
     """
-    plan = _plan(program)
+    plan = layer_plan(program)
     if plan is not None:
         fused = plan.expand(frontier, rewarded)
         if fused is not None:
@@ -196,7 +196,8 @@ def expand_frontier(program: Program, frontier: IntArray, rewarded: set[str | No
 _PLANS: list[tuple[Program, LayerPlan | None]] = []
 
 
-def _plan(program: Program) -> LayerPlan | None:
+def layer_plan(program: Program) -> LayerPlan | None:
+    """*program*'s fused layer plan (None: too many kinds), made once per program."""
     for known, plan in _PLANS:
         if known is program:
             return plan

@@ -45,11 +45,10 @@ __all__ = [
     "AssignedEntries",
     "Expansion",
     "FactorTable",
+    "LayerBranches",
     "LayerExpr",
     "LayerPlan",
     "ValueTable",
-    "branch_kinds",
-    "reprice",
 ]
 
 SUM_TOLERANCE = 0.5e-6  # half the builder's: a borderline sum is left to the exact check
@@ -78,6 +77,25 @@ class Expansion:
     action_choices: dict[str | None, IntArray]
     dropped: IntArray
     branches: int
+
+
+@dataclass(frozen=True, slots=True)
+class LayerBranches:
+    """Every branch out of a frontier, zero-probability ones included, before any 1/n
+    weighting, by source state, then choice kind, then branch. Per choice (a deadlock's
+    self-loop included): *choice_source*, *kind* (``plan.kinds``: the self-loop) and
+    *widths*, its branches; *enabled* is ``(kinds + 1, n)``, *choices* per state, *alive*
+    per kind (empty if not needed), *source* per branch."""
+
+    enabled: BoolArray
+    choices: IntArray
+    choice_source: IntArray
+    kind: IntArray
+    widths: IntArray
+    alive: list[bool]
+    source: IntArray
+    targets: IntArray
+    probability: FloatArray
 
 
 @dataclass(frozen=True, slots=True)
@@ -181,6 +199,14 @@ class LayerPlan:
         except ModelError:
             return None
 
+    def branches(self, states: IntArray) -> LayerBranches | None:
+        """Every choice and branch out of *states* (an MDP's rows), or None if the layer
+        needs the group-by-group path."""
+        try:
+            return _branches(self, states, set())
+        except ModelError:
+            return None
+
 
 # ---------------------------------------------------------------------------
 # Expanding a layer
@@ -188,6 +214,24 @@ class LayerPlan:
 
 
 def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Expansion | None:
+    layer = _branches(plan, states, rewarded)
+    if layer is None:
+        return None
+    source, targets, probability = layer.source, layer.targets, layer.probability
+    total = source.size
+    if layer.kind.size > states.shape[0]:  # some state has several choices (or n = 0)
+        probability /= np.maximum(layer.choices, 1)[source]
+    keep = probability > _NO_PROBABILITY
+    dropped = np.empty(0, dtype=np.int64)
+    if np.count_nonzero(keep) < keep.size:
+        dropped = np.flatnonzero(~keep)
+        source, targets, probability = source[keep], targets[keep], probability[keep]
+    actions = _action_choices(plan, layer.enabled, layer.alive, rewarded)
+    return Expansion(source, targets, probability, layer.choices, actions, dropped, total)
+
+
+def _branches(plan: LayerPlan, states: IntArray,
+              rewarded: set[str | None]) -> LayerBranches | None:
     lookups = plan.narrow.lookups(states.shape[0]) if plan.narrow is not None else None
     looked = None if lookups is None else (lookups, lookups.lookup.evaluate(states))
     enabled, choices = _enabled(plan, states, looked)
@@ -210,15 +254,8 @@ def _expand(plan: LayerPlan, states: IntArray, rewarded: set[str | None]) -> Exp
     checked = plan.values.assigned is not None and looked is None  # by ``_targets``
     if targets is None or (not checked and _out_of_range(plan, targets)):
         return None
-    if src.size > states.shape[0]:  # some state has several choices (or n = 0)
-        probability /= np.maximum(choices, 1)[source]
-    keep = probability > _NO_PROBABILITY
-    dropped = np.empty(0, dtype=np.int64)
-    if np.count_nonzero(keep) < keep.size:
-        dropped = np.flatnonzero(~keep)
-        source, targets, probability = source[keep], targets[keep], probability[keep]
-    actions = _action_choices(plan, enabled, alive, rewarded)
-    return Expansion(source, targets, probability, choices, actions, dropped, total)
+    return LayerBranches(enabled, choices, src, kind, widths, alive, source, targets,
+                         probability)
 
 
 #: A narrow layer's lookups and their values on its frontier ``(units, n)``.
@@ -459,38 +496,3 @@ def _members(
             (a, plan.action_kinds[a].tolist()) for a in plan.action_kinds if a in rewarded
         ]
     return found
-
-
-# ---------------------------------------------------------------------------
-# Re-pricing known branches (structure reuse, see ``reuse.structure``)
-# ---------------------------------------------------------------------------
-
-
-def branch_kinds(plan: LayerPlan, states: IntArray) -> tuple[IntArray, IntArray]:
-    """The branch kind and the *states*-local source of every branch out of *states*,
-    in the builder's order, zero-probability branches included."""
-    enabled, _ = _enabled(plan, states)
-    src, kind = _positions(enabled)
-    widths = plan.widths[kind]
-    firsts = np.cumsum(widths) - widths
-    branch = np.repeat(plan.starts[kind] - firsts, widths) + np.arange(int(widths.sum()))
-    return branch, np.repeat(src, widths)
-
-
-def reprice(plan: LayerPlan, states: IntArray, branch: IntArray,
-            source: IntArray) -> FloatArray | None:
-    """The probabilities (before the 1/n weighting) of the branches of kinds *branch*
-    out of ``states[source]`` under *plan*'s factors, multiplied as :func:`_expand`
-    does; None if a factor is a risky expression (it would need the guards), a factor
-    is negative or a choice's sum is off (the builder then decides).
-    """
-    if any(e.risky for e in plan.factors.exprs):
-        return None
-    present = list(range(plan.kinds + 1))
-    none = np.empty((0, 0), dtype=bool)
-    probability = _probabilities(plan.factors, states, none, present, (branch, source))
-    if probability is None or plan.unchecked_sums.isdisjoint(present):
-        return probability
-    kind = np.repeat(np.arange(plan.widths.size), plan.widths)[branch]
-    firsts = np.flatnonzero(branch == plan.starts[kind])
-    return probability if _sums_ok(plan, present, probability, firsts, kind[firsts]) else None

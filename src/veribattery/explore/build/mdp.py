@@ -27,6 +27,7 @@ from veribattery.explore.build.builder import (
     _over_states,
     check_finite_reward,
     initial_states,
+    layer_plan,
     memory_footprint,
 )
 from veribattery.explore.build.guard import MemoryGuard
@@ -159,23 +160,74 @@ def atomic_groups(program: Program) -> list[ChoiceGroup]:
 def _expand(program: Program, atoms: list[ChoiceGroup], store: StateStore, low: int,
             high: int) -> tuple[sp.csr_matrix, IntArray, IntArray]:
     """The choices of states ``low..high-1`` (in state, then group order): their rows,
-    the number per state, and each one's atomic group (``len(atoms)``: a deadlock loop)."""
+    the number per state, and each one's atomic group (``len(atoms)``: a deadlock loop).
+
+    Expanded in one pass over all groups where the program's layer plan allows
+    (``fused``: its kinds are :func:`atomic_groups`, in their order), else group by
+    group. Either way the targets are numbered group by group (each group's in state
+    order, the deadlocks' last), zero-probability branches included, so that the
+    states are numbered alike whichever path a chunk takes."""
     frontier = store.rows(low, high)
-    size = high - low
+    found = _fused(program, frontier, len(atoms))
+    if found is None:
+        found = _grouped(program, atoms, frontier)
+    source, group, row, targets, p, numbering = found
+    if numbering is None:
+        column = store.add(targets)
+    else:
+        column = np.empty(row.size, dtype=np.int64)
+        column[numbering] = store.add(targets[numbering])
+    keep = p > 0
+    matrix = sp.csr_matrix((p[keep], (row[keep], column[keep])),
+                           shape=(source.size, store.count))
+    matrix.sum_duplicates()
+    per_state = np.bincount(source, minlength=high - low)
+    return matrix, per_state.astype(np.int64), group
+
+
+#: Per choice its source and atomic group; per branch its choice, target and probability;
+#: and the order in which the targets are numbered (None: as they are).
+_Choices = tuple[IntArray, IntArray, IntArray, IntArray, FloatArray, IntArray | None]
+
+
+def _fused(program: Program, frontier: IntArray, groups: int) -> _Choices | None:
+    """The chunk's choices by the program's layer plan, or None where it gives up.
+
+    Its branches come by state, then group; they are numbered in :func:`_grouped`'s
+    order: group by group, a lone command's update by update (each over the states),
+    a synchronised combination's state by state (each with its branches)."""
+    plan = layer_plan(program)
+    if plan is None or plan.kinds != groups:  # (the same enumeration, or none)
+        return None
+    found = plan.branches(frontier)
+    if found is None:
+        return None
+    widths = found.widths
+    row = np.repeat(np.arange(found.kind.size), widths)
+    kind = found.kind[row]
+    update = np.arange(row.size) - np.repeat(np.cumsum(widths) - widths, widths)
+    lone = (plan.kind_commands[:, 1:] == plan.commands).all(axis=1)[kind]
+    numbering = np.lexsort((np.where(lone, found.source, update),
+                            np.where(lone, update, found.source), kind))
+    return found.choice_source, found.kind, row, found.targets, found.probability, numbering
+
+
+def _grouped(program: Program, atoms: list[ChoiceGroup], frontier: IntArray) -> _Choices:
+    """The chunk's choices group by group (errors raised where they are, located); the
+    branches group by group, each group's by state, the deadlocks' last."""
     sources: list[IntArray] = []
     groups: list[IntArray] = []
     targets: list[IntArray] = []
     probability: list[FloatArray] = []
     for index in _enabled_somewhere(program.groups, frontier):
-        atom = atoms[index]
-        found = expand_group(program, atom, frontier, True)
+        found = expand_group(program, atoms[index], frontier, True)
         if found is None:
             continue
         sources.append(found.source)
         groups.append(np.full(found.source.size, index, dtype=np.int64))
         targets.append(found.targets)
         probability.append(found.probability)
-    enabled = np.zeros(size, dtype=bool)
+    enabled = np.zeros(frontier.shape[0], dtype=bool)
     for source in sources:
         enabled[source] = True
     dead = np.flatnonzero(~enabled)
@@ -183,20 +235,15 @@ def _expand(program: Program, atoms: list[ChoiceGroup], store: StateStore, low: 
     groups.append(np.full(dead.size, len(atoms), dtype=np.int64))
     targets.append(frontier[dead])
     probability.append(np.ones(dead.size))
-    source = np.concatenate(sources)
-    group = np.concatenate(groups)
-    column = store.add(np.concatenate(targets))
-    p = np.concatenate(probability)
+    source, group = np.concatenate(sources), np.concatenate(groups)
     order = np.lexsort((group, source))  # stable: a choice's updates keep their order
-    source, group, column, p = source[order], group[order], column[order], p[order]
-    starts = np.flatnonzero(np.r_[True, (source[1:] != source[:-1]) | (group[1:] != group[:-1])])
-    row = np.cumsum(np.r_[False, (source[1:] != source[:-1]) | (group[1:] != group[:-1])])
-    keep = p > 0
-    matrix = sp.csr_matrix((p[keep], (row[keep], column[keep])),
-                           shape=(starts.size, store.count))
-    matrix.sum_duplicates()
-    per_state = np.bincount(source[starts], minlength=size)
-    return matrix, per_state.astype(np.int64), group[starts]
+    by_state, group = source[order], group[order]
+    new_row = np.r_[True, (by_state[1:] != by_state[:-1]) | (group[1:] != group[:-1])]
+    starts = np.flatnonzero(new_row)
+    row = np.empty(order.size, dtype=np.int64)
+    row[order] = np.cumsum(new_row) - 1
+    return (by_state[starts], group[starts], row, np.concatenate(targets),
+            np.concatenate(probability), None)
 
 
 def _enabled_somewhere(groups: tuple[ChoiceGroup, ...], frontier: IntArray) -> Iterator[int]:

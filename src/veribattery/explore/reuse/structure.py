@@ -21,7 +21,7 @@ build records the *branch kind* of every branch (which commands and updates it
 combines); equal keys mean equal guards and assignments, hence the same enabled
 choices and the same successors, so only the probabilities are computed again --
 one gather per constant factor, one evaluation over the states per probability
-expression -- and weighted as the builder does (:func:`.fused.reprice`). The
+expression -- and weighted as the builder does (:func:`.reprice.reprice`). The
 recorded kinds are checked once at build time (they must reproduce the built
 probabilities bit for bit), else this way is off for that structure. Otherwise
 every known state is expanded again in one vectorised pass per chunk -- no
@@ -49,8 +49,8 @@ from veribattery.explore.build.builder import (
     initial_states,
     rewarded_actions,
 )
-from veribattery.explore.build.fused import branch_kinds, reprice
 from veribattery.explore.build.plan import plan_layers
+from veribattery.explore.build.reprice import branch_kinds, reprice
 from veribattery.explore.compile.program import Program, compile_program, with_probabilities
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Command, FlatModel, LabelDecl, RewardStruct
