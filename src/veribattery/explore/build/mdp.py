@@ -164,22 +164,22 @@ def _expand(program: Program, atoms: list[ChoiceGroup], store: StateStore, low: 
 
     Expanded in one pass over all groups where the program's layer plan allows
     (``fused``: its kinds are :func:`atomic_groups`, in their order), else group by
-    group. Either way the targets are numbered group by group (each group's in state
-    order, the deadlocks' last), zero-probability branches included, so that the
-    states are numbered alike whichever path a chunk takes."""
+    group. Either way the targets are numbered group by group (see :func:`_fused`),
+    so that the states are numbered alike whichever path a chunk takes; a branch of
+    probability 0 is dropped before (as the DTMC builder, PRISM and Storm do)."""
     frontier = store.rows(low, high)
     found = _fused(program, frontier, len(atoms))
     if found is None:
         found = _grouped(program, atoms, frontier)
     source, group, row, targets, p, numbering = found
-    if numbering is None:
-        column = store.add(targets)
+    keep = p > 0  # a branch of probability 0 is no transition: its target no state
+    if numbering is not None:
+        keep_numbered = keep[numbering]
+        row, p = row[numbering][keep_numbered], p[numbering][keep_numbered]
+        targets = targets[numbering[keep_numbered]]
     else:
-        column = np.empty(row.size, dtype=np.int64)
-        column[numbering] = store.add(targets[numbering])
-    keep = p > 0
-    matrix = sp.csr_matrix((p[keep], (row[keep], column[keep])),
-                           shape=(source.size, store.count))
+        row, p, targets = row[keep], p[keep], targets[keep]
+    matrix = sp.csr_matrix((p, (row, store.add(targets))), shape=(source.size, store.count))
     matrix.sum_duplicates()
     per_state = np.bincount(source, minlength=high - low)
     return matrix, per_state.astype(np.int64), group

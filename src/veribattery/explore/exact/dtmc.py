@@ -306,13 +306,13 @@ def _aligned(
     store.add(dtmc.states)
     dead = np.flatnonzero(choices == 0)
     source = np.concatenate([p.source for p in parts] + [dead])
-    target = store.add(np.concatenate([p.targets for p in parts] + [dtmc.states[dead]]))
     probability = np.concatenate([p.probability for p in parts] + [_ones(dead.size)])
     shared = np.flatnonzero(choices[source] > 1)  # nondeterministic states: uniform choice
     if shared.size:
         probability[shared] = probability[shared] / choices[source[shared]].astype(object)
-    keep = probability != _ZERO
-    key = source[keep].astype(np.int64) * n + target[keep]
+    keep = probability != _ZERO  # no transition, and its target no state (as built)
+    targets = np.concatenate([p.targets for p in parts] + [dtmc.states[dead]])
+    key = source[keep].astype(np.int64) * n + store.add(targets[keep])
     order = np.argsort(key, kind="stable")
     key, values = key[order], probability[keep][order]
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])

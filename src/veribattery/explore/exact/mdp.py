@@ -160,10 +160,10 @@ def _aligned(built: BuiltMdp, program: Program, parts: list[_Branches],
     n = built.states.shape[0]
     store = StateStore(program.lows, program.highs)
     store.add(built.states)
-    target = store.add(np.concatenate([p.targets for p in parts]))
     probability = np.concatenate([p.probability for p in parts])
-    keep = probability != _ZERO
-    key = row[keep].astype(np.int64) * n + target[keep]
+    keep = probability != _ZERO  # no transition, and its target no state (as built)
+    target = store.add(np.concatenate([p.targets for p in parts])[keep])
+    key = row[keep].astype(np.int64) * n + target
     order = np.argsort(key, kind="stable")
     key, values = key[order], probability[keep][order]
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
