@@ -46,7 +46,7 @@ from veribattery.explore.exact.rational import ExactScalar, ObjectArray, exact_c
 from veribattery.lang.nodes import Command, Expr, FlatModel, Model, RewardStruct, Value
 from veribattery.lang.semantics import expand_formulas, expanded_modules, inline_formulas
 
-__all__ = ["ExactDTMC", "ExactRewards", "build_exact", "exact_dtmc"]
+__all__ = ["ExactDTMC", "ExactRewards", "build_exact", "exact_dtmc", "numbered_targets"]
 
 _ONE = mpq(1)
 _ZERO = mpq(0)
@@ -293,6 +293,15 @@ def _branch_updates(
 # ---------------------------------------------------------------------------
 
 
+def numbered_targets(store: StateStore, targets: list[IntArray], keep: BoolArray) -> IntArray:
+    """The numbers of the *targets* (blocks, in order) where *keep* holds, a block at a
+    time: the blocks are not copied into one table first."""
+    ends = np.cumsum([block.shape[0] for block in targets])
+    found = [store.add(block[keep[end - block.shape[0]:end]])
+             for block, end in zip(targets, ends, strict=True)]
+    return np.concatenate(found) if found else np.empty(0, dtype=np.int64)
+
+
 def _aligned(
     lows: Sequence[int],
     highs: Sequence[int],
@@ -311,8 +320,8 @@ def _aligned(
     if shared.size:
         probability[shared] = probability[shared] / choices[source[shared]].astype(object)
     keep = probability != _ZERO  # no transition, and its target no state (as built)
-    targets = np.concatenate([p.targets for p in parts] + [dtmc.states[dead]])
-    key = source[keep].astype(np.int64) * n + store.add(targets[keep])
+    targets = [p.targets for p in parts] + [dtmc.states[dead]]
+    key = source[keep].astype(np.int64) * n + numbered_targets(store, targets, keep)
     order = np.argsort(key, kind="stable")
     key, values = key[order], probability[keep][order]
     starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])

@@ -27,7 +27,13 @@ from veribattery.explore.build.store import StateStore
 from veribattery.explore.build.successors import format_state
 from veribattery.explore.compile.expr import compile_expr
 from veribattery.explore.compile.program import ChoiceGroup, Program, compile_program
-from veribattery.explore.exact.dtmc import _Branches, _Context, _group_branches, _source
+from veribattery.explore.exact.dtmc import (
+    _Branches,
+    _Context,
+    _group_branches,
+    _source,
+    numbered_targets,
+)
 from veribattery.explore.exact.program import ExactSource, as_bools, exact_program, needs_exact
 from veribattery.explore.exact.rational import ExactScalar, ObjectArray, tabulate
 from veribattery.lang.nodes import Expr, FlatModel, Model, RewardStruct, Value
@@ -162,7 +168,7 @@ def _aligned(built: BuiltMdp, program: Program, parts: list[_Branches],
     store.add(built.states)
     probability = np.concatenate([p.probability for p in parts])
     keep = probability != _ZERO  # no transition, and its target no state (as built)
-    target = store.add(np.concatenate([p.targets for p in parts])[keep])
+    target = numbered_targets(store, [p.targets for p in parts], keep)
     key = row[keep].astype(np.int64) * n + target
     order = np.argsort(key, kind="stable")
     key, values = key[order], probability[keep][order]
