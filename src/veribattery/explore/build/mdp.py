@@ -214,7 +214,8 @@ def _fused(program: Program, frontier: IntArray, groups: int) -> _Choices | None
 
 def _grouped(program: Program, atoms: list[ChoiceGroup], frontier: IntArray) -> _Choices:
     """The chunk's choices group by group (errors raised where they are, located); the
-    branches group by group, each group's by state, the deadlocks' last."""
+    branches group by group, each group's as its expansion gives them (see
+    :func:`_fused`), the deadlocks' last."""
     sources: list[IntArray] = []
     groups: list[IntArray] = []
     targets: list[IntArray] = []
