@@ -250,16 +250,12 @@ class LevelOrder:
         """The rows at positions ``first..last`` (here), in this order, each with its
         entries in their stored order (so every product sums the same terms alike)."""
         off, rows = self.system.off, self.rows[first:last]
-        if rows.size and int(rows[-1]) - int(rows[0]) == rows.size - 1 and (
-                rows.size == 1 or bool(np.all(np.diff(rows) == 1))):
+        if rows.size and int(rows[-1]) - int(rows[0]) == rows.size - 1 and bool(
+                np.all(np.diff(rows) == 1)):
             # (a view: consecutive rows; slicing would copy them, and a model of a
             # thousand levels would slice its whole matrix piece by piece)
             return csr_rows(off, int(rows[0]), int(rows[-1]) + 1)
-        entries = segments(off.indptr, rows)
-        indptr = np.zeros(rows.size + 1, dtype=off.indptr.dtype)
-        np.cumsum(off.indptr[rows + 1] - off.indptr[rows], out=indptr[1:])
-        return sp.csr_matrix((off.data[entries], off.indices[entries], indptr),
-                             shape=(rows.size, off.shape[1]))
+        return sp.csr_matrix(off[rows])
 
     def per_row(self, values: FloatArray, first: int, last: int) -> FloatArray:
         """*values* (one per row of the system) of the rows at positions ``first..last``."""
