@@ -173,12 +173,8 @@ def _expand(program: Program, atoms: list[ChoiceGroup], store: StateStore, low: 
         found = _grouped(program, atoms, frontier)
     source, group, row, targets, p, numbering = found
     keep = p > 0  # a branch of probability 0 is no transition: its target no state
-    if numbering is not None:
-        keep_numbered = keep[numbering]
-        row, p = row[numbering][keep_numbered], p[numbering][keep_numbered]
-        targets = targets[numbering[keep_numbered]]
-    else:
-        row, p, targets = row[keep], p[keep], targets[keep]
+    order = np.flatnonzero(keep) if numbering is None else numbering[keep[numbering]]
+    row, p, targets = row[order], p[order], targets[order]
     matrix = sp.csr_matrix((p, (row, store.add(targets))), shape=(source.size, store.count))
     matrix.sum_duplicates()
     per_state = np.bincount(source, minlength=high - low)
