@@ -65,6 +65,38 @@ def test_mdp_lower_bound_solved_by_hand(prop: str, expected: Fraction) -> None:
     _encloses(prop, GATHER_MDP, expected)
 
 
+#: Five steps to the goal, each costing 1: within a budget of 4 or less it is out of
+#: reach, exactly.
+FAR_GOAL = """mdp
+module m
+  x : [0..5] init 0;
+  [a] x<5 -> 0.5:(x'=x+1) + 0.5:(x'=x);
+  [b] x<5 -> 0.25:(x'=x+1) + 0.75:(x'=x);
+endmodule
+rewards "r"
+  [a] true : 1;
+  [b] true : 1;
+endrewards
+label "goal" = x=5;
+"""
+
+
+@pytest.mark.usefixtures("one_layer_at_a_time")
+@pytest.mark.parametrize("budget", [2, 4, 40])
+def test_a_goal_out_of_reach_stays_exactly_zero(budget: int) -> None:
+    # The layers' exits read values of 0 from the lower layers: exact products, not
+    # [0, 2k ETA] growing with each layer (firewire's `deadline` at delay=36 was
+    # 7.2e-322 +- 8.2e-322 after 201 layers, and P>0 on it undecided).
+    for bound in ("Pmin", "Pmax"):
+        found = _result(f'{bound}=? [ F{{"r"}}<={budget} "goal" ]', FAR_GOAL)
+        if budget < 5:
+            assert found == (0.0, 0.0, 0.0)
+        else:
+            assert 0.0 < found[1] <= found[2] < 1.0
+    decided = check_prism_file(FAR_GOAL, props_source=f'Pmax>0 [ F{{"r"}}<={budget} "goal" ]')
+    assert decided.results[0].value is (budget >= 5)
+
+
 ROBOT_PROPS = ([f'P{d}=? [ F{{"{r}"}}<={k} "goal" ]' for d in ("min", "max")
                 for k in (1, 3, 6) for r in ("steps", "time")]
                + ['Pmax=? [ !"broken" U{"steps"}<=4 "goal" ]']

@@ -31,7 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker.certify import enclose_product
+from veribattery.checker.certify import enclose_product, zero_terms_only
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
 
@@ -163,7 +163,11 @@ class _Exits:
                 continue  # (spent: the until fails)
             lower, upper = known[destination]
             low[positions] = enclose_product(rows, lower)[1]
-            high[positions] = enclose_product(rows, upper)[2]
+            product, _, above = enclose_product(rows, upper)
+            # (a row reading only exact 0s is exactly 0: the enclosure's [0, 2k ETA] for
+            # it grew through the layers, 7e-322 +- 8e-322 after firewire's 201 layers
+            # where the value is 0, and P>0 on it was undecided)
+            high[positions] = np.where(zero_terms_only(rows, upper, product == 0), 0.0, above)
         return np.clip(low, 0.0, 1.0), np.clip(high, 0.0, 1.0)
 
 
