@@ -35,11 +35,15 @@ from veribattery.checker.certify import enclose_product, zero_terms_only
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
 
-__all__ = ["LayerSolve", "RewardEpochs"]
+__all__ = ["LayerPass", "LayerSolve", "RewardEpochs"]
 
 #: Certified bounds of ``remain U target`` in every state of a layer's rows (over the
 #: model's states, then *yes*, then *no*; one row more each for *yes* and *no*).
 LayerSolve = Callable[[CsrMatrix, BoolArray, BoolArray], Bounds]
+#: The same from the layer's parts, or None where it does not apply: *remain* and
+#: *target* over the model's states, and per row of the model the lower and upper ends
+#: of the value it leads to if it leaves the layer (unread where it stays).
+LayerPass = Callable[[BoolArray, BoolArray, FloatArray, FloatArray], Bounds | None]
 
 
 @dataclass(frozen=True, slots=True)
@@ -60,11 +64,13 @@ class RewardEpochs:
     target: BoolArray
     gather: bool
 
-    def bounds(self, top: int, solve: LayerSolve,
-               progress: Progress | None = None) -> Bounds:
+    def bounds(self, top: int, solve: LayerSolve, progress: Progress | None = None,
+               one_pass: LayerPass | None = None) -> Bounds:
         """Certified bounds of the until from layer *top* (the whole bound ahead), per state.
 
         :param progress: told ``(layers done, layers, "reward layers")``.
+        :param one_pass: tried first on a layer whose rows that cost something leave it
+            (not a gathering bound's layer 0), *solve* where it gives None.
         """
         exits = _Exits.of(self.matrix, self.costs)
         known: dict[int, tuple[FloatArray, FloatArray]] = {}
@@ -77,7 +83,9 @@ class RewardEpochs:
             same = (asked is not None and layer > 1 and np.array_equal(low, asked[0])
                     and np.array_equal(high, asked[1]))
             if not same:  # (else the layer is the last one over again: low layers of 0s)
-                found = self._layer(layer, within, (low, high), solve)
+                passed = None if within is not exits or one_pass is None else one_pass(
+                    *self._sets(layer, exits=False), *self._per_row(within, low, high))
+                found = passed or self._layer(layer, within, (low, high), solve)
             asked = (low, high)
             known[layer] = (found.lower, found.upper)
             stale = layer - exits.deepest  # (no step reaches further down from the next)
@@ -98,11 +106,22 @@ class RewardEpochs:
         middle = 0.5 * below.value[:n] + 0.5 * above.value[:n]
         return Bounds.around(middle, below.lower[:n], above.upper[:n])
 
-    def _sets(self, layer: int) -> tuple[BoolArray, BoolArray]:
-        """The layer's *remain* and *target* states, then *yes* (a target) and *no*."""
+    def _sets(self, layer: int, *, exits: bool = True) -> tuple[BoolArray, BoolArray]:
+        """The layer's *remain* and *target* states, then (if *exits*) *yes* (a target)
+        and *no*."""
         target = self.target if layer == 0 or not self.gather else np.zeros_like(self.target)
+        if not exits:
+            return self.remain, target
         return (np.concatenate([self.remain, [False, False]]),
                 np.concatenate([target, [True, False]]))
+
+    def _per_row(self, exits: _Exits, low: FloatArray, high: FloatArray
+                 ) -> tuple[FloatArray, FloatArray]:
+        """The exits' values *low* and *high* per row of the model (0 where it stays)."""
+        rows = self.matrix.shape[0]
+        row_low, row_high = np.zeros(rows), np.zeros(rows)
+        row_low[exits.leaving], row_high[exits.leaving] = low, high
+        return row_low, row_high
 
     def _rows(self, exits: _Exits, leaving: FloatArray) -> CsrMatrix:
         """The layer's rows: each row that leaves it, a step to *yes* with its

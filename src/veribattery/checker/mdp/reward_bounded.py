@@ -34,6 +34,7 @@ from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.formula.leaves import RewardLimit
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.reach import reach_probability
+from veribattery.checker.mdp.reward_levels import LevelledLayers
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError, Span
 from veribattery.explore.build.successors import format_state
@@ -83,7 +84,9 @@ def reward_bounded_reach(mdp: MDP, structure: MdpRewards, limit: RewardLimit,
     top = max(limit.total, 0)
     if not product_built(mdp.transitions.nnz, top, limit.total, span):
         epochs = RewardEpochs(mdp.transitions, costs, left, right, limit.gather)
-        return epochs.bounds(top, _layer_until(mdp, objective), progress)
+        one_pass = LevelledLayers(mdp.transitions, mdp.row_groups, costs, objective, left,
+                                  right)
+        return epochs.bounds(top, _layer_until(mdp, objective), progress, one_pass)
     product = budget_product(mdp, costs, limit, left, right, span)
     found = reach_probability(product.mdp, product.target, objective=objective,
                               remain=product.remain).bounds
