@@ -32,6 +32,7 @@ import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.certify import enclose_product, zero_terms_only
+from veribattery.checker.certify.apriori import NonnegativeProducts
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
 
@@ -145,13 +146,13 @@ class _Exits:
     :param staying: the entries of the rows that cost nothing (they stay in their
         layer), numbered by the model's rows.
     :param leaving: the others, by cost.
-    :param by_cost: per cost, its rows' positions in *leaving* and their matrix.
+    :param by_cost: per cost, its rows' positions in *leaving* and their products.
     :param deepest: the largest cost (how far below a layer its values are read).
     """
 
     staying: sp.coo_matrix
     leaving: IntArray
-    by_cost: tuple[tuple[int, IntArray, CsrMatrix], ...]
+    by_cost: tuple[tuple[int, IntArray, NonnegativeProducts], ...]
     deepest: int
 
     @classmethod
@@ -160,7 +161,8 @@ class _Exits:
         leaving = order[costs[order] > 0]
         kinds, starts = np.unique(costs[leaving], return_index=True)
         ends = np.append(starts[1:], leaving.size)
-        by_cost = tuple((int(c), np.arange(s, e), sp.csr_matrix(matrix[leaving[s:e]]))
+        by_cost = tuple((int(c), np.arange(s, e),
+                         NonnegativeProducts.of(sp.csr_matrix(matrix[leaving[s:e]])))
                         for c, s, e in zip(kinds, starts, ends, strict=True))
         return cls(_rows_of(matrix, np.flatnonzero(costs == 0)), leaving, by_cost,
                    int(kinds[-1]) if kinds.size else 0)
@@ -181,13 +183,27 @@ class _Exits:
             if destination < 0:
                 continue  # (spent: the until fails)
             lower, upper = known[destination]
-            low[positions] = enclose_product(rows, lower)[1]
-            product, _, above = enclose_product(rows, upper)
-            # (a row reading only exact 0s is exactly 0: the enclosure's [0, 2k ETA] for
-            # it grew through the layers, 7e-322 +- 8e-322 after firewire's 201 layers
-            # where the value is 0, and P>0 on it was undecided)
-            high[positions] = np.where(zero_terms_only(rows, upper, product == 0), 0.0, above)
+            low[positions] = _bounded(rows, lower, up=False)
+            high[positions] = _bounded(rows, upper, up=True)
         return np.clip(low, 0.0, 1.0), np.clip(high, 0.0, 1.0)
+
+
+def _bounded(products: NonnegativeProducts, x: FloatArray, *, up: bool) -> FloatArray:
+    """A lower (upper) bound of each row's product with *x*: the a priori one, or the
+    per-row enclosure where a product may have underflowed or *x* holds only 0s and 1s
+    (its products are exact, and so is a row with one nonzero term). Either keeps a row
+    that reads only exact 0s exactly 0: counting its entries as terms that may underflow
+    made it ``[0, 2k ETA]``, which grew through the layers (7e-322 +- 8e-322 after
+    firewire's 201 layers, where the value is 0, and ``P>0`` on it undecided)."""
+    if not bool(np.all((x == 0) | (x == 1))):
+        found = products.bound(x, up=up)
+        if found is not None:
+            return found
+    product, below, above = enclose_product(products.matrix, x)
+    if not up:
+        return below
+    return np.asarray(np.where(zero_terms_only(products.matrix, x, product == 0), 0.0, above),
+                      dtype=np.float64)
 
 
 def _rows_of(matrix: CsrMatrix, rows: IntArray) -> sp.coo_matrix:
