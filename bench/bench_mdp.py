@@ -144,19 +144,6 @@ def with_constants(model: Path, constants: dict[str, int | bool], folder: Path) 
     return path
 
 
-def readable_props(props: Path, folder: Path) -> Path:
-    """*props*, or a copy without its reward-bounded properties (``F^{rew{...}<=...}``,
-    Storm's syntax, which PRISM's grammar and so veribattery's parser reject: the whole
-    file would fail), the same copy for both tools."""
-    text = props.read_text()
-    if "^{" not in text:
-        return props
-    kept = [line for line in text.splitlines() if "^{" not in line]
-    path = folder / f"readable-{props.name}"
-    path.write_text("\n".join(kept) + "\n")
-    return path
-
-
 def cli_constant(value: int | bool) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
@@ -358,8 +345,7 @@ def main() -> None:
                 mission = mission or emit_mission(Path(tmp))
                 files = mission
             else:
-                files = (MODELS / instance.model,
-                         readable_props(MODELS / instance.props, Path(tmp)))
+                files = (MODELS / instance.model, MODELS / instance.props)
             ours_runs, storm_runs = [], []
             for _ in range(args.repeat):
                 ours_runs.append(run_ours(instance, files, args.timeout, memory_kb))

@@ -16,7 +16,6 @@ values must be the same rational: "equal" says whether they are.
 from __future__ import annotations
 
 import math
-import tempfile
 from fractions import Fraction
 from pathlib import Path
 
@@ -27,7 +26,6 @@ from bench_mdp import (
     best_of,
     load_average,
     parsed_options,
-    readable_props,
     run_ours,
     run_storm,
     settings_text,
@@ -121,16 +119,15 @@ def main() -> None:
     memory_kb = int(args.memory_gb * 1024 * 1024)
     start_load = load_average()
     rows: list[str] = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for instance in exact_instances(args.only):
-            files = (MODELS / instance.model, readable_props(MODELS / instance.props, Path(tmp)))
-            ours = best_of([run_ours(instance, files, args.timeout, memory_kb, "--exact")
-                            for _ in range(args.repeat)])
-            storm = best_of([run_storm(instance, files, args.timeout, memory_kb, STORM_EXACT)
-                             for _ in range(args.repeat)])
-            rows.append(row(instance, ours, storm))
-            print(rows[-1], flush=True)
-            write(args.out, rows, settings_text(args, start_load))
+    for instance in exact_instances(args.only):
+        files = (MODELS / instance.model, MODELS / instance.props)
+        ours = best_of([run_ours(instance, files, args.timeout, memory_kb, "--exact")
+                        for _ in range(args.repeat)])
+        storm = best_of([run_storm(instance, files, args.timeout, memory_kb, STORM_EXACT)
+                         for _ in range(args.repeat)])
+        rows.append(row(instance, ours, storm))
+        print(rows[-1], flush=True)
+        write(args.out, rows, settings_text(args, start_load))
 
 
 if __name__ == "__main__":
