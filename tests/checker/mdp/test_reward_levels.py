@@ -1,7 +1,7 @@
 """Reward-bound layers solved in one pass where their cost-free choices have no cycle
-(:mod:`veribattery.checker.mdp.reward_levels`): QVBS's exact values on firewire, the
-general solve's bounds where the pass applies, and the general solve where it does
-not."""
+(:mod:`veribattery.checker.mdp.reward_levels`): QVBS's exact values on firewire, Storm's
+exact values on random timed MDPs, rational values of random layers, the general
+solve's bounds where the pass applies, and the general solve where it does not."""
 
 from __future__ import annotations
 
@@ -240,3 +240,45 @@ def test_values_near_underflow_take_the_general_solve() -> None:
         # (without the target, state 3 is 0 and state 4 takes the exit)
         found = solve(remain, np.zeros(5, dtype=bool), exits, exits)
         assert (found is not None) is passed
+
+
+def _random_timed_mdp(seed: int) -> str:
+    """A random MDP of two modules whose every cycle costs time (each step of a module
+    that advances its clock costs 1; the others move forward in a counter), with a goal,
+    a failure sink and cost-free choices among them."""
+    rng = np.random.default_rng(seed)
+    lines = ["mdp", "module m", "  x : [0..6] init 0;", "  c : [0..3] init 0;"]
+    for x in range(5):
+        for action in ("a", "b"):
+            p = round(float(rng.uniform(0.1, 0.9)), 3)
+            up = min(6, x + int(rng.integers(1, 3)))
+            back = int(rng.integers(0, x + 1))
+            lines.append(f"  [{action}] x={x} & c<3 -> {p}:(x'={up})&(c'=c+1) + "
+                         f"{round(1 - p, 3)}:(x'={back})&(c'=c+1);")
+        q = round(float(rng.uniform(0.2, 0.8)), 3)
+        lines.append(f"  [free] x={x} & c=3 -> {q}:(x'=min(6,x+1))&(c'=0) + "
+                     f"{round(1 - q, 3)}:(x'=6)&(c'=0);")
+    lines += ["  [fail] x=6 -> true;", "  [done] x=5 -> true;", "endmodule",
+              'rewards "time"', "  [a] true : 1;", "  [b] true : 2;", "endrewards",
+              'label "goal" = x=5;']
+    return "\n".join(lines) + "\n"
+
+
+@pytest.mark.usefixtures("layers")
+@pytest.mark.parametrize("seed", range(4))
+def test_layers_in_one_pass_against_storm(monkeypatch: pytest.MonkeyPatch, seed: int,
+                                          tmp_path: Path) -> None:
+    """Storm's exact values (its epochs) on random timed MDPs, forced through the
+    layers here: every layer but the first in one pass."""
+    pytest.importorskip("stormpy")
+    from tests.storm_oracle import storm_initial_values
+
+    text = _random_timed_mdp(seed)
+    props = [f'P{d}=? [ F{{"time"}}<={k} "goal" ]' for d in ("min", "max") for k in (3, 8, 25)]
+    storm = storm_initial_values(text, props, tmp_path)
+    counted = _Counted(monkeypatch)
+    for prop, theirs in zip(props, storm, strict=True):
+        value, lower, upper = _bounds(prop, text)
+        assert lower <= theirs <= upper  # (the nearest double of an enclosed rational)
+        assert value == pytest.approx(theirs, rel=1e-9, abs=1e-12)
+    assert counted.answered > 0
