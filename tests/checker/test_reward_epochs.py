@@ -107,7 +107,9 @@ def test_the_product_and_the_layers_meet_on_a_robot(monkeypatch: pytest.MonkeyPa
     """ROBOT's reward bounds, with the product and one layer at a time, also against
     ``--exact`` (the product in rationals)."""
     exact = check_prism_file(ROBOT, props_source=";".join(ROBOT_PROPS), exact=True).results
+    monkeypatch.setattr(reward_layers, "EPOCH_LIMIT", 0)  # (no layers: the product)
     product = [_result(p, ROBOT) for p in ROBOT_PROPS]
+    monkeypatch.undo()
     monkeypatch.setattr(reward_layers, "PRODUCT_LIMIT", 0)
     layers = [_result(p, ROBOT) for p in ROBOT_PROPS]
     for (value, lower, upper), (_, low, high), known in zip(product, layers, exact,

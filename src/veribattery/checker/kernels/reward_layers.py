@@ -35,8 +35,9 @@ from veribattery.errors import CheckError, Span
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
 
-__all__ = ["PRODUCT_LIMIT", "LayeredSets", "gathered_until_bounds", "layered_data",
-           "layered_groups", "layered_rows", "product_built", "require_product_size"]
+__all__ = ["EPOCH_LIMIT", "PRODUCT_LIMIT", "LayeredSets", "gathered_until_bounds",
+           "layered_data", "layered_groups", "layered_rows", "product_built",
+           "require_product_size"]
 
 #: The most transitions a product may have (about 20 bytes each while it is solved,
 #: several times over: some 2 GB at the limit).

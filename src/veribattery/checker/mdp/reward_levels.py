@@ -68,14 +68,15 @@ class LevelledLayers:
         failure state's loop would otherwise be a cost-free cycle).
     """
 
-    __slots__ = ("_costs", "_groups", "_hopeful", "_kept", "_objective", "_transitions")
+    __slots__ = ("_costs", "_groups", "_hopeful", "_kept", "_objective", "_sets",
+                 "_transitions")
 
     def __init__(self, transitions: CsrMatrix, groups: IntArray, costs: IntArray,
                  objective: Objective, remain: BoolArray, target: BoolArray) -> None:
         self._transitions, self._groups, self._costs = transitions, groups, costs
         self._objective: Objective = objective
-        owner = np.repeat(np.arange(groups.size - 1, dtype=np.int64), np.diff(groups))
-        self._hopeful = can_reach(ChoiceGraph.of(transitions, owner), remain, target)
+        self._sets = (remain, target)
+        self._hopeful: BoolArray | None = None  # (made when first asked)
         # (the levels of the last two moving sets: a gathering bound's layer 0 has its own)
         self._kept: list[tuple[BoolArray, _Levels | None]] = []
 
@@ -83,7 +84,7 @@ class LevelledLayers:
                  row_high: FloatArray) -> Bounds | None:
         """The layer's bounds per state, its leaving rows leading to values within
         ``[row_low, row_high]`` (per row of the model; unread where a row stays)."""
-        levels = self._levels(remain & ~target & self._hopeful)
+        levels = self._levels(remain & ~target & self._hopeful_states())
         if levels is None:
             return None
         low, high = self._pass(levels, target, row_low), self._pass(levels, target, row_high)
@@ -99,6 +100,19 @@ class LevelledLayers:
         for level in levels.each:
             values[level.states] = level.optimum(level.images(values, exits), reduce)
         return values
+
+    def passes(self, remain: BoolArray, target: BoolArray) -> bool:
+        """Whether a layer of these sets is solved in one pass (no cost-free cycle), but
+        for values near underflow."""
+        return self._levels(remain & ~target & self._hopeful_states()) is not None
+
+    def _hopeful_states(self) -> BoolArray:
+        """The states with a path to the target through *remain*."""
+        if self._hopeful is None:
+            owner = np.repeat(np.arange(self._groups.size - 1, dtype=np.int64),
+                              np.diff(self._groups))
+            self._hopeful = can_reach(ChoiceGraph.of(self._transitions, owner), *self._sets)
+        return self._hopeful
 
     def _levels(self, moving: BoolArray) -> _Levels | None:
         for kept, levels in self._kept:
