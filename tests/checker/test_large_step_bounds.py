@@ -263,3 +263,66 @@ def test_exact_results_of_more_than_4300_digits_print(tmp_path: Path) -> None:
     assert result.exit_code == 0
     power = mpz(3) ** 10000  # (gmpy2 prints it: Python's int would refuse too)
     assert json.loads(result.stdout)["results"][1]["exact"] == f"{power - 1}/{power}"
+
+
+#: Two states swapping with 1/4 each step; a reward of 1 in the first: the expected
+#: reward of k steps from it is k/2 + 1 - 2^-k (the chance of being there after i steps
+#: is 1/2 + 2^-(i+1)).
+SWAP = """dtmc
+module m
+  s : [0..1] init 0;
+  [] s=0 -> 0.25:(s'=1) + 0.75:(s'=0);
+  [] s=1 -> 0.25:(s'=0) + 0.75:(s'=1);
+endmodule
+rewards "r"
+  s=0 : 1;
+endrewards
+"""
+
+
+@pytest.mark.parametrize("k", [3000, 10**6])
+def test_cumulative_reward_is_carried_by_its_gain(k: int,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """Once the steps' increments are the same in both states (the gain 1/2), the rounds
+    left are carried forward (``horizon.gained``): 10^6 rounds took a minute."""
+    carried: list[int] = []
+    gained = horizon.gained
+
+    def spy(*args: object) -> object:
+        carried.append(int(args[2]))  # type: ignore[call-overload]
+        return gained(*args)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(horizon, "gained", spy)
+    result = check_prism_file(SWAP, selectors=(f'R=? [ C<={k} ]',)).results[0]
+    exact = Fraction(k, 2) + 1 - Fraction(1, 2**k)
+    assert result.precise and result.lower is not None and result.upper is not None
+    assert Fraction(result.lower) <= exact <= Fraction(result.upper)
+    assert carried and carried[-1] > k // 3  # (stopped early: a third of the rounds at most)
+
+
+def test_carried_bounds_meet_the_rounds_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same bound carried and with every round run: overlapping intervals, the same
+    value to 1e-12; and a reward whose increments differ between two absorbing states
+    (no single gain) runs every round."""
+    text = SWAP.replace("  s=0 : 1;", "  s=0 : 1;\n  s=1 : 0.3;")
+    carried = check_prism_file(text, selectors=("R=? [ C<=50000 ]",)).results[0]
+    monkeypatch.setattr(horizon, "gain_checkpoint", lambda done, k: False)
+    run = check_prism_file(text, selectors=("R=? [ C<=50000 ]",)).results[0]
+    assert carried.lower <= run.upper and run.lower <= carried.upper  # type: ignore[operator]
+    assert float(carried.value) == pytest.approx(float(run.value), rel=1e-12)
+    monkeypatch.undo()
+    result = check_prism_file(TWO_WAYS, selectors=("R=? [ C<=5000 ]",)).results[0]
+    assert result.lower <= 2499.5 <= result.upper and result.precise  # type: ignore[operator]
+
+
+#: From x=2 to one of two absorbing states, one earning 1 a step: 2499.5 in 5000 steps.
+TWO_WAYS = """dtmc
+module m
+  x : [0..2] init 2;
+  [] x=2 -> 0.5:(x'=0) + 0.5:(x'=1);
+  [] x<2 -> true;
+endmodule
+rewards "r"
+  x=0 : 1;
+endrewards
+"""

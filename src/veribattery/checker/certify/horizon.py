@@ -19,10 +19,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from veribattery._types import FloatArray
-from veribattery.checker.certify.bounds import Bounds, round_up
+from veribattery._types import CsrMatrix, FloatArray
+from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 
 __all__ = [
+    "GAINING",
     "NONNEGATIVE",
     "RISING",
     "ROUND_LIMIT",
@@ -31,8 +32,11 @@ __all__ = [
     "checkpoint",
     "drifted",
     "early",
+    "gain_checkpoint",
+    "gained",
     "meet",
     "rounds",
+    "row_sum_bounds",
 ]
 
 #: Bounds up to this many steps are iterated in full, as asked.
@@ -58,6 +62,9 @@ class Trend:
 
     rising: bool = False
     ceiling: Callable[[], FloatArray | None] | None = None
+    #: The map is ``opt_a (o_a + P_a x)`` over every state (``C<=k``): its steps can be
+    #: carried forward by :func:`gained`.
+    gaining: bool = False
 
     @classmethod
     def up_to(cls, find: Callable[[], FloatArray | None]) -> Trend:
@@ -74,6 +81,8 @@ class Trend:
 NONNEGATIVE = Trend()
 #: Nondecreasing iterates without a ceiling: ``C<=k`` (rewards are nonnegative).
 RISING = Trend(rising=True)
+#: ... whose map is ``opt_a (o_a + P_a x)`` over every state (:func:`gained`).
+GAINING = Trend(rising=True, gaining=True)
 
 
 def rounds(k: int, nonzeros: int) -> int:
@@ -81,6 +90,73 @@ def rounds(k: int, nonzeros: int) -> int:
     if k <= ROUND_LIMIT:
         return k
     return min(BEYOND_ROUNDS, max(FIRST_CHECK, WORK_LIMIT // max(nonzeros, 1)))
+
+
+def gain_checkpoint(done: int, k: int) -> bool:
+    """Whether to try :func:`gained` after *done* rounds of a bound of *k* steps: at
+    powers of two from :data:`FIRST_CHECK`, whatever the bound, while rounds remain."""
+    return FIRST_CHECK <= done < k and done & (done - 1) == 0
+
+
+def gained(start: tuple[FloatArray, FloatArray], step: tuple[FloatArray, FloatArray],
+           remaining: int, sums: tuple[float, float]) -> Bounds | None:
+    """Bounds of the iterate *remaining* rounds after *start* (value, error radius) of a
+    map ``T(x) = opt_a (o_a + P_a x)`` over every state, from the next computed iterate
+    and the rounding of that one step (*step*: ``y ~ T(x)``, ``|y - T(x)| <= delta``);
+    None where they are not finite.
+
+    *sums* bound the rows' sums of the ``P_a`` (``l`` below the smallest, ``h`` above the
+    largest). T is monotone, and for ``c >= 0`` ``T(x) + c min(l, 1) <= T(x + c) <=
+    T(x) + c max(h, 1)``. So the exact orbit ``Y`` from the computed *x* (taken as exact)
+    and the true one ``X`` stay within ``R max(h,1)^i`` of each other (``R``: the largest
+    radius), and with ``Y_1 - Y_0`` enclosed by *delta* in ``[c, C]`` (made nonnegative,
+    as the iterates of a nonnegative reward rise), ``Y_1 + c j min(l,1)^j <= Y_(1+j) <=
+    Y_1 + C j max(h,1)^j``. Where the steps have become the same in every state (the gain
+    of a unichain model), the rounds left need not run; only one step's rounding, not
+    the accumulated radius, widens the step (``C - c``).
+    """
+    (x, radius), (y, delta) = start, step
+    with np.errstate(invalid="ignore", over="ignore"):
+        low1, high1 = round_down(y - delta), round_up(y + delta)
+        least = float(np.min(round_down(low1 - x), initial=np.inf))
+        most = float(np.max(round_up(high1 - x), initial=0.0))
+    widest = float(np.max(radius, initial=0.0))
+    if not all(math.isfinite(v) for v in (least, most, widest)) or not bool(
+            np.all(np.isfinite(high1))):
+        return None
+    rounds = remaining - 1
+    try:
+        growth = max(sums[1], 1.0) ** remaining * _POW_SLACK
+        shrink = min(sums[0], 1.0) ** rounds / _POW_SLACK
+    except OverflowError:
+        return None
+    carried = math.nextafter(widest * growth, math.inf)
+    up = math.nextafter(math.nextafter(max(most, 0.0) * rounds, math.inf) * growth, math.inf)
+    down = math.nextafter(math.nextafter(max(least, 0.0) * rounds, -math.inf) * shrink,
+                          -math.inf)
+    upper = round_up(round_up(high1 + up) + carried)
+    floor = np.maximum(round_down(x - radius), 0.0)  # (rising: the start's lower bound)
+    lower = np.maximum(round_down(round_down(low1 + max(down, 0.0)) - carried), floor)
+    return Bounds.around(y + rounds * (y - x), lower, upper)
+
+
+def row_sum_bounds(M: CsrMatrix) -> tuple[float, float]:
+    """A lower bound of the smallest row sum of *M* and an upper bound of the largest,
+    for :func:`gained`, summed in extended precision: a bound a double's ulp from 1
+    loses ``j * ulp`` of a value carried *j* rounds (10^-10 relative after 10^6 rounds,
+    where the float enclosure's few ulps lost 10^-9, the precision asked)."""
+    if M.nnz == 0:
+        return 0.0, 0.0
+    lengths = np.diff(M.indptr)
+    sums = np.zeros(M.shape[0], dtype=np.longdouble)
+    filled = lengths > 0
+    sums[filled] = np.add.reduceat(M.data.astype(np.longdouble), M.indptr[:-1][filled])
+    terms = int(lengths.max())
+    unit = np.finfo(np.longdouble).eps / 2
+    gamma = terms * unit / (1 - terms * unit)
+    low = float(np.min(sums) * (1 - gamma))
+    high = float(np.max(sums) * (1 + gamma))
+    return math.nextafter(low, -math.inf), math.nextafter(high, math.inf)
 
 
 def checkpoint(done: int, k: int) -> bool:

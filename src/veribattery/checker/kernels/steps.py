@@ -62,7 +62,7 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
             return Bounds(*exact)
     terms = certify.row_terms(M)
     if k <= horizon.ROUND_LIMIT:
-        normwise = _step_power_normwise(M, start, offset, k, terms, progress)
+        normwise = _step_power_normwise(M, start, offset, k, terms, progress, trend)
         if normwise is not None:
             return normwise
     x = start.value
@@ -75,6 +75,9 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
         if not bool(np.all(np.isfinite(following))):
             # beyond the doubles (a reward sum): what the trend knows from the last step
             return horizon.beyond(following, _lower(x, radius), trend)
+        carried = _gained(M, trend, step, k, (x, radius), (following, rounding))
+        if carried is not None:
+            return carried
         if np.array_equal(following, x):
             fixpoint = _Fixpoint(x, radius, rounding, terms)
             return _settled(M, fixpoint, k - step, budget - step, trend)
@@ -92,7 +95,8 @@ def _step_power(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
 
 
 def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int,
-                         terms: FloatArray, progress: Progress | None) -> Bounds | None:
+                         terms: FloatArray, progress: Progress | None,
+                         trend: Trend) -> Bounds | None:
     """:func:`_step_power` with one radius for every state: one product per step
     instead of two (the componentwise radius needs ``M e`` too), or None when that
     radius would not meet the required absolute precision everywhere.
@@ -111,8 +115,11 @@ def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int
             return None
         following, low, high = certify.enclose_product(M, x, offset, terms)
         with np.errstate(invalid="ignore"):  # NaN beyond the doubles: the test above fails
-            rounding = float(np.max(np.maximum(high - following, following - low),
-                                    initial=0.0))
+            each = np.maximum(high - following, following - low)
+            rounding = float(np.max(each, initial=0.0))
+        carried = _gained(M, trend, step, k, (x, np.full_like(x, radius)), (following, each))
+        if carried is not None:
+            return carried
         if np.array_equal(following, x):
             found = _finish(M, x, np.full_like(x, radius), np.full_like(x, rounding), k - step)
             return found if bool(found.precise_states().all()) else None
@@ -124,6 +131,18 @@ def _step_power_normwise(M: CsrMatrix, start: Bounds, offset: FloatArray, k: int
     if not 2 * radius <= absolute:
         return None
     return _finish(M, x, np.full_like(x, radius), np.zeros_like(x), 0)
+
+
+def _gained(M: CsrMatrix, trend: Trend, step: int, k: int,
+            start: tuple[FloatArray, FloatArray], following: tuple[FloatArray, FloatArray]
+            ) -> Bounds | None:
+    """At a checkpoint of ``C<=k`` (:func:`horizon.gain_checkpoint`), the bounds of step
+    *k* carried from step *step* (*start*: value and radius) and the next, computed
+    with its rounding (:func:`horizon.gained`), if they meet the precision; else None."""
+    if not (trend.gaining and horizon.gain_checkpoint(step + 1, k)):
+        return None
+    found = horizon.gained(start, following, k - step, horizon.row_sum_bounds(M))
+    return found if found is not None and bool(found.precise_states().all()) else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -326,8 +345,8 @@ def cumulative_rewards(P: CsrMatrix, rewards: FloatArray, k: int, *,
     :param progress: as for :func:`bounded_until_probs`.
     """
     offset = np.asarray(rewards, dtype=np.float64)
-    found = _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k, progress,
-                        horizon.RISING)
+    trend = horizon.GAINING if bool(np.all(offset >= 0)) else horizon.RISING
+    found = _step_power(P, Bounds.exact(np.zeros_like(offset)), offset, k, progress, trend)
     if np.all(offset >= 0):  # a sum of such rewards is never negative (nor one overflown)
         return Bounds(found.value, np.maximum(found.lower, 0.0), found.upper)
     return found

@@ -138,7 +138,7 @@ def cumulative_reward(mdp: MDP, rewards: FloatArray, steps: int, *,
     everywhere = np.ones(mdp.num_states, dtype=bool)
     start = Bounds.exact(np.zeros(mdp.num_states))
     offset = np.asarray(rewards, dtype=np.float64)
-    rounds = _Rounds(everywhere, start, offset, objective, horizon.RISING)
+    rounds = _Rounds(everywhere, start, offset, objective, horizon.GAINING)
     return _iterated(mdp, start, rounds, steps, None)
 
 
@@ -179,6 +179,11 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
         steady = np.array_equal(following, value)
         if steady and np.array_equal(grown, radius):
             break  # every later round is this one
+        if rounds.trend.gaining and horizon.gain_checkpoint(done, steps):
+            carried = _gained(mdp, levels, rows, rounds, (value, radius), following,
+                              steps - done + 1)
+            if carried is not None and bool(carried.precise_states().all()):
+                return MdpResult(carried, decisions.strategy(mdp, steps, then))
         if horizon.checkpoint(done, steps) or done == budget < steps:
             found = _beyond(mdp, rounds.trend, (levels.restored(value), levels.restored(radius)),
                             (levels.restored(following), levels.restored(grown)),
@@ -195,6 +200,20 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
     upper = np.where(np.isnan(upper), np.inf, upper)  # (inf - inf: beyond the doubles)
     return MdpResult(Bounds(value, _lower(value, radius), upper),
                      decisions.strategy(mdp, steps, then))
+
+
+def _gained(mdp: MDP, levels: ChoiceLevels, rows: _Rows, rounds: _Rounds,
+            start: tuple[FloatArray, FloatArray], following: FloatArray,
+            remaining: int) -> Bounds | None:
+    """:func:`horizon.gained` of the *remaining* rounds from *start* (in *levels*' order),
+    whose round gave *following*: that round's rounding is its rows' again, the most
+    of each state's."""
+    value, radius = start
+    _, rounding = rows.enclosed(value, rounds.offset)
+    delta = levels.optimum(rounding, np.maximum)
+    return horizon.gained((levels.restored(value), levels.restored(radius)),
+                          (levels.restored(following), levels.restored(delta)), remaining,
+                          horizon.row_sum_bounds(mdp.transitions))
 
 
 def _beyond(mdp: MDP, trend: Trend, before: tuple[FloatArray, FloatArray],
