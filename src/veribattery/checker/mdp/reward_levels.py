@@ -48,7 +48,7 @@ from veribattery.checker.certify.apriori import (
     least_positive,
 )
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.mdp.graph import ChoiceGraph, can_reach
+from veribattery.checker.mdp.graph import ChoiceGraph, can_reach, segments
 from veribattery.checker.mdp.system import Objective
 
 __all__ = ["LevelledLayers"]
@@ -132,7 +132,7 @@ def _levels_of(transitions: CsrMatrix, groups: IntArray, costs: IntArray,
     rows = np.flatnonzero((costs == 0) & moving[owner])
     lengths = np.diff(transitions.indptr)[rows]
     source = np.repeat(owner[rows], lengths)
-    target = transitions.indices[_entries(transitions.indptr, rows)]
+    target = transitions.indices[segments(transitions.indptr, rows)]
     inside = moving[target]
     source, target = source[inside], target[inside]
     pending = np.bincount(source, minlength=n)
@@ -143,7 +143,7 @@ def _levels_of(transitions: CsrMatrix, groups: IntArray, costs: IntArray,
     while frontier.size:
         levels.append(_Level.of(transitions, groups, costs, frontier))
         placed += frontier.size
-        entering = into[_entries(first, frontier)]
+        entering = into[segments(first, frontier)]
         pending -= np.bincount(source[entering], minlength=n)
         touched = np.unique(source[entering])
         frontier = touched[pending[touched] == 0]
@@ -204,13 +204,6 @@ def _error_factors(terms: int) -> tuple[Fraction, Fraction]:
     down = (1 - gamma(terms)) * (1 - UNIT) / (1 + gamma(terms - 1))
     up = (1 + gamma(terms)) * (1 + UNIT) / (1 - gamma(terms - 1))
     return down, up
-
-
-def _entries(starts: IntArray, rows: IntArray) -> IntArray:
-    """The positions ``starts[r]:starts[r + 1]`` of every row *r* of *rows*, in order."""
-    lengths = starts[rows + 1] - starts[rows]
-    offsets = np.repeat(starts[rows] - np.cumsum(lengths) + lengths, lengths)
-    return np.asarray(np.arange(int(lengths.sum()), dtype=np.int64) + offsets)
 
 
 @dataclass(frozen=True, slots=True)
