@@ -1,6 +1,7 @@
 """veribattery against Storm on MDPs of 10^4 to 10^6 states, side by side in one run.
 
-The QComp MDPs (consensus, csma, wlan, zeroconf, firewire; vendored in
+The QComp MDPs (consensus, csma, wlan, zeroconf, firewire, and resource-gathering's
+94 states with a cumulative reward of 10^6 steps; vendored in
 ``bench/qcomp/``, CC-BY 4.0, origin in its README) and the mission's own MDP
 (``veribattery emit configs/paper/case1.yaml --set strategy.mode=synthesize``,
 issue #23's model, emitted afresh into a temporary folder). Each instance runs
@@ -71,13 +72,18 @@ CSMA_2_6 = ("csma/csma.2-6.prism", "csma/csma.props")
 WLAN = ("wlan/wlan.3.prism", "wlan/wlan.props")
 ZEROCONF = ("zeroconf/zeroconf.prism", "zeroconf/zeroconf.props")
 FIREWIRE = ("firewire/firewire.false.prism", "firewire/firewire.false.props")
+GATHERING = ("resource-gathering/resource-gathering.pm",
+             "resource-gathering/resource-gathering.prctl")
 ZEROCONF_2 = {"N": 20, "K": 2, "reset": False}
 ZEROCONF_4 = {"N": 20, "K": 4, "reset": False}
 FIREWIRE_36 = {"delay": 36, "deadline": 200}
 FIREWIRE_36_800 = {"delay": 36, "deadline": 800}
+GATHERING_LONG = {"B": 1_000_000, "GOLD_TO_COLLECT": 0, "GEM_TO_COLLECT": 0}
 
 #: Ordered from small to large.
 INSTANCES: list[Instance] = [
+    # (94 states, a cumulative reward of 10^6 steps)
+    Instance(*GATHERING, "expgold", GATHERING_LONG, 112032.8394),
     Instance(*CONSENSUS, "c1", {"K": 2}, True),
     Instance(*CONSENSUS, "c2", {"K": 2}, 0.3173772203),
     Instance(*CONSENSUS, "disagree", {"K": 2}, 0.2944237574),
