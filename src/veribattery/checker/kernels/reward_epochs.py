@@ -86,7 +86,8 @@ class RewardEpochs:
             if not same:  # (else the layer is the last one over again: low layers of 0s)
                 passed = None if within is not exits or one_pass is None else one_pass(
                     *self._sets(layer, exits=False), *self._per_row(within, low, high))
-                found = passed or self._layer(layer, within, (low, high), solve)
+                found = (passed if passed is not None
+                         else self._layer(layer, within, (low, high), solve))
             asked = (low, high)
             known[layer] = (found.lower, found.upper)
             stale = layer - exits.deepest  # (no step reaches further down from the next)
