@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from tests.checker.mdp.models import mask, mdp_from
@@ -79,3 +80,19 @@ def test_cumulative_and_instantaneous() -> None:
 def test_exact_inputs_give_exact_bounds() -> None:
     found = next_probability(RACE, GOAL, objective="max")
     assert found.lower.tolist() == found.upper.tolist() == [0.5, 0.9, 1, 0]
+
+
+def test_a_goal_out_of_reach_is_exactly_zero() -> None:
+    # Five steps to the goal: within four it is out of reach, and the bounds say so
+    # exactly (those states are kept out of the rounds), not [0, a few ulps of 2**-900]
+    # (`0 +- 2.8e-270` at 80 columns, and `P>0` on it taken to exact arithmetic).
+    chain = mdp_from([[[(i + 1, 0.5), (i, 0.5)], [(i + 1, 0.25), (i, 0.75)]] for i in range(5)]
+                     + [[[(5, 1)]], [[(6, 1)]]])  # (6: a sink that never reaches the goal)
+    goal = mask(7, [5])
+    for objective in ("min", "max"):
+        for steps in (2, 4, 7):
+            found = bounded_reach_probability(chain, goal, steps, objective=objective)
+            far = max(5 - steps, 0)  # (state i is 5 - i steps from the goal)
+            assert found.lower[:far].tolist() == found.upper[:far].tolist() == [0.0] * far
+            assert np.all(found.lower[far:5] > 0.0)
+            assert found.lower[6] == found.upper[6] == 0.0  # (the sink: never)

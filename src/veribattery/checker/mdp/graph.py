@@ -38,6 +38,7 @@ __all__ = [
     "prob1e",
     "reached_from",
     "segments",
+    "within_steps",
 ]
 
 
@@ -139,6 +140,23 @@ def can_reach(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
     indptr = np.concatenate([kept[graph.predecessor_ptr], [kept[-1] + roots.size]])
     indices = np.concatenate([graph.owner[graph.predecessors[keep]], roots])
     return _breadth_first(indptr, indices, n)
+
+
+def within_steps(transitions: CsrMatrix, owner: IntArray, moving: BoolArray,
+                 target: BoolArray, k: int) -> BoolArray:
+    """States with a path of at most *k* steps to *target* whose states before the last
+    are in *moving*: a breadth-first search over the reversed state graph cut at depth
+    *k* (in C; a stored 0 counts as an edge, which only keeps a state in)."""
+    n = target.size
+    if not target.any():
+        return np.zeros(n, dtype=bool)
+    rows = np.repeat(owner, np.diff(transitions.indptr))
+    keep = moving[rows]
+    backwards = sp.csr_matrix((np.ones(int(keep.sum())), (transitions.indices[keep], rows[keep])),
+                              shape=(n, n))
+    distance = csgraph.dijkstra(backwards, directed=True, indices=np.flatnonzero(target),
+                                unweighted=True, min_only=True, limit=min(k, n) + 0.5)
+    return np.asarray(np.isfinite(distance), dtype=bool)
 
 
 def reached_from(chain: CsrMatrix, start: int) -> IntArray:

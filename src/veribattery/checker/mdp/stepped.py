@@ -33,6 +33,7 @@ from veribattery.checker.certify import (
 )
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.certify.horizon import Trend
+from veribattery.checker.mdp.graph import within_steps
 from veribattery.checker.mdp.levels import ChoiceLevels
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.reach import reach_probability
@@ -89,7 +90,12 @@ def bounded_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
     start = Bounds.exact(target.astype(np.float64))
     below = remain  # (the name the closure keeps: mypy would widen *remain* again)
     trend = Trend.up_to(lambda: _ceiling(mdp, target, below, objective))
-    rounds = _Rounds(remain & ~target, start, None, objective, trend)
+    # (a state more than *steps* steps from the target is 0 exactly: kept out of the
+    # rounds, not given a rounding radius -- `0 +- 2.5e-270`, and `P>0` on it taken to
+    # exact arithmetic, 5 s on the mission MDP)
+    moving = remain & ~target
+    moving &= within_steps(mdp.transitions, mdp.choice_owner, moving, target, steps)
+    rounds = _Rounds(moving, start, None, objective, trend)
     return _iterated(mdp, start, rounds, steps, None)
 
 
@@ -198,8 +204,13 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
     with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
         upper = np.where(radius == 0, value, round_up(value + radius))
     upper = np.where(np.isnan(upper), np.inf, upper)  # (inf - inf: beyond the doubles)
-    return MdpResult(Bounds(value, _lower(value, radius), upper),
-                     decisions.strategy(mdp, steps, then))
+    found = Bounds(value, _lower(value, radius), upper)
+    if steps > horizon.ROUND_LIMIT and rounds.trend.ceiling is not None and bool(
+            np.any(upper > 1.0)):
+        # (settled before a bound beyond the rounds run, whose checkpoints would have
+        # capped it: a probability's radius past 1 is capped by the ceiling, if any)
+        found = horizon.meet(found, value, found.lower, rounds.trend)
+    return MdpResult(found, decisions.strategy(mdp, steps, then))
 
 
 def _gained(mdp: MDP, levels: ChoiceLevels, rows: _Rows, rounds: _Rounds,
