@@ -48,3 +48,20 @@ def systems_built(monkeypatch: pytest.MonkeyPatch) -> Iterator[list[int]]:
 
     monkeypatch.setattr(linalg, "restricted_parts", counting)
     yield built
+
+
+@pytest.fixture
+def gains_carried(monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Spies on ``horizon.gained``: the rounds left at each try to carry ``C<=k``
+    forward by its gain."""
+    from veribattery.checker.certify import horizon
+
+    carried: list[int] = []
+    gained = horizon.gained
+
+    def spy(*args):  # type: ignore[no-untyped-def]
+        carried.append(int(args[2]))
+        return gained(*args)
+
+    monkeypatch.setattr(horizon, "gained", spy)
+    return carried

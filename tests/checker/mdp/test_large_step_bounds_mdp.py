@@ -211,21 +211,13 @@ endrewards
 
 @pytest.mark.parametrize(("bound", "factor"), [("max", 1), ("min", Fraction(1, 2))])
 def test_cumulative_reward_is_carried_by_its_gain(bound: str, factor: Fraction,
-                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+                                                 gains_carried: list[int]) -> None:
     """``C<=10^6`` (k/2 + 1 - 2^-k from s=0, halved for the minimum): once the steps'
     increments agree in every state the rounds left are carried forward; 10^6 rounds
-    took half a minute on QVBS's resource-gathering (94 states), Storm 2.3 s."""
+    took half a minute on QVBS's resource-gathering (94 states; Storm: 0.6 s)."""
     k = 10**6
-    carried: list[int] = []
-    gained = horizon.gained
-
-    def spy(*args: object) -> object:
-        carried.append(int(args[2]))  # type: ignore[call-overload]
-        return gained(*args)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(horizon, "gained", spy)
     result = check_prism_file(SWAP_MDP, selectors=(f"R{bound}=? [ C<={k} ]",)).results[0]
     exact = factor * (Fraction(k, 2) + 1 - Fraction(1, 2**k))
     assert result.precise and result.lower is not None and result.upper is not None
     assert Fraction(result.lower) <= exact <= Fraction(result.upper)
-    assert carried and carried[-1] > k // 3
+    assert gains_carried and gains_carried[-1] > k // 3
