@@ -16,8 +16,8 @@ from veribattery.checker.certify import (
     enclose_product,
     product_error,
     step_up,
-    zero_terms_only,
 )
+from veribattery.checker.certify.apriori import zero_terms_only
 
 _SAFETY = 1.0 + 2.0**-30  # (the factor the module documents)
 

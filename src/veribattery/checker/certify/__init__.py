@@ -49,7 +49,6 @@ from veribattery.checker.certify.rounding import (
     step_up,
     step_up_in_place,
     sums_at_most_one,
-    zero_terms_only,
 )
 
 __all__ = [
@@ -76,5 +75,4 @@ __all__ = [
     "step_up",
     "step_up_in_place",
     "sums_at_most_one",
-    "zero_terms_only",
 ]

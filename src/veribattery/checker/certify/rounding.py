@@ -30,8 +30,6 @@ _SAFETY = 1.0 + 2.0**-30
 _NORMAL_BOUND = 2.0**-900
 #: ... of at most this many products.
 _MANY_UNDERFLOWS = 2.0**100
-#: A product at least this large is far from rounding to 0 (below ``ETA / 2``).
-_NO_UNDERFLOW = 2.0**-1000
 
 #: ``u (1 + 2u)``, exact in float64: ``fl(c + fl(PHI |c| + ETA))`` is at least the
 #: successor of *c* (Rump, Zimmermann, Boldo, Melquiond, BIT 49 (2009), Algorithm 2).
@@ -155,31 +153,6 @@ def enclose_product(M: CsrMatrix, x: FloatArray, offset: FloatArray | None = Non
     lower = np.where(error == 0, y, lower)
     upper = np.where(error == 0, y, upper)
     return y, np.where(np.isnan(lower), -np.inf, lower), np.where(np.isnan(upper), np.inf, upper)
-
-
-def zero_terms_only(M: CsrMatrix, x: FloatArray, silent: BoolArray) -> BoolArray:
-    """Of the rows *silent*, whose float product ``M x`` is 0, those whose every stored
-    entry reads an ``x_j = 0``: their product is exactly 0, where :func:`enclose_product`
-    counts every stored entry as a term that may have underflowed (the others did).
-    Where no product of nonzero factors can underflow, that is all of them; else the
-    rows' nonzero terms are counted.
-
-    (Not part of :func:`enclose_product`: the check costs a step-bounded iteration
-    10-15% of its time, for an exact 0 where its bound is ``2k ETA``.)
-    """
-    magnitudes = np.abs(x)
-    least = float(np.min(magnitudes, where=magnitudes > 0, initial=np.inf))
-    if least * _smallest_entry(M) >= _NO_UNDERFLOW:
-        return silent
-    return np.asarray(silent & (nonzero_terms(M, x) == 0), dtype=np.bool_)
-
-
-def _smallest_entry(M: CsrMatrix) -> float:
-    """The smallest positive stored entry of *M* (nonnegative), or ``inf``."""
-    smallest = float(M.data.min(initial=np.inf))
-    if smallest > 0:
-        return smallest
-    return float(np.min(M.data, where=M.data > 0, initial=np.inf))
 
 
 def nonzero_terms(M: CsrMatrix, x: FloatArray | BoolArray) -> FloatArray:

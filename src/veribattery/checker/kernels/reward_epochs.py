@@ -31,8 +31,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.checker.certify import enclose_product, zero_terms_only
-from veribattery.checker.certify.apriori import NonnegativeProducts
+from veribattery.checker.certify import enclose_product
+from veribattery.checker.certify.apriori import NonnegativeProducts, zero_terms_only
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.certify.fixpoint import Progress
 

@@ -40,12 +40,12 @@ import scipy.sparse as sp
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
 from veribattery.checker.certify import step_down, step_up
 from veribattery.checker.certify.apriori import (
-    NO_UNDERFLOW,
     UNIT,
     float_above,
     float_below,
     gamma,
     least_positive,
+    no_underflow,
 )
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.mdp.graph import ChoiceGraph, can_reach, segments
@@ -181,7 +181,7 @@ class _Levels:
     def normal(self, values: FloatArray) -> bool:
         """Whether no product of a pass that computed *values* can have underflowed: each
         multiplied a probability by one of them (a 0 either way gives an exact 0)."""
-        return least_positive(values) * self.smallest >= NO_UNDERFLOW
+        return no_underflow(values, self.smallest)
 
     def below(self, values: FloatArray) -> FloatArray:
         """Lower bounds from a pass with the exits' lower ends."""
