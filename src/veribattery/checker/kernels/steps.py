@@ -257,7 +257,7 @@ def bounded_until_probs(P: CsrMatrix, remain: BoolArray, target: BoolArray,
         bound the steps of a bound too large to iterate (:func:`_ceiling`).
     """
     moving = _rows_in(P, remain & ~target)
-    near = within_steps(moving, target, k)
+    near = _within_steps(moving, target, k)
     if not near.any():
         return Bounds.exact(np.zeros(P.shape[0]))
     hit = target.astype(np.float64)
@@ -287,11 +287,10 @@ def _ceiling(P: CsrMatrix, remain: BoolArray, target: BoolArray, index: IntArray
     return until_probs(P, remain, target, workspace=workspace).upper[index]
 
 
-def within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
+def _within_steps(moving: CsrMatrix, target: BoolArray, k: int) -> BoolArray:
     """States with a path of at most *k* steps of *moving* (rows of the states that
-    may move; an MDP's: ``mdp.graph.state_graph``) to *target*: a breadth-first search
-    over the reversed graph cut at depth *k* (in C; any superset would do, so stored
-    zeros may count as edges)."""
+    may move) to *target*: a breadth-first search over the reversed graph cut at
+    depth *k* (in C; any superset would do, so stored zeros may count as edges)."""
     n = moving.shape[0]
     if not target.any():
         return np.zeros(n, dtype=bool)

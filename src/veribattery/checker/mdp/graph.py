@@ -38,7 +38,7 @@ __all__ = [
     "prob1e",
     "reached_from",
     "segments",
-    "state_graph",
+    "within_steps",
 ]
 
 
@@ -142,15 +142,21 @@ def can_reach(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
     return _breadth_first(indptr, indices, n)
 
 
-def state_graph(transitions: CsrMatrix, owner: IntArray, moving: BoolArray) -> CsrMatrix:
-    """The states-by-states graph of the choices of the states *moving*: an entry from
-    each such state to every successor of one of its choices (other states' rows empty;
-    a stored 0 counts as an edge)."""
-    n = moving.size
+def within_steps(transitions: CsrMatrix, owner: IntArray, moving: BoolArray,
+                 target: BoolArray, k: int) -> BoolArray:
+    """States with a path of at most *k* steps to *target* whose states before the last
+    are in *moving*: a breadth-first search over the reversed state graph cut at depth
+    *k* (in C; a stored 0 counts as an edge, which only keeps a state in)."""
+    n = target.size
+    if not target.any():
+        return np.zeros(n, dtype=bool)
     rows = np.repeat(owner, np.diff(transitions.indptr))
     keep = moving[rows]
-    return sp.csr_matrix((np.ones(int(keep.sum())), (rows[keep], transitions.indices[keep])),
-                         shape=(n, n))
+    backwards = sp.csr_matrix((np.ones(int(keep.sum())), (transitions.indices[keep], rows[keep])),
+                              shape=(n, n))
+    distance = csgraph.dijkstra(backwards, directed=True, indices=np.flatnonzero(target),
+                                unweighted=True, min_only=True, limit=min(k, n) + 0.5)
+    return np.asarray(np.isfinite(distance), dtype=bool)
 
 
 def reached_from(chain: CsrMatrix, start: int) -> IntArray:

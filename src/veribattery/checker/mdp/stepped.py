@@ -33,8 +33,7 @@ from veribattery.checker.certify import (
 )
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.certify.horizon import Trend
-from veribattery.checker.kernels.steps import within_steps
-from veribattery.checker.mdp.graph import state_graph
+from veribattery.checker.mdp.graph import within_steps
 from veribattery.checker.mdp.levels import ChoiceLevels
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.reach import reach_probability
@@ -95,8 +94,7 @@ def bounded_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
     # rounds, not given a rounding radius -- `0 +- 2.5e-270`, and `P>0` on it taken to
     # exact arithmetic, 5 s on the mission MDP)
     moving = remain & ~target
-    moving &= within_steps(state_graph(mdp.transitions, mdp.choice_owner, moving), target,
-                           steps)
+    moving &= within_steps(mdp.transitions, mdp.choice_owner, moving, target, steps)
     rounds = _Rounds(moving, start, None, objective, trend)
     return _iterated(mdp, start, rounds, steps, None)
 
