@@ -11,6 +11,8 @@ from veribattery.lang.constants import ConstantTable
 from veribattery.lang.evaluate import evaluate
 from veribattery.lang.expressions import fold, literal, substitute, walk
 from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
     ConstDecl,
     Cumulative,
     Expr,
@@ -257,9 +259,22 @@ def resolve_property(
     resolver = _Resolver(model, props, constants or {})
     formula = cast(Expr, resolver.resolve(prop.formula))
     type_of(formula, TypeEnv(resolver.variables, in_property=True))
-    formula = cast(Expr, fold(formula))
+    formula = _valued_booleans(cast(Expr, fold(formula)), resolver.variables)
     _check_operators(formula, model)
     return Property(formula, prop.name, prop.text, prop.span)
+
+
+def _valued_booleans(formula: Expr, variables: Mapping[str, ValueType]) -> Expr:
+    """*formula* with each boolean variable ``b`` read as ``b=true``: the state table
+    stores booleans as 0/1, so a property whose value is a variable's (``b``, or
+    ``filter(print, b)``) would otherwise be reported as the number 1, not ``true``."""
+
+    def replace(node: Any) -> Any | None:
+        if type(node) is Ident and variables.get(node.name) == "bool":
+            return Binary("=", node, BoolLit(True, node.span), node.span)
+        return None
+
+    return cast(Expr, substitute(formula, replace))
 
 
 def with_used_rewards(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:

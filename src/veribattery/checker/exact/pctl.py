@@ -17,14 +17,18 @@ import functools
 import time
 from collections.abc import Mapping
 from contextvars import ContextVar
-from dataclasses import dataclass
-from fractions import Fraction
 
 import numpy as np
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray
 from veribattery.checker.exact import storm
+from veribattery.checker.exact.filtered import (
+    ExactCheckResult,
+    ExactModelView,
+    as_fraction,
+    filtered,
+)
 from veribattery.checker.exact.numeric import (
     _ONE,
     ExactValues,
@@ -35,6 +39,7 @@ from veribattery.checker.exact.numeric import (
     indicator,
     reach_rewards,
 )
+from veribattery.checker.formula import ctl
 from veribattery.checker.formula.leaves import (
     CONNECTIVES,
     as_mask,
@@ -57,6 +62,7 @@ from veribattery.lang.nodes import (
     Cumulative,
     Eventually,
     Expr,
+    Filter,
     Globally,
     Instantaneous,
     Ite,
@@ -64,6 +70,7 @@ from veribattery.lang.nodes import (
     PathFormula,
     ProbOp,
     Property,
+    Quantified,
     Reach,
     RewardBounded,
     RewardOp,
@@ -75,19 +82,6 @@ __all__ = ["ExactCheckResult", "check_exact", "exact_bounds", "exact_values"]
 
 #: The exact bounds of the property being checked (set by :func:`exact_values`).
 _BOUNDS: ContextVar[Mapping[Span, mpq] | None] = ContextVar("exact_bounds", default=None)
-
-@dataclass(frozen=True, slots=True)
-class ExactCheckResult(CheckResult):
-    """A :class:`CheckResult` that also carries the exact answer.
-
-    :param exact: the value at the first initial state as a :class:`fractions.Fraction`
-        (None for booleans and infinite values).
-    :param exact_values: per-state exact values (None for boolean results).
-    """
-
-    exact: Fraction | None = None
-    exact_values: ExactValues | None = None
-
 
 def check_exact(
     model: ExactDTMC, prop: Property | Expr, bounds: Mapping[Span, mpq] | None = None, *,
@@ -102,13 +96,16 @@ def check_exact(
     :raises CheckError: when the property cannot be checked on this model.
     """
     prop = prop if isinstance(prop, Property) else Property(prop)
+    workspace = Workspace() if workspace is None else workspace
+    if isinstance(prop.formula, Filter):
+        return filtered(_view(model, bounds or {}, workspace), prop, prop.formula)
     start = time.perf_counter()
     result = exact_values(model, prop.formula, bounds or {}, workspace=workspace)
     initial = model.dtmc.initial
     if isinstance(result, ExactValues):
         plain = CheckResult.at_initial(prop, result.enclosure(), initial, 0.0)
         first = int(initial[0])
-        exact = None if result.infinite[first] else _fraction(result.values[first])
+        exact = None if result.infinite[first] else as_fraction(result.values[first])
         return ExactCheckResult(
             prop, plain.values, plain.value, time.perf_counter() - start, plain.lower,
             plain.upper, plain.precise, plain.bounds, exact=exact, exact_values=result)
@@ -116,8 +113,20 @@ def check_exact(
     return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
 
 
-def _fraction(value: mpq) -> Fraction:
-    return Fraction(int(value.numerator), int(value.denominator))
+def _view(model: ExactDTMC, bounds: Mapping[Span, mpq], workspace: Workspace) -> ExactModelView:
+    """What a top-level filter reads of *model* (:func:`filtered`)."""
+    dtmc = model.dtmc
+
+    def mask(expr: Expr) -> BoolArray:
+        found = exact_values(model, expr, bounds, workspace=workspace)
+        if isinstance(found, ExactValues):
+            raise CheckError("expected a boolean state formula", expr.span)
+        return found
+
+    return ExactModelView(
+        functools.partial(exact_values, model, bounds=bounds, workspace=workspace), mask,
+        functools.partial(check_exact, model, bounds=bounds, workspace=workspace),
+        dtmc.states, dtmc.variable_names, dtmc.initial)
 
 
 def exact_bounds(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Span, mpq]:
@@ -176,6 +185,10 @@ def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     match expr:
         case ProbOp() | RewardOp():
             return _bounded_operator(model, workspace, expr)
+        case Quantified(quantifier=quantifier, path=path):  # graph searches: exact already
+            return ctl.quantified_path(model.dtmc.transitions, quantifier, path,
+                                       functools.partial(state_set, model, workspace),
+                                       workspace=workspace)
         case Unary(op="!", operand=operand):
             return ~state_set(model, workspace, operand)
         case Binary(op="&" | "|" as op):  # a chain of thousands: a loop, not a recursion

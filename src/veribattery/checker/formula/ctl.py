@@ -10,17 +10,66 @@ and everything else reduces to them by PRISM's identities:
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable, Mapping
+from types import MappingProxyType
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._types import BoolArray, CsrMatrix
+from veribattery._types import BoolArray, CsrMatrix, IntArray
 from veribattery.checker import kernels
+from veribattery.errors import CheckError
+from veribattery.lang.nodes import (
+    Eventually,
+    Expr,
+    Globally,
+    Next,
+    PathFormula,
+    Release,
+    Until,
+    WeakUntil,
+)
 
 if TYPE_CHECKING:
     from veribattery.checker.workspace import Workspace
+
+
+#: The path operators ``A [...]`` and ``E [...]`` take, by node type.
+_OPERATORS: Mapping[type, str] = MappingProxyType(
+    {Next: "X", Eventually: "F", Globally: "G", Until: "U", WeakUntil: "W", Release: "R"})
+
+
+def _path_operands(path: PathFormula) -> tuple[str, Expr, Expr]:
+    """``(op, left, right)`` of a CTL path (*left* is *right* for ``X``, ``F``, ``G``).
+
+    :raises CheckError: for a step bound or a conditional formula, which PRISM's CTL
+        does not take either.
+    """
+    if getattr(path, "bound", None) is not None:
+        raise CheckError("time-bounded temporal operators are not supported in CTL "
+                         "(A [...] and E [...]), as in PRISM", path.span)
+    op = _OPERATORS.get(type(path))
+    if op is None:
+        raise CheckError("A [...] and E [...] take X, F, G, U, W or R, not a conditional (||) "
+                         "formula", path.span)
+    if isinstance(path, Until | WeakUntil | Release):
+        return op, path.left, path.right
+    operand = cast(Eventually | Globally | Next, path).operand
+    return op, operand, operand
+
+
+def state_pattern(transitions: CsrMatrix, owner: IntArray, num_states: int) -> sp.csr_matrix:
+    """The state graph of a choice matrix (row *c* owned by state ``owner[c]``): an edge
+    wherever some choice has a positive entry, as the 0/1 matrix CTL reads."""
+    coo = transitions.tocoo()
+    keep = coo.data > 0
+    rows = np.asarray(owner)[coo.row[keep]]
+    graph = sp.csr_matrix((np.ones(rows.size), (rows, coo.col[keep])),
+                          shape=(num_states, num_states))
+    graph.data[:] = 1.0  # duplicates summed
+    return graph
 
 
 def _graph(P: CsrMatrix, rows: BoolArray, cols: BoolArray) -> sp.csr_matrix:
@@ -72,6 +121,19 @@ def _exists(P: CsrMatrix, op: str, left: BoolArray, right: BoolArray,
     # a R b: b holds until and including the first a, or forever.
     return (exists_until(P, right, left & right, workspace=workspace)
             | exists_globally(P, right, workspace=workspace))
+
+
+def quantified_path(P: CsrMatrix, quantifier: str, path: PathFormula,
+                    mask: Callable[[Expr], BoolArray], *, workspace: Workspace) -> BoolArray:
+    """``A [path]``/``E [path]`` (unbounded ``X F G U W R``, as PRISM's CTL) on the graph
+    of *P*, its operands' states given by *mask* (in floats or exactly: the same sets).
+
+    :raises CheckError: for a step bound or a conditional formula.
+    """
+    op, left, right = _path_operands(path)
+    b = mask(right)
+    a = b if left is right else mask(left)
+    return quantified(P, quantifier, op, a, b, workspace=workspace)
 
 
 def quantified(P: CsrMatrix, quantifier: str, op: str, left: BoolArray,

@@ -409,19 +409,8 @@ def _reach_until_rewards(dtmc: DTMC, workspace: Workspace, structure: RewardVect
 
 def _ctl(dtmc: DTMC, workspace: Workspace, quantifier: str, path: PathFormula) -> BoolArray:
     """``A [path]`` or ``E [path]`` as a state set (unbounded operators only, as PRISM)."""
-    bound = getattr(path, "bound", None)
-    if bound is not None:
-        raise CheckError("time-bounded temporal operators are not supported in CTL "
-                         "(A [...] and E [...]), as in PRISM", path.span)
-    ops = {Next: "X", Eventually: "F", Globally: "G", Until: "U", WeakUntil: "W",
-           Release: "R"}
-    if type(path) not in ops:
-        raise CheckError("A [...] and E [...] take X, F, G, U, W or R, not a conditional (||) "
-                         "formula", path.span)
-    right = state_set(dtmc, workspace, _operands(path)[-1])
-    left = state_set(dtmc, workspace, _operands(path)[0]) if len(_operands(path)) == 2 else right
-    return ctl.quantified(dtmc.transitions, quantifier, ops[type(path)], left, right,
-                          workspace=workspace)
+    return ctl.quantified_path(dtmc.transitions, quantifier, path,
+                               functools.partial(state_set, dtmc, workspace), workspace=workspace)
 
 
 def filter_outcome(dtmc: DTMC, workspace: Workspace, node: Filter) -> filters.FilterOutcome:

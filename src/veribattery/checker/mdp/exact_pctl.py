@@ -16,8 +16,8 @@ from __future__ import annotations
 import operator
 import time
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
-from fractions import Fraction
+from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -25,9 +25,14 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.exact import ExactCheckResult, ExactValues
+from veribattery.checker.exact import ExactValues
+from veribattery.checker.exact.filtered import (
+    ExactCheckResult,
+    ExactModelView,
+    as_fraction,
+    filtered,
+)
 from veribattery.checker.exact.numeric import exact_literal
-from veribattery.checker.formula import filters
 from veribattery.checker.formula.leaves import (
     CONNECTIVES,
     as_mask,
@@ -38,7 +43,7 @@ from veribattery.checker.formula.leaves import (
 from veribattery.checker.mdp.exact import exact_reach_reward, exact_total_reward
 from veribattery.checker.mdp.exact_reward_bounded import exact_reward_bounded
 from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
-from veribattery.checker.mdp.formula import mdp_values
+from veribattery.checker.mdp.formula import mdp_values, quantified_states
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.operators import operator_objective, reward_structure
 from veribattery.checker.mdp.rational import ObjectArray
@@ -65,6 +70,7 @@ from veribattery.lang.nodes import (
     PathFormula,
     ProbOp,
     Property,
+    Quantified,
     Reach,
     Release,
     RewardBounded,
@@ -106,9 +112,9 @@ def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
     :raises CheckError: for an operator without an exact MDP kernel (filters,
         multi-objective queries, numeric expressions over operators) or ``P=?``/``R=?``.
     """
-    start = time.perf_counter()
     if isinstance(prop.formula, Filter):
-        return _filtered(model, prop, prop.formula, start)
+        return filtered(_view(model), prop, prop.formula)
+    start = time.perf_counter()
     result = exact_values(model, prop.formula)
     initial = model.mdp.initial
     if initial.size == 0:
@@ -123,65 +129,19 @@ def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
     same = (result.infinite[lowest] == result.infinite[highest]
             and result.values[lowest] == result.values[highest])
     spread = None if same else (float(enclosure.value[lowest]), float(enclosure.value[highest]))
-    exact = None if result.infinite[lowest] else _fraction(result.values[lowest])
+    exact = None if result.infinite[lowest] else as_fraction(result.values[lowest])
     upper = plain.upper if spread is None else float(enclosure.upper[highest])
     return ExactCheckResult(
         prop, plain.values, plain.value, time.perf_counter() - start, plain.lower, upper,
         plain.precise, plain.bounds, spread, exact=exact, exact_values=result)
 
 
-def _filtered(model: ExactMdpModel, prop: Property, node: Filter,
-              start: float) -> ExactCheckResult:
-    """A top-level ``filter(op, operand, states)``: the float outcome of its enclosure
-    (:func:`~veribattery.checker.formula.filters.apply_filter`: listings, counts, booleans,
-    which are exact), and for a number the exact value it picks or sums."""
+def _view(model: ExactMdpModel) -> ExactModelView:
+    """What a top-level filter reads of *model* (:func:`filtered`)."""
     mdp = model.mdp
-    where = (np.ones(mdp.num_states, dtype=bool) if node.states is None
-             else state_set(model, node.states))
-    inner = exact_values(model, node.operand)
-    per_state = inner.enclosure() if isinstance(inner, ExactValues) else inner
-    states = _states(mdp)
-    outcome = filters.apply_filter(node.op, per_state, where, states, mdp.variable_names,
-                                   node.span)
-    if outcome.value is None and node.op.startswith("arg"):  # the listed states, as a set
-        mask = np.asarray(outcome.values, dtype=bool)
-        plain = CheckResult.at_initial(prop, mask, mdp.initial, time.perf_counter() - start)
-        return ExactCheckResult(prop, plain.values, plain.value, plain.time_s,
-                                printed=outcome.printed)
-    if outcome.value is None:  # print, printall: the listing, and the operand's answer
-        answer = check_mdp_exact(model, replace(prop, formula=node.operand))
-        return replace(answer, property=prop, printed=outcome.printed)
-    plain = CheckResult.of_answer(prop, outcome, time.perf_counter() - start)
-    if not isinstance(inner, ExactValues) or node.op not in _EXACT_FILTERS:
-        return ExactCheckResult(prop, plain.values, plain.value, plain.time_s, plain.lower,
-                                plain.upper, plain.precise, plain.bounds, plain.value_range,
-                                plain.printed)
-    value, infinite = _filter_exact(node.op, inner, where, states)
-    return ExactCheckResult(
-        prop, plain.values, plain.value, plain.time_s, plain.lower, plain.upper,
-        plain.precise, plain.bounds, plain.value_range, plain.printed,
-        exact=None if infinite else _fraction(value), exact_values=inner)
-
-
-#: The filters whose number is picked or summed exactly (``range``: its lowest value).
-_EXACT_FILTERS = frozenset({"state", "first", "min", "max", "range", "sum", "avg"})
-
-
-def _filter_exact(op: str, inner: ExactValues, where: BoolArray,
-                  states: np.ndarray) -> tuple[mpq, bool]:
-    """The exact number of a numeric filter over *where*, and whether it is infinite."""
-    picked = np.flatnonzero(where)
-    if op in ("sum", "avg"):
-        if inner.infinite[picked].any():
-            return _ZERO, True
-        total = sum(inner.values[picked], _ZERO)
-        return (total if op == "sum" else total / picked.size), False
-    if op == "first":
-        order = filters.state_order(states)
-        picked = order[where[order]][:1]
-    ranked = sorted(picked, key=lambda s: (bool(inner.infinite[s]), inner.values[s]))
-    state = ranked[-1] if op == "max" else ranked[0]
-    return inner.values[state], bool(inner.infinite[state])
+    return ExactModelView(partial(exact_values, model), partial(state_set, model),
+                          partial(check_mdp_exact, model), _states(mdp), mdp.variable_names,
+                          mdp.initial)
 
 
 def _states(mdp: MDP) -> np.ndarray:
@@ -222,6 +182,8 @@ def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
     match expr:
         case ProbOp() | RewardOp():
             return _bounded(model, expr)
+        case Quantified(quantifier=quantifier, path=path):
+            return quantified_states(model.mdp, quantifier, path, partial(state_set, model))
         case Unary(op="!", operand=operand):
             return ~state_set(model, operand)
         case Binary(op=op, left=left, right=right) if op in CONNECTIVES:
@@ -440,5 +402,3 @@ def _structure(model: ExactMdpModel, op: RewardOp | RewardBounded) -> ExactMdpRe
 _TO_MPQ = np.frompyfunc(mpq, 1, 1)
 
 
-def _fraction(value: mpq) -> Fraction:
-    return Fraction(int(value.numerator), int(value.denominator))

@@ -11,6 +11,7 @@ guess (the pipeline settles it in exact arithmetic where the model allows).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import replace
 from functools import partial
 from typing import cast
@@ -57,6 +58,7 @@ from veribattery.lang.nodes import (
     Next,
     PathFormula,
     ProbOp,
+    Quantified,
     Reach,
     ReachNext,
     ReachUntil,
@@ -71,7 +73,7 @@ from veribattery.lang.nodes import (
     WeakUntil,
 )
 
-__all__ = ["mdp_answer", "mdp_values"]
+__all__ = ["mdp_answer", "mdp_values", "quantified_states"]
 
 
 
@@ -127,6 +129,8 @@ def _values(mdp: MDP, progress: Progress | None, formula: Expr) -> Result:
             return _bounded(mdp, progress, formula)
         case Filter():
             return _filter_everywhere(mdp, progress, formula)
+        case Quantified(quantifier=quantifier, path=path):
+            return _ctl(mdp, progress, quantifier, path)
     if not has_operator(formula):
         return _leaf(mdp, formula)
     return _compound(mdp, progress, formula)
@@ -210,6 +214,26 @@ def _until(mdp: MDP, progress: Progress | None, remain: BoolArray | None, target
     steps += bound.op == ">"
     return stepped.later_reach_probability(mdp, target, steps, objective=objective,
                                            remain=remain).bounds
+
+
+def _ctl(mdp: MDP, progress: Progress | None, quantifier: str,
+         path: PathFormula) -> BoolArray:
+    return quantified_states(mdp, quantifier, path, partial(_mask, mdp, progress))
+
+
+def quantified_states(mdp: MDP, quantifier: str, path: PathFormula,
+                      mask: Callable[[Expr], BoolArray]) -> BoolArray:
+    """``A [path]``/``E [path]``: over every path of the MDP, whatever its choices (its
+    state graph, as PRISM), by the DTMC side's graph algorithms.
+
+    :param mask: the states satisfying an operand (in floats or exactly).
+    """
+    # Imported here: the DTMC graph kernels are needed by no other MDP formula.
+    from veribattery.checker.formula import ctl
+    from veribattery.checker.workspace import Workspace
+
+    graph = ctl.state_pattern(mdp.transitions, mdp.choice_owner, mdp.num_states)
+    return ctl.quantified_path(graph, quantifier, path, mask, workspace=Workspace())
 
 
 def _complement(b: Bounds) -> Bounds:
