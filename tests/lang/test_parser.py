@@ -206,6 +206,17 @@ def test_syntax_error_expected_expression() -> None:
         parse_model("dtmc module m x : [0..1]; [] x=;")
 
 
+@pytest.mark.parametrize("update", ["[0.1,0.2]:(x'=1) + [0.8,0.9]:(x'=0)",
+                                    "0.5:(x'=1) + [0.4,0.5]:(x'=0)"])
+def test_an_interval_probability_names_interval_models(update: str) -> None:
+    # PRISM reads "dtmc" with interval probabilities as an IDTMC (prism-tests/.../idtmcs).
+    text = f"dtmc\nmodule m\n  x : [0..1];\n  [] x=0 -> {update};\nendmodule\n"
+    col = text.splitlines()[3].index("[", 4) + 1
+    with pytest.raises(PrismSyntaxError,
+                       match=rf"^m:4:{col}: an interval probability .* interval model"):
+        parse_model(text, name="m")
+
+
 def test_unexpected_character_and_end_of_input() -> None:
     with pytest.raises(PrismSyntaxError, match=r"^m:2:3: unexpected character '#'"):
         parse_model("dtmc\n  # oops", name="m")

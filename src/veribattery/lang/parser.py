@@ -126,6 +126,9 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxEr
     line, col = exc.line, exc.column
     if isinstance(exc, UnexpectedCharacters):
         message = f"unexpected character '{exc.char}'"
+    elif isinstance(exc, UnexpectedToken) and _opens_interval(exc, text):
+        message = ("an interval probability ([low,high]:update) makes an interval model "
+                   "(IDTMC, IMDP), which veribattery does not support")
     elif isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
         message = f"unexpected token '{exc.token}' (expected {_expected(set(exc.expected))})"
     else:
@@ -137,6 +140,16 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxEr
     if line < 1:
         line, col = _end_position(text)
     return PrismSyntaxError(message + _caret(text, line, col), Span(line, col, source))
+
+
+def _opens_interval(exc: UnexpectedInput, text: str) -> bool:
+    """*exc* is a ``[`` where an update's probability starts (after ``->`` or ``+``):
+    PRISM's interval probabilities."""
+    token = getattr(exc, "token", None)
+    if token is None or str(token) != "[" or token.start_pos is None:
+        return False
+    before = text[:token.start_pos].rstrip()
+    return before.endswith(("->", "+"))
 
 
 def _end_position(text: str) -> tuple[int, int]:
