@@ -13,7 +13,6 @@ from veribattery.lang import (
     Model,
     PropertiesFile,
     Property,
-    flatten_model,
     resolve_property,
 )
 from veribattery.lang.nodes import Value
@@ -62,7 +61,8 @@ def check_model_exact(
     options = options or CheckOptions()
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):
-        flat = flatten_model(model, constants)
+        model, properties, props_file, flat = _decided(model, properties, props_file,
+                                                       constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
         aside = [resolve_property(p, flat, props_file, constants) for p in internal]
     stages = stages_of(progress)
@@ -78,6 +78,15 @@ def check_model_exact(
                                          workspace)
     return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined,
                          internal=aside_results, workspace=workspace)
+
+
+def _decided(
+    model: Model, properties: Sequence[Property], props_file: PropertiesFile | None,
+    constants: Mapping[str, Value | str] | None,
+) -> tuple[Model, list[Property], PropertiesFile | None, FlatModel]:
+    from veribattery.explore.exact.decided import flattened_exactly  # gmpy2 only when asked
+
+    return flattened_exactly(model, properties, props_file, constants)
 
 
 def _build_exact(

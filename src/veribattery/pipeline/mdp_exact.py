@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from veribattery.lang import Model, PropertiesFile, Property, flatten_model, resolve_property
+from veribattery.lang import Model, PropertiesFile, Property, resolve_property
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp, ill_posed_errors
 from veribattery.pipeline.run import (
@@ -48,12 +48,14 @@ def check_mdp_model_exact(
         check_mdp_exact,
         closed_numbers,
     )
+    from veribattery.explore.exact.decided import flattened_exactly
     from veribattery.explore.exact.mdp import build_exact_mdp
     from veribattery.explore.exact.rational import exact_constants
 
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):
-        flat = flatten_model(model, constants)
+        model, properties, props_file, flat = flattened_exactly(model, properties,
+                                                                props_file, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
     stages = stages_of(progress)
     with watch.stage("build"):

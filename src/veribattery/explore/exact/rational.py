@@ -49,6 +49,7 @@ from veribattery.lang.ops import OperatorError
 __all__ = [
     "ExactScalar",
     "ObjectArray",
+    "closed_value",
     "evaluate_rational",
     "exact_constants",
     "rational",
@@ -263,6 +264,15 @@ def evaluate_rational(
     :raises ModelError: for an operation without an exact rational result.
     """
     return _Evaluator(constants, variables, n).run(expr)[0]
+
+
+def closed_value(expr: Expr, constants: Mapping[str, ExactScalar]) -> tuple[Any, ValueType]:
+    """The exact value of the closed *expr* (no variables) and its PRISM type.
+
+    :raises ModelError: for an operation without an exact rational result.
+    """
+    values, kind = _Evaluator(constants, {}, 1).run(expr)
+    return values[0], kind
 
 
 #: A value on the evaluator's stack: its array and its PRISM type.

@@ -1,0 +1,120 @@
+"""Closed comparisons and integer expressions decided in rationals, before flattening.
+
+In ``--exact`` mode every expression has its exact value, as in PRISM's exact engine;
+but the flattening folds closed sub-expressions in doubles, where ``1/3 = 0.333...``
+(24 threes) is true and ``ceil(0.1*3*10)`` is 4. A probability keeps its exact value
+(the exact builder reads it from the model as written), but a comparison or an integer
+decides the state space: a guard, an update, an initial value, a constant such as
+``const int n = ceil(...)``, a step bound. So before the model (or a property) is
+flattened, each *closed* sub-expression -- no variable, label or formula in it -- of
+type bool or int is replaced by the literal of its exact value; doubles then see the
+same decisions. PRISM's own tests of this are prism-tests/functionality/verify/exact/.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+from typing import Any, TypeVar
+
+from veribattery.errors import VeribatteryError
+from veribattery.explore.exact.rational import ExactScalar, closed_value, exact_constants
+from veribattery.lang import flatten_model
+from veribattery.lang.expressions import children, substitute
+from veribattery.lang.nodes import (
+    Binary,
+    BoolLit,
+    Call,
+    DoubleLit,
+    FlatModel,
+    Ident,
+    IntLit,
+    Ite,
+    Model,
+    PropertiesFile,
+    Property,
+    Unary,
+    Value,
+)
+
+__all__ = ["decided_exactly", "flattened_exactly"]
+
+_T = TypeVar("_T")
+
+#: The compound expressions that may be decided (a literal is its own value).
+_COMPOUND = (Binary, Unary, Ite, Call)
+_LITERALS = (BoolLit, IntLit, DoubleLit)
+
+
+def decided_exactly(node: _T, constants: Mapping[str, ExactScalar]) -> _T:
+    """*node* (a model, a property or an expression) with each maximal closed bool- or
+    int-valued sub-expression replaced by the literal of its exact value.
+
+    :param constants: the exact values of the constants it may read
+        (:func:`~veribattery.explore.exact.rational.exact_constants`); any other name
+        (a variable, a formula) makes an expression open.
+    """
+    closed = _closed_nodes(node, constants)
+
+    def replace(sub: Any) -> Any | None:
+        if id(sub) not in closed or not isinstance(sub, _COMPOUND):
+            return None
+        try:
+            value, kind = closed_value(sub, constants)
+        except VeribatteryError:
+            return None  # no exact value (log, a fractional power): left to report
+        if kind == "bool":
+            return BoolLit(bool(value), sub.span)
+        if kind == "int":
+            return IntLit(int(value), sub.span)
+        return None  # a double: its parts may still decide something
+
+    return substitute(node, replace)  # type: ignore[no-any-return]
+
+
+def _closed_nodes(root: Any, constants: Mapping[str, ExactScalar]) -> set[int]:
+    """The ids of the expressions under *root* that read only literals and *constants*
+    (children first on a stack of its own: a model's expressions nest thousands deep)."""
+    closed: set[int] = set()
+    stack: list[tuple[Any, bool]] = [(root, False)]
+    seen: set[int] = set()
+    while stack:
+        node, expanded = stack.pop()
+        kids = tuple(children(node))
+        if not expanded:
+            if id(node) in seen:
+                continue
+            seen.add(id(node))
+            stack.append((node, True))
+            stack.extend((kid, False) for kid in kids)
+            continue
+        leaf = isinstance(node, _LITERALS) or (
+            isinstance(node, Ident) and node.name in constants)
+        if leaf or (isinstance(node, _COMPOUND) and all(id(kid) in closed for kid in kids)):
+            closed.add(id(node))
+    return closed
+
+
+def flattened_exactly(
+    model: Model, properties: Sequence[Property], props_file: PropertiesFile | None,
+    given: Mapping[str, Value | str] | None,
+) -> tuple[Model, list[Property], PropertiesFile | None, FlatModel]:
+    """*model*, its *properties* and their *props_file* (its labels and named
+    properties) decided exactly (:func:`decided_exactly`) over the exact values of the
+    model's constants and the file's (*given*: the values of the undefined ones), and the
+    decided model flattened.
+
+    :raises PrismSemanticError: as :func:`~veribattery.lang.flatten_model`, on the model as
+        written.
+    """
+    flat = flatten_model(model, given)  # names, types, missing constants: as written
+    given = dict(given or {})
+    model_values = exact_constants(model.constants, given)
+    decls = props_file.constants if props_file is not None else ()
+    values = exact_constants(decls, given, outer=model_values)
+    decided = [replace(p, formula=decided_exactly(p.formula, values)) for p in properties]
+    decided_model = decided_exactly(model, model_values)
+    if decided_model is not model:
+        flat = flatten_model(decided_model, given)
+    return (decided_model, decided,
+            None if props_file is None else decided_exactly(props_file, values), flat)

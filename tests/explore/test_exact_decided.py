@@ -1,0 +1,93 @@
+"""--exact decides closed comparisons and integers in rationals, as PRISM's exact engine
+(prism-tests/functionality/verify/exact/exact-eval-*.prism are its own tests of this).
+
+In doubles ``1/3 = 0.333333333333333333333333`` is true (both round to the same
+double) and ``ceil(0.1*3*10)`` is 4; exactly they are false and 3.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+from gmpy2 import mpq
+
+from veribattery.cli import cli
+from veribattery.explore.exact.decided import decided_exactly
+from veribattery.lang import parse_property
+from veribattery.lang.nodes import Binary, BoolLit, Ident, IntLit
+
+THIRD = "1/3 = 0.333333333333333333333333"
+
+
+def _formula(text: str):  # noqa: ANN202 - an Expr
+    return parse_property(text).formula
+
+
+def test_closed_comparisons_and_integers_take_their_exact_values() -> None:
+    assert decided_exactly(_formula(THIRD), {}) == BoolLit(False)
+    assert decided_exactly(_formula("ceil(p*3*10)"), {"p": mpq(1, 10)}) == IntLit(3)
+    assert decided_exactly(_formula(f"({THIRD}) ? 1 : 2"), {}) == IntLit(2)
+
+
+def test_open_and_double_expressions_keep_their_form_around_decided_parts() -> None:
+    decided = decided_exactly(_formula(f"s = (({THIRD}) ? 0 : 3)"), {})
+    assert decided == Binary("=", Ident("s"), IntLit(3))
+    third = _formula("1/3")
+    assert decided_exactly(third, {}) is third  # a double's value stays for the exact build
+
+
+def test_a_long_open_chain_is_walked_once() -> None:
+    chain = " + ".join(["s"] * 5000)
+    decided = decided_exactly(_formula(f"{chain} > ceil(0.1*3*10)"), {})
+    assert isinstance(decided, Binary) and decided.right == IntLit(3)
+
+
+_MODELS = {
+    # a constant's comparison decides a probability (0 exactly: s=1 is unreachable)
+    "constant": ("const double p = (" + THIRD + " ? 1/2 : 0);",
+                 "[] s=0 -> p:(s'=1) + 1-p:(s'=2);", "init 0", 0),
+    # an int constant decides an update's target
+    "int constant": ("const int n = (" + THIRD + " ? 1 : 2);",
+                     "[] s=0 -> 1/2:(s'=n) + 1/2:(s'=2);", "init 0", 0),
+    # an update's target, inline
+    "update": ("", "[] s=0 -> 1/2:(s'=(" + THIRD + " ? 1 : 2)) + 1/2:(s'=2);", "init 0", 0),
+    # a guard
+    "guard": ("", "[] s=(" + THIRD + " ? 0 : 3) -> (s'=1);\n[] s=0 -> (s'=2);", "init 0", 0),
+    # an initial value
+    "init": ("", "[] s=0 -> true;", "init (" + THIRD + " ? 1 : 2)", 0),
+    # a constant computed from a decimal given on the command line
+    "ceil": ("const double q; const int k = ceil(q*3*10);",
+             "[] s=0 -> 1/2:(s'=(k=3 ? 1 : 2)) + 1/2:(s'=2);", "init 0", mpq(1, 2)),
+}
+
+
+@pytest.mark.parametrize("case", sorted(_MODELS))
+@pytest.mark.parametrize("kind", ["dtmc", "mdp"])
+def test_exact_mode_decides_the_model_exactly(tmp_path: Path, case: str, kind: str) -> None:
+    constants, commands, init, expected = _MODELS[case]
+    model = tmp_path / "m.prism"
+    model.write_text(f"{kind}\n{constants}\nmodule M\n  s : [0..3] {init};\n  {commands}\n"
+                     "  [] s>=1 -> true;\nendmodule\n")
+    query = "P=? [ F s=1 ]" if kind == "dtmc" else "Pmax=? [ F s=1 ]"
+    given = ["--const", "q=0.1"] if "const double q" in constants else []
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", query, *given,
+                                      "--exact", "--json"])
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["results"][0]["exact"] == str(expected)
+
+
+@pytest.mark.parametrize("kind", ["dtmc", "mdp"])
+def test_exact_mode_decides_a_property_exactly(tmp_path: Path, kind: str) -> None:
+    model = tmp_path / "m.prism"
+    model.write_text(f"{kind}\nmodule M\n  s : [0..1];\n  [a] s=0 -> (s'=1);\nendmodule\n"
+                     f'rewards "r"\n  [a] s=(({THIRD}) ? 1 : 0) : 2;\nendrewards\n')
+    reward = "R=? [ F s>0 ]" if kind == "dtmc" else "Rmax=? [ F s>0 ]"
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", f"({THIRD})",
+                                      "--property", reward, "--exact", "--json"])
+    assert result.exit_code == 0, result.stderr
+    first, second = json.loads(result.stdout)["results"]
+    assert first["value"] is False
+    assert second["exact"] == "2"  # the reward's guard is s=0 exactly
