@@ -17,7 +17,8 @@ from gmpy2 import mpq
 from veribattery.cli import cli
 from veribattery.explore.exact.decided import decided_exactly
 from veribattery.lang import parse_property
-from veribattery.lang.nodes import Binary, BoolLit, Ident, IntLit
+from veribattery.errors import ModelError
+from veribattery.lang.nodes import Binary, BoolLit, DoubleLit, Ident, IntLit
 
 THIRD = "1/3 = 0.333333333333333333333333"
 
@@ -32,11 +33,20 @@ def test_closed_comparisons_and_integers_take_their_exact_values() -> None:
     assert decided_exactly(_formula(f"({THIRD}) ? 1 : 2"), {}) == IntLit(2)
 
 
-def test_open_and_double_expressions_keep_their_form_around_decided_parts() -> None:
+def test_open_expressions_keep_their_form_around_decided_parts() -> None:
     decided = decided_exactly(_formula(f"s = (({THIRD}) ? 0 : 3)"), {})
     assert decided == Binary("=", Ident("s"), IntLit(3))
-    third = _formula("1/3")
-    assert decided_exactly(third, {}) is third  # a double's value stays for the exact build
+
+
+def test_a_closed_double_keeps_its_exact_value_as_its_text() -> None:
+    third = decided_exactly(_formula("1/3 + 0*s"), {})
+    assert isinstance(third, Binary) and isinstance(third.left, DoubleLit)
+    assert (third.left.value, third.left.text) == (1 / 3, "1/3")
+
+
+def test_a_closed_number_without_an_exact_value_is_an_error() -> None:
+    with pytest.raises(ModelError, match="non-integer exponent"):
+        decided_exactly(_formula("s > pow(2, 0.5)"), {})
 
 
 def test_a_long_open_chain_is_walked_once() -> None:
@@ -61,6 +71,10 @@ _MODELS = {
     # a constant computed from a decimal given on the command line
     "ceil": ("const double q; const int k = ceil(q*3*10);",
              "[] s=0 -> 1/2:(s'=(k=3 ? 1 : 2)) + 1/2:(s'=2);", "init 0", mpq(1, 2)),
+    # a probability written as a closed expression keeps its exact value (1/3, not the
+    # double nearest it: the state s=1 gets 1/3 and s=2 gets 2/3 exactly)
+    "probability": ("const double r = 1/3;", "[] s=0 -> r*1:(s'=1) + 1-r:(s'=2);", "init 0",
+                    mpq(1, 3)),
 }
 
 
@@ -91,3 +105,58 @@ def test_exact_mode_decides_a_property_exactly(tmp_path: Path, kind: str) -> Non
     first, second = json.loads(result.stdout)["results"]
     assert first["value"] is False
     assert second["exact"] == "2"  # the reward's guard is s=0 exactly
+
+
+# prism-tests/functionality/language/power.prism's properties, on a die (Knuth's), with
+# --exact: numbers over state variables and over P=? queries, in every state.
+_DIE = """dtmc
+module die
+  s : [0..7] init 0;
+  d : [0..6] init 0;
+  [] s=0 -> 0.5 : (s'=1) + 0.5 : (s'=2);
+  [] s=1 -> 0.5 : (s'=3) + 0.5 : (s'=4);
+  [] s=2 -> 0.5 : (s'=5) + 0.5 : (s'=6);
+  [] s=3 -> 0.5 : (s'=1) + 0.5 : (s'=7) & (d'=1);
+  [] s=4 -> 0.5 : (s'=7) & (d'=2) + 0.5 : (s'=7) & (d'=3);
+  [] s=5 -> 0.5 : (s'=7) & (d'=4) + 0.5 : (s'=7) & (d'=5);
+  [] s=6 -> 0.5 : (s'=2) + 0.5 : (s'=7) & (d'=6);
+  [] s=7 -> (s'=7);
+endmodule
+"""
+
+
+@pytest.mark.parametrize(("prop", "expected"), [
+    ("s+1", "1"),
+    ("round(1+P=?[F<=1 d=6])", "1"),
+    ("(2*(s+1))^(d+3)", "8"),
+    ("(0.5*round(P=?[F true]))^(d+2)", "1/4"),
+    ("(2*(s+1))^(d-1.0)", "1/2"),
+    ("P=? [ F s=7 & d=6 ] * 6 + 1/3", "4/3"),
+    ("filter(max, P=? [ F d=6 ] * (d+1), s=7)", "7"),
+])
+@pytest.mark.parametrize("kind", ["dtmc", "mdp"])
+def test_exact_numbers_over_states_and_queries(tmp_path: Path, prop: str, expected: str,
+                                               kind: str) -> None:
+    model = tmp_path / "die.prism"
+    model.write_text(_DIE.replace("dtmc", kind))
+    if kind == "mdp":
+        prop = prop.replace("P=?", "Pmax=?")
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop, "--exact",
+                                      "--json"])
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["results"][0]["exact"] == expected
+
+
+def test_a_predicate_without_an_exact_value_is_decided_in_doubles(tmp_path: Path) -> None:
+    # floor(log(d+1, 2)) = 2 for d in 3..6: log has no exact value, the predicate is
+    # decided in doubles (documented); a number without one is an error.
+    model = tmp_path / "die.prism"
+    model.write_text(_DIE)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
+                                      "P=? [ F s=7 & floor(log(d+1, 2))=2 ]", "--property",
+                                      "log(d+2, 2)", "--exact", "--json"])
+    assert result.exit_code == 2 and "log" in result.stderr
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property",
+                                      "P=? [ F s=7 & floor(log(d+1, 2))=2 ]", "--exact",
+                                      "--json"])
+    assert json.loads(result.stdout)["results"][0]["exact"] == "2/3"

@@ -43,11 +43,7 @@ def check_mdp_model_exact(
     :raises ModelError: for a probability or reward without an exact rational value.
     """
     from veribattery.checker.exact import exact_bounds  # gmpy2 only when asked
-    from veribattery.checker.mdp.exact_pctl import (
-        ExactMdpModel,
-        check_mdp_exact,
-        closed_numbers,
-    )
+    from veribattery.checker.mdp.exact_pctl import ExactMdpModel, check_mdp_exact
     from veribattery.explore.exact.decided import flattened_exactly
     from veribattery.explore.exact.mdp import build_exact_mdp
     from veribattery.explore.exact.rational import exact_constants
@@ -69,9 +65,7 @@ def check_mdp_model_exact(
     with watch.stage("check"):
         for number, (original, prop) in enumerate(zip(properties, resolved, strict=True), 1):
             tell_checking(stages, number, len(resolved), prop)
-            written = closed_numbers(original.formula, values)
-            written.update(exact_bounds(original.formula, values))
-            checked = ExactMdpModel(mdp, exact, written)
+            checked = ExactMdpModel(mdp, exact, exact_bounds(original.formula, values))
             results.append(check_mdp_exact(checked, prop))
             errors.extend(ill_posed_errors(mdp, results[-1]))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, exact.built.warnings,

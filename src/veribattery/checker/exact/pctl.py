@@ -23,6 +23,7 @@ from gmpy2 import mpq
 
 from veribattery._types import BoolArray
 from veribattery.checker.exact import storm
+from veribattery.checker.exact.expression import ExactStates, exact_state_values
 from veribattery.checker.exact.filtered import (
     ExactCheckResult,
     ExactModelView,
@@ -52,6 +53,7 @@ from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
 from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
+from veribattery.explore.exact.program import needs_exact
 from veribattery.explore.exact.rational import ExactScalar, ObjectArray, evaluate_rational
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
@@ -161,17 +163,43 @@ def exact_values(
         return ExactValues.finite(path_probs(model, workspace, formula.path))
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(model, workspace, formula)
-    if has_operator(formula):
-        token = _BOUNDS.set(bounds or {})
-        try:
+    token = _BOUNDS.set(bounds or {})
+    try:
+        if _is_state_formula(formula):
             return state_set(model, workspace, formula)
-        finally:
-            _BOUNDS.reset(token)
-    leaf = leaf_values(model.dtmc, formula)
-    if leaf.dtype == np.bool_:
-        return np.asarray(leaf, dtype=np.bool_)
-    raise CheckError("--exact checks P and R operators and boolean formulas; "
-                     "this is a numeric state expression", formula.span)
+        return _expression(model, workspace, formula)
+    finally:
+        _BOUNDS.reset(token)
+
+
+def _is_state_formula(formula: Expr) -> bool:
+    """Whether *formula* is a state formula the recursion of :func:`state_set` takes: a
+    bounded operator, ``A``/``E``, a connective. (Plain expressions, numbers and
+    comparisons over them are :func:`_expression`'s.)"""
+    return isinstance(formula, ProbOp | RewardOp | Quantified) or (
+        isinstance(formula, Binary) and formula.op in CONNECTIVES) or (
+        isinstance(formula, Unary) and formula.op == "!")
+
+
+def _expression(model: ExactDTMC, workspace: Workspace, formula: Expr) -> ExactValues | BoolArray:
+    """*formula* evaluated exactly in every state, its operators answered exactly
+    (:func:`~veribattery.checker.exact.expression.exact_expression`)."""
+    dtmc = model.dtmc
+    at = ExactStates(dtmc.states, dtmc.variable_names, dtmc.labels)
+    return exact_state_values(formula, at, functools.partial(_operand, model, workspace),
+                              functools.partial(leaf_values, dtmc))
+
+
+def _operand(model: ExactDTMC, workspace: Workspace, node: Expr) -> ExactValues | BoolArray:
+    """An operator inside an expression, answered exactly."""
+    if isinstance(node, Filter):
+        raise CheckError("in exact arithmetic, filter(...) is answered at the top of a "
+                         "property only", node.span)
+    if isinstance(node, ProbOp) and node.op == "=?":
+        return ExactValues.finite(path_probs(model, workspace, node.path))
+    if isinstance(node, RewardOp) and node.op == "=?":
+        return path_rewards(model, workspace, node)
+    return state_set(model, workspace, node)
 
 
 # ---------------------------------------------------------------------------
@@ -180,7 +208,7 @@ def exact_values(
 
 def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
-    if not has_operator(expr):  # plain state predicate: evaluated whole, no recursion
+    if not has_operator(expr) and not needs_exact(expr):  # doubles decide it exactly
         return as_mask(leaf_values(model.dtmc, expr), expr)
     match expr:
         case ProbOp() | RewardOp():
@@ -200,10 +228,10 @@ def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
         case Ite(cond=cond, then=then, otherwise=otherwise) if has_operator(expr):
             return np.where(state_set(model, workspace, cond), state_set(model, workspace, then),
                             state_set(model, workspace, otherwise))
-    if has_operator(expr):
-        raise CheckError("P and R operators may only be combined with ! & | => <=> "
-                         "and ?:", expr.span)
-    return as_mask(leaf_values(model.dtmc, expr), expr)
+    found = _expression(model, workspace, expr)  # a comparison of numbers, exactly
+    if isinstance(found, ExactValues):
+        raise CheckError("expected a boolean state formula", expr.span)
+    return found
 
 
 def _bounded_operator(model: ExactDTMC, workspace: Workspace,

@@ -13,12 +13,10 @@ top-level filters, are computed exactly too.
 
 from __future__ import annotations
 
-import operator
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import partial
-from typing import Any
 
 import numpy as np
 from gmpy2 import mpq
@@ -26,6 +24,7 @@ from gmpy2 import mpq
 from veribattery._types import BoolArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.exact import ExactValues
+from veribattery.checker.exact.expression import ExactStates, exact_state_values
 from veribattery.checker.exact.filtered import (
     ExactCheckResult,
     ExactModelView,
@@ -49,22 +48,18 @@ from veribattery.checker.mdp.operators import operator_objective, reward_structu
 from veribattery.checker.mdp.rational import ObjectArray
 from veribattery.checker.mdp.system import Objective
 from veribattery.checker.result import CheckResult
-from veribattery.errors import CheckError, Span, VeribatteryError
+from veribattery.errors import CheckError, Span
 from veribattery.explore.exact.mdp import ExactMdp, ExactMdpRewards
-from veribattery.explore.exact.rational import ExactScalar, evaluate_rational
-from veribattery.lang.expressions import walk
+from veribattery.explore.exact.program import needs_exact
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,
     Binary,
     Cumulative,
-    DoubleLit,
     Eventually,
     Expr,
     Filter,
     Globally,
-    Ident,
     Instantaneous,
-    IntLit,
     Ite,
     Next,
     PathFormula,
@@ -84,7 +79,7 @@ from veribattery.lang.nodes import (
 )
 from veribattery.lang.property_rules import STEPS_REWARD
 
-__all__ = ["ExactMdpModel", "check_mdp_exact", "closed_numbers"]
+__all__ = ["ExactMdpModel", "check_mdp_exact"]
 
 _ZERO = mpq(0)
 _ONE = mpq(1)
@@ -96,8 +91,8 @@ class ExactMdpModel:
 
     :param mdp: the MDP (structure, labels, states) as the float engine reads it.
     :param exact: its probabilities and rewards as rationals (same entry order).
-    :param bounds: the exact value of each ``P~p``/``R~r`` bound and closed number, by
-        its span (:func:`~veribattery.checker.exact.exact_bounds`, :func:`closed_numbers`).
+    :param bounds: the exact value of each ``P~p``/``R~r`` bound, by
+        its span (:func:`~veribattery.checker.exact.exact_bounds`).
     """
 
     mdp: MDP
@@ -149,20 +144,43 @@ def _states(mdp: MDP) -> np.ndarray:
 
 
 def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray:
-    """Per-state value of *formula*: rationals for ``Pmin``/``Pmax``/``Rmin``/``Rmax=?``,
-    booleans for state formulas."""
+    """Per-state value of *formula*: rationals for ``Pmin``/``Pmax``/``Rmin``/``Rmax=?``
+    and expressions over them, booleans for state formulas."""
     match formula:
         case ProbOp(op="=?"):
             objective = operator_objective(formula)
             return ExactValues.finite(path_probs(model, formula.path, objective))
         case RewardOp(op="=?"):
             return path_rewards(model, formula, operator_objective(formula))
-    if has_operator(formula):
-        if _is_arithmetic(formula):
-            return numbers(model, formula)
-        return state_set(model, formula)
-    leaf = mdp_values(model.mdp, formula)
-    return numbers(model, formula) if isinstance(leaf, Bounds) else leaf
+        case ProbOp() | RewardOp() | Quantified() | Unary(op="!"):
+            return state_set(model, formula)
+        case Binary(op=op) if op in CONNECTIVES:
+            return state_set(model, formula)
+    return _expression(model, formula)
+
+
+def _expression(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray:
+    """*formula* evaluated exactly in every state, its operators answered exactly
+    (:func:`~veribattery.checker.exact.expression.exact_expression`)."""
+    mdp = model.mdp
+    at = ExactStates(_states(mdp), mdp.variable_names, mdp.labels)
+    return exact_state_values(formula, at, partial(_operand, model), partial(_leaf, mdp))
+
+
+def _leaf(mdp: MDP, expr: Expr) -> np.ndarray:
+    """An operator-free expression's values in every state, in doubles."""
+    found = mdp_values(mdp, expr)
+    return found.value if isinstance(found, Bounds) else found
+
+
+def _operand(model: ExactMdpModel, node: Expr) -> ExactValues | BoolArray:
+    """An operator inside an expression, answered exactly."""
+    if isinstance(node, Filter):
+        raise CheckError("in exact arithmetic, filter(...) is answered at the top of a "
+                         "property only", node.span)
+    if isinstance(node, ProbOp | RewardOp) and node.op == "=?":
+        return exact_values(model, node)
+    return state_set(model, node)
 
 
 def _opposite(objective: Objective) -> Objective:
@@ -176,7 +194,7 @@ def _opposite(objective: Objective) -> Objective:
 
 def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
     """The states satisfying *expr*, bounded operators decided exactly."""
-    if not has_operator(expr):
+    if not has_operator(expr) and not needs_exact(expr):  # doubles decide it exactly
         leaf = mdp_values(model.mdp, expr)  # a bool variable's values come as 0/1 numbers
         return as_mask(leaf.value if isinstance(leaf, Bounds) else leaf, expr)
     match expr:
@@ -191,17 +209,13 @@ def state_set(model: ExactMdpModel, expr: Expr) -> BoolArray:
         case Ite(cond=cond, then=then, otherwise=otherwise):
             return np.where(state_set(model, cond), state_set(model, then),
                             state_set(model, otherwise))
-        case Binary(op=op, left=left, right=right) if op in _COMPARISONS:
-            a, b = numbers(model, left), numbers(model, right)
-            _finite(a, expr.span)
-            _finite(b, expr.span)
-            return np.asarray(_COMPARISONS[op](a.values, b.values), dtype=bool)
         case Filter():
             raise CheckError("in exact arithmetic on an MDP, filter(...) is answered at the "
                              "top of a property only", expr.span)
-    raise CheckError("in exact arithmetic on an MDP, P and R operators are queried "
-                     "(Pmax=? ...) or bounded and combined with ! & | => <=> ?: only",
-                     expr.span)
+    found = _expression(model, expr)  # a comparison of numbers, exactly
+    if isinstance(found, ExactValues):
+        raise CheckError("expected a boolean state formula", expr.span)
+    return found
 
 
 def _bounded(model: ExactMdpModel, op: ProbOp | RewardOp) -> BoolArray:
@@ -222,90 +236,6 @@ def _bounded(model: ExactMdpModel, op: ProbOp | RewardOp) -> BoolArray:
 # ---------------------------------------------------------------------------
 # Arithmetic over operators
 # ---------------------------------------------------------------------------
-
-_ARITHMETIC: dict[str, Callable[[Any, Any], Any]] = {
-    "+": operator.add, "-": operator.sub, "*": operator.mul, "/": operator.truediv}
-_COMPARISONS: dict[str, Callable[[Any, Any], Any]] = {
-    **BOUND_RELATIONS, "=": operator.eq, "!=": operator.ne}
-
-
-def _is_arithmetic(expr: Expr) -> bool:
-    return (isinstance(expr, Binary) and expr.op in _ARITHMETIC) or (
-        isinstance(expr, Unary) and expr.op == "-")
-
-
-def numbers(model: ExactMdpModel, expr: Expr) -> ExactValues:
-    """A numeric expression over ``Pmin=?``/``Rmax=?``... queries, per state, exactly
-    (``1 - Pmax=? [ F err ]``); infinite operands have no exact arithmetic here."""
-    match expr:
-        case ProbOp(op="=?") | RewardOp(op="=?"):
-            result = exact_values(model, expr)
-            assert isinstance(result, ExactValues)
-            return result
-        case Unary(op="-", operand=operand):
-            inner = _finite(numbers(model, operand), expr.span)
-            return ExactValues.finite(np.asarray(-inner.values, dtype=object))
-        case Binary(op=op, left=left, right=right) if op in _ARITHMETIC:
-            a = _finite(numbers(model, left), expr.span)
-            b = _finite(numbers(model, right), expr.span)
-            if op == "/" and (b.values == _ZERO).any():
-                raise CheckError("division by zero in exact arithmetic", expr.span)
-            return ExactValues.finite(np.asarray(_ARITHMETIC[op](a.values, b.values),
-                                                 dtype=object))
-    if has_operator(expr):
-        raise CheckError("in exact arithmetic on an MDP, this operator has no exact value "
-                         "(+ - * / and comparisons over P and R queries have)", expr.span)
-    leaf = mdp_values(model.mdp, expr)
-    values = leaf.value if isinstance(leaf, Bounds) else None
-    if values is None or not np.all(np.isfinite(values)):
-        raise CheckError("expected a number", expr.span)
-    if not expr_is_closed(expr) and not np.all(values == np.round(values)):
-        raise CheckError("in exact arithmetic on an MDP, a state expression must be an "
-                         "integer or a constant", expr.span)
-    if expr_is_closed(expr):
-        exact = model.bounds.get(expr.span) if expr.span is not None else None
-        exact = evaluate_rational(expr, {}, {}, 1)[0] if exact is None else exact
-        return ExactValues.finite(np.full(mdp_size(model), exact, dtype=object))
-    return ExactValues.finite(np.asarray(_TO_MPQ(values.astype(np.int64)), dtype=object))
-
-
-def closed_numbers(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Span, mpq]:
-    """The exact value of each closed numeric expression of *formula* (before resolution),
-    by span: resolving folds ``1/3`` into the double nearest it; evaluated here, it stays
-    1/3. The outermost expression starting at a position wins."""
-    found: dict[Span, mpq] = {}
-    for node in walk(formula):
-        span = getattr(node, "span", None)
-        if span is None or span in found or has_operator(node) or not _numeric_node(node):
-            continue
-        try:
-            value = evaluate_rational(node, constants, {}, 1)[0]
-        except VeribatteryError:
-            continue  # reads a variable, or has no exact value: left to the float leaf
-        if not isinstance(value, bool | np.bool_):
-            found[span] = value
-    return found
-
-
-def _numeric_node(node: object) -> bool:
-    return isinstance(node, IntLit | DoubleLit | Ident | Binary | Unary) and not (
-        isinstance(node, Binary) and node.op not in _ARITHMETIC)
-
-
-def _finite(values: ExactValues, span: Span | None) -> ExactValues:
-    if values.infinite.any():
-        raise CheckError("an infinite expected reward has no exact arithmetic here", span)
-    return values
-
-
-def expr_is_closed(expr: Expr) -> bool:
-    """Whether *expr* reads no variable (constants are substituted before checking)."""
-    return not any(isinstance(node, Ident) for node in walk(expr))
-
-
-def mdp_size(model: ExactMdpModel) -> int:
-    return model.mdp.num_states
-
 
 # ---------------------------------------------------------------------------
 # Path formulas

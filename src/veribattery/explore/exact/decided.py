@@ -1,4 +1,4 @@
-"""Closed comparisons and integer expressions decided in rationals, before flattening.
+"""Closed expressions evaluated in rationals, before flattening.
 
 In ``--exact`` mode every expression has its exact value, as in PRISM's exact engine;
 but the flattening folds closed sub-expressions in doubles, where ``1/3 = 0.333...``
@@ -6,9 +6,10 @@ but the flattening folds closed sub-expressions in doubles, where ``1/3 = 0.333.
 (the exact builder reads it from the model as written), but a comparison or an integer
 decides the state space: a guard, an update, an initial value, a constant such as
 ``const int n = ceil(...)``, a step bound. So before the model (or a property) is
-flattened, each *closed* sub-expression -- no variable, label or formula in it -- of
-type bool or int is replaced by the literal of its exact value; doubles then see the
-same decisions. PRISM's own tests of this are prism-tests/functionality/verify/exact/.
+flattened, each *closed* sub-expression -- no variable, label or formula in it -- is
+replaced by the literal of its exact value: doubles then see the same decisions, and a
+double literal carries its exact value as its text (``1/3``), which exact evaluation
+reads. PRISM's own tests of this are prism-tests/functionality/verify/exact/.
 """
 
 from __future__ import annotations
@@ -17,7 +18,6 @@ from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any, TypeVar
 
-from veribattery.errors import VeribatteryError
 from veribattery.explore.exact.rational import ExactScalar, closed_value, exact_constants
 from veribattery.lang import flatten_model
 from veribattery.lang.expressions import children, substitute
@@ -47,27 +47,29 @@ _LITERALS = (BoolLit, IntLit, DoubleLit)
 
 
 def decided_exactly(node: _T, constants: Mapping[str, ExactScalar]) -> _T:
-    """*node* (a model, a property or an expression) with each maximal closed bool- or
-    int-valued sub-expression replaced by the literal of its exact value.
+    """*node* (a model, a property or an expression) with each maximal closed
+    sub-expression replaced by the literal of its exact value (a double's text is the
+    exact fraction).
 
     :param constants: the exact values of the constants it may read
         (:func:`~veribattery.explore.exact.rational.exact_constants`); any other name
         (a variable, a formula) makes an expression open.
+    :raises ModelError: for a closed expression without an exact rational value (``log``,
+        a power with an irrational value, a division by zero), as PRISM's exact engine.
     """
     closed = _closed_nodes(node, constants)
 
     def replace(sub: Any) -> Any | None:
         if id(sub) not in closed or not isinstance(sub, _COMPOUND):
             return None
-        try:
-            value, kind = closed_value(sub, constants)
-        except VeribatteryError:
-            return None  # no exact value (log, a fractional power): left to report
+        value, kind = closed_value(sub, constants)  # ModelError: no exact value (log ...)
         if kind == "bool":
             return BoolLit(bool(value), sub.span)
         if kind == "int":
             return IntLit(int(value), sub.span)
-        return None  # a double: its parts may still decide something
+        # A double: the float nearest its value, written as the exact fraction that the
+        # exact evaluation reads (resolution would fold 1/3 into 0.3333333333333333).
+        return DoubleLit(float(value), f"{value.numerator}/{value.denominator}", sub.span)
 
     return substitute(node, replace)  # type: ignore[no-any-return]
 

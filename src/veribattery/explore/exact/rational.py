@@ -251,6 +251,8 @@ def evaluate_rational(
     constants: Mapping[str, ExactScalar],
     variables: Mapping[str, np.ndarray],
     n: int,
+    *,
+    doubles: Collection[str] = (),
 ) -> np.ndarray:
     """*expr* evaluated exactly for *n* valuations (object array of mpq, or bools).
 
@@ -261,9 +263,10 @@ def evaluate_rational(
     :param constants: exact constant values (scalars; an int constant is an
         :class:`gmpy2.mpz`, a double an :class:`gmpy2.mpq`).
     :param variables: per variable, an array of *n* values (mpq objects or bools).
+    :param doubles: the variables of type double (the others are ints or bools).
     :raises ModelError: for an operation without an exact rational result.
     """
-    return _Evaluator(constants, variables, n).run(expr)[0]
+    return _Evaluator(constants, variables, n, frozenset(doubles)).run(expr)[0]
 
 
 def closed_value(expr: Expr, constants: Mapping[str, ExactScalar]) -> tuple[Any, ValueType]:
@@ -287,15 +290,17 @@ class _Evaluator:
     """
 
     def __init__(
-        self, constants: Mapping[str, ExactScalar], variables: Mapping[str, np.ndarray], n: int
+        self, constants: Mapping[str, ExactScalar], variables: Mapping[str, np.ndarray], n: int,
+        doubles: frozenset[str] = frozenset(),
     ) -> None:
         self.constants = constants
         self.variables = variables
         self.n = n
+        self.doubles = doubles
 
     def subset(self, mask: np.ndarray) -> _Evaluator:
         chosen = {k: v[mask] for k, v in self.variables.items()}
-        return _Evaluator(self.constants, chosen, int(np.count_nonzero(mask)))
+        return _Evaluator(self.constants, chosen, int(np.count_nonzero(mask)), self.doubles)
 
     def full(self, value: Any, kind: ValueType) -> _Typed:
         if kind == "bool":
@@ -343,7 +348,9 @@ class _Evaluator:
     def _ident(self, expr: Ident) -> _Typed:
         if expr.name in self.variables:
             column = self.variables[expr.name]
-            return column, "bool" if column.dtype == bool else "int"
+            if column.dtype == bool:
+                return column, "bool"
+            return column, "double" if expr.name in self.doubles else "int"
         if expr.name in self.constants:
             value = self.constants[expr.name]
             return self.full(value, _constant_type(value))
