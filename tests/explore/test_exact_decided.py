@@ -14,16 +14,17 @@ import pytest
 from click.testing import CliRunner
 from gmpy2 import mpq
 
+from tests.checker.test_exact import KNUTH_DIE
 from veribattery.cli import cli
+from veribattery.errors import ModelError
 from veribattery.explore.exact.decided import decided_exactly
 from veribattery.lang import parse_property
-from veribattery.errors import ModelError
-from veribattery.lang.nodes import Binary, BoolLit, DoubleLit, Ident, IntLit
+from veribattery.lang.nodes import Binary, BoolLit, DoubleLit, Expr, Ident, IntLit
 
 THIRD = "1/3 = 0.333333333333333333333333"
 
 
-def _formula(text: str):  # noqa: ANN202 - an Expr
+def _formula(text: str) -> Expr:
     return parse_property(text).formula
 
 
@@ -107,22 +108,8 @@ def test_exact_mode_decides_a_property_exactly(tmp_path: Path, kind: str) -> Non
     assert second["exact"] == "2"  # the reward's guard is s=0 exactly
 
 
-# prism-tests/functionality/language/power.prism's properties, on a die (Knuth's), with
+# prism-tests/functionality/language/power.prism's properties, on Knuth's die, with
 # --exact: numbers over state variables and over P=? queries, in every state.
-_DIE = """dtmc
-module die
-  s : [0..7] init 0;
-  d : [0..6] init 0;
-  [] s=0 -> 0.5 : (s'=1) + 0.5 : (s'=2);
-  [] s=1 -> 0.5 : (s'=3) + 0.5 : (s'=4);
-  [] s=2 -> 0.5 : (s'=5) + 0.5 : (s'=6);
-  [] s=3 -> 0.5 : (s'=1) + 0.5 : (s'=7) & (d'=1);
-  [] s=4 -> 0.5 : (s'=7) & (d'=2) + 0.5 : (s'=7) & (d'=3);
-  [] s=5 -> 0.5 : (s'=7) & (d'=4) + 0.5 : (s'=7) & (d'=5);
-  [] s=6 -> 0.5 : (s'=2) + 0.5 : (s'=7) & (d'=6);
-  [] s=7 -> (s'=7);
-endmodule
-"""
 
 
 @pytest.mark.parametrize(("prop", "expected"), [
@@ -138,7 +125,7 @@ endmodule
 def test_exact_numbers_over_states_and_queries(tmp_path: Path, prop: str, expected: str,
                                                kind: str) -> None:
     model = tmp_path / "die.prism"
-    model.write_text(_DIE.replace("dtmc", kind))
+    model.write_text(KNUTH_DIE.replace("dtmc", kind))
     if kind == "mdp":
         prop = prop.replace("P=?", "Pmax=?")
     result = CliRunner().invoke(cli, ["prism", str(model), "--property", prop, "--exact",
@@ -151,7 +138,7 @@ def test_a_predicate_without_an_exact_value_is_decided_in_doubles(tmp_path: Path
     # floor(log(d+1, 2)) = 2 for d in 3..6: log has no exact value, the predicate is
     # decided in doubles (documented); a number without one is an error.
     model = tmp_path / "die.prism"
-    model.write_text(_DIE)
+    model.write_text(KNUTH_DIE)
     result = CliRunner().invoke(cli, ["prism", str(model), "--property",
                                       "P=? [ F s=7 & floor(log(d+1, 2))=2 ]", "--property",
                                       "log(d+2, 2)", "--exact", "--json"])
