@@ -111,7 +111,7 @@ def _exact_checks(
     ``P<=1/3`` are evaluated exactly from the former.
     """
     from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
-    from veribattery.explore.exact.rational import exact_constants
+    from veribattery.explore.exact.constants import exact_constants
 
     given = dict(constants or {})
     decls = props_file.constants if props_file is not None else ()

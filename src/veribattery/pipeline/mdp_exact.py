@@ -44,9 +44,9 @@ def check_mdp_model_exact(
     """
     from veribattery.checker.exact import exact_bounds  # gmpy2 only when asked
     from veribattery.checker.mdp.exact_pctl import ExactMdpModel, check_mdp_exact
+    from veribattery.explore.exact.constants import exact_constants
     from veribattery.explore.exact.decided import flattened_exactly
     from veribattery.explore.exact.mdp import build_exact_mdp
-    from veribattery.explore.exact.rational import exact_constants
 
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):

@@ -18,7 +18,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any, TypeVar
 
-from veribattery.explore.exact.rational import ExactScalar, closed_value, exact_constants
+from veribattery.explore.exact.constants import exact_constants
+from veribattery.explore.exact.rational import ExactScalar, closed_value
 from veribattery.lang import flatten_model
 from veribattery.lang.expressions import children, substitute
 from veribattery.lang.nodes import (
@@ -52,7 +53,7 @@ def decided_exactly(node: _T, constants: Mapping[str, ExactScalar]) -> _T:
     exact fraction).
 
     :param constants: the exact values of the constants it may read
-        (:func:`~veribattery.explore.exact.rational.exact_constants`); any other name
+        (:func:`~veribattery.explore.exact.constants.exact_constants`); any other name
         (a variable, a formula) makes an expression open.
     :raises ModelError: for a closed expression without an exact rational value (``log``,
         a power with an irrational value, a division by zero), as PRISM's exact engine.

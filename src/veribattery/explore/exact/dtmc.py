@@ -35,6 +35,7 @@ from veribattery.explore.compile.program import (
     compile_program,
 )
 from veribattery.explore.dtmc import DTMC
+from veribattery.explore.exact.constants import exact_constants
 from veribattery.explore.exact.program import (
     ExactSource,
     as_bools,
@@ -42,7 +43,7 @@ from veribattery.explore.exact.program import (
     exact_program,
     needs_exact,
 )
-from veribattery.explore.exact.rational import ExactScalar, ObjectArray, exact_constants, tabulate
+from veribattery.explore.exact.rational import ExactScalar, ObjectArray, tabulate
 from veribattery.lang.nodes import Command, Expr, FlatModel, Model, RewardStruct, Value
 from veribattery.lang.semantics import expand_formulas, expanded_modules, inline_formulas
 
