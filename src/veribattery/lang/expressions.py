@@ -92,6 +92,20 @@ def children(node: Any) -> Iterator[Any]:
     return iter(_child_nodes(node))
 
 
+def operand_chain(expr: Expr, op: str) -> list[Expr]:
+    """The operands of the chain of *op* (``&`` or ``|``) *expr* heads, left to right,
+    however it is nested."""
+    operands: list[Expr] = []
+    stack: list[Expr] = [expr]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, Binary) and node.op == op:
+            stack += (node.right, node.left)
+        else:
+            operands.append(node)
+    return operands
+
+
 def walk(node: Any) -> Iterator[Any]:
     """*node* and all nodes below it, parents first."""
     stack = [node]

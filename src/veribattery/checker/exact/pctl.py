@@ -47,7 +47,6 @@ from veribattery.checker.formula.leaves import (
     exact_step_bound,
     has_operator,
     leaf_values,
-    operand_chain,
 )
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
@@ -55,7 +54,7 @@ from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryErr
 from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
 from veribattery.explore.exact.program import needs_exact
 from veribattery.explore.exact.rational import ExactScalar, ObjectArray, evaluate_rational
-from veribattery.lang.expressions import walk
+from veribattery.lang.expressions import operand_chain, walk
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,
     Binary,

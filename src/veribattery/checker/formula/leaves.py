@@ -23,7 +23,6 @@ from veribattery.explore.compile.expr import compile_expr
 from veribattery.explore.dtmc import DTMC, RewardVectors
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
-    Binary,
     BoolLit,
     Call,
     Conditional,
@@ -59,20 +58,6 @@ Result: TypeAlias = Bounds | BoolArray
 CONNECTIVES: dict[str, Callable[[BoolArray, BoolArray], BoolArray]] = {
     op: arrays.BINARY[op] for op in ("&", "|", "=>", "<=>")  # over state sets
 }
-
-def operand_chain(expr: Binary, op: str) -> list[Expr]:
-    """The operands of the chain of *op* (``&`` or ``|``) *expr* heads, left to right,
-    however it is nested."""
-    operands: list[Expr] = []
-    stack: list[Expr] = [expr]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, Binary) and node.op == op:
-            stack += (node.right, node.left)
-        else:
-            operands.append(node)
-    return operands
-
 
 class Roundable(Protocol):
     """A number ``math.floor`` and ``math.ceil`` take: a float, or an exact rational."""

@@ -32,12 +32,12 @@ from veribattery.checker.formula.leaves import (
     has_operator,
     leaf_values,
     literal_number,
-    operand_chain,
     reward_limit,
     step_bound,
 )
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC, RewardVectors
+from veribattery.lang.expressions import operand_chain
 from veribattery.lang.nodes import (
     Binary,
     Call,
