@@ -19,7 +19,7 @@ LONG = 1 - Fraction(2, 3) ** 60
 
 def test_short_fractions_print_in_full() -> None:
     assert format_exact("7/10", "0.7") == "7/10 ≈ 0.7"
-    assert format_exact("-3", "-3") == "-3 ≈ -3"
+    assert format_exact("-3", "-3") == "-3"  # an integer: nothing to approximate
 
 
 def test_long_fractions_print_their_digit_counts() -> None:

@@ -300,10 +300,13 @@ EXACT_TABLE_CHARS = 40
 
 
 def format_exact(exact: str, approximate: str) -> str:
-    """``p/q ≈ value`` when short, else ``≈ value (p/q: N/M digits)``.
+    """``p/q ≈ value`` when short (an integer alone: ``8``), else
+    ``≈ value (p/q: N/M digits)``.
 
     Tables that show the long form explain it below them (:data:`EXACT_NOTE`).
     """
+    if exact == approximate:
+        return exact
     if len(exact) <= EXACT_TABLE_CHARS:
         return f"{exact} ≈ {approximate}"
     numerator, _, denominator = exact.lstrip("-").partition("/")
