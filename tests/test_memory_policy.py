@@ -51,3 +51,19 @@ def _held_kb(mode: str) -> int:
 @pytest.mark.skipif(platform.libc_ver()[0] != "glibc", reason="glibc only (malloc_trim)")
 def test_freed_arrays_are_not_held_after_a_trim() -> None:
     assert _held_kb("trim") < 20 << 10  # KB: the kept 2 MB and noise, not the 120 MB
+
+
+def test_an_mdp_check_trims_after_the_build_and_each_property(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # As the DTMC pipeline: trim_for decides by the size (TRIM_MIN_STATES) whether to trim.
+    from veribattery.lang import parse_model, parse_property
+    from veribattery.pipeline import mdp as mdp_pipeline
+
+    calls: list[int] = []
+    monkeypatch.setattr(mdp_pipeline, "trim_for", calls.append)
+    model = parse_model("mdp\nmodule m\n x : [0..2];\n [a] x<2 -> (x'=x+1);\n"
+                        " [b] x<2 -> 0.5:(x'=0) + 0.5:(x'=2);\nendmodule\n")
+    props = [parse_property("Pmax=? [ F x=2 ]"), parse_property("Pmin=? [ F x=2 ]")]
+    run = mdp_pipeline.check_mdp_model(model, props)
+    assert [r.value for r in run.results] == [1.0, 1.0]
+    assert calls == [3, 3, 3]  # after the build, then after each of the two properties

@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from veribattery._memory import trim_for
 from veribattery.checker import CheckResult, UndecidedResult
 from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.formula.intervals import Undecided
@@ -118,6 +119,7 @@ def check_mdp_model(
         built = build_mdp(with_used_rewards(flat, resolved) if rewards == "named" else flat,
                           progress=progress)
         mdp = as_checker_mdp(built)
+        trim_for(mdp.num_states)  # the builder's freed temporaries, under the MDP's arrays
     results = []
     errors: list[str] = []
     with watch.stage("check"):
@@ -126,6 +128,7 @@ def check_mdp_model(
             results.append(_checked(mdp, prop, errors,
                                     None if stages is None else stages.solving))
             errors.extend(ill_posed_errors(mdp, results[-1]))
+            trim_for(mdp.num_states)
     return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings, model=flat,
                        errors=tuple(errors))
 
