@@ -9,9 +9,8 @@ property with a ``RESULT`` annotation and the constants it names (and a single-v
 ``-const`` of its ``.args`` file), through the suites' own harness
 (``prism_suite.py``, the same comparison), and sorts what fails by cause. ``--exact``
 runs ``veribattery prism --exact`` on the entries whose ``.args`` ask PRISM for
-``-exact``. PRISM's own engine options in ``.args`` (``-fair``, ``-noprobchecks``, a model
-type override) are not followed: entries that need them fail as "other" and are
-listed. A PRISM checkout: ``git clone https://github.com/prismmodelchecker/prism``
+``-exact``. Entries whose ``.args`` change what a property means (``-fair``,
+``-noprobchecks``, a model type override, ``-param``) are left out. A PRISM checkout: ``git clone https://github.com/prismmodelchecker/prism``
 (the suites were taken at 9486c774).
 """
 
@@ -41,6 +40,8 @@ OTHER_KINDS = {"ctmc", "stochastic", "pta", "smg", "pomdp", "popta", "ctmdp", "c
                "idtmc", "imdp", "lts", "ipomdp"}
 MODEL_SUFFIXES = (".pm", ".nm", ".prism")
 SUITES = ("prism", "prism-examples", "prism-extended", "prism-mdp")
+#: PRISM options that change what a property means; entries run with them are left out.
+ENGINE_OPTIONS = frozenset({"-fair", "-noprobchecks", "-ctmc", "-dtmc", "-mdp", "-param"})
 #: Why an entry fails, by the text of its error (the first that matches).
 CAUSES = (
     ("LTL (automata: not supported)", "LTL path formulas"),
@@ -110,21 +111,31 @@ def entries(harness: ModuleType, root: Path, known: set[Key], exact: bool) -> li
             lines = args_lines(props)
             if exact != any("-exact" in line.split() for line in lines):
                 continue
+            if lines and ENGINE_OPTIONS & set(lines[0].split()):
+                continue
             given = single_constants(lines[0]) if lines else {}
-            statements = harness.split_statements(props.read_text(errors="replace"))
-            for statement in statements:
+            text = props.read_text(errors="replace")
+            defined = defined_constants(model.read_text(errors="replace") + "\n" + text)
+            for statement in harness.split_statements(text):
                 if statement["kind"] == "property":
-                    found += _entries_of(harness, root, model, props, statement, given, known)
+                    found += _entries_of(harness, root, model, props, statement,
+                                         (given, defined), known)
     return found
 
 
+def defined_constants(text: str) -> set[str]:
+    """The constants *text* gives a value (a ``RESULT (c=v)`` naming one only documents it)."""
+    return set(re.findall(r"\bconst\s+(?:int|double|bool)?\s*(\w+)\s*=", text))
+
+
 def _entries_of(harness: ModuleType, root: Path, model: Path, props: Path, statement: Entry,
-                given: dict[str, str], known: set[Key]) -> list[Entry]:
+                constants_of: tuple[dict[str, str], set[str]], known: set[Key]) -> list[Entry]:
+    given, defined = constants_of
     out = []
-    for constants, expected_text in harness.result_specs(statement["comment"]):
-        if constants is None:
+    for named, expected_text in harness.result_specs(statement["comment"]):
+        if named is None:
             continue
-        constants = {**given, **constants}
+        constants = {k: v for k, v in {**given, **named}.items() if k not in defined}
         key: Key = (str(model.relative_to(root)), str(props.relative_to(root)), statement["index"],
                tuple(sorted(constants.items())))
         error = expected_text.lower().startswith("error")
