@@ -38,8 +38,8 @@ def check_mdp_model_exact(
     as written. The optimal values come with a strategy whose optimality is verified
     in rationals (:mod:`~veribattery.checker.mdp.exact`).
 
-    :raises CheckError: for an operator without an exact MDP kernel (filters,
-        multi-objective queries, numeric expressions over operators).
+    :raises CheckError: for an operator without an exact MDP kernel (multi-objective
+        queries, a filter inside an expression, arithmetic on an infinite reward).
     :raises ModelError: for a probability or reward without an exact rational value.
     """
     from veribattery.checker.exact import exact_bounds  # gmpy2 only when asked

@@ -104,8 +104,9 @@ def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
     """Check *prop* on *model* in exact arithmetic; the answer at the initial states
     (the lowest, with the range over them, when several differ).
 
-    :raises CheckError: for an operator without an exact MDP kernel (filters,
-        multi-objective queries, numeric expressions over operators) or ``P=?``/``R=?``.
+    :raises CheckError: for an operator without an exact MDP kernel (multi-objective
+        queries, a filter inside an expression, arithmetic on an infinite reward) or
+        ``P=?``/``R=?``.
     """
     if isinstance(prop.formula, Filter):
         return filtered(_view(model), prop, prop.formula)
