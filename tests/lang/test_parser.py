@@ -217,6 +217,23 @@ def test_an_interval_probability_names_interval_models(update: str) -> None:
         parse_model(text, name="m")
 
 
+@pytest.mark.parametrize(("text", "name"), [
+    ("fiter(forall, x<=1)", "fiter"),       # PRISM's own leader.pctl has this typo
+    ("P=? [ F x=mx(1, 0) ]", "mx")])
+def test_a_call_of_an_unknown_function_is_named(text: str, name: str) -> None:
+    with pytest.raises(PrismSyntaxError, match=rf"unknown function '{name}' \(PRISM's functions"):
+        parse_properties(text, name="p")
+    # One property alone (--property): a name then a parenthesis is no two properties.
+    with pytest.raises(PrismSyntaxError, match="unknown function 'flor'"):
+        parse_property("flor(x/2)")
+
+
+@pytest.mark.parametrize("text", ["P=? [ F (x=1 ]", "P=? [ F x=1 ] + (2,3)"])
+def test_a_keyword_or_an_operator_before_a_parenthesis_is_no_call(text: str) -> None:
+    with pytest.raises(PrismSyntaxError, match="unexpected token"):
+        parse_properties(text, name="p")
+
+
 def test_unexpected_character_and_end_of_input() -> None:
     with pytest.raises(PrismSyntaxError, match=r"^m:2:3: unexpected character '#'"):
         parse_model("dtmc\n  # oops", name="m")

@@ -10,13 +10,16 @@ only then.
 from __future__ import annotations
 
 import functools
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from veribattery._text import decode_text
 from veribattery.errors import PrismSyntaxError, Span, VeribatteryError
 from veribattery.lang.fastparse import Fallback, parse_fast
+from veribattery.lang.lexer import KEYWORDS
 from veribattery.lang.nodes import Model, PropertiesFile, Property
+from veribattery.lang.ops import FUNCTIONS
 from veribattery.lang.transform import ToNodes
 
 if TYPE_CHECKING:
@@ -126,6 +129,9 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxEr
     line, col = exc.line, exc.column
     if isinstance(exc, UnexpectedCharacters):
         message = f"unexpected character '{exc.char}'"
+    elif isinstance(exc, UnexpectedToken) and (callee := _unknown_call(exc, text)):
+        message = (f"unknown function '{callee}' (PRISM's functions: "
+                   f"{', '.join(sorted(FUNCTIONS))}; and filter(...))")
     elif isinstance(exc, UnexpectedToken) and _opens_interval(exc, text):
         message = ("an interval probability ([low,high]:update) makes an interval model "
                    "(IDTMC, IMDP), which veribattery does not support")
@@ -140,6 +146,38 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxEr
     if line < 1:
         line, col = _end_position(text)
     return PrismSyntaxError(message + _caret(text, line, col), Span(line, col, source))
+
+
+
+
+def _unknown_call(exc: UnexpectedInput, text: str) -> str | None:
+    """The name *exc* shows being called though no function has it: ``flor(`` at the
+    ``(``, or ``fiter(forall, ...)`` at a token inside the parentheses."""
+    token = getattr(exc, "token", None)
+    if token is None or token.start_pos is None:
+        return None
+    opening = token.start_pos if str(token) == "(" else _unclosed_paren(text, token.start_pos)
+    if opening is None:
+        return None
+    name = re.search(r"([A-Za-z_]\w*)[ \t]*$", text[:opening])
+    # A keyword before "(" is no call to report (F (a), init (...), a function's name).
+    return None if name is None or name.group(1) in KEYWORDS else name.group(1)
+
+
+def _unclosed_paren(text: str, end: int) -> int | None:
+    """The position of the innermost ``(`` still open at *end*, if any."""
+    depth = 0
+    for position in range(end - 1, -1, -1):
+        char = text[position]
+        if char == ")":
+            depth += 1
+        elif char == "(":
+            if depth == 0:
+                return position
+            depth -= 1
+        elif char in ";\n" and depth == 0:
+            return None
+    return None
 
 
 def _opens_interval(exc: UnexpectedInput, text: str) -> bool:
