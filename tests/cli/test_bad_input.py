@@ -188,6 +188,11 @@ CASES: list[tuple[str, list[str]]] = [
     ("unknown-command", ["chek", CASE1]),
     ("check-format", ["check", CASE1, "--format", "yaml"]),
     ("check-emit-exists", ["check", CASE1, *SMALL, "--emit", "existing.csv"]),
+    # an empty path (an unset shell variable): click would read it as "." and write there
+    ("check-emit-empty", ["check", CASE1, *SMALL, "--emit", ""]),
+    ("emit-output-empty", ["emit", CASE1, *SMALL, "-o", ""]),
+    ("check-config-empty", ["check", ""]),
+    ("prism-props-empty", ["prism", "die.pm", "--props", " "]),
     # a folder no file can be made in (/proc, even for root): refused before any work
     ("explain-output-proc", ["explain", CASE1, *SMALL, "-o", "/proc/x.csv"]),
     ("simulate-output-proc", ["simulate", CASE1, *SMALL, "--runs", "5", "-o", "/proc/x.csv"]),

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 import click
 
 from veribattery.cli.explain import induced_mission, strategy_option
-from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, check_output_file
+from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
     print_dim,
@@ -27,7 +27,7 @@ if TYPE_CHECKING:
 
 
 @click.command("distribution", short_help="Mission-time distribution, quantiles, deadlines.")
-@click.argument("config", type=click.Path(path_type=Path))
+@click.argument("config", type=PathParam(path_type=Path))
 @set_option
 @click.option("--reward", default="mt", show_default=True,
               help="Reward structure to accumulate (integer-valued).")
@@ -39,9 +39,9 @@ if TYPE_CHECKING:
 @click.option("--coverage", default=0.999, show_default=True,
               type=click.FloatRange(0, 1, min_open=True),
               help="Compute the CDF until this fraction of P(success) and P(failure).")
-@click.option("-o", "--output", "csv_path", type=click.Path(path_type=Path),
+@click.option("-o", "--output", "csv_path", type=PathParam(path_type=Path),
               help="Write the CDF as CSV (one row per reward level).")
-@click.option("--plot", "plot_path", type=click.Path(path_type=Path),
+@click.option("--plot", "plot_path", type=PathParam(path_type=Path),
               help="Plot the CDF with quantiles and deadlines (.png, .pdf, .svg).")
 @click.option("--force", is_flag=True, help="Overwrite existing -o / --plot files.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),

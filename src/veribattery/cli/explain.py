@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from veribattery.cli.files import CSV_SUFFIXES, check_output_file
+from veribattery.cli.files import CSV_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
     fail,
@@ -118,14 +118,14 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 
 
 @click.command("explain", short_help="Where failures come from: breakdown and paths.")
-@click.argument("config", type=click.Path(path_type=Path))
+@click.argument("config", type=PathParam(path_type=Path))
 @set_option
 @click.option("--top", default=3, show_default=True, callback=counted("--top", MOST_PATHS),
               help="How many most probable failure paths.")
 @click.option("--by", "by", multiple=True, metavar="KEYS",
               help="Groupings, comma-separated; join keys with + for a joint grouping "
                    "(keys: k, cell, state, action, wind, level, recharges, or a variable).")
-@click.option("-o", "--output", "--csv", "csv_file", type=click.Path(path_type=Path),
+@click.option("-o", "--output", "--csv", "csv_file", type=PathParam(path_type=Path),
               help="Write the paths here as CSV, one row per step (--csv: the old name).")
 @click.option("--force", is_flag=True, help="Overwrite an existing -o file.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]),
@@ -283,7 +283,7 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
         click.option("--max-steps", default=100_000, show_default=True,
                      callback=counted("--max-steps"),
                      help="Steps after which an undecided run stops (and is reported)."),
-        click.option("-o", "--output", "--paths", "paths_file", type=click.Path(path_type=Path),
+        click.option("-o", "--output", "--paths", "paths_file", type=PathParam(path_type=Path),
                      help="Write sampled paths here as CSV (PRISM simulator columns; "
                      "--paths: the old name)."),
         click.option("--path-count", default=10, show_default=True,
@@ -296,7 +296,7 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
 
 
 @click.command("simulate", short_help="Monte-Carlo estimates beside the exact values.")
-@click.argument("config", type=click.Path(path_type=Path))
+@click.argument("config", type=PathParam(path_type=Path))
 @set_option
 @click.option("--runs", required=True, type=int, callback=counted("--runs", MOST_RUNS),
               help="Number of simulated runs.")

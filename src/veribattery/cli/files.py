@@ -10,6 +10,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import Any
+
+import click
 
 from veribattery._files import can_create_in
 from veribattery.errors import OptionError
@@ -17,6 +20,7 @@ from veribattery.errors import OptionError
 __all__ = [
     "CSV_SUFFIXES",
     "FIGURE_SUFFIXES",
+    "PathParam",
     "check_output_dir",
     "check_output_file",
 ]
@@ -86,3 +90,14 @@ def _choices(suffixes: Sequence[str]) -> str:
     if len(suffixes) == 1:
         return suffixes[0]
     return ", ".join(suffixes[:-1]) + " or " + suffixes[-1]
+
+
+class PathParam(click.Path):
+    """:class:`click.Path` that refuses an empty path: click reads ``""`` as ``.``, so
+    ``-o "$OUT"`` with ``OUT`` unset would write into the current folder."""
+
+    def convert(self, value: Any, param: click.Parameter | None,
+                ctx: click.Context | None) -> Any:
+        if isinstance(value, str) and not value.strip():
+            self.fail("an empty path (is a shell variable unset?)", param, ctx)
+        return super().convert(value, param, ctx)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from veribattery.cli.files import check_output_dir
+from veribattery.cli.files import PathParam, check_output_dir
 from veribattery.cli.output import (
     build_progress,
     escape,
@@ -36,14 +36,14 @@ if TYPE_CHECKING:
 
 
 @click.command("check", short_help="Verify a mission config; exit 1 if a requirement fails.")
-@click.argument("config", type=click.Path(path_type=Path))
+@click.argument("config", type=PathParam(path_type=Path))
 @set_option
 @click.option(
     "--format", "output_format", type=click.Choice(["table", "json", "csv"]), default="table",
     show_default=True, help="Output format.",
 )
 @click.option(
-    "--emit", "emit_dir", type=click.Path(path_type=Path), help="Also write the model files here."
+    "--emit", "emit_dir", type=PathParam(path_type=Path), help="Also write the model files here."
 )
 @click.option("--force", is_flag=True, help="Let --emit overwrite existing files.")
 @click.option(
@@ -160,8 +160,8 @@ def print_mission_csv(report: MissionReport) -> None:
 
 
 @click.command("emit", short_help="Write a config's PRISM model and properties.")
-@click.argument("config", type=click.Path(path_type=Path))
-@click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path), required=True,
+@click.argument("config", type=PathParam(path_type=Path))
+@click.option("-o", "--output", "out_dir", type=PathParam(path_type=Path), required=True,
               help="Directory for model.prism, properties.props (PRISM and Storm), "
                    "storm-only.props (Storm only), config.resolved.yaml.")
 @set_option

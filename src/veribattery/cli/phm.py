@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
-from veribattery.cli.files import FIGURE_SUFFIXES, check_output_dir, check_output_file
+from veribattery.cli.files import FIGURE_SUFFIXES, PathParam, check_output_dir, check_output_file
 from veribattery.cli.output import (
     print_warnings,
     set_option,
@@ -46,7 +46,7 @@ MODELS = click.Choice(["linear", "exponential", "knee"])
 def _plot_option(function: F) -> F:
     function = click.option("--force", is_flag=True,
                             help="Let --plot overwrite an existing file.")(function)
-    return click.option("--plot", "plot_path", type=click.Path(path_type=Path), metavar="FILE",
+    return click.option("--plot", "plot_path", type=PathParam(path_type=Path), metavar="FILE",
                         help="Also write a figure here; its type follows the suffix "
                              "(.png, .pdf, .svg, ...).")(function)
 
@@ -135,12 +135,12 @@ def phm_group() -> None:
 
 
 @phm_group.command("fade", short_help="Fit capacity fade per cycle from a capacity log.")
-@click.argument("cycles", type=click.Path())
+@click.argument("cycles", type=PathParam())
 @click.option("--at-cycle", metavar="CYCLE", default=None,
               help="Cycle the battery is at, >= 0 (default: the last logged cycle).")
-@click.option("--config", type=click.Path(path_type=Path),
+@click.option("--config", type=PathParam(path_type=Path),
               help="Config for resolution_ah and max_recharges (default: the paper's).")
-@click.option("--write", type=click.Path(path_type=Path),
+@click.option("--write", type=PathParam(path_type=Path),
               help="Merge battery.capacity_ah and fade_per_recharge into this config "
                    "(also the config read; not with --config).")
 @_model_option
@@ -179,14 +179,14 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
 
 
 @phm_group.command("levels", short_help="Voltage levels, SOC thresholds, consumption.")
-@click.argument("discharge", type=click.Path())
+@click.argument("discharge", type=PathParam())
 @click.option("--capacity-ah", metavar="AH", default=None,
               help="Q_max for Coulomb counting, > 0 (default: the charge the log delivers).")
 @click.option("--soc-step", type=str, default="0.01", show_default=True,
               help="SOC grid on which thresholds are chosen (exact decimal in (0, 0.1]).")
-@click.option("--config", type=click.Path(path_type=Path),
+@click.option("--config", type=PathParam(path_type=Path),
               help="Config for Eq. 2's energy, times and resolution_ah (default: the paper's).")
-@click.option("--write", type=click.Path(path_type=Path),
+@click.option("--write", type=PathParam(path_type=Path),
               help="Merge voltage_thresholds and an Eq. 2 consumption into this config "
                    "(also the config read; not with --config).")
 @_plot_option
@@ -269,7 +269,7 @@ def _soc_step(text: str) -> Fraction:
               "'interstitial-diffusion limited'.")
 @click.option("--period-s", type=click.FloatRange(min=1), default=30.0, show_default=True,
               help="Output time step of the discharge, s.")
-@click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path), default=Path("."),
+@click.option("-o", "--output", "out_dir", type=PathParam(path_type=Path), default=Path("."),
               show_default=True, help="Directory for discharge.csv (and cycles.csv).")
 @click.option("--force", is_flag=True, help="Overwrite existing CSVs.")
 def simulate_command(parameter_set: str, power_w: float, cells_series: int,
@@ -295,8 +295,8 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
 
 
 @phm_group.command("forecast", short_help="When does a requirement stop holding?")
-@click.argument("config", type=click.Path(path_type=Path))
-@click.option("--cycles", "cycles_path", type=click.Path(), required=True,
+@click.argument("config", type=PathParam(path_type=Path))
+@click.option("--cycles", "cycles_path", type=PathParam(), required=True,
               help="Capacity log (cycle,capacity_ah).")
 @click.option("--horizon", type=click.IntRange(min=1), default=300, show_default=True,
               help="Cycles ahead to look.")
@@ -372,10 +372,10 @@ def _shown_properties(result: Forecast, time_property: str) -> list[str]:
 
 
 @click.command("recheck", short_help="Refit from new data and re-verify; exit 1 on a regression.")
-@click.argument("config", type=click.Path(path_type=Path))
-@click.option("--cycles", "cycles_path", type=click.Path(), required=True,
+@click.argument("config", type=PathParam(path_type=Path))
+@click.option("--cycles", "cycles_path", type=PathParam(), required=True,
               help="Newest capacity log (cycle,capacity_ah).")
-@click.option("--discharge", "discharge_path", type=click.Path(), default=None,
+@click.option("--discharge", "discharge_path", type=PathParam(), default=None,
               help="Newest discharge log (soc,voltage_v or time_s,voltage_v,current_a).")
 @_model_option
 @set_option

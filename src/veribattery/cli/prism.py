@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
-from veribattery.cli.files import CSV_SUFFIXES, check_output_file
+from veribattery.cli.files import CSV_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
     exact_notes,
@@ -42,8 +42,8 @@ if TYPE_CHECKING:
 
 
 @click.command("prism", short_help="Check properties of any PRISM DTMC or MDP file.")
-@click.argument("model", type=click.Path(path_type=Path))
-@click.option("--props", "props", type=click.Path(path_type=Path), help="Properties file.")
+@click.argument("model", type=PathParam(path_type=Path))
+@click.option("--props", "props", type=PathParam(path_type=Path), help="Properties file.")
 @click.option(
     "--property",
     "selectors",

@@ -10,7 +10,7 @@ import click
 from click.core import ParameterSource
 
 from veribattery.cli.explain import MOST_PATHS, MOST_RUNS, counted
-from veribattery.cli.files import check_output_file
+from veribattery.cli.files import PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
     print_warnings,
@@ -28,11 +28,11 @@ def _note(text: str) -> None:
 
 
 @click.command("report", short_help="Write a mission report: one self-contained HTML file.")
-@click.argument("config", type=click.Path(path_type=Path))
-@click.option("-o", "--output", "output", type=click.Path(path_type=Path), required=True,
+@click.argument("config", type=PathParam(path_type=Path))
+@click.option("-o", "--output", "output", type=PathParam(path_type=Path), required=True,
               help="The report to write (.html).")
 @set_option
-@click.option("--sweep", "sweep_file", type=click.Path(path_type=Path),
+@click.option("--sweep", "sweep_file", type=PathParam(path_type=Path),
               help="A sweep's results of this config (RESULTS.csv, .jsonl or .parquet, with "
                    "its RESULTS.sweep.json) to draw, requirements' turning points marked.")
 @click.option("--runs", default=1000, show_default=True, type=int,

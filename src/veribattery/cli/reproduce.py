@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from veribattery.cli.files import check_output_dir
+from veribattery.cli.files import PathParam, check_output_dir
 from veribattery.cli.output import err, fail, print_written, user_errors
 from veribattery.cli.tables import fit_text, print_table
 
@@ -26,7 +26,7 @@ PROGRESS_EVERY_S = 60.0
 @click.argument("what", type=click.Choice(["table3", "fig6", "fig8", "all"]))
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]), default="table",
               show_default=True, help="How Table 3 is printed.")
-@click.option("-o", "--output", "out_dir", type=click.Path(path_type=Path, file_okay=False),
+@click.option("-o", "--output", "out_dir", type=PathParam(path_type=Path, file_okay=False),
               help="Folder for the figures (PNG, SVG), their CSVs and the resumable sweep "
               "results (default for fig6/fig8: the current folder; required for all).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
-from veribattery.cli.files import check_output_dir, check_output_file
+from veribattery.cli.files import PathParam, check_output_dir, check_output_file
 from veribattery.cli.output import print_written, user_errors
 from veribattery.errors import OptionError
 
@@ -26,11 +26,11 @@ __all__ = ["check_strategy_options", "export_run_strategy", "hopeless_export_che
 def strategy_options(function: Callable[..., None]) -> Callable[..., None]:
     """The ``--export-strategy``, ``--export-induced`` and ``--strategy-property`` options."""
     for option in reversed((
-        click.option("--export-strategy", "strategy_file", type=click.Path(path_type=Path),
+        click.option("--export-strategy", "strategy_file", type=PathParam(path_type=Path),
                      metavar="FILE",
                      help="MDP: write an optimal strategy; FILE.json in Storm's scheduler "
                      "JSON, any other name in PRISM's -exportstrat actions form."),
-        click.option("--export-induced", "induced_dir", type=click.Path(path_type=Path),
+        click.option("--export-induced", "induced_dir", type=PathParam(path_type=Path),
                      metavar="DIR",
                      help="MDP: write the DTMC the strategy induces and its property, "
                      "DIR/induced.prism and DIR/induced.props."),

@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from veribattery.cli.files import check_output_file
+from veribattery.cli.files import PathParam, check_output_file
 from veribattery.cli.output import (
     err,
     format_value,
@@ -28,7 +28,7 @@ from veribattery.errors import OptionError
 
 
 @click.command("sweep", short_help="Check a config at every point of a parameter grid.")
-@click.argument("config", type=click.Path(path_type=Path))
+@click.argument("config", type=PathParam(path_type=Path))
 @click.option(
     "--vary", "specs", multiple=True, metavar="KEY=SPEC",
     help="Sweep a config key over START:STOP:STEP (exact decimals, STOP included) or a,b,c "
@@ -40,7 +40,7 @@ from veribattery.errors import OptionError
     "--format", "output_format", type=click.Choice(["table", "csv", "json"]), default="table",
     show_default=True, help="Output format (csv and json are tidy: one row per point x property).",
 )
-@click.option("-o", "--output", "results", type=click.Path(path_type=Path), metavar="RESULTS",
+@click.option("-o", "--output", "results", type=PathParam(path_type=Path), metavar="RESULTS",
               help="Durable results (.csv, .jsonl or .parquet): rows are written as points "
               "finish, and rerunning the same command resumes.")
 @click.option("--force", is_flag=True,
@@ -50,7 +50,7 @@ from veribattery.errors import OptionError
               help="Worker processes (default: the number of cores; 1: in this process).")
 @click.option("--scheduler", metavar="tcp://HOST:PORT|local",
               help="Run the points on a Dask cluster ('local': a LocalCluster of -j workers).")
-@click.option("--plot", "plot_path", type=click.Path(path_type=Path),
+@click.option("--plot", "plot_path", type=PathParam(path_type=Path),
               help="Also write a figure (.png, .pdf, .svg, …).")
 @click.option("--plot-property", "plot_property", metavar="NAME",
               help="Property to plot (default: the first).")

@@ -12,6 +12,7 @@ import click
 from veribattery.cli.files import (
     CSV_SUFFIXES,
     FIGURE_SUFFIXES,
+    PathParam,
     check_output_dir,
     check_output_file,
 )
@@ -34,7 +35,7 @@ if TYPE_CHECKING:
 
 @click.command("synthesize",
                short_help="The best return policy for a mission, and BS1 against it.")
-@click.argument("config", type=click.Path(path_type=Path))
+@click.argument("config", type=PathParam(path_type=Path))
 @set_option
 @click.option("--require", "required", multiple=True, metavar="P|bs1",
               help="Also find the fastest strategy with P(success) >= P, or at least as "
@@ -42,18 +43,18 @@ if TYPE_CHECKING:
                    "requirements on p_success are always answered.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json", "csv"]),
               default="table", show_default=True, help="Output format.")
-@click.option("--csv", "csv_path", type=click.Path(path_type=Path), metavar="FILE",
+@click.option("--csv", "csv_path", type=PathParam(path_type=Path), metavar="FILE",
               help="Write the strategy's whole threshold table as CSV.")
-@click.option("--pareto", "pareto_path", type=click.Path(path_type=Path), metavar="FILE",
+@click.option("--pareto", "pareto_path", type=PathParam(path_type=Path), metavar="FILE",
               help="Draw the Pareto front with BS1's points (.png, .svg, .pdf, ...); its "
                    "CSV is written beside it unless --pareto-csv names another file.")
-@click.option("--pareto-csv", "pareto_csv", type=click.Path(path_type=Path), metavar="FILE",
+@click.option("--pareto-csv", "pareto_csv", type=PathParam(path_type=Path), metavar="FILE",
               help="Write the Pareto front's points as CSV.")
-@click.option("--export-strategy", "strategy_file", type=click.Path(path_type=Path),
+@click.option("--export-strategy", "strategy_file", type=PathParam(path_type=Path),
               metavar="FILE",
               help="Write the table's strategy (safest, then fastest); FILE.json in Storm's "
                    "scheduler JSON, any other name in PRISM's -exportstrat actions form.")
-@click.option("--export-induced", "induced_dir", type=click.Path(path_type=Path),
+@click.option("--export-induced", "induced_dir", type=PathParam(path_type=Path),
               metavar="DIR",
               help="Write the DTMC that strategy induces and its P(success), expected "
                    "mission time and recharges: DIR/induced.prism and DIR/induced.props.")
