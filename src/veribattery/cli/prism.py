@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from veribattery.cli.experiments import check_experiment_options, print_experiment
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
 from veribattery.cli.files import CSV_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
@@ -51,7 +52,9 @@ if TYPE_CHECKING:
     metavar="TEXT|INDEX|NAME",
     help="Property text, or a 1-based index or name in --props (repeatable).",
 )
-@click.option("--const", "consts", multiple=True, metavar="NAME=VALUE", help="Undefined constant.")
+@click.option("--const", "consts", multiple=True, metavar="NAME=VALUE",
+              help="Undefined constant; NAME=a:b or a:step:b checks every value (PRISM's "
+                   "experiments).")
 @click.option(
     "--format", "output_format", type=click.Choice(["table", "json", "csv"]), default=None,
     help="Output format [default: table].",
@@ -80,6 +83,7 @@ def prism_command(
 ) -> None:
     """Check PCTL properties of a PRISM DTMC or MDP MODEL file."""
     from veribattery.lang import parse_constant_assignments
+    from veribattery.lang.experiments import constant_points, is_range
     from veribattery.pipeline import ModelCheckRun as ModelCheckRunType
     from veribattery.pipeline import check_prism_file
 
@@ -95,13 +99,18 @@ def prism_command(
             raise OptionError("--format csv: --explain prints a table or json; "
                               "use --format table or --format json")
     as_json = output_format == "json"
+    with user_errors():
+        given = parse_constant_assignments(consts)
+        points = constant_points(given)
+        if any(is_range(value) for value in given.values()):
+            check_experiment_options(analysis)
+            _experiment(model, props, selectors, points, output_format, exact, max_states)
+            return
+    constants = points[0]
     if analysis["explain"] is not None:
-        with user_errors():
-            constants = parse_constant_assignments(consts)
         prism_explain(model, constants, analysis["explain"], analysis["top"], as_json)
         return
     with user_errors(), build_progress(plain=True) as progress:
-        constants = parse_constant_assignments(consts)
         run = check_prism_file(
             model, props_source=props, selectors=selectors, constants=constants,
             progress=limited(progress, max_states), exact=exact, keep="answers",
@@ -135,6 +144,25 @@ def prism_command(
         fail(*errors)
 
 
+def _experiment(model: Path, props: Path | None, selectors: tuple[str, ...],
+                points: list[dict[str, str]], output_format: str, exact: bool,
+                max_states: int | None) -> None:
+    """Every point of ``--const`` ranges checked, then printed together."""
+    from veribattery.pipeline import check_prism_file
+
+    runs = []
+    for point in points:
+        with user_errors(), build_progress(plain=True) as progress:
+            runs.append(check_prism_file(
+                model, props_source=props, selectors=selectors, constants=point,
+                progress=limited(progress, max_states), exact=exact, keep="answers"))
+        errors: tuple[str, ...] = getattr(runs[-1], "errors", ())
+        if errors:
+            fail(*errors)
+    print_experiment(points, runs, output_format, lambda r: (_labelled(r), _shown(r)),
+                     prism_json, csv_rows)
+
+
 def _format(output_format: str | None, as_json: bool) -> str:
     """``--format``, with ``--json`` as its old spelling (both given must agree)."""
     if as_json and output_format not in (None, "json"):
@@ -150,12 +178,18 @@ def print_prism_csv(run: ModelCheckRun | MdpCheckRun) -> None:
 
     writer = csv.writer(sys.stdout, lineterminator="\n")
     writer.writerow(["property", "name", "value", "lower", "upper", "exact"])
+    writer.writerows(csv_rows(run))
+
+
+def csv_rows(run: ModelCheckRun | MdpCheckRun) -> list[list[str]]:
+    """The CSV rows of *run*'s results (:func:`print_prism_csv`'s, without the header)."""
+    rows = []
     for result in run.results:
         bounds = result_bounds(result) or ["", ""]
         value = UNDECIDED if _undecided(result) is not None else _csv_value(result.value)
-        writer.writerow([result.property.text, result.property.name or "", value,
-                         *map(_csv_value, bounds),
-                         exact_text(result) or ""])
+        rows.append([result.property.text, result.property.name or "", value,
+                     *map(_csv_value, bounds), exact_text(result) or ""])
+    return rows
 
 
 def _csv_value(value: object) -> str:
