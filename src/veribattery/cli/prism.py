@@ -83,7 +83,6 @@ def prism_command(
 ) -> None:
     """Check PCTL properties of a PRISM DTMC or MDP MODEL file."""
     from veribattery.lang import parse_constant_assignments
-    from veribattery.lang.experiments import constant_points, is_range
     from veribattery.pipeline import ModelCheckRun as ModelCheckRunType
     from veribattery.pipeline import check_prism_file
 
@@ -100,13 +99,14 @@ def prism_command(
                               "use --format table or --format json")
     as_json = output_format == "json"
     with user_errors():
-        given = parse_constant_assignments(consts)
-        points = constant_points(given)
-        if any(is_range(value) for value in given.values()):
+        constants = parse_constant_assignments(consts)
+        if any(":" in value for value in constants.values()):  # a range: an experiment
+            from veribattery.lang.experiments import constant_points  # (fractions, decimal)
+
             check_experiment_options(analysis)
-            _experiment(model, props, selectors, points, output_format, exact, max_states)
+            _experiment(model, props, selectors, constant_points(constants), output_format,
+                        exact, max_states)
             return
-    constants = points[0]
     if analysis["explain"] is not None:
         prism_explain(model, constants, analysis["explain"], analysis["top"], as_json)
         return
