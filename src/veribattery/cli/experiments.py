@@ -71,4 +71,5 @@ def print_experiment(points: Sequence[Mapping[str, str]], runs: Sequence[Run],
         print_dim(fit_text(note))
     states = sorted({int(run.model_summary["states"]) for run in runs})
     sizes = f"{states[0]:,}" if len(states) == 1 else f"{states[0]:,} to {states[-1]:,}"
-    print_dim(f"{len(points)} points; models of {sizes} states")
+    count = f"{len(points)} point" + ("s" if len(points) != 1 else "")
+    print_dim(f"{count}; models of {sizes} states")
