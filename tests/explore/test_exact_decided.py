@@ -147,3 +147,36 @@ def test_a_predicate_without_an_exact_value_is_decided_in_doubles(tmp_path: Path
                                       "P=? [ F s=7 & floor(log(d+1, 2))=2 ]", "--exact",
                                       "--json"])
     assert json.loads(result.stdout)["results"][0]["exact"] == "2/3"
+
+
+_THIRD_CHAIN = ("dtmc\nconst double q;\nmodule m\n  s : [0..2];\n"
+                "  [] s=0 -> 1/3:(s'=1) + 2/3:(s'=2);\n  [] s>0 -> true;\nendmodule\n")
+
+
+def test_a_constant_is_read_as_its_exact_value() -> None:
+    decided = decided_exactly(_formula("s < q"), {"q": mpq(1, 3)})
+    assert isinstance(decided, Binary) and isinstance(decided.right, DoubleLit)
+    assert decided.right.text == "1/3"
+
+
+@pytest.mark.parametrize("kind", ["dtmc", "mdp"])
+@pytest.mark.parametrize("exact", [False, True])
+def test_a_bound_given_as_a_constant_is_exact(tmp_path: Path, kind: str, exact: bool) -> None:
+    # P [ F s=1 ] is exactly 1/3 = q: P<=q holds, P<q does not (in floats, the interval
+    # straddles q and the bound is settled in exact arithmetic).
+    model = tmp_path / "m.prism"
+    model.write_text(_THIRD_CHAIN.replace("dtmc", kind))
+    args = ["prism", str(model), "--property", "P<=q [ F s=1 ]", "--property",
+            "P<q [ F s=1 ]", "--const", "q=1/3", "--json", *(["--exact"] if exact else [])]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.stderr
+    assert [r["value"] for r in json.loads(result.stdout)["results"]] == [True, False]
+
+
+def test_a_constant_in_arithmetic_over_a_query_is_exact(tmp_path: Path) -> None:
+    model = tmp_path / "m.prism"
+    model.write_text(_THIRD_CHAIN)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", "P=? [ F s=1 ] - q",
+                                      "--const", "q=1/3", "--exact", "--json"])
+    assert result.exit_code == 0, result.stderr
+    assert json.loads(result.stdout)["results"][0]["exact"] == "0"  # not 1/3 - its double

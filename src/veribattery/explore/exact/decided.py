@@ -49,8 +49,8 @@ _LITERALS = (BoolLit, IntLit, DoubleLit)
 
 def decided_exactly(node: _T, constants: Mapping[str, ExactScalar]) -> _T:
     """*node* (a model, a property or an expression) with each maximal closed
-    sub-expression replaced by the literal of its exact value (a double's text is the
-    exact fraction).
+    sub-expression, and each constant read outside one, replaced by the literal of its
+    exact value (a double's text is the exact fraction).
 
     :param constants: the exact values of the constants it may read
         (:func:`~veribattery.explore.exact.constants.exact_constants`); any other name
@@ -61,7 +61,8 @@ def decided_exactly(node: _T, constants: Mapping[str, ExactScalar]) -> _T:
     closed = _closed_nodes(node, constants)
 
     def replace(sub: Any) -> Any | None:
-        if id(sub) not in closed or not isinstance(sub, _COMPOUND):
+        # A constant's name too: resolution would write its double (1/3 as 0.333...).
+        if id(sub) not in closed or not isinstance(sub, (*_COMPOUND, Ident)):
             return None
         value, kind = closed_value(sub, constants)  # ModelError: no exact value (log ...)
         if kind == "bool":
