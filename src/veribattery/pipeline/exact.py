@@ -71,7 +71,7 @@ def check_model_exact(
         exact = _build_exact(model, flat, constants, progress)
     dtmc = exact.dtmc
     workspace = Workspace()  # this run's caches: the float pre-pass of exact solves
-    checks = _exact_checks(exact, (properties, resolved), props_file, constants, workspace)
+    checks = _exact_checks(exact, resolved, workspace)
     with watch.stage("check"):
         results, undefined = run_checks(checks, resolved, dtmc, options, stages)
         aside_results = internal_results(dtmc, aside, [may_hold(dtmc, p) for p in aside],
@@ -98,27 +98,9 @@ def _build_exact(
     return build_exact(model, flat, constants, progress)
 
 
-def _exact_checks(
-    exact: ExactDTMC,
-    properties: tuple[Sequence[Property], Sequence[Property]],
-    props_file: PropertiesFile | None,
-    constants: Mapping[str, Value | str] | None,
-    workspace: Workspace,
-) -> list[Callable[[], CheckResult]]:
-    """A check per property on the exactly built *exact* model.
+def _exact_checks(exact: ExactDTMC, resolved: Sequence[Property],
+                  workspace: Workspace) -> list[Callable[[], CheckResult]]:
+    """A check per (decided, resolved) property on the exactly built *exact* model."""
+    from veribattery.checker.exact import check_exact  # gmpy2 only when asked
 
-    *properties* are the properties as written and as resolved: bounds such as
-    ``P<=1/3`` are evaluated exactly from the former.
-    """
-    from veribattery.checker.exact import check_exact, exact_bounds  # gmpy2 only when asked
-    from veribattery.explore.exact.constants import exact_constants
-
-    given = dict(constants or {})
-    decls = props_file.constants if props_file is not None else ()
-    values = exact_constants(decls, given, outer=exact.constants)
-    originals, resolved = properties
-    return [
-        functools.partial(check_exact, exact, p, exact_bounds(o.formula, values),
-                          workspace=workspace)
-        for o, p in zip(originals, resolved, strict=True)
-    ]
+    return [functools.partial(check_exact, exact, p, workspace=workspace) for p in resolved]

@@ -42,9 +42,7 @@ def check_mdp_model_exact(
         queries, a filter inside an expression, arithmetic on an infinite reward).
     :raises ModelError: for a probability or reward without an exact rational value.
     """
-    from veribattery.checker.exact import exact_bounds  # gmpy2 only when asked
     from veribattery.checker.mdp.exact_pctl import ExactMdpModel, check_mdp_exact
-    from veribattery.explore.exact.constants import exact_constants
     from veribattery.explore.exact.decided import flattened_exactly
     from veribattery.explore.exact.mdp import build_exact_mdp
 
@@ -58,14 +56,12 @@ def check_mdp_model_exact(
         tell_building(stages)
         exact = build_exact_mdp(model, flat, constants, progress)
         mdp = as_checker_mdp(exact.built)
-    decls = props_file.constants if props_file is not None else ()
-    values = exact_constants(decls, dict(constants or {}), outer=exact.constants)
     results = []
     errors: list[str] = []
     with watch.stage("check"):
-        for number, (original, prop) in enumerate(zip(properties, resolved, strict=True), 1):
+        checked = ExactMdpModel(mdp, exact)
+        for number, prop in enumerate(resolved, 1):
             tell_checking(stages, number, len(resolved), prop)
-            checked = ExactMdpModel(mdp, exact, exact_bounds(original.formula, values))
             results.append(check_mdp_exact(checked, prop))
             errors.extend(ill_posed_errors(mdp, results[-1]))
     return MdpCheckRun(mdp, tuple(results), watch.seconds, exact.built.warnings,

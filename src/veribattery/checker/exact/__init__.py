@@ -13,8 +13,7 @@ from veribattery.checker.exact.filtered import ExactCheckResult
 from veribattery.checker.exact.numeric import ExactValues
 from veribattery.checker.exact.pctl import (
     check_exact,
-    exact_bounds,
     exact_values,
 )
 
-__all__ = ["ExactCheckResult", "ExactValues", "check_exact", "exact_bounds", "exact_values"]
+__all__ = ["ExactCheckResult", "ExactValues", "check_exact", "exact_values"]

@@ -15,11 +15,8 @@ from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Mapping
-from contextvars import ContextVar
 
 import numpy as np
-from gmpy2 import mpq
 
 from veribattery._types import BoolArray
 from veribattery.checker.exact import storm
@@ -50,11 +47,11 @@ from veribattery.checker.formula.leaves import (
 )
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
-from veribattery.errors import CheckError, Span, UndefinedResult, VeribatteryError
+from veribattery.errors import CheckError, UndefinedResult
 from veribattery.explore.exact.dtmc import ExactDTMC, ExactRewards
 from veribattery.explore.exact.program import needs_exact
-from veribattery.explore.exact.rational import ExactScalar, ObjectArray, evaluate_rational
-from veribattery.lang.expressions import operand_chain, walk
+from veribattery.explore.exact.rational import ObjectArray
+from veribattery.lang.expressions import operand_chain
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,
     Binary,
@@ -79,19 +76,17 @@ from veribattery.lang.nodes import (
     Until,
 )
 
-__all__ = ["ExactCheckResult", "check_exact", "exact_bounds", "exact_values"]
+__all__ = ["ExactCheckResult", "check_exact", "exact_values"]
 
-#: The exact bounds of the property being checked (set by :func:`exact_values`).
-_BOUNDS: ContextVar[Mapping[Span, mpq] | None] = ContextVar("exact_bounds", default=None)
 
 def check_exact(
-    model: ExactDTMC, prop: Property | Expr, bounds: Mapping[Span, mpq] | None = None, *,
-    workspace: Workspace | None = None,
+    model: ExactDTMC, prop: Property | Expr, *, workspace: Workspace | None = None,
 ) -> ExactCheckResult:
     """Check *prop* on *model* in exact arithmetic and report it at the initial states.
 
-    :param bounds: exact values of ``P~p``/``R~r`` bounds by their span (see
-        :func:`exact_bounds`); a bound not in it is read from its literal's digits.
+    A ``P~p``/``R~r`` bound is read from its literal's digits (or the exact fraction a
+    decided property writes there: :mod:`~veribattery.explore.exact.decided`).
+
     :param workspace: the caches to use and fill (graph searches, prepared systems),
         shared with the other checks given it; None: a new one for this check alone.
     :raises CheckError: when the property cannot be checked on this model.
@@ -99,9 +94,9 @@ def check_exact(
     prop = prop if isinstance(prop, Property) else Property(prop)
     workspace = Workspace() if workspace is None else workspace
     if isinstance(prop.formula, Filter):
-        return filtered(_view(model, bounds or {}, workspace), prop, prop.formula)
+        return filtered(_view(model, workspace), prop, prop.formula)
     start = time.perf_counter()
-    result = exact_values(model, prop.formula, bounds or {}, workspace=workspace)
+    result = exact_values(model, prop.formula, workspace=workspace)
     initial = model.dtmc.initial
     if isinstance(result, ExactValues):
         plain = CheckResult.at_initial(prop, result.enclosure(), initial, 0.0)
@@ -114,47 +109,27 @@ def check_exact(
     return ExactCheckResult(prop, plain.values, plain.value, time.perf_counter() - start)
 
 
-def _view(model: ExactDTMC, bounds: Mapping[Span, mpq], workspace: Workspace) -> ExactModelView:
+def _view(model: ExactDTMC, workspace: Workspace) -> ExactModelView:
     """What a top-level filter reads of *model* (:func:`filtered`)."""
     dtmc = model.dtmc
 
     def mask(expr: Expr) -> BoolArray:
-        found = exact_values(model, expr, bounds, workspace=workspace)
+        found = exact_values(model, expr, workspace=workspace)
         if isinstance(found, ExactValues):
             raise CheckError("expected a boolean state formula", expr.span)
         return found
 
     return ExactModelView(
-        functools.partial(exact_values, model, bounds=bounds, workspace=workspace), mask,
-        functools.partial(check_exact, model, bounds=bounds, workspace=workspace),
+        functools.partial(exact_values, model, workspace=workspace), mask,
+        functools.partial(check_exact, model, workspace=workspace),
         dtmc.states, dtmc.variable_names, dtmc.initial)
 
 
-def exact_bounds(formula: Expr, constants: Mapping[str, ExactScalar]) -> dict[Span, mpq]:
-    """The exact value of every ``P~p``/``R~r`` bound in *formula* (before resolution), by span.
-
-    Resolving a property folds ``P<=1/3`` into the double nearest 1/3; evaluated
-    here from the expression as written, the bound stays 1/3.
-    """
-    found: dict[Span, mpq] = {}
-    for node in walk(formula):
-        if isinstance(node, ProbOp | RewardOp) and node.bound is not None:
-            try:
-                value = evaluate_rational(node.bound, constants, {}, 1)[0]
-            except VeribatteryError:
-                continue  # not a closed numeric expression: resolution reports it
-            if not isinstance(value, bool | np.bool_):
-                found[node.bound.span] = value
-    return found
-
-
 def exact_values(
-    model: ExactDTMC, formula: Expr, bounds: Mapping[Span, mpq] | None = None, *,
-    workspace: Workspace | None = None,
+    model: ExactDTMC, formula: Expr, *, workspace: Workspace | None = None,
 ) -> ExactValues | BoolArray:
     """Per-state value of *formula*: rationals for ``P=?``/``R=?``, booleans otherwise.
 
-    :param bounds: exact bound values by span (see :func:`exact_bounds`).
     :param workspace: as for :func:`check_exact`.
     """
     workspace = Workspace() if workspace is None else workspace
@@ -162,13 +137,9 @@ def exact_values(
         return ExactValues.finite(path_probs(model, workspace, formula.path))
     if isinstance(formula, RewardOp) and formula.op == "=?":
         return path_rewards(model, workspace, formula)
-    token = _BOUNDS.set(bounds or {})
-    try:
-        if _is_state_formula(formula):
-            return state_set(model, workspace, formula)
-        return _expression(model, workspace, formula)
-    finally:
-        _BOUNDS.reset(token)
+    if _is_state_formula(formula):
+        return state_set(model, workspace, formula)
+    return _expression(model, workspace, formula)
 
 
 def _is_state_formula(formula: Expr) -> bool:
@@ -241,9 +212,8 @@ def _bounded_operator(model: ExactDTMC, workspace: Workspace,
         numbers = ExactValues.finite(path_probs(model, workspace, op.path))
     else:
         numbers = path_rewards(model, workspace, op)
-    exact = (_BOUNDS.get() or {}).get(op.bound.span)
-    bound = exact_literal(op.bound) if exact is None else exact
-    holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, bound), dtype=bool)
+    holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, exact_literal(op.bound)),
+                       dtype=bool)
     return np.where(numbers.infinite, op.op in (">", ">="), holds)
 
 

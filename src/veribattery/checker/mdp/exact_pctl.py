@@ -14,7 +14,6 @@ top-level filters, are computed exactly too.
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass
 from functools import partial
 
@@ -48,7 +47,7 @@ from veribattery.checker.mdp.operators import operator_objective, reward_structu
 from veribattery.checker.mdp.rational import ObjectArray
 from veribattery.checker.mdp.system import Objective
 from veribattery.checker.result import CheckResult
-from veribattery.errors import CheckError, Span
+from veribattery.errors import CheckError
 from veribattery.explore.exact.mdp import ExactMdp, ExactMdpRewards
 from veribattery.explore.exact.program import needs_exact
 from veribattery.lang.nodes import (
@@ -87,17 +86,14 @@ _ONE = mpq(1)
 
 @dataclass(frozen=True, slots=True)
 class ExactMdpModel:
-    """The checker's MDP with its exact numbers and the property's exact bounds.
+    """The checker's MDP with its exact numbers.
 
     :param mdp: the MDP (structure, labels, states) as the float engine reads it.
     :param exact: its probabilities and rewards as rationals (same entry order).
-    :param bounds: the exact value of each ``P~p``/``R~r`` bound, by
-        its span (:func:`~veribattery.checker.exact.exact_bounds`).
     """
 
     mdp: MDP
     exact: ExactMdp
-    bounds: Mapping[Span, mpq]
 
 
 def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
@@ -228,9 +224,8 @@ def _bounded(model: ExactMdpModel, op: ProbOp | RewardOp) -> BoolArray:
         numbers = ExactValues.finite(path_probs(model, op.path, objective))
     else:
         numbers = path_rewards(model, op, objective)
-    bound = model.bounds.get(op.bound.span)
-    bound = exact_literal(op.bound) if bound is None else bound
-    holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, bound), dtype=bool)
+    holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, exact_literal(op.bound)),
+                       dtype=bool)
     return np.where(numbers.infinite, op.op in (">", ">="), holds)
 
 
