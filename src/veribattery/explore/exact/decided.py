@@ -80,17 +80,17 @@ def _closed_nodes(root: Any, constants: Mapping[str, ExactScalar]) -> set[int]:
     """The ids of the expressions under *root* that read only literals and *constants*
     (children first on a stack of its own: a model's expressions nest thousands deep)."""
     closed: set[int] = set()
-    stack: list[tuple[Any, bool]] = [(root, False)]
+    stack: list[tuple[Any, tuple[Any, ...] | None]] = [(root, None)]  # None: not expanded
     seen: set[int] = set()
     while stack:
-        node, expanded = stack.pop()
-        kids = tuple(children(node))
-        if not expanded:
+        node, kids = stack.pop()
+        if kids is None:
             if id(node) in seen:
                 continue
             seen.add(id(node))
-            stack.append((node, True))
-            stack.extend((kid, False) for kid in kids)
+            kids = tuple(children(node))
+            stack.append((node, kids))
+            stack.extend((kid, None) for kid in kids)
             continue
         leaf = isinstance(node, _LITERALS) or (
             isinstance(node, Ident) and node.name in constants)
