@@ -202,3 +202,40 @@ endmodule
     top = Q(8, 9) / (1 - Q(1, 9) ** 61)
     assert run.results[0].value == pytest.approx(float(top), rel=1e-9)
     assert run.results[1].value == pytest.approx(float(top / 9), rel=1e-9)
+
+
+#: A chain whose reward "r" is earned only on the way from s=0 to s=1: from s=2 on,
+#: no reward can be reached, so every expectation there is exactly 0 (a solver alone
+#: left ``0 +- 2e-270``, where PRISM and Storm print 0).
+REWARD_FREE = """dtmc
+module m
+  s : [0..4] init 0;
+  [a] s=0 -> 1/2:(s'=1) + 1/2:(s'=2);
+  [] s=1 -> (s'=4);
+  [] s=2 -> 1/3:(s'=3) + 2/3:(s'=4);
+  [] s=3 -> 1/2:(s'=2) + 1/2:(s'=4);
+  [] s=4 -> true;
+endmodule
+rewards "r"
+  [a] true : 3;
+  s=1 : 2;
+endrewards
+"""
+
+
+@pytest.mark.parametrize(("path", "states"), [
+    ("F s=4", (2, 3, 4)), ("C", (2, 3, 4)), ("C<=5", (2, 3, 4)), ("I=2", (2, 3, 4)),
+    ("S", (2, 3, 4)), ("F s=4 || F s=3", (2, 3)),  # (from s=4 the condition is impossible)
+])
+def test_states_that_reach_no_reward_get_exactly_zero(path: str, states: tuple[int, ...]
+                                                       ) -> None:
+    run = check_prism_file(REWARD_FREE, selectors=tuple(
+        f'filter(state, R{{"r"}}=? [ {path} ], s={state})' for state in states))
+    for result in run.results:
+        assert (result.lower, result.value, result.upper) == (0, 0, 0)
+
+
+def test_states_that_reach_a_reward_keep_their_value() -> None:
+    run = check_prism_file(REWARD_FREE, selectors=('R{"r"}=? [ F s=4 ]', 'R{"r"}=? [ F s=3 ]'))
+    assert run.results[0].value == pytest.approx(3 + 0.5 * 2, rel=1e-12)
+    assert run.results[1].value == INF  # (s=3 is not reached almost surely: infinite)

@@ -222,7 +222,13 @@ def path_rewards(dtmc: DTMC, workspace: Workspace, op: RewardOp,
     :param focus_states: as for :func:`values`.
     """
     structure = _reward_structure(dtmc, op)
-    path: RewardPath = op.path
+    found = _expected_rewards(dtmc, workspace, op.path, structure, focus_states)
+    per_step = structure.state if isinstance(op.path, Instantaneous) else structure.total
+    return kernels.reward_free_zeros(dtmc.transitions, per_step, found, workspace=workspace)
+
+
+def _expected_rewards(dtmc: DTMC, workspace: Workspace, path: RewardPath,
+                      structure: RewardVectors, focus_states: IntArray | None) -> Bounds:
     P = dtmc.transitions
     match path:
         case Reach(target=target):

@@ -29,6 +29,7 @@ from veribattery.checker.kernels.prepass import (
     prob0,
     prob1,
     reach_unknowns,
+    reward_free_zeros,
     until_unknowns,
 )
 from veribattery.checker.kernels.steps import (
@@ -67,6 +68,7 @@ __all__ = [
     "quick_bounds",
     "reach_rewards",
     "reach_unknowns",
+    "reward_free_zeros",
     "shared_system",
     "until_probs",
     "until_unknowns",

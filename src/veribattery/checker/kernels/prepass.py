@@ -13,7 +13,8 @@ import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 
-from veribattery._types import BoolArray, CsrMatrix
+from veribattery._types import BoolArray, CsrMatrix, FloatArray
+from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.kernels import systems
 from veribattery.checker.kernels.systems import (
     _mask_key,
@@ -77,6 +78,27 @@ def reach_unknowns(P: CsrMatrix, target: BoolArray, *, workspace: Workspace) -> 
     no = prob0(P, everywhere, target, workspace=workspace)
     sure = prob1(P, everywhere, target, no, workspace=workspace)
     return sure & ~target
+
+
+def reward_free_zeros(P: CsrMatrix, rewards: FloatArray, found: Bounds, *,
+                      workspace: Workspace) -> Bounds:
+    """*found* (an expected reward, certified) made exactly 0 in the states from which
+    no state with a nonzero reward (per step) can be reached: the expectation there is
+    a sum of zeros wherever it is finite, where a solver's bounds leave room either side
+    of 0 (``0 +- 2e-270`` on a model whose rewards are all 0; PRISM and Storm print 0).
+
+    Only where an interval is finite and holds 0 but is not exactly 0: elsewhere the
+    answer is already exact, infinite or undefined, and no search is made."""
+    loose = np.isfinite(found.upper) & (found.lower <= 0.0) & (found.upper > 0.0)
+    loose |= np.isfinite(found.lower) & (found.lower < 0.0) & (found.upper >= 0.0)
+    if not loose.any():
+        return found
+    everywhere = np.ones(P.shape[0], dtype=bool)
+    zero = loose & ~_backward_reach(P, everywhere, rewards != 0, workspace)
+    if not zero.any():
+        return found
+    return Bounds(np.where(zero, 0.0, found.value), np.where(zero, 0.0, found.lower),
+                  np.where(zero, 0.0, found.upper))
 
 
 # ---------------------------------------------------------------------------
