@@ -180,3 +180,39 @@ def test_a_constant_in_arithmetic_over_a_query_is_exact(tmp_path: Path) -> None:
                                       "--const", "q=1/3", "--exact", "--json"])
     assert result.exit_code == 0, result.stderr
     assert json.loads(result.stdout)["results"][0]["exact"] == "0"  # not 1/3 - its double
+
+
+#: Module b is a renamed with p1=p2: its branch probabilities and its guard read p2 (the
+#: decision had replaced p1 in a first, and b's copy read p1's value: Storm's coin2_2
+#: with p1=0.4, p2=0.6 gave Pmin 0.7456 for 0.1278, its team3 120/49 for 114/49).
+_RENAMED = """{kind}
+const double p1;
+const double p2;
+module a
+  x : [0..2];
+  [] x=0 & p1 < 1/2 -> p1:(x'=1) + 1-p1:(x'=2);
+  [] x=0 & p1 >= 1/2 -> 1/4:(x'=1) + 3/4:(x'=2);
+  [] x>0 -> true;
+endmodule
+module b = a [x=y, p1=p2] endmodule
+"""
+
+
+@pytest.mark.parametrize("kind", ["dtmc", "mdp"])
+@pytest.mark.parametrize("exact", [False, True])
+def test_a_renamed_constant_is_read_in_the_renamed_module(tmp_path: Path, kind: str,
+                                                          exact: bool) -> None:
+    model = tmp_path / "m.prism"
+    model.write_text(_RENAMED.format(kind=kind))
+    op = "P" if kind == "dtmc" else "Pmax"
+    args = ["prism", str(model), "--property", f"{op}=? [ F x=1 ]", "--property",
+            f"{op}=? [ F y=1 ]", "--property", f"{op}=? [ F x=1 & y=1 ]",
+            "--const", "p1=1/3,p2=3/5", "--json", *(["--exact"] if exact else [])]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.stderr
+    found = json.loads(result.stdout)["results"]
+    expected = [mpq(1, 3), mpq(1, 4), mpq(1, 12)]  # (b: p2 >= 1/2, so 1/4 to y=1)
+    if exact:
+        assert [mpq(r["exact"]) for r in found] == expected
+    else:
+        assert [r["value"] for r in found] == pytest.approx([float(e) for e in expected])

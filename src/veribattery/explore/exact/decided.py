@@ -34,9 +34,11 @@ from veribattery.lang.nodes import (
     Model,
     PropertiesFile,
     Property,
+    RenamedModule,
     Unary,
     Value,
 )
+from veribattery.lang.semantics import expand_formulas, expanded_modules
 
 __all__ = ["decided_exactly", "flattened_exactly"]
 
@@ -117,8 +119,19 @@ def flattened_exactly(
     decls = props_file.constants if props_file is not None else ()
     values = exact_constants(decls, given, outer=model_values)
     decided = [replace(p, formula=decided_exactly(p.formula, values)) for p in properties]
-    decided_model = decided_exactly(model, model_values)
+    expanded = _renamings_expanded(model)
+    decided_model = decided_exactly(expanded, model_values)
     if decided_model is not model:
         flat = flatten_model(decided_model, given)
     return (decided_model, decided,
             None if props_file is None else decided_exactly(props_file, values), flat)
+
+
+def _renamings_expanded(model: Model) -> Model:
+    """*model* with each renamed module written out (formulas inlined first, as
+    flattening does): a renaming may rename a constant (``p1=p2``), which deciding the
+    base module first would have replaced by its value, so the copy read *p1*'s."""
+    if not any(isinstance(module, RenamedModule) for module in model.modules):
+        return model
+    modules = expanded_modules(model, expand_formulas(model.formulas))
+    return replace(model, modules=tuple(modules))
