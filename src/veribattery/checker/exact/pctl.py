@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from veribattery._types import BoolArray
-from veribattery.checker.exact import storm
+from veribattery.checker.exact import steady, storm
 from veribattery.checker.exact.expression import ExactStates, exact_state_values
 from veribattery.checker.exact.filtered import (
     ExactCheckResult,
@@ -64,6 +64,7 @@ from veribattery.lang.nodes import (
     Globally,
     Instantaneous,
     Ite,
+    LongRun,
     Next,
     PathFormula,
     ProbOp,
@@ -72,6 +73,8 @@ from veribattery.lang.nodes import (
     Reach,
     RewardBounded,
     RewardOp,
+    SteadyOp,
+    Total,
     Unary,
     Until,
 )
@@ -135,8 +138,8 @@ def exact_values(
     workspace = Workspace() if workspace is None else workspace
     if isinstance(formula, ProbOp) and formula.op == "=?":
         return ExactValues.finite(path_probs(model, workspace, formula.path))
-    if isinstance(formula, RewardOp) and formula.op == "=?":
-        return path_rewards(model, workspace, formula)
+    if isinstance(formula, RewardOp | SteadyOp) and formula.op == "=?":
+        return _query(model, workspace, formula)
     if _is_state_formula(formula):
         return state_set(model, workspace, formula)
     return _expression(model, workspace, formula)
@@ -146,7 +149,7 @@ def _is_state_formula(formula: Expr) -> bool:
     """Whether *formula* is a state formula the recursion of :func:`state_set` takes: a
     bounded operator, ``A``/``E``, a connective. (Plain expressions, numbers and
     comparisons over them are :func:`_expression`'s.)"""
-    return isinstance(formula, ProbOp | RewardOp | Quantified) or (
+    return isinstance(formula, ProbOp | RewardOp | SteadyOp | Quantified) or (
         isinstance(formula, Binary) and formula.op in CONNECTIVES) or (
         isinstance(formula, Unary) and formula.op == "!")
 
@@ -167,9 +170,17 @@ def _operand(model: ExactDTMC, workspace: Workspace, node: Expr) -> ExactValues 
                          "property only", node.span)
     if isinstance(node, ProbOp) and node.op == "=?":
         return ExactValues.finite(path_probs(model, workspace, node.path))
-    if isinstance(node, RewardOp) and node.op == "=?":
-        return path_rewards(model, workspace, node)
+    if isinstance(node, RewardOp | SteadyOp) and node.op == "=?":
+        return _query(model, workspace, node)
     return state_set(model, workspace, node)
+
+
+def _query(model: ExactDTMC, workspace: Workspace, op: RewardOp | SteadyOp) -> ExactValues:
+    """The values of an ``R=?`` or ``S=?`` query."""
+    if isinstance(op, RewardOp):
+        return path_rewards(model, workspace, op)
+    counted = indicator(state_set(model, workspace, op.operand))
+    return ExactValues.finite(steady.long_run_values(model, workspace, counted))
 
 
 # ---------------------------------------------------------------------------
@@ -181,7 +192,7 @@ def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     if not has_operator(expr) and not needs_exact(expr):  # doubles decide it exactly
         return as_mask(leaf_values(model.dtmc, expr), expr)
     match expr:
-        case ProbOp() | RewardOp():
+        case ProbOp() | RewardOp() | SteadyOp():
             return _bounded_operator(model, workspace, expr)
         case Quantified(quantifier=quantifier, path=path):  # graph searches: exact already
             return ctl.quantified_path(model.dtmc.transitions, quantifier, path,
@@ -205,13 +216,13 @@ def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
 
 
 def _bounded_operator(model: ExactDTMC, workspace: Workspace,
-                      op: ProbOp | RewardOp) -> BoolArray:
+                      op: ProbOp | RewardOp | SteadyOp) -> BoolArray:
     if op.op == "=?" or op.bound is None:
         raise CheckError("a query (=?) cannot be used as a state formula", op.span)
     if isinstance(op, ProbOp):
         numbers = ExactValues.finite(path_probs(model, workspace, op.path))
     else:
-        numbers = path_rewards(model, workspace, op)
+        numbers = _query(model, workspace, op)
     holds = np.asarray(BOUND_RELATIONS[op.op](numbers.values, exact_literal(op.bound)),
                        dtype=bool)
     return np.where(numbers.infinite, op.op in (">", ">="), holds)
@@ -258,7 +269,8 @@ def _storm_formula(model: ExactDTMC, workspace: Workspace,
 
 
 def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactValues:
-    """Per-state exact expected reward of ``R{..}`` over ``F``, ``C<=k`` or ``I=k``."""
+    """Per-state exact expected reward of ``R{..}`` over ``F``, ``C<=k``, ``I=k``, ``C``,
+    ``S`` or Storm's conditional ``F a || F b``."""
     structure = _reward_structure(model, op)
     zero = indicator(np.zeros(model.dtmc.num_states, dtype=bool))
     everywhere = np.ones(model.dtmc.num_states, dtype=bool)
@@ -275,6 +287,10 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
         case ConditionalReach():
             return storm.conditional_reach_rewards(model, workspace, structure, op.path,
                                                    state_set=state_set)
+        case LongRun():
+            return ExactValues.finite(steady.long_run_values(model, workspace, structure.total))
+        case Total():
+            return steady.total_rewards(model, workspace, structure.total)
     raise UndefinedResult(
         f"{type(op.path).__name__} reward paths are not supported in exact arithmetic",
         op.path.span)
