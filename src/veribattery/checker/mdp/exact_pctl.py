@@ -43,7 +43,11 @@ from veribattery.checker.mdp.exact_reward_bounded import exact_reward_bounded
 from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
 from veribattery.checker.mdp.formula import mdp_values, quantified_states
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.operators import operator_objective, reward_structure
+from veribattery.checker.mdp.operators import (
+    CONDITIONAL_ON_MDP,
+    operator_objective,
+    reward_structure,
+)
 from veribattery.checker.mdp.rational import ObjectArray
 from veribattery.checker.mdp.system import Objective
 from veribattery.checker.result import CheckResult
@@ -53,6 +57,7 @@ from veribattery.explore.exact.program import needs_exact
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,
     Binary,
+    Conditional,
     Cumulative,
     Eventually,
     Expr,
@@ -60,6 +65,7 @@ from veribattery.lang.nodes import (
     Globally,
     Instantaneous,
     Ite,
+    Multi,
     Next,
     PathFormula,
     ProbOp,
@@ -153,6 +159,10 @@ def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray
             return state_set(model, formula)
         case Binary(op=op) if op in CONNECTIVES:
             return state_set(model, formula)
+        case Multi():
+            raise CheckError("multi(...) has no exact MDP kernel: check it without --exact "
+                             "(its answer is certified; an achievability on its boundary is "
+                             "decided in rationals)", formula.span)
     return _expression(model, formula)
 
 
@@ -264,6 +274,8 @@ def path_probs(model: ExactMdpModel, path: PathFormula, objective: Objective) ->
                                         _structure(model, path), limit, state_set(model, left),
                                         state_set(model, right), objective=objective,
                                         span=path.span)
+        case Conditional():
+            raise CheckError(CONDITIONAL_ON_MDP, path.span)
     raise CheckError("this path formula has no exact MDP kernel (X, U, F, G, W, R and "
                      "reward-bounded F, U have)", path.span)
 

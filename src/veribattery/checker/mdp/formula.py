@@ -32,7 +32,11 @@ from veribattery.checker.formula.leaves import (
 )
 from veribattery.checker.mdp import cosafe, stepped
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.operators import operator_objective, reward_structure
+from veribattery.checker.mdp.operators import (
+    CONDITIONAL_ON_MDP,
+    operator_objective,
+    reward_structure,
+)
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.reward_bounded import reward_bounded_reach
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
@@ -179,9 +183,7 @@ def _path(mdp: MDP, progress: Progress | None, path: PathFormula,
             a, b = _mask(mdp, progress, left), _mask(mdp, progress, right)
             return _complement(_until(mdp, progress, ~a, ~b, bound, _opposite(objective)))
         case Conditional():
-            raise CheckError("conditional probabilities (Storm's 'path || F condition') are "
-                             "not supported on MDPs: check the DTMC a strategy induces instead "
-                             "(--export-induced)", path.span)
+            raise CheckError(CONDITIONAL_ON_MDP, path.span)
         case RewardBounded(left=left, right=right, bound=bound):
             return reward_bounded_reach(mdp, reward_structure(mdp, path), reward_limit(bound),
                                         _mask(mdp, progress, left), _mask(mdp, progress, right),

@@ -12,7 +12,12 @@ from veribattery.errors import CheckError
 from veribattery.lang.nodes import ProbOp, RewardBounded, RewardOp
 from veribattery.lang.property_rules import STEPS_REWARD
 
-__all__ = ["operator_objective", "reward_structure"]
+__all__ = ["CONDITIONAL_ON_MDP", "operator_objective", "reward_structure"]
+
+#: Why Storm's conditional formulas are refused on MDPs (float and exact).
+CONDITIONAL_ON_MDP = ("conditional probabilities (Storm's 'path || F condition') are not "
+                      "supported on MDPs: check the DTMC a strategy induces instead "
+                      "(--export-induced)")
 
 
 def reward_structure(mdp: MDP, op: RewardOp | RewardBounded) -> MdpRewards:
