@@ -26,10 +26,15 @@ failure; a mismatch, a traceback (an exit status other than 0 and 2, or
 ``Traceback`` on stderr) or a timeout makes the exit status 1. The Markdown table
 is rewritten after every row, so a stopped run keeps its rows.
 
-    python bench/bench_qvbench_mdp.py --root ~/qcomp [--type dtmc] [--only firewire]
-        [--max-states 1000000] [--per-family 4] [--timeout 300] [--out FILE]
+With ``--exact`` every run has ``--exact`` too, and where QVBS records an exact result
+(a fraction) our exact value must be that fraction, digit for digit; other references
+are compared as above.
 
-The report goes to ``docs/_bench/qvbench_mdp.md`` (``qvbench_dtmc.md`` for DTMCs).
+    python bench/bench_qvbench_mdp.py --root ~/qcomp [--type dtmc] [--only firewire]
+        [--max-states 1000000] [--per-family 4] [--timeout 300] [--exact] [--out FILE]
+
+The report goes to ``docs/_bench/qvbench_mdp.md`` (``qvbench_dtmc.md`` for DTMCs;
+``qvbench_mdp_exact.md``, ``qvbench_dtmc_exact.md`` with ``--exact``).
 """
 
 from __future__ import annotations
@@ -397,9 +402,28 @@ def outcome_row(instance: Instance, prop: str, command: list[str], done: Process
         row.bounds = (our_value(bounds[0]), our_value(bounds[1]))
     if row.reference is None:
         row.outcome = "no reference"
+        return row
+    exact = exact_reference(row.reference.value)
+    if exact is not None and "exact" in result:  # (an --exact run, an exact reference)
+        row.outcome = "yes" if _fraction(result["exact"]) == exact else "NO"
     else:
         row.outcome = "yes" if agree(row.value, reference_value(row.reference.value)) else "NO"
     return row
+
+
+def exact_reference(value: object) -> Fraction | None:
+    """The exact result QVBS records (``{"num", "den", ...}``), or None."""
+    if isinstance(value, dict) and "num" in value and "den" in value:
+        return Fraction(int(value["num"]), int(value["den"]))
+    return None
+
+
+def _fraction(text: object) -> Fraction | None:
+    """Our JSON's ``"exact"`` (``"p/q"``; ``"Infinity"``: None)."""
+    try:
+        return Fraction(str(text))
+    except (ValueError, ZeroDivisionError):
+        return None
 
 
 def parse_error(props: str, folder: Path, timeout: float) -> str | None:
@@ -417,13 +441,14 @@ def parse_error(props: str, folder: Path, timeout: float) -> str | None:
 
 
 def check(instance: Instance, prop: str, folder: Path, timeout: float, cap: int,
-          unreadable: dict[str, str | None]) -> Row:
+          unreadable: dict[str, str | None], *, exact: bool = False) -> Row:
     """Run *prop* of *instance* (files under *folder*), inline if its properties file
-    does not parse (:func:`parse_error`, asked once per file and kept in *unreadable*)."""
+    does not parse (:func:`parse_error`, asked once per file and kept in *unreadable*);
+    with *exact*, in exact arithmetic."""
     model = f"{instance.family}/{instance.model}"
     props = f"{instance.family}/{instance.props}"
     base = [sys.executable, "-m", "veribattery", "prism", model]
-    tail = ["--json", "--max-states", str(cap)]
+    tail = ["--json", "--max-states", str(cap), *(["--exact"] if exact else [])]
     if props not in unreadable:
         unreadable[props] = parse_error(props, folder, timeout)
     if unreadable[props] is None:
@@ -582,18 +607,22 @@ def main() -> None:
                         help="largest instance taken, by index.json's state count")
     parser.add_argument("--per-family", type=int, default=4, help="instances per family")
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds per process")
+    parser.add_argument("--exact", action="store_true",
+                        help="check in exact arithmetic; exact references met exactly")
     parser.add_argument("--out", type=Path, help="the report (default: "
-                        "docs/_bench/qvbench_TYPE.md)")
+                        "docs/_bench/qvbench_TYPE.md, qvbench_TYPE_exact.md with --exact)")
     args = parser.parse_args()
     byte_compile_sources()
     sys.set_int_max_str_digits(0)  # (oscillators' index.json has integers of 6,000 digits)
     source = Source(args.root.expanduser(), args.kind)
-    out = args.out or ROOT / f"docs/_bench/qvbench_{args.kind}.md"
+    mode = "_exact" if args.exact else ""
+    out = args.out or ROOT / f"docs/_bench/qvbench_{args.kind}{mode}.md"
     cap = BUILD_CAP_FACTOR * args.max_states
     start = time.perf_counter()
     families = f"the families whose name contains `{args.only}`" if args.only else "all families"
     header = (f"veribattery at commit {_tree_commit()} (`python -m veribattery prism ... "
-              f"--json`, one property per fresh process, timeout {args.timeout:.0f} s, "
+              f"--json{' --exact' if args.exact else ''}`, one property per fresh process, "
+              f"timeout {args.timeout:.0f} s, "
               f"`--max-states {cap}`) on QVBS commit `{source.commit()}`, {families}: per "
               f"family the {args.per_family} smallest instances with at most "
               f"{args.max_states} states in index.json and a recorded result. "
@@ -621,7 +650,8 @@ def main() -> None:
                           flush=True)
                     continue
                 for prop in named_properties(props_text):
-                    rows.append(check(instance, prop, Path(tmp), args.timeout, cap, unreadable))
+                    rows.append(check(instance, prop, Path(tmp), args.timeout, cap, unreadable,
+                                      exact=args.exact))
                     progress(len(rows), rows[-1])
                     save(finished=False)
     if rows:
