@@ -19,7 +19,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import Bounds, nearest_float
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.formula.leaves import exact_step_bound
+from veribattery.checker.formula.leaves import _interval, exact_step_bound
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError
 from veribattery.explore.exact.dtmc import ExactDTMC
@@ -91,24 +91,15 @@ def _until(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: Bo
            bound: TimeBound | TimeInterval | None) -> ObjectArray:
     if bound is None:
         return until_probs(model, workspace, remain, target)
-    if isinstance(bound, TimeInterval):  # U[a,b]: remain for a steps, then U<=b-a
-        low, high = exact_step_bound(bound.low), exact_step_bound(bound.high)
-        if high < low:
-            return indicator(np.zeros_like(target))
-        later = _within(model, workspace, remain, target, high - low)
-        return _power(model, remain, later, indicator(np.zeros_like(target)), low)
-    k = exact_step_bound(bound.value)
-    match bound.op:
-        case "<=" | "<":
-            steps = k if bound.op == "<=" else k - 1
-            if steps < 0:  # U<0 can never be met
-                return indicator(np.zeros_like(target))
-            return _within(model, workspace, remain, target, steps)
-        case ">=" | ">":
-            later = until_probs(model, workspace, remain, target)
-            zero = indicator(np.zeros_like(target))
-            return _power(model, remain, later, zero, k if bound.op == ">=" else k + 1)
-    raise CheckError(f"step bound '{bound.op}' is not allowed on U, F or G", bound.span)
+    for end in (bound.low, bound.high) if isinstance(bound, TimeInterval) else (bound.value,):
+        exact_step_bound(end)  # (CheckError beyond the exact engines' limit)
+    low, high = _interval(bound)  # U[a,b], U=k: remain for a steps, then U<=b-a
+    zero = indicator(np.zeros_like(target))
+    if high is not None and high < low:
+        return zero
+    later = (until_probs(model, workspace, remain, target) if high is None
+             else _within(model, workspace, remain, target, high - low))
+    return _power(model, remain, later, zero, low)
 
 
 def _within(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: BoolArray,

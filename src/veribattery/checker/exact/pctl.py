@@ -29,6 +29,7 @@ from veribattery.checker.exact.filtered import (
 )
 from veribattery.checker.exact.numeric import (
     _ONE,
+    _ZERO,
     ExactValues,
     _next,
     _power,
@@ -36,6 +37,7 @@ from veribattery.checker.exact.numeric import (
     exact_literal,
     indicator,
     reach_rewards,
+    until_probs,
 )
 from veribattery.checker.formula import ctl
 from veribattery.checker.formula.leaves import (
@@ -44,6 +46,7 @@ from veribattery.checker.formula.leaves import (
     exact_step_bound,
     has_operator,
     leaf_values,
+    require_nonnegative_rewards,
 )
 from veribattery.checker.result import CheckResult
 from veribattery.checker.workspace import Workspace
@@ -71,6 +74,7 @@ from veribattery.lang.nodes import (
     Property,
     Quantified,
     Reach,
+    ReachUntil,
     RewardBounded,
     RewardOp,
     SteadyOp,
@@ -287,6 +291,11 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
         case ConditionalReach():
             return storm.conditional_reach_rewards(model, workspace, structure, op.path,
                                                    state_set=state_set)
+        case ReachUntil(left=left, right=right):  # the reward until b, where a U b is sure
+            a, b = state_set(model, workspace, left), state_set(model, workspace, right)
+            sure = np.asarray(until_probs(model, workspace, a, b) == _ONE, dtype=bool)
+            found = reach_rewards(model, workspace, structure.total, b)
+            return ExactValues(np.where(sure, found.values, _ZERO), found.infinite | ~sure)
         case LongRun():
             return ExactValues.finite(steady.long_run_values(model, workspace, structure.total))
         case Total():
@@ -298,7 +307,9 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
 
 def _reward_structure(model: ExactDTMC, op: RewardOp) -> ExactRewards:
     try:
-        return model.reward(op.reward)
+        structure = model.reward(op.reward)
     except (KeyError, IndexError):
         key = "" if op.reward is None else f" {op.reward!r}"
         raise CheckError(f"the model has no reward structure{key}", op.span) from None
+    require_nonnegative_rewards(structure.name, (structure.state, structure.transition), op)
+    return structure
