@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from tests.lang.helpers import MINI
-from veribattery.errors import PrismSemanticError, PrismSyntaxError
+from veribattery.errors import PrismSemanticError, PrismSyntaxError, VeribatteryError
 from veribattery.lang import (
     Binary,
     BoolLit,
@@ -312,3 +312,17 @@ def test_a_model_file_may_start_with_a_byte_order_mark(tmp_path) -> None:
     path = tmp_path / "bom.pm"
     path.write_bytes(b"\xef\xbb\xbfdtmc\nmodule m\n  s : [0..1] init 0;\nendmodule\n")
     assert parse_model(path).modules[0].name == "m"
+
+
+@pytest.mark.parametrize(("model_type", "body"), [
+    ("pomdp", "observables x endobservables\n"),  # (PRISM's POMDPs: an observables block)
+    ("popta", "module m\n  c : clock;\nendmodule\n"),
+    ("csg", "player p1 m endplayer\n"), ("tsg", ""), ("lts", ""), ("ctmc", ""), ("pta", ""),
+])
+def test_other_model_types_are_refused_by_name(model_type: str, body: str) -> None:
+    # They were "unexpected token 'pomdp'" (or a later token, for pta's clocks); the
+    # model-type line is named, as for ctmc.
+    text = f"// a {model_type}\n\n  {model_type}\n{body}module n\n  y : [0..1];\nendmodule\n"
+    with pytest.raises(VeribatteryError, match=rf"^m:3:3: only DTMC and MDP models are "
+                                               rf"supported, not '{model_type}'"):
+        parse_model(text, name="m")

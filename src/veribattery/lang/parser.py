@@ -20,7 +20,7 @@ from veribattery.lang.fastparse import Fallback, parse_fast
 from veribattery.lang.lexer import KEYWORDS
 from veribattery.lang.nodes import Model, PropertiesFile, Property
 from veribattery.lang.ops import FUNCTIONS
-from veribattery.lang.transform import ToNodes
+from veribattery.lang.transform import OTHER_MODEL_TYPES, ToNodes, unsupported_type
 
 if TYPE_CHECKING:
     from lark import Lark, UnexpectedInput
@@ -127,7 +127,9 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxEr
     from lark import UnexpectedCharacters, UnexpectedToken
 
     line, col = exc.line, exc.column
-    if isinstance(exc, UnexpectedCharacters):
+    if (declared := _declared_type(text)) is not None:  # (pomdp: its observables fail first)
+        message, (line, col) = unsupported_type(declared[0]), declared[1]
+    elif isinstance(exc, UnexpectedCharacters):
         message = f"unexpected character '{exc.char}'"
     elif isinstance(exc, UnexpectedToken) and (callee := _unknown_call(exc, text)):
         message = (f"unknown function '{callee}' (PRISM's functions: "
@@ -188,6 +190,17 @@ def _opens_interval(exc: UnexpectedInput, text: str) -> bool:
         return False
     before = text[:token.start_pos].rstrip()
     return before.endswith(("->", "+"))
+
+
+def _declared_type(text: str) -> tuple[str, tuple[int, int]] | None:
+    """A model type that veribattery refuses, when it is the file's first word (after
+    comments), with its line and column."""
+    found = re.match(r"(?:\s+|//[^\n]*)*([A-Za-z_]\w*)", text)
+    if found is None or found.group(1) not in OTHER_MODEL_TYPES:
+        return None
+    start = found.start(1)
+    line = text.count("\n", 0, start) + 1
+    return found.group(1), (line, start - (text.rfind("\n", 0, start) + 1) + 1)
 
 
 def _end_position(text: str) -> tuple[int, int]:

@@ -60,6 +60,15 @@ from veribattery.lang.property_rules import (
 
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
 _MDP_TYPES = frozenset({"mdp", "nondeterministic"})
+#: The other model types of PRISM and PRISM-games, refused by name (the grammar reads
+#: only those of its first line; the parser's error path names the rest).
+OTHER_MODEL_TYPES = frozenset({"ctmc", "stochastic", "ctmdp", "pta", "pomdp", "popta", "lts",
+                               "smg", "csg", "tsg", "tptg"})
+
+
+def unsupported_type(name: str) -> str:
+    """Why a model of type *name* is refused."""
+    return f"only DTMC and MDP models are supported, not '{name}'"
 
 
 @dataclass(frozen=True, slots=True)
@@ -307,9 +316,7 @@ def _model_type(items: list[Any], source: str) -> ModelType:
         return "dtmc"
     if types[0].name in _MDP_TYPES:
         return "mdp"
-    raise PrismSemanticError(
-        f"only DTMC and MDP models are supported, not '{types[0].name}'", types[0].span
-    )
+    raise PrismSemanticError(unsupported_type(types[0].name), types[0].span)
 
 
 def _assemble_model(items: list[Any], source: str) -> Model:
