@@ -1,6 +1,7 @@
 """Path forms the float checker had and ``--exact`` refused or mishandled: ``U=k``/``F=k``
 (PRISM's exact step, "step bound '=' is not allowed"), the co-safe reward ``R [ a U b ]``
-("not supported in exact arithmetic") and negative rewards (refused in floats, answered
+("not supported in exact arithmetic"), Storm's ``T=?`` (QVBS's haddad-monmege) and
+negative rewards (refused in floats, answered
 with --exact). Found by running the peer suites with ``--exact``."""
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ CASES = [
     (MODEL, "P=? [ s!=1 U=2 s=3 ]", Fraction(2, 3)),
     (MODEL, "P=? [ G=2 s>=2 ]", Fraction(2, 3)),
     (MODEL, "P=? [ F[1,3] s=4 ]", Fraction(1, 2)),
+    (MODEL, "T=? [ F s=1 | s=4 ]", Fraction(25, 9)),  # (Storm's T=?: "no reward structure")
     # Knuth's die: from s=1 the walk never meets s=2, so s!=2 U s=7 is sure there
     (KNUTH_DIE, 'filter(state, R{"coin"}=? [ s!=2 U s=7 ], s=1)', Fraction(8, 3)),
     (KNUTH_DIE, 'R{"coin"}=? [ s<7 U s=7 ]', Fraction(11, 3)),

@@ -82,6 +82,7 @@ from veribattery.lang.nodes import (
     Unary,
     Until,
 )
+from veribattery.lang.property_rules import STEPS_REWARD
 
 __all__ = ["ExactCheckResult", "check_exact", "exact_values"]
 
@@ -306,6 +307,10 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
 
 
 def _reward_structure(model: ExactDTMC, op: RewardOp) -> ExactRewards:
+    if op.reward == STEPS_REWARD:  # Storm's T=?: one per step
+        states = model.dtmc.num_states
+        return ExactRewards(None, indicator(np.ones(states, dtype=bool)),
+                            indicator(np.zeros(states, dtype=bool)))
     try:
         structure = model.reward(op.reward)
     except (KeyError, IndexError):
