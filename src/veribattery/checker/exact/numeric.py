@@ -19,7 +19,7 @@ from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import Bounds, nearest_float
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
-from veribattery.checker.formula.leaves import _interval, exact_step_bound
+from veribattery.checker.formula.leaves import exact_step_bound, step_interval
 from veribattery.checker.workspace import Workspace
 from veribattery.errors import CheckError
 from veribattery.explore.exact.dtmc import ExactDTMC
@@ -93,7 +93,7 @@ def _until(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: Bo
         return until_probs(model, workspace, remain, target)
     for end in (bound.low, bound.high) if isinstance(bound, TimeInterval) else (bound.value,):
         exact_step_bound(end)  # (CheckError beyond the exact engines' limit)
-    low, high = _interval(bound)  # U[a,b], U=k: remain for a steps, then U<=b-a
+    low, high = step_interval(bound)  # U[a,b], U=k: remain for a steps, then U<=b-a
     zero = indicator(np.zeros_like(target))
     if high is not None and high < low:
         return zero

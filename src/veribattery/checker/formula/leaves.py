@@ -100,7 +100,7 @@ def _condition_name(condition: Expr) -> str:
     return f"after || (at {condition.span})"
 
 
-def _interval(bound: TimeBound | TimeInterval) -> tuple[int, int | None]:
+def step_interval(bound: TimeBound | TimeInterval) -> tuple[int, int | None]:
     """The steps ``[low, high]`` (``high`` None: unbounded) at which the target counts."""
     if isinstance(bound, TimeInterval):
         return step_bound(bound.low), step_bound(bound.high)

@@ -24,7 +24,6 @@ from veribattery.checker.formula.leaves import (
     _as_result,
     _condition_name,
     _everywhere,
-    _interval,
     _operands,
     _point,
     _reward_structure,
@@ -34,6 +33,7 @@ from veribattery.checker.formula.leaves import (
     literal_number,
     reward_limit,
     step_bound,
+    step_interval,
 )
 from veribattery.errors import CheckError
 from veribattery.explore.dtmc import DTMC, RewardVectors
@@ -381,7 +381,7 @@ def _until(dtmc: DTMC, workspace: Workspace, remain: BoolArray, target: BoolArra
     P = dtmc.transitions
     if bound is None:
         return kernels.until_probs(P, remain, target, focus_states, workspace=workspace)
-    low, high = _interval(bound)
+    low, high = step_interval(bound)
     if high is not None and high < low:
         return Bounds.exact(np.zeros(dtmc.num_states))
     if low == 0:
