@@ -326,3 +326,15 @@ def test_other_model_types_are_refused_by_name(model_type: str, body: str) -> No
     with pytest.raises(VeribatteryError, match=rf"^m:3:3: only DTMC and MDP models are "
                                                rf"supported, not '{model_type}'"):
         parse_model(text, name="m")
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ("dtmc\nmodule m\n  x : int init 0;\nendmodule\n",
+     r"^m:3:7: an unbounded int variable is not supported .*: give it a range"),
+    ("dtmc\nmodule m\n  x : [0..1];\nendmodule\nsystem m endsystem\n",
+     r"^m:5:1: a system \.\.\. endsystem block .* is not supported; without it every module"),
+])
+def test_unsupported_declarations_are_named(text: str, says: str) -> None:
+    # (Storm's test models: "unexpected token 'int' (expected 'bool' or '[')", "... 'system'")
+    with pytest.raises(PrismSyntaxError, match=says):
+        parse_model(text, name="m")

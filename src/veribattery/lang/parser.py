@@ -134,6 +134,13 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxEr
     elif isinstance(exc, UnexpectedToken) and (callee := _unknown_call(exc, text)):
         message = (f"unknown function '{callee}' (PRISM's functions: "
                    f"{', '.join(sorted(FUNCTIONS))}; and filter(...))")
+    elif isinstance(exc, UnexpectedToken) and _unbounded_int(exc, text):
+        message = ("an unbounded int variable is not supported (PRISM simulates them "
+                   "only): give it a range, name : [low..high]")
+    elif isinstance(exc, UnexpectedToken) and str(exc.token) == "system":
+        message = ("a system ... endsystem block (PRISM's process-algebra composition) is "
+                   "not supported; without it every module runs in parallel, synchronising "
+                   "on shared actions (PRISM's default, the same as M1 || M2 || ...)")
     elif isinstance(exc, UnexpectedToken) and _opens_interval(exc, text):
         message = ("an interval probability ([low,high]:update) makes an interval model "
                    "(IDTMC, IMDP), which veribattery does not support")
@@ -180,6 +187,14 @@ def _unclosed_paren(text: str, end: int) -> int | None:
         elif char in ";\n" and depth == 0:
             return None
     return None
+
+
+def _unbounded_int(exc: UnexpectedInput, text: str) -> bool:
+    """*exc* is an ``int`` where a variable's type is declared (``x : int;``)."""
+    token = getattr(exc, "token", None)
+    if token is None or str(token) != "int" or token.start_pos is None:
+        return False
+    return text[:token.start_pos].rstrip().endswith(":")
 
 
 def _opens_interval(exc: UnexpectedInput, text: str) -> bool:

@@ -49,7 +49,7 @@ from veribattery.lang.nodes import (
 _TimeOp: TypeAlias = Literal["<", "<=", ">", ">=", "="]
 _TEMPORAL_NAMES = {
     "X": "X (next)", "F": "F (eventually)", "G": "G (globally)", "U": "U (until)",
-    "W": "W (weak until)", "R": "R (release)", "RB": "a reward-bounded F or U",
+    "W": "W (weak until)", "R": "R (release)", "RB": "F or U with a reward bound",
 }
 _FILTER_OPS = frozenset({
     "min", "max", "argmin", "argmax", "count", "sum", "avg", "first", "range",

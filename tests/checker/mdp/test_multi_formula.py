@@ -132,8 +132,16 @@ def test_infeasible_numerical_query_is_nan_with_an_error_naming_the_property() -
     assert math.isnan(run.results[0].value)
     assert run.warnings == ()
     assert run.errors == (f"t.props:1:1: {text}: undefined (NaN): multi(...) has no strategy "
-                          "that meets its bounded objectives with finite total rewards, so the "
-                          "=? objective has no optimum (NaN, as PRISM reports it)",)
+                          "that meets its bounded objectives, so the =? objective has no "
+                          "optimum (NaN, as PRISM reports it)",)  # (finite rewards: none asked)
+
+
+def test_an_infeasible_query_with_rewards_says_finite_total_rewards() -> None:
+    text = 'multi(Pmax=? [ F s=3 ], R{"cost"}<=0.5 [ C ], P>=0.9 [ F s=3 ])'
+    run = check_mdp_model(parse_model(FORK), parse_properties(text, name="t.props").properties)
+    assert math.isnan(run.results[0].value)
+    assert "no strategy that meets its bounded objectives with finite total rewards" in (
+        run.errors[0])
 
 
 @pytest.mark.parametrize(("model", "formula", "message"), [

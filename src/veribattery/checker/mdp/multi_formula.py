@@ -194,14 +194,21 @@ def _numerical(mdp: MDP, model: MDP, goal: _Goal, constraints: list[Constraint],
         return front
     found = multi_optimum(model, goal.quantity, objective, constraints)
     if not found.achievable or found.value is None:
-        raise UndefinedResult("multi(...) has no strategy that meets its bounded objectives "
-                              "with finite total rewards, so the =? objective has no optimum "
-                              "(NaN, as PRISM reports it)", query.span)
+        raise _no_optimum(query)
     value = goal.offset + goal.sign * found.value
     error = LP_TOLERANCE * max(1.0, abs(value)) if np.isfinite(value) else 0.0
     values = _at_initial(mdp, value, error)
     return FilterOutcome(value, values, interval=(value - error, value + error),
                          precise=False, certified=False)
+
+
+def _no_optimum(query: Multi) -> UndefinedResult:
+    """No strategy meets the bounded objectives (finite total rewards among them)."""
+    rewards = any(isinstance(objective, RewardOp) for objective in query.objectives)
+    return UndefinedResult("multi(...) has no strategy that meets its bounded objectives"
+                           + (" with finite total rewards" if rewards else "")
+                           + ", so the =? objective has no optimum (NaN, as PRISM reports it)",
+                           query.span)
 
 
 def _front_answer(mdp: MDP, model: MDP, goal: _Goal, objective: Objective,
@@ -218,9 +225,7 @@ def _front_answer(mdp: MDP, model: MDP, goal: _Goal, objective: Objective,
     if answer is None:
         return None
     if not answer.achievable or answer.total is None:
-        raise UndefinedResult("multi(...) has no strategy that meets its bounded objectives "
-                              "with finite total rewards, so the =? objective has no optimum "
-                              "(NaN, as PRISM reports it)", query.span)
+        raise _no_optimum(query)
     total = answer.total
     point = np.full(mdp.num_states, np.nan)
     lower, upper = point.copy(), point.copy()
