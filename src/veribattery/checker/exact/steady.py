@@ -14,10 +14,11 @@ periodic or not, and equal to the Cesàro average PRISM reports.
 from __future__ import annotations
 
 import numpy as np
-from gmpy2 import mpq
 
 from veribattery._types import BoolArray
 from veribattery.checker.exact.numeric import (
+    _ONE,
+    _ZERO,
     ExactValues,
     prepared_system,
     reach_rewards,
@@ -29,9 +30,6 @@ from veribattery.explore.exact.dtmc import ExactDTMC
 from veribattery.explore.exact.rational import ObjectArray
 
 __all__ = ["long_run_values", "total_rewards"]
-
-_ZERO = mpq(0)
-_ONE = mpq(1)
 
 
 def long_run_values(model: ExactDTMC, workspace: Workspace, weights: ObjectArray) -> ObjectArray:
