@@ -338,3 +338,13 @@ def test_unsupported_declarations_are_named(text: str, says: str) -> None:
     # (Storm's test models: "unexpected token 'int' (expected 'bool' or '[')", "... 'system'")
     with pytest.raises(PrismSyntaxError, match=says):
         parse_model(text, name="m")
+
+
+def test_a_temporal_operator_read_as_a_name_is_named_as_ltl() -> None:
+    # (Storm's die tests: P=? [ F (s=6) & X "done" ] said only "unexpected token")
+    with pytest.raises(PrismSyntaxError, match=r"unexpected token '\"done\"' .*; 'X' before it "
+                                               r"reads as a temporal operator .* LTL"):
+        parse_property('P=? [ F (s=6) & X "done" ]')
+    with pytest.raises(PrismSyntaxError) as plain:
+        parse_property("P=? [ F s=; ]")
+    assert "temporal" not in str(plain.value)

@@ -146,6 +146,9 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxEr
                    "(IDTMC, IMDP), which veribattery does not support")
     elif isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
         message = f"unexpected token '{exc.token}' (expected {_expected(set(exc.expected))})"
+        if (temporal := _after_temporal(exc, text)) is not None:
+            message += (f"; '{temporal}' before it reads as a temporal operator nested in a "
+                        "formula: LTL path formulas need automata and are not supported")
     else:
         line, col = _end_position(text)
         expected = set(exc.expected) if isinstance(exc, UnexpectedToken) else set()
@@ -187,6 +190,16 @@ def _unclosed_paren(text: str, end: int) -> int | None:
         elif char in ";\n" and depth == 0:
             return None
     return None
+
+
+def _after_temporal(exc: UnexpectedInput, text: str) -> str | None:
+    """The temporal operator (``X``, ``F``, ``G``) written just before *exc*'s token, as
+    in ``F a & X "done"``, where the parser took it for a name."""
+    token = getattr(exc, "token", None)
+    if token is None or token.start_pos is None:
+        return None
+    before = re.search(r"(?:^|[\s(&|!])([XFG])\s*$", text[:token.start_pos])
+    return None if before is None else before.group(1)
 
 
 def _unbounded_int(exc: UnexpectedInput, text: str) -> bool:
