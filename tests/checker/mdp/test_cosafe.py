@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
 
+from veribattery.cli import cli
 from veribattery.lang import parse_model, parse_properties
 from veribattery.pipeline.mdp import check_mdp_model
 
@@ -48,3 +52,23 @@ def test_cosafe_rewards(formula: str, expected: float) -> None:
     run = check_mdp_model(parse_model(MODEL, name="t.prism"), props.properties,
                           props_file=props)
     assert run.results[0].value == pytest.approx(expected, abs=1e-9)
+
+
+@pytest.mark.parametrize(("formula", "expected"), [
+    ("Rmin=? [ s!=2 U s=3 ]", "4"),
+    ("Rmax=? [ s!=2 U s=3 ]", "Infinity"),
+    ("Rmin=? [ s=0 U s=3 ]", "4"),
+    ("Rmin=? [ true U s=3 ]", "2"),
+    ("filter(state, Rmin=? [ s!=2 U s=3 ], s=2)", "Infinity"),
+    ("filter(state, Rmax=? [ s!=2 U s=3 ], s=1)", "2"),
+])
+def test_cosafe_until_in_exact_arithmetic(tmp_path: Path, formula: str, expected: str) -> None:
+    # (with --exact it was "this reward formula has no exact MDP kernel": PRISM's
+    # mdps/rewards/cosafe/robot.nm, entry 9)
+    model = tmp_path / "m.nm"
+    model.write_text(MODEL)
+    result = CliRunner().invoke(cli, ["prism", str(model), "--property", formula, "--exact",
+                                      "--json"])
+    assert result.exit_code == 0, result.stderr
+    found = json.loads(result.stdout)["results"][0]
+    assert found.get("exact", found["value"]) == expected

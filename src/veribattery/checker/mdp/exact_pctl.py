@@ -38,7 +38,11 @@ from veribattery.checker.formula.leaves import (
     has_operator,
     integer_limit,
 )
-from veribattery.checker.mdp.exact import exact_reach_reward, exact_total_reward
+from veribattery.checker.mdp.exact import (
+    exact_reach_reward,
+    exact_total_reward,
+    exact_until_reward,
+)
 from veribattery.checker.mdp.exact_reward_bounded import exact_reward_bounded
 from veribattery.checker.mdp.exact_steps import exact_next, exact_rounds, exact_until
 from veribattery.checker.mdp.formula import mdp_values, quantified_states
@@ -72,6 +76,7 @@ from veribattery.lang.nodes import (
     Property,
     Quantified,
     Reach,
+    ReachUntil,
     Release,
     RewardBounded,
     RewardOp,
@@ -295,7 +300,7 @@ def _complement(values: ObjectArray) -> ObjectArray:
 
 
 def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> ExactValues:
-    """Per-state exact ``Rmin``/``Rmax`` over ``F``, ``C``, ``C<=k`` or ``I=k``."""
+    """Per-state exact ``Rmin``/``Rmax`` over ``F``, ``a U b``, ``C``, ``C<=k`` or ``I=k``."""
     structure = _structure(model, op)
     mdp = model.mdp
     per_choice = structure.per_choice(mdp.choice_owner)
@@ -310,6 +315,11 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
             found = exact_total_reward(mdp, per_choice, objective=objective,
                                        probabilities=probabilities)
             return ExactValues(found.values, found.infinite)
+        case ReachUntil(left=left, right=right):  # co-safe: infinite once neither holds
+            found = exact_until_reward(mdp, per_choice, state_set(model, left),
+                                       state_set(model, right), objective=objective,
+                                       probabilities=probabilities)
+            return ExactValues(found.values, found.infinite)
         case Cumulative(bound=bound):
             zeros = np.full(mdp.num_states, _ZERO, dtype=object)
             return ExactValues.finite(exact_rounds(mdp, probabilities, zeros, everywhere, zeros,
@@ -318,7 +328,8 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
             state = np.asarray(structure.state, dtype=object)
             return ExactValues.finite(exact_rounds(mdp, probabilities, state, everywhere,
                                                    state, objective, exact_step_bound(time_)))
-    raise CheckError("this reward formula has no exact MDP kernel (F, C, C<=k, I=k have)",
+    raise CheckError("this reward formula has no exact MDP kernel (F, a U b, C, C<=k, I=k "
+                     "have)",
                      op.path.span)
 
 
