@@ -348,3 +348,10 @@ def test_a_temporal_operator_read_as_a_name_is_named_as_ltl() -> None:
     with pytest.raises(PrismSyntaxError) as plain:
         parse_property("P=? [ F s=; ]")
     assert "temporal" not in str(plain.value)
+
+
+def test_a_properties_file_is_never_taken_for_a_model_type() -> None:
+    # (a constant named like a model type, first in a properties file)
+    with pytest.raises(PrismSyntaxError) as raised:
+        parse_properties("lts + = 1;\n", name="p")
+    assert "model" not in str(raised.value)

@@ -123,11 +123,12 @@ def _caret(text: str, line: int, col: int) -> str:
     return f"\n  {lines[line - 1].expandtabs(1)}\n  {' ' * (col - 1)}^"
 
 
-def _syntax_error(exc: UnexpectedInput, text: str, source: str) -> PrismSyntaxError:
+def _syntax_error(exc: UnexpectedInput, text: str, source: str, *,
+                  model: bool) -> PrismSyntaxError:
     from lark import UnexpectedCharacters, UnexpectedToken
 
     line, col = exc.line, exc.column
-    if (declared := _declared_type(text)) is not None:  # (pomdp: its observables fail first)
+    if model and (declared := _declared_type(text)) is not None:  # (pomdp's observables...)
         message, (line, col) = unsupported_type(declared[0]), declared[1]
     elif isinstance(exc, UnexpectedCharacters):
         message = f"unexpected character '{exc.char}'"
@@ -269,7 +270,7 @@ def _parse_with_lark(text: str, source: str, start: str) -> Any:
         tree = _lark().parse(text, start=start)
         return _transformer()(text, source).transform(tree)
     except UnexpectedInput as exc:
-        raise _syntax_error(exc, text, source) from None
+        raise _syntax_error(exc, text, source, model=start == "start_model") from None
     except VisitError as exc:
         if isinstance(exc.orig_exc, VeribatteryError):
             raise exc.orig_exc from None
