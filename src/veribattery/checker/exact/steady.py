@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from veribattery._types import BoolArray
+from veribattery._types import BoolArray, IntArray
 from veribattery.checker.exact.numeric import (
     _ONE,
     _ZERO,
@@ -77,7 +77,7 @@ def _bscc_averages(model: ExactDTMC, workspace: Workspace, parts: Bsccs,
     return averages
 
 
-def _renewal(model: ExactDTMC, workspace: Workspace, parts: Bsccs, refs: np.ndarray,
+def _renewal(model: ExactDTMC, workspace: Workspace, parts: Bsccs, refs: IntArray,
              weights: ObjectArray) -> ObjectArray:
     """``E[cycle weight] / E[cycle length]`` of the cycles from each state of *refs*
     back to it, within its BSCC."""
