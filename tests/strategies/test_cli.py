@@ -186,6 +186,9 @@ def test_a_dtmc_has_no_strategy(tmp_path: Path) -> None:
 @pytest.mark.parametrize(("extra", "message"), [
     (("--strategy-property", "1"), "--strategy-property: give --export-strategy FILE"),
     (("--export-strategy", "s.txt", "--simulate", "10"), "--simulate does not check"),
+    # (it was 'the run did not keep its model', after the whole exact check)
+    (("--export-strategy", "s.txt", "--exact"), "are not available with --exact"),
+    (("--export-induced", "ind", "--exact"), "are not available with --exact"),
 ])
 def test_options_that_would_be_ignored_are_refused(files: tuple[Path, Path],
                                                    extra: tuple[str, ...], message: str) -> None:

@@ -91,6 +91,11 @@ def prism_command(
         check_output_file(analysis["paths_file"], "-o", force=analysis["force"],
                           suffixes=CSV_SUFFIXES)
         check_strategy_options(analysis)
+        if exact and (analysis["strategy_file"] is not None
+                      or analysis["induced_dir"] is not None):
+            raise OptionError("--export-strategy and --export-induced are not available with "
+                              "--exact: leave out --exact to export the strategy (its "
+                              "optimality is certified)")
         if analysis["paths_file"] is not None and analysis["simulate"] is None:
             raise OptionError("-o writes the sampled paths of --simulate N: give --simulate, "
                               "or leave out -o")
