@@ -355,3 +355,14 @@ def test_a_properties_file_is_never_taken_for_a_model_type() -> None:
     with pytest.raises(PrismSyntaxError) as raised:
         parse_properties("lts + = 1;\n", name="p")
     assert "model" not in str(raised.value)
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ('P=? [ F{"a"}>=2,{"a"}<3 "done" ]', r"^<property>:1:16: several reward bounds on one F"),
+    ('R{"a"}=? [ C{"b"}<=3 ]', r"^<property>:1:18: a reward-bounded C \(Storm's"),
+    ("P=? [ F s=1, ]", r"^<property>:1:12: unexpected token ','"),  # (no reward bound here)
+])
+def test_storm_only_reward_bounds_are_named(text: str, says: str) -> None:
+    # (Storm's leader and crowds tests: "unexpected token ','" and "... '<='")
+    with pytest.raises(PrismSyntaxError, match=says):
+        parse_property(text)

@@ -138,6 +138,8 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str, *,
     elif isinstance(exc, UnexpectedToken) and _unbounded_int(exc, text):
         message = ("an unbounded int variable is not supported (PRISM simulates them "
                    "only): give it a range, name : [low..high]")
+    elif isinstance(exc, UnexpectedToken) and (storm := _storm_reward_bounds(exc, text)):
+        message = storm
     elif isinstance(exc, UnexpectedToken) and str(exc.token) == "system":
         message = ("a system ... endsystem block (PRISM's process-algebra composition) is "
                    "not supported; without it every module runs in parallel, synchronising "
@@ -201,6 +203,27 @@ def _after_temporal(exc: UnexpectedInput, text: str) -> str | None:
         return None
     before = re.search(r"(?:^|[\s(&|!])([XFG])\s*$", text[:token.start_pos])
     return None if before is None else before.group(1)
+
+
+#: Storm's reward-bound extensions PRISM's language does not have.
+_SEVERAL_BOUNDS = re.compile(r'[FU]\s*\{\s*"[^"]*"\s*\}\s*(?:<=|<|>=|>)[^,\[\]]*$')
+_BOUNDED_C = re.compile(r'\bC\s*\{\s*"[^"]*"\s*\}\s*$')
+
+
+def _storm_reward_bounds(exc: UnexpectedInput, text: str) -> str | None:
+    """What Storm-only reward bound *exc* stopped at, if any: several bounds on one
+    ``F`` (``F{"a"}<=3,{"b"}>1``) or a reward-bounded ``C`` (``C{"r"}<=3``)."""
+    token = getattr(exc, "token", None)
+    if token is None or token.start_pos is None:
+        return None
+    before = text[:token.start_pos]
+    if str(token) == "," and _SEVERAL_BOUNDS.search(before):
+        return ("several reward bounds on one F or U (Storm's multi-dimensional bounds) are "
+                "not supported: one bound, F{\"r\"}<=k, is")
+    if str(token) in ("<=", "<", ">=", ">") and _BOUNDED_C.search(before):
+        return ("a reward-bounded C (Storm's C{\"r\"}<=k) is not supported: C<=k bounds "
+                "the steps, and R{\"r\"}=? [ C<=k ] their reward")
+    return None
 
 
 def _unbounded_int(exc: UnexpectedInput, text: str) -> bool:
