@@ -14,14 +14,14 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery._types import BoolArray, FloatArray
+from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.mdp.graph import ChoiceGraph, all_successors_in
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.rewards import reach_reward
 from veribattery.checker.mdp.system import Objective
 
-__all__ = ["next_reward", "until_reward"]
+__all__ = ["next_reward", "trapped", "trapped_entries", "until_reward"]
 
 
 def until_reward(mdp: MDP, rewards: FloatArray, remain: BoolArray, target: BoolArray, *,
@@ -49,14 +49,28 @@ def next_reward(mdp: MDP, rewards: FloatArray, target: BoolArray, *,
 
 def trapped(mdp: MDP, traps: BoolArray) -> MDP:
     """*mdp* with every choice of a state in *traps* turned into a self-loop."""
+    return trapped_entries(mdp, traps)[0]
+
+
+def trapped_entries(mdp: MDP, traps: BoolArray) -> tuple[MDP, IntArray, IntArray]:
+    """:func:`trapped`, and where the entries of the kept choices went: their positions
+    in *mdp*'s transitions and in the trapped MDP's (a kept choice keeps its entries in
+    their order, so the exact engine carries their rationals over; a trapped choice has
+    one entry, its self-loop, probability 1)."""
     caught = traps[mdp.choice_owner]
-    rows = sp.csr_matrix(mdp.transitions)
-    loops = sp.csr_matrix((np.ones(mdp.num_choices), (np.arange(mdp.num_choices),
-                                                      mdp.choice_owner)), shape=rows.shape)
-    keep = sp.diags((~caught).astype(np.float64))
-    transitions = sp.csr_matrix(keep @ rows + sp.diags(caught.astype(np.float64)) @ loops)
-    transitions.eliminate_zeros()
+    old = sp.csr_matrix(mdp.transitions)
+    lengths = np.diff(old.indptr)
+    indptr = np.zeros(mdp.num_choices + 1, dtype=np.int64)
+    np.cumsum(np.where(caught, 1, lengths), out=indptr[1:])
+    kept = np.flatnonzero(np.repeat(~caught, lengths))  # (old positions)
+    owner = np.repeat(np.arange(mdp.num_choices), lengths)[kept]
+    at = indptr[owner] + (kept - old.indptr[owner])
+    indices = np.empty(int(indptr[-1]), dtype=old.indices.dtype)
+    data = np.ones(int(indptr[-1]))
+    indices[at], data[at] = old.indices[kept], old.data[kept]
+    indices[indptr[:-1][caught]] = mdp.choice_owner[caught]
+    transitions = sp.csr_matrix((data, indices, indptr), shape=old.shape)
     return MDP(transitions, mdp.row_groups, mdp.initial, labels=mdp.labels,
                choice_actions=mdp.choice_actions, actions=mdp.actions, rewards=mdp.rewards,
                states=mdp.states, variable_names=mdp.variable_names,
-               deadlocks=mdp.deadlocks)
+               deadlocks=mdp.deadlocks), kept, at

@@ -16,10 +16,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
 from gmpy2 import mpq
 
 from veribattery._types import BoolArray, FloatArray
+from veribattery.checker.mdp.cosafe import trapped_entries
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.checker.mdp.model import MDP
 from veribattery.checker.mdp.optimum import Equations, Problem, approximate
@@ -90,36 +90,14 @@ def exact_reach_reward(mdp: MDP, rewards: ObjectArray, target: BoolArray, *,
 def exact_until_reward(mdp: MDP, rewards: ObjectArray, remain: BoolArray, target: BoolArray,
                        *, objective: Objective, probabilities: ObjectArray) -> ExactMdpResult:
     """Rmin or Rmax of the co-safe ``remain U target`` in rationals: ``R [ F target ]``
-    with the states of neither trapped (:mod:`~veribattery.checker.mdp.cosafe`, where
-    the float engine does the same)."""
-    trapped, exact = _trapped_exactly(mdp, ~remain & ~target, probabilities)
+    with the states of neither trapped, as the float engine solves it
+    (:func:`~veribattery.checker.mdp.cosafe.trapped_entries`), the kept entries' exact
+    probabilities carried over."""
+    trapped, old, new = trapped_entries(mdp, ~remain & ~target)
+    exact = np.full(trapped.transitions.nnz, _ONE, dtype=object)
+    exact[new] = probabilities[old]
     return exact_reach_reward(trapped, rewards, target, objective=objective,
                               probabilities=exact)
-
-
-def _trapped_exactly(mdp: MDP, traps: BoolArray,
-                     probabilities: ObjectArray) -> tuple[MDP, ObjectArray]:
-    """*mdp* with every choice of a state in *traps* a self-loop, and the exact
-    probability of each entry: a kept choice keeps its entries in their order (and their
-    *probabilities*, given in *mdp*'s CSR order), a trapped one has one entry, 1."""
-    caught = traps[mdp.choice_owner]
-    old = sp.csr_matrix(mdp.transitions)
-    lengths = np.diff(old.indptr)
-    indptr = np.zeros(mdp.num_choices + 1, dtype=np.int64)
-    np.cumsum(np.where(caught, 1, lengths), out=indptr[1:])
-    kept = np.repeat(~caught, lengths)  # (per old entry)
-    owner = np.repeat(np.arange(mdp.num_choices), lengths)[kept]
-    at = indptr[owner] + (np.flatnonzero(kept) - old.indptr[owner])
-    size = int(indptr[-1])
-    indices, data = np.empty(size, dtype=old.indices.dtype), np.ones(size)
-    exact = np.full(size, _ONE, dtype=object)
-    indices[at], data[at], exact[at] = old.indices[kept], old.data[kept], probabilities[kept]
-    indices[indptr[:-1][caught]] = mdp.choice_owner[caught]
-    transitions = sp.csr_matrix((data, indices, indptr), shape=old.shape)
-    return MDP(transitions, mdp.row_groups, mdp.initial, labels=mdp.labels,
-               choice_actions=mdp.choice_actions, actions=mdp.actions, rewards=mdp.rewards,
-               states=mdp.states, variable_names=mdp.variable_names,
-               deadlocks=mdp.deadlocks), exact
 
 
 def exact_total_reward(mdp: MDP, rewards: ObjectArray, *, objective: Objective,
