@@ -132,21 +132,8 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str, *,
         message, (line, col) = unsupported_type(declared[0]), declared[1]
     elif isinstance(exc, UnexpectedCharacters):
         message = f"unexpected character '{exc.char}'"
-    elif isinstance(exc, UnexpectedToken) and (callee := _unknown_call(exc, text)):
-        message = (f"unknown function '{callee}' (PRISM's functions: "
-                   f"{', '.join(sorted(FUNCTIONS))}; and filter(...))")
-    elif isinstance(exc, UnexpectedToken) and _unbounded_int(exc, text):
-        message = ("an unbounded int variable is not supported (PRISM simulates them "
-                   "only): give it a range, name : [low..high]")
-    elif isinstance(exc, UnexpectedToken) and (storm := _storm_reward_bounds(exc, text)):
-        message = storm
-    elif isinstance(exc, UnexpectedToken) and str(exc.token) == "system":
-        message = ("a system ... endsystem block (PRISM's process-algebra composition) is "
-                   "not supported; without it every module runs in parallel, synchronising "
-                   "on shared actions (PRISM's default, the same as M1 || M2 || ...)")
-    elif isinstance(exc, UnexpectedToken) and _opens_interval(exc, text):
-        message = ("an interval probability ([low,high]:update) makes an interval model "
-                   "(IDTMC, IMDP), which veribattery does not support")
+    elif isinstance(exc, UnexpectedToken) and (named := _named(exc, text)) is not None:
+        message = named
     elif isinstance(exc, UnexpectedToken) and exc.token.type != "$END":
         message = f"unexpected token '{exc.token}' (expected {_expected(set(exc.expected))})"
         if (temporal := _after_temporal(exc, text)) is not None:
@@ -163,15 +150,46 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str, *,
     return PrismSyntaxError(message + _caret(text, line, col), Span(line, col, source))
 
 
-
-
-def _unknown_call(exc: UnexpectedInput, text: str) -> str | None:
-    """The name *exc* shows being called though no function has it: ``flor(`` at the
-    ``(``, or ``fiter(forall, ...)`` at a token inside the parentheses."""
+def _token(exc: UnexpectedInput) -> tuple[str, int] | None:
+    """*exc*'s token and its position in the text, where it has both."""
     token = getattr(exc, "token", None)
     if token is None or token.start_pos is None:
         return None
-    opening = token.start_pos if str(token) == "(" else _unclosed_paren(text, token.start_pos)
+    return str(token), int(token.start_pos)
+
+
+def _named(exc: UnexpectedInput, text: str) -> str | None:
+    """What *exc*'s token shows the text to be, where it is something veribattery
+    refuses by name (an unknown function, an unbounded int, Storm's reward bounds, a
+    system block, an interval probability), else None."""
+    found = _token(exc)
+    if found is None:
+        return None
+    word, at = found
+    if (callee := _unknown_call(word, at, text)) is not None:
+        return (f"unknown function '{callee}' (PRISM's functions: "
+                f"{', '.join(sorted(FUNCTIONS))}; and filter(...))")
+    before = text[:at].rstrip()
+    if word == "int" and before.endswith(":"):
+        return ("an unbounded int variable is not supported (PRISM simulates them only): "
+                "give it a range, name : [low..high]")
+    if (storm := _storm_reward_bounds(word, text[:at])) is not None:
+        return storm
+    if word == "system":
+        return ("a system ... endsystem block (PRISM's process-algebra composition) is not "
+                "supported; without it every module runs in parallel, synchronising on "
+                "shared actions (PRISM's default, the same as M1 || M2 || ...)")
+    if word == "[" and before.endswith(("->", "+")):  # where an update's probability starts
+        return ("an interval probability ([low,high]:update) makes an interval model "
+                "(IDTMC, IMDP), which veribattery does not support")
+    return None
+
+
+def _unknown_call(word: str, at: int, text: str) -> str | None:
+    """The name shown being called though no function has it: ``flor(`` at the ``(``
+    (the token *word* at *at*), or ``fiter(forall, ...)`` at a token inside the
+    parentheses."""
+    opening = at if word == "(" else _unclosed_paren(text, at)
     if opening is None:
         return None
     name = re.search(r"([A-Za-z_]\w*)[ \t]*$", text[:opening])
@@ -198,10 +216,10 @@ def _unclosed_paren(text: str, end: int) -> int | None:
 def _after_temporal(exc: UnexpectedInput, text: str) -> str | None:
     """The temporal operator (``X``, ``F``, ``G``) written just before *exc*'s token, as
     in ``F a & X "done"``, where the parser took it for a name."""
-    token = getattr(exc, "token", None)
-    if token is None or token.start_pos is None:
+    found = _token(exc)
+    if found is None:
         return None
-    before = re.search(r"(?:^|[\s(&|!])([XFG])\s*$", text[:token.start_pos])
+    before = re.search(r"(?:^|[\s(&|!])([XFG])\s*$", text[:found[1]])
     return None if before is None else before.group(1)
 
 
@@ -210,38 +228,17 @@ _SEVERAL_BOUNDS = re.compile(r'[FU]\s*\{\s*"[^"]*"\s*\}\s*(?:<=|<|>=|>)[^,\[\]]*
 _BOUNDED_C = re.compile(r'\bC\s*\{\s*"[^"]*"\s*\}\s*$')
 
 
-def _storm_reward_bounds(exc: UnexpectedInput, text: str) -> str | None:
-    """What Storm-only reward bound *exc* stopped at, if any: several bounds on one
-    ``F`` (``F{"a"}<=3,{"b"}>1``) or a reward-bounded ``C`` (``C{"r"}<=3``)."""
-    token = getattr(exc, "token", None)
-    if token is None or token.start_pos is None:
-        return None
-    before = text[:token.start_pos]
-    if str(token) == "," and _SEVERAL_BOUNDS.search(before):
+def _storm_reward_bounds(word: str, before: str) -> str | None:
+    """What Storm-only reward bound the token *word* (after the text *before*) stopped
+    at, if any: several bounds on one ``F`` (``F{"a"}<=3,{"b"}>1``) or a reward-bounded
+    ``C`` (``C{"r"}<=3``)."""
+    if word == "," and _SEVERAL_BOUNDS.search(before):
         return ("several reward bounds on one F or U (Storm's multi-dimensional bounds) are "
                 "not supported: one bound, F{\"r\"}<=k, is")
-    if str(token) in ("<=", "<", ">=", ">") and _BOUNDED_C.search(before):
+    if word in ("<=", "<", ">=", ">") and _BOUNDED_C.search(before):
         return ("a reward-bounded C (Storm's C{\"r\"}<=k) is not supported: C<=k bounds "
                 "the steps, and R{\"r\"}=? [ C<=k ] their reward")
     return None
-
-
-def _unbounded_int(exc: UnexpectedInput, text: str) -> bool:
-    """*exc* is an ``int`` where a variable's type is declared (``x : int;``)."""
-    token = getattr(exc, "token", None)
-    if token is None or str(token) != "int" or token.start_pos is None:
-        return False
-    return text[:token.start_pos].rstrip().endswith(":")
-
-
-def _opens_interval(exc: UnexpectedInput, text: str) -> bool:
-    """*exc* is a ``[`` where an update's probability starts (after ``->`` or ``+``):
-    PRISM's interval probabilities."""
-    token = getattr(exc, "token", None)
-    if token is None or str(token) != "[" or token.start_pos is None:
-        return False
-    before = text[:token.start_pos].rstrip()
-    return before.endswith(("->", "+"))
 
 
 def _declared_type(text: str) -> tuple[str, tuple[int, int]] | None:
