@@ -60,8 +60,9 @@ from veribattery.lang.property_rules import (
 
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
 _MDP_TYPES = frozenset({"mdp", "nondeterministic"})
-#: The other model types of PRISM and PRISM-games, refused by name (the grammar reads
-#: only those of its first line; the parser's error path names the rest).
+#: The other model types of PRISM and PRISM-games, refused by name: the grammar reads
+#: ctmc, stochastic, pta, ctmdp and smg (:func:`_model_type` refuses them), and for the
+#: rest, which do not parse, the parser's error path names the type.
 OTHER_MODEL_TYPES = frozenset({"ctmc", "stochastic", "ctmdp", "pta", "pomdp", "popta", "lts",
                                "smg", "csg", "tsg", "tptg"})
 

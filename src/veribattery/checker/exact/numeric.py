@@ -91,9 +91,8 @@ def _until(model: ExactDTMC, workspace: Workspace, remain: BoolArray, target: Bo
            bound: TimeBound | TimeInterval | None) -> ObjectArray:
     if bound is None:
         return until_probs(model, workspace, remain, target)
-    for end in (bound.low, bound.high) if isinstance(bound, TimeInterval) else (bound.value,):
-        exact_step_bound(end)  # (CheckError beyond the exact engines' limit)
-    low, high = step_interval(bound)  # U[a,b], U=k: remain for a steps, then U<=b-a
+    # U[a,b] (and U=k, U>=k): remain for a steps, then U<=b-a (U, where b is unbounded)
+    low, high = step_interval(bound, exact_step_bound)
     zero = indicator(np.zeros_like(target))
     if high is not None and high < low:
         return zero

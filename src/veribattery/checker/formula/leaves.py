@@ -100,11 +100,17 @@ def _condition_name(condition: Expr) -> str:
     return f"after || (at {condition.span})"
 
 
-def step_interval(bound: TimeBound | TimeInterval) -> tuple[int, int | None]:
-    """The steps ``[low, high]`` (``high`` None: unbounded) at which the target counts."""
+def step_interval(bound: TimeBound | TimeInterval,
+                  read: Callable[[Expr], int] | None = None) -> tuple[int, int | None]:
+    """The steps ``[low, high]`` (``high`` None: unbounded) at which the target counts.
+
+    :param read: reads each step bound (default :func:`step_bound`; the exact engines
+        pass :func:`exact_step_bound`, which also holds them to their limit).
+    """
+    read = step_bound if read is None else read
     if isinstance(bound, TimeInterval):
-        return step_bound(bound.low), step_bound(bound.high)
-    k = step_bound(bound.value)
+        return read(bound.low), read(bound.high)
+    k = read(bound.value)
     match bound.op:
         case "<=":
             return 0, k
