@@ -111,3 +111,16 @@ print(os.environ["PYDANTIC_DISABLE_PLUGINS"])
         done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                               check=True, env=env)
         assert done.stdout.strip() == expected
+
+
+def test_start_process_collects_the_youngest_generation_less_often() -> None:
+    script = """
+import gc
+gc.set_threshold(700, 11, 12)
+from veribattery._startup import YOUNG_COLLECTION_EVERY, start_process
+start_process()
+print(gc.get_threshold() == (YOUNG_COLLECTION_EVERY, 11, 12), YOUNG_COLLECTION_EVERY > 700)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.split() == ["True", "True"]

@@ -161,3 +161,20 @@ def test_fused_layers_with_tabulated_and_failing_divisions() -> None:
     starts = [int(layer.rows[0]) for layer in layers] + [states.shape[0]]
     for low, high in itertools.pairwise(starts):
         assert plan.expand(states[low:high], set()) is not None
+
+
+def test_a_chain_over_one_variable_is_one_table_not_one_per_level() -> None:
+    """A route's ``k=0 ? 4 : k=1 ? 3 : ...`` is tabulated from the top: its sub-chains,
+    over the same variable, get no tables of their own (a 250 x 250 farm's formulas held
+    one table over the whole route per level: 9 GB), and the values are the row-wise
+    ones on every valuation."""
+    levels = 300
+    values = [(7 * level) % 11 for level in range(levels)]
+    text = " : ".join(f"k={level} ? {value}" for level, value in enumerate(values)) + " : -1"
+    cache = CompileCache()
+    fn = compile_expr(expr(text), ("k",), ranges={"k": (0, levels)}, cache=cache)
+    states = np.arange(levels + 1, dtype=np.int64)[:, None]
+    np.testing.assert_array_equal(fn(states), [*values, -1])
+    assert len(cache.nodes) == 1  # the chain's own table; its levels are row-wise nodes
+    row_wise = compile_expr(expr(text), ("k",), cache=CompileCache())
+    assert row_wise(states).tobytes() == fn(states).tobytes()

@@ -137,7 +137,7 @@ class LookupBuilder:
 
     def _tabulated(self, expr: Expr) -> tuple[np.ndarray, dict[int, int], int] | None:
         """*expr*'s table, its variables' strides by column and its offset, or None."""
-        names = sorted(variables_of(expr), key=self._names.index)
+        names = sorted(variables_of(expr, self._keys), key=self._names.index)
         if any(n not in self._ranges for n in names):
             return None
         lows = [self._ranges[n][0] for n in names]

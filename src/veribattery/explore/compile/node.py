@@ -50,7 +50,6 @@ class Node:
     labels: bool = False  # reads label masks (aligned with all rows: no row subsets)
     link: Link | None = None  # how the value follows from its deepest operand's
     spine: int = 0  # links in a row down from here: evaluated in a loop from SPINE_LIMIT
-    plain: Fn | None = None  # *fn* without its memo (tables are made with it)
     double: bool = False  # PRISM type double (else int or bool)
     noisy: bool = False  # evaluates an operand that may be infinite or NaN (numpy warns)
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any
@@ -10,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from veribattery._types import IntArray
-from veribattery.explore.compile.node import CompileCache, Fn, Node, memoised
+from veribattery.explore.compile.node import CompileCache, Fn, memoised
 from veribattery.explore.compile.shape import cached_shape
 from veribattery.lang.nodes import (
     BoolLit,
@@ -26,7 +25,6 @@ __all__ = [
     "narrowed",
     "table_lookup",
     "valuation_grid",
-    "without_memo",
     "worth_tabulating",
 ]
 
@@ -54,10 +52,6 @@ def worth_tabulating(
         return False
     valuations = math.prod(ranges[n][1] - ranges[n][0] + 1 for n in names)
     return valuations <= TABLE_LIMIT and size > 2 * len(names) + 1
-
-
-def without_memo(node: Node) -> Node:
-    return node if node.plain is None else dataclasses.replace(node, fn=node.plain)
 
 
 #: Narrower types a table may be stored in, tried in order, by kind of its values.
