@@ -50,6 +50,7 @@ class Node:
     labels: bool = False  # reads label masks (aligned with all rows: no row subsets)
     link: Link | None = None  # how the value follows from its deepest operand's
     spine: int = 0  # links in a row down from here: evaluated in a loop from SPINE_LIMIT
+    size: int = 1  # operations per row, at most (capped): what evaluating it costs
     double: bool = False  # PRISM type double (else int or bool)
     noisy: bool = False  # evaluates an operand that may be infinite or NaN (numpy warns)
 

@@ -48,6 +48,7 @@ def lift(
         link or _operand_link(op, args),
         risky=risky or any(a.risky for a in args),
         labels=any(a.labels for a in args),
+        size=_size_of(args),
     )
 
 
@@ -72,13 +73,22 @@ def _operand_link(op: Callable[..., Any], args: Sequence[Node]) -> Link:
     return Link(args[0], same_rows, _rest_applied(op, [a.fn for a in args[1:]]))
 
 
-def _made(fn: Fn, link: Link, risky: bool, labels: bool) -> Node:
+def _made(fn: Fn, link: Link, risky: bool, labels: bool, size: int) -> Node:
     """The node made by *link* (evaluated by *fn*, or in a loop deep down a chain)."""
     below = cast(Node, link.below)
     spine = below.spine + 1
     if spine >= SPINE_LIMIT:
         fn = unrolled(link)
-    return Node(fn=fn, risky=risky, labels=labels, link=link, spine=spine)
+    return Node(fn=fn, risky=risky, labels=labels, link=link, spine=spine, size=size)
+
+
+#: :attr:`Node.size` stops growing here (shared sub-trees count once per use).
+_SIZE_CAP = 1 << 30
+
+
+def _size_of(operands: Sequence[Node]) -> int:
+    """The size of an operation over *operands*."""
+    return min(_SIZE_CAP, 1 + sum(operand.size for operand in operands))
 
 
 def _applied(op: Callable[..., Any], fns: Sequence[Fn]) -> Fn:
@@ -112,6 +122,10 @@ def binary_node(expr: Binary, left: Node, right: Node) -> Node:
         return _logical(op, left, right, size_at_least(expr.right, _SKIP_SIZE))
     return lift(arrays.BINARY[op], [left, right])
 
+
+#: A ``? :`` branch of at least this many operations per row is evaluated only on the
+#: rows that pick it (:func:`ite_node`).
+LARGE_BRANCH = 16
 
 #: Right operands of ``&``/``|`` with at least this many nodes are skipped when the
 #: left operand alone decides every row (see ``_skipping``).
@@ -159,7 +173,7 @@ def _logical(op: str, left: Node, right: Node, big: bool = False) -> Node:
     link = (Link(right, descend, fill) if right.spine > left.spine
             else Link(left, same_rows, rest))
     return _made(lambda states: rest(states, lfn(states)), link,
-                 risky=True, labels=left.labels)
+                 risky=True, labels=left.labels, size=_size_of((left, right)))
 
 
 def _skipping(combine: Callable[..., Any], decided_value: bool, left: Node, right: Node) -> Node:
@@ -188,18 +202,27 @@ def _skipping(combine: Callable[..., Any], decided_value: bool, left: Node, righ
     link = (Link(right, descend, combine) if right.spine > left.spine
             else Link(left, same_rows, rest))
     return _made(lambda states: rest(states, lfn(states)), link,
-                 risky=left.risky or right.risky, labels=left.labels or right.labels)
+                 risky=left.risky or right.risky, labels=left.labels or right.labels,
+                 size=_size_of((left, right)))
 
 
 def ite_node(cond: Node, then: Node, otherwise: Node) -> Node:
     """``cond ? then : otherwise``, linked through the branch that heads the longer
-    chain (usually *otherwise*: ``c1 ? v1 : c2 ? v2 : ...``)."""
+    chain (usually *otherwise*: ``c1 ? v1 : c2 ? v2 : ...``).
+
+    Each branch is evaluated on the rows that pick it where one is risky or either is
+    large (:data:`LARGE_BRANCH`); else both on every row (``np.where``), which costs
+    less than splitting the rows for a few operations but evaluated the whole of a
+    route's balanced ``k<=m ? (...) : (...)`` tree on every row.
+    """
     if cond.is_const:
         chosen, other = (then, otherwise) if bool(cond.const) else (otherwise, then)
         if other.double and not chosen.double:  # an int branch of a double ``? :``
             return lift(_as_double, [chosen])
         return chosen
-    if not (then.subsettable or otherwise.subsettable):
+    large = (max(then.size, otherwise.size) >= LARGE_BRANCH
+             and not (then.labels or otherwise.labels))
+    if not (then.subsettable or otherwise.subsettable or large):
         return lift(np.where, [cond, then, otherwise], link=_both_link(cond, then, otherwise))
     cfn, tfn, ofn = cond.fn, then.fn, otherwise.fn
 
@@ -223,7 +246,8 @@ def ite_node(cond: Node, then: Node, otherwise: Node) -> Node:
                     lambda kept, high: _merged(kept[0], high, ofn(kept[1][~kept[0]])))
     else:
         link = Link(otherwise, to_otherwise, lambda kept, low: _merged(kept[0], kept[1], low))
-    return _made(evaluate, link, risky=True, labels=cond.labels)
+    return _made(evaluate, link, risky=cond.risky or then.risky or otherwise.risky,
+                 labels=cond.labels, size=_size_of((cond, then, otherwise)))
 
 
 def _both_link(cond: Node, then: Node, otherwise: Node) -> Link:
