@@ -168,3 +168,11 @@ def test_path_table_names_a_reward_apart_from_its_variable() -> None:
     header, rows = path_table(chain, sim.paths)
     assert header == ["run", "action", "step", "rc", "reward_rc"]
     assert [row[3:] for row in rows] == [[0, 1.0], [1, 0.0]]
+
+
+def test_a_skipped_property_is_named_in_the_property_language() -> None:
+    prop = parse_property('R{"r"}=? [ F "bad" || F "good" ]')
+    sim = simulate(_loop(), [prop], runs=10)
+    assert sim.estimates == ()
+    assert "a conditional expectation (F a || F b) is not simulated" in sim.skipped[0]
+    assert "ConditionalReach" not in sim.skipped[0]

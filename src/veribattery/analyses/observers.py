@@ -132,7 +132,7 @@ def _path_observer(dtmc: DTMC, op: ProbOp, runs: int, *, workspace: Workspace) -
             escape = _until(dtmc, everywhere, avoid, bound, runs, workspace=workspace)
             escape.negate = True
             return escape
-    raise CheckError(f"{type(op.path).__name__} is not simulated")
+    raise _not_simulated(op.path)
 
 
 def _until(dtmc: DTMC, remain: BoolArray, target: BoolArray,
@@ -180,4 +180,19 @@ def _reward_observer(dtmc: DTMC, op: RewardOp, runs: int, *,
         case Instantaneous(time=time):
             return Observer(runs, nothing, nothing, horizon=_steps(time),
                             reward=structure.state, instantaneous=True)
-    raise CheckError(f"{type(op.path).__name__} is not simulated")
+    raise _not_simulated(op.path)
+
+
+#: The paths a run cannot be followed through, in the property language's words.
+_PATH_WORDS = {
+    "WeakUntil": "weak until (W)", "Release": "release (R)",
+    "RewardBounded": "a reward-bounded F or U", "Conditional": "a conditional probability (||)",
+    "Total": "a total reward (C)", "LongRun": "a long-run average reward (S)",
+    "ReachUntil": "a reward until (a U b)", "ReachNext": "a reward of the next step (X)",
+    "ConditionalReach": "a conditional expectation (F a || F b)",
+}
+
+
+def _not_simulated(path: object) -> CheckError:
+    kind = _PATH_WORDS.get(type(path).__name__, "this path formula")
+    return CheckError(f"{kind} is not simulated")

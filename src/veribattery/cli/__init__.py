@@ -60,6 +60,9 @@ class _LazyGroup(click.Group):
             return super().main(args, prog_name, complete_var, False, **extra)
         try:
             result = super().main(args, prog_name, complete_var, False, **extra)
+        except click.exceptions.NoArgsIsHelpError as exc:  # `veribattery`, `veribattery phm`
+            click.echo(exc.ctx.get_help())  # the help asked for by giving no command
+            sys.exit(0)
         except click.UsageError as exc:
             hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
             from veribattery.cli.output import shortened

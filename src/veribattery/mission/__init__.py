@@ -29,6 +29,7 @@ from veribattery.mission.files import (
 )
 from veribattery.mission.parses import ParseCache
 from veribattery.mission.report import (
+    CAP_CONSEQUENCE,
     RECHARGE_CAP,
     RECHARGE_CAP_WARN_AT,
     MissionReport,
@@ -47,6 +48,7 @@ from veribattery.mission.session import (
 )
 
 __all__ = [
+    "CAP_CONSEQUENCE",
     "CONFIG_FILE",
     "EMITTED_FILES",
     "MODEL_FILE",

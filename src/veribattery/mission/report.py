@@ -22,8 +22,9 @@ from veribattery.lang.nodes import (
 )
 from veribattery.pipeline import ModelCheckRun
 
-__all__ = ["RECHARGE_CAP", "RECHARGE_CAP_WARN_AT", "MissionReport", "RequirementOutcome",
-           "is_conditional", "mission_report", "recharge_cap_message", "recharge_cap_property"]
+__all__ = ["CAP_CONSEQUENCE", "RECHARGE_CAP", "RECHARGE_CAP_WARN_AT", "MissionReport",
+           "RequirementOutcome", "is_conditional", "mission_report", "recharge_cap_message",
+           "recharge_cap_property"]
 
 #: The recharge-cap warning is given from this probability on: below it the cut cannot
 #: change a printed (6 significant digit) result (model-spec.md, Battery ``oob`` row).
@@ -134,10 +135,16 @@ def _recharge_cap_warning(probability: float, cfg: MissionConfig) -> tuple[str, 
     return (recharge_cap_message(cfg.battery.max_recharges, probability),)
 
 
+#: What reaching the cap means (model-spec: ``oob`` at s=5 with k < K, rc = RC_MAX): a
+#: mission that reaches it may still finish on that battery, so P[F rc=RC_MAX], which the
+#: spec has every run report, bounds the missions cut from above.
+CAP_CONSEQUENCE = "a mission that needs another recharge then is cut (counted as a failure)"
+
+
 def recharge_cap_message(rc_max: int, probability: float, where: str = "") -> str:
     """The recharge-cap warning text (*where*: the sweep points concerned, if any)."""
     return (
         f"the recharge cap battery.max_recharges={rc_max} is reached with probability "
-        f"{probability:.6g}{where}; those missions are cut (counted as failures)"
+        f"{probability:.6g}{where}; " + CAP_CONSEQUENCE
     )
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
-from veribattery.mission import RECHARGE_CAP_WARN_AT
+from veribattery.mission import CAP_CONSEQUENCE, RECHARGE_CAP_WARN_AT
 from veribattery.sweep.grid import Point, yaml_text
 from veribattery.sweep.tasks import PointResult
 
@@ -45,8 +45,7 @@ def _recharge_cap(frame: pd.DataFrame, points: Sequence[Point]) -> tuple[str, ..
     where = _where([points[int(i)] for i in cut.index], len(points))
     return (
         f"the recharge cap (battery.max_recharges) is reached with probability up to "
-        f"{float(cut[worst]):.6g} (at {_describe(points[worst])}); {where}; those missions "
-        "are cut (counted as failures)",
+        f"{float(cut[worst]):.6g} (at {_describe(points[worst])}); {where}; {CAP_CONSEQUENCE}",
     )
 
 
