@@ -42,6 +42,9 @@ FILES: dict[str, bytes] = {
     "cycles_no_column.csv": b"cycle,capacity\n0,11\n10,10.9\n",
     "cycles_not_number.csv": b"cycle,capacity_ah\n0,11\n10,ten\n",
     "discharge.csv": b"soc,voltage_v\n1,4.2\n0.5,3.7\n0,3.0\n",
+    "dup_names.props": b'"a": P=? [ F "two" ];\n"b": P=? [ F s=1 ];\n"a": P>0.5 [ F s=1 ];\n',
+    "walk.nm": b"mdp\nmodule m\n  s : [0..2] init 0;\n  [go] s<2 -> (s'=s+1);\n"
+               b"  [stay] s<2 -> true;\n  [] s=2 -> true;\nendmodule\nlabel \"two\" = s=2;\n",
     "existing.png": b"not really a png",
     "existing.csv": b"a,b\n",
     "existing.html": b"<p>my notes</p>\n",
@@ -101,6 +104,13 @@ CASES: list[tuple[str, list[str]]] = [
     ("prism-bad-label", ["prism", "die.pm", "--props", "bad_props.props"]),
     ("prism-property-syntax", ["prism", "die.pm", "--property", "P=? [ F "]),
     ("prism-index", ["prism", "die.pm", "--props", "die.props", "--property", "7"]),
+    ("prism-index-negative", ["prism", "die.pm", "--props", "die.props", "--property", "-1"]),
+    ("prism-duplicate-name", ["prism", "die.pm", "--props", "dup_names.props"]),
+    ("prism-export-same-path", ["prism", "walk.nm", "--property", 'Pmax=? [ F "two" ]',
+                                "--export-strategy", "x.json", "--export-induced", "x.json"]),
+    ("prism-export-conditional", ["prism", "walk.nm", "--property",
+                                  'Pmax=? [ F "two" || F s=1 ]', "--export-strategy", "s.txt"]),
+    ("prism-explain-mdp", ["prism", "walk.nm", "--explain", "two"]),
     ("prism-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--const", "N"]),
     ("prism-unknown-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
                              "--const", "N=3"]),
@@ -258,3 +268,17 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     (line,) = result.stderr.strip().splitlines()
     assert line.startswith("error: ") and len(line) < 1_100
     assert " characters) … " in line
+
+
+@pytest.mark.parametrize(("name", "says"), [
+    ("prism-index-negative", "there is no property -1 in die.props (it has 1 properties)"),
+    ("prism-duplicate-name", 'dup_names.props:3:1: duplicate name "a": a property here and '
+                             "a property at dup_names.props:1:1"),
+    ("prism-export-same-path", "--export-strategy x.json is --export-induced's folder"),
+    ("prism-export-conditional", "no strategy: conditional probabilities"),
+    ("prism-explain-mdp", "this is an MDP: this analysis follows a DTMC's runs"),
+])
+def test_the_line_says_what_is_wrong(workdir: Path, name: str, says: str) -> None:
+    [args] = [c[1] for c in CASES if c[0] == name]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2 and says in result.stderr, result.stderr

@@ -62,6 +62,11 @@ def check_strategy_options(options: Mapping[str, Any]) -> None:
 
         check_output_dir(induced_dir, "--export-induced", force=options["force"],
                          names=(INDUCED_MODEL, INDUCED_PROPERTIES))
+        induced = {induced_dir.resolve(), *((induced_dir / name).resolve()
+                                            for name in (INDUCED_MODEL, INDUCED_PROPERTIES))}
+        if strategy_file is not None and strategy_file.resolve() in induced:
+            raise OptionError(f"--export-strategy {strategy_file} is --export-induced's "
+                              "folder or one of its files: name the strategy file elsewhere")
 
 
 def hopeless_export_check(options: Mapping[str, Any]

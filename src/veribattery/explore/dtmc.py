@@ -22,8 +22,9 @@ def require_dtmc(model_type: str) -> None:
     """
     if model_type != "dtmc":
         raise PrismSemanticError(
-            f"this is an {model_type.upper()}: only 'veribattery prism' checks MDPs "
-            "(DTMC analyses need a 'dtmc' model)")
+            f"this is an {model_type.upper()}: this analysis follows a DTMC's runs and "
+            "needs a 'dtmc' model (an MDP's properties are checked by 'veribattery prism' "
+            "without --explain or --simulate)")
 
 
 def _all_plus_zero(values: FloatArray) -> bool:

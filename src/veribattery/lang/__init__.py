@@ -48,7 +48,12 @@ from veribattery.lang.nodes import (
     Variable,
 )
 from veribattery.lang.parser import parse_model, parse_properties, parse_property
-from veribattery.lang.properties import resolve_property, select_properties, with_used_rewards
+from veribattery.lang.properties import (
+    is_index,
+    resolve_property,
+    select_properties,
+    with_used_rewards,
+)
 from veribattery.lang.semantics import flatten_model, undefined_constants
 
 __all__ = [
@@ -92,6 +97,7 @@ __all__ = [
     "VarDecl",
     "Variable",
     "flatten_model",
+    "is_index",
     "parse_constant_assignments",
     "parse_model",
     "parse_properties",

@@ -37,6 +37,12 @@ from veribattery.lang.semantics import BUILTIN_LABELS, check_unique
 from veribattery.lang.typecheck import TypeEnv, type_of
 
 
+def is_index(selector: str) -> bool:
+    """Whether *selector* reads as a property index (``3``; ``-1`` too, which is out of
+    range: with a properties file a bare integer picks, it is not a constant property)."""
+    return selector.removeprefix("-").isdigit()
+
+
 def select_properties(props: PropertiesFile, selector: str) -> tuple[Property, ...]:
     """The properties picked by *selector*: a 1-based index (as PRISM's ``-prop``), a
     property name, or several of these separated by commas.
@@ -48,7 +54,7 @@ def select_properties(props: PropertiesFile, selector: str) -> tuple[Property, .
 
 def _select_one(props: PropertiesFile, selector: str) -> Property:
     count = len(props.properties)
-    if selector.isdigit():
+    if is_index(selector):
         index = int(selector)
         if not 1 <= index <= count:
             raise PrismSemanticError(

@@ -295,15 +295,31 @@ class ToNodes(PropertyRules):
         return Property(formula, name, text, span)
 
     def start_props(self, meta: Meta, children: list[Any]) -> PropertiesFile:
+        labels = tuple(c for c in children if isinstance(c, LabelDecl))
+        properties = tuple(c for c in children if isinstance(c, Property))
+        _check_quoted_names(labels, properties)
         return PropertiesFile(
-            tuple(c for c in children if isinstance(c, ConstDecl)),
-            tuple(c for c in children if isinstance(c, LabelDecl)),
-            tuple(c for c in children if isinstance(c, Property)),
+            tuple(c for c in children if isinstance(c, ConstDecl)), labels, properties,
             self._source,
         )
 
     def start_property(self, meta: Meta, children: list[Any]) -> Property:
         return cast(Property, children[0])
+
+
+def _check_quoted_names(labels: tuple[LabelDecl, ...], properties: tuple[Property, ...]
+                        ) -> None:
+    """A property name is used once, and not as a label of the file (PRISM refuses both:
+    ``"name"`` would read either)."""
+    seen = {label.name: ("label", label.span) for label in labels}
+    for prop in properties:
+        if prop.name is None:
+            continue
+        if prop.name in seen:
+            what, span = seen[prop.name]
+            raise PrismSemanticError(f'duplicate name "{prop.name}": a property here and a '
+                                     f"{what} at {span}", prop.span)
+        seen[prop.name] = ("property", prop.span)
 
 
 def _model_type(items: list[Any], source: str) -> ModelType:

@@ -15,6 +15,7 @@ from veribattery.lang import (
     Model,
     PropertiesFile,
     Property,
+    is_index,
     parse_model,
     parse_properties,
     parse_property,
@@ -69,7 +70,7 @@ def _supported(properties: Sequence[Property]) -> tuple[tuple[Property, ...], tu
 
 
 def _select_one(props: PropertiesFile | None, selector: str) -> tuple[Property, ...]:
-    if props is not None and (selector.isdigit() or _names_property(props, selector)):
+    if props is not None and (is_index(selector) or _names_property(props, selector)):
         return select_properties(props, selector)
     return (parse_property(selector),)
 

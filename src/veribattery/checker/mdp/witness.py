@@ -13,7 +13,11 @@ from __future__ import annotations
 
 from veribattery.checker.mdp.formula import _mask, _opposite
 from veribattery.checker.mdp.model import MDP
-from veribattery.checker.mdp.operators import operator_objective, reward_structure
+from veribattery.checker.mdp.operators import (
+    CONDITIONAL_ON_MDP,
+    operator_objective,
+    reward_structure,
+)
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.rewards import reach_reward, total_reward
@@ -21,11 +25,15 @@ from veribattery.checker.mdp.strategy import Strategy
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError
 from veribattery.lang.nodes import (
+    Conditional,
+    ConditionalReach,
     Cumulative,
     Eventually,
     Expr,
     Globally,
+    Instantaneous,
     Multi,
+    Next,
     PathFormula,
     ProbOp,
     Reach,
@@ -130,7 +138,15 @@ def _reward_result(mdp: MDP, op: RewardOp, objective: Objective) -> MdpResult:
 
 
 def _step_bounded(path: object) -> NoStrategyError:
+    """Why an operator over *path* (not an unbounded F/U/G/W/R, R[F], R[C]) has no
+    memoryless strategy: mostly a step or reward bound."""
     span = getattr(path, "span", None)
+    if isinstance(path, Conditional | ConditionalReach):
+        return NoStrategyError(f"no strategy: {CONDITIONAL_ON_MDP}", span)
+    if not (isinstance(path, Next | Cumulative | Instantaneous | RewardBounded)
+            or getattr(path, "bound", None) is not None):
+        return NoStrategyError("no memoryless strategy is exported for this path: only for "
+                               "unbounded F, U, G, W, R, R[F] and R[C]", span)
     if isinstance(path, RewardBounded):
         return NoStrategyError(
             "no memoryless strategy: the objective is reward-bounded (F{\"r\"}<=T), so "
