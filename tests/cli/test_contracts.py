@@ -160,6 +160,16 @@ def test_check_failing_requirement_exits_1(tmp_path: Path) -> None:
     assert "FAIL" in result.stdout
 
 
+def test_check_csv_says_on_stderr_which_requirement_fails(tmp_path: Path) -> None:
+    config = tmp_path / "mission.yaml"
+    config.write_text("requirements: ['exp_recharges <= 0.5', 'p_success >= 0.5']\n")
+    result = run("check", str(config), *SMALL_FARM, "--format", "csv")
+    assert result.exit_code == 1
+    assert "FAIL" not in result.stdout  # stdout stays CSV
+    [line] = [line for line in result.stderr.splitlines() if "FAIL" in line]
+    assert line.startswith("FAIL exp_recharges <= 0.5 (value ")
+
+
 def test_check_csv(baseline: str) -> None:
     result = run("check", baseline, *SMALL_FARM, "--format", "csv")
     lines = result.stdout.splitlines()

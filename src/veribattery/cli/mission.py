@@ -157,6 +157,11 @@ def print_mission_csv(report: MissionReport) -> None:
     cap = repr(report.recharge_cap_probability)
     click.echo(f"recharge_cap_probability,{cap}," if with_exact
                else f"recharge_cap_probability,{cap}")
+    for outcome in report.requirements:  # stdout stays CSV: why the exit is 1, on stderr
+        if not outcome.holds:
+            verdict = "FAIL" if outcome.decided else "UNDECIDED"
+            click.echo(f"{verdict} {outcome.requirement} (value {format_value(outcome.value)})",
+                       err=True)
 
 
 @click.command("emit", short_help="Write a config's PRISM model and properties.")

@@ -76,6 +76,9 @@ def report_command(config: Path, output: Path, overrides: tuple[str, ...],
                                 notes=_note if progress is None else progress.stage)
     print_warnings(data.verdict.warnings)
     print_written(output)
+    for row in data.verdict.requirements:  # the page says so too; this is why the exit is 1
+        if not row.holds:
+            click.echo(f"{'FAIL' if row.decided else 'UNDECIDED'} {row.text}", err=True)
     sys.exit(0 if data.verdict.all_hold else 1)
 
 
