@@ -202,6 +202,15 @@ def test_check_bad_config_exits_2_and_writes_nothing(
     assert not out.exists()
 
 
+def test_check_emit_lists_the_files_it_wrote_on_stderr(tmp_path: Path, baseline: str) -> None:
+    out = tmp_path / "out"
+    result = run("check", baseline, *SMALL_FARM, "--emit", str(out))
+    assert result.exit_code == 0
+    wrote = [line for line in result.stderr.splitlines() if line.startswith("wrote ")]
+    assert sorted(wrote) == sorted(f"wrote {path}" for path in out.iterdir())
+    assert len(wrote) == 4 and "wrote" not in result.stdout
+
+
 def test_emit_writes_four_files_and_never_overwrites(tmp_path: Path, baseline: str) -> None:
     out = tmp_path / "emitted"
     result = run("emit", baseline, *SMALL_FARM, "-o", str(out))

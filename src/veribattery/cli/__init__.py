@@ -102,7 +102,8 @@ def cli() -> None:
 
     \b
     Every command follows the same rules:
-      --format table|json|csv   results on stdout (prism --json = --format json)
+      --format table|json|csv   results on stdout (csv where they are rows;
+                                prism --json = --format json)
       -o FILE|DIR               files written; never over an existing file
                                 without --force; all or nothing, no partial file
       exit status               0 ok, 1 a requirement fails, 2 bad input,

@@ -288,8 +288,7 @@ def _simulation_options(function: Callable[..., None]) -> Callable[..., None]:
                      "--paths: the old name)."),
         click.option("--path-count", default=10, show_default=True,
                      callback=counted("--path-count"), help="How many runs -o writes."),
-        click.option("--force", is_flag=True,
-                     help="Overwrite existing output files (-o; prism: --export-*)."),
+        click.option("--force", is_flag=True, help="Overwrite existing output files."),
     )):
         function = option(function)
     return function

@@ -23,6 +23,7 @@ from veribattery.cli.output import (
     print_imprecise,
     print_timings,
     print_warnings,
+    print_written,
     result_bounds,
     set_option,
     user_errors,
@@ -62,6 +63,7 @@ def check_command(
     from veribattery.config import load_config
     from veribattery.mission import EMITTED_FILES, check_mission, mission_files, write_files
 
+    written: tuple[Path, ...] = ()
     with user_errors():
         if emit_dir is not None:
             check_output_dir(emit_dir, "--emit", force=force, names=EMITTED_FILES)
@@ -70,7 +72,8 @@ def check_command(
             report = check_mission(cfg, progress=limited(progress, max_states), exact=exact,
                                    keep="answers")
         if emit_dir is not None:
-            write_files(mission_files(cfg), emit_dir, force=force)
+            written = write_files(mission_files(cfg), emit_dir, force=force)
+    print_written(*written)
     print_warnings(report.warnings)
     print_imprecise(report.run.results)
     {"table": print_mission_table, "json": print_mission_json, "csv": print_mission_csv}[

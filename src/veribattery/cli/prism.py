@@ -276,7 +276,7 @@ def print_prism_run(run: ModelCheckRun | MdpCheckRun) -> None:
     choices = f"{size['choices']:,} choices, " if "choices" in size else ""
     click.echo(
         f"Model: {size['states']:,} states, {choices}{size['transitions']:,} transitions, "
-        f"{size['initial_states']} initial, {size['deadlocks']} deadlocks"
+        f"{size['initial_states']:,} initial, {size['deadlocks']:,} deadlocks"
     )
     rows = [(_labelled(result), _shown(result)) for result in run.results]
     print_table(("property", "value"), rows)

@@ -175,7 +175,8 @@ class MemoryGuard:
     def _refusal(self, need: int, found: str, target: str) -> ModelTooLarge:
         return ModelTooLarge(
             f"model too large for the memory available: {found}; going on needs "
-            f"about {_gb(need)} more ({target}), {_gb(self._known or 0)} available")
+            f"about {_gb(need)} more ({target}), above the {_USABLE:.0%} of the "
+            f"{_gb(self._known or 0)} available that a build may plan to use")
 
 
 def _gb(size: int) -> str:
