@@ -111,6 +111,11 @@ CASES: list[tuple[str, list[str]]] = [
     ("prism-export-conditional", ["prism", "walk.nm", "--property",
                                   'Pmax=? [ F "two" || F s=1 ]', "--export-strategy", "s.txt"]),
     ("prism-explain-mdp", ["prism", "walk.nm", "--explain", "two"]),
+    ("prism-explain-and-simulate", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
+                                    "--explain", "two", "--simulate", "10"]),
+    ("prism-top-alone", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--top", "5"]),
+    ("prism-seed-alone", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--seed", "3"]),
+    ("check-force-alone", ["check", CASE1, *SMALL, "--force"]),
     ("prism-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--const", "N"]),
     ("prism-unknown-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
                              "--const", "N=3"]),
@@ -277,6 +282,10 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("prism-export-same-path", "--export-strategy x.json is --export-induced's folder"),
     ("prism-export-conditional", "no strategy: conditional probabilities"),
     ("prism-explain-mdp", "this is an MDP: this analysis follows a DTMC's runs"),
+    ("prism-explain-and-simulate", "--explain and --simulate are separate runs"),
+    ("prism-top-alone", "--top is read by --explain only"),
+    ("prism-seed-alone", "--seed is read by --simulate only"),
+    ("check-force-alone", "--force lets --emit overwrite its files"),
 ])
 def test_the_line_says_what_is_wrong(workdir: Path, name: str, says: str) -> None:
     [args] = [c[1] for c in CASES if c[0] == name]

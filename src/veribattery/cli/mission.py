@@ -30,6 +30,7 @@ from veribattery.cli.output import (
 )
 from veribattery.cli.progress import limited
 from veribattery.cli.tables import fit_text, print_table
+from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from veribattery.config import MissionConfig
@@ -67,6 +68,9 @@ def check_command(
     with user_errors():
         if emit_dir is not None:
             check_output_dir(emit_dir, "--emit", force=force, names=EMITTED_FILES)
+        elif force:
+            raise OptionError("--force lets --emit overwrite its files: give --emit DIR, or "
+                              "leave out --force")
         cfg = load_config(config, overrides)
         with build_progress(plain=True) as progress:
             report = check_mission(cfg, progress=limited(progress, max_states), exact=exact,

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
+from click.core import ParameterSource
 
 from veribattery.cli.experiments import check_experiment_options, print_experiment
 from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
@@ -99,6 +100,7 @@ def prism_command(
         if analysis["paths_file"] is not None and analysis["simulate"] is None:
             raise OptionError("-o writes the sampled paths of --simulate N: give --simulate, "
                               "or leave out -o")
+        _check_modes(analysis)
         if analysis["explain"] is not None and output_format == "csv":
             raise OptionError("--format csv: --explain prints a table or json; "
                               "use --format table or --format json")
@@ -147,6 +149,25 @@ def prism_command(
         print_prism_run(run)
     if errors:  # after the values PRISM would print (an infeasible multi's NaN, ...)
         fail(*errors)
+
+
+#: Options that only one mode of ``prism`` reads, by the mode's option.
+_MODE_OPTIONS = {"explain": ("top",), "simulate": ("seed", "max_steps", "path_count")}
+
+
+def _check_modes(analysis: dict[str, Any]) -> None:
+    """Refuse ``--explain`` with ``--simulate`` (one would be dropped), and an option of a
+    mode that is not asked for (it would be ignored)."""
+    if analysis["explain"] is not None and analysis["simulate"] is not None:
+        raise OptionError("--explain and --simulate are separate runs: give one of them")
+    context = click.get_current_context()
+    for mode, names in _MODE_OPTIONS.items():
+        for name in names:
+            given = context.get_parameter_source(name) == ParameterSource.COMMANDLINE
+            if given and analysis[mode] is None:
+                option = "--" + name.replace("_", "-")
+                raise OptionError(f"{option} is read by --{mode} only: give --{mode}, or "
+                                  f"leave out {option}")
 
 
 def _experiment(model: Path, props: Path | None, selectors: tuple[str, ...],
