@@ -45,6 +45,9 @@ FILES: dict[str, bytes] = {
     "dup_names.props": b'"a": P=? [ F "two" ];\n"b": P=? [ F s=1 ];\n"a": P>0.5 [ F s=1 ];\n',
     "walk.nm": b"mdp\nmodule m\n  s : [0..2] init 0;\n  [go] s<2 -> (s'=s+1);\n"
                b"  [stay] s<2 -> true;\n  [] s=2 -> true;\nendmodule\nlabel \"two\" = s=2;\n",
+    "no_init.pm": DIE.replace("  s : [0..2] init 0;\n", "  s : [0..2];\n").replace(
+        "endmodule\n", "endmodule\ninit s>5 endinit\n").encode(),
+    "nul.pm": DIE.replace("endmodule", "\x00endmodule").encode(),
     "existing.png": b"not really a png",
     "existing.csv": b"a,b\n",
     "existing.html": b"<p>my notes</p>\n",
@@ -116,6 +119,11 @@ CASES: list[tuple[str, list[str]]] = [
     ("prism-top-alone", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--top", "5"]),
     ("prism-seed-alone", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--seed", "3"]),
     ("check-force-alone", ["check", CASE1, *SMALL, "--force"]),
+    ("prism-init-none", ["prism", "no_init.pm", "--property", 'P=? [ F s=2 ]']),
+    ("prism-nul-byte", ["prism", "nul.pm", "--property", 'P=? [ F s=2 ]']),
+    ("distribution-coverage-nan", ["distribution", CASE1, *SMALL, "--coverage", "nan"]),
+    ("distribution-unknown-reward", ["distribution", CASE1, *SMALL, "--reward", "nosuch"]),
+    ("explain-strategy-folder", ["explain", CASE1, *SMALL, "--strategy", "a_folder.csv"]),
     ("prism-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--const", "N"]),
     ("prism-unknown-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
                              "--const", "N=3"]),
@@ -286,6 +294,11 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("prism-top-alone", "--top is read by --explain only"),
     ("prism-seed-alone", "--seed is read by --simulate only"),
     ("check-force-alone", "--force lets --emit overwrite its files"),
+    ("prism-init-none", "no_init.pm:7:6: the init block is satisfied by no state"),
+    ("prism-nul-byte", r"unexpected character '\x00'"),
+    ("distribution-coverage-nan", "--coverage must be in (0, 1], got nan"),
+    ("distribution-unknown-reward", "--reward nosuch: the mission has no reward structure"),
+    ("explain-strategy-folder", "a strategy file; a folder 'a_folder.csv'"),
 ])
 def test_the_line_says_what_is_wrong(workdir: Path, name: str, says: str) -> None:
     [args] = [c[1] for c in CASES if c[0] == name]

@@ -172,3 +172,20 @@ def test_the_strategy_view_names_the_action_taken() -> None:
     assert set(shown[~labelled].tolist()) == {"Drone"}
     with pytest.raises(ValueError, match="3 actions for 707 states"):
         StrategyView(MissionModel(cfg, induced.flat, induced.dtmc), induced.actions[:3])
+
+
+@pytest.mark.parametrize(("text", "expected"), [
+    ('{"x": 1}', "not a Storm scheduler: expected a list of entries"),
+    ('[{"s": {"x": 0}}]', 'entry 1\'s "s" has no value of s, k, j, wsp, b, rc'),
+    ('[{"c": []}]', 'entry 1 has no "s"'),
+    ("[{", "not JSON (Expecting"),
+])
+def test_a_broken_storm_scheduler_is_named_in_its_terms(tmp_path: Path, text: str,
+                                                        expected: str) -> None:
+    """Not Python's KeyError('s') or TypeError: what the file lacks, and where."""
+    broken = tmp_path / "broken.json"
+    broken.write_text(text, encoding="utf-8")
+    result = _run("explain", "--strategy", str(broken))
+    assert result.exit_code == 2
+    assert expected in result.stderr, result.stderr
+    assert "Error(" not in result.stderr

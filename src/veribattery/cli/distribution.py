@@ -21,6 +21,7 @@ from veribattery.cli.output import (
     user_errors,
 )
 from veribattery.cli.tables import print_table
+from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from veribattery.analyses.distribution import Deadline, Distribution
@@ -61,10 +62,16 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
         _, limits = parse_deadlines(working_day, deadlines)
         check_output_file(csv_path, "-o", force=force, suffixes=CSV_SUFFIXES)
         check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
+        if not 0 < coverage <= 1:  # (nan too) before the model is built
+            raise OptionError(f"--coverage must be in (0, 1], got {coverage}")
         cfg = load_config(config, overrides)
         with build_progress(plain=True) as progress:
             dtmc = (mission_dtmc(cfg, progress=progress) if strategy == "bs1"
                     else induced_mission(cfg, strategy, progress).dtmc)
+            named = [structure.name for structure in dtmc.rewards if structure.name]
+            if reward not in named:
+                raise OptionError(f"--reward {reward}: the mission has no reward structure "
+                                  f"of that name (it has {', '.join(named)})")
             if progress is not None:
                 progress.starting(f"computing the distribution of {reward!r}")
             levels = None if progress is None else (

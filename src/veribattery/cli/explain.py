@@ -84,7 +84,8 @@ STRATEGIES = ("bs1", "optimal")
 def _strategy_value(ctx: click.Context, param: click.Parameter, value: str) -> str:
     """An option callback: neither a name nor a file is bad input, on one line (exit 2)."""
     if value not in STRATEGIES and not Path(value).is_file():
-        fail(f"--strategy must be bs1, optimal or a strategy file; no file {value!r}")
+        fail(f"--strategy must be bs1, optimal or a strategy file; "
+             f"{'a folder' if Path(value).is_dir() else 'no file'} {value!r}")
     return value
 
 

@@ -123,6 +123,11 @@ def _caret(text: str, line: int, col: int) -> str:
     return f"\n  {lines[line - 1].expandtabs(1)}\n  {' ' * (col - 1)}^"
 
 
+def _shown_char(char: str) -> str:
+    """*char* quoted, a control character escaped (a NUL byte must not reach the terminal)."""
+    return f"'{char}'" if char.isprintable() else repr(char)
+
+
 def _syntax_error(exc: UnexpectedInput, text: str, source: str, *,
                   model: bool) -> PrismSyntaxError:
     from lark import UnexpectedCharacters, UnexpectedToken
@@ -131,7 +136,7 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str, *,
     if model and (declared := _declared_type(text)) is not None:  # (pomdp's observables...)
         message, (line, col) = unsupported_type(declared[0]), declared[1]
     elif isinstance(exc, UnexpectedCharacters):
-        message = f"unexpected character '{exc.char}'"
+        message = f"unexpected character {_shown_char(exc.char)}"
     elif isinstance(exc, UnexpectedToken) and (named := _named(exc, text)) is not None:
         message = named
     elif isinstance(exc, UnexpectedToken) and exc.token.type != "$END":

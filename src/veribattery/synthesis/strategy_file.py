@@ -60,13 +60,39 @@ def _prism_entries(text: str, mdp: MDP, path: Path) -> Entries:
 def _storm_entries(text: str, mdp: MDP, path: Path) -> Entries:
     try:
         entries = json.loads(text)
-        rows = [[_number(e["s"][n], path, i + 1) for n in mdp.variable_names]
-                for i, e in enumerate(entries)]
-        actions = [str((e["c"][0]["labels"] or [""])[0]) for e in entries]
-    except (ValueError, KeyError, IndexError, TypeError) as exc:
-        raise StrategyError(f"{path}: not a Storm scheduler of this model's variables "
-                            f"{', '.join(mdp.variable_names)} ({exc!r})") from exc
+    except ValueError as exc:
+        raise StrategyError(f"{path}: not JSON ({exc})") from None
+    if not isinstance(entries, list):
+        raise StrategyError(f"{path}: not a Storm scheduler: expected a list of entries "
+                            '{"s": {variable: value, ...}, "c": [{"labels": [action]}]}')
+    rows = [_storm_state(entry, mdp, path, n) for n, entry in enumerate(entries, 1)]
+    actions = [_storm_action(entry, path, n) for n, entry in enumerate(entries, 1)]
     return _table(rows, len(mdp.variable_names), path), actions
+
+
+def _storm_state(entry: object, mdp: MDP, path: Path, number: int) -> list[int]:
+    """Entry *number*'s valuation ``"s"``, in the model's variable order."""
+    state = entry.get("s") if isinstance(entry, dict) else None
+    if not isinstance(state, dict):
+        raise StrategyError(f'{path}: entry {number} has no "s" (the state\'s valuation, '
+                            '{variable: value, ...})')
+    missing = [name for name in mdp.variable_names if name not in state]
+    if missing:
+        raise StrategyError(f'{path}: entry {number}\'s "s" has no value of '
+                            f"{', '.join(missing)} (the model's variables: "
+                            f"{', '.join(mdp.variable_names)})")
+    return [_number(state[name], path, number) for name in mdp.variable_names]
+
+
+def _storm_action(entry: dict[str, object], path: Path, number: int) -> str:
+    """Entry *number*'s action: the first label of its first choice ``"c"`` ('' if none)."""
+    choices = entry.get("c")
+    first = choices[0] if isinstance(choices, list) and choices else None
+    labels = first.get("labels", None) if isinstance(first, dict) else ()
+    if not (labels is None or isinstance(labels, list)):
+        raise StrategyError(f'{path}: entry {number} has no choice "c": '
+                            '[{"labels": [action]}]')
+    return str((labels or [""])[0])
 
 
 def _number(value: object, path: Path, entry: int) -> int:

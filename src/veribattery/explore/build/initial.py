@@ -40,7 +40,8 @@ def initial_states(model: FlatModel) -> IntArray:
     found = [_satisfying(term, names, domains) for term, domains in terms]
     rows = np.concatenate(found)
     if rows.shape[0] == 0:
-        raise ModelError("the init block is satisfied by no state")
+        raise ModelError("the init block is satisfied by no state",
+                         getattr(model.init, "span", None))
     return np.unique(rows, axis=0) if len(found) > 1 else rows
 
 
