@@ -124,6 +124,7 @@ CASES: list[tuple[str, list[str]]] = [
     ("distribution-coverage-nan", ["distribution", CASE1, *SMALL, "--coverage", "nan"]),
     ("distribution-unknown-reward", ["distribution", CASE1, *SMALL, "--reward", "nosuch"]),
     ("explain-strategy-folder", ["explain", CASE1, *SMALL, "--strategy", "a_folder.csv"]),
+    ("emit-dash", ["emit", CASE1, *SMALL, "-o", "-"]),
     ("prism-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--const", "N"]),
     ("prism-unknown-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
                              "--const", "N=3"]),
@@ -299,6 +300,7 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("distribution-coverage-nan", "--coverage must be in (0, 1], got nan"),
     ("distribution-unknown-reward", "--reward nosuch: the mission has no reward structure"),
     ("explain-strategy-folder", "a strategy file; a folder 'a_folder.csv'"),
+    ("emit-dash", "-o -: writes a folder of files, not to standard output"),
 ])
 def test_the_line_says_what_is_wrong(workdir: Path, name: str, says: str) -> None:
     [args] = [c[1] for c in CASES if c[0] == name]

@@ -60,6 +60,9 @@ def check_output_dir(path: Path, option: str, *, force: bool,
     The folder itself may be new (it is created, with its parents, when writing).
     """
     where = f"{option} {path}"
+    if str(path) == "-":  # the usual name of standard output, not a folder name
+        raise OptionError(f"{where}: writes a folder of files, not to standard output; "
+                          "name a folder")
     if path.exists() and not path.is_dir():
         raise OptionError(f"{where}: is a file, not a folder")
     existing = _nearest_existing(path)

@@ -50,8 +50,8 @@ def lp_text(value: float | None) -> str:
 def print_table_output(result: SynthesisResult) -> None:
     """Sizes, the optimum beside BS1, the fastest strategies, the threshold rows."""
     size = result.size
-    click.echo(f"Model: {size.states:,} states, {size.choices:,} choices, "
-               f"{size.transitions:,} transitions (the mission as an MDP)")
+    click.echo(f"Mission MDP: {size.states:,} states, {size.choices:,} choices, "
+               f"{size.transitions:,} transitions")
     _print_comparison(result)
     if result.fastest:
         click.echo()
