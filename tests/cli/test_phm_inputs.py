@@ -206,6 +206,27 @@ def test_capacities_beyond_the_model_are_refused(tmp_path: Path, mission: Path, 
     assert files(tmp_path) == before
 
 
+@pytest.mark.parametrize("command", ["fade", "recheck"])
+@pytest.mark.parametrize(("rows", "reason"), [
+    # exp() of the log-linear start overflowed: an OverflowError traceback
+    ("1,1e308\n2,1e307\n3,1e306\n4,1e305\n", "math range error"),
+    # numpy's overflow warnings, LAPACK's "illegal value" lines, then a fit (exit 0)
+    ("0,10\n1e300,9\n2e300,8\n3e300,7\n", "overflow encountered"),
+    # cycles 1e-300 apart: numpy's divide-by-zero warnings, then "SVD did not converge"
+    ("0,10\n1e-300,9\n2e-300,8\n3e-300,7\n", "divide by zero"),
+], ids=["capacity-1e308", "cycles-1e300", "cycles-1e-300"])
+def test_fits_beyond_floating_point_are_refused(tmp_path: Path, mission: Path, command: str,
+                                                rows: str, reason: str) -> None:
+    log = tmp_path / "cycles.csv"
+    log.write_text("cycle,capacity_ah\n" + rows)
+    args = (["phm", "fade", str(log)] if command == "fade" else
+            ["recheck", str(mission), "--cycles", str(log), *SMALL])
+    before = files(tmp_path)
+    assert_one_error(run(*args), f"{log}: column 'capacity_ah' against 'cycle': no meaningful "
+                                 "fade fit", f"not computable in floating point ({reason}")
+    assert files(tmp_path) == before
+
+
 @pytest.mark.parametrize("step", ["1e-320", "0.000001", "0.0001"])
 def test_levels_soc_step_too_fine_for_the_search(step: str) -> None:
     """The best thresholds are searched over m x m grid pairs: 1e-320 overflowed (a
