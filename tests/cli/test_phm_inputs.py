@@ -227,6 +227,32 @@ def test_fits_beyond_floating_point_are_refused(tmp_path: Path, mission: Path, c
     assert files(tmp_path) == before
 
 
+def test_at_cycle_too_far_ahead_blames_the_option() -> None:
+    """The last logged row was blamed ("cycles.csv:33: row 30 ..."); the option is at fault,
+    and the error says the largest value that works, which does work."""
+    cycles = str(EXAMPLES / "cycles.csv")
+    line = assert_one_error(run("phm", "fade", cycles, "--at-cycle", "1e9"),
+                            "error: --at-cycle 1e9: too far beyond the log's last cycle 30: "
+                            "the knee fit gives capacity -1.379e+06 Ah at cycle 1e+09")
+    largest = int(line.rsplit("; the largest --at-cycle that works is ", 1)[1])
+    assert run("phm", "fade", cycles, "--at-cycle", str(largest)).exit_code == 0
+    assert_one_error(run("phm", "fade", cycles, "--at-cycle", str(largest + 1)),
+                     f"--at-cycle {largest + 1}: too far beyond")
+
+
+def test_horizon_too_far_ahead_blames_the_option(mission: Path) -> None:
+    cycles = str(EXAMPLES / "cycles.csv")
+    line = assert_one_error(run("phm", "forecast", str(mission), "--cycles", cycles,
+                                "--horizon", "10000000", *SMALL),
+                            "error: --horizon 10000000: too far beyond the log's last cycle 30: "
+                            "the knee fit gives capacity")
+    largest = int(line.rsplit("; the largest --horizon that works is ", 1)[1])
+    # The reach is the fade fit's under the config's battery: --at-cycle agrees.
+    fade = ("phm", "fade", cycles, "--config", str(mission), "--at-cycle")
+    assert run(*fade, str(30 + largest)).exit_code == 0
+    assert_one_error(run(*fade, str(31 + largest)), "too far beyond")
+
+
 @pytest.mark.parametrize("step", ["1e-320", "0.000001", "0.0001"])
 def test_levels_soc_step_too_fine_for_the_search(step: str) -> None:
     """The best thresholds are searched over m x m grid pairs: 1e-320 overflowed (a

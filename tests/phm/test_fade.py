@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.phm.helpers import cycles_csv, knee_curve
+from tests.phm.helpers import EXAMPLES, cycles_csv, knee_curve
 from veribattery.config import load_config
 from veribattery.phm.data import PhmDataError, read_cycles
 from veribattery.phm.fade import FadeFit, _aic, fit_all, fit_exponential, fit_knee, fit_linear
-from veribattery.phm.refit import fade_parameters
+from veribattery.phm.refit import BeyondDataError, fade_parameters
 
 RNG_SEED = 20190101
 
@@ -199,3 +199,29 @@ def test_exponential_refuses_capacities_without_a_logarithm(tmp_path: Path) -> N
     table.columns["capacity_ah"][-1] = 0.0  # past the reader's check: the API takes any log
     with pytest.raises(ValueError, match="needs capacities > 0"):
         fit_exponential(log)
+
+
+def test_a_cycle_too_far_ahead_says_how_far_the_fit_reaches() -> None:
+    """Past the log, a failing cycle is the caller's choice, not the data's fault: the
+    error says so and how far the fit does reach (the last logged row was blamed)."""
+    log, cfg = read_cycles(EXAMPLES / "cycles.csv"), load_config("")
+    with pytest.raises(BeyondDataError) as caught:
+        fade_parameters(log, cfg, at_cycle=1e9)
+    exc = caught.value
+    assert (exc.cycle, exc.last) == (1e9, 30.0)
+    assert exc.reason.startswith("the knee fit gives capacity -1.379e+06 Ah at cycle 1e+09")
+    assert str(exc).startswith("cycle 1e+09 is too far beyond the log's last cycle 30: ")
+    assert str(exc).endswith(f"; the fit is usable up to cycle {30 + exc.ahead}")
+    fade_parameters(log, cfg, at_cycle=exc.last + exc.ahead)  # the reach is real ...
+    with pytest.raises(BeyondDataError):
+        fade_parameters(log, cfg, at_cycle=exc.last + exc.ahead + 1)  # ... and the most
+
+
+def test_a_fade_beyond_floating_point_is_refused(tmp_path: Path) -> None:
+    """Cycles numbered from 1e15: the exponential's fade interval overflowed to (nan, nan),
+    with numpy's warnings printed; now a located error."""
+    n = 1e15 + np.arange(4.0)
+    log = read_cycles(cycles_csv(tmp_path / "c.csv", n, 10.0 - 0.1 * np.arange(4.0)))
+    with pytest.raises(PhmDataError, match=r"c\.csv:5: row 4, column 'capacity_ah': the "
+                                           r"exponential fit's fade at cycle 1e\+15 is beyond"):
+        fade_parameters(log, load_config(""), model="exponential")

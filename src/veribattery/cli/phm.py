@@ -34,9 +34,10 @@ if TYPE_CHECKING:
     from fractions import Fraction
 
     from veribattery.config import MissionConfig, Requirement
-    from veribattery.phm.data import DischargeCurve
+    from veribattery.phm.data import CycleLog, DischargeCurve
     from veribattery.phm.forecast import Forecast
     from veribattery.phm.levels import StepFit
+    from veribattery.phm.refit import BeyondDataError, FadeParameters
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -97,6 +98,27 @@ def _capacity(text: str | None) -> float | None:
                    "delivers", lambda value: value > 0)
 
 
+def _too_far(option: str, typed: str, exc: BeyondDataError,
+             largest: float | None) -> OptionError:
+    """*exc* blamed on *option*: it asks for a cycle further ahead than the fit reaches
+    (*largest*: the option's largest value that works; None: no value works)."""
+    works = (f"the largest {option} that works is {largest:.15g}" if largest is not None else
+             "the fit is usable at the log's last cycle only")
+    return OptionError(f"{option} {typed}: too far beyond the log's last cycle {exc.last:g}: "
+                       f"{exc.reason}; {works}")
+
+
+def _fade_at(log: CycleLog, cfg: MissionConfig, cycle: float | None, model: str | None,
+             typed: str | None) -> FadeParameters:
+    """:func:`fade_parameters`, a cycle too far ahead blamed on --at-cycle."""
+    from veribattery.phm.refit import BeyondDataError, fade_parameters
+
+    try:
+        return fade_parameters(log, cfg, cycle, model)
+    except BeyondDataError as exc:
+        raise _too_far("--at-cycle", typed or "", exc, exc.last + exc.ahead) from None
+
+
 def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
     """The config read for the fit: --write's (the file merged into), --config's, or the
     paper's."""
@@ -151,14 +173,13 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
                  output_format: str) -> None:
     """Fit capacity fade per cycle in CYCLES.csv (cycle,capacity_ah)."""
     from veribattery.phm.data import read_cycles
-    from veribattery.phm.refit import fade_parameters
 
     with user_errors():
         _check_plot(plot_path, force)
         cycle = _at_cycle(at_cycle)
         cfg = _base_config(config, write)
         log = read_cycles(cycles)
-        params = fade_parameters(log, cfg, cycle, model)
+        params = _fade_at(log, cfg, cycle, model, at_cycle)
         merged = _merged(write, params.fragment.values)
         if plot_path is not None:
             from veribattery.phm.plot import plot_fade
@@ -319,7 +340,6 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     """P(success) and mission time as the battery ages; when does REQUIRE stop holding?"""
     from veribattery.config import load_config
     from veribattery.phm.data import read_cycles
-    from veribattery.phm.forecast import forecast
 
     with user_errors():
         _check_plot(plot_path, force)
@@ -329,8 +349,8 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
         if time_property:
             _check_property(cfg, config, f"--time-property {time_property}", time_property)
         log = read_cycles(cycles_path)
-        result = forecast(config, log, req, horizon, step or max(1, horizon // 10), overrides,
-                          model)
+        result = _forecast(config, log, req, (horizon, step or max(1, horizon // 10)),
+                           overrides, model)
         if plot_path is not None:
             from veribattery.phm.plot import plot_forecast
 
@@ -347,6 +367,19 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     else:
         print_forecast(result, shown)
         print_figure(plot_path)
+
+
+def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, int],
+              overrides: tuple[str, ...], model: str | None) -> Forecast:
+    """:func:`forecast` over (horizon, step), an age too far ahead blamed on --horizon."""
+    from veribattery.phm.forecast import forecast
+    from veribattery.phm.refit import BeyondDataError
+
+    horizon, step = ages
+    try:
+        return forecast(config, log, req, horizon, step, overrides, model)
+    except BeyondDataError as exc:
+        raise _too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
 
 
 def _requirement(text: str) -> Requirement:
