@@ -253,6 +253,17 @@ def test_horizon_too_far_ahead_blames_the_option(mission: Path) -> None:
     assert_one_error(run(*fade, str(31 + largest)), "too far beyond")
 
 
+@pytest.mark.parametrize(("volts", "expected"), [
+    ("-25,-24.9,-20", ":2: row 1, column 'voltage_v': must be > 0, got -25 V"),
+    ("1e30,9e29,8e29", ":2: row 1, column 'voltage_v': 1e+30 V is not a plausible battery"),
+], ids=["negative", "1e30"])
+def test_levels_voltage_out_of_range(tmp_path: Path, volts: str, expected: str) -> None:
+    curve = tmp_path / "discharge.csv"
+    curve.write_text("soc,voltage_v\n" + "".join(
+        f"{soc},{v}\n" for soc, v in zip((1, 0.5, 0), volts.split(","), strict=True)))
+    assert_one_error(run("phm", "levels", str(curve)), f"{curve}{expected}")
+
+
 @pytest.mark.parametrize("step", ["1e-320", "0.000001", "0.0001"])
 def test_levels_soc_step_too_fine_for_the_search(step: str) -> None:
     """The best thresholds are searched over m x m grid pairs: 1e-320 overflowed (a
