@@ -12,6 +12,7 @@ import pytest
 import yaml
 from click.testing import CliRunner, Result
 
+from tests.cli.terminal import run_in_terminal
 from tests.phm.helpers import EXAMPLES, cycles_csv
 from veribattery.cli import cli
 
@@ -136,6 +137,41 @@ def test_forecast_cli(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert "stops holding after" in result.output
     assert png.read_bytes().startswith(PNG)
+
+
+def _forecast_args(tmp_path: Path) -> list[str]:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    cycles = np.arange(0, 51, 5.0)
+    log = cycles_csv(tmp_path / "c.csv", cycles, 8.6 - 0.032 * cycles)
+    return ["phm", "forecast", str(config), "--cycles", str(log), "--horizon", "20", "--step",
+            "10", *SMALL]
+
+
+def test_forecast_tells_each_age_on_a_pipe(tmp_path: Path,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """A forecast of the paper's farm ran 10 s without a word; in a log each age is a line
+    (from the first here: every report is a line with VERIBATTERY_PROGRESS_S=0,0)."""
+    args = _forecast_args(tmp_path)
+    quiet = run(*args)
+    assert quiet.exit_code == 0 and quiet.stderr == ""  # a short run says nothing
+    monkeypatch.setenv("VERIBATTERY_PROGRESS_S", "0,0")
+    told = run(*args)
+    assert told.exit_code == 0 and told.stdout == quiet.stdout
+    assert told.stderr.splitlines() == [
+        "checking the mission at cycle 50 (age 1 of 3)",
+        "checking the mission at cycle 60 (age 2 of 3)",
+        "checking the mission at cycle 70 (age 3 of 3)",
+        "checking the mission at cycle 55 (age 4, bisecting)",
+        "checking the mission at cycle 57 (age 5, bisecting)",
+        "checking the mission at cycle 58 (age 6, bisecting)"]
+
+
+def test_forecast_spinner_names_the_age_and_is_erased(tmp_path: Path) -> None:
+    screen = run_in_terminal(_forecast_args(tmp_path), 80, tmp_path)
+    assert screen.status == 0, screen.text
+    assert "checking the mission at cycle " in screen.drawn
+    assert "checking" not in screen.text and "stops holding after 8 more cycles" in screen.text
 
 
 def test_forecast_bad_requirement(tmp_path: Path) -> None:

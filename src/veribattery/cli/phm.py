@@ -12,6 +12,8 @@ import click
 
 from veribattery.cli.files import FIGURE_SUFFIXES, PathParam, check_output_dir, check_output_file
 from veribattery.cli.output import (
+    LiveStatus,
+    build_progress,
     print_warnings,
     set_option,
     user_errors,
@@ -28,6 +30,7 @@ from veribattery.cli.phm_output import (
     print_levels,
     print_recheck,
 )
+from veribattery.cli.progress import PlainProgress
 from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
@@ -371,15 +374,28 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
 
 def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, int],
               overrides: tuple[str, ...], model: str | None) -> Forecast:
-    """:func:`forecast` over (horizon, step), an age too far ahead blamed on --horizon."""
+    """:func:`forecast` over (horizon, step), showing the age checked on stderr; an age
+    too far ahead blamed on --horizon."""
     from veribattery.phm.forecast import forecast
     from veribattery.phm.refit import BeyondDataError
 
     horizon, step = ages
     try:
-        return forecast(config, log, req, horizon, step, overrides, model)
+        with build_progress(plain=True) as progress:
+            return forecast(config, log, req, horizon, step, overrides, model,
+                            None if progress is None else _age_stage(progress))
     except BeyondDataError as exc:
         raise _too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
+
+
+def _age_stage(progress: LiveStatus | PlainProgress) -> Callable[[int, int, float], None]:
+    """The forecast's progress: each age checked is a stage (a spinner's text, or a line)."""
+
+    def tell(number: int, grid: int, cycle: float) -> None:
+        which = f"age {number} of {grid}" if grid else f"age {number}, bisecting"
+        progress.step(f"checking the mission at cycle {cycle:g} ({which})")
+
+    return tell
 
 
 def _requirement(text: str) -> Requirement:

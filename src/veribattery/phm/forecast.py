@@ -23,8 +23,9 @@ from veribattery.phm.refit import FadeParameters, parameters_at
 
 __all__ = ["AgePoint", "Forecast", "forecast", "grid_ages"]
 
-#: Called after each checked age with (checks done, checks planned so far).
-ForecastProgress = Callable[[int, int], None]
+#: Called before each age is checked with (its number from 1, the number of grid ages or
+#: 0 for an age the bisection adds, its cycle).
+ForecastProgress = Callable[[int, int, float], None]
 
 
 @dataclass(frozen=True, slots=True)
@@ -113,13 +114,14 @@ def forecast(config: str | Path, log: CycleLog, requirement: Requirement, horizo
 
     def visit(ahead: int) -> AgePoint:
         if ahead not in points:
+            if progress is not None:
+                progress(len(points) + 1, len(ages) if ahead in ages else 0,
+                         float(log.cycle[-1]) + ahead)
             params = ager.parameters(ahead)
             values = ager.values(params.fragment)
             holds = requirement.holds(float(values[requirement.prop]))  # type: ignore[arg-type]
             points[ahead] = AgePoint(ahead, params.capacity_ah, params.fade_per_recharge,
                                      values, holds)
-            if progress is not None:
-                progress(len(points), len(ages))
         return points[ahead]
 
     for ahead in ages:
