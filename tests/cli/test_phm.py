@@ -5,6 +5,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
 from pathlib import Path
 
 import numpy as np
@@ -50,6 +51,56 @@ def test_fade_write_keeps_comments(tmp_path: Path) -> None:
     assert text == MISSION.replace("capacity_ah: 11  # as bought",
                                    "capacity_ah: 4.5  # as bought").replace(
         "  max_recharges: 50\n", "  max_recharges: 50\n  fade_per_recharge: 0.00667\n")
+
+
+def _write_args(command: str, tmp_path: Path, config: Path) -> list[str]:
+    data = "cycles.csv" if command == "fade" else "discharge.csv"
+    return ["phm", command, str(EXAMPLES / data), "--write", str(config)]
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_write_follows_a_symbolic_link(tmp_path: Path, command: str) -> None:
+    """The link was replaced by a regular file and the config it points to left as it
+    was: the user's config silently not updated."""
+    (tmp_path / "configs").mkdir()
+    real = tmp_path / "configs" / "m.yaml"
+    real.write_text(MISSION)
+    link = tmp_path / "link.yaml"
+    link.symlink_to(real)
+    result = run(*_write_args(command, tmp_path, link))
+    assert result.exit_code == 0, result.output
+    assert link.is_symlink() and link.resolve() == real
+    merged = yaml.safe_load(real.read_text())["battery"]
+    assert ("fade_per_recharge" if command == "fade" else "voltage_thresholds") in merged
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["configs", "link.yaml"]
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_write_keeps_crlf_line_endings(tmp_path: Path, command: str) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_bytes(MISSION.replace("\n", "\r\n").encode())
+    result = run(*_write_args(command, tmp_path, config))
+    assert result.exit_code == 0, result.output
+    data = config.read_bytes()
+    assert data.count(b"\n") == data.count(b"\r\n") > MISSION.count("\n")
+    assert b"# as bought\r\n" in data
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_write_refuses_a_hard_linked_config_before_any_work(tmp_path: Path,
+                                                            command: str) -> None:
+    config, other = tmp_path / "m.yaml", tmp_path / "copy.yaml"
+    config.write_text(MISSION)
+    os.link(config, other)
+    png = tmp_path / "fit.png"
+    result = run(*_write_args(command, tmp_path, config), "--plot", str(png))
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr == (f"error: --write {config}: the file has 2 hard links, and --write "
+                             "replaces it by a new file, which would split them; give a file "
+                             "with one name (a symbolic link to it is followed), or merge the "
+                             "fragment by hand\n")
+    assert config.read_text() == MISSION and os.path.samefile(config, other)
+    assert not png.exists()
 
 
 def test_fade_write_refuses_invalid_result_and_keeps_file(tmp_path: Path) -> None:

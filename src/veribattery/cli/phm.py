@@ -131,8 +131,22 @@ def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
         raise OptionError(f"--config {config} --write {write}: give one of them; --write "
                           "reads the config it merges into, so it is also the config used")
     check_output_file(write, "--write", force=True)
+    _check_links(write)
     source = write if write is not None else config
     return load_config(source) if source is not None else load_config("")
+
+
+def _check_links(write: Path | None) -> None:
+    """Before any work: --write replaces the file by a new one (all or nothing), which
+    would split a file with several hard links (the other names keep the old config)."""
+    from veribattery.phm.merge import hard_links
+
+    links = 0 if write is None else hard_links(write)
+    if links > 1:
+        raise OptionError(f"--write {write}: the file has {links} hard links, and --write "
+                          "replaces it by a new file, which would split them; give a file "
+                          "with one name (a symbolic link to it is followed), or merge the "
+                          "fragment by hand")
 
 
 def _merged(write: Path | None, values: dict[str, object]) -> str | None:

@@ -6,11 +6,12 @@ in place (its trailing comment stays), a new key is inserted after its section's
 line at the section's indentation, and a replaced section is rewritten at its own
 indentation (comments *inside* a replaced section go with the old values). The result
 is parsed again and must equal the intended data, or nothing is written; the file is
-replaced atomically.
+replaced atomically, as it was: through a symbolic link, with its mode and line endings.
 """
 
 from __future__ import annotations
 
+import errno
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -22,7 +23,7 @@ from veribattery.config import set_value
 from veribattery.phm.data import PhmDataError
 from veribattery.phm.fragment import block_yaml, to_yaml_value
 
-__all__ = ["merge_text", "write_atomic"]
+__all__ = ["hard_links", "merge_text", "write_atomic"]
 
 
 def merge_text(text: str, updates: Mapping[str, object], source: str = "<string>") -> str:
@@ -124,7 +125,28 @@ def _replace(text: str, node: yaml.Node, value: object) -> str:
     return text[:start] + to_yaml_value(value) + text[end:]
 
 
+def hard_links(path: Path) -> int:
+    """How many names the file at *path* has (a symbolic link followed; 0: no file)."""
+    return path.stat().st_nlink if path.exists() else 0
+
+
 def write_atomic(path: Path, text: str) -> None:
-    """Replace *path* by *text* atomically (temporary file + rename), keeping its mode
-    (a new file gets the mode ``open()`` would give it)."""
-    write_text(path, text)
+    """Replace the file at *path* by *text* (LF line endings) atomically, as it was.
+
+    A symbolic link is followed: its target is replaced, by a temporary file in the
+    target's folder renamed onto it (the rename replaced the link itself, and the config
+    it pointed to stayed as it was). The mode is kept, and so are CRLF line endings
+    (the text was read with universal newlines); a new file gets the mode ``open()``
+    would give it.
+
+    :raises OSError: when the file has other hard links: the rename would split them
+        from it (they would keep the old config).
+    """
+    target = path.resolve() if path.is_symlink() else path
+    links = hard_links(target)
+    if links > 1:
+        raise OSError(errno.EMLINK, f"the file has {links} hard links, and replacing it "
+                      "would split them", str(path))
+    if links and b"\r\n" in target.read_bytes():
+        text = text.replace("\r\n", "\n").replace("\n", "\r\n")
+    write_text(target, text)
