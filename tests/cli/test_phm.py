@@ -103,6 +103,24 @@ def test_write_refuses_a_hard_linked_config_before_any_work(tmp_path: Path,
     assert not png.exists()
 
 
+def test_fade_write_lists_the_file_on_stderr_and_restates_stale_comments(
+        tmp_path: Path) -> None:
+    """'merged ... into pm.yaml (comments kept)' was printed on stdout, unlike every other
+    command's 'wrote FILE' on stderr; the comment of the old fade stayed beside the new."""
+    config = tmp_path / "pm.yaml"
+    example = (EXAMPLES / "mission.yaml").read_text()
+    config.write_text(example)
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--write", str(config))
+    assert result.exit_code == 0, result.output
+    assert result.stderr == f"wrote {config}\n"
+    assert result.stdout.endswith("# YAML fragment for the mission config:\nbattery:\n"
+                                  "  capacity_ah: 9.5\n  fade_per_recharge: 0.000145\n")
+    assert config.read_text() == example.replace(
+        "capacity_ah: 11 ", "capacity_ah: 9.5 ").replace(
+        "fade_per_recharge: 0.002 # BA1 (0.2 % per recharge)",
+        "fade_per_recharge: 0.000145 # fitted by veribattery phm fade from cycles.csv")
+
+
 def test_fade_write_refuses_invalid_result_and_keeps_file(tmp_path: Path) -> None:
     config = tmp_path / "m.yaml"
     config.write_text("battery:\n  max_recharges: 200  # long missions\n")

@@ -21,7 +21,7 @@ from veribattery.cli.output import (
 from veribattery.cli.phm_output import (
     files_written,
     print_fade,
-    print_figure,
+    print_files,
     print_fits,
     print_forecast,
     print_forecast_csv,
@@ -149,14 +149,17 @@ def _check_links(write: Path | None) -> None:
                           "fragment by hand")
 
 
-def _merged(write: Path | None, values: dict[str, object]) -> str | None:
-    """The --write config with *values* merged, validated (None without --write)."""
+def _merged(write: Path | None, values: dict[str, object], command: str,
+            data: str) -> str | None:
+    """The --write config with *values* merged, validated (None without --write); a
+    replaced value's comment about the old one says they came from *command* on *data*."""
     if write is None:
         return None
     from veribattery.config import load_config
     from veribattery.phm.merge import merge_text
 
-    merged = merge_text(write.read_text(encoding="utf-8"), values, str(write))
+    note = f"fitted by veribattery phm {command} from {Path(data).name}"
+    merged = merge_text(write.read_text(encoding="utf-8"), values, str(write), note)
     load_config(merged + "\n")  # the merged config must validate before it replaces the file
     return merged
 
@@ -197,7 +200,7 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
         cfg = _base_config(config, write)
         log = read_cycles(cycles)
         params = _fade_at(log, cfg, cycle, model, at_cycle)
-        merged = _merged(write, params.fragment.values)
+        merged = _merged(write, params.fragment.values, "fade", cycles)
         if plot_path is not None:
             from veribattery.phm.plot import plot_fade
 
@@ -209,11 +212,11 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
 
         print_json({"cycles": cycles, **fade_document(params),
                      **files_written(params.fragment, plot_path, write)})
-        return
-    print_fits(params.report)
-    print_fade(params)
-    print_figure(plot_path)
-    print_fragment(params.fragment, write)
+    else:
+        print_fits(params.report)
+        print_fade(params)
+        print_fragment(params.fragment)
+    print_files(plot_path, write)
 
 
 @phm_group.command("levels", short_help="Voltage levels, SOC thresholds, consumption.")
@@ -247,7 +250,7 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
         curve = read_discharge(discharge, capacity)
         params = level_parameters(curve, cfg, step)
         paper = _config_steps(curve, cfg, step)
-        merged = _merged(write, params.fragment.values)
+        merged = _merged(write, params.fragment.values, "levels", discharge)
         if plot_path is not None:
             from veribattery.phm.plot import plot_levels
 
@@ -258,10 +261,10 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
 
         print_json({"discharge": discharge, **levels_document(params, paper),
                      **files_written(params.fragment, plot_path, write)})
-        return
-    print_levels(params, paper)
-    print_figure(plot_path)
-    print_fragment(params.fragment, write)
+    else:
+        print_levels(params, paper)
+        print_fragment(params.fragment)
+    print_files(plot_path, write)
 
 
 def _config_steps(curve: DischargeCurve, cfg: MissionConfig, step: Fraction) -> StepFit | None:
@@ -383,7 +386,7 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
         print_forecast_csv(result, shown)
     else:
         print_forecast(result, shown)
-        print_figure(plot_path)
+    print_files(plot_path)
 
 
 def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, int],
