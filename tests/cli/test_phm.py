@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -143,6 +144,28 @@ def test_fade_bad_input_one_line_exit_2(tmp_path: Path, text: str, message: str)
     assert message in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
     assert result.stdout == ""
+
+
+def test_the_docs_fade_example_is_what_the_command_prints(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """docs/commands/phm.md showed a CI of [0.0001447, 0.0001453]; the command prints
+    [0.0001448, 0.0001453]. Every line shown (but those eliding with …) is printed."""
+    command = "veribattery phm fade examples/phm/cycles.csv --plot fade.png"
+    doc = (EXAMPLES.parents[1] / "docs" / "commands" / "phm.md").read_text()
+    shown = doc.split(f"$ {command}\n", 1)[1].split("```", 1)[0].splitlines()
+    monkeypatch.chdir(tmp_path)
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--plot", "fade.png")
+    assert result.exit_code == 0, result.output
+    printed = result.stdout.splitlines() + result.stderr.splitlines()
+    assert [line for line in shown if "…" not in line and line not in printed] == []
+
+
+def test_the_example_config_points_at_docs_that_exist() -> None:
+    """Its first line sent readers to a README section that does not exist."""
+    text = (EXAMPLES / "mission.yaml").read_text()
+    named = re.findall(r"docs/[\w/.-]+\.md", text)
+    assert named and all((EXAMPLES.parents[1] / name).is_file() for name in named)
+    assert "README" not in text
 
 
 def test_plot_never_overwrites(tmp_path: Path) -> None:
