@@ -5,6 +5,8 @@ from __future__ import annotations
 import csv
 import io
 import json
+import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +14,7 @@ import pytest
 import yaml
 from click.testing import CliRunner, Result
 
+from tests.cli.terminal import run_in_terminal
 from tests.phm.helpers import EXAMPLES, cycles_csv
 from veribattery.cli import cli
 
@@ -51,6 +54,74 @@ def test_fade_write_keeps_comments(tmp_path: Path) -> None:
         "  max_recharges: 50\n", "  max_recharges: 50\n  fade_per_recharge: 0.00667\n")
 
 
+def _write_args(command: str, tmp_path: Path, config: Path) -> list[str]:
+    data = "cycles.csv" if command == "fade" else "discharge.csv"
+    return ["phm", command, str(EXAMPLES / data), "--write", str(config)]
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_write_follows_a_symbolic_link(tmp_path: Path, command: str) -> None:
+    """The link was replaced by a regular file and the config it points to left as it
+    was: the user's config silently not updated."""
+    (tmp_path / "configs").mkdir()
+    real = tmp_path / "configs" / "m.yaml"
+    real.write_text(MISSION)
+    link = tmp_path / "link.yaml"
+    link.symlink_to(real)
+    result = run(*_write_args(command, tmp_path, link))
+    assert result.exit_code == 0, result.output
+    assert link.is_symlink() and link.resolve() == real
+    merged = yaml.safe_load(real.read_text())["battery"]
+    assert ("fade_per_recharge" if command == "fade" else "voltage_thresholds") in merged
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["configs", "link.yaml"]
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_write_keeps_crlf_line_endings(tmp_path: Path, command: str) -> None:
+    config = tmp_path / "m.yaml"
+    config.write_bytes(MISSION.replace("\n", "\r\n").encode())
+    result = run(*_write_args(command, tmp_path, config))
+    assert result.exit_code == 0, result.output
+    data = config.read_bytes()
+    assert data.count(b"\n") == data.count(b"\r\n") > MISSION.count("\n")
+    assert b"# as bought\r\n" in data
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_write_refuses_a_hard_linked_config_before_any_work(tmp_path: Path,
+                                                            command: str) -> None:
+    config, other = tmp_path / "m.yaml", tmp_path / "copy.yaml"
+    config.write_text(MISSION)
+    os.link(config, other)
+    png = tmp_path / "fit.png"
+    result = run(*_write_args(command, tmp_path, config), "--plot", str(png))
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr == (f"error: --write {config}: the file has 2 hard links, and --write "
+                             "replaces it by a new file, which would split them; give a file "
+                             "with one name (a symbolic link to it is followed), or merge the "
+                             "fragment by hand\n")
+    assert config.read_text() == MISSION and os.path.samefile(config, other)
+    assert not png.exists()
+
+
+def test_fade_write_lists_the_file_on_stderr_and_restates_stale_comments(
+        tmp_path: Path) -> None:
+    """'merged ... into pm.yaml (comments kept)' was printed on stdout, unlike every other
+    command's 'wrote FILE' on stderr; the comment of the old fade stayed beside the new."""
+    config = tmp_path / "pm.yaml"
+    example = (EXAMPLES / "mission.yaml").read_text()
+    config.write_text(example)
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--write", str(config))
+    assert result.exit_code == 0, result.output
+    assert result.stderr == f"wrote {config}\n"
+    assert result.stdout.endswith("# YAML fragment for the mission config:\nbattery:\n"
+                                  "  capacity_ah: 9.5\n  fade_per_recharge: 0.000145\n")
+    assert config.read_text() == example.replace(
+        "capacity_ah: 11 ", "capacity_ah: 9.5 ").replace(
+        "fade_per_recharge: 0.002 # BA1 (0.2 % per recharge)",
+        "fade_per_recharge: 0.000145 # fitted by veribattery phm fade from cycles.csv")
+
+
 def test_fade_write_refuses_invalid_result_and_keeps_file(tmp_path: Path) -> None:
     config = tmp_path / "m.yaml"
     config.write_text("battery:\n  max_recharges: 200  # long missions\n")
@@ -73,6 +144,28 @@ def test_fade_bad_input_one_line_exit_2(tmp_path: Path, text: str, message: str)
     assert message in result.stderr
     assert len(result.stderr.strip().splitlines()) == 1 and "Traceback" not in result.output
     assert result.stdout == ""
+
+
+def test_the_docs_fade_example_is_what_the_command_prints(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """docs/commands/phm.md showed a CI of [0.0001447, 0.0001453]; the command prints
+    [0.0001448, 0.0001453]. Every line shown (but those eliding with …) is printed."""
+    command = "veribattery phm fade examples/phm/cycles.csv --plot fade.png"
+    doc = (EXAMPLES.parents[1] / "docs" / "commands" / "phm.md").read_text()
+    shown = doc.split(f"$ {command}\n", 1)[1].split("```", 1)[0].splitlines()
+    monkeypatch.chdir(tmp_path)
+    result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--plot", "fade.png")
+    assert result.exit_code == 0, result.output
+    printed = result.stdout.splitlines() + result.stderr.splitlines()
+    assert [line for line in shown if "…" not in line and line not in printed] == []
+
+
+def test_the_example_config_points_at_docs_that_exist() -> None:
+    """Its first line sent readers to a README section that does not exist."""
+    text = (EXAMPLES / "mission.yaml").read_text()
+    named = re.findall(r"docs/[\w/.-]+\.md", text)
+    assert named and all((EXAMPLES.parents[1] / name).is_file() for name in named)
+    assert "README" not in text
 
 
 def test_plot_never_overwrites(tmp_path: Path) -> None:
@@ -136,6 +229,41 @@ def test_forecast_cli(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert "stops holding after" in result.output
     assert png.read_bytes().startswith(PNG)
+
+
+def _forecast_args(tmp_path: Path) -> list[str]:
+    config = tmp_path / "m.yaml"
+    config.write_text(MISSION)
+    cycles = np.arange(0, 51, 5.0)
+    log = cycles_csv(tmp_path / "c.csv", cycles, 8.6 - 0.032 * cycles)
+    return ["phm", "forecast", str(config), "--cycles", str(log), "--horizon", "20", "--step",
+            "10", *SMALL]
+
+
+def test_forecast_tells_each_age_on_a_pipe(tmp_path: Path,
+                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    """A forecast of the paper's farm ran 10 s without a word; in a log each age is a line
+    (from the first here: every report is a line with VERIBATTERY_PROGRESS_S=0,0)."""
+    args = _forecast_args(tmp_path)
+    quiet = run(*args)
+    assert quiet.exit_code == 0 and quiet.stderr == ""  # a short run says nothing
+    monkeypatch.setenv("VERIBATTERY_PROGRESS_S", "0,0")
+    told = run(*args)
+    assert told.exit_code == 0 and told.stdout == quiet.stdout
+    assert told.stderr.splitlines() == [
+        "checking the mission at cycle 50 (age 1 of 3)",
+        "checking the mission at cycle 60 (age 2 of 3)",
+        "checking the mission at cycle 70 (age 3 of 3)",
+        "checking the mission at cycle 55 (age 4, bisecting)",
+        "checking the mission at cycle 57 (age 5, bisecting)",
+        "checking the mission at cycle 58 (age 6, bisecting)"]
+
+
+def test_forecast_spinner_names_the_age_and_is_erased(tmp_path: Path) -> None:
+    screen = run_in_terminal(_forecast_args(tmp_path), 80, tmp_path)
+    assert screen.status == 0, screen.text
+    assert "checking the mission at cycle " in screen.drawn
+    assert "checking" not in screen.text and "stops holding after 8 more cycles" in screen.text
 
 
 def test_forecast_bad_requirement(tmp_path: Path) -> None:

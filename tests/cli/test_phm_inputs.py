@@ -168,7 +168,7 @@ def test_write_path_printed_as_typed(tmp_path: Path) -> None:
     config.write_text("battery:\n  max_recharges: 50\n")
     result = run("phm", "fade", str(EXAMPLES / "cycles.csv"), "--write", str(config))
     assert result.exit_code == 0, result.output
-    assert f"into {config} (comments kept)" in result.stdout
+    assert result.stderr == f"wrote {config}\n"
 
 
 def test_simulate_output_checked_before_pybamm(tmp_path: Path) -> None:
@@ -204,6 +204,64 @@ def test_capacities_beyond_the_model_are_refused(tmp_path: Path, mission: Path, 
     before = files(tmp_path)
     assert_one_error(run(*args), expected)
     assert files(tmp_path) == before
+
+
+@pytest.mark.parametrize("command", ["fade", "recheck"])
+@pytest.mark.parametrize(("rows", "reason"), [
+    # exp() of the log-linear start overflowed: an OverflowError traceback
+    ("1,1e308\n2,1e307\n3,1e306\n4,1e305\n", "math range error"),
+    # numpy's overflow warnings, LAPACK's "illegal value" lines, then a fit (exit 0)
+    ("0,10\n1e300,9\n2e300,8\n3e300,7\n", "overflow encountered"),
+    # cycles 1e-300 apart: numpy's divide-by-zero warnings, then "SVD did not converge"
+    ("0,10\n1e-300,9\n2e-300,8\n3e-300,7\n", "divide by zero"),
+], ids=["capacity-1e308", "cycles-1e300", "cycles-1e-300"])
+def test_fits_beyond_floating_point_are_refused(tmp_path: Path, mission: Path, command: str,
+                                                rows: str, reason: str) -> None:
+    log = tmp_path / "cycles.csv"
+    log.write_text("cycle,capacity_ah\n" + rows)
+    args = (["phm", "fade", str(log)] if command == "fade" else
+            ["recheck", str(mission), "--cycles", str(log), *SMALL])
+    before = files(tmp_path)
+    assert_one_error(run(*args), f"{log}: column 'capacity_ah' against 'cycle': no meaningful "
+                                 "fade fit", f"not computable in floating point ({reason}")
+    assert files(tmp_path) == before
+
+
+def test_at_cycle_too_far_ahead_blames_the_option() -> None:
+    """The last logged row was blamed ("cycles.csv:33: row 30 ..."); the option is at fault,
+    and the error says the largest value that works, which does work."""
+    cycles = str(EXAMPLES / "cycles.csv")
+    line = assert_one_error(run("phm", "fade", cycles, "--at-cycle", "1e9"),
+                            "error: --at-cycle 1e9: too far beyond the log's last cycle 30: "
+                            "the knee fit gives capacity -1.379e+06 Ah at cycle 1e+09")
+    largest = int(line.rsplit("; the largest --at-cycle that works is ", 1)[1])
+    assert run("phm", "fade", cycles, "--at-cycle", str(largest)).exit_code == 0
+    assert_one_error(run("phm", "fade", cycles, "--at-cycle", str(largest + 1)),
+                     f"--at-cycle {largest + 1}: too far beyond")
+
+
+def test_horizon_too_far_ahead_blames_the_option(mission: Path) -> None:
+    cycles = str(EXAMPLES / "cycles.csv")
+    line = assert_one_error(run("phm", "forecast", str(mission), "--cycles", cycles,
+                                "--horizon", "10000000", *SMALL),
+                            "error: --horizon 10000000: too far beyond the log's last cycle 30: "
+                            "the knee fit gives capacity")
+    largest = int(line.rsplit("; the largest --horizon that works is ", 1)[1])
+    # The reach is the fade fit's under the config's battery: --at-cycle agrees.
+    fade = ("phm", "fade", cycles, "--config", str(mission), "--at-cycle")
+    assert run(*fade, str(30 + largest)).exit_code == 0
+    assert_one_error(run(*fade, str(31 + largest)), "too far beyond")
+
+
+@pytest.mark.parametrize(("volts", "expected"), [
+    ("-25,-24.9,-20", ":2: row 1, column 'voltage_v': must be > 0, got -25 V"),
+    ("1e30,9e29,8e29", ":2: row 1, column 'voltage_v': 1e+30 V is not a plausible battery"),
+], ids=["negative", "1e30"])
+def test_levels_voltage_out_of_range(tmp_path: Path, volts: str, expected: str) -> None:
+    curve = tmp_path / "discharge.csv"
+    curve.write_text("soc,voltage_v\n" + "".join(
+        f"{soc},{v}\n" for soc, v in zip((1, 0.5, 0), volts.split(","), strict=True)))
+    assert_one_error(run("phm", "levels", str(curve)), f"{curve}{expected}")
 
 
 @pytest.mark.parametrize("step", ["1e-320", "0.000001", "0.0001"])

@@ -116,6 +116,17 @@ def test_stages_wait_for_the_first_line_then_are_told_as_they_begin() -> None:
                      'solving R{"time"}=? [ F b ]: 7 of 20,000 iterations, 10 s']
 
 
+def test_steps_of_a_run_without_counts_are_told_once_it_is_long() -> None:
+    """A forecast's ages report no state counts: its steps start the lines themselves."""
+    lines: list[str] = []
+    clock = _Clock()
+    watch = progress.PlainProgress(lines.append, clock, first=5.0, every=10.0)
+    for t, cycle in ((0.0, 30), (2.0, 40), (5.5, 50), (6.0, 60)):
+        clock.now = 100.0 + t
+        watch.step(f"checking cycle {cycle}")
+    assert lines == ["checking cycle 50", "checking cycle 60"]
+
+
 def test_a_stage_before_the_first_build_line_is_written_with_it() -> None:
     lines: list[str] = []
     clock = _Clock()

@@ -9,8 +9,9 @@ from pathlib import Path
 import veribattery.phm as phm
 
 EXPECTED = {
-    "AgePoint", "CycleLog", "DischargeCurve", "FadeFit", "FadeParameters", "FadeReport",
-    "Forecast", "Fragment", "LevelParameters", "PhmDataError", "Recheck", "Refit", "StepFit",
+    "AgePoint", "BeyondDataError", "CycleLog", "DischargeCurve", "FadeFit", "FadeParameters",
+    "FadeReport", "Forecast", "Fragment", "LevelParameters", "PhmDataError", "Recheck", "Refit",
+    "StepFit",
     "coulomb_count", "eq2_table", "fade_parameters", "fit_all", "fit_steps", "forecast",
     "level_parameters", "merge_text", "read_cycles", "read_discharge", "recheck", "refit",
     "write_atomic",

@@ -98,6 +98,17 @@ BAD_DISCHARGE = [
     ("time_s,voltage_v,current_a\n0,25,2\n10,24,2\n20,23,NaN\n",
      r"d.csv:4: row 3, column 'current_a': 'NaN' is not a finite number"),
     ("soc,voltage_v\n1,25\n0,20\n", r"d.csv: 2 data row\(s\); need at least 3"),
+    # probes swapped: this was "-24.9 V rises above the -25 V already reached"
+    ("soc,voltage_v\n1,-25\n0.5,-24.9\n0,-20\n",
+     r"d.csv:2: row 1, column 'voltage_v': must be > 0, got -25 V"),
+    ("time_s,voltage_v,current_a\n0,25,2\n10,0,2\n20,23,2\n",
+     r"d.csv:3: row 2, column 'voltage_v': must be > 0, got 0 V"),
+    # the step fit squared 1e30 and wrote its levels as decimals: a traceback
+    ("soc,voltage_v\n1,1e30\n0.5,9e29\n0,8e29\n",
+     r"d.csv:2: row 1, column 'voltage_v': 1e\+30 V is not a plausible battery voltage"),
+    # the charge drawn overflowed: numpy's warnings, then a fit of nonsense
+    ("time_s,voltage_v,current_a\n0,25,1e300\n1e300,24,1e300\n2e300,23,1e300\n",
+     r"d.csv:4: row 3, column 'current_a': the charge drawn over the log is beyond"),
 ]
 
 

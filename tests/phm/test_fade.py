@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.phm.helpers import cycles_csv, knee_curve
+from tests.phm.helpers import EXAMPLES, cycles_csv, knee_curve
 from veribattery.config import load_config
 from veribattery.phm.data import PhmDataError, read_cycles
-from veribattery.phm.fade import _aic, fit_all, fit_exponential, fit_knee, fit_linear
-from veribattery.phm.refit import fade_parameters
+from veribattery.phm.fade import FadeFit, _aic, fit_all, fit_exponential, fit_knee, fit_linear
+from veribattery.phm.refit import BeyondDataError, fade_parameters
 
 RNG_SEED = 20190101
 
@@ -173,3 +173,55 @@ def test_aic_of_residuals_near_the_largest_double_is_finite() -> None:
     for k in (2, 3):
         small, large = _aic(residuals, k, 11.0), _aic(residuals * 1e300, k, 11.0e300)
         assert large - shift == pytest.approx(small, abs=1e-9)
+
+
+def test_aic_of_capacities_near_the_smallest_double_is_finite() -> None:
+    """The floor was log(1e-12 x scale): below 1e-296 Ah that is log(0), and every fit was
+    skipped as "did not converge (math domain error)"."""
+    residuals = np.array([0.1, -0.2, 0.03, 0.15])
+    shift = residuals.size * 2 * np.log(1e-316)  # (doubles this small keep 7 digits)
+    assert _aic(residuals * 1e-316, 2, 4e-316) - shift == pytest.approx(
+        _aic(residuals, 2, 4.0), abs=1e-3)
+
+
+def test_relative_fade_where_the_fit_underflows_to_zero_is_nan() -> None:
+    """An exponential read far out is 0 Ah: its relative fade was a ZeroDivisionError
+    (a traceback in phm fade); it is NaN, which fade_parameters refuses with a location."""
+    fit = FadeFit("exponential", "", {"a": 11.0, "k": 0.01}, np.zeros((2, 2)),
+                  np.zeros(4), 0.0)
+    assert fit.relative_fade(100.0) == pytest.approx(0.01)
+    assert np.isnan(fit.relative_fade(1e6))
+
+
+def test_exponential_refuses_capacities_without_a_logarithm(tmp_path: Path) -> None:
+    log = read_cycles(cycles_csv(tmp_path / "c.csv", np.arange(4.0), np.arange(4.0, 0, -1)))
+    table = log.table
+    table.columns["capacity_ah"][-1] = 0.0  # past the reader's check: the API takes any log
+    with pytest.raises(ValueError, match="needs capacities > 0"):
+        fit_exponential(log)
+
+
+def test_a_cycle_too_far_ahead_says_how_far_the_fit_reaches() -> None:
+    """Past the log, a failing cycle is the caller's choice, not the data's fault: the
+    error says so and how far the fit does reach (the last logged row was blamed)."""
+    log, cfg = read_cycles(EXAMPLES / "cycles.csv"), load_config("")
+    with pytest.raises(BeyondDataError) as caught:
+        fade_parameters(log, cfg, at_cycle=1e9)
+    exc = caught.value
+    assert (exc.cycle, exc.last) == (1e9, 30.0)
+    assert exc.reason.startswith("the knee fit gives capacity -1.379e+06 Ah at cycle 1e+09")
+    assert str(exc).startswith("cycle 1e+09 is too far beyond the log's last cycle 30: ")
+    assert str(exc).endswith(f"; the fit is usable up to cycle {30 + exc.ahead}")
+    fade_parameters(log, cfg, at_cycle=exc.last + exc.ahead)  # the reach is real ...
+    with pytest.raises(BeyondDataError):
+        fade_parameters(log, cfg, at_cycle=exc.last + exc.ahead + 1)  # ... and the most
+
+
+def test_a_fade_beyond_floating_point_is_refused(tmp_path: Path) -> None:
+    """Cycles numbered from 1e15: the exponential's fade interval overflowed to (nan, nan),
+    with numpy's warnings printed; now a located error."""
+    n = 1e15 + np.arange(4.0)
+    log = read_cycles(cycles_csv(tmp_path / "c.csv", n, 10.0 - 0.1 * np.arange(4.0)))
+    with pytest.raises(PhmDataError, match=r"c\.csv:5: row 4, column 'capacity_ah': the "
+                                           r"exponential fit's fade at cycle 1e\+15 is beyond"):
+        fade_parameters(log, load_config(""), model="exponential")

@@ -13,7 +13,7 @@ import pytest
 from tests.phm.helpers import EXAMPLES
 from veribattery.config import load_config
 from veribattery.phm.data import PhmDataError, read_cycles
-from veribattery.phm.merge import write_atomic
+from veribattery.phm.merge import hard_links, write_atomic
 from veribattery.phm.plot import plot_fade
 from veribattery.phm.refit import fade_parameters
 from veribattery.phm.simulate import Pack, Simulation, write_csvs
@@ -70,6 +70,46 @@ def test_simulate_csvs_force_keeps_an_existing_files_mode(tmp_path: Path) -> Non
 def test_write_atomic_new_file_mode_from_umask(tmp_path: Path, umask_022: None) -> None:
     write_atomic(tmp_path / "m.yaml", "battery: {}\n")
     assert _mode(tmp_path / "m.yaml") == 0o644
+
+
+def test_write_atomic_through_a_symbolic_link_replaces_its_target(tmp_path: Path) -> None:
+    """The rename replaced the link by a regular file and left the config it pointed to
+    as it was; now the target is replaced, in its own folder, and the link stays."""
+    (tmp_path / "real").mkdir()
+    real = tmp_path / "real" / "m.yaml"
+    real.write_text("old\n")
+    os.chmod(real, 0o640)
+    link = tmp_path / "link.yaml"
+    link.symlink_to(Path("real") / "m.yaml")
+    write_atomic(link, "new\n")
+    assert link.is_symlink() and os.readlink(link) == str(Path("real") / "m.yaml")
+    assert real.read_text() == "new\n" and _mode(real) == 0o640
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link.yaml", "real"]
+    assert [p.name for p in real.parent.iterdir()] == ["m.yaml"]
+
+
+def test_write_atomic_keeps_crlf_line_endings(tmp_path: Path) -> None:
+    path = tmp_path / "m.yaml"
+    path.write_bytes(b"battery:\r\n  capacity_ah: 11\r\n")
+    write_atomic(path, "battery:\n  capacity_ah: 9.5\n  fade_per_recharge: 0.000145\n")
+    assert path.read_bytes() == (b"battery:\r\n  capacity_ah: 9.5\r\n"
+                                 b"  fade_per_recharge: 0.000145\r\n")
+    lf = tmp_path / "lf.yaml"
+    lf.write_bytes(b"a: 1\n")
+    write_atomic(lf, "a: 2\n")
+    assert lf.read_bytes() == b"a: 2\n"
+
+
+def test_write_atomic_refuses_a_file_with_other_hard_links(tmp_path: Path) -> None:
+    """A rename gives the name a new file: the other names kept the old config, split."""
+    path, other = tmp_path / "m.yaml", tmp_path / "other.yaml"
+    path.write_text("old\n")
+    os.link(path, other)
+    assert hard_links(path) == 2 and hard_links(tmp_path / "none.yaml") == 0
+    with pytest.raises(OSError, match="the file has 2 hard links"):
+        write_atomic(path, "new\n")
+    assert path.read_text() == other.read_text() == "old\n"
+    assert os.path.samefile(path, other)
 
 
 @pytest.mark.parametrize("suffix", [".png", ".svg", ".PDF"])

@@ -90,6 +90,31 @@ def test_idempotent() -> None:
     assert merge_text(once, FADE) == once
 
 
+MISSION = """\
+battery:
+  capacity_ah: 11          # new pack, as specified
+  fade_per_recharge: 0.002 # BA1 (0.2 % per recharge)
+  max_recharges: 50        # 50 flights a month
+"""
+
+
+def test_a_replaced_values_comment_with_a_number_says_where_the_value_came_from() -> None:
+    """'fade_per_recharge: 0.000145 # BA1 (0.2 % per recharge)' was left: a comment that
+    states the old value misleads. Comments without a number, and those of values left as
+    they were, stay."""
+    updates = {"battery.capacity_ah": Fraction(95, 10),
+               "battery.fade_per_recharge": Fraction(145, 1000000),
+               "battery.max_recharges": 50}
+    note = "fitted by veribattery phm fade from cycles.csv"
+    assert merge_text(MISSION, updates, note=note) == MISSION.replace(
+        "capacity_ah: 11 ", "capacity_ah: 9.5 ").replace(
+        "fade_per_recharge: 0.002 # BA1 (0.2 % per recharge)",
+        "fade_per_recharge: 0.000145 # fitted by veribattery phm fade from cycles.csv")
+    assert merge_text(MISSION, updates) == MISSION.replace(
+        "capacity_ah: 11 ", "capacity_ah: 9.5 ").replace(
+        "fade_per_recharge: 0.002 # BA1 (0.2 % per recharge)", "fade_per_recharge: 0.000145")
+
+
 def test_not_a_mapping() -> None:
     with pytest.raises(PhmDataError, match=r"m\.yaml: a config must be a mapping"):
         merge_text("- a\n- b\n", FADE, "m.yaml")

@@ -163,6 +163,10 @@ class LiveStatus:
         """Show on the spinner that a stage of a check begins (nothing printed above it)."""
         self._show(f"{text}…", "")
 
+    def step(self, text: str) -> None:
+        """Show on the spinner that a step of a run of many begins (a forecast's age)."""
+        self._show(f"{text}…", "")
+
     def checking(self, number: int, count: int, text: str) -> None:
         """Show on the spinner which property is checked."""
         self._show(f"checking property {number} of {count}: {text}…", text)

@@ -12,6 +12,8 @@ import click
 
 from veribattery.cli.files import FIGURE_SUFFIXES, PathParam, check_output_dir, check_output_file
 from veribattery.cli.output import (
+    LiveStatus,
+    build_progress,
     print_warnings,
     set_option,
     user_errors,
@@ -19,7 +21,7 @@ from veribattery.cli.output import (
 from veribattery.cli.phm_output import (
     files_written,
     print_fade,
-    print_figure,
+    print_files,
     print_fits,
     print_forecast,
     print_forecast_csv,
@@ -28,15 +30,17 @@ from veribattery.cli.phm_output import (
     print_levels,
     print_recheck,
 )
+from veribattery.cli.progress import PlainProgress
 from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from fractions import Fraction
 
     from veribattery.config import MissionConfig, Requirement
-    from veribattery.phm.data import DischargeCurve
+    from veribattery.phm.data import CycleLog, DischargeCurve
     from veribattery.phm.forecast import Forecast
     from veribattery.phm.levels import StepFit
+    from veribattery.phm.refit import BeyondDataError, FadeParameters
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -97,6 +101,27 @@ def _capacity(text: str | None) -> float | None:
                    "delivers", lambda value: value > 0)
 
 
+def _too_far(option: str, typed: str, exc: BeyondDataError,
+             largest: float | None) -> OptionError:
+    """*exc* blamed on *option*: it asks for a cycle further ahead than the fit reaches
+    (*largest*: the option's largest value that works; None: no value works)."""
+    works = (f"the largest {option} that works is {largest:.15g}" if largest is not None else
+             "the fit is usable at the log's last cycle only")
+    return OptionError(f"{option} {typed}: too far beyond the log's last cycle {exc.last:g}: "
+                       f"{exc.reason}; {works}")
+
+
+def _fade_at(log: CycleLog, cfg: MissionConfig, cycle: float | None, model: str | None,
+             typed: str | None) -> FadeParameters:
+    """:func:`fade_parameters`, a cycle too far ahead blamed on --at-cycle."""
+    from veribattery.phm.refit import BeyondDataError, fade_parameters
+
+    try:
+        return fade_parameters(log, cfg, cycle, model)
+    except BeyondDataError as exc:
+        raise _too_far("--at-cycle", typed or "", exc, exc.last + exc.ahead) from None
+
+
 def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
     """The config read for the fit: --write's (the file merged into), --config's, or the
     paper's."""
@@ -106,18 +131,35 @@ def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
         raise OptionError(f"--config {config} --write {write}: give one of them; --write "
                           "reads the config it merges into, so it is also the config used")
     check_output_file(write, "--write", force=True)
+    _check_links(write)
     source = write if write is not None else config
     return load_config(source) if source is not None else load_config("")
 
 
-def _merged(write: Path | None, values: dict[str, object]) -> str | None:
-    """The --write config with *values* merged, validated (None without --write)."""
+def _check_links(write: Path | None) -> None:
+    """Before any work: --write replaces the file by a new one (all or nothing), which
+    would split a file with several hard links (the other names keep the old config)."""
+    from veribattery.phm.merge import hard_links
+
+    links = 0 if write is None else hard_links(write)
+    if links > 1:
+        raise OptionError(f"--write {write}: the file has {links} hard links, and --write "
+                          "replaces it by a new file, which would split them; give a file "
+                          "with one name (a symbolic link to it is followed), or merge the "
+                          "fragment by hand")
+
+
+def _merged(write: Path | None, values: dict[str, object], command: str,
+            data: str) -> str | None:
+    """The --write config with *values* merged, validated (None without --write); a
+    replaced value's comment about the old one says they came from *command* on *data*."""
     if write is None:
         return None
     from veribattery.config import load_config
     from veribattery.phm.merge import merge_text
 
-    merged = merge_text(write.read_text(encoding="utf-8"), values, str(write))
+    note = f"fitted by veribattery phm {command} from {Path(data).name}"
+    merged = merge_text(write.read_text(encoding="utf-8"), values, str(write), note)
     load_config(merged + "\n")  # the merged config must validate before it replaces the file
     return merged
 
@@ -151,15 +193,14 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
                  output_format: str) -> None:
     """Fit capacity fade per cycle in CYCLES.csv (cycle,capacity_ah)."""
     from veribattery.phm.data import read_cycles
-    from veribattery.phm.refit import fade_parameters
 
     with user_errors():
         _check_plot(plot_path, force)
         cycle = _at_cycle(at_cycle)
         cfg = _base_config(config, write)
         log = read_cycles(cycles)
-        params = fade_parameters(log, cfg, cycle, model)
-        merged = _merged(write, params.fragment.values)
+        params = _fade_at(log, cfg, cycle, model, at_cycle)
+        merged = _merged(write, params.fragment.values, "fade", cycles)
         if plot_path is not None:
             from veribattery.phm.plot import plot_fade
 
@@ -171,11 +212,11 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
 
         print_json({"cycles": cycles, **fade_document(params),
                      **files_written(params.fragment, plot_path, write)})
-        return
-    print_fits(params.report)
-    print_fade(params)
-    print_figure(plot_path)
-    print_fragment(params.fragment, write)
+    else:
+        print_fits(params.report)
+        print_fade(params)
+        print_fragment(params.fragment)
+    print_files(plot_path, write)
 
 
 @phm_group.command("levels", short_help="Voltage levels, SOC thresholds, consumption.")
@@ -209,7 +250,7 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
         curve = read_discharge(discharge, capacity)
         params = level_parameters(curve, cfg, step)
         paper = _config_steps(curve, cfg, step)
-        merged = _merged(write, params.fragment.values)
+        merged = _merged(write, params.fragment.values, "levels", discharge)
         if plot_path is not None:
             from veribattery.phm.plot import plot_levels
 
@@ -220,10 +261,10 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
 
         print_json({"discharge": discharge, **levels_document(params, paper),
                      **files_written(params.fragment, plot_path, write)})
-        return
-    print_levels(params, paper)
-    print_figure(plot_path)
-    print_fragment(params.fragment, write)
+    else:
+        print_levels(params, paper)
+        print_fragment(params.fragment)
+    print_files(plot_path, write)
 
 
 def _config_steps(curve: DischargeCurve, cfg: MissionConfig, step: Fraction) -> StepFit | None:
@@ -319,7 +360,6 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     """P(success) and mission time as the battery ages; when does REQUIRE stop holding?"""
     from veribattery.config import load_config
     from veribattery.phm.data import read_cycles
-    from veribattery.phm.forecast import forecast
 
     with user_errors():
         _check_plot(plot_path, force)
@@ -329,8 +369,8 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
         if time_property:
             _check_property(cfg, config, f"--time-property {time_property}", time_property)
         log = read_cycles(cycles_path)
-        result = forecast(config, log, req, horizon, step or max(1, horizon // 10), overrides,
-                          model)
+        result = _forecast(config, log, req, (horizon, step or max(1, horizon // 10)),
+                           overrides, model)
         if plot_path is not None:
             from veribattery.phm.plot import plot_forecast
 
@@ -346,7 +386,33 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
         print_forecast_csv(result, shown)
     else:
         print_forecast(result, shown)
-        print_figure(plot_path)
+    print_files(plot_path)
+
+
+def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, int],
+              overrides: tuple[str, ...], model: str | None) -> Forecast:
+    """:func:`forecast` over (horizon, step), showing the age checked on stderr; an age
+    too far ahead blamed on --horizon."""
+    from veribattery.phm.forecast import forecast
+    from veribattery.phm.refit import BeyondDataError
+
+    horizon, step = ages
+    try:
+        with build_progress(plain=True) as progress:
+            return forecast(config, log, req, horizon, step, overrides, model,
+                            None if progress is None else _age_stage(progress))
+    except BeyondDataError as exc:
+        raise _too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
+
+
+def _age_stage(progress: LiveStatus | PlainProgress) -> Callable[[int, int, float], None]:
+    """The forecast's progress: each age checked is a stage (a spinner's text, or a line)."""
+
+    def tell(number: int, grid: int, cycle: float) -> None:
+        which = f"age {number} of {grid}" if grid else f"age {number}, bisecting"
+        progress.step(f"checking the mission at cycle {cycle:g} ({which})")
+
+    return tell
 
 
 def _requirement(text: str) -> Requirement:

@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 __all__ = [
     "files_written",
     "print_fade",
-    "print_figure",
+    "print_files",
     "print_fits",
     "print_forecast",
     "print_forecast_csv",
@@ -43,19 +43,16 @@ __all__ = [
 ]
 
 
-def print_fragment(fragment: Fragment, write: Path | None) -> None:
-    """The YAML fragment, or where it was merged."""
-    if write is None:
-        out.print("\n# YAML fragment for the mission config:", style="bold", markup=False)
-        click.echo(fragment.yaml(), nl=False)
-    else:
-        out.print(f"\nmerged {', '.join(fragment.values)} into {write} (comments kept)",
-                  markup=False)
+def print_fragment(fragment: Fragment) -> None:
+    """The YAML fragment (also when --write merged it: it is the result)."""
+    out.print("\n# YAML fragment for the mission config:", style="bold", markup=False)
+    click.echo(fragment.yaml(), nl=False)
 
 
-def print_figure(path: Path | None) -> None:
-    if path is not None:
-        print_written(path)
+def print_files(*paths: Path | None) -> None:
+    """The files written (figure, merged config), as every command lists them: ``wrote
+    FILE`` on stderr, whatever the format (stdout carries only the results)."""
+    print_written(*(path for path in paths if path is not None))
 
 
 def print_json(document: dict[str, object]) -> None:

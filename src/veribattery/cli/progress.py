@@ -112,6 +112,12 @@ class PlainProgress:
         """A stage begins: written now in a long run, else kept until the first line."""
         self._begin(text, "")
 
+    def step(self, text: str) -> None:
+        """A step of a run made of many short ones begins (a forecast's next age): a stage,
+        and written as soon as a line is due, since such a run reports no counts."""
+        self.starting(text)
+        self._line_due(self._clock())
+
     def checking(self, number: int, count: int, text: str) -> None:
         """Property *number* of *count* (its formula *text*) is checked next."""
         self._begin(f"checking property {number} of {count}: {text}", text)

@@ -26,6 +26,7 @@ from veribattery.phm.levels import StepFit, eq2_table, fit_steps
 from veribattery.phm.merge import merge_text, write_atomic
 from veribattery.phm.recheck import Recheck, Refit, recheck, refit
 from veribattery.phm.refit import (
+    BeyondDataError,
     FadeParameters,
     LevelParameters,
     fade_parameters,
@@ -34,6 +35,7 @@ from veribattery.phm.refit import (
 
 __all__ = [
     "AgePoint",
+    "BeyondDataError",
     "CycleLog",
     "DischargeCurve",
     "FadeFit",

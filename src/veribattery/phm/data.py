@@ -41,6 +41,9 @@ CURRENT_COLUMNS = ("time_s", "voltage_v", "current_a")
 #: A voltage may rise above the lowest seen so far by this fraction of the curve's
 #: span before it counts as "rising while discharging" (sensor noise, relaxation).
 VOLTAGE_NOISE = 0.01
+#: No battery reaches a megavolt (the largest packs stay near 1 kV); far beyond it the
+#: step fit overflowed (1e30 V: a traceback writing the levels as decimals).
+MAX_VOLTAGE_V = 1e6
 
 
 class PhmDataError(VeribatteryError):
@@ -283,7 +286,8 @@ def read_discharge(path: str | Path, capacity_ah: float | None = None) -> Discha
     ``Q_max`` = *capacity_ah*, or by default the charge the log itself delivers.
 
     :raises PhmDataError: SOC outside [0, 1] or not monotone, time not increasing,
-        negative current, fewer than 3 rows, voltage rising as the battery discharges,
+        negative current, fewer than 3 rows, a voltage not > 0 or rising as the battery
+        discharges,
         or a *capacity_ah* that is not a positive number.
     """
     if capacity_ah is not None and not (math.isfinite(capacity_ah) and capacity_ah > 0):
@@ -291,6 +295,7 @@ def read_discharge(path: str | Path, capacity_ah: float | None = None) -> Discha
     table = read_table(path, [SOC_COLUMNS, CURRENT_COLUMNS])
     if len(table) < 3:
         raise PhmDataError(f"{table.source}: {len(table)} data row(s); need at least 3")
+    _check_voltage_range(table, table.columns["voltage_v"])
     if "soc" in table.columns:
         soc, charge, soc_column = _given_soc(table), None, "soc"
     else:
@@ -300,6 +305,21 @@ def read_discharge(path: str | Path, capacity_ah: float | None = None) -> Discha
     _check_soc_monotone(table, soc, order, soc_column)
     _check_voltage_falls(table, table.columns["voltage_v"], order)
     return DischargeCurve(soc[order], table.columns["voltage_v"][order], charge, table.source)
+
+
+def _check_voltage_range(table: Table, voltage: FloatArray) -> None:
+    """Checked before the curve's shape: a negative log (probes swapped) was otherwise
+    told that -24.9 V "rises above" -25 V, and a voltage of 1e30 V overflowed the fit."""
+    bad = np.flatnonzero(voltage <= 0)
+    if bad.size:
+        raise table.error(int(bad[0]), "voltage_v",
+                          f"must be > 0, got {voltage[bad[0]]:g} V; a battery's terminal "
+                          "voltage is positive (are the probes or the sign swapped?)")
+    bad = np.flatnonzero(voltage > MAX_VOLTAGE_V)
+    if bad.size:
+        raise table.error(int(bad[0]), "voltage_v",
+                          f"{voltage[bad[0]]:g} V is not a plausible battery voltage (at "
+                          f"most {MAX_VOLTAGE_V:g} V); is the column in volts?")
 
 
 def _given_soc(table: Table) -> FloatArray:
@@ -319,11 +339,17 @@ def _counted_soc(table: Table, capacity_ah: float | None) -> tuple[FloatArray, f
             int(bad[0]), "current_a",
             f"{current[bad[0]]:g} A is negative; a discharge log has current >= 0 (discharging)",
         )
-    drawn = float(np.sum(current[:-1] * np.diff(time_s)) / 3600.0)
+    with np.errstate(over="ignore"):  # an overflow gives inf, refused below
+        drawn = float(np.sum(current[:-1] * np.diff(time_s)) / 3600.0)
+    if not math.isfinite(drawn):
+        raise table.error(len(table) - 1, "current_a",
+                          "the charge drawn over the log is beyond floating point; are "
+                          "time_s in seconds and current_a in amperes?")
     if drawn <= 0:
         raise table.error(len(table) - 1, "current_a", "no charge is drawn over the log")
     q_max = drawn if capacity_ah is None else capacity_ah
-    soc = coulomb_count(time_s, current, q_max)
+    with np.errstate(over="ignore"):  # a tiny --capacity-ah: SOC -inf, refused below
+        soc = coulomb_count(time_s, current, q_max)
     bad = np.flatnonzero(soc < -1e-9)
     if bad.size:
         raise table.error(

@@ -100,7 +100,10 @@ def _slope(curve: Curve, theta: FloatArray, cycle: float) -> float:
 
 
 def _relative(curve: Curve, theta: FloatArray, cycle: float) -> float:
-    return _slope(curve, theta, cycle) / float(curve(np.array([cycle]), *theta)[0])
+    capacity = float(curve(np.array([cycle]), *theta)[0])
+    # An exponential far out underflows to 0 Ah: no relative fade there (NaN, which the
+    # callers refuse), rather than a ZeroDivisionError.
+    return _slope(curve, theta, cycle) / capacity if capacity != 0 else math.nan
 
 
 def _gradient(function: Callable[[FloatArray], float], theta: FloatArray) -> FloatArray:
@@ -122,7 +125,9 @@ def _aic(residuals: FloatArray, k: int, scale: float) -> float:
     n = len(residuals)
     # In logs: squaring a capacity near the float range (1e308 Ah) overflowed, and so did
     # scaling the mean square back (every fit's AIC was inf, the choice arbitrary).
-    floor = 2 * math.log(1e-12 * scale)
+    # The floor's logarithm is taken term by term: 1e-12 x a capacity below 1e-296 Ah
+    # underflowed to 0, and log(0) failed every fit as "did not converge".
+    floor = 2 * (math.log(1e-12) + math.log(scale))
     scaled = float(np.mean(np.square(residuals / scale)))
     log_mse = math.log(scaled) + 2 * math.log(scale) if scaled > 0 else -math.inf
     return n * max(log_mse, floor) + 2 * k
@@ -149,16 +154,35 @@ def _curve_fit(name: str, log: CycleLog, start: FloatArray) -> tuple[FloatArray,
     return np.asarray(theta, dtype=np.float64), np.asarray(cov, dtype=np.float64)
 
 
+def _line(x: FloatArray, y: FloatArray) -> tuple[float, float]:
+    """Slope and intercept of a least-squares line, a start for the nonlinear fit."""
+    import warnings
+
+    # Cycles such as 1e15 + k leave the start poorly conditioned: the fit that follows
+    # is judged by its own covariance (_attempt), so numpy's warning would only be noise.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", np.exceptions.RankWarning)
+        slope, intercept = np.polyfit(x, y, 1)
+    return float(slope), float(intercept)
+
+
 def fit_linear(log: CycleLog) -> FadeFit:
     """``C(n) = a - b·n`` by least squares."""
-    slope, intercept = np.polyfit(log.cycle, log.capacity_ah, 1)
+    slope, intercept = _line(log.cycle, log.capacity_ah)
     theta, cov = _curve_fit("linear", log, np.array([intercept, -slope]))
     return _finish("linear", "C(n) = a - b*n", ("a", "b"), theta, cov, log)
 
 
 def fit_exponential(log: CycleLog) -> FadeFit:
-    """``C(n) = a·exp(-k·n)``, started from the log-linear fit."""
-    slope, intercept = np.polyfit(log.cycle, np.log(log.capacity_ah), 1)
+    """``C(n) = a·exp(-k·n)``, started from the log-linear fit.
+
+    :raises ValueError: when a capacity is not positive (it has no logarithm).
+    :raises OverflowError: when the start's ``a`` is beyond the float range (capacities
+        near 1e308 Ah).
+    """
+    if np.any(log.capacity_ah <= 0):
+        raise ValueError("needs capacities > 0 (it fits their logarithm)")
+    slope, intercept = _line(log.cycle, np.log(log.capacity_ah))
     theta, cov = _curve_fit("exponential", log, np.array([math.exp(intercept), -slope]))
     return _finish("exponential", "C(n) = a*exp(-k*n)", ("a", "k"), theta, cov, log)
 
@@ -245,13 +269,20 @@ def fit_all(log: CycleLog) -> FadeReport:
             fits.append(fit)
     if not fits:
         why = "; ".join(f"{k}: {v}" for k, v in skipped.items())
-        raise PhmDataError(f"{log.table.source}: no meaningful fade fit ({why})")
+        raise PhmDataError(f"{log.table.source}: column 'capacity_ah' against 'cycle': "
+                           f"no meaningful fade fit ({why})")
     return FadeReport(tuple(sorted(fits, key=lambda f: f.aic)), skipped)
 
 
 def _attempt(fitter: Callable[[CycleLog], FadeFit], log: CycleLog) -> tuple[str, FadeFit | None]:
     try:
-        fit = fitter(log)
+        # numpy raises rather than warns: an overflow (capacities near 1e308 Ah) or a
+        # division by zero (cycles closer than 1e-300) makes the fit unusable, not a
+        # page of warnings followed by a fit of inf and nan.
+        with np.errstate(over="raise", divide="raise", invalid="raise"):
+            fit = fitter(log)
+    except ArithmeticError as exc:  # OverflowError, ZeroDivisionError, FloatingPointError
+        return f"not computable in floating point ({exc})", None
     except (RuntimeError, ValueError, np.linalg.LinAlgError) as exc:
         return f"did not converge ({exc})", None
     if not np.all(np.isfinite(fit.covariance)):

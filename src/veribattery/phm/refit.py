@@ -23,8 +23,8 @@ from veribattery.phm.fade import FadeFit, FadeReport, choose
 from veribattery.phm.fragment import Fragment, decimal, fade_value, on_grid
 from veribattery.phm.levels import LEVELS, WINDS, Eq2Inputs, StepFit, eq2_table, fit_steps
 
-__all__ = ["FadeParameters", "LevelParameters", "eq2_inputs", "fade_parameters",
-           "level_parameters"]
+__all__ = ["BeyondDataError", "FadeParameters", "LevelParameters", "eq2_inputs",
+           "fade_parameters", "level_parameters", "parameters_at"]
 
 #: Decimal places of a fitted voltage level in the config (10 mV).
 VOLT_PLACES = 2
@@ -61,10 +61,28 @@ class FadeParameters:
                          "battery.fade_per_recharge": self.fade_per_recharge})
 
 
+class BeyondDataError(PhmDataError):
+    """The fit gives no usable values at a cycle past the log, though it does at the log's
+    last cycle: the cycle asked for lies too far ahead (an option's fault, not the data's).
+
+    :ivar cycle: the cycle asked for.
+    :ivar last: the log's last cycle.
+    :ivar ahead: the most whole cycles past *last* at which the fit is still usable.
+    :ivar reason: what goes wrong at *cycle*.
+    """
+
+    def __init__(self, cycle: float, last: float, ahead: int, reason: str) -> None:
+        super().__init__(f"cycle {cycle:g} is too far beyond the log's last cycle {last:g}: "
+                         f"{reason}; the fit is usable up to cycle {last + ahead:.15g}")
+        self.cycle, self.last, self.ahead, self.reason = cycle, last, ahead, reason
+
+
 def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = None,
                     model: str | None = None) -> FadeParameters:
     """Fit *log* and read the capacity and fade at *at_cycle* (default: the last cycle).
 
+    :raises BeyondDataError: when *at_cycle* lies past the log, further than the fit
+        gives usable values.
     :raises PhmDataError: when *at_cycle* is not a cycle number >= 0, or the chosen fit
         is not meaningful there (capacity not positive, or rising).
     """
@@ -72,38 +90,115 @@ def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = 
         raise PhmDataError(f"at_cycle must be a cycle number >= 0, got {at_cycle:g}")
     report, fit = choose(log, model)
     cycle = float(log.cycle[-1]) if at_cycle is None else at_cycle
-    capacity = float(fit.capacity(cycle))
-    where = log.table.where(int(np.argmin(np.abs(log.cycle - cycle))), "capacity_ah")
-    if capacity <= 0:
-        raise PhmDataError(f"{where}: the {fit.name} fit gives capacity {capacity:.4g} Ah at "
-                           f"cycle {cycle:g}; not a meaningful fit there")
-    fade, interval = fit.relative_fade(cycle), fit.fade_interval(cycle)
+    return parameters_at(log, report, fit, cfg, cycle)
+
+
+def parameters_at(log: CycleLog, report: FadeReport, fit: FadeFit, cfg: MissionConfig,
+                  cycle: float) -> FadeParameters:
+    """The config values *fit* (one of *report*'s, fitted to *log*) gives at *cycle*.
+
+    :raises BeyondDataError: when *cycle* lies past the log, further than *fit* gives
+        usable values.
+    :raises PhmDataError: when *fit* gives no usable values at *cycle* otherwise, located
+        at the logged row nearest to it.
+    """
+    try:
+        return _evaluate(report, fit, cfg, cycle)
+    except PhmDataError as exc:
+        last = float(log.cycle[-1])
+        ahead = _usable_ahead(report, fit, cfg, last, cycle) if cycle > last else None
+        if ahead is not None:
+            raise BeyondDataError(cycle, last, ahead, str(exc)) from None
+        where = log.table.where(int(np.argmin(np.abs(log.cycle - cycle))), "capacity_ah")
+        raise PhmDataError(f"{where}: {exc}") from None
+
+
+def _usable_ahead(report: FadeReport, fit: FadeFit, cfg: MissionConfig, last: float,
+                  cycle: float) -> int | None:
+    """The most whole cycles past *last* (short of *cycle*, where *fit* fails) at which
+    *fit* is usable; None when it is not usable at *last* either (the data's fault).
+
+    Bisection: a fading battery's fit gets worse the further out it is read.
+    """
+    if not _usable(report, fit, cfg, last):
+        return None
+    good, bad = 0, math.ceil(cycle - last)
+    while bad - good > 1:
+        middle = (good + bad) // 2
+        if _usable(report, fit, cfg, last + middle):
+            good = middle
+        else:
+            bad = middle
+    return good
+
+
+def _usable(report: FadeReport, fit: FadeFit, cfg: MissionConfig, cycle: float) -> bool:
+    try:
+        _evaluate(report, fit, cfg, cycle)
+    except PhmDataError:
+        return False
+    return True
+
+
+def _evaluate(report: FadeReport, fit: FadeFit, cfg: MissionConfig,
+              cycle: float) -> FadeParameters:
+    """:func:`parameters_at` without the location: a PhmDataError says only what is wrong."""
+    capacity, fade, interval = _read_fit(fit, cycle)
+    grid = on_grid(capacity, cfg.battery.resolution_ah)
+    _check_units(fit, cfg, cycle, capacity, grid)
+    value = fade_value(fade, cfg, grid)
+    _check_fade(cfg, fade, value, grid)
+    return FadeParameters(report, fit, cycle, capacity, grid, fade, interval, value)
+
+
+def _read_fit(fit: FadeFit, cycle: float) -> tuple[float, float, tuple[float, float]]:
+    """Capacity, fade and the fade's interval at *cycle*, checked to be meaningful."""
+    # Read far out, a fit can overflow: inf or nan come back and are refused here, rather
+    # than numpy's warnings going to the terminal.
+    with np.errstate(all="ignore"):
+        capacity = float(fit.capacity(cycle))
+        if not (capacity > 0 and math.isfinite(capacity)):
+            raise PhmDataError(f"the {fit.name} fit gives capacity {capacity:.4g} Ah at cycle "
+                               f"{cycle:g}; not a meaningful fit there")
+        fade, interval = fit.relative_fade(cycle), fit.fade_interval(cycle)
+    if not all(map(math.isfinite, (fade, *interval))):
+        raise PhmDataError(f"the {fit.name} fit's fade at cycle {cycle:g} is beyond floating "
+                           "point (the fit overflows there); not a meaningful fit there")
     if fade < 0 <= interval[1]:
         fade = 0.0  # no measurable fade: the rise is within the fit's uncertainty
     if fade < 0:
-        raise PhmDataError(f"{where}: the {fit.name} fit has the capacity rising at cycle "
-                           f"{cycle:g} (fade {fade:.3g}/cycle); not a meaningful fade fit")
-    grid = on_grid(capacity, cfg.battery.resolution_ah)
-    units = grid / cfg.battery.resolution_ah
-    if units > PRISM_INT_MAX // 2:  # else fade_value keeps no digit: a fade of 0, silently
+        raise PhmDataError(f"the {fit.name} fit has the capacity rising at cycle {cycle:g} "
+                           f"(fade {fade:.3g}/cycle); not a meaningful fade fit")
+    return capacity, fade, interval
+
+
+def _check_units(fit: FadeFit, cfg: MissionConfig, cycle: float, capacity: float,
+                 grid: Fraction) -> None:
+    """The capacity must fit the model's integers, else fade_value keeps no digit of the
+    fade: a fade of 0, silently."""
+    resolution = cfg.battery.resolution_ah
+    units = grid / resolution
+    if units > PRISM_INT_MAX // 2:
         raise PhmDataError(
-            f"{where}: the {fit.name} fit gives capacity {capacity:.4g} Ah at cycle {cycle:g}, "
-            f"{float(units):.3g} units of battery.resolution_ah "
-            f"({show(cfg.battery.resolution_ah)}); the model's 32-bit integers hold at most "
-            f"{PRISM_INT_MAX // 2:,}: is the log in Ah?")
-    value = fade_value(fade, cfg, grid)
-    rc_max = cfg.battery.max_recharges
+            f"the {fit.name} fit gives capacity {capacity:.4g} Ah at cycle {cycle:g}, "
+            f"{float(units):.3g} units of battery.resolution_ah ({show(resolution)}); the "
+            f"model's 32-bit integers hold at most {PRISM_INT_MAX // 2:,}: is the log in Ah?")
+
+
+def _check_fade(cfg: MissionConfig, fade: float, value: Fraction, grid: Fraction) -> None:
+    resolution, rc_max = cfg.battery.resolution_ah, cfg.battery.max_recharges
+    units = grid / resolution
     if value == 0 < fade and units * fade * rc_max >= 1:
         raise PhmDataError(  # rounded to 0 for the integers, yet it costs whole units
-            f"{where}: the fitted fade {fade:.3g}/cycle would round to 0: with "
-            f"{float(units):.3g} units of battery.resolution_ah ({show(cfg.battery.resolution_ah)})"
-            " the model's 32-bit integers hold no digit of it; raise battery.resolution_ah")
+            f"the fitted fade {fade:.3g}/cycle would round to 0: with {float(units):.3g} "
+            f"units of battery.resolution_ah ({show(resolution)}) the model's 32-bit "
+            "integers hold no digit of it; raise battery.resolution_ah")
     if value * rc_max >= 1:
+        cap = math.ceil(1 / value)
         raise PhmDataError(
-            f"{where}: the fitted fade {show(value)}/recharge x battery.max_recharges {rc_max} "
-            f">= 1, so the model's capacity would reach zero; set battery.max_recharges below "
-            f"{math.ceil(1 / value)} (e.g. --set battery.max_recharges={math.ceil(1 / value) - 1})")
-    return FadeParameters(report, fit, cycle, capacity, grid, fade, interval, value)
+            f"the fitted fade {show(value)}/recharge x battery.max_recharges {rc_max} >= 1, "
+            f"so the model's capacity would reach zero; set battery.max_recharges below "
+            f"{cap} (e.g. --set battery.max_recharges={cap - 1})")
 
 
 @dataclass(frozen=True, slots=True)
