@@ -166,7 +166,28 @@ KEYS = [
         "{path}:2:14: properties.1: a key must be a name, got 1"),
 ]
 
-CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS
+#: Numbers too large or too long to read: 10^5000 was a traceback (Python writes no int of
+#: more than 4,300 digits), 1.0e-5000 silently 0; each is now refused by the size rule.
+OUT_OF_RANGE = ("is out of range: a number must be 0 or between 1e-400 and 1e400 in size, "
+                "with at most 400 significant digits")
+HUGE = [
+    Bad("exponent-in-file", b"times_min: {per_cell: 1e5000}\n",
+        f"{{path}}:1:13: times_min.per_cell: 1e5000 {OUT_OF_RANGE}"),
+    Bad("exponent-set", SMALL, f"battery.resolution_ah: 1e-5000 {OUT_OF_RANGE}",
+        ("battery.resolution_ah=1e-5000",)),
+    Bad("float-exponent", b"strategy: {safe_t: 1.0e-5000}\n",
+        f"{{path}}:1:20: strategy.safe_t: 1.0e-5000 {OUT_OF_RANGE}"),
+    Bad("int-digits", b"farm:\n  cols: " + b"9" * 5000 + b"\n",
+        f"{{path}}:2:9: farm.cols: 999999999999\u2026999999 (5,000 characters) {OUT_OF_RANGE}"),
+]
+
+#: A YAML alias that holds itself: it was "nested too deeply".
+ALIASES = [
+    Bad("alias-holds-itself", b"farm: &a {cols: 3, rows: 3, x: [*a]}\n",
+        "{path}:1:7: the alias at 'farm.x[0]' stands for a list or mapping that holds it"),
+]
+
+CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS + HUGE + ALIASES
 
 
 def _write(tmp_path: Path, case: Bad) -> Path:

@@ -1,6 +1,7 @@
 """Mission configs: YAML → :class:`MissionConfig` → derived grid, battery and model numbers.
 
-This package imports nothing of veribattery but :mod:`veribattery.errors`.
+This package imports nothing of veribattery but :mod:`veribattery.errors` and the base
+modules that read the user's text (``_text``) and numbers (``_numbers``).
 """
 
 from veribattery.config.battery import CostTable, capacity_units, consumption_units, round_half_up

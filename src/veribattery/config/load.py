@@ -16,7 +16,7 @@ from pydantic import BaseModel
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.config.origin import property_origins
 from veribattery.config.schema import MissionConfig
-from veribattery.config.source import compose, construct, decode
+from veribattery.config.source import NumberOutOfRange, compose, construct, decode
 from veribattery.config.validate import Path, known_keys, validate_config
 from veribattery.errors import ConfigError, Span
 
@@ -147,6 +147,8 @@ def parse_override(item: str) -> tuple[str, object]:
         return key, None
     try:
         value = construct(compose(raw, None, key), raw, None)
+    except NumberOutOfRange as exc:
+        raise ConfigError(f"--set {key}: {exc.reason}") from None
     except ConfigError as exc:
         raise ConfigError(f"--set {item!r}: value is not valid YAML: {exc.message}") from None
     return key, value

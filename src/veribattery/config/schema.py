@@ -11,11 +11,8 @@ Validation problems are reported by :func:`validate_config` as one-line
 
 from __future__ import annotations
 
-import math
-import operator
 import re
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from fractions import Fraction
 from typing import Annotated, Any, Literal, Self
 
@@ -36,6 +33,7 @@ from pydantic_core import PydanticCustomError
 
 from veribattery.config.exact import Exact, problem, show
 from veribattery.config.origin import PropertyOrigins
+from veribattery.config.requirement import Requirement, parse_requirement
 from veribattery.errors import ConfigError, Span
 
 __all__ = [
@@ -396,46 +394,7 @@ class SweepConfig(_Section):
     vary: tuple[str, ...] = ()
 
 
-@dataclass(frozen=True, slots=True)
-class Requirement:
-    """A requirement ``<property> <op> <bound>``, e.g. ``p_success >= 0.99``."""
-
-    prop: str
-    op: str
-    bound: Fraction
-
-    def holds(self, value: float) -> bool:
-        """Whether a checked *value* meets this requirement, compared exactly with the
-        rational bound (which a float may not hold: ``1/3``, or ``1e400`` beyond the
-        doubles); NaN meets none."""
-        ops: dict[str, Callable[[Any, Any], bool]] = {
-            "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge}
-        value = float(value)
-        if value != value:
-            return False
-        return ops[self.op](value if math.isinf(value) else Fraction(value), self.bound)
-
-    def __str__(self) -> str:
-        return f"{self.prop} {self.op} {show(self.bound)}"
-
-
-_REQUIREMENT = re.compile(r"\s*([A-Za-z_]\w*)\s*(<=|>=|<|>)\s*(\S+)\s*")
 _IDENT = re.compile(r"[A-Za-z_]\w*")
-
-
-def parse_requirement(text: str) -> Requirement:
-    """Parse ``name op number`` (op one of ``< <= > >=``).
-
-    :raises ValueError: when *text* is not of that form.
-    """
-    match = _REQUIREMENT.fullmatch(text)
-    if match is None:
-        raise ValueError(f"must look like 'p_success >= 0.99' (op: <, <=, >, >=), got {text!r}")
-    try:
-        bound = Fraction(match.group(3))
-    except (ValueError, ZeroDivisionError):
-        raise ValueError(f"bound must be a number, got {match.group(3)!r}") from None
-    return Requirement(match.group(1), match.group(2), bound)
 
 
 class MissionConfig(_Section):
