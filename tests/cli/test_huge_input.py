@@ -28,9 +28,11 @@ SIZE_RULE = ("is out of range: a number must be 0 or between 1e-400 and 1e400 in
 
 CASES = [
     ("capacity", ["check", "{config}", "--set", "battery.capacity_ah=1e99999999"],
-     f"error: battery.capacity_ah: 1e99999999 {SIZE_RULE}"),
+     f"error: --set battery.capacity_ah: 1e99999999 {SIZE_RULE}"),
     ("probability", ["check", "{config}", "--set", "environment.p_wsp_c=1e-1000000"],
-     f"error: environment.p_wsp_c: 1e-1000000 {SIZE_RULE}"),
+     f"error: --set environment.p_wsp_c: 1e-1000000 {SIZE_RULE}"),
+    ("requirement", ["check", "{config}", "--set", "requirements=['p_success > 1e-99999999']"],
+     f"error: --set requirements[0]: bound 1e-99999999 {SIZE_RULE}"),
     ("vary-stop", ["sweep", "{config}", "-j", "1", "--vary", "farm.cols=2:1e99999999:1"],
      f"error: --vary 'farm.cols=2:1e99999999:1': 1e99999999 {SIZE_RULE}"),
     ("alias-bomb", ["check", "{bomb}"],
