@@ -206,6 +206,19 @@ ACROSS = [
         "{path}:2:24: battery.voltage_thresholds.low: must be <= high (0.4), got 0.5"),
 ]
 
+#: A requirement on a probability with a bound outside [0, 1] holds always or never: bad
+#: input before any work (it was a check, then exit 1), as PRISM refuses P>1.5 [ ... ].
+REQUIREMENTS = [
+    Bad("probability-bound-set", SMALL, "--set requirements[0]: p_success is a probability "
+        '(P=? [ F "success" ]): the bound must be in [0, 1], got 1.5',
+        ('requirements=["p_success >= 1.5"]',)),
+    Bad("probability-bound-file", SMALL + b"requirements: ['p_success > -0.5']\n",
+        "{path}:2:16: requirements[0]: p_success is a probability (P=? [ F \"success\" ]): the "
+        "bound must be in [0, 1], got -0.5"),
+    Bad("pmax-bound", SMALL + b"properties: {best: 'Pmax=? [ F \"done\" ]'}\n"
+        b"requirements: ['best < 2']\n", "{path}:3:16: requirements[0]: best is a probability"),
+]
+
 #: YAML aliases: one that holds itself, and values shown short in a message (an alias
 #: repeats a whole list).
 ALIASES = [
@@ -217,7 +230,8 @@ ALIASES = [
         "(6 items)]"),
 ]
 
-CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS + HUGE + ACROSS + ALIASES
+CASES = (ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS + HUGE + ACROSS
+         + REQUIREMENTS + ALIASES)
 
 
 def _write(tmp_path: Path, case: Bad) -> Path:

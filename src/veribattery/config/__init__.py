@@ -15,6 +15,7 @@ from veribattery.config.load import (
     set_value,
 )
 from veribattery.config.params import ModelParameters, Ratio, derive_parameters
+from veribattery.config.requirement import requirement_problem
 from veribattery.config.schema import MissionConfig, Requirement, parse_requirement
 from veribattery.config.validate import known_keys, validate_config
 
@@ -36,6 +37,7 @@ __all__ = [
     "parse_override",
     "parse_requirement",
     "read_config",
+    "requirement_problem",
     "round_half_up",
     "route_cells",
     "set_value",

@@ -1,4 +1,11 @@
-"""Requirements ``<property> <op> <bound>`` on a config's named properties."""
+"""Requirements ``<property> <op> <bound>`` on a config's named properties.
+
+A requirement on a probability (``P=? [ ... ]``) with a bound outside [0, 1] is bad
+input, as PRISM refuses ``P>1.5 [ ... ]``: it would hold always or never, whatever the
+mission. The config cannot parse a formula (that is :mod:`veribattery.lang`, above it),
+but a probability query is plain in its text: the operator, then one bracketed path
+formula that ends it.
+"""
 
 from __future__ import annotations
 
@@ -11,11 +18,13 @@ from fractions import Fraction
 from typing import Any
 
 from veribattery._numbers import OutOfRange, exact_number
-from veribattery.config.exact import show
+from veribattery.config.exact import brief, show
 
-__all__ = ["Requirement", "parse_requirement"]
+__all__ = ["Requirement", "parse_requirement", "requirement_problem"]
 
 _REQUIREMENT = re.compile(r"\s*([A-Za-z_]\w*)\s*(<=|>=|<|>)\s*(\S+)\s*")
+#: ``P=? [``, ``Pmax=? [``, or steady-state ``S=? [`` at a formula's start.
+_PROBABILITY = re.compile(r"\s*(?:P(?:min|max)?|S)\s*=\s*\?\s*\[")
 
 
 @dataclass(frozen=True, slots=True)
@@ -56,3 +65,28 @@ def parse_requirement(text: str) -> Requirement:
     except ValueError:
         raise ValueError(f"bound must be a number, got {match.group(3)!r}") from None
     return Requirement(match.group(1), match.group(2), bound)
+
+
+def requirement_problem(requirement: Requirement, formula: str) -> str | None:
+    """What is wrong with *requirement* on a property of *formula*, or None: a bound
+    outside [0, 1] on a probability."""
+    if 0 <= requirement.bound <= 1 or not _is_probability(formula):
+        return None
+    return (f"{requirement.prop} is a probability ({formula.strip()}): the bound must be in "
+            f"[0, 1], got {brief(requirement.bound)}")
+
+
+def _is_probability(formula: str) -> bool:
+    """Whether *formula* is a probability query: ``P=? [ ... ]`` and nothing after."""
+    start = _PROBABILITY.match(formula)
+    if start is None:
+        return False
+    depth, quoted = 0, False
+    for index in range(start.end() - 1, len(formula)):
+        char = formula[index]
+        quoted = quoted != (char == '"')
+        if not quoted:
+            depth += (char == "[") - (char == "]")
+        if depth == 0:
+            return not formula[index + 1:].strip()
+    return False

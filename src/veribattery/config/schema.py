@@ -35,7 +35,11 @@ from pydantic_core import PydanticCustomError
 from veribattery.config.exact import Exact, brief, problem
 from veribattery.config.origin import PropertyOrigins
 from veribattery.config.place import KeyOrigins
-from veribattery.config.requirement import Requirement, parse_requirement
+from veribattery.config.requirement import (
+    Requirement,
+    parse_requirement,
+    requirement_problem,
+)
 from veribattery.errors import ConfigError, Span
 
 __all__ = [
@@ -451,6 +455,9 @@ class MissionConfig(_Section):
                 raise problem(
                     f"unknown property {req.prop!r} (declared: {names})", f"requirements.{i}"
                 )
+            wrong = requirement_problem(req, self.properties[req.prop])
+            if wrong is not None:
+                raise problem(wrong, f"requirements.{i}")
         return self
 
     def key_error(self, *blames: tuple[str, str]) -> ConfigError:
