@@ -228,6 +228,9 @@ ALIASES = [
         b"properties:\n  a: [*v, *v, *v, *v, *v, *v]\n", "{path}:4:3: properties.a: must be a "
         "string, got [['x', 'x', 'x', 'x', 'x', 'x'], ['x', 'x', 'x', 'x', 'x', 'x'], \u2026 "
         "(6 items)]"),
+    Bad("property-name-set", SMALL, "--set 'properties.1bad=P=? [ F \"success\" ]': property "
+        "name '1bad' must be an identifier (letters, digits and _, not starting with a digit)",
+        ('properties.1bad=P=? [ F "success" ]',)),
 ]
 
 CASES = (ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS + HUGE + ACROSS

@@ -77,6 +77,7 @@ def test_grid_is_the_product_first_axis_slowest() -> None:
         ("farm.cols=2:3:1e-400", "range gives about 10^400 values (at most 10,000)"),
         (f"farm.cols=2,{'9' * 500}", "999999999999\u2026999999 (500 characters) is out of "
          "range"),
+        ('properties.1bad=P=? [ F "success" ]', "property name '1bad' must be an identifier"),
     ],
 )
 def test_bad_specs_name_the_option(spec: str, message: str) -> None:

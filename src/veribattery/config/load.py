@@ -16,7 +16,7 @@ from pydantic import BaseModel
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.config.origin import property_origins
 from veribattery.config.place import KeyOrigins
-from veribattery.config.schema import MissionConfig
+from veribattery.config.schema import MissionConfig, is_property_name
 from veribattery.config.source import NumberOutOfRange, compose, construct, decode
 from veribattery.config.validate import known_keys, validate_config
 from veribattery.errors import ConfigError, Span
@@ -139,7 +139,11 @@ def parse_override(item: str) -> tuple[str, object]:
     key = key.strip()
     if not sep or not key:
         raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. strategy.safe_t=0.25")
-    if not _known(key):
+    name = key.removeprefix(_PROPERTY_KEY) if key.startswith(_PROPERTY_KEY) else None
+    if name is not None and not is_property_name(name):
+        raise ConfigError(f"--set {item!r}: property name {name!r} must be an identifier "
+                          "(letters, digits and _, not starting with a digit)")
+    if name is None and key not in known_keys():
         raise ConfigError(f"--set {item!r}: {_unknown_key_message(key)}")
     if not raw.strip():
         return key, None
@@ -150,12 +154,6 @@ def parse_override(item: str) -> tuple[str, object]:
     except ConfigError as exc:
         raise ConfigError(f"--set {item!r}: value is not valid YAML: {exc.message}") from None
     return key, value
-
-
-def _known(key: str) -> bool:
-    if key.startswith(_PROPERTY_KEY):
-        return key[len(_PROPERTY_KEY) :].isidentifier()
-    return key in known_keys()
 
 
 def _unknown_key_message(key: str) -> str:

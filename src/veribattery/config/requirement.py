@@ -20,9 +20,10 @@ from typing import Any
 from veribattery._numbers import OutOfRange, exact_number
 from veribattery.config.exact import brief, show
 
-__all__ = ["Requirement", "parse_requirement", "requirement_problem"]
+__all__ = ["Requirement", "is_property_name", "parse_requirement", "requirement_problem"]
 
 _REQUIREMENT = re.compile(r"\s*([A-Za-z_]\w*)\s*(<=|>=|<|>)\s*(\S+)\s*")
+_IDENT = re.compile(r"[A-Za-z_]\w*")
 #: ``P=? [``, ``Pmax=? [``, or steady-state ``S=? [`` at a formula's start.
 _PROBABILITY = re.compile(r"\s*(?:P(?:min|max)?|S)\s*=\s*\?\s*\[")
 
@@ -48,6 +49,11 @@ class Requirement:
 
     def __str__(self) -> str:
         return f"{self.prop} {self.op} {show(self.bound)}"
+
+
+def is_property_name(name: str) -> bool:
+    """Whether *name* may name a property: an identifier (``p_success``, not ``1bad``)."""
+    return _IDENT.fullmatch(name) is not None
 
 
 def parse_requirement(text: str) -> Requirement:

@@ -12,7 +12,6 @@ Validation problems are reported by :func:`validate_config` as one-line
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Mapping
 from fractions import Fraction
 from typing import Annotated, Any, Literal, Self
@@ -37,6 +36,7 @@ from veribattery.config.origin import PropertyOrigins
 from veribattery.config.place import KeyOrigins
 from veribattery.config.requirement import (
     Requirement,
+    is_property_name,
     parse_requirement,
     requirement_problem,
 )
@@ -56,6 +56,7 @@ __all__ = [
     "StrategyConfig",
     "SweepConfig",
     "TimesConfig",
+    "is_property_name",
     "parse_requirement",
 ]
 
@@ -414,9 +415,6 @@ class SweepConfig(_Section):
     vary: tuple[str, ...] = ()
 
 
-_IDENT = re.compile(r"[A-Za-z_]\w*")
-
-
 class MissionConfig(_Section):
     """A whole mission: farm, battery, strategy, environment, times, properties, requirements."""
 
@@ -437,7 +435,7 @@ class MissionConfig(_Section):
     @classmethod
     def _named(cls, value: dict[str, str]) -> dict[str, str]:
         for name, text in value.items():
-            if not _IDENT.fullmatch(name):
+            if not is_property_name(name):
                 raise problem(f"property name must be an identifier, got {brief(name)}")
             if not text.strip():
                 raise problem(f"property {name!r} has an empty formula")

@@ -20,6 +20,7 @@ import yaml
 from veribattery._numbers import OutOfRange, count_text, exact_number
 from veribattery.config import known_keys
 from veribattery.config.exact import brief, fraction_to_decimal
+from veribattery.config.schema import is_property_name
 from veribattery.config.source import NumberOutOfRange, compose, construct
 from veribattery.errors import ConfigError
 
@@ -115,8 +116,12 @@ def _bad(text: str, expected: str) -> ConfigError:
 
 
 def _check_key(text: str, key: str) -> None:
-    if key.startswith(_PROPERTY_KEY) and key[len(_PROPERTY_KEY):].isidentifier():
-        return
+    if key.startswith(_PROPERTY_KEY):
+        name = key.removeprefix(_PROPERTY_KEY)
+        if is_property_name(name):
+            return
+        raise _bad(text, f"property name {name!r} must be an identifier (letters, digits "
+                         "and _, not starting with a digit)")
     if key in known_keys():
         return
     close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
