@@ -203,6 +203,9 @@ CASES: list[tuple[str, list[str]]] = [
                                 "--time-property", "nosuch"]),
     ("forecast-require", ["phm", "forecast", CASE1, "--cycles", "cycles.csv",
                           "--require", "p_success >> 0.9"]),
+    # a probability's bound outside [0, 1]: "already fails now", exit 0
+    ("forecast-require-bound", ["phm", "forecast", CASE1, "--cycles", "cycles.csv",
+                                "--require", "p_success >= 2"]),
     ("forecast-plot-type", ["phm", "forecast", CASE1, "--cycles", "cycles.csv",
                             "--plot", "f.xyz"]),
     ("simulate-power", ["phm", "simulate", "--power-w", "-3"]),

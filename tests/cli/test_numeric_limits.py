@@ -17,6 +17,10 @@ TINY = "dtmc\nmodule m\n  x : [0..1] init 0;\n  [] x=0 -> (x'=1);\nendmodule\n"
 RANGE = ("is out of the int range -2^63..2^63-1 (ints are 64-bit here; PRISM's are 32-bit): "
          "use a smaller int, or a double such as 1e19")
 
+#: A model with a constant for --const ranges.
+CONST_P = ("dtmc\nconst double p;\nmodule m\n  x : [0..1] init 0;\n"
+           "  [] x=0 -> p:(x'=1) + (1-p):(x'=0);\nendmodule\n")
+
 CASES = [
     ("literal-in-property", TINY, ["--property", "P=? [ F x=9223372036854775808 ]"],
      f"<property>:1:11: 9223372036854775808 {RANGE}"),
@@ -27,6 +31,18 @@ CASES = [
     ("const-option", TINY.replace("dtmc", "dtmc\nconst int N;") + 'label "a" = x=N;\n',
      ["--const", "N=99999999999999999999", "--property", 'P=? [ F "a" ]'],
      f"constant 'N' (--const N=99999999999999999999): 99999999999999999999 {RANGE}"),
+    # Python writes no int of more than 4,300 digits: these were tracebacks.
+    ("literal-of-5000-digits", TINY.replace("dtmc", f"dtmc\nconst int N = {'9' * 5000};"),
+     ["--property", "P=? [ F x=1 ]"], f"{{model}}:2:15: <5,000 digits> {RANGE}"),
+    ("reward-index-of-5000-digits", TINY, ["--property", f"R{{{'9' * 5000}}}=? [ F x=1 ]"],
+     f"<property>:1:2: <5,000 digits> {RANGE}"),
+    # A range's numbers are read within a size rule (10^5000 is a traceback, 10^99999999
+    # minutes of CPU), and a count of hundreds of digits is shown short.
+    ("const-range-exponent", CONST_P, ["--const", "p=0:1e-5000:1", "--property", "P=? [ F x=1 ]"],
+     "--const p=0:1e-5000:1: 1e-5000 is out of range: a number must be 0 or between 1e-400 "
+     "and 1e400 in size, with at most 400 significant digits"),
+    ("const-range-count", CONST_P, ["--const", "p=0:1e-400:1", "--property", "P=? [ F x=1 ]"],
+     "--const p=0:1e-400:1 has about 10^400 values; at most 10,000 are checked"),
     ("variable-range", TINY.replace("[0..1]", "[0..10000000000000000000000]"),
      ["--property", "P=? [ F x=1 ]"],
      "{model}:3:3: variable 'x' has the range [0..10000000000000000000000], too wide for the "

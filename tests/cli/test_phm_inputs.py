@@ -93,6 +93,15 @@ def test_forecast_unknown_requirement_property(tmp_path: Path, mission: Path) ->
     assert_one_error(result, "--require", "'p_nope'", "p_success")
 
 
+def test_forecast_probability_bound_outside_0_1(tmp_path: Path, mission: Path) -> None:
+    """It printed "p_success >= 2 already fails now" and exited 0: a bound no probability
+    can meet is bad input, as in a config's requirements."""
+    result = run(*_command("forecast", tmp_path, mission), "--require", "p_success >= 2")
+    line = assert_one_error(result)
+    assert line == ('error: --require p_success >= 2: p_success is a probability '
+                    '(P=? [ F "success" ]): the bound must be in [0, 1], got 2')
+
+
 def test_forecast_empty_time_property_means_none(tmp_path: Path, mission: Path) -> None:
     result = run(*_command("forecast", tmp_path, mission), "--time-property", "")
     assert result.exit_code in (0, 1), result.output

@@ -103,43 +103,44 @@ PROPERTIES = [
 #: Numbers the model holds as PRISM ints (decimals are exact: 1e-30 is 1/10^30, and the
 #: guards multiply the charge by that denominator), refused before anything is rendered.
 NUMBERS = [
-    Bad("safe-t-too-fine", b"", "strategy.safe_t: 1e-30 is too fine: BS1's guards multiply "
+    Bad("safe-t-too-fine", b"", "--set strategy.safe_t: 1e-30 is too fine: BS1's guards multiply "
         "the charge (up to 246 units) by safe_t's denominator (10^30), and PRISM's 32-bit "
         "integers hold products below 2^31; give a denominator of at most 8729608 (e.g. at "
         "most 6 decimal places)", ("strategy.safe_t=1e-30",)),
-    Bad("safe-t-subnormal", b"strategy: {safe_t: 1e-320}\n", "strategy.safe_t: 1e-320 is too "
-        "fine: BS1's guards multiply the charge (up to 246 units) by safe_t's denominator "
-        "(10^320), and"),
-    Bad("safe-t-7-places", b"", "strategy.safe_t: 0.0000001 is too fine: BS1's guards multiply "
-        "the charge (up to 246 units) by safe_t's denominator (10000000), and",
+    # In the file: placed there, as every other range error is.
+    Bad("safe-t-subnormal", b"strategy: {safe_t: 1e-320}\n", "{path}:1:12: strategy.safe_t: "
+        "1e-320 is too fine: BS1's guards multiply the charge (up to 246 units) by safe_t's "
+        "denominator (10^320), and"),
+    Bad("safe-t-7-places", b"", "--set strategy.safe_t: 0.0000001 is too fine: BS1's guards "
+        "multiply the charge (up to 246 units) by safe_t's denominator (10000000), and",
         ("strategy.safe_t=0.0000001",)),
-    Bad("threshold-too-fine", b"", "battery.voltage_thresholds.low: 1e-320 is too fine: the "
+    Bad("threshold-too-fine", b"", "--set battery.voltage_thresholds.low: 1e-320 is too fine: the "
         "voltage guards multiply the charge (up to 110 units) by the thresholds' common "
         "denominator (10^320), and PRISM's 32-bit integers hold products below 2^31; give a "
         "denominator of at most 19522578 (e.g. at most 7 decimal places)",
         ("battery.voltage_thresholds.low=1e-320",)),
-    Bad("cell-cost", b"", "battery.consumption.cell.low: 1e+308 is too large: a take-off, the "
-        "flight to the farthest cell (4 cells) and an inspection would need about 8e+309 units "
+    Bad("cell-cost", b"", "--set battery.consumption.cell.low: 1e+308 is too large: a take-off, "
+        "the flight to the farthest cell (4 cells) and an inspection would need about 8e+309 units "
         "of resolution_ah (0.1), which must stay below 2^30 for PRISM's 32-bit integers",
         ("battery.consumption.cell={low: 1e308, medium: 0.4, high: 0.3}",)),
-    Bad("high-wind-factor", b"", "battery.consumption.high_wind_factor: 1e+300 is too large: "
-        "a take-off, the flight to the farthest cell (4 cells) and an inspection would need "
+    Bad("high-wind-factor", b"", "--set battery.consumption.high_wind_factor: 1e+300 is too "
+        "large: a take-off, the flight to the farthest cell (4 cells) and an inspection would need "
         "about 6.8e+301 units", ("battery.consumption.high_wind_factor=1e300",)),
-    Bad("eq2-energy", b"", "battery.consumption: too large: a take-off, the flight to the "
-        "farthest cell (4 cells) and an inspection would need about 8e+299 units",
+    Bad("eq2-energy", b"", "--set battery.consumption.energy_wh: too large: a take-off, the "
+        "flight to the farthest cell (4 cells) and an inspection would need about 8e+299 units",
         ("battery.consumption.energy_wh=1e300",)),
-    Bad("time-beyond-64-bits", b"", "times_min.recharge: 9223372036854775808 is too large: "
+    Bad("time-beyond-64-bits", b"", "--set times_min.recharge: 9223372036854775808 is too large: "
         "minutes must stay at most 2147483647 for PRISM's 32-bit integers",
         ("times_min.recharge=9223372036854775808",)),
-    Bad("time-1e308", b"", "times_min.wait: 1e+308 is too large: minutes must stay at most "
+    Bad("time-1e308", b"", "--set times_min.wait: 1e+308 is too large: minutes must stay at most "
         "2147483647 for PRISM's 32-bit integers", ("times_min.wait=1e308",)),
-    Bad("time-per-cell", b"", "times_min.per_cell: 1000000000 is too large: minutes x the "
+    Bad("time-per-cell", b"", "--set times_min.per_cell: 1000000000 is too large: minutes x the "
         "longest flight in cells must stay at most 536870911 for PRISM's 32-bit integers",
         ("times_min.per_cell=1000000000",)),
-    Bad("time-denominator", b"", "times_min.wait: 1/3000000000000000000000 has a denominator "
+    Bad("time-denominator", b"", "--set times_min.wait: 1/3000000000000000000000 has a denominator "
         "too large for PRISM's 32-bit integers: give a decimal, or p/q with q at most "
         "2147483647", ("times_min.wait=1/3000000000000000000000",)),
-    Bad("max-recharges", b"battery: {model: basic_low}\n", "battery.max_recharges: must be "
+    Bad("max-recharges", b"battery: {model: basic_low}\n", "--set battery.max_recharges: must be "
         "below 2^31 - 1 for PRISM's 32-bit integers, got 100000000000000000000",
         ("battery.max_recharges=100000000000000000000",)),
 ]
@@ -149,7 +150,7 @@ SIZES = [
     Bad("farm-too-large", b"farm: {cols: 1000000000000, rows: 3, base: [0, 0]}\n",
         "{path}:1:8: farm.cols: 1000000000000 x 3 turbines is too large a farm: cols x rows "
         "must be at most 100,000"),
-    Bad("farm-too-large-set", b"", "farm.cols: 1000 x 101 turbines is too large a farm",
+    Bad("farm-too-large-set", b"", "--set farm.cols: 1000 x 101 turbines is too large a farm",
         ("farm.cols=1000", "farm.rows=101")),
 ]
 
@@ -166,7 +167,74 @@ KEYS = [
         "{path}:2:14: properties.1: a key must be a name, got 1"),
 ]
 
-CASES = ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS
+#: Numbers too large or too long to read: 10^5000 was a traceback (Python writes no int of
+#: more than 4,300 digits), 1.0e-5000 silently 0; each is now refused by the size rule.
+OUT_OF_RANGE = ("is out of range: a number must be 0 or between 1e-400 and 1e400 in size, "
+                "with at most 400 significant digits")
+HUGE = [
+    Bad("exponent-in-file", b"times_min: {per_cell: 1e5000}\n",
+        f"{{path}}:1:13: times_min.per_cell: 1e5000 {OUT_OF_RANGE}"),
+    Bad("exponent-set", SMALL, f"--set battery.resolution_ah: 1e-5000 {OUT_OF_RANGE}",
+        ("battery.resolution_ah=1e-5000",)),
+    Bad("float-exponent", b"strategy: {safe_t: 1.0e-5000}\n",
+        f"{{path}}:1:20: strategy.safe_t: 1.0e-5000 {OUT_OF_RANGE}"),
+    Bad("int-digits", b"farm:\n  cols: " + b"9" * 5000 + b"\n",
+        f"{{path}}:2:9: farm.cols: 999999999999\u2026999999 (5,000 characters) {OUT_OF_RANGE}"),
+    Bad("requirement-bound", SMALL, f"--set requirements[0]: bound 1e-5000 {OUT_OF_RANGE}",
+        ("requirements=['p_success >= 1e-5000']",)),
+    # Within the rule, but the model's derived integers are not: shown short.
+    Bad("capacity-1e300", SMALL, "--set battery.capacity_ah: capacity_ah/resolution_ah x the "
+        "fade's denominator (10^301 x 500) must stay below 2^30", ("battery.capacity_ah=1e300",)),
+]
+
+#: A check across keys names the key the user gave (a --set before the file's), where it
+#: was given; it blamed a key the file never held, placed at its section's line.
+ACROSS = [
+    Bad("threshold-set", SMALL + b"battery: {capacity_ah: 6}\n",
+        "--set battery.voltage_thresholds.high: must be >= low (0.25), got 0.1",
+        ("battery.voltage_thresholds.high=0.1",)),
+    Bad("recharges-set", SMALL + b"battery: {capacity_ah: 6}\n",
+        "--set battery.max_recharges: must be at most 499 so that fade_per_recharge (0.002) x "
+        "max_recharges stays < 1 (the capacity positive), got 99999999999999999999",
+        ("battery.max_recharges=99999999999999999999",)),
+    Bad("resolution-set", SMALL + b"battery: {capacity_ah: 6}\n",
+        "--set battery.resolution_ah: must divide capacity_ah (6) into whole units, got 0.7",
+        ("battery.resolution_ah=0.7",)),
+    Bad("base-by-default", b"farm: {cols: 2, rows: 2}\n", "{path}:1:8: farm.cols: 2 x 2 "
+        "turbines leave farm.base's cell [2, 2] outside the 1 x 1 cells"),
+    Bad("thresholds-in-file", b"battery:\n  voltage_thresholds: {low: 0.5, high: 0.4}\n",
+        "{path}:2:24: battery.voltage_thresholds.low: must be <= high (0.4), got 0.5"),
+]
+
+#: A requirement on a probability with a bound outside [0, 1] holds always or never: bad
+#: input before any work (it was a check, then exit 1), as PRISM refuses P>1.5 [ ... ].
+REQUIREMENTS = [
+    Bad("probability-bound-set", SMALL, "--set requirements[0]: p_success is a probability "
+        '(P=? [ F "success" ]): the bound must be in [0, 1], got 1.5',
+        ('requirements=["p_success >= 1.5"]',)),
+    Bad("probability-bound-file", SMALL + b"requirements: ['p_success > -0.5']\n",
+        "{path}:2:16: requirements[0]: p_success is a probability (P=? [ F \"success\" ]): the "
+        "bound must be in [0, 1], got -0.5"),
+    Bad("pmax-bound", SMALL + b"properties: {best: 'Pmax=? [ F \"done\" ]'}\n"
+        b"requirements: ['best < 2']\n", "{path}:3:16: requirements[0]: best is a probability"),
+]
+
+#: YAML aliases: one that holds itself, and values shown short in a message (an alias
+#: repeats a whole list).
+ALIASES = [
+    Bad("alias-holds-itself", b"farm: &a {cols: 3, rows: 3, x: [*a]}\n",
+        "{path}:1:7: the alias at 'farm.x[0]' stands for a list or mapping that holds it"),
+    Bad("alias-in-a-message", b"sweep:\n  vary: &v ['x', 'x', 'x', 'x', 'x', 'x']\n"
+        b"properties:\n  a: [*v, *v, *v, *v, *v, *v]\n", "{path}:4:3: properties.a: must be a "
+        "string, got [['x', 'x', 'x', 'x', 'x', 'x'], ['x', 'x', 'x', 'x', 'x', 'x'], \u2026 "
+        "(6 items)]"),
+    Bad("property-name-set", SMALL, "--set 'properties.1bad=P=? [ F \"success\" ]': property "
+        "name '1bad' must be an identifier (letters, digits and _, not starting with a digit)",
+        ('properties.1bad=P=? [ F "success" ]',)),
+]
+
+CASES = (ENCODING + DUPLICATES + PROPERTIES + NUMBERS + SIZES + KEYS + HUGE + ACROSS
+         + REQUIREMENTS + ALIASES)
 
 
 def _write(tmp_path: Path, case: Bad) -> Path:

@@ -83,7 +83,7 @@ def test_bad_override_value_has_no_file_position() -> None:
     with pytest.raises(ConfigError) as info:
         load_config("farm:\n  cols: 6\n", ["farm.base=[9,9]"])
     assert info.value.span is None
-    assert info.value.message.startswith("farm.base: cell [9, 9] is outside")
+    assert info.value.message.startswith("--set farm.base: cell [9, 9] is outside")
 
 
 def test_set_value_copies_and_creates_sections() -> None:

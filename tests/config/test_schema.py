@@ -8,7 +8,13 @@ from fractions import Fraction
 import pydantic
 import pytest
 
-from veribattery.config import MissionConfig, known_keys, load_config, parse_requirement
+from veribattery.config import (
+    MissionConfig,
+    known_keys,
+    load_config,
+    parse_requirement,
+    requirement_problem,
+)
 from veribattery.errors import ConfigError
 
 
@@ -175,6 +181,32 @@ def test_requirements_compare_exactly_with_their_rational_bound() -> None:
     assert not third.holds(1 / 3)  # the double nearest 1/3 is below it
     assert third.holds(math.nextafter(1 / 3, 1.0))
     assert not third.holds(math.nan)
+
+
+@pytest.mark.parametrize(("formula", "bound", "refused"), [
+    ('P=? [ F "success" ]', "1.5", True),
+    ('P=? [ F "success" ]', "-0.5", True),
+    ('P=? [ F "success" ]', "1", False),  # P>=1 asks for certainty: a real requirement
+    ('P=? [ F "success" ]', "0", False),
+    ('  Pmax=?[ F "a" ]  ', "2", True),
+    ('Pmin = ? [ "a" U "b" ]', "2", True),
+    ('S=? [ "a" ]', "2", True),
+    ('P=? [ F x=1 & y<"]" ]', "2", True),  # a bracket in quotes does not close the formula
+    ('R{"mt"}=? [ F "done" ]', "500", False),  # minutes: any bound
+    ('P=? [ F "a" ] * 100', "50", False),  # a percentage, not a probability
+])
+def test_a_probability_is_bounded_in_0_1(formula: str, bound: str, refused: bool) -> None:
+    problem = requirement_problem(parse_requirement(f"p >= {bound}"), formula)
+    assert (problem is not None) == refused
+    if refused:
+        assert problem == (f"p is a probability ({formula.strip()}): the bound must be in "
+                           f"[0, 1], got {bound}")
+
+
+def test_a_requirement_on_a_reward_may_exceed_1() -> None:
+    cfg = load_config("requirements: ['exp_mission_time <= 500', 'p_success >= 1']")
+    assert [str(r) for r in cfg.parsed_requirements] == ["exp_mission_time <= 500",
+                                                          "p_success >= 1"]
 
 
 def test_custom_properties_replace_the_papers() -> None:

@@ -70,6 +70,14 @@ def test_grid_is_the_product_first_axis_slowest() -> None:
         ("battery.model=a,,b", "is not START:STOP:STEP or a comma list"),
         ("battery.max_recharges=10,10", "10 is given twice (each point runs once)"),
         ("farm.base=[0,0],[1,1],[0,0]", "[0, 0] is given twice"),
+        # 10^5000 was a traceback, 10^99999999 minutes of CPU; a count of 401 digits noise
+        ("farm.cols=2:3:1e-5000", "1e-5000 is out of range: a number must be 0 or between "
+         "1e-400 and 1e400 in size, with at most 400 significant digits"),
+        ("farm.cols=2:1e99999999:1", "1e99999999 is out of range"),
+        ("farm.cols=2:3:1e-400", "range gives about 10^400 values (at most 10,000)"),
+        (f"farm.cols=2,{'9' * 500}", "999999999999\u2026999999 (500 characters) is out of "
+         "range"),
+        ('properties.1bad=P=? [ F "success" ]', "property name '1bad' must be an identifier"),
     ],
 )
 def test_bad_specs_name_the_option(spec: str, message: str) -> None:

@@ -59,15 +59,17 @@ def _error(make: object) -> str:
 
 
 def test_errors_are_those_of_load_config(tmp_path: Path) -> None:
+    """The same errors, but for the option: a point's key was given by no ``--set``."""
     path = tmp_path / "mission.yaml"
     path.write_text(CONFIG)
     document = read_config(path, SETS)
     for point in ({"strategy.safe_t": 1.5},  # at the varied key: no place in the file
-                  {"farm.cols": 3}):  # farm.base no longer inside: placed in the file
+                  {"farm.cols": 3}):  # farm.base, in the file, no longer inside: cols' fault
         sets = [f"{key}={yaml_text(value)}" for key, value in point.items()]
         ours = _error(lambda p=point: document.with_values(point_values(p)).validate())
-        assert ours == _error(lambda s=sets: load_config(path, [*SETS, *s]))
-    assert "mission.yaml:4:" in ours  # the base's line
+        theirs = _error(lambda s=sets: load_config(path, [*SETS, *s]))
+        assert theirs == f"--set {ours}"
+    assert ours.startswith("farm.cols: 3 x 4 turbines leave farm.base's cell [2, 2] outside")
 
 
 def test_a_bad_varied_formula_names_its_key(tmp_path: Path) -> None:

@@ -366,6 +366,7 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
         req = _requirement(requirement)
         cfg = load_config(config, overrides)
         _check_property(cfg, config, f"--require {requirement}", req.prop)
+        _check_bound(req, cfg.properties[req.prop], f"--require {requirement}")
         if time_property:
             _check_property(cfg, config, f"--time-property {time_property}", time_property)
         log = read_cycles(cycles_path)
@@ -429,6 +430,15 @@ def _check_property(cfg: MissionConfig, config: Path, where: str, name: str) -> 
     if name not in cfg.properties:
         raise OptionError(f"{where}: {config} has no property '{name}'; its properties are "
                           f"{', '.join(cfg.properties)}")
+
+
+def _check_bound(req: Requirement, formula: str, where: str) -> None:
+    """A probability's bound must lie in [0, 1]: else the requirement says nothing."""
+    from veribattery.config import requirement_problem
+
+    problem = requirement_problem(req, formula)
+    if problem is not None:
+        raise OptionError(f"{where}: {problem}")
 
 
 def _shown_properties(result: Forecast, time_property: str) -> list[str]:

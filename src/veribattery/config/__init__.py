@@ -1,6 +1,7 @@
 """Mission configs: YAML → :class:`MissionConfig` → derived grid, battery and model numbers.
 
-This package imports nothing of veribattery but :mod:`veribattery.errors`.
+This package imports nothing of veribattery but :mod:`veribattery.errors` and the base
+modules that read the user's text (``_text``) and numbers (``_numbers``).
 """
 
 from veribattery.config.battery import CostTable, capacity_units, consumption_units, round_half_up
@@ -14,6 +15,7 @@ from veribattery.config.load import (
     set_value,
 )
 from veribattery.config.params import ModelParameters, Ratio, derive_parameters
+from veribattery.config.requirement import requirement_problem
 from veribattery.config.schema import MissionConfig, Requirement, parse_requirement
 from veribattery.config.validate import known_keys, validate_config
 
@@ -35,6 +37,7 @@ __all__ = [
     "parse_override",
     "parse_requirement",
     "read_config",
+    "requirement_problem",
     "round_half_up",
     "route_cells",
     "set_value",

@@ -14,12 +14,24 @@ from typing import Annotated
 from pydantic import BeforeValidator
 from pydantic_core import PydanticCustomError
 
-__all__ = ["Exact", "fraction_to_decimal", "problem", "show", "to_fraction"]
+from veribattery._numbers import OutOfRange, exact_number
+
+__all__ = ["Exact", "brief", "fraction_to_decimal", "problem", "show", "to_fraction"]
+
+#: A value shown in a message is cut after about so many characters.
+_BRIEF = 40
 
 
-def problem(message: str, key: str = "") -> PydanticCustomError:
-    """A validation error; *key* names a sub-key when raised by a model-level check."""
-    return PydanticCustomError("vb_problem", "{message}", {"message": message, "key": key})
+def problem(message: str, key: str = "", others: tuple[tuple[str, str], ...] = ()
+            ) -> PydanticCustomError:
+    """A validation error; *key* names a sub-key when raised by a model-level check.
+
+    :param others: for a check across keys, the other sub-keys whose change would fix
+        it too, each with the message that suits it: the error names the one the user
+        gave (a ``--set`` before the file's), not a key the user never wrote.
+    """
+    return PydanticCustomError("vb_problem", "{message}",
+                               {"message": message, "key": key, "others": others})
 
 
 def show(value: object) -> str:
@@ -31,6 +43,36 @@ def show(value: object) -> str:
     if isinstance(value, tuple | list):
         return "[" + ", ".join(show(v) for v in value) + "]"
     return str(value)
+
+
+def brief(value: object) -> str:
+    """*value* for a message: as :func:`show` writes it, but a long number in scientific
+    notation and a long list cut (an alias can make a list of a million items)."""
+    if isinstance(value, Fraction | int) and not isinstance(value, bool):
+        return _brief_number(Fraction(value))
+    if isinstance(value, tuple | list):
+        return _brief_items(value)
+    text = show(value)
+    return text if len(text) <= _BRIEF else f"{text[:_BRIEF - 6]}…{text[-5:]}"
+
+
+def _brief_number(value: Fraction) -> str:
+    """Short enough: *value* as written; else ``1.23457e+400`` (never ``str`` of an int
+    beyond Python's 4,300 digits)."""
+    if max(value.numerator.bit_length(), value.denominator.bit_length()) < 3 * _BRIEF:
+        text = show(value)
+        if len(text) <= (20 if "." in text else _BRIEF):
+            return text
+    return f"{(Decimal(value.numerator) / Decimal(value.denominator)).normalize():.6g}"
+
+
+def _brief_items(items: tuple[object, ...] | list[object]) -> str:
+    shown: list[str] = []
+    for item in items:
+        shown.append(brief(item))
+        if sum(map(len, shown)) > _BRIEF:
+            return "[" + ", ".join(shown) + f", … ({len(items):,} items)]"
+    return "[" + ", ".join(shown) + "]"
 
 
 def _show_fraction(value: Fraction) -> str:
@@ -67,10 +109,12 @@ def to_fraction(value: object) -> Fraction:
         return Fraction(repr(value))
     if isinstance(value, str):
         try:
-            return Fraction(value.strip())
-        except (ValueError, ZeroDivisionError):
+            return exact_number(value)
+        except OutOfRange as exc:
+            raise problem(str(exc)) from None
+        except ValueError:
             pass
-    raise problem(f"must be a number, got {show(value)}")
+    raise problem(f"must be a number, got {brief(value)}")
 
 
 #: A field holding an exact rational, from an int, float, decimal string or ``"p/q"``.

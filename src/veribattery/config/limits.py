@@ -15,10 +15,9 @@ from decimal import Decimal
 from fractions import Fraction
 
 from veribattery.config.battery import ACTIONS, CostTable
-from veribattery.config.exact import fraction_to_decimal, show
+from veribattery.config.exact import brief, fraction_to_decimal
 from veribattery.config.farm import FarmLayout
 from veribattery.config.schema import ConsumptionTable, MissionConfig
-from veribattery.errors import ConfigError
 
 __all__ = ["PRISM_INT_MAX", "check_int_ranges"]
 
@@ -34,17 +33,18 @@ def check_int_ranges(cfg: MissionConfig, c_new: int, costs: CostTable,
                      layout: FarmLayout) -> None:
     """Refuse a config whose numbers overflow the model's integers (see the module).
 
-    :raises ConfigError: naming the key to change, and what it must stay below.
+    :raises ConfigError: naming the key to change (the one the user gave, of the keys
+        whose change would do), placed where it was given, and what it must stay below.
     """
     _check_fade(cfg, c_new)
     if cfg.battery.max_recharges >= PRISM_INT_MAX:
-        raise ConfigError(f"battery.max_recharges: must be below 2^31 - 1 for PRISM's 32-bit "
-                          f"integers, got {_short(Fraction(cfg.battery.max_recharges))}")
+        raise cfg.key_error(("battery.max_recharges", "must be below 2^31 - 1 for PRISM's "
+                             f"32-bit integers, got {brief(cfg.battery.max_recharges)}"))
     reach = max((*layout.dist, *layout.step), default=0)
     predicted = _check_costs(cfg, costs, reach)
     _check_guards(cfg, c_new, predicted)
     _check_times(cfg, reach)
-    _check_ratio("environment.p_wsp_c", cfg.environment.p_wsp_c)
+    _check_ratio(cfg, "environment.p_wsp_c", cfg.environment.p_wsp_c)
 
 
 def _check_costs(cfg: MissionConfig, costs: CostTable, reach: int) -> int:
@@ -53,25 +53,27 @@ def _check_costs(cfg: MissionConfig, costs: CostTable, reach: int) -> int:
     if predicted <= _CHARGE_MAX:
         return predicted
     key, value = _cost_key(cfg, costs, reach)
-    raise ConfigError(
-        f"{key}: {'' if value is None else _short(value) + ' is '}too large: a take-off, "
-        f"the flight to the farthest cell ({reach} cells) and an inspection would need "
-        f"{_digits(predicted)} units of resolution_ah ({show(cfg.battery.resolution_ah)}), "
-        "which must stay below 2^30 for PRISM's 32-bit integers")
+    need = (f"a take-off, the flight to the farthest cell ({reach} cells) and an inspection "
+            f"would need {_digits(predicted)} units of resolution_ah "
+            f"({brief(cfg.battery.resolution_ah)}), which must stay below 2^30 for PRISM's "
+            "32-bit integers")
+    raise cfg.key_error(
+        (key, f"{'' if value is None else brief(value) + ' is '}too large: {need}"),
+        ("battery.resolution_ah", f"{brief(cfg.battery.resolution_ah)} is too fine: {need}"))
 
 
 def _check_guards(cfg: MissionConfig, c_new: int, predicted: int) -> None:
     """BS1's guards (``den*(b - pred) >= num*cap``) and the voltage levels'."""
     if cfg.strategy.mode == "bs1":
         safe_t = cfg.strategy.safe_t
-        _check_fine("strategy.safe_t", safe_t, safe_t.denominator, c_new + predicted,
+        _check_fine(cfg, ("strategy.safe_t", safe_t), safe_t.denominator, c_new + predicted,
                     "BS1's guards multiply the charge", "safe_t's denominator")
     if cfg.battery.model == "advanced":
         levels = cfg.battery.voltage_thresholds
         finer = max(("high", "low"), key=lambda k: getattr(levels, k).denominator)
         common = math.lcm(levels.high.denominator, levels.low.denominator)
-        _check_fine(f"battery.voltage_thresholds.{finer}", getattr(levels, finer), common,
-                    c_new, "the voltage guards multiply the charge",
+        _check_fine(cfg, (f"battery.voltage_thresholds.{finer}", getattr(levels, finer)),
+                    common, c_new, "the voltage guards multiply the charge",
                     "the thresholds' common denominator")
 
 
@@ -79,10 +81,11 @@ def _check_fade(cfg: MissionConfig, c_new: int) -> None:
     """``cap`` multiplies C_NEW by the fade's denominator."""
     den = cfg.battery.fade.denominator
     if c_new * den > _CHARGE_MAX:
-        raise ConfigError(
-            "battery.fade_per_recharge: capacity_ah/resolution_ah x the fade's denominator "
-            f"({c_new} x {_digits(den)}) must stay below 2^30 for PRISM's 32-bit integers"
-        )
+        message = ("capacity_ah/resolution_ah x the fade's denominator "
+                   f"({_digits(c_new)} x {_digits(den)}) must stay below 2^30 for PRISM's "
+                   "32-bit integers")
+        raise cfg.key_error(*((f"battery.{key}", message) for key in
+                              ("fade_per_recharge", "capacity_ah", "resolution_ah")))
 
 
 def _most_predicted(costs: CostTable, reach: int, wind: int) -> int:
@@ -108,17 +111,17 @@ def _cost_key(cfg: MissionConfig, costs: CostTable, reach: int) -> tuple[str, Fr
     return f"battery.consumption.{key}", getattr(getattr(table, action), _LEVELS[level])
 
 
-def _check_fine(key: str, value: Fraction, den: int, charge: int, guards: str,
-                den_name: str) -> None:
+def _check_fine(cfg: MissionConfig, given: tuple[str, Fraction], den: int, charge: int,
+                guards: str, den_name: str) -> None:
     """Guards ``den*charge > num*cap``: *den* times *charge* must stay below 2^31."""
     if den * charge <= PRISM_INT_MAX:
         return
+    key, value = given
     limit = PRISM_INT_MAX // charge
-    raise ConfigError(
-        f"{key}: {_short(value)} is too fine: {guards} (up to {charge} units) by {den_name} "
+    raise cfg.key_error((key,
+        f"{brief(value)} is too fine: {guards} (up to {charge} units) by {den_name} "
         f"({_digits(den)}), and PRISM's 32-bit integers hold products below 2^31; give a "
-        f"denominator of at most {limit} (e.g. at most {len(str(limit)) - 1} decimal places)"
-    )
+        f"denominator of at most {limit} (e.g. at most {len(str(limit)) - 1} decimal places)"))
 
 
 def _check_times(cfg: MissionConfig, reach: int) -> None:
@@ -129,32 +132,25 @@ def _check_times(cfg: MissionConfig, reach: int) -> None:
         most = PRISM_INT_MAX // max(reach, 1) if name == "per_cell" else PRISM_INT_MAX
         if value > most:
             scaled = " x the longest flight in cells" if name == "per_cell" else ""
-            raise ConfigError(f"{key}: {_short(value)} is too large: minutes{scaled} must "
-                              f"stay at most {most} for PRISM's 32-bit integers")
-        _check_ratio(key, value)
+            raise cfg.key_error((key, f"{brief(value)} is too large: minutes{scaled} must "
+                                 f"stay at most {most} for PRISM's 32-bit integers"))
+        _check_ratio(cfg, key, value)
 
 
-def _check_ratio(key: str, value: Fraction) -> None:
+def _check_ratio(cfg: MissionConfig, key: str, value: Fraction) -> None:
     """A value that is no decimal is written ``(p/q)``: q must be an int too."""
     if fraction_to_decimal(value) is None and value.denominator > PRISM_INT_MAX:
-        raise ConfigError(f"{key}: {_short(value)} has a denominator too large for PRISM's "
-                          f"32-bit integers: give a decimal, or p/q with q at most "
-                          f"{PRISM_INT_MAX}")
-
-
-def _short(value: Fraction) -> str:
-    """*value* as written, or in scientific notation when that would be long."""
-    text = show(value)
-    if len(text) <= (20 if "." in text else 40):
-        return text
-    return f"{(Decimal(value.numerator) / Decimal(value.denominator)).normalize():.6g}"
+        raise cfg.key_error((key, f"{brief(value)} has a denominator too large for PRISM's "
+                             f"32-bit integers: give a decimal, or p/q with q at most "
+                             f"{PRISM_INT_MAX}"))
 
 
 def _digits(value: int) -> str:
-    """*value*, or 10^n for a long power of ten, or about so much."""
-    text = str(value)
-    if len(text) <= 20:
-        return text
-    if text == "1" + "0" * (len(text) - 1):
-        return f"10^{len(text) - 1}"
+    """*value*, or 10^n for a long power of ten, or about so much (never ``str`` of an
+    int of thousands of digits, which Python refuses)."""
+    if value < 10**20:
+        return str(value)
+    power = Decimal(value).adjusted()
+    if value == 10**power:
+        return f"10^{power}"
     return f"about {Decimal(value).normalize():.3g}"

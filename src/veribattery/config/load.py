@@ -15,9 +15,10 @@ from pydantic import BaseModel
 
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.config.origin import property_origins
-from veribattery.config.schema import MissionConfig
-from veribattery.config.source import compose, construct, decode
-from veribattery.config.validate import Path, known_keys, validate_config
+from veribattery.config.place import KeyOrigins
+from veribattery.config.schema import MissionConfig, is_property_name
+from veribattery.config.source import NumberOutOfRange, compose, construct, decode
+from veribattery.config.validate import known_keys, validate_config
 from veribattery.errors import ConfigError, Span
 
 __all__ = ["ConfigDocument", "config_to_yaml", "load_config", "parse_override", "read_config",
@@ -57,8 +58,10 @@ class ConfigDocument:
     root: yaml.Node | None
     #: The text and the name it was read under (a path, or ``<string>``).
     written: tuple[str, str]
-    #: The dotted keys set by overrides: errors under them have no place in the file.
+    #: The dotted keys set by ``--set``: errors under them name the option.
     overridden: tuple[str, ...] = ()
+    #: The dotted keys set by :meth:`with_values` (a sweep's point, which it names).
+    varied: tuple[str, ...] = ()
 
     def with_values(self, values: Mapping[str, object]) -> ConfigDocument:
         """This document with *values* at their dotted keys, as ``--set`` would put them
@@ -66,24 +69,19 @@ class ConfigDocument:
         data = self.data
         for key, value in values.items():
             data = set_value(data, key, value)
-        return replace(self, data=data, overridden=(*self.overridden, *values))
+        return replace(self, data=data, varied=(*self.varied, *values))
 
     def validate(self) -> MissionConfig:
         """The validated config.
 
-        :raises ConfigError: naming the first bad key, placed in the file unless an
-            override set it.
+        :raises ConfigError: naming the first bad key: placed in the file, or naming the
+            ``--set`` that gave it (see :class:`~veribattery.config.place.KeyOrigins`).
         """
-        source = self.written[1]
-
-        def locate(path: Path) -> Span | None:
-            if any(_under(path, key) for key in self.overridden):
-                return None
-            return _locate(self.root, path, source)
-
-        cfg = validate_config(self.data, locate)
+        origins = KeyOrigins(self.root, self.written[1], self.overridden, self.varied)
+        cfg = validate_config(self.data, origins)
+        cfg._key_origins = origins
         cfg._property_origins = property_origins(cfg.properties, self.root, self.written,
-                                                 self.overridden)
+                                                 (*self.overridden, *self.varied))
         return cfg
 
 
@@ -141,21 +139,21 @@ def parse_override(item: str) -> tuple[str, object]:
     key = key.strip()
     if not sep or not key:
         raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. strategy.safe_t=0.25")
-    if not _known(key):
+    name = key.removeprefix(_PROPERTY_KEY) if key.startswith(_PROPERTY_KEY) else None
+    if name is not None and not is_property_name(name):
+        raise ConfigError(f"--set {item!r}: property name {name!r} must be an identifier "
+                          "(letters, digits and _, not starting with a digit)")
+    if name is None and key not in known_keys():
         raise ConfigError(f"--set {item!r}: {_unknown_key_message(key)}")
     if not raw.strip():
         return key, None
     try:
         value = construct(compose(raw, None, key), raw, None)
+    except NumberOutOfRange as exc:
+        raise ConfigError(f"--set {key}: {exc.reason}") from None
     except ConfigError as exc:
         raise ConfigError(f"--set {item!r}: value is not valid YAML: {exc.message}") from None
     return key, value
-
-
-def _known(key: str) -> bool:
-    if key.startswith(_PROPERTY_KEY):
-        return key[len(_PROPERTY_KEY) :].isidentifier()
-    return key in known_keys()
 
 
 def _unknown_key_message(key: str) -> str:
@@ -180,33 +178,6 @@ def set_value(cfg_dict: Mapping[str, Any], dotted_key: str, value: object) -> di
         node = child
     node[leaf] = value
     return result
-
-
-def _under(path: Path, key: str) -> bool:
-    parts = tuple(key.split("."))
-    return tuple(str(p) for p in path[: len(parts)]) == parts
-
-
-def _locate(node: yaml.Node | None, path: Path, source: str) -> Span | None:
-    """Where *path* is written: the deepest key or list item of it found in the YAML."""
-    mark = node.start_mark if node is not None else None
-    for part in path:
-        found = _child(node, part)
-        if found is None:
-            break
-        mark, node = found
-    return Span(mark.line + 1, mark.column + 1, source) if mark is not None else None
-
-
-def _child(node: yaml.Node | None, part: str | int) -> tuple[Any, yaml.Node] | None:
-    if isinstance(node, yaml.MappingNode):
-        for key, value in node.value:
-            if key.value == str(part):  # an int part: a key written as a number
-                return key.start_mark, value
-    if isinstance(node, yaml.SequenceNode) and isinstance(part, int) and part < len(node.value):
-        item = node.value[part]
-        return item.start_mark, item
-    return None
 
 
 def config_to_yaml(cfg: MissionConfig) -> str:

@@ -12,10 +12,7 @@ Validation problems are reported by :func:`validate_config` as one-line
 from __future__ import annotations
 
 import math
-import operator
-import re
-from collections.abc import Callable, Mapping
-from dataclasses import dataclass
+from collections.abc import Mapping
 from fractions import Fraction
 from typing import Annotated, Any, Literal, Self
 
@@ -34,8 +31,15 @@ from pydantic import (
 )
 from pydantic_core import PydanticCustomError
 
-from veribattery.config.exact import Exact, problem, show
+from veribattery.config.exact import Exact, brief, problem
 from veribattery.config.origin import PropertyOrigins
+from veribattery.config.place import KeyOrigins
+from veribattery.config.requirement import (
+    Requirement,
+    is_property_name,
+    parse_requirement,
+    requirement_problem,
+)
 from veribattery.errors import ConfigError, Span
 
 __all__ = [
@@ -52,6 +56,7 @@ __all__ = [
     "StrategyConfig",
     "SweepConfig",
     "TimesConfig",
+    "is_property_name",
     "parse_requirement",
 ]
 
@@ -76,7 +81,7 @@ def _to_cell(value: object) -> Cell:
         x, y = value
         if _is_int(x) and _is_int(y):
             return (x, y)
-    raise problem(f"must be a cell [x, y] of two integers, got {show(value)}")
+    raise problem(f"must be a cell [x, y] of two integers, got {brief(value)}")
 
 
 def _is_int(value: object) -> bool:
@@ -93,7 +98,7 @@ def _to_route(value: object) -> RouteName | tuple[Cell, ...]:
         except PydanticCustomError:
             pass
     raise problem(
-        "must be 'snake_rows', 'snake_columns' or a list of cells [x, y], " f"got {show(value)}"
+        "must be 'snake_rows', 'snake_columns' or a list of cells [x, y], " f"got {brief(value)}"
     )
 
 
@@ -104,7 +109,7 @@ RouteField = Annotated[RouteName | tuple[Cell, ...], BeforeValidator(_to_route)]
 def _check_range(value: Fraction, low: Fraction | None, high: Fraction | None, text: str) -> None:
     """Raise ``must be <text>, got v`` unless low < value < high (bounds exclusive when given)."""
     if (low is not None and value <= low) or (high is not None and value >= high):
-        raise problem(f"must be {text}, got {show(value)}")
+        raise problem(f"must be {text}, got {brief(value)}")
 
 
 def _positive(value: Fraction) -> Fraction:
@@ -168,14 +173,22 @@ class FarmConfig(_Section):
 
     @model_validator(mode="after")
     def _cells_fit(self) -> Self:
+        size = f"{self.cols} x {self.rows} turbines"
         if self.cols * self.rows > MAX_TURBINES:  # else deriving the route takes forever
-            raise problem(f"{self.cols} x {self.rows} turbines is too large a farm: cols x rows "
-                          f"must be at most {MAX_TURBINES:,}", "cols")
+            too_large = f"{size} is too large a farm: cols x rows must be at most {MAX_TURBINES:,}"
+            raise problem(too_large, "cols", (("rows", too_large),))
         if not self._inside(self.base):
-            raise problem(f"cell {show(self.base)} is outside the {self._extent()}", "base")
+            raise self._outside("base", self.base)
         if isinstance(self.route, tuple):
             self._check_route(self.route)
         return self
+
+    def _outside(self, key: str, cell: Cell) -> PydanticCustomError:
+        """*cell* of *key* lies outside the farm: *key*'s fault, or cols' or rows'."""
+        size = f"{self.cols} x {self.rows} turbines leave"
+        sized = f"{size} farm.{key}'s cell {brief(cell)} outside the {self._extent()}"
+        return problem(f"cell {brief(cell)} is outside the {self._extent()}", key,
+                       (("cols", sized), ("rows", sized)))
 
     def _inside(self, cell: Cell) -> bool:
         return 0 <= cell[0] < self.cols - 1 and 0 <= cell[1] < self.rows - 1
@@ -188,14 +201,17 @@ class FarmConfig(_Section):
         seen: set[Cell] = set()
         for cell in route:
             if not self._inside(cell):
-                raise problem(f"cell {show(cell)} is outside the {self._extent()}", "route")
+                raise self._outside("route", cell)
             if cell in seen:
-                raise problem(f"cell {show(cell)} appears twice", "route")
+                raise problem(f"cell {brief(cell)} appears twice", "route")
             seen.add(cell)
         missing = [(x, y) for y in range(self.rows - 1) for x in range(self.cols - 1)]
         missing = [c for c in missing if c not in seen]
         if missing:
-            raise problem(f"misses cell {show(missing[0])} ({len(missing)} missing)", "route")
+            sized = (f"{self.cols} x {self.rows} turbines have cell {brief(missing[0])} that "
+                     f"farm.route misses ({len(missing)} missing)")
+            raise problem(f"misses cell {brief(missing[0])} ({len(missing)} missing)", "route",
+                          (("cols", sized), ("rows", sized)))
 
 
 class LevelValues(_Section):
@@ -286,8 +302,10 @@ class VoltageThresholds(_Section):
 
     @model_validator(mode="after")
     def _ordered(self) -> Self:
+        low, high = brief(self.low), brief(self.high)
         if self.low > self.high:
-            raise problem(f"must be <= high ({show(self.high)}), got {show(self.low)}", "low")
+            raise problem(f"must be <= high ({high}), got {low}", "low",
+                          (("high", f"must be >= low ({low}), got {high}"),))
         return self
 
 
@@ -307,7 +325,7 @@ class BatteryConfig(_Section):
     @classmethod
     def _fade(cls, value: Fraction) -> Fraction:
         if not 0 <= value < 1:
-            raise problem(f"must be in [0, 1), got {show(value)}")
+            raise problem(f"must be in [0, 1), got {brief(value)}")
         return value
 
     @field_validator("max_recharges")
@@ -319,19 +337,20 @@ class BatteryConfig(_Section):
 
     @model_validator(mode="after")
     def _whole_units(self) -> Self:
-        units = self.capacity_ah / self.resolution_ah
-        if units.denominator != 1:
+        capacity, resolution = brief(self.capacity_ah), brief(self.resolution_ah)
+        if (self.capacity_ah / self.resolution_ah).denominator != 1:
             raise problem(
-                f"must be a whole number of resolution_ah ({show(self.resolution_ah)}) units, "
-                f"got {show(self.capacity_ah)}",
-                "capacity_ah",
-            )
-        if self.model == "advanced" and self.fade_per_recharge * self.max_recharges >= 1:
+                f"must be a whole number of resolution_ah ({resolution}) units, got {capacity}",
+                "capacity_ah", (("resolution_ah", f"must divide capacity_ah ({capacity}) into "
+                                f"whole units, got {resolution}"),))
+        fade, most = self.fade_per_recharge, self.max_recharges
+        if self.model == "advanced" and fade * most >= 1:
             raise problem(
                 f"fade_per_recharge x max_recharges must be < 1 so the capacity stays "
-                f"positive, got {show(self.fade_per_recharge)} x {self.max_recharges}",
-                "fade_per_recharge",
-            )
+                f"positive, got {brief(fade)} x {brief(most)}", "fade_per_recharge",
+                (("max_recharges", f"must be at most {math.ceil(1 / fade) - 1} so that "
+                  f"fade_per_recharge ({brief(fade)}) x max_recharges stays < 1 (the capacity "
+                  f"positive), got {brief(most)}"),))
         return self
 
     @property
@@ -369,7 +388,7 @@ class EnvironmentConfig(_Section):
     @classmethod
     def _probability(cls, value: Fraction) -> Fraction:
         if not 0 <= value <= 1:
-            raise problem(f"must be in [0, 1], got {show(value)}")
+            raise problem(f"must be in [0, 1], got {brief(value)}")
         return value
 
 
@@ -386,7 +405,7 @@ class TimesConfig(_Section):
     @classmethod
     def _non_negative(cls, value: Fraction) -> Fraction:
         if value < 0:
-            raise problem(f"must be >= 0, got {show(value)}")
+            raise problem(f"must be >= 0, got {brief(value)}")
         return value
 
 
@@ -394,48 +413,6 @@ class SweepConfig(_Section):
     """A parameter sweep (``veribattery sweep``): the ``--vary`` SPECs, first varying slowest."""
 
     vary: tuple[str, ...] = ()
-
-
-@dataclass(frozen=True, slots=True)
-class Requirement:
-    """A requirement ``<property> <op> <bound>``, e.g. ``p_success >= 0.99``."""
-
-    prop: str
-    op: str
-    bound: Fraction
-
-    def holds(self, value: float) -> bool:
-        """Whether a checked *value* meets this requirement, compared exactly with the
-        rational bound (which a float may not hold: ``1/3``, or ``1e400`` beyond the
-        doubles); NaN meets none."""
-        ops: dict[str, Callable[[Any, Any], bool]] = {
-            "<": operator.lt, "<=": operator.le, ">": operator.gt, ">=": operator.ge}
-        value = float(value)
-        if value != value:
-            return False
-        return ops[self.op](value if math.isinf(value) else Fraction(value), self.bound)
-
-    def __str__(self) -> str:
-        return f"{self.prop} {self.op} {show(self.bound)}"
-
-
-_REQUIREMENT = re.compile(r"\s*([A-Za-z_]\w*)\s*(<=|>=|<|>)\s*(\S+)\s*")
-_IDENT = re.compile(r"[A-Za-z_]\w*")
-
-
-def parse_requirement(text: str) -> Requirement:
-    """Parse ``name op number`` (op one of ``< <= > >=``).
-
-    :raises ValueError: when *text* is not of that form.
-    """
-    match = _REQUIREMENT.fullmatch(text)
-    if match is None:
-        raise ValueError(f"must look like 'p_success >= 0.99' (op: <, <=, >, >=), got {text!r}")
-    try:
-        bound = Fraction(match.group(3))
-    except (ValueError, ZeroDivisionError):
-        raise ValueError(f"bound must be a number, got {match.group(3)!r}") from None
-    return Requirement(match.group(1), match.group(2), bound)
 
 
 class MissionConfig(_Section):
@@ -451,13 +428,15 @@ class MissionConfig(_Section):
     sweep: SweepConfig = SweepConfig()
     #: Where the property formulas were written (set by load_config; not compared).
     _property_origins: PropertyOrigins = PrivateAttr(default_factory=PropertyOrigins)
+    #: Where every key was given (set by load_config; not compared).
+    _key_origins: KeyOrigins = PrivateAttr(default_factory=KeyOrigins)
 
     @field_validator("properties")
     @classmethod
     def _named(cls, value: dict[str, str]) -> dict[str, str]:
         for name, text in value.items():
-            if not _IDENT.fullmatch(name):
-                raise problem(f"property name must be an identifier, got {name!r}")
+            if not is_property_name(name):
+                raise problem(f"property name must be an identifier, got {brief(name)}")
             if not text.strip():
                 raise problem(f"property {name!r} has an empty formula")
         return value
@@ -474,7 +453,17 @@ class MissionConfig(_Section):
                 raise problem(
                     f"unknown property {req.prop!r} (declared: {names})", f"requirements.{i}"
                 )
+            wrong = requirement_problem(req, self.properties[req.prop])
+            if wrong is not None:
+                raise problem(wrong, f"requirements.{i}")
         return self
+
+    def key_error(self, *blames: tuple[str, str]) -> ConfigError:
+        """A :class:`ConfigError` about a problem that changing any of *blames*' dotted
+        keys would fix (each ``(key, message)``): it names the one the user gave, placed
+        in the file or at its ``--set`` (see :class:`~veribattery.config.place.KeyOrigins`).
+        """
+        return self._key_origins.error(blames)
 
     def property_error(self, name: str, message: str, at: Span | None = None) -> ConfigError:
         """A :class:`ConfigError` for a problem *at* a line:col of property *name*'s

@@ -16,13 +16,26 @@ from typing import Any
 
 import yaml
 
+from veribattery._numbers import MAX_EXPONENT, OutOfRange, exact_number, out_of_range
 from veribattery._text import decode_text
 from veribattery.errors import ConfigError, Span
 
-__all__ = ["compose", "construct", "decode", "yaml_error"]
+__all__ = ["MAX_VALUES", "NumberOutOfRange", "compose", "construct", "decode", "yaml_error"]
 
+#: The most values a config's aliases may expand to: an explicit route over the
+#: largest farm (MAX_TURBINES) is some 300,000.
+MAX_VALUES = 1_000_000
 _MERGE_TAG = "tag:yaml.org,2002:merge"
 _INT_TAG, _FLOAT_TAG = "tag:yaml.org,2002:int", "tag:yaml.org,2002:float"
+
+
+class NumberOutOfRange(ConfigError):
+    """A number too large or too long to read (see :mod:`veribattery._numbers`); the
+    message names the key, :attr:`reason` says what is wrong without it."""
+
+    def __init__(self, path: str, reason: str, span: Span | None) -> None:
+        super().__init__(f"{path}: {reason}" if path else reason, span)
+        self.reason = reason
 
 
 class _ConfigLoader(yaml.SafeLoader):  # type: ignore[misc]
@@ -58,7 +71,8 @@ def compose(text: str, source: str | None, prefix: str = "") -> yaml.Node | None
     :param source: the file's name, or None for a one-line ``--set`` value (then a
         duplicate key is placed by its columns, in the message).
     :param prefix: the dotted key *text* is the value of (a ``--set`` key), for messages.
-    :raises ConfigError: on YAML syntax errors and on a key given twice in a mapping.
+    :raises ConfigError: on YAML syntax errors, on a key given twice in a mapping, and
+        on aliases that expand past :data:`MAX_VALUES` values or into themselves.
     """
     try:
         loader = _ConfigLoader(text)
@@ -67,7 +81,7 @@ def compose(text: str, source: str | None, prefix: str = "") -> yaml.Node | None
     try:
         root = loader.get_single_node()
         if root is not None:
-            _check_unique_keys(root, prefix, (yaml.constructor.SafeConstructor(), source))
+            _Walk(source).size(root, prefix)
     except yaml.YAMLError as exc:
         raise yaml_error(exc, text, source) from None
     except RecursionError:  # PyYAML composes nested lists and mappings recursively
@@ -112,24 +126,85 @@ def _offset_span(text: str, offset: int, source: str | None) -> Span | None:
     return Span(line, col, source) if source is not None else None
 
 
-def _check_unique_keys(
-    node: yaml.Node, path: str, context: tuple[yaml.constructor.SafeConstructor, str | None]
-) -> None:
-    """Refuse a key written twice in any mapping under *node* (the value of *path*)."""
-    if isinstance(node, yaml.SequenceNode):
-        for index, item in enumerate(node.value):
-            _check_unique_keys(item, f"{path}[{index}]", context)
-    if not isinstance(node, yaml.MappingNode):
-        return
-    seen: dict[object, yaml.Node] = {}
-    for key, value in node.value:
-        name = _key(key, context[0])
-        dotted = f"{path}.{name}" if path else str(name)
-        if name is not None and name in seen:
-            raise _duplicate(dotted, seen[name], key, context[1])
-        if name is not None:
-            seen[name] = key
-        _check_unique_keys(value, dotted, context)
+class _Walk:
+    """One walk over a composed YAML tree: a key written twice in a mapping is refused,
+    and so is a tree whose aliases expand past :data:`MAX_VALUES` values.
+
+    An alias is the very node its anchor names: nine aliases of a list of nine aliases
+    of ... make a tree of 9^9 values from nine lines (a "billion laughs"). Each node is
+    visited once, its expanded size remembered, so the walk is as long as the text.
+    """
+
+    def __init__(self, source: str | None) -> None:
+        self.constructor = yaml.constructor.SafeConstructor()
+        self.source = source
+        self.sizes: dict[int, int] = {}  # id(node) -> values it expands to
+
+    def size(self, node: yaml.Node, path: str) -> int:
+        """The values *node* expands to (itself, and every value under it).
+
+        :raises ConfigError: for a key given twice, an alias inside its own anchor, or
+            an expansion past :data:`MAX_VALUES`.
+        """
+        known = self.sizes.get(id(node))
+        if known == 0:
+            raise self._error(f"the alias at '{path}' stands for a list or mapping that "
+                              "holds it: a config cannot hold itself", node)
+        if known is not None:
+            return known
+        if isinstance(node, yaml.ScalarNode) and node.tag in (_INT_TAG, _FLOAT_TAG):
+            self._check_number(node, path)
+        self.sizes[id(node)] = 0  # under way
+        total = 1 + sum(self.size(child, where) for child, where in self._children(node, path))
+        if total > MAX_VALUES:
+            raise self._error(f"YAML aliases expand '{path or 'the config'}' to more than "
+                              f"{MAX_VALUES:,} values: write the values out, or use fewer "
+                              "aliases", node)
+        self.sizes[id(node)] = total
+        return total
+
+    def _children(self, node: yaml.Node, path: str) -> list[tuple[yaml.Node, str]]:
+        """*node*'s items, or its keys and values (a key given twice refused), with paths."""
+        if isinstance(node, yaml.SequenceNode):
+            return [(item, f"{path}[{index}]") for index, item in enumerate(node.value)]
+        if not isinstance(node, yaml.MappingNode):
+            return []
+        seen: dict[object, yaml.Node] = {}
+        children: list[tuple[yaml.Node, str]] = []
+        for key, value in node.value:
+            name = _key(key, self.constructor)
+            dotted = f"{path}.{name}" if path else str(name)
+            if name is not None and name in seen:
+                raise _duplicate(dotted, seen[name], key, self.source)
+            if name is not None:
+                seen[name] = key
+            children += [(key, dotted), (value, dotted)]
+        return children
+
+    def _check_number(self, node: yaml.ScalarNode, path: str) -> None:
+        """Refuse a number beyond :data:`~veribattery._numbers.SIZE_RULE` before PyYAML
+        reads it: an int of 5,000 digits is a traceback (Python's int/str limit), and
+        ``1.0e-5000`` would read as 0 and ``1.0e5000`` as infinity."""
+        text = node.value.strip()
+        try:
+            if text.lstrip("+-")[:2].lower() in ("0x", "0b"):  # no limit for these bases
+                if abs(int(text.replace("_", ""), 0)) > 10**MAX_EXPONENT:
+                    raise out_of_range(text)
+            else:
+                exact_number(text)
+        except OutOfRange as exc:
+            mark = node.start_mark
+            span = None if self.source is None else Span(mark.line + 1, mark.column + 1,
+                                                          self.source)
+            raise NumberOutOfRange(path, str(exc), span) from None
+        except ValueError:  # .inf, .nan: the schema says what it needs instead
+            return
+
+    def _error(self, message: str, node: yaml.Node) -> ConfigError:
+        mark = node.start_mark
+        if self.source is None:
+            return ConfigError(f"{message} (column {mark.column + 1})")
+        return ConfigError(message, Span(mark.line + 1, mark.column + 1, self.source))
 
 
 def _key(node: yaml.Node, constructor: yaml.constructor.SafeConstructor) -> object:

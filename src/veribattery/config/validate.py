@@ -4,19 +4,19 @@ from __future__ import annotations
 
 import difflib
 import functools
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any, get_args
 
 from pydantic import BaseModel, ValidationError
 
-from veribattery.config.exact import show
+from veribattery.config.exact import brief
+from veribattery.config.place import KeyOrigins, KeyPath, key_text
 from veribattery.config.schema import UNION_TAGS, MissionConfig
-from veribattery.errors import ConfigError, Span
 
 __all__ = ["Path", "dotted", "known_keys", "validate_config"]
 
 #: A key path as pydantic reports it: ``('farm', 'route', 3)``.
-Path = tuple[str | int, ...]
+Path = KeyPath
 
 
 @functools.cache  # the schema is fixed; every --set and every sweep point asks
@@ -43,13 +43,7 @@ def _submodels(annotation: object) -> list[type[BaseModel]]:
 
 def dotted(path: Path) -> str:
     """``('farm', 'route', 3)`` → ``farm.route[3]``; union tags are dropped."""
-    text = ""
-    for part in path:
-        if isinstance(part, int):
-            text += f"[{part}]"
-        elif part not in UNION_TAGS:
-            text += ("." if text else "") + part
-    return text or "config"
+    return key_text(_clean(path))
 
 
 def _clean(path: Path) -> Path:
@@ -87,48 +81,56 @@ _TYPE_WORDS = {
 }
 
 
-def _describe(error: Mapping[str, Any]) -> tuple[Path, str]:
-    """The key path and the message of one pydantic error."""
+def _describe(error: Mapping[str, Any]) -> list[tuple[Path, str]]:
+    """The key path and the message of one pydantic error; for a check across keys,
+    the other keys that would fix it, each with its message (see ``exact.problem``)."""
     path: Path = _clean(tuple(error["loc"]))
-    kind = error["type"]
     ctx = error.get("ctx") or {}
-    if kind == "vb_problem":
-        if ctx.get("key"):
-            subkey: Path = tuple(int(p) if p.isdigit() else p for p in ctx["key"].split("."))
-            path = path + subkey
-        return path, str(ctx["message"])
+    if error["type"] == "vb_problem":
+        return [(path + _subkey(key), str(message)) for key, message in
+                ((ctx.get("key", ""), ctx["message"]), *ctx.get("others", ()))]
+    return [_described(path, error)]
+
+
+def _subkey(key: str) -> Path:
+    return tuple(int(p) if p.isdigit() else p for p in key.split(".")) if key else ()
+
+
+def _described(path: Path, error: Mapping[str, Any]) -> tuple[Path, str]:
+    """The key path and message of a pydantic error of its own kind."""
+    kind, given = error["type"], brief(error["input"])
+    ctx = error.get("ctx") or {}
     if kind == "invalid_key" and path:  # YAML allows 1: or ~: as a key; a config does not
         path = (*path[:-1], str(path[-1]))
-        return path, f"a key must be a name, got {show(error['input'])} (allowed: {_allowed(path)})"
+        return path, f"a key must be a name, got {given} (allowed: {_allowed(path)})"
     if path and path[-1] == "[key]" and len(path) > 1:  # a dict's key (properties: {1: ...})
-        return (*path[:-2], str(path[-2])), f"a key must be a name, got {show(error['input'])}"
+        return (*path[:-2], str(path[-2])), f"a key must be a name, got {given}"
     if kind == "extra_forbidden":
         return path, _suggest(path)
     if kind == "literal_error":
-        return path, f"must be one of {ctx['expected']}, got {show(error['input'])}"
+        return path, f"must be one of {ctx['expected']}, got {given}"
     if kind in _TYPE_WORDS:
-        return path, f"must be {_TYPE_WORDS[kind]}, got {show(error['input'])}"
+        return path, f"must be {_TYPE_WORDS[kind]}, got {given}"
     return path, str(error["msg"])
 
 
-def validate_config(
-    data: object, locate: Callable[[Path], Span | None] = lambda _path: None
-) -> MissionConfig:
+def validate_config(data: object, origins: KeyOrigins | None = None) -> MissionConfig:
     """Validate a parsed YAML document into a :class:`MissionConfig`.
 
     :param data: the document (``None`` for an empty file).
-    :param locate: maps a key path to its place in the source, for the error's span.
+    :param origins: where each key was given, to place the error.
     :raises ConfigError: naming the first bad key, e.g.
         ``strategy.safe_t: must be in (0, 1), got 1.5``.
     """
+    origins = origins or KeyOrigins()
     if data is None:
         data = {}
     if not isinstance(data, Mapping):
-        raise ConfigError(f"config: must be a mapping of keys, got {show(data)}", locate(()))
+        raise origins.error([((), f"must be a mapping of keys, got {brief(data)}")])
     try:
         return MissionConfig.model_validate(data)
     except ValidationError as exc:
         errors = exc.errors(include_url=False)
-        path, message = _describe(errors[0])
         more = f" (and {len(errors) - 1} more problem(s))" if len(errors) > 1 else ""
-        raise ConfigError(f"{dotted(path)}: {message}{more}", locate(path)) from None
+        raise origins.error([(path, message + more) for path, message
+                             in _describe(errors[0])]) from None

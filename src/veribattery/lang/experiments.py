@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from decimal import Decimal
 from fractions import Fraction
 
+from veribattery._numbers import OutOfRange, count_text, exact_number
 from veribattery.errors import PrismSemanticError
 
 __all__ = ["MAX_POINTS", "constant_points", "is_range"]
@@ -35,7 +36,7 @@ def constant_points(given: Mapping[str, str]) -> list[dict[str, str]]:
     for axis in axes:
         count *= len(axis)
     if count > MAX_POINTS:
-        raise PrismSemanticError(f"--const ranges make {count:,} points; at most "
+        raise PrismSemanticError(f"--const ranges make {count_text(count)} points; at most "
                                  f"{MAX_POINTS:,} are checked: narrow a range or widen a step")
     return [dict(point) for point in itertools.product(*axes)]
 
@@ -44,8 +45,10 @@ def _range_values(name: str, value: str) -> list[str]:
     """The values of ``start:end`` or ``start:step:end``, written exactly."""
     parts = value.split(":")
     try:
-        numbers = [Fraction(part.strip()) for part in parts]
-    except (ValueError, ZeroDivisionError):
+        numbers = [exact_number(part) for part in parts]
+    except OutOfRange as exc:
+        raise PrismSemanticError(f"--const {name}={value}: {exc}") from None
+    except ValueError:
         numbers = []
     if len(parts) not in (2, 3) or len(numbers) != len(parts):
         raise PrismSemanticError(
@@ -58,7 +61,7 @@ def _range_values(name: str, value: str) -> list[str]:
             f"{_written(end)} from {_written(start)}")
     count = int((end - start) / step) + 1
     if count > MAX_POINTS:
-        raise PrismSemanticError(f"--const {name}={value} has {count:,} values; at most "
+        raise PrismSemanticError(f"--const {name}={value} has {count_text(count)} values; at most "
                                  f"{MAX_POINTS:,} are checked")
     return [_written(start + i * step) for i in range(count)]
 

@@ -33,6 +33,8 @@ _UNARY_LEVEL = 12
 _BOUND_OPS = frozenset({"<", "<=", ">", ">="})
 #: Tokens that end an expression: after one of them no operator continues it.
 _ENDS = frozenset({")", ";", ",", "]", "}", "$", "||", "->", ":", ".."})
+#: Longer int literals are left to lark's parse (Python reads at most 4,300 digits).
+_LONGEST_INT = 100
 _TIME_OPS = frozenset({"<", "<=", ">", ">=", "="})
 
 
@@ -236,6 +238,8 @@ class ExprParser:
         if kind == "I":
             return self.word_atom()
         if kind == "N":
+            if len(self.texts[i]) > _LONGEST_INT:
+                raise Fallback  # lark's parse says why, where
             self.i += 1
             return IntLit(int(self.texts[i]), self.span(i))
         if kind == "D":

@@ -51,6 +51,7 @@ __all__ = [
     "decided_by",
     "divide",
     "floor_int",
+    "int_literal",
     "int_pow",
     "java_log",
     "java_max",
@@ -77,6 +78,8 @@ INT_MIN = -(1 << 63)
 INT_MAX = (1 << 63) - 1
 
 # The messages of the errors, shared by every evaluator.
+#: The most digits an int literal may have: Python reads no more than 4,300 into an int.
+_LITERAL_DIGITS = 4_000
 NEGATIVE_EXPONENT = "negative exponent in integer pow (for a real power write a double: -1.0)"
 POW_OVERFLOW = "integer pow out of the int range"
 MOD_DIVISOR = "modulo with non-positive divisor"
@@ -84,18 +87,36 @@ MOD_INTEGERS = "mod requires integer arguments"
 
 
 def show_int(value: int) -> str:
-    """*value* in digits, or its number of digits if it has more than 40."""
-    digits = str(abs(value))
-    if len(digits) <= 40:
+    """*value* in digits, or its number of digits if it has more than 40 (counted without
+    writing them: Python refuses to write an int of more than 4,300 digits)."""
+    if abs(value) < 10**40:
         return str(value)
-    return f"{'-' if value < 0 else ''}<{len(digits)} digits>"
+    digits = int(math.log10(abs(value)))
+    digits += 10**digits <= abs(value)  # log10 is a float: one off near a power of ten
+    return f"{'-' if value < 0 else ''}<{digits} digits>"
 
 
 def out_of_int_range(value: int) -> str:
     """The message for an int (a literal, a constant, a folded expression) that the
     engine's 64-bit ints cannot hold."""
-    return (f"{show_int(value)} is out of the int range -2^63..2^63-1 (ints are 64-bit "
-            "here; PRISM's are 32-bit): use a smaller int, or a double such as 1e19")
+    return _beyond_ints(show_int(value))
+
+
+def int_literal(text: str) -> int:
+    """The int an int literal writes (digits only).
+
+    :raises OperatorError: for more digits than Python reads into an int (4,300), far
+        beyond the 64-bit range anyway.
+    """
+    digits = len(text.lstrip("0"))
+    if digits > _LITERAL_DIGITS:
+        raise OperatorError(_beyond_ints(f"<{digits:,} digits>"))
+    return int(text)
+
+
+def _beyond_ints(shown: str) -> str:
+    return (f"{shown} is out of the int range -2^63..2^63-1 (ints are 64-bit here; PRISM's "
+            "are 32-bit): use a smaller int, or a double such as 1e19")
 
 
 def not_an_int(name: str, value: float) -> str:

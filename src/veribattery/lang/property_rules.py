@@ -45,6 +45,7 @@ from veribattery.lang.nodes import (
     Until,
     WeakUntil,
 )
+from veribattery.lang.ops import OperatorError, int_literal
 
 _TimeOp: TypeAlias = Literal["<", "<=", ">", ">=", "="]
 _TEMPORAL_NAMES = {
@@ -242,7 +243,10 @@ class PropertyRules:
 
     def reward_by_index(self, meta: Meta, children: list[str]) -> int:
         # R{2} is the second structure; nodes store 0-based indices.
-        return int(children[0]) - 1
+        try:
+            return int_literal(children[0]) - 1
+        except OperatorError as exc:
+            raise PrismSyntaxError(exc.message, self._span(meta)) from None
 
     def cumulative(self, meta: Meta, children: list[Any]) -> RewardPath | Unsupported:
         bound = children[0] if children else None

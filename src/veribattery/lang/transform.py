@@ -49,6 +49,7 @@ from veribattery.lang.nodes import (
     ValueType,
     VarDecl,
 )
+from veribattery.lang.ops import OperatorError, int_literal
 from veribattery.lang.property_rules import (
     Meta,
     PropertyRules,
@@ -147,7 +148,10 @@ class ToNodes(PropertyRules):
     # ---------------------------------------------------------- expressions
 
     def int_lit(self, meta: Meta, children: list[str]) -> Expr:
-        return IntLit(int(children[0]), self._span(meta))
+        try:
+            return IntLit(int_literal(children[0]), self._span(meta))
+        except OperatorError as exc:
+            raise PrismSyntaxError(exc.message, self._span(meta)) from None
 
     def double_lit(self, meta: Meta, children: list[str]) -> Expr:
         return DoubleLit(float(children[0]), str(children[0]), self._span(meta))

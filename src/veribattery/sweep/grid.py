@@ -13,14 +13,15 @@ import itertools
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from decimal import Decimal, InvalidOperation
 from fractions import Fraction
 
 import yaml
 
+from veribattery._numbers import OutOfRange, count_text, exact_number
 from veribattery.config import known_keys
-from veribattery.config.exact import fraction_to_decimal
-from veribattery.config.source import compose, construct
+from veribattery.config.exact import brief, fraction_to_decimal
+from veribattery.config.schema import is_property_name
+from veribattery.config.source import NumberOutOfRange, compose, construct
 from veribattery.errors import ConfigError
 
 __all__ = [
@@ -115,8 +116,12 @@ def _bad(text: str, expected: str) -> ConfigError:
 
 
 def _check_key(text: str, key: str) -> None:
-    if key.startswith(_PROPERTY_KEY) and key[len(_PROPERTY_KEY):].isidentifier():
-        return
+    if key.startswith(_PROPERTY_KEY):
+        name = key.removeprefix(_PROPERTY_KEY)
+        if is_property_name(name):
+            return
+        raise _bad(text, f"property name {name!r} must be an identifier (letters, digits "
+                         "and _, not starting with a digit)")
     if key in known_keys():
         return
     close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
@@ -136,18 +141,19 @@ def _range(text: str, spec: str) -> tuple[object, ...]:
         raise _bad(text, f"STOP must be ≥ START, got {parts[0].strip()}:{parts[1].strip()}")
     count = int((stop - start) // step) + 1
     if count > MAX_POINTS:
-        raise _bad(text, f"range gives {count:,} values (at most {MAX_POINTS:,})")
+        raise _bad(text, f"range gives {count_text(count)} values (at most {MAX_POINTS:,})")
     return tuple(_number(text, start + k * step) for k in range(count))
 
 
 def _decimal(text: str, part: str) -> Fraction:
     try:
-        number = Decimal(part.strip())
-    except InvalidOperation:
-        number = Decimal("NaN")
-    if not number.is_finite():
-        raise _bad(text, f"{part.strip()!r} is not a decimal number (START:STOP:STEP)")
-    return Fraction(number)
+        if "/" not in part:
+            return exact_number(part)
+    except OutOfRange as exc:
+        raise _bad(text, str(exc)) from None
+    except ValueError:
+        pass
+    raise _bad(text, f"{brief(part.strip())} is not a decimal number (START:STOP:STEP)")
 
 
 def _number(text: str, value: Fraction) -> int | float:
@@ -167,6 +173,8 @@ def _items(text: str, spec: str) -> tuple[object, ...]:
     flow = f"[{spec}]"
     try:
         items = construct(compose(flow, None), flow, None)
+    except NumberOutOfRange as exc:
+        raise _bad(text, exc.reason) from None
     except ConfigError:
         items = None
     if not isinstance(items, list) or not items or any(item is None for item in items):
