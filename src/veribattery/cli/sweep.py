@@ -14,6 +14,7 @@ import click
 from veribattery.cli.files import PathParam, check_output_file
 from veribattery.cli.output import (
     err,
+    exit_interrupted,
     format_value,
     json_value,
     print_dim,
@@ -122,9 +123,9 @@ def run_with_progress(
             return run_sweep(config, axes, overrides, progress, results=results,
                              on_point=on_point, notes=_note, **options)
     except KeyboardInterrupt:
-        kept = f"; finished points are kept in {results}: rerun to resume" if results else ""
-        err.print(f"interrupted{kept}", markup=False)
-        sys.exit(130)
+        kept = (f"; finished points are kept in {results}: rerun to resume"
+                if results is not None and results.exists() else "")
+        exit_interrupted(f"interrupted{kept}")
 
 
 def _note(text: str) -> None:
