@@ -99,3 +99,33 @@ def test_ctrl_c_stops_a_parallel_sweep_at_once(tmp_path: Path, presses: int) -> 
     header, *rows = results.read_text().splitlines()
     assert header.startswith("point,battery.capacity_ah,environment.p_wsp_c,property,")
     assert rows and all(row.count(",") == header.count(",") for row in rows)
+
+
+def _children(pid: int) -> set[int]:
+    """The live child processes of *pid* (Linux /proc)."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            with suppress(OSError):  # (gone meanwhile)
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+                if int(fields[1]) == pid and fields[0] != "Z":
+                    found.add(int(entry.name))
+    return found
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_ctrl_c_as_workers_start_names_the_results_file(tmp_path: Path) -> None:
+    """Ctrl-C once both workers are there (still importing, or checking): none prints
+    a traceback, and the message names the results file, not the folder it is in."""
+    process = _start(["reproduce", "table3", "-o", "out", "-j", "2"], tmp_path)
+    seen = _read_until(process, b"running on 2 local worker processes")
+    deadline = time.monotonic() + HUNG_S
+    while len(_children(process.pid)) < 2 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    _ctrl_c(process)
+    stderr = _finish(process, seen)
+    assert process.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert stderr.splitlines()[-1] == (
+        "interrupted; finished points are kept in out/table3_sweep.csv: rerun to resume")
+    _assert_group_gone(process.pid)
