@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import os
+import re
 import time
 from pathlib import Path
 
@@ -136,7 +137,14 @@ def test_a_boolean_property_resumes_from_csv(config: str, tmp_path: Path) -> Non
     (".csv", lambda text: text + "\xff\n", 12, "not UTF-8 text"),
     (".jsonl", lambda text: text + "{not json\n", 11, "not JSON"),
     (".jsonl", lambda text: text + "[1, 2]\n", 11, "not an object with this sweep's columns"),
-], ids=["point", "extra-cell", "missing-cells", "not-utf8", "not-json", "json-list"])
+    (".csv", lambda text: text.replace(",p_success,", ",bogus,", 1), 2,
+     "point 0 has no property 'bogus'"),
+    (".csv", lambda text: text.replace("\n1,10.5,", "\n7,10.5,", 1), 7,
+     "point 7 is not one of this sweep's 2"),
+    (".jsonl", lambda text: re.sub(r'"value": [^,]+', '"value": "abc"', text, count=1), 1,
+     'value "abc" is not a value this sweep writes there'),
+], ids=["point", "extra-cell", "missing-cells", "not-utf8", "not-json", "json-list",
+        "foreign-property", "foreign-point", "json-text-value"])
 def test_a_damaged_results_file_is_refused_on_one_line(
         config: str, tmp_path: Path, suffix: str, edit: object, line: int, why: str) -> None:
     """Rows the sweep did not write (edited by hand, a stray byte) gave tracebacks on
