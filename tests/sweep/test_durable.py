@@ -98,6 +98,18 @@ def test_a_point_with_rows_missing_is_checked_again(
     assert list(written["value"]) == list(serial_frame["value"].astype(float))
 
 
+def test_an_upper_case_suffix_is_the_same_format(tmp_path: Path) -> None:
+    """``-o R.CSV`` was appended to as JSON lines and rewritten as CSV at the end (a CSV
+    header over JSON rows), which no rerun could read back."""
+    path = tmp_path / "R.CSV"
+    axes = four_axes()[1:]
+    first = run_sweep("", axes, SMALL_FARM, results=path)
+    assert list(pd.read_csv(path)["point"]) == list(first["point"])
+    notes: list[str] = []
+    run_sweep("", axes, SMALL_FARM, results=path, notes=notes.append)
+    assert notes == ["2 of 2 points already done"]
+
+
 def test_torn_last_line_is_cut_before_appending(tmp_path: Path) -> None:
     path = tmp_path / "r.csv"
     path.write_text("a,b\n1,2\n3,")

@@ -180,7 +180,7 @@ def _write_new(meta: Path, mark: SweepFingerprint) -> None:
 
 def _create(journal: Path, columns: Sequence[str]) -> IO[str]:
     stream = journal.open("w", encoding="utf-8", newline="")
-    if journal.suffix == ".csv":
+    if _is_csv(journal):
         stream.write(_csv_line(columns))
         stream.flush()
     return stream
@@ -199,9 +199,14 @@ def _reopen(journal: Path, columns: Sequence[str]) -> IO[str]:
 
 
 def _text(journal: Path, columns: Sequence[str], rows: Sequence[Row]) -> str:
-    if journal.suffix == ".csv":
+    if _is_csv(journal):
         return "".join(_csv_line([_csv_cell(row.get(c)) for c in columns]) for row in rows)
     return "".join(json.dumps({c: row.get(c) for c in columns}) + "\n" for row in rows)
+
+
+def _is_csv(path: Path) -> bool:
+    """CSV (else JSON lines): by the suffix, in any case, as :func:`_suffix` reads it."""
+    return path.suffix.lower() == ".csv"
 
 
 def _csv_line(cells: Sequence[object]) -> str:
@@ -225,7 +230,7 @@ def _read_rows(journal: Path, columns: Sequence[str], check: RowCheck | None) ->
     except UnicodeDecodeError as exc:
         raise _not_ours(journal, _text_line(exc), "not UTF-8 text") from None
     lines = text[: text.rfind("\n") + 1]
-    numbered = (_csv_rows(journal, lines, columns) if journal.suffix == ".csv" else
+    numbered = (_csv_rows(journal, lines, columns) if _is_csv(journal) else
                 ((number, _json_row(journal, number, line, columns))
                  for number, line in enumerate(lines.splitlines(), 1) if line.strip()))
     return [_checked(journal, f"line {number}", row, check) for number, row in numbered]
@@ -337,7 +342,7 @@ def _replace(path: Path, columns: Sequence[str], rows: list[Row]) -> None:
             _write_parquet(temporary, columns, rows)
             return
         with open(temporary, "w", encoding="utf-8", newline="") as stream:
-            if path.suffix.lower() == ".csv":
+            if _is_csv(path):
                 stream.write(_csv_line(columns))
             stream.write(_text(path, columns, rows))
             stream.flush()
