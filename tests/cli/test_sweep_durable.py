@@ -161,3 +161,27 @@ def test_a_damaged_results_file_is_refused_on_one_line(
                                    f"wrote ({why}"), again.stderr
     assert again.stderr.endswith("; use --force to start afresh, or pick another -o\n")
     assert again.stderr.count("\n") == 1 and out.read_bytes() == before
+
+
+def test_a_rerun_resumes_and_redraws_the_plot_it_drew(config: str, tmp_path: Path) -> None:
+    """The same command run again (the README's resumable example with --plot) resumes
+    and draws its figure again; it was refused because the figure existed, and --force
+    would have thrown the finished points away. A figure it did not draw stays safe."""
+    out, figure = tmp_path / "r.csv", tmp_path / "p.png"
+    args = ("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", "-o", str(out))
+    assert run(*args, "--plot", str(figure)).exit_code == 0
+    figure.write_bytes(b"stale")
+    again = run(*args, "--plot", str(figure))
+    assert again.exit_code == 0, again.output
+    assert "2 of 2 points already done" in again.stderr
+    assert f"wrote {figure}" in again.stderr and figure.read_bytes().startswith(b"\x89PNG")
+    # Not a figure this sweep drew (a file of the user's; another sweep's figure): refused
+    # as before, and left as it is.
+    mine, other = tmp_path / "mine.png", tmp_path / "other.csv"
+    mine.write_bytes(b"mine")
+    for results, plot in ((out, mine), (other, figure)):
+        refused = run(*args[:-1], str(results), "--plot", str(plot))
+        assert refused.exit_code == 2, refused.output
+        assert refused.stderr == (f"error: --plot {plot}: already exists; use --force to "
+                                  "overwrite it, or choose another name\n")
+    assert mine.read_bytes() == b"mine" and not other.exists()

@@ -8,7 +8,7 @@ a point again). Parquet cannot be appended to, so a ``.parquet``
 sweep journals its rows to ``RESULTS.partial.jsonl`` and writes the Parquet file
 (atomically) when the sweep ends. When a sweep ends the file is rewritten, atomically,
 in grid order. The sweep's fingerprint is kept beside the results in
-``RESULTS.sweep.json``.
+``RESULTS.sweep.json``, with the figures (``sweep --plot``) the sweep has drawn.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from veribattery.errors import ConfigError
 from veribattery.sweep.fingerprint import SweepFingerprint
 
 __all__ = ["FORMATS", "ResultsFileError", "ResultsStore", "Row", "RowCheck", "check_target",
-           "open_results", "read_results"]
+           "drawn_plots", "open_results", "read_results", "record_plot"]
 
 #: One row: column → value.
 Row = dict[str, object]
@@ -95,7 +95,7 @@ def open_results(
     """
     suffix = _suffix(path)
     journal = path.with_name(path.name + ".partial.jsonl") if suffix == ".parquet" else path
-    meta = path.with_name(path.name + ".sweep.json")
+    meta = _meta(path)
     exists = path.exists() or journal.exists()
     try:
         rows = [] if force or not exists else _resume(path, journal, meta, mark, columns, check)
@@ -103,12 +103,32 @@ def open_results(
         raise ConfigError(f"-o {str(exc.file)!r}: {exc.problem}; use --force to start afresh, "
                           "or pick another -o") from None
     _check_writable(path)
-    if not rows:
+    if force or not exists:  # (resumed, it holds this sweep's fingerprint and plots)
         _write_new(meta, mark)
-        stream = _create(journal, columns)
-    else:
-        stream = _reopen(journal, columns)
+    stream = _reopen(journal, columns) if rows else _create(journal, columns)
     return ResultsStore(path, columns, journal, stream), rows
+
+
+def drawn_plots(path: Path) -> frozenset[Path]:
+    """The figures (``sweep --plot``; resolved paths) that the sweep whose results are
+    *path* has drawn, as :func:`record_plot` noted them in ``RESULTS.sweep.json``: a
+    rerun that resumes the sweep draws them again. Empty when there is no such file."""
+    try:
+        plots = json.loads(_meta(path).read_text(encoding="utf-8")).get("plots", [])
+    except (OSError, ValueError, AttributeError):  # (not a JSON object: no plots)
+        return frozenset()
+    return frozenset(Path(p) for p in plots if isinstance(p, str))
+
+
+def record_plot(path: Path, plot: Path) -> None:
+    """Note in ``RESULTS.sweep.json`` (*path* the results) that the sweep drew *plot*.
+
+    A sweep started afresh (a new RESULTS, or ``--force``) forgets the figures noted.
+    """
+    meta = _meta(path)
+    data = json.loads(meta.read_text(encoding="utf-8"))
+    data["plots"] = sorted({*data.get("plots", []), str(plot.resolve())})
+    write_text(meta, json.dumps(data, indent=2) + "\n")
 
 
 def read_results(path: Path, columns: Sequence[str],
@@ -172,6 +192,11 @@ def _resume(
                           "use --force to start afresh, or pick another -o")
     rows = _read_parquet(path, columns, check) if journal != path and path.exists() else []
     return rows + _read_rows(journal, columns, check) if journal.exists() else rows
+
+
+def _meta(path: Path) -> Path:
+    """Where the results *path* keep their sweep's fingerprint (and drawn figures)."""
+    return path.with_name(path.name + ".sweep.json")
 
 
 def _write_new(meta: Path, mark: SweepFingerprint) -> None:
