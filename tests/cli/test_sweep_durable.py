@@ -185,3 +185,10 @@ def test_a_rerun_resumes_and_redraws_the_plot_it_drew(config: str, tmp_path: Pat
         assert refused.stderr == (f"error: --plot {plot}: already exists; use --force to "
                                   "overwrite it, or choose another name\n")
     assert mine.read_bytes() == b"mine" and not other.exists()
+
+
+def test_the_note_gives_the_workers_really_started(config: str) -> None:
+    result = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "100000")
+    assert result.exit_code == 0, result.output
+    assert result.stderr.splitlines()[0] == ("full build at every point; running on 2 local "
+                                             "worker processes")

@@ -47,7 +47,9 @@ _MAX_BREAKS = 3
 class Executor(Protocol):
     """Runs tasks and yields their points' results as they finish."""
 
-    description: str
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """Where *tasks* run (``on 2 local worker processes``), for the sweep's note."""
+        ...
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Run *tasks*; yield every point's result once."""
@@ -81,10 +83,12 @@ def open_executor(
 class InProcess:
     """``-j 1``: the points one after another in this process (one :class:`Worker`)."""
 
-    description = "in this process"
-
     def __init__(self, parses: ParseCache | None = None) -> None:
         self.worker = Worker(parses=parses)
+
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """In this process, whatever the tasks."""
+        return IN_PROCESS
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Check each task's points in order."""
@@ -111,7 +115,12 @@ class LocalPool:
         self.jobs = jobs
         self.check = check
         self.parses = parses
-        self.description = f"on {jobs} local worker processes"
+
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """The workers really started: no more than there are tasks (``-j 100000`` on
+        11 points starts 11), and none for a lone task."""
+        workers = min(self.jobs, len(tasks))
+        return IN_PROCESS if workers <= 1 else f"on {workers} local worker processes"
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Run the tasks in the pool, yielding each point's result as it is checked."""
@@ -156,6 +165,10 @@ class LocalPool:
             finally:
                 stream.close()
         return []
+
+
+#: How :class:`InProcess` (and a pool given one task) describes where the points run.
+IN_PROCESS = "in this process"
 
 
 @contextmanager
@@ -318,6 +331,10 @@ class DaskExecutor:
         self.check = check
         workers = len(client.scheduler_info().get("workers", {}))
         self.description = f"on Dask scheduler {scheduler} ({workers} workers)"
+
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """The scheduler and its workers (a cluster may grow or shrink as it runs)."""
+        return self.description
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Submit every task; yield each point's result as it is checked."""

@@ -34,7 +34,7 @@ import pandas as pd
 from veribattery.config import ConfigDocument, MissionConfig, read_config
 from veribattery.errors import VeribatteryError
 from veribattery.mission import ParseCache, RenderedMission, validate_properties
-from veribattery.sweep.execute import Executor, InProcess, open_executor
+from veribattery.sweep.execute import Executor, open_executor
 from veribattery.sweep.fingerprint import fingerprint
 from veribattery.sweep.grid import Axis, Point, grid, point_values, yaml_text
 from veribattery.sweep.point_result import point_properties
@@ -148,8 +148,7 @@ class _Sweep:
         whole = list(enumerate(self.configs)) if done else None
         tasks, plan = plan_tasks(pending, jobs, whole, self.parses)
         if pending:
-            where = executor.description if len(tasks) > 1 else InProcess.description
-            notes(f"{plan.describe()}; running {where}")
+            notes(f"{plan.describe()}; running {executor.describe(tasks)}")
         if progress is not None:
             progress(len(done), total)
         try:
