@@ -192,3 +192,17 @@ def test_the_note_gives_the_workers_really_started(config: str) -> None:
     assert result.exit_code == 0, result.output
     assert result.stderr.splitlines()[0] == ("full build at every point; running on 2 local "
                                              "worker processes")
+
+
+def test_a_bad_sweep_vary_item_is_placed_in_the_config(tmp_path: Path) -> None:
+    """It was blamed on a --vary option the user never gave."""
+    path = tmp_path / "mission.yaml"
+    path.write_text("sweep:\n  vary:\n    - battery.capacity_ah=10,11\n"
+                    "    - strategy.safe_t=0.3:0.2:0.1\n")
+    result = run("sweep", str(path), *SMALL_FARM)
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr == (f"error: {path}:4:7: sweep.vary[1] 'strategy.safe_t=0.3:0.2:0.1': "
+                             "STOP must be ≥ START, got 0.3:0.2\n")
+    result = run("sweep", str(path), *SMALL_FARM, "--set", "sweep.vary=['farm.colz=3,4']")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("error: --set sweep.vary[0] 'farm.colz=3,4': unknown key")

@@ -72,13 +72,14 @@ def sweep_command(
 
     Exit 1 if a point failed or a requirement fails anywhere (a summary line says which).
     """
-    from veribattery.config import load_config
+    from veribattery.config import read_config
     from veribattery.sweep import any_requirement_fails, axes_from, default_jobs, summary_line
     from veribattery.sweep.synthesis_point import swept_properties
 
     with user_errors():
-        cfg = load_config(config, overrides)
-        axes = axes_from(specs, cfg.sweep.vary)
+        document = read_config(config, overrides)
+        cfg = document.validate()
+        axes = axes_from(specs, cfg.sweep.vary, document)
         properties = swept_properties(cfg, axes)
         _check_plot_options(plot_path, plot_property, plot_x, axes, properties,
                             force or _drawn_by(results, plot_path))

@@ -68,6 +68,13 @@ class ConfigDocument:
             data = set_value(data, key, value)
         return replace(self, data=data, overridden=(*self.overridden, *values))
 
+    def span_of(self, path: Path) -> Span | None:
+        """Where the value at *path* (``("sweep", "vary", 0)``) is written in the file (or
+        the deepest key of it that is); None when an override set it."""
+        if any(_under(path, key) for key in self.overridden):
+            return None
+        return _locate(self.root, path, self.written[1])
+
     def validate(self) -> MissionConfig:
         """The validated config.
 
