@@ -73,8 +73,11 @@ def test_failed_point_exits_1_with_summary(tmp_path: Path) -> None:
         (("--vary", "battery.capacity_ah=10", "-o", "{tmp}/mine.csv"), "not the results"),
         (("--vary", "battery.capacity_ah=10", "-o", "{tmp}/ro/r.csv"),
          "cannot write there (read-only"),
+        (("--vary", "battery.capacity_ah=10", "-o", "{tmp}/d.csv"),
+         "d.csv': is a folder; name a results file (.csv, .jsonl, .parquet)"),
     ],
-    ids=["key", "spec", "empty", "twice", "none", "folder", "suffix", "not-ours", "read-only"],
+    ids=["key", "spec", "empty", "twice", "none", "folder", "suffix", "not-ours", "read-only",
+         "is-a-folder"],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(
     config: str, tmp_path: Path, args: tuple[str, ...], expected: str
@@ -84,6 +87,7 @@ def test_bad_input_is_one_line_exit_2_nothing_written(
     (tmp_path / "mine.csv").write_text("precious\n")
     (tmp_path / "ro").mkdir()
     (tmp_path / "ro").chmod(0o500)
+    (tmp_path / "d.csv").mkdir()
     before = sorted(p.name for p in tmp_path.rglob("*"))
     try:
         result = run("sweep", config, *SMALL_FARM,

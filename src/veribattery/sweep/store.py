@@ -168,6 +168,9 @@ def _check_writable(path: Path) -> None:
     folder = path.parent
     if not folder.is_dir():
         raise ConfigError(f"-o {str(path)!r}: folder {str(folder)!r} does not exist")
+    if path.is_dir():
+        raise ConfigError(f"-o {str(path)!r}: is a folder; name a results file "
+                          f"({', '.join(FORMATS)})")
     target = path if path.exists() else folder
     if (not os.access(target, os.W_OK) or not can_create_in(folder)  # the journal, meta
             or (path.exists() and not path.is_file())):
