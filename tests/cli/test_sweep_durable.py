@@ -210,3 +210,16 @@ def test_a_bad_sweep_vary_item_is_placed_in_the_config(tmp_path: Path) -> None:
     result = run("sweep", str(path), *SMALL_FARM, "--set", "sweep.vary=['farm.colz=3,4']")
     assert result.exit_code == 2
     assert result.stderr.startswith("error: --set sweep.vary[0] 'farm.colz=3,4': unknown key")
+
+
+def test_the_summary_names_the_failing_requirements(config: str) -> None:
+    one = ("--set", "requirements=['exp_mission_time <= 1050']")
+    result = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", *one)
+    assert result.exit_code == 1
+    assert result.stderr.splitlines()[-1] == ("2 points: 2 checked, 0 failed; requirement "
+                                              "exp_mission_time <= 1050 fails at 1 point")
+    two = ("--set", "requirements=['exp_mission_time <= 1050', 'exp_recharges <= 9']")
+    result = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", *two)
+    assert result.stderr.splitlines()[-1] == (
+        "2 points: 2 checked, 0 failed; requirements fail: exp_mission_time <= 1050 at 1 "
+        "point, exp_recharges <= 9 at 2 points")
