@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import csv
 import os
+import re
 import time
 from pathlib import Path
 
@@ -72,8 +73,11 @@ def test_failed_point_exits_1_with_summary(tmp_path: Path) -> None:
         (("--vary", "battery.capacity_ah=10", "-o", "{tmp}/mine.csv"), "not the results"),
         (("--vary", "battery.capacity_ah=10", "-o", "{tmp}/ro/r.csv"),
          "cannot write there (read-only"),
+        (("--vary", "battery.capacity_ah=10", "-o", "{tmp}/d.csv"),
+         "d.csv': is a folder; name a results file (.csv, .jsonl, .parquet)"),
     ],
-    ids=["key", "spec", "empty", "twice", "none", "folder", "suffix", "not-ours", "read-only"],
+    ids=["key", "spec", "empty", "twice", "none", "folder", "suffix", "not-ours", "read-only",
+         "is-a-folder"],
 )
 def test_bad_input_is_one_line_exit_2_nothing_written(
     config: str, tmp_path: Path, args: tuple[str, ...], expected: str
@@ -83,6 +87,7 @@ def test_bad_input_is_one_line_exit_2_nothing_written(
     (tmp_path / "mine.csv").write_text("precious\n")
     (tmp_path / "ro").mkdir()
     (tmp_path / "ro").chmod(0o500)
+    (tmp_path / "d.csv").mkdir()
     before = sorted(p.name for p in tmp_path.rglob("*"))
     try:
         result = run("sweep", config, *SMALL_FARM,
@@ -136,7 +141,14 @@ def test_a_boolean_property_resumes_from_csv(config: str, tmp_path: Path) -> Non
     (".csv", lambda text: text + "\xff\n", 12, "not UTF-8 text"),
     (".jsonl", lambda text: text + "{not json\n", 11, "not JSON"),
     (".jsonl", lambda text: text + "[1, 2]\n", 11, "not an object with this sweep's columns"),
-], ids=["point", "extra-cell", "missing-cells", "not-utf8", "not-json", "json-list"])
+    (".csv", lambda text: text.replace(",p_success,", ",bogus,", 1), 2,
+     "point 0 has no property 'bogus'"),
+    (".csv", lambda text: text.replace("\n1,10.5,", "\n7,10.5,", 1), 7,
+     "point 7 is not one of this sweep's 2"),
+    (".jsonl", lambda text: re.sub(r'"value": [^,]+', '"value": "abc"', text, count=1), 1,
+     'value "abc" is not a value this sweep writes there'),
+], ids=["point", "extra-cell", "missing-cells", "not-utf8", "not-json", "json-list",
+        "foreign-property", "foreign-point", "json-text-value"])
 def test_a_damaged_results_file_is_refused_on_one_line(
         config: str, tmp_path: Path, suffix: str, edit: object, line: int, why: str) -> None:
     """Rows the sweep did not write (edited by hand, a stray byte) gave tracebacks on
@@ -153,3 +165,61 @@ def test_a_damaged_results_file_is_refused_on_one_line(
                                    f"wrote ({why}"), again.stderr
     assert again.stderr.endswith("; use --force to start afresh, or pick another -o\n")
     assert again.stderr.count("\n") == 1 and out.read_bytes() == before
+
+
+def test_a_rerun_resumes_and_redraws_the_plot_it_drew(config: str, tmp_path: Path) -> None:
+    """The same command run again (the README's resumable example with --plot) resumes
+    and draws its figure again; it was refused because the figure existed, and --force
+    would have thrown the finished points away. A figure it did not draw stays safe."""
+    out, figure = tmp_path / "r.csv", tmp_path / "p.png"
+    args = ("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", "-o", str(out))
+    assert run(*args, "--plot", str(figure)).exit_code == 0
+    figure.write_bytes(b"stale")
+    again = run(*args, "--plot", str(figure))
+    assert again.exit_code == 0, again.output
+    assert "2 of 2 points already done" in again.stderr
+    assert f"wrote {figure}" in again.stderr and figure.read_bytes().startswith(b"\x89PNG")
+    # Not a figure this sweep drew (a file of the user's; another sweep's figure): refused
+    # as before, and left as it is.
+    mine, other = tmp_path / "mine.png", tmp_path / "other.csv"
+    mine.write_bytes(b"mine")
+    for results, plot in ((out, mine), (other, figure)):
+        refused = run(*args[:-1], str(results), "--plot", str(plot))
+        assert refused.exit_code == 2, refused.output
+        assert refused.stderr == (f"error: --plot {plot}: already exists; use --force to "
+                                  "overwrite it, or choose another name\n")
+    assert mine.read_bytes() == b"mine" and not other.exists()
+
+
+def test_the_note_gives_the_workers_really_started(config: str) -> None:
+    result = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "100000")
+    assert result.exit_code == 0, result.output
+    assert result.stderr.splitlines()[0] == ("full build at every point; running on 2 local "
+                                             "worker processes")
+
+
+def test_a_bad_sweep_vary_item_is_placed_in_the_config(tmp_path: Path) -> None:
+    """It was blamed on a --vary option the user never gave."""
+    path = tmp_path / "mission.yaml"
+    path.write_text("sweep:\n  vary:\n    - battery.capacity_ah=10,11\n"
+                    "    - strategy.safe_t=0.3:0.2:0.1\n")
+    result = run("sweep", str(path), *SMALL_FARM)
+    assert result.exit_code == 2 and result.stdout == ""
+    assert result.stderr == (f"error: {path}:4:7: sweep.vary[1] 'strategy.safe_t=0.3:0.2:0.1': "
+                             "STOP must be ≥ START, got 0.3:0.2\n")
+    result = run("sweep", str(path), *SMALL_FARM, "--set", "sweep.vary=['farm.colz=3,4']")
+    assert result.exit_code == 2
+    assert result.stderr.startswith("error: --set sweep.vary[0] 'farm.colz=3,4': unknown key")
+
+
+def test_the_summary_names_the_failing_requirements(config: str) -> None:
+    one = ("--set", "requirements=['exp_mission_time <= 1050']")
+    result = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", *one)
+    assert result.exit_code == 1
+    assert result.stderr.splitlines()[-1] == ("2 points: 2 checked, 0 failed; requirement "
+                                              "exp_mission_time <= 1050 fails at 1 point")
+    two = ("--set", "requirements=['exp_mission_time <= 1050', 'exp_recharges <= 9']")
+    result = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", *two)
+    assert result.stderr.splitlines()[-1] == (
+        "2 points: 2 checked, 0 failed; requirements fail: exp_mission_time <= 1050 at 1 "
+        "point, exp_recharges <= 9 at 2 points")

@@ -114,6 +114,21 @@ def test_a_file_that_is_not_results_is_refused(tmp_path: Path, results: Path) ->
     assert "not a sweep's results file" in _refused(tmp_path, text)
 
 
+def test_a_cell_the_sweep_did_not_write_is_refused_naming_its_line(
+        tmp_path: Path, results: Path) -> None:
+    """Read as ``sweep`` reads its results when it resumes: a value ``abc`` was drawn."""
+    edited = tmp_path / "edited.csv"
+    lines = results.read_text().splitlines(keepends=True)
+    cells = lines[1].split(",")
+    cells[4] = "abc"  # the first row's value (after point and the two varied keys)
+    edited.write_text("".join([lines[0], ",".join(cells), *lines[2:]]))
+    meta = results.with_name(results.name + ".sweep.json").read_text()
+    edited.with_name("edited.csv.sweep.json").write_text(meta)
+    assert _refused(tmp_path, edited) == (
+        f"error: --sweep {edited}: line 2 is not a row this sweep wrote (could not convert "
+        "string to float: 'abc')\n")
+
+
 def test_an_unreadable_results_file_is_refused(tmp_path: Path, results: Path) -> None:
     broken = tmp_path / "broken.parquet"
     broken.write_bytes(b"not parquet")

@@ -68,6 +68,48 @@ def test_rerun_resumes_and_checks_only_missing_points(
     same_results(again, serial_frame)
 
 
+@pytest.mark.parametrize("damage", ["row-deleted", "cut-mid-row"])
+def test_a_point_with_rows_missing_is_checked_again(
+    serial_frame: pd.DataFrame, tmp_path: Path, damage: str
+) -> None:
+    """A point counts as done only with a row for each of its properties: one whose rows
+    were cut short (a results file cut mid-row: a full disk, a copy) or deleted was
+    taken as done, and its missing rows never came back."""
+    path = tmp_path / "r.csv"
+    run_sweep("", four_axes(), SMALL_FARM, results=path)
+    lines = path.read_text().splitlines(keepends=True)
+    second = 1 + PER_POINT  # point 1's first row
+    if damage == "row-deleted":  # point 1's third row: every point still has a row
+        kept = [*lines[:second + 2], *lines[second + 3:]]
+    else:  # cut in point 1's third row: points 2 and 3 lost, point 1 incomplete
+        kept = [*lines[:second + 2], lines[second + 2][:15]]
+    path.write_text("".join(kept))
+    notes: list[str] = []
+    checked: list[int] = []
+    frame = run_sweep("", four_axes(), SMALL_FARM, results=path, notes=notes.append,
+                      on_point=lambda result, _: checked.append(result.index))
+    done = 3 if damage == "row-deleted" else 1
+    assert notes[0] == (f"{done} of 4 points already done; 1 point with rows missing from "
+                        "the results is checked again")
+    assert checked == ([1] if damage == "row-deleted" else [1, 2, 3])
+    same_results(frame, serial_frame)
+    written = _read(path)
+    assert list(written["point"]) == [p for p in range(4) for _ in range(PER_POINT)]
+    assert list(written["value"]) == list(serial_frame["value"].astype(float))
+
+
+def test_an_upper_case_suffix_is_the_same_format(tmp_path: Path) -> None:
+    """``-o R.CSV`` was appended to as JSON lines and rewritten as CSV at the end (a CSV
+    header over JSON rows), which no rerun could read back."""
+    path = tmp_path / "R.CSV"
+    axes = four_axes()[1:]
+    first = run_sweep("", axes, SMALL_FARM, results=path)
+    assert list(pd.read_csv(path)["point"]) == list(first["point"])
+    notes: list[str] = []
+    run_sweep("", axes, SMALL_FARM, results=path, notes=notes.append)
+    assert notes == ["2 of 2 points already done"]
+
+
 def test_torn_last_line_is_cut_before_appending(tmp_path: Path) -> None:
     path = tmp_path / "r.csv"
     path.write_text("a,b\n1,2\n3,")
@@ -149,5 +191,5 @@ def test_failed_point_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> None:
     # A rerun retries the failed point (it fails again, recorded once).
     notes: list[str] = []
     run_sweep("", [axis], SMALL_FARM, results=path, notes=notes.append)
-    assert notes[0] == "1 of 2 points already done; 1 failed points are retried"
+    assert notes[0] == "1 of 2 points already done; 1 failed point is retried"
     assert [json.loads(line)["point"] for line in path.read_text().splitlines()] == [0, 1]

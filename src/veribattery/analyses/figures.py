@@ -46,6 +46,7 @@ __all__ = [
     "draw_fig8",
     "optimal_curves",
     "optimal_sweep",
+    "sweep_results",
     "table3_frame",
     "table3_sweep",
 ]
@@ -134,6 +135,15 @@ def capacity_results(figures: Sequence[str]) -> str:
     that ``fig6`` alone, ``fig8`` alone and both each resume their own sweep."""
     chosen = [figure for figure in FIGURES if figure in figures]
     return CAPACITY_RESULTS if len(chosen) > 1 else f"{chosen[0]}_sweep.csv"
+
+
+def sweep_results(what: str, optimal: bool = False) -> tuple[str, ...]:
+    """The results files (in the output folder) of the sweeps ``reproduce WHAT`` runs
+    (``table3``, ``fig6``, ``fig8`` or ``all``; *optimal*: with ``--optimal``)."""
+    names = [TABLE3_RESULTS] if what in ("table3", "all") else []
+    if what != "table3":
+        names.append(capacity_results(FIGURES if what == "all" else (what,)))
+    return (*names, *([OPTIMAL_RESULTS] if optimal else []))
 
 
 def table3_sweep(directory: Path, options: SweepOptions) -> pd.DataFrame:

@@ -71,8 +71,9 @@ class _LazyGroup(click.Group):
             click.echo(f"error: {message}", err=True)
             sys.exit(2)
         except click.exceptions.Abort:  # Ctrl-C before the command ran
-            click.echo("interrupted", err=True)
-            sys.exit(130)
+            from veribattery.cli.output import exit_interrupted
+
+            exit_interrupted()
         except click.ClickException as exc:
             exc.show()
             sys.exit(exc.exit_code)
@@ -85,8 +86,9 @@ class _LazyGroup(click.Group):
         try:
             return super().invoke(ctx)
         except KeyboardInterrupt:
-            click.echo("\ninterrupted", err=True)
-            sys.exit(130)
+            from veribattery.cli.output import exit_interrupted
+
+            exit_interrupted("\ninterrupted")
         except MemoryError as exc:  # past the build's guard: a solve's arrays, say
             detail = str(exc).rstrip(".")
             click.echo(f"error: out of memory{': ' + detail if detail else ''}: the model or "

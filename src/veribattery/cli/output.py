@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any, TypeVar, cast
+from typing import TYPE_CHECKING, Any, NoReturn, TypeVar, cast
 
 import click
 
@@ -99,6 +101,19 @@ def fail(*messages: str) -> None:
         if context and err.is_terminal:
             err.print(context, markup=False, highlight=False)
     sys.exit(2)
+
+
+def exit_interrupted(message: str = "interrupted") -> NoReturn:
+    """After Ctrl-C: print *message* on stderr and exit with status 130.
+
+    Ctrl-C is ignored from here on: the process is on its way out, and a second Ctrl-C
+    in what remains (the interpreter joining a worker pool's threads at exit) would
+    print a traceback, or kill the process by the signal instead of exiting with 130.
+    """
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    click.echo(message, err=True)
+    sys.exit(130)
 
 
 @contextmanager

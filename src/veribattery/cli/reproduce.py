@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -12,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 import click
 
 from veribattery.cli.files import PathParam, check_output_dir
-from veribattery.cli.output import err, fail, print_written, user_errors
+from veribattery.cli.output import err, exit_interrupted, fail, print_written, user_errors
 from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
@@ -75,9 +74,17 @@ def reproduce_command(
             _remove_empty(new)
         raise
     except KeyboardInterrupt:
-        err.print(f"interrupted; finished points are kept in {directory}: rerun to resume",
-                  markup=False)
-        sys.exit(130)
+        exit_interrupted(_kept(directory, what, optimal))
+
+
+def _kept(directory: Path, what: str, optimal: bool) -> str:
+    """``interrupted``, naming the results files that keep the finished points."""
+    from veribattery.analyses.figures import sweep_results
+
+    kept = [str(directory / name) for name in sweep_results(what, optimal)
+            if (directory / name).exists()]
+    return (f"interrupted; finished points are kept in {', '.join(kept)}: rerun to resume"
+            if kept else "interrupted")
 
 
 def _reproduce(what: str, directory: Path, options: Any, output_format: str,

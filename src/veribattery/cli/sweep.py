@@ -14,6 +14,7 @@ import click
 from veribattery.cli.files import PathParam, check_output_file
 from veribattery.cli.output import (
     err,
+    exit_interrupted,
     format_value,
     json_value,
     print_dim,
@@ -45,7 +46,8 @@ from veribattery.errors import OptionError
               "finish, and rerunning the same command resumes.")
 @click.option("--force", is_flag=True,
               help="Start RESULTS afresh even if it holds another sweep's results, and "
-              "overwrite an existing --plot file.")
+              "overwrite an existing --plot file (a rerun that resumes RESULTS redraws the "
+              "--plot it drew without --force).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes (default: the number of cores; 1: in this process).")
 @click.option("--scheduler", metavar="tcp://HOST:PORT|local",
@@ -70,28 +72,50 @@ def sweep_command(
 
     Exit 1 if a point failed or a requirement fails anywhere (a summary line says which).
     """
-    from veribattery.config import load_config
+    from veribattery.config import read_config
     from veribattery.sweep import any_requirement_fails, axes_from, default_jobs, summary_line
     from veribattery.sweep.synthesis_point import swept_properties
 
     with user_errors():
-        cfg = load_config(config, overrides)
-        axes = axes_from(specs, cfg.sweep.vary)
+        document = read_config(config, overrides)
+        cfg = document.validate()
+        axes = axes_from(specs, cfg.sweep.vary, document)
         properties = swept_properties(cfg, axes)
-        _check_plot_options(plot_path, plot_property, plot_x, axes, properties, force)
+        _check_plot_options(plot_path, plot_property, plot_x, axes, properties,
+                            force or _drawn_by(results, plot_path))
         frame = run_with_progress(
             config, axes, overrides, results, jobs=jobs or default_jobs(), scheduler=scheduler,
             force=force,
         )
         if plot_path is not None and frame["property"].notna().any():
-            name = plot_property or str(frame["property"].dropna().iloc[0])
-            from veribattery.sweep import plot_sweep
-
-            print_written(plot_sweep(frame, plot_x, name, plot_path, properties=properties))
+            _plot(frame, plot_path, plot_property, plot_x, properties, results)
     print_warnings(frame.attrs.get("warnings", ()))
     print_sweep(frame, [axis.key for axis in axes], output_format)
     err.print(summary_line(frame), markup=False)
     sys.exit(1 if frame.attrs.get("failed") or any_requirement_fails(frame) else 0)
+
+
+def _drawn_by(results: Path | None, plot_path: Path | None) -> bool:
+    """Whether the sweep resumed from *results* drew *plot_path* itself: a rerun of the
+    same command then draws it again, where any other existing file needs --force."""
+    from veribattery.sweep.store import drawn_plots
+
+    if results is None or plot_path is None:
+        return False
+    return plot_path.resolve() in drawn_plots(results)
+
+
+def _plot(frame: Any, plot_path: Path, plot_property: str | None, plot_x: str | None,
+          properties: Mapping[str, str], results: Path | None) -> None:
+    """Draw the figure, and note it beside *results* as this sweep's own (see
+    :func:`_drawn_by`)."""
+    from veribattery.sweep import plot_sweep
+    from veribattery.sweep.store import record_plot
+
+    name = plot_property or str(frame["property"].dropna().iloc[0])
+    print_written(plot_sweep(frame, plot_x, name, plot_path, properties=properties))
+    if results is not None:
+        record_plot(results, plot_path)
 
 
 def _check_plot_options(plot_path: Path | None, plot_property: str | None,
@@ -122,9 +146,9 @@ def run_with_progress(
             return run_sweep(config, axes, overrides, progress, results=results,
                              on_point=on_point, notes=_note, **options)
     except KeyboardInterrupt:
-        kept = f"; finished points are kept in {results}: rerun to resume" if results else ""
-        err.print(f"interrupted{kept}", markup=False)
-        sys.exit(130)
+        kept = (f"; finished points are kept in {results}: rerun to resume"
+                if results is not None and results.exists() else "")
+        exit_interrupted(f"interrupted{kept}")
 
 
 def _note(text: str) -> None:

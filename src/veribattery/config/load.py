@@ -15,7 +15,7 @@ from pydantic import BaseModel
 
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.config.origin import property_origins
-from veribattery.config.place import KeyOrigins
+from veribattery.config.place import KeyOrigins, KeyPath
 from veribattery.config.schema import MissionConfig, is_property_name
 from veribattery.config.source import NumberOutOfRange, compose, construct, decode
 from veribattery.config.validate import known_keys, validate_config
@@ -70,6 +70,11 @@ class ConfigDocument:
         for key, value in values.items():
             data = set_value(data, key, value)
         return replace(self, data=data, varied=(*self.varied, *values))
+
+    def span_of(self, path: KeyPath) -> Span | None:
+        """Where the value at *path* (``("sweep", "vary", 0)``) is written in the file (or
+        the deepest key of it that is); None when an override set it."""
+        return KeyOrigins(self.root, self.written[1], self.overridden).written_at(path)
 
     def validate(self) -> MissionConfig:
         """The validated config.

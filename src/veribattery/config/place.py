@@ -51,6 +51,13 @@ class KeyOrigins:
     def __hash__(self) -> int:
         return 0
 
+    def written_at(self, path: KeyPath) -> Span | None:
+        """Where *path* is written in the file (or the deepest key of it that is); None
+        when a ``--set`` gave it."""
+        if any(_under(path, key) for key in self.set_keys):
+            return None
+        return _locate(self.root, path, self.source)
+
     def error(self, blames: Sequence[tuple[str | KeyPath, str]]) -> ConfigError:
         """A :class:`ConfigError` naming the key of *blames* (``(key, message)``, the
         message as it suits that key) the user gave: a ``--set`` one, else a sweep

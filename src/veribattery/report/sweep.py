@@ -26,7 +26,7 @@ from veribattery.config import MissionConfig, config_to_yaml, load_config
 from veribattery.errors import OptionError, VeribatteryError
 from veribattery.sweep.fingerprint import SweepFingerprint, fingerprint, model_version
 from veribattery.sweep.run import FIXED_COLUMNS
-from veribattery.sweep.store import FORMATS
+from veribattery.sweep.store import FORMATS, ResultsFileError, read_results
 
 __all__ = ["Crossing", "SweepRequirement", "SweepResults", "read_sweep", "x_key"]
 
@@ -201,36 +201,28 @@ def _show(value: object) -> str:
 
 
 def _frame(path: Path, axes: Sequence[str]) -> pd.DataFrame:
-    """The rows of *path* as ``run_sweep`` returns them (booleans and empty cells restored)."""
-    try:
-        frame = _read(path)
-    except (OSError, ValueError, UnicodeDecodeError, pd.errors.ParserError) as exc:
-        raise _bad(path, f"cannot read it ({str(exc).splitlines()[0] if str(exc) else exc})") \
-            from None
+    """The rows of *path* as ``run_sweep`` returns them, read and checked as a resumed
+    sweep reads them (a cell the sweep did not write is refused, naming its line)."""
     expected = ["point", *axes, *FIXED_COLUMNS]
-    if list(frame.columns) != expected:
-        raise _bad(path, "its columns are not those of the sweep its fingerprint describes")
-    if frame.empty:
+    try:
+        rows = read_results(path, expected)
+    except ResultsFileError as exc:
+        raise _bad(path, exc.problem) from None
+    except OSError as exc:
+        raise _bad(path, f"cannot read it ({exc.strerror or exc})") from None
+    if not rows:
         raise _bad(path, "holds no results yet (run the sweep to the end first)")
-    frame = frame.astype(object).where(frame.notna(), None)
-    frame["value"] = [_value(v) for v in frame["value"]]
+    frame = pd.DataFrame(rows, columns=expected).astype(object)
+    frame = frame.where(frame.notna(), None)
+    for key in axes:  # a CSV's axis cells are read back as text
+        frame[key] = [_cell(v) for v in frame[key]]
     frame["holds"] = [_boolean(v) for v in frame["holds"]]
     frame["error"] = frame["error"].where(frame["error"].notna(), math.nan)
     return frame
 
 
-def _read(path: Path) -> pd.DataFrame:
-    suffix = path.suffix.lower()
-    if suffix == ".parquet":
-        return pd.read_parquet(path)
-    if suffix == ".jsonl":
-        lines = path.read_text(encoding="utf-8").splitlines()
-        return pd.DataFrame([json.loads(line) for line in lines if line.strip()])
-    return pd.read_csv(path, keep_default_na=False, na_values=[""], dtype=str).map(_cell)
-
-
 def _cell(text: object) -> object:
-    """A CSV cell as the sweep wrote it: a number where it reads as one, else the text."""
+    """An axis cell as the sweep wrote it: a number where it reads as one, else the text."""
     if not isinstance(text, str):
         return text
     for kind in (int, float):
@@ -239,10 +231,6 @@ def _cell(text: object) -> object:
         except ValueError:
             pass
     return text
-
-
-def _value(value: object) -> object:
-    return {"True": True, "False": False}.get(value, value) if isinstance(value, str) else value
 
 
 def _boolean(value: object) -> bool | None:

@@ -10,7 +10,10 @@ from __future__ import annotations
 
 import os
 import pickle
-from collections.abc import Generator, Iterable, Iterator, Sequence
+import signal
+import threading
+from collections import deque
+from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from contextlib import contextmanager, suppress
@@ -44,7 +47,9 @@ _MAX_BREAKS = 3
 class Executor(Protocol):
     """Runs tasks and yields their points' results as they finish."""
 
-    description: str
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """Where *tasks* run (``on 2 local worker processes``), for the sweep's note."""
+        ...
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Run *tasks*; yield every point's result once."""
@@ -78,10 +83,12 @@ def open_executor(
 class InProcess:
     """``-j 1``: the points one after another in this process (one :class:`Worker`)."""
 
-    description = "in this process"
-
     def __init__(self, parses: ParseCache | None = None) -> None:
         self.worker = Worker(parses=parses)
+
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """In this process, whatever the tasks."""
+        return IN_PROCESS
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Check each task's points in order."""
@@ -108,7 +115,12 @@ class LocalPool:
         self.jobs = jobs
         self.check = check
         self.parses = parses
-        self.description = f"on {jobs} local worker processes"
+
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """The workers really started: no more than there are tasks (``-j 100000`` on
+        11 points starts 11), and none for a lone task."""
+        workers = min(self.jobs, len(tasks))
+        return IN_PROCESS if workers <= 1 else f"on {workers} local worker processes"
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Run the tasks in the pool, yielding each point's result as it is checked."""
@@ -130,32 +142,112 @@ class LocalPool:
         context = multiprocessing.get_context("spawn")
         stream = PointStream.open(context)
         started: set[int] = set()
-        with ProcessPoolExecutor(min(self.jobs, len(pending)), mp_context=context,
-                                 initializer=start_worker, initargs=(stream,)) as pool:
-            futures: dict[Future[list[PointResult]], Task] = {
-                pool.submit(run_task, task, self.check): task for task in pending}
+        unsent, running = deque(pending), dict[Future[list[PointResult]], Task]()
+        with _interrupts_held() as interrupted, ProcessPoolExecutor(
+                min(self.jobs, len(pending)), mp_context=context, initializer=start_worker,
+                initargs=(stream,)) as pool:
             try:
-                while futures:
+                _submit(pool, unsent, running, self.check)
+                while running:
+                    interrupted()  # Ctrl-C raises here, where no executor lock is held
                     yield from seen.fresh(_drained(stream, _POLL_S, started))
-                    for future in [f for f in futures if f.done()]:
+                    for future in [f for f in running if f.done()]:
                         results = future.result()  # raises if the pool broke: keep the task
-                        futures.pop(future)
+                        running.pop(future)
                         yield from seen.fresh(results)
             except BrokenProcessPool:
                 yield from seen.fresh(_drained(stream, 0, started))  # sent before the death
-                return (yield from _after_break(list(futures.values()), seen, started, breaks))
+                unfinished = [*running.values(), *unsent]
+                return (yield from _after_break(unfinished, seen, started, breaks))
             except BaseException:  # Ctrl-C, or the caller stopped: every finished point
-                pool.shutdown(wait=False, cancel_futures=True)  # is recorded already, so
-                _terminate_workers(pool)  # stop now rather than finish the running tasks
+                _stop_workers(pool)  # is recorded already, so stop rather than finish
                 raise
             finally:
                 stream.close()
         return []
 
 
-def _terminate_workers(pool: ProcessPoolExecutor) -> None:
-    """Stop *pool*'s worker processes (public from Python 3.14; before, through the
-    executor's table of processes)."""
+#: How :class:`InProcess` (and a pool given one task) describes where the points run.
+IN_PROCESS = "in this process"
+
+
+@contextmanager
+def _interrupts_held() -> Iterator[Callable[[], None]]:
+    """While a pool runs, Ctrl-C only notes that it was pressed; the function yielded
+    raises KeyboardInterrupt then, at a point the caller chooses.
+
+    Raised wherever the main thread happens to be, KeyboardInterrupt could leave a
+    future's lock held (in ``Condition.__enter__``, between taking the lock and
+    entering the block), and the executor's thread would wait for that lock forever:
+    the sweep would hang at exit. The note stays until the pool is stopped, so a second
+    Ctrl-C meanwhile is the same request. Only the main thread handles signals, and a
+    SIGINT handler other than Python's default (ignored, say) is left as it is.
+    """
+    pressed = False
+
+    def note(signum: int, frame: object) -> None:
+        nonlocal pressed
+        pressed = True
+
+    def interrupted() -> None:
+        if pressed:
+            raise KeyboardInterrupt
+
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield interrupted
+        return
+    signal.signal(signal.SIGINT, note)
+    try:
+        yield interrupted
+    except BaseException:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        raise
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    interrupted()  # pressed as the last points came in: still an interruption
+
+
+def _submit(pool: ProcessPoolExecutor, unsent: deque[Task],
+            running: dict[Future[list[PointResult]], Task], check: PointCheck | None) -> None:
+    """Submit the *unsent* tasks, moving each to *running* once submitted (if the pool
+    breaks meanwhile, the two hold every task still to run)."""
+    with _sigint_held_from_new_workers():
+        while unsent:
+            future = pool.submit(run_task, unsent[0], check)
+            running[future] = unsent.popleft()
+
+
+@contextmanager
+def _sigint_held_from_new_workers() -> Iterator[None]:
+    """Block SIGINT in this thread while the pool starts its workers (it starts them on
+    submit): they inherit the blocked signal, so Ctrl-C, which reaches the whole
+    process group, cannot interrupt them even while they import their modules, before
+    their initializer ignores it. The sweep's own process handles Ctrl-C and stops the
+    workers; a Ctrl-C meanwhile waits, and arrives when the block is lifted.
+
+    multiprocessing's resource tracker is started first: starting it unblocks SIGINT.
+    """
+    if not hasattr(signal, "pthread_sigmask"):  # (Windows: no signal masks)
+        yield
+        return
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    """Terminate *pool*'s workers, then shut it down without waiting for their tasks.
+
+    The workers go first: on Python < 3.14 ``shutdown`` forgets them (it sets the
+    executor's table of processes to None), and the interpreter's exit would then wait
+    for them to finish every task they had started. (Python 3.14 does both in
+    ``terminate_workers``.)
+    """
     terminate = getattr(pool, "terminate_workers", None)
     if terminate is not None:
         terminate()
@@ -163,6 +255,7 @@ def _terminate_workers(pool: ProcessPoolExecutor) -> None:
     processes: dict[int, Any] = getattr(pool, "_processes", None) or {}
     for process in list(processes.values()):
         process.terminate()
+    pool.shutdown(wait=False, cancel_futures=True)
 
 
 #: How long the pool's and Dask's result loops wait for a point before looking at tasks.
@@ -238,6 +331,10 @@ class DaskExecutor:
         self.check = check
         workers = len(client.scheduler_info().get("workers", {}))
         self.description = f"on Dask scheduler {scheduler} ({workers} workers)"
+
+    def describe(self, tasks: Sequence[Task]) -> str:
+        """The scheduler and its workers (a cluster may grow or shrink as it runs)."""
+        return self.description
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
         """Submit every task; yield each point's result as it is checked."""

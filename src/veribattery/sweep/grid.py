@@ -18,11 +18,11 @@ from fractions import Fraction
 import yaml
 
 from veribattery._numbers import OutOfRange, count_text, exact_number
-from veribattery.config import known_keys
+from veribattery.config import ConfigDocument, known_keys
 from veribattery.config.exact import brief, fraction_to_decimal
 from veribattery.config.schema import is_property_name
 from veribattery.config.source import NumberOutOfRange, compose, construct
-from veribattery.errors import ConfigError
+from veribattery.errors import ConfigError, Span
 
 __all__ = [
     "MAX_POINTS",
@@ -53,32 +53,65 @@ class Axis:
     values: tuple[object, ...]
 
 
-def parse_axis(text: str) -> Axis:
+@dataclass(frozen=True, slots=True)
+class _Origin:
+    """Where a SPEC was given, to name it in errors: ``--vary 'KEY=SPEC'``, or a config's
+    ``sweep.vary[0] 'KEY=SPEC'`` at its place in the file."""
+
+    label: str
+    span: Span | None = None
+
+    def error(self, problem: str) -> ConfigError:
+        return ConfigError(f"{self.label}: {problem}", self.span)
+
+
+def parse_axis(text: str, origin: str | None = None, span: Span | None = None) -> Axis:
     """Parse ``KEY=START:STOP:STEP`` or ``KEY=a,b,c`` into an :class:`Axis`.
 
-    :param text: the ``--vary`` argument.
+    :param text: the ``--vary`` argument (or an item of a config's ``sweep.vary``).
+    :param origin: what errors call it (default: ``--vary 'TEXT'``).
+    :param span: where it is written, for errors.
     :raises ConfigError: when the key is unknown or SPEC is malformed (one line, naming
-        the option and what is expected).
+        the option or config key and what is expected).
     """
+    where = _Origin(origin or f"--vary {text!r}", span)
     key, sep, spec = text.partition("=")
     key, spec = key.strip(), spec.strip()
     if not sep or not key or not spec:
-        raise _bad(text, "expected KEY=START:STOP:STEP or KEY=a,b,c")
-    _check_key(text, key)
-    values = _range(text, spec) if _RANGE.match(spec) else _items(text, spec)
+        raise where.error("expected KEY=START:STOP:STEP or KEY=a,b,c")
+    _check_key(where, key)
+    values = _range(where, spec) if _RANGE.match(spec) else _items(where, spec)
     return Axis(key, values)
 
 
-def axes_from(specs: Sequence[str], config_vary: Sequence[str]) -> list[Axis]:
+def axes_from(specs: Sequence[str], config_vary: Sequence[str],
+              document: ConfigDocument | None = None) -> list[Axis]:
     """The axes of ``--vary`` *specs*, or else of the config's ``sweep.vary`` list.
 
-    :raises ConfigError: when there are none, or a SPEC is bad.
+    :param document: the config as read, to place an error in a ``sweep.vary`` item at
+        its line and column (or name the ``--set`` that gave it).
+    :raises ConfigError: when there are none, a key is varied twice, or a SPEC is bad.
     """
-    chosen = specs or config_vary
-    if not chosen:
+    if not specs and not config_vary:
         raise ConfigError("nothing to sweep: give --vary KEY=SPEC, or a sweep.vary list in "
                           "the config")
-    return [parse_axis(spec) for spec in chosen]
+    origins = ([_Origin(f"--vary {spec!r}") for spec in specs] if specs else
+               [_config_origin(document, n, spec) for n, spec in enumerate(config_vary)])
+    axes = [parse_axis(spec, where.label, where.span)
+            for spec, where in zip(specs or config_vary, origins, strict=True)]
+    keys = [axis.key for axis in axes]
+    again = next((n for n, key in enumerate(keys) if key in keys[:n]), None)
+    if again is not None:
+        raise origins[again].error(f"key '{keys[again]}' is varied more than once")
+    return axes
+
+
+def _config_origin(document: ConfigDocument | None, index: int, spec: str) -> _Origin:
+    """``sweep.vary[INDEX]`` where the file has it, or the ``--set`` that gave it."""
+    key = f"sweep.vary[{index}] {spec!r}"
+    span = document.span_of(("sweep", "vary", index)) if document is not None else None
+    from_set = document is not None and span is None
+    return _Origin(f"--set {key}" if from_set else key, span)
 
 
 def grid(axes: Sequence[Axis]) -> list[Point]:
@@ -111,78 +144,74 @@ def yaml_text(value: object) -> str:
     return text.removesuffix("\n").removesuffix("\n...").strip()
 
 
-def _bad(text: str, expected: str) -> ConfigError:
-    return ConfigError(f"--vary {text!r}: {expected}")
-
-
-def _check_key(text: str, key: str) -> None:
+def _check_key(where: _Origin, key: str) -> None:
     if key.startswith(_PROPERTY_KEY):
         name = key.removeprefix(_PROPERTY_KEY)
         if is_property_name(name):
             return
-        raise _bad(text, f"property name {name!r} must be an identifier (letters, digits "
-                         "and _, not starting with a digit)")
+        raise where.error(f"property name {name!r} must be an identifier (letters, digits "
+                          "and _, not starting with a digit)")
     if key in known_keys():
         return
     close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
     hint = f"did you mean '{close[0]}'?" if close else "see configs/example.yaml for the keys"
-    raise _bad(text, f"unknown key '{key}' ({hint})")
+    raise where.error(f"unknown key '{key}' ({hint})")
 
 
-def _range(text: str, spec: str) -> tuple[object, ...]:
+def _range(where: _Origin, spec: str) -> tuple[object, ...]:
     """``START:STOP:STEP`` with exact decimal arithmetic; STOP included when on the grid."""
     parts = spec.split(":")
     if len(parts) != 3:
-        raise _bad(text, f"range {spec!r} must be START:STOP:STEP, e.g. 10:13:0.5")
-    start, stop, step = (_decimal(text, part) for part in parts)
+        raise where.error(f"range {spec!r} must be START:STOP:STEP, e.g. 10:13:0.5")
+    start, stop, step = (_decimal(where, part) for part in parts)
     if step <= 0:
-        raise _bad(text, f"STEP must be > 0, got {parts[2].strip()}")
+        raise where.error(f"STEP must be > 0, got {parts[2].strip()}")
     if stop < start:
-        raise _bad(text, f"STOP must be ≥ START, got {parts[0].strip()}:{parts[1].strip()}")
+        raise where.error(f"STOP must be ≥ START, got {parts[0].strip()}:{parts[1].strip()}")
     count = int((stop - start) // step) + 1
     if count > MAX_POINTS:
-        raise _bad(text, f"range gives {count_text(count)} values (at most {MAX_POINTS:,})")
-    return tuple(_number(text, start + k * step) for k in range(count))
+        raise where.error(f"range gives {count_text(count)} values (at most {MAX_POINTS:,})")
+    return tuple(_number(where, start + k * step) for k in range(count))
 
 
-def _decimal(text: str, part: str) -> Fraction:
+def _decimal(where: _Origin, part: str) -> Fraction:
     try:
         if "/" not in part:
             return exact_number(part)
     except OutOfRange as exc:
-        raise _bad(text, str(exc)) from None
+        raise where.error(str(exc)) from None
     except ValueError:
         pass
-    raise _bad(text, f"{brief(part.strip())} is not a decimal number (START:STOP:STEP)")
+    raise where.error(f"{brief(part.strip())} is not a decimal number (START:STOP:STEP)")
 
 
-def _number(text: str, value: Fraction) -> int | float:
+def _number(where: _Origin, value: Fraction) -> int | float:
     """An int when whole, else the float whose repr is the exact decimal."""
     if value.denominator == 1:
         return value.numerator
     decimal = fraction_to_decimal(value)
     number = float(decimal) if decimal is not None else float("nan")
     if decimal is None or repr(number) != decimal.removeprefix("+"):
-        raise _bad(text, f"value {decimal or value} has more digits than a float holds")
+        raise where.error(f"value {decimal or value} has more digits than a float holds")
     return number
 
 
-def _items(text: str, spec: str) -> tuple[object, ...]:
+def _items(where: _Origin, spec: str) -> tuple[object, ...]:
     """``a,b,c``: the items of a YAML flow sequence, so ``[0,0],[1,1]`` is two lists (read
     as a config's values are: ``010`` is not the octal eight)."""
     flow = f"[{spec}]"
     try:
         items = construct(compose(flow, None), flow, None)
     except NumberOutOfRange as exc:
-        raise _bad(text, exc.reason) from None
+        raise where.error(exc.reason) from None
     except ConfigError:
         items = None
     if not isinstance(items, list) or not items or any(item is None for item in items):
-        raise _bad(text, f"{spec!r} is not START:STOP:STEP or a comma list of YAML values a,b,c")
+        raise where.error(f"{spec!r} is not START:STOP:STEP or a comma list of YAML values a,b,c")
     frozen = tuple(_freeze(item) for item in items)
     twice = next((item for n, item in enumerate(frozen) if item in frozen[:n]), None)
     if twice is not None:
-        raise _bad(text, f"{_thaw(twice)!r} is given twice (each point runs once)")
+        raise where.error(f"{_thaw(twice)!r} is given twice (each point runs once)")
     return frozen
 
 

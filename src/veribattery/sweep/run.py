@@ -34,10 +34,11 @@ import pandas as pd
 from veribattery.config import ConfigDocument, MissionConfig, read_config
 from veribattery.errors import VeribatteryError
 from veribattery.mission import ParseCache, RenderedMission, validate_properties
-from veribattery.sweep.execute import Executor, InProcess, open_executor
+from veribattery.sweep.execute import Executor, open_executor
 from veribattery.sweep.fingerprint import fingerprint
 from veribattery.sweep.grid import Axis, Point, grid, point_values, yaml_text
-from veribattery.sweep.store import ResultsStore, Row, check_target, open_results
+from veribattery.sweep.point_result import point_properties
+from veribattery.sweep.store import ResultsStore, Row, RowCheck, check_target, open_results
 from veribattery.sweep.summary import sweep_warnings
 from veribattery.sweep.tasks import PointResult, plan_tasks
 
@@ -112,8 +113,10 @@ def run_sweep(
         store, earlier = None, {}
         if results is not None:
             mark = fingerprint(document.validate(), overrides, axes)
-            store, rows = open_results(Path(results), columns, mark, force=force)
-            earlier = _by_point(rows, cells)
+            names = [point_properties(cfg) for cfg in configs]
+            store, rows = open_results(Path(results), columns, mark, force=force,
+                                       check=_foreign_to(names))
+            earlier = _by_point(rows, cells, names)
         sweep = _Sweep(points, configs, cells, store, earlier, parses)
         sweep.run(executor, jobs, progress, on_point, notes or (lambda _: None))
     return sweep.frame(columns)
@@ -134,18 +137,18 @@ class _Sweep:
     def run(self, executor: Executor, jobs: int, progress: SweepProgress | None,
             on_point: PointCallback | None, notes: Callable[[str], None]) -> None:
         total = len(self.points)
+        cut = [i for i, rows in self.rows.items() if not rows]
+        for index in cut:
+            del self.rows[index]
         done = {i for i, rows in self.rows.items() if rows[0]["error"] is None}
-        if done:
-            retried = len(self.rows) - len(done)
-            notes(f"{len(done)} of {total} points already done"
-                  + (f"; {retried} failed points are retried" if retried else ""))
+        if done or cut:
+            notes(_resumed(len(done), total, len(self.rows) - len(done), len(cut)))
         pending = [(i, RenderedMission.of_point(c)) for i, c in enumerate(self.configs)
                    if i not in done]
         whole = list(enumerate(self.configs)) if done else None
         tasks, plan = plan_tasks(pending, jobs, whole, self.parses)
         if pending:
-            where = executor.description if len(tasks) > 1 else InProcess.description
-            notes(f"{plan.describe()}; running {where}")
+            notes(f"{plan.describe()}; running {executor.describe(tasks)}")
         if progress is not None:
             progress(len(done), total)
         try:
@@ -191,21 +194,65 @@ def point_rows(result: PointResult, cells: Row) -> list[Row]:
              "requirement": v.requirement, "holds": v.holds, **common} for v in result.values]
 
 
-def _by_point(rows: list[Row], cells: list[Row]) -> dict[int, list[Row]]:
-    """Earlier rows by point: a point's successful rows, else its last error row.
+def _resumed(done: int, total: int, failed: int, cut: int) -> str:
+    """``3 of 5 points already done; 1 failed point is retried; ...``."""
+    text = f"{done} of {total} points already done"
+    if failed:
+        text += f"; {_points(failed, 'failed point')} {_be(failed)} retried"
+    if cut:
+        text += (f"; {_points(cut, 'point')} with rows missing from the results "
+                 f"{_be(cut)} checked again")
+    return text
+
+
+def _points(count: int, noun: str) -> str:
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
+def _be(count: int) -> str:
+    return "is" if count == 1 else "are"
+
+
+def _foreign_to(names: Sequence[tuple[str, ...]]) -> RowCheck:
+    """Why a row read back is not one of this sweep's, whose point *i* has a row for each
+    of ``names[i]`` (or one error row): a point outside the grid, a property not the
+    point's."""
+
+    def foreign(row: Row) -> str | None:
+        index = row["point"]
+        if not isinstance(index, int) or not 0 <= index < len(names):
+            return f"point {index} is not one of this sweep's {len(names)}"
+        name = row["property"]
+        if name is None:
+            return None if row["error"] is not None else "neither a property nor an error"
+        return None if name in names[index] else f"point {index} has no property {name!r}"
+
+    return foreign
+
+
+def _by_point(rows: list[Row], cells: list[Row],
+              names: Sequence[tuple[str, ...]]) -> dict[int, list[Row]]:
+    """Earlier rows by point: a point's rows when each of its properties ``names[i]`` has
+    one (the last written), else its last error row; an empty list for a point some
+    of whose rows are missing (a results file cut short, or a row deleted): it is
+    checked again, as if it had never run.
 
     Axis cells are taken from the grid rather than the file, so they have their types.
     """
+    values: dict[int, dict[object, Row]] = {}
     found: dict[int, list[Row]] = {}
     for row in rows:
         index = int(row["point"])  # type: ignore[call-overload]
-        if not 0 <= index < len(cells):
-            continue
         row = {**row, "point": index, **cells[index]}
-        kept = found.setdefault(index, [])
-        if row["error"] is not None or (kept and kept[0]["error"] is not None):
-            kept.clear()
-        kept.append(row)
+        if row["property"] is None:
+            found[index] = [row]
+        else:
+            values.setdefault(index, {})[row["property"]] = row
+    for index, by_name in values.items():
+        if all(name in by_name for name in names[index]):
+            found[index] = [by_name[name] for name in names[index]]
+        else:
+            found.setdefault(index, [])
     return found
 
 

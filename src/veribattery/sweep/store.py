@@ -2,12 +2,13 @@
 
 ``.csv`` and ``.jsonl`` files are appended to directly: each point's rows go out in one
 ``write`` followed by ``flush`` and ``fsync``, so a crash, Ctrl-C or a killed worker
-leaves whole points only (a torn last line, which only a power cut can leave, is cut
-off when the file is reopened). Parquet cannot be appended to, so a ``.parquet``
+leaves whole points only (a torn last line, which only a power cut, a full disk or a
+copy cut short can leave, is cut off when the file is reopened; the sweep checks such
+a point again). Parquet cannot be appended to, so a ``.parquet``
 sweep journals its rows to ``RESULTS.partial.jsonl`` and writes the Parquet file
 (atomically) when the sweep ends. When a sweep ends the file is rewritten, atomically,
 in grid order. The sweep's fingerprint is kept beside the results in
-``RESULTS.sweep.json``.
+``RESULTS.sweep.json``, with the figures (``sweep --plot``) the sweep has drawn.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import io
 import json
 import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -25,15 +26,32 @@ from veribattery._files import can_create_in, staged, write_text
 from veribattery.errors import ConfigError
 from veribattery.sweep.fingerprint import SweepFingerprint
 
-__all__ = ["FORMATS", "ResultsStore", "Row", "check_target", "open_results"]
+__all__ = ["FORMATS", "ResultsFileError", "ResultsStore", "Row", "RowCheck", "check_target",
+           "drawn_plots", "open_results", "read_results", "record_plot"]
 
 #: One row: column → value.
 Row = dict[str, object]
+
+#: Why a well-formed row is still not one of this sweep's (its point is not in the grid,
+#: its property is not the point's), or None when it is.
+RowCheck = Callable[[Row], str | None]
 
 FORMATS = (".csv", ".jsonl", ".parquet")
 
 _INT_COLUMNS = frozenset({"point", "states", "transitions"})
 _FLOAT_COLUMNS = frozenset({"seconds", "recharge_cap_probability"})
+_TEXT_COLUMNS = frozenset({"property", "requirement", "error"})
+_OTHER_COLUMNS = "its columns are not those of the sweep its fingerprint describes"
+
+
+class ResultsFileError(ConfigError):
+    """A results file holds what its sweep did not write: *problem* says where (``line
+    12 is not a row this sweep wrote (...)``); each reader words it for its option."""
+
+    def __init__(self, file: Path, problem: str) -> None:
+        super().__init__(f"{file}: {problem}")
+        self.file = file
+        self.problem = problem
 
 
 class ResultsStore:
@@ -64,26 +82,69 @@ class ResultsStore:
 
 
 def open_results(
-    path: Path, columns: Sequence[str], mark: SweepFingerprint, *, force: bool
+    path: Path, columns: Sequence[str], mark: SweepFingerprint, *, force: bool,
+    check: RowCheck | None = None,
 ) -> tuple[ResultsStore, list[Row]]:
     """Open (or create) *path* for the sweep *mark*; return it and the rows already there.
 
+    :param check: what else makes a row foreign to this sweep (see :data:`RowCheck`).
     :raises ConfigError: on an unsupported suffix, a file of another sweep (unless
-        *force*), or a file that is not a sweep's results (unless *force*).
+        *force*), or a file that is not a sweep's results (unless *force*), naming the
+        first line that is not a row this sweep wrote.
     :raises OSError: when the file cannot be written.
     """
     suffix = _suffix(path)
     journal = path.with_name(path.name + ".partial.jsonl") if suffix == ".parquet" else path
-    meta = path.with_name(path.name + ".sweep.json")
+    meta = _meta(path)
     exists = path.exists() or journal.exists()
-    rows = [] if force or not exists else _resume(path, journal, meta, mark, columns)
+    try:
+        rows = [] if force or not exists else _resume(path, journal, meta, mark, columns, check)
+    except ResultsFileError as exc:
+        raise ConfigError(f"-o {str(exc.file)!r}: {exc.problem}; use --force to start afresh, "
+                          "or pick another -o") from None
     _check_writable(path)
-    if not rows:
+    if force or not exists:  # (resumed, it holds this sweep's fingerprint and plots)
         _write_new(meta, mark)
-        stream = _create(journal, columns)
-    else:
-        stream = _reopen(journal, columns)
+    stream = _reopen(journal, columns) if rows else _create(journal, columns)
     return ResultsStore(path, columns, journal, stream), rows
+
+
+def drawn_plots(path: Path) -> frozenset[Path]:
+    """The figures (``sweep --plot``; resolved paths) that the sweep whose results are
+    *path* has drawn, as :func:`record_plot` noted them in ``RESULTS.sweep.json``: a
+    rerun that resumes the sweep draws them again. Empty when there is no such file."""
+    try:
+        plots = json.loads(_meta(path).read_text(encoding="utf-8")).get("plots", [])
+    except (OSError, ValueError, AttributeError):  # (not a JSON object: no plots)
+        return frozenset()
+    return frozenset(Path(p) for p in plots if isinstance(p, str))
+
+
+def record_plot(path: Path, plot: Path) -> None:
+    """Note in ``RESULTS.sweep.json`` (*path* the results) that the sweep drew *plot*.
+
+    A sweep started afresh (a new RESULTS, or ``--force``) forgets the figures noted.
+    """
+    meta = _meta(path)
+    data = json.loads(meta.read_text(encoding="utf-8"))
+    data["plots"] = sorted({*data.get("plots", []), str(plot.resolve())})
+    write_text(meta, json.dumps(data, indent=2) + "\n")
+
+
+def read_results(path: Path, columns: Sequence[str],
+                 check: RowCheck | None = None) -> list[Row]:
+    """The rows of the results file *path*, read as a resumed sweep reads them: every
+    line must be a row the sweep wrote (``report --sweep`` draws only such rows).
+
+    :param columns: the sweep's columns, in order.
+    :param check: what else makes a row foreign to the sweep (see :data:`RowCheck`).
+    :raises ResultsFileError: naming the first line that is not such a row (or the
+        columns, or a Parquet file that cannot be read).
+    :raises OSError: when the file cannot be read.
+    """
+    if _suffix(path) == ".parquet":
+        return _read_parquet(path, columns, check)
+    return _read_rows(path, columns, check)
 
 
 def check_target(path: Path) -> None:
@@ -107,6 +168,9 @@ def _check_writable(path: Path) -> None:
     folder = path.parent
     if not folder.is_dir():
         raise ConfigError(f"-o {str(path)!r}: folder {str(folder)!r} does not exist")
+    if path.is_dir():
+        raise ConfigError(f"-o {str(path)!r}: is a folder; name a results file "
+                          f"({', '.join(FORMATS)})")
     target = path if path.exists() else folder
     if (not os.access(target, os.W_OK) or not can_create_in(folder)  # the journal, meta
             or (path.exists() and not path.is_file())):
@@ -114,7 +178,8 @@ def _check_writable(path: Path) -> None:
 
 
 def _resume(
-    path: Path, journal: Path, meta: Path, mark: SweepFingerprint, columns: Sequence[str]
+    path: Path, journal: Path, meta: Path, mark: SweepFingerprint, columns: Sequence[str],
+    check: RowCheck | None,
 ) -> list[Row]:
     """The rows of an earlier run of this same sweep, or a one-line refusal."""
     try:
@@ -128,8 +193,13 @@ def _resume(
     if difference is not None:
         raise ConfigError(f"-o {str(path)!r} holds another sweep's results: {difference}; "
                           "use --force to start afresh, or pick another -o")
-    rows = _read_parquet(path) if journal != path and path.exists() else []
-    return rows + _read_rows(journal, columns) if journal.exists() else rows
+    rows = _read_parquet(path, columns, check) if journal != path and path.exists() else []
+    return rows + _read_rows(journal, columns, check) if journal.exists() else rows
+
+
+def _meta(path: Path) -> Path:
+    """Where the results *path* keep their sweep's fingerprint (and drawn figures)."""
+    return path.with_name(path.name + ".sweep.json")
 
 
 def _write_new(meta: Path, mark: SweepFingerprint) -> None:
@@ -138,7 +208,7 @@ def _write_new(meta: Path, mark: SweepFingerprint) -> None:
 
 def _create(journal: Path, columns: Sequence[str]) -> IO[str]:
     stream = journal.open("w", encoding="utf-8", newline="")
-    if journal.suffix == ".csv":
+    if _is_csv(journal):
         stream.write(_csv_line(columns))
         stream.flush()
     return stream
@@ -157,9 +227,14 @@ def _reopen(journal: Path, columns: Sequence[str]) -> IO[str]:
 
 
 def _text(journal: Path, columns: Sequence[str], rows: Sequence[Row]) -> str:
-    if journal.suffix == ".csv":
+    if _is_csv(journal):
         return "".join(_csv_line([_csv_cell(row.get(c)) for c in columns]) for row in rows)
     return "".join(json.dumps({c: row.get(c) for c in columns}) + "\n" for row in rows)
+
+
+def _is_csv(path: Path) -> bool:
+    """CSV (else JSON lines): by the suffix, in any case, as :func:`_suffix` reads it."""
+    return path.suffix.lower() == ".csv"
 
 
 def _csv_line(cells: Sequence[object]) -> str:
@@ -175,7 +250,7 @@ def _csv_cell(value: object) -> object:
     return repr(value) if isinstance(value, float) else value
 
 
-def _read_rows(journal: Path, columns: Sequence[str]) -> list[Row]:
+def _read_rows(journal: Path, columns: Sequence[str], check: RowCheck | None) -> list[Row]:
     """The rows of *journal*; a line that is not one this sweep wrote is a one-line
     refusal naming it (a row edited by hand, a byte that is not UTF-8, a torn cell)."""
     try:
@@ -183,23 +258,42 @@ def _read_rows(journal: Path, columns: Sequence[str]) -> list[Row]:
     except UnicodeDecodeError as exc:
         raise _not_ours(journal, _text_line(exc), "not UTF-8 text") from None
     lines = text[: text.rfind("\n") + 1]
-    if journal.suffix != ".csv":
-        return [_json_row(journal, number, line, columns)
-                for number, line in enumerate(lines.splitlines(), 1) if line.strip()]
+    numbered = (_csv_rows(journal, lines, columns) if _is_csv(journal) else
+                ((number, _json_row(journal, number, line, columns))
+                 for number, line in enumerate(lines.splitlines(), 1) if line.strip()))
+    return [_checked(journal, f"line {number}", row, check) for number, row in numbered]
+
+
+def _csv_rows(journal: Path, lines: str, columns: Sequence[str]) -> Iterator[tuple[int, Row]]:
+    """Each CSV row parsed, with its line; a cell that does not parse is a refusal."""
     reader = csv.DictReader(io.StringIO(lines))
-    if reader.fieldnames is not None and tuple(reader.fieldnames) != tuple(columns):
-        raise ConfigError(f"-o {str(journal)!r}: its columns are not this sweep's; use --force")
-    rows = []
-    for row in reader:
-        try:
-            if None in row or None in row.values():  # cells beyond the header, or missing
-                cells = sum(v is not None for k, v in row.items() if k is not None)
-                raise ValueError(f"{cells + len(row.get(None) or ())} cells, the header has "
-                                 f"{len(columns)}")
-            rows.append({c: _parse_cell(c, row[c]) for c in columns})
-        except ValueError as exc:
-            raise _not_ours(journal, reader.line_num, str(exc)) from None
-    return rows
+    try:
+        if reader.fieldnames is not None and tuple(reader.fieldnames) != tuple(columns):
+            raise ResultsFileError(journal, _OTHER_COLUMNS)
+        for row in reader:
+            yield reader.line_num, _csv_row(journal, reader.line_num, row, columns)
+    except csv.Error as exc:  # a NUL byte, a cell over csv's field size limit
+        raise _not_ours(journal, reader.line_num, f"not CSV: {exc}") from None
+
+
+def _csv_row(journal: Path, line: int, row: dict[str | None, object],
+             columns: Sequence[str]) -> Row:
+    try:
+        if None in row or None in row.values():  # cells beyond the header, or missing
+            cells = sum(v is not None for k, v in row.items() if k is not None)
+            extra = row.get(None)
+            raise ValueError(f"{cells + len(extra) if isinstance(extra, list) else cells} "
+                             f"cells, the header has {len(columns)}")
+        return {c: _parse_cell(c, str(row[c])) for c in columns}
+    except ValueError as exc:
+        raise _not_ours(journal, line, str(exc)) from None
+
+
+def _checked(file: Path, where: str, row: Row, check: RowCheck | None) -> Row:
+    why = check(row) if check is not None else None
+    if why is not None:
+        raise ResultsFileError(file, f"{where} is not a row this sweep wrote ({why})")
+    return row
 
 
 def _json_row(journal: Path, number: int, line: str, columns: Sequence[str]) -> Row:
@@ -209,12 +303,30 @@ def _json_row(journal: Path, number: int, line: str, columns: Sequence[str]) -> 
         raise _not_ours(journal, number, f"not JSON ({exc.args[0]})") from None
     if not isinstance(row, dict) or set(row) != set(columns) or type(row["point"]) is not int:
         raise _not_ours(journal, number, "not an object with this sweep's columns")
+    wrong = next((c for c in columns if not _json_cell_fits(c, row[c])), None)
+    if wrong is not None:
+        raise _not_ours(journal, number, f"{wrong} {json.dumps(row[wrong])[:40]} is not a "
+                        f"value this sweep writes there")
     return row
 
 
-def _not_ours(journal: Path, line: int, why: str) -> ConfigError:
-    return ConfigError(f"-o {str(journal)!r}: line {line} is not a row this sweep wrote "
-                       f"({why}); use --force to start afresh, or pick another -o")
+def _json_cell_fits(column: str, value: object) -> bool:
+    """Whether *value* has a type the sweep writes in *column* (axis cells: any)."""
+    if value is None:
+        return True
+    if column in _INT_COLUMNS:
+        return type(value) is int
+    if column in _FLOAT_COLUMNS:
+        return type(value) in (int, float)
+    if column == "value":
+        return type(value) in (int, float, bool)
+    if column == "holds":
+        return type(value) is bool
+    return column not in _TEXT_COLUMNS or type(value) is str
+
+
+def _not_ours(journal: Path, line: int, why: str) -> ResultsFileError:
+    return ResultsFileError(journal, f"line {line} is not a row this sweep wrote ({why})")
 
 
 def _text_line(exc: UnicodeDecodeError) -> int:
@@ -234,19 +346,22 @@ def _parse_cell(column: str, text: str) -> object:
         return text == "True"
     if column == "value":
         return float(text)
-    return None if column == "holds" else text
+    if column == "holds":
+        raise ValueError(f"holds is {text!r}, not True, False or empty")
+    return text
 
 
-def _read_parquet(path: Path) -> list[Row]:
+def _read_parquet(path: Path, columns: Sequence[str], check: RowCheck | None) -> list[Row]:
     import pandas as pd
 
     try:
         frame = pd.read_parquet(path)
     except (OSError, ValueError) as exc:  # pyarrow's ArrowInvalid is a ValueError
-        raise ConfigError(f"-o {str(path)!r}: cannot read it as Parquet ({exc}); use --force "
-                          "to start afresh, or pick another -o") from None
+        raise ResultsFileError(path, f"cannot read it as Parquet ({exc})") from None
+    if list(frame.columns) != list(columns):
+        raise ResultsFileError(path, _OTHER_COLUMNS)
     rows: list[Row] = frame.astype(object).where(frame.notna(), None).to_dict("records")
-    return rows
+    return [_checked(path, f"row {number}", row, check) for number, row in enumerate(rows, 1)]
 
 
 def _replace(path: Path, columns: Sequence[str], rows: list[Row]) -> None:
@@ -255,7 +370,7 @@ def _replace(path: Path, columns: Sequence[str], rows: list[Row]) -> None:
             _write_parquet(temporary, columns, rows)
             return
         with open(temporary, "w", encoding="utf-8", newline="") as stream:
-            if path.suffix.lower() == ".csv":
+            if _is_csv(path):
                 stream.write(_csv_line(columns))
             stream.write(_text(path, columns, rows))
             stream.flush()

@@ -60,10 +60,28 @@ def _describe(point: Point) -> str:
 
 
 def summary_line(frame: pd.DataFrame) -> str:
-    """``604 points: 601 checked, 3 failed; requirements fail at 12 points``."""
+    """``604 points: 601 checked, 3 failed; requirement p_success >= 0.99 fails at 12
+    points`` (with several failing: ``requirements fail: A at 12 points, B at 1 point``)."""
     total = frame["point"].nunique()
     failed = int(frame.attrs.get("failed", 0))
-    failing = frame.loc[frame["holds"].eq(False).fillna(False), "point"].nunique()
-    text = f"{total} points: {total - failed} checked, {failed} failed"
-    return text + (f"; requirements fail at {failing} points" if failing else
-                   "; every requirement holds" if frame["holds"].notna().any() else "")
+    text = f"{_points(total)}: {total - failed} checked, {failed} failed"
+    failing = _failing(frame)
+    if len(failing) == 1:
+        (requirement, count), = failing.items()
+        return f"{text}; requirement {requirement} fails at {_points(count)}"
+    if failing:
+        each = ", ".join(f"{req} at {_points(count)}" for req, count in failing.items())
+        return f"{text}; requirements fail: {each}"
+    return text + ("; every requirement holds" if frame["holds"].notna().any() else "")
+
+
+def _failing(frame: pd.DataFrame) -> dict[str, int]:
+    """Each requirement that fails somewhere (as the rows give it: a property's
+    requirements joined by ``and``), with the number of points where it fails."""
+    rows = frame[frame["holds"].eq(False).fillna(False)]
+    counts = rows.groupby("requirement", sort=False)["point"].nunique()
+    return {str(requirement): int(count) for requirement, count in counts.items()}
+
+
+def _points(count: int) -> str:
+    return f"{count} point{'' if count == 1 else 's'}"

@@ -17,17 +17,11 @@ from veribattery.config import MissionConfig
 from veribattery.lang.nodes import BOUND_RELATIONS
 from veribattery.render import FastestQuestion, synthesis_questions
 from veribattery.sweep.grid import Axis
-from veribattery.sweep.point_result import PointResult, PropertyValue
+from veribattery.sweep.point_result import SYNTHESIS_PROPERTIES, PointResult, PropertyValue
 from veribattery.synthesis.model import Certified
 from veribattery.synthesis.sweep_pmax import MissionPmax
 
 __all__ = ["SYNTHESIS_PROPERTIES", "swept_properties", "synthesis_point"]
-
-_PMAX = 'Pmax=? [ F "success" ]'
-#: The rows of a synthesis point, in order (``Pmax`` and its certified interval's ends),
-#: and what each is of.
-SYNTHESIS_PROPERTIES = {"p_success_max": _PMAX, "p_success_max_lower": _PMAX,
-                        "p_success_max_upper": _PMAX}
 
 
 def synthesis_point(index: int, cfg: MissionConfig, answer: MissionPmax,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 import multiprocessing
 import os
+import signal
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -245,8 +246,13 @@ PARENT_POLL_S = 1.0
 
 def start_worker(stream: PointStream | None) -> None:
     """Make this process a worker that reports every point to *stream* (a pool's
-    initializer), and that exits when the sweep's process is gone."""
+    initializer), and that exits when the sweep's process is gone.
+
+    It ignores SIGINT: Ctrl-C reaches the whole process group, and the sweep's process
+    handles it and stops the workers (each would print a traceback otherwise).
+    """
     global _WORKER
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     _WORKER = Worker(stream)
     _exit_with_parent()
 
