@@ -114,13 +114,12 @@ def test_questions_from_requirements() -> None:
         "properties: {p_success: 'P=? [ F \"success\" ]', best: ' Pmax=?[F \"success\"] ',"
         " p_fail: 'P=? [ F \"failure\" ]', exp_mission_time: 'R{\"mt\"}=? [ F \"done\" ]'}\n"
         "requirements: ['p_success >= 0.99', 'best > 1/3', 'p_success <= 0.5',"
-        " 'p_success >= 1.5', 'p_fail < 0.01', 'exp_mission_time < 5000']")
+        " 'p_fail < 0.01', 'exp_mission_time < 5000']")
     fastest, skipped = synthesis_questions(cfg)
     assert [(q.name, q.op, str(q.bound)) for q in fastest] == [
         ("fastest_1", ">=", "99/100"), ("fastest_2", ">", "1/3")]
     assert [q.reason for q in skipped] == [
         "an upper bound on P(success): aborting at once meets it",
-        "the bound is not a probability",
         "p_fail is P=? [ F \"failure\" ], not P=? [ F \"success\" ]",
         "exp_mission_time is R{\"mt\"}=? [ F \"done\" ], not P=? [ F \"success\" ]"]
     props = render_synthesis_properties(cfg)
@@ -129,6 +128,9 @@ def test_questions_from_requirements() -> None:
     assert '"fastest_2": multi(R{"mt"}min=? [ C ], P>(1/3) [ F "success" ]);' in props
     assert "//   p_success <= 0.5: an upper bound on P(success)" in props
     assert len(re.findall(r'^"\w+":', props, flags=re.MULTILINE)) == 5
+    # A bound no probability meets is bad input when the config is read, not a question.
+    with pytest.raises(ConfigError, match=r"the bound must be in \[0, 1\], got 1.5"):
+        load_config("requirements: ['p_success >= 1.5']")
 
 
 def test_check_refuses_synthesis_mode_in_one_line(tmp_path: Path) -> None:
