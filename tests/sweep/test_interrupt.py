@@ -3,6 +3,7 @@ once, not left to finish their tasks, and they never see Ctrl-C themselves."""
 
 from __future__ import annotations
 
+import gc
 import multiprocessing
 import signal
 import time
@@ -62,3 +63,22 @@ def test_workers_ignore_ctrl_c() -> None:
     handlers = {w for r in LocalPool(2, check=sigint_handler).results(_tasks(4))
                 for w in r.warnings}
     assert handlers == {repr(signal.SIG_IGN)}
+
+
+def gc_thresholds(session: MissionSession, index: int,
+                  mission: RenderedMission) -> PointResult:
+    """The worker's garbage-collection thresholds, as its warning."""
+    return PointResult(index, warnings=(repr(gc.get_threshold()),))
+
+
+def test_workers_collect_garbage_as_the_sweep_process_does() -> None:
+    """A spawned worker starts with Python's defaults (700, 10, 10); the CLI's process
+    collects less often (``veribattery._startup``), and so must the builds it hands out."""
+    before = gc.get_threshold()
+    gc.set_threshold(12_345, 11, 12)
+    try:
+        seen = {w for r in LocalPool(2, check=gc_thresholds).results(_tasks(2))
+                for w in r.warnings}
+    finally:
+        gc.set_threshold(*before)
+    assert seen == {repr((12_345, 11, 12))}

@@ -8,6 +8,7 @@ writes nothing.
 
 from __future__ import annotations
 
+import gc
 import os
 import pickle
 import signal
@@ -145,7 +146,7 @@ class LocalPool:
         unsent, running = deque(pending), dict[Future[list[PointResult]], Task]()
         with _interrupts_held() as interrupted, ProcessPoolExecutor(
                 min(self.jobs, len(pending)), mp_context=context, initializer=start_worker,
-                initargs=(stream,)) as pool:
+                initargs=(stream, gc.get_threshold())) as pool:
             try:
                 _submit(pool, unsent, running, self.check)
                 while running:

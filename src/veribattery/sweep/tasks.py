@@ -11,6 +11,7 @@ another in one process.
 
 from __future__ import annotations
 
+import gc
 import math
 import multiprocessing
 import os
@@ -244,15 +245,21 @@ _WORKER: Worker | None = None
 PARENT_POLL_S = 1.0
 
 
-def start_worker(stream: PointStream | None) -> None:
+def start_worker(stream: PointStream | None,
+                 collection: tuple[int, ...] | None = None) -> None:
     """Make this process a worker that reports every point to *stream* (a pool's
     initializer), and that exits when the sweep's process is gone.
 
     It ignores SIGINT: Ctrl-C reaches the whole process group, and the sweep's process
-    handles it and stops the workers (each would print a traceback otherwise).
+    handles it and stops the workers (each would print a traceback otherwise). With
+    *collection* (the sweep process's ``gc.get_threshold()``) it collects garbage as that
+    process does: a spawned worker starts with Python's defaults, under which a large
+    model's build spent ~40 % of its time in the collector (see ``veribattery._startup``).
     """
     global _WORKER
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if collection is not None:
+        gc.set_threshold(*collection)
     _WORKER = Worker(stream)
     _exit_with_parent()
 
