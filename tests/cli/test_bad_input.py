@@ -125,6 +125,8 @@ CASES: list[tuple[str, list[str]]] = [
     ("distribution-unknown-reward", ["distribution", CASE1, *SMALL, "--reward", "nosuch"]),
     ("explain-strategy-folder", ["explain", CASE1, *SMALL, "--strategy", "a_folder.csv"]),
     ("emit-dash", ["emit", CASE1, *SMALL, "-o", "-"]),
+    ("sweep-plot-property-alone", ["sweep", CASE1, *SMALL, "--vary",
+                                   "battery.capacity_ah=10,11", "--plot-property", "p_success"]),
     ("prism-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--const", "N"]),
     ("prism-unknown-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
                              "--const", "N=3"]),
@@ -304,6 +306,7 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("distribution-unknown-reward", "--reward nosuch: the mission has no reward structure"),
     ("explain-strategy-folder", "a strategy file; a folder 'a_folder.csv'"),
     ("emit-dash", "-o -: writes a folder of files, not to standard output"),
+    ("sweep-plot-property-alone", "--plot-property chooses what --plot draws"),
 ])
 def test_the_line_says_what_is_wrong(workdir: Path, name: str, says: str) -> None:
     [args] = [c[1] for c in CASES if c[0] == name]

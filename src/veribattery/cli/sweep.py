@@ -126,6 +126,11 @@ def _check_plot_options(plot_path: Path | None, plot_property: str | None,
         raise OptionError(f"--plot-property {plot_property}: the sweep has no such property "
                           f"(properties: {', '.join(properties)})")
     if plot_path is None:
+        given = [option for option, value in (("--plot-property", plot_property),
+                                              ("--plot-x", x_key)) if value is not None]
+        if given:  # it would be ignored
+            raise OptionError(f"{given[0]} chooses what --plot draws: give --plot FILE, or "
+                              f"leave out {given[0]}")
         return
     from veribattery.sweep.plot import check_plot_target
 
