@@ -125,6 +125,7 @@ CASES: list[tuple[str, list[str]]] = [
     ("distribution-unknown-reward", ["distribution", CASE1, *SMALL, "--reward", "nosuch"]),
     ("explain-strategy-folder", ["explain", CASE1, *SMALL, "--strategy", "a_folder.csv"]),
     ("emit-dash", ["emit", CASE1, *SMALL, "-o", "-"]),
+    ("check-endless-input", ["check", "/dev/zero"]),
     ("sweep-plot-property-alone", ["sweep", CASE1, *SMALL, "--vary",
                                    "battery.capacity_ah=10,11", "--plot-property", "p_success"]),
     ("prism-const", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--const", "N"]),
@@ -306,6 +307,7 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("distribution-unknown-reward", "--reward nosuch: the mission has no reward structure"),
     ("explain-strategy-folder", "a strategy file; a folder 'a_folder.csv'"),
     ("emit-dash", "-o -: writes a folder of files, not to standard output"),
+    ("check-endless-input", "config '/dev/zero': more than 16 MB"),
     ("sweep-plot-property-alone", "--plot-property chooses what --plot draws"),
 ])
 def test_the_line_says_what_is_wrong(workdir: Path, name: str, says: str) -> None:

@@ -25,6 +25,8 @@ __all__ = ["ConfigDocument", "config_to_yaml", "load_config", "parse_override", 
            "set_value"]
 
 _PROPERTY_KEY = "properties."
+#: The largest config file read (a mission config is a few kB).
+MAX_CONFIG_BYTES = 16 << 20
 
 
 def load_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> MissionConfig:
@@ -113,9 +115,13 @@ def _read(path_or_text: str | FsPath) -> tuple[str, str]:
     if isinstance(path_or_text, FsPath) or _looks_like_path(path_or_text):
         path = FsPath(path_or_text)
         try:
-            data = path.read_bytes()
+            with path.open("rb") as stream:  # bounded: /dev/zero or a pipe may never end
+                data = stream.read(MAX_CONFIG_BYTES + 1)
         except OSError as exc:
             raise ConfigError(f"cannot read config {str(path)!r}: {exc.strerror}") from None
+        if len(data) > MAX_CONFIG_BYTES:
+            raise ConfigError(f"config {str(path)!r}: more than {MAX_CONFIG_BYTES >> 20} MB; "
+                              "a mission config is a few kB of YAML")
         return decode(data, str(path)), str(path)
     return path_or_text, "<string>"
 
