@@ -39,7 +39,7 @@ from veribattery.sweep.fingerprint import fingerprint
 from veribattery.sweep.grid import Axis, Point, grid, point_values, yaml_text
 from veribattery.sweep.point_result import point_properties
 from veribattery.sweep.store import ResultsStore, Row, RowCheck, check_target, open_results
-from veribattery.sweep.summary import sweep_warnings
+from veribattery.sweep.summary import counted, sweep_warnings
 from veribattery.sweep.tasks import PointResult, plan_tasks
 
 __all__ = [
@@ -198,15 +198,11 @@ def _resumed(done: int, total: int, failed: int, cut: int) -> str:
     """``3 of 5 points already done; 1 failed point is retried; ...``."""
     text = f"{done} of {total} points already done"
     if failed:
-        text += f"; {_points(failed, 'failed point')} {_be(failed)} retried"
+        text += f"; {counted(failed, 'failed point')} {_be(failed)} retried"
     if cut:
-        text += (f"; {_points(cut, 'point')} with rows missing from the results "
+        text += (f"; {counted(cut)} with rows missing from the results "
                  f"{_be(cut)} checked again")
     return text
-
-
-def _points(count: int, noun: str) -> str:
-    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 def _be(count: int) -> str:

@@ -12,7 +12,7 @@ from veribattery.sweep.tasks import PointResult
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["summary_line", "sweep_warnings"]
+__all__ = ["counted", "summary_line", "sweep_warnings"]
 
 #: How many points a warning names before it says "and N more".
 _NAMED = 4
@@ -64,13 +64,13 @@ def summary_line(frame: pd.DataFrame) -> str:
     points`` (with several failing: ``requirements fail: A at 12 points, B at 1 point``)."""
     total = frame["point"].nunique()
     failed = int(frame.attrs.get("failed", 0))
-    text = f"{_points(total)}: {total - failed} checked, {failed} failed"
+    text = f"{counted(total)}: {total - failed} checked, {failed} failed"
     failing = _failing(frame)
     if len(failing) == 1:
         (requirement, count), = failing.items()
-        return f"{text}; requirement {requirement} fails at {_points(count)}"
+        return f"{text}; requirement {requirement} fails at {counted(count)}"
     if failing:
-        each = ", ".join(f"{req} at {_points(count)}" for req, count in failing.items())
+        each = ", ".join(f"{req} at {counted(count)}" for req, count in failing.items())
         return f"{text}; requirements fail: {each}"
     return text + ("; every requirement holds" if frame["holds"].notna().any() else "")
 
@@ -83,5 +83,6 @@ def _failing(frame: pd.DataFrame) -> dict[str, int]:
     return {str(requirement): int(count) for requirement, count in counts.items()}
 
 
-def _points(count: int) -> str:
-    return f"{count} point{'' if count == 1 else 's'}"
+def counted(count: int, noun: str = "point") -> str:
+    """``1 point``, ``2 points``: *count* of *noun*, plural but for one."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
