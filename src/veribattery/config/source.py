@@ -193,18 +193,21 @@ class _Walk:
             else:
                 exact_number(text)
         except OutOfRange as exc:
-            mark = node.start_mark
-            span = None if self.source is None else Span(mark.line + 1, mark.column + 1,
-                                                          self.source)
-            raise NumberOutOfRange(path, str(exc), span) from None
+            raise NumberOutOfRange(path, str(exc), self._span(node)) from None
         except ValueError:  # .inf, .nan: the schema says what it needs instead
             return
 
     def _error(self, message: str, node: yaml.Node) -> ConfigError:
+        span = self._span(node)
+        if span is None:
+            return ConfigError(f"{message} (column {node.start_mark.column + 1})")
+        return ConfigError(message, span)
+
+    def _span(self, node: yaml.Node) -> Span | None:
+        """Where *node* starts in the file (None in a one-line ``--set`` value)."""
         mark = node.start_mark
-        if self.source is None:
-            return ConfigError(f"{message} (column {mark.column + 1})")
-        return ConfigError(message, Span(mark.line + 1, mark.column + 1, self.source))
+        return None if self.source is None else Span(mark.line + 1, mark.column + 1,
+                                                      self.source)
 
 
 def _key(node: yaml.Node, constructor: yaml.constructor.SafeConstructor) -> object:
