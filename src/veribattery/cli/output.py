@@ -179,8 +179,9 @@ class LiveStatus:
         self._show(f"{text}…", "")
 
     def step(self, text: str) -> None:
-        """Show on the spinner that a step of a run of many begins (a forecast's age)."""
-        self._show(f"{text}…", "")
+        """A step of a run of many begins (a forecast's age): a stage, which the spinner
+        shows at once (:meth:`PlainProgress.step` also writes it once a line is due)."""
+        self.starting(text)
 
     def checking(self, number: int, count: int, text: str) -> None:
         """Show on the spinner which property is checked."""
