@@ -9,6 +9,7 @@ from veribattery.config.farm import FarmLayout, derive_layout, route_cells
 from veribattery.config.load import (
     ConfigDocument,
     config_to_yaml,
+    key_problem,
     load_config,
     parse_override,
     read_config,
@@ -32,6 +33,7 @@ __all__ = [
     "consumption_units",
     "derive_layout",
     "derive_parameters",
+    "key_problem",
     "known_keys",
     "load_config",
     "parse_override",

@@ -21,8 +21,8 @@ from veribattery.config.source import NumberOutOfRange, compose, construct, deco
 from veribattery.config.validate import known_keys, validate_config
 from veribattery.errors import ConfigError, Span
 
-__all__ = ["ConfigDocument", "config_to_yaml", "load_config", "parse_override", "read_config",
-           "set_value"]
+__all__ = ["ConfigDocument", "config_to_yaml", "key_problem", "load_config", "parse_override",
+           "read_config", "set_value"]
 
 _PROPERTY_KEY = "properties."
 #: The largest config file read (a mission config is a few kB).
@@ -150,12 +150,9 @@ def parse_override(item: str) -> tuple[str, object]:
     key = key.strip()
     if not sep or not key:
         raise ConfigError(f"--set {item!r}: expected KEY=VALUE, e.g. strategy.safe_t=0.25")
-    name = key.removeprefix(_PROPERTY_KEY) if key.startswith(_PROPERTY_KEY) else None
-    if name is not None and not is_property_name(name):
-        raise ConfigError(f"--set {item!r}: property name {name!r} must be an identifier "
-                          "(letters, digits and _, not starting with a digit)")
-    if name is None and key not in known_keys():
-        raise ConfigError(f"--set {item!r}: {_unknown_key_message(key)}")
+    problem = key_problem(key)
+    if problem is not None:
+        raise ConfigError(f"--set {item!r}: {problem}")
     if not raw.strip():
         return key, None
     try:
@@ -167,7 +164,16 @@ def parse_override(item: str) -> tuple[str, object]:
     return key, value
 
 
-def _unknown_key_message(key: str) -> str:
+def key_problem(key: str) -> str | None:
+    """Why the dotted *key* cannot be set (``--set``, a sweep's ``--vary``), or None: an
+    unknown key (with the closest known one), or a property name that is no identifier."""
+    if key.startswith(_PROPERTY_KEY):
+        name = key.removeprefix(_PROPERTY_KEY)
+        return None if is_property_name(name) else (
+            f"property name {name!r} must be an identifier (letters, digits and _, not "
+            "starting with a digit)")
+    if key in known_keys():
+        return None
     close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
     hint = f"did you mean '{close[0]}'?" if close else "see configs/example.yaml for the keys"
     return f"unknown key '{key}' ({hint})"

@@ -8,7 +8,6 @@ and ``farm.base=[0,0],[1,1]`` both work). The grid is the cartesian product of t
 
 from __future__ import annotations
 
-import difflib
 import itertools
 import re
 from collections.abc import Mapping, Sequence
@@ -18,9 +17,8 @@ from fractions import Fraction
 import yaml
 
 from veribattery._numbers import OutOfRange, count_text, exact_number
-from veribattery.config import ConfigDocument, known_keys
+from veribattery.config import ConfigDocument, key_problem
 from veribattery.config.exact import brief, fraction_to_decimal
-from veribattery.config.schema import is_property_name
 from veribattery.config.source import NumberOutOfRange, compose, construct
 from veribattery.errors import ConfigError, Span
 
@@ -42,7 +40,6 @@ MAX_POINTS = 10_000
 Point = dict[str, object]
 
 _RANGE = re.compile(r"^[^,\[\]{}]*:[^,\[\]{}]*$")
-_PROPERTY_KEY = "properties."
 
 
 @dataclass(frozen=True, slots=True)
@@ -145,17 +142,9 @@ def yaml_text(value: object) -> str:
 
 
 def _check_key(where: _Origin, key: str) -> None:
-    if key.startswith(_PROPERTY_KEY):
-        name = key.removeprefix(_PROPERTY_KEY)
-        if is_property_name(name):
-            return
-        raise where.error(f"property name {name!r} must be an identifier (letters, digits "
-                          "and _, not starting with a digit)")
-    if key in known_keys():
-        return
-    close = difflib.get_close_matches(key, known_keys(), n=1, cutoff=0.6)
-    hint = f"did you mean '{close[0]}'?" if close else "see configs/example.yaml for the keys"
-    raise where.error(f"unknown key '{key}' ({hint})")
+    problem = key_problem(key)
+    if problem is not None:
+        raise where.error(problem)
 
 
 def _range(where: _Origin, spec: str) -> tuple[object, ...]:
