@@ -65,9 +65,9 @@ def strategy_refusal(formula: Expr) -> NoStrategyError | None:
         case ProbOp(path=path):
             unbounded = getattr(path, "bound", None) is None and isinstance(
                 path, Eventually | Until | Globally | WeakUntil | Release)
-            return None if unbounded else _step_bounded(path)
+            return None if unbounded else _no_memoryless(path)
         case RewardOp(path=path):
-            return None if isinstance(path, Reach | Total) else _step_bounded(path)
+            return None if isinstance(path, Reach | Total) else _no_memoryless(path)
         case Multi(objectives=objectives):
             counting = [op for op in objectives
                         if isinstance(op, RewardOp) and isinstance(op.path, Cumulative)]
@@ -107,7 +107,7 @@ def _path_result(mdp: MDP, path: PathFormula, objective: Objective) -> MdpResult
     the strategy of their complement's opposite objective, which attains theirs."""
     if getattr(path, "bound", None) is not None or not isinstance(
             path, Eventually | Until | Globally | WeakUntil | Release):
-        raise _step_bounded(path)
+        raise _no_memoryless(path)
     match path:
         case Eventually(operand=operand):
             return reach_probability(mdp, _mask(mdp, None, operand), objective=objective)
@@ -134,10 +134,10 @@ def _reward_result(mdp: MDP, op: RewardOp, objective: Objective) -> MdpResult:
                                 objective=objective)
         case Total():
             return total_reward(mdp, structure.per_choice(mdp), objective=objective)
-    raise _step_bounded(op.path)
+    raise _no_memoryless(op.path)
 
 
-def _step_bounded(path: object) -> NoStrategyError:
+def _no_memoryless(path: object) -> NoStrategyError:
     """Why an operator over *path* (not an unbounded F/U/G/W/R, R[F], R[C]) has no
     memoryless strategy: mostly a step or reward bound."""
     span = getattr(path, "span", None)
