@@ -26,7 +26,7 @@ _COMMANDS = {
     "reproduce": ("veribattery.cli.reproduce", "reproduce_command"),
     "sweep": ("veribattery.cli.sweep", "sweep_command"),
     "explain": ("veribattery.cli.explain", "explain_command"),
-    "simulate": ("veribattery.cli.explain", "simulate_command"),
+    "simulate": ("veribattery.cli.simulate", "simulate_command"),
     "phm": ("veribattery.cli.phm", "phm_group"),
     "recheck": ("veribattery.cli.phm", "recheck_command"),
     "distribution": ("veribattery.cli.distribution", "distribution_command"),

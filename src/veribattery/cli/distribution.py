@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from veribattery.cli.explain import induced_mission, strategy_option
+from veribattery.cli.analysis_options import induced_mission, strategy_option
 from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,

@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
 from click.core import ParameterSource
 
+from veribattery.cli.analysis_options import MOST_PATHS, MOST_RUNS, counted
 from veribattery.cli.experiments import check_experiment_options, print_experiment
-from veribattery.cli.explain import prism_analysis_options, prism_explain, prism_simulate
+from veribattery.cli.explain import prism_explain
 from veribattery.cli.files import CSV_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
@@ -28,6 +30,7 @@ from veribattery.cli.output import (
     user_errors,
 )
 from veribattery.cli.progress import limited
+from veribattery.cli.simulate import prism_simulate, simulation_options
 from veribattery.cli.strategy import (
     check_strategy_options,
     export_run_strategy,
@@ -41,6 +44,22 @@ if TYPE_CHECKING:
     from veribattery.checker import CheckResult
     from veribattery.pipeline import ModelCheckRun
     from veribattery.pipeline.mdp import MdpCheckRun
+
+
+def _analysis_options(function: Callable[..., None]) -> Callable[..., None]:
+    """The ``--explain LABEL [--top N]`` and ``--simulate N`` options of ``prism``."""
+    function = simulation_options(function)
+    for option in reversed((
+        click.option("--explain", metavar="LABEL",
+                     help="Break P(F LABEL) down by variable values; show the top paths."),
+        click.option("--top", default=3, show_default=True, callback=counted("--top", MOST_PATHS),
+                     help="With --explain: how many most probable paths."),
+        click.option("--simulate", type=int, metavar="N",
+                     callback=counted("--simulate", MOST_RUNS),
+                     help="Also estimate the properties from N simulated runs."),
+    )):
+        function = option(function)
+    return function
 
 
 @click.command("prism", short_help="Check properties of any PRISM DTMC or MDP file.")
@@ -69,7 +88,7 @@ if TYPE_CHECKING:
     "--max-states", type=click.IntRange(min=1), default=None, metavar="N",
     help="Stop the build (exit 2) once more than N states are found.",
 )
-@prism_analysis_options
+@_analysis_options
 @strategy_options
 def prism_command(
     model: Path,

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 from click.core import ParameterSource
 
-from veribattery.cli.explain import MOST_PATHS, MOST_RUNS, counted
+from veribattery.cli.analysis_options import MOST_PATHS, MOST_RUNS, counted
 from veribattery.cli.files import PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
