@@ -56,8 +56,9 @@ def loop(tmp_path: Path) -> Path:
 
 def test_explain_json_breakdown_sums_to_p_failure(tmp_path: Path) -> None:
     paths_csv = tmp_path / "paths.csv"
+    # the old name and the new naming one file: taken once (two files are refused)
     result = run("explain", str(EXAMPLE), *SMALL_ARGS, "--top", "2", "--format", "json",
-                 "--csv", str(paths_csv))
+                 "--csv", str(paths_csv), "-o", str(paths_csv))
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     mission = build_mission(load_config(EXAMPLE, SMALL))

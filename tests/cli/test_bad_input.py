@@ -147,6 +147,11 @@ CASES: list[tuple[str, list[str]]] = [
     ("report-top-huge", ["report", CASE1, *SMALL, "-o", "r.html", "--top", "1001"]),
     ("explain-output-exists", ["explain", CASE1, *SMALL, "-o", "existing.csv"]),
     ("explain-output-folder", ["explain", CASE1, *SMALL, "-o", "a_folder.csv"]),
+    # two names of one option, or one given twice: click kept the last file, silently
+    ("explain-output-and-csv", ["explain", CASE1, *SMALL, "-o", "a.csv", "--csv", "b.csv"]),
+    ("explain-output-twice", ["explain", CASE1, *SMALL, "-o", "a.csv", "-o", "b.csv"]),
+    ("simulate-output-and-paths", ["simulate", CASE1, *SMALL, "--runs", "5", "--paths", "a.csv",
+                                   "-o", "b.csv"]),
     ("simulate-runs", ["simulate", CASE1, *SMALL, "--runs", "0"]),
     ("simulate-runs-text", ["simulate", CASE1, *SMALL, "--runs", "many"]),
     ("simulate-output-nodir", ["simulate", CASE1, *SMALL, "--runs", "5",
@@ -309,6 +314,11 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("emit-dash", "-o -: writes a folder of files, not to standard output"),
     ("check-endless-input", "config '/dev/zero': more than 16 MB"),
     ("sweep-plot-property-alone", "--plot-property chooses what --plot draws"),
+    ("explain-output-and-csv", "-o a.csv and --csv b.csv: 2 values for one option (--csv is "
+                               "another name of -o); give it once"),
+    ("explain-output-twice", "-o a.csv and -o b.csv: 2 values for one option; give it once"),
+    ("simulate-output-and-paths", "-o b.csv and --paths a.csv: 2 values for one option (--paths "
+                                  "is another name of -o)"),
 ])
 def test_the_line_says_what_is_wrong(workdir: Path, name: str, says: str) -> None:
     [args] = [c[1] for c in CASES if c[0] == name]

@@ -19,7 +19,7 @@ from veribattery.cli.analysis_options import (
     induced_mission,
     strategy_option,
 )
-from veribattery.cli.files import CSV_SUFFIXES, PathParam, check_output_file
+from veribattery.cli.files import CSV_SUFFIXES, OnceOption, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
     format_value,
@@ -78,7 +78,8 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @click.option("--by", "by", multiple=True, metavar="KEYS",
               help="Groupings, comma-separated; join keys with + for a joint grouping "
                    "(keys: k, cell, state, action, wind, level, recharges, or a variable).")
-@click.option("-o", "--output", "--csv", "csv_file", type=PathParam(path_type=Path),
+@click.option("-o", "--output", "--csv", "csv_file", cls=OnceOption,
+              type=PathParam(path_type=Path),
               help="Write the paths here as CSV, one row per step (--csv: the old name).")
 @click.option("--force", is_flag=True, help="Overwrite an existing -o file.")
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]),

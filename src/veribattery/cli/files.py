@@ -8,7 +8,7 @@ Writing itself goes through :mod:`veribattery._files` (atomic, modes from the um
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -20,6 +20,7 @@ from veribattery.errors import OptionError
 __all__ = [
     "CSV_SUFFIXES",
     "FIGURE_SUFFIXES",
+    "OnceOption",
     "PathParam",
     "check_output_dir",
     "check_output_file",
@@ -104,3 +105,38 @@ class PathParam(click.Path):
         if isinstance(value, str) and not value.strip():
             self.fail("an empty path (is a shell variable unset?)", param, ctx)
         return super().convert(value, param, ctx)
+
+
+class OnceOption(click.Option):
+    """An option that takes one value, refusing two: click keeps the last of ``-o A -o B``,
+    or of ``-o A --csv B`` (an old name beside the new), and the other file named would
+    silently go unwritten. The same value given twice is taken, as one.
+
+    Each name is its own entry in the parser, so that a refusal can name the option as
+    typed, each time it was given.
+    """
+
+    def add_to_parser(self, parser: Any, ctx: click.Context) -> None:
+        for name in self.opts:
+            parser.add_option(obj=self, opts=[name], dest=self._dest(name), action="append",
+                              nargs=self.nargs)
+
+    def consume_value(self, ctx: click.Context, opts: Mapping[str, Any]) -> Any:
+        given = [(name, value) for name in self.opts for value in opts.get(self._dest(name), ())]
+        if len({value for _, value in given}) > 1:
+            typed = " and ".join(f"{name} {value}" for name, value in given)
+            raise click.UsageError(f"{typed}: {len(given)} values for one option"
+                                   f"{_aliases([name for name, _ in given])}; give it once", ctx)
+        return super().consume_value(ctx, {str(self.name): given[0][1]} if given else {})
+
+    def _dest(self, name: str) -> str:
+        return f"{self.name} {name}"  # (no parameter's name has a space)
+
+
+def _aliases(names: Sequence[str]) -> str:
+    """`` (--csv is another name of -o)`` when *names* spell one option differently."""
+    first, *others = dict.fromkeys(names)
+    if not others:
+        return ""
+    names = "is another name" if len(others) == 1 else "are other names"
+    return f" ({', '.join(others)} {names} of {first})"

@@ -17,7 +17,7 @@ from veribattery.cli.analysis_options import (
     induced_mission,
     strategy_option,
 )
-from veribattery.cli.files import CSV_SUFFIXES, PathParam, check_output_file
+from veribattery.cli.files import CSV_SUFFIXES, OnceOption, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
     format_value,
@@ -49,7 +49,8 @@ def simulation_options(function: Callable[..., None]) -> Callable[..., None]:
         click.option("--max-steps", default=100_000, show_default=True,
                      callback=counted("--max-steps"),
                      help="Steps after which an undecided run stops (and is reported)."),
-        click.option("-o", "--output", "--paths", "paths_file", type=PathParam(path_type=Path),
+        click.option("-o", "--output", "--paths", "paths_file", cls=OnceOption,
+                     type=PathParam(path_type=Path),
                      help="Write sampled paths here as CSV (PRISM simulator columns; "
                      "--paths: the old name)."),
         click.option("--path-count", default=10, show_default=True,
