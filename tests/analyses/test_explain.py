@@ -193,3 +193,17 @@ def test_mission_breakdown_against_storm_exact() -> None:
     assert explanation.probability == pytest.approx(expected, abs=1e-12)
     for grouping in explanation.groupings:
         assert sum(p for _, p in grouping.groups) == pytest.approx(expected, abs=1e-12)
+
+
+def test_the_mission_views_columns_are_its_group_keys() -> None:
+    """``explain --by`` checks its keys against GROUP_KEYS before the build: they must be
+    the columns the view gives, under BS1 and under a strategy's actions."""
+    from veribattery.analyses.mission_view import GROUP_KEYS, MissionView, build_mission
+    from veribattery.analyses.strategy_view import StrategyView
+    from veribattery.config import load_config
+
+    mission = build_mission(load_config("", ("farm.cols=2", "farm.rows=2", "farm.base=[0,0]")))
+    states = np.arange(mission.dtmc.num_states)
+    chosen = np.full(mission.dtmc.num_states, "", dtype=np.str_)
+    for view in (MissionView(mission), StrategyView(mission, chosen)):
+        assert tuple(view.columns(states)) == GROUP_KEYS

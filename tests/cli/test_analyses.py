@@ -89,7 +89,7 @@ def test_explain_table_and_joint_grouping() -> None:
 def test_explain_bad_input() -> None:
     _one_line_error(run("explain", str(EXAMPLE), "--top", "0"), "--top must be at least 1")
     _one_line_error(run("explain", str(EXAMPLE), *SMALL_ARGS, "--by", "colour"),
-                    "cannot group by colour")
+                    "--by colour: no key 'colour'")
 
 
 def test_paper_story_at_12_8_ah() -> None:

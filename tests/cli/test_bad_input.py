@@ -141,6 +141,10 @@ CASES: list[tuple[str, list[str]]] = [
     # analyses
     ("explain-top", ["explain", CASE1, *SMALL, "--top", "0"]),
     ("explain-by", ["explain", CASE1, *SMALL, "--by", "nosuch"]),
+    ("explain-by-empty", ["explain", CASE1, *SMALL, "--by", ""]),
+    ("explain-by-empty-key", ["explain", CASE1, *SMALL, "--by", "wind,+cell"]),
+    ("explain-by-twice", ["explain", CASE1, *SMALL, "--by", "cell,wind", "--by", "cell"]),
+    ("explain-by-key-twice", ["explain", CASE1, *SMALL, "--by", "cell+cell"]),
     # a million paths took minutes and gigabytes: at most 1,000
     ("explain-top-huge", ["explain", CASE1, *SMALL, "--top", "1000000"]),
     ("prism-explain-top-huge", ["prism", "die.pm", "--explain", "two", "--top", "1001"]),
@@ -314,6 +318,12 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("emit-dash", "-o -: writes a folder of files, not to standard output"),
     ("check-endless-input", "config '/dev/zero': more than 16 MB"),
     ("sweep-plot-property-alone", "--plot-property chooses what --plot draws"),
+    ("explain-by", "--by nosuch: no key 'nosuch'; give keys comma-separated, a+b to group by "
+                   "both (keys: k, cell, state, action, wind, level, recharges, s, j, wsp, b, rc)"),
+    ("explain-by-empty", "--by '': an empty grouping; give keys comma-separated"),
+    ("explain-by-empty-key", "--by wind,+cell: an empty key in '+cell'"),
+    ("explain-by-twice", "--by cell: the grouping cell is asked for twice"),
+    ("explain-by-key-twice", "--by cell+cell: cell twice in cell+cell"),
     ("explain-output-and-csv", "-o a.csv and --csv b.csv: 2 values for one option (--csv is "
                                "another name of -o); give it once"),
     ("explain-output-twice", "-o a.csv and -o b.csv: 2 values for one option; give it once"),

@@ -22,7 +22,7 @@ from veribattery.explore.compile.expr import CompiledExpr
 from veribattery.lang import FlatModel, flatten_model, parse_model
 from veribattery.pipeline import ProgressCallback
 
-__all__ = ["DEFAULT_GROUPINGS", "MissionModel", "MissionView", "build_mission"]
+__all__ = ["DEFAULT_GROUPINGS", "GROUP_KEYS", "MissionModel", "MissionView", "build_mission"]
 
 #: Drone states (variable ``s``) by number, as in the spec.
 DRONE_STATES = ("ground", "airborne", "at cell", "inspected", "above base", "landed",
@@ -33,6 +33,10 @@ WINDS = ("low", "high")
 INTENDED = ("takeoff", "fly", "land", "inspect", "back", "next", "backnext")
 #: Recharges per bucket in the ``recharges`` grouping.
 RECHARGE_BUCKET = 10
+#: The columns the view names, then the mission model's variables it also gives (as
+#: they are): every key :meth:`MissionView.columns` has.
+GROUP_KEYS = ("k", "cell", "state", "action", "wind", "level", "recharges", "s", "j", "wsp",
+              "b", "rc")
 #: The breakdown's default groupings.
 DEFAULT_GROUPINGS: tuple[tuple[str, ...], ...] = (
     ("k", "cell"), ("state", "action"), ("wind",), ("level",), ("recharges",),

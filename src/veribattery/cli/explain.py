@@ -22,6 +22,7 @@ from veribattery.cli.analysis_options import (
 from veribattery.cli.files import CSV_SUFFIXES, OnceOption, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
+    fail,
     format_value,
     out,
     print_dim,
@@ -60,9 +61,42 @@ CSV_COLUMNS = ("path", "probability", "step", "action", "state", "s", "k", "j", 
                "wsp", "b", "rc", "charge_ah", "soc", "level")
 
 
-def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
-    """``--by cell,wind --by k+cell`` → ``(("cell",), ("wind",), ("k", "cell"))``."""
-    return tuple(tuple(part.split("+")) for item in by for part in item.split(",") if part)
+def _groupings(ctx: click.Context, param: click.Parameter,
+               by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
+    """An option callback: ``--by cell,wind --by k+cell`` → ``(("cell",), ("wind",),
+    ("k", "cell"))``. An empty grouping or key, a key twice in one grouping, a grouping
+    asked for twice or a key the mission lacks is bad input, on one line (exit 2)."""
+    from veribattery.analyses.mission_view import GROUP_KEYS
+
+    groupings: list[tuple[str, ...]] = []
+    for value in by:
+        for item in value.split(","):
+            keys = tuple(key.strip() for key in item.split("+"))
+            problem = _grouping_problem(item, keys, groupings, GROUP_KEYS)
+            if problem is not None:
+                fail(f"--by {value if value.strip() else repr(value)}: {problem}; give "
+                     f"keys comma-separated, a+b to group by both (keys: "
+                     f"{', '.join(GROUP_KEYS)})")
+            groupings.append(keys)
+    return tuple(groupings)
+
+
+def _grouping_problem(item: str, keys: tuple[str, ...], earlier: Sequence[tuple[str, ...]],
+                      known: Sequence[str]) -> str | None:
+    """What is wrong with the grouping *item* (its *keys*), or None."""
+    if not item.strip():
+        return "an empty grouping"
+    if "" in keys:
+        return f"an empty key in {item.strip()!r}"
+    unknown = next((key for key in keys if key not in known), None)
+    if unknown is not None:
+        return f"no key {unknown!r}"
+    twice = next((key for key in keys if keys.count(key) > 1), None)
+    if twice is not None:
+        return f"{twice} twice in {item.strip()}"
+    if any(set(keys) == set(other) for other in earlier):
+        return f"the grouping {item.strip()} is asked for twice"
+    return None
 
 
 # ---------------------------------------------------------------------------
@@ -75,7 +109,7 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @set_option
 @click.option("--top", default=3, show_default=True, callback=counted("--top", MOST_PATHS),
               help="How many most probable failure paths.")
-@click.option("--by", "by", multiple=True, metavar="KEYS",
+@click.option("--by", "by", multiple=True, metavar="KEYS", callback=_groupings,
               help="Groupings, comma-separated; join keys with + for a joint grouping "
                    "(keys: k, cell, state, action, wind, level, recharges, or a variable).")
 @click.option("-o", "--output", "--csv", "csv_file", cls=OnceOption,
@@ -85,7 +119,8 @@ def _groupings(by: Sequence[str]) -> tuple[tuple[str, ...], ...]:
 @click.option("--format", "output_format", type=click.Choice(["table", "json"]),
               default="table", show_default=True, help="Output format.")
 @strategy_option
-def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tuple[str, ...],
+def explain_command(config: Path, overrides: tuple[str, ...], top: int,
+                    by: tuple[tuple[str, ...], ...],
                     csv_file: Path | None, force: bool, output_format: str,
                     strategy: str) -> None:
     """Where the mission's failures come from: exact breakdown and most probable paths.
@@ -106,7 +141,7 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int, by: tupl
                     else _strategy_view(cfg, strategy, progress))
         explanation = explain_target(
             view.dtmc, view.dtmc.labels["failure"], name="failure",
-            describe=view.columns, by=_groupings(by) or DEFAULT_GROUPINGS, top=top,
+            describe=view.columns, by=by or DEFAULT_GROUPINGS, top=top,
         )
         steps = [_mission_steps(view, path.states) for path in explanation.paths]
         if csv_file is not None:
