@@ -118,6 +118,11 @@ CASES: list[tuple[str, list[str]]] = [
                                     "--explain", "two", "--simulate", "10"]),
     ("prism-top-alone", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--top", "5"]),
     ("prism-seed-alone", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]', "--seed", "3"]),
+    # the paths are written by -o only: --path-count alone was ignored
+    ("simulate-path-count-alone", ["simulate", CASE1, *SMALL, "--runs", "5",
+                                   "--path-count", "3"]),
+    ("prism-path-count-without-output", ["prism", "die.pm", "--property", 'P=? [ F s=2 ]',
+                                         "--simulate", "10", "--path-count", "3"]),
     ("check-force-alone", ["check", CASE1, *SMALL, "--force"]),
     ("prism-init-none", ["prism", "no_init.pm", "--property", 'P=? [ F s=2 ]']),
     ("prism-nul-byte", ["prism", "nul.pm", "--property", 'P=? [ F s=2 ]']),
@@ -309,6 +314,9 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("prism-explain-and-simulate", "--explain and --simulate are separate runs"),
     ("prism-top-alone", "--top is read by --explain only"),
     ("prism-seed-alone", "--seed is read by --simulate only"),
+    ("simulate-path-count-alone", "--path-count is read by -o only: give -o, or leave out "
+                                  "--path-count"),
+    ("prism-path-count-without-output", "--path-count is read by -o only"),
     ("check-force-alone", "--force lets --emit overwrite its files"),
     ("prism-init-none", "no_init.pm:7:6: the init block is satisfied by no state"),
     ("prism-nul-byte", r"unexpected character '\x00'"),

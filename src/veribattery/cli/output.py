@@ -12,14 +12,15 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any, NoReturn, TypeVar, cast
 
 import click
+from click.core import ParameterSource
 
 from veribattery.cli.progress import PlainProgress, intervals, rate_text, solve_text
-from veribattery.errors import VeribatteryError
+from veribattery.errors import OptionError, VeribatteryError
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -432,6 +433,21 @@ def print_warnings(warnings: Sequence[str]) -> None:
         else:
             err.print(f"[yellow]warning:[/] {escape(warning)}", markup=True)
 
+
+def check_modes(modes: Mapping[str, tuple[bool, Sequence[str]]]) -> None:
+    """Refuse an option that only a mode not asked for reads: it would be ignored.
+
+    :param modes: by the mode's option as typed (``--explain``, ``-o``), whether it is
+        asked for and the parameter names of the options only it reads.
+    :raises OptionError: naming the first such option given, and its mode.
+    """
+    context = click.get_current_context()
+    for mode, (asked, names) in modes.items():
+        for name in names:
+            if not asked and context.get_parameter_source(name) == ParameterSource.COMMANDLINE:
+                option = "--" + name.replace("_", "-")
+                raise OptionError(f"{option} is read by {mode} only: give {mode}, or "
+                                  f"leave out {option}")
 
 
 def set_option(function: F) -> F:

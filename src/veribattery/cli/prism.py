@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import click
-from click.core import ParameterSource
 
 from veribattery.cli.analysis_options import MOST_PATHS, MOST_RUNS, counted
 from veribattery.cli.experiments import check_experiment_options, print_experiment
@@ -16,6 +15,7 @@ from veribattery.cli.explain import prism_explain
 from veribattery.cli.files import CSV_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
+    check_modes,
     exact_notes,
     exact_text,
     fail,
@@ -170,23 +170,16 @@ def prism_command(
         fail(*errors)
 
 
-#: Options that only one mode of ``prism`` reads, by the mode's option.
-_MODE_OPTIONS = {"explain": ("top",), "simulate": ("seed", "max_steps", "path_count")}
-
-
 def _check_modes(analysis: dict[str, Any]) -> None:
     """Refuse ``--explain`` with ``--simulate`` (one would be dropped), and an option of a
     mode that is not asked for (it would be ignored)."""
     if analysis["explain"] is not None and analysis["simulate"] is not None:
         raise OptionError("--explain and --simulate are separate runs: give one of them")
-    context = click.get_current_context()
-    for mode, names in _MODE_OPTIONS.items():
-        for name in names:
-            given = context.get_parameter_source(name) == ParameterSource.COMMANDLINE
-            if given and analysis[mode] is None:
-                option = "--" + name.replace("_", "-")
-                raise OptionError(f"{option} is read by --{mode} only: give --{mode}, or "
-                                  f"leave out {option}")
+    check_modes({
+        "--explain": (analysis["explain"] is not None, ("top",)),
+        "--simulate": (analysis["simulate"] is not None, ("seed", "max_steps", "path_count")),
+        "-o": (analysis["paths_file"] is not None, ("path_count",)),
+    })
 
 
 def _experiment(model: Path, props: Path | None, selectors: tuple[str, ...],

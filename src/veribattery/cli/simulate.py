@@ -20,6 +20,7 @@ from veribattery.cli.analysis_options import (
 from veribattery.cli.files import CSV_SUFFIXES, OnceOption, PathParam, check_output_file
 from veribattery.cli.output import (
     build_progress,
+    check_modes,
     format_value,
     json_value,
     out,
@@ -78,6 +79,7 @@ def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: 
     from veribattery.mission import check_mission
 
     with user_errors():
+        check_modes({"-o": (paths_file is not None, ("path_count",))})
         check_output_file(paths_file, "-o", force=force, suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         record = path_count if paths_file else 0
