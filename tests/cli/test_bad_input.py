@@ -100,6 +100,13 @@ CASES: list[tuple[str, list[str]]] = [
                             "-o", "nodir/results.csv"]),
     ("sweep-jobs", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11", "-j", "0"]),
     ("sweep-format", ["sweep", CASE1, "--vary", "battery.capacity_ah=10,11", "--format", "x"]),
+    # Dask's parse said "invalid literal for int()": the option and the port are named now
+    ("sweep-scheduler-port", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                              "--scheduler", "tcp://host:abc"]),
+    ("sweep-scheduler-no-port", ["sweep", CASE1, *SMALL, "--vary", "battery.capacity_ah=10,11",
+                                 "--scheduler", "tcp://host:"]),
+    ("reproduce-scheduler-port", ["reproduce", "fig6", "--scheduler", "tcp://host:70000",
+                                  "-o", "out/figs"]),
     # PRISM files and properties
     ("prism-missing", ["prism", "nosuch.pm"]),
     ("prism-syntax", ["prism", "bad_syntax.pm", "--property", 'P=? [ F s=2 ]']),
@@ -314,6 +321,11 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("prism-explain-and-simulate", "--explain and --simulate are separate runs"),
     ("prism-top-alone", "--top is read by --explain only"),
     ("prism-seed-alone", "--seed is read by --simulate only"),
+    ("sweep-scheduler-port", "--scheduler tcp://host:abc: the port must be a number "
+                             "(1-65535), not 'abc'; give tcp://HOST:PORT"),
+    ("sweep-scheduler-no-port", "--scheduler tcp://host:: no port after host:"),
+    ("reproduce-scheduler-port", "--scheduler tcp://host:70000: the port must be a number "
+                                 "(1-65535), not '70000'"),
     ("simulate-path-count-alone", "--path-count is read by -o only: give -o, or leave out "
                                   "--path-count"),
     ("prism-path-count-without-output", "--path-count is read by -o only"),

@@ -16,7 +16,7 @@ from veribattery.config import load_config
 from veribattery.errors import ConfigError
 from veribattery.mission import ParseCache, RenderedMission
 from veribattery.sweep import parse_axis, run_sweep
-from veribattery.sweep.execute import LocalPool, open_executor
+from veribattery.sweep.execute import LocalPool, check_scheduler, open_executor
 from veribattery.sweep.tasks import ReusePlan, Task, plan_tasks
 
 
@@ -167,6 +167,40 @@ def test_unreachable_scheduler_is_one_line() -> None:
     with pytest.raises(ConfigError, match=r"^--scheduler tcp://127.0.0.1:9: cannot reach"),\
             open_executor(1, "tcp://127.0.0.1:9"):
         pass
+
+
+@pytest.mark.parametrize(("address", "says"), [
+    ("tcp://host:abc", "the port must be a number (1-65535), not 'abc'"),
+    ("tcp://host:70000", "the port must be a number (1-65535), not '70000'"),
+    ("tcp://host:0", "the port must be a number (1-65535), not '0'"),
+    ("tcp://[::1]:x1", "the port must be a number (1-65535), not 'x1'"),
+    ("tcp://host:", "no port after host:"),
+    ("tcp://host", "no port"),
+    ("tcp://[::1]", "no port"),
+    ("foo", "no port"),
+    ("tcp://", "no host and port"),
+    ("tcp://:8786", "no host before the port"),
+    ("://host:8786", "no protocol before '://'"),
+])
+def test_a_malformed_scheduler_address_is_refused_before_any_connection(
+        address: str, says: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Dask's own parse said ``invalid literal for int()``; no cluster is reached here."""
+    import veribattery.sweep.execute as execute
+
+    def no_connection(*args: object) -> None:
+        raise AssertionError("a cluster was reached")
+
+    monkeypatch.setattr(execute, "DaskExecutor", no_connection)
+    with pytest.raises(ConfigError) as refused, open_executor(1, address):
+        pass
+    assert str(refused.value) == (f"--scheduler {address}: {says}; give tcp://HOST:PORT, or "
+                                  "local for a cluster on this machine")
+
+
+@pytest.mark.parametrize("address", ["local", "tcp://127.0.0.1:8786", "tls://host:1",
+                                     "host:65535", "tcp://[::1]:8786"])
+def test_a_well_formed_scheduler_address_passes_the_check(address: str) -> None:
+    check_scheduler(address)
 
 
 def _children(pid: int) -> set[int]:

@@ -12,6 +12,7 @@ import click
 
 from veribattery.cli.files import PathParam, check_output_dir
 from veribattery.cli.output import err, exit_interrupted, fail, print_written, user_errors
+from veribattery.cli.sweep import scheduler_address
 from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
@@ -30,7 +31,7 @@ PROGRESS_EVERY_S = 60.0
               "results (default for fig6/fig8: the current folder; required for all).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes for the sweeps (default: the number of cores).")
-@click.option("--scheduler", metavar="tcp://HOST:PORT|local",
+@click.option("--scheduler", metavar="tcp://HOST:PORT|local", callback=scheduler_address,
               help="Run the sweeps on a Dask cluster.")
 @click.option("--force", is_flag=True,
               help="Overwrite the tables and figures of an earlier run in DIR.")

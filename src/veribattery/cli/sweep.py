@@ -28,6 +28,18 @@ from veribattery.cli.tables import print_table
 from veribattery.errors import OptionError
 
 
+def scheduler_address(ctx: click.Context, param: click.Parameter,
+                      value: str | None) -> str | None:
+    """An option callback: a ``--scheduler`` address that is malformed (a port that is no
+    number, no port) is bad input, on one line (exit 2), before any cluster is reached."""
+    if value is not None:
+        from veribattery.sweep.execute import check_scheduler
+
+        with user_errors():
+            check_scheduler(value)
+    return value
+
+
 @click.command("sweep", short_help="Check a config at every point of a parameter grid.")
 @click.argument("config", type=PathParam(path_type=Path))
 @click.option(
@@ -50,7 +62,7 @@ from veribattery.errors import OptionError
               "--plot it drew without --force).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes (default: the number of cores; 1: in this process).")
-@click.option("--scheduler", metavar="tcp://HOST:PORT|local",
+@click.option("--scheduler", metavar="tcp://HOST:PORT|local", callback=scheduler_address,
               help="Run the points on a Dask cluster ('local': a LocalCluster of -j workers).")
 @click.option("--plot", "plot_path", type=PathParam(path_type=Path),
               help="Also write a figure (.png, .pdf, .svg, …).")

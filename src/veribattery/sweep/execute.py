@@ -36,7 +36,7 @@ from veribattery.sweep.tasks import (
 if TYPE_CHECKING:
     from distributed import Client
 
-__all__ = ["CONNECT_TIMEOUT_S", "Executor", "default_jobs", "open_executor"]
+__all__ = ["CONNECT_TIMEOUT_S", "Executor", "check_scheduler", "default_jobs", "open_executor"]
 
 #: How long to try to reach a Dask scheduler before calling it unreachable.
 CONNECT_TIMEOUT_S = 8
@@ -60,6 +60,37 @@ class Executor(Protocol):
 def default_jobs() -> int:
     """The number of cores this process may use."""
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+
+def check_scheduler(address: str) -> None:
+    """Refuse a ``--scheduler`` that is neither ``local`` nor ``[PROTOCOL://]HOST:PORT``,
+    before any cluster is started or reached (Dask's own parse says ``invalid literal
+    for int()`` of a port that is no number, after the config has been read).
+
+    :raises ConfigError: naming the option, the address as typed and what is wrong.
+    """
+    problem = None if address == "local" else _address_problem(address)
+    if problem is not None:
+        raise ConfigError(f"--scheduler {address}: {problem}; give tcp://HOST:PORT, or local "
+                          "for a cluster on this machine")
+
+
+def _address_problem(address: str) -> str | None:
+    protocol, separator, place = address.rpartition("://")
+    host, colon, port = place.rpartition(":")
+    if separator and not protocol:
+        return "no protocol before '://'"
+    if not place:
+        return "no host and port"
+    if not colon or place.endswith("]"):  # ([::1]: an IPv6 host in brackets, no port)
+        return "no port"
+    if not host:
+        return "no host before the port"
+    if not port:
+        return f"no port after {host}:"
+    if not (port.isascii() and port.isdigit()) or not 1 <= int(port) <= 65535:
+        return f"the port must be a number (1-65535), not {port!r}"
+    return None
 
 
 @contextmanager
@@ -389,6 +420,7 @@ def _gathered(future: Any, task: Task) -> Iterator[PointResult]:
 @contextmanager
 def _dask_client(scheduler: str, jobs: int) -> Iterator[Client]:
     """A client of the scheduler at *scheduler*, or of a new loopback ``LocalCluster``."""
+    check_scheduler(scheduler)
     try:
         from distributed import Client, LocalCluster
     except ImportError:
