@@ -40,7 +40,7 @@ def test_csv_and_failing_requirement_exits_1(config: str) -> None:
     assert rows[0].keys() >= {"point", "battery.capacity_ah", "property", "value", "states",
                               "transitions", "seconds", "requirement", "holds"}
     failing = [r for r in rows if r["holds"]]
-    assert [(r["property"], r["holds"]) for r in failing] == [("exp_recharges", "False")]
+    assert [(r["property"], r["holds"]) for r in failing] == [("exp_recharges", "false")]
 
 
 def test_table_one_row_per_point(config: str) -> None:

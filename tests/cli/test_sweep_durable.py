@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import csv
+import json
 import os
 import re
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -128,7 +130,33 @@ def test_a_boolean_property_resumes_from_csv(config: str, tmp_path: Path) -> Non
     again = run(*args)
     assert again.exit_code == 0, again.output
     assert "1 of 2 points already done" in again.stderr
-    assert [row["value"] for row in csv.DictReader(again.stdout.splitlines())] == ["True"] * 2
+    assert [row["value"] for row in csv.DictReader(again.stdout.splitlines())] == ["true"] * 2
+
+
+@pytest.mark.parametrize("case", [str.lower, str.title], ids=["true-false", "older-True-False"])
+def test_holds_is_written_true_false_and_older_results_still_resume(
+        config: str, tmp_path: Path, case: Callable[[str], str]) -> None:
+    """The results CSV said True/False where the JSON (and prism --format csv) says
+    true/false; a file written so before still resumes."""
+    out = tmp_path / "r.csv"
+    args = ("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", "-o", str(out),
+            "--set", 'requirements=["exp_recharges < 9.5"]')
+    assert run(*args).exit_code == 1  # fails at 10 Ah, holds at 10.5 Ah
+    header, *rows = out.read_text().splitlines()
+    judged = [row["holds"] for row in csv.DictReader([header, *rows]) if row["holds"]]
+    assert judged == ["false", "true"]
+    older = [re.sub(r",(true|false),", lambda m: f",{case(m[1])},", row) for row in rows]
+    out.write_text("\n".join([header, *older[:PER_POINT]]) + "\n")  # cut after point 0
+    again = run(*args, "--format", "csv")
+    assert again.exit_code == 1, again.output
+    assert "1 of 2 points already done" in again.stderr
+    assert [row["holds"] for row in csv.DictReader(again.stdout.splitlines())
+            if row["holds"]] == ["false", "true"]
+    assert [row["holds"] for row in csv.DictReader(out.read_text().splitlines())
+            if row["holds"]] == ["false", "true"]  # rewritten in grid order, as now
+    as_json = run(*args, "--format", "json")
+    assert [row["holds"] for row in json.loads(as_json.stdout)["results"]
+            if row["holds"] is not None] == [False, True]
 
 
 @pytest.mark.parametrize(("suffix", "edit", "line", "why"), [

@@ -12,7 +12,8 @@ from tests.sweep.helpers import PER_POINT, SMALL_FARM, four_axes, same_results
 from veribattery.errors import ConfigError
 from veribattery.sweep import Axis, run_sweep
 from veribattery.sweep.fingerprint import SweepFingerprint
-from veribattery.sweep.store import _reopen
+from veribattery.sweep.run import FIXED_COLUMNS
+from veribattery.sweep.store import _reopen, csv_text, read_results
 
 
 def _read(path: Path) -> pd.DataFrame:
@@ -193,3 +194,17 @@ def test_failed_point_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> None:
     run_sweep("", [axis], SMALL_FARM, results=path, notes=notes.append)
     assert notes[0] == "1 of 2 points already done; 1 failed point is retried"
     assert [json.loads(line)["point"] for line in path.read_text().splitlines()] == [0, 1]
+
+
+@pytest.mark.parametrize(("holds", "value"), [("true", "false"), ("True", "False")],
+                         ids=["true-false", "older-True-False"])
+def test_read_results_takes_booleans_in_either_case(tmp_path: Path, holds: str,
+                                                    value: str) -> None:
+    """CSV results say true/false (as JSON does); files written True/False before still
+    read back, for a resumed sweep and for report --sweep."""
+    columns = ["point", "k", *FIXED_COLUMNS]
+    path = tmp_path / "r.csv"
+    path.write_text(",".join(columns) + f"\n0,1,b,{value},7,9,0.5,b,{holds},0.0,\n")
+    [row] = read_results(path, columns)
+    assert row["value"] is False and row["holds"] is True
+    assert csv_text(columns, [row]).splitlines()[1] == "0,1,b,false,7,9,0.5,b,true,0.0,"

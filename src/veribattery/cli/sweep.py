@@ -222,9 +222,10 @@ def _plain_lines() -> Iterator[tuple[Callable[[int, int], None], Callable[[Any, 
 def print_sweep(frame: Any, keys: Sequence[str], output_format: str) -> None:
     """Table: one row per point, a column per property; csv/json: the tidy rows."""
     from veribattery.sweep import records, wide
+    from veribattery.sweep.store import csv_text
 
-    if output_format == "csv":
-        click.echo(frame.to_csv(index=False), nl=False)
+    if output_format == "csv":  # as the -o RESULTS.csv file: true/false as in json
+        click.echo(csv_text([str(c) for c in frame.columns], records(frame)), nl=False)
     elif output_format == "json":
         tidy = [{k: json_value(v) for k, v in row.items()} for row in records(frame)]
         click.echo(json.dumps({"axes": list(keys), "results": tidy}))

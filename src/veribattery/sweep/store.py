@@ -27,7 +27,7 @@ from veribattery.errors import ConfigError
 from veribattery.sweep.fingerprint import SweepFingerprint
 
 __all__ = ["FORMATS", "ResultsFileError", "ResultsStore", "Row", "RowCheck", "check_target",
-           "drawn_plots", "open_results", "read_results", "record_plot"]
+           "csv_text", "drawn_plots", "open_results", "read_results", "record_plot"]
 
 #: One row: column → value.
 Row = dict[str, object]
@@ -42,6 +42,9 @@ _INT_COLUMNS = frozenset({"point", "states", "transitions"})
 _FLOAT_COLUMNS = frozenset({"seconds", "recharge_cap_probability"})
 _TEXT_COLUMNS = frozenset({"property", "requirement", "error"})
 _OTHER_COLUMNS = "its columns are not those of the sweep its fingerprint describes"
+#: Booleans as CSV cells: ``true``/``false``, and ``True``/``False`` as sweeps wrote them
+#: before (a results file of theirs still resumes).
+_BOOLEANS = {"true": True, "false": False, "True": True, "False": False}
 
 
 class ResultsFileError(ConfigError):
@@ -243,10 +246,19 @@ def _csv_line(cells: Sequence[object]) -> str:
     return buffer.getvalue()
 
 
+def csv_text(columns: Sequence[str], rows: Iterable[Row]) -> str:
+    """*rows* as CSV under a header of *columns*, as a CSV results file holds them: floats
+    by repr, booleans ``true``/``false`` (as in JSON), None as an empty cell."""
+    return _csv_line(columns) + "".join(_csv_line([_csv_cell(row.get(c)) for c in columns])
+                                        for row in rows)
+
+
 def _csv_cell(value: object) -> object:
     """CSV text that reads back to the same value (floats by repr, None as empty)."""
     if value is None:
         return ""
+    if isinstance(value, bool):
+        return "true" if value else "false"
     return repr(value) if isinstance(value, float) else value
 
 
@@ -342,12 +354,12 @@ def _parse_cell(column: str, text: str) -> object:
         return int(text)
     if column in _FLOAT_COLUMNS:
         return float(text)
-    if text in ("True", "False"):  # a boolean property's value, or holds
-        return text == "True"
+    if text in _BOOLEANS:  # a boolean property's value, or holds
+        return _BOOLEANS[text]
     if column == "value":
         return float(text)
     if column == "holds":
-        raise ValueError(f"holds is {text!r}, not True, False or empty")
+        raise ValueError(f"holds is {text!r}, not true, false or empty")
     return text
 
 
