@@ -7,14 +7,14 @@ import io
 import pytest
 from rich.console import Console
 
-from veribattery.cli.explain import OOB_NOTE
+from veribattery.cli.explain import FAILURE_NOTES
 from veribattery.cli.output import EXACT_NOTE, print_dim
 from veribattery.cli.tables import fit_text
 
 TEXTS = [
     "Time: parse 0.001s, build 0.002s, check 0.015s",
     fit_text(EXACT_NOTE, 80),
-    fit_text(OOB_NOTE, 80),
+    *(fit_text(note, 80) for _, note in FAILURE_NOTES),
     fit_text("† conditional: the expectation given the condition after || (e.g. given "
              "success)", 40),
 ]

@@ -13,6 +13,7 @@ from click.testing import CliRunner, Result
 
 from tests.cli.inputs import CASE1, SYNTHESIS
 from veribattery.cli import cli
+from veribattery.cli.explain import failure_notes
 
 
 def _run(command: str, *args: str) -> Result:
@@ -58,6 +59,29 @@ def test_explain_breaks_down_the_strategys_failures(strategy: dict[str, Any]) ->
     assert actions and not any("|" in a for a in actions)
     steps = [s["action"] for p in found["paths"] for s in p["states"]]
     assert "takeoff" in steps and not any("|" in a for a in steps)
+
+
+def test_explain_notes_only_the_failures_it_shows() -> None:
+    """The strategy fails by giving up only: the note on oob (out of battery) was printed
+    under every table all the same."""
+    result = _run("explain", "--strategy", "optimal", "--top", "1", "--by", "action")
+    assert result.exit_code == 0, result.stderr
+    lines = result.stdout.splitlines()
+    assert any(line.split()[:1] == ["abort"] for line in lines)  # the by-action table
+    assert "oob" not in result.stdout
+    assert lines[-1] == "abort: the strategy gives the mission up there, and it fails."
+
+
+@pytest.mark.parametrize(("actions", "notes"), [
+    (["takeoff", "abort", ""], ["abort"]),
+    (["oob (land)", "fly"], ["oob (X)"]),
+    (["oob (recharge cap)"], ["oob (recharge cap)"]),
+    (["abort", "oob (recharge cap)", "oob (land)"], ["oob (X)", "oob (recharge cap)", "abort"]),
+    (["takeoff", "fly"], []),
+])
+def test_a_failure_note_is_given_for_an_action_shown(actions: list[str],
+                                                     notes: list[str]) -> None:
+    assert [note.partition(":")[0] for note in failure_notes(actions)] == notes
 
 
 def test_simulate_estimates_the_strategys_values(strategy: dict[str, Any]) -> None:

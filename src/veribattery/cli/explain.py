@@ -7,7 +7,7 @@ and the most probable paths to it.
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -44,7 +44,7 @@ if TYPE_CHECKING:
     from veribattery.lang.nodes import Value
     from veribattery.pipeline import ProgressCallback
 
-__all__ = ["explain_command", "prism_explain"]
+__all__ = ["FAILURE_NOTES", "explain_command", "failure_notes", "prism_explain"]
 
 #: Rows shown per grouping in the table output (JSON has them all).
 GROUP_ROWS = 8
@@ -152,7 +152,8 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int,
         click.echo(json.dumps(_explanation_json(explanation, steps)))
         return
     _print_explanation(explanation, steps, MISSION_COLUMNS, marker="recharge")
-    print_dim(fit_text(OOB_NOTE))
+    for note in failure_notes(_shown_actions(explanation, steps)):
+        print_dim(fit_text(note))
 
 
 def _strategy_view(cfg: MissionConfig, strategy: str,
@@ -164,10 +165,35 @@ def _strategy_view(cfg: MissionConfig, strategy: str,
     return StrategyView(MissionModel(cfg, induced.flat, induced.dtmc), induced.actions)
 
 
-#: What the mission's ``oob`` actions mean, under the tables that show them.
-OOB_NOTE = ("oob (X): out of battery: the drone could not pay for X (take-off, flight, "
-            "inspection, landing) and the mission failed; oob (recharge cap): "
-            "battery.max_recharges was reached with cells left.")
+#: What the mission's ways of failing mean, under the tables that show them: by the test
+#: an action shown passes, its note (``oob (take-off)`` is the one, ``abort`` the other).
+FAILURE_NOTES: tuple[tuple[Callable[[str], bool], str], ...] = (
+    (lambda action: action.startswith("oob (") and action != "oob (recharge cap)",
+     "oob (X): out of battery: the drone could not pay for X (take-off, flight, inspection, "
+     "landing) and the mission failed."),
+    (lambda action: action == "oob (recharge cap)",
+     "oob (recharge cap): battery.max_recharges was reached with cells left."),
+    (lambda action: action == "abort",
+     "abort: the strategy gives the mission up there, and it fails."),
+)
+
+
+def failure_notes(actions: Iterable[str]) -> list[str]:
+    """The notes of :data:`FAILURE_NOTES` for the *actions* shown, in that order: a note
+    for an action that is not shown (``oob`` where only ``abort`` fails) misleads."""
+    shown = set(actions)
+    return [note for applies, note in FAILURE_NOTES if any(applies(a) for a in shown)]
+
+
+def _shown_actions(explanation: Explanation,
+                   steps: Sequence[Sequence[Mapping[str, object]]]) -> list[str]:
+    """The actions the tables show: in the rows of a grouping by action, and the paths."""
+    shown = [str(row["action"]) for rows in steps for row in rows]
+    for grouping in explanation.groupings:
+        if "action" in grouping.keys:
+            at = grouping.keys.index("action")
+            shown += [str(values[at]) for values, _ in grouping.groups[:GROUP_ROWS]]
+    return shown
 
 
 def _mission_steps(view: MissionView, states: IntArray) -> list[dict[str, object]]:
