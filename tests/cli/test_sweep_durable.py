@@ -219,6 +219,40 @@ def test_a_rerun_resumes_and_redraws_the_plot_it_drew(config: str, tmp_path: Pat
     assert mine.read_bytes() == b"mine" and not other.exists()
 
 
+def test_a_moved_folder_resumes_and_redraws_its_plot(config: str, tmp_path: Path) -> None:
+    """The figure was noted by its absolute path in RESULTS.sweep.json, so a folder of
+    results and figure moved elsewhere refused to redraw it without --force (which
+    would have thrown the finished points away); it is noted relative to the record."""
+    first, moved = tmp_path / "first", tmp_path / "moved"
+    first.mkdir()
+    args = ("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1")
+    drawn = run(*args, "-o", str(first / "r.csv"), "--plot", str(first / "p.png"))
+    assert drawn.exit_code == 0, drawn.output
+    assert json.loads((first / "r.csv.sweep.json").read_text())["plots"] == ["p.png"]
+    first.rename(moved)
+    (moved / "p.png").write_bytes(b"stale")
+    again = run(*args, "-o", str(moved / "r.csv"), "--plot", str(moved / "p.png"))
+    assert again.exit_code == 0, again.output
+    assert "2 of 2 points already done" in again.stderr
+    assert (moved / "p.png").read_bytes().startswith(b"\x89PNG")
+
+
+def test_an_older_record_of_an_absolute_plot_path_still_redraws(config: str,
+                                                                 tmp_path: Path) -> None:
+    out, figure = tmp_path / "r.csv", tmp_path / "p.png"
+    args = ("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "1", "-o", str(out),
+            "--plot", str(figure))
+    assert run(*args).exit_code == 0
+    record = tmp_path / "r.csv.sweep.json"
+    data = json.loads(record.read_text())
+    record.write_text(json.dumps({**data, "plots": [str(figure.resolve())]}))
+    figure.write_bytes(b"stale")
+    again = run(*args)
+    assert again.exit_code == 0, again.output
+    assert figure.read_bytes().startswith(b"\x89PNG")
+    assert json.loads(record.read_text())["plots"] == sorted([str(figure.resolve()), "p.png"])
+
+
 def test_the_note_gives_the_workers_really_started(config: str) -> None:
     result = run("sweep", config, *TWO_POINTS, *SMALL_FARM, "-j", "100000")
     assert result.exit_code == 0, result.output

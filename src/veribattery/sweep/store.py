@@ -115,22 +115,33 @@ def open_results(
 def drawn_plots(path: Path) -> frozenset[Path]:
     """The figures (``sweep --plot``; resolved paths) that the sweep whose results are
     *path* has drawn, as :func:`record_plot` noted them in ``RESULTS.sweep.json``: a
-    rerun that resumes the sweep draws them again. Empty when there is no such file."""
+    rerun that resumes the sweep draws them again. Empty when there is no such file.
+
+    A figure is noted relative to the record's folder, so a folder of results and
+    figures moved elsewhere still resumes and redraws (older records, with absolute
+    paths, are read as they are)."""
+    meta = _meta(path)
     try:
-        plots = json.loads(_meta(path).read_text(encoding="utf-8")).get("plots", [])
+        plots = json.loads(meta.read_text(encoding="utf-8")).get("plots", [])
     except (OSError, ValueError, AttributeError):  # (not a JSON object: no plots)
         return frozenset()
-    return frozenset(Path(p) for p in plots if isinstance(p, str))
+    folder = meta.parent.resolve()
+    return frozenset((folder / p).resolve() for p in plots if isinstance(p, str))
 
 
 def record_plot(path: Path, plot: Path) -> None:
-    """Note in ``RESULTS.sweep.json`` (*path* the results) that the sweep drew *plot*.
+    """Note in ``RESULTS.sweep.json`` (*path* the results) that the sweep drew *plot*,
+    relative to that file's folder (see :func:`drawn_plots`).
 
     A sweep started afresh (a new RESULTS, or ``--force``) forgets the figures noted.
     """
     meta = _meta(path)
     data = json.loads(meta.read_text(encoding="utf-8"))
-    data["plots"] = sorted({*data.get("plots", []), str(plot.resolve())})
+    try:
+        noted = os.path.relpath(plot.resolve(), meta.parent.resolve())
+    except ValueError:  # (Windows: on another drive, so only an absolute path names it)
+        noted = str(plot.resolve())
+    data["plots"] = sorted({*data.get("plots", []), Path(noted).as_posix()})
     write_text(meta, json.dumps(data, indent=2) + "\n")
 
 
