@@ -126,6 +126,11 @@ NUMBERS = [
     Bad("high-wind-factor", b"", "--set battery.consumption.high_wind_factor: 1e+300 is too "
         "large: a take-off, the flight to the farthest cell (4 cells) and an inspection would need "
         "about 6.8e+301 units", ("battery.consumption.high_wind_factor=1e300",)),
+    # One cell: no decision flies a cell, but its cost is still an int constant of the model.
+    Bad("unused-cell-cost", b"farm: {cols: 2, rows: 2, base: [0, 0]}\n",
+        "--set battery.consumption.cell.low: 1e+300 is too large: one action would cost about "
+        "2e+301 units of resolution_ah (0.1), an int constant of the model, which must stay "
+        "below 2^30 for PRISM's 32-bit integers", ("battery.consumption.cell.low=1e300",)),
     Bad("eq2-energy", b"", "--set battery.consumption.energy_wh: too large: a take-off, the "
         "flight to the farthest cell (4 cells) and an inspection would need about 8e+299 units",
         ("battery.consumption.energy_wh=1e300",)),
