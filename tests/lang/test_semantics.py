@@ -115,6 +115,12 @@ INT_RANGE = ("is out of the int range -2^63..2^63-1 (ints are 64-bit here; PRISM
          f"constant 'n' (--const n=2*4611686018427387904): 9223372036854775808 {INT_RANGE}"),
         (-(2**63) - 1, f"constant 'n' (--const n=-9223372036854775809): "
                        f"-9223372036854775809 {INT_RANGE}"),
+        # Beyond the 4,300 digits Python reads into an int: the same rule, quoted short
+        # (was "is an int, but was given the value '9999...'", all 5,000 digits).
+        ("9" * 5000, f"constant 'n' (--const n=999999999999…999999 (5,000 characters)): "
+                     f"<5,000 digits> {INT_RANGE}"),
+        ("-" + "9" * 5000, f"constant 'n' (--const n=-99999999999…999999 (5,001 characters)): "
+                           f"<5,000 digits> {INT_RANGE}"),
     ],
 )
 def test_given_int_beyond_64_bits(value: object, message: str) -> None:
