@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any, cast
 
+from veribattery._collector import collections_spaced
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.lang.constants import assignable, evaluate_constants
 from veribattery.lang.evaluate import evaluate
@@ -329,6 +330,7 @@ def _rewards(model: Model, formulas: Mapping[str, Expr], scope: _Scope) -> tuple
 # ---------------------------------------------------------------- the model
 
 
+@collections_spaced
 def flatten_model(model: Model, constants: Mapping[str, Value | str] | None = None) -> FlatModel:
     """Check *model* and turn it into a closed :class:`FlatModel`.
 
