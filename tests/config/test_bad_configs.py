@@ -111,6 +111,15 @@ NUMBERS = [
     Bad("safe-t-subnormal", b"strategy: {safe_t: 1e-320}\n", "{path}:1:12: strategy.safe_t: "
         "1e-320 is too fine: BS1's guards multiply the charge (up to 246 units) by safe_t's "
         "denominator (10^320), and"),
+    # A YAML float as written, not its nearest double (0.1, and 0 below the subnormals).
+    Bad("safe-t-past-doubles", b"strategy: {safe_t: 0.1000000000000000000001}\n",
+        "{path}:1:12: strategy.safe_t: 0.1000000000000000000001 is too fine: BS1's guards "
+        "multiply the charge (up to 246 units) by safe_t's denominator (10^22), and"),
+    Bad("safe-t-below-doubles", b"strategy: {safe_t: 1.0e-330}\n", "{path}:1:12: "
+        "strategy.safe_t: 1e-330 is too fine: BS1's guards multiply the charge (up to 246 "
+        "units) by safe_t's denominator (10^330), and"),
+    Bad("safe-t-past-doubles-set", b"", "--set strategy.safe_t: 0.1000000000000000000001 is too "
+        "fine:", ("strategy.safe_t=0.1000000000000000000001",)),
     Bad("safe-t-7-places", b"", "--set strategy.safe_t: 0.0000001 is too fine: BS1's guards "
         "multiply the charge (up to 246 units) by safe_t's denominator (10000000), and",
         ("strategy.safe_t=0.0000001",)),

@@ -6,7 +6,6 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 
-from veribattery._numbers import shortened
 from veribattery.errors import PrismSemanticError, PrismSyntaxError
 from veribattery.lang.evaluate import EvaluationError, evaluate
 from veribattery.lang.expressions import walk
@@ -253,6 +252,8 @@ def _in_int_range(decl: ConstDecl, value: Value, given: Value | str | None = Non
 
 def _given_error(decl: ConstDecl, given: str, problem: str) -> PrismSemanticError:
     """*problem* of the value *given* on the command line for *decl* (quoted shortened)."""
+    from veribattery._numbers import shortened  # (imports fractions: on this error only)
+
     return PrismSemanticError(f"constant '{decl.name}' (--const {decl.name}="
                               f"{shortened(given)}): {problem}")
 
