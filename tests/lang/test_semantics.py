@@ -402,3 +402,26 @@ def test_model_file_path_in_messages(tmp_path: Path) -> None:
     path.write_text(MINI.replace("(x'=x)", "(x'=zz)"))
     with pytest.raises(PrismSemanticError, match=f"^{path}:5:37: unknown identifier 'zz'$"):
         flatten_model(parse_model(path))
+
+
+LABELLED = ('dtmc\nmodule m x : [0..3]; [] x<3 -> (x\'=x+1); endmodule\n'
+            'label "top" = x=3;\n')
+
+
+def test_a_label_may_refer_to_another_label() -> None:
+    # PRISM allows a declared label in a label's definition (ModulesFileSemanticCheck).
+    model = flat(LABELLED + 'label "near" = "top" | x=2;\nlabel "far" = !"near";\n')
+    labels = {lab.name: lab.expr for lab in model.labels}
+    assert [evaluate(labels["near"], {"x": x}) for x in range(4)] == [False, False, True, True]
+    assert [evaluate(labels["far"], {"x": x}) for x in range(4)] == [True, True, False, False]
+
+
+@pytest.mark.parametrize(("labels", "message"), [
+    ('label "a" = "b";\nlabel "b" = "a";\n', 'labels refer to themselves: "a" -> "b" -> "a"'),
+    ('label "a" = "a" | x=1;\n', 'labels refer to themselves: "a" -> "a"'),
+    ('label "a" = "nosuch";\n', 'undeclared label "nosuch" (labels: "top", "a")'),
+])
+def test_a_label_refers_to_a_declared_label_without_a_cycle(labels: str, message: str) -> None:
+    with pytest.raises(PrismSemanticError) as info:
+        flat(LABELLED + labels)
+    assert message in str(info.value)
