@@ -34,7 +34,7 @@ ROOT = "veribattery"
 #: own layer and lower ones only. Rank 0 is the base: shared modules every layer may use.
 LAYERS: dict[str, int] = {
     "errors": 0, "_types": 0, "_files": 0, "_text": 0, "_memory": 0, "_sparse": 0,
-    "_startup": 0, "_named": 0, "_unique": 0, "_lazy": 0, "_numbers": 0,
+    "_startup": 0, "_named": 0, "_unique": 0, "_lazy": 0, "_numbers": 0, "_collector": 0,
     "config": 1,
     "render": 2,
     "lang": 3,

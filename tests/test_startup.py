@@ -10,6 +10,7 @@ import os
 import subprocess
 import sys
 
+from veribattery._collector import YOUNG_COLLECTION_EVERY
 from veribattery._startup import DEFERRED_MODULES, LAZY_PACKAGES
 
 _PRELUDE = """
@@ -117,10 +118,38 @@ def test_start_process_collects_the_youngest_generation_less_often() -> None:
     script = """
 import gc
 gc.set_threshold(700, 11, 12)
-from veribattery._startup import YOUNG_COLLECTION_EVERY, start_process
+from veribattery._collector import YOUNG_COLLECTION_EVERY
+from veribattery._startup import start_process
 start_process()
 print(gc.get_threshold() == (YOUNG_COLLECTION_EVERY, 11, 12), YOUNG_COLLECTION_EVERY > 700)
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                           check=True)
     assert done.stdout.split() == ["True", "True"]
+
+
+def test_a_library_build_spaces_collections_and_restores_the_callers() -> None:
+    # A notebook keeps its own thresholds; only while a stage runs are they spaced out.
+    import gc
+
+    import veribattery as vb
+    from veribattery._collector import spaced_collections
+
+    seen: list[tuple[int, ...]] = []
+    before = gc.get_threshold()
+    try:
+        gc.set_threshold(700, 11, 12)
+        flat = vb.flatten_model(vb.parse_model("dtmc\nmodule m x : [0..3]; "
+                                               "[] x<3 -> (x'=x+1); endmodule\n"))
+        dtmc = vb.build_dtmc(flat, progress=lambda *_: seen.append(gc.get_threshold()))
+        assert dtmc.num_states == 4
+        assert seen and all(t == (YOUNG_COLLECTION_EVERY, 11, 12) for t in seen)
+        assert gc.get_threshold() == (700, 11, 12)
+        gc.set_threshold(0, 11, 12)  # collection off: left off
+        with spaced_collections():
+            assert gc.get_threshold() == (0, 11, 12)
+        gc.set_threshold(10**6, 11, 12)  # already larger: kept
+        with spaced_collections():
+            assert gc.get_threshold() == (10**6, 11, 12)
+    finally:
+        gc.set_threshold(*before)

@@ -17,7 +17,7 @@ from decimal import Decimal, InvalidOperation
 from fractions import Fraction
 
 __all__ = ["MAX_DIGITS", "MAX_EXPONENT", "SIZE_RULE", "OutOfRange", "count_text",
-           "exact_number", "out_of_range"]
+           "exact_number", "out_of_range", "shortened"]
 
 #: The largest power of ten a number may reach, and the smallest it may go below 1.
 MAX_EXPONENT = 400
@@ -75,9 +75,9 @@ def _decimal(text: str) -> Decimal:
     except InvalidOperation:
         if _SCIENTIFIC.fullmatch(text):
             raise out_of_range(text) from None
-        raise ValueError(f"{_cut(text)!r} is not a number") from None
+        raise ValueError(f"{shortened(text)!r} is not a number") from None
     if not number.is_finite():
-        raise ValueError(f"{_cut(text)!r} is not a finite number")
+        raise ValueError(f"{shortened(text)!r} is not a finite number")
     return number
 
 
@@ -93,11 +93,12 @@ def _digit_count(text: str) -> int:
 
 def out_of_range(text: str) -> OutOfRange:
     """The error for the number written *text* (quoted cut in its middle when long)."""
-    return OutOfRange(f"{_cut(text.strip())} is out of range: {SIZE_RULE}")
+    return OutOfRange(f"{shortened(text.strip())} is out of range: {SIZE_RULE}")
 
 
-def _cut(text: str) -> str:
-    """*text*, its middle cut when it is long (a number of 5,000 digits)."""
+def shortened(text: str) -> str:
+    """*text*, its middle cut when it is long (a number of 5,000 digits), to quote in a
+    message."""
     if len(text) <= _SHOWN:
         return text
     return f"{text[:12]}…{text[-6:]} ({len(text):,} characters)"

@@ -1,10 +1,10 @@
 """Process start-up: defer what libraries import but a model check does not read.
 
 The CLI calls :func:`start_process` first. It collects the youngest generation of
-garbage less often (:data:`YOUNG_COLLECTION_EVERY`), turns off pydantic's plugin lookup
-(a scan of every installed distribution's entry points, ~0.1 s, when the first model is
-built: the CLI has no use for plugins; setting ``PYDANTIC_DISABLE_PLUGINS`` to anything
-else turns it back on) and installs two kinds of deferral
+garbage less often for the whole process (:mod:`veribattery._collector`), turns off
+pydantic's plugin lookup (a scan of every installed distribution's entry points, ~0.1 s,
+when the first model is built: the CLI has no use for plugins; setting
+``PYDANTIC_DISABLE_PLUGINS`` to anything else turns it back on) and installs two kinds of deferral
 (:func:`defer_unused_numpy_modules`):
 
 - **Modules nobody reads** (:data:`DEFERRED_MODULES`). ``import scipy.sparse``
@@ -44,6 +44,8 @@ import threading
 from collections.abc import Callable, Mapping, Sequence
 from types import ModuleType
 from typing import Any, cast
+
+from veribattery._collector import YOUNG_COLLECTION_EVERY
 
 __all__ = ["DEFERRED_MODULES", "LAZY_PACKAGES", "defer_unused_numpy_modules", "start_process"]
 
@@ -148,13 +150,6 @@ def _run_package(module: ModuleType, loader: Any, deferred: Callable[[str], Any]
         module.__spec__.loader = loader
 
 
-#: Allocations between two collections of the youngest generation (Python's default is
-#: 700). Parsing and compiling a model make millions of small objects that live to the
-#: end of the build (expression trees, compiled nodes), few of them garbage in cycles;
-#: at 700 the collector re-scanned them so often that it took ~40 % of a 200 x 200
-#: farm's check (20 s against 12 s) and 3.4 of oscillators 6-10's 5.3 s build, for the
-#: same peak memory.
-YOUNG_COLLECTION_EVERY = 50_000
 
 
 def start_process() -> None:

@@ -111,6 +111,15 @@ NUMBERS = [
     Bad("safe-t-subnormal", b"strategy: {safe_t: 1e-320}\n", "{path}:1:12: strategy.safe_t: "
         "1e-320 is too fine: BS1's guards multiply the charge (up to 246 units) by safe_t's "
         "denominator (10^320), and"),
+    # A YAML float as written, not its nearest double (0.1, and 0 below the subnormals).
+    Bad("safe-t-past-doubles", b"strategy: {safe_t: 0.1000000000000000000001}\n",
+        "{path}:1:12: strategy.safe_t: 0.1000000000000000000001 is too fine: BS1's guards "
+        "multiply the charge (up to 246 units) by safe_t's denominator (10^22), and"),
+    Bad("safe-t-below-doubles", b"strategy: {safe_t: 1.0e-330}\n", "{path}:1:12: "
+        "strategy.safe_t: 1e-330 is too fine: BS1's guards multiply the charge (up to 246 "
+        "units) by safe_t's denominator (10^330), and"),
+    Bad("safe-t-past-doubles-set", b"", "--set strategy.safe_t: 0.1000000000000000000001 is too "
+        "fine:", ("strategy.safe_t=0.1000000000000000000001",)),
     Bad("safe-t-7-places", b"", "--set strategy.safe_t: 0.0000001 is too fine: BS1's guards "
         "multiply the charge (up to 246 units) by safe_t's denominator (10000000), and",
         ("strategy.safe_t=0.0000001",)),
@@ -126,6 +135,11 @@ NUMBERS = [
     Bad("high-wind-factor", b"", "--set battery.consumption.high_wind_factor: 1e+300 is too "
         "large: a take-off, the flight to the farthest cell (4 cells) and an inspection would need "
         "about 6.8e+301 units", ("battery.consumption.high_wind_factor=1e300",)),
+    # One cell: no decision flies a cell, but its cost is still an int constant of the model.
+    Bad("unused-cell-cost", b"farm: {cols: 2, rows: 2, base: [0, 0]}\n",
+        "--set battery.consumption.cell.low: 1e+300 is too large: one action would cost about "
+        "2e+301 units of resolution_ah (0.1), an int constant of the model, which must stay "
+        "below 2^30 for PRISM's 32-bit integers", ("battery.consumption.cell.low=1e300",)),
     Bad("eq2-energy", b"", "--set battery.consumption.energy_wh: too large: a take-off, the "
         "flight to the farthest cell (4 cells) and an inspection would need about 8e+299 units",
         ("battery.consumption.energy_wh=1e300",)),

@@ -203,6 +203,28 @@ def test_a_probability_is_bounded_in_0_1(formula: str, bound: str, refused: bool
                            f"[0, 1], got {bound}")
 
 
+@pytest.mark.parametrize(("properties", "refused"), [
+    ({"p": '"q"', "q": 'P=? [ F "success" ]'}, True),  # a reference to a probability
+    ({"p": '"r"', "r": '"q"', "q": 'P=? [ F "success" ]'}, True),  # through two
+    ({"p": '"q"', "q": 'R{"mt"}=? [ F "done" ]'}, False),  # to a reward
+    ({"p": '"q"', "q": '"p"'}, False),  # a cycle (refused elsewhere, not here)
+    ({"p": '"success"'}, False),  # a label, not a property
+])
+def test_a_reference_to_a_probability_is_bounded_in_0_1(properties: dict[str, str],
+                                                       refused: bool) -> None:
+    problem = requirement_problem(parse_requirement("p >= 2"), properties["p"], properties)
+    assert (problem is not None) == refused
+    if refused:
+        assert problem == (f"p is a probability ({properties['p']}, P=? [ F \"success\" ]): "
+                           "the bound must be in [0, 1], got 2")
+
+
+def test_a_config_requirement_follows_a_reference() -> None:
+    with pytest.raises(ConfigError, match="again is a probability"):
+        load_config("properties: {ok: 'P=? [ F \"success\" ]', again: '\"ok\"'}\n"
+                    "requirements: ['again >= 1.5']")
+
+
 def test_a_requirement_on_a_reward_may_exceed_1() -> None:
     cfg = load_config("requirements: ['exp_mission_time <= 500', 'p_success >= 1']")
     assert [str(r) for r in cfg.parsed_requirements] == ["exp_mission_time <= 500",

@@ -115,6 +115,12 @@ INT_RANGE = ("is out of the int range -2^63..2^63-1 (ints are 64-bit here; PRISM
          f"constant 'n' (--const n=2*4611686018427387904): 9223372036854775808 {INT_RANGE}"),
         (-(2**63) - 1, f"constant 'n' (--const n=-9223372036854775809): "
                        f"-9223372036854775809 {INT_RANGE}"),
+        # Beyond the 4,300 digits Python reads into an int: the same rule, quoted short
+        # (was "is an int, but was given the value '9999...'", all 5,000 digits).
+        ("9" * 5000, f"constant 'n' (--const n=999999999999…999999 (5,000 characters)): "
+                     f"<5,000 digits> {INT_RANGE}"),
+        ("-" + "9" * 5000, f"constant 'n' (--const n=-99999999999…999999 (5,001 characters)): "
+                           f"<5,000 digits> {INT_RANGE}"),
     ],
 )
 def test_given_int_beyond_64_bits(value: object, message: str) -> None:
@@ -396,3 +402,26 @@ def test_model_file_path_in_messages(tmp_path: Path) -> None:
     path.write_text(MINI.replace("(x'=x)", "(x'=zz)"))
     with pytest.raises(PrismSemanticError, match=f"^{path}:5:37: unknown identifier 'zz'$"):
         flatten_model(parse_model(path))
+
+
+LABELLED = ('dtmc\nmodule m x : [0..3]; [] x<3 -> (x\'=x+1); endmodule\n'
+            'label "top" = x=3;\n')
+
+
+def test_a_label_may_refer_to_another_label() -> None:
+    # PRISM allows a declared label in a label's definition (ModulesFileSemanticCheck).
+    model = flat(LABELLED + 'label "near" = "top" | x=2;\nlabel "far" = !"near";\n')
+    labels = {lab.name: lab.expr for lab in model.labels}
+    assert [evaluate(labels["near"], {"x": x}) for x in range(4)] == [False, False, True, True]
+    assert [evaluate(labels["far"], {"x": x}) for x in range(4)] == [True, True, False, False]
+
+
+@pytest.mark.parametrize(("labels", "message"), [
+    ('label "a" = "b";\nlabel "b" = "a";\n', 'labels refer to themselves: "a" -> "b" -> "a"'),
+    ('label "a" = "a" | x=1;\n', 'labels refer to themselves: "a" -> "a"'),
+    ('label "a" = "nosuch";\n', 'undeclared label "nosuch" (labels: "top", "a")'),
+])
+def test_a_label_refers_to_a_declared_label_without_a_cycle(labels: str, message: str) -> None:
+    with pytest.raises(PrismSemanticError) as info:
+        flat(LABELLED + labels)
+    assert message in str(info.value)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -366,7 +366,7 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
         req = _requirement(requirement)
         cfg = load_config(config, overrides)
         _check_property(cfg, config, f"--require {requirement}", req.prop)
-        _check_bound(req, cfg.properties[req.prop], f"--require {requirement}")
+        _check_bound(req, cfg.properties, f"--require {requirement}")
         if time_property:
             _check_property(cfg, config, f"--time-property {time_property}", time_property)
         log = read_cycles(cycles_path)
@@ -432,11 +432,11 @@ def _check_property(cfg: MissionConfig, config: Path, where: str, name: str) -> 
                           f"{', '.join(cfg.properties)}")
 
 
-def _check_bound(req: Requirement, formula: str, where: str) -> None:
+def _check_bound(req: Requirement, properties: Mapping[str, str], where: str) -> None:
     """A probability's bound must lie in [0, 1]: else the requirement says nothing."""
     from veribattery.config import requirement_problem
 
-    problem = requirement_problem(req, formula)
+    problem = requirement_problem(req, properties[req.prop], properties)
     if problem is not None:
         raise OptionError(f"{where}: {problem}")
 

@@ -1,7 +1,9 @@
 """Exact numbers from YAML: decimals as written, never binary floats.
 
-YAML hands us binary floats; ``Fraction(repr(x))`` recovers the decimal the user wrote
-(``0.3`` → ``3/10``), because ``repr`` gives the shortest decimal that round-trips.
+A config's YAML floats keep the decimal they were written as
+(:class:`~veribattery.config.source.WrittenFloat`: ``0.3`` → ``3/10``, and
+``0.1000000000000000000001`` is not 0.1); a float from Python goes through ``repr``,
+the shortest decimal that round-trips.
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ from pydantic import BeforeValidator
 from pydantic_core import PydanticCustomError
 
 from veribattery._numbers import OutOfRange, exact_number
+from veribattery.config.source import WrittenFloat
 
 __all__ = ["Exact", "brief", "fraction_to_decimal", "problem", "show", "to_fraction"]
 
@@ -63,6 +66,12 @@ def _brief_number(value: Fraction) -> str:
         text = show(value)
         if len(text) <= (20 if "." in text else _BRIEF):
             return text
+        # A long decimal exactly, in the shorter of its two notations, where that is
+        # short: rounded to six digits, 0.1000000000000000000001 would read as 0.100000.
+        if "/" not in text:
+            text = min(text, f"{Decimal(text).normalize():e}", key=len)
+            if len(text) <= _BRIEF:
+                return text
     return f"{(Decimal(value.numerator) / Decimal(value.denominator)).normalize():.6g}"
 
 
@@ -105,6 +114,8 @@ def to_fraction(value: object) -> Fraction:
         raise problem(f"must be a number, got {value}")
     if isinstance(value, int | Decimal):
         return Fraction(value)
+    if isinstance(value, WrittenFloat):  # the decimal as written, not its nearest double
+        return to_fraction(value.text)
     if isinstance(value, float) and math.isfinite(value):
         return Fraction(repr(value))
     if isinstance(value, str):

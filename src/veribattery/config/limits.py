@@ -42,6 +42,7 @@ def check_int_ranges(cfg: MissionConfig, c_new: int, costs: CostTable,
                              f"32-bit integers, got {brief(cfg.battery.max_recharges)}"))
     reach = max((*layout.dist, *layout.step), default=0)
     predicted = _check_costs(cfg, costs, reach)
+    _check_constants(cfg, costs)
     _check_guards(cfg, c_new, predicted)
     _check_times(cfg, reach)
     _check_ratio(cfg, "environment.p_wsp_c", cfg.environment.p_wsp_c)
@@ -57,6 +58,21 @@ def _check_costs(cfg: MissionConfig, costs: CostTable, reach: int) -> int:
             f"would need {_digits(predicted)} units of resolution_ah "
             f"({brief(cfg.battery.resolution_ah)}), which must stay below 2^30 for PRISM's "
             "32-bit integers")
+    raise cfg.key_error(
+        (key, f"{'' if value is None else brief(value) + ' is '}too large: {need}"),
+        ("battery.resolution_ah", f"{brief(cfg.battery.resolution_ah)} is too fine: {need}"))
+
+
+def _check_constants(cfg: MissionConfig, costs: CostTable) -> None:
+    """Every cost is an int constant of the model, used or not: on a farm whose decisions
+    fly no cell (one cell), the predictions of :func:`_check_costs` leave ``cell`` out."""
+    most = max(max(max(levels) for levels in costs.of(a)) for a in ACTIONS)
+    if most <= _CHARGE_MAX:
+        return
+    key, value = _cost_key(cfg, costs, 1)
+    need = (f"one action would cost {_digits(most)} units of resolution_ah "
+            f"({brief(cfg.battery.resolution_ah)}), an int constant of the model, which "
+            "must stay below 2^30 for PRISM's 32-bit integers")
     raise cfg.key_error(
         (key, f"{'' if value is None else brief(value) + ' is '}too large: {need}"),
         ("battery.resolution_ah", f"{brief(cfg.battery.resolution_ah)} is too fine: {need}"))

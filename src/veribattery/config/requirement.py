@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 import operator
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
@@ -24,6 +24,8 @@ __all__ = ["Requirement", "is_property_name", "parse_requirement", "requirement_
 
 _REQUIREMENT = re.compile(r"\s*([A-Za-z_]\w*)\s*(<=|>=|<|>)\s*(\S+)\s*")
 _IDENT = re.compile(r"[A-Za-z_]\w*")
+#: A formula that is only a reference to another property: ``"p_success"``.
+_REFERENCE = re.compile(r'\s*"([A-Za-z_]\w*)"\s*')
 #: ``P=? [``, ``Pmax=? [``, or steady-state ``S=? [`` at a formula's start.
 _PROBABILITY = re.compile(r"\s*(?:P(?:min|max)?|S)\s*=\s*\?\s*\[")
 
@@ -73,13 +75,36 @@ def parse_requirement(text: str) -> Requirement:
     return Requirement(match.group(1), match.group(2), bound)
 
 
-def requirement_problem(requirement: Requirement, formula: str) -> str | None:
+def requirement_problem(requirement: Requirement, formula: str,
+                        properties: Mapping[str, str] | None = None) -> str | None:
     """What is wrong with *requirement* on a property of *formula*, or None: a bound
-    outside [0, 1] on a probability."""
-    if 0 <= requirement.bound <= 1 or not _is_probability(formula):
+    outside [0, 1] on a probability.
+
+    :param properties: the other properties by name, to follow a formula that is a
+        reference to one (``"p_success"``) to what it names.
+    """
+    if 0 <= requirement.bound <= 1:
         return None
-    return (f"{requirement.prop} is a probability ({formula.strip()}): the bound must be in "
+    named = _followed(formula, properties or {})
+    if not _is_probability(named):
+        return None
+    shown = formula.strip() if named is formula else f"{formula.strip()}, {named.strip()}"
+    return (f"{requirement.prop} is a probability ({shown}): the bound must be in "
             f"[0, 1], got {brief(requirement.bound)}")
+
+
+def _followed(formula: str, properties: Mapping[str, str]) -> str:
+    """*formula*, or where it is only a reference ``"name"`` to another property, the
+    formula that one names in the end (*formula* itself on a cycle)."""
+    seen: set[str] = set()
+    current = formula
+    while (reference := _REFERENCE.fullmatch(current)) is not None:
+        name = reference.group(1)
+        if name in seen or name not in properties:
+            return formula if name in seen else current
+        seen.add(name)
+        current = properties[name]
+    return current
 
 
 def _is_probability(formula: str) -> bool:

@@ -453,7 +453,7 @@ class MissionConfig(_Section):
                 raise problem(
                     f"unknown property {req.prop!r} (declared: {names})", f"requirements.{i}"
                 )
-            wrong = requirement_problem(req, self.properties[req.prop])
+            wrong = requirement_problem(req, self.properties[req.prop], self.properties)
             if wrong is not None:
                 raise problem(wrong, f"requirements.{i}")
         return self

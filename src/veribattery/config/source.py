@@ -11,6 +11,7 @@ value is never silently another number; text where a number belongs is a config 
 
 from __future__ import annotations
 
+import math
 import re
 from typing import Any
 
@@ -20,7 +21,8 @@ from veribattery._numbers import MAX_EXPONENT, OutOfRange, exact_number, out_of_
 from veribattery._text import decode_text
 from veribattery.errors import ConfigError, Span
 
-__all__ = ["MAX_VALUES", "NumberOutOfRange", "compose", "construct", "decode", "yaml_error"]
+__all__ = ["MAX_VALUES", "NumberOutOfRange", "WrittenFloat", "compose", "construct", "decode",
+           "yaml_error"]
 
 #: The most values a config's aliases may expand to: an explicit route over the
 #: largest farm (MAX_TURBINES) is some 300,000.
@@ -94,12 +96,39 @@ def compose(text: str, source: str | None, prefix: str = "") -> yaml.Node | None
     return root
 
 
+class WrittenFloat(float):
+    """A YAML float that keeps the decimal it was written as (:attr:`text`): the nearest
+    double of ``0.1000000000000000000001`` is 0.1's and of ``1.0e-330`` is 0, and an
+    exact config value (:func:`~veribattery.config.exact.to_fraction`) reads the text."""
+
+    __slots__ = ("text",)
+    text: str
+
+
+class _Constructor(yaml.constructor.SafeConstructor):  # type: ignore[misc]
+    """PyYAML's safe constructor, its floats :class:`WrittenFloat`."""
+
+    def construct_yaml_float(self, node: yaml.ScalarNode) -> float:
+        value = super().construct_yaml_float(node)
+        if not math.isfinite(value):  # .inf, .nan (a number too large is refused before)
+            return float(value)
+        written = WrittenFloat(value)
+        written.text = str(self.construct_scalar(node)).replace("_", "")
+        return written
+
+
+_Constructor.add_constructor(_FLOAT_TAG, _Constructor.construct_yaml_float)
+# A config written back (a sweep's points, ``emit``) keeps each float as it was written.
+yaml.SafeDumper.add_representer(
+    WrittenFloat, lambda dumper, value: dumper.represent_scalar(_FLOAT_TAG, value.text))
+
+
 def construct(root: yaml.Node | None, text: str, source: str | None) -> Any:
-    """The Python value of a node tree from :func:`compose`."""
+    """The Python value of a node tree from :func:`compose` (floats :class:`WrittenFloat`)."""
     if root is None:
         return None
     try:
-        return yaml.constructor.SafeConstructor().construct_document(root)
+        return _Constructor().construct_document(root)
     except yaml.YAMLError as exc:
         raise yaml_error(exc, text, source) from None
 

@@ -23,10 +23,12 @@ from veribattery.lang.nodes import (
     Value,
     ValueType,
 )
-from veribattery.lang.ops import INT_MAX, INT_MIN, out_of_int_range
+from veribattery.lang.ops import INT_MAX, INT_MIN, OperatorError, int_literal, out_of_int_range
 from veribattery.lang.typecheck import TypeEnv, type_of
 
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+#: An int written in digits, as ``--const N=...`` gives one.
+_INT_TEXT = re.compile(r"[-+]?[0-9]+")
 
 
 def parse_constant_assignments(items: Sequence[str]) -> dict[str, str]:
@@ -84,6 +86,11 @@ def _literal(decl: ConstDecl, text: str) -> Value | None:
     """*text* read as a number or truth value of *decl*'s type, or None."""
     if decl.type == "bool":
         return text == "true" if text in ("true", "false") else None
+    if decl.type == "int" and _INT_TEXT.fullmatch(text):
+        try:  # (int() refuses more than 4,300 digits, which read as "no int" before)
+            return -int_literal(text[1:]) if text[0] == "-" else int_literal(text.lstrip("+"))
+        except OperatorError as exc:
+            raise _given_error(decl, text, exc.message) from None
     try:
         if decl.type == "int":
             return int(text)
@@ -239,9 +246,16 @@ def _in_int_range(decl: ConstDecl, value: Value, given: Value | str | None = Non
     if decl.value is not None:
         raise PrismSemanticError(f"constant '{decl.name}': {out_of_int_range(value)}",
                                  decl.value.span)
-    shown = given if isinstance(given, str) else value
-    raise PrismSemanticError(f"constant '{decl.name}' (--const {decl.name}={shown}): "
-                             f"{out_of_int_range(value)}")
+    raise _given_error(decl, given if isinstance(given, str) else str(value),
+                       out_of_int_range(value))
+
+
+def _given_error(decl: ConstDecl, given: str, problem: str) -> PrismSemanticError:
+    """*problem* of the value *given* on the command line for *decl* (quoted shortened)."""
+    from veribattery._numbers import shortened  # (imports fractions: on this error only)
+
+    return PrismSemanticError(f"constant '{decl.name}' (--const {decl.name}="
+                              f"{shortened(given)}): {problem}")
 
 
 def _type_of_value(value: Value) -> ValueType:

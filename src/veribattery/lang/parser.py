@@ -14,6 +14,7 @@ import re
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from veribattery._collector import collections_spaced
 from veribattery._text import decode_text
 from veribattery.errors import PrismSyntaxError, Span, VeribatteryError
 from veribattery.lang.fastparse import Fallback, parse_fast
@@ -302,6 +303,7 @@ def _parse_with_lark(text: str, source: str, start: str) -> Any:
         raise
 
 
+@collections_spaced
 def parse_model(source: str | Path, *, name: str | None = None) -> Model:
     """Parse a PRISM model: a :class:`~pathlib.Path` to read, or a str of PRISM text.
 

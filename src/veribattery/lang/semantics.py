@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import replace
 from typing import Any, cast
 
+from veribattery._collector import collections_spaced
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.lang.constants import assignable, evaluate_constants
 from veribattery.lang.evaluate import evaluate
@@ -24,6 +25,7 @@ from veribattery.lang.nodes import (
     FormulaDecl,
     Ident,
     LabelDecl,
+    LabelRef,
     Model,
     Module,
     PropertiesFile,
@@ -307,10 +309,41 @@ def _labels(model: Model, formulas: Mapping[str, Expr], scope: _Scope) -> tuple[
     for lab in model.labels:
         if lab.name in BUILTIN_LABELS:
             raise PrismSemanticError(f'the label "{lab.name}" is built in', lab.span)
-    labels = [inline_formulas(lab, formulas) for lab in model.labels]
+    labels = _labels_expanded([inline_formulas(lab, formulas) for lab in model.labels])
     for lab in labels:
         expect(lab.expr, scope.env(), "bool", f'label "{lab.name}"')
     return tuple(scope.closed(lab) for lab in labels)
+
+
+def _labels_expanded(labels: Sequence[LabelDecl]) -> list[LabelDecl]:
+    """*labels* with each reference to another of them (``label "b" = "a" & x>1``, which
+    PRISM allows) replaced by that one's expression.
+
+    :raises PrismSemanticError: for a label that refers to itself, directly or not.
+    """
+    declared = {lab.name: lab for lab in labels}
+    expanded: dict[str, Expr] = {}
+
+    def expression(lab: LabelDecl, path: tuple[str, ...]) -> Expr:
+        if lab.name in expanded:
+            return expanded[lab.name]
+        if lab.name in path:
+            cycle = " -> ".join(f'"{name}"' for name in (*path, lab.name))
+            raise PrismSemanticError(f"labels refer to themselves: {cycle}", lab.span)
+
+        def refer(sub: Any) -> Any | None:
+            if type(sub) is not LabelRef or sub.name in BUILTIN_LABELS:
+                return None
+            if sub.name not in declared:
+                known = ", ".join(f'"{name}"' for name in declared)
+                raise PrismSemanticError(f'undeclared label "{sub.name}" (labels: {known})',
+                                         sub.span)
+            return expression(declared[sub.name], (*path, lab.name))
+
+        expanded[lab.name] = substitute(lab.expr, refer)
+        return expanded[lab.name]
+
+    return [replace(lab, expr=expression(lab, ())) for lab in labels]
 
 
 def _reward_item(item: RewardItem, scope: _Scope) -> RewardItem:
@@ -329,6 +362,7 @@ def _rewards(model: Model, formulas: Mapping[str, Expr], scope: _Scope) -> tuple
 # ---------------------------------------------------------------- the model
 
 
+@collections_spaced
 def flatten_model(model: Model, constants: Mapping[str, Value | str] | None = None) -> FlatModel:
     """Check *model* and turn it into a closed :class:`FlatModel`.
 

@@ -26,6 +26,7 @@ from typing import Any
 import jinja2
 from jinja2.bccache import Bucket
 
+from veribattery._collector import collections_spaced
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.config.load import config_to_yaml
 from veribattery.config.params import derive_parameters
@@ -126,6 +127,7 @@ def _header(cfg: MissionConfig) -> list[str]:
     return config_to_yaml(cfg).rstrip("\n").splitlines()
 
 
+@collections_spaced
 def render_model(cfg: MissionConfig) -> str:
     """The PRISM DTMC of *cfg*, with the resolved config as a comment header.
 

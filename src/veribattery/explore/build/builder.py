@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import scipy.sparse as sp
 
+from veribattery._collector import collections_spaced
 from veribattery._memory import trim_heap
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
@@ -53,6 +54,7 @@ _NONE = np.empty(0, dtype=np.int64)
 _NO_FLOATS = np.empty(0, dtype=np.float64)
 
 
+@collections_spaced
 def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None = None) -> DTMC:
     """Explore the reachable states of *model* and return its DTMC.
 

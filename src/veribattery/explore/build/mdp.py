@@ -20,6 +20,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import scipy.sparse as sp
 
+from veribattery._collector import collections_spaced
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery._unique import distinct
 from veribattery.explore.build.builder import (
@@ -94,6 +95,7 @@ class BuiltMdp:
         return (f"{self.deadlocks} deadlock states (self-loops added)",)
 
 
+@collections_spaced
 def build_mdp(model: FlatModel, *,
               progress: Callable[[int, int], None] | None = None,
               program: Program | None = None, guard: MemoryGuard | None = None) -> BuiltMdp:
