@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import builtins
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Literal
 
 import numpy as np
@@ -52,13 +52,14 @@ class CheckResult:
     """
 
     property: Property
-    values: FloatArray | BoolArray
+    # Per-state arrays are left out of the repr: a notebook would print a million of them.
+    values: FloatArray | BoolArray = field(repr=False)
     value: float | bool
     time_s: float
     lower: float | None = None
     upper: float | None = None
     precise: bool = True
-    bounds: Bounds | None = None
+    bounds: Bounds | None = field(default=None, repr=False)
     value_range: tuple[float, float] | None = None
     printed: tuple[str, ...] = ()
     certified: bool = True
@@ -128,8 +129,18 @@ class CheckResult:
         label = self.property.name or self.property.text or "property"
         return f"{label}: {self.value}"
 
+    def __repr__(self) -> str:
+        # What a notebook shows of a result (and of a run's tuple of them): the
+        # property's name and text, not its AST with a span on every node, and none of
+        # the per-state arrays (the fields declared repr=False, here and in subclasses).
+        prop = self.property
+        parts = [f"property=Property(name={prop.name!r}, text={prop.text!r})"] + [
+            f"{f.name}={getattr(self, f.name)!r}" for f in fields(self)
+            if f.repr and f.name != "property"]
+        return f"{type(self).__name__}({', '.join(parts)})"
 
-@dataclass(frozen=True, slots=True)
+
+@dataclass(frozen=True, slots=True, repr=False)  # CheckResult's short repr
 class UndecidedResult(CheckResult):
     """A property whose bound neither the certified interval nor exact arithmetic
     decided: its *value* is NaN, and *reason* says why it stays open.

@@ -101,6 +101,14 @@ class DTMC:
         mask[self.initial] = True
         return mask
 
+    def __repr__(self) -> str:
+        # Sizes and names: a notebook showing the matrix and every state's row would
+        # print thousands of lines for a mission.
+        return (f"DTMC(states={self.num_states:,}, transitions={self.num_transitions:,}, "
+                f"initial={len(self.initial):,}, variables={self.variable_names}, "
+                f"labels={tuple(self.labels)}, "
+                f"rewards={tuple(r.name for r in self.rewards)}, deadlocks={self.deadlocks})")
+
     def compact(self) -> DTMC:
         """This DTMC with its state table in the narrowest integer type holding every
         value (int8, int16 or int32; itself if it needs int64).

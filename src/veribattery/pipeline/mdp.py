@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -61,7 +61,8 @@ class MdpCheckRun:
     results: tuple[CheckResult, ...]
     timings_s: dict[str, float]
     warnings: tuple[str, ...] = ()
-    model: FlatModel | None = None
+    # Left out of the repr, as the MDP's arrays are: every command of the model.
+    model: FlatModel | None = field(default=None, repr=False)
     errors: tuple[str, ...] = ()
 
     def strategy(self, index: int) -> Strategy:
