@@ -52,3 +52,18 @@ def test_a_mission_report_shows_its_answers_not_its_config() -> None:
     assert shown.startswith("MissionReport(run=ModelCheckRun(dtmc=DTMC(states=")
     assert "Property(name='p_success', text='P=? [ F \"success\" ]'), value=" in shown
     assert "MissionConfig" not in shown and "array(" not in shown
+
+
+@pytest.mark.parametrize("call", ["check_model", "check_model_exact", "build_dtmc"])
+def test_a_dtmc_function_given_an_mdp_names_the_function_that_checks_one(call: str) -> None:
+    model = vb.parse_model(COIN)
+    props = vb.parse_properties('Pmin=? [ F "finished" ]').properties
+    run = {"check_model": lambda: vb.check_model(model, props, constants={"K": 2}),
+           "check_model_exact": lambda: vb.check_model_exact(model, props, constants={"K": 2}),
+           "build_dtmc": lambda: vb.build_dtmc(vb.flatten_model(model, {"K": 2}))}[call]
+    with pytest.raises(vb.PrismSemanticError) as info:
+        run()
+    assert str(info.value) == (
+        "this is an MDP, but this builds a DTMC and needs a 'dtmc' model: check an MDP's "
+        "properties with veribattery.check_prism_file (from Python) or 'veribattery prism' "
+        "without --explain or --simulate")

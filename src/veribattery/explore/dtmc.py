@@ -21,10 +21,12 @@ def require_dtmc(model_type: str) -> None:
     :raises PrismSemanticError: when *model_type* is not ``dtmc``.
     """
     if model_type != "dtmc":
+        # Library callers (check_model, build_dtmc) and CLI runs (--explain, --simulate)
+        # both end here: name the way to check an MDP for each.
         raise PrismSemanticError(
-            f"this is an {model_type.upper()}: this analysis follows a DTMC's runs and "
-            "needs a 'dtmc' model (an MDP's properties are checked by 'veribattery prism' "
-            "without --explain or --simulate)")
+            f"this is an {model_type.upper()}, but this builds a DTMC and needs a 'dtmc' "
+            "model: check an MDP's properties with veribattery.check_prism_file (from "
+            "Python) or 'veribattery prism' without --explain or --simulate")
 
 
 def _all_plus_zero(values: FloatArray) -> bool:
