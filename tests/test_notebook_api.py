@@ -67,3 +67,87 @@ def test_a_dtmc_function_given_an_mdp_names_the_function_that_checks_one(call: s
         "this is an MDP, but this builds a DTMC and needs a 'dtmc' model: check an MDP's "
         "properties with veribattery.check_prism_file (from Python) or 'veribattery prism' "
         "without --explain or --simulate")
+
+
+def _dice_calls() -> dict[str, object]:
+    model = vb.parse_model(DICE)
+    props = vb.parse_properties(SIX)
+    dtmc = vb.build_dtmc(vb.flatten_model(model))
+    return {
+        "check text": lambda: vb.check(dtmc, SIX),
+        "check keep": lambda: vb.check(dtmc, props.properties[0], keep="all"),  # type: ignore
+        "check_model text": lambda: vb.check_model(model, SIX),  # type: ignore[arg-type]
+        "check_model one": lambda: vb.check_model(model, props.properties[0]),  # type: ignore
+        "check_model file": lambda: vb.check_model(model, props),  # type: ignore[arg-type]
+        "check_model_exact text": lambda: vb.check_model_exact(model, SIX),  # type: ignore
+        "options keep": lambda: vb.CheckOptions(keep="all"),  # type: ignore[arg-type]
+        "session lump": lambda: vb.Session(lump=True),
+        "session rewards": lambda: vb.Session(rewards="some"),  # type: ignore[arg-type]
+        "file keep": lambda: vb.check_prism_file(DICE, selectors=[SIX], keep="all"),  # type: ignore
+        "mdp rewards": lambda: vb.check_prism_file(  # an MDP's check read only "named"
+            COIN, selectors=['Pmin=? [ F "finished" ]'], constants={"K": 2},
+            rewards="some"),  # type: ignore[arg-type]
+    }
+
+
+@pytest.mark.parametrize(("call", "says"), [
+    ("check text", "check takes a parsed property, not the text 'P=? [ F s=7 & d=6 ]': give "
+                   "veribattery.parse_property('P=? [ F s=7 & d=6 ]')"),
+    ("check keep", "keep must be one of ('states', 'answers'), got 'all'"),
+    ("check_model text", "properties: parsed properties are needed, not text: give "
+                         "veribattery.parse_properties('P=? [ F s=7 & d=6 ]').properties"),
+    ("check_model one", "properties: a sequence of properties is needed, not one Property: "
+                        "give (prop,)"),
+    ("check_model file", "properties: a sequence of properties is needed, not a "
+                         "PropertiesFile: give props.properties, and props_file=props for "
+                         "its constants and labels"),
+    ("check_model_exact text", "properties: parsed properties are needed, not text"),
+    ("options keep", "keep must be one of ('states', 'answers'), got 'all'"),
+    ("session lump", 'lumping keeps answers only: give CheckOptions(keep="answers")'),
+    ("session rewards", "rewards must be one of ('all', 'named'), got 'some'"),
+    ("file keep", "keep must be one of ('states', 'answers'), got 'all'"),
+    ("mdp rewards", "rewards must be one of ('all', 'named'), got 'some'"),
+])
+def test_a_wrong_argument_is_a_veribattery_error_that_says_what_is_right(
+        call: str, says: str) -> None:
+    with pytest.raises(vb.VeribatteryError) as info:
+        _dice_calls()[call]()  # type: ignore[operator]
+    assert str(info.value).startswith(says)
+    assert type(info.value).__name__ == "ArgumentError" and isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize("call", ["check_model", "check_model_exact", "check_prism_file"])
+def test_a_constant_the_model_does_not_declare_is_refused(call: str) -> None:
+    model, props = vb.parse_model(DICE), vb.parse_properties(SIX).properties
+    run = {"check_model": lambda: vb.check_model(model, props, constants={"X": 3}),
+           "check_model_exact": lambda: vb.check_model_exact(model, props, constants={"X": 3}),
+           "check_prism_file": lambda: vb.check_prism_file(DICE, selectors=[SIX],
+                                                           constants={"X": 3})}[call]
+    with pytest.raises(vb.PrismSemanticError) as info:
+        run()
+    assert str(info.value) == (
+        "constant X: declared neither in the model nor in its properties, but given a value "
+        "(by --const, or constants= from Python); the undefined constants are: none")
+
+
+def test_a_missing_constant_says_how_to_give_it_from_python() -> None:
+    with pytest.raises(vb.PrismSemanticError) as info:
+        vb.check_prism_file(COIN, selectors=['Pmin=? [ F "finished" ]'])
+    assert str(info.value).endswith(
+        "undefined constant K: give a value with --const K=VALUE, or constants={'K': VALUE} "
+        "from Python")
+
+
+def test_one_selector_as_a_str_is_one_selector_not_one_per_character() -> None:
+    pctl = EXAMPLES / "dice.pctl"
+    run = vb.check_prism_file(DICE, props_source=pctl, selectors="2", constants={"x": 3})
+    assert [(r.property.text, r.value) for r in run.results] == [(SIX, pytest.approx(1 / 6))]
+    with pytest.raises(vb.PrismSemanticError, match="there is no property 12 in "):
+        vb.check_prism_file(DICE, props_source=pctl, selectors="12", constants={"x": 3})
+
+
+def test_no_property_says_how_to_give_one_from_python() -> None:
+    with pytest.raises(vb.PrismSemanticError) as info:
+        vb.check_prism_file(DICE)
+    assert str(info.value) == ("no property given: use --props FILE or --property TEXT "
+                               "(props_source= or selectors= from Python)")

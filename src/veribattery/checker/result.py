@@ -4,14 +4,14 @@ from __future__ import annotations
 
 import builtins
 from dataclasses import dataclass, field, fields, replace
-from typing import Literal
+from typing import Literal, get_args
 
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
 from veribattery.checker.formula.filters import FilterOutcome
-from veribattery.errors import CheckError
+from veribattery.errors import ArgumentError, CheckError
 from veribattery.lang.nodes import Property
 
 #: What a check keeps: ``"states"``, every state's value and bounds; ``"answers"``,
@@ -19,6 +19,15 @@ from veribattery.lang.nodes import Property
 #: (:meth:`CheckResult.without_states`), so that one property's per-state vectors are
 #: alive at a time (what the CLI prints needs no more).
 Keep = Literal["states", "answers"]
+
+
+def require_keep(keep: object) -> None:
+    """Refuse a *keep* outside :data:`Keep`.
+
+    :raises ArgumentError: naming the value given and the ones there are.
+    """
+    if keep not in get_args(Keep):
+        raise ArgumentError(f"keep must be one of {get_args(Keep)}, got {keep!r}")
 
 
 @dataclass(frozen=True, slots=True)
