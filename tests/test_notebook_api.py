@@ -151,3 +151,11 @@ def test_no_property_says_how_to_give_one_from_python() -> None:
         vb.check_prism_file(DICE)
     assert str(info.value) == ("no property given: use --props FILE or --property TEXT "
                                "(props_source= or selectors= from Python)")
+
+
+def test_a_strategy_past_the_results_names_how_many_there_are(mdp_run: object) -> None:
+    with pytest.raises(vb.VeribatteryError) as info:
+        mdp_run.strategy(1)  # type: ignore[attr-defined]
+    assert str(info.value) == ("strategy(1): there is no result 1; this run has 1 "
+                               "(0-based: 0 to 0)")
+    assert repr(mdp_run.strategy(-1)) == "Strategy(states=272)"  # type: ignore[attr-defined]

@@ -19,7 +19,7 @@ from veribattery.checker.mdp import MDP, MdpRewards, Strategy
 from veribattery.checker.mdp.formula import mdp_answer
 from veribattery.checker.mdp.ill_posed import unreachable_reward_target
 from veribattery.checker.mdp.witness import property_strategy
-from veribattery.errors import Span, UndefinedResult
+from veribattery.errors import ArgumentError, Span, UndefinedResult
 from veribattery.explore.build.mdp import BuiltMdp, build_mdp
 from veribattery.lang import (
     FlatModel,
@@ -70,7 +70,12 @@ class MdpCheckRun:
         computed anew (the check keeps only values).
 
         :raises NoStrategyError: the property has none (step-bounded, no P/R operator).
+        :raises ArgumentError: there is no *index*-th result.
         """
+        count = len(self.results)
+        if not -count <= index < count:
+            raise ArgumentError(f"strategy({index}): there is no result {index}; this run "
+                                f"has {count} (0-based: 0 to {count - 1})")
         return property_strategy(self.mdp, self.results[index].property.formula)
 
     @property
