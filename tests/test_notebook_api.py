@@ -8,7 +8,8 @@ import pytest
 
 import veribattery as vb
 
-EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "prism"
+REPO = Path(__file__).resolve().parents[1]
+EXAMPLES = REPO / "examples" / "prism"
 DICE = EXAMPLES / "dice.pm"
 COIN = EXAMPLES / "coin2.nm"
 SIX = 'P=? [ F s=7 & d=6 ]'
@@ -159,3 +160,31 @@ def test_a_strategy_past_the_results_names_how_many_there_are(mdp_run: object) -
     assert str(info.value) == ("strategy(1): there is no result 1; this run has 1 "
                                "(0-based: 0 to 0)")
     assert repr(mdp_run.strategy(-1)) == "Strategy(states=272)"  # type: ignore[attr-defined]
+
+
+def test_a_config_file_name_given_to_check_mission_says_to_load_it() -> None:
+    for check in (vb.check_mission, vb.MissionSession().check):
+        with pytest.raises(vb.VeribatteryError) as info:
+            check("configs/paper/case1.yaml")  # type: ignore[arg-type]
+        assert str(info.value) == (
+            "a loaded mission config is needed, not str 'configs/paper/case1.yaml': give "
+            "veribattery.load_config('configs/paper/case1.yaml')")
+
+
+@pytest.mark.parametrize(("axes", "says"), [
+    (["strategy.safe_t=0.25,0.3"], "axes[0] is 'strategy.safe_t=0.25,0.3', not an Axis: give "
+                                   "veribattery.sweep.parse_axis('strategy.safe_t=0.25,0.3')"),
+    ("strategy.safe_t=0.25", "axes: a list of axes is needed, not 'strategy.safe_t=0.25': give "
+                             "[axis], each from veribattery.sweep.parse_axis('KEY=SPEC')"),
+    ([("strategy.safe_t", 0.25)], "axes[0] is ('strategy.safe_t', 0.25), not an Axis: give "
+                                  "veribattery.sweep.parse_axis('KEY=SPEC')"),
+])
+def test_a_sweep_axis_as_text_says_how_to_make_one(axes: object, says: str) -> None:
+    with pytest.raises(vb.VeribatteryError) as info:
+        vb.run_sweep("", axes)  # type: ignore[arg-type]
+    assert str(info.value) == says
+
+
+def test_one_override_as_a_str_is_one_override() -> None:
+    cfg = vb.load_config(REPO / "configs/paper/case1.yaml", "strategy.safe_t=0.3")  # type: ignore
+    assert str(cfg.strategy.safe_t) == "3/10"
