@@ -188,3 +188,17 @@ def test_a_sweep_axis_as_text_says_how_to_make_one(axes: object, says: str) -> N
 def test_one_override_as_a_str_is_one_override() -> None:
     cfg = vb.load_config(REPO / "configs/paper/case1.yaml", "strategy.safe_t=0.3")  # type: ignore
     assert str(cfg.strategy.safe_t) == "3/10"
+
+
+@pytest.mark.parametrize("parse", [vb.parse_model, vb.parse_properties])
+def test_a_file_name_as_a_str_says_to_give_a_path(parse: object) -> None:
+    name = str(DICE)
+    with pytest.raises(vb.PrismSyntaxError) as info:
+        parse(name)  # type: ignore[operator]
+    assert str(info.value) == (f"{name!r} was parsed as PRISM text, since a str is the text "
+                               f"itself: give Path({name!r}) to read the file")
+
+
+def test_text_that_does_not_parse_still_says_where() -> None:
+    with pytest.raises(vb.PrismSyntaxError, match=r"^<string>:1:34: unexpected end of input"):
+        vb.parse_model("dtmc module m x : bool; [] x -> x")
