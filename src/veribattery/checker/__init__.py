@@ -11,7 +11,7 @@ from types import MappingProxyType
 from typing import TYPE_CHECKING
 
 from veribattery._lazy import lazy_exports
-from veribattery.checker.result import CheckResult, Keep, UndecidedResult, require_keep
+from veribattery.checker.result import CheckResult, Keep, UndecidedResult
 
 if TYPE_CHECKING:
     from veribattery.checker.api import check, state_set, values
@@ -24,5 +24,4 @@ _EXPORTS = MappingProxyType({
 __getattr__ = lazy_exports(__name__, _EXPORTS)
 
 
-__all__ = ["CheckResult", "Keep", "UndecidedResult", "Workspace", "check", "require_keep",
-           "state_set", "values"]
+__all__ = ["CheckResult", "Keep", "UndecidedResult", "Workspace", "check", "state_set", "values"]

@@ -9,7 +9,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from veribattery.checker import CheckResult, require_keep
+from veribattery.checker import CheckResult
+from veribattery.checker.result import require_keep
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import (
     Model,

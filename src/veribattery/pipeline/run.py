@@ -13,8 +13,9 @@ from typing import TYPE_CHECKING, Literal, Protocol, get_args, runtime_checkable
 import numpy as np
 
 from veribattery._memory import trim_for
-from veribattery.checker import CheckResult, Keep, UndecidedResult, require_keep
+from veribattery.checker import CheckResult, Keep, UndecidedResult
 from veribattery.checker.formula.intervals import Undecided
+from veribattery.checker.result import require_keep
 from veribattery.errors import ArgumentError, UndefinedResult
 from veribattery.explore import DTMC
 from veribattery.lang import Property
