@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 import veribattery as vb
+from veribattery.sweep import Axis
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLES = REPO / "examples" / "prism"
@@ -202,3 +203,12 @@ def test_a_file_name_as_a_str_says_to_give_a_path(parse: object) -> None:
 def test_text_that_does_not_parse_still_says_where() -> None:
     with pytest.raises(vb.PrismSyntaxError, match=r"^<string>:1:34: unexpected end of input"):
         vb.parse_model("dtmc module m x : bool; [] x -> x")
+
+
+def test_a_sweep_on_no_workers_is_refused_before_any_work() -> None:
+    """A pool of none failed on the second point with concurrent.futures' ValueError."""
+    config = "farm: {cols: 2, rows: 2, base: [0, 0]}\nbattery: {max_recharges: 3}\n"
+    axes = [Axis("farm.cols", (2, 3))]
+    with pytest.raises(vb.VeribatteryError) as info:
+        vb.run_sweep(config, axes, jobs=0)
+    assert str(info.value) == "jobs must be at least 1 (1: in this process), got 0"

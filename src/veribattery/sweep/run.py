@@ -99,9 +99,11 @@ def run_sweep(
     :param notes: called with one-line notes (points already done, reuse, executor).
     :raises ConfigError: on invalid configs (naming the point), a bad RESULTS target or
         an unreachable scheduler.
-    :raises ArgumentError: when *axes* is not a sequence of :class:`Axis`.
+    :raises ArgumentError: when *axes* is not a sequence of :class:`Axis`, or *jobs* < 1.
     """
     _require_axes(axes)
+    if jobs < 1:  # a pool of none would fail on the second point, with a ValueError
+        raise ArgumentError(f"jobs must be at least 1 (1: in this process), got {jobs}")
     points = grid(axes)
     document = read_config(config, overrides)
     configs = [_at(document, point) for point in points]
