@@ -7,10 +7,13 @@ a missing generator fails these tests instead of skipping them.
 
 from __future__ import annotations
 
+import ast
+import fractions
 import importlib.util
 import re
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -88,3 +91,50 @@ def test_the_layout_page_names_every_package() -> None:
     packages = sorted(str(p.parent.relative_to(src)) + "/" for p in src.rglob("__init__.py")
                       if p.parent != src)
     assert packages and [p for p in packages if f"`{p}`" not in page] == []
+
+
+#: A ``.. code-block:: python`` of an .rst page, or a fenced python block of a .md page.
+CODE_BLOCK = re.compile(r"\.\. code-block:: python\n\n((?:   [^\n]*\n|\n)+)|```python\n(.*?)```",
+                        re.S)
+
+
+@pytest.mark.parametrize("page", ["docs/api.rst", "README.md"])
+def test_the_python_examples_run_as_written_and_give_what_they_say(
+        page: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Each block runs from the repository's root, statement by statement as in a
+    notebook; an expression whose comment is a value (``# 0.1666…``, ``# Fraction(1,
+    6)``, ``# Strategy(states=272)``) gives that value, or a repr of that text."""
+    monkeypatch.chdir(ROOT)
+    namespace: dict[str, object] = {}
+    compared = 0
+    for match in CODE_BLOCK.finditer((ROOT / page).read_text(encoding="utf-8")):
+        code = textwrap.dedent(match.group(1) or match.group(2))
+        lines = code.splitlines()
+        for node in ast.parse(code).body:
+            said = _said(lines[(node.end_lineno or node.lineno) - 1])
+            if isinstance(node, ast.Expr) and said is not None:
+                value = eval(compile(ast.Expression(node.value), page, "eval"), namespace)
+                _assert_says(value, said)
+                compared += 1
+            else:
+                exec(compile(ast.Module([node], []), page, "exec"), namespace)
+    assert compared > 0 or page == "README.md"
+
+
+def _said(line: str) -> str | None:
+    """The comment of *line* if it is a Python expression (a value), else None."""
+    comment = line.partition("  # ")[2].strip()
+    try:
+        ast.parse(comment, mode="eval")
+    except SyntaxError:
+        return None
+    return comment or None
+
+
+def _assert_says(value: object, said: str) -> None:
+    try:
+        expected = eval(said, {"Fraction": fractions.Fraction})
+    except NameError:  # a repr such as Strategy(states=272)
+        assert repr(value) == said
+        return
+    assert value == pytest.approx(expected, rel=1e-6)

@@ -32,6 +32,12 @@ class VeribatteryError(Exception):
         return f"{self.span}: {self.message}" if self.span else self.message
 
 
+class ArgumentError(VeribatteryError, ValueError):
+    """A library function was given an argument it cannot use: a value outside its
+    choices, or an object of another kind (PRISM text where a parsed property belongs).
+    Also a :class:`ValueError`, which these arguments raised before."""
+
+
 class ConfigError(VeribatteryError):
     """A mission config is malformed: YAML syntax, unknown key, wrong type or range."""
 

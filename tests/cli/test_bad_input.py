@@ -317,7 +317,9 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
                              "a property at dup_names.props:1:1"),
     ("prism-export-same-path", "--export-strategy x.json is --export-induced's folder"),
     ("prism-export-conditional", "no strategy: conditional probabilities"),
-    ("prism-explain-mdp", "this is an MDP: this analysis follows a DTMC's runs"),
+    ("prism-explain-mdp", "this is an MDP, but this builds a DTMC and needs a 'dtmc' model: "
+                          "check an MDP's properties with veribattery.check_prism_file (from "
+                          "Python) or 'veribattery prism' without --explain or --simulate"),
     ("prism-explain-and-simulate", "--explain and --simulate are separate runs"),
     ("prism-top-alone", "--top is read by --explain only"),
     ("prism-seed-alone", "--seed is read by --simulate only"),

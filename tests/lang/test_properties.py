@@ -82,7 +82,8 @@ def test_undefined_property_constant(model: FlatModel) -> None:
     with pytest.raises(PrismSemanticError) as info:
         resolve(model, "const int k;\nP=? [ F<=k x=1 ]")
     assert (
-        str(info.value) == "t.props:1:1: undefined constant k: give a value with --const NAME=VALUE"
+        str(info.value) == "t.props:1:1: undefined constant k: give a value with --const "
+        "k=VALUE, or constants={'k': VALUE} from Python"
     )
 
 

@@ -147,7 +147,8 @@ def test_undefined_constant_not_given() -> None:
     with pytest.raises(PrismSemanticError) as info:
         flat(text)
     assert str(info.value) == (
-        "t.prism:2:1: undefined constants N, p: give a value with --const NAME=VALUE"
+        "t.prism:2:1: undefined constants N, p: give values with --const N=VALUE,p=VALUE, "
+        "or constants={'N': VALUE, 'p': VALUE} from Python"
     )
 
 

@@ -7,8 +7,9 @@ import time
 from veribattery._types import BoolArray
 from veribattery.checker.formula import pctl
 from veribattery.checker.formula.leaves import Result
-from veribattery.checker.result import CheckResult, Keep
+from veribattery.checker.result import CheckResult, Keep, require_keep
 from veribattery.checker.workspace import Workspace
+from veribattery.errors import ArgumentError
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang.nodes import Expr, Property
 
@@ -32,7 +33,12 @@ def check(dtmc: DTMC, prop: Property | Expr, *, keep: Keep = "states",
         check alone.
     :raises CheckError: when the property cannot be checked on this model, or a
         bounded operator (``P>=0.9 [..]``) cannot be decided at the precision reached.
+    :raises ArgumentError: for text instead of a parsed property, or an unknown *keep*.
     """
+    if isinstance(prop, str):
+        raise ArgumentError(f"check takes a parsed property, not the text {prop!r}: give "
+                            f"veribattery.parse_property({prop!r})")
+    require_keep(keep)
     prop = prop if isinstance(prop, Property) else Property(prop)
     workspace = Workspace() if workspace is None else workspace
     start = time.perf_counter()

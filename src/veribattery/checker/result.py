@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import builtins
-from dataclasses import dataclass, replace
-from typing import Literal
+from dataclasses import dataclass, field, fields, replace
+from typing import Literal, get_args
 
 import numpy as np
 
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify.bounds import ABSOLUTE_PRECISION, RELATIVE_PRECISION, Bounds
 from veribattery.checker.formula.filters import FilterOutcome
-from veribattery.errors import CheckError
+from veribattery.errors import ArgumentError, CheckError
 from veribattery.lang.nodes import Property
 
 #: What a check keeps: ``"states"``, every state's value and bounds; ``"answers"``,
@@ -19,6 +19,15 @@ from veribattery.lang.nodes import Property
 #: (:meth:`CheckResult.without_states`), so that one property's per-state vectors are
 #: alive at a time (what the CLI prints needs no more).
 Keep = Literal["states", "answers"]
+
+
+def require_keep(keep: object) -> None:
+    """Refuse a *keep* outside :data:`Keep`.
+
+    :raises ArgumentError: naming the value given and the ones there are.
+    """
+    if keep not in get_args(Keep):
+        raise ArgumentError(f"keep must be one of {get_args(Keep)}, got {keep!r}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -52,13 +61,14 @@ class CheckResult:
     """
 
     property: Property
-    values: FloatArray | BoolArray
+    # Per-state arrays are left out of the repr: a notebook would print a million of them.
+    values: FloatArray | BoolArray = field(repr=False)
     value: float | bool
     time_s: float
     lower: float | None = None
     upper: float | None = None
     precise: bool = True
-    bounds: Bounds | None = None
+    bounds: Bounds | None = field(default=None, repr=False)
     value_range: tuple[float, float] | None = None
     printed: tuple[str, ...] = ()
     certified: bool = True
@@ -128,8 +138,18 @@ class CheckResult:
         label = self.property.name or self.property.text or "property"
         return f"{label}: {self.value}"
 
+    def __repr__(self) -> str:
+        # What a notebook shows of a result (and of a run's tuple of them): the
+        # property's name and text, not its AST with a span on every node, and none of
+        # the per-state arrays (the fields declared repr=False, here and in subclasses).
+        prop = self.property
+        parts = [f"property=Property(name={prop.name!r}, text={prop.text!r})"] + [
+            f"{f.name}={getattr(self, f.name)!r}" for f in fields(self)
+            if f.repr and f.name != "property"]
+        return f"{type(self).__name__}({', '.join(parts)})"
 
-@dataclass(frozen=True, slots=True)
+
+@dataclass(frozen=True, slots=True, repr=False)  # CheckResult's short repr
 class UndecidedResult(CheckResult):
     """A property whose bound neither the certified interval nor exact arithmetic
     decided: its *value* is NaN, and *reason* says why it stays open.

@@ -38,7 +38,8 @@ def load_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Mi
 
     :param path_or_text: the config file, or its text.
     :param overrides: ``KEY=VALUE`` strings (``--set``); VALUE is parsed as YAML, so
-        ``farm.base=[1,1]`` and ``battery.model=basic_high`` both work.
+        ``farm.base=[1,1]`` and ``battery.model=basic_high`` both work (one str is one
+        override).
     :raises ConfigError: on unreadable files, YAML syntax errors (with line:col),
         malformed overrides and every validation problem.
     """
@@ -99,6 +100,8 @@ def read_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Co
     :raises ConfigError: on unreadable files, YAML syntax errors (with line:col) and
         malformed overrides.
     """
+    if isinstance(overrides, str):  # one override, not one per character
+        overrides = (overrides,)
     text, source = _read(path_or_text)
     root = compose(text, source)
     data = _mapping(construct(root, text, source), source)

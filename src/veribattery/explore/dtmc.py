@@ -21,10 +21,12 @@ def require_dtmc(model_type: str) -> None:
     :raises PrismSemanticError: when *model_type* is not ``dtmc``.
     """
     if model_type != "dtmc":
+        # Library callers (check_model, build_dtmc) and CLI runs (--explain, --simulate)
+        # both end here: name the way to check an MDP for each.
         raise PrismSemanticError(
-            f"this is an {model_type.upper()}: this analysis follows a DTMC's runs and "
-            "needs a 'dtmc' model (an MDP's properties are checked by 'veribattery prism' "
-            "without --explain or --simulate)")
+            f"this is an {model_type.upper()}, but this builds a DTMC and needs a 'dtmc' "
+            "model: check an MDP's properties with veribattery.check_prism_file (from "
+            "Python) or 'veribattery prism' without --explain or --simulate")
 
 
 def _all_plus_zero(values: FloatArray) -> bool:
@@ -100,6 +102,14 @@ class DTMC:
         mask = np.zeros(self.num_states, dtype=bool)
         mask[self.initial] = True
         return mask
+
+    def __repr__(self) -> str:
+        # Sizes and names: a notebook showing the matrix and every state's row would
+        # print thousands of lines for a mission.
+        return (f"DTMC(states={self.num_states:,}, transitions={self.num_transitions:,}, "
+                f"initial={len(self.initial):,}, variables={self.variable_names}, "
+                f"labels={tuple(self.labels)}, "
+                f"rewards={tuple(r.name for r in self.rewards)}, deadlocks={self.deadlocks})")
 
     def compact(self) -> DTMC:
         """This DTMC with its state table in the narrowest integer type holding every

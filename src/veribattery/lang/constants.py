@@ -167,10 +167,14 @@ def _check_not_defined(decls: Sequence[ConstDecl], given: Mapping[str, Value | s
 
 
 def _missing_error(missing: Sequence[ConstDecl]) -> PrismSemanticError:
-    names = ", ".join(d.name for d in missing)
+    # Said for the command line and for Python alike: either may have left them out.
+    names = [d.name for d in missing]
     plural = "s" if len(missing) > 1 else ""
+    option = ",".join(f"{name}=VALUE" for name in names)
+    mapping = ", ".join(f"{name!r}: VALUE" for name in names)
     return PrismSemanticError(
-        f"undefined constant{plural} {names}: give a value with --const NAME=VALUE",
+        f"undefined constant{plural} {', '.join(names)}: give {'values' if plural else 'a value'}"
+        f" with --const {option}, or constants={{{mapping}}} from Python",
         missing[0].span,
     )
 

@@ -310,10 +310,9 @@ def parse_model(source: str | Path, *, name: str | None = None) -> Model:
     :param source: the file, or the model text itself (a str is never taken as a path)
     :param name: the name used in error messages (default: the path, or ``<string>``)
     :raises PrismSyntaxError: if the file is missing or the text does not parse
-    :raises PrismSemanticError: if the model is not a DTMC
+    :raises PrismSemanticError: if the model is neither a DTMC nor an MDP
     """
-    text, label = _read(source, name)
-    model: Model = _parse(text, label, "start_model")
+    model: Model = _parse_source(source, name, "start_model")
     return model
 
 
@@ -324,9 +323,31 @@ def parse_properties(source: str | Path, *, name: str | None = None) -> Properti
     :param name: the name used in error messages
     :raises PrismSyntaxError: if the file is missing or the text does not parse
     """
-    text, label = _read(source, name)
-    props: PropertiesFile = _parse(text, label, "start_props")
+    props: PropertiesFile = _parse_source(source, name, "start_props")
     return props
+
+
+#: The suffixes of PRISM's model and properties files, for telling a file's name apart.
+_PRISM_SUFFIXES = (".pm", ".nm", ".prism", ".props", ".pctl", ".prop")
+
+
+def _parse_source(source: str | Path, name: str | None, start: str) -> Any:
+    """Parse *source*; a str that does not parse and names a file says to give a Path
+    (a notebook's ``parse_model("die.pm")`` is otherwise an "unexpected token")."""
+    text, label = _read(source, name)
+    try:
+        return _parse(text, label, start)
+    except PrismSyntaxError:
+        if not (isinstance(source, str) and _names_a_file(source)):
+            raise
+    raise PrismSyntaxError(f"{source!r} was parsed as PRISM text, since a str is the text "
+                           f"itself: give Path({source!r}) to read the file") from None
+
+
+def _names_a_file(text: str) -> bool:
+    one_line = text.strip() and "\n" not in text.strip() and len(text) < 4096
+    return bool(one_line) and (text.strip().endswith(_PRISM_SUFFIXES)
+                               or Path(text.strip()).is_file())
 
 
 def parse_property(text: str) -> Property:

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 from veribattery.checker import CheckResult
@@ -55,7 +55,8 @@ class RequirementOutcome:
 class MissionReport:
     """The verification of one mission config: the run, named values, requirement outcomes."""
 
-    config: MissionConfig
+    # The caller's own input, left out of the repr so that the answers show.
+    config: MissionConfig = field(repr=False)
     run: ModelCheckRun
     requirements: tuple[RequirementOutcome, ...]
     warnings: tuple[str, ...]

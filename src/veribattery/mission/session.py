@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 from veribattery.checker import Workspace
 from veribattery.config import MissionConfig
+from veribattery.errors import ArgumentError
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang import flatten_model, parse_model
 from veribattery.lang.nodes import Model, PropertiesFile
@@ -48,9 +49,14 @@ class RenderedMission:
 
         :raises ConfigError: when the config's numbers overflow PRISM's integers, or it
             asks for synthesis (an MDP).
+        :raises ArgumentError: for anything but a loaded config.
         """
         from veribattery.render import render_model, render_properties
 
+        if not isinstance(cfg, MissionConfig):  # a notebook's file name, or its text
+            shown = repr(cfg) if len(repr(cfg)) <= 60 else "..."
+            raise ArgumentError(f"a loaded mission config is needed, not {type(cfg).__name__} "
+                                f"{shown}: give veribattery.load_config({shown})")
         cfg.require_bs1()
         return cls(cfg, render_model(cfg), render_properties(cfg))
 
@@ -85,6 +91,7 @@ def check_mission(
     :param exact: check in exact rational arithmetic and judge requirements exactly.
     :param keep: what each result keeps: ``"states"``, or ``"answers"`` only (what the
         CLI prints needs no more; see :class:`~veribattery.pipeline.CheckOptions`).
+    :raises ArgumentError: for anything but a loaded config (a file's name, say).
     """
     mission = RenderedMission.of(cfg)
     if not exact:
@@ -156,7 +163,7 @@ class MissionSession:
         progress: ProgressCallback | None = None,
     ) -> MissionReport:
         """Check *mission* (a config is rendered first) as :func:`check_mission` does."""
-        if isinstance(mission, MissionConfig):
+        if not isinstance(mission, RenderedMission):
             mission = RenderedMission.of(mission)
         model, props = _parsed(self.parses, mission)
         with placed_in_config(mission.config, props):

@@ -16,6 +16,7 @@ from veribattery.lang import (
     resolve_property,
 )
 from veribattery.lang.nodes import Value
+from veribattery.pipeline.inputs import parsed_properties, reject_unknown_constants
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
@@ -58,6 +59,8 @@ def check_model_exact(
     """
     from veribattery.checker import Workspace  # the DTMC checker: not imported for MDPs
 
+    properties = parsed_properties(properties)
+    reject_unknown_constants(model, props_file, constants or {})
     options = options or CheckOptions()
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):

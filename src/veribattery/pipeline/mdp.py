@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -19,7 +19,7 @@ from veribattery.checker.mdp import MDP, MdpRewards, Strategy
 from veribattery.checker.mdp.formula import mdp_answer
 from veribattery.checker.mdp.ill_posed import unreachable_reward_target
 from veribattery.checker.mdp.witness import property_strategy
-from veribattery.errors import Span, UndefinedResult
+from veribattery.errors import ArgumentError, Span, UndefinedResult
 from veribattery.explore.build.mdp import BuiltMdp, build_mdp
 from veribattery.lang import (
     FlatModel,
@@ -61,7 +61,8 @@ class MdpCheckRun:
     results: tuple[CheckResult, ...]
     timings_s: dict[str, float]
     warnings: tuple[str, ...] = ()
-    model: FlatModel | None = None
+    # Left out of the repr, as the MDP's arrays are: every command of the model.
+    model: FlatModel | None = field(default=None, repr=False)
     errors: tuple[str, ...] = ()
 
     def strategy(self, index: int) -> Strategy:
@@ -69,7 +70,12 @@ class MdpCheckRun:
         computed anew (the check keeps only values).
 
         :raises NoStrategyError: the property has none (step-bounded, no P/R operator).
+        :raises ArgumentError: there is no *index*-th result.
         """
+        count = len(self.results)
+        if not -count <= index < count:
+            raise ArgumentError(f"strategy({index}): there is no result {index}; this run "
+                                f"has {count} (0-based: 0 to {count - 1})")
         return property_strategy(self.mdp, self.results[index].property.formula)
 
     @property

@@ -10,6 +10,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from veribattery.checker import CheckResult
+from veribattery.checker.result import require_keep
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import (
     Model,
@@ -20,10 +21,10 @@ from veribattery.lang import (
     parse_properties,
     parse_property,
     select_properties,
-    undefined_constants,
 )
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.exact import check_model_exact
+from veribattery.pipeline.inputs import reject_unknown_constants
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
@@ -31,12 +32,13 @@ from veribattery.pipeline.run import (
     ModelCheckRun,
     ProgressCallback,
     Stopwatch,
+    require_rewards,
 )
 from veribattery.pipeline.undecided import settle_undecided
 
 if TYPE_CHECKING:
     from veribattery.pipeline.mdp import MdpCheckRun
-    from veribattery.pipeline.session import Rewards
+    from veribattery.pipeline.run import Rewards
 
 __all__ = ["check_prism_file", "select"]
 
@@ -51,7 +53,8 @@ def select(
     """
     if not selectors:
         if props is None:
-            raise PrismSemanticError("no property given: use --props FILE or --property TEXT")
+            raise PrismSemanticError("no property given: use --props FILE or --property "
+                                     "TEXT (props_source= or selectors= from Python)")
         return props.properties
     return tuple(p for s in selectors for p in _select_one(props, s))
 
@@ -102,8 +105,10 @@ def check_prism_file(
 
     :param model_source: a model file path, or PRISM text.
     :param props_source: a properties file path, or properties text.
-    :param selectors: properties to check, by 1-based index, name or text.
-    :param constants: values of undefined constants.
+    :param selectors: properties to check, by 1-based index, name or text (one str is
+        one selector).
+    :param constants: values of undefined constants (of the model or the properties);
+        a name that neither declares is an error.
     :param exact: check in exact rational arithmetic (``--exact``:
         :func:`~veribattery.pipeline.check_model_exact`), else in floating point
         (:func:`~veribattery.pipeline.check_model`).
@@ -116,11 +121,15 @@ def check_prism_file(
         are parsed, before any state is built: it may raise to refuse the work (the
         CLI refuses a strategy export that cannot succeed).
     """
+    require_keep(keep)
+    require_rewards(rewards)
+    if isinstance(selectors, str):  # one selector, not one per character
+        selectors = (selectors,)
     watch = Stopwatch(*STAGES)
     with watch.stage("parse"):
         model = parse_model(model_source)
         props = parse_properties(props_source) if props_source is not None else None
-        _reject_unknown_constants(model, props, constants or {})
+        reject_unknown_constants(model, props, constants or {})
         chosen = select(props, selectors)
         skipped: tuple[str, ...] = ()
         if not selectors:
@@ -178,17 +187,3 @@ def _exact_mdp_results(
 
     return check_mdp_model_exact(model, properties, props_file=props,
                                  constants=constants).results
-
-
-def _reject_unknown_constants(
-    model: Model, props: PropertiesFile | None, constants: Mapping[str, object]
-) -> None:
-    """A ``--const`` that names no declared constant is a typo: say so, don't ignore it."""
-    declared = {c.name for c in model.constants}
-    declared |= {c.name for c in props.constants} if props is not None else set()
-    unknown = sorted(set(constants) - declared)
-    if unknown:
-        hint = ", ".join(undefined_constants(model, props)) or "none"
-        raise PrismSemanticError(
-            f"--const {', '.join(unknown)}: no such constant (undefined constants: {hint})"
-        )

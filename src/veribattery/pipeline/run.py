@@ -8,14 +8,15 @@ import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Protocol, get_args, runtime_checkable
+from typing import TYPE_CHECKING, Literal, Protocol, get_args, runtime_checkable
 
 import numpy as np
 
 from veribattery._memory import trim_for
 from veribattery.checker import CheckResult, Keep, UndecidedResult
 from veribattery.checker.formula.intervals import Undecided
-from veribattery.errors import UndefinedResult
+from veribattery.checker.result import require_keep
+from veribattery.errors import ArgumentError, UndefinedResult
 from veribattery.explore import DTMC
 from veribattery.lang import Property
 from veribattery.lang.expressions import walk
@@ -33,8 +34,8 @@ if TYPE_CHECKING:
     from veribattery.checker import Workspace
 
 __all__ = ["STAGES", "CheckOptions", "CheckProgress", "Keep", "ModelCheckRun", "ProgressCallback",
-           "Stopwatch", "internal_results", "may_hold", "run_checks", "stages_of",
-           "tell_building", "tell_checking"]
+           "Rewards", "Stopwatch", "internal_results", "may_hold", "require_rewards",
+           "run_checks", "stages_of", "tell_building", "tell_checking"]
 
 #: Called while a state space is explored, with (states found, states explored).
 ProgressCallback = Callable[[int, int], None]
@@ -77,6 +78,18 @@ def tell_checking(stages: CheckProgress | None, number: int, count: int,
     if stages is not None:
         stages.checking(number, count, prop.text or prop.name or "a formula")
 
+#: The reward structures a check builds: all, or those the properties name.
+Rewards = Literal["all", "named"]
+
+
+def require_rewards(rewards: object) -> None:
+    """Refuse a *rewards* outside :data:`Rewards`.
+
+    :raises ArgumentError: naming the value given and the ones there are.
+    """
+    if rewards not in get_args(Rewards):
+        raise ArgumentError(f"rewards must be one of {get_args(Rewards)}, got {rewards!r}")
+
 #: The stages of a check, always reported (``Time: parse …, build …, check …``).
 STAGES = ("parse", "build", "check")
 
@@ -96,7 +109,7 @@ class CheckOptions:
     :param report_undecided: report a property whose bound the certified interval
         cannot decide as an :class:`~veribattery.checker.UndecidedResult` (for the
         caller to settle in exact arithmetic), instead of failing the run.
-    :raises ValueError: for a *keep* outside :data:`Keep`.
+    :raises ArgumentError: for a *keep* outside :data:`Keep`.
     """
 
     keep: Keep = "states"
@@ -104,8 +117,7 @@ class CheckOptions:
     report_undecided: bool = False
 
     def __post_init__(self) -> None:
-        if self.keep not in get_args(Keep):
-            raise ValueError(f"keep must be one of {get_args(Keep)}, got {self.keep!r}")
+        require_keep(self.keep)
 
 
 @dataclass(frozen=True, slots=True)

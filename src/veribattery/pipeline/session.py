@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Mapping, Sequence
-from typing import TYPE_CHECKING, Literal, get_args
+from typing import TYPE_CHECKING
 
 from veribattery._memory import trim_for
 from veribattery.checker import Workspace, check
+from veribattery.errors import ArgumentError
 from veribattery.explore import DTMC, build_compact_dtmc, build_dtmc
 from veribattery.lang import (
     FlatModel,
@@ -21,14 +22,17 @@ from veribattery.lang import (
 )
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import Expr, Filter, Ident, Value
+from veribattery.pipeline.inputs import parsed_properties, reject_unknown_constants
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
     ModelCheckRun,
     ProgressCallback,
+    Rewards,
     Stopwatch,
     internal_results,
     may_hold,
+    require_rewards,
     run_checks,
     stages_of,
     tell_building,
@@ -39,9 +43,6 @@ if TYPE_CHECKING:
     from veribattery.explore.reuse.structure import Structure
 
 __all__ = ["ReusingBuilder", "Rewards", "Session", "check_model"]
-
-#: The reward structures a :class:`Session` builds: all, or those the properties name.
-Rewards = Literal["all", "named"]
 
 
 class ReusingBuilder:
@@ -90,7 +91,7 @@ class Session:
         keeps values, not models (a sweep point).
     :param workspace: the checker's caches, shared by this session's checks (default:
         a new one, so the session's caches live and go with it).
-    :raises ValueError: for *lump* without ``keep="answers"``, or an unknown *rewards*.
+    :raises ArgumentError: for *lump* without ``keep="answers"``, or an unknown *rewards*.
     """
 
     def __init__(self, options: CheckOptions | None = None, *, reuse: bool = True,
@@ -98,9 +99,8 @@ class Session:
                  workspace: Workspace | None = None) -> None:
         self.options = options or CheckOptions()
         if lump and self.options.keep != "answers":
-            raise ValueError('lumping keeps answers only: give CheckOptions(keep="answers")')
-        if rewards not in get_args(Rewards):
-            raise ValueError(f"rewards must be one of {get_args(Rewards)}, got {rewards!r}")
+            raise ArgumentError('lumping keeps answers only: give CheckOptions(keep="answers")')
+        require_rewards(rewards)
         self.rewards = rewards
         self.builder = ReusingBuilder() if reuse else None
         self.lumper: Lumper | None = None
@@ -125,7 +125,8 @@ class Session:
 
         :param props_file: the properties file the properties come from (its constants
             and labels), if any.
-        :param constants: values of the model's and properties' undefined constants.
+        :param constants: values of the model's and properties' undefined constants; a
+            name that neither declares is an error.
         :param progress: told after each BFS layer of the build; a
             :class:`~veribattery.pipeline.CheckProgress` also hears the stages and how
             far each long solve is.
@@ -135,6 +136,8 @@ class Session:
             ``P=? [ F a ]`` with an operator-free ``a`` that no state satisfies is 0
             without a check, and shapes neither the shared systems nor the quotient.
         """
+        properties = parsed_properties(properties)
+        reject_unknown_constants(model, props_file, constants or {})
         watch = stopwatch or Stopwatch(*STAGES)
         stages = stages_of(progress)
         with watch.stage("parse"):

@@ -32,7 +32,7 @@ from pathlib import Path
 import pandas as pd
 
 from veribattery.config import ConfigDocument, MissionConfig, read_config
-from veribattery.errors import VeribatteryError
+from veribattery.errors import ArgumentError, VeribatteryError
 from veribattery.mission import ParseCache, RenderedMission, validate_properties
 from veribattery.sweep.execute import Executor, open_executor
 from veribattery.sweep.fingerprint import fingerprint
@@ -99,7 +99,11 @@ def run_sweep(
     :param notes: called with one-line notes (points already done, reuse, executor).
     :raises ConfigError: on invalid configs (naming the point), a bad RESULTS target or
         an unreachable scheduler.
+    :raises ArgumentError: when *axes* is not a sequence of :class:`Axis`, or *jobs* < 1.
     """
+    _require_axes(axes)
+    if jobs < 1:  # a pool of none would fail on the second point, with a ValueError
+        raise ArgumentError(f"jobs must be at least 1 (1: in this process), got {jobs}")
     points = grid(axes)
     document = read_config(config, overrides)
     configs = [_at(document, point) for point in points]
@@ -120,6 +124,21 @@ def run_sweep(
         sweep = _Sweep(points, configs, cells, store, earlier, parses)
         sweep.run(executor, jobs, progress, on_point, notes or (lambda _: None))
     return sweep.frame(columns)
+
+
+def _require_axes(axes: object) -> None:
+    """Refuse what a notebook might pass for *axes*: ``KEY=SPEC`` text, or one axis.
+
+    :raises ArgumentError: naming the call that makes an :class:`Axis` of it.
+    """
+    if isinstance(axes, str | Axis):
+        raise ArgumentError(f"axes: a list of axes is needed, not {axes!r}: give [axis], "
+                            "each from veribattery.sweep.parse_axis('KEY=SPEC')")
+    for number, axis in enumerate(axes if isinstance(axes, Sequence) else [axes]):
+        if not isinstance(axis, Axis):
+            text = axis if isinstance(axis, str) else "KEY=SPEC"
+            raise ArgumentError(f"axes[{number}] is {axis!r}, not an Axis: give "
+                                f"veribattery.sweep.parse_axis({text!r})")
 
 
 class _Sweep:

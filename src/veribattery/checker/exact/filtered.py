@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from fractions import Fraction
 
 import numpy as np
@@ -26,7 +26,7 @@ __all__ = ["ExactCheckResult", "ExactModelView", "as_fraction", "filtered"]
 _ZERO = mpq(0)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, repr=False)  # CheckResult's short repr
 class ExactCheckResult(CheckResult):
     """A :class:`CheckResult` that also carries the exact answer.
 
@@ -36,7 +36,7 @@ class ExactCheckResult(CheckResult):
     """
 
     exact: Fraction | None = None
-    exact_values: ExactValues | None = None
+    exact_values: ExactValues | None = field(default=None, repr=False)  # per state, as values
 
 
 def as_fraction(value: mpq) -> Fraction:

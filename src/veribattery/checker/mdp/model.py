@@ -107,6 +107,13 @@ class MDP:
         mask[self.initial] = True
         return mask
 
+    def __repr__(self) -> str:
+        # Sizes and names, not the matrix and the per-choice arrays (a notebook shows it).
+        return (f"MDP(states={self.num_states:,}, choices={self.num_choices:,}, "
+                f"transitions={self.num_transitions:,}, initial={self.initial.size:,}, "
+                f"variables={self.variable_names}, labels={tuple(self.labels)}, "
+                f"rewards={tuple(r.name for r in self.rewards)}, deadlocks={self.deadlocks})")
+
     def action_of(self, choice: int) -> str:
         """The action label of *choice* (``""`` when unlabelled)."""
         assert self.choice_actions is not None

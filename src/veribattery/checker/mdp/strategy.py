@@ -25,6 +25,10 @@ class Strategy:
 
     choices: IntArray
 
+    def __repr__(self) -> str:
+        # One choice per state: a notebook would print the whole array.
+        return f"Strategy(states={self.choices.size:,})"
+
     def local(self, mdp: MDP) -> IntArray:
         """Per state, the position of its choice among the state's own (0 = first)."""
         return self.choices - mdp.row_groups[:-1]
@@ -44,6 +48,11 @@ class StepStrategy:
     last: IntArray
     changes: tuple[tuple[IntArray, IntArray], ...]
     then: Strategy | StepStrategy | None = None
+
+    def __repr__(self) -> str:
+        # Sizes, not the per-state arrays of every step.
+        return (f"StepStrategy(steps={self.steps:,}, states={self.last.size:,}, "
+                f"then={self.then!r})")
 
     def at(self, step: int) -> Strategy:
         """The memoryless strategy used at step *step* (0 = the first move)."""
