@@ -121,3 +121,13 @@ def test_running_out_of_memory_is_one_line_and_status_2(tmp_path: Path) -> None:
         "error: out of memory: Unable to allocate 54.6 MiB for an array with shape (7156153,) "
         "and data type int64: the model or its analysis needs more memory than this machine "
         "has available")
+
+
+def test_a_config_too_fine_for_prisms_ints_fails_before_any_spinner(workdir: Path) -> None:
+    # The ints' limits were checked when the model was rendered, inside the spinner
+    # ("exploring states…" was drawn, then erased by the error).
+    (workdir / "fine.yaml").write_text("strategy: {safe_t: 0.1000000000000000000001}\n")
+    screen = run_in_terminal(["check", "fine.yaml"], 80, workdir)
+    assert screen.status == 2
+    assert "exploring states" not in screen.drawn, screen.drawn
+    assert "safe_t: 0.1000000000000000000001 is too fine" in screen.text, screen.text

@@ -184,3 +184,9 @@ def test_a_sub_section_given_in_part_keeps_its_other_defaults(tmp_path: Path) ->
         Fraction(21), Fraction(22), Fraction(180))
     with pytest.raises(ConfigError, match=r"battery.consumption.cell.low: must be > 0, got -1"):
         load_config("", ["battery.consumption.cell.low=-1"])
+
+
+def test_a_loaded_config_is_one_that_renders() -> None:
+    # The limits of PRISM's ints are checked by load_config itself, before any work.
+    with pytest.raises(ConfigError, match="safe_t: 1e-30 is too fine"):
+        load_config("strategy: {safe_t: 1e-30}")

@@ -15,6 +15,7 @@ from pydantic import BaseModel
 
 from veribattery.config.exact import fraction_to_decimal
 from veribattery.config.origin import property_origins
+from veribattery.config.params import derive_parameters
 from veribattery.config.place import KeyOrigins, KeyPath
 from veribattery.config.schema import MissionConfig, is_property_name
 from veribattery.config.source import NumberOutOfRange, compose, construct, decode
@@ -90,6 +91,10 @@ class ConfigDocument:
         cfg._key_origins = origins
         cfg._property_origins = property_origins(cfg.properties, self.root, self.written,
                                                  (*self.overridden, *self.varied))
+        # The numbers the model's ints must hold, refused here rather than when the model
+        # is rendered: a loaded config is one that renders, and a command fails before it
+        # starts any work (its spinner, a sweep's first point).
+        derive_parameters(cfg)
         return cfg
 
 
