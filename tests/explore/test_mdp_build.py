@@ -150,6 +150,24 @@ def test_refused_with_one_line(prop: str, message: str, tmp_path: Path) -> None:
     assert message in result.output
 
 
+@pytest.mark.parametrize("exact", [False, True])
+@pytest.mark.parametrize("prop", ['P=? [ F "goal" ]', 'filter(max, R=? [ F s=3 ])'])
+def test_an_operator_without_objective_is_refused_before_the_build(
+        prop: str, exact: bool, monkeypatch: pytest.MonkeyPatch) -> None:
+    # A large MDP would be explored in full before the refusal otherwise.
+    from veribattery.errors import CheckError
+    from veribattery.pipeline import check_prism_file
+
+    def no_build(*_: object, **__: object) -> None:
+        raise AssertionError("the MDP was built")
+
+    monkeypatch.setattr("veribattery.pipeline.mdp.build_mdp", no_build)
+    monkeypatch.setattr("veribattery.explore.exact.mdp.build_exact_mdp", no_build,
+                        raising=False)
+    with pytest.raises(CheckError, match="on an MDP has no single value"):
+        check_prism_file(CHOICE, props_source=prop, exact=exact)
+
+
 def test_exact_checks_mdps(tmp_path: Path) -> None:
     """Repeating [a] reaches s=2 surely, after 2 [a] steps on average; [b] never does."""
     model = tmp_path / "m.nm"

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+from veribattery.checker.mdp.operators import require_objectives
 from veribattery.lang import Model, PropertiesFile, Property, resolve_property
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp, ill_posed_errors
@@ -51,6 +52,8 @@ def check_mdp_model_exact(
         model, properties, props_file, flat = flattened_exactly(model, properties,
                                                                 props_file, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
+        for prop in resolved:
+            require_objectives(prop.formula)  # P=?: refused before the build
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)

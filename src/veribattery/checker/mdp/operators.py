@@ -9,10 +9,12 @@ from veribattery.checker.formula.leaves import require_nonnegative_rewards
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError
-from veribattery.lang.nodes import ProbOp, RewardBounded, RewardOp
+from veribattery.lang.expressions import walk
+from veribattery.lang.nodes import Expr, Multi, ProbOp, RewardBounded, RewardOp
 from veribattery.lang.property_rules import STEPS_REWARD
 
-__all__ = ["CONDITIONAL_ON_MDP", "operator_objective", "reward_structure"]
+__all__ = ["CONDITIONAL_ON_MDP", "operator_objective", "require_objectives",
+           "reward_structure"]
 
 #: Why Storm's conditional formulas are refused on MDPs (float and exact).
 CONDITIONAL_ON_MDP = ("conditional probabilities (Storm's 'path || F condition') are not "
@@ -46,3 +48,18 @@ def operator_objective(op: ProbOp | RewardOp) -> Objective:
         raise CheckError(f"{name}=? on an MDP has no single value: use {name}min=? or "
                          f"{name}max=?", op.span)
     return "max" if op.op in ("<", "<=") else "min"
+
+
+def require_objectives(formula: Expr) -> None:
+    """Refuse, before any state is built, an operator with no objective on an MDP
+    (``P=?``, :func:`operator_objective`'s error): the check would refuse it only after
+    the build. A ``multi(...)`` query is left to its own checks.
+
+    :raises CheckError: at the first such operator.
+    """
+    nodes = list(walk(formula))
+    if any(type(node) is Multi for node in nodes):
+        return
+    for node in nodes:
+        if type(node) in (ProbOp, RewardOp):
+            operator_objective(node)
