@@ -112,6 +112,9 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
         margin = None if spread is None else _margin(spread, approximation)
         if spread is not None and margin is not None:
             wider = _TiedMargin(system, objective, known, offset, x, spread, approximation)
+            # (the tied rows' margin holds it only until its start is evaluated: its solver
+            # then dies once the rounds move on, not kept beside theirs)
+            del approximation
             lower, upper = _candidates(x, margin, images, wider,
                                        every_row_up=objective == "max")
     if not Bounds.around(x, lower, upper).precise_states().all():
@@ -164,8 +167,8 @@ class _TiedMargin:
                  approximation: Evaluation) -> None:
         self._spread = spread
         # (lazy: nothing is evaluated before the first call)
-        self._setup = partial(_tied_problem, system, objective, known, offset, x, spread,
-                              approximation)
+        self._setup: Callable[[], tuple[_TiedProblem, Evaluation] | None] | None = partial(
+            _tied_problem, system, objective, known, offset, x, spread, approximation)
         self._problem: _TiedProblem | None = None
         self._found: Evaluation | None = None
         self._steps: Iterator[Evaluation] = iter(())
@@ -191,7 +194,9 @@ class _TiedMargin:
         """Whether a new strategy starts the rounds: on the first call the final one,
         on the second the greedy one of the swept values (where no worse)."""
         if self._done < 0:
+            assert self._setup is not None
             made = self._setup()
+            self._setup = None  # (with it the approximation it holds)
             self._done = 0
             if made is None:
                 self._stopped = True

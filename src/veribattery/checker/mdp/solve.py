@@ -81,12 +81,11 @@ def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
         the same entries of the same classes, as in a system restricted to some rows
         (:meth:`ChoiceSystem.restricted`) -- reused rather than made again.
     """
-    chosen = sp.csr_matrix(system.off[rows])
     leave = system.leave[rows]
-    factors = solver if solver is not None else _solver(chosen, leave, system.size)
-    if factors is None:
+    prepared = _prepared(system, rows, leave, known, offset, solver)
+    if prepared is None:
         return None
-    residual = _Residual.of(chosen, system.size, known, None if offset is None else offset[rows])
+    factors, residual = prepared
     x = factors.solve(residual.rhs.astype(np.float64))
     for _ in range(REFINE_STEPS):
         if not np.all(np.isfinite(x)):
@@ -102,6 +101,20 @@ def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
         return np.asarray(factors.solve(leave * delta), dtype=np.float64)
 
     return Evaluation(np.asarray(x, dtype=np.float64), rows, correct, factors)
+
+
+def _prepared(system: ChoiceSystem, rows: IntArray, leave: FloatArray, known: FloatArray,
+              offset: FloatArray | None, solver: TopologicalSolver | None
+              ) -> tuple[TopologicalSolver, _Residual] | None:
+    """The solver and the residual of the strategy *rows*, or None where its system is
+    singular. (Its own function so that the strategy's rows, which neither keeps, die
+    before the refinement's vectors are made.)"""
+    chosen = sp.csr_matrix(system.off[rows])
+    factors = solver if solver is not None else _solver(chosen, leave, system.size)
+    if factors is None:
+        return None
+    return factors, _Residual.of(chosen, system.size, known,
+                                 None if offset is None else offset[rows])
 
 
 def _solver(chosen: sp.csr_matrix, leave: FloatArray, size: int) -> TopologicalSolver | None:
@@ -150,16 +163,29 @@ class _Residual:
     @classmethod
     def of(cls, chosen: sp.csr_matrix, size: int, known: FloatArray,
            offset: FloatArray | None) -> _Residual:
-        wide = sp.csr_matrix(chosen, dtype=np.longdouble)
-        leave = np.asarray(wide @ np.ones(wide.shape[1], dtype=np.longdouble))
-        rhs = np.asarray(wide[:, size:] @ known.astype(np.longdouble))
+        leave, rhs = _leaving_and_known(chosen, size, known)
         if offset is not None:
             rhs = rhs + offset.astype(np.longdouble)
-        return cls(sp.csr_matrix(wide[:, :size]), leave, rhs)
+        # (the float64 entries read exactly in extended precision, as from a wide copy;
+        # made after that copy has died, so that two never live at once)
+        return cls(sp.csr_matrix(chosen[:, :size], dtype=np.longdouble), leave, rhs)
 
     def of_values(self, x: FloatArray) -> FloatArray:
         wide = x.astype(np.longdouble)
-        return np.asarray(self.rhs - (self.leave * wide - self.inner @ wide), dtype=np.float64)
+        # ``rhs - (leave * wide - inner @ wide)``, the same operations in place
+        residual = self.leave * wide
+        residual -= self.inner @ wide
+        np.subtract(self.rhs, residual, out=residual)
+        return np.asarray(residual, dtype=np.float64)
+
+
+def _leaving_and_known(chosen: sp.csr_matrix, size: int, known: FloatArray
+                       ) -> tuple[npt.NDArray[np.longdouble], npt.NDArray[np.longdouble]]:
+    """Per row of *chosen*, its sum and its product with the *known* values past column
+    *size*, in extended precision."""
+    wide = sp.csr_matrix(chosen, dtype=np.longdouble)
+    leave = np.asarray(wide @ np.ones(wide.shape[1], dtype=np.longdouble))
+    return leave, np.asarray(wide[:, size:] @ known.astype(np.longdouble))
 
 
 def policy_iteration(system: ChoiceSystem, objective: Objective, known: FloatArray,
@@ -274,6 +300,26 @@ def _tighter_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
     margin = current.correct(system.defect(current.values, known, offset, objective))
     if not np.all(np.isfinite(margin)):
         return None
+    rows = _tighter_rows(system, objective, known, offset, current, margin)
+    if rows is None:
+        return None
+    candidate = evaluate(system, rows, known, offset)
+    if candidate is None or is_improper(candidate.values):
+        return None
+    gain, noise = _change(candidate, current, objective)
+    # Tied rows may differ by rounding, and the values by as much as the margin allows
+    # for (they are approximations within it); worse than that is a real loss.
+    if np.any(gain < -(np.maximum(noise, _noise_floor(candidate, current)) + margin)):
+        return None
+    return candidate
+
+
+def _tighter_rows(system: ChoiceSystem, objective: Objective, known: FloatArray,
+                  offset: FloatArray | None, current: Evaluation,
+                  margin: FloatArray) -> IntArray | None:
+    """:func:`_tighter_ties`'s switched strategy, or None where no tied row makes the
+    margin smaller. (Its own function so that its vectors over the rows die before the
+    switched strategy is evaluated.)"""
     images = system.images(current.values, known, offset)
     best = system.best(images, objective)[system.row_class]
     with np.errstate(invalid="ignore"):
@@ -283,15 +329,7 @@ def _tighter_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
     smaller = tied[rows] & (after[rows] < after[current.rows] * (1.0 - MARGIN_GAIN))
     if not smaller.any():
         return None
-    candidate = evaluate(system, np.where(smaller, rows, current.rows), known, offset)
-    if candidate is None or is_improper(candidate.values):
-        return None
-    gain, noise = _change(candidate, current, objective)
-    # Tied rows may differ by rounding, and the values by as much as the margin allows
-    # for (they are approximations within it); worse than that is a real loss.
-    if np.any(gain < -(np.maximum(noise, _noise_floor(candidate, current)) + margin)):
-        return None
-    return candidate
+    return np.where(smaller, rows, current.rows)
 
 
 def _change(candidate: Evaluation, current: Evaluation,
