@@ -36,7 +36,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import numpy.typing as npt
 import scipy.sparse as sp
 from scipy.sparse import csgraph
 from scipy.sparse import linalg as spla
@@ -289,7 +288,8 @@ def _permuted(A: sp.csr_matrix, order: IntArray) -> sp.csr_matrix:
     position = np.empty_like(order)
     position[order] = np.arange(order.size, dtype=order.dtype)
     rows = sp.csr_matrix(A[order])
-    rows.indices = position[rows.indices].astype(rows.indices.dtype)
+    # (the positions narrowed first: no temporary of the entries' width in int64)
+    rows.indices = position.astype(rows.indices.dtype)[rows.indices]
     rows.has_sorted_indices = False
     rows.sort_indices()
     return rows
@@ -299,40 +299,54 @@ def _prepare(permuted: sp.csr_matrix, segment: Segment,
              component_solver: ComponentSolver) -> _Part:
     """The segment's coupling rows and its diagonal block's solver."""
     lo, hi = segment.lo, segment.hi
-    rows = permuted[lo:hi]
-    coupling = sp.csr_matrix(rows[:, :lo]) if lo else None
+    # (one slice each, not the segment's rows and then their columns: a copy fewer)
+    coupling = sp.csr_matrix(permuted[lo:hi, :lo]) if lo else None
     if coupling is not None and coupling.nnz == 0:
         coupling = None
-    block = sp.csr_matrix(rows[:, lo:hi])
-    del rows
-    diagonal = block.diagonal()
-    if not np.all(diagonal > 0):
-        raise CheckError("a state of a linear system has no positive leaving probability")
     solve: Inverse | None
     if segment.method == "substitution":
-        solve = _substitution(block, diagonal)
-    elif segment.method == "blocks":
-        solve = superlu(block, "NATURAL")
+        # The CSC made from the block, which dies with this statement: the CSR and CSC
+        # copies of a large run never outlive each other's making.
+        solve = _substitution(_diagonal_block(permuted, lo, hi).tocsc())
     else:
-        solve = component_solver(block)
+        block = _diagonal_block(permuted, lo, hi)
+        _check_diagonal(block.diagonal())
+        solve = (superlu(block, "NATURAL") if segment.method == "blocks"
+                 else component_solver(block))
     if solve is None:
         raise CheckError(f"no solver for a component of {hi - lo} states")
     return _Part(segment, coupling, solve)
 
 
-def _substitution(block: sp.csr_matrix, diagonal: FloatArray) -> Inverse:
-    """Forward substitution with the lower-triangular *block* (a run of single-state
+def _diagonal_block(permuted: sp.csr_matrix, lo: int, hi: int) -> sp.csr_matrix:
+    """``permuted[lo:hi, lo:hi]``: *permuted* itself where that is all of it (a system
+    solved as one segment then has no second copy of its matrix)."""
+    if lo == 0 and hi == permuted.shape[0]:
+        return permuted
+    return sp.csr_matrix(permuted[lo:hi, lo:hi])
+
+
+def _check_diagonal(diagonal: FloatArray) -> None:
+    if not np.all(diagonal > 0):
+        raise CheckError("a state of a linear system has no positive leaving probability")
+
+
+def _substitution(lower: sp.csc_matrix) -> Inverse:
+    """Forward substitution with the lower-triangular CSC *lower* (a run of single-state
     components in topological order), by columns scaled to a unit diagonal."""
+    # (each diagonal entry is its column's, summed in the order its row stored it)
+    diagonal: FloatArray = lower.diagonal()
+    _check_diagonal(diagonal)
     scale = 1.0 / diagonal
-    lower = block.tocsc()
+    del diagonal
     lower.sort_indices()
-    columns = np.arange(lower.shape[1])
     first = lower.indptr[:-1]
-    # Lower triangular with the diagonal stored: each column's first entry is its own.
-    if np.any(lower.indices[first] != columns) or np.any(
-            _columns_of(lower) > lower.indices):
+    # Lower triangular with the diagonal stored. Every column stores its diagonal (it is
+    # positive) and its rows ascend (sorted indices), so where its first row is its own,
+    # none lies above the diagonal: that test alone says the block is lower triangular.
+    if np.any(lower.indices[first] != np.arange(lower.shape[1])):
         raise CheckError("a run of single-state components is not triangular")
-    lower.data *= np.repeat(scale, np.diff(lower.indptr))
+    _scale_columns(lower, scale)
     lower.data[first] = 1.0  # exactly, as the solve reads it
 
     def solve(b: FloatArray) -> FloatArray:
@@ -345,5 +359,16 @@ def _substitution(block: sp.csr_matrix, diagonal: FloatArray) -> Inverse:
     return solve
 
 
-def _columns_of(matrix: sp.csc_matrix) -> npt.NDArray[np.int64]:
-    return np.repeat(np.arange(matrix.shape[1]), np.diff(matrix.indptr))
+#: Columns scaled at a time by :func:`_scale_columns`.
+SCALE_CHUNK = 1 << 16
+
+
+def _scale_columns(matrix: sp.csc_matrix, scale: FloatArray) -> None:
+    """Every column of *matrix* times its *scale*, in place: the same products as with
+    the factors repeated for all entries at once, whose vector as long as the entries
+    would outlive this call's peak (a chunk of columns at a time)."""
+    indptr = matrix.indptr
+    for lo in range(0, scale.size, SCALE_CHUNK):
+        hi = min(lo + SCALE_CHUNK, scale.size)
+        matrix.data[indptr[lo]:indptr[hi]] *= np.repeat(scale[lo:hi],
+                                                         np.diff(indptr[lo:hi + 1]))
