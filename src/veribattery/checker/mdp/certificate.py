@@ -102,8 +102,7 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
         iteration tightens the bounds.
     """
 
-    images = _Images(BellmanImage(system, known, offset, objective, up=False),
-                     BellmanImage(system, known, offset, objective, up=True),
+    images = _Images(*BellmanImage.pair(system, known, offset, objective),
                      np.zeros(system.size), np.full(system.size, ceiling))
     x, lower, upper = images.floor, images.floor, images.top
     if approximation is not None:

@@ -24,6 +24,26 @@ __all__ = ["BellmanImage"]
 RECOMPUTE_ALL = 0.25
 
 
+class _Readers:
+    """Which rows read each class (the inner columns of the system in CSC: int64
+    offsets, then rows) and the class of each row, made on first use: one per system,
+    shared by the two sides of its image (each the same arrays it would make)."""
+
+    def __init__(self, system: ChoiceSystem) -> None:
+        self._system = system
+        self._index: tuple[IntArray, IntArray, IntArray] | None = None
+
+    def index(self) -> tuple[IntArray, IntArray, IntArray]:
+        """``(indptr, rows, row_class)``."""
+        if self._index is None:
+            system = self._system
+            inner = sp.csc_matrix(system.off[:, : system.size])
+            indptr, rows = inner.indptr.astype(np.int64), inner.indices.astype(np.int64)
+            del inner
+            self._index = (indptr, rows, system.row_class)
+        return self._index
+
+
 class BellmanImage:
     """One side of the rigorous Bellman image of a system, ``x -> best_a bound(G_a(x))``,
     remembering its last argument: the next call recomputes only the rows that read an
@@ -37,10 +57,19 @@ class BellmanImage:
                  objective: Objective, *, up: bool) -> None:
         self._system, self._known, self._offset = system, known, offset
         self._objective, self._up = objective, up
-        self._readers: tuple[IntArray, IntArray] | None = None
-        self._row_class = np.empty(0, dtype=np.int64)  # (made with the readers)
+        self._readers = _Readers(system)
         self._last: tuple[FloatArray, FloatArray, FloatArray] | None = None
         self._live: tuple[BoolArray, LiveRows] | None = None
+
+    @classmethod
+    def pair(cls, system: ChoiceSystem, known: FloatArray, offset: FloatArray | None,
+             objective: Objective) -> tuple[BellmanImage, BellmanImage]:
+        """The lower and the upper image of *system*, sharing the index of which rows
+        read each class (the same arrays for both: made once, kept once)."""
+        lower = cls(system, known, offset, objective, up=False)
+        upper = cls(system, known, offset, objective, up=True)
+        upper._readers = lower._readers
+        return lower, upper
 
     def __call__(self, x: FloatArray) -> FloatArray:
         """The image of *x* (a new array)."""
@@ -80,16 +109,12 @@ class BellmanImage:
         if rows.size:
             row_images[rows] = system.extended_bound_images(extended, self._offset,
                                                             up=self._up, rows=rows)
-            owners = self._row_class[rows]  # nondecreasing: rows are sorted
+            owners = self._readers.index()[2][rows]  # nondecreasing: rows are sorted
             classes = owners[np.concatenate([[True], owners[1:] != owners[:-1]])]
             best[classes] = system.best_of(row_images, classes, self._objective)
         return best.copy()
 
     def _rows_reading(self, columns: IntArray) -> IntArray:
         """The rows with an entry in any of the class *columns* (sorted, once each)."""
-        if self._readers is None:
-            inner = sp.csc_matrix(self._system.off[:, : self._system.size])
-            self._readers = (inner.indptr.astype(np.int64), inner.indices.astype(np.int64))
-            self._row_class = self._system.row_class
-        indptr, rows = self._readers
+        indptr, rows, _ = self._readers.index()
         return distinct(rows[segments(indptr, columns)])
