@@ -86,7 +86,7 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
     # the exact one by at most a factor (1 - gamma_k): 4 k u covers both.
     # (in place after the first product: the same operations, one vector fewer per step)
     with np.errstate(over="ignore", invalid="ignore"):
-        bound = np.asarray((4.0 * UNIT_ROUNDOFF) * roundings * magnitude, dtype=np.float64)
+        bound = _scaled(np.multiply(4.0 * UNIT_ROUNDOFF, roundings), magnitude)
         bound *= _SAFETY
         # The underflow term f 2 ETA is subnormal, and making it costs ~20x per entry
         # (microcode assists: most of a Bellman image's time). Where the bound b is at
@@ -101,6 +101,18 @@ def product_error(magnitude: FloatArray, roundings: FloatArray,
         step_up_in_place(bound)  # (the entries that are not positive are replaced)
     bound[~positive] = 0.0
     return bound
+
+
+def _scaled(factor: FloatArray, magnitude: FloatArray) -> FloatArray:
+    """``factor * magnitude`` as float64, in *factor*'s storage where it is a vector of
+    that shape and type (the same products, without a second vector of the rows at the
+    certificate's peak)."""
+    if (isinstance(factor, np.ndarray) and factor.dtype == np.float64
+            and np.result_type(magnitude) == np.float64
+            and factor.shape == np.shape(magnitude)):
+        factor *= magnitude
+        return factor
+    return np.asarray(factor * magnitude, dtype=np.float64)
 
 
 def error_coefficient(roundings: FloatArray) -> FloatArray:
