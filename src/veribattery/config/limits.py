@@ -18,6 +18,7 @@ from veribattery.config.battery import ACTIONS, CostTable
 from veribattery.config.exact import brief, fraction_to_decimal
 from veribattery.config.farm import FarmLayout
 from veribattery.config.schema import ConsumptionTable, MissionConfig
+from veribattery.errors import ConfigError
 
 __all__ = ["PRISM_INT_MAX", "check_int_ranges"]
 
@@ -53,14 +54,11 @@ def _check_costs(cfg: MissionConfig, costs: CostTable, reach: int) -> int:
     predicted = max(_most_predicted(costs, reach, wind) for wind in (0, 1))
     if predicted <= _CHARGE_MAX:
         return predicted
-    key, value = _cost_key(cfg, costs, reach)
-    need = (f"a take-off, the flight to the farthest cell ({reach} cells) and an inspection "
-            f"would need {_digits(predicted)} units of resolution_ah "
-            f"({brief(cfg.battery.resolution_ah)}), which must stay below 2^30 for PRISM's "
-            "32-bit integers")
-    raise cfg.key_error(
-        (key, f"{'' if value is None else brief(value) + ' is '}too large: {need}"),
-        ("battery.resolution_ah", f"{brief(cfg.battery.resolution_ah)} is too fine: {need}"))
+    raise _cost_error(cfg, _cost_key(cfg, costs, reach),
+                      f"a take-off, the flight to the farthest cell ({reach} cells) and an "
+                      f"inspection would need {_digits(predicted)} units of resolution_ah "
+                      f"({brief(cfg.battery.resolution_ah)}), which must stay below 2^30 for "
+                      "PRISM's 32-bit integers")
 
 
 def _check_constants(cfg: MissionConfig, costs: CostTable) -> None:
@@ -69,11 +67,18 @@ def _check_constants(cfg: MissionConfig, costs: CostTable) -> None:
     most = max(max(max(levels) for levels in costs.of(a)) for a in ACTIONS)
     if most <= _CHARGE_MAX:
         return
-    key, value = _cost_key(cfg, costs, 1)
-    need = (f"one action would cost {_digits(most)} units of resolution_ah "
-            f"({brief(cfg.battery.resolution_ah)}), an int constant of the model, which "
-            "must stay below 2^30 for PRISM's 32-bit integers")
-    raise cfg.key_error(
+    raise _cost_error(cfg, _cost_key(cfg, costs, 1),
+                      f"one action would cost {_digits(most)} units of resolution_ah "
+                      f"({brief(cfg.battery.resolution_ah)}), an int constant of the model, "
+                      "which must stay below 2^30 for PRISM's 32-bit integers")
+
+
+def _cost_error(cfg: MissionConfig, given: tuple[str, Fraction | None],
+                need: str) -> ConfigError:
+    """Charge beyond PRISM's ints: the consumption key *given* (and its value) is too
+    large, or ``resolution_ah`` too fine, whichever the user gave; *need* says why."""
+    key, value = given
+    return cfg.key_error(
         (key, f"{'' if value is None else brief(value) + ' is '}too large: {need}"),
         ("battery.resolution_ah", f"{brief(cfg.battery.resolution_ah)} is too fine: {need}"))
 
