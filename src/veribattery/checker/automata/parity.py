@@ -1,0 +1,130 @@
+"""Deterministic parity automata of LTL formulas, for the product with a Markov model.
+
+:func:`parity_automaton` chains the stages: negation normal form and simplification
+(:mod:`._simplify`), a tableau to a transition-based Büchi automaton (:mod:`._tableau`,
+Gerth-Peled-Vardi-Wolper / Couvreur), Safra-Piterman determinisation to transition-based
+priorities (:mod:`._safra`), then state-based priorities and minimisation
+(:mod:`._minimise`).
+
+Reading convention: the run on ``w0 w1 ...`` is ``q0 = initial``,
+``q(i+1) = successor[q(i), w(i)]``; the word is accepted iff the least priority among
+the states ``q1, q2, ...`` occurring infinitely often is even.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.sparse import csr_array
+from scipy.sparse.csgraph import connected_components
+
+from veribattery.checker.automata._limit import AutomatonTooLarge
+from veribattery.checker.automata._minimise import minimise, normalise_priorities, state_based
+from veribattery.checker.automata._safra import determinise
+from veribattery.checker.automata._simplify import normal_form
+from veribattery.checker.automata._tableau import buchi_automaton
+from veribattery.checker.automata.formula import LtlFormula
+
+
+@dataclass(frozen=True)
+class ParityAutomaton:
+    """A complete deterministic automaton with state-based min-parity acceptance.
+
+    Letters are ``0 .. 2**propositions - 1``, bit ``i`` set iff ``Prop(i)`` holds.
+    """
+
+    propositions: int
+    initial: int
+    successor: NDArray[np.int32]  # (states, 2**propositions)
+    priority: NDArray[np.int16]  # (states,)
+
+    def complement(self) -> ParityAutomaton:
+        """The automaton of the other words: the same graph, every priority one higher."""
+        return ParityAutomaton(self.propositions, self.initial, self.successor,
+                               (self.priority + 1).astype(np.int16))
+
+    def universal_states(self) -> NDArray[np.bool_]:
+        """Which states accept every infinite word.
+
+        A state is not universal iff it reaches a cycle whose least priority is odd:
+        the cycle's states, for that least priority ``p``, lie in one strongly connected
+        component of the subgraph of priorities ``>= p`` that has a cycle and a state of
+        priority ``p``. Every edge is some letter, so such a path and cycle are a word.
+        """
+        states = len(self.priority)
+        rows = np.repeat(np.arange(states), self.successor.shape[1])
+        cols = self.successor.reshape(-1).astype(np.int64)
+        bad = np.zeros(states, dtype=bool)
+        for p in np.unique(self.priority[self.priority % 2 == 1]):
+            inside = self.priority >= p
+            keep = inside[rows] & inside[cols]
+            graph = csr_array((np.ones(int(keep.sum())), (rows[keep], cols[keep])),
+                              shape=(states, states))
+            _, component = connected_components(graph, directed=True, connection="strong")
+            size = np.bincount(component, minlength=states)
+            looped = np.zeros(states, dtype=bool)
+            looped[rows[keep & (rows == cols)]] = True
+            cyclic = inside & ((size[component] > 1) | looped)
+            witness = np.unique(component[cyclic & (self.priority == p)])
+            bad |= cyclic & np.isin(component, witness)
+        # Backward reachability from the bad states along the reversed edges.
+        reverse = csr_array((np.ones(len(rows)), (cols, rows)), shape=(states, states))
+        frontier = bad.copy()
+        while frontier.any():
+            reached = (reverse @ frontier.astype(np.float64)) > 0
+            frontier = reached & ~bad
+            bad |= reached
+        return ~bad
+
+    def accepts_lasso(self, prefix: Sequence[int], cycle: Sequence[int]) -> bool:
+        """Whether the word ``prefix cycle cycle cycle ...`` is accepted."""
+        if not cycle:
+            raise ValueError("the cycle of a lasso word must not be empty")
+        letters = 1 << self.propositions
+        if any(not 0 <= letter < letters for letter in (*prefix, *cycle)):
+            raise ValueError(f"letters must lie in 0..{letters - 1}")
+        state = self.initial
+        for letter in prefix:
+            state = int(self.successor[state, letter])
+        # The state at the start of each pass of the cycle repeats within #states passes;
+        # from the first repetition on, the passes in between recur forever.
+        seen: dict[int, int] = {}
+        passes: list[int] = []  # least priority met during each pass
+        while state not in seen:
+            seen[state] = len(passes)
+            least = None
+            for letter in cycle:
+                state = int(self.successor[state, letter])
+                value = int(self.priority[state])
+                least = value if least is None else min(least, value)
+            assert least is not None
+            passes.append(least)
+        return min(passes[seen[state]:]) % 2 == 0
+
+
+def parity_automaton(formula: LtlFormula, propositions: int, *,
+                     max_states: int = 100_000) -> ParityAutomaton:
+    """A deterministic parity automaton accepting exactly the words satisfying ``formula``.
+
+    ``formula`` may use ``Prop(i)`` for ``0 <= i < propositions``. Raises
+    :class:`AutomatonTooLarge` when a stage of the construction exceeds ``max_states``.
+    """
+    if propositions < 0:
+        raise ValueError(f"propositions must be >= 0, got {propositions}")
+    simple = normal_form(formula)
+    buchi = buchi_automaton(simple, propositions, max_states)
+    dpa = determinise(buchi, propositions, max_states)
+    successor, priority = state_based(dpa, max_states)
+    # Normalising can make states equal, and merging them can open more normalisation.
+    while True:
+        before = len(priority)
+        successor, priority = minimise(successor, normalise_priorities(successor, priority))
+        if len(priority) == before:
+            break
+    return ParityAutomaton(propositions, 0, successor, priority.astype(np.int16))
+
+
+__all__ = ["AutomatonTooLarge", "ParityAutomaton", "parity_automaton"]
