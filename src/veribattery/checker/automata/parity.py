@@ -70,11 +70,11 @@ class ParityAutomaton:
             cyclic = inside & ((size[component] > 1) | looped)
             witness = np.unique(component[cyclic & (self.priority == p)])
             bad |= cyclic & np.isin(component, witness)
-        # Backward reachability from the bad states along the reversed edges.
-        reverse = csr_array((np.ones(len(rows)), (cols, rows)), shape=(states, states))
+        # Backward reachability: (edges @ x)[q] > 0 iff some successor of q is in x.
+        edges = csr_array((np.ones(len(rows)), (rows, cols)), shape=(states, states))
         frontier = bad.copy()
         while frontier.any():
-            reached = (reverse @ frontier.astype(np.float64)) > 0
+            reached = (edges @ frontier.astype(np.float64)) > 0
             frontier = reached & ~bad
             bad |= reached
         return ~bad
