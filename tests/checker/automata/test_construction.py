@@ -65,7 +65,7 @@ def test_constants_have_one_state() -> None:
     (F(G(A)), 1, 3),
     (And(G(Not(B)), G(F(A))), 2, 3),
     (G(implies(A, weak_until(weak_until(A, B), B))), 2, 3),
-    (And(F(G(Not(A))), G(F(B))), 2, 4),
+    (And(F(G(Not(A))), G(F(B))), 2, 3),
 ])
 def test_sizes(formula: LtlFormula, k: int, states: int) -> None:
     """Sizes as built (hand-checked minimal where noted; the rest pin regressions)."""
@@ -135,3 +135,5 @@ def test_bad_input() -> None:
         automaton.accepts_lasso([2], [0])
     with pytest.raises(ValueError):
         parity_automaton(F(A), -1)
+    with pytest.raises(ValueError, match=r"propositions \[1\]"):
+        parity_automaton(Or(B, Not(B)), 1)

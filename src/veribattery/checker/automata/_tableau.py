@@ -17,7 +17,7 @@ other's is dropped (the other one accepts the same suffixes at least as well; th
 the usual pruning of Couvreur's and Spot's translators). The acceptance sets, one per
 until, are then merged into one by the counter construction (degeneralisation): the
 state carries the index of the set awaited next, and the transition that passes the
-last one is accepting.
+last one is accepting. Finally bisimilar states are merged.
 """
 
 from __future__ import annotations
@@ -179,4 +179,33 @@ def buchi_automaton(f: LtlFormula, propositions: int, max_states: int) -> Buchi:
                 out.append((index[target], accepting))
             row.append(tuple(sorted(out)))
         edges.append(row)
-    return Buchi(0, edges)
+    return _quotient(Buchi(0, edges))
+
+
+def _quotient(buchi: Buchi) -> Buchi:
+    """The quotient by the coarsest bisimulation that respects accepting transitions.
+
+    Bisimilar states have the same runs up to the classes, with the same accepting
+    transitions, hence the same language; the tableau's syntactically different sets
+    are often bisimilar, and determinisation is exponential in the number of states.
+    """
+    classes = [0] * len(buchi.edges)
+    count = 1
+    while True:
+        signatures: dict[tuple[object, ...], int] = {}
+        refined = []
+        for state, row in enumerate(buchi.edges):
+            moves = tuple(frozenset((classes[t], a) for t, a in options) for options in row)
+            refined.append(signatures.setdefault((classes[state], moves), len(signatures)))
+        classes = refined
+        if len(signatures) == count:
+            break
+        count = len(signatures)
+    edges: list[list[tuple[Edge, ...]]] = [[] for _ in range(count)]
+    done = [False] * count
+    for state, row in enumerate(buchi.edges):
+        if not done[classes[state]]:
+            done[classes[state]] = True
+            edges[classes[state]] = [tuple(sorted({(classes[t], a) for t, a in options}))
+                                     for options in row]
+    return Buchi(classes[buchi.initial], edges)

@@ -26,7 +26,17 @@ from veribattery.checker.automata._minimise import minimise, normalise_prioritie
 from veribattery.checker.automata._safra import determinise
 from veribattery.checker.automata._simplify import normal_form
 from veribattery.checker.automata._tableau import buchi_automaton
-from veribattery.checker.automata.formula import LtlFormula
+from veribattery.checker.automata.formula import (
+    And,
+    Const,
+    LtlFormula,
+    Next,
+    Not,
+    Or,
+    Prop,
+    Release,
+    Until,
+)
 
 
 @dataclass(frozen=True)
@@ -114,6 +124,11 @@ def parity_automaton(formula: LtlFormula, propositions: int, *,
     """
     if propositions < 0:
         raise ValueError(f"propositions must be >= 0, got {propositions}")
+    # A proposition beyond the alphabet would silently read as false on every letter.
+    outside = sorted(i for i in _indices(formula) if not 0 <= i < propositions)
+    if outside:
+        raise ValueError(f"the formula uses propositions {outside}, outside "
+                         f"0..{propositions - 1}")
     simple = normal_form(formula)
     buchi = buchi_automaton(simple, propositions, max_states)
     dpa = determinise(buchi, propositions, max_states)
@@ -125,6 +140,20 @@ def parity_automaton(formula: LtlFormula, propositions: int, *,
         if len(priority) == before:
             break
     return ParityAutomaton(propositions, 0, successor, priority.astype(np.int16))
+
+
+def _indices(f: LtlFormula) -> set[int]:
+    """The proposition indices occurring in ``f``."""
+    match f:
+        case Prop(index):
+            return {index}
+        case Const():
+            return set()
+        case Not(operand) | Next(operand):
+            return _indices(operand)
+        case And(a, b) | Or(a, b) | Until(a, b) | Release(a, b):
+            return _indices(a) | _indices(b)
+    raise TypeError(f"not an LTL formula: {f!r}")
 
 
 __all__ = ["AutomatonTooLarge", "ParityAutomaton", "parity_automaton"]
