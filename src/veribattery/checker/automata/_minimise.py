@@ -76,9 +76,15 @@ def normalise_priorities(successor: NDArray[np.int32],
         looped = np.zeros(states, dtype=bool)
         looped[rows[keep & (rows == cols)]] = True
         cyclic = inside & ((size[component] > 1) | looped)
-        for label in np.unique(component[cyclic]):
-            members = cyclic & (component == label)
-            least = int(priority[members].min())
+        nodes = np.flatnonzero(cyclic)
+        if not nodes.size:
+            continue
+        nodes = nodes[np.argsort(component[nodes], kind="stable")]
+        starts = np.flatnonzero(np.diff(component[nodes], prepend=-1))
+        for group in np.split(nodes, starts[1:]):
+            members = np.zeros(states, dtype=bool)
+            members[group] = True
+            least = int(priority[group].min())
             value = floor + (least - floor) % 2
             result[members] = value
             rest = members & (priority != least)

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 from scipy.sparse import csr_array
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from veribattery.checker.automata._limit import AutomatonTooLarge
 from veribattery.checker.automata._minimise import minimise, normalise_priorities, state_based
@@ -80,14 +80,18 @@ class ParityAutomaton:
             cyclic = inside & ((size[component] > 1) | looped)
             witness = np.unique(component[cyclic & (self.priority == p)])
             bad |= cyclic & np.isin(component, witness)
-        # Backward reachability: (edges @ x)[q] > 0 iff some successor of q is in x.
-        edges = csr_array((np.ones(len(rows)), (rows, cols)), shape=(states, states))
-        frontier = bad.copy()
-        while frontier.any():
-            reached = (edges @ frontier.astype(np.float64)) > 0
-            frontier = reached & ~bad
-            bad |= reached
-        return ~bad
+        # Backward reachability: a search on the reversed edges from an extra node that
+        # points to every bad state.
+        source = np.full(int(bad.sum()), states)
+        reverse = csr_array((np.ones(len(rows) + len(source)),
+                             (np.concatenate([cols, source]),
+                              np.concatenate([rows, np.flatnonzero(bad)]))),
+                            shape=(states + 1, states + 1))
+        reached = breadth_first_order(reverse, states, directed=True,
+                                      return_predecessors=False)
+        universal = np.ones(states + 1, dtype=bool)
+        universal[reached] = False
+        return universal[:states]
 
     def accepts_lasso(self, prefix: Sequence[int], cycle: Sequence[int]) -> bool:
         """Whether the word ``prefix cycle cycle cycle ...`` is accepted."""
