@@ -74,9 +74,9 @@ PROPERTIES = [
         "{path}:3:15: properties.bad: unexpected end of input (expected "),
     Bad("syntax-token", SMALL + b"properties:\n  ok: P=? [ F \"done\" ]\n  bad: P=? [ F ) ]\n",
         "{path}:4:16: properties.bad: unexpected token ')' (expected "),
-    Bad("unsupported", SMALL + b'properties:\n  bad: P=? [ X X "done" ]\n',
-        '{path}:3:8: properties.bad: unsupported property P=? [ X X "done" ]: temporal '
-        "operator X (next) inside another operator"),
+    Bad("unsupported", SMALL + b'properties:\n  bad: P=? [ (X "done") + 1 ]\n',
+        '{path}:3:8: properties.bad: unsupported property P=? [ (X "done") + 1 ]: temporal '
+        "operator X (next) inside an operator that takes a state formula or a number"),
     Bad("named-formula", SMALL + b"properties:\n  bad: '\"x\": P=? [ F \"done\" ]'\n",
         '{path}:3:9: properties.bad: the key names the property: write the formula '
         'without "x":'),

@@ -175,11 +175,11 @@ def test_properties_file_with_optional_semicolons() -> None:
 @pytest.mark.parametrize(
     ("text", "reason"),
     [
-        ("P=? [ F G x=1 ]", "LTL"),
-        ("P=? [ (G x=1) & (F x=0) ]", "LTL"),
-        ("filter(max, P=? [ X X x=1 ])", "LTL"),
-        ("R=? [ F G x=1 ]", "LTL"),
-        ("R=? [ X X x=1 ]", "LTL"),
+        ("P=? [ F<=3 G x=1 ]", "a step bound on F (eventually) over a path formula"),
+        ("P=? [ (G<=2 x=1) & (F x=0) ]", "a step bound on G (globally) inside an LTL"),
+        ("P=? [ (X x=1) + 1 ]", "temporal operator X (next) inside an operator that takes"),
+        ("filter(max, P=? [ X X x=1 ], F x=1)", "temporal operator F (eventually) inside"),
+        ("P=? [ (F G x=1) || F x=0 ]", "takes one temporal operator over state formulas"),
         ("R=? [ F<=3 x=1 ]", "co-safe"),
         ("F x=1", "P or R operator"),
     ],
@@ -340,10 +340,10 @@ def test_unsupported_declarations_are_named(text: str, says: str) -> None:
         parse_model(text, name="m")
 
 
-def test_a_temporal_operator_read_as_a_name_is_named_as_ltl() -> None:
+def test_a_temporal_operator_read_as_a_name_is_named_with_the_parentheses_it_needs() -> None:
     # (Storm's die tests: P=? [ F (s=6) & X "done" ] said only "unexpected token")
     with pytest.raises(PrismSyntaxError, match=r"unexpected token '\"done\"' .*; 'X' before it "
-                                               r"reads as a temporal operator .* LTL"):
+                                               r"reads as a temporal operator .* \(X \.\.\.\)"):
         parse_property('P=? [ F (s=6) & X "done" ]')
     with pytest.raises(PrismSyntaxError) as plain:
         parse_property("P=? [ F s=; ]")

@@ -138,8 +138,9 @@ def test_properties_constant_clashing_with_model(model: FlatModel) -> None:
 
 
 def test_unsupported_property_is_reported_on_resolve(model: FlatModel) -> None:
-    message = error(model, "P=? [ G F x=1 ]")
-    assert message.startswith("t.props:1:1: unsupported property P=? [ G F x=1 ]: temporal")
+    message = error(model, "P=? [ F<=2 G x=1 ]")
+    assert message.startswith("t.props:1:1: unsupported property P=? [ F<=2 G x=1 ]: a step "
+                              "bound on F (eventually) over a path formula")
 
 
 def props_file() -> PropertiesFile:

@@ -144,7 +144,8 @@ def _syntax_error(exc: UnexpectedInput, text: str, source: str, *,
         message = f"unexpected token '{exc.token}' (expected {_expected(set(exc.expected))})"
         if (temporal := _after_temporal(exc, text)) is not None:
             message += (f"; '{temporal}' before it reads as a temporal operator nested in a "
-                        "formula: LTL path formulas need automata and are not supported")
+                        f"formula: write it in parentheses, as in ({temporal} ...), as PRISM "
+                        "requires of a temporal operand of &, |, => or !")
     else:
         line, col = _end_position(text)
         expected = set(exc.expected) if isinstance(exc, UnexpectedToken) else set()

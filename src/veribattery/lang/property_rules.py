@@ -17,6 +17,7 @@ from veribattery.lang.nodes import (
     BoolLit,
     Conditional,
     ConditionalReach,
+    CosafeReach,
     Cumulative,
     Eventually,
     Expr,
@@ -25,6 +26,8 @@ from veribattery.lang.nodes import (
     Globally,
     Instantaneous,
     LongRun,
+    LtlNode,
+    LtlPath,
     Multi,
     Next,
     PathFormula,
@@ -46,12 +49,16 @@ from veribattery.lang.nodes import (
     WeakUntil,
 )
 from veribattery.lang.ops import OperatorError, int_literal
+from veribattery.lang.path_values import (
+    Temporal,
+    Unsupported,
+    Value,
+    first_bad,
+    is_path,
+    ltl_temporal,
+)
 
 _TimeOp: TypeAlias = Literal["<", "<=", ">", ">=", "="]
-_TEMPORAL_NAMES = {
-    "X": "X (next)", "F": "F (eventually)", "G": "G (globally)", "U": "U (until)",
-    "W": "W (weak until)", "R": "R (release)", "RB": "F or U with a reward bound",
-}
 _FILTER_OPS = frozenset({
     "min", "max", "argmin", "argmax", "count", "sum", "avg", "first", "range",
     "forall", "exists", "print", "printall", "state",
@@ -64,27 +71,6 @@ _STEPS_DIRECTIONS: dict[str, str | None] = {"T": None, "Tmin": "min", "Tmax": "m
 
 
 @dataclass(frozen=True, slots=True)
-class Unsupported:
-    """A construct that parses but is outside the supported language."""
-
-    reason: str
-    span: Span
-
-
-@dataclass(frozen=True, slots=True)
-class Temporal:
-    """A temporal operator, valid only as the whole path of a P, R, A or E operator."""
-
-    op: str
-    bound: TimeBound | TimeInterval | None
-    left: Expr | None
-    right: Expr
-    span: Span
-    #: The reward structure of a reward bound (Storm's ``F{"r"}<=T``), else None.
-    reward: str | int | None = None
-
-
-@dataclass(frozen=True, slots=True)
 class _Legacy:
     """An old-style filter suffix ``{states}{min}{max}`` inside P, R or S."""
 
@@ -92,8 +78,6 @@ class _Legacy:
     ops: tuple[str, ...]
     span: Span
 
-
-Value = Expr | Temporal | Unsupported
 
 
 #: ``Pmin``, ``Rmax``, ``R{"r"}min``, ``R{2}max``: where a P or R operator names its direction.
@@ -109,26 +93,14 @@ class Meta(Protocol):
     end_pos: int
 
 
-def first_bad(values: list[Any]) -> Unsupported | None:
-    """The first unsupported operand; a temporal operand nested in an operator is LTL."""
-    for value in values:
-        if isinstance(value, Unsupported):
-            return value
-        if isinstance(value, Temporal):
-            return Unsupported(
-                f"temporal operator {_TEMPORAL_NAMES[value.op]} inside another operator "
-                "(LTL path formulas need automata and are not supported)",
-                value.span,
-            )
-    return None
-
-
 def _path_formula(path: Value) -> PathFormula | Unsupported:
     """The path formula of a P, A or E operator; a state formula ``phi`` is ``false U phi``."""
     if isinstance(path, Unsupported):
         return path
+    if is_path(path) and not isinstance(path, Temporal):
+        return LtlPath(cast(LtlNode, path), path.span)
     if not isinstance(path, Temporal):
-        return Until(BoolLit(False, path.span), path, None, path.span)
+        return Until(BoolLit(False, path.span), cast(Expr, path), None, path.span)
     if path.op == "X":
         if path.bound is not None:
             return Unsupported("X (next) takes no time bound", path.span)
@@ -193,18 +165,22 @@ class PropertyRules:
 
     def temporal_unop(self, meta: Meta, children: list[Any]) -> Value:
         op, *rest = children
+        bound = rest[0] if len(rest) == 2 else None
+        if is_path(rest[-1]):
+            return ltl_temporal(str(op), bound, None, rest[-1], self._span(meta))
         bad = first_bad(rest)
         if bad is not None:
             return bad
-        bound = rest[0] if len(rest) == 2 else None
         return Temporal(str(op), bound, None, rest[-1], self._span(meta))
 
     def temporal_binop(self, meta: Meta, children: list[Any]) -> Value:
         left, op, *rest = children
+        bound = rest[0] if len(rest) == 2 else None
+        if is_path(left) or is_path(rest[-1]):
+            return ltl_temporal(str(op), bound, left, rest[-1], self._span(meta))
         bad = first_bad([left, *rest])
         if bad is not None:
             return bad
-        bound = rest[0] if len(rest) == 2 else None
         return Temporal(str(op), bound, left, rest[-1], self._span(meta))
 
     def query_value(self, meta: Meta, children: list[Any]) -> tuple[QueryOp, Expr | None]:
@@ -273,6 +249,8 @@ class PropertyRules:
         path = children[0]
         if isinstance(path, Unsupported):
             return path
+        if is_path(path) and not isinstance(path, Temporal):
+            return CosafeReach(cast(LtlNode, path), self._span(meta))
         if not isinstance(path, Temporal):
             # A state formula is a co-safe property decided at once: false U phi.
             return ReachUntil(BoolLit(False, path.span), path, self._span(meta))
@@ -282,8 +260,13 @@ class PropertyRules:
             if path.op == "F":
                 return Reach(path.right, self._span(meta))
             return ReachUntil(cast(Expr, path.left), path.right, self._span(meta))
-        return Unsupported("reward paths must be F phi, X phi, a U b, C, C<=k, I=k or S "
-                           "(co-safe LTL is not supported)", self._span(meta))
+        if path.bound is None and path.op in ("G", "W", "R"):
+            # LTL, refused by the checker unless co-safe (it is not): one rule, one message
+            return CosafeReach(cast(LtlNode, ltl_temporal(path.op, None, path.left,
+                                                          path.right, path.span)),
+                               self._span(meta))
+        return Unsupported("reward paths must be co-safe LTL (F, X, U over state formulas "
+                           "and each other, unbounded), C, C<=k, I=k or S", self._span(meta))
 
     def reward_op(self, meta: Meta, children: list[Any]) -> Value:
         children, legacy = _split_legacy(children)
@@ -390,6 +373,9 @@ class PropertyRules:
         for item in (query, path, legacy):
             if isinstance(item, Unsupported):
                 return item
+        if is_path(path) and not isinstance(path, Temporal):
+            return Unsupported("a conditional formula (||) takes one temporal operator over "
+                               "state formulas before ||, not LTL", self._span(meta))
         if not isinstance(path, Temporal):
             return Unsupported("P operator needs a path formula before ||", self._span(meta))
         objective = _path_formula(path)

@@ -50,14 +50,15 @@ from veribattery.lang.nodes import (
     VarDecl,
 )
 from veribattery.lang.ops import OperatorError, int_literal
-from veribattery.lang.property_rules import (
-    Meta,
-    PropertyRules,
-    Temporal,
+from veribattery.lang.path_values import (
+    LTL_CONNECTIVES,
     Unsupported,
     Value,
     first_bad,
+    is_path,
+    ltl_connective,
 )
+from veribattery.lang.property_rules import Meta, PropertyRules
 
 _DTMC_TYPES = frozenset({"dtmc", "probabilistic"})
 _MDP_TYPES = frozenset({"mdp", "nondeterministic"})
@@ -95,7 +96,10 @@ def _unquote(token: str) -> str:
 
 
 def binary(left: Any, op: str, right: Any, span: Span) -> Value:
-    """``left op right`` (``^`` is ``pow``); an unsupported operand makes it unsupported."""
+    """``left op right`` (``^`` is ``pow``); an unsupported operand makes it unsupported,
+    a path formula operand of a connective makes it LTL."""
+    if op in LTL_CONNECTIVES and (is_path(left) or is_path(right)):
+        return ltl_connective(op, [left, right], span)
     bad = first_bad([left, right])
     if bad is not None:
         return bad
@@ -106,6 +110,8 @@ def binary(left: Any, op: str, right: Any, span: Span) -> Value:
 
 def unary(op: str, operand: Any, span: Span) -> Value:
     """``!a`` or ``-a``."""
+    if op == "!" and is_path(operand):
+        return ltl_connective(op, [operand], span)
     bad = first_bad([operand])
     return bad or Unary(cast(UnaryOp, op), operand, span)
 
@@ -292,7 +298,7 @@ class ToNodes(PropertyRules):
         text = text[1:].strip() if name is not None else text
         formula = children[-1]
         span = self._span(meta)
-        if isinstance(formula, Temporal):
+        if is_path(formula):
             formula = Unsupported("a path formula needs a P or R operator around it", span)
         if isinstance(formula, Unsupported):
             return Property(BoolLit(False, span), name, text, span, unsupported=formula.reason)

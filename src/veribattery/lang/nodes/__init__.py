@@ -25,6 +25,15 @@ from veribattery.lang.nodes.expr import (
     Value,
     ValueType,
 )
+from veribattery.lang.nodes.ltl import (
+    CosafeReach,
+    LtlBinary,
+    LtlNode,
+    LtlNot,
+    LtlOperand,
+    LtlPath,
+    LtlTemporal,
+)
 from veribattery.lang.nodes.model import (
     Assignment,
     Command,
@@ -93,6 +102,7 @@ __all__ = [
     "Conditional",
     "ConditionalReach",
     "ConstDecl",
+    "CosafeReach",
     "Cumulative",
     "DoubleLit",
     "Eventually",
@@ -111,6 +121,12 @@ __all__ = [
     "LabelDecl",
     "LabelRef",
     "LongRun",
+    "LtlBinary",
+    "LtlNode",
+    "LtlNot",
+    "LtlOperand",
+    "LtlPath",
+    "LtlTemporal",
     "Model",
     "ModelType",
     "Module",

@@ -23,6 +23,7 @@ from veribattery.lang.nodes.expr import (
     LabelRef,
     Unary,
 )
+from veribattery.lang.nodes.ltl import CosafeReach, LtlPath
 
 __all__ = [
     "BOUND_RELATIONS",
@@ -244,10 +245,11 @@ class ConditionalReach:
 
 PathFormula: TypeAlias = (
     Next | Until | Eventually | Globally | WeakUntil | Release | RewardBounded | Conditional
+    | LtlPath
 )
 RewardPath: TypeAlias = (
     Cumulative | Instantaneous | Reach | Total | LongRun | ReachUntil | ReachNext
-    | ConditionalReach
+    | ConditionalReach | CosafeReach
 )
 
 
