@@ -1,7 +1,8 @@
 """LTL formulas to deterministic parity automata, for the product with DTMCs and MDPs.
 
 :mod:`.formula` holds the LTL syntax; :mod:`.parity` the automata and their
-construction (tableau, Safra-Piterman determinisation, minimisation).
+construction (tableau, Safra-Piterman determinisation, minimisation); :mod:`.cosafe` the
+automaton of a co-safe formula's good prefixes, as PRISM reads a reward's path.
 """
 
 from __future__ import annotations

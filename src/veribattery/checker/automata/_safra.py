@@ -107,8 +107,9 @@ def _below(parents: list[int], node: int, ancestor: int) -> bool:
     return parent == ancestor
 
 
-def determinise(buchi: Buchi, propositions: int, max_states: int) -> TransitionParity:
-    """The deterministic parity automaton of ``buchi``, reachable trees only."""
+def determinise(buchi: Buchi, letters: int, max_states: int) -> TransitionParity:
+    """The deterministic parity automaton of ``buchi`` (whose edges are listed per letter,
+    *letters* of them), reachable trees only."""
     states = len(buchi.edges)
     # At most 2 * states nodes exist within a step, so 4 * states + 1 exceeds any
     # priority of an event; it is odd: a run where nothing happens forever rejects.
@@ -121,7 +122,7 @@ def determinise(buchi: Buchi, propositions: int, max_states: int) -> TransitionP
     while len(successor) < len(order):
         tree = order[len(successor)]
         row_successor, row_priority = [], []
-        for letter in range(1 << propositions):
+        for letter in range(letters):
             target, value = _step(buchi, tree, letter, idle)
             if target not in index:
                 index[target] = len(order)

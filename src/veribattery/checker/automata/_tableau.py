@@ -22,6 +22,7 @@ last one is accepting. Finally bisimilar states are merged.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 from veribattery.checker.automata._limit import check_size
@@ -146,8 +147,9 @@ def _transitions(c: _Closure, untils: list[int], state: frozenset[int],
                        for other in options)]
 
 
-def buchi_automaton(f: LtlFormula, propositions: int, max_states: int) -> Buchi:
-    """The transition-based Büchi automaton of ``f`` (in negation normal form)."""
+def buchi_automaton(f: LtlFormula, alphabet: Sequence[int], max_states: int) -> Buchi:
+    """The transition-based Büchi automaton of ``f`` (in negation normal form), its edges
+    of each state listed per letter of *alphabet*, in order."""
     closure = _Closure()
     start = frozenset({closure.intern(f)})
     untils = closure.untils()
@@ -162,7 +164,7 @@ def buchi_automaton(f: LtlFormula, propositions: int, max_states: int) -> Buchi:
         state, level = order[len(edges)]
         if state not in cache:
             cache[state] = [_transitions(closure, untils, state, letter)
-                            for letter in range(1 << propositions)]
+                            for letter in alphabet]
         row = []
         for options in cache[state]:
             out = []

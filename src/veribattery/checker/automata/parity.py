@@ -43,18 +43,33 @@ from veribattery.checker.automata.formula import (
 class ParityAutomaton:
     """A complete deterministic automaton with state-based min-parity acceptance.
 
-    Letters are ``0 .. 2**propositions - 1``, bit ``i`` set iff ``Prop(i)`` holds.
+    Letters are ``0 .. 2**propositions - 1``, bit ``i`` set iff ``Prop(i)`` holds; the
+    automaton reads those in *letters* (all of them, in order, when None), column ``j``
+    of *successor* being ``letters[j]``: a model whose states show a few of the letters
+    needs an automaton over those only (the construction visits every letter of every
+    state, 2^k of them).
     """
 
     propositions: int
     initial: int
-    successor: NDArray[np.int32]  # (states, 2**propositions)
+    successor: NDArray[np.int32]  # (states, letters)
     priority: NDArray[np.int16]  # (states,)
+    letters: tuple[int, ...] | None = None
 
     def complement(self) -> ParityAutomaton:
         """The automaton of the other words: the same graph, every priority one higher."""
         return ParityAutomaton(self.propositions, self.initial, self.successor,
-                               (self.priority + 1).astype(np.int16))
+                               (self.priority + 1).astype(np.int16), self.letters)
+
+    def column(self, letter: int) -> int:
+        """The column of *successor* that reads *letter*."""
+        if self.letters is None:
+            if not 0 <= letter < 1 << self.propositions:
+                raise ValueError(f"letters must lie in 0..{(1 << self.propositions) - 1}")
+            return letter
+        if letter not in self.letters:
+            raise ValueError(f"letter {letter} is not in the automaton's alphabet")
+        return self.letters.index(letter)
 
     def universal_states(self) -> NDArray[np.bool_]:
         """Which states accept every infinite word.
@@ -97,9 +112,8 @@ class ParityAutomaton:
         """Whether the word ``prefix cycle cycle cycle ...`` is accepted."""
         if not cycle:
             raise ValueError("the cycle of a lasso word must not be empty")
-        letters = 1 << self.propositions
-        if any(not 0 <= letter < letters for letter in (*prefix, *cycle)):
-            raise ValueError(f"letters must lie in 0..{letters - 1}")
+        prefix = [self.column(letter) for letter in prefix]
+        cycle = [self.column(letter) for letter in cycle]
         state = self.initial
         for letter in prefix:
             state = int(self.successor[state, letter])
@@ -120,11 +134,15 @@ class ParityAutomaton:
 
 
 def parity_automaton(formula: LtlFormula, propositions: int, *,
+                     alphabet: Sequence[int] | None = None,
                      max_states: int = 100_000) -> ParityAutomaton:
     """A deterministic parity automaton accepting exactly the words satisfying ``formula``.
 
     ``formula`` may use ``Prop(i)`` for ``0 <= i < propositions``. Raises
     :class:`AutomatonTooLarge` when a stage of the construction exceeds ``max_states``.
+
+    :param alphabet: the letters to read (distinct), or None for all ``2**propositions``:
+        on words over *alphabet* the automaton accepts exactly as the full one would.
     """
     if propositions < 0:
         raise ValueError(f"propositions must be >= 0, got {propositions}")
@@ -133,9 +151,13 @@ def parity_automaton(formula: LtlFormula, propositions: int, *,
     if outside:
         raise ValueError(f"the formula uses propositions {outside}, outside "
                          f"0..{propositions - 1}")
+    letters = tuple(range(1 << propositions)) if alphabet is None else tuple(alphabet)
+    if len(set(letters)) != len(letters) or not all(
+            0 <= letter < 1 << propositions for letter in letters):
+        raise ValueError(f"the alphabet must be distinct letters in 0..{(1 << propositions) - 1}")
     simple = normal_form(formula)
-    buchi = buchi_automaton(simple, propositions, max_states)
-    dpa = determinise(buchi, propositions, max_states)
+    buchi = buchi_automaton(simple, letters, max_states)
+    dpa = determinise(buchi, len(letters), max_states)
     successor, priority = state_based(dpa, max_states)
     # Normalising can make states equal, and merging them can open more normalisation.
     while True:
@@ -143,7 +165,8 @@ def parity_automaton(formula: LtlFormula, propositions: int, *,
         successor, priority = minimise(successor, normalise_priorities(successor, priority))
         if len(priority) == before:
             break
-    return ParityAutomaton(propositions, 0, successor, priority.astype(np.int16))
+    return ParityAutomaton(propositions, 0, successor, priority.astype(np.int16),
+                           None if alphabet is None else letters)
 
 
 def _indices(f: LtlFormula) -> set[int]:
