@@ -60,6 +60,7 @@ from veribattery.lang.nodes import (
     Binary,
     Conditional,
     ConditionalReach,
+    CosafeReach,
     Cumulative,
     Eventually,
     Expr,
@@ -68,19 +69,23 @@ from veribattery.lang.nodes import (
     Instantaneous,
     Ite,
     LongRun,
+    LtlPath,
     Next,
     PathFormula,
     ProbOp,
     Property,
     Quantified,
     Reach,
+    ReachNext,
     ReachUntil,
+    Release,
     RewardBounded,
     RewardOp,
     SteadyOp,
     Total,
     Unary,
     Until,
+    WeakUntil,
 )
 from veribattery.lang.property_rules import STEPS_REWARD
 
@@ -199,6 +204,11 @@ def state_set(model: ExactDTMC, workspace: Workspace, expr: Expr) -> BoolArray:
     match expr:
         case ProbOp() | RewardOp() | SteadyOp():
             return _bounded_operator(model, workspace, expr)
+        case Quantified(quantifier=quantifier, path=LtlPath() as path):  # graph searches
+            from veribattery.checker.formula.ltl import ltl_quantified
+
+            return ltl_quantified(model.dtmc.transitions, quantifier, path,
+                                  functools.partial(state_set, model, workspace))
         case Quantified(quantifier=quantifier, path=path):  # graph searches: exact already
             return ctl.quantified_path(model.dtmc.transitions, quantifier, path,
                                        functools.partial(state_set, model, workspace),
@@ -254,8 +264,20 @@ def path_probs(model: ExactDTMC, workspace: Workspace, path: PathFormula) -> Obj
             avoid = ~state_set(model, workspace, operand)
             escape = _until(model, workspace, everywhere, avoid, bound)
             return np.asarray(_ONE - escape, dtype=object)
+        case WeakUntil(left=left, right=right, bound=bound):  # !((a & !b) U (!a & !b))
+            a, b = state_set(model, workspace, left), state_set(model, workspace, right)
+            return np.asarray(_ONE - _until(model, workspace, a & ~b, ~a & ~b, bound),
+                              dtype=object)
+        case Release(left=left, right=right, bound=bound):  # a R b = !(!a U !b)
+            a, b = state_set(model, workspace, left), state_set(model, workspace, right)
+            return np.asarray(_ONE - _until(model, workspace, ~a, ~b, bound), dtype=object)
         case RewardBounded() | Conditional():
             return _storm_formula(model, workspace, path)
+        case LtlPath():
+            from veribattery.checker.exact.ltl import exact_ltl_probs  # when met
+
+            return exact_ltl_probs(model, workspace, path,
+                                   functools.partial(state_set, model, workspace))
     raise UndefinedResult(
         f"{type(path).__name__} formulas are not supported in exact arithmetic", path.span)
 
@@ -301,6 +323,15 @@ def path_rewards(model: ExactDTMC, workspace: Workspace, op: RewardOp) -> ExactV
             return ExactValues.finite(steady.long_run_values(model, workspace, structure.total))
         case Total():
             return steady.total_rewards(model, workspace, structure.total)
+        case ReachNext(target=target):  # co-safe X phi: the first step's reward, if sure
+            outside = ~state_set(model, workspace, target)
+            sure = model.dtmc.transitions @ outside.astype(np.float64) == 0  # graph only
+            return ExactValues(np.where(sure, structure.total, _ZERO), ~sure)
+        case CosafeReach():
+            from veribattery.checker.exact.ltl import exact_cosafe_rewards
+
+            return exact_cosafe_rewards(model, workspace, structure.total, op.path,
+                                        functools.partial(state_set, model, workspace))
     raise UndefinedResult(
         f"{type(op.path).__name__} reward paths are not supported in exact arithmetic",
         op.path.span)

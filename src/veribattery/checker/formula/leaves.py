@@ -32,6 +32,7 @@ from veribattery.lang.nodes import (
     Ident,
     IntLit,
     LabelRef,
+    LtlPath,
     PathFormula,
     ProbOp,
     Quantified,
@@ -196,6 +197,10 @@ def _operands(path: PathFormula) -> tuple[Expr, ...]:
         return (path.left, path.right)
     if isinstance(path, Conditional):
         return (path.condition,)
+    if isinstance(path, LtlPath):
+        from veribattery.checker.ltl.propositions import propositions
+
+        return propositions(path.formula).operands
     return (path.operand,)
 
 

@@ -43,6 +43,7 @@ from veribattery.lang.nodes import (
     Call,
     Conditional,
     ConditionalReach,
+    CosafeReach,
     Cumulative,
     Eventually,
     Expr,
@@ -51,6 +52,7 @@ from veribattery.lang.nodes import (
     Instantaneous,
     Ite,
     LongRun,
+    LtlPath,
     Next,
     PathFormula,
     ProbOp,
@@ -210,6 +212,11 @@ def path_probs(dtmc: DTMC, workspace: Workspace, path: PathFormula,
             return _reward_bounded_probs(dtmc, workspace, path)
         case Conditional():
             return _conditional_probs(dtmc, workspace, path)
+        case LtlPath():
+            from veribattery.checker.formula import ltl  # rare kinds of property: when met
+
+            return ltl.ltl_probs(dtmc.transitions, path, functools.partial(
+                state_set, dtmc, workspace), workspace=workspace)
     raise CheckError(f"unsupported path formula {type(path).__name__}", path.span)
 
 
@@ -263,6 +270,11 @@ def _expected_rewards(dtmc: DTMC, workspace: Workspace, path: RewardPath,
                 dtmc, structure, state_set(dtmc, workspace, target),
                 state_set(dtmc, workspace, condition), _condition_name(condition), path.span,
                 focus_states, workspace=workspace)
+        case CosafeReach():
+            from veribattery.checker.formula import ltl
+
+            return ltl.cosafe_rewards(P, structure.total, path, functools.partial(
+                state_set, dtmc, workspace), workspace=workspace)
     raise CheckError(f"unsupported reward path {type(path).__name__}", path.span)
 
 
@@ -415,6 +427,11 @@ def _reach_until_rewards(dtmc: DTMC, workspace: Workspace, structure: RewardVect
 
 def _ctl(dtmc: DTMC, workspace: Workspace, quantifier: str, path: PathFormula) -> BoolArray:
     """``A [path]`` or ``E [path]`` as a state set (unbounded operators only, as PRISM)."""
+    if isinstance(path, LtlPath):
+        from veribattery.checker.formula import ltl
+
+        return ltl.ltl_quantified(dtmc.transitions, quantifier, path,
+                                  functools.partial(state_set, dtmc, workspace))
     return ctl.quantified_path(dtmc.transitions, quantifier, path,
                                functools.partial(state_set, dtmc, workspace), workspace=workspace)
 

@@ -62,6 +62,7 @@ from veribattery.lang.nodes import (
     BOUND_RELATIONS,
     Binary,
     Conditional,
+    CosafeReach,
     Cumulative,
     Eventually,
     Expr,
@@ -69,6 +70,7 @@ from veribattery.lang.nodes import (
     Globally,
     Instantaneous,
     Ite,
+    LtlPath,
     Multi,
     Next,
     PathFormula,
@@ -281,6 +283,13 @@ def path_probs(model: ExactMdpModel, path: PathFormula, objective: Objective) ->
                                         span=path.span)
         case Conditional():
             raise CheckError(CONDITIONAL_ON_MDP, path.span)
+        case LtlPath():
+            from veribattery.checker.mdp.exact_ltl import exact_accepted_probability
+
+            found = exact_accepted_probability(
+                model.mdp, model.exact.probabilities, path, partial(state_set, model),
+                negated=objective == "min")
+            return _complement(found) if objective == "min" else found
     raise CheckError("this path formula has no exact MDP kernel (X, U, F, G, W, R and "
                      "reward-bounded F, U have)", path.span)
 
@@ -320,6 +329,12 @@ def path_rewards(model: ExactMdpModel, op: RewardOp, objective: Objective) -> Ex
                                        state_set(model, right), objective=objective,
                                        probabilities=probabilities)
             return ExactValues(found.values, found.infinite)
+        case CosafeReach():
+            from veribattery.checker.mdp.exact_ltl import exact_cosafe_reward
+
+            return ExactValues(*exact_cosafe_reward(
+                mdp, probabilities, per_choice, op.path, partial(state_set, model),
+                objective=objective))
         case Cumulative(bound=bound):
             zeros = np.full(mdp.num_states, _ZERO, dtype=object)
             return ExactValues.finite(exact_rounds(mdp, probabilities, zeros, everywhere, zeros,

@@ -49,6 +49,7 @@ from veribattery.lang.nodes import (
     BoolLit,
     Call,
     Conditional,
+    CosafeReach,
     Cumulative,
     Eventually,
     Expr,
@@ -58,6 +59,7 @@ from veribattery.lang.nodes import (
     Instantaneous,
     Ite,
     LabelRef,
+    LtlPath,
     Multi,
     Next,
     PathFormula,
@@ -184,6 +186,12 @@ def _path(mdp: MDP, progress: Progress | None, path: PathFormula,
             return _complement(_until(mdp, progress, ~a, ~b, bound, _opposite(objective)))
         case Conditional():
             raise CheckError(CONDITIONAL_ON_MDP, path.span)
+        case LtlPath():
+            from veribattery.checker.mdp import ltl  # rare kinds of property: when met
+
+            found = ltl.accepted_probability(mdp, path, partial(_mask, mdp, progress),
+                                             negated=objective == "min", progress=progress)
+            return _complement(found) if objective == "min" else found
         case RewardBounded(left=left, right=right, bound=bound):
             return reward_bounded_reach(mdp, reward_structure(mdp, path), reward_limit(bound),
                                         _mask(mdp, progress, left), _mask(mdp, progress, right),
@@ -235,6 +243,10 @@ def quantified_states(mdp: MDP, quantifier: str, path: PathFormula,
     from veribattery.checker.workspace import Workspace
 
     graph = ctl.state_pattern(mdp.transitions, mdp.choice_owner, mdp.num_states)
+    if isinstance(path, LtlPath):
+        from veribattery.checker.formula.ltl import ltl_quantified
+
+        return ltl_quantified(graph, quantifier, path, mask)
     return ctl.quantified_path(graph, quantifier, path, mask, workspace=Workspace())
 
 
@@ -268,6 +280,12 @@ def _reward(mdp: MDP, progress: Progress | None, op: RewardOp,
             return cosafe.until_reward(mdp, structure.per_choice(mdp),
                                        _mask(mdp, progress, left),
                                        _mask(mdp, progress, right), objective=objective)
+        case CosafeReach():
+            from veribattery.checker.mdp import ltl
+
+            return ltl.cosafe_reward(mdp, structure.per_choice(mdp), path,
+                                     partial(_mask, mdp, progress), objective=objective,
+                                     progress=progress)
         case ReachNext(target=target):
             return cosafe.next_reward(mdp, structure.per_choice(mdp),
                                       _mask(mdp, progress, target),
