@@ -44,7 +44,7 @@ SUITES = ("prism", "prism-examples", "prism-extended", "prism-mdp")
 ENGINE_OPTIONS = frozenset({"-fair", "-noprobchecks", "-ctmc", "-dtmc", "-mdp", "-param"})
 #: Why an entry fails, by the text of its error (the first that matches).
 CAUSES = (
-    ("LTL (automata: not supported)", "LTL path formulas"),
+    ("LTL inside multi(...) (not supported)", "multi(...) takes P objectives"),
     ("interval model (not supported)", "interval probability"),
     ("parametric constant (not supported)", "undefined constant"),
 )

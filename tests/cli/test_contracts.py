@@ -299,12 +299,12 @@ def test_syntax_error_is_one_line_off_a_terminal(tmp_path: Path) -> None:
 
 def test_whole_file_skips_unsupported_properties_with_a_warning(die: Path) -> None:
     props = die.with_name("mixed.props")
-    props.write_text('P=? [ F "six" ];\nP=? [ G F s=7 ];\nR{"flips"}=? [ F s=7 ];\n')
+    props.write_text('P=? [ F "six" ];\nP=? [ F<=3 G s=7 ];\nR{"flips"}=? [ F s=7 ];\n')
     result = run("prism", str(die), "--props", str(props), "--json")
     assert result.exit_code == 0, result.output
     values = [r["value"] for r in json.loads(result.stdout)["results"]]
     assert values == [pytest.approx(1 / 6, rel=1e-12), pytest.approx(11 / 3, rel=1e-12)]
-    assert "mixed.props:2:1: unsupported property P=? [ G F s=7 ]" in result.stderr
+    assert "mixed.props:2:1: unsupported property P=? [ F<=3 G s=7 ]" in result.stderr
     picked = run("prism", str(die), "--props", str(props), "--property", "2")
     assert picked.exit_code == 2
     assert "unsupported property" in picked.stderr

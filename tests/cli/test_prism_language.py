@@ -34,17 +34,18 @@ def test_table_shows_a_range_and_the_states(tmp_path: Path) -> None:
     assert "[0, 4]" in out and "4:(s=4)" in out
 
 
-def test_picked_ltl_property_is_one_line_exit_2(tmp_path: Path) -> None:
-    code, out, err = _run(tmp_path, "--property", "P=? [ G F s=1 ]", "--json")
+def test_picked_bounded_ltl_property_is_one_line_exit_2(tmp_path: Path) -> None:
+    code, out, err = _run(tmp_path, "--property", "P=? [ F<=2 G s=1 ]", "--json")
     assert code == 2 and out == ""
     lines = [line for line in err.splitlines() if line.strip()]
-    assert len(lines) == 1 and "LTL" in lines[0]
+    assert len(lines) == 1 and "LTL takes unbounded operators only" in lines[0]
 
 
-def test_whole_file_skips_ltl_with_a_warning(tmp_path: Path) -> None:
+def test_whole_file_skips_bounded_ltl_with_a_warning(tmp_path: Path) -> None:
     props = tmp_path / "p.props"
-    props.write_text("P=? [ G F s=1 ]\nS=? [ s=3 ]\n")
+    props.write_text("P=? [ F<=2 G s=1 ]\nS=? [ s=3 ]\nP=? [ G F s=1 ]\n")
     code, out, err = _run(tmp_path, "--props", str(props), "--json")
     assert code == 0
-    assert [r["property"] for r in json.loads(out)["results"]] == ["S=? [ s=3 ]"]
-    assert "warning" in err and "LTL" in err
+    assert [r["property"] for r in json.loads(out)["results"]] == [
+        "S=? [ s=3 ]", "P=? [ G F s=1 ]"]
+    assert "warning" in err and "LTL takes unbounded operators only" in err
