@@ -86,7 +86,7 @@ def _value(run: Measured, ours: bool) -> float | None:
 
 def row(case: tuple[str, dict[str, int | bool], str, str], ours: Measured,
         storm: Measured) -> str:
-    model, constants, name, text = case
+    model, constants, _name, text = case
     mine, theirs = _value(ours, True), _value(storm, False)
     agree = ("yes" if mine is not None and theirs is not None
              and abs(mine - theirs) <= 1e-6 * max(1.0, abs(theirs)) else "no")
