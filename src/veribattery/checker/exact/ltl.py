@@ -9,12 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from veribattery._types import BoolArray, IntArray
 from veribattery.checker.exact.numeric import ExactValues, reach_rewards, until_probs
-from veribattery.checker.ltl.acceptance import accepting_states
-from veribattery.checker.ltl.automaton import StateSet, cosafe_of, parity_of
-from veribattery.checker.ltl.product import Automaton, Product, product
-from veribattery.checker.mdp.graph import ChoiceGraph
+from veribattery.checker.ltl.automaton import StateSet
+from veribattery.checker.ltl.product import Product
+from veribattery.checker.ltl.targets import accepting_product, chain_groups, good_prefix_product
 from veribattery.checker.workspace import Workspace
 from veribattery.explore.dtmc import DTMC
 from veribattery.explore.exact.dtmc import ExactDTMC
@@ -27,11 +25,8 @@ __all__ = ["exact_cosafe_rewards", "exact_ltl_probs"]
 def exact_ltl_probs(model: ExactDTMC, workspace: Workspace, path: LtlPath,
                     states: StateSet) -> ObjectArray:
     """Per state, the exact probability of the LTL path formula *path*."""
-    n = model.dtmc.num_states
-    automaton, column = parity_of(path.formula, states, n, path.span)
-    joint = _product(model, automaton, column)
-    graph = ChoiceGraph.of(joint.transitions, np.arange(joint.num_states, dtype=np.int64))
-    target = accepting_states(graph, automaton.priority[joint.automaton_state])
+    P = model.dtmc.transitions
+    joint, target = accepting_product(P, chain_groups(P.shape[0]), path, states)
     everywhere = np.ones(joint.num_states, dtype=bool)
     found = until_probs(_chain(model, joint), workspace, everywhere, target)
     return np.asarray(found[joint.start], dtype=object)
@@ -40,18 +35,11 @@ def exact_ltl_probs(model: ExactDTMC, workspace: Workspace, path: LtlPath,
 def exact_cosafe_rewards(model: ExactDTMC, workspace: Workspace, rewards: ObjectArray,
                          path: CosafeReach, states: StateSet) -> ExactValues:
     """Per state, the exact reward (per step, *rewards*) until the co-safe *path* holds."""
-    n = model.dtmc.num_states
-    automaton, column = cosafe_of(path.formula, states, n, path.span)
-    joint = _product(model, automaton, column)
-    done: BoolArray = automaton.accepting[joint.automaton_state]
+    P = model.dtmc.transitions
+    joint, done = good_prefix_product(P, chain_groups(P.shape[0]), path, states)
     found = reach_rewards(_chain(model, joint), workspace,
                           np.asarray(rewards[joint.model_state], dtype=object), done)
     return ExactValues(found.values[joint.start], found.infinite[joint.start])
-
-
-def _product(model: ExactDTMC, automaton: Automaton, column: IntArray) -> Product:
-    n = model.dtmc.num_states
-    return product(model.dtmc.transitions, np.arange(n + 1, dtype=np.int64), automaton, column)
 
 
 def _chain(model: ExactDTMC, joint: Product) -> ExactDTMC:

@@ -4,8 +4,8 @@ Each reduces to reaching a set of states in the product of the chain with an aut
 of the formula (:mod:`veribattery.checker.ltl`): a probability to reaching the accepting
 bottom components of the product with its parity automaton, certified by the chain
 solver as any ``F``; a reward to reaching a good prefix, in the product with its
-good-prefix automaton (:mod:`veribattery.checker.ltl.cosafe`); ``E`` to reaching a cycle
-of even least priority.
+good-prefix automaton (:mod:`veribattery.checker.automata.cosafe`); ``E`` to reaching a
+cycle of even least priority.
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ import numpy as np
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.ltl.acceptance import accepting_states, good_cycle_reachers
-from veribattery.checker.ltl.automaton import StateSet, cosafe_of, parity_of
+from veribattery.checker.ltl.acceptance import good_cycle_reachers
+from veribattery.checker.ltl.automaton import StateSet, parity_of
 from veribattery.checker.ltl.product import product
-from veribattery.checker.mdp.graph import ChoiceGraph
+from veribattery.checker.ltl.targets import accepting_product, chain_groups, good_prefix_product
 from veribattery.lang.nodes import CosafeReach, LtlPath
 
 if TYPE_CHECKING:
@@ -31,11 +31,7 @@ __all__ = ["cosafe_rewards", "ltl_probs", "ltl_quantified"]
 
 def ltl_probs(P: CsrMatrix, path: LtlPath, states: StateSet, *, workspace: Workspace) -> Bounds:
     """Per state, the probability of the LTL path formula *path*, certified."""
-    n = P.shape[0]
-    automaton, column = parity_of(path.formula, states, n, path.span)
-    joint = product(P, np.arange(n + 1, dtype=np.int64), automaton, column)
-    graph = ChoiceGraph.of(joint.transitions, np.arange(joint.num_states, dtype=np.int64))
-    target = accepting_states(graph, automaton.priority[joint.automaton_state])
+    joint, target = accepting_product(P, chain_groups(P.shape[0]), path, states)
     found = kernels.until_probs(joint.transitions, np.ones(joint.num_states, dtype=bool),
                                 target, workspace=workspace)
     return joint.at_starts(found)
@@ -45,10 +41,7 @@ def cosafe_rewards(P: CsrMatrix, rewards: FloatArray, path: CosafeReach, states:
                    *, workspace: Workspace) -> Bounds:
     """Per state, the expected reward (per step, *rewards*) until the co-safe *path* is
     satisfied: infinite where that is not almost sure."""
-    n = P.shape[0]
-    automaton, column = cosafe_of(path.formula, states, n, path.span)
-    joint = product(P, np.arange(n + 1, dtype=np.int64), automaton, column)
-    done = automaton.accepting[joint.automaton_state]
+    joint, done = good_prefix_product(P, chain_groups(P.shape[0]), path, states)
     found = kernels.reach_rewards(joint.transitions, rewards[joint.model_state], done,
                                   workspace=workspace)
     return joint.at_starts(found)
@@ -62,8 +55,7 @@ def ltl_quantified(edges: CsrMatrix, quantifier: str, path: LtlPath,
     automaton, column = parity_of(path.formula, states, n, path.span)
     if quantifier == "A":
         automaton = automaton.complement()
-    joint = product(edges, np.arange(n + 1, dtype=np.int64), automaton, column)
+    joint = product(edges, chain_groups(n), automaton, column)
     some = good_cycle_reachers(joint.transitions, automaton.priority[joint.automaton_state])
     found = some[joint.start]
     return np.asarray(~found if quantifier == "A" else found, dtype=bool)
-
