@@ -176,3 +176,13 @@ def test_a_skipped_property_is_named_in_the_property_language() -> None:
     assert sim.estimates == ()
     assert "a conditional expectation (F a || F b) is not simulated" in sim.skipped[0]
     assert "ConditionalReach" not in sim.skipped[0]
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ('P=? [ G F "good" ]', "an LTL formula (a finite run cannot settle most) is not simulated"),
+    ('R{"r"}=? [ F ("good" & (X "good")) ]',
+     "a reward until a co-safe LTL formula holds is not simulated"),
+])
+def test_ltl_is_named_when_it_is_skipped(text: str, says: str) -> None:
+    sim = simulate(_loop(), [parse_property(text)], runs=10)
+    assert sim.estimates == () and says in sim.skipped[0]

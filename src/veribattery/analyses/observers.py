@@ -190,6 +190,8 @@ _PATH_WORDS = {
     "Total": "a total reward (C)", "LongRun": "a long-run average reward (S)",
     "ReachUntil": "a reward until (a U b)", "ReachNext": "a reward of the next step (X)",
     "ConditionalReach": "a conditional expectation (F a || F b)",
+    "LtlPath": "an LTL formula (a finite run cannot settle most)",
+    "CosafeReach": "a reward until a co-safe LTL formula holds",
 }
 
 
