@@ -186,3 +186,8 @@ def test_the_automaton_reads_only_the_letters_the_model_shows() -> None:
     formula = " & ".join(f"(F s={i})" for i in range(1, 11))
     (result,) = check_prism_file(ring, props_source=f"P=? [ {formula} ]").results
     assert result.value == 1.0 and result.lower == 1.0
+
+
+def test_ltl_inside_multi_is_refused_naming_it() -> None:
+    with pytest.raises(CheckError, match="no LTL"):
+        check_prism_file(MDP, props_source='multi(Pmax=? [ F "a" ], P>=0.5 [ G F "a" ])')

@@ -41,7 +41,8 @@ class Automaton(Protocol):
 
 @dataclass(frozen=True, slots=True)
 class Product:
-    """The reachable product of a model (choices x states) and an automaton.
+    """The product of a model (choices x states) and an automaton, over the pairs that
+    can be entered (:func:`product`).
 
     :param transitions: product choices x product states; the choices of a product state
         are its model state's, in their order.

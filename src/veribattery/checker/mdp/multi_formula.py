@@ -154,7 +154,7 @@ def _goal(mdp: MDP, stepped: SteppedMdp | None, op: ProbOp | RewardOp,
         case Until(left=BoolLit(value=False), right=operand, bound=None):  # P [ phi ]
             return _Goal(op, Reach(lift(mask(operand) & mdp.initial_mask)))
     raise CheckError("multi(...) takes P objectives over F phi, G phi or a state formula "
-                     "(no time bounds, no U)", op.path.span)
+                     "(no time bounds, no U, no LTL)", op.path.span)
 
 
 def _reward_goal(mdp: MDP, stepped: SteppedMdp | None, op: RewardOp) -> _Goal:
