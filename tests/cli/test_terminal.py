@@ -131,3 +131,14 @@ def test_a_config_too_fine_for_prisms_ints_fails_before_any_spinner(workdir: Pat
     assert screen.status == 2
     assert "exploring states" not in screen.drawn, screen.drawn
     assert "safe_t: 0.1000000000000000000001 is too fine" in screen.text, screen.text
+
+
+def test_a_constant_of_the_wrong_type_fails_without_a_spinner(tmp_path: Path) -> None:
+    # The constants are resolved when the model is flattened, once the spinner was up:
+    # "exploring states…" was drawn and erased in the same instant, then the error.
+    (tmp_path / "die.pm").write_text(DIE.replace("module", "const int x;\nmodule", 1))
+    screen = run_in_terminal(["prism", "die.pm", "--property", "P=? [ F d=x ]", "--const",
+                              "x=true"], 80, tmp_path)
+    assert screen.status == 2
+    assert "exploring states" not in screen.drawn, screen.drawn
+    assert "constant 'x' is an int, but was given the value 'true'" in screen.text, screen.text

@@ -20,6 +20,7 @@ import click
 from click.core import ParameterSource
 
 from veribattery.cli.progress import PlainProgress, intervals, rate_text, solve_text
+from veribattery.cli.spinner import DeferredStatus
 from veribattery.errors import OptionError, VeribatteryError
 
 if TYPE_CHECKING:
@@ -230,8 +231,11 @@ def build_progress(plain: bool = False) -> Iterator[LiveStatus | PlainProgress |
             return
         yield PlainProgress(_stderr_line, first=first, every=every)
         return
-    with err.status("exploring states…") as status:
+    status = DeferredStatus(err.status, "exploring states…")
+    try:
         yield LiveStatus(status)
+    finally:
+        status.stop()
 
 
 def _stderr_line(text: str) -> None:
