@@ -13,7 +13,9 @@ from fractions import Fraction
 import pytest
 
 from veribattery import check_prism_file
+from veribattery.checker.mdp.witness import strategy_refusal
 from veribattery.errors import CheckError
+from veribattery.lang.parser import parse_property
 
 #: s0 splits to s1 and s2; {s1, s3} is a bottom component visiting "a" (s1) infinitely
 #: often, never staying in it; s2 ("b") is absorbing.
@@ -188,6 +190,27 @@ def test_the_automaton_reads_only_the_letters_the_model_shows() -> None:
     assert result.value == 1.0 and result.lower == 1.0
 
 
-def test_ltl_inside_multi_is_refused_naming_it() -> None:
-    with pytest.raises(CheckError, match="no LTL"):
-        check_prism_file(MDP, props_source='multi(Pmax=? [ F "a" ], P>=0.5 [ G F "a" ])')
+@pytest.mark.parametrize(("query", "want"), [
+    # From s3, staying forever (F G s=3) and returning to s1 for ever (G F "a") exclude
+    # each other: a strategy that stays with probability x meets them with x and 1 - x.
+    ('multi(Pmax=? [ F G s=3 ], P>=0.3 [ G F "a" ])', 0.7),
+    ('multi(P>=0.65 [ F G s=3 ], P>=0.3 [ G F "a" ])', True),
+    ('multi(P>=0.8 [ F G s=3 ], P>=0.3 [ G F "a" ])', False),
+    ('multi(Pmax=? [ G F "a" ], P>=0.25 [ F G s=3 ], P>=0.5 [ F s=3 ])', 0.75),
+])
+def test_ltl_objectives_in_multi(query: str, want: object) -> None:
+    (result,) = check_prism_file(MDP, props_source=query).results
+    if isinstance(want, bool):
+        assert result.value is want
+    else:
+        assert math.isclose(result.value, want, abs_tol=1e-6)
+
+
+@pytest.mark.parametrize(("text", "says"), [
+    ('Pmax=? [ G F "a" ]', "an optimal strategy for LTL needs the automaton's state"),
+    ('Rmin=? [ F ("a" & (X s=3)) ]', "an optimal strategy for LTL needs the automaton's state"),
+    ('multi(Pmax=? [ F "a" ], P>=0.5 [ G F "a" ])', "an LTL objective in multi(...) needs"),
+])
+def test_a_strategy_for_ltl_is_refused_before_the_build(text: str, says: str) -> None:
+    refusal = strategy_refusal(parse_property(text).formula)
+    assert refusal is not None and says in str(refusal)

@@ -47,6 +47,7 @@ from veribattery.checker.mdp.multi import (
     multi_optimum,
 )
 from veribattery.checker.mdp.multi_front import FrontSearch
+from veribattery.checker.mdp.multi_ltl import has_ltl, stopped_query
 from veribattery.checker.mdp.multi_steps import SteppedMdp
 from veribattery.checker.mdp.operators import reward_structure
 from veribattery.checker.mdp.system import Objective
@@ -94,7 +95,10 @@ def multi_answer(mdp: MDP, query: Multi, mask: StateMask) -> FilterOutcome:
     """
     if mdp.initial.size != 1:
         raise CheckError("multi(...) needs a single initial state", query.span)
-    goals, model = _goals(mdp, query, mask)
+    if has_ltl(query):  # LTL objectives: reachability of stop states in a product
+        goals, model = _goals(*stopped_query(mdp, query, mask))
+    else:
+        goals, model = _goals(mdp, query, mask)
     constraints = [_constraint(goal) for goal in goals if goal.op.op != "=?"]
     queried = [goal for goal in goals if goal.op.op == "=?"]
     if queried:
@@ -153,8 +157,8 @@ def _goal(mdp: MDP, stepped: SteppedMdp | None, op: ProbOp | RewardOp,
             return _Goal(op, Reach(lift(~mask(operand))), -1, 1.0)
         case Until(left=BoolLit(value=False), right=operand, bound=None):  # P [ phi ]
             return _Goal(op, Reach(lift(mask(operand) & mdp.initial_mask)))
-    raise CheckError("multi(...) takes P objectives over F phi, G phi or a state formula "
-                     "(no time bounds, no U, no LTL)", op.path.span)
+    raise CheckError("multi(...) takes P objectives over F phi, G phi, a state formula or, "
+                     "alongside LTL, any unbounded path (no time bounds)", op.path.span)
 
 
 def _reward_goal(mdp: MDP, stepped: SteppedMdp | None, op: RewardOp) -> _Goal:

@@ -27,11 +27,13 @@ from veribattery.errors import CheckError
 from veribattery.lang.nodes import (
     Conditional,
     ConditionalReach,
+    CosafeReach,
     Cumulative,
     Eventually,
     Expr,
     Globally,
     Instantaneous,
+    LtlPath,
     Multi,
     Next,
     PathFormula,
@@ -69,6 +71,13 @@ def strategy_refusal(formula: Expr) -> NoStrategyError | None:
         case RewardOp(path=path):
             return None if isinstance(path, Reach | Total) else _no_memoryless(path)
         case Multi(objectives=objectives):
+            ltl = [op for op in objectives
+                   if isinstance(op, ProbOp) and isinstance(op.path, LtlPath)]
+            if ltl:
+                return NoStrategyError(
+                    "no strategy exported: an LTL objective in multi(...) needs the "
+                    "automata's states as memory; only F, G, state-formula and C objectives "
+                    "have exported multi-objective strategies", ltl[0].span)
             counting = [op for op in objectives
                         if isinstance(op, RewardOp) and isinstance(op.path, Cumulative)]
             return None if not counting else NoStrategyError(
@@ -143,6 +152,10 @@ def _no_memoryless(path: object) -> NoStrategyError:
     span = getattr(path, "span", None)
     if isinstance(path, Conditional | ConditionalReach):
         return NoStrategyError(f"no strategy: {CONDITIONAL_ON_MDP}", span)
+    if isinstance(path, LtlPath | CosafeReach):
+        return NoStrategyError("no memoryless strategy: an optimal strategy for LTL needs the "
+                               "automaton's state as memory; such strategies are not exported",
+                               span)
     if not (isinstance(path, Next | Cumulative | Instantaneous | RewardBounded)
             or getattr(path, "bound", None) is not None):
         return NoStrategyError("no memoryless strategy is exported for this path: only for "
