@@ -214,3 +214,10 @@ def test_ltl_objectives_in_multi(query: str, want: object) -> None:
 def test_a_strategy_for_ltl_is_refused_before_the_build(text: str, says: str) -> None:
     refusal = strategy_refusal(parse_property(text).formula)
     assert refusal is not None and says in str(refusal)
+
+
+@pytest.mark.parametrize("operator", ["P=?", 'R{"steps"}=?'])
+def test_a_formula_nested_thousands_deep_is_one_error(operator: str) -> None:
+    formula = "X " * 3000 + '"a"'
+    with pytest.raises(CheckError, match="nests its operators too deeply"):
+        check_prism_file(CHAIN, props_source=f"{operator} [ {formula} ]")

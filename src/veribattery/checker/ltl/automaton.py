@@ -32,12 +32,14 @@ def parity_of(formula: LtlNode, states: StateSet, num_states: int,
 
     :raises CheckError: where the automaton is too large.
     """
-    found = propositions(formula)
-    alphabet, column = _alphabet(letters(found.operands, states, num_states))
     try:
+        found = propositions(formula)
+        alphabet, column = _alphabet(letters(found.operands, states, num_states))
         automaton = parity_automaton(found.formula, len(found.operands), alphabet=alphabet)
     except AutomatonTooLarge as exc:
         raise _too_large(exc, span) from None
+    except RecursionError:  # the translation recurses through the formula
+        raise _too_deep(span) from None
     return automaton, column
 
 
@@ -48,9 +50,9 @@ def cosafe_of(formula: LtlNode, states: StateSet, num_states: int,
     :raises CheckError: where *formula* is not co-safe (as PRISM requires of a reward's
         path) or its automaton is too large.
     """
-    found = propositions(formula)
-    alphabet, column = _alphabet(letters(found.operands, states, num_states))
     try:
+        found = propositions(formula)
+        alphabet, column = _alphabet(letters(found.operands, states, num_states))
         automaton = cosafe_automaton(found.formula, alphabet)
     except NotCosafe:
         raise CheckError("the path of an R operator must be co-safe LTL: with negations "
@@ -58,6 +60,8 @@ def cosafe_of(formula: LtlNode, states: StateSet, num_states: int,
                          span) from None
     except AutomatonTooLarge as exc:
         raise _too_large(exc, span) from None
+    except RecursionError:
+        raise _too_deep(span) from None
     return automaton, column
 
 
@@ -71,3 +75,8 @@ def _too_large(exc: AutomatonTooLarge, span: Span) -> CheckError:
     return CheckError(f"the LTL formula's automaton is too large: its {exc.what} passed "
                       f"{exc.limit:,} states; split the formula, or give it fewer operators "
                       "nested in each other", span)
+
+
+def _too_deep(span: Span) -> CheckError:
+    return CheckError("the LTL formula nests its operators too deeply to translate (a few "
+                      "hundred levels at most): split it into several properties", span)
