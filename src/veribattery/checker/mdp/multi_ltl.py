@@ -67,12 +67,10 @@ def stopped_query(mdp: MDP, query: Multi, mask: StateMask) -> tuple[MDP, Multi, 
     """The MDP with stop states, *query* with each ``P`` objective ``F`` of its stop
     states, and the mask of those labels (:mod:`this module <.multi_ltl>`)."""
     probabilities = [op for op in query.objectives if isinstance(op, ProbOp)]
-    automata, joint = _joint_product(mdp, [_as_ltl(op) for op in probabilities], mask)
+    joint = _joint_product(mdp, [_as_ltl(op) for op in probabilities], mask)
     zero = _zero_reward_choices(mdp, query, joint.choices)
-    stops = _stop_states(joint.graph, joint.priorities, zero)
-    reduced = _with_stops(mdp, joint, stops)
-    labels = {_STOPPED.format(i): reduced.labels[_STOPPED.format(i)]
-              for i in range(len(automata))}
+    reduced = _with_stops(mdp, joint, _stop_states(joint.graph, joint.priorities, zero))
+    labels = dict(reduced.labels)
     rewritten: list[Expr] = []
     for op in query.objectives:
         if isinstance(op, ProbOp):
@@ -102,8 +100,7 @@ class _Joint:
         self.graph = ChoiceGraph.of(transitions, owner)
 
 
-def _joint_product(mdp: MDP, formulas: Sequence[LtlNode], mask: StateMask
-                   ) -> tuple[list[ParityAutomaton], _Joint]:
+def _joint_product(mdp: MDP, formulas: Sequence[LtlNode], mask: StateMask) -> _Joint:
     transitions, groups = mdp.transitions, mdp.row_groups
     model_state = np.arange(mdp.num_states, dtype=np.int64)
     choices = np.arange(mdp.num_choices, dtype=np.int64)
@@ -119,7 +116,7 @@ def _joint_product(mdp: MDP, formulas: Sequence[LtlNode], mask: StateMask
         start = int(step.start[start])
         automata.append(automaton)
     priorities = [a.priority[s].astype(np.int64) for a, s in zip(automata, states, strict=True)]
-    return automata, _Joint(transitions, groups, model_state, choices, start, priorities)
+    return _Joint(transitions, groups, model_state, choices, start, priorities)
 
 
 def _as_ltl(op: ProbOp) -> LtlNode:
