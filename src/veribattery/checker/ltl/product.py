@@ -9,8 +9,8 @@ path of the model from *s* corresponds to one path of the product from
 strategies correspond too, and a formula's probability (its optimum) from *s* is the
 product's acceptance probability (optimum) from the start of *s*.
 
-Built without a loop over states or a search (:func:`product`): array operations on the
-model's rows and the automaton's successor table.
+Built without a loop over states (:func:`product`): array operations on the model's rows
+and the automaton's successor table, and at most one breadth-first search in C.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from veribattery._types import CsrMatrix, IntArray
 from veribattery.checker.certify.bounds import Bounds
-from veribattery.checker.mdp.graph import segments
+from veribattery.checker.mdp.graph import reached_from, segments
 
 __all__ = ["Automaton", "Product", "product"]
 
@@ -85,12 +85,13 @@ def product(transitions: CsrMatrix, row_groups: IntArray, automaton: Automaton,
     with the deterministic *automaton*, each state reading its *column* of the automaton's
     table (its letter), from every model state.
 
-    No search: a pair ``(t, q')`` can be entered only if ``q'`` is where some automaton
-    state goes on *t*'s letter, and those pairs (the starts among them) are closed under
-    the product's steps, so they are its states -- a few more than the reachable ones at
-    most, which change no value at a start. For ``G F a`` an automaton state is the last
-    letter's verdict: one pair per model state. Pairs are numbered model-state-major
-    (``t * Q + q'``), so each product row's columns ascend as its model row's do.
+    A pair ``(t, q')`` can be entered only if ``q'`` is where some automaton state goes on
+    *t*'s letter; those pairs (the starts among them) are closed under the product's
+    steps, so the product is built over them with array operations alone. For ``G F a``
+    an automaton state is the last letter's verdict: one pair per model state, every one
+    a start. Where a state has several, the pairs no start reaches are dropped after one
+    search. Pairs are numbered model-state-major (``t * Q + q'``), so each product row's
+    columns ascend as its model row's do.
     """
     n, states = int(row_groups.size - 1), int(automaton.successor.shape[0])
     after = np.asarray(automaton.successor[:, column], dtype=np.int64)  # (q, t) -> q'
@@ -119,5 +120,34 @@ def product(transitions: CsrMatrix, row_groups: IntArray, automaton: Automaton,
     del key
     matrix = sp.csr_matrix((rows.data, columns, rows.indptr), shape=(copied.size, pairs.size))
     starts = number[np.arange(n, dtype=np.int64) * states + after[automaton.initial]]
-    return Product(matrix, groups, copied, np.asarray(transitions.indptr, dtype=np.int64),
-                   model_state, automaton_state, starts)
+    joint = Product(matrix, groups, copied, np.asarray(transitions.indptr, dtype=np.int64),
+                    model_state, automaton_state, starts)
+    # Where some state can be entered in several automaton states, part of those pairs
+    # may be unreachable (F a & G b: "failed" and "waiting" at every state): dropping
+    # them makes the solvers' systems smaller (1.2 million pairs to 0.6 on the mission MDP)
+    return _reachable_part(joint) if pairs.size > n else joint
+
+
+def _reachable_part(joint: Product) -> Product:
+    """*joint* restricted to the pairs reachable from the starts (one search in C over
+    the pair graph: a pair's choices are contiguous, so are their entries)."""
+    size = joint.num_states
+    indptr = joint.transitions.indptr[joint.row_groups]
+    starts = np.unique(joint.start)
+    graph = sp.csr_matrix((np.ones(indptr[-1] + starts.size),
+                           np.concatenate([joint.transitions.indices, starts]),
+                           np.concatenate([indptr, [indptr[-1] + starts.size]])),
+                          shape=(size + 1, size + 1))
+    kept = reached_from(graph, size)[:-1]  # (the root is the last node)
+    if kept.size == size:
+        return joint
+    number = np.full(size, -1, dtype=np.int64)
+    number[kept] = np.arange(kept.size, dtype=np.int64)
+    rows = segments(joint.row_groups, kept)
+    sizes = np.diff(joint.row_groups)[kept]
+    picked = joint.transitions[rows]
+    matrix = sp.csr_matrix((picked.data, number[picked.indices], picked.indptr),
+                           shape=(rows.size, kept.size))
+    return Product(matrix, np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64),
+                   joint.choices[rows], joint.model_indptr, joint.model_state[kept],
+                   joint.automaton_state[kept], number[joint.start])
