@@ -37,6 +37,7 @@ __all__ = [
     "prob1a",
     "prob1e",
     "reached_from",
+    "reached_from_root",
     "segments",
     "within_steps",
 ]
@@ -139,7 +140,7 @@ def can_reach(graph: ChoiceGraph, through: BoolArray, seeds: BoolArray,
     roots = np.flatnonzero(seeds)
     indptr = np.concatenate([kept[graph.predecessor_ptr], [kept[-1] + roots.size]])
     indices = np.concatenate([graph.owner[graph.predecessors[keep]], roots])
-    return _breadth_first(indptr, indices, n)
+    return reached_from_root(indptr, indices, n)
 
 
 def within_steps(transitions: CsrMatrix, owner: IntArray, moving: BoolArray,
@@ -169,9 +170,9 @@ def reached_from(chain: CsrMatrix, start: int) -> IntArray:
     return np.sort(order).astype(np.int64)
 
 
-def _breadth_first(indptr: IntArray, indices: IntArray, n: int) -> BoolArray:
+def reached_from_root(indptr: IntArray, indices: IntArray, n: int) -> BoolArray:
     """The states reached from a root ``n`` in the graph of CSR arrays *indptr* and
-    *indices* over ``n + 1`` nodes: one breadth-first search in C.
+    *indices* over ``n + 1`` nodes (the root's row last): one breadth-first search in C.
 
     Made in the dtypes csgraph works in (float64 weights, int32 indices), so that it
     copies nothing.
@@ -369,7 +370,7 @@ class _ReversedEdges:
         counts = np.bincount(self.heads, minlength=n)
         indptr = np.concatenate([[0], np.cumsum(counts), [self.heads.size + roots.size]])
         indices = np.concatenate([self.owner[self.choices], roots])
-        return _breadth_first(indptr, indices, n)
+        return reached_from_root(indptr, indices, n)
 
 
 def almost_surely(graph: ChoiceGraph, remain: BoolArray, target: BoolArray,
