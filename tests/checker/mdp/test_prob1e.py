@@ -78,13 +78,13 @@ def test_ladder_is_decided_in_two_searches(monkeypatch: pytest.MonkeyPatch,
                                            exit_at: int | None) -> None:
     n = 8
     searches = []
-    original = graph_module._breadth_first
+    original = graph_module.reached_from_root
 
     def counting(*args: Any) -> Any:
         searches.append(1)
         return original(*args)
 
-    monkeypatch.setattr(graph_module, "_breadth_first", counting)
+    monkeypatch.setattr(graph_module, "reached_from_root", counting)
     mdp = mdp_from(_ladder(n, exit_at))
     graph = ChoiceGraph.of(mdp.transitions, mdp.choice_owner)
     sure = prob1e(graph, np.ones(n + 2, dtype=bool), mask(n + 2, [n]))
