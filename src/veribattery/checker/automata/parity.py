@@ -18,8 +18,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.sparse import csr_array
-from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from veribattery.checker.automata._limit import AutomatonTooLarge
 from veribattery.checker.automata._minimise import minimise, normalise_priorities, state_based
@@ -70,43 +68,6 @@ class ParityAutomaton:
         if letter not in self.letters:
             raise ValueError(f"letter {letter} is not in the automaton's alphabet")
         return self.letters.index(letter)
-
-    def universal_states(self) -> NDArray[np.bool_]:
-        """Which states accept every infinite word.
-
-        A state is not universal iff it reaches a cycle whose least priority is odd:
-        the cycle's states, for that least priority ``p``, lie in one strongly connected
-        component of the subgraph of priorities ``>= p`` that has a cycle and a state of
-        priority ``p``. Every edge is some letter, so such a path and cycle are a word.
-        """
-        states = len(self.priority)
-        rows = np.repeat(np.arange(states), self.successor.shape[1])
-        cols = self.successor.reshape(-1).astype(np.int64)
-        bad = np.zeros(states, dtype=bool)
-        for p in np.unique(self.priority[self.priority % 2 == 1]):
-            inside = self.priority >= p
-            keep = inside[rows] & inside[cols]
-            graph = csr_array((np.ones(int(keep.sum())), (rows[keep], cols[keep])),
-                              shape=(states, states))
-            _, component = connected_components(graph, directed=True, connection="strong")
-            size = np.bincount(component, minlength=states)
-            looped = np.zeros(states, dtype=bool)
-            looped[rows[keep & (rows == cols)]] = True
-            cyclic = inside & ((size[component] > 1) | looped)
-            witness = np.unique(component[cyclic & (self.priority == p)])
-            bad |= cyclic & np.isin(component, witness)
-        # Backward reachability: a search on the reversed edges from an extra node that
-        # points to every bad state.
-        source = np.full(int(bad.sum()), states)
-        reverse = csr_array((np.ones(len(rows) + len(source)),
-                             (np.concatenate([cols, source]),
-                              np.concatenate([rows, np.flatnonzero(bad)]))),
-                            shape=(states + 1, states + 1))
-        reached = breadth_first_order(reverse, states, directed=True,
-                                      return_predecessors=False)
-        universal = np.ones(states + 1, dtype=bool)
-        universal[reached] = False
-        return universal[:states]
 
     def accepts_lasso(self, prefix: Sequence[int], cycle: Sequence[int]) -> bool:
         """Whether the word ``prefix cycle cycle cycle ...`` is accepted."""
