@@ -136,8 +136,8 @@ def _normal(formula: ltl.LtlFormula, *, negated: bool) -> ltl.LtlFormula:
             return ltl.And(a, b) if conjunction else ltl.Or(a, b)
         case ltl.Next(operand=operand):
             return ltl.Next(_normal(operand, negated=negated))
-        case ltl.Until(left=left, right=right):
+        case ltl.Until(left=left, right=right) if not negated:
             return ltl.Until(_normal(left, negated=False), _normal(right, negated=False))
-        case ltl.Release(left=left, right=right):
+        case ltl.Release(left=left, right=right) if negated:
             return ltl.Until(_normal(left, negated=True), _normal(right, negated=True))
-    raise TypeError(f"not an LTL formula: {formula!r}")
+    raise TypeError(f"not a co-safe LTL formula: {formula!r}")
