@@ -18,9 +18,13 @@ from veribattery._types import BoolArray, CsrMatrix, FloatArray
 from veribattery.checker import kernels
 from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.ltl.acceptance import good_cycle_reachers
-from veribattery.checker.ltl.automaton import StateSet, parity_of
-from veribattery.checker.ltl.product import product
-from veribattery.checker.ltl.targets import accepting_product, chain_groups, good_prefix_product
+from veribattery.checker.ltl.automaton import StateSet
+from veribattery.checker.ltl.targets import (
+    accepting_product,
+    chain_groups,
+    good_prefix_product,
+    parity_product,
+)
 from veribattery.lang.nodes import CosafeReach, LtlPath
 
 if TYPE_CHECKING:
@@ -51,11 +55,7 @@ def ltl_quantified(edges: CsrMatrix, quantifier: str, path: LtlPath,
                    states: StateSet) -> BoolArray:
     """``E [ path ]`` (some path of the graph *edges* satisfies it) or ``A [ path ]`` (every
     path does: no path satisfies its negation)."""
-    n = edges.shape[0]
-    automaton, column = parity_of(path.formula, states, n, path.span)
-    if quantifier == "A":
-        automaton = automaton.complement()
-    joint = product(edges, chain_groups(n), automaton, column)
-    some = good_cycle_reachers(joint.transitions, automaton.priority[joint.automaton_state])
-    found = some[joint.start]
+    joint, priority = parity_product(edges, chain_groups(edges.shape[0]), path, states,
+                                     negated=quantifier == "A")
+    found = good_cycle_reachers(joint.transitions, priority)[joint.start]
     return np.asarray(~found if quantifier == "A" else found, dtype=bool)

@@ -17,7 +17,7 @@ from veribattery.checker.ltl.product import Product, product
 from veribattery.checker.mdp.graph import ChoiceGraph
 from veribattery.lang.nodes import CosafeReach, LtlPath
 
-__all__ = ["accepting_product", "chain_groups", "good_prefix_product"]
+__all__ = ["accepting_product", "chain_groups", "good_prefix_product", "parity_product"]
 
 
 def chain_groups(num_states: int) -> IntArray:
@@ -25,18 +25,24 @@ def chain_groups(num_states: int) -> IntArray:
     return np.arange(num_states + 1, dtype=np.int64)
 
 
-def accepting_product(transitions: CsrMatrix, row_groups: IntArray, path: LtlPath,
-                      states: StateSet, *, negated: bool = False) -> tuple[Product, BoolArray]:
+def parity_product(transitions: CsrMatrix, row_groups: IntArray, path: LtlPath,
+                   states: StateSet, *, negated: bool = False) -> tuple[Product, IntArray]:
     """The product with *path*'s parity automaton (its complement if *negated*) and the
-    states of its accepting end components."""
+    priority of each product state."""
     automaton, column = parity_of(path.formula, states, int(row_groups.size - 1), path.span)
     if negated:
         automaton = automaton.complement()
     joint = product(transitions, row_groups, automaton, column)
+    return joint, np.asarray(automaton.priority[joint.automaton_state], dtype=np.int64)
+
+
+def accepting_product(transitions: CsrMatrix, row_groups: IntArray, path: LtlPath,
+                      states: StateSet, *, negated: bool = False) -> tuple[Product, BoolArray]:
+    """The product with *path*'s parity automaton (its complement if *negated*) and the
+    states of its accepting end components."""
+    joint, priority = parity_product(transitions, row_groups, path, states, negated=negated)
     owner = np.repeat(np.arange(joint.num_states, dtype=np.int64), np.diff(joint.row_groups))
-    target = accepting_states(ChoiceGraph.of(joint.transitions, owner),
-                              automaton.priority[joint.automaton_state])
-    return joint, target
+    return joint, accepting_states(ChoiceGraph.of(joint.transitions, owner), priority)
 
 
 def good_prefix_product(transitions: CsrMatrix, row_groups: IntArray, path: CosafeReach,
