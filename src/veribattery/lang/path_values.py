@@ -27,7 +27,7 @@ from veribattery.lang.nodes import (
 from veribattery.lang.nodes.ltl import LtlConnective, LtlOperator
 
 __all__ = ["LTL_CONNECTIVES", "TEMPORAL_NAMES", "Temporal", "Unsupported", "Value",
-           "first_bad", "is_path", "ltl_connective", "ltl_temporal"]
+           "first_bad", "is_ltl", "is_path", "ltl_connective", "ltl_temporal"]
 
 TEMPORAL_NAMES = {
     "X": "X (next)", "F": "F (eventually)", "G": "G (globally)", "U": "U (until)",
@@ -65,7 +65,12 @@ Value: TypeAlias = Expr | Temporal | LtlNode | Unsupported
 
 def is_path(value: object) -> bool:
     """Whether *value* is a path formula (a temporal operator or LTL over them)."""
-    return isinstance(value, Temporal | LtlNot | LtlBinary | LtlTemporal)
+    return isinstance(value, Temporal) or is_ltl(value)
+
+
+def is_ltl(value: object) -> bool:
+    """Whether *value* is LTL: more than one temporal operator over state formulas."""
+    return isinstance(value, LtlNot | LtlBinary | LtlTemporal)
 
 
 def first_bad(values: list[Any]) -> Unsupported | None:
@@ -86,13 +91,9 @@ def first_bad(values: list[Any]) -> Unsupported | None:
 
 def ltl_connective(op: str, operands: list[Any], span: Span) -> Value:
     """``!a``, ``a & b`` ... where an operand is a path formula: an LTL node."""
-    bad = _first_unsupported(operands)
-    if bad is not None:
-        return bad
-    parts = [_ltl_operand(value) for value in operands]
-    for part in parts:
-        if isinstance(part, Unsupported):
-            return part
+    parts = _ltl_operands(operands)
+    if isinstance(parts, Unsupported):
+        return parts
     if op == "!":
         return LtlNot(cast(LtlOperand, parts[0]), span)
     return LtlBinary(cast(LtlConnective, op), cast(LtlOperand, parts[0]),
@@ -107,12 +108,21 @@ def ltl_temporal(op: str, bound: Any, left: Any, right: Any, span: Span) -> Valu
     if bound is not None:
         return Unsupported(f"a step bound on {TEMPORAL_NAMES[op]} over a path formula (LTL "
                            "takes unbounded operators only)", span)
-    parts = [None if left is None else _ltl_operand(left), _ltl_operand(right)]
-    for part in parts:
-        if isinstance(part, Unsupported):
-            return part
-    return LtlTemporal(cast(LtlOperator, op), cast("LtlOperand | None", parts[0]),
+    parts = _ltl_operands([left, right])
+    if isinstance(parts, Unsupported):
+        return parts
+    return LtlTemporal(cast(LtlOperator, op), parts[0],
                        cast(LtlOperand, parts[1]), span)
+
+
+def _ltl_operands(values: list[Any]) -> list[LtlOperand | None] | Unsupported:
+    """*values* as LTL operands (None stays None), or the first that cannot be one."""
+    bad = _first_unsupported(values)
+    if bad is not None:
+        return bad
+    parts = [None if value is None else _ltl_operand(value) for value in values]
+    return next((part for part in parts if isinstance(part, Unsupported)),
+                cast("list[LtlOperand | None]", parts))
 
 
 def _ltl_operand(value: Any) -> LtlOperand | Unsupported:

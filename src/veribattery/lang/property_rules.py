@@ -54,6 +54,7 @@ from veribattery.lang.path_values import (
     Unsupported,
     Value,
     first_bad,
+    is_ltl,
     is_path,
     ltl_temporal,
 )
@@ -97,7 +98,7 @@ def _path_formula(path: Value) -> PathFormula | Unsupported:
     """The path formula of a P, A or E operator; a state formula ``phi`` is ``false U phi``."""
     if isinstance(path, Unsupported):
         return path
-    if is_path(path) and not isinstance(path, Temporal):
+    if is_ltl(path):
         return LtlPath(cast(LtlNode, path), path.span)
     if not isinstance(path, Temporal):
         return Until(BoolLit(False, path.span), cast(Expr, path), None, path.span)
@@ -249,7 +250,7 @@ class PropertyRules:
         path = children[0]
         if isinstance(path, Unsupported):
             return path
-        if is_path(path) and not isinstance(path, Temporal):
+        if is_ltl(path):
             return CosafeReach(cast(LtlNode, path), self._span(meta))
         if not isinstance(path, Temporal):
             # A state formula is a co-safe property decided at once: false U phi.
@@ -373,7 +374,7 @@ class PropertyRules:
         for item in (query, path, legacy):
             if isinstance(item, Unsupported):
                 return item
-        if is_path(path) and not isinstance(path, Temporal):
+        if is_ltl(path):
             return Unsupported("a conditional formula (||) takes one temporal operator over "
                                "state formulas before ||, not LTL", self._span(meta))
         if not isinstance(path, Temporal):
