@@ -8,6 +8,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING
 
 from veribattery.checker import CheckResult
+from veribattery.checker.ltl.cosafety import require_cosafe
 from veribattery.lang import (
     FlatModel,
     Model,
@@ -68,6 +69,8 @@ def check_model_exact(
                                                        constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
         aside = [resolve_property(p, flat, props_file, constants) for p in internal]
+        for prop in resolved:
+            require_cosafe(prop.formula)  # refused before the build, not after it
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)

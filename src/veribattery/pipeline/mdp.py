@@ -18,7 +18,7 @@ from veribattery.checker.formula.intervals import Undecided
 from veribattery.checker.mdp import MDP, MdpRewards, Strategy
 from veribattery.checker.mdp.formula import mdp_answer
 from veribattery.checker.mdp.ill_posed import unreachable_reward_target
-from veribattery.checker.mdp.operators import require_objectives
+from veribattery.checker.mdp.operators import require_checkable
 from veribattery.checker.mdp.witness import property_strategy
 from veribattery.errors import ArgumentError, Span, UndefinedResult
 from veribattery.explore.build.mdp import BuiltMdp, build_mdp
@@ -121,7 +121,7 @@ def check_mdp_model(
         flat = flatten_model(model, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
         for prop in resolved:
-            require_objectives(prop.formula)  # P=?: refused before the build
+            require_checkable(prop.formula)  # P=?, S: refused before the build
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)

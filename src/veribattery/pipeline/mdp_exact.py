@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from veribattery.checker.mdp.operators import require_objectives
+from veribattery.checker.mdp.operators import require_checkable
 from veribattery.lang import Model, PropertiesFile, Property, resolve_property
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp, ill_posed_errors
@@ -43,7 +43,11 @@ def check_mdp_model_exact(
         queries, a filter inside an expression, arithmetic on an infinite reward).
     :raises ModelError: for a probability or reward without an exact rational value.
     """
-    from veribattery.checker.mdp.exact_pctl import ExactMdpModel, check_mdp_exact
+    from veribattery.checker.mdp.exact_pctl import (
+        ExactMdpModel,
+        check_mdp_exact,
+        require_exact_kernel,
+    )
     from veribattery.explore.exact.decided import flattened_exactly
     from veribattery.explore.exact.mdp import build_exact_mdp
 
@@ -53,7 +57,8 @@ def check_mdp_model_exact(
                                                                 props_file, constants)
         resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
         for prop in resolved:
-            require_objectives(prop.formula)  # P=?: refused before the build
+            require_checkable(prop.formula)  # P=?, S: refused before the build
+            require_exact_kernel(prop.formula)
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)

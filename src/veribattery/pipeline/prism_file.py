@@ -59,17 +59,28 @@ def select(
     return tuple(p for s in selectors for p in _select_one(props, s))
 
 
-def _supported(properties: Sequence[Property]) -> tuple[tuple[Property, ...], tuple[str, ...]]:
+def _supported(properties: Sequence[Property], model_type: str
+               ) -> tuple[tuple[Property, ...], tuple[str, ...]]:
     """Split off properties outside the supported subset, with a warning for each.
 
-    Checking a whole file should not fail for one ``filter(...)``; a property the
-    user picked by name, index or text still fails with the reason (resolve_property).
+    Checking a whole file should not fail for one ``filter(...)`` (or, on an MDP, one
+    ``S``); a property the user picked by name, index or text still fails with the
+    reason (resolve_property, or the MDP pipeline's check before the build).
     """
-    skipped = tuple(
-        f"skipped {p.span}: unsupported property {p.text} ({p.unsupported})"
-        for p in properties if p.unsupported is not None
-    )
-    return tuple(p for p in properties if p.unsupported is None), skipped
+    reasons = [(p, _unsupported(p, model_type)) for p in properties]
+    skipped = tuple(f"skipped {p.span}: unsupported property {p.text} ({reason})"
+                    for p, reason in reasons if reason is not None)
+    return tuple(p for p, reason in reasons if reason is None), skipped
+
+
+def _unsupported(prop: Property, model_type: str) -> str | None:
+    """Why *prop* cannot be checked on a model of *model_type*, or None."""
+    if prop.unsupported is not None or model_type != "mdp":
+        return prop.unsupported
+    from veribattery.checker.mdp.operators import unsupported_on_mdp  # for MDPs only
+
+    refusal = unsupported_on_mdp(prop.formula)
+    return None if refusal is None else refusal.message
 
 
 def _select_one(props: PropertiesFile | None, selector: str) -> tuple[Property, ...]:
@@ -133,7 +144,7 @@ def check_prism_file(
         chosen = select(props, selectors)
         skipped: tuple[str, ...] = ()
         if not selectors:
-            chosen, skipped = _supported(chosen)
+            chosen, skipped = _supported(chosen, model.model_type)
         if before_build is not None:
             before_build(model.model_type, chosen)
     if model.model_type == "mdp":

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 from veribattery._memory import trim_for
 from veribattery.checker import Workspace, check
+from veribattery.checker.ltl.cosafety import require_cosafe
 from veribattery.errors import ArgumentError
 from veribattery.explore import DTMC, build_compact_dtmc, build_dtmc
 from veribattery.lang import (
@@ -144,6 +145,8 @@ class Session:
             flat = flatten_model(model, constants)
             resolved = [resolve_property(p, flat, props_file, constants) for p in properties]
             aside = [resolve_property(p, flat, props_file, constants) for p in internal]
+            for prop in resolved:
+                require_cosafe(prop.formula)  # refused before the build, not after it
             if self.rewards == "named":
                 flat = with_used_rewards(flat, resolved + aside)
         with watch.stage("build"):

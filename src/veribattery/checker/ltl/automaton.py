@@ -15,12 +15,13 @@ import numpy as np
 
 from veribattery._types import BoolArray, IntArray
 from veribattery.checker.automata.cosafe import CosafeAutomaton, NotCosafe, cosafe_automaton
+from veribattery.checker.automata.formula import is_syntactically_cosafe
 from veribattery.checker.automata.parity import AutomatonTooLarge, ParityAutomaton, parity_automaton
 from veribattery.checker.ltl.propositions import letters, propositions
 from veribattery.errors import CheckError, Span
-from veribattery.lang.nodes import Expr, LtlNode
+from veribattery.lang.nodes import CosafeReach, Expr, LtlNode
 
-__all__ = ["StateSet", "cosafe_of", "parity_of"]
+__all__ = ["StateSet", "cosafe_of", "cosafe_refusal", "parity_of"]
 
 #: The states satisfying a state formula (the checker's, in floats or exactly).
 StateSet = Callable[[Expr], BoolArray]
@@ -55,9 +56,7 @@ def cosafe_of(formula: LtlNode, states: StateSet, num_states: int,
         alphabet, column = _alphabet(letters(found.operands, states, num_states))
         automaton = cosafe_automaton(found.formula, alphabet)
     except NotCosafe:
-        raise CheckError("the path of an R operator must be co-safe LTL: with negations "
-                         "pushed inward, only X, F and U over state formulas (no G, W or R)",
-                         span) from None
+        raise _not_cosafe(span) from None
     except AutomatonTooLarge as exc:
         raise _too_large(exc, span) from None
     except RecursionError:
@@ -65,10 +64,25 @@ def cosafe_of(formula: LtlNode, states: StateSet, num_states: int,
     return automaton, column
 
 
+def cosafe_refusal(path: CosafeReach) -> CheckError | None:
+    """The error :func:`cosafe_of` would raise for *path* for want of co-safety (or of
+    depth), found without a model; None where it has neither fault."""
+    try:
+        cosafe = is_syntactically_cosafe(propositions(path.formula).formula)
+    except RecursionError:
+        return _too_deep(path.span)
+    return None if cosafe else _not_cosafe(path.span)
+
+
 def _alphabet(letter: IntArray) -> tuple[list[int], IntArray]:
     """The distinct letters of the states, and each state's column among them."""
     alphabet, column = np.unique(letter, return_inverse=True)
     return [int(a) for a in alphabet], np.asarray(column, dtype=np.int64).reshape(-1)
+
+
+def _not_cosafe(span: Span) -> CheckError:
+    return CheckError("the path of an R operator must be co-safe LTL: with negations pushed "
+                      "inward, only X, F and U over state formulas (no G, W or R)", span)
 
 
 def _too_large(exc: AutomatonTooLarge, span: Span) -> CheckError:

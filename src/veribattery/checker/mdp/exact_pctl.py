@@ -58,6 +58,7 @@ from veribattery.checker.result import CheckResult
 from veribattery.errors import CheckError
 from veribattery.explore.exact.mdp import ExactMdp, ExactMdpRewards
 from veribattery.explore.exact.program import needs_exact
+from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
     BOUND_RELATIONS,
     Binary,
@@ -91,7 +92,11 @@ from veribattery.lang.nodes import (
 )
 from veribattery.lang.property_rules import STEPS_REWARD
 
-__all__ = ["ExactMdpModel", "check_mdp_exact"]
+__all__ = ["ExactMdpModel", "check_mdp_exact", "require_exact_kernel"]
+
+#: Why a multi(...) query is refused with --exact.
+_NO_EXACT_MULTI = ("multi(...) has no exact MDP kernel: check it without --exact (its answer "
+                   "is certified; an achievability on its boundary is decided in rationals)")
 
 _ZERO = mpq(0)
 _ONE = mpq(1)
@@ -107,6 +112,17 @@ class ExactMdpModel:
 
     mdp: MDP
     exact: ExactMdp
+
+
+def require_exact_kernel(formula: Expr) -> None:
+    """Refuse, before any state is built, a ``multi(...)`` query, which has no exact
+    kernel (the check would refuse it only after the build).
+
+    :raises CheckError: at the first one.
+    """
+    for node in walk(formula):
+        if type(node) is Multi:
+            raise CheckError(_NO_EXACT_MULTI, node.span)
 
 
 def check_mdp_exact(model: ExactMdpModel, prop: Property) -> ExactCheckResult:
@@ -167,9 +183,7 @@ def exact_values(model: ExactMdpModel, formula: Expr) -> ExactValues | BoolArray
         case Binary(op=op) if op in CONNECTIVES:
             return state_set(model, formula)
         case Multi():
-            raise CheckError("multi(...) has no exact MDP kernel: check it without --exact "
-                             "(its answer is certified; an achievability on its boundary is "
-                             "decided in rationals)", formula.span)
+            raise CheckError(_NO_EXACT_MULTI, formula.span)
     return _expression(model, formula)
 
 

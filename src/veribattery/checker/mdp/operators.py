@@ -6,20 +6,34 @@ from __future__ import annotations
 import numpy as np
 
 from veribattery.checker.formula.leaves import require_nonnegative_rewards
+from veribattery.checker.ltl.cosafety import require_cosafe
 from veribattery.checker.mdp.model import MDP, MdpRewards
 from veribattery.checker.mdp.system import Objective
 from veribattery.errors import CheckError
 from veribattery.lang.expressions import walk
-from veribattery.lang.nodes import Expr, Multi, ProbOp, RewardBounded, RewardOp
+from veribattery.lang.nodes import (
+    Conditional,
+    ConditionalReach,
+    Expr,
+    LongRun,
+    Multi,
+    ProbOp,
+    RewardBounded,
+    RewardOp,
+    SteadyOp,
+)
 from veribattery.lang.property_rules import STEPS_REWARD
 
-__all__ = ["CONDITIONAL_ON_MDP", "operator_objective", "require_objectives",
-           "reward_structure"]
+__all__ = ["CONDITIONAL_ON_MDP", "LONG_RUN_ON_MDP", "operator_objective", "require_checkable",
+           "reward_structure", "unsupported_on_mdp"]
 
 #: Why Storm's conditional formulas are refused on MDPs (float and exact).
 CONDITIONAL_ON_MDP = ("conditional probabilities (Storm's 'path || F condition') are not "
                       "supported on MDPs: check the DTMC a strategy induces instead "
                       "(--export-induced)")
+#: Why long-run operators are refused on MDPs (PRISM refuses them there too).
+LONG_RUN_ON_MDP = ("long-run operators (S, and R [ S ]) are not supported on MDPs: check "
+                   "the DTMC a strategy induces instead (--export-induced)")
 
 
 def reward_structure(mdp: MDP, op: RewardOp | RewardBounded) -> MdpRewards:
@@ -50,16 +64,33 @@ def operator_objective(op: ProbOp | RewardOp) -> Objective:
     return "max" if op.op in ("<", "<=") else "min"
 
 
-def require_objectives(formula: Expr) -> None:
-    """Refuse, before any state is built, an operator with no objective on an MDP
-    (``P=?``, :func:`operator_objective`'s error): the check would refuse it only after
-    the build. A ``multi(...)`` query is left to its own checks.
+def unsupported_on_mdp(formula: Expr) -> CheckError | None:
+    """The refusal of the first part of *formula* that the MDP engine does not check
+    (long-run operators, Storm's conditional formulas), or None."""
+    for node in walk(formula):
+        kind = type(node)
+        if kind is SteadyOp or (kind is RewardOp and type(node.path) is LongRun):
+            return CheckError(LONG_RUN_ON_MDP, node.span)
+        if kind is Conditional or kind is ConditionalReach:
+            return CheckError(CONDITIONAL_ON_MDP, node.span)
+    return None
 
-    :raises CheckError: at the first such operator.
+
+def require_checkable(formula: Expr) -> None:
+    """Refuse, before any state is built, what the check of *formula* on an MDP would
+    refuse only after the build: a part the engine does not check
+    (:func:`unsupported_on_mdp`), an operator with no objective (``P=?``,
+    :func:`operator_objective`'s error; a ``multi(...)`` query's objectives are left to
+    its own checks), a reward path that is not co-safe LTL.
+
+    :raises CheckError: at the first such part.
     """
+    refusal = unsupported_on_mdp(formula)
+    if refusal is not None:
+        raise refusal
     nodes = list(walk(formula))
-    if any(type(node) is Multi for node in nodes):
-        return
-    for node in nodes:
-        if type(node) in (ProbOp, RewardOp):
-            operator_objective(node)
+    if not any(type(node) is Multi for node in nodes):
+        for node in nodes:
+            if type(node) in (ProbOp, RewardOp):
+                operator_objective(node)
+    require_cosafe(formula)
