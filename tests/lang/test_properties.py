@@ -127,6 +127,21 @@ def test_reward_operator_without_reward_structures() -> None:
         ("P=? [ F<=0.5 x=1 ]", "t.props:1:10: type error: a step bound must be an int"),
         ("P=? [ F x+1 ]", "t.props:1:9: type error: the operand of F or G must be a bool, not int"),
         ("P>=true [ F x=1 ]", "type error: the bound of a P or R operator must be a number"),
+        # LTL's state formulas are typed too (they reached numpy as ints: a wrong set of
+        # states, or numpy's TypeError for a '-' of a bool)
+        ("P=? [ G F x ]", "t.props:1:11: type error: an operand of an LTL formula must be a "
+                          "bool, not int"),
+        ("P=? [ (G x=1) & (F x+1) ]", "t.props:1:20: type error: an operand of an LTL "
+                                      "formula must be a bool, not int"),
+        ('R{"steps"}=? [ F (X 2) ]', "t.props:1:21: type error: an operand of an LTL formula "
+                                     "must be a bool, not int"),
+        ("P>=1 [ G F -(x=1) ]", "t.props:1:12: type error: unary '-' needs a number, not bool"),
+        # a filter suffix of states that are a path formula (lark's VisitError before)
+        ("P=? [ F x=1 {F x=0} ]", "t.props:1:1: unsupported property P=? [ F x=1 {F x=0} ]: "
+                                  "temporal operator F (eventually) inside an operator that "
+                                  "takes a state formula"),
+        ("S=? [ x=1 {x=0 U x=1} ]", "temporal operator U (until) inside an operator"),
+        ('R{"steps"}=? [ F x=1 {X x=0}{max} ]', "temporal operator X (next) inside an "),
     ],
 )
 def test_property_type_and_bound_errors(model: FlatModel, text: str, message: str) -> None:

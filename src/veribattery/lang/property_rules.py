@@ -80,6 +80,13 @@ class _Legacy:
     span: Span
 
 
+@dataclass(frozen=True, slots=True)
+class _RefusedLegacy:
+    """A filter suffix whose states are not a state formula (``{F a}``): the refusal."""
+
+    refusal: Unsupported
+
+
 
 #: ``Pmin``, ``Rmax``, ``R{"r"}min``, ``R{2}max``: where a P or R operator names its direction.
 _DIRECTION = re.compile(r'[PR](min|max)?\s*(?:\{\s*(?:"[^"]*"|\d+)\s*\}\s*(min|max)?)?')
@@ -127,9 +134,12 @@ def _legacy_filter(legacy: _Legacy, operand: Expr, span: Span) -> Filter:
     return Filter(op, operand, legacy.states, span)
 
 
-def _split_legacy(children: list[Any]) -> tuple[list[Any], _Legacy | None]:
+def _split_legacy(children: list[Any]) -> tuple[list[Any], _Legacy | Unsupported | None]:
+    """The operator's own children, and its filter suffix (or the suffix's refusal)."""
     if children and isinstance(children[-1], _Legacy):
         return children[:-1], children[-1]
+    if children and isinstance(children[-1], _RefusedLegacy):
+        return children[:-1], children[-1].refusal
     return children, None
 
 
@@ -152,8 +162,11 @@ class PropertyRules:
         word = (found.group(1) or found.group(2)) if found is not None else None
         return "min" if word == "min" else "max" if word == "max" else None
 
-    def _wrap(self, node: Expr, legacy: _Legacy | None, meta: Meta) -> Expr:
-        return node if legacy is None else _legacy_filter(legacy, node, self._span(meta))
+    def _wrap(self, node: Expr, legacy: _Legacy | Unsupported | None,
+              meta: Meta) -> Expr | Unsupported:
+        if legacy is None or isinstance(legacy, Unsupported):
+            return legacy or node
+        return _legacy_filter(legacy, node, self._span(meta))
 
     def time_bound(self, meta: Meta, children: list[Any]) -> TimeBound | Unsupported:
         op, value = children
@@ -195,10 +208,11 @@ class PropertyRules:
     def legacy_op(self, meta: Meta, children: list[str]) -> str:
         return str(children[1])
 
-    def state_filter(self, meta: Meta, children: list[Any]) -> _Legacy | Unsupported:
+    def state_filter(self, meta: Meta, children: list[Any]) -> _Legacy | _RefusedLegacy:
         states, *ops = children
         bad = first_bad([states])
-        return bad or _Legacy(states, tuple(ops), self._span(meta))
+        # (kept apart from an Unsupported operand: the operator would read it as its own)
+        return _RefusedLegacy(bad) if bad else _Legacy(states, tuple(ops), self._span(meta))
 
     def prob_op(self, meta: Meta, children: list[Any]) -> Value:
         children, legacy = _split_legacy(children)

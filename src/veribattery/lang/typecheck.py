@@ -16,6 +16,7 @@ from veribattery.lang.nodes import (
     Call,
     Conditional,
     ConditionalReach,
+    CosafeReach,
     Cumulative,
     DoubleLit,
     Eventually,
@@ -27,6 +28,10 @@ from veribattery.lang.nodes import (
     IntLit,
     Ite,
     LabelRef,
+    LtlBinary,
+    LtlNot,
+    LtlPath,
+    LtlTemporal,
     Multi,
     Next,
     ProbOp,
@@ -354,6 +359,23 @@ def _check_storm_path(path: object, env: TypeEnv) -> None:
     elif isinstance(path, Conditional):
         _check_path(path.path, env)
         expect(path.condition, env, "bool", "the condition after ||")
+    elif isinstance(path, LtlPath):
+        _check_ltl(path.formula, env)
+
+
+def _check_ltl(formula: object, env: TypeEnv) -> None:
+    """The state formulas an LTL path reads, left to right: booleans."""
+    todo = [formula]
+    while todo:  # (a stack of its own: an LTL formula may nest deeply)
+        node = todo.pop()
+        if isinstance(node, LtlNot):
+            todo.append(node.operand)
+        elif isinstance(node, LtlBinary):
+            todo += [node.right, node.left]
+        elif isinstance(node, LtlTemporal):
+            todo += [node.right] if node.left is None else [node.right, node.left]
+        else:
+            expect(cast(Expr, node), env, "bool", "an operand of an LTL formula")
 
 
 def _check_reward_path(path: object, env: TypeEnv) -> None:
@@ -369,3 +391,5 @@ def _check_reward_path(path: object, env: TypeEnv) -> None:
     elif isinstance(path, ConditionalReach):
         expect(path.target, env, "bool", "the target of F")
         expect(path.condition, env, "bool", "the condition after ||")
+    elif isinstance(path, CosafeReach):
+        _check_ltl(path.formula, env)

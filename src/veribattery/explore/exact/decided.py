@@ -20,7 +20,7 @@ from typing import Any, TypeVar
 
 from veribattery.explore.exact.constants import exact_constants
 from veribattery.explore.exact.rational import ExactScalar, closed_value
-from veribattery.lang import flatten_model
+from veribattery.lang import flatten_model, resolve_property
 from veribattery.lang.expressions import children, substitute
 from veribattery.lang.nodes import (
     Binary,
@@ -110,10 +110,12 @@ def flattened_exactly(
     model's constants and the file's (*given*: the values of the undefined ones), and the
     decided model flattened.
 
-    :raises PrismSemanticError: as :func:`~veribattery.lang.flatten_model`, on the model as
-        written.
+    :raises PrismSemanticError: as :func:`~veribattery.lang.flatten_model` and
+        :func:`~veribattery.lang.resolve_property`, on the model and properties as written.
     """
     flat = flatten_model(model, given)  # names, types, missing constants: as written
+    for prop in properties:  # likewise: deciding would make `true + 1` the literal 2
+        resolve_property(prop, flat, props_file, given)
     given = dict(given or {})
     model_values = exact_constants(model.constants, given)
     decls = props_file.constants if props_file is not None else ()
