@@ -12,12 +12,14 @@ keep every product the model derives from a few such numbers short enough to sho
 
 from __future__ import annotations
 
+import math
+import numbers
 import re
 from decimal import Decimal, InvalidOperation
 from fractions import Fraction
 
 __all__ = ["MAX_DIGITS", "MAX_EXPONENT", "SIZE_RULE", "OutOfRange", "count_text",
-           "exact_number", "out_of_range", "shortened"]
+           "exact_number", "nearest_float", "out_of_range", "shortened"]
 
 #: The largest power of ten a number may reach, and the smallest it may go below 1.
 MAX_EXPONENT = 400
@@ -102,3 +104,12 @@ def shortened(text: str) -> str:
     if len(text) <= _SHOWN:
         return text
     return f"{text[:12]}…{text[-6:]} ({len(text):,} characters)"
+
+
+def nearest_float(q: numbers.Rational) -> float:
+    """The double nearest an exact rational (:class:`~fractions.Fraction` or ``mpq``);
+    ``+inf`` or ``-inf`` beyond the largest double, where ``float()`` raises."""
+    try:
+        return float(q)
+    except OverflowError:
+        return math.inf if int(q.numerator) > 0 else -math.inf

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 from gmpy2 import mpq
 
-from veribattery.checker.certify.bounds import Bounds, nearest_float, rational_bounds
+from veribattery._numbers import nearest_float
+from veribattery.checker.certify.bounds import Bounds, rational_bounds
 from veribattery.checker.exact import ExactCheckResult
 from veribattery.checker.result import CheckResult
 from veribattery.pipeline import check_prism_file
@@ -153,6 +154,11 @@ def test_steady_state_of_stiff_components_is_sound() -> None:
         (TINY_PROBABILITY, "R=? [ F x=1 ]", Fraction(10**320)),
         (BIG_REWARD.replace("dtmc", "mdp"), "Rmax=? [ F x=1 ]", Fraction(2 * 10**308)),
         (BIG_REWARD.replace("dtmc", "mdp"), "Rmin=? [ C<=3 ]", Fraction(3 * 10**308)),
+        # a closed sub-expression beyond the doubles: its double is inf, its text exact
+        # (float(mpq) raised OverflowError before)
+        (BIG_REWARD, "P=? [ F x=1 ] * 1e308^2", Fraction(10**616)),
+        (BIG_REWARD.replace("dtmc", "mdp"), "Pmax=? [ X x=1 ] * 1e308^2",
+         Fraction(10**616, 2)),
     ],
 )
 def test_exact_value_beyond_doubles(model: str, prop: str, exact: Fraction) -> None:
@@ -160,6 +166,18 @@ def test_exact_value_beyond_doubles(model: str, prop: str, exact: Fraction) -> N
     assert isinstance(result, ExactCheckResult)
     assert result.exact == exact
     _beyond(result)
+
+
+@pytest.mark.parametrize("model", [BIG_REWARD, BIG_REWARD.replace("dtmc", "mdp")])
+def test_a_state_compared_with_a_closed_value_beyond_the_doubles(model: str) -> None:
+    assert _one(model, "x < 1e308^2", exact=True).value is True
+    assert _one(model, "A [ F x=1e308^2 ]", exact=True).value is False
+
+
+def test_an_exact_value_below_the_doubles() -> None:
+    result = _one(BIG_REWARD, "P=? [ X x=1 ] * (-1e308^2)", exact=True)
+    assert isinstance(result, ExactCheckResult) and result.exact == -Fraction(10**616, 2)
+    assert (result.value, result.lower, result.upper) == (-math.inf, -math.inf, -MAX)
 
 
 def test_exact_probability_below_the_doubles_smallest() -> None:

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from veribattery._numbers import nearest_float
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.lang.nodes import BOUND_RELATIONS
 
@@ -52,15 +53,6 @@ def round_down(x: FloatArray) -> FloatArray:
 def round_up(x: FloatArray) -> FloatArray:
     """The next float above each entry (covers one rounding to nearest)."""
     return np.nextafter(x, np.inf)
-
-
-def nearest_float(q: numbers.Rational) -> float:
-    """The double nearest an exact rational (:class:`~fractions.Fraction` or ``mpq``);
-    ``+inf`` or ``-inf`` beyond the largest double, where ``float()`` raises."""
-    try:
-        return float(q)
-    except OverflowError:
-        return math.inf if int(q.numerator) > 0 else -math.inf
 
 
 def rational_bounds(values: Iterable[numbers.Rational]) -> Bounds:

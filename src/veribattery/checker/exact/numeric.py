@@ -15,9 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 from gmpy2 import mpq
 
+from veribattery._numbers import nearest_float
 from veribattery._types import BoolArray, FloatArray
 from veribattery.checker import kernels
-from veribattery.checker.certify.bounds import Bounds, nearest_float
+from veribattery.checker.certify.bounds import Bounds
 from veribattery.checker.exact.solve import Prepared, prepare, restrict, row_products, solve
 from veribattery.checker.formula.leaves import exact_step_bound, step_interval
 from veribattery.checker.workspace import Workspace

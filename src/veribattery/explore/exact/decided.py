@@ -18,6 +18,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import replace
 from typing import Any, TypeVar
 
+from veribattery._numbers import nearest_float
 from veribattery.explore.exact.constants import exact_constants
 from veribattery.explore.exact.rational import ExactScalar, closed_value
 from veribattery.lang import flatten_model, resolve_property
@@ -73,7 +74,8 @@ def decided_exactly(node: _T, constants: Mapping[str, ExactScalar]) -> _T:
             return IntLit(int(value), sub.span)
         # A double: the float nearest its value, written as the exact fraction that the
         # exact evaluation reads (resolution would fold 1/3 into 0.3333333333333333).
-        return DoubleLit(float(value), f"{value.numerator}/{value.denominator}", sub.span)
+        return DoubleLit(nearest_float(value), f"{value.numerator}/{value.denominator}",
+                         sub.span)
 
     return substitute(node, replace)  # type: ignore[no-any-return]
 
