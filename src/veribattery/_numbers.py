@@ -16,7 +16,10 @@ import math
 import numbers
 import re
 from decimal import Decimal, InvalidOperation
-from fractions import Fraction
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from fractions import Fraction
 
 __all__ = ["MAX_DIGITS", "MAX_EXPONENT", "SIZE_RULE", "OutOfRange", "count_text",
            "exact_number", "nearest_float", "out_of_range", "shortened"]
@@ -46,6 +49,8 @@ def exact_number(text: str) -> Fraction:
     :raises OutOfRange: when it breaks :data:`SIZE_RULE` (the message quotes *text*).
     :raises ValueError: when *text* is not such a number (or divides by zero).
     """
+    from fractions import Fraction  # (not imported by a check that reads no such number)
+
     numerator, slash, denominator = text.partition("/")
     if slash:
         if max(_digit_count(numerator), _digit_count(denominator)) > MAX_DIGITS:
