@@ -3,10 +3,14 @@
 from __future__ import annotations
 
 import json
+from fractions import Fraction
+
+import pytest
 
 from tests.checker.test_conditional import SMALL_MISSION
 from veribattery.config import load_config
 from veribattery.config.schema import PAPER_PROPERTIES
+from veribattery.errors import ModelError
 from veribattery.lang import parse_model, parse_properties
 from veribattery.lang.nodes import Model, PropertiesFile
 from veribattery.mission import MissionSession, check_mission
@@ -60,3 +64,38 @@ def test_a_reward_by_index_empties_the_others_in_place() -> None:
     assert full.dtmc.rewards[0].transition.any()
     assert (rc.transition == full.dtmc.rewards[1].transition).all()
     assert [r.value for r in lean.results] == [r.value for r in full.results]
+
+
+_TWO_REWARDS = """{kind}
+module m
+  s : [0..2] init 0;
+  [a] s=0 -> 1/3:(s'=1) + 2/3:(s'=2);
+  [b] s=0 -> (s'=1);
+  [] s>0 -> true;
+endmodule
+rewards "used" s=0 : 1/3; endrewards
+rewards "broken" mod(s, s-s)=0 : 1; endrewards
+"""
+
+
+@pytest.mark.parametrize(("kind", "prop", "value"), [
+    ("dtmc", 'R{"used"}=? [ C<=2 ]', Fraction(1, 3)),
+    ("mdp", 'R{"used"}max=? [ C<=2 ]', Fraction(1, 3)),
+])
+def test_exact_builds_only_the_rewards_it_reads_too(kind: str, prop: str,
+                                                   value: Fraction) -> None:
+    """--exact, as the float check of ``veribattery prism``, leaves the structures no
+    property reads unbuilt: an unread "broken" one (a mod by 0 in every state) is no
+    error, and a property that reads it still is."""
+    from veribattery.pipeline import check_prism_file
+
+    model = _TWO_REWARDS.format(kind=kind)
+    run = check_prism_file(model, props_source=prop, exact=True, rewards="named")
+    assert run.results[0].exact == value  # type: ignore[attr-defined]
+    built = run.mdp if kind == "mdp" else run.dtmc  # type: ignore[union-attr]
+    assert [r.name for r in built.rewards] == ["used"]
+    with pytest.raises(ModelError, match="modulo with non-positive divisor"):
+        check_prism_file(model, props_source=prop, exact=True, rewards="all")
+    with pytest.raises(ModelError, match="modulo with non-positive divisor"):
+        check_prism_file(model, props_source=prop.replace("used", "broken"), exact=True,
+                         rewards="named")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping, Sequence
-from typing import Any, cast
+from typing import Any, TypeVar, cast
 
 from veribattery.errors import PrismSemanticError
 from veribattery.lang.constants import ConstantTable
@@ -20,6 +20,7 @@ from veribattery.lang.nodes import (
     Ident,
     Instantaneous,
     LabelRef,
+    Model,
     Multi,
     ProbOp,
     PropertiesFile,
@@ -35,6 +36,9 @@ from veribattery.lang.nodes import (
 from veribattery.lang.property_rules import STEPS_REWARD
 from veribattery.lang.semantics import BUILTIN_LABELS, check_unique
 from veribattery.lang.typecheck import TypeEnv, type_of
+
+#: A model with reward structures: as written, or flattened.
+_Rewarded = TypeVar("_Rewarded", Model, FlatModel)
 
 
 def is_index(selector: str) -> bool:
@@ -283,11 +287,13 @@ def _valued_booleans(formula: Expr, variables: Mapping[str, ValueType]) -> Expr:
     return cast(Expr, substitute(formula, replace))
 
 
-def with_used_rewards(flat: FlatModel, properties: Sequence[Property]) -> FlatModel:
+def with_used_rewards(flat: _Rewarded, properties: Sequence[Property]) -> _Rewarded:
     """*flat* with only the reward structures the properties use: the others dropped
     when every property names its structure, else (``R{2}``, or ``R`` for the first)
     left without items, so that every position still names the same structure and no
-    unused structure is evaluated (egl's two: most of its build)."""
+    unused structure is evaluated (egl's two: most of its build). A :class:`Model` as
+    written is cut the same way as its flattened :class:`FlatModel` (the exact
+    builders read both, structure by structure)."""
     names: set[str] = set()
     positions: set[int] = set()
     for prop in properties:

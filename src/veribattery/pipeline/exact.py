@@ -15,6 +15,7 @@ from veribattery.lang import (
     PropertiesFile,
     Property,
     resolve_property,
+    with_used_rewards,
 )
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.inputs import parsed_properties, reject_unknown_constants
@@ -23,6 +24,7 @@ from veribattery.pipeline.run import (
     CheckOptions,
     ModelCheckRun,
     ProgressCallback,
+    Rewards,
     Stopwatch,
     internal_results,
     may_hold,
@@ -48,6 +50,7 @@ def check_model_exact(
     stopwatch: Stopwatch | None = None,
     options: CheckOptions | None = None,
     internal: Sequence[Property] = (),
+    rewards: Rewards = "all",
 ) -> ModelCheckRun:
     """:func:`~veribattery.pipeline.check_model` in exact rational arithmetic: each result
     is an :class:`~veribattery.checker.exact.pctl.ExactCheckResult`.
@@ -56,7 +59,9 @@ def check_model_exact(
     re-used state space), and bounds such as ``P<=1/3`` are evaluated exactly from the
     properties as written. *internal* properties are answered as by
     :meth:`~veribattery.pipeline.Session.check`, in floating point on the model's DTMC
-    (they feed warnings, not results).
+    (they feed warnings, not results). *rewards* as for
+    :class:`~veribattery.pipeline.Session`: ``"named"`` builds only the reward structures
+    the properties read.
     """
     from veribattery.checker import Workspace  # the DTMC checker: not imported for MDPs
 
@@ -71,6 +76,9 @@ def check_model_exact(
         aside = [resolve_property(p, flat, props_file, constants) for p in internal]
         for prop in resolved:
             require_cosafe(prop.formula)  # refused before the build, not after it
+        if rewards == "named":  # (cut alike: the exact builder pairs their structures)
+            used = [*resolved, *aside]
+            model, flat = with_used_rewards(model, used), with_used_rewards(flat, used)
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)

@@ -7,12 +7,19 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 from veribattery.checker.mdp.operators import require_checkable
-from veribattery.lang import Model, PropertiesFile, Property, resolve_property
+from veribattery.lang import (
+    Model,
+    PropertiesFile,
+    Property,
+    resolve_property,
+    with_used_rewards,
+)
 from veribattery.lang.nodes import Value
 from veribattery.pipeline.mdp import MdpCheckRun, as_checker_mdp, ill_posed_errors
 from veribattery.pipeline.run import (
     STAGES,
     ProgressCallback,
+    Rewards,
     Stopwatch,
     stages_of,
     tell_building,
@@ -30,6 +37,7 @@ def check_mdp_model_exact(
     constants: Mapping[str, Value | str] | None = None,
     progress: ProgressCallback | None = None,
     stopwatch: Stopwatch | None = None,
+    rewards: Rewards = "all",
 ) -> MdpCheckRun:
     """:func:`~veribattery.pipeline.mdp.check_mdp_model` in exact rational arithmetic:
     each result is an :class:`~veribattery.checker.exact.ExactCheckResult`.
@@ -37,7 +45,8 @@ def check_mdp_model_exact(
     The MDP is built with its guards decided exactly and its probabilities and rewards
     as rationals; bounds such as ``P>=1/3`` are evaluated exactly from the properties
     as written. The optimal values come with a strategy whose optimality is verified
-    in rationals (:mod:`~veribattery.checker.mdp.exact`).
+    in rationals (:mod:`~veribattery.checker.mdp.exact`). *rewards*: ``"named"`` builds
+    only the reward structures the properties read.
 
     :raises CheckError: for an operator without an exact MDP kernel (multi-objective
         queries, a filter inside an expression, arithmetic on an infinite reward).
@@ -59,6 +68,8 @@ def check_mdp_model_exact(
         for prop in resolved:
             require_checkable(prop.formula)  # P=?, S: refused before the build
             require_exact_kernel(prop.formula)
+        if rewards == "named":  # (cut alike: the exact builder pairs their structures)
+            model, flat = with_used_rewards(model, resolved), with_used_rewards(flat, resolved)
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)

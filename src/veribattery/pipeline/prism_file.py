@@ -154,7 +154,8 @@ def check_prism_file(
 
     if exact:
         run = check_model_exact(model, chosen, props_file=props, constants=constants,
-                                progress=progress, stopwatch=watch, options=CheckOptions(keep))
+                                progress=progress, stopwatch=watch, options=CheckOptions(keep),
+                                rewards=rewards)
     else:
         run = check_model(model, chosen, props_file=props, constants=constants,
                           progress=progress, stopwatch=watch,
@@ -176,7 +177,7 @@ def _check_mdp(
 
     if exact:
         return check_mdp_model_exact(model, chosen, props_file=props, constants=constants,
-                                     progress=progress, stopwatch=watch)
+                                     progress=progress, stopwatch=watch, rewards=rewards)
     run = check_mdp_model(model, chosen, props_file=props, constants=constants,
                           progress=progress, stopwatch=watch, rewards=rewards)
     return settle_undecided(run, chosen, _exact_mdp_results, model, props, constants)
