@@ -87,7 +87,6 @@ class _RefusedLegacy:
     refusal: Unsupported
 
 
-
 #: ``Pmin``, ``Rmax``, ``R{"r"}min``, ``R{2}max``: where a P or R operator names its direction.
 _DIRECTION = re.compile(r'[PR](min|max)?\s*(?:\{\s*(?:"[^"]*"|\d+)\s*\}\s*(min|max)?)?')
 
@@ -164,8 +163,10 @@ class PropertyRules:
 
     def _wrap(self, node: Expr, legacy: _Legacy | Unsupported | None,
               meta: Meta) -> Expr | Unsupported:
-        if legacy is None or isinstance(legacy, Unsupported):
-            return legacy or node
+        if legacy is None:
+            return node
+        if isinstance(legacy, Unsupported):
+            return legacy
         return _legacy_filter(legacy, node, self._span(meta))
 
     def time_bound(self, meta: Meta, children: list[Any]) -> TimeBound | Unsupported:

@@ -346,6 +346,8 @@ def _check_path(path: object, env: TypeEnv) -> None:
         check_time(path.bound, env)
         expect(path.left, env, "bool", "the left operand of U, W or R")
         expect(path.right, env, "bool", "the right operand of U, W or R")
+    elif isinstance(path, LtlPath):
+        _check_ltl(path.formula, env)
     else:
         _check_storm_path(path, env)
 
@@ -359,8 +361,6 @@ def _check_storm_path(path: object, env: TypeEnv) -> None:
     elif isinstance(path, Conditional):
         _check_path(path.path, env)
         expect(path.condition, env, "bool", "the condition after ||")
-    elif isinstance(path, LtlPath):
-        _check_ltl(path.formula, env)
 
 
 def _check_ltl(formula: object, env: TypeEnv) -> None:
