@@ -2,10 +2,12 @@
 float and exact engines agree wherever both answer.
 
 Each example takes a well-formed property on a DTMC or an MDP example and mangles it:
-tokens inserted, characters deleted. A fuzzer of this kind found five crashes (the
-``@example`` cases: ``--exact`` answering ``true + 1`` with 2 and ``- true`` with numpy's
-TypeError, an LTL operand never typed, a filter suffix of path formulas, a closed value
-beyond the doubles under ``--exact``); this keeps a few hundred such inputs in the suite.
+words swapped within their class, operators put before atoms. A fuzzer of this kind found
+four defects (the ``@example`` cases): ``--exact`` typed a closed property only after
+evaluating it (``true + 1`` answered 2, ``- true`` numpy's TypeError), an LTL operand was
+never typed, a filter suffix of path formulas ended in lark's VisitError, and a closed
+value beyond the doubles under ``--exact`` in an OverflowError. This keeps a few hundred
+such inputs in the suite.
 """
 
 from __future__ import annotations
