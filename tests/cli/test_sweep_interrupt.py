@@ -101,6 +101,32 @@ def test_ctrl_c_stops_a_parallel_sweep_at_once(tmp_path: Path, presses: int) -> 
     assert rows and all(row.count(",") == header.count(",") for row in rows)
 
 
+def test_ctrl_c_stops_a_sweep_on_a_local_dask_cluster_without_tracebacks(
+        tmp_path: Path) -> None:
+    """``--scheduler local``: the cluster's nanny and worker processes are in the
+    terminal's process group too. They start with SIGINT held, so only the sweep's
+    process handles Ctrl-C; before, each printed "Process Dask Worker process (from
+    Nanny)" and a KeyboardInterrupt traceback (four of them on two workers), the workers
+    logged each cancelled task as a warning, and under load the client, interrupted
+    inside a call, printed a traceback from its ``__del__`` at exit."""
+    pytest.importorskip("distributed")
+    results = tmp_path / "r.csv"
+    sweep = _start(["sweep", CASE1, *SMALL, *MANY_POINTS, "--scheduler", "local", "-j", "2",
+                    "-o", str(results)], tmp_path)
+    seen = _read_until(sweep, b"[1/357]")
+    _ctrl_c(sweep)
+    stderr = _finish(sweep, seen)
+    assert sweep.returncode == 130, stderr
+    assert "Traceback" not in stderr and "KeyboardInterrupt" not in stderr, stderr
+    assert [line for line in stderr.splitlines() if not line.startswith("[")] == [
+        "structure reuse: 357 points share 21 state spaces; running on Dask scheduler "
+        "local (2 workers)",
+        f"interrupted; finished points are kept in {results}: rerun to resume"]
+    _assert_group_gone(sweep.pid)
+    header, *rows = results.read_text().splitlines()
+    assert rows and all(row.count(",") == header.count(",") for row in rows)
+
+
 def _children(pid: int) -> set[int]:
     """The live child processes of *pid* (Linux /proc)."""
     found = set()

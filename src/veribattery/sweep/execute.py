@@ -9,6 +9,7 @@ writes nothing.
 from __future__ import annotations
 
 import gc
+import logging
 import os
 import pickle
 import signal
@@ -251,11 +252,13 @@ def _submit(pool: ProcessPoolExecutor, unsent: deque[Task],
 
 @contextmanager
 def _sigint_held_from_new_workers() -> Iterator[None]:
-    """Block SIGINT in this thread while the pool starts its workers (it starts them on
-    submit): they inherit the blocked signal, so Ctrl-C, which reaches the whole
-    process group, cannot interrupt them even while they import their modules, before
-    their initializer ignores it. The sweep's own process handles Ctrl-C and stops the
-    workers; a Ctrl-C meanwhile waits, and arrives when the block is lifted.
+    """Block SIGINT in this thread while worker processes start (a pool starts its on
+    submit, a Dask ``LocalCluster`` its nannies and workers at once): they inherit the
+    blocked signal, so Ctrl-C, which reaches the whole process group, cannot interrupt
+    them even while they import their modules (a pool's initializer then ignores it; a
+    Dask worker keeps it blocked, where it printed a KeyboardInterrupt traceback each).
+    The sweep's own process handles Ctrl-C and stops the workers; a Ctrl-C meanwhile
+    waits, and arrives when the block is lifted.
 
     multiprocessing's resource tracker is started first: starting it unblocks SIGINT.
     """
@@ -369,7 +372,11 @@ class DaskExecutor:
         return self.description
 
     def results(self, tasks: Sequence[Task]) -> Iterator[PointResult]:
-        """Submit every task; yield each point's result as it is checked."""
+        """Submit every task; yield each point's result as it is checked.
+
+        Ctrl-C is noted and raised between the client's calls: raised inside one (each a
+        sync with the client's event loop) it left the client half closed, and its
+        ``__del__`` printed a traceback as the process exited."""
         from distributed import Queue as DaskQueue
         from distributed import wait as dask_wait
 
@@ -378,14 +385,17 @@ class DaskExecutor:
                                       pure=False): task for task in tasks}
         seen = _Seen()
         try:
-            while futures:
-                with suppress(TimeoutError):
-                    dask_wait(list(futures), timeout=_POLL_S,  # type: ignore[no-untyped-call]
-                              return_when="FIRST_COMPLETED")
-                sent = stream.get(batch=True)  # type: ignore[no-untyped-call]
-                yield from seen.fresh(pickle.loads(data) for data in sent)
-                for future in [f for f in futures if f.done()]:  # type: ignore[no-untyped-call]
-                    yield from seen.fresh(_gathered(future, futures.pop(future)))
+            with _interrupts_held() as interrupted:
+                while futures:
+                    interrupted()  # Ctrl-C raises here, between the client's calls
+                    with suppress(TimeoutError):
+                        dask_wait(list(futures),  # type: ignore[no-untyped-call]
+                                  timeout=_POLL_S, return_when="FIRST_COMPLETED")
+                    sent = stream.get(batch=True)  # type: ignore[no-untyped-call]
+                    yield from seen.fresh(pickle.loads(data) for data in sent)
+                    for future in [f for f in futures
+                                   if f.done()]:  # type: ignore[no-untyped-call]
+                        yield from seen.fresh(_gathered(future, futures.pop(future)))
         finally:
             self.client.cancel(list(futures))  # type: ignore[no-untyped-call]
             stream.close()  # type: ignore[no-untyped-call]
@@ -426,10 +436,14 @@ def _dask_client(scheduler: str, jobs: int) -> Iterator[Client]:
     except ImportError:
         raise ConfigError("--scheduler needs Dask: pip install 'veribattery[dask]'") from None
     if scheduler == "local":
-        with LocalCluster(  # type: ignore[no-untyped-call]
-            n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
-            dashboard_address=":0",
-        ) as cluster, Client(cluster) as client:  # type: ignore[no-untyped-call]
+        with _sigint_held_from_new_workers():
+            cluster = LocalCluster(  # type: ignore[no-untyped-call]
+                n_workers=jobs, threads_per_worker=1, processes=True, host="127.0.0.1",
+                dashboard_address=":0",
+                # (its workers' warnings, such as a task cancelled by Ctrl-C, are not
+                # the user's business; their errors still show)
+                silence_logs=logging.ERROR)
+        with cluster, Client(cluster) as client:  # type: ignore[no-untyped-call]
             yield client
         return
     try:
