@@ -36,6 +36,7 @@ from veribattery.checker.certify.horizon import Trend
 from veribattery.checker.mdp.graph import within_steps
 from veribattery.checker.mdp.levels import ChoiceLevels
 from veribattery.checker.mdp.model import MDP
+from veribattery.checker.mdp.plain_rounds import plain_rounds
 from veribattery.checker.mdp.reach import reach_probability
 from veribattery.checker.mdp.result import MdpResult
 from veribattery.checker.mdp.strategy import StepStrategy, Strategy
@@ -168,13 +169,26 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
               then: Strategy | StepStrategy | None) -> MdpResult:
     """*steps* rounds from *start*; the strategy of the last round is taken first.
 
-    A bound beyond :data:`horizon.ROUND_LIMIT` runs at most :func:`horizon.rounds`
-    rounds (:func:`_beyond`); the rounds not run take the last round's choices.
+    From an exact start, the rounds run in plain floating point where their a priori
+    bounds are tight enough (:mod:`~veribattery.checker.mdp.plain_rounds`); else each
+    carries an error radius. A bound beyond :data:`horizon.ROUND_LIMIT` runs at most
+    :func:`horizon.rounds` rounds (:func:`_beyond`); the rounds not run take the last
+    round's choices.
     """
     levels = ChoiceLevels.of(mdp)
     rounds = rounds.laid_out(levels)
     value, radius = levels.states(start.value), levels.states(_radius(start))
     fixed_radius = _radius(rounds.fixed)
+    # (one round keeps the per-row enclosure: from 0s and 1s it is exact where a row reads
+    # one 1, as X's and U<=1's results are)
+    if 1 < steps <= horizon.ROUND_LIMIT and not (radius.any() or fixed_radius.any()):
+        decisions = _Decisions(levels)
+        plain = plain_rounds(levels, value, rounds.fixed.value, rounds.moving, rounds.offset,
+                             rounds.objective, steps, decisions.add)
+        if plain is not None:
+            restored = Bounds(*(levels.restored(v) for v in (plain.value, plain.lower,
+                                                             plain.upper)))
+            return MdpResult(restored, decisions.strategy(mdp, steps, then))
     rows = _Rows.of(levels)
     decisions = _Decisions(levels)
     budget = horizon.rounds(steps, mdp.transitions.nnz)
