@@ -9,9 +9,9 @@ import pytest
 
 from tests.checker.mdp.counting import counted_evaluations
 from tests.checker.mdp.models import HALF, mask, mdp_from
-from veribattery.checker.mdp import MDP, reach_probability, reach_reward, topological
+from veribattery.checker.mdp import MDP, certificate, reach_probability, reach_reward, topological
 from veribattery.checker.mdp import solve as solve_module
-from veribattery.checker.mdp.solve import policy_iteration, progress_rows
+from veribattery.checker.mdp.solve import evaluate, policy_iteration, progress_rows
 from veribattery.checker.mdp.system import ChoiceSystem, Objective, equations, quotient_classes
 from veribattery.checker.mdp.topological import (
     LevelOrder,
@@ -219,3 +219,23 @@ def test_ties_go_to_the_row_with_the_smaller_margin() -> None:
     found = solve_module.tightest_among_ties(system, "max", known, None, detour)
     assert found.rows.tolist() == [1, 2] and found.values.tolist() == [0.5, 0.5]
     assert solve_module.tightest_among_ties(system, "max", known, None, found) is found
+
+
+def test_the_tied_problem_solved_level_by_level_is_its_optimum() -> None:
+    """The certificate's margin problem (the most expected *reward* over the rows it
+    keeps) restarted from the greedy strategy of its values solved level by level: the
+    strategy policy iteration ends with, from a start that reaches the goal worst."""
+    system = _system(LADDER, [0, 1, 2, 3, 4])
+    known = np.zeros(system.known_states.size)
+    reward = np.linspace(1.0, 2.0, system.choices.size)
+    problem = certificate._TiedProblem(system, reward)
+    start = progress_rows(system, system.known_states == GOAL)
+    first = evaluate(system, start, known, reward)
+    assert first is not None
+    levelled = problem.levelled(first)
+    optimum = policy_iteration(system, "max", known, reward, start)
+    assert levelled is not None and optimum is not None
+    assert not np.array_equal(first.rows, optimum.rows)  # (the restart has work to do)
+    assert levelled.rows.tolist() == optimum.rows.tolist()
+    assert levelled.values == pytest.approx(optimum.values, rel=1e-14)
+    assert problem.levelled(levelled) is None  # (nothing left to switch)

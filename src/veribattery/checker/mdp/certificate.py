@@ -27,14 +27,19 @@ from functools import partial
 
 import numpy as np
 
-from veribattery._types import BoolArray, FloatArray
+from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify import ETA, UNIT_ROUNDOFF, step_down, step_up
 from veribattery.checker.certify.bounds import Bounds, current_precision
 from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp.image import BellmanImage
 from veribattery.checker.mdp.solve import Evaluation, evaluate, improvements, switched
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
-from veribattery.checker.mdp.topological import rows_after_sweeps
+from veribattery.checker.mdp.topological import (
+    class_levels,
+    greedy_rows,
+    rows_after_sweeps,
+    topological_values,
+)
 
 __all__ = ["certified_values"]
 
@@ -69,6 +74,11 @@ TIE_SPREADS = 1024.0
 #: 6-11 Ah needs 5-10 rounds, and with 2 alone its upper bound fell to the trivial 1.
 #: Two suffice on the paper's baseline, where twenty cost 3 s more for the same bounds.
 TIED_ROUNDS = (2, 20)
+#: Rounds after the sweeps' restart that still move before the tied problem is solved level
+#: by level instead: on resource-gathering (B=1300, ``Tmin``), policy iteration moved a
+#: little in each of 20 rounds (16 s), where one levelled pass settles it; on zeroconf the
+#: sweeps' strategy settles at once, and the levelled pass would cost more than it.
+LEVELLED_AFTER = 2
 
 #: A larger factor's bound this close to *x*, as a share of the precision asked for, is
 #: kept without seeking the tied rows' margin (policy iteration on the tied rows: 0.2-0.7
@@ -174,17 +184,25 @@ class _TiedMargin:
         self._done = -1  # rounds done; -1: not even the start evaluated
         self._stopped = False
         self._swept = False
+        self._since_sweeps: int | None = None  # rounds since the sweeps' restart
 
     def __call__(self, rounds: int) -> FloatArray | None:
         """The margin after *rounds* rounds in all, or None: none found, or the same as
         the last call's (the caller asks again only when that one's candidates failed)."""
         moved = self._restarted()
         while not self._stopped and self._done < rounds:
+            if self._since_sweeps == LEVELLED_AFTER:
+                self._since_sweeps = None
+                if self._levelled():
+                    moved = True
+                    continue
             following = next(self._steps, None)
             if following is None:
                 self._stopped = True
             else:
                 self._found, self._done, moved = following, self._done + 1, True
+                if self._since_sweeps is not None:
+                    self._since_sweeps += 1
         if not moved or self._found is None or not np.all(np.isfinite(self._found.values)):
             return None
         return np.maximum(self._found.values, self._spread)
@@ -209,6 +227,18 @@ class _TiedMargin:
             if swept is None:
                 return False
             self._found, self._done, self._stopped = swept, self._done + 1, False
+            self._since_sweeps = 0
+        self._steps = self._problem.rounds(self._found)
+        return True
+
+    def _levelled(self) -> bool:
+        """Whether the greedy strategy of the tied problem's values solved level by level
+        (:meth:`_TiedProblem.levelled`) restarts the rounds."""
+        assert self._problem is not None and self._found is not None
+        levelled = self._problem.levelled(self._found)
+        if levelled is None:
+            return False
+        self._found, self._done = levelled, self._done + 1
         self._steps = self._problem.rounds(self._found)
         return True
 
@@ -233,9 +263,25 @@ class _TiedProblem:
         (:func:`~veribattery.checker.mdp.topological.rows_after_sweeps`), evaluated, or
         None where it is *current*'s own or worse somewhere."""
         greedy = rows_after_sweeps(self.system, self.zeros, self.reward, current)
-        if np.array_equal(greedy, current.rows):
+        return self._switched(current, greedy)
+
+    def levelled(self, current: Evaluation) -> Evaluation | None:
+        """The greedy strategy (ties kept on *current*'s rows) of the values solved level
+        by level (:func:`~veribattery.checker.mdp.topological.topological_values`),
+        evaluated, or None where that does not apply or is no better."""
+        levels = class_levels(self.system)
+        if not levels.within_limit:
             return None
-        return switched(self.system, "max", self.zeros, self.reward, current, greedy)
+        values = topological_values(self.system, "max", self.zeros, self.reward, current.rows,
+                                    levels)
+        images = self.system.images(values, self.zeros, self.reward)
+        return self._switched(current, greedy_rows(images, self.system.groups[:-1], "max",
+                                                   current.rows))
+
+    def _switched(self, current: Evaluation, rows: IntArray) -> Evaluation | None:
+        if np.array_equal(rows, current.rows):
+            return None
+        return switched(self.system, "max", self.zeros, self.reward, current, rows)
 
 
 def _tied_problem(system: ChoiceSystem, objective: Objective, known: FloatArray,
