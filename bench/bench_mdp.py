@@ -79,6 +79,7 @@ ZEROCONF_4 = {"N": 20, "K": 4, "reset": False}
 FIREWIRE_36 = {"delay": 36, "deadline": 200}
 FIREWIRE_36_800 = {"delay": 36, "deadline": 800}
 GATHERING_LONG = {"B": 1_000_000, "GOLD_TO_COLLECT": 0, "GEM_TO_COLLECT": 0}
+GATHERING_1300 = {"B": 1300, "GOLD_TO_COLLECT": 100, "GEM_TO_COLLECT": 100}
 
 #: Ordered from small to large.
 INSTANCES: list[Instance] = [
@@ -113,6 +114,11 @@ INSTANCES: list[Instance] = [
     Instance(MISSION, MISSION, "exp_recharges_max"),
     # issue #23's question: the fastest policy with P(success) >= 0.9 (a multi query)
     Instance(MISSION, MISSION, "fastest_1"),
+    # (958,894 states, 3,080,702 choices: 1,300 step-bounded rounds, and a minimal
+    # expected time over many tied choices; QComp's values from Storm's exact engine)
+    Instance(*GATHERING, "expgold", GATHERING_1300, 145.2875014675094),
+    Instance(*GATHERING, "expsteps", GATHERING_1300, 1292.5925925925926),
+    Instance(*GATHERING, "prgoldgem", GATHERING_1300, 0.6630608525241785),
 ]
 
 STORM_SCRIPT = """
