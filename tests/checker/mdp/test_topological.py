@@ -218,6 +218,7 @@ def test_ties_go_to_the_row_with_the_smaller_margin() -> None:
     assert detour is not None and detour.values.tolist() == [0.5, 0.5]
     found = solve_module.tightest_among_ties(system, "max", known, None, detour)
     assert found.rows.tolist() == [1, 2] and found.values.tolist() == [0.5, 0.5]
+    assert found.untied is detour  # (kept: the certificate tries its margin too)
     assert solve_module.tightest_among_ties(system, "max", known, None, found) is found
 
 

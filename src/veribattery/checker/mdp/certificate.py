@@ -22,7 +22,7 @@ bound and the test is repeated; then interval iteration tightens what is left.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -118,13 +118,14 @@ def certified_values(system: ChoiceSystem, objective: Objective, known: FloatArr
     if approximation is not None:
         x = np.clip(approximation.values, 0.0, ceiling)
         spread = _spread(x, images)
-        margin = None if spread is None else _margin(spread, approximation)
-        if spread is not None and margin is not None:
+        margins = () if spread is None else _margins(spread, approximation)
+        approximation = replace(approximation, untied=None)  # (its solver dies here)
+        if spread is not None and margins:
             wider = _TiedMargin(system, objective, known, offset, x, spread, approximation)
             # (the tied rows' margin holds it only until its start is evaluated: its solver
             # then dies once the rounds move on, not kept beside theirs)
             del approximation
-            lower, upper = _candidates(x, margin, images, wider,
+            lower, upper = _candidates(x, margins, images, wider,
                                        every_row_up=objective == "max")
     if not Bounds.around(x, lower, upper).precise_states().all():
         lower, upper = _tightened(system, images, x, lower, upper, progress)
@@ -142,6 +143,14 @@ def _spread(x: FloatArray, images: _Images) -> FloatArray | None:
         return None
     return defect + (SPREAD * float(np.max(defect, initial=0.0))
                      + 4.0 * UNIT_ROUNDOFF * np.abs(x))
+
+
+def _margins(spread: FloatArray, approximation: Evaluation) -> tuple[FloatArray, ...]:
+    """The margins of the final strategy and of the one before ties were tightened (if
+    any), those that are finite, the final one's first."""
+    found = (_margin(spread, approximation),
+             None if approximation.untied is None else _margin(spread, approximation.untied))
+    return tuple(margin for margin in found if margin is not None)
 
 
 def _margin(spread: FloatArray, approximation: Evaluation) -> FloatArray | None:
@@ -308,26 +317,29 @@ def _tied_problem(system: ChoiceSystem, objective: Objective, known: FloatArray,
     return None if first is None else (problem, first)
 
 
-def _candidates(x: FloatArray, margin: FloatArray, images: _Images,
+def _candidates(x: FloatArray, margins: tuple[FloatArray, ...], images: _Images,
                 wider: Callable[[int], FloatArray | None], *, every_row_up: bool
                 ) -> tuple[FloatArray, FloatArray]:
     """Certified bounds around *x*: for growing factors *c*, ``x +- (c d + slack)``,
-    pushed where it fails (:func:`_pushed`); where factor 2 fails on the side that reads
+    pushed where it fails (:func:`_pushed`), *d* the first of *margins* (at factor 2 the
+    others too, in turn, where it fails); where factor 2 fails on the side that reads
     every row (above for a maximum: *every_row_up*), also the same with the margin of
     the tied rows (*wider*, :class:`_TiedMargin`, with more rounds while none passes;
     not sought when a larger factor passes :func:`_near_enough`), the tightest of those
     that pass; failing all, the last factor with the states that fail set to the
     trivial bounds."""
-    return (_side(images.lower, x, margin, images, None if every_row_up else wider, up=False),
-            _side(images.upper, x, margin, images, wider if every_row_up else None, up=True))
+    return (_side(images.lower, x, margins, images, None if every_row_up else wider, up=False),
+            _side(images.upper, x, margins, images, wider if every_row_up else None, up=True))
 
 
-def _side(image: Image, x: FloatArray, margin: FloatArray, images: _Images,
+def _side(image: Image, x: FloatArray, margins: tuple[FloatArray, ...], images: _Images,
           wider: Callable[[int], FloatArray | None] | None, *, up: bool) -> FloatArray:
     trivial = images.top if up else images.floor
-    first = _pushed(image, _around(x, margin, FACTORS[0], images, up=up), trivial, up=up)
-    if first is not None:
-        return first
+    for each in margins:
+        first = _pushed(image, _around(x, each, FACTORS[0], images, up=up), trivial, up=up)
+        if first is not None:
+            return first
+    margin = margins[0]
     found = [_first_passing(image, x, margin, FACTORS[1:], images, up=up)]
     if wider is not None and not (found[0] is not None and _near_enough(found[0], x, up=up)):
         for rounds in TIED_ROUNDS:

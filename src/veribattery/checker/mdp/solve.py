@@ -13,7 +13,7 @@ The first strategy usually comes from topological value iteration
 from __future__ import annotations
 
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -63,6 +63,9 @@ class Evaluation:
     rows: IntArray
     correct: Callable[[FloatArray], FloatArray]
     solver: TopologicalSolver
+    #: The strategy before :func:`tightest_among_ties` moved it (None: not moved), whose
+    #: margin the certificate tries too: it may cover the other tied rows better.
+    untied: Evaluation | None = None
 
 
 def evaluate(system: ChoiceSystem, rows: IntArray, known: FloatArray,
@@ -291,14 +294,19 @@ def tightest_among_ties(system: ChoiceSystem, objective: Objective, known: Float
     Which of several optimal strategies policy iteration ends with is an accident of
     its path, and the certificate's margin ``d = (I - B_sigma)^-1 d0`` (``d0`` the
     enclosed defect of the values) depends on it: consensus's ``steps_max`` certified
-    -5.1e-10 below from one tied strategy and -4.4e-10 from the one found here.
+    -5.1e-10 below from one tied strategy and -4.4e-10 from the one found here. The
+    strategy before is kept as :attr:`Evaluation.untied`: a smaller margin covers the
+    other tied rows less, and where the test that reads every row then fails, *current*'s
+    own margin may pass (resource-gathering's ``Tmin``: at once, where the tied rows'
+    margin took 10 s).
     """
+    start = current
     for _ in range(TIE_ROUNDS):
         following = _tighter_ties(system, objective, known, offset, current)
         if following is None:
             break
         current = following
-    return current
+    return current if current is start else replace(current, untied=start)
 
 
 def _tighter_ties(system: ChoiceSystem, objective: Objective, known: FloatArray,
