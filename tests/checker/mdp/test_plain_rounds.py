@@ -87,3 +87,17 @@ def test_a_value_that_would_underflow_carries_its_radius() -> None:
     for steps in (2, 3):
         found = bounded_reach_probability(model, mask(6, [5]), steps, objective="max")
         _enclosed(found, _exact(states, None, {5}, steps, "max"))
+
+
+def test_the_rounds_report_their_progress() -> None:
+    states, rewards = _random_model(3)
+    model = mdp_from(states, rewards=rewards)
+    told: list[tuple[int, int, str]] = []
+    cumulative_reward(model, model.rewards[0].choice, 30, objective="max",
+                      progress=lambda *seen: told.append(seen))
+    assert told == [(done, 30, "steps") for done in range(1, 31)]
+    told.clear()  # (a value that would underflow: the rounds run again with the radius)
+    tiny = [[[(1, 1e-160), (0, 1 - 1e-160)]], [[(2, 1e-160), (1, 1 - 1e-160)]], [[(2, 1.0)]]]
+    bounded_reach_probability(mdp_from(tiny), mask(3, [2]), 4, objective="max",
+                              progress=lambda *seen: told.append(seen))
+    assert told == [(1, 4, "steps")] + [(done, 4, "steps") for done in range(1, 5)]

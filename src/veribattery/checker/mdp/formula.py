@@ -210,20 +210,21 @@ def _until(mdp: MDP, progress: Progress | None, remain: BoolArray | None, target
         if high < low:
             return Bounds.exact(np.zeros(mdp.num_states))
         return stepped.interval_reach_probability(mdp, target, low, high, objective=objective,
-                                                  remain=remain).bounds
+                                                  remain=remain, progress=progress).bounds
     steps = step_bound(bound.value)
     if bound.op in ("<=", "<"):
         steps -= bound.op == "<"
         if steps < 0:
             return Bounds.exact(np.zeros(mdp.num_states))
         return stepped.bounded_reach_probability(mdp, target, steps, objective=objective,
-                                                 remain=remain).bounds
+                                                 remain=remain, progress=progress).bounds
     if bound.op == "=":
         return stepped.interval_reach_probability(mdp, target, steps, steps,
-                                                  objective=objective, remain=remain).bounds
+                                                  objective=objective, remain=remain,
+                                                  progress=progress).bounds
     steps += bound.op == ">"
     return stepped.later_reach_probability(mdp, target, steps, objective=objective,
-                                           remain=remain).bounds
+                                           remain=remain, progress=progress).bounds
 
 
 def _ctl(mdp: MDP, progress: Progress | None, quantifier: str,
@@ -272,10 +273,10 @@ def _reward(mdp: MDP, progress: Progress | None, op: RewardOp,
                                 progress=progress).bounds
         case Cumulative(bound=bound):
             return stepped.cumulative_reward(mdp, structure.per_choice(mdp), step_bound(bound),
-                                             objective=objective).bounds
+                                             objective=objective, progress=progress).bounds
         case Instantaneous(time=time):
             return stepped.instantaneous_reward(mdp, structure.state, step_bound(time),
-                                                objective=objective).bounds
+                                                objective=objective, progress=progress).bounds
         case ReachUntil(left=left, right=right):
             return cosafe.until_reward(mdp, structure.per_choice(mdp),
                                        _mask(mdp, progress, left),

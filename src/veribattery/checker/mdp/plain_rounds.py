@@ -37,6 +37,7 @@ from veribattery.checker.certify.apriori import (
     no_underflow,
 )
 from veribattery.checker.certify.bounds import Bounds, current_precision
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.mdp.levels import ChoiceLevels
 from veribattery.checker.mdp.system import Objective
 
@@ -49,11 +50,12 @@ SHARE = Fraction(1, 8)
 
 def plain_rounds(levels: ChoiceLevels, start: FloatArray, held: FloatArray,
                  moving: BoolArray, offset: FloatArray | None, objective: Objective,
-                 steps: int, decide: Callable[[IntArray], None]) -> Bounds | None:
+                 steps: int, decide: Callable[[IntArray], None],
+                 progress: Progress | None = None) -> Bounds | None:
     """Bounds after *steps* rounds from the exact *start* (in *levels*' order; the
     states not *moving* hold their exact value in *held*), each round's choices told to
     *decide* (as ranks), or None where the a priori bounds do not apply (then what was
-    told is void)."""
+    told is void). *progress* is told ``(rounds done, steps, "steps")``."""
     matrix = levels.matrix
     terms = max(1, int(np.diff(matrix.indptr).max(initial=0)) + (offset is not None))
     spread = steps * gamma(terms)
@@ -64,7 +66,7 @@ def plain_rounds(levels: ChoiceLevels, start: FloatArray, held: FloatArray,
     reduce = np.maximum if objective == "max" else np.minimum
     everywhere = bool(moving.all())
     value = start
-    for _ in range(steps):
+    for done in range(1, steps + 1):
         if not no_underflow(value, smallest):
             return None
         images = np.asarray(matrix @ value, dtype=np.float64)
@@ -78,6 +80,8 @@ def plain_rounds(levels: ChoiceLevels, start: FloatArray, held: FloatArray,
         if np.array_equal(following, value):
             break  # (every later round is this one)
         value = following
+        if progress is not None:
+            progress(done, steps, "steps")
     if not bool(np.all(np.isfinite(value))):
         return None
     return _widened(value, moving, spread)

@@ -32,6 +32,7 @@ from veribattery.checker.certify import (
     sums_at_most_one,
 )
 from veribattery.checker.certify.bounds import Bounds, round_down, round_up
+from veribattery.checker.certify.fixpoint import Progress
 from veribattery.checker.certify.horizon import Trend
 from veribattery.checker.mdp.graph import within_steps
 from veribattery.checker.mdp.levels import ChoiceLevels
@@ -79,12 +80,13 @@ def next_probability(mdp: MDP, target: BoolArray, *, objective: Objective) -> Md
 
 
 def bounded_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
-                              objective: Objective,
-                              remain: BoolArray | None = None) -> MdpResult:
+                              objective: Objective, remain: BoolArray | None = None,
+                              progress: Progress | None = None) -> MdpResult:
     """Minimal or maximal probability of ``remain U<=steps target``.
 
     :param steps: the step bound, at least 0.
     :param remain: states that may be passed through before *target* (None: all).
+    :param progress: told ``(rounds done, steps, "steps")`` as the rounds go.
     :return: values with certified bounds and a step-dependent optimal strategy.
     """
     remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
@@ -97,7 +99,7 @@ def bounded_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
     moving = remain & ~target
     moving &= within_steps(mdp.transitions, mdp.choice_owner, moving, target, steps)
     rounds = _Rounds(moving, start, None, objective, trend)
-    return _iterated(mdp, start, rounds, steps, None)
+    return _iterated(mdp, start, rounds, steps, None, progress)
 
 
 def _ceiling(mdp: MDP, target: BoolArray, remain: BoolArray,
@@ -113,31 +115,32 @@ def _ceiling(mdp: MDP, target: BoolArray, remain: BoolArray,
 
 
 def later_reach_probability(mdp: MDP, target: BoolArray, steps: int, *,
-                            objective: Objective,
-                            remain: BoolArray | None = None) -> MdpResult:
+                            objective: Objective, remain: BoolArray | None = None,
+                            progress: Progress | None = None) -> MdpResult:
     """Minimal or maximal probability of ``remain U>=steps target``: *remain* for the
     first *steps* steps, then ``remain U target`` (its strategy afterwards)."""
     remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
-    later = reach_probability(mdp, target, objective=objective, remain=remain)
+    later = reach_probability(mdp, target, objective=objective, remain=remain,
+                              progress=progress)
     assert isinstance(later.strategy, Strategy)
     return _iterated(mdp, later.bounds, _blocked(mdp, remain, objective), steps,
-                     later.strategy)
+                     later.strategy, progress)
 
 
 def interval_reach_probability(mdp: MDP, target: BoolArray, low: int, high: int, *,
-                               objective: Objective,
-                               remain: BoolArray | None = None) -> MdpResult:
+                               objective: Objective, remain: BoolArray | None = None,
+                               progress: Progress | None = None) -> MdpResult:
     """Minimal or maximal probability of ``remain U[low,high] target``: *remain* for the
     first *low* steps, then *target* within ``high - low`` more, through *remain*."""
     remain = np.ones(mdp.num_states, dtype=bool) if remain is None else remain
     window = bounded_reach_probability(mdp, target, high - low, objective=objective,
-                                       remain=remain)
+                                       remain=remain, progress=progress)
     return _iterated(mdp, window.bounds, _blocked(mdp, remain, objective), low,
-                     window.strategy)
+                     window.strategy, progress)
 
 
 def cumulative_reward(mdp: MDP, rewards: FloatArray, steps: int, *,
-                      objective: Objective) -> MdpResult:
+                      objective: Objective, progress: Progress | None = None) -> MdpResult:
     """Minimal or maximal expected reward of the first *steps* steps (``C<=steps``).
 
     :param rewards: per choice, the reward of one step taken with it (nonnegative).
@@ -146,18 +149,20 @@ def cumulative_reward(mdp: MDP, rewards: FloatArray, steps: int, *,
     start = Bounds.exact(np.zeros(mdp.num_states))
     offset = np.asarray(rewards, dtype=np.float64)
     rounds = _Rounds(everywhere, start, offset, objective, horizon.GAINING)
-    return _iterated(mdp, start, rounds, steps, None)
+    return _iterated(mdp, start, rounds, steps, None, progress)
 
 
 def instantaneous_reward(mdp: MDP, state_rewards: FloatArray, steps: int, *,
-                         objective: Objective) -> MdpResult:
+                         objective: Objective, progress: Progress | None = None
+                         ) -> MdpResult:
     """Minimal or maximal expected reward of the state occupied at step *steps* (``I=k``).
 
     :param state_rewards: per state, its reward (nonnegative).
     """
     everywhere = np.ones(mdp.num_states, dtype=bool)
     start = Bounds.exact(np.asarray(state_rewards, dtype=np.float64))
-    return _iterated(mdp, start, _Rounds(everywhere, start, None, objective), steps, None)
+    return _iterated(mdp, start, _Rounds(everywhere, start, None, objective), steps, None,
+                     progress)
 
 
 def _blocked(mdp: MDP, remain: BoolArray, objective: Objective) -> _Rounds:
@@ -166,7 +171,8 @@ def _blocked(mdp: MDP, remain: BoolArray, objective: Objective) -> _Rounds:
 
 
 def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
-              then: Strategy | StepStrategy | None) -> MdpResult:
+              then: Strategy | StepStrategy | None,
+              progress: Progress | None = None) -> MdpResult:
     """*steps* rounds from *start*; the strategy of the last round is taken first.
 
     From an exact start, the rounds run in plain floating point where their a priori
@@ -184,7 +190,7 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
     if 1 < steps <= horizon.ROUND_LIMIT and not (radius.any() or fixed_radius.any()):
         decisions = _Decisions(levels)
         plain = plain_rounds(levels, value, rounds.fixed.value, rounds.moving, rounds.offset,
-                             rounds.objective, steps, decisions.add)
+                             rounds.objective, steps, decisions.add, progress)
         if plain is not None:
             restored = Bounds(*(levels.restored(v) for v in (plain.value, plain.lower,
                                                              plain.upper)))
@@ -214,6 +220,8 @@ def _iterated(mdp: MDP, start: Bounds, rounds: _Rounds, steps: int,
                 return MdpResult(found, decisions.strategy(mdp, steps, then))
             best = found if steady else None
         value, radius = following, grown
+        if progress is not None:
+            progress(done, steps, "steps")
     value, radius = levels.restored(value), levels.restored(radius)
     with np.errstate(invalid="ignore"):  # (a radius of 0: the value is exact)
         upper = np.where(radius == 0, value, round_up(value + radius))
