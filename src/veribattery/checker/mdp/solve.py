@@ -298,7 +298,7 @@ def tightest_among_ties(system: ChoiceSystem, objective: Objective, known: Float
     strategy before is kept as :attr:`Evaluation.untied`: a smaller margin covers the
     other tied rows less, and where the test that reads every row then fails, *current*'s
     own margin may pass (resource-gathering's ``Tmin``: at once, where the tied rows'
-    margin took 10 s).
+    margin took 8 s).
     """
     start = current
     for _ in range(TIE_ROUNDS):
