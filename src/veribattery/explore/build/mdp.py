@@ -12,9 +12,7 @@ enabled choice gets a self-loop (reported, as PRISM fixes deadlocks).
 
 from __future__ import annotations
 
-import itertools
-import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -23,6 +21,7 @@ import scipy.sparse as sp
 from veribattery._collector import collections_spaced
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery._unique import distinct
+from veribattery.explore.build.atoms import AtomicGroups
 from veribattery.explore.build.builder import (
     _FIRST_CHUNK,
     _labels,
@@ -38,14 +37,12 @@ from veribattery.explore.build.store import StateStore
 from veribattery.explore.build.successors import expand_group
 from veribattery.explore.compile.expr import CompileCache
 from veribattery.explore.compile.program import (
-    ChoiceGroup,
-    CompiledCommand,
     Program,
     compile_program,
 )
 from veribattery.lang.nodes import FlatModel, RewardStruct
 
-__all__ = ["BuiltMdp", "MdpRewardVectors", "atomic_groups", "build_mdp"]
+__all__ = ["BuiltMdp", "MdpRewardVectors", "build_mdp"]
 
 @dataclass(frozen=True, slots=True)
 class MdpRewardVectors:
@@ -109,10 +106,7 @@ def build_mdp(model: FlatModel, *,
     """
     program = program or compile_program(model)
     guard = guard or MemoryGuard(memory_footprint(program))
-    atoms = atomic_groups(program)
-    actions = ("", *sorted({g.action for g in atoms if g.action is not None}))
-    action_index = np.array([0 if g.action is None else actions.index(g.action)
-                             for g in atoms] + [0], dtype=np.int64)
+    atoms = AtomicGroups.of(program)
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rows: list[sp.csr_matrix] = []
@@ -148,21 +142,12 @@ def build_mdp(model: FlatModel, *,
     owner = np.repeat(np.arange(n), per_state)
     rewards = tuple(_reward_vectors(model, r, (states, cache), owner, kind, atoms)
                     for r in model.rewards)
-    return BuiltMdp(transitions, row_groups, distinct(initial), labels, action_index[kind],
-                    actions, rewards, states, model.variable_names, int(dead.sum()))
+    return BuiltMdp(transitions, row_groups, distinct(initial), labels,
+                    atoms.action_indices(kind), atoms.actions, rewards, states,
+                    model.variable_names, int(dead.sum()))
 
 
-def atomic_groups(program: Program) -> list[ChoiceGroup]:
-    """One group per command of a lone module, one per combination of synchronising ones:
-    at most one choice per state each, in the order of a state's rows."""
-    atoms: list[ChoiceGroup] = []
-    for group in program.groups:
-        for combination in itertools.product(*group.parts):
-            atoms.append(ChoiceGroup(group.action, tuple((c,) for c in combination)))
-    return atoms
-
-
-def _expand(program: Program, atoms: list[ChoiceGroup], store: StateStore, low: int,
+def _expand(program: Program, atoms: AtomicGroups, store: StateStore, low: int,
             high: int) -> tuple[sp.csr_matrix, IntArray, IntArray]:
     """The choices of states ``low..high-1`` (in state, then group order): their rows,
     the number per state, and each one's atomic group (``len(atoms)``: a deadlock loop).
@@ -213,22 +198,36 @@ def _fused(program: Program, frontier: IntArray, groups: int) -> _Choices | None
     return found.choice_source, found.kind, row, found.targets, found.probability, numbering
 
 
-def _grouped(program: Program, atoms: list[ChoiceGroup], frontier: IntArray) -> _Choices:
+def _grouped(program: Program, atoms: AtomicGroups, frontier: IntArray) -> _Choices:
     """The chunk's choices group by group (errors raised where they are, located); the
-    branches group by group, each group's as its expansion gives them (see
-    :func:`_fused`), the deadlocks' last."""
+    branches atomic group by atomic group, each one's as its expansion gives them (see
+    :func:`_fused`), the deadlocks' last.
+
+    A group is expanded whole, all its combinations of commands at once: one at a time,
+    eajs.5's 1.9 million combinations, of which each chunk enables some 500, took a
+    Python step each (16 s of its build)."""
     sources: list[IntArray] = []
     groups: list[IntArray] = []
     targets: list[IntArray] = []
     probability: list[FloatArray] = []
-    for index in _enabled_somewhere(program.groups, frontier):
-        found = expand_group(program, atoms[index], frontier, True)
+    for group, offset in zip(program.groups, atoms.offsets.tolist(), strict=False):
+        found = expand_group(program, group, frontier, True)
         if found is None:
             continue
-        sources.append(found.source)
-        groups.append(np.full(found.source.size, index, dtype=np.int64))
-        targets.append(found.targets)
-        probability.append(found.probability)
+        number = found.combination
+        if number is None:
+            sources.append(found.source)
+            groups.append(np.full(found.source.size, offset, dtype=np.int64))
+            targets.append(found.targets)
+            probability.append(found.probability)
+            continue
+        # atomic group by atomic group (a stable sort keeps each one's branches in the
+        # order of its own expansion), so that new states are numbered as they always were
+        order = np.argsort(number, kind="stable")
+        sources.append(found.source[order])
+        groups.append(offset + number[order])
+        targets.append(found.targets[order])
+        probability.append(found.probability[order])
     enabled = np.zeros(frontier.shape[0], dtype=bool)
     for source in sources:
         enabled[source] = True
@@ -248,59 +247,6 @@ def _grouped(program: Program, atoms: list[ChoiceGroup], frontier: IntArray) -> 
             np.concatenate(probability), None)
 
 
-def _enabled_somewhere(groups: tuple[ChoiceGroup, ...], frontier: IntArray) -> Iterator[int]:
-    """The indices (in :func:`atomic_groups`' order) of the atomic groups enabled in some
-    state of *frontier*, one command per part of a group, lazily in increasing order.
-
-    A model with many synchronising commands has thousands of combinations, almost all
-    disabled in a given chunk (firewire: ~5,000 per chunk, ~5 enabled, expanded one at
-    a time, was most of its build). Each command's guard is evaluated once per chunk,
-    and the combinations are walked as the tree of their prefixes: a prefix whose
-    commands are enabled together nowhere is dismissed with all its combinations at
-    once (looking at each combination in turn, 1.5 million on firewire, cost ~1 s).
-    The guards are evaluated in the order :func:`expand_group` reads them, stopping
-    where it stops, so no guard is evaluated that it would not evaluate.
-    """
-    guards: dict[int, BoolArray | None] = {}
-    offset = 0
-    for group in groups:
-        yield from (offset + index for index in _combinations(group.parts, frontier, guards))
-        offset += math.prod(len(part) for part in group.parts)
-
-
-def _combinations(parts: tuple[tuple[CompiledCommand, ...], ...], frontier: IntArray,
-                  guards: dict[int, BoolArray | None], enabled: BoolArray | None = None,
-                  prefix: int = 0) -> Iterator[int]:
-    """The combinations of one command per part enabled together somewhere, numbered
-    within the group (the last part varying fastest) after the commands chosen so far
-    (*prefix*, enabled on *enabled*: None while they all hold everywhere)."""
-    if not parts:
-        yield prefix
-        return
-    for position, command in enumerate(parts[0]):
-        joint = enabled
-        if not command.always:
-            holds = _guard(command, frontier, guards)
-            if holds is None:
-                continue
-            joint = holds if enabled is None else enabled & holds
-            if enabled is not None and not joint.any():
-                continue
-        yield from _combinations(parts[1:], frontier, guards, joint,
-                                 prefix * len(parts[0]) + position)
-
-
-def _guard(command: CompiledCommand, frontier: IntArray,
-           guards: dict[int, BoolArray | None]) -> BoolArray | None:
-    """Where *command*'s guard holds in *frontier*, None where nowhere (evaluated on first
-    use, then read from *guards*, keyed by the command's identity)."""
-    key = id(command)
-    if key not in guards:
-        holds = np.asarray(command.guard(frontier), dtype=bool)
-        guards[key] = holds if holds.any() else None
-    return guards[key]
-
-
 def _widen(matrix: sp.csr_matrix, n: int) -> sp.csr_matrix:
     """*matrix* with *n* columns (states found after its chunk was expanded)."""
     return sp.csr_matrix((matrix.data, matrix.indices, matrix.indptr),
@@ -315,7 +261,7 @@ def _dead_states(per_state: IntArray, kind: IntArray, loop: int) -> BoolArray:
 
 def _reward_vectors(model: FlatModel, struct: RewardStruct,
                     over: tuple[IntArray, CompileCache], owner: IntArray, kind: IntArray,
-                    atoms: list[ChoiceGroup]) -> MdpRewardVectors:
+                    atoms: AtomicGroups) -> MdpRewardVectors:
     """State rewards per state; transition rewards per choice, by the choice's action
     (none on the self-loops added to deadlocks)."""
     states = over[0]
@@ -328,6 +274,5 @@ def _reward_vectors(model: FlatModel, struct: RewardStruct,
         if not item.is_transition:
             state += value
             continue
-        matching = np.array([g.action == item.action for g in atoms] + [False])
-        choice += np.where(matching[kind], value[owner], 0.0)
+        choice += np.where(atoms.with_action(kind, item.action), value[owner], 0.0)
     return MdpRewardVectors(struct.name, state, choice)

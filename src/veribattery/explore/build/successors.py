@@ -39,12 +39,16 @@ class GroupSuccessors:
     :param targets: successor rows, one per branch.
     :param probability: branch probability within its choice.
     :param choices: number of choices the group offers in each frontier state.
+    :param combination: per branch, the number of its choice's combination of commands
+        within the group (one command per part, the last part's varying fastest, as
+        ``itertools.product`` numbers them); None where the group has only one.
     """
 
     source: IntArray
     targets: IntArray
     probability: FloatArray
     choices: IntArray
+    combination: IntArray | None = None
 
 
 @dataclass(frozen=True, slots=True)
@@ -103,7 +107,8 @@ def _expand_product(
         for column, values in table.values.items():
             targets[:, column] = values.ravel().take(cell)
     counts = np.bincount(choices.source, minlength=states.shape[0])
-    return GroupSuccessors(choices.source[choice], targets, probability, counts)
+    return GroupSuccessors(choices.source[choice], targets, probability, counts,
+                           _combination(group, choices)[choice])
 
 
 def _expand_one_each(
@@ -275,15 +280,19 @@ def _expand_single(
     """Branches in blocks, one per (command, update); the caller orders them by source."""
     enabled = _guards(part, states)
     blocks: list[tuple[IntArray, IntArray, FloatArray]] = []
+    commands: list[IntArray] = []
     for j, command in enumerate(part):
         rows = np.flatnonzero(enabled[:, j])
         if rows.size:
-            blocks.extend(_command_branches(program, command, rows, states[rows], bounds))
+            found = _command_branches(program, command, rows, states[rows], bounds)
+            blocks.extend(found)
+            commands.extend(np.full(rows.size, j, dtype=np.int64) for _ in found)
     if not blocks:
         return None
     source, targets, probability = (np.concatenate(b) for b in zip(*blocks, strict=True))
     counts = np.count_nonzero(enabled, axis=1)
-    return GroupSuccessors(source, targets, probability, counts)
+    return GroupSuccessors(source, targets, probability, counts,
+                           np.concatenate(commands) if len(part) > 1 else None)
 
 
 def _command_branches(
@@ -326,6 +335,16 @@ def _enumerate_choices(group: ChoiceGroup, states: IntArray) -> _Choices | None:
         if source.size == 0:
             return None
     return _Choices(source, tuple(picks))
+
+
+def _combination(group: ChoiceGroup, choices: _Choices) -> IntArray:
+    """Per choice, its combination's number within *group* (mixed radix over the
+    parts' commands, the last part's fastest)."""
+    number = np.zeros(choices.source.size, dtype=np.int64)
+    for part, pick in zip(group.parts, choices.picks, strict=True):
+        number *= len(part)
+        number += pick
+    return number
 
 
 def _guards(part: Sequence[CompiledCommand], states: IntArray) -> np.ndarray:

@@ -22,11 +22,12 @@ from gmpy2 import mpq
 from veribattery._named import by_key
 from veribattery._types import BoolArray, IntArray
 from veribattery.errors import ModelError
-from veribattery.explore.build.mdp import BuiltMdp, atomic_groups, build_mdp
+from veribattery.explore.build.atoms import AtomicGroups
+from veribattery.explore.build.mdp import BuiltMdp, build_mdp
 from veribattery.explore.build.store import StateStore
 from veribattery.explore.build.successors import format_state
 from veribattery.explore.compile.expr import compile_expr
-from veribattery.explore.compile.program import ChoiceGroup, Program, compile_program
+from veribattery.explore.compile.program import Program, compile_program
 from veribattery.explore.exact.dtmc import (
     _Branches,
     _Context,
@@ -98,14 +99,15 @@ def build_exact_mdp(
                           source)
     updates = {k: tuple(u.probability for u in c.updates) for k, c in source.commands.items()}
     context = _Context(source.constants, source.columns, updates, source.ranges)
-    atoms = atomic_groups(program)
+    atoms = AtomicGroups.of(program)
     probabilities, kind = _probabilities(built, atoms, program, context)
     _check_sums(built, probabilities)
     formulas = expand_formulas(model.formulas)
     written = [inline_formulas(r, formulas) for r in model.rewards]
     owner = np.repeat(np.arange(built.states.shape[0]), np.diff(built.row_groups))
-    actions = [a.action for a in atoms] + [_NO_ACTION]
-    rewards = tuple(_rewards(f, w, built, context, owner, [actions[k] for k in kind])
+    groups = [g.action for g in atoms.groups] + [_NO_ACTION]
+    actions = [groups[g] for g in atoms.group_of(kind).tolist()]
+    rewards = tuple(_rewards(f, w, built, context, owner, actions)
                     for f, w in zip(flat.rewards, written, strict=True))
     return ExactMdp(built, probabilities, rewards, source.constants)
 
@@ -124,7 +126,7 @@ def _exact_labels(built: BuiltMdp, flat: FlatModel, source: ExactSource) -> Buil
     return replace(built, labels=labels)
 
 
-def _probabilities(built: BuiltMdp, atoms: list[ChoiceGroup], program: Program,
+def _probabilities(built: BuiltMdp, atoms: AtomicGroups, program: Program,
                    context: _Context) -> tuple[ObjectArray, IntArray]:
     """The exact value of every stored entry, and each row's atomic group
     (``len(atoms)``: the self-loop of a deadlock).
@@ -138,8 +140,8 @@ def _probabilities(built: BuiltMdp, atoms: list[ChoiceGroup], program: Program,
     parts: list[_Branches] = []
     rows: list[IntArray] = []
     placed: list[tuple[IntArray, int]] = []  # (rows, atomic group)
-    for index, atom in enumerate(atoms):
-        branches = _group_branches(atom, states, context)
+    for index in atoms.enabled_somewhere(states):
+        branches = _group_branches(atoms[index], states, context)
         if branches is None:
             continue
         part, counts = branches
