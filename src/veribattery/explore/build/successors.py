@@ -9,8 +9,6 @@ columns, every right-hand side evaluated in the *source* state.
 
 from __future__ import annotations
 
-import functools
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -18,6 +16,7 @@ import numpy as np
 
 from veribattery._types import FloatArray, IntArray
 from veribattery.errors import ModelError
+from veribattery.explore.build.branches import BranchLayout, branch_layout, constant_row
 from veribattery.explore.compile.program import (
     ChoiceGroup,
     CompiledCommand,
@@ -130,11 +129,11 @@ def _expand_one_each(
     source = np.arange(states.shape[0]) if enabled is None else np.flatnonzero(enabled)
     sources = states[source]
     n = source.size
-    layout = _branch_layout(tuple(len(c.updates) for c in commands))
+    layout = branch_layout(tuple(len(c.updates) for c in commands))
     width = layout.width
     targets = np.repeat(sources, width, axis=0) if width > 1 else sources.copy()
     grid = targets.reshape(n, width, states.shape[1])
-    constants = _constant_row(tuple(tuple(u.constant_probability for u in c.updates)
+    constants = constant_row(tuple(tuple(u.constant_probability for u in c.updates)
                                     for c in commands))
     total: FloatArray | float
     if constants is not None:  # every probability folded: one row for all choices
@@ -161,7 +160,7 @@ def _expand_one_each(
 def _grid_probabilities(
     program: Program,
     commands: Sequence[CompiledCommand],
-    layout: _BranchLayout,
+    layout: BranchLayout,
     sources: IntArray,
     grid: IntArray,
     bounds: bool,
@@ -212,56 +211,6 @@ def _assign_grid(
             _check_range(program, command, column, values, sources,
                          bounds and column not in update.unchecked)
             grid[:, branches, column] = values[:, None]
-
-
-@functools.lru_cache(maxsize=1024)
-def _constant_row(
-    probabilities: tuple[tuple[float | None, ...], ...],
-) -> tuple[FloatArray, float] | None:
-    """The branch probabilities of a choice whose parts' probabilities are all
-    constants (non-negative), multiplied in the order of the general product, and
-    the product of the parts' sums; None if any is not a constant.
-    """
-    known = [p for part in probabilities for p in part]
-    if any(p is None or p < 0 for p in known):
-        return None
-    layout = _branch_layout(tuple(len(part) for part in probabilities))
-    row = np.ones((1, layout.width), dtype=np.float64)
-    total = 1.0
-    for part, part_branches in zip(probabilities, layout.branches, strict=True):
-        for p, branches in zip(part, part_branches, strict=True):
-            assert p is not None
-            if p != 1.0:
-                row[:, branches] *= p
-        total *= float(sum(p for p in part if p is not None))
-    row.flags.writeable = False
-    return row[0], total
-
-
-@dataclass(frozen=True, slots=True)
-class _BranchLayout:
-    """Per part and update, the branches (columns of a choice's row) that take it."""
-
-    width: int
-    branches: tuple[tuple[slice | IntArray, ...], ...]
-
-
-@functools.lru_cache(maxsize=256)
-def _branch_layout(sizes: tuple[int, ...]) -> _BranchLayout:
-    """Branches in mixed radix over the parts' updates, the last part's fastest."""
-    width = math.prod(sizes)
-    parts: list[tuple[slice | IntArray, ...]] = []
-    inner = width
-    for size in sizes:
-        inner //= size
-        digit = (np.arange(width) // inner) % size
-        if size == 1:
-            parts.append((slice(None),))
-        elif inner == 1:
-            parts.append(tuple(slice(u, None, size) for u in range(size)))
-        else:
-            parts.append(tuple(np.flatnonzero(digit == u) for u in range(size)))
-    return _BranchLayout(width, tuple(parts))
 
 
 def format_state(names: Sequence[str], row: IntArray) -> str:
