@@ -88,6 +88,12 @@ def _analysis_options(function: Callable[..., None]) -> Callable[..., None]:
     "--max-states", type=click.IntRange(min=1), default=None, metavar="N",
     help="Stop the build (exit 2) once more than N states are found.",
 )
+@click.option(
+    "--all-states", is_flag=True,
+    help="MDP: build every reachable state, as PRISM does. By default, as Storm does, "
+         "states where every property's value is already known (the targets of F and U, "
+         "...) are not expanded.",
+)
 @_analysis_options
 @strategy_options
 def prism_command(
@@ -99,6 +105,7 @@ def prism_command(
     as_json: bool,
     exact: bool,
     max_states: int | None,
+    all_states: bool,
     **analysis: Any,
 ) -> None:
     """Check PCTL properties of a PRISM DTMC or MDP MODEL file."""
@@ -131,7 +138,7 @@ def prism_command(
 
             check_experiment_options(analysis)
             _experiment(model, props, selectors, constant_points(constants), output_format,
-                        exact, max_states)
+                        exact, (max_states, not all_states))
             return
     if analysis["explain"] is not None:
         prism_explain(model, constants, analysis["explain"], analysis["top"], as_json)
@@ -145,6 +152,9 @@ def prism_command(
             rewards="all" if (analysis["simulate"] is not None
                               or analysis["induced_dir"] is not None) else "named",
             before_build=hopeless_export_check(analysis),
+            # an exported strategy or induced DTMC covers every state
+            stop_early=not all_states and analysis["strategy_file"] is None
+            and analysis["induced_dir"] is None,
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)
@@ -184,8 +194,10 @@ def _check_modes(analysis: dict[str, Any]) -> None:
 
 def _experiment(model: Path, props: Path | None, selectors: tuple[str, ...],
                 points: list[dict[str, str]], output_format: str, exact: bool,
-                max_states: int | None) -> None:
-    """Every point of ``--const`` ranges checked, then printed together."""
+                limits: tuple[int | None, bool]) -> None:
+    """Every point of ``--const`` ranges checked, then printed together (*limits*:
+    ``--max-states``, and whether an MDP's exploration may stop early)."""
+    max_states, stop_early = limits
     from veribattery.pipeline import check_prism_file
 
     runs = []
@@ -193,7 +205,8 @@ def _experiment(model: Path, props: Path | None, selectors: tuple[str, ...],
         with user_errors(), build_progress(plain=True) as progress:
             runs.append(check_prism_file(
                 model, props_source=props, selectors=selectors, constants=point,
-                progress=limited(progress, max_states), exact=exact, keep="answers"))
+                progress=limited(progress, max_states), exact=exact, keep="answers",
+                stop_early=stop_early))
         errors: tuple[str, ...] = getattr(runs[-1], "errors", ())
         if errors:
             fail(*errors)
@@ -311,6 +324,10 @@ def print_prism_run(run: ModelCheckRun | MdpCheckRun) -> None:
         f"Model: {size['states']:,} states, {choices}{size['transitions']:,} transitions, "
         f"{size['initial_states']:,} initial, {size['deadlocks']:,} deadlocks"
     )
+    stopped = size.get("stopped_states", 0)
+    if stopped:
+        print_dim(fit_text(f"{stopped:,} state{'s' * (stopped != 1)} left unexpanded: every "
+                           "property is decided there (--all-states)"))
     rows = [(_labelled(result), _shown(result)) for result in run.results]
     print_table(("property", "value"), rows)
     for note in exact_notes(value for _, value in rows):

@@ -40,6 +40,7 @@ from veribattery.pipeline.run import (
     tell_building,
     tell_checking,
 )
+from veribattery.pipeline.stopping import stopping_condition
 
 if TYPE_CHECKING:
     from veribattery.pipeline.session import Rewards
@@ -65,6 +66,8 @@ class MdpCheckRun:
     # Left out of the repr, as the MDP's arrays are: every command of the model.
     model: FlatModel | None = field(default=None, repr=False)
     errors: tuple[str, ...] = ()
+    #: States left unexpanded, every property's value known there (``stop_early``).
+    stopped: int = 0
 
     def strategy(self, index: int) -> Strategy:
         """The optimal memoryless strategy of the *index*-th result's property (0-based),
@@ -82,14 +85,15 @@ class MdpCheckRun:
     @property
     def model_summary(self) -> dict[str, int]:
         """Sizes as reported by ``--json``: states, choices, transitions, initial
-        states, deadlocks."""
-        return {
+        states, deadlocks (and ``stopped_states`` where exploration stopped early)."""
+        summary = {
             "states": self.mdp.num_states,
             "choices": self.mdp.num_choices,
             "transitions": self.mdp.num_transitions,
             "initial_states": int(self.mdp.initial.size),
             "deadlocks": self.mdp.deadlocks,
         }
+        return summary | ({"stopped_states": self.stopped} if self.stopped else {})
 
 
 def check_mdp_model(
@@ -101,6 +105,7 @@ def check_mdp_model(
     progress: ProgressCallback | None = None,
     stopwatch: Stopwatch | None = None,
     rewards: Rewards = "all",
+    stop_early: bool = False,
 ) -> MdpCheckRun:
     """Flatten the ``mdp`` *model*, build its MDP and check each property at the
     initial states, in floating point with certified bounds.
@@ -112,6 +117,9 @@ def check_mdp_model(
     :param rewards: the reward structures built: ``"all"`` (the run's MDP has every one,
         as an induced export of a ``multi`` strategy writes them), or ``"named"``, only
         those the properties read (the others cost memory and time for nothing).
+    :param stop_early: leave unexpanded the states where every property's value is
+        already known (:func:`~veribattery.pipeline.stopping.stopping_condition`), as
+        Storm does: the values at the initial states are the same, the MDP smaller.
 
     :raises CheckError: ``P=?``/``R=?`` (no single value on an MDP), or an operator
         outside the supported ones.
@@ -125,8 +133,11 @@ def check_mdp_model(
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)
+        stop = stopping_condition([p.formula for p in resolved],
+                                  {label.name: label.expr for label in flat.labels}
+                                  ) if stop_early else None
         built = build_mdp(with_used_rewards(flat, resolved) if rewards == "named" else flat,
-                          progress=progress)
+                          progress=progress, stop=stop)
         mdp = as_checker_mdp(built)
         trim_for(mdp.num_states)  # the builder's freed temporaries, under the MDP's arrays
     results = []
@@ -139,7 +150,7 @@ def check_mdp_model(
             errors.extend(ill_posed_errors(mdp, results[-1]))
             trim_for(mdp.num_states)
     return MdpCheckRun(mdp, tuple(results), watch.seconds, built.warnings, model=flat,
-                       errors=tuple(errors))
+                       errors=tuple(errors), stopped=built.stopped)
 
 
 def _checked(mdp: MDP, prop: Property, errors: list[str],

@@ -104,6 +104,7 @@ def check_prism_file(
     keep: Keep = "states",
     rewards: Rewards = "all",
     before_build: Callable[[str, Sequence[Property]], None] | None = None,
+    stop_early: bool = False,
 ) -> ModelCheckRun | MdpCheckRun:
     """The ``veribattery prism`` pipeline: model file (and properties) to results.
 
@@ -148,7 +149,8 @@ def check_prism_file(
         if before_build is not None:
             before_build(model.model_type, chosen)
     if model.model_type == "mdp":
-        mdp_run = _check_mdp(model, chosen, props, constants, progress, watch, exact, rewards)
+        mdp_run = _check_mdp(model, chosen, props, constants, progress, watch,
+                             (exact, rewards, stop_early))
         return replace(mdp_run, warnings=skipped + mdp_run.warnings) if skipped else mdp_run
     from veribattery.pipeline.session import check_model  # the DTMC checker: for DTMCs only
 
@@ -168,18 +170,21 @@ def check_prism_file(
 def _check_mdp(
     model: Model, chosen: Sequence[Property], props: PropertiesFile | None,
     constants: Mapping[str, Value | str] | None, progress: ProgressCallback | None,
-    watch: Stopwatch, exact: bool, rewards: Rewards,
+    watch: Stopwatch, how: tuple[bool, Rewards, bool],
 ) -> MdpCheckRun:
-    """An ``mdp`` model's run: exact, or in floats with undecided bounds settled exactly."""
+    """An ``mdp`` model's run: exact, or in floats with undecided bounds settled exactly
+    (*how*: ``exact``, ``rewards``, ``stop_early``)."""
     # The MDP engine is imported when a model is an MDP.
     from veribattery.pipeline.mdp import check_mdp_model
     from veribattery.pipeline.mdp_exact import check_mdp_model_exact
 
+    exact, rewards, stop_early = how
     if exact:
         return check_mdp_model_exact(model, chosen, props_file=props, constants=constants,
                                      progress=progress, stopwatch=watch, rewards=rewards)
     run = check_mdp_model(model, chosen, props_file=props, constants=constants,
-                          progress=progress, stopwatch=watch, rewards=rewards)
+                          progress=progress, stopwatch=watch, rewards=rewards,
+                          stop_early=stop_early)
     return settle_undecided(run, chosen, _exact_mdp_results, model, props, constants)
 
 

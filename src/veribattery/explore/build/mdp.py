@@ -35,12 +35,12 @@ from veribattery.explore.build.builder import (
 from veribattery.explore.build.guard import MemoryGuard
 from veribattery.explore.build.store import StateStore
 from veribattery.explore.build.successors import expand_group
-from veribattery.explore.compile.expr import CompileCache
+from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr
 from veribattery.explore.compile.program import (
     Program,
     compile_program,
 )
-from veribattery.lang.nodes import FlatModel, RewardStruct
+from veribattery.lang.nodes import Expr, FlatModel, RewardStruct
 
 __all__ = ["BuiltMdp", "MdpRewardVectors", "build_mdp"]
 
@@ -76,6 +76,8 @@ class BuiltMdp:
     states: IntArray
     variable_names: tuple[str, ...]
     deadlocks: int
+    #: States not expanded, where the build's *stop* formula held (each has a self-loop).
+    stopped: int = 0
 
     def wide(self) -> BuiltMdp:
         """This MDP with its state table in int64 (exact exploration re-expands and
@@ -93,10 +95,14 @@ class BuiltMdp:
 @collections_spaced
 def build_mdp(model: FlatModel, *,
               progress: Callable[[int, int], None] | None = None,
-              program: Program | None = None, guard: MemoryGuard | None = None) -> BuiltMdp:
+              program: Program | None = None, guard: MemoryGuard | None = None,
+              stop: Expr | None = None) -> BuiltMdp:
     """Explore the reachable states of the ``mdp`` *model*, one choice per enabled
     command or synchronised combination of commands.
 
+    :param stop: a state formula over the model's variables: a state where it holds is
+        not expanded but given a self-loop (no action, not a deadlock), as Storm's
+        builder treats its terminal states (see ``pipeline.stopping``).
     :param program: the compiled program to explore with (default:
         ``compile_program(model)``; ``--exact`` gives one with guards decided exactly).
     :param guard: checked after each chunk (default: against the memory available).
@@ -107,6 +113,8 @@ def build_mdp(model: FlatModel, *,
     program = program or compile_program(model)
     guard = guard or MemoryGuard(memory_footprint(program))
     atoms = AtomicGroups.of(program)
+    halt = None if stop is None else compile_expr(
+        stop, model.variable_names, ranges={v.name: (v.low, v.high) for v in model.variables})
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rows: list[sp.csr_matrix] = []
@@ -119,7 +127,7 @@ def build_mdp(model: FlatModel, *,
         # step of Python per group and chunk, eajs.4's 178 groups over 4,096 states at a
         # time, was most of its build)
         high = min(store.count, low + size)
-        matrix, per_state, kind = _expand(program, atoms, store, low, high)
+        matrix, per_state, kind = _expand(program, atoms, store, (low, high), halt)
         size = _next_chunk(size, matrix.nnz, high - low, len(program.lows))
         rows.append(matrix)
         counts.append(per_state)
@@ -144,31 +152,74 @@ def build_mdp(model: FlatModel, *,
                     for r in model.rewards)
     return BuiltMdp(transitions, row_groups, distinct(initial), labels,
                     atoms.action_indices(kind), atoms.actions, rewards, states,
-                    model.variable_names, int(dead.sum()))
+                    model.variable_names, int(dead.sum()),
+                    int(np.count_nonzero(kind == len(atoms) + 1)))
 
 
-def _expand(program: Program, atoms: AtomicGroups, store: StateStore, low: int,
-            high: int) -> tuple[sp.csr_matrix, IntArray, IntArray]:
+def _expand(program: Program, atoms: AtomicGroups, store: StateStore, chunk: tuple[int, int],
+            halt: CompiledExpr | None) -> tuple[sp.csr_matrix, IntArray, IntArray]:
     """The choices of states ``low..high-1`` (in state, then group order): their rows,
-    the number per state, and each one's atomic group (``len(atoms)``: a deadlock loop).
+    the number per state, and each one's atomic group (``len(atoms)``: a deadlock loop;
+    ``len(atoms) + 1``: the self-loop of a state where *halt* holds, not expanded).
 
     Expanded in one pass over all groups where the program's layer plan allows
     (``fused``: its kinds are :func:`atomic_groups`, in their order), else group by
     group. Either way the targets are numbered group by group (see :func:`_fused`),
     so that the states are numbered alike whichever path a chunk takes; a branch of
     probability 0 is dropped before (as the DTMC builder, PRISM and Storm do)."""
+    low, high = chunk
     frontier = store.rows(low, high)
-    found = _fused(program, frontier, len(atoms))
+    halted = _halted(halt, frontier)
+    live = frontier if halted is None else frontier[~halted]
+    found = _fused(program, live, len(atoms)) if live.shape[0] else _nothing(live)
     if found is None:
-        found = _grouped(program, atoms, frontier)
+        found = _grouped(program, atoms, live)
     source, group, row, targets, p, numbering = found
     keep = p > 0  # a branch of probability 0 is no transition: its target no state
     order = np.flatnonzero(keep) if numbering is None else numbering[keep[numbering]]
     row, p, targets = row[order], p[order], targets[order]
-    matrix = sp.csr_matrix((p, (row, store.add(targets))), shape=(source.size, store.count))
+    entries = (p, row, store.add(targets))
+    if halted is not None:
+        source, group, entries = _with_loops(halted, low, len(atoms) + 1, (source, group),
+                                             entries)
+    matrix = sp.csr_matrix((entries[0], (entries[1], entries[2])),
+                           shape=(source.size, store.count))
     matrix.sum_duplicates()
     per_state = np.bincount(source, minlength=high - low)
     return matrix, per_state.astype(np.int64), group
+
+
+def _nothing(frontier: IntArray) -> _Choices:
+    """No choice and no branch: every state of the chunk halted."""
+    none = np.zeros(0, dtype=np.int64)
+    return none, none, none, frontier[:0], np.zeros(0), None
+
+
+def _halted(halt: CompiledExpr | None, frontier: IntArray) -> BoolArray | None:
+    """Where *halt* holds in *frontier*, or None where nowhere."""
+    if halt is None:
+        return None
+    holds = np.broadcast_to(np.asarray(halt(frontier), dtype=bool), (frontier.shape[0],))
+    return np.array(holds) if holds.any() else None
+
+
+def _with_loops(halted: BoolArray, low: int, kind: int, choices: tuple[IntArray, IntArray],
+                entries: tuple[FloatArray, IntArray, IntArray]
+                ) -> tuple[IntArray, IntArray, tuple[FloatArray, IntArray, IntArray]]:
+    """The choices (*choices*: source and group) and entries (probability, row, column)
+    of the states not *halted*, numbered among those not halted, with a self-loop of
+    group *kind* added to each halted state: everything numbered within the chunk."""
+    source, group = choices
+    p, row, column = entries
+    live, loops = np.flatnonzero(~halted), np.flatnonzero(halted)
+    every = np.concatenate([live[source], loops])
+    order = np.argsort(every, kind="stable")  # by state; a state's choices keep their order
+    position = np.empty_like(order)
+    position[order] = np.arange(order.size)
+    return every[order], np.concatenate([group, np.full(loops.size, kind)])[order], (
+        np.concatenate([p, np.ones(loops.size)]),
+        np.concatenate([position[row], position[source.size:]]),
+        np.concatenate([column, low + loops]))
 
 
 #: Per choice its source and atomic group; per branch its choice, target and probability;
@@ -210,8 +261,8 @@ def _grouped(program: Program, atoms: AtomicGroups, frontier: IntArray) -> _Choi
     groups: list[IntArray] = []
     targets: list[IntArray] = []
     probability: list[FloatArray] = []
-    for group, offset in zip(program.groups, atoms.offsets.tolist(), strict=False):
-        found = expand_group(program, group, frontier, True)
+    for choices, offset in zip(program.groups, atoms.offsets.tolist(), strict=False):
+        found = expand_group(program, choices, frontier, True)
         if found is None:
             continue
         number = found.combination
