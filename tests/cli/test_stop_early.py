@@ -1,10 +1,12 @@
-"""An MDP's exploration stops where every property is decided (Storm's terminal states).
+"""Exploration stops where every property is decided (Storm's terminal states).
 
 The model below has six reachable states; ``s=1`` is the target of the properties, and
 ``s=4`` and ``s=5`` are reached only through it. Its values are solved by hand: with
 ``a`` from ``s=0``, ``V0 = 1/2 + 1/2 V2`` and ``V2 = 1/2 V0 + 1/2`` for ``F s=1``
 (``V0 = 1``), and for the expected steps ``R0 = 1 + 1/2 R2``, ``R2 = 1 + 1/2 R0``
-(``R0 = 2``); ``b`` goes to the sink ``s=3`` (``Pmin = 0``).
+(``R0 = 2``); ``b`` goes to the sink ``s=3`` (``Pmin = 0``). Its DTMC twin goes from
+``s=0`` to ``s=1``, ``s=2``, ``s=3`` with 1/2, 1/4, 1/4: ``V0 = 1/2 + 1/4 V2``, ``V2 =
+1/2 V0 + 1/2``, so ``V0 = 5/7``.
 """
 
 from __future__ import annotations
@@ -33,6 +35,18 @@ module m
 endmodule
 label "goal" = s=1;
 rewards "steps" true : 1; endrewards
+"""
+
+DTMC = """dtmc
+module m
+  s : [0..5] init 0;
+  [] s=0 -> 0.5:(s'=1) + 0.25:(s'=2) + 0.25:(s'=3);
+  [] s=1 -> (s'=4);
+  [] s=4 -> (s'=5);
+  [] s=5 -> true;
+  [] s=2 -> 0.5:(s'=0) + 0.5:(s'=1);
+  [] s=3 -> true;
+endmodule
 """
 
 #: (property, value, states built, states left unexpanded).
@@ -84,6 +98,29 @@ def test_a_property_that_reads_past_the_target_builds_every_state(
     assert run.model_summary["states"] == 6
     assert "stopped_states" not in run.model_summary
     assert run.results[0].value == pytest.approx(value, abs=1e-12)
+
+
+@pytest.mark.parametrize(("prop", "value", "states", "stopped"), [
+    ("P=? [ F s=1 ]", 5 / 7, 4, 1),
+    ("P=? [ s!=3 U s=1 ]", 5 / 7, 4, 2),
+    ("P>0.7 [ F<=40 s=1 ]", True, 4, 1),
+    ("P=? [ X s=1 ]", 0.5, 6, 0),
+    ("P=? [ F s=0 ]", 1.0, 1, 1),
+])
+def test_a_dtmc_stops_alike(tmp_path: Path, prop: str, value: float | bool, states: int,
+                            stopped: int) -> None:
+    model = tmp_path / "m.pm"
+    model.write_text(DTMC)
+    early = check_prism_file(model, props_source=prop, stop_early=True, keep="answers")
+    full = check_prism_file(model, props_source=prop, stop_early=False, keep="answers")
+    assert early.model_summary["states"] == states
+    assert early.model_summary.get("stopped_states", 0) == stopped
+    assert full.model_summary["states"] == 6
+    assert early.results[0].value == pytest.approx(value, abs=1e-12)
+    assert full.results[0].value == pytest.approx(value, abs=1e-12)
+    # keeping every state's value, the whole chain is built
+    kept = check_prism_file(model, props_source=prop, stop_early=True, keep="states")
+    assert kept.model_summary["states"] == 6
 
 
 def test_several_properties_stop_only_where_all_are_decided(tmp_path: Path) -> None:

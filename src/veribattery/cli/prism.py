@@ -90,9 +90,9 @@ def _analysis_options(function: Callable[..., None]) -> Callable[..., None]:
 )
 @click.option(
     "--all-states", is_flag=True,
-    help="MDP: build every reachable state, as PRISM does. By default, as Storm does, "
-         "states where every property's value is already known (the targets of F and U, "
-         "...) are not expanded.",
+    help="Build every reachable state, as PRISM does. By default, as Storm does, states "
+         "where every property's value is already known (the targets of F and U, ...) are "
+         "not expanded.",
 )
 @_analysis_options
 @strategy_options
@@ -152,9 +152,9 @@ def prism_command(
             rewards="all" if (analysis["simulate"] is not None
                               or analysis["induced_dir"] is not None) else "named",
             before_build=hopeless_export_check(analysis),
-            # an exported strategy or induced DTMC covers every state
+            # a strategy, an induced DTMC and simulated paths cover every state
             stop_early=not all_states and analysis["strategy_file"] is None
-            and analysis["induced_dir"] is None,
+            and analysis["induced_dir"] is None and analysis["simulate"] is None,
         )
     print_warnings(run.warnings)
     print_imprecise(run.results)

@@ -74,6 +74,8 @@ class DTMC:
     :param rewards: reward structures in declaration order.
     :param deadlocks: number of states that had no enabled command (given a self-loop).
     :param nondeterministic: number of states where several commands were enabled.
+    :param stopped: number of states left unexpanded, every property decided there
+        (given a self-loop; see ``explore.build.halting``).
     """
 
     transitions: CsrMatrix
@@ -85,6 +87,7 @@ class DTMC:
     deadlocks: int = 0
     nondeterministic: int = 0
     warnings: tuple[str, ...] = field(default=())
+    stopped: int = 0
 
     @property
     def num_states(self) -> int:

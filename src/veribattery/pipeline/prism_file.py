@@ -161,7 +161,8 @@ def check_prism_file(
     else:
         run = check_model(model, chosen, props_file=props, constants=constants,
                           progress=progress, stopwatch=watch,
-                          options=CheckOptions(keep, report_undecided=True), rewards=rewards)
+                          options=CheckOptions(keep, report_undecided=True), rewards=rewards,
+                          stop_early=stop_early)
         exact_check = functools.partial(_exact_dtmc_results, keep=keep)
         run = settle_undecided(run, chosen, exact_check, model, props, constants)
     return replace(run, warnings=skipped + run.warnings) if skipped else run

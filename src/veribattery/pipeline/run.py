@@ -159,13 +159,15 @@ class ModelCheckRun:
 
     @property
     def model_summary(self) -> dict[str, int]:
-        """Sizes as reported by ``--json``: states, transitions, initial states, deadlocks."""
-        return {
+        """Sizes as reported by ``--json``: states, transitions, initial states, deadlocks
+        (and ``stopped_states`` where exploration stopped early)."""
+        summary = {
             "states": self.dtmc.num_states,
             "transitions": self.dtmc.num_transitions,
             "initial_states": len(self.dtmc.initial),
             "deadlocks": self.dtmc.deadlocks,
         }
+        return summary | ({"stopped_states": self.dtmc.stopped} if self.dtmc.stopped else {})
 
 
 class Stopwatch:

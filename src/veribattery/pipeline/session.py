@@ -38,6 +38,7 @@ from veribattery.pipeline.run import (
     stages_of,
     tell_building,
 )
+from veribattery.pipeline.stopping import stopping_condition
 
 if TYPE_CHECKING:
     from veribattery.explore.reuse.lumping import Lumper
@@ -121,6 +122,7 @@ class Session:
         progress: ProgressCallback | None = None,
         stopwatch: Stopwatch | None = None,
         internal: Sequence[Property] = (),
+        stop_early: bool = False,
     ) -> ModelCheckRun:
         """Flatten *model*, build its DTMC and check each property at the initial states.
 
@@ -136,6 +138,9 @@ class Session:
             (shared linear systems, the quotient), answers only, never NaN. One that is
             ``P=? [ F a ]`` with an operator-free ``a`` that no state satisfies is 0
             without a check, and shapes neither the shared systems nor the quotient.
+        :param stop_early: answers only, in a session that does not re-use state spaces:
+            leave unexpanded the states where every property's value is known
+            (:func:`~veribattery.pipeline.stopping.stopping_condition`), as Storm does.
         """
         properties = parsed_properties(properties)
         reject_unknown_constants(model, props_file, constants or {})
@@ -149,9 +154,10 @@ class Session:
                 require_cosafe(prop.formula)  # refused before the build, not after it
             if self.rewards == "named":
                 flat = with_used_rewards(flat, resolved + aside)
+            stop = self._stop(flat, resolved + aside) if stop_early else None
         with watch.stage("build"):
             tell_building(stages)
-            dtmc, reused = self._build(flat, progress)
+            dtmc, reused = self._build(flat, progress, stop)
         live = [may_hold(dtmc, p) for p in aside]
         formulas = [p.formula for p in resolved] + [
             p.formula for p, may in zip(aside, live, strict=True) if may]
@@ -175,7 +181,16 @@ class Session:
         return ModelCheckRun(dtmc, results, watch.seconds, dtmc.warnings + undefined, reused,
                              quotient, aside_results, self.workspace)
 
-    def _build(self, flat: FlatModel, progress: ProgressCallback | None) -> tuple[DTMC, bool]:
+    def _stop(self, flat: FlatModel, properties: Sequence[Property]) -> Expr | None:
+        """Where the build may stop for *properties*: only when answers alone are kept
+        and no state space is re-used (a base must be whole)."""
+        if self.builder is not None or self.options.keep != "answers":
+            return None
+        return stopping_condition([p.formula for p in properties],
+                                  {label.name: label.expr for label in flat.labels})
+
+    def _build(self, flat: FlatModel, progress: ProgressCallback | None,
+               stop: Expr | None = None) -> tuple[DTMC, bool]:
         """*flat*'s DTMC, and whether it re-used an earlier state space."""
         if self.builder is not None:
             return self.builder.build(flat, progress)
@@ -184,7 +199,7 @@ class Session:
             # does arithmetic on whole state rows, so the table can be narrow (65 -> 17
             # MB on the 11x11 mission), and is narrow from the start (528 -> 66 MB on
             # crowds 5/20, whose int64 table was the peak of the build).
-            return build_compact_dtmc(flat, progress=progress), False
+            return build_compact_dtmc(flat, progress=progress, stop=stop), False
         return build_dtmc(flat, progress=progress), False
 
 
@@ -199,6 +214,7 @@ def check_model(
     options: CheckOptions | None = None,
     internal: Sequence[Property] = (),
     rewards: Rewards = "all",
+    stop_early: bool = False,
 ) -> ModelCheckRun:
     """Flatten *model*, build its DTMC and check each property at the initial states, in
     floating point with certified bounds: :meth:`Session.check` in a session of its own.
@@ -210,7 +226,7 @@ def check_model(
     """
     return Session(options, reuse=False, rewards=rewards).check(
         model, properties, props_file=props_file, constants=constants, progress=progress,
-        stopwatch=stopwatch, internal=internal)
+        stopwatch=stopwatch, internal=internal, stop_early=stop_early)
 
 
 def _quotient(lumper: Lumper, dtmc: DTMC, formulas: Sequence[Expr]) -> DTMC | None:

@@ -1,13 +1,13 @@
-"""Where an MDP's exploration may stop: states at which every property's value is known.
+"""Where exploration may stop: states at which every property's value is known.
 
 A property read at the initial states whose operators are ``P [ a U b ]``, ``P [ F b ]``,
 ``P [ G a ]`` (unbounded, or with an upper step bound) or ``R [ F b ]``, over state
 formulas without operators, reads nothing past a state where the path formula is
 already decided: ``b``, or neither ``a`` nor ``b`` (for ``F b``: ``b``; for ``G a``:
-``!a``). Its value there is 1, 0 or no more reward, whatever follows, and a strategy's
-choice there changes nothing. Storm's builder, given such properties, leaves those
-states unexpanded (its *terminal states*); the states reached only through them are
-never built, and the values at the initial states are the same.
+``!a``). Its value there is 1, 0 or no more reward, whatever follows, and on an MDP a
+strategy's choice there changes nothing. Storm's builder, given such properties, leaves
+those states unexpanded (its *terminal states*); the states reached only through them
+are never built, and the values at the initial states are the same.
 
 Anything else reads the values of states past those (a filter over all states, a nested
 operator, ``X``, a lower step bound, total or cumulative reward, ``multi``), and then

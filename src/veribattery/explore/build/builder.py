@@ -25,6 +25,7 @@ from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.fused import Expansion, LayerPlan
 from veribattery.explore.build.guard import Footprint, MemoryGuard
+from veribattery.explore.build.halting import halted, with_self_loops
 from veribattery.explore.build.initial import initial_states
 from veribattery.explore.build.layers import Layer, Layers
 from veribattery.explore.build.plan import plan_layers
@@ -73,6 +74,7 @@ def explore(
     program: Program,
     progress: Callable[[int, int], None] | None = None,
     guard: MemoryGuard | None = None, *, compact: bool = False,
+    halt: CompiledExpr | None = None,
 ) -> tuple[IntArray, IntArray, list[Layer]]:
     """Breadth-first search: the states in numbering order, the initial ones, the layers.
 
@@ -81,6 +83,8 @@ def explore(
     :param progress: called once per BFS layer with (states found so far, frontier size).
     :param guard: checked once per BFS layer (default: against the memory available).
     :param compact: the states in the narrowest type of the ranges, else in int64.
+    :param halt: where it holds, a state is not expanded but given a self-loop
+        (:mod:`~veribattery.explore.build.halting`).
     :raises ModelTooLarge: when the search would outgrow the memory available.
     """
     require_dtmc(model.model_type)
@@ -100,7 +104,7 @@ def explore(
             guard.wide_layer(store.count, high, _sampler(program, store, rewarded, high))
         while start < high:
             stop = min(start + size, high)
-            branches = _explore_chunk(program, store, (start, stop), rewarded, layers)
+            branches = _explore_chunk(program, store, (start, stop), (rewarded, halt), layers)
             size = _next_chunk(size, branches, stop - start, len(program.lows))
             transitions += branches
             start = stop
@@ -121,17 +125,32 @@ def memory_footprint(program: Program) -> Footprint:
 
 
 def _explore_chunk(
-    program: Program, store: StateStore, chunk: tuple[int, int], rewarded: set[str | None],
-    layers: Layers,
+    program: Program, store: StateStore, chunk: tuple[int, int],
+    how: tuple[set[str | None], CompiledExpr | None], layers: Layers,
 ) -> int:
-    """Expand the frontier states *chunk* (low, high) into *layers*; return its branches.
+    """Expand the frontier states *chunk* (low, high) into *layers*; return its branches
+    (*how*: the rewarded actions, and where a state is left unexpanded).
 
     (A function of its own so that the successor rows, up to ``_BRANCH_WORDS`` words,
     are freed before the next chunk is expanded.)
     """
-    found = expand_frontier(program, store.rows(*chunk), rewarded)
+    rewarded, halt = how
+    rows = store.rows(*chunk)
+    stopped = halted(halt, rows)
+    if stopped is None:
+        found = expand_frontier(program, rows, rewarded)
+    else:
+        live = rows[~stopped]
+        found = with_self_loops(expand_frontier(program, live, rewarded) if live.shape[0]
+                                else _no_branches(live), stopped, rows)
     layers.add(found, chunk[0], store.add(found.targets), store.count)
     return found.branches
+
+
+def _no_branches(rows: IntArray) -> Expansion:
+    """The expansion of no state (*rows*: none, of the frontier's width)."""
+    none = np.zeros(0, dtype=np.int64)
+    return Expansion(none, rows, np.zeros(0), np.zeros(0, dtype=np.uint8), {}, none, 0)
 
 
 def _sampler(program: Program, store: StateStore, rewarded: set[str | None],

@@ -33,9 +33,10 @@ from veribattery.explore.build.builder import (
     memory_footprint,
 )
 from veribattery.explore.build.guard import MemoryGuard
+from veribattery.explore.build.halting import compile_halt, halted, mdp_with_loops
 from veribattery.explore.build.store import StateStore
 from veribattery.explore.build.successors import expand_group
-from veribattery.explore.compile.expr import CompileCache, CompiledExpr, compile_expr
+from veribattery.explore.compile.expr import CompileCache, CompiledExpr
 from veribattery.explore.compile.program import (
     Program,
     compile_program,
@@ -113,8 +114,7 @@ def build_mdp(model: FlatModel, *,
     program = program or compile_program(model)
     guard = guard or MemoryGuard(memory_footprint(program))
     atoms = AtomicGroups.of(program)
-    halt = None if stop is None else compile_expr(
-        stop, model.variable_names, ranges={v.name: (v.low, v.high) for v in model.variables})
+    halt = compile_halt(model, stop)
     store = StateStore(program.lows, program.highs)
     initial = store.add(initial_states(model))
     rows: list[sp.csr_matrix] = []
@@ -169,8 +169,8 @@ def _expand(program: Program, atoms: AtomicGroups, store: StateStore, chunk: tup
     probability 0 is dropped before (as the DTMC builder, PRISM and Storm do)."""
     low, high = chunk
     frontier = store.rows(low, high)
-    halted = _halted(halt, frontier)
-    live = frontier if halted is None else frontier[~halted]
+    stopped = halted(halt, frontier)
+    live = frontier if stopped is None else frontier[~stopped]
     found = _fused(program, live, len(atoms)) if live.shape[0] else _nothing(live)
     if found is None:
         found = _grouped(program, atoms, live)
@@ -179,9 +179,9 @@ def _expand(program: Program, atoms: AtomicGroups, store: StateStore, chunk: tup
     order = np.flatnonzero(keep) if numbering is None else numbering[keep[numbering]]
     row, p, targets = row[order], p[order], targets[order]
     entries = (p, row, store.add(targets))
-    if halted is not None:
-        source, group, entries = _with_loops(halted, low, len(atoms) + 1, (source, group),
-                                             entries)
+    if stopped is not None:
+        source, group, entries = mdp_with_loops(stopped, low, len(atoms) + 1, (source, group),
+                                                entries)
     matrix = sp.csr_matrix((entries[0], (entries[1], entries[2])),
                            shape=(source.size, store.count))
     matrix.sum_duplicates()
@@ -193,33 +193,6 @@ def _nothing(frontier: IntArray) -> _Choices:
     """No choice and no branch: every state of the chunk halted."""
     none = np.zeros(0, dtype=np.int64)
     return none, none, none, frontier[:0], np.zeros(0), None
-
-
-def _halted(halt: CompiledExpr | None, frontier: IntArray) -> BoolArray | None:
-    """Where *halt* holds in *frontier*, or None where nowhere."""
-    if halt is None:
-        return None
-    holds = np.broadcast_to(np.asarray(halt(frontier), dtype=bool), (frontier.shape[0],))
-    return np.array(holds) if holds.any() else None
-
-
-def _with_loops(halted: BoolArray, low: int, kind: int, choices: tuple[IntArray, IntArray],
-                entries: tuple[FloatArray, IntArray, IntArray]
-                ) -> tuple[IntArray, IntArray, tuple[FloatArray, IntArray, IntArray]]:
-    """The choices (*choices*: source and group) and entries (probability, row, column)
-    of the states not *halted*, numbered among those not halted, with a self-loop of
-    group *kind* added to each halted state: everything numbered within the chunk."""
-    source, group = choices
-    p, row, column = entries
-    live, loops = np.flatnonzero(~halted), np.flatnonzero(halted)
-    every = np.concatenate([live[source], loops])
-    order = np.argsort(every, kind="stable")  # by state; a state's choices keep their order
-    position = np.empty_like(order)
-    position[order] = np.arange(order.size)
-    return every[order], np.concatenate([group, np.full(loops.size, kind)])[order], (
-        np.concatenate([p, np.ones(loops.size)]),
-        np.concatenate([position[row], position[source.size:]]),
-        np.concatenate([column, low + loops]))
 
 
 #: Per choice its source and atomic group; per branch its choice, target and probability;
