@@ -22,7 +22,9 @@ from __future__ import annotations
 
 import math
 import re
+import tempfile
 from fractions import Fraction
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, Phase, given, settings
@@ -187,3 +189,33 @@ def _inside(result: CheckResult, storm: Fraction | float, *, slack: float = 0.0)
     low, high = result.lower, result.upper
     return (math.isinf(low) or Fraction(low) <= storm) and (
         math.isinf(high) or storm <= Fraction(high))
+
+
+#: The queries whose exploration may stop early, with whether Storm's builder stops at
+#: the same states (its terminal states: the targets of ``F`` and ``U`` and what falsifies
+#: ``U``'s left side; for ``G`` the values alone are compared).
+STOPPING = tuple((q, "G " not in q) for q in QUERIES if "[ C ]" not in q)
+
+
+@settings(max_examples=15, deadline=None, derandomize=True, database=None, phases=PHASES,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(text=mdp_programs())
+def test_stopping_early_builds_what_storm_builds_with_the_same_values(text: str) -> None:
+    """Each query alone, exploration stopped where it is decided: the value is the full
+    build's, to the last bit, inside Storm's exact one, and the states are as many as
+    Storm builds for that one property."""
+    exact = _storm(text, exact=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "model.prism"
+        path.write_text(text, encoding="utf-8")
+        program = stormpy.parse_prism_program(str(path))
+    for query, counted in STOPPING:
+        early = check_prism_file(text, selectors=[query], stop_early=True)
+        full = check_prism_file(text, selectors=[query])
+        assert early.results[0].value == full.results[0].value, (query, text)
+        assert _inside(early.results[0], exact[QUERIES.index(query)],
+                       slack=0.0 if _dyadic(text) else 1e-12), (query, text)
+        if counted:
+            formula = stormpy.parse_properties(query, program)
+            storm = stormpy.build_model(program, formula)
+            assert early.model_summary["states"] == storm.nr_states, (query, text)
