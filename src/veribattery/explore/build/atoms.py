@@ -94,9 +94,16 @@ class AtomicGroups:
         where it stops, so no guard is evaluated that it would not evaluate.
         """
         guards: dict[int, BoolArray | None] = {}
-        for group, offset in zip(self.groups, self.offsets.tolist(), strict=False):
-            yield from (offset + index
-                        for index in _combinations(group.parts, frontier, guards))
+        for group in range(len(self.groups)):
+            yield from self.enabled_in(group, frontier, guards)
+
+    def enabled_in(self, group: int, frontier: IntArray,
+                   guards: dict[int, BoolArray | None]) -> Iterator[int]:
+        """:meth:`enabled_somewhere` of the *group*-th group alone (*guards*: the
+        commands' guards on *frontier* evaluated so far, by the command's identity)."""
+        offset = int(self.offsets[group])
+        yield from (offset + index
+                    for index in _combinations(self.groups[group].parts, frontier, guards))
 
 
 def _combinations(parts: tuple[tuple[CompiledCommand, ...], ...], frontier: IntArray,

@@ -12,6 +12,7 @@ enabled choice gets a self-loop (reported, as PRISM fixes deadlocks).
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -195,6 +196,9 @@ def _nothing(frontier: IntArray) -> _Choices:
     return none, none, none, frontier[:0], np.zeros(0), None
 
 
+#: A group of which a chunk enables more atomic groups than this is expanded whole.
+FEW_ATOMIC = 16
+
 #: Per choice its source and atomic group; per branch its choice, target and probability;
 #: and the order in which the targets are numbered (None: as they are).
 _Choices = tuple[IntArray, IntArray, IntArray, IntArray, FloatArray, IntArray | None]
@@ -227,31 +231,41 @@ def _grouped(program: Program, atoms: AtomicGroups, frontier: IntArray) -> _Choi
     branches atomic group by atomic group, each one's as its expansion gives them (see
     :func:`_fused`), the deadlocks' last.
 
-    A group is expanded whole, all its combinations of commands at once: one at a time,
-    eajs.5's 1.9 million combinations, of which each chunk enables some 500, took a
-    Python step each (16 s of its build)."""
+    A group of which the chunk enables at most :data:`FEW_ATOMIC` atomic groups
+    expands those one by one (found by :meth:`AtomicGroups.enabled_in`, which dismisses
+    whole subtrees of combinations at once: firewire's ~5,000 per chunk, ~5 enabled);
+    one that enables more is expanded whole, all its combinations of commands at once
+    (eajs.5's 1.9 million, some 500 enabled per chunk, took a Python step each: 16 s of
+    its build). Either way the branches come atomic group by atomic group, so that the
+    states are numbered alike."""
     sources: list[IntArray] = []
     groups: list[IntArray] = []
     targets: list[IntArray] = []
     probability: list[FloatArray] = []
-    for choices, offset in zip(program.groups, atoms.offsets.tolist(), strict=False):
-        found = expand_group(program, choices, frontier, True)
-        if found is None:
-            continue
-        number = found.combination
-        if number is None:
-            sources.append(found.source)
-            groups.append(np.full(found.source.size, offset, dtype=np.int64))
-            targets.append(found.targets)
-            probability.append(found.probability)
-            continue
-        # atomic group by atomic group (a stable sort keeps each one's branches in the
-        # order of its own expansion), so that new states are numbered as they always were
-        order = np.argsort(number, kind="stable")
-        sources.append(found.source[order])
-        groups.append(offset + number[order])
-        targets.append(found.targets[order])
-        probability.append(found.probability[order])
+    guards: dict[int, BoolArray | None] = {}
+    for index, choices in enumerate(program.groups):
+        few = list(itertools.islice(atoms.enabled_in(index, frontier, guards),
+                                    FEW_ATOMIC + 1))
+        if len(few) > FEW_ATOMIC:
+            found = expand_group(program, choices, frontier, True)
+            parts = [] if found is None else [(found, int(atoms.offsets[index]))]
+        else:
+            parts = []
+            for number in few:
+                found = expand_group(program, atoms[number], frontier, True)
+                if found is not None:
+                    parts.append((found, number))
+        for found, first in parts:
+            # by atomic group (a stable sort keeps each one's branches in the order of
+            # its own expansion)
+            combination = found.combination
+            order = (slice(None) if combination is None
+                     else np.argsort(combination, kind="stable"))
+            sources.append(found.source[order])
+            groups.append(np.full(found.source.size, first, dtype=np.int64)
+                          if combination is None else first + combination[order])
+            targets.append(found.targets[order])
+            probability.append(found.probability[order])
     enabled = np.zeros(frontier.shape[0], dtype=bool)
     for source in sources:
         enabled[source] = True
