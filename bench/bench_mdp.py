@@ -342,9 +342,25 @@ def settings_text(args: argparse.Namespace, start_load: str) -> str:
             f"{time.strftime('%Y-%m-%d %H:%M %Z')}.")
 
 
+def measure(instance: Instance, files: tuple[Path, Path], args: argparse.Namespace,
+            raw: Path) -> str:
+    """*instance* (its model and properties *files*) run ``args.repeat`` times by each
+    tool, under its limits: the table row of the best runs (every run appended to
+    *raw*, a JSON line)."""
+    memory_kb = int(args.memory_gb * 1024 * 1024)
+    ours_runs, storm_runs = [], []
+    for _ in range(args.repeat):
+        ours_runs.append(run_ours(instance, files, args.timeout, memory_kb))
+        storm_runs.append(run_storm(instance, files, args.timeout, memory_kb))
+    with raw.open("a") as out:
+        out.write(json.dumps({"instance": instance.label, "property": instance.prop,
+                              "ours": [vars(r) for r in ours_runs],
+                              "storm": [vars(r) for r in storm_runs]}) + "\n")
+    return row(instance, best_of(ours_runs), best_of(storm_runs))
+
+
 def main() -> None:
     args = parsed_options(__doc__.splitlines()[0], 900.0, ROOT / "docs/_bench/mdp.md")
-    memory_kb = int(args.memory_gb * 1024 * 1024)
     start_load = load_average()
     rows: list[str] = []
     args.out.with_suffix(".jsonl").unlink(missing_ok=True)  # raw measurements of this run
@@ -358,18 +374,9 @@ def main() -> None:
                 files = mission
             else:
                 files = (MODELS / instance.model, MODELS / instance.props)
-            ours_runs, storm_runs = [], []
-            for _ in range(args.repeat):
-                ours_runs.append(run_ours(instance, files, args.timeout, memory_kb))
-                storm_runs.append(run_storm(instance, files, args.timeout, memory_kb))
-            ours, storm = best_of(ours_runs), best_of(storm_runs)
-            rows.append(row(instance, ours, storm))
+            rows.append(measure(instance, files, args, args.out.with_suffix(".jsonl")))
             print(rows[-1], flush=True)
             write(args.out, rows, settings_text(args, start_load))
-            with args.out.with_suffix(".jsonl").open("a") as raw:
-                raw.write(json.dumps({"instance": instance.label, "property": instance.prop,
-                                      "ours": [vars(r) for r in ours_runs],
-                                      "storm": [vars(r) for r in storm_runs]}) + "\n")
 
 
 if __name__ == "__main__":

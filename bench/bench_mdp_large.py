@@ -15,20 +15,9 @@ runs), and the table has the same columns.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 
-from bench_mdp import (
-    HEADER,
-    ROOT,
-    Instance,
-    best_of,
-    load_average,
-    row,
-    run_ours,
-    run_storm,
-    settings_text,
-)
+from bench_mdp import HEADER, ROOT, Instance, load_average, measure, settings_text
 from bench_scale import byte_compile_sources
 
 #: Paths are relative to the checkout's ``benchmarks/mdp``; each with QVBS's state count.
@@ -81,28 +70,18 @@ def write(out: Path, rows: list[str], settings: str) -> None:
 
 def main() -> None:
     args = parsed()
-    memory_kb = int(args.memory_gb * 1024 * 1024)
     start_load = load_average()
     models = args.root / "benchmarks" / "mdp"
     rows: list[str] = []
-    raw_out = args.out.with_suffix(".jsonl")
-    raw_out.unlink(missing_ok=True)
+    raw = args.out.with_suffix(".jsonl")
+    raw.unlink(missing_ok=True)  # raw measurements of this run
     for instance in INSTANCES:
         if args.only not in f"{instance.label} {instance.prop}":
             continue
         files = (models / instance.model, models / instance.props)
-        ours_runs, storm_runs = [], []
-        for _ in range(args.repeat):
-            ours_runs.append(run_ours(instance, files, args.timeout, memory_kb))
-            storm_runs.append(run_storm(instance, files, args.timeout, memory_kb))
-        ours, storm = best_of(ours_runs), best_of(storm_runs)
-        rows.append(row(instance, ours, storm))
+        rows.append(measure(instance, files, args, raw))
         print(rows[-1], flush=True)
         write(args.out, rows, settings_text(args, start_load))
-        with raw_out.open("a") as raw:
-            raw.write(json.dumps({"instance": instance.label, "property": instance.prop,
-                                  "ours": [vars(r) for r in ours_runs],
-                                  "storm": [vars(r) for r in storm_runs]}) + "\n")
 
 
 if __name__ == "__main__":
