@@ -58,12 +58,18 @@ def test_prism_json_contract(die: Path) -> None:
     assert result.exit_code == 0, result.output
     doc = json.loads(result.stdout)
     assert set(doc) == {"model", "results", "timings_s"}
-    assert doc["model"] == {"states": 13, "transitions": 20, "initial_states": 1, "deadlocks": 0}
+    # the one state where both properties are decided ("six", s=7) is left unexpanded
+    assert doc["model"] == {"states": 13, "transitions": 20, "initial_states": 1, "deadlocks": 0,
+                            "stopped_states": 1}
     assert [r["property"] for r in doc["results"]] == ['P=? [ F "six" ]', 'R{"flips"}=? [ F s=7 ]']
     assert [r.get("name") for r in doc["results"]] == ["six", None]
     assert doc["results"][0]["value"] == pytest.approx(1 / 6, rel=1e-12)
     assert doc["results"][1]["value"] == pytest.approx(11 / 3, rel=1e-12)
     assert set(doc["timings_s"]) == {"parse", "build", "check"}
+    whole = run("prism", str(die), "--props", str(die.with_suffix(".props")), "--json",
+                "--all-states")
+    assert json.loads(whole.stdout)["model"] == {"states": 13, "transitions": 20,
+                                                 "initial_states": 1, "deadlocks": 0}
 
 
 def test_prism_selects_by_index_name_and_text(die: Path) -> None:
@@ -97,8 +103,9 @@ def test_prism_infinity_is_strict_json(die: Path) -> None:
          ("--const", "N"), "N"),
         ("dtmc\nmodule m\n  x : [0..1] init 0;\n  [] true -> (x'=y);\nendmodule\n", (),
          "model.pm:4:18: unknown identifier 'y'"),
-        ("dtmc\nmodule m\n  x : [0..1] init 0;\n  [] true -> (x'=x+1);\nendmodule\n", (),
-         "x"),
+        # (x=1 decides the property: the update out of range is met past it)
+        ("dtmc\nmodule m\n  x : [0..1] init 0;\n  [] true -> (x'=x+1);\nendmodule\n",
+         ("--all-states",), "x"),
     ],
     ids=["syntax", "undefined-const", "malformed-const", "unknown-identifier", "out-of-range"],
 )

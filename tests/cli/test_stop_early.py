@@ -170,3 +170,18 @@ def test_properties_parse_as_the_cli_reads_them() -> None:
     texts = [p for p, *_ in STOPPING] + [p for p, _ in READING_ON]
     parsed = parse_properties("\n".join(texts) + "\n")
     assert len(parsed.properties) == len(texts)
+
+
+def test_an_error_past_the_decided_states_is_found_with_all_states(tmp_path: Path) -> None:
+    """The build stops at ``x=1``, where ``F x=1`` is decided, before the update that
+    leaves ``x``'s range: as Storm, it answers; ``--all-states`` builds on, as PRISM,
+    and reports the error."""
+    model = tmp_path / "m.pm"
+    model.write_text("dtmc\nmodule m\n  x : [0..1] init 0;\n  [] true -> (x'=x+1);\nendmodule\n")
+    args = ["prism", str(model), "--property", "P=? [ F x=1 ]", "--json"]
+    early = CliRunner().invoke(cli, args)
+    assert early.exit_code == 0
+    assert json.loads(early.stdout)["results"][0]["value"] == 1.0
+    whole = CliRunner().invoke(cli, [*args, "--all-states"])
+    assert whole.exit_code == 2
+    assert whole.stderr.startswith("error:") and "x" in whole.stderr
