@@ -14,6 +14,7 @@ where some state enables it (:meth:`AtomicGroups.enabled_somewhere`).
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -37,18 +38,23 @@ class AtomicGroups:
 
     groups: tuple[ChoiceGroup, ...]
     offsets: IntArray
+    #: *offsets* as a list of ints.
+    starts: list[int]
 
     @classmethod
     def of(cls, program: Program) -> AtomicGroups:
         sizes = [math.prod(len(part) for part in group.parts) for group in program.groups]
-        return cls(program.groups, np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)]))
+        offsets = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)])
+        return cls(program.groups, offsets, offsets.tolist())
 
     def __len__(self) -> int:
         return int(self.offsets[-1])
 
     def __getitem__(self, number: int) -> ChoiceGroup:
         """The atomic group numbered *number*: one command per part of its group."""
-        group = int(np.searchsorted(self.offsets, number, side="right")) - 1
+        # (bisect on the offsets' list: a numpy call per decoded group cost more than
+        # the decoding)
+        group = bisect.bisect_right(self.starts, number) - 1
         if not 0 <= group < len(self.groups):
             raise IndexError(number)
         rest = number - int(self.offsets[group])
@@ -65,22 +71,24 @@ class AtomicGroups:
 
     def group_of(self, numbers: IntArray) -> IntArray:
         """Per atomic group number, its group's index (``len(groups)`` for the number of
-        the deadlock's self-loop, :func:`len`)."""
+        the deadlock's self-loop, :func:`len`, and past it). One search per number: made
+        once for all of a build's choices, then read by :meth:`action_indices` and
+        :meth:`with_action`."""
         return np.searchsorted(self.offsets, numbers, side="right") - 1
 
-    def action_indices(self, numbers: IntArray) -> IntArray:
-        """Per atomic group number, its action's index in :attr:`actions` (0: none, as
-        the deadlock's self-loop)."""
+    def action_indices(self, groups: IntArray) -> IntArray:
+        """Per group index (:meth:`group_of`), its action's index in :attr:`actions` (0:
+        none, as the deadlock's self-loop)."""
         actions = self.actions
         per_group = np.array([0 if g.action is None else actions.index(g.action)
                               for g in self.groups] + [0], dtype=np.int64)
-        return per_group[self.group_of(numbers)]
+        return per_group[groups]
 
-    def with_action(self, numbers: IntArray, action: str | None) -> BoolArray:
-        """Per atomic group number, whether its group synchronises on *action* (never
-        the deadlock's self-loop)."""
+    def with_action(self, groups: IntArray, action: str | None) -> BoolArray:
+        """Per group index (:meth:`group_of`), whether the group synchronises on *action*
+        (never the deadlock's self-loop)."""
         matching = np.array([g.action == action for g in self.groups] + [False])
-        return np.asarray(matching[self.group_of(numbers)], dtype=bool)
+        return np.asarray(matching[groups], dtype=bool)
 
     def enabled_somewhere(self, frontier: IntArray) -> Iterator[int]:
         """The numbers of the atomic groups enabled in some state of *frontier*, lazily
@@ -101,7 +109,7 @@ class AtomicGroups:
                    guards: dict[int, BoolArray | None]) -> Iterator[int]:
         """:meth:`enabled_somewhere` of the *group*-th group alone (*guards*: the
         commands' guards on *frontier* evaluated so far, by the command's identity)."""
-        offset = int(self.offsets[group])
+        offset = self.starts[group]
         yield from (offset + index
                     for index in _combinations(self.groups[group].parts, frontier, guards))
 

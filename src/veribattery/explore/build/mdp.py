@@ -149,10 +149,11 @@ def build_mdp(model: FlatModel, *,
     labels = _labels(model, (states, cache), initial, dead)
     row_groups = np.concatenate([[0], np.cumsum(per_state)]).astype(np.int64)
     owner = np.repeat(np.arange(n), per_state)
-    rewards = tuple(_reward_vectors(model, r, (states, cache), owner, kind, atoms)
+    group = atoms.group_of(kind)
+    rewards = tuple(_reward_vectors(model, r, (states, cache), owner, group, atoms)
                     for r in model.rewards)
     return BuiltMdp(transitions, row_groups, distinct(initial), labels,
-                    atoms.action_indices(kind), atoms.actions, rewards, states,
+                    atoms.action_indices(group), atoms.actions, rewards, states,
                     model.variable_names, int(dead.sum()),
                     int(np.count_nonzero(kind == len(atoms) + 1)))
 
@@ -164,7 +165,7 @@ def _expand(program: Program, atoms: AtomicGroups, store: StateStore, chunk: tup
     ``len(atoms) + 1``: the self-loop of a state where *halt* holds, not expanded).
 
     Expanded in one pass over all groups where the program's layer plan allows
-    (``fused``: its kinds are :func:`atomic_groups`, in their order), else group by
+    (``fused``: its kinds are :class:`AtomicGroups`' numbers), else group by
     group. Either way the targets are numbered group by group (see :func:`_fused`),
     so that the states are numbered alike whichever path a chunk takes; a branch of
     probability 0 is dropped before (as the DTMC builder, PRISM and Storm do)."""
@@ -195,9 +196,6 @@ def _nothing(frontier: IntArray) -> _Choices:
     none = np.zeros(0, dtype=np.int64)
     return none, none, none, frontier[:0], np.zeros(0), None
 
-
-#: A group of which a chunk enables more atomic groups than this is expanded whole.
-FEW_ATOMIC = 16
 
 #: Per choice its source and atomic group; per branch its choice, target and probability;
 #: and the order in which the targets are numbered (None: as they are).
@@ -231,22 +229,24 @@ def _grouped(program: Program, atoms: AtomicGroups, frontier: IntArray) -> _Choi
     branches atomic group by atomic group, each one's as its expansion gives them (see
     :func:`_fused`), the deadlocks' last.
 
-    A group of which the chunk enables at most :data:`FEW_ATOMIC` atomic groups
-    expands those one by one (found by :meth:`AtomicGroups.enabled_in`, which dismisses
-    whole subtrees of combinations at once: firewire's ~5,000 per chunk, ~5 enabled);
-    one that enables more is expanded whole, all its combinations of commands at once
-    (eajs.5's 1.9 million, some 500 enabled per chunk, took a Python step each: 16 s of
-    its build). Either way the branches come atomic group by atomic group, so that the
-    states are numbered alike."""
+    A group expands the atomic groups the chunk enables one by one (found by
+    :meth:`AtomicGroups.enabled_in`, which dismisses whole subtrees of combinations at
+    once: firewire's ~5,000 per chunk, a few dozen enabled), unless they outnumber its
+    commands: then it is expanded whole, all its combinations at once, at a cost per
+    command (a guard and a table of updates over the chunk) where one by one costs a
+    Python step per combination (eajs.5's 1.9 million, some 500 enabled per chunk over
+    125 commands: 16 s of its build one by one; firewire.true's build 9.7 s whole past
+    16 combinations, 8.4 s one by one). Either way the branches come atomic group by
+    atomic group, so that the states are numbered alike."""
     sources: list[IntArray] = []
     groups: list[IntArray] = []
     targets: list[IntArray] = []
     probability: list[FloatArray] = []
     guards: dict[int, BoolArray | None] = {}
     for index, choices in enumerate(program.groups):
-        few = list(itertools.islice(atoms.enabled_in(index, frontier, guards),
-                                    FEW_ATOMIC + 1))
-        if len(few) > FEW_ATOMIC:
+        commands = sum(len(part) for part in choices.parts)
+        few = list(itertools.islice(atoms.enabled_in(index, frontier, guards), commands + 1))
+        if len(few) > commands:
             found = expand_group(program, choices, frontier, True)
             parts = [] if found is None else [(found, int(atoms.offsets[index]))]
         else:
@@ -298,10 +298,11 @@ def _dead_states(per_state: IntArray, kind: IntArray, loop: int) -> BoolArray:
 
 
 def _reward_vectors(model: FlatModel, struct: RewardStruct,
-                    over: tuple[IntArray, CompileCache], owner: IntArray, kind: IntArray,
+                    over: tuple[IntArray, CompileCache], owner: IntArray, group: IntArray,
                     atoms: AtomicGroups) -> MdpRewardVectors:
-    """State rewards per state; transition rewards per choice, by the choice's action
-    (none on the self-loops added to deadlocks)."""
+    """State rewards per state; transition rewards per choice, by the action of its
+    *group* (:meth:`AtomicGroups.group_of`; none on the self-loops added to deadlocks
+    and to the states left unexpanded)."""
     states = over[0]
     state = np.zeros(states.shape[0], dtype=np.float64)
     choice = np.zeros(owner.size, dtype=np.float64)
@@ -312,5 +313,5 @@ def _reward_vectors(model: FlatModel, struct: RewardStruct,
         if not item.is_transition:
             state += value
             continue
-        choice += np.where(atoms.with_action(kind, item.action), value[owner], 0.0)
+        choice += np.where(atoms.with_action(group, item.action), value[owner], 0.0)
     return MdpRewardVectors(struct.name, state, choice)
