@@ -196,7 +196,7 @@ def _experiment(model: Path, props: Path | None, selectors: tuple[str, ...],
                 points: list[dict[str, str]], output_format: str, exact: bool,
                 limits: tuple[int | None, bool]) -> None:
     """Every point of ``--const`` ranges checked, then printed together (*limits*:
-    ``--max-states``, and whether an MDP's exploration may stop early)."""
+    ``--max-states``, and whether exploration may stop where the properties are decided)."""
     max_states, stop_early = limits
     from veribattery.pipeline import check_prism_file
 
