@@ -15,6 +15,7 @@ where some state enables it (:meth:`AtomicGroups.enabled_somewhere`).
 from __future__ import annotations
 
 import bisect
+import itertools
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -32,32 +33,30 @@ class AtomicGroups:
     """The atomic groups of *program*'s groups, by number (see the module docstring).
 
     :param groups: the program's groups.
-    :param offsets: ``len(groups) + 1`` numbers: where each group's combinations begin,
-        then their count (the number of the self-loop that fixes a deadlock).
+    :param starts: ``len(groups) + 1`` numbers: where each group's combinations begin,
+        then their count (the number of the self-loop that fixes a deadlock). Python
+        ints: a group is found by :func:`bisect.bisect_right` for one number (a numpy
+        call per decoded group cost more than the decoding), by ``np.searchsorted``
+        for many.
     """
 
     groups: tuple[ChoiceGroup, ...]
-    offsets: IntArray
-    #: *offsets* as a list of ints.
-    starts: list[int]
+    starts: tuple[int, ...]
 
     @classmethod
     def of(cls, program: Program) -> AtomicGroups:
         sizes = [math.prod(len(part) for part in group.parts) for group in program.groups]
-        offsets = np.concatenate([[0], np.cumsum(sizes, dtype=np.int64)])
-        return cls(program.groups, offsets, offsets.tolist())
+        return cls(program.groups, (0, *itertools.accumulate(sizes)))
 
     def __len__(self) -> int:
-        return int(self.offsets[-1])
+        return self.starts[-1]
 
     def __getitem__(self, number: int) -> ChoiceGroup:
         """The atomic group numbered *number*: one command per part of its group."""
-        # (bisect on the offsets' list: a numpy call per decoded group cost more than
-        # the decoding)
         group = bisect.bisect_right(self.starts, number) - 1
         if not 0 <= group < len(self.groups):
             raise IndexError(number)
-        rest = number - int(self.offsets[group])
+        rest = number - self.starts[group]
         picked: list[tuple[CompiledCommand]] = []
         for part in reversed(self.groups[group].parts):
             rest, position = divmod(rest, len(part))
@@ -74,7 +73,8 @@ class AtomicGroups:
         the deadlock's self-loop, :func:`len`, and past it). One search per number: made
         once for all of a build's choices, then read by :meth:`action_indices` and
         :meth:`with_action`."""
-        return np.searchsorted(self.offsets, numbers, side="right") - 1
+        return np.searchsorted(np.array(self.starts, dtype=np.int64), numbers,
+                               side="right") - 1
 
     def action_indices(self, groups: IntArray) -> IntArray:
         """Per group index (:meth:`group_of`), its action's index in :attr:`actions` (0:

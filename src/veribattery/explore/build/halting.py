@@ -57,15 +57,14 @@ def with_self_loops(found: Expansion, stopped: BoolArray, rows: IntArray) -> Exp
     states' branches first and the loops after them: they serve a re-usable structure
     only, which a build that stops is not recorded as."""
     live, loops = np.flatnonzero(~stopped), np.flatnonzero(stopped)
-    source = np.concatenate([live[found.source], loops])
-    order = np.argsort(source, kind="stable")
+    source, order = _by_state(live[found.source], loops)
     choices = np.ones(rows.shape[0], dtype=found.choices.dtype)
     choices[live] = found.choices
     actions = {}
     for action, counts in found.action_choices.items():
         actions[action] = np.zeros(rows.shape[0], dtype=counts.dtype)
         actions[action][live] = counts
-    return Expansion(source[order], np.concatenate([found.targets, rows[loops]])[order],
+    return Expansion(source, np.concatenate([found.targets, rows[loops]])[order],
                      np.concatenate([found.probability, np.ones(loops.size)])[order],
                      choices, actions, found.dropped, found.branches + loops.size)
 
@@ -80,11 +79,19 @@ def mdp_with_loops(stopped: BoolArray, low: int, kind: int, choices: tuple[IntAr
     source, group = choices
     p, row, column = entries
     live, loops = np.flatnonzero(~stopped), np.flatnonzero(stopped)
-    every = np.concatenate([live[source], loops])
-    order = np.argsort(every, kind="stable")  # by state; a state's choices keep their order
+    every, order = _by_state(live[source], loops)
     position = np.empty_like(order)
     position[order] = np.arange(order.size)
-    return every[order], np.concatenate([group, np.full(loops.size, kind)])[order], (
+    return every, np.concatenate([group, np.full(loops.size, kind)])[order], (
         np.concatenate([p, np.ones(loops.size)]),
         np.concatenate([position[row], position[source.size:]]),
         np.concatenate([column, low + loops]))
+
+
+def _by_state(sources: IntArray, loops: IntArray) -> tuple[IntArray, IntArray]:
+    """The chunk-local source states of the expanded states' items (*sources*, in state
+    order) followed by one per stopped state (*loops*), sorted by state, and the order
+    that sorts them (stable: a state's own items keep their order)."""
+    every = np.concatenate([sources, loops])
+    order = np.argsort(every, kind="stable")
+    return every[order], order

@@ -248,7 +248,7 @@ def _grouped(program: Program, atoms: AtomicGroups, frontier: IntArray) -> _Choi
         few = list(itertools.islice(atoms.enabled_in(index, frontier, guards), commands + 1))
         if len(few) > commands:
             found = expand_group(program, choices, frontier, True)
-            parts = [] if found is None else [(found, int(atoms.offsets[index]))]
+            parts = [] if found is None else [(found, atoms.starts[index])]
         else:
             parts = []
             for number in few:
