@@ -133,9 +133,7 @@ def check_mdp_model(
     stages = stages_of(progress)
     with watch.stage("build"):
         tell_building(stages)
-        stop = stopping_condition([p.formula for p in resolved],
-                                  {label.name: label.expr for label in flat.labels}
-                                  ) if stop_early else None
+        stop = stopping_condition(resolved, flat) if stop_early else None
         built = build_mdp(with_used_rewards(flat, resolved) if rewards == "named" else flat,
                           progress=progress, stop=stop)
         mdp = as_checker_mdp(built)

@@ -186,8 +186,7 @@ class Session:
         and no state space is re-used (a base must be whole)."""
         if self.builder is not None or self.options.keep != "answers":
             return None
-        return stopping_condition([p.formula for p in properties],
-                                  {label.name: label.expr for label in flat.labels})
+        return stopping_condition(properties, flat)
 
     def _build(self, flat: FlatModel, progress: ProgressCallback | None,
                stop: Expr | None = None) -> tuple[DTMC, bool]:

@@ -20,7 +20,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from veribattery.lang.expressions import substitute, walk
+from veribattery.lang.expressions import children, substitute, walk
 from veribattery.lang.nodes import (
     Binary,
     BoolLit,
@@ -28,12 +28,14 @@ from veribattery.lang.nodes import (
     DoubleLit,
     Eventually,
     Expr,
+    FlatModel,
     Globally,
     Ident,
     IntLit,
     Ite,
     LabelRef,
     ProbOp,
+    Property,
     Reach,
     RewardOp,
     TimeBound,
@@ -47,16 +49,14 @@ __all__ = ["stopping_condition"]
 _STATE_NODES = (IntLit, DoubleLit, BoolLit, Ident, LabelRef, Unary, Binary, Ite, Call)
 
 
-def stopping_condition(formulas: Sequence[Expr], labels: Mapping[str, Expr]) -> Expr | None:
-    """The state formula (over the model's variables, *labels* inlined) where exploration
-    may stop for every one of *formulas*, or None where some formula reads past such
-    states, or where none has an operator to stop for.
-
-    :param labels: the model's labels by name, as expressions over its variables.
-    """
+def stopping_condition(properties: Sequence[Property], model: FlatModel) -> Expr | None:
+    """The state formula over *model*'s variables (its labels inlined) where exploration
+    may stop for every one of the resolved *properties*, or None where some property
+    reads past such states, or where none has an operator to stop for."""
+    labels = {label.name: label.expr for label in model.labels}
     conditions: list[Expr] = []
-    for formula in formulas:
-        found = _conditions(formula)
+    for prop in properties:
+        found = _conditions(prop.formula)
         if found is None:
             return None
         conditions.extend(found)
@@ -83,23 +83,13 @@ def _conditions(formula: Expr) -> list[Expr] | None:
         return None if formula.name in ("deadlock", "init") else []
     if isinstance(formula, Unary | Binary | Ite | Call):
         found: list[Expr] = []
-        for child in _operands(formula):
+        for child in children(formula):
             below = _conditions(child)
             if below is None:
                 return None
             found.extend(below)
         return found
     return None
-
-
-def _operands(node: Unary | Binary | Ite | Call) -> tuple[Expr, ...]:
-    if isinstance(node, Unary):
-        return (node.operand,)
-    if isinstance(node, Binary):
-        return (node.left, node.right)
-    if isinstance(node, Ite):
-        return (node.cond, node.then, node.otherwise)
-    return tuple(node.args)
 
 
 def _decided(operator: ProbOp | RewardOp) -> Expr | None:
