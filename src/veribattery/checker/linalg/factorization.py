@@ -44,6 +44,7 @@ from scipy.sparse import linalg as spla
 
 from veribattery._sparse import csr_rows
 from veribattery._types import BoolArray, CsrMatrix, FloatArray
+from veribattery.checker.linalg.compact_lu import compact_solve
 from veribattery.checker.linalg.iterative import RESIDUAL_TOL, _norm, matrix_norm, solve_iterative
 from veribattery.checker.linalg.monitor import SolveMonitor
 from veribattery.checker.linalg.topological import TopologicalSolver, direct_component
@@ -490,7 +491,7 @@ def _lu_inverse(A64: sp.csr_matrix) -> _Inverse | None:
         lu = spla.splu(A64.tocsc())
     except (RuntimeError, MemoryError):
         return None
-    return lu.solve  # type: ignore[no-any-return]
+    return compact_solve(lu)
 
 
 def _converged(correction: FloatArray, x: FloatArray) -> bool:

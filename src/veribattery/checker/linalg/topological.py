@@ -42,6 +42,7 @@ from scipy.sparse import linalg as spla
 
 from veribattery._types import FloatArray, IntArray
 from veribattery._unique import distinct
+from veribattery.checker.linalg.compact_lu import compact_solve
 from veribattery.errors import CheckError
 
 __all__ = [
@@ -212,7 +213,7 @@ def superlu(block: sp.spmatrix, order: str) -> Inverse | None:
                        options={"SymmetricMode": True})
     except (RuntimeError, MemoryError):
         return None
-    return lu.solve  # type: ignore[no-any-return]
+    return compact_solve(lu)
 
 
 @dataclass(frozen=True, slots=True)

@@ -23,6 +23,7 @@ from scipy.sparse.linalg import SuperLU, splu
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.checker.certify import UNIT_ROUNDOFF
 from veribattery.checker.certify.fixpoint import Progress
+from veribattery.checker.linalg.compact_lu import compact_solve
 from veribattery.checker.linalg.topological import TopologicalSolver
 from veribattery.checker.mdp.graph import attractor
 from veribattery.checker.mdp.system import ChoiceSystem, Objective
@@ -140,7 +141,7 @@ def _component_lu(block: sp.csr_matrix) -> Callable[[FloatArray], FloatArray] | 
     component: as fast as before on a strategy whose system is one big cycle (consensus),
     where the M-matrix ordering of the DTMC side's solver was slower."""
     try:
-        return strategy_lu(block).solve  # type: ignore[no-any-return]
+        return compact_solve(strategy_lu(block))
     except RuntimeError:
         return None
 

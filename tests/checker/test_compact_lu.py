@@ -1,0 +1,81 @@
+"""A sparse LU kept as its factors (checker/linalg/compact_lu.py).
+
+The solve on the factors must be the solve of the system: checked against the
+SuperLU object's own solve and against the exact solution of a small system in
+rationals, with row and column permutations (partial pivoting, a fill-reducing order)
+and without (the natural order with diagonal pivots). It must not keep the SuperLU
+object, whose working memory is what it exists to drop.
+"""
+
+from __future__ import annotations
+
+from fractions import Fraction
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from tests.checker import exact_reference as ref
+from veribattery.checker.linalg import compact_lu
+from veribattery.checker.linalg.compact_lu import compact_solve
+
+
+def random_system(n: int, seed: int) -> sp.csc_matrix:
+    """A nonsingular sparse matrix that needs row exchanges: small diagonal entries
+    under larger ones elsewhere in their columns."""
+    rng = np.random.default_rng(seed)
+    A = sp.random(n, n, density=4 / n, random_state=rng, format="csc") * 10
+    return sp.csc_matrix(A + sp.diags(rng.uniform(0.01, 0.1, n)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_permuted_factors_solve_the_system(seed: int) -> None:
+    A = random_system(300, seed)
+    lu = spla.splu(A)  # COLAMD and partial pivoting: both permutations move
+    assert not np.array_equal(lu.perm_r, np.arange(300))
+    assert not np.array_equal(lu.perm_c, np.arange(300))
+    solve = compact_solve(lu)
+    b = np.random.default_rng(seed + 100).uniform(-1, 1, 300)
+    x = solve(b.copy())
+    np.testing.assert_allclose(x, lu.solve(b), rtol=1e-9, atol=1e-12)
+    scale = np.abs(A) @ np.abs(x) + np.abs(b)
+    assert np.all(np.abs(A @ x - b) <= 1e-10 * scale)
+
+
+def test_natural_order_matches_exact_solution() -> None:
+    # An M-matrix in topological order, as the topological solver factorises it.
+    A = sp.csc_matrix(np.array([[1.0, 0.0, 0.0, 0.0],
+                                [-0.5, 1.0, -0.25, 0.0],
+                                [0.0, -0.5, 1.0, 0.0],
+                                [-0.125, 0.0, -0.5, 1.0]]))
+    lu = spla.splu(A, permc_spec="NATURAL", diag_pivot_thresh=0.0,
+                   options={"SymmetricMode": True})
+    assert np.array_equal(lu.perm_r, np.arange(4)) and np.array_equal(lu.perm_c, np.arange(4))
+    b = np.array([1.0, 0.0, 0.5, 0.25])
+    exact = ref.solve([[Fraction(v) for v in row] for row in A.toarray()],
+                      [Fraction(v) for v in b])
+    x = compact_solve(lu)(b.copy())
+    np.testing.assert_allclose(x, [float(v) for v in exact], rtol=1e-15, atol=0)
+    assert exact[1] == Fraction(5, 7)  # (by hand: x1 = 5/8 + x1/8)
+
+
+def test_the_superlu_object_is_not_kept() -> None:
+    if compact_lu._superlu is None:
+        pytest.fail("scipy's private triangular solve is gone: the factors are not kept "
+                    "alone (compact_lu falls back to the SuperLU object)")
+    A = random_system(200, 7)
+    lu = spla.splu(A)
+    solve = compact_solve(lu)
+    kept = [cell.cell_contents for cell in solve.__closure__ or ()]
+    assert solve != lu.solve and not any(item is lu for item in kept)
+    b = np.ones(200)
+    np.testing.assert_allclose(A @ solve(b.copy()), b, atol=1e-9)
+
+
+def test_falls_back_to_the_superlu_solve_when_the_probe_disagrees(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(compact_lu, "_agrees", False)
+    lu = spla.splu(random_system(50, 3))
+    solve = compact_solve(lu)
+    assert solve == lu.solve
