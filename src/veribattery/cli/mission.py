@@ -119,6 +119,8 @@ def is_conditional(formula: object) -> bool:
 
 def mission_json(report: MissionReport) -> dict[str, object]:
     """The ``check --format json`` document."""
+    from veribattery.config import RECHARGE_CAP_PROPERTY
+
     dtmc = report.run.dtmc
     return {
         "model": {"states": dtmc.num_states, "transitions": dtmc.num_transitions},
@@ -133,7 +135,7 @@ def mission_json(report: MissionReport) -> dict[str, object]:
         ],
         "timings_s": {k: round(v, 6) for k, v in report.run.timings_s.items()},
         **_exact_json(report),
-        "recharge_cap_probability": report.recharge_cap_probability,
+        RECHARGE_CAP_PROPERTY: report.recharge_cap_probability,
     }
 
 
@@ -155,6 +157,8 @@ def print_mission_json(report: MissionReport) -> None:
 def print_mission_csv(report: MissionReport) -> None:
     """``property,value`` rows (values with full precision; ``exact`` too under ``--exact``),
     then P[F rc=RC_MAX]."""
+    from veribattery.config import RECHARGE_CAP_PROPERTY
+
     exact = [exact_text(r) for r in report.run.results]
     with_exact = any(e is not None for e in exact)
     click.echo("property,value,exact" if with_exact else "property,value")
@@ -162,8 +166,8 @@ def print_mission_csv(report: MissionReport) -> None:
         shown = format_value(value) if isinstance(value, bool) else repr(value)
         click.echo(f"{name},{shown},{text or ''}" if with_exact else f"{name},{shown}")
     cap = repr(report.recharge_cap_probability)
-    click.echo(f"recharge_cap_probability,{cap}," if with_exact
-               else f"recharge_cap_probability,{cap}")
+    click.echo(f"{RECHARGE_CAP_PROPERTY},{cap}," if with_exact
+               else f"{RECHARGE_CAP_PROPERTY},{cap}")
     for outcome in report.requirements:  # stdout stays CSV: why the exit is 1, on stderr
         if not outcome.holds:
             verdict = "FAIL" if outcome.decided else "UNDECIDED"

@@ -44,6 +44,8 @@ from veribattery.errors import ConfigError, Span
 
 __all__ = [
     "MAX_TURBINES",
+    "RECHARGE_CAP_PROPERTY",
+    "RESERVED_PROPERTY_NAMES",
     "BatteryConfig",
     "Cell",
     "ConsumptionEq2",
@@ -64,6 +66,11 @@ Cell = tuple[int, int]
 BatteryModel = Literal["advanced", "basic_high", "basic_medium", "basic_low"]
 RouteName = Literal["snake_rows", "snake_columns"]
 StrategyMode = Literal["bs1", "synthesize"]
+
+#: The name under which ``check`` reports P[F rc=RC_MAX] beside the config's properties
+#: (a last CSV row, a JSON key): a property of that name would give two rows of one name.
+RECHARGE_CAP_PROPERTY = "recharge_cap_probability"
+RESERVED_PROPERTY_NAMES = frozenset({RECHARGE_CAP_PROPERTY})
 
 PAPER_PROPERTIES: dict[str, str] = {
     "p_success": 'P=? [ F "success" ]',
@@ -437,6 +444,9 @@ class MissionConfig(_Section):
         for name, text in value.items():
             if not is_property_name(name):
                 raise problem(f"property name must be an identifier, got {brief(name)}")
+            if name in RESERVED_PROPERTY_NAMES:
+                raise problem(f"property name {name!r} is reserved: check reports "
+                              "P[F rc=RC_MAX] under it; choose another name", name)
             if not text.strip():
                 raise problem(f"property {name!r} has an empty formula")
         return value
