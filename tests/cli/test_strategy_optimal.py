@@ -4,6 +4,7 @@ synthesize's strategy (safest, then fastest), whose values synthesize reports.""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -141,18 +142,44 @@ def test_a_strategy_file_of_another_model_is_refused(exported: Path, tmp_path: P
                   "--set", "battery.capacity_ah=5")
     assert result.exit_code == 2
     assert len(result.stderr.strip().splitlines()) == 1
-    assert "no state of the mission MDP" in result.stderr
+    assert re.search(r"strategy\.txt:\d+: \([\d,]+\) is no state of the mission MDP \(a "
+                     r"strategy exported for another config\?\)", result.stderr), result.stderr
     lines = (exported / "strategy.txt").read_text(encoding="utf-8").splitlines()
     cut = tmp_path / "cut.txt"
     cut.write_text("\n".join(lines[:-40]) + "\n", encoding="utf-8")
     result = _run("explain", "--strategy", str(cut))
     assert result.exit_code == 2
-    assert "reaches states the file does not name" in result.stderr
+    named = re.search(r"cut\.txt:(\d+): its action leads to (\([\d,]+\)), which the file "
+                      "does not name", result.stderr)
+    assert named is not None, result.stderr
+    # (the state it names is one of those cut, and the line is one of those kept)
+    assert any(line.startswith(named[2] + "=") for line in lines[-40:])
+    assert 1 <= int(named[1]) <= len(lines) - 40
     wrong = tmp_path / "wrong.txt"
     wrong.write_text(lines[0].rpartition("=")[0] + "=fly\n", encoding="utf-8")
     result = _run("explain", "--strategy", str(wrong))
     assert result.exit_code == 2
-    assert "'fly' is not exactly one choice of that state" in result.stderr
+    assert "wrong.txt:1: 'fly' is not exactly one choice of that state" in result.stderr
+
+
+@pytest.mark.parametrize(("edit", "expected"), [
+    (lambda lines: [*lines, lines[0]], ":{last}: names the state of line 1 again; give each "
+                                       "state one action"),
+    (lambda lines: [lines[0].replace("(", "(0,", 1), *lines[1:]],
+     ":1: a state of 7 values, but the model has 6 variables (a strategy for another model?)"),
+    (lambda lines: [*lines[:2], lines[2].rpartition("=")[0] + "=fly_to_mars", *lines[3:]],
+     ":3: action 'fly_to_mars' is no action of the mission MDP (its actions: abort, "),
+], ids=["twice", "arity", "unknown-action"])
+def test_a_strategy_file_error_names_its_line(exported: Path, tmp_path: Path, edit: Any,
+                                              expected: str) -> None:
+    lines = (exported / "strategy.txt").read_text(encoding="utf-8").splitlines()
+    edited = edit(lines)
+    path = tmp_path / "edited.txt"
+    path.write_text("\n".join(edited) + "\n", encoding="utf-8")
+    result = _run("explain", "--strategy", str(path))
+    assert result.exit_code == 2
+    assert f"edited.txt{expected.replace('{last}', str(len(edited)))}" in result.stderr, \
+        result.stderr
 
 
 @pytest.mark.parametrize("command", ["explain", "simulate", "distribution"])

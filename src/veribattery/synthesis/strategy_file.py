@@ -23,8 +23,9 @@ from veribattery.synthesis.strategy import StrategyError
 
 __all__ = ["read_strategy_file"]
 
-#: A file's entries: per named state its variables' values (the MDP's order), and actions.
-Entries = tuple[IntArray, list[str]]
+#: A file's entries: per named state its variables' values (the MDP's order), its action,
+#: and where it is written (``FILE:LINE``, or ``FILE: entry N`` in a JSON list).
+Entries = tuple[IntArray, list[str], list[str]]
 
 
 def read_strategy_file(path: Path, mdp: MDP) -> IntArray:
@@ -35,17 +36,18 @@ def read_strategy_file(path: Path, mdp: MDP) -> IntArray:
     :raises OSError: when the file cannot be opened.
     """
     text = decode_text(path.read_bytes(), str(path), StrategyError)
-    values, actions = (_storm_entries(text, mdp, path) if path.suffix.lower() == ".json"
-                       else _prism_entries(text, mdp, path))
-    states = _states_of(values, mdp, path)
+    values, actions, places = (_storm_entries(text, mdp, path)
+                               if path.suffix.lower() == ".json"
+                               else _prism_entries(text, mdp, path))
+    states = _states_of(values, places, mdp)
     choices = np.full(mdp.num_states, -1, dtype=np.int64)
-    choices[states] = _choices_of(states, actions, mdp, path)
-    _require_closed(choices, states, mdp, path)
+    choices[states] = _choices_of(states, actions, places, mdp)
+    _require_closed(choices, states, places, mdp, path)
     return choices
 
 
 def _prism_entries(text: str, mdp: MDP, path: Path) -> Entries:
-    rows, actions = [], []
+    rows, actions, places = [], [], []
     for number, line in enumerate(text.splitlines(), 1):
         if not line.strip():
             continue
@@ -54,7 +56,8 @@ def _prism_entries(text: str, mdp: MDP, path: Path) -> Entries:
             raise StrategyError(f"{path}:{number}: not a strategy line '(v1,...,vn)=action'")
         rows.append([_number(v, path, number) for v in valuation[1:].split(",")])
         actions.append(action.strip())
-    return _table(rows, len(mdp.variable_names), path), actions
+        places.append(f"{path}:{number}")
+    return _table(rows, len(mdp.variable_names), places, path), actions, places
 
 
 def _storm_entries(text: str, mdp: MDP, path: Path) -> Entries:
@@ -67,7 +70,8 @@ def _storm_entries(text: str, mdp: MDP, path: Path) -> Entries:
                             '{"s": {variable: value, ...}, "c": [{"labels": [action]}]}')
     rows = [_storm_state(entry, mdp, path, n) for n, entry in enumerate(entries, 1)]
     actions = [_storm_action(entry, path, n) for n, entry in enumerate(entries, 1)]
-    return _table(rows, len(mdp.variable_names), path), actions
+    places = [f"{path}: entry {n}" for n in range(1, len(entries) + 1)]
+    return _table(rows, len(mdp.variable_names), places, path), actions, places
 
 
 def _storm_state(entry: object, mdp: MDP, path: Path, number: int) -> list[int]:
@@ -108,23 +112,24 @@ def _number(value: object, path: Path, entry: int) -> int:
     return number
 
 
-def _table(rows: list[list[int]], width: int, path: Path) -> IntArray:
+def _table(rows: list[list[int]], width: int, places: list[str], path: Path) -> IntArray:
     if not rows:
         raise StrategyError(f"{path}: names no state")
-    if any(len(row) != width for row in rows):
-        raise StrategyError(f"{path}: a state with other than the model's {width} variables")
+    wrong = next((i for i, row in enumerate(rows) if len(row) != width), None)
+    if wrong is not None:
+        raise StrategyError(f"{places[wrong]}: a state of {len(rows[wrong])} values, but the "
+                            f"model has {width} variables (a strategy for another model?)")
     return np.asarray(rows, dtype=np.int64)
 
 
-def _states_of(values: IntArray, mdp: MDP, path: Path) -> IntArray:
+def _states_of(values: IntArray, places: list[str], mdp: MDP) -> IntArray:
     """The MDP's index of each named state (a mixed-radix code of the valuations)."""
     assert mdp.states is not None
     known = np.asarray(mdp.states, dtype=np.int64)
     low, high = known.min(axis=0), known.max(axis=0)
     outside = ((values < low) | (values > high)).any(axis=1)
     if outside.any():
-        raise StrategyError(f"{path}: entry {int(np.argmax(outside)) + 1} is no state of "
-                            "the mission MDP")
+        raise _no_state(places, values, int(np.argmax(outside)))
     dims = tuple(int(d) for d in high - low + 1)
     codes = np.ravel_multi_index(tuple((known - low).T), dims)
     wanted = np.ravel_multi_index(tuple((values - low).T), dims)
@@ -133,20 +138,42 @@ def _states_of(values: IntArray, mdp: MDP, path: Path) -> IntArray:
     found = order[at]
     missing = codes[found] != wanted
     if missing.any():
-        raise StrategyError(f"{path}: entry {int(np.argmax(missing)) + 1} is no state of "
-                            "the mission MDP")
-    if np.unique(found).size != found.size:
-        raise StrategyError(f"{path}: names a state twice")
+        raise _no_state(places, values, int(np.argmax(missing)))
+    _require_distinct(found, places)
     return np.asarray(found, dtype=np.int64)
 
 
-def _choices_of(states: IntArray, actions: list[str], mdp: MDP, path: Path) -> IntArray:
+def _no_state(places: list[str], values: IntArray, entry: int) -> StrategyError:
+    return StrategyError(f"{places[entry]}: {_valuation(values[entry])} is no state of the "
+                         "mission MDP (a strategy exported for another config?)")
+
+
+def _require_distinct(found: IntArray, places: list[str]) -> None:
+    """Refuse a state named twice, naming both places."""
+    order = np.argsort(found, kind="stable")
+    repeated = np.flatnonzero(found[order][1:] == found[order][:-1])
+    if repeated.size:
+        first, again = int(order[repeated[0]]), int(order[repeated[0] + 1])
+        earlier = places[first].rpartition(":")[2].strip()
+        earlier = f"line {earlier}" if earlier.isdigit() else earlier
+        raise StrategyError(f"{places[again]}: names the state of {earlier} again; "
+                            "give each state one action")
+
+
+def _valuation(values: IntArray) -> str:
+    return "(" + ",".join(str(int(v)) for v in values) + ")"
+
+
+def _choices_of(states: IntArray, actions: list[str], places: list[str], mdp: MDP
+                ) -> IntArray:
     """The one choice of each named state with its named action."""
     assert mdp.choice_actions is not None
     index = {name: i for i, name in enumerate(mdp.actions)}
-    unknown = [a for a in actions if a not in index]
-    if unknown:
-        raise StrategyError(f"{path}: action '{unknown[0]}' is no action of the mission MDP")
+    unknown = next((i for i, a in enumerate(actions) if a not in index), None)
+    if unknown is not None:
+        named = ", ".join(a for a in mdp.actions if a)
+        raise StrategyError(f"{places[unknown]}: action '{actions[unknown]}' is no action of "
+                            f"the mission MDP (its actions: {named})")
     wanted = states * len(mdp.actions) + np.asarray([index[a] for a in actions])
     keys = mdp.choice_owner * len(mdp.actions) + mdp.choice_actions
     order = np.argsort(keys, kind="stable")
@@ -154,14 +181,22 @@ def _choices_of(states: IntArray, actions: list[str], mdp: MDP, path: Path) -> I
     last = np.searchsorted(keys, wanted, side="right", sorter=order)
     if ((last - first) != 1).any():
         bad = int(np.argmax((last - first) != 1))
-        raise StrategyError(f"{path}: entry {bad + 1}: '{actions[bad]}' is not exactly one "
+        raise StrategyError(f"{places[bad]}: '{actions[bad]}' is not exactly one "
                             "choice of that state")
     return np.asarray(order[first], dtype=np.int64)
 
 
-def _require_closed(choices: IntArray, states: IntArray, mdp: MDP, path: Path) -> None:
+def _require_closed(choices: IntArray, states: IntArray, places: list[str], mdp: MDP,
+                    path: Path) -> None:
+    assert mdp.states is not None
     if (choices[mdp.initial] < 0).any():
         raise StrategyError(f"{path}: does not name the mission's initial state")
-    successors = mdp.transitions[choices[states]].indices
-    if (choices[successors] < 0).any():
-        raise StrategyError(f"{path}: the strategy reaches states the file does not name")
+    rows = mdp.transitions[choices[states]]
+    unnamed = choices[rows.indices] < 0
+    if unnamed.any():
+        at = int(np.argmax(unnamed))
+        entry = int(np.searchsorted(rows.indptr, at, side="right")) - 1
+        reached = np.asarray(mdp.states[int(rows.indices[at])], dtype=np.int64)
+        raise StrategyError(f"{places[entry]}: its action leads to {_valuation(reached)}, "
+                            "which the file does not name; a strategy file names every "
+                            "state its actions reach")
