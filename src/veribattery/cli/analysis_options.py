@@ -49,8 +49,10 @@ STRATEGIES = ("bs1", "optimal")
 def _strategy_value(ctx: click.Context, param: click.Parameter, value: str) -> str:
     """An option callback: neither a name nor a file is bad input, on one line (exit 2)."""
     if value not in STRATEGIES and not Path(value).is_file():
-        fail(f"--strategy must be bs1, optimal or a strategy file; "
-             f"{'a folder' if Path(value).is_dir() else 'no file'} {value!r}")
+        path = Path(value)
+        what = ("a folder" if path.is_dir() else "not a regular file" if path.exists()
+                else "no file")
+        fail(f"--strategy must be bs1, optimal or a strategy file; {what} {value!r}")
     return value
 
 

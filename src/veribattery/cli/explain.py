@@ -19,7 +19,13 @@ from veribattery.cli.analysis_options import (
     induced_mission,
     strategy_option,
 )
-from veribattery.cli.files import CSV_SUFFIXES, OnceOption, PathParam, check_output_file
+from veribattery.cli.files import (
+    CSV_SUFFIXES,
+    OnceOption,
+    PathParam,
+    check_output_file,
+    typed_name,
+)
 from veribattery.cli.output import (
     build_progress,
     fail,
@@ -134,7 +140,8 @@ def explain_command(config: Path, overrides: tuple[str, ...], top: int,
     from veribattery.config import load_config
 
     with user_errors():
-        check_output_file(csv_file, "-o", force=force, suffixes=CSV_SUFFIXES)
+        check_output_file(csv_file, typed_name("csv_file", "-o"), force=force,
+                          suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         with build_progress() as progress:
             view = (MissionView(build_mission(cfg, progress=progress)) if strategy == "bs1"

@@ -24,6 +24,7 @@ __all__ = [
     "PathParam",
     "check_output_dir",
     "check_output_file",
+    "typed_name",
 ]
 
 #: File types matplotlib writes without outside programs (the format follows the
@@ -127,10 +128,23 @@ class OnceOption(click.Option):
             typed = " and ".join(f"{name} {value}" for name, value in given)
             raise click.UsageError(f"{typed}: {len(given)} values for one option"
                                    f"{_aliases([name for name, _ in given])}; give it once", ctx)
+        if given:
+            ctx.meta[_typed_key(str(self.name))] = given[0][0]
         return super().consume_value(ctx, {str(self.name): given[0][1]} if given else {})
 
     def _dest(self, name: str) -> str:
         return f"{self.name} {name}"  # (no parameter's name has a space)
+
+
+def typed_name(parameter: str, default: str) -> str:
+    """The name the user typed for the :class:`OnceOption` *parameter* (``--csv`` for
+    ``-o``'s old name), so that a refusal names the option as typed; *default* if none."""
+    ctx = click.get_current_context(silent=True)
+    return default if ctx is None else str(ctx.meta.get(_typed_key(parameter), default))
+
+
+def _typed_key(parameter: str) -> str:
+    return f"veribattery.typed {parameter}"
 
 
 def _aliases(names: Sequence[str]) -> str:

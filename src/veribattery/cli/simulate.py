@@ -17,7 +17,13 @@ from veribattery.cli.analysis_options import (
     induced_mission,
     strategy_option,
 )
-from veribattery.cli.files import CSV_SUFFIXES, OnceOption, PathParam, check_output_file
+from veribattery.cli.files import (
+    CSV_SUFFIXES,
+    OnceOption,
+    PathParam,
+    check_output_file,
+    typed_name,
+)
 from veribattery.cli.output import (
     build_progress,
     check_modes,
@@ -80,7 +86,8 @@ def simulate_command(config: Path, overrides: tuple[str, ...], runs: int, seed: 
 
     with user_errors():
         check_modes({"-o": (paths_file is not None, ("path_count",))})
-        check_output_file(paths_file, "-o", force=force, suffixes=CSV_SUFFIXES)
+        check_output_file(paths_file, typed_name("paths_file", "-o"), force=force,
+                          suffixes=CSV_SUFFIXES)
         cfg = load_config(config, overrides)
         record = path_count if paths_file else 0
         if strategy != "bs1":
