@@ -148,16 +148,23 @@ def parse_deadline(text: str, working_day_minutes: float = 480.0,
     return Deadline(text, value)
 
 
+#: The longest working day, in minutes.
+MINUTES_PER_DAY = 24 * 60
+
+
 def parse_deadlines(working_day: str,
                     deadlines: Sequence[str]) -> tuple[float, tuple[Deadline, ...]]:
     """``--working-day`` and the ``--deadline`` options: the day's length in minutes and
     the deadlines.
 
-    :raises ConfigError: on a malformed value or a working day that is not longer than 0.
+    :raises ConfigError: on a malformed value or a working day not in (0, 24h].
     """
     day = parse_deadline(working_day, option="--working-day").value
     if day <= 0:
         raise ConfigError(f"--working-day {working_day}: must be longer than 0, e.g. 8h")
+    if day > MINUTES_PER_DAY:
+        raise ConfigError(f"--working-day {working_day}: a working day is at most 24h "
+                          f"({MINUTES_PER_DAY} minutes)")
     return day, tuple(parse_deadline(d, day) for d in deadlines)
 
 

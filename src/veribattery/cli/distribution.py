@@ -60,6 +60,7 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
 
     with user_errors():
         _, limits = parse_deadlines(working_day, deadlines)
+        _require_days_read(working_day, limits)
         check_output_file(csv_path, "-o", force=force, suffixes=CSV_SUFFIXES)
         check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
         if not 0 < coverage <= 1:  # (nan too) before the model is built
@@ -72,6 +73,7 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
             if reward not in named:
                 raise OptionError(f"--reward {reward}: the mission has no reward structure "
                                   f"of that name (it has {', '.join(named)})")
+            _require_whole(dtmc, reward)
             if progress is not None:
                 progress.starting(f"computing the distribution of {reward!r}")
             levels = None if progress is None else (
@@ -92,6 +94,35 @@ def distribution_command(config: Path, overrides: tuple[str, ...], reward: str,
             click.echo(f'"{name}",{"" if value is None else repr(value)}')
     else:
         _print_table(dist, limits)
+
+
+def _require_days_read(working_day: str, limits: tuple[Deadline, ...]) -> None:
+    """Refuse a ``--working-day`` typed where no ``--deadline`` counts in working days."""
+    source = click.get_current_context().get_parameter_source("working_day")
+    if source == click.core.ParameterSource.COMMANDLINE and not any(
+            d.text.strip().lower().endswith("d") for d in limits):
+        raise OptionError(f"--working-day {working_day} is read by a --deadline in working "
+                          "days only (e.g. --deadline 10d): give one, or leave out "
+                          "--working-day")
+
+
+def _require_whole(dtmc: object, reward: str) -> None:
+    """Refuse a reward structure that is not whole numbers in every state (the
+    distribution counts units of it), naming a state and the config keys behind it."""
+    from veribattery.checker.kernels.reward_bounded import NonIntegerReward, integer_levels
+    from veribattery.explore.dtmc import DTMC
+
+    assert isinstance(dtmc, DTMC)
+    try:
+        integer_levels(dtmc.reward(reward).total)
+    except NonIntegerReward as exc:
+        state = ", ".join(f"{name}={value}" for name, value in
+                          zip(dtmc.variable_names, dtmc.states[exc.state], strict=True))
+        hint = ("the mission time counts whole minutes: give whole times_min values, or "
+                "choose --reward rc" if reward == "mt" else "choose a whole-valued reward")
+        raise OptionError(f"--reward {reward}: the distribution counts whole units of "
+                          f"{reward!r}, but it is {exc.value:g} in state ({state}); "
+                          f"{hint}") from None
 
 
 def _distribution(dtmc: object, reward: str, coverage: float, limits: tuple[Deadline, ...],
@@ -116,15 +147,22 @@ def _summary(dist: Distribution, limits: tuple[Deadline, ...]
         (f"E[{dist.reward} | success]", _defined(dist.expected_given_success))]
     rows += [(f"{q:.0%} quantile of {dist.reward} to success", dist.quantile_or_none(q))
              for q in QUANTILES]
-    rows += [(f"P(success within {d.text} = {d.value:g})", dist.p_success_within(d.value))
+    rows += [(f"P(success within {_deadline(d)})", dist.p_success_within(d.value))
              for d in limits]
     rows.append(("not yet absorbed (bound on the cut-off)", dist.pending))
     return rows
 
 
+def _deadline(limit: Deadline) -> str:
+    """A deadline as typed, then in the reward's units where those differ (80h = 4800)."""
+    value = f"{limit.value:g}"
+    return value if limit.text.strip() == value else f"{limit.text} = {value}"
+
+
 def _print_table(dist: Distribution, limits: tuple[Deadline, ...]) -> None:
-    click.echo(f"Distribution of {dist.reward!r} to success/failure: {dist.values.size:,} "
-               f"levels, up to {dist.values[-1]:g}")
+    levels = f"{dist.values.size:,} level" + ("s" if dist.values.size != 1 else "")
+    click.echo(f"Distribution of {dist.reward!r} to success/failure: {levels}, up to "
+               f"{dist.values[-1]:g}")
     rows = _summary(dist, limits)
     print_table(("quantity", "value"), [(name, "—" if value is None else f"{value:.10g}")
                                         for name, value in rows])
