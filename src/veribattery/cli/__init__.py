@@ -67,7 +67,12 @@ class _LazyGroup(click.Group):
             hint = f" (see '{exc.ctx.command_path} --help')" if exc.ctx is not None else ""
             from veribattery.cli.output import shortened
 
-            message = shortened(f"{exc.format_message().rstrip('.')}{hint}")
+            # (one line: click lists a Choice's values on lines of their own; and its
+            # range types call a value that is no number "not a valid integer range")
+            text = " ".join(exc.format_message().split()).rstrip(".")
+            text = text.replace(" is not a valid integer range", " is not a valid integer")
+            text = text.replace(" is not a valid float range", " is not a valid number")
+            message = shortened(f"{text}{hint}")
             click.echo(f"error: {message}", err=True)
             sys.exit(2)
         except click.exceptions.Abort:  # Ctrl-C before the command ran
