@@ -112,6 +112,15 @@ class Bounds:
         upper = np.where(undefined, value, highest)
         return cls(value, lower, upper)
 
+    def within(self, lowest: float, highest: float) -> Bounds:
+        """These bounds met with ``[lowest, highest]``, a range the exact values are known
+        to lie in by other means (an average of values in it: ``I=k``'s rewards)."""
+        if not (np.isfinite(lowest) and np.isfinite(highest)):
+            return self
+        lower = np.clip(self.lower, lowest, highest)
+        upper = np.clip(self.upper, lowest, highest)
+        return Bounds.around(self.value, lower, upper)
+
     @property
     def width(self) -> FloatArray:
         """``upper - lower`` (0 where both are the same infinity)."""

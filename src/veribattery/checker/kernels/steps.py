@@ -362,7 +362,10 @@ def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int, *,
     :param progress: as for :func:`bounded_until_probs`.
     """
     start = np.asarray(state_rewards, dtype=np.float64)
-    return _step_power(P, Bounds.exact(start), np.zeros_like(start), k, progress)
+    found = _step_power(P, Bounds.exact(start), np.zeros_like(start), k, progress)
+    # The value is an average of the states' rewards: between the least and the most,
+    # however far the bound (where the rounds' error radius grows past them).
+    return found.within(float(start.min(initial=0.0)), float(start.max(initial=0.0)))
 
 
 def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds, *,

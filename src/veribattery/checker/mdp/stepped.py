@@ -160,9 +160,13 @@ def instantaneous_reward(mdp: MDP, state_rewards: FloatArray, steps: int, *,
     :param state_rewards: per state, its reward (nonnegative).
     """
     everywhere = np.ones(mdp.num_states, dtype=bool)
-    start = Bounds.exact(np.asarray(state_rewards, dtype=np.float64))
-    return _iterated(mdp, start, _Rounds(everywhere, start, None, objective), steps, None,
-                     progress)
+    rewards = np.asarray(state_rewards, dtype=np.float64)
+    start = Bounds.exact(rewards)
+    found = _iterated(mdp, start, _Rounds(everywhere, start, None, objective), steps, None,
+                      progress)
+    # (under any strategy an average of the states' rewards: between the least and most)
+    return MdpResult(found.bounds.within(float(rewards.min(initial=0.0)),
+                                         float(rewards.max(initial=0.0))), found.strategy)
 
 
 def _blocked(mdp: MDP, remain: BoolArray, objective: Objective) -> _Rounds:
