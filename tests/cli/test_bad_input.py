@@ -37,6 +37,7 @@ FILES: dict[str, bytes] = {
     "bad_property.yaml": b"properties:\n  p: 'P=? [ F \"nosuch\" ]'\n",
     "property_syntax.yaml": b"properties:\n  p: 'P=? [ F '\n",
     "requirement.yaml": b"requirements: ['nosuch >= 0.9']\n",
+    "reserved_property.yaml": b"properties:\n  recharge_cap_probability: 'P=? [ F \"done\" ]'\n",
     "cycles.csv": b"cycle,capacity_ah\n0,11\n10,10.9\n20,10.8\n30,10.7\n",
     "cycles_extra_cell.csv": b"cycle,capacity_ah\n0,11\n10,10.9,7\n20,10.8\n",
     "cycles_no_column.csv": b"cycle,capacity\n0,11\n10,10.9\n",
@@ -65,6 +66,17 @@ CASES: list[tuple[str, list[str]]] = [
     ("yaml-syntax", ["check", "yaml_syntax.yaml"]),
     ("config-not-mapping", ["check", "list.yaml"]),
     ("config-bad-property", ["check", "bad_property.yaml"]),
+    ("config-reserved-property", ["check", "reserved_property.yaml", "--format", "csv"]),
+    ("explain-strategy-devnull", ["explain", "config.yaml", "--strategy", "/dev/null"]),
+    ("explain-csv-suffix", ["explain", "config.yaml", "--csv", "p.txt"]),
+    ("reproduce-no-target", ["reproduce"]),
+    ("distribution-long-day", ["distribution", "config.yaml", "--working-day", "25h"]),
+    ("distribution-day-unread", ["distribution", "config.yaml", "--working-day", "8h"]),
+    ("check-max-states-word", ["check", "config.yaml", "--max-states", "lots"]),
+    ("distribution-fractional-time", ["distribution", "config.yaml", "--set",
+                                      "times_min.inspection=0.5"]),
+    ("set-reserved-property", ["check", "config.yaml", "--set",
+                               'properties.recharge_cap_probability=P=? [ F "done" ]']),
     ("config-property-syntax", ["check", "property_syntax.yaml"]),
     ("config-requirement", ["check", "requirement.yaml"]),
     ("emit-bad-property", ["emit", "bad_property.yaml", "-o", "out"]),
@@ -339,6 +351,24 @@ def test_a_huge_value_in_an_error_is_cut_in_the_middle(args: list[str]) -> None:
     ("explain-strategy-folder", "a strategy file; a folder 'a_folder.csv'"),
     ("emit-dash", "-o -: writes a folder of files, not to standard output"),
     ("check-endless-input", "config '/dev/zero': more than 16 MB"),
+    ("config-reserved-property", "reserved_property.yaml:2:3: properties.recharge_cap_"
+                                 "probability: property name 'recharge_cap_probability' is "
+                                 "reserved: check reports P[F rc=RC_MAX] under it; choose "
+                                 "another name"),
+    ("explain-strategy-devnull", "--strategy must be bs1, optimal or a strategy file; not a "
+                                 "regular file '/dev/null'"),
+    ("explain-csv-suffix", "--csv p.txt: unsupported file type '.txt'; name a file ending in "
+                           ".csv"),
+    ("reproduce-no-target", "Missing argument '{table3|fig6|fig8|all}'. Choose from: table3, "
+                            "fig6, fig8, all (see '"),
+    ("check-max-states-word", "'lots' is not a valid integer (see"),
+    ("distribution-long-day", "--working-day 25h: a working day is at most 24h (1440 minutes)"),
+    ("distribution-day-unread", "--working-day 8h is read by a --deadline in working days only "
+                                "(e.g. --deadline 10d): give one, or leave out --working-day"),
+    ("distribution-fractional-time", "--reward mt: the distribution counts whole units of "
+                                     "'mt', but it is 0.5 in state ("),
+    ("set-reserved-property", "--set properties.recharge_cap_probability: property name "
+                              "'recharge_cap_probability' is reserved"),
     ("sweep-plot-property-alone", "--plot-property chooses what --plot draws"),
     ("explain-by", "--by nosuch: no key 'nosuch'; give keys comma-separated, a+b to group by "
                    "both (keys: k, cell, state, action, wind, level, recharges, s, j, wsp, b, rc)"),
