@@ -1,0 +1,57 @@
+"""``veribattery prism`` refuses, in one line and with exit status 2, input it would
+otherwise ignore or misread: options --explain does not read, a properties file
+with no properties, a constant's misspelt value, a file that never ends."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner, Result
+
+from veribattery.cli import cli
+
+_MODEL = """dtmc
+const int N = 3;
+module m
+  x : [0..N] init 0;
+  [] x<N -> 0.5:(x'=x+1) + 0.5:(x'=x);
+  [] x=N -> true;
+endmodule
+label "goal" = x=N;
+"""
+
+
+def _prism(tmp_path: Path, *args: str, model: str = _MODEL) -> Result:
+    path = tmp_path / "m.pm"
+    path.write_text(model)
+    return CliRunner().invoke(cli, ["prism", str(path), *args])
+
+
+def _refused(result: Result) -> str:
+    """The one error line of a refused run (nothing on stdout)."""
+    assert result.exit_code == 2, result.output
+    assert result.stdout == ""
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    return lines[0]
+
+
+@pytest.mark.parametrize(("option", "args"), [
+    ("--props", ["--props", "p.props"]),
+    ("--property", ["--property", 'P=? [ F "goal" ]']),
+    ("--exact", ["--exact"]),
+])
+def test_explain_refuses_the_options_of_a_check(tmp_path: Path, option: str,
+                                                args: list[str]) -> None:
+    # a properties file that does not parse: --explain refuses before reading it
+    (tmp_path / "p.props").write_text('P=? [ F "goal" ];\nP=? [ F "goal"\n')
+    args = [str(tmp_path / a) if a == "p.props" else a for a in args]
+    line = _refused(_prism(tmp_path, *args, "--explain", "goal"))
+    assert line == (f"error: {option}: --explain checks no properties; leave out {option} "
+                    "or --explain")
+
+
+def test_explain_refuses_max_states(tmp_path: Path) -> None:
+    line = _refused(_prism(tmp_path, "--max-states", "9", "--explain", "goal"))
+    assert line.startswith("error: --max-states: --explain builds the whole model")
