@@ -55,3 +55,21 @@ def test_explain_refuses_the_options_of_a_check(tmp_path: Path, option: str,
 def test_explain_refuses_max_states(tmp_path: Path) -> None:
     line = _refused(_prism(tmp_path, "--max-states", "9", "--explain", "goal"))
     assert line.startswith("error: --max-states: --explain builds the whole model")
+
+
+@pytest.mark.parametrize("text", ["", "// only a comment\n", 'const int K = 2;\nlabel "l" = true;\n'])
+def test_a_properties_file_without_properties_is_refused(tmp_path: Path, text: str) -> None:
+    props = tmp_path / "p.props"
+    props.write_text(text)
+    line = _refused(_prism(tmp_path, "--props", str(props)))
+    assert line == (f"error: {props}: no properties in the file; add one, or give "
+                    "--property TEXT (selectors= from Python)")
+
+
+def test_a_properties_file_without_properties_still_serves_property_text(
+        tmp_path: Path) -> None:
+    props = tmp_path / "p.props"
+    props.write_text("const int K = 2;\n")
+    result = _prism(tmp_path, "--props", str(props), "--property", "P=? [ F x=K ]")
+    assert result.exit_code == 0, result.output
+    assert "P=? [ F x=K ]  1" in result.stdout
