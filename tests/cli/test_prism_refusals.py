@@ -73,3 +73,12 @@ def test_a_properties_file_without_properties_still_serves_property_text(
     result = _prism(tmp_path, "--props", str(props), "--property", "P=? [ F x=K ]")
     assert result.exit_code == 0, result.output
     assert "P=? [ F x=K ]  1" in result.stdout
+
+
+@pytest.mark.parametrize("value", ["True", "1", "yes"])
+def test_a_bool_constant_says_how_to_spell_a_bool(tmp_path: Path, value: str) -> None:
+    model = _MODEL.replace("dtmc", "dtmc\nconst bool reset;")
+    line = _refused(_prism(tmp_path, "--property", 'P=? [ F "goal" ]',
+                           "--const", f"reset={value}", model=model))
+    assert line == (f"error: constant 'reset' is a bool, but was given the value '{value}'; "
+                    "use true or false")
