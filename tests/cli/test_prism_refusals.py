@@ -82,3 +82,21 @@ def test_a_bool_constant_says_how_to_spell_a_bool(tmp_path: Path, value: str) ->
                            "--const", f"reset={value}", model=model))
     assert line == (f"error: constant 'reset' is a bool, but was given the value '{value}'; "
                     "use true or false")
+
+
+@pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero and /dev/urandom")
+@pytest.mark.parametrize(("args", "message"), [
+    (["/dev/zero", "--property", "P=? [ F true ]"],
+     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB"),
+    (["MODEL", "--props", "/dev/urandom"],
+     "error: /dev/urandom: more than 64 MB; a properties file is at most a few kB"),
+    (["/dev/zero", "--explain", "goal"],
+     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB"),
+])
+def test_a_file_that_never_ends_is_refused_after_64_mb(tmp_path: Path, args: list[str],
+                                                       message: str) -> None:
+    model = tmp_path / "m.pm"
+    model.write_text(_MODEL)
+    result = CliRunner().invoke(cli, ["prism", *(str(model) if a == "MODEL" else a
+                                                 for a in args)])
+    assert _refused(result) == message
