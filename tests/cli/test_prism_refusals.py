@@ -100,3 +100,4 @@ def test_a_file_that_never_ends_is_refused_after_64_mb(tmp_path: Path, args: lis
     result = CliRunner().invoke(cli, ["prism", *(str(model) if a == "MODEL" else a
                                                  for a in args)])
     assert _refused(result) == message
+
