@@ -57,7 +57,8 @@ def test_explain_refuses_max_states(tmp_path: Path) -> None:
     assert line.startswith("error: --max-states: --explain builds the whole model")
 
 
-@pytest.mark.parametrize("text", ["", "// only a comment\n", 'const int K = 2;\nlabel "l" = true;\n'])
+@pytest.mark.parametrize("text", ["", "// only a comment\n",
+                                  'const int K = 2;\nlabel "l" = true;\n'])
 def test_a_properties_file_without_properties_is_refused(tmp_path: Path, text: str) -> None:
     props = tmp_path / "p.props"
     props.write_text(text)
