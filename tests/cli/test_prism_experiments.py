@@ -84,3 +84,32 @@ def test_options_that_read_one_model_are_refused_before_any_work(tmp_path: Path)
     code, out, err = _run(tmp_path, model, *_DIE_PROPS[:2], "--const", "x=1:6",
                           "--simulate", "10")
     assert code == 2 and out == "" and "--simulate reads one model" in err
+
+
+# Deadlocks in the last M states: a warning at every point of an experiment over N.
+_DEADLOCKS = """dtmc
+const int N;
+const int M = 1;
+module m
+  x : [0..N] init 0;
+  [] x<N-M -> 0.5:(x'=x+1) + 0.5:(x'=x);
+endmodule
+label "goal" = x=N;
+"""
+
+
+@pytest.mark.parametrize("output_format", ["table", "json", "csv"])
+def test_an_experiment_says_which_point_each_warning_is_of(tmp_path: Path,
+                                                           output_format: str) -> None:
+    code, _, err = _run(tmp_path, _DEADLOCKS, "--property", 'P=? [ F "goal" ]',
+                        "--const", "N=2:2:6", "--format", output_format)
+    assert code == 0, err
+    assert [line.split(": ")[:2] for line in err.splitlines()] == [
+        ["warning", f"N={n}"] for n in (2, 4, 6)]
+
+
+def test_one_point_warns_as_one_run_does(tmp_path: Path) -> None:
+    code, _, err = _run(tmp_path, _DEADLOCKS, "--property", 'P=? [ F "goal" ]',
+                        "--const", "N=2:2:3")
+    assert code == 0, err
+    assert err.startswith("warning: 1 deadlock state")

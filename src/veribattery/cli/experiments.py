@@ -51,6 +51,11 @@ def print_experiment(points: Sequence[Mapping[str, str]], runs: Sequence[Run],
     """
     names = [name for name in points[0] if len({p[name] for p in points}) > 1]
     pairs = list(zip(points, runs, strict=True))
+    for point, run in pairs:  # on stderr, whatever the format, as one run's are
+        # the same warning may come from several points: each says which
+        where = "".join(f"{n}={point[n]}, " for n in names).removesuffix(", ")
+        print_warnings([f"{where}: {w}" if where else w for w in run.warnings])
+        print_imprecise(run.results)
     if output_format == "json":
         click.echo(json.dumps({"points": [{"constants": dict(point), **document(run)}
                                           for point, run in pairs]}))
@@ -61,9 +66,6 @@ def print_experiment(points: Sequence[Mapping[str, str]], runs: Sequence[Run],
         for point, run in pairs:
             writer.writerows([*(point[n] for n in names), *cells] for cells in csv_rows(run))
         return
-    for run in runs:
-        print_warnings(run.warnings)
-        print_imprecise(run.results)
     rows = [(*(point[n] for n in names), *row(result)) for point, run in pairs
             for result in run.results]
     print_table((*names, "property", "value"), rows)

@@ -251,9 +251,10 @@ def _print_explanation(
     columns: Sequence[tuple[str, str]], *, marker: str | None,
 ) -> None:
     total = explanation.probability
+    count = explanation.inflow.states.size
     click.echo(fit_text(
         f"P({explanation.target}) = {format_value(total)}  (exact; the breakdown sums to it "
-        f"over the {explanation.inflow.states.size:,} states {explanation.target} is "
+        f"over the {count:,} state{'s' * (count != 1)} {explanation.target} is "
         "entered from)"))
     for grouping in explanation.groupings:
         _print_grouping(grouping, total)

@@ -127,6 +127,9 @@ def prism_command(
             raise OptionError("-o writes the sampled paths of --simulate N: give --simulate, "
                               "or leave out -o")
         _check_modes(analysis)
+        _check_explain(analysis["explain"], {"--props": props is not None,
+                                             "--property": bool(selectors), "--exact": exact,
+                                             "--max-states": max_states is not None})
         if analysis["explain"] is not None and output_format == "csv":
             raise OptionError("--format csv: --explain prints a table or json; "
                               "use --format table or --format json")
@@ -190,6 +193,20 @@ def _check_modes(analysis: dict[str, Any]) -> None:
         "--simulate": (analysis["simulate"] is not None, ("seed", "max_steps", "path_count")),
         "-o": (analysis["paths_file"] is not None, ("path_count",)),
     })
+
+
+def _check_explain(explain: str | None, given: dict[str, bool]) -> None:
+    """Refuse, with ``--explain``, the options of a check (*given*: whether each is): the
+    breakdown reads the model's label, not properties, and builds every state."""
+    if explain is None:
+        return
+    for option, present in given.items():
+        if present and option == "--max-states":
+            raise OptionError("--max-states: --explain builds the whole model, with no "
+                              "limit; leave out --max-states")
+        if present:
+            raise OptionError(f"{option}: --explain checks no properties; leave out "
+                              f"{option} or --explain")
 
 
 def _experiment(model: Path, props: Path | None, selectors: tuple[str, ...],

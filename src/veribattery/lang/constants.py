@@ -135,11 +135,17 @@ _CLOSED = frozenset({IntLit, DoubleLit, BoolLit, Unary, Binary, Ite, Call})
 def _wrong_value(decl: ConstDecl, text: str) -> PrismSemanticError:
     return PrismSemanticError(
         f"constant '{decl.name}' is {_a(decl.type)}, but was given the value '{text}'"
+        + _BOOL_HINT * (decl.type == "bool")
     )
 
 
 def _a(kind: ValueType) -> str:
     return {"int": "an int", "double": "a double", "bool": "a bool"}[kind]
+
+
+#: PRISM spells a bool only ``true`` or ``false``; ``True``, as QComp's index.json files
+#: write it, is a name to it, and nothing says so but this hint.
+_BOOL_HINT = "; use true or false"
 
 
 def coerce_value(decl: ConstDecl, raw: Value | str) -> Value:

@@ -83,17 +83,28 @@ def _lark() -> Lark:
     )
 
 
-def _read(source: str | Path, name: str | None) -> tuple[str, str]:
-    """The text and the name used in error messages; a str is PRISM text, never a path."""
+#: The most a model or properties file may hold. QVBS's largest PRISM model is a few
+#: hundred kB, and parsing takes some 80 bytes of memory per byte of text (10 MB: 0.8
+#: GB): a larger file is not a model, or could not be parsed anyway. Only this much
+#: (and one byte) is read, so /dev/zero or an endless pipe ends at once.
+MAX_PRISM_FILE_BYTES = 64 << 20
+
+
+def _read(source: str | Path, name: str | None, what: str) -> tuple[str, str]:
+    """The text and the name used in error messages; a str is PRISM text, never a path
+    (*what*: the kind of file, for the message on one that is too large)."""
     if isinstance(source, str):
         return source, name or "<string>"
     shown = name or str(source)
     try:
-        data = source.read_bytes()
+        with source.open("rb") as stream:
+            data = stream.read(MAX_PRISM_FILE_BYTES + 1)
     except FileNotFoundError:
         raise PrismSyntaxError(f"file not found: {source}") from None
     except OSError as exc:
         raise PrismSyntaxError(f"cannot read {source}: {exc.strerror or exc}") from None
+    if len(data) > MAX_PRISM_FILE_BYTES:
+        raise PrismSyntaxError(f"{shown}: more than {MAX_PRISM_FILE_BYTES >> 20} MB; {what}")
     return decode_text(data, shown, PrismSyntaxError), shown
 
 
@@ -332,10 +343,15 @@ def parse_properties(source: str | Path, *, name: str | None = None) -> Properti
 _PRISM_SUFFIXES = (".pm", ".nm", ".prism", ".props", ".pctl", ".prop")
 
 
+#: What a file of each kind holds, said when one is larger than any of them.
+_TOO_LARGE = {"start_model": "a PRISM model is at most a few MB",
+              "start_props": "a properties file is at most a few kB"}
+
+
 def _parse_source(source: str | Path, name: str | None, start: str) -> Any:
     """Parse *source*; a str that does not parse and names a file says to give a Path
     (a notebook's ``parse_model("die.pm")`` is otherwise an "unexpected token")."""
-    text, label = _read(source, name)
+    text, label = _read(source, name, _TOO_LARGE[start])
     try:
         return _parse(text, label, start)
     except PrismSyntaxError:

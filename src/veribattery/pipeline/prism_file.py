@@ -55,6 +55,9 @@ def select(
         if props is None:
             raise PrismSemanticError("no property given: use --props FILE or --property "
                                      "TEXT (props_source= or selectors= from Python)")
+        if not props.properties:  # else an empty table, as if every property held
+            raise PrismSemanticError(f"{props.source}: no properties in the file; add "
+                                     "one, or give --property TEXT (selectors= from Python)")
         return props.properties
     return tuple(p for s in selectors for p in _select_one(props, s))
 
