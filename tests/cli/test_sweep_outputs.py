@@ -119,6 +119,21 @@ def test_a_plot_drawn_again_is_noted_once_with_its_new_digest(
     assert entry["path"] == "p.png" and len(entry["sha256"]) == 64
 
 
+@pytest.mark.parametrize(("given", "varied_by"), [
+    (("--vary", "battery.capacity_ah=10,10.5"), "--vary"),
+    (("--set", "sweep.vary=['battery.capacity_ah=10,10.5']"), "the config's sweep.vary"),
+], ids=["vary", "sweep.vary"])
+def test_a_set_of_a_varied_key_is_refused(
+        config: str, tmp_path: Path, given: tuple[str, ...], varied_by: str) -> None:
+    """Every point's value replaced the --set, which was dropped without a word."""
+    out = tmp_path / "r.csv"
+    result = run("sweep", config, *given, *SMALL_FARM, "--set", "battery.capacity_ah=9",
+                 "-o", str(out))
+    _refused(result, f"--set battery.capacity_ah=9: battery.capacity_ah is also varied by "
+             f"{varied_by}; drop one")
+    assert not out.exists()
+
+
 def test_a_folder_as_results_says_so(config: str, tmp_path: Path) -> None:
     for folder in (".", str(tmp_path)):
         _refused(run(*_sweep(config, "-o", folder)),

@@ -86,6 +86,7 @@ def sweep_command(
     """
     from veribattery.config import read_config
     from veribattery.sweep import any_requirement_fails, axes_from, default_jobs, summary_line
+    from veribattery.sweep.grid import check_sets
     from veribattery.sweep.store import check_target
     from veribattery.sweep.synthesis_point import swept_properties
 
@@ -93,6 +94,7 @@ def sweep_command(
         document = read_config(config, overrides)
         cfg = document.validate()
         axes = axes_from(specs, cfg.sweep.vary, document)
+        check_sets(axes, overrides, "--vary" if specs else "the config's sweep.vary")
         if results is not None:
             check_target(results, force=force)
         properties = swept_properties(cfg, axes)
