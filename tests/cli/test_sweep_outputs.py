@@ -16,6 +16,7 @@ from click.testing import Result
 from tests.cli.terminal import run_in_terminal
 from tests.sweep.helpers import SMALL_FARM as TINY
 from tests.sweep.helpers import TWO_POINTS, run
+from veribattery.cli.files import FIGURE_SUFFIXES
 
 SMALL_FARM = tuple(arg for item in TINY for arg in ("--set", item))
 
@@ -140,6 +141,18 @@ def test_a_folder_as_results_says_so(config: str, tmp_path: Path) -> None:
                  f"-o {folder}: is a folder; name a results file (.csv, .jsonl or .parquet) "
                  "in it")
     assert [p.name for p in tmp_path.iterdir()] == ["mission.yaml"]
+
+
+@pytest.mark.parametrize("name", ["x.csv", "x.gif", "x"])
+def test_plot_file_types_are_every_commands(config: str, tmp_path: Path, name: str) -> None:
+    """sweep listed matplotlib's own types (.avif, .gif, .raw, .rgba, ...) and quoted the
+    path, unlike every other command's --plot."""
+    plot = tmp_path / name
+    kind = f"unsupported file type '{plot.suffix}'" if plot.suffix else "no file type"
+    _refused(run(*_sweep(config, "--plot", str(plot))),
+             f"--plot {plot}: {kind}; name a file ending in "
+             f"{', '.join(FIGURE_SUFFIXES[:-1])} or {FIGURE_SUFFIXES[-1]}")
+    assert not plot.exists()
 
 
 def test_the_refusals_read_whole_in_an_80_column_terminal(config: str, tmp_path: Path) -> None:

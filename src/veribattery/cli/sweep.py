@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from veribattery.cli.files import PathParam, check_output_file
+from veribattery.cli.files import FIGURE_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     err,
     exit_interrupted,
@@ -152,9 +152,11 @@ def _check_plot_options(plot_path: Path | None, plot_property: str | None,
         return
     from veribattery.sweep.plot import check_plot_target
 
+    # The file first, as every command checks a figure (FIGURE_SUFFIXES, one wording);
+    # the library's own check then has only the x key left to refuse.
+    check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
     check_plot_target(plot_path, x_key, [axis.key for axis in axes], property=plot_property,
                       properties=properties)
-    check_output_file(plot_path, "--plot", force=force)
 
 
 def run_with_progress(
