@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from veribattery.cli.files import PathParam, check_output_file
+from veribattery.cli.files import FIGURE_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
     err,
     exit_interrupted,
@@ -59,7 +59,7 @@ def scheduler_address(ctx: click.Context, param: click.Parameter,
 @click.option("--force", is_flag=True,
               help="Start RESULTS afresh even if it holds another sweep's results, and "
               "overwrite an existing --plot file (a rerun that resumes RESULTS redraws the "
-              "--plot it drew without --force).")
+              "--plot it drew, while unchanged since, without --force).")
 @click.option("-j", "--jobs", type=click.IntRange(min=1), default=None,
               help="Worker processes (default: the number of cores; 1: in this process).")
 @click.option("--scheduler", metavar="tcp://HOST:PORT|local", callback=scheduler_address,
@@ -86,12 +86,17 @@ def sweep_command(
     """
     from veribattery.config import read_config
     from veribattery.sweep import any_requirement_fails, axes_from, default_jobs, summary_line
+    from veribattery.sweep.grid import check_sets
+    from veribattery.sweep.store import check_target
     from veribattery.sweep.synthesis_point import swept_properties
 
     with user_errors():
         document = read_config(config, overrides)
         cfg = document.validate()
         axes = axes_from(specs, cfg.sweep.vary, document)
+        check_sets(axes, overrides, "--vary" if specs else "the config's sweep.vary")
+        if results is not None:
+            check_target(results, force=force)
         properties = swept_properties(cfg, axes)
         _check_plot_options(plot_path, plot_property, plot_x, axes, properties,
                             force or _drawn_by(results, plot_path))
@@ -108,13 +113,14 @@ def sweep_command(
 
 
 def _drawn_by(results: Path | None, plot_path: Path | None) -> bool:
-    """Whether the sweep resumed from *results* drew *plot_path* itself: a rerun of the
-    same command then draws it again, where any other existing file needs --force."""
-    from veribattery.sweep.store import drawn_plots
+    """Whether the sweep resumed from *results* drew the existing *plot_path* itself, and
+    it is unchanged since: a rerun of the same command then draws it again, where any
+    other existing file needs --force (one changed since is refused, saying so)."""
+    from veribattery.sweep.plot_record import check_redraw
 
-    if results is None or plot_path is None:
+    if results is None or plot_path is None or not plot_path.is_file():
         return False
-    return plot_path.resolve() in drawn_plots(results)
+    return check_redraw(results, plot_path)
 
 
 def _plot(frame: Any, plot_path: Path, plot_property: str | None, plot_x: str | None,
@@ -122,7 +128,7 @@ def _plot(frame: Any, plot_path: Path, plot_property: str | None, plot_x: str | 
     """Draw the figure, and note it beside *results* as this sweep's own (see
     :func:`_drawn_by`)."""
     from veribattery.sweep import plot_sweep
-    from veribattery.sweep.store import record_plot
+    from veribattery.sweep.plot_record import record_plot
 
     name = plot_property or str(frame["property"].dropna().iloc[0])
     print_written(plot_sweep(frame, plot_x, name, plot_path, properties=properties))
@@ -146,9 +152,11 @@ def _check_plot_options(plot_path: Path | None, plot_property: str | None,
         return
     from veribattery.sweep.plot import check_plot_target
 
+    # The file first, as every command checks a figure (FIGURE_SUFFIXES, one wording);
+    # the library's own check then has only the x key left to refuse.
+    check_output_file(plot_path, "--plot", force=force, suffixes=FIGURE_SUFFIXES)
     check_plot_target(plot_path, x_key, [axis.key for axis in axes], property=plot_property,
                       properties=properties)
-    check_output_file(plot_path, "--plot", force=force)
 
 
 def run_with_progress(

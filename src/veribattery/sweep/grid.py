@@ -27,6 +27,7 @@ __all__ = [
     "Axis",
     "Point",
     "axes_from",
+    "check_sets",
     "grid",
     "parse_axis",
     "point_values",
@@ -101,6 +102,22 @@ def axes_from(specs: Sequence[str], config_vary: Sequence[str],
     if again is not None:
         raise origins[again].error(f"key '{keys[again]}' is varied more than once")
     return axes
+
+
+def check_sets(axes: Sequence[Axis], overrides: Sequence[str], varied_by: str) -> None:
+    """Refuse a ``--set`` of a key the grid varies (or of a key inside it): each point's
+    value would replace it, and the ``--set`` would be dropped without a word.
+
+    :param overrides: the ``--set`` strings, as typed.
+    :param varied_by: what gives the axes, for the message (``--vary``).
+    :raises ConfigError: naming the ``--set`` as typed and the varied key.
+    """
+    for item in overrides:
+        key = item.partition("=")[0].strip()
+        axis = next((a for a in axes if key == a.key or key.startswith(f"{a.key}.")), None)
+        if axis is not None:
+            raise ConfigError(f"--set {item}: {axis.key} is also varied by {varied_by}; "
+                              "drop one")
 
 
 def _config_origin(document: ConfigDocument | None, index: int, spec: str) -> _Origin:

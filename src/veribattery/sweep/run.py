@@ -94,7 +94,8 @@ def run_sweep(
     :param scheduler: a Dask scheduler address ``tcp://HOST:PORT``, or ``"local"``.
     :param results: a ``.csv``, ``.jsonl`` or ``.parquet`` file: rows are appended as
         points finish, and a rerun resumes (the file must belong to this same sweep).
-    :param force: start *results* afresh even if it holds another sweep's rows.
+    :param force: start *results* afresh even if it holds another sweep's rows (or its
+        ``RESULTS.sweep.json`` exists without them).
     :param on_point: called after each point checked.
     :param notes: called with one-line notes (points already done, reuse, executor).
     :raises ConfigError: on invalid configs (naming the point), a bad RESULTS target or
@@ -111,7 +112,7 @@ def run_sweep(
     columns = ["point", *(axis.key for axis in axes), *FIXED_COLUMNS]
     cells = [_cells(point) for point in points]
     if results is not None:
-        check_target(Path(results))
+        check_target(Path(results), force=force)
     parses = ParseCache()  # the reuse keys' parses, and the checks' in this process
     with open_executor(jobs, scheduler, parses) as executor:
         store, earlier = None, {}

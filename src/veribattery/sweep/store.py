@@ -8,7 +8,9 @@ a point again). Parquet cannot be appended to, so a ``.parquet``
 sweep journals its rows to ``RESULTS.partial.jsonl`` and writes the Parquet file
 (atomically) when the sweep ends. When a sweep ends the file is rewritten, atomically,
 in grid order. The sweep's fingerprint is kept beside the results in
-``RESULTS.sweep.json``, with the figures (``sweep --plot``) the sweep has drawn.
+``RESULTS.sweep.json``, with the figures (``sweep --plot``) the sweep has drawn
+(:mod:`~veribattery.sweep.plot_record`). That file is an output too: it is never
+written over a file of the user's without ``--force``.
 """
 
 from __future__ import annotations
@@ -27,7 +29,7 @@ from veribattery.errors import ConfigError
 from veribattery.sweep.fingerprint import SweepFingerprint
 
 __all__ = ["FORMATS", "ResultsFileError", "ResultsStore", "Row", "RowCheck", "check_target",
-           "csv_text", "drawn_plots", "open_results", "read_results", "record_plot"]
+           "csv_text", "fingerprint_file", "open_results", "read_results"]
 
 #: One row: column → value.
 Row = dict[str, object]
@@ -96,53 +98,20 @@ def open_results(
         first line that is not a row this sweep wrote.
     :raises OSError: when the file cannot be written.
     """
-    suffix = _suffix(path)
-    journal = path.with_name(path.name + ".partial.jsonl") if suffix == ".parquet" else path
-    meta = _meta(path)
-    exists = path.exists() or journal.exists()
+    _suffix(path)
+    journal = _journal(path)
+    meta = fingerprint_file(path)
+    exists = _resumable(path)
     try:
         rows = [] if force or not exists else _resume(path, journal, meta, mark, columns, check)
     except ResultsFileError as exc:
-        raise ConfigError(f"-o {str(exc.file)!r}: {exc.problem}; use --force to start afresh, "
+        raise ConfigError(f"-o {exc.file}: {exc.problem}; use --force to start afresh, "
                           "or pick another -o") from None
     _check_writable(path)
     if force or not exists:  # (resumed, it holds this sweep's fingerprint and plots)
         _write_new(meta, mark)
     stream = _reopen(journal, columns) if rows else _create(journal, columns)
     return ResultsStore(path, columns, journal, stream), rows
-
-
-def drawn_plots(path: Path) -> frozenset[Path]:
-    """The figures (``sweep --plot``; resolved paths) that the sweep whose results are
-    *path* has drawn, as :func:`record_plot` noted them in ``RESULTS.sweep.json``: a
-    rerun that resumes the sweep draws them again. Empty when there is no such file.
-
-    A figure is noted relative to the record's folder, so a folder of results and
-    figures moved elsewhere still resumes and redraws (older records, with absolute
-    paths, are read as they are)."""
-    meta = _meta(path)
-    try:
-        plots = json.loads(meta.read_text(encoding="utf-8")).get("plots", [])
-    except (OSError, ValueError, AttributeError):  # (not a JSON object: no plots)
-        return frozenset()
-    folder = meta.parent.resolve()
-    return frozenset((folder / p).resolve() for p in plots if isinstance(p, str))
-
-
-def record_plot(path: Path, plot: Path) -> None:
-    """Note in ``RESULTS.sweep.json`` (*path* the results) that the sweep drew *plot*,
-    relative to that file's folder (see :func:`drawn_plots`).
-
-    A sweep started afresh (a new RESULTS, or ``--force``) forgets the figures noted.
-    """
-    meta = _meta(path)
-    data = json.loads(meta.read_text(encoding="utf-8"))
-    try:
-        noted = os.path.relpath(plot.resolve(), meta.parent.resolve())
-    except ValueError:  # (Windows: on another drive, so only an absolute path names it)
-        noted = str(plot.resolve())
-    data["plots"] = sorted({*data.get("plots", []), Path(noted).as_posix()})
-    write_text(meta, json.dumps(data, indent=2) + "\n")
 
 
 def read_results(path: Path, columns: Sequence[str],
@@ -161,34 +130,72 @@ def read_results(path: Path, columns: Sequence[str],
     return _read_rows(path, columns, check)
 
 
-def check_target(path: Path) -> None:
-    """Check the suffix and that *path* could be written, before any work is done.
+def check_target(path: Path, *, force: bool = False) -> None:
+    """Check *path* as the results of a sweep, before any work is done: a results file
+    whose folder exists and may be written, and a fingerprint file beside it that
+    is not in the way.
 
-    :raises ConfigError: on an unsupported suffix or an unwritable place.
+    :param force: the sweep may start afresh, replacing what is there.
+    :raises ConfigError: on a folder, an unsupported suffix, an unwritable place, or a
+        ``RESULTS.sweep.json`` that is a folder or (unless *force*) that exists without
+        results it fingerprints.
     """
+    if path.is_dir():
+        raise ConfigError(f"-o {path}: is a folder; name a results file "
+                          f"({_choices(FORMATS)}) in it")
     _suffix(path)
     _check_writable(path)
+    _check_meta(path, force=force)
 
 
 def _suffix(path: Path) -> str:
     suffix = path.suffix.lower()
     if suffix not in FORMATS:
-        raise ConfigError(f"-o {str(path)!r}: unsupported results type; use "
-                          + ", ".join(FORMATS))
+        kind = f"unsupported results type '{path.suffix}'" if path.suffix else "no file type"
+        raise ConfigError(f"-o {path}: {kind}; name a file ending in {_choices(FORMATS)}")
     return suffix
+
+
+def _choices(suffixes: Sequence[str]) -> str:
+    return ", ".join(suffixes[:-1]) + " or " + suffixes[-1]
 
 
 def _check_writable(path: Path) -> None:
     folder = path.parent
     if not folder.is_dir():
-        raise ConfigError(f"-o {str(path)!r}: folder {str(folder)!r} does not exist")
+        raise ConfigError(f"-o {path}: folder {folder} does not exist; create it first")
     if path.is_dir():
-        raise ConfigError(f"-o {str(path)!r}: is a folder; name a results file "
-                          f"({', '.join(FORMATS)})")
+        raise ConfigError(f"-o {path}: is a folder; name a results file "
+                          f"({_choices(FORMATS)}) in it")
     target = path if path.exists() else folder
     if (not os.access(target, os.W_OK) or not can_create_in(folder)  # the journal, meta
             or (path.exists() and not path.is_file())):
-        raise ConfigError(f"-o {str(path)!r}: cannot write there (read-only or permission denied)")
+        raise ConfigError(f"-o {path}: cannot write there (read-only or permission denied)")
+
+
+def _check_meta(path: Path, *, force: bool) -> None:
+    """The fingerprint file is an output too: never a folder, and overwritten without
+    *force* only by resuming the results it fingerprints (a file of the user's that
+    happens to have its name, or one whose results were deleted, is refused)."""
+    meta = fingerprint_file(path)
+    if meta.is_dir():
+        raise ConfigError(f"-o {path}: {meta}, where the sweep keeps its fingerprint, is a "
+                          "folder; move it away, or choose another name")
+    if meta.exists() and not force and not _resumable(path):
+        raise ConfigError(f"-o {path}: {meta} already exists (and {path} does not); use "
+                          "--force to overwrite it, or choose another name")
+
+
+def _resumable(path: Path) -> bool:
+    """Whether the results *path* (or, for Parquet, its journal) exist to be resumed."""
+    return path.exists() or _journal(path).exists()
+
+
+def _journal(path: Path) -> Path:
+    """Where rows go as points finish: *path* itself, or a journal beside a Parquet file."""
+    if path.suffix.lower() == ".parquet":
+        return path.with_name(path.name + ".partial.jsonl")
+    return path
 
 
 def _resume(
@@ -200,19 +207,21 @@ def _resume(
         theirs = SweepFingerprint.from_json(meta.read_text(encoding="utf-8"))
     except (OSError, ValueError, KeyError, TypeError):
         raise ConfigError(
-            f"-o {str(path)!r} exists and is not the results of a veribattery sweep "
+            f"-o {path} exists and is not the results of a veribattery sweep "
             f"(no readable {meta.name}); use --force to replace it, or pick another -o"
         ) from None
     difference = mark.difference(theirs)
     if difference is not None:
-        raise ConfigError(f"-o {str(path)!r} holds another sweep's results: {difference}; "
+        raise ConfigError(f"-o {path} holds another sweep's results: {difference}; "
                           "use --force to start afresh, or pick another -o")
     rows = _read_parquet(path, columns, check) if journal != path and path.exists() else []
     return rows + _read_rows(journal, columns, check) if journal.exists() else rows
 
 
-def _meta(path: Path) -> Path:
-    """Where the results *path* keep their sweep's fingerprint (and drawn figures)."""
+def fingerprint_file(path: Path) -> Path:
+    """Where the results *path* keep their sweep's fingerprint (and, as
+    :mod:`~veribattery.sweep.plot_record` notes them, the figures drawn):
+    ``RESULTS.sweep.json``."""
     return path.with_name(path.name + ".sweep.json")
 
 
