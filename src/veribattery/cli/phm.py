@@ -31,7 +31,7 @@ from veribattery.cli.phm_output import (
     print_recheck,
 )
 from veribattery.cli.progress import PlainProgress
-from veribattery.errors import OptionError
+from veribattery.errors import ConfigError, OptionError
 
 if TYPE_CHECKING:
     from fractions import Fraction
@@ -40,7 +40,7 @@ if TYPE_CHECKING:
     from veribattery.phm.data import CycleLog, DischargeCurve
     from veribattery.phm.forecast import Forecast
     from veribattery.phm.levels import StepFit
-    from veribattery.phm.refit import BeyondDataError, FadeParameters
+    from veribattery.phm.refit import BeyondDataError, FadeParameters, RechargeCapError
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -112,14 +112,34 @@ def _too_far(option: str, typed: str, exc: BeyondDataError,
 
 
 def _fade_at(log: CycleLog, cfg: MissionConfig, cycle: float | None, model: str | None,
-             typed: str | None) -> FadeParameters:
-    """:func:`fade_parameters`, a cycle too far ahead blamed on --at-cycle."""
-    from veribattery.phm.refit import BeyondDataError, fade_parameters
+             typed: str | None, source: Path | None) -> FadeParameters:
+    """:func:`fade_parameters`, a cycle too far ahead blamed on --at-cycle, and a clash
+    with battery.max_recharges on that key of *source* (the config read, None: the
+    paper's), to be set in the file: fade has no --set."""
+    from veribattery.phm.refit import BeyondDataError, RechargeCapError, fade_parameters
 
     try:
         return fade_parameters(log, cfg, cycle, model)
     except BeyondDataError as exc:
         raise _too_far("--at-cycle", typed or "", exc, exc.last + exc.ahead) from None
+    except RechargeCapError as exc:
+        setting = f"battery.max_recharges: {exc.largest}"
+        remedy = (f"set {setting} or less in {source}" if source is not None else
+                  f"give --config (or --write) a config with {setting} or less (without "
+                  "them, the paper's config is used)")
+        raise _recharge_cap(cfg, exc, remedy) from None
+
+
+def _recharge_cap(cfg: MissionConfig, exc: RechargeCapError, remedy: str) -> ConfigError:
+    """*exc* placed on battery.max_recharges where *cfg* got it (its --set, its line in
+    the file), rather than on a row of the log: the key is what to change."""
+    return cfg.key_error(("battery.max_recharges", f"{exc.problem}; {remedy}"))
+
+
+def _set_remedy(exc: RechargeCapError) -> str:
+    """How recheck and forecast, which take --set, fix a clash with battery.max_recharges."""
+    return (f"battery.max_recharges must be at most {exc.largest}, e.g. "
+            f"--set battery.max_recharges={exc.largest}")
 
 
 def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
@@ -199,7 +219,7 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
         cycle = _at_cycle(at_cycle)
         cfg = _base_config(config, write)
         log = read_cycles(cycles)
-        params = _fade_at(log, cfg, cycle, model, at_cycle)
+        params = _fade_at(log, cfg, cycle, model, at_cycle, write or config)
         merged = _merged(write, params.fragment.values, "fade", cycles)
         if plot_path is not None:
             from veribattery.phm.plot import plot_fade
@@ -370,7 +390,7 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
         if time_property:
             _check_property(cfg, config, f"--time-property {time_property}", time_property)
         log = read_cycles(cycles_path)
-        result = _forecast(config, log, req, (horizon, step or max(1, horizon // 10)),
+        result = _forecast(config, cfg, log, req, (horizon, step or max(1, horizon // 10)),
                            overrides, model)
         if plot_path is not None:
             from veribattery.phm.plot import plot_forecast
@@ -390,12 +410,13 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     print_files(plot_path)
 
 
-def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, int],
-              overrides: tuple[str, ...], model: str | None) -> Forecast:
+def _forecast(config: Path, cfg: MissionConfig, log: CycleLog, req: Requirement,
+              ages: tuple[int, int], overrides: tuple[str, ...], model: str | None
+              ) -> Forecast:
     """:func:`forecast` over (horizon, step), showing the age checked on stderr; an age
-    too far ahead blamed on --horizon."""
+    too far ahead blamed on --horizon, a clash now on *cfg*'s battery.max_recharges."""
     from veribattery.phm.forecast import forecast
-    from veribattery.phm.refit import BeyondDataError
+    from veribattery.phm.refit import BeyondDataError, RechargeCapError
 
     horizon, step = ages
     try:
@@ -404,6 +425,8 @@ def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, in
                             None if progress is None else _age_stage(progress))
     except BeyondDataError as exc:
         raise _too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
+    except RechargeCapError as exc:
+        raise _recharge_cap(cfg, exc, _set_remedy(exc)) from None
 
 
 def _age_stage(progress: LiveStatus | PlainProgress) -> Callable[[int, int, float], None]:
@@ -460,9 +483,16 @@ def recheck_command(config: Path, cycles_path: str, discharge_path: str | None,
                     model: str | None, overrides: tuple[str, ...], output_format: str) -> None:
     """Refit the battery from the newest data and re-verify CONFIG; exit 1 on a regression."""
     from veribattery.phm.recheck import recheck
+    from veribattery.phm.refit import RechargeCapError
 
     with user_errors():
-        result = recheck(config, cycles_path, discharge_path, overrides, model)
+        try:
+            result = recheck(config, cycles_path, discharge_path, overrides, model)
+        except RechargeCapError as exc:
+            from veribattery.config import load_config
+
+            cfg = load_config(config, overrides)  # loaded before: it loads
+            raise _recharge_cap(cfg, exc, _set_remedy(exc)) from None
     from veribattery.phm.documents import recheck_document
 
     print_warnings(result.after.warnings)
