@@ -8,9 +8,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner, Result
 
+from tests.phm.helpers import EXAMPLES
 from veribattery.cli import cli
 
-SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=2", "--set", "farm.base=[0,0]")
+SMALL = ("--set", "farm.cols=3", "--set", "farm.rows=3", "--set", "farm.base=[0,0]")
 #: Fades 0.0108/recharge: 200 recharges (the paper's cap) would empty the battery.
 STEEP = "cycle,capacity_ah\n1,9.5\n2,9.4\n3,9.3\n"
 CLASH = ("battery.max_recharges: 200 recharges x the fitted fade 0.0108/recharge >= 1, so "
@@ -83,3 +84,35 @@ def test_forecast_clash_names_the_set_that_gave_the_key(steep: Path, config: Pat
     assert line.endswith("; battery.max_recharges must be at most 92, e.g. "
                          "--set battery.max_recharges=92")
 
+
+
+def _forecast(tmp_path: Path, *extra: str) -> Result:
+    config = tmp_path / "m.yaml"
+    config.write_text("battery:\n  capacity_ah: 11\n  max_recharges: 50\n")
+    log = tmp_path / "c.csv"
+    log.write_text("cycle,capacity_ah\n" + "".join(
+        f"{c},{8.6 - 0.032 * c!r}\n" for c in range(0, 51, 5)))
+    return run("phm", "forecast", str(config), "--cycles", str(log), *SMALL, *extra)
+
+
+def test_forecast_exits_1_when_the_requirement_already_fails(tmp_path: Path) -> None:
+    """'p_success >= 0.99 already fails now (cycle 30)' exited 0: a failing requirement
+    exits 1, as in every command."""
+    config = tmp_path / "small.yaml"
+    config.write_text("farm:\n  cols: 3\n  rows: 2\n  base: [0, 0]\n"
+                      "battery:\n  capacity_ah: 6\n  max_recharges: 8\n")
+    result = run("phm", "forecast", str(config), "--cycles", str(EXAMPLES / "cycles.csv"),
+                 "--horizon", "20", "--step", "10")
+    assert result.exit_code == 1, result.output
+    assert result.stdout.endswith("p_success >= 0.99 already fails now (cycle 30)\n")
+
+
+@pytest.mark.parametrize(("horizon", "code", "said"), [
+    ("5", 0, "holds at every checked age up to 5 cycles ahead"),
+    ("20", 1, "stops holding after 8 more cycles"),
+])
+def test_forecast_exit_status_follows_the_horizon(tmp_path: Path, horizon: str, code: int,
+                                                  said: str) -> None:
+    result = _forecast(tmp_path, "--horizon", horizon, "--step", "5")
+    assert result.exit_code == code, result.output
+    assert said in result.stdout

@@ -355,7 +355,8 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
         click.echo(str(path))
 
 
-@phm_group.command("forecast", short_help="When does a requirement stop holding?")
+@phm_group.command("forecast",
+                   short_help="When a requirement stops holding; exit 1 within the horizon.")
 @click.argument("config", type=PathParam(path_type=Path))
 @click.option("--cycles", "cycles_path", type=PathParam(), required=True,
               help="Capacity log (cycle,capacity_ah).")
@@ -377,7 +378,11 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
                      requirement: str, time_property: str, model: str | None,
                      overrides: tuple[str, ...], plot_path: Path | None, force: bool,
                      output_format: str) -> None:
-    """P(success) and mission time as the battery ages; when does REQUIRE stop holding?"""
+    """P(success) and mission time as the battery ages; when does REQUIRE stop holding?
+
+    Exits 1 when it fails at an age checked (now or within --horizon), 0 when it holds
+    at every one.
+    """
     from veribattery.config import load_config
     from veribattery.phm.data import read_cycles
 
@@ -408,6 +413,9 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     else:
         print_forecast(result, shown)
     print_files(plot_path)
+    # As a sweep over ages: a requirement failing at any age checked (now or within the
+    # horizon) fails the run, so a nightly job can gate on "holds for the next N cycles".
+    sys.exit(1 if result.fails_after is not None else 0)
 
 
 def _forecast(config: Path, cfg: MissionConfig, log: CycleLog, req: Requirement,
