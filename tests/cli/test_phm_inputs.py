@@ -278,8 +278,8 @@ def test_levels_soc_step_too_fine_for_the_search(step: str) -> None:
     """The best thresholds are searched over m x m grid pairs: 1e-320 overflowed (a
     traceback), 0.0001 took 25 s and gigabytes, 0.000001 asked for 7 TiB."""
     assert_one_error(run("phm", "levels", str(EXAMPLES / "discharge.csv"), "--soc-step", step),
-                     f"a SOC step of {float(step):g} puts more than 2,000 grid points",
-                     "give a coarser step")
+                     f"error: --soc-step {step}: puts more than 2,000 grid points",
+                     "give a step of at least 0.0005")
 
 
 @pytest.mark.parametrize("command", ["levels", "recheck"])

@@ -116,3 +116,33 @@ def test_forecast_exit_status_follows_the_horizon(tmp_path: Path, horizon: str, 
     result = _forecast(tmp_path, "--horizon", horizon, "--step", "5")
     assert result.exit_code == code, result.output
     assert said in result.stdout
+
+
+def test_levels_soc_step_too_fine_names_the_option_and_a_clean_range() -> None:
+    """It blamed the data file, on 'the SOC range 2.22e-16..1' (summation noise)."""
+    line = one_error(run("phm", "levels", str(EXAMPLES / "discharge.csv"),
+                         "--soc-step", "1e-9"))
+    assert line == ("error: --soc-step 1e-9: puts more than 2,000 grid points on the log's SOC "
+                    "range 0..1; give a step of at least 0.0005, e.g. 0.01")
+    assert run("phm", "levels", str(EXAMPLES / "discharge.csv"),
+               "--soc-step", "0.0005").exit_code == 0
+
+
+def test_levels_capacity_too_large_names_the_option() -> None:
+    """--capacity-ah 1e308 left the SOC at 1 throughout, and the error blamed the data:
+    'the SOC range 1..1 spans fewer than 3 points ...; log a longer discharge'."""
+    curve = str(EXAMPLES / "discharge.csv")
+    line = one_error(run("phm", "levels", curve, "--capacity-ah", "1e308"))
+    assert line == ("error: --capacity-ah 1e308: the log delivers 9.431 Ah, only 9.4e-308 of "
+                    "that, so its SOC spans fewer than 3 points of the 0.01 SOC grid; give the "
+                    "battery's full charge (at most 470 Ah for this log), or leave it out to "
+                    "use the 9.431 Ah the log delivers")
+    assert run("phm", "levels", curve, "--capacity-ah", "470").exit_code == 0
+
+
+def test_levels_short_log_still_blames_the_file(tmp_path: Path) -> None:
+    curve = tmp_path / "d.csv"
+    curve.write_text("soc,voltage_v\n1,25\n0.995,24\n0.99,23\n")
+    assert one_error(run("phm", "levels", str(curve))) == (
+        f"error: {curve}: the SOC range 0.99..1 spans fewer than 3 points of the 0.01 SOC "
+        "grid; log a longer discharge")

@@ -40,7 +40,12 @@ if TYPE_CHECKING:
     from veribattery.phm.data import CycleLog, DischargeCurve
     from veribattery.phm.forecast import Forecast
     from veribattery.phm.levels import StepFit
-    from veribattery.phm.refit import BeyondDataError, FadeParameters, RechargeCapError
+    from veribattery.phm.refit import (
+        BeyondDataError,
+        FadeParameters,
+        LevelParameters,
+        RechargeCapError,
+    )
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -261,14 +266,13 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
     one SOC, low below another and medium in between.
     """
     from veribattery.phm.data import read_discharge
-    from veribattery.phm.refit import level_parameters
 
     with user_errors():
         _check_plot(plot_path, force)
         capacity, step = _capacity(capacity_ah), _soc_step(soc_step)
         cfg = _base_config(config, write)
         curve = read_discharge(discharge, capacity)
-        params = level_parameters(curve, cfg, step)
+        params = _levels(curve, cfg, step, capacity_ah, soc_step)
         paper = _config_steps(curve, cfg, step)
         merged = _merged(write, params.fragment.values, "levels", discharge)
         if plot_path is not None:
@@ -285,6 +289,40 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
         print_levels(params, paper)
         print_fragment(params.fragment)
     print_files(plot_path, write)
+
+
+def _levels(curve: DischargeCurve, cfg: MissionConfig, step: Fraction,
+            capacity_ah: str | None, soc_step: str) -> LevelParameters:
+    """:func:`level_parameters`, a SOC grid that does not suit the curve blamed on the
+    option that set it: --soc-step (too fine), --capacity-ah (a SOC range too narrow)."""
+    from veribattery.phm.levels import MAX_GRID, SocGridError
+    from veribattery.phm.refit import level_parameters
+
+    try:
+        return level_parameters(curve, cfg, step)
+    except SocGridError as exc:
+        span = exc.highest - exc.lowest
+        if exc.too_fine:
+            raise OptionError(
+                f"--soc-step {soc_step}: puts more than {MAX_GRID:,} grid points on the log's "
+                f"SOC range {exc.lowest:.3g}..{exc.highest:.3g}; give a step of at least "
+                f"{_two_digits(span / MAX_GRID, up=True):g}, e.g. 0.01") from None
+        if capacity_ah is None or curve.charge_ah is None:
+            raise  # the log is too short for the grid
+        charge = curve.charge_ah
+        raise OptionError(
+            f"--capacity-ah {capacity_ah}: the log delivers {charge:.4g} Ah, only "
+            f"{charge / float(capacity_ah):.2g} of that, so its SOC spans fewer than 3 points "
+            f"of the {float(step):g} SOC grid; give the battery's full charge (at most "
+            f"{_two_digits(charge / (2 * float(step)), up=False):g} Ah for this log), or "
+            f"leave it out to use the {charge:.4g} Ah the log delivers") from None
+
+
+def _two_digits(value: float, up: bool) -> float:
+    """*value* > 0 to two significant digits, rounded up or down: a bound printed
+    rounded to nearest may be just past the values that work."""
+    scale = 10.0 ** (math.floor(math.log10(value)) - 1)
+    return (math.ceil if up else math.floor)(value / scale) * scale
 
 
 def _config_steps(curve: DischargeCurve, cfg: MissionConfig, step: Fraction) -> StepFit | None:
