@@ -146,3 +146,22 @@ def test_levels_short_log_still_blames_the_file(tmp_path: Path) -> None:
     assert one_error(run("phm", "levels", str(curve))) == (
         f"error: {curve}: the SOC range 0.99..1 spans fewer than 3 points of the 0.01 SOC "
         "grid; log a longer discharge")
+
+
+FLAT = "cycle,capacity_ah\n1,9.5\n2,9.5\n3,9.5\n"
+
+
+@pytest.mark.parametrize("command", ["fade", "recheck", "forecast"])
+def test_a_flat_capacity_log_is_said_plainly(tmp_path: Path, config: Path,
+                                            command: str) -> None:
+    """A new battery that has not faded yet got three fits' statistics ('linear:
+    parameters not identifiable (infinite covariance); exponential: ...')."""
+    log = tmp_path / "flat.csv"
+    log.write_text(FLAT)
+    args = {"fade": ["phm", "fade", str(log)],
+            "recheck": ["recheck", str(config), "--cycles", str(log), *SMALL],
+            "forecast": ["phm", "forecast", str(config), "--cycles", str(log), *SMALL]}
+    assert one_error(run(*args[command])) == (
+        f"error: {log}: column 'capacity_ah': capacity does not change over the log (9.5 Ah "
+        "at cycles 1..3); no fade can be fitted yet: log more cycles, and keep the config's "
+        "battery.fade_per_recharge until then")

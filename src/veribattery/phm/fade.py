@@ -321,8 +321,10 @@ KNEE_MIN_POINTS = 6
 def fit_all(log: CycleLog) -> FadeReport:
     """Fit every model that the data supports and rank them by AIC.
 
-    :raises PhmDataError: when no model gives a meaningful fit.
+    :raises PhmDataError: when the capacity does not change over the log, or no model
+        gives a meaningful fit.
     """
+    _check_changes(log)
     fits: list[FadeFit] = []
     skipped: dict[str, str] = {}
     fitters: list[tuple[str, Callable[[CycleLog], FadeFit]]] = [
@@ -341,6 +343,19 @@ def fit_all(log: CycleLog) -> FadeReport:
         raise PhmDataError(f"{log.table.source}: column 'capacity_ah' against 'cycle': "
                            f"no meaningful fade fit ({why})")
     return FadeReport(tuple(sorted(fits, key=lambda f: f.aic)), skipped)
+
+
+def _check_changes(log: CycleLog) -> None:
+    """A new battery's log may not move yet: say so, rather than list three fits that
+    failed on it. A fade of 0 is not fitted: readings that agree say the loss is below
+    what the logger resolves, not that there is none (the model would never age)."""
+    capacity = log.capacity_ah
+    if np.all(capacity == capacity[0]):
+        raise PhmDataError(
+            f"{log.table.source}: column 'capacity_ah': capacity does not change over the log "
+            f"({capacity[0]:g} Ah at cycles {log.cycle[0]:g}..{log.cycle[-1]:g}); no fade can "
+            "be fitted yet: log more cycles, and keep the config's battery.fade_per_recharge "
+            "until then")
 
 
 def _attempt(fitter: Callable[[CycleLog], FadeFit], log: CycleLog) -> tuple[str, FadeFit | None]:
