@@ -165,3 +165,45 @@ def test_a_flat_capacity_log_is_said_plainly(tmp_path: Path, config: Path,
         f"error: {log}: column 'capacity_ah': capacity does not change over the log (9.5 Ah "
         "at cycles 1..3); no fade can be fitted yet: log more cycles, and keep the config's "
         "battery.fade_per_recharge until then")
+
+
+@pytest.mark.parametrize(("option", "remedy"), [
+    ("--cycles", "give the path of the capacity log (cycle,capacity_ah)"),
+    ("--discharge", "give the path of the discharge log (soc,voltage_v or "
+                    "time_s,voltage_v,current_a)"),
+])
+def test_recheck_missing_data_file_names_the_option(tmp_path: Path, config: Path,
+                                                    option: str, remedy: str) -> None:
+    """It said 'cannot read nope.csv: No such file or directory', not which option."""
+    files = {"--cycles": str(EXAMPLES / "cycles.csv"),
+             "--discharge": str(EXAMPLES / "discharge.csv"), option: "nope.csv"}
+    args = [arg for name, path in files.items() for arg in (name, path)]
+    line = one_error(run("recheck", str(config), *args, *SMALL))
+    assert line == f"error: {option} nope.csv: no such file; {remedy}"
+
+
+def test_forecast_missing_cycles_names_the_option(config: Path) -> None:
+    line = one_error(run("phm", "forecast", str(config), "--cycles", "nope.csv", *SMALL))
+    assert line.startswith("error: --cycles nope.csv: no such file; ")
+
+
+@pytest.mark.parametrize("command", ["fade", "levels"])
+def test_write_to_a_missing_config_says_to_create_it(tmp_path: Path, command: str,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """It said "cannot read config 'new.yaml'": neither --write nor that it must exist."""
+    monkeypatch.chdir(tmp_path)
+    data = EXAMPLES / ("cycles.csv" if command == "fade" else "discharge.csv")
+    line = one_error(run("phm", command, str(data), "--write", "new.yaml"))
+    assert line == ("error: --write new.yaml: no such file; --write merges into an existing "
+                    "config: create it first (an empty file is the paper's config), or leave "
+                    "--write out and paste the fragment printed")
+    assert not (tmp_path / "new.yaml").exists()
+    (tmp_path / "new.yaml").write_text("")
+    assert run("phm", command, str(data), "--write", "new.yaml").exit_code == 0
+
+
+def test_fade_missing_config_names_the_option(tmp_path: Path) -> None:
+    line = one_error(run("phm", "fade", str(EXAMPLES / "cycles.csv"),
+                         "--config", str(tmp_path / "none.yaml")))
+    assert line == (f"error: --config {tmp_path / 'none.yaml'}: no such file; give an existing "
+                    "config (leave --config out for the paper's)")

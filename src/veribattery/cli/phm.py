@@ -155,10 +155,37 @@ def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
     if config is not None and write is not None:
         raise OptionError(f"--config {config} --write {write}: give one of them; --write "
                           "reads the config it merges into, so it is also the config used")
+    _input_file(config, "--config", "give an existing config (leave --config out for "
+                "the paper's)")
+    _input_file(write, "--write", "--write merges into an existing config: create it first "
+                "(an empty file is the paper's config), or leave --write out and paste the "
+                "fragment printed")
     check_output_file(write, "--write", force=True)
     _check_links(write)
     source = write if write is not None else config
     return load_config(source) if source is not None else load_config("")
+
+
+#: What to give an option that names a data file that is not there.
+CYCLES_FILE = "give the path of the capacity log (cycle,capacity_ah)"
+DISCHARGE_FILE = ("give the path of the discharge log (soc,voltage_v or "
+                  "time_s,voltage_v,current_a)")
+
+
+def _input_file(path: str | Path | None, option: str, remedy: str) -> None:
+    """Before any work: *option*'s file must be there and readable, else an error that
+    names the option (the reader's own said only "cannot read FILE")."""
+    import os
+
+    if path is None:
+        return
+    where = Path(path)
+    if where.is_dir():
+        raise OptionError(f"{option} {path}: is a folder; name a file in it")
+    if not where.exists():
+        raise OptionError(f"{option} {path}: no such file; {remedy}")
+    if not os.access(where, os.R_OK):
+        raise OptionError(f"{option} {path}: not readable (permission denied); {remedy}")
 
 
 def _check_links(write: Path | None) -> None:
@@ -427,6 +454,7 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     with user_errors():
         _check_plot(plot_path, force)
         req = _requirement(requirement)
+        _input_file(cycles_path, "--cycles", CYCLES_FILE)
         cfg = load_config(config, overrides)
         _check_property(cfg, config, f"--require {requirement}", req.prop)
         _check_bound(req, cfg.properties, f"--require {requirement}")
@@ -532,6 +560,8 @@ def recheck_command(config: Path, cycles_path: str, discharge_path: str | None,
     from veribattery.phm.refit import RechargeCapError
 
     with user_errors():
+        _input_file(cycles_path, "--cycles", CYCLES_FILE)
+        _input_file(discharge_path, "--discharge", DISCHARGE_FILE)
         try:
             result = recheck(config, cycles_path, discharge_path, overrides, model)
         except RechargeCapError as exc:
