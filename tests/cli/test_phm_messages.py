@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner, Result
 
+from tests.cli.terminal import run_in_terminal
 from tests.phm.helpers import EXAMPLES
 from veribattery.cli import cli
 
@@ -207,3 +208,29 @@ def test_fade_missing_config_names_the_option(tmp_path: Path) -> None:
                          "--config", str(tmp_path / "none.yaml")))
     assert line == (f"error: --config {tmp_path / 'none.yaml'}: no such file; give an existing "
                     "config (leave --config out for the paper's)")
+
+
+def _items(lines: tuple[str, ...], first: str, last: str) -> list[str]:
+    """The screen lines from the one starting with *first* up to the one before *last*."""
+    start = next(i for i, line in enumerate(lines) if line.startswith(first))
+    end = next(i for i, line in enumerate(lines) if i > start and line.startswith(last))
+    return list(lines[start:end])
+
+
+def test_fade_items_keep_their_indent_when_wrapped(tmp_path: Path) -> None:
+    """At 80 columns 'b2=0.0013788, nk=18' continued the knee's item in column 0."""
+    screen = run_in_terminal(["phm", "fade", str(EXAMPLES / "cycles.csv")], 80, tmp_path)
+    assert screen.status == 0, screen.text
+    items = _items(screen.lines, "  knee: ", "choice: ")
+    assert items[1] == "    b2=0.0013788, nk=18"
+    assert all(line.startswith("  ") and len(line) <= 80 for line in items)
+
+
+def test_recheck_items_keep_their_indent_when_wrapped(tmp_path: Path) -> None:
+    screen = run_in_terminal(["recheck", str(EXAMPLES / "mission.yaml"), "--cycles",
+                              str(EXAMPLES / "cycles.csv"), "--discharge",
+                              str(EXAMPLES / "discharge.csv"), *SMALL], 60, tmp_path)
+    assert screen.status in (0, 1), screen.text
+    items = _items(screen.lines, "  battery.capacity_ah: ", "property ")
+    assert any(line.startswith("    ") for line in items)  # some did wrap, at 60
+    assert all(line.startswith("  ") and len(line) <= 60 for line in items)

@@ -19,7 +19,7 @@ from veribattery.cli.output import (
     out,
     print_written,
 )
-from veribattery.cli.tables import print_table
+from veribattery.cli.tables import fit_text, print_table
 
 if TYPE_CHECKING:
     from veribattery.phm.fade import FadeReport
@@ -83,10 +83,20 @@ def print_fits(report: FadeReport) -> None:
     print_table(("model", "AIC", "RMSE (Ah)", "max |resid| (Ah)"), rows)
     for fit in report.fits:
         values = ", ".join(f"{k}={v:.6g}" for k, v in fit.params.items())
-        out.print(f"  {fit.name}: {fit.formula}; {values}", markup=False)
+        _item(f"{fit.name}: {fit.formula}; {values}")
     for name, why in report.skipped.items():
-        out.print(f"  {name}: not used ({why})", style="dim", markup=False)
+        _item(f"{name}: not used ({why})", style="dim")
     out.print(f"choice: {report.explanation()}", markup=False)
+
+
+def _item(text: str, style: str | None = None) -> None:
+    """*text* as an item of a list, indented by 2. On a terminal, where long lines wrap,
+    its continuation lines are indented by 4: rich wrapped them to column 0, where they
+    read as lines of their own. Off a terminal it stays one line, as every message."""
+    line = f"  {text}"
+    if out.is_terminal:
+        line = fit_text(line, out.width, indent="    ")
+    out.print(line, style=style, markup=False)
 
 
 def print_fade(params: FadeParameters) -> None:
@@ -159,9 +169,9 @@ def print_recheck(result: Recheck, document: dict[str, Any]) -> None:
               markup=False)
     for moved in result.moved:
         before = "-" if moved.before is None else _show(moved.before)
-        out.print(f"  {moved.key}: {before} → {_show(moved.after)}", markup=False)
+        _item(f"{moved.key}: {before} → {_show(moved.after)}")
     if not result.moved:
-        out.print("  none", markup=False)
+        _item("none")
     rows = [(str(name), format_value(row["before"]), format_value(row["after"]),
              "" if row["change"] is None else f"{row['change']:+.6g}")
             for name, row in document["properties"].items()]
