@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
+from veribattery.cli import phm_output as said
 from veribattery.cli.files import FIGURE_SUFFIXES, PathParam, check_output_dir, check_output_file
 from veribattery.cli.output import (
     LiveStatus,
@@ -31,7 +32,7 @@ from veribattery.cli.phm_output import (
     print_recheck,
 )
 from veribattery.cli.progress import PlainProgress
-from veribattery.errors import ConfigError, OptionError
+from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
     from fractions import Fraction
@@ -40,12 +41,7 @@ if TYPE_CHECKING:
     from veribattery.phm.data import CycleLog, DischargeCurve
     from veribattery.phm.forecast import Forecast
     from veribattery.phm.levels import StepFit
-    from veribattery.phm.refit import (
-        BeyondDataError,
-        FadeParameters,
-        LevelParameters,
-        RechargeCapError,
-    )
+    from veribattery.phm.refit import FadeParameters, LevelParameters
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -106,16 +102,6 @@ def _capacity(text: str | None) -> float | None:
                    "delivers", lambda value: value > 0)
 
 
-def _too_far(option: str, typed: str, exc: BeyondDataError,
-             largest: float | None) -> OptionError:
-    """*exc* blamed on *option*: it asks for a cycle further ahead than the fit reaches
-    (*largest*: the option's largest value that works; None: no value works)."""
-    works = (f"the largest {option} that works is {largest:.15g}" if largest is not None else
-             "the fit is usable at the log's last cycle only")
-    return OptionError(f"{option} {typed}: too far beyond the log's last cycle {exc.last:g}: "
-                       f"{exc.reason}; {works}")
-
-
 def _fade_at(log: CycleLog, cfg: MissionConfig, cycle: float | None, model: str | None,
              typed: str | None, source: Path | None) -> FadeParameters:
     """:func:`fade_parameters`, a cycle too far ahead blamed on --at-cycle, and a clash
@@ -126,25 +112,9 @@ def _fade_at(log: CycleLog, cfg: MissionConfig, cycle: float | None, model: str 
     try:
         return fade_parameters(log, cfg, cycle, model)
     except BeyondDataError as exc:
-        raise _too_far("--at-cycle", typed or "", exc, exc.last + exc.ahead) from None
+        raise said.too_far("--at-cycle", typed or "", exc, exc.last + exc.ahead) from None
     except RechargeCapError as exc:
-        setting = f"battery.max_recharges: {exc.largest}"
-        remedy = (f"set {setting} or less in {source}" if source is not None else
-                  f"give --config (or --write) a config with {setting} or less (without "
-                  "them, the paper's config is used)")
-        raise _recharge_cap(cfg, exc, remedy) from None
-
-
-def _recharge_cap(cfg: MissionConfig, exc: RechargeCapError, remedy: str) -> ConfigError:
-    """*exc* placed on battery.max_recharges where *cfg* got it (its --set, its line in
-    the file), rather than on a row of the log: the key is what to change."""
-    return cfg.key_error(("battery.max_recharges", f"{exc.problem}; {remedy}"))
-
-
-def _set_remedy(exc: RechargeCapError) -> str:
-    """How recheck and forecast, which take --set, fix a clash with battery.max_recharges."""
-    return (f"battery.max_recharges must be at most {exc.largest}, e.g. "
-            f"--set battery.max_recharges={exc.largest}")
+        raise said.recharge_cap_error(cfg, exc, said.file_remedy(exc, source)) from None
 
 
 def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
@@ -155,50 +125,12 @@ def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
     if config is not None and write is not None:
         raise OptionError(f"--config {config} --write {write}: give one of them; --write "
                           "reads the config it merges into, so it is also the config used")
-    _input_file(config, "--config", "give an existing config (leave --config out for "
-                "the paper's)")
-    _input_file(write, "--write", "--write merges into an existing config: create it first "
-                "(an empty file is the paper's config), or leave --write out and paste the "
-                "fragment printed")
+    said.check_input_file(config, "--config", said.CONFIG_REMEDY)
+    said.check_input_file(write, "--write", said.WRITE_REMEDY)
     check_output_file(write, "--write", force=True)
-    _check_links(write)
+    said.check_links(write)
     source = write if write is not None else config
     return load_config(source) if source is not None else load_config("")
-
-
-#: What to give an option that names a data file that is not there.
-CYCLES_FILE = "give the path of the capacity log (cycle,capacity_ah)"
-DISCHARGE_FILE = ("give the path of the discharge log (soc,voltage_v or "
-                  "time_s,voltage_v,current_a)")
-
-
-def _input_file(path: str | Path | None, option: str, remedy: str) -> None:
-    """Before any work: *option*'s file must be there and readable, else an error that
-    names the option (the reader's own said only "cannot read FILE")."""
-    import os
-
-    if path is None:
-        return
-    where = Path(path)
-    if where.is_dir():
-        raise OptionError(f"{option} {path}: is a folder; name a file in it")
-    if not where.exists():
-        raise OptionError(f"{option} {path}: no such file; {remedy}")
-    if not os.access(where, os.R_OK):
-        raise OptionError(f"{option} {path}: not readable (permission denied); {remedy}")
-
-
-def _check_links(write: Path | None) -> None:
-    """Before any work: --write replaces the file by a new one (all or nothing), which
-    would split a file with several hard links (the other names keep the old config)."""
-    from veribattery.phm.merge import hard_links
-
-    links = 0 if write is None else hard_links(write)
-    if links > 1:
-        raise OptionError(f"--write {write}: the file has {links} hard links, and --write "
-                          "replaces it by a new file, which would split them; give a file "
-                          "with one name (a symbolic link to it is followed), or merge the "
-                          "fragment by hand")
 
 
 def _merged(write: Path | None, values: dict[str, object], command: str,
@@ -322,34 +254,16 @@ def _levels(curve: DischargeCurve, cfg: MissionConfig, step: Fraction,
             capacity_ah: str | None, soc_step: str) -> LevelParameters:
     """:func:`level_parameters`, a SOC grid that does not suit the curve blamed on the
     option that set it: --soc-step (too fine), --capacity-ah (a SOC range too narrow)."""
-    from veribattery.phm.levels import MAX_GRID, SocGridError
+    from veribattery.phm.levels import SocGridError
     from veribattery.phm.refit import level_parameters
 
     try:
         return level_parameters(curve, cfg, step)
     except SocGridError as exc:
-        span = exc.highest - exc.lowest
-        if exc.too_fine:
-            raise OptionError(
-                f"--soc-step {soc_step}: puts more than {MAX_GRID:,} grid points on the log's "
-                f"SOC range {exc.lowest:.3g}..{exc.highest:.3g}; give a step of at least "
-                f"{_two_digits(span / MAX_GRID, up=True):g}, e.g. 0.01") from None
-        if capacity_ah is None or curve.charge_ah is None:
+        blamed = said.soc_grid_error(exc, curve.charge_ah, capacity_ah, soc_step)
+        if blamed is None:
             raise  # the log is too short for the grid
-        charge = curve.charge_ah
-        raise OptionError(
-            f"--capacity-ah {capacity_ah}: the log delivers {charge:.4g} Ah, only "
-            f"{charge / float(capacity_ah):.2g} of that, so its SOC spans fewer than 3 points "
-            f"of the {float(step):g} SOC grid; give the battery's full charge (at most "
-            f"{_two_digits(charge / (2 * float(step)), up=False):g} Ah for this log), or "
-            f"leave it out to use the {charge:.4g} Ah the log delivers") from None
-
-
-def _two_digits(value: float, up: bool) -> float:
-    """*value* > 0 to two significant digits, rounded up or down: a bound printed
-    rounded to nearest may be just past the values that work."""
-    scale = 10.0 ** (math.floor(math.log10(value)) - 1)
-    return (math.ceil if up else math.floor)(value / scale) * scale
+        raise blamed from None
 
 
 def _config_steps(curve: DischargeCurve, cfg: MissionConfig, step: Fraction) -> StepFit | None:
@@ -454,7 +368,7 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     with user_errors():
         _check_plot(plot_path, force)
         req = _requirement(requirement)
-        _input_file(cycles_path, "--cycles", CYCLES_FILE)
+        said.check_input_file(cycles_path, "--cycles", said.CYCLES_REMEDY)
         cfg = load_config(config, overrides)
         _check_property(cfg, config, f"--require {requirement}", req.prop)
         _check_bound(req, cfg.properties, f"--require {requirement}")
@@ -498,9 +412,9 @@ def _forecast(config: Path, cfg: MissionConfig, log: CycleLog, req: Requirement,
             return forecast(config, log, req, horizon, step, overrides, model,
                             None if progress is None else _age_stage(progress))
     except BeyondDataError as exc:
-        raise _too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
+        raise said.too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
     except RechargeCapError as exc:
-        raise _recharge_cap(cfg, exc, _set_remedy(exc)) from None
+        raise said.recharge_cap_error(cfg, exc, said.set_remedy(exc)) from None
 
 
 def _age_stage(progress: LiveStatus | PlainProgress) -> Callable[[int, int, float], None]:
@@ -560,15 +474,15 @@ def recheck_command(config: Path, cycles_path: str, discharge_path: str | None,
     from veribattery.phm.refit import RechargeCapError
 
     with user_errors():
-        _input_file(cycles_path, "--cycles", CYCLES_FILE)
-        _input_file(discharge_path, "--discharge", DISCHARGE_FILE)
+        said.check_input_file(cycles_path, "--cycles", said.CYCLES_REMEDY)
+        said.check_input_file(discharge_path, "--discharge", said.DISCHARGE_REMEDY)
         try:
             result = recheck(config, cycles_path, discharge_path, overrides, model)
         except RechargeCapError as exc:
             from veribattery.config import load_config
 
             cfg = load_config(config, overrides)  # loaded before: it loads
-            raise _recharge_cap(cfg, exc, _set_remedy(exc)) from None
+            raise said.recharge_cap_error(cfg, exc, said.set_remedy(exc)) from None
     from veribattery.phm.documents import recheck_document
 
     print_warnings(result.after.warnings)
