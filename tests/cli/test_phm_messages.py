@@ -234,3 +234,17 @@ def test_recheck_items_keep_their_indent_when_wrapped(tmp_path: Path) -> None:
     items = _items(screen.lines, "  battery.capacity_ah: ", "property ")
     assert any(line.startswith("    ") for line in items)  # some did wrap, at 60
     assert all(line.startswith("  ") and len(line) <= 60 for line in items)
+
+
+def test_the_docs_recheck_example_is_what_the_command_prints(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The page showed 3 of the 16 moved parameters and no header, with a comment
+    after a line; it now shows the whole output, and this keeps it so."""
+    command = ("veribattery recheck examples/phm/mission.yaml --cycles "
+               "examples/phm/cycles.csv --discharge examples/phm/discharge.csv")
+    doc = (EXAMPLES.parents[1] / "docs" / "commands" / "phm.md").read_text()
+    shown = doc.split(f"  $ {command}\n", 1)[1].split("  ```", 1)[0].splitlines()
+    monkeypatch.chdir(EXAMPLES.parents[1])
+    result = run(*command.split()[1:])
+    assert result.exit_code == 1, result.output
+    assert [line[2:] for line in shown] == result.stdout.splitlines()
