@@ -10,7 +10,8 @@ import veribattery.phm as phm
 
 EXPECTED = {
     "AgePoint", "BeyondDataError", "CycleLog", "DischargeCurve", "FadeFit", "FadeParameters",
-    "FadeReport", "Forecast", "Fragment", "LevelParameters", "PhmDataError", "Recheck", "Refit",
+    "FadeReport", "Forecast", "Fragment", "LevelParameters", "PhmDataError", "RechargeCapError",
+    "Recheck", "Refit",
     "StepFit",
     "coulomb_count", "eq2_table", "fade_parameters", "fit_all", "fit_steps", "forecast",
     "level_parameters", "merge_text", "read_cycles", "read_discharge", "recheck", "refit",

@@ -134,8 +134,30 @@ def test_fit_with_capacity_rising_at_cycle_is_refused(tmp_path: Path) -> None:
 def test_knee_fit_direct(tmp_path: Path) -> None:
     n = np.arange(0, 101, 4.0)
     fit = fit_knee(_log(tmp_path, n, knee_curve(n, 5.0, 0.001, 0.01, 50.0)))  # type: ignore[arg-type]
-    assert fit.params["nk"] == pytest.approx(50.0, abs=1.0)
-    assert fit.rmse < 1e-6
+    # Between logged cycles (48, 52) the knee is where the two phases' lines cross: exact.
+    assert fit.params["nk"] == pytest.approx(50.0, rel=1e-9)
+    assert fit.rmse < 1e-9
+
+
+def test_knee_on_a_logged_cycle_is_found_exactly() -> None:
+    """The example's least squares have a kink at the knee, cycle 18: curve_fit stopped at
+    18.01 (or 17.98, 18.0015, ... by start), and the interval's 4th digit with it."""
+    log = read_cycles(EXAMPLES / "cycles.csv")
+    fit = fit_knee(log)
+    assert fit.params["nk"] == 18.0
+    sse = float(fit.residuals @ fit.residuals)
+    for nk in (17.9999, 18.0001, 17.5, 19.05):  # 19.05: the next-best local minimum
+        moved = knee_curve(log.cycle, *_relinear(log.cycle, log.capacity_ah, nk), nk)
+        assert sse < float(np.sum((log.capacity_ah - moved) ** 2))
+    low, high = fit.fade_interval(30.0)
+    assert (f"{low:.4g}", f"{high:.4g}") == ("0.0001447", "0.0001453")
+
+
+def _relinear(n: np.ndarray, y: np.ndarray, nk: float) -> tuple[float, float, float]:
+    """The best a, b1, b2 for a knee at *nk* (they are linear)."""
+    design = np.column_stack([np.ones_like(n), -np.minimum(n, nk), -np.maximum(n - nk, 0.0)])
+    a, b1, b2 = np.linalg.lstsq(design, y, rcond=None)[0]
+    return float(a), float(b1), float(b2)
 
 
 def test_extrapolation_to_no_capacity_is_refused(tmp_path: Path) -> None:

@@ -11,9 +11,10 @@ import pytest
 from tests.phm.helpers import EXAMPLES, cycles_csv
 from veribattery.config import load_config, parse_requirement
 from veribattery.mission import check_mission
-from veribattery.phm.data import PhmDataError, read_cycles
+from veribattery.phm.data import read_cycles
 from veribattery.phm.forecast import forecast, grid_ages
 from veribattery.phm.recheck import recheck
+from veribattery.phm.refit import RechargeCapError
 
 SMALL = ("farm.cols=3", "farm.rows=3", "farm.base=[0,0]")
 
@@ -108,6 +109,8 @@ def test_fade_too_fast_for_max_recharges(tmp_path: Path) -> None:
     log = cycles_csv(tmp_path / "c.csv", cycles, 6.0 - 0.03 * cycles)  # fade 0.01 at 100
     path = tmp_path / "m.yaml"
     path.write_text("battery:\n  max_recharges: 200\n")
-    with pytest.raises(PhmDataError, match=r"c.csv:\d+: row 11, column 'capacity_ah': the "
-                       r"fitted fade 0.01/recharge x battery.max_recharges 200 >= 1"):
+    # The config's key is at fault, not the log's last row (as it was blamed).
+    with pytest.raises(RechargeCapError, match=r"^battery.max_recharges: 200 recharges x the "
+                       r"fitted fade 0.01/recharge >= 1, .*; it must be at most 99$") as caught:
         recheck(path, log, overrides=SMALL)
+    assert (caught.value.max_recharges, caught.value.largest) == (200, 99)

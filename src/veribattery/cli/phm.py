@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 import click
 
+from veribattery.cli import phm_output as said
 from veribattery.cli.files import FIGURE_SUFFIXES, PathParam, check_output_dir, check_output_file
 from veribattery.cli.output import (
     LiveStatus,
@@ -40,7 +41,7 @@ if TYPE_CHECKING:
     from veribattery.phm.data import CycleLog, DischargeCurve
     from veribattery.phm.forecast import Forecast
     from veribattery.phm.levels import StepFit
-    from veribattery.phm.refit import BeyondDataError, FadeParameters
+    from veribattery.phm.refit import FadeParameters, LevelParameters
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -101,25 +102,19 @@ def _capacity(text: str | None) -> float | None:
                    "delivers", lambda value: value > 0)
 
 
-def _too_far(option: str, typed: str, exc: BeyondDataError,
-             largest: float | None) -> OptionError:
-    """*exc* blamed on *option*: it asks for a cycle further ahead than the fit reaches
-    (*largest*: the option's largest value that works; None: no value works)."""
-    works = (f"the largest {option} that works is {largest:.15g}" if largest is not None else
-             "the fit is usable at the log's last cycle only")
-    return OptionError(f"{option} {typed}: too far beyond the log's last cycle {exc.last:g}: "
-                       f"{exc.reason}; {works}")
-
-
 def _fade_at(log: CycleLog, cfg: MissionConfig, cycle: float | None, model: str | None,
-             typed: str | None) -> FadeParameters:
-    """:func:`fade_parameters`, a cycle too far ahead blamed on --at-cycle."""
-    from veribattery.phm.refit import BeyondDataError, fade_parameters
+             typed: str | None, source: Path | None) -> FadeParameters:
+    """:func:`fade_parameters`, a cycle too far ahead blamed on --at-cycle, and a clash
+    with battery.max_recharges on that key of *source* (the config read, None: the
+    paper's), to be set in the file: fade has no --set."""
+    from veribattery.phm.refit import BeyondDataError, RechargeCapError, fade_parameters
 
     try:
         return fade_parameters(log, cfg, cycle, model)
     except BeyondDataError as exc:
-        raise _too_far("--at-cycle", typed or "", exc, exc.last + exc.ahead) from None
+        raise said.too_far("--at-cycle", typed or "", exc, exc.last + exc.ahead) from None
+    except RechargeCapError as exc:
+        raise said.recharge_cap_error(cfg, exc, said.file_remedy(exc, source)) from None
 
 
 def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
@@ -130,23 +125,12 @@ def _base_config(config: Path | None, write: Path | None) -> MissionConfig:
     if config is not None and write is not None:
         raise OptionError(f"--config {config} --write {write}: give one of them; --write "
                           "reads the config it merges into, so it is also the config used")
+    said.check_input_file(config, "--config", said.CONFIG_REMEDY)
+    said.check_input_file(write, "--write", said.WRITE_REMEDY)
     check_output_file(write, "--write", force=True)
-    _check_links(write)
+    said.check_links(write)
     source = write if write is not None else config
     return load_config(source) if source is not None else load_config("")
-
-
-def _check_links(write: Path | None) -> None:
-    """Before any work: --write replaces the file by a new one (all or nothing), which
-    would split a file with several hard links (the other names keep the old config)."""
-    from veribattery.phm.merge import hard_links
-
-    links = 0 if write is None else hard_links(write)
-    if links > 1:
-        raise OptionError(f"--write {write}: the file has {links} hard links, and --write "
-                          "replaces it by a new file, which would split them; give a file "
-                          "with one name (a symbolic link to it is followed), or merge the "
-                          "fragment by hand")
 
 
 def _merged(write: Path | None, values: dict[str, object], command: str,
@@ -199,7 +183,7 @@ def fade_command(cycles: str, at_cycle: str | None, config: Path | None, write: 
         cycle = _at_cycle(at_cycle)
         cfg = _base_config(config, write)
         log = read_cycles(cycles)
-        params = _fade_at(log, cfg, cycle, model, at_cycle)
+        params = _fade_at(log, cfg, cycle, model, at_cycle, write or config)
         merged = _merged(write, params.fragment.values, "fade", cycles)
         if plot_path is not None:
             from veribattery.phm.plot import plot_fade
@@ -241,14 +225,13 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
     one SOC, low below another and medium in between.
     """
     from veribattery.phm.data import read_discharge
-    from veribattery.phm.refit import level_parameters
 
     with user_errors():
         _check_plot(plot_path, force)
         capacity, step = _capacity(capacity_ah), _soc_step(soc_step)
         cfg = _base_config(config, write)
         curve = read_discharge(discharge, capacity)
-        params = level_parameters(curve, cfg, step)
+        params = _levels(curve, cfg, step, capacity_ah, soc_step)
         paper = _config_steps(curve, cfg, step)
         merged = _merged(write, params.fragment.values, "levels", discharge)
         if plot_path is not None:
@@ -265,6 +248,22 @@ def levels_command(discharge: str, capacity_ah: str | None, soc_step: str,
         print_levels(params, paper)
         print_fragment(params.fragment)
     print_files(plot_path, write)
+
+
+def _levels(curve: DischargeCurve, cfg: MissionConfig, step: Fraction,
+            capacity_ah: str | None, soc_step: str) -> LevelParameters:
+    """:func:`level_parameters`, a SOC grid that does not suit the curve blamed on the
+    option that set it: --soc-step (too fine), --capacity-ah (a SOC range too narrow)."""
+    from veribattery.phm.levels import SocGridError
+    from veribattery.phm.refit import level_parameters
+
+    try:
+        return level_parameters(curve, cfg, step)
+    except SocGridError as exc:
+        blamed = said.soc_grid_error(exc, curve.charge_ah, capacity_ah, soc_step)
+        if blamed is None:
+            raise  # the log is too short for the grid
+        raise blamed from None
 
 
 def _config_steps(curve: DischargeCurve, cfg: MissionConfig, step: Fraction) -> StepFit | None:
@@ -335,7 +334,8 @@ def simulate_command(parameter_set: str, power_w: float, cells_series: int,
         click.echo(str(path))
 
 
-@phm_group.command("forecast", short_help="When does a requirement stop holding?")
+@phm_group.command("forecast",
+                   short_help="When a requirement stops holding; exit 1 within the horizon.")
 @click.argument("config", type=PathParam(path_type=Path))
 @click.option("--cycles", "cycles_path", type=PathParam(), required=True,
               help="Capacity log (cycle,capacity_ah).")
@@ -357,20 +357,25 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
                      requirement: str, time_property: str, model: str | None,
                      overrides: tuple[str, ...], plot_path: Path | None, force: bool,
                      output_format: str) -> None:
-    """P(success) and mission time as the battery ages; when does REQUIRE stop holding?"""
+    """P(success) and mission time as the battery ages; when does REQUIRE stop holding?
+
+    Exits 1 when it fails at an age checked (now or within --horizon), 0 when it holds
+    at every one.
+    """
     from veribattery.config import load_config
     from veribattery.phm.data import read_cycles
 
     with user_errors():
         _check_plot(plot_path, force)
         req = _requirement(requirement)
+        said.check_input_file(cycles_path, "--cycles", said.CYCLES_REMEDY)
         cfg = load_config(config, overrides)
         _check_property(cfg, config, f"--require {requirement}", req.prop)
         _check_bound(req, cfg.properties, f"--require {requirement}")
         if time_property:
             _check_property(cfg, config, f"--time-property {time_property}", time_property)
         log = read_cycles(cycles_path)
-        result = _forecast(config, log, req, (horizon, step or max(1, horizon // 10)),
+        result = _forecast(config, cfg, log, req, (horizon, step or max(1, horizon // 10)),
                            overrides, model)
         if plot_path is not None:
             from veribattery.phm.plot import plot_forecast
@@ -388,14 +393,18 @@ def forecast_command(config: Path, cycles_path: str, horizon: int, step: int | N
     else:
         print_forecast(result, shown)
     print_files(plot_path)
+    # As a sweep over ages: a requirement failing at any age checked (now or within the
+    # horizon) fails the run, so a nightly job can gate on "holds for the next N cycles".
+    sys.exit(1 if result.fails_after is not None else 0)
 
 
-def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, int],
-              overrides: tuple[str, ...], model: str | None) -> Forecast:
+def _forecast(config: Path, cfg: MissionConfig, log: CycleLog, req: Requirement,
+              ages: tuple[int, int], overrides: tuple[str, ...], model: str | None
+              ) -> Forecast:
     """:func:`forecast` over (horizon, step), showing the age checked on stderr; an age
-    too far ahead blamed on --horizon."""
+    too far ahead blamed on --horizon, a clash now on *cfg*'s battery.max_recharges."""
     from veribattery.phm.forecast import forecast
-    from veribattery.phm.refit import BeyondDataError
+    from veribattery.phm.refit import BeyondDataError, RechargeCapError
 
     horizon, step = ages
     try:
@@ -403,7 +412,9 @@ def _forecast(config: Path, log: CycleLog, req: Requirement, ages: tuple[int, in
             return forecast(config, log, req, horizon, step, overrides, model,
                             None if progress is None else _age_stage(progress))
     except BeyondDataError as exc:
-        raise _too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
+        raise said.too_far("--horizon", str(horizon), exc, exc.ahead or None) from None
+    except RechargeCapError as exc:
+        raise said.recharge_cap_error(cfg, exc, said.set_remedy(exc)) from None
 
 
 def _age_stage(progress: LiveStatus | PlainProgress) -> Callable[[int, int, float], None]:
@@ -460,9 +471,18 @@ def recheck_command(config: Path, cycles_path: str, discharge_path: str | None,
                     model: str | None, overrides: tuple[str, ...], output_format: str) -> None:
     """Refit the battery from the newest data and re-verify CONFIG; exit 1 on a regression."""
     from veribattery.phm.recheck import recheck
+    from veribattery.phm.refit import RechargeCapError
 
     with user_errors():
-        result = recheck(config, cycles_path, discharge_path, overrides, model)
+        said.check_input_file(cycles_path, "--cycles", said.CYCLES_REMEDY)
+        said.check_input_file(discharge_path, "--discharge", said.DISCHARGE_REMEDY)
+        try:
+            result = recheck(config, cycles_path, discharge_path, overrides, model)
+        except RechargeCapError as exc:
+            from veribattery.config import load_config
+
+            cfg = load_config(config, overrides)  # loaded before: it loads
+            raise said.recharge_cap_error(cfg, exc, said.set_remedy(exc)) from None
     from veribattery.phm.documents import recheck_document
 
     print_warnings(result.after.warnings)

@@ -1,11 +1,15 @@
 """What the battery prognostics commands print: tables, JSON, CSV and the YAML fragments
-of ``phm fade|levels|forecast`` and ``recheck`` (:mod:`.phm`)."""
+of ``phm fade|levels|forecast`` and ``recheck`` (:mod:`.phm`), and the errors on bad
+input that need more than a sentence: each names the option or key at fault and says
+what works for the command at hand."""
 
 from __future__ import annotations
 
 import csv
 import io
 import json
+import math
+import os
 from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -19,17 +23,32 @@ from veribattery.cli.output import (
     out,
     print_written,
 )
-from veribattery.cli.tables import print_table
+from veribattery.cli.tables import fit_text, print_table
+from veribattery.errors import OptionError
 
 if TYPE_CHECKING:
+    from veribattery.config import MissionConfig
+    from veribattery.errors import ConfigError
     from veribattery.phm.fade import FadeReport
     from veribattery.phm.forecast import Forecast
     from veribattery.phm.fragment import Fragment
-    from veribattery.phm.levels import StepFit
+    from veribattery.phm.levels import SocGridError, StepFit
     from veribattery.phm.recheck import Recheck
-    from veribattery.phm.refit import FadeParameters, LevelParameters
+    from veribattery.phm.refit import (
+        BeyondDataError,
+        FadeParameters,
+        LevelParameters,
+        RechargeCapError,
+    )
 
 __all__ = [
+    "CONFIG_REMEDY",
+    "CYCLES_REMEDY",
+    "DISCHARGE_REMEDY",
+    "WRITE_REMEDY",
+    "check_input_file",
+    "check_links",
+    "file_remedy",
     "files_written",
     "print_fade",
     "print_files",
@@ -40,6 +59,10 @@ __all__ = [
     "print_json",
     "print_levels",
     "print_recheck",
+    "recharge_cap_error",
+    "set_remedy",
+    "soc_grid_error",
+    "too_far",
 ]
 
 
@@ -83,10 +106,20 @@ def print_fits(report: FadeReport) -> None:
     print_table(("model", "AIC", "RMSE (Ah)", "max |resid| (Ah)"), rows)
     for fit in report.fits:
         values = ", ".join(f"{k}={v:.6g}" for k, v in fit.params.items())
-        out.print(f"  {fit.name}: {fit.formula}; {values}", markup=False)
+        _item(f"{fit.name}: {fit.formula}; {values}")
     for name, why in report.skipped.items():
-        out.print(f"  {name}: not used ({why})", style="dim", markup=False)
+        _item(f"{name}: not used ({why})", style="dim")
     out.print(f"choice: {report.explanation()}", markup=False)
+
+
+def _item(text: str, style: str | None = None) -> None:
+    """*text* as an item of a list, indented by 2. On a terminal, where long lines wrap,
+    its continuation lines are indented by 4: rich wrapped them to column 0, where they
+    read as lines of their own. Off a terminal it stays one line, as every message."""
+    line = f"  {text}"
+    if out.is_terminal:
+        line = fit_text(line, out.width, indent="    ")
+    out.print(line, style=style, markup=False)
 
 
 def print_fade(params: FadeParameters) -> None:
@@ -159,9 +192,9 @@ def print_recheck(result: Recheck, document: dict[str, Any]) -> None:
               markup=False)
     for moved in result.moved:
         before = "-" if moved.before is None else _show(moved.before)
-        out.print(f"  {moved.key}: {before} → {_show(moved.after)}", markup=False)
+        _item(f"{moved.key}: {before} → {_show(moved.after)}")
     if not result.moved:
-        out.print("  none", markup=False)
+        _item("none")
     rows = [(str(name), format_value(row["before"]), format_value(row["after"]),
              "" if row["change"] is None else f"{row['change']:+.6g}")
             for name, row in document["properties"].items()]
@@ -191,3 +224,102 @@ def _show(value: object) -> str:
     from veribattery.config.exact import show
 
     return show(value) if isinstance(value, Fraction | str | tuple | list) else str(value)
+
+
+#: What to give an option that names a file that is not there.
+CYCLES_REMEDY = "give the path of the capacity log (cycle,capacity_ah)"
+DISCHARGE_REMEDY = ("give the path of the discharge log (soc,voltage_v or "
+                  "time_s,voltage_v,current_a)")
+CONFIG_REMEDY = "give an existing config (leave --config out for the paper's)"
+WRITE_REMEDY = ("--write merges into an existing config: create it first (an empty file is "
+              "the paper's config), or leave --write out and paste the fragment printed")
+
+
+def check_input_file(path: str | Path | None, option: str, remedy: str) -> None:
+    """Before any work: *option*'s file must be there and readable, else an error that
+    names the option (the reader's own said only "cannot read FILE")."""
+    if path is None:
+        return
+    where = Path(path)
+    if where.is_dir():
+        raise OptionError(f"{option} {path}: is a folder; name a file in it")
+    if not where.exists():
+        raise OptionError(f"{option} {path}: no such file; {remedy}")
+    if not os.access(where, os.R_OK):
+        raise OptionError(f"{option} {path}: not readable (permission denied); {remedy}")
+
+
+def check_links(write: Path | None) -> None:
+    """Before any work: --write replaces the file by a new one (all or nothing), which
+    would split a file with several hard links (the other names keep the old config)."""
+    from veribattery.phm.merge import hard_links
+
+    links = 0 if write is None else hard_links(write)
+    if links > 1:
+        raise OptionError(f"--write {write}: the file has {links} hard links, and --write "
+                          "replaces it by a new file, which would split them; give a file "
+                          "with one name (a symbolic link to it is followed), or merge the "
+                          "fragment by hand")
+
+
+def too_far(option: str, typed: str, exc: BeyondDataError,
+            largest: float | None) -> OptionError:
+    """*exc* blamed on *option*: it asks for a cycle further ahead than the fit reaches
+    (*largest*: the option's largest value that works; None: no value works)."""
+    works = (f"the largest {option} that works is {largest:.15g}" if largest is not None else
+             "the fit is usable at the log's last cycle only")
+    return OptionError(f"{option} {typed}: too far beyond the log's last cycle {exc.last:g}: "
+                       f"{exc.reason}; {works}")
+
+
+def recharge_cap_error(cfg: MissionConfig, exc: RechargeCapError, remedy: str) -> ConfigError:
+    """*exc* placed on battery.max_recharges where *cfg* got it (its --set, its line in
+    the file), rather than on a row of the log: the key is what to change."""
+    return cfg.key_error(("battery.max_recharges", f"{exc.problem}; {remedy}"))
+
+
+def set_remedy(exc: RechargeCapError) -> str:
+    """How recheck and forecast, which take --set, fix a clash with battery.max_recharges."""
+    return (f"battery.max_recharges must be at most {exc.largest}, e.g. "
+            f"--set battery.max_recharges={exc.largest}")
+
+
+def file_remedy(exc: RechargeCapError, source: Path | None) -> str:
+    """How phm fade, which has no --set, fixes it: in its config file *source* (None:
+    the paper's config, used without --config and --write)."""
+    setting = f"battery.max_recharges: {exc.largest}"
+    if source is not None:
+        return f"set {setting} or less in {source}"
+    return (f"give --config (or --write) a config with {setting} or less (without them, "
+            "the paper's config is used)")
+
+
+def soc_grid_error(exc: SocGridError, charge_ah: float | None, capacity_ah: str | None,
+                   soc_step: str) -> OptionError | None:
+    """*exc* blamed on the option that set the grid, as typed: --soc-step when it is too
+    fine, --capacity-ah (when given; *charge_ah*: what the log delivers) when the SOC
+    range is too narrow for it; None when the log itself is at fault."""
+    from veribattery.phm.levels import MAX_GRID
+
+    if exc.too_fine:
+        least = _two_digits((exc.highest - exc.lowest) / MAX_GRID, up=True)
+        return OptionError(
+            f"--soc-step {soc_step}: puts more than {MAX_GRID:,} grid points on the log's SOC "
+            f"range {exc.lowest:.3g}..{exc.highest:.3g}; give a step of at least {least:g}, "
+            "e.g. 0.01")
+    if capacity_ah is None or charge_ah is None:
+        return None
+    step = float(exc.step)
+    return OptionError(
+        f"--capacity-ah {capacity_ah}: the log delivers {charge_ah:.4g} Ah, only "
+        f"{charge_ah / float(capacity_ah):.2g} of that, so its SOC spans fewer than 3 points "
+        f"of the {step:g} SOC grid; give the battery's full charge (at most "
+        f"{_two_digits(charge_ah / (2 * step), up=False):g} Ah for this log), or leave it "
+        f"out to use the {charge_ah:.4g} Ah the log delivers")
+
+
+def _two_digits(value: float, up: bool) -> float:
+    """*value* > 0 to two significant digits, rounded up or down: a bound printed
+    rounded to nearest may be just past the values that work."""
+    scale = 10.0 ** (math.floor(math.log10(value)) - 1)
+    return (math.ceil if up else math.floor)(value / scale) * scale

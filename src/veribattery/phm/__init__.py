@@ -29,6 +29,7 @@ from veribattery.phm.refit import (
     BeyondDataError,
     FadeParameters,
     LevelParameters,
+    RechargeCapError,
     fade_parameters,
     level_parameters,
 )
@@ -45,6 +46,7 @@ __all__ = [
     "Fragment",
     "LevelParameters",
     "PhmDataError",
+    "RechargeCapError",
     "Recheck",
     "Refit",
     "StepFit",

@@ -273,10 +273,15 @@ class DischargeCurve:
 
 def coulomb_count(time_s: FloatArray, current_a: FloatArray, q_max_ah: float) -> FloatArray:
     """Eq. 1: ``SOC(k+1) = SOC(k) - I(k)·Δt / Q_max`` from SOC(0) = 1 (Δt in hours)."""
-    dt_h = np.diff(time_s) / 3600.0
-    drawn = np.concatenate(([0.0], np.cumsum(current_a[:-1] * dt_h)))
-    result: FloatArray = 1.0 - drawn / q_max_ah
+    result: FloatArray = 1.0 - _drawn_ah(time_s, current_a) / q_max_ah
     return result
+
+
+def _drawn_ah(time_s: FloatArray, current_a: FloatArray) -> FloatArray:
+    """Charge drawn up to each row, Ah. The log's total is its last entry, summed the
+    same way: a total summed otherwise ended the default count at SOC 2.2e-16, not 0."""
+    dt_h = np.diff(time_s) / 3600.0
+    return np.concatenate(([0.0], np.cumsum(current_a[:-1] * dt_h)))
 
 
 def read_discharge(path: str | Path, capacity_ah: float | None = None) -> DischargeCurve:
@@ -340,7 +345,7 @@ def _counted_soc(table: Table, capacity_ah: float | None) -> tuple[FloatArray, f
             f"{current[bad[0]]:g} A is negative; a discharge log has current >= 0 (discharging)",
         )
     with np.errstate(over="ignore"):  # an overflow gives inf, refused below
-        drawn = float(np.sum(current[:-1] * np.diff(time_s)) / 3600.0)
+        drawn = float(_drawn_ah(time_s, current)[-1])
     if not math.isfinite(drawn):
         raise table.error(len(table) - 1, "current_a",
                           "the charge drawn over the log is beyond floating point; are "

@@ -141,6 +141,11 @@ def _finish(name: str, formula: str, names: tuple[str, ...], theta: FloatArray,
                    np.asarray(cov, dtype=np.float64), residuals, aic)
 
 
+#: curve_fit's xtol, ftol and gtol. Its defaults (1.5e-8) stop so early that the 4th
+#: printed digit of an interval depended on where the optimiser stopped.
+_TOLERANCE = 1e-14
+
+
 def _curve_fit(name: str, log: CycleLog, start: FloatArray) -> tuple[FloatArray, FloatArray]:
     import warnings
 
@@ -150,7 +155,8 @@ def _curve_fit(name: str, log: CycleLog, start: FloatArray) -> tuple[FloatArray,
     # optimiser itself, and a fit that ends badly is judged afterwards (_attempt).
     with warnings.catch_warnings(), np.errstate(all="ignore"):
         warnings.simplefilter("ignore", OptimizeWarning)
-        theta, cov = curve_fit(_CURVES[name], log.cycle, log.capacity_ah, p0=start, maxfev=20000)
+        theta, cov = curve_fit(_CURVES[name], log.cycle, log.capacity_ah, p0=start,
+                               maxfev=20000, xtol=_TOLERANCE, ftol=_TOLERANCE, gtol=_TOLERANCE)
     return np.asarray(theta, dtype=np.float64), np.asarray(cov, dtype=np.float64)
 
 
@@ -190,17 +196,16 @@ def fit_exponential(log: CycleLog) -> FadeFit:
 def fit_knee(log: CycleLog) -> FadeFit:
     """Two straight lines meeting at the knee cycle ``nk`` (continuous).
 
-    The knee is first located by profiling: for each candidate ``nk`` between the
-    second and the second-to-last logged cycle the remaining parameters are linear and
-    solved exactly; the best candidate starts a joint nonlinear fit for the covariance.
+    For a given ``nk`` the other parameters are linear and solved exactly, so the fit is
+    a search over ``nk`` alone (:func:`_knee_cycle`), which finds the exact optimum: a
+    joint nonlinear fit stalled near a knee on a logged cycle, where the sum of squares
+    has a kink, and the printed interval's 4th digit depended on where it stopped.
     """
-    cycles = log.cycle
-    candidates = np.linspace(cycles[1], cycles[-2], 200)
-    best = min(candidates, key=lambda nk: _knee_sse(log, float(nk))[0])
-    _, (a, b1, b2) = _knee_sse(log, float(best))
-    theta, cov = _curve_fit("knee", log, np.array([a, b1, b2, best]))
+    nk = _knee_cycle(log)
+    _, (a, b1, b2) = _knee_sse(log, nk)
+    theta = np.array([a, b1, b2, nk])
     return _finish("knee", "C(n) = a - b1*min(n, nk) - b2*max(n - nk, 0)",
-                   ("a", "b1", "b2", "nk"), theta, cov, log)
+                   ("a", "b1", "b2", "nk"), theta, _knee_covariance(log, theta), log)
 
 
 def _knee_sse(log: CycleLog, nk: float) -> tuple[float, FloatArray]:
@@ -209,6 +214,70 @@ def _knee_sse(log: CycleLog, nk: float) -> tuple[float, FloatArray]:
     coef, *_ = np.linalg.lstsq(design, log.capacity_ah, rcond=None)
     residual = log.capacity_ah - design @ coef
     return float(residual @ residual), coef
+
+
+def _knee_cycle(log: CycleLog) -> float:
+    """The knee cycle with the least squared error, between the second and the
+    second-to-last logged cycle.
+
+    A coarse profile over 200 candidates brackets it; inside the bracket each interval
+    between logged cycles is solved exactly. There the knee model is two independent
+    lines (the fit on either side) meeting at ``nk``, so the sum of squares has an
+    interior minimum only where the two lines' own least-squares fits cross; else its
+    least is at a logged cycle, where it has a kink.
+    """
+    cycles = log.cycle
+    candidates = np.linspace(cycles[1], cycles[-2], 200)
+    k = int(np.argmin([_knee_sse(log, float(nk))[0] for nk in candidates]))
+    low, high = candidates[max(k - 1, 0)], candidates[min(k + 1, len(candidates) - 1)]
+    found = [float(candidates[k])]
+    for i in range(1, len(cycles) - 2):
+        if cycles[i + 1] < low or cycles[i] > high:
+            continue
+        found += [float(cycles[i]), float(cycles[i + 1])]
+        cross = _crossing(log, i)
+        if cross is not None and cycles[i] < cross < cycles[i + 1]:
+            found.append(cross)
+    return min(sorted(found), key=lambda nk: _knee_sse(log, nk)[0])
+
+
+def _crossing(log: CycleLog, i: int) -> float | None:
+    """Where the least-squares lines through cycles ``[0, i]`` and ``(i, end]`` cross
+    (None when they are parallel)."""
+    shift = log.cycle[i]  # cycles such as 1e15 + k: lines in n - shift keep their digits
+    n, y = log.cycle - shift, log.capacity_ah
+    (p1, q1), (p2, q2) = (np.linalg.lstsq(np.column_stack([np.ones_like(n[part]), n[part]]),
+                                          y[part], rcond=None)[0]
+                          for part in (slice(0, i + 1), slice(i + 1, None)))
+    if q1 == q2:
+        return None
+    return float(shift + (p2 - p1) / (q1 - q2))
+
+
+def _knee_covariance(log: CycleLog, theta: FloatArray) -> FloatArray:
+    """The parameters' covariance as scipy's curve_fit gives it, ``s²·(JᵀJ)⁻¹`` by QR,
+    with the Jacobian exact.
+
+    A knee on a logged cycle counts that cycle to the first phase: the one-sided
+    derivative a forward difference (curve_fit's) takes, rather than a choice that
+    flips with the last bit of ``nk``.
+    """
+    from scipy.linalg import solve_triangular
+
+    a, b1, b2, nk = theta
+    n = log.cycle
+    jac = np.column_stack([np.ones_like(n), -np.minimum(n, nk), -np.maximum(n - nk, 0.0),
+                           (b2 - b1) * (n > nk)])
+    r = np.linalg.qr(jac, mode="r")
+    # Slopes equal to rounding leave the knee anywhere (a straight line): not identifiable.
+    level = abs(b2 - b1) <= 4 * np.finfo(np.float64).eps * max(abs(b1), abs(b2))
+    if level or np.any(np.diag(r) == 0):
+        return np.full((4, 4), np.inf)
+    inverse = solve_triangular(r, np.eye(4))
+    residuals = log.capacity_ah - _knee(n, a, b1, b2, nk)
+    scale = float(residuals @ residuals) / (len(n) - 4)
+    covariance: FloatArray = inverse @ inverse.T * scale
+    return covariance
 
 
 @dataclass(frozen=True, slots=True)
@@ -252,8 +321,10 @@ KNEE_MIN_POINTS = 6
 def fit_all(log: CycleLog) -> FadeReport:
     """Fit every model that the data supports and rank them by AIC.
 
-    :raises PhmDataError: when no model gives a meaningful fit.
+    :raises PhmDataError: when the capacity does not change over the log, or no model
+        gives a meaningful fit.
     """
+    _check_changes(log)
     fits: list[FadeFit] = []
     skipped: dict[str, str] = {}
     fitters: list[tuple[str, Callable[[CycleLog], FadeFit]]] = [
@@ -272,6 +343,19 @@ def fit_all(log: CycleLog) -> FadeReport:
         raise PhmDataError(f"{log.table.source}: column 'capacity_ah' against 'cycle': "
                            f"no meaningful fade fit ({why})")
     return FadeReport(tuple(sorted(fits, key=lambda f: f.aic)), skipped)
+
+
+def _check_changes(log: CycleLog) -> None:
+    """A new battery's log may not move yet: say so, rather than list three fits that
+    failed on it. A fade of 0 is not fitted: readings that agree say the loss is below
+    what the logger resolves, not that there is none (the model would never age)."""
+    capacity = log.capacity_ah
+    if np.all(capacity == capacity[0]):
+        raise PhmDataError(
+            f"{log.table.source}: column 'capacity_ah': capacity does not change over the log "
+            f"({capacity[0]:g} Ah at cycles {log.cycle[0]:g}..{log.cycle[-1]:g}); no fade can "
+            "be fitted yet: log more cycles, and keep the config's battery.fade_per_recharge "
+            "until then")
 
 
 def _attempt(fitter: Callable[[CycleLog], FadeFit], log: CycleLog) -> tuple[str, FadeFit | None]:

@@ -19,7 +19,8 @@ from veribattery._types import FloatArray
 from veribattery.config.battery import round_half_up
 from veribattery.phm.data import DischargeCurve, PhmDataError
 
-__all__ = ["Eq2Inputs", "StepFit", "eq2_table", "fit_steps", "resample", "step_error"]
+__all__ = ["Eq2Inputs", "SocGridError", "StepFit", "eq2_table", "fit_steps", "resample",
+           "step_error"]
 
 LEVELS = ("low", "medium", "high")
 WINDS = ("low_wind", "high_wind")
@@ -28,21 +29,41 @@ WINDS = ("low_wind", "high_wind")
 MAX_GRID = 2000
 
 
+class SocGridError(PhmDataError):
+    """The SOC grid does not suit the curve's SOC range: more points than the search
+    takes (*too_fine*), or fewer than 3. The step, the range or (Coulomb counting) the
+    capacity may be at fault: the caller, who knows which was given, may say so.
+
+    :ivar lowest: the curve's lowest SOC; :ivar highest: its highest.
+    :ivar step: the SOC grid's step.
+    :ivar too_fine: True for too many points, False for too few.
+    """
+
+    def __init__(self, curve: DischargeCurve, step: Fraction, too_fine: bool) -> None:
+        self.lowest, self.highest = float(curve.soc.min()), float(curve.soc.max())
+        self.step, self.too_fine = step, too_fine
+        span = f"the SOC range {self.lowest:.3g}..{self.highest:.3g}"
+        super().__init__(
+            f"{curve.source}: a SOC step of {float(step):g} puts more than {MAX_GRID:,} grid "
+            f"points on {span}; give a coarser step, e.g. 0.01" if too_fine else
+            f"{curve.source}: {span} spans fewer than 3 points of the {float(step):g} SOC "
+            "grid; log a longer discharge")
+
+
 def resample(curve: DischargeCurve, step: Fraction) -> tuple[FloatArray, FloatArray, int]:
     """The curve on the multiples of *step* inside its SOC range, ascending.
 
     :returns: (soc grid, voltage, the grid index of its first point, in units of step).
+    :raises SocGridError: when the grid has more than :data:`MAX_GRID` or fewer than 3
+        points in the curve's SOC range.
     """
     lowest, highest = float(curve.soc.min()), float(curve.soc.max())
     if (highest - lowest) / float(step) > MAX_GRID:  # the best pair is searched in m x m
-        raise PhmDataError(f"{curve.source}: a SOC step of {float(step):g} puts more than "
-                           f"{MAX_GRID:,} grid points on the SOC range {lowest:.3g}.."
-                           f"{highest:.3g}; give a coarser step, e.g. 0.01")
+        raise SocGridError(curve, step, too_fine=True)
     first = int(np.ceil(lowest / float(step) - 1e-9))
     last = int(np.floor(highest / float(step) + 1e-9))
     if last - first < 2:
-        raise PhmDataError(f"{curve.source}: the SOC range {lowest:.3g}..{highest:.3g} spans "
-                           f"fewer than 3 points of the {step} SOC grid; log a longer discharge")
+        raise SocGridError(curve, step, too_fine=False)
     # Each grid point is the float nearest the exact k·step, so it compares with the
     # thresholds (also exact multiples of step) as the rationals do.
     soc = np.array([float(k * step) for k in range(first, last + 1)])

@@ -23,8 +23,8 @@ from veribattery.phm.fade import FadeFit, FadeReport, choose
 from veribattery.phm.fragment import Fragment, decimal, fade_value, on_grid
 from veribattery.phm.levels import LEVELS, WINDS, Eq2Inputs, StepFit, eq2_table, fit_steps
 
-__all__ = ["BeyondDataError", "FadeParameters", "LevelParameters", "eq2_inputs",
-           "fade_parameters", "level_parameters", "parameters_at"]
+__all__ = ["BeyondDataError", "FadeParameters", "LevelParameters", "RechargeCapError",
+           "eq2_inputs", "fade_parameters", "level_parameters", "parameters_at"]
 
 #: Decimal places of a fitted voltage level in the config (10 mV).
 VOLT_PLACES = 2
@@ -77,6 +77,29 @@ class BeyondDataError(PhmDataError):
         self.cycle, self.last, self.ahead, self.reason = cycle, last, ahead, reason
 
 
+class RechargeCapError(PhmDataError):
+    """The fitted fade and the config's ``battery.max_recharges`` clash: after that many
+    recharges the model's capacity would reach zero. The config key is at fault (or the
+    fit), not a cell of the log; each command says how to set the key its own way.
+
+    :ivar fade: the fade per recharge, as it would be written to the config.
+    :ivar max_recharges: the config's ``battery.max_recharges``.
+    :ivar largest: the largest ``battery.max_recharges`` that works with *fade*.
+    """
+
+    def __init__(self, fade: Fraction, max_recharges: int) -> None:
+        self.fade, self.max_recharges = fade, max_recharges
+        self.largest = math.ceil(1 / fade) - 1
+        super().__init__(f"battery.max_recharges: {self.problem}; it must be at most "
+                         f"{self.largest}")
+
+    @property
+    def problem(self) -> str:
+        """What is wrong, without a remedy."""
+        return (f"{self.max_recharges} recharges x the fitted fade {show(self.fade)}/recharge "
+                ">= 1, so the model's capacity would reach zero")
+
+
 def fade_parameters(log: CycleLog, cfg: MissionConfig, at_cycle: float | None = None,
                     model: str | None = None) -> FadeParameters:
     """Fit *log* and read the capacity and fade at *at_cycle* (default: the last cycle).
@@ -99,6 +122,7 @@ def parameters_at(log: CycleLog, report: FadeReport, fit: FadeFit, cfg: MissionC
 
     :raises BeyondDataError: when *cycle* lies past the log, further than *fit* gives
         usable values.
+    :raises RechargeCapError: when the fade at *cycle* x ``battery.max_recharges`` >= 1.
     :raises PhmDataError: when *fit* gives no usable values at *cycle* otherwise, located
         at the logged row nearest to it.
     """
@@ -109,6 +133,8 @@ def parameters_at(log: CycleLog, report: FadeReport, fit: FadeFit, cfg: MissionC
         ahead = _usable_ahead(report, fit, cfg, last, cycle) if cycle > last else None
         if ahead is not None:
             raise BeyondDataError(cycle, last, ahead, str(exc)) from None
+        if isinstance(exc, RechargeCapError):
+            raise  # the config's key, not the log's row, is what to change
         where = log.table.where(int(np.argmin(np.abs(log.cycle - cycle))), "capacity_ah")
         raise PhmDataError(f"{where}: {exc}") from None
 
@@ -194,11 +220,7 @@ def _check_fade(cfg: MissionConfig, fade: float, value: Fraction, grid: Fraction
             f"units of battery.resolution_ah ({show(resolution)}) the model's 32-bit "
             "integers hold no digit of it; raise battery.resolution_ah")
     if value * rc_max >= 1:
-        cap = math.ceil(1 / value)
-        raise PhmDataError(
-            f"the fitted fade {show(value)}/recharge x battery.max_recharges {rc_max} >= 1, "
-            f"so the model's capacity would reach zero; set battery.max_recharges below "
-            f"{cap} (e.g. --set battery.max_recharges={cap - 1})")
+        raise RechargeCapError(value, rc_max)
 
 
 @dataclass(frozen=True, slots=True)
