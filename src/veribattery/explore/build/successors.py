@@ -17,6 +17,7 @@ import numpy as np
 from veribattery._types import FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.branches import BranchLayout, branch_layout, constant_row
+from veribattery.explore.compile.equalities import EqualityIndex
 from veribattery.explore.compile.program import (
     ChoiceGroup,
     CompiledCommand,
@@ -69,7 +70,7 @@ def expand_group(
         choice whose probabilities do not sum to 1.
     """
     if len(group.parts) == 1:
-        return _expand_single(program, group.parts[0], states, bounds)
+        return _expand_single(program, group.parts[0], states, bounds, group.index(0))
     if all(len(part) == 1 for part in group.parts):
         return _expand_one_each(program, [part[0] for part in group.parts], states, bounds)
     return _expand_product(program, group, states, bounds)
@@ -224,18 +225,20 @@ def format_state(names: Sequence[str], row: IntArray) -> str:
 
 
 def _expand_single(
-    program: Program, part: Sequence[CompiledCommand], states: IntArray, bounds: bool = True
+    program: Program, part: Sequence[CompiledCommand], states: IntArray, bounds: bool = True,
+    index: EqualityIndex | None = None,
 ) -> GroupSuccessors | None:
     """Branches in blocks, one per (command, update); the caller orders them by source."""
-    enabled = _guards(part, states)
+    enabled = _guards(part, states, index)
     blocks: list[tuple[IntArray, IntArray, FloatArray]] = []
     commands: list[IntArray] = []
-    for j, command in enumerate(part):
+    # (only the commands enabled somewhere: a part of 10^5 commands, one per state, is
+    # not walked whole on every layer)
+    for j in np.flatnonzero(enabled.any(axis=0)).tolist():
         rows = np.flatnonzero(enabled[:, j])
-        if rows.size:
-            found = _command_branches(program, command, rows, states[rows], bounds)
-            blocks.extend(found)
-            commands.extend(np.full(rows.size, j, dtype=np.int64) for _ in found)
+        found = _command_branches(program, part[j], rows, states[rows], bounds)
+        blocks.extend(found)
+        commands.extend(np.full(rows.size, j, dtype=np.int64) for _ in found)
     if not blocks:
         return None
     source, targets, probability = (np.concatenate(b) for b in zip(*blocks, strict=True))
@@ -273,10 +276,10 @@ def _command_branches(
 def _enumerate_choices(group: ChoiceGroup, states: IntArray) -> _Choices | None:
     source = np.arange(states.shape[0])
     picks: list[IntArray] = []
-    for part in group.parts:
+    for p, part in enumerate(group.parts):
         if not part:
             return None
-        enabled = _guards(part, states)
+        enabled = _guards(part, states, group.index(p))
         rows, columns = np.nonzero(enabled[source])
         source = source[rows]
         picks = [p[rows] for p in picks]
@@ -296,8 +299,12 @@ def _combination(group: ChoiceGroup, choices: _Choices) -> IntArray:
     return number
 
 
-def _guards(part: Sequence[CompiledCommand], states: IntArray) -> np.ndarray:
-    """Enabledness ``(n, n_commands)`` of the part's commands."""
+def _guards(part: Sequence[CompiledCommand], states: IntArray,
+            index: EqualityIndex | None = None) -> np.ndarray:
+    """Enabledness ``(n, n_commands)`` of the part's commands (by *index*, if given, the
+    same as their guards give)."""
+    if index is not None:
+        return index.enabled(states)
     enabled = np.empty((states.shape[0], len(part)), dtype=bool)
     for j, command in enumerate(part):
         enabled[:, j] = command.guard(states)

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 
 from veribattery.errors import PrismSemanticError, Span
 from veribattery.explore.compile.bounds import value_bounds
+from veribattery.explore.compile.equalities import EqualityIndex, equality_index
 from veribattery.explore.compile.expr import (
     CompileCache,
     CompiledExpr,
@@ -74,6 +75,13 @@ class ChoiceGroup:
 
     action: str | None
     parts: tuple[tuple[CompiledCommand, ...], ...]
+    #: Per part, the index of its guards where they only fix variables to constants
+    #: (:mod:`~veribattery.explore.compile.equalities`), else None; () for none at all.
+    indexes: tuple[EqualityIndex | None, ...] = field(default=(), compare=False)
+
+    def index(self, part: int) -> EqualityIndex | None:
+        """The equality index of part *part*, if it has one."""
+        return self.indexes[part] if part < len(self.indexes) else None
 
 
 @dataclass(frozen=True, slots=True)
@@ -121,14 +129,20 @@ def _program(
     def commands(module: FlatModule, action: str | None) -> tuple[CompiledCommand, ...]:
         return tuple(compile_one(module, c) for c in module.commands if c.action == action)
 
+    def group(action: str | None, parts: tuple[tuple[CompiledCommand, ...], ...]
+              ) -> ChoiceGroup:
+        indexes = tuple(equality_index([c.command.guard for c in part], names.names,
+                                       names.ranges) for part in parts)
+        return ChoiceGroup(action, parts, indexes if any(indexes) else ())
+
     groups = [
-        ChoiceGroup(None, (commands(m, None),))
+        group(None, (commands(m, None),))
         for m in model.modules
         if any(c.action is None for c in m.commands)
     ]
     for action in _actions(model):
-        parts = tuple(commands(m, action) for m in model.modules if action in m.alphabet)
-        groups.append(ChoiceGroup(action, parts))
+        groups.append(group(action, tuple(commands(m, action) for m in model.modules
+                                          if action in m.alphabet)))
     return Program(
         variable_names=names.names,
         lows=tuple(v.low for v in model.variables),
