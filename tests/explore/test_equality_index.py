@@ -25,6 +25,7 @@ from veribattery.explore.compile.equalities import EqualityIndex, equality_index
 from veribattery.lang.nodes import Expr
 from veribattery.lang.parser import parse_property
 
+
 def parse_expression(text: str) -> Expr:
     return parse_property(text).formula
 
@@ -115,7 +116,7 @@ def test_the_index_enables_what_the_guards_hold() -> None:
     for j, text in enumerate(texts):
         python = text.replace("&", " and ").replace("!b", "not b").replace("=", "==")
         python = python.replace("true", "1").replace("false", "0")
-        expected = [bool(eval(python, {}, values)) for values in env]  # noqa: S307
+        expected = [bool(eval(python, {}, values)) for values in env]
         assert enabled[:, j].tolist() == expected, text
 
 

@@ -119,7 +119,7 @@ def is_conditional(formula: object) -> bool:
 
 def mission_json(report: MissionReport) -> dict[str, object]:
     """The ``check --format json`` document."""
-    from veribattery.config import RECHARGE_CAP_PROPERTY
+    from veribattery.config.schema import RECHARGE_CAP_PROPERTY
 
     dtmc = report.run.dtmc
     return {
@@ -157,7 +157,7 @@ def print_mission_json(report: MissionReport) -> None:
 def print_mission_csv(report: MissionReport) -> None:
     """``property,value`` rows (values with full precision; ``exact`` too under ``--exact``),
     then P[F rc=RC_MAX]."""
-    from veribattery.config import RECHARGE_CAP_PROPERTY
+    from veribattery.config.schema import RECHARGE_CAP_PROPERTY
 
     exact = [exact_text(r) for r in report.run.results]
     with_exact = any(e is not None for e in exact)

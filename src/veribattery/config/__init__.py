@@ -17,12 +17,7 @@ from veribattery.config.load import (
 )
 from veribattery.config.params import ModelParameters, Ratio, derive_parameters
 from veribattery.config.requirement import requirement_problem
-from veribattery.config.schema import (
-    RECHARGE_CAP_PROPERTY,
-    MissionConfig,
-    Requirement,
-    parse_requirement,
-)
+from veribattery.config.schema import MissionConfig, Requirement, parse_requirement
 from veribattery.config.validate import known_keys, validate_config
 
 __all__ = [
@@ -31,7 +26,6 @@ __all__ = [
     "FarmLayout",
     "MissionConfig",
     "ModelParameters",
-    "RECHARGE_CAP_PROPERTY",
     "Ratio",
     "Requirement",
     "capacity_units",
