@@ -13,7 +13,7 @@ import codecs
 
 from veribattery.errors import Span, VeribatteryError
 
-__all__ = ["decode_text"]
+__all__ = ["counted", "decode_text"]
 
 
 def decode_text(data: bytes, source: str, error: type[VeribatteryError]) -> str:
@@ -36,3 +36,8 @@ def decode_text(data: bytes, source: str, error: type[VeribatteryError]) -> str:
 
 def _newlines(text: str) -> str:
     return text.replace("\r\n", "\n").replace("\r", "\n")
+
+
+def counted(count: int, noun: str, plural: str | None = None) -> str:
+    """``1 state``, ``2 states``: *count* and *noun*, in the plural unless it is one."""
+    return f"{count:,} {noun if count == 1 else plural or noun + 's'}"

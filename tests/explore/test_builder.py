@@ -86,7 +86,7 @@ def test_deadlocks_get_self_loops_and_a_label() -> None:
     assert dtmc.deadlocks == 1
     assert dtmc.transitions[2, 2] == 1.0
     assert dtmc.labels["deadlock"].tolist() == [False, False, True]
-    assert dtmc.warnings == ("1 deadlock states (self-loops added)",)
+    assert dtmc.warnings == ("1 deadlock state (self-loop added)",)
 
 
 def two_synchronising_modules() -> FlatModel:

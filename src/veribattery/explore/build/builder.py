@@ -21,6 +21,7 @@ import scipy.sparse as sp
 
 from veribattery._collector import collections_spaced
 from veribattery._memory import trim_heap
+from veribattery._text import counted
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.fused import Expansion, LayerPlan
@@ -391,7 +392,8 @@ _TRIM_BYTES = 32 << 20
 def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
     found = []
     if deadlocks:
-        found.append(f"{deadlocks} deadlock states (self-loops added)")
+        loops = "self-loop" if deadlocks == 1 else "self-loops"
+        found.append(f"{counted(deadlocks, 'deadlock state')} ({loops} added)")
     if nondeterministic:
         found.append(
             f"{nondeterministic} states with several enabled choices "

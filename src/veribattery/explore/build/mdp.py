@@ -20,6 +20,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._collector import collections_spaced
+from veribattery._text import counted
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery._unique import distinct
 from veribattery.explore.build.atoms import AtomicGroups
@@ -91,7 +92,8 @@ class BuiltMdp:
         """What the build fixed, as PRISM reports it."""
         if not self.deadlocks:
             return ()
-        return (f"{self.deadlocks} deadlock states (self-loops added)",)
+        loops = "self-loop" if self.deadlocks == 1 else "self-loops"
+        return (f"{counted(self.deadlocks, 'deadlock state')} ({loops} added)",)
 
 
 @collections_spaced
