@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner, Result
 
+from tests.cli.refusals import one_error
 from tests.cli.terminal import run_in_terminal
 from tests.phm.helpers import EXAMPLES
 from veribattery.cli import cli
@@ -21,15 +22,6 @@ CLASH = ("battery.max_recharges: 200 recharges x the fitted fade 0.0108/recharge
 
 def run(*args: str) -> Result:
     return CliRunner().invoke(cli, list(args))
-
-
-def one_error(result: Result) -> str:
-    """The one ``error:`` line of a bad-input run (exit 2, nothing on stdout)."""
-    assert result.exit_code == 2, result.output
-    assert result.stdout == ""
-    lines = result.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
-    return lines[0]
 
 
 @pytest.fixture

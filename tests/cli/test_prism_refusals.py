@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner, Result
 
+from tests.cli.refusals import one_error
 from veribattery.cli import cli
 
 _MODEL = """dtmc
@@ -28,15 +29,6 @@ def _prism(tmp_path: Path, *args: str, model: str = _MODEL) -> Result:
     return CliRunner().invoke(cli, ["prism", str(path), *args])
 
 
-def _refused(result: Result) -> str:
-    """The one error line of a refused run (nothing on stdout)."""
-    assert result.exit_code == 2, result.output
-    assert result.stdout == ""
-    lines = result.stderr.splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
-    return lines[0]
-
-
 @pytest.mark.parametrize(("option", "args"), [
     ("--props", ["--props", "p.props"]),
     ("--property", ["--property", 'P=? [ F "goal" ]']),
@@ -47,22 +39,22 @@ def test_explain_refuses_the_options_of_a_check(tmp_path: Path, option: str,
     # a properties file that does not parse: --explain refuses before reading it
     (tmp_path / "p.props").write_text('P=? [ F "goal" ];\nP=? [ F "goal"\n')
     args = [str(tmp_path / a) if a == "p.props" else a for a in args]
-    line = _refused(_prism(tmp_path, *args, "--explain", "goal"))
+    line = one_error(_prism(tmp_path, *args, "--explain", "goal"))
     assert line == (f"error: {option}: --explain checks no properties; leave out {option} "
                     "or --explain")
 
 
 def test_explain_refuses_max_states(tmp_path: Path) -> None:
-    line = _refused(_prism(tmp_path, "--max-states", "9", "--explain", "goal"))
+    line = one_error(_prism(tmp_path, "--max-states", "9", "--explain", "goal"))
     assert line.startswith("error: --max-states: --explain builds the whole model")
 
 
 @pytest.mark.parametrize("text", ["", "// only a comment\n",
                                   'const int K = 2;\nlabel "l" = true;\n'])
-def test_a_properties_file_without_properties_is_refused(tmp_path: Path, text: str) -> None:
+def test_a_properties_file_without_properties_isone_error(tmp_path: Path, text: str) -> None:
     props = tmp_path / "p.props"
     props.write_text(text)
-    line = _refused(_prism(tmp_path, "--props", str(props)))
+    line = one_error(_prism(tmp_path, "--props", str(props)))
     assert line == (f"error: {props}: no properties in the file; add one, or give "
                     "--property TEXT (selectors= from Python)")
 
@@ -79,7 +71,7 @@ def test_a_properties_file_without_properties_still_serves_property_text(
 @pytest.mark.parametrize("value", ["True", "1", "yes"])
 def test_a_bool_constant_says_how_to_spell_a_bool(tmp_path: Path, value: str) -> None:
     model = _MODEL.replace("dtmc", "dtmc\nconst bool reset;")
-    line = _refused(_prism(tmp_path, "--property", 'P=? [ F "goal" ]',
+    line = one_error(_prism(tmp_path, "--property", 'P=? [ F "goal" ]',
                            "--const", f"reset={value}", model=model))
     assert line == (f"error: constant 'reset' is a bool, but was given the value '{value}'; "
                     "use true or false")
@@ -88,11 +80,13 @@ def test_a_bool_constant_says_how_to_spell_a_bool(tmp_path: Path, value: str) ->
 @pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero and /dev/urandom")
 @pytest.mark.parametrize(("args", "message"), [
     (["/dev/zero", "--property", "P=? [ F true ]"],
-     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB"),
+     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB; a larger "
+     "one written state by state (as --export-induced writes) is for Storm or PRISM"),
     (["MODEL", "--props", "/dev/urandom"],
      "error: /dev/urandom: more than 64 MB; a properties file is at most a few kB"),
     (["/dev/zero", "--explain", "goal"],
-     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB"),
+     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB; a larger "
+     "one written state by state (as --export-induced writes) is for Storm or PRISM"),
 ])
 def test_a_file_that_never_ends_is_refused_after_64_mb(tmp_path: Path, args: list[str],
                                                        message: str) -> None:
@@ -100,5 +94,5 @@ def test_a_file_that_never_ends_is_refused_after_64_mb(tmp_path: Path, args: lis
     model.write_text(_MODEL)
     result = CliRunner().invoke(cli, ["prism", *(str(model) if a == "MODEL" else a
                                                  for a in args)])
-    assert _refused(result) == message
+    assert one_error(result) == message
 
