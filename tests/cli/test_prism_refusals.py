@@ -80,13 +80,13 @@ def test_a_bool_constant_says_how_to_spell_a_bool(tmp_path: Path, value: str) ->
 @pytest.mark.skipif(not Path("/dev/zero").exists(), reason="needs /dev/zero and /dev/urandom")
 @pytest.mark.parametrize(("args", "message"), [
     (["/dev/zero", "--property", "P=? [ F true ]"],
-     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB; a larger "
-     "one written state by state (as --export-induced writes) is for Storm or PRISM"),
+     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB (one written "
+     "state by state, as --export-induced writes, passes 64 MB past ~550,000 states)"),
     (["MODEL", "--props", "/dev/urandom"],
      "error: /dev/urandom: more than 64 MB; a properties file is at most a few kB"),
     (["/dev/zero", "--explain", "goal"],
-     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB; a larger "
-     "one written state by state (as --export-induced writes) is for Storm or PRISM"),
+     "error: /dev/zero: more than 64 MB; a PRISM model is at most a few MB (one written "
+     "state by state, as --export-induced writes, passes 64 MB past ~550,000 states)"),
 ])
 def test_a_file_that_never_ends_is_refused_after_64_mb(tmp_path: Path, args: list[str],
                                                        message: str) -> None:
