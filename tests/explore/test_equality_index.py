@@ -6,8 +6,8 @@ must give exactly the guards' own enabledness: every model here is built twice, 
 the index and with it switched off, and the two builds must be the same bit for bit
 (states and their numbering, transitions, labels, results), with
 every written form of an equality, bool variables, negative values, contradictory and
-out-of-range guards, and several commands guarded by one state. (MDPs evaluate their
-guards command by command still: the index serves DTMCs' group-by-group expansion.)
+out-of-range guards, and several commands guarded by one state, in DTMCs (the group
+expansion) and MDPs (the walk over a group's enabled commands, ``atoms``).
 """
 
 from __future__ import annotations
@@ -78,15 +78,16 @@ def _built(text: str, kind: str, props: tuple[str, ...] = ()) -> tuple[object, .
             tuple(repr(r.value) for r in run.results))
 
 
+@pytest.mark.parametrize("kind", ["dtmc", "mdp"])
 @pytest.mark.parametrize("seed", range(6))
-def test_an_indexed_build_is_the_evaluated_one(seed: int,
+def test_an_indexed_build_is_the_evaluated_one(kind: str, seed: int,
                                                monkeypatch: pytest.MonkeyPatch) -> None:
-    text = explicit_model("dtmc", seed)
+    text = explicit_model(kind, seed)
     looked_up = _counting(monkeypatch)
-    indexed = _built(text, "dtmc")
+    indexed = _built(text, kind)
     assert looked_up[0] > 0  # (the build went through the index)
     monkeypatch.setattr(equalities, "MIN_COMMANDS", 10**9)  # every guard evaluated
-    assert _built(text, "dtmc") == indexed
+    assert _built(text, kind) == indexed
 
 
 def _counting(monkeypatch: pytest.MonkeyPatch) -> list[int]:

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from veribattery._types import BoolArray, IntArray
+from veribattery.explore.compile.equalities import EqualityIndex
 from veribattery.explore.compile.program import ChoiceGroup, CompiledCommand, Program
 
 __all__ = ["AtomicGroups"]
@@ -110,18 +111,34 @@ class AtomicGroups:
         """:meth:`enabled_somewhere` of the *group*-th group alone (*guards*: the
         commands' guards on *frontier* evaluated so far, by the command's identity)."""
         offset = self.starts[group]
+        chosen = self.groups[group]
+        indexes = tuple(chosen.index(p) for p in range(len(chosen.parts)))
         yield from (offset + index
-                    for index in _combinations(self.groups[group].parts, frontier, guards))
+                    for index in _combinations(chosen.parts, frontier, guards, indexes=indexes))
 
 
 def _combinations(parts: tuple[tuple[CompiledCommand, ...], ...], frontier: IntArray,
                   guards: dict[int, BoolArray | None], enabled: BoolArray | None = None,
-                  prefix: int = 0) -> Iterator[int]:
+                  prefix: int = 0, *, indexes: tuple[EqualityIndex | None, ...] = ()
+                  ) -> Iterator[int]:
     """The combinations of one command per part enabled together somewhere, numbered
     within the group (the last part varying fastest) after the commands chosen so far
-    (*prefix*, enabled on *enabled*: None while they all hold everywhere)."""
+    (*prefix*, enabled on *enabled*: None while they all hold everywhere). A part with
+    an equality index (*indexes*, per part) is looked up once and walked only over the
+    commands it enables somewhere, in their order."""
     if not parts:
         yield prefix
+        return
+    index = indexes[0] if indexes else None
+    if index is not None:
+        table = _indexed(index, frontier, guards)
+        for position in np.flatnonzero(table.any(axis=0)).tolist():
+            column = table[:, position]
+            together = column if enabled is None else enabled & column
+            if enabled is not None and not together.any():
+                continue
+            yield from _combinations(parts[1:], frontier, guards, together,
+                                     prefix * len(parts[0]) + position, indexes=indexes[1:])
         return
     for position, command in enumerate(parts[0]):
         joint = enabled
@@ -133,7 +150,18 @@ def _combinations(parts: tuple[tuple[CompiledCommand, ...], ...], frontier: IntA
             if enabled is not None and not joint.any():
                 continue
         yield from _combinations(parts[1:], frontier, guards, joint,
-                                 prefix * len(parts[0]) + position)
+                                 prefix * len(parts[0]) + position, indexes=indexes[1:])
+
+
+def _indexed(index: EqualityIndex, frontier: IntArray,
+             guards: dict[int, BoolArray | None]) -> BoolArray:
+    """The part's enabledness ``(n, commands)`` by *index*, looked up once per chunk."""
+    key = id(index)
+    if key not in guards:
+        guards[key] = index.enabled(frontier)
+    table = guards[key]
+    assert table is not None
+    return table
 
 
 def _guard(command: CompiledCommand, frontier: IntArray,
