@@ -110,14 +110,14 @@ def _require_whole(dtmc: object, reward: str) -> None:
     """Refuse a reward structure that is not whole numbers in every state (the
     distribution counts units of it), naming a state and the config keys behind it."""
     from veribattery.checker.kernels.reward_bounded import NonIntegerReward, integer_levels
+    from veribattery.explore.build.successors import format_state
     from veribattery.explore.dtmc import DTMC
 
     assert isinstance(dtmc, DTMC)
     try:
         integer_levels(dtmc.reward(reward).total)
     except NonIntegerReward as exc:
-        state = ", ".join(f"{name}={value}" for name, value in
-                          zip(dtmc.variable_names, dtmc.states[exc.state], strict=True))
+        state = format_state(dtmc.variable_names, dtmc.states[exc.state])
         hint = ("the mission time counts whole minutes: give whole times_min values, or "
                 "choose --reward rc" if reward == "mt" else "choose a whole-valued reward")
         raise OptionError(f"--reward {reward}: the distribution counts whole units of "

@@ -53,7 +53,7 @@ def print_experiment(points: Sequence[Mapping[str, str]], runs: Sequence[Run],
     pairs = list(zip(points, runs, strict=True))
     for point, run in pairs:  # on stderr, whatever the format, as one run's are
         # the same warning may come from several points: each says which
-        where = "".join(f"{n}={point[n]}, " for n in names).removesuffix(", ")
+        where = ", ".join(f"{n}={point[n]}" for n in names)
         print_warnings([f"{where}: {w}" if where else w for w in run.warnings])
         print_imprecise(run.results)
     if output_format == "json":

@@ -42,6 +42,7 @@ from veribattery.checker.certify.bounds import Bounds, round_down, round_up
 from veribattery.checker.kernels import reward_radius
 from veribattery.checker.kernels.prepass import prob0
 from veribattery.errors import CheckError, Span
+from veribattery.explore.build.successors import format_state
 from veribattery.explore.dtmc import DTMC, RewardVectors
 
 if TYPE_CHECKING:
@@ -82,8 +83,7 @@ def integer_rewards(dtmc: DTMC, structure: RewardVectors, span: Span) -> IntArra
     try:
         return integer_levels(structure.total)
     except NonIntegerReward as exc:
-        state = ", ".join(f"{name}={value}" for name, value in
-                          zip(dtmc.variable_names, dtmc.states[exc.state], strict=True))
+        state = format_state(dtmc.variable_names, dtmc.states[exc.state])
         name = f'"{structure.name}"' if structure.name else "(unnamed)"
         raise CheckError(
             f"a reward bound needs non-negative integer rewards, but reward structure {name} "
