@@ -114,7 +114,7 @@ class Bounds:
 
     def within(self, lowest: float, highest: float) -> Bounds:
         """These bounds met with ``[lowest, highest]``, a range the exact values are known
-        to lie in by other means (an average of values in it: ``I=k``'s rewards)."""
+        to lie in by other means (``I=k``: :func:`horizon.power_range`)."""
         if not (np.isfinite(lowest) and np.isfinite(highest)):
             return self
         lower = np.clip(self.lower, lowest, highest)

@@ -35,6 +35,7 @@ __all__ = [
     "gain_checkpoint",
     "gained",
     "meet",
+    "power_range",
     "rounds",
     "row_sum_bounds",
 ]
@@ -145,8 +146,14 @@ def row_sum_bounds(M: CsrMatrix) -> tuple[float, float]:
     for :func:`gained`, summed in extended precision: a bound a double's ulp from 1
     loses ``j * ulp`` of a value carried *j* rounds (10^-10 relative after 10^6 rounds,
     where the float enclosure's few ulps lost 10^-9, the precision asked)."""
+    low, high = _row_sum_range(M)
+    return math.nextafter(float(low), -math.inf), math.nextafter(float(high), math.inf)
+
+
+def _row_sum_range(M: CsrMatrix) -> tuple[np.longdouble, np.longdouble]:
+    """:func:`row_sum_bounds` before rounding to doubles: in extended precision."""
     if M.nnz == 0:
-        return 0.0, 0.0
+        return np.longdouble(0), np.longdouble(0)
     lengths = np.diff(M.indptr)
     sums = np.zeros(M.shape[0], dtype=np.longdouble)
     filled = lengths > 0
@@ -154,9 +161,24 @@ def row_sum_bounds(M: CsrMatrix) -> tuple[float, float]:
     terms = int(lengths.max())
     unit = np.finfo(np.longdouble).eps / 2
     gamma = terms * unit / (1 - terms * unit)
-    low = float(np.min(sums) * (1 - gamma))
-    high = float(np.max(sums) * (1 + gamma))
-    return math.nextafter(low, -math.inf), math.nextafter(high, math.inf)
+    return np.min(sums) * (1 - gamma), np.max(sums) * (1 + gamma)
+
+
+def power_range(M: CsrMatrix, lowest: float, highest: float, k: int) -> tuple[float, float]:
+    """Bounds of ``M^k r`` for every *r* within ``[lowest, highest]``, *M* nonnegative
+    (``I=k``: under any strategy a weighted sum of the states' rewards).
+
+    ``M^k 1`` lies between the smallest and largest row sums' ``k``-th powers. Rows
+    that sum to 1 in the reals may not in their doubles, so the range is the rewards'
+    own only to within those powers, taken in extended precision (where a row of
+    doubles summing to 1 keeps ``(1 + 2^-63)^k``, about e at ``k = 2^63``)."""
+    small, large = _row_sum_range(M)
+    with np.errstate(over="ignore", under="ignore"):
+        grow = float(np.power(large, k) * _POW_SLACK)  # (pow is not rounded up)
+        shrink = float(np.power(max(small, np.longdouble(0)), k) / _POW_SLACK)
+    top = 0.0 if highest == 0 else highest * (grow if highest > 0 else shrink)
+    bottom = 0.0 if lowest == 0 else lowest * (shrink if lowest > 0 else grow)
+    return (bottom and math.nextafter(bottom, -math.inf)), (top and math.nextafter(top, math.inf))
 
 
 def checkpoint(done: int, k: int) -> bool:

@@ -363,9 +363,10 @@ def instantaneous_rewards(P: CsrMatrix, state_rewards: FloatArray, k: int, *,
     """
     start = np.asarray(state_rewards, dtype=np.float64)
     found = _step_power(P, Bounds.exact(start), np.zeros_like(start), k, progress)
-    # The value is an average of the states' rewards: between the least and the most,
-    # however far the bound (where the rounds' error radius grows past them).
-    return found.within(float(start.min(initial=0.0)), float(start.max(initial=0.0)))
+    # The value is a weighted sum of the states' rewards: so bounded however far the
+    # bound (where the rounds' error radius grows past them).
+    return found.within(*horizon.power_range(P, float(start.min(initial=0.0)),
+                                             float(start.max(initial=0.0)), k))
 
 
 def absorption(P: CsrMatrix, fixed: BoolArray, known: Bounds, *,

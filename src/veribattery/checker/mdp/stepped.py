@@ -164,9 +164,10 @@ def instantaneous_reward(mdp: MDP, state_rewards: FloatArray, steps: int, *,
     start = Bounds.exact(rewards)
     found = _iterated(mdp, start, _Rounds(everywhere, start, None, objective), steps, None,
                       progress)
-    # (under any strategy an average of the states' rewards: between the least and most)
-    return MdpResult(found.bounds.within(float(rewards.min(initial=0.0)),
-                                         float(rewards.max(initial=0.0))), found.strategy)
+    # (under any strategy a weighted sum of the states' rewards: so bounded)
+    reach = horizon.power_range(mdp.transitions, float(rewards.min(initial=0.0)),
+                                float(rewards.max(initial=0.0)), steps)
+    return MdpResult(found.bounds.within(*reach), found.strategy)
 
 
 def _blocked(mdp: MDP, remain: BoolArray, objective: Objective) -> _Rounds:
