@@ -1,6 +1,6 @@
 """An argument of the wrong kind (a file's name where a parsed model belongs, an int where
-a mapping does) is an ArgumentError that names the argument, what it was given and
-the call that gives what is needed: not an AttributeError or a
+a mapping does, a dict where a config does) is an ArgumentError that names the argument,
+what it was given and the call that gives what is needed: not an AttributeError or a
 TypeError from deep inside a stage."""
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ DICE = REPO / "examples" / "prism" / "dice.pm"
 PCTL = REPO / "examples" / "prism" / "dice.pctl"
 COIN = REPO / "examples" / "prism" / "coin2.nm"
 SIX = "P=? [ F s=7 & d=6 ]"
+SMALL = "farm: {cols: 2, rows: 2, base: [0, 0]}\nbattery: {max_recharges: 3}\n"
 
 
 def _calls() -> dict[str, Callable[[], object]]:
@@ -46,6 +47,15 @@ def _calls() -> dict[str, Callable[[], object]]:
             DICE, props_source=PCTL, constants=["x=3"]),  # type: ignore[arg-type]
         "file selector int": lambda: vb.check_prism_file(
             DICE, props_source=PCTL, selectors=[2], constants={"x": 3}),  # type: ignore[list-item]
+        "load_config dict": lambda: vb.load_config({"farm": {"cols": 2}}),  # type: ignore
+        "load_config int": lambda: vb.load_config(3),  # type: ignore[arg-type]
+        "load_config overrides dict": lambda: vb.load_config(
+            SMALL, {"farm.cols": 3}),  # type: ignore[arg-type]
+        "load_config override int": lambda: vb.load_config(SMALL, [3]),  # type: ignore[list-item]
+        "render_model name": lambda: vb.render_model("mission.yaml"),  # type: ignore[arg-type]
+        "render_properties dict": lambda: vb.render_properties({}),  # type: ignore[arg-type]
+        "mission_files name": lambda: vb.mission_files("mission.yaml"),  # type: ignore[arg-type]
+        "check_mission dict": lambda: vb.check_mission({"farm": {}}),  # type: ignore[arg-type]
     }
 
 
@@ -80,6 +90,22 @@ CASES = [
                             "veribattery.lang.parse_constant_assignments(['x=3'])"),
     ("file selector int", "selectors[0]: a str (a 1-based index, a name or a property's "
                           "text) is needed, not int 2: give '2'"),
+    ("load_config dict", "path_or_text: a config file's Path or its YAML text is needed, not "
+                         "dict {'farm': {'cols': 2}}: give its YAML text: yaml.safe_dump("),
+    ("load_config int", "path_or_text: a config file's Path or its YAML text is needed, not "
+                        "int 3: give Path('mission.yaml')"),
+    ("load_config overrides dict", "overrides: a list of KEY=VALUE strings is needed, not "
+                                   "dict {'farm.cols': 3}: give [f'{key}={value}' for key, "
+                                   "value in overrides.items()]"),
+    ("load_config override int", "overrides[0]: a KEY=VALUE string is needed, not int 3"),
+    ("render_model name", "a loaded mission config is needed, not str 'mission.yaml': give "
+                          "veribattery.load_config('mission.yaml')"),
+    ("render_properties dict", "a loaded mission config is needed, not dict {}: give "
+                               "veribattery.load_config(Path('mission.yaml') or YAML text)"),
+    ("mission_files name", "a loaded mission config is needed, not str 'mission.yaml'"),
+    # The advice was load_config({'farm': {}}), which failed with an AttributeError.
+    ("check_mission dict", "a loaded mission config is needed, not dict {'farm': {}}: give "
+                           "veribattery.load_config(Path('mission.yaml') or YAML text)"),
 ]
 
 

@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from veribattery._files import write_texts
-from veribattery.config import MissionConfig, config_to_yaml
+from veribattery.config import MissionConfig, config_to_yaml, require_config
 from veribattery.errors import Span, VeribatteryError
 from veribattery.lang import flatten_model, parse_model, parse_property, resolve_property
 from veribattery.lang.expressions import walk
@@ -81,9 +81,11 @@ def mission_files(cfg: MissionConfig) -> MissionFiles:
     split by dialect (:func:`is_storm_only`). Rendering needs Jinja: imported late.
 
     :raises ConfigError: for a bad property (see :func:`validate_properties`).
+    :raises ArgumentError: for anything but a loaded config (a file's name, say).
     """
     from veribattery.render import render_model
 
+    cfg = require_config(cfg)
     cfg.require_bs1()
     model = render_model(cfg)
     parsed = parse_model(model, name=MODEL_FILE)

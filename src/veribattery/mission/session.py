@@ -10,8 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from veribattery.checker import Workspace
-from veribattery.config import MissionConfig
-from veribattery.errors import ArgumentError
+from veribattery.config import MissionConfig, require_config
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang import flatten_model, parse_model
 from veribattery.lang.nodes import Model, PropertiesFile
@@ -53,10 +52,7 @@ class RenderedMission:
         """
         from veribattery.render import render_model, render_properties
 
-        if not isinstance(cfg, MissionConfig):  # a notebook's file name, or its text
-            shown = repr(cfg) if len(repr(cfg)) <= 60 else "..."
-            raise ArgumentError(f"a loaded mission config is needed, not {type(cfg).__name__} "
-                                f"{shown}: give veribattery.load_config({shown})")
+        cfg = require_config(cfg)  # not a notebook's file name, or its text
         cfg.require_bs1()
         return cls(cfg, render_model(cfg), render_properties(cfg))
 
