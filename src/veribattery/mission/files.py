@@ -60,7 +60,7 @@ _NO_PROPERTIES = "// (None of this config's properties is of this kind.)\n"
 _FORMULA = "<property>"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, repr=False)  # a short repr: see __repr__
 class MissionFiles:
     """The emitted texts: the PRISM model, the properties PRISM and Storm both read,
     those only Storm reads, and the resolved config."""
@@ -74,6 +74,14 @@ class MissionFiles:
         """File name → text."""
         texts = (self.model, self.properties, self.storm_only, self.config)
         return dict(zip(EMITTED_FILES, texts, strict=True))
+
+    def __repr__(self) -> str:
+        # Each text's size, not the text: the model alone is some 12,000 characters,
+        # printed as one line of escaped newlines. print(files.model) shows it.
+        sizes = ", ".join(f"{name}=<{len(text):,} characters>" for name, text in (
+            ("model", self.model), ("properties", self.properties),
+            ("storm_only", self.storm_only), ("config", self.config)))
+        return f"MissionFiles({sizes})"
 
 
 def mission_files(cfg: MissionConfig) -> MissionFiles:

@@ -139,6 +139,11 @@ class MissionSession:
                                workspace=workspace)
         self.parses = parses or ParseCache()
 
+    def __repr__(self) -> str:
+        inner = self.session
+        return (f"MissionSession(keep={inner.options.keep!r}, reuse={inner.builder is not None}, "
+                f"lump={inner.lumper is not None}, rewards={inner.rewards!r})")
+
     @classmethod
     def for_sweep(cls, *, reuse: bool = True, lump: bool = False,
                   parses: ParseCache | None = None,

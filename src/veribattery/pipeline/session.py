@@ -117,6 +117,12 @@ class Session:
             self.lumper = Lumper()
         self.workspace = workspace if workspace is not None else Workspace()
 
+    def __repr__(self) -> str:
+        # What was chosen, not <object at 0x...>: a notebook with two sessions tells
+        # them apart by their options.
+        return (f"Session(options={self.options!r}, reuse={self.builder is not None}, "
+                f"lump={self.lumper is not None}, rewards={self.rewards!r})")
+
     def check(
         self,
         model: Model,
