@@ -128,7 +128,7 @@ class MissionSession:
     :param rewards: ``"named"``: build only the reward structures the properties name.
     :param parses: the parse cache to use (a sweep's worker gives every task its own).
     :param workspace: the checker's caches (see :class:`~veribattery.pipeline.Session`).
-    :raises ValueError: for *lump* without ``keep="answers"``.
+    :raises ArgumentError: for *lump* without ``keep="answers"`` (also a ValueError).
     """
 
     def __init__(self, *, keep: Keep = "states", reuse: bool = True, lump: bool = False,
