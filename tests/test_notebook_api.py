@@ -251,3 +251,12 @@ def test_sessions_and_mission_files_show_what_they_hold() -> None:
         f"{len(files.properties):,} characters>, storm_only=<{len(files.storm_only):,} "
         f"characters>, config=<{len(files.config):,} characters>)")
     assert len(files.model) > 5000
+
+
+def test_a_column_of_no_variable_names_the_variables() -> None:
+    dtmc = vb.build_dtmc(vb.flatten_model(vb.parse_model(DICE)))
+    assert dtmc.column("d").tolist()[:3] == [0, 0, 0]
+    with pytest.raises(vb.VeribatteryError) as info:
+        dtmc.column("z")
+    assert str(info.value) == "no variable 'z': the variables are ('s', 'd')"
+    assert isinstance(info.value, ValueError)
