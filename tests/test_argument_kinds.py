@@ -127,3 +127,10 @@ def test_a_path_given_for_a_model_is_named_in_the_call_that_parses_it() -> None:
 def test_a_property_selected_by_its_index_as_a_str_still_works() -> None:
     run = vb.check_prism_file(DICE, props_source=PCTL, selectors=["2"], constants={"x": 3})
     assert [r.value for r in run.results] == [pytest.approx(1 / 6, rel=1e-12)]
+
+
+def test_no_selectors_as_none_still_checks_the_whole_file() -> None:
+    run = vb.check_prism_file(DICE, props_source=PCTL, selectors=None,  # type: ignore[arg-type]
+                              constants={"x": 3})
+    assert [r.property.text for r in run.results] == [
+        "P>0.1 [ F s=7 & d=x ]", SIX, "P=? [ F s=7 & d=x ]", "R=? [ F s=7 ]"]

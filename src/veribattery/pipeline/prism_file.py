@@ -52,7 +52,7 @@ def select(
     :param selectors: 1-based indices, property names, or property text.
     :raises ArgumentError: for a selector that is no str (an int index, say).
     """
-    for number, selector in enumerate(selectors):
+    for number, selector in enumerate(selectors or ()):  # None: none, as before
         if not isinstance(selector, str):
             raise ArgumentError.wrong_kind(f"selectors[{number}]", selector, "a str (a 1-based "
                                            "index, a name or a property's text)",
