@@ -212,3 +212,51 @@ def test_a_sweep_on_no_workers_is_refused_before_any_work() -> None:
     with pytest.raises(vb.VeribatteryError) as info:
         vb.run_sweep(config, axes, jobs=0)
     assert str(info.value) == "jobs must be at least 1 (1: in this process), got 0"
+
+
+def test_a_parsed_model_shows_its_declarations_not_its_expressions() -> None:
+    """These showed every expression with a span on each node: 10 kB for the die."""
+    model = vb.parse_model(DICE)
+    source = str(DICE)
+    assert repr(model) == (
+        f"Model(model_type='dtmc', source={source!r}, constants=(), globals=(), "
+        "modules=('die',), commands=8, labels=(), rewards=('coin_flips',))")
+    assert repr(vb.flatten_model(vb.parse_model(COIN), {"K": 2})).startswith(
+        "FlatModel(model_type='mdp', source=" + repr(str(COIN)) + ", constants={'N': 2, "
+        "'K': 2, 'range': 12, 'counter_init': 6, 'left': 2, 'right': 10}, variables=("
+        "'counter', 'pc1', 'coin1', 'pc2', 'coin2'), modules=('process1', 'process2'), "
+        "commands=14, ")
+
+
+def test_properties_show_their_names_and_texts() -> None:
+    props = vb.parse_properties(EXAMPLES / "dice.pctl")
+    assert repr(props) == (
+        f"PropertiesFile(source={str(EXAMPLES / 'dice.pctl')!r}, constants=('x',), labels=(), "
+        "properties=(Property(name=None, text='P>0.1 [ F s=7 & d=x ]'), Property(name=None, "
+        "text='P=? [ F s=7 & d=6 ]'), Property(name=None, text='P=? [ F s=7 & d=x ]'), "
+        "Property(name=None, text='R=? [ F s=7 ]')))")
+    assert repr(vb.parse_property('"six": ' + SIX)) == f"Property(name='six', text={SIX!r})"
+
+
+def test_sessions_and_mission_files_show_what_they_hold() -> None:
+    """Sessions showed <... object at 0x...>; the files, 12,000 characters of model."""
+    assert repr(vb.Session(vb.CheckOptions(keep="answers"), lump=True)) == (
+        "Session(options=CheckOptions(keep='answers', undefined_as_nan=False, "
+        "report_undecided=False), reuse=True, lump=True, rewards='all')")
+    assert repr(vb.MissionSession.for_sweep()) == (
+        "MissionSession(keep='answers', reuse=True, lump=False, rewards='named')")
+    files = vb.mission_files(vb.load_config("farm: {cols: 2, rows: 2, base: [0, 0]}\n"))
+    assert repr(files) == (
+        f"MissionFiles(model=<{len(files.model):,} characters>, properties=<"
+        f"{len(files.properties):,} characters>, storm_only=<{len(files.storm_only):,} "
+        f"characters>, config=<{len(files.config):,} characters>)")
+    assert len(files.model) > 5000
+
+
+def test_a_column_of_no_variable_names_the_variables() -> None:
+    dtmc = vb.build_dtmc(vb.flatten_model(vb.parse_model(DICE)))
+    assert dtmc.column("d").tolist()[:3] == [0, 0, 0]
+    with pytest.raises(vb.VeribatteryError) as info:
+        dtmc.column("z")
+    assert str(info.value) == "no variable 'z': the variables are ('s', 'd')"
+    assert isinstance(info.value, ValueError)

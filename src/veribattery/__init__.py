@@ -2,15 +2,15 @@
 
 The pipeline, stage by stage (each a pure function)::
 
-    model = parse_model(Path("die.pm"))
-    dtmc = build_dtmc(flatten_model(model, {"N": 3}))
-    result = check(dtmc, parse_property('P=? [ F "six" ]'))
-    result.value
+    model = parse_model(Path("examples/prism/dice.pm"))
+    dtmc = build_dtmc(flatten_model(model))  # constants: flatten_model(model, {"N": 3})
+    result = check(dtmc, parse_property("P=? [ F s=7 & d=6 ]"))
+    result.value  # 0.16666666666666666
 
 and for missions::
 
     report = check_mission(load_config("configs/paper/case1.yaml"))
-    report.values["p_success"]
+    report.values["p_success"]  # 1.0
 
 One typed entry point per way of checking: :func:`check_model` (floating point,
 certified bounds), :func:`check_model_exact` (rational arithmetic), and a

@@ -37,6 +37,20 @@ class ArgumentError(VeribatteryError, ValueError):
     choices, or an object of another kind (PRISM text where a parsed property belongs).
     Also a :class:`ValueError`, which these arguments raised before."""
 
+    @classmethod
+    def wrong_kind(cls, what: str, value: object, needed: str, fix: str) -> ArgumentError:
+        """The error for *value*, given as *what* where *needed* belongs: it names the
+        kind given and the call that gives what is needed (*fix*).
+
+        A notebook hands a stage what it has at hand (a file name, a dict, the previous
+        stage's input); without this the stage fails deep inside with an
+        ``AttributeError`` that names neither the argument nor the remedy.
+        """
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:60] + "…"
+        return cls(f"{what}: {needed} is needed, not {type(value).__name__} {shown}: "
+                   f"give {fix}")
+
 
 class ConfigError(VeribatteryError):
     """A mission config is malformed: YAML syntax, unknown key, wrong type or range."""

@@ -2,12 +2,32 @@
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Any
 
 import pytest
 
 from tests.conftest import PEER_TESTS
 from tests.peer_manifests import manifest, missing
+from veribattery.lang.nodes import FlatModel, Model, PropertiesFile, Property
+
+#: The nodes whose repr is short (names and texts, for a notebook); :func:`tree` spells
+#: them out.
+_SHORT_REPRS = (FlatModel, Model, PropertiesFile, Property)
+
+
+def tree(node: object) -> str:
+    """Every field of *node*, spans included: the dataclasses' own repr, which the short
+    reprs of a model, a properties file and a property leave out (the fast parser must
+    build what lark builds, every position too, and spans are not compared by ``==``)."""
+    if isinstance(node, _SHORT_REPRS):
+        inner = ", ".join(f"{f.name}={tree(getattr(node, f.name))}"
+                          for f in dataclasses.fields(node))
+        return f"{type(node).__name__}({inner})"
+    if isinstance(node, tuple):
+        return "(" + "".join(f"{tree(item)}, " for item in node) + ")"
+    return repr(node)
+
 
 PEER = PEER_TESTS
 SUITES = ("prism", "prism-examples")

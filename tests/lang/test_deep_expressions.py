@@ -17,7 +17,7 @@ from typing import Any
 
 import pytest
 
-from tests.lang.helpers import expression_depth
+from tests.lang.helpers import expression_depth, tree
 from veribattery.errors import PrismSemanticError
 from veribattery.lang import FlatModel, Ident, flatten_model, parse_model, parse_property
 from veribattery.lang.evaluate import EvaluationError, evaluate
@@ -215,8 +215,8 @@ def test_a_deep_property_resolves_against_the_model() -> None:
     ],
 )
 def test_parenthesised_last_branches_read_as_lark_reads_them(text: str) -> None:
-    fast = repr(parse_fast(text, "p", "start_property"))
-    assert fast == repr(_parse_with_lark(text, "p", "start_property"))
+    fast = tree(parse_fast(text, "p", "start_property"))
+    assert fast == tree(_parse_with_lark(text, "p", "start_property"))
 
 
 def chained_definitions(count: int = TERMS) -> str:

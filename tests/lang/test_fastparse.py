@@ -15,7 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tests.conftest import PEER_TESTS
-from tests.lang.helpers import DTMC_SUITES
+from tests.lang.helpers import DTMC_SUITES, tree
 from veribattery.errors import PrismSyntaxError, VeribatteryError
 from veribattery.lang import parse_model, parse_property
 from veribattery.lang.fastparse import Fallback, parse_fast
@@ -43,11 +43,11 @@ def _start(name: str) -> str:
 def _both(text: str, start: str) -> tuple[str | None, str | None]:
     """``repr`` of the fast and the lark result (None: fell back / rejected)."""
     try:
-        fast: str | None = repr(parse_fast(text, "f", start))
+        fast: str | None = tree(parse_fast(text, "f", start))
     except Fallback:
         fast = None
     try:
-        lark: str | None = repr(_parse_with_lark(text, "f", start))
+        lark: str | None = tree(_parse_with_lark(text, "f", start))
     except VeribatteryError:
         lark = None
     return fast, lark

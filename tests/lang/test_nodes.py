@@ -10,6 +10,7 @@ from dataclasses import FrozenInstanceError
 
 import pytest
 
+from tests.lang.helpers import tree
 from veribattery.errors import NO_SPAN, Span
 from veribattery.lang import nodes, parse_model
 
@@ -43,7 +44,7 @@ def test_a_node_cannot_be_changed(name: str) -> None:
 def test_a_parsed_program_survives_pickling_as_sweep_workers_need() -> None:
     model = parse_model(MODEL)
     for again in (pickle.loads(pickle.dumps(model)), copy.deepcopy(model)):
-        assert again == model and repr(again) == repr(model) and hash(again) == hash(model)
+        assert again == model and tree(again) == tree(model) and hash(again) == hash(model)
         command = again.modules[0].commands[0]  # type: ignore[union-attr]
         assert command.guard.span == Span(5, 6, "<string>")  # spans survive, uncompared
 

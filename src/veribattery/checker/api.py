@@ -33,8 +33,13 @@ def check(dtmc: DTMC, prop: Property | Expr, *, keep: Keep = "states",
         check alone.
     :raises CheckError: when the property cannot be checked on this model, or a
         bounded operator (``P>=0.9 [..]``) cannot be decided at the precision reached.
-    :raises ArgumentError: for text instead of a parsed property, or an unknown *keep*.
+    :raises ArgumentError: for text instead of a parsed property, anything but a DTMC
+        as *dtmc* (a model not built, or an MDP), or an unknown *keep*.
     """
+    if not isinstance(dtmc, DTMC):
+        raise ArgumentError.wrong_kind(
+            "dtmc", dtmc, "a built DTMC", "veribattery.build_dtmc(veribattery.flatten_model("
+            "model)); an MDP's properties are checked by veribattery.check_prism_file")
     if isinstance(prop, str):
         raise ArgumentError(f"check takes a parsed property, not the text {prop!r}: give "
                             f"veribattery.parse_property({prop!r})")

@@ -13,6 +13,7 @@ from veribattery.config.load import (
     load_config,
     parse_override,
     read_config,
+    require_config,
     set_value,
 )
 from veribattery.config.params import ModelParameters, Ratio, derive_parameters
@@ -39,6 +40,7 @@ __all__ = [
     "parse_override",
     "parse_requirement",
     "read_config",
+    "require_config",
     "requirement_problem",
     "round_half_up",
     "route_cells",

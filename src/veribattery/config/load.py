@@ -20,10 +20,10 @@ from veribattery.config.place import KeyOrigins, KeyPath
 from veribattery.config.schema import MissionConfig, is_property_name
 from veribattery.config.source import NumberOutOfRange, compose, construct, decode
 from veribattery.config.validate import known_keys, validate_config
-from veribattery.errors import ConfigError, Span
+from veribattery.errors import ArgumentError, ConfigError, Span
 
 __all__ = ["ConfigDocument", "config_to_yaml", "key_problem", "load_config", "parse_override",
-           "read_config", "set_value"]
+           "read_config", "require_config", "set_value"]
 
 _PROPERTY_KEY = "properties."
 #: The largest config file read (a mission config is a few kB).
@@ -43,8 +43,24 @@ def load_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Mi
         override).
     :raises ConfigError: on unreadable files, YAML syntax errors (with line:col),
         malformed overrides and every validation problem.
+    :raises ArgumentError: for a config neither a path nor text (a dict), or overrides
+        that are no ``KEY=VALUE`` strings.
     """
     return read_config(path_or_text, overrides).validate()
+
+
+def require_config(cfg: object) -> MissionConfig:
+    """*cfg*, if it is a loaded mission config (what rendering and checking take).
+
+    :raises ArgumentError: for anything else (a notebook's file name, its text or a
+        dict), with the call that loads one.
+    """
+    if isinstance(cfg, MissionConfig):
+        return cfg
+    shown = repr(cfg) if len(repr(cfg)) <= 60 else "..."
+    loads = shown if isinstance(cfg, str | FsPath) else "Path('mission.yaml') or YAML text"
+    raise ArgumentError(f"a loaded mission config is needed, not {type(cfg).__name__} "
+                        f"{shown}: give veribattery.load_config({loads})")
 
 
 @dataclass(frozen=True, slots=True)
@@ -104,9 +120,12 @@ def read_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Co
 
     :raises ConfigError: on unreadable files, YAML syntax errors (with line:col) and
         malformed overrides.
+    :raises ArgumentError: for a config neither a path nor text, or overrides that are
+        no ``KEY=VALUE`` strings.
     """
     if isinstance(overrides, str):  # one override, not one per character
         overrides = (overrides,)
+    _require_overrides(overrides)
     text, source = _read(path_or_text)
     root = compose(text, source)
     data = _mapping(construct(root, text, source), source)
@@ -118,8 +137,26 @@ def read_config(path_or_text: str | FsPath, overrides: Sequence[str] = ()) -> Co
     return ConfigDocument(data, root, (text, source), tuple(overridden))
 
 
+def _require_overrides(overrides: object) -> None:
+    if isinstance(overrides, Mapping):
+        raise ArgumentError.wrong_kind("overrides", overrides, "a list of KEY=VALUE strings",
+                                       "[f'{key}={value}' for key, value in overrides.items()]")
+    if not isinstance(overrides, Sequence):
+        raise ArgumentError.wrong_kind("overrides", overrides, "a list of KEY=VALUE strings",
+                                       "['strategy.safe_t=0.25']")
+    for number, item in enumerate(overrides):
+        if not isinstance(item, str):
+            raise ArgumentError.wrong_kind(f"overrides[{number}]", item, "a KEY=VALUE string",
+                                           "'strategy.safe_t=0.25'")
+
+
 def _read(path_or_text: str | FsPath) -> tuple[str, str]:
     """The text to parse and the name to report it under."""
+    if not isinstance(path_or_text, str | FsPath):
+        fix = ("its YAML text: yaml.safe_dump(config)" if isinstance(path_or_text, Mapping)
+               else "Path('mission.yaml')")
+        raise ArgumentError.wrong_kind("path_or_text", path_or_text,
+                                       "a config file's Path or its YAML text", fix)
     if isinstance(path_or_text, FsPath) or _looks_like_path(path_or_text):
         path = FsPath(path_or_text)
         try:

@@ -8,7 +8,7 @@ import numpy as np
 
 from veribattery._named import by_key
 from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
-from veribattery.errors import PrismSemanticError
+from veribattery.errors import ArgumentError, PrismSemanticError
 
 #: Reward vectors at least this long are stored as one broadcast zero when all zero.
 _ZERO_VIEW_MIN = 1 << 16
@@ -134,7 +134,13 @@ class DTMC:
         return self
 
     def column(self, name: str) -> IntArray:
-        """The values of variable *name* in every state."""
+        """The values of variable *name* in every state.
+
+        :raises ArgumentError: for a name that is no variable (also a ValueError, which
+            ``tuple.index`` raised with only "x not in tuple").
+        """
+        if name not in self.variable_names:
+            raise ArgumentError(f"no variable {name!r}: the variables are {self.variable_names}")
         return self.states[:, self.variable_names.index(name)]
 
     def reward(self, key: str | int | None) -> RewardVectors:

@@ -6,7 +6,7 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 
-from veribattery.errors import PrismSemanticError, PrismSyntaxError
+from veribattery.errors import ArgumentError, PrismSemanticError, PrismSyntaxError
 from veribattery.lang.evaluate import EvaluationError, evaluate
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import (
@@ -277,6 +277,23 @@ def _type_of_value(value: Value) -> ValueType:
 def _assignable(target: ValueType, source: ValueType) -> bool:
     """An int may be stored in a double, nothing else converts."""
     return target == source or (target == "double" and source == "int")
+
+
+def require_constants(constants: object) -> None:
+    """Refuse *constants* unless it is None or a mapping of constant names to values.
+
+    :raises ArgumentError: naming what was given; for ``--const`` style ``N=3`` strings,
+        the call that turns them into a mapping.
+    """
+    if constants is None or (isinstance(constants, Mapping)
+                             and all(isinstance(name, str) for name in constants)):
+        return
+    texts = isinstance(constants, Sequence) and not isinstance(constants, str) and all(
+        isinstance(item, str) for item in constants)
+    fix = (f"veribattery.lang.parse_constant_assignments({constants!r})" if texts
+           else "a dict such as {'N': 3}")
+    raise ArgumentError.wrong_kind("constants", constants,
+                                   "a mapping of constant names to values", fix)
 
 
 def evaluate_constants(

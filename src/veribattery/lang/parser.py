@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from veribattery._collector import collections_spaced
 from veribattery._text import decode_text
-from veribattery.errors import PrismSyntaxError, Span, VeribatteryError
+from veribattery.errors import ArgumentError, PrismSyntaxError, Span, VeribatteryError
 from veribattery.lang.fastparse import Fallback, parse_fast
 from veribattery.lang.lexer import KEYWORDS
 from veribattery.lang.nodes import Model, PropertiesFile, Property
@@ -95,6 +95,9 @@ def _read(source: str | Path, name: str | None, what: str) -> tuple[str, str]:
     (*what*: the kind of file, for the message on one that is too large)."""
     if isinstance(source, str):
         return source, name or "<string>"
+    if not isinstance(source, Path):
+        raise ArgumentError.wrong_kind("source", source, "a Path to read or PRISM text (a str)",
+                                       "Path('model.pm'), or the text itself")
     shown = name or str(source)
     try:
         with source.open("rb") as stream:
@@ -323,6 +326,7 @@ def parse_model(source: str | Path, *, name: str | None = None) -> Model:
     :param name: the name used in error messages (default: the path, or ``<string>``)
     :raises PrismSyntaxError: if the file is missing or the text does not parse
     :raises PrismSemanticError: if the model is neither a DTMC nor an MDP
+    :raises ArgumentError: for *source* neither a Path nor a str
     """
     model: Model = _parse_source(source, name, "start_model")
     return model
@@ -334,6 +338,7 @@ def parse_properties(source: str | Path, *, name: str | None = None) -> Properti
     :param source: the file, or the properties text itself
     :param name: the name used in error messages
     :raises PrismSyntaxError: if the file is missing or the text does not parse
+    :raises ArgumentError: for *source* neither a Path nor a str
     """
     props: PropertiesFile = _parse_source(source, name, "start_props")
     return props
@@ -372,6 +377,11 @@ def parse_property(text: str) -> Property:
     """Parse one property, e.g. ``P=? [ F "done" ]`` or ``"name": R=? [ C<=10 ]``.
 
     :raises PrismSyntaxError: if the text is not a single property
+    :raises ArgumentError: for anything but a str (a file: :func:`parse_properties`)
     """
+    if not isinstance(text, str):
+        raise ArgumentError.wrong_kind(
+            "text", text, "one property's text", "e.g. 'P=? [ F \"done\" ]'; a file's "
+            "properties are veribattery.parse_properties(Path('model.props')).properties")
     prop: Property = _parse(text, "<property>", "start_property")
     return prop

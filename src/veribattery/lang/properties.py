@@ -7,7 +7,7 @@ from collections.abc import Mapping, Sequence
 from typing import Any, TypeVar, cast
 
 from veribattery.errors import PrismSemanticError
-from veribattery.lang.constants import ConstantTable
+from veribattery.lang.constants import ConstantTable, require_constants
 from veribattery.lang.evaluate import evaluate
 from veribattery.lang.expressions import fold, literal, substitute, walk
 from veribattery.lang.nodes import (
@@ -34,7 +34,7 @@ from veribattery.lang.nodes import (
     ValueType,
 )
 from veribattery.lang.property_rules import STEPS_REWARD
-from veribattery.lang.semantics import BUILTIN_LABELS, check_unique
+from veribattery.lang.semantics import BUILTIN_LABELS, check_unique, require_flat
 from veribattery.lang.typecheck import TypeEnv, type_of
 
 #: A model with reward structures: as written, or flattened.
@@ -263,7 +263,10 @@ def resolve_property(
     structures and bounds are checked.
 
     :raises PrismSemanticError: for an unsupported construct or any of those errors
+    :raises ArgumentError: for a model not flattened, or *constants* that are no mapping
     """
+    model = require_flat(model)
+    require_constants(constants)
     if prop.unsupported is not None:
         raise PrismSemanticError(f"unsupported property {prop.text}: {prop.unsupported}", prop.span)
     resolver = _Resolver(model, props, constants or {})

@@ -12,8 +12,8 @@ from dataclasses import replace
 from typing import Any, cast
 
 from veribattery._collector import collections_spaced
-from veribattery.errors import PrismSemanticError, Span
-from veribattery.lang.constants import assignable, evaluate_constants
+from veribattery.errors import ArgumentError, PrismSemanticError, Span
+from veribattery.lang.constants import assignable, evaluate_constants, require_constants
 from veribattery.lang.evaluate import evaluate
 from veribattery.lang.expressions import Memo, close, rename_idents, substitute, walk
 from veribattery.lang.nodes import (
@@ -370,7 +370,13 @@ def flatten_model(model: Model, constants: Mapping[str, Value | str] | None = No
         per the declared type); names that the model does not declare are ignored,
         as they may belong to a properties file
     :raises PrismSemanticError: on any name, type or range error, or a missing constant
+    :raises ArgumentError: for anything but a parsed model, or *constants* that are no
+        mapping
     """
+    if not isinstance(model, Model):
+        raise ArgumentError.wrong_kind("model", model, "a parsed Model",
+                                       "veribattery.parse_model(Path('model.pm'))")
+    require_constants(constants)
     check_unique(((n, d.span) for n, d in _declared_names(model)), "name")
     formulas = expand_formulas(model.formulas)
     values = evaluate_constants(model.constants, _own(constants, model.constants))
@@ -394,6 +400,17 @@ def flatten_model(model: Model, constants: Mapping[str, Value | str] | None = No
         source=model.source,
         model_type=model.model_type,
     )
+
+
+def require_flat(model: object) -> FlatModel:
+    """*model*, if it is flattened (what a builder and a property's resolution read).
+
+    :raises ArgumentError: for anything else (a parsed :class:`Model`, say).
+    """
+    if isinstance(model, FlatModel):
+        return model
+    raise ArgumentError.wrong_kind("model", model, "a flattened model",
+                                   "veribattery.flatten_model(model, constants)")
 
 
 def _own(

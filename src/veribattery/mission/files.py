@@ -10,7 +10,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from veribattery._files import write_texts
-from veribattery.config import MissionConfig, config_to_yaml
+from veribattery.config import MissionConfig, config_to_yaml, require_config
 from veribattery.errors import Span, VeribatteryError
 from veribattery.lang import flatten_model, parse_model, parse_property, resolve_property
 from veribattery.lang.expressions import walk
@@ -60,7 +60,7 @@ _NO_PROPERTIES = "// (None of this config's properties is of this kind.)\n"
 _FORMULA = "<property>"
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, repr=False)  # a short repr: see __repr__
 class MissionFiles:
     """The emitted texts: the PRISM model, the properties PRISM and Storm both read,
     those only Storm reads, and the resolved config."""
@@ -75,15 +75,25 @@ class MissionFiles:
         texts = (self.model, self.properties, self.storm_only, self.config)
         return dict(zip(EMITTED_FILES, texts, strict=True))
 
+    def __repr__(self) -> str:
+        # Each text's size, not the text: the model alone is some 12,000 characters,
+        # printed as one line of escaped newlines. print(files.model) shows it.
+        sizes = ", ".join(f"{name}=<{len(text):,} characters>" for name, text in (
+            ("model", self.model), ("properties", self.properties),
+            ("storm_only", self.storm_only), ("config", self.config)))
+        return f"MissionFiles({sizes})"
+
 
 def mission_files(cfg: MissionConfig) -> MissionFiles:
     """Render the model and properties of *cfg*, the properties validated first and
     split by dialect (:func:`is_storm_only`). Rendering needs Jinja: imported late.
 
     :raises ConfigError: for a bad property (see :func:`validate_properties`).
+    :raises ArgumentError: for anything but a loaded config (a file's name, say).
     """
     from veribattery.render import render_model
 
+    cfg = require_config(cfg)
     cfg.require_bs1()
     model = render_model(cfg)
     parsed = parse_model(model, name=MODEL_FILE)

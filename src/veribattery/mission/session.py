@@ -10,8 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from veribattery.checker import Workspace
-from veribattery.config import MissionConfig
-from veribattery.errors import ArgumentError
+from veribattery.config import MissionConfig, require_config
 from veribattery.explore.dtmc import DTMC
 from veribattery.lang import flatten_model, parse_model
 from veribattery.lang.nodes import Model, PropertiesFile
@@ -53,10 +52,7 @@ class RenderedMission:
         """
         from veribattery.render import render_model, render_properties
 
-        if not isinstance(cfg, MissionConfig):  # a notebook's file name, or its text
-            shown = repr(cfg) if len(repr(cfg)) <= 60 else "..."
-            raise ArgumentError(f"a loaded mission config is needed, not {type(cfg).__name__} "
-                                f"{shown}: give veribattery.load_config({shown})")
+        cfg = require_config(cfg)  # not a notebook's file name, or its text
         cfg.require_bs1()
         return cls(cfg, render_model(cfg), render_properties(cfg))
 
@@ -132,7 +128,7 @@ class MissionSession:
     :param rewards: ``"named"``: build only the reward structures the properties name.
     :param parses: the parse cache to use (a sweep's worker gives every task its own).
     :param workspace: the checker's caches (see :class:`~veribattery.pipeline.Session`).
-    :raises ValueError: for *lump* without ``keep="answers"``.
+    :raises ArgumentError: for *lump* without ``keep="answers"`` (also a ValueError).
     """
 
     def __init__(self, *, keep: Keep = "states", reuse: bool = True, lump: bool = False,
@@ -142,6 +138,11 @@ class MissionSession:
         self.session = Session(options, reuse=reuse, lump=lump, rewards=rewards,
                                workspace=workspace)
         self.parses = parses or ParseCache()
+
+    def __repr__(self) -> str:
+        inner = self.session
+        return (f"MissionSession(keep={inner.options.keep!r}, reuse={inner.builder is not None}, "
+                f"lump={inner.lumper is not None}, rewards={inner.rewards!r})")
 
     @classmethod
     def for_sweep(cls, *, reuse: bool = True, lump: bool = False,

@@ -18,7 +18,11 @@ from veribattery.lang import (
     with_used_rewards,
 )
 from veribattery.lang.nodes import Value
-from veribattery.pipeline.inputs import parsed_properties, reject_unknown_constants
+from veribattery.pipeline.inputs import (
+    parsed_model,
+    parsed_properties,
+    reject_unknown_constants,
+)
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
@@ -65,9 +69,9 @@ def check_model_exact(
     """
     from veribattery.checker import Workspace  # the DTMC checker: not imported for MDPs
 
-    properties = parsed_properties(properties)
+    model, properties = parsed_model(model), parsed_properties(properties)
     reject_unknown_constants(model, props_file, constants or {})
-    options = options or CheckOptions()
+    options = CheckOptions.given(options)
     watch = stopwatch or Stopwatch(*STAGES)
     with watch.stage("parse"):
         model, properties, props_file, flat = _decided(model, properties, props_file,

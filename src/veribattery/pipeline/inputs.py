@@ -1,5 +1,5 @@
-"""What a caller hands the pipeline, checked before any work: the properties are parsed
-ones, and every constant given a value is declared somewhere.
+"""What a caller hands the pipeline, checked before any work: the model and the properties
+are parsed ones, and every constant given a value is declared somewhere.
 
 A notebook passes what it has at hand (PRISM text, one property, the parsed file); the
 loop over the properties would otherwise fail deep inside with an ``AttributeError``."""
@@ -7,11 +7,31 @@ loop over the properties would otherwise fail deep inside with an ``AttributeErr
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from pathlib import PurePath
 
 from veribattery.errors import ArgumentError, PrismSemanticError
-from veribattery.lang import Model, PropertiesFile, Property, undefined_constants
+from veribattery.lang import FlatModel, Model, PropertiesFile, Property, undefined_constants
+from veribattery.lang.constants import require_constants
 
-__all__ = ["parsed_properties", "reject_unknown_constants"]
+__all__ = ["parsed_model", "parsed_properties", "reject_unknown_constants"]
+
+
+def parsed_model(model: object) -> Model:
+    """*model*, if it is a parsed (not yet flattened) model.
+
+    :raises ArgumentError: for a file's name or text, or a flattened model, with the call
+        that gives what is wanted.
+    """
+    if isinstance(model, Model):
+        return model
+    if isinstance(model, FlatModel):
+        fix = "the Model it was flattened from: constants= gives the values"
+    elif isinstance(model, str) and not _names_a_file(model):
+        fix = "veribattery.parse_model(text)"
+    else:
+        named = str(model) if isinstance(model, str | PurePath) else "model.pm"
+        fix = f"veribattery.parse_model(Path({named!r}))"
+    raise ArgumentError.wrong_kind("model", model, "a parsed Model", fix)
 
 
 def parsed_properties(properties: object) -> tuple[Property, ...]:
@@ -45,7 +65,9 @@ def reject_unknown_constants(
     so, don't ignore it.
 
     :raises PrismSemanticError: naming the unknown constants and the undefined ones.
+    :raises ArgumentError: for *constants* that are no mapping of names to values.
     """
+    require_constants(constants)
     declared = {c.name for c in model.constants}
     declared |= {c.name for c in props.constants} if props is not None else set()
     unknown = sorted(set(constants) - declared)
@@ -55,6 +77,11 @@ def reject_unknown_constants(
             f"constant{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}: declared "
             "neither in the model nor in its properties, but given a value (by --const, "
             f"or constants= from Python); the undefined constants are: {hint}")
+
+
+def _names_a_file(name: str | PurePath) -> bool:
+    """Whether *name* reads as a file's name, not a model's text (which has spaces)."""
+    return isinstance(name, PurePath) or not any(c.isspace() for c in name.strip())
 
 
 def _cut(text: str, keep: int = 60) -> str:

@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 from veribattery.checker import CheckResult
 from veribattery.checker.result import require_keep
-from veribattery.errors import PrismSemanticError
+from veribattery.errors import ArgumentError, PrismSemanticError
 from veribattery.lang import (
     Model,
     PropertiesFile,
@@ -50,7 +50,13 @@ def select(
 
     :param props: the properties file, if any.
     :param selectors: 1-based indices, property names, or property text.
+    :raises ArgumentError: for a selector that is no str (an int index, say).
     """
+    for number, selector in enumerate(selectors or ()):  # None: none, as before
+        if not isinstance(selector, str):
+            raise ArgumentError.wrong_kind(f"selectors[{number}]", selector, "a str (a 1-based "
+                                           "index, a name or a property's text)",
+                                           repr(str(selector)))
     if not selectors:
         if props is None:
             raise PrismSemanticError("no property given: use --props FILE or --property "

@@ -119,6 +119,18 @@ class CheckOptions:
     def __post_init__(self) -> None:
         require_keep(self.keep)
 
+    @classmethod
+    def given(cls, options: object) -> CheckOptions:
+        """*options* as a caller passed them: None is the defaults.
+
+        :raises ArgumentError: for anything but a :class:`CheckOptions` (a dict of them).
+        """
+        if options is None or isinstance(options, cls):
+            return options or cls()
+        fix = (f"veribattery.CheckOptions(**{options!r})" if isinstance(options, dict)
+               else "veribattery.CheckOptions(keep='answers')")
+        raise ArgumentError.wrong_kind("options", options, "a CheckOptions", fix)
+
 
 @dataclass(frozen=True, slots=True)
 class ModelCheckRun:

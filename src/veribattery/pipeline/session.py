@@ -23,7 +23,11 @@ from veribattery.lang import (
 )
 from veribattery.lang.expressions import walk
 from veribattery.lang.nodes import Expr, Filter, Ident, Value
-from veribattery.pipeline.inputs import parsed_properties, reject_unknown_constants
+from veribattery.pipeline.inputs import (
+    parsed_model,
+    parsed_properties,
+    reject_unknown_constants,
+)
 from veribattery.pipeline.run import (
     STAGES,
     CheckOptions,
@@ -93,13 +97,14 @@ class Session:
         keeps values, not models (a sweep point).
     :param workspace: the checker's caches, shared by this session's checks (default:
         a new one, so the session's caches live and go with it).
-    :raises ArgumentError: for *lump* without ``keep="answers"``, or an unknown *rewards*.
+    :raises ArgumentError: for *lump* without ``keep="answers"``, an unknown *rewards*,
+        or *options* that are no :class:`CheckOptions`.
     """
 
     def __init__(self, options: CheckOptions | None = None, *, reuse: bool = True,
                  lump: bool = False, rewards: Rewards = "all",
                  workspace: Workspace | None = None) -> None:
-        self.options = options or CheckOptions()
+        self.options = CheckOptions.given(options)
         if lump and self.options.keep != "answers":
             raise ArgumentError('lumping keeps answers only: give CheckOptions(keep="answers")')
         require_rewards(rewards)
@@ -111,6 +116,12 @@ class Session:
 
             self.lumper = Lumper()
         self.workspace = workspace if workspace is not None else Workspace()
+
+    def __repr__(self) -> str:
+        # What was chosen, not <object at 0x...>: a notebook with two sessions tells
+        # them apart by their options.
+        return (f"Session(options={self.options!r}, reuse={self.builder is not None}, "
+                f"lump={self.lumper is not None}, rewards={self.rewards!r})")
 
     def check(
         self,
@@ -142,7 +153,7 @@ class Session:
             leave unexpanded the states where every property's value is known
             (:func:`~veribattery.pipeline.stopping.stopping_condition`), as Storm does.
         """
-        properties = parsed_properties(properties)
+        model, properties = parsed_model(model), parsed_properties(properties)
         reject_unknown_constants(model, props_file, constants or {})
         watch = stopwatch or Stopwatch(*STAGES)
         stages = stages_of(progress)

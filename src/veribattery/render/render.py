@@ -28,7 +28,7 @@ from jinja2.bccache import Bucket
 
 from veribattery._collector import collections_spaced
 from veribattery.config.exact import fraction_to_decimal
-from veribattery.config.load import config_to_yaml
+from veribattery.config.load import config_to_yaml, require_config
 from veribattery.config.params import derive_parameters
 from veribattery.config.schema import MissionConfig
 from veribattery.errors import RenderError
@@ -133,7 +133,9 @@ def render_model(cfg: MissionConfig) -> str:
 
     :raises ConfigError: when the config's numbers overflow PRISM's integers.
     :raises RenderError: when the template fails.
+    :raises ArgumentError: for anything but a loaded config (a file's name, say).
     """
+    cfg = require_config(cfg)
     return _render(MODEL_TEMPLATE, p=derive_parameters(cfg), config_lines=_header(cfg))
 
 
@@ -141,5 +143,7 @@ def render_properties(cfg: MissionConfig) -> str:
     """The PRISM properties file of *cfg*: its named properties, in order.
 
     :raises RenderError: when the template fails.
+    :raises ArgumentError: for anything but a loaded config (a file's name, say).
     """
+    cfg = require_config(cfg)
     return _render(PROPERTIES_TEMPLATE, properties=cfg.properties, requirements=cfg.requirements)

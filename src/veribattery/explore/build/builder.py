@@ -65,6 +65,7 @@ def build_dtmc(model: FlatModel, *, progress: Callable[[int, int], None] | None 
     :raises ModelError: an update leaves a variable's range, a probability is
         negative, or a choice's probabilities do not sum to 1.
     :raises ModelTooLarge: the state space would not fit in the memory available.
+    :raises ArgumentError: for a model not flattened (a parsed :class:`Model`).
     """
     states, initial, layers = explore(model, compile_program(model), progress)
     return assemble(model, states, initial, layers)

@@ -21,6 +21,7 @@ from veribattery.explore.compile.expr import (
     constant_value,
 )
 from veribattery.lang.nodes import Command, Expr, FlatModel, FlatModule, Ident, Update
+from veribattery.lang.semantics import require_flat
 
 __all__ = [
     "ChoiceGroup",
@@ -98,8 +99,11 @@ class Program:
 
 
 def compile_program(model: FlatModel) -> Program:
-    """Compile every command of *model* and group the commands into choice groups."""
-    names = _names(model)
+    """Compile every command of *model* and group the commands into choice groups.
+
+    :raises ArgumentError: for a model not flattened (a parsed one, given to a builder).
+    """
+    names = _names(require_flat(model))
     program = _program(model, names, lambda m, c: _compile_command(m, c, names))
     names.cache.grids.clear()  # only the tables needed them
     return program

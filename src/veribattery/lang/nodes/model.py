@@ -3,8 +3,9 @@ layer semantic analysis produces for the state-space builder."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
-from typing import Literal, TypeAlias
+from typing import Literal, Protocol, TypeAlias
 
 from veribattery.errors import NO_SPAN, Span
 from veribattery.lang.nodes.expr import (
@@ -152,7 +153,16 @@ class RewardStruct:
 ModelType: TypeAlias = Literal["dtmc", "mdp"]
 
 
-@dataclass(frozen=True, slots=True)
+class _Named(Protocol):
+    @property
+    def name(self) -> str | None: ...
+
+
+def _names(declared: Iterable[_Named]) -> tuple[str | None, ...]:
+    return tuple(d.name for d in declared)
+
+
+@dataclass(frozen=True, slots=True, repr=False)  # a short repr: see __repr__
 class Model:
     """A whole PRISM model file, declarations in source order per kind."""
 
@@ -166,13 +176,22 @@ class Model:
     init: Expr | None = None
     source: str = "<string>"
 
+    def __repr__(self) -> str:
+        # What a notebook shows of a parsed model: its declarations' names, not every
+        # expression with a span on each node (10 kB for the die, megabytes for a mission).
+        commands = sum(len(m.commands) for m in self.modules if isinstance(m, Module))
+        return (f"Model(model_type={self.model_type!r}, source={self.source!r}, "
+                f"constants={_names(self.constants)}, globals={_names(self.globals)}, "
+                f"modules={_names(self.modules)}, commands={commands}, "
+                f"labels={_names(self.labels)}, rewards={_names(self.rewards)})")
+
 
 # ---------------------------------------------------------------------------
 # Properties files
 # ---------------------------------------------------------------------------
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, repr=False)  # a short repr: see __repr__
 class Property:
     """One property: ``["name":] formula``; *text* is the source text of the formula."""
 
@@ -185,8 +204,12 @@ class Property:
     #: is then a placeholder and resolving the property raises an error.
     unsupported: str | None = None
 
+    def __repr__(self) -> str:
+        # Its name and text, as a result shows it: the formula's tree is for the checker.
+        return f"Property(name={self.name!r}, text={self.text!r})"
 
-@dataclass(frozen=True, slots=True)
+
+@dataclass(frozen=True, slots=True, repr=False)  # a short repr: see __repr__
 class PropertiesFile:
     """A ``.props``/``.pctl`` file: its constants, labels and properties in order."""
 
@@ -194,6 +217,10 @@ class PropertiesFile:
     labels: tuple[LabelDecl, ...]
     properties: tuple[Property, ...]
     source: str = "<string>"
+
+    def __repr__(self) -> str:
+        return (f"PropertiesFile(source={self.source!r}, constants={_names(self.constants)}, "
+                f"labels={_names(self.labels)}, properties={self.properties!r})")
 
 
 # ---------------------------------------------------------------------------
@@ -229,7 +256,7 @@ class FlatModule:
     span: Span = field(default=NO_SPAN, compare=False)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(frozen=True, slots=True, repr=False)  # a short repr: see __repr__
 class FlatModel:
     """A checked, closed model: every expression uses only variables and literals.
 
@@ -254,3 +281,11 @@ class FlatModel:
     def variable_names(self) -> tuple[str, ...]:
         """Variable names in state-vector order."""
         return tuple(v.name for v in self.variables)
+
+    def __repr__(self) -> str:
+        # As Model's: names, the constants' values and the size, not the expressions.
+        return (f"FlatModel(model_type={self.model_type!r}, source={self.source!r}, "
+                f"constants={dict(self.constants)}, variables={self.variable_names}, "
+                f"modules={tuple(m.name for m in self.modules)}, "
+                f"commands={sum(len(m.commands) for m in self.modules)}, "
+                f"labels={_names(self.labels)}, rewards={_names(self.rewards)})")
