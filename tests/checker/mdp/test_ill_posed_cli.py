@@ -82,7 +82,7 @@ def test_exact_mode_reports_an_unreachable_rmin_target_too(tmp_path: Path) -> No
 
 
 # ---------------------------------------------------------------------------
-# Rewards PRISM does not allow: negative ones (at the property), infinite or NaN ones
+# Rewards refused: negative ones (at the property), infinite or NaN ones
 # (at the model's reward item), in every kind of reward property
 # ---------------------------------------------------------------------------
 
@@ -112,8 +112,8 @@ def test_negative_rewards_are_one_line(prop: str, mode: tuple[str, ...],
     assert result.exit_code == 2, result.output
     (line,) = result.output.strip().splitlines()
     assert line.startswith("error: <property>:1:")
-    assert line.endswith('the reward structure "r" has negative rewards, which PRISM does not '
-                         "allow")
+    assert line.endswith('the reward structure "r" has negative rewards: veribattery checks '
+                         "nonnegative rewards only")
 
 
 @pytest.mark.parametrize("value", ["0/0", "1/0"])

@@ -140,15 +140,17 @@ def _reward_structure(dtmc: DTMC, op: RewardOp | RewardBounded) -> RewardVectors
 
 def require_nonnegative_rewards(name: str | None, values: tuple[FloatArray, ...],
                                 op: RewardOp | RewardBounded) -> None:
-    """Refuse a reward structure with a negative reward (PRISM does not allow them),
-    naming the operator that reads it (the build refuses infinite and NaN ones).
+    """Refuse a reward structure with a negative reward, naming the operator that reads
+    it (the build refuses infinite and NaN ones). Every reward operator here, and its
+    certificate, assumes nonnegative rewards; Storm computes some such properties
+    (``C<=k``, ``I=k``), with rewards that are not monotone in the step.
 
     :raises CheckError: at *op*.
     """
     if any(np.any(array < 0) for array in values):
         shown = "" if name is None else f' "{name}"'
-        raise CheckError(f"the reward structure{shown} has negative rewards, which PRISM "
-                         "does not allow", op.span)
+        raise CheckError(f"the reward structure{shown} has negative rewards: veribattery "
+                         "checks nonnegative rewards only", op.span)
 
 
 def literal_number(expr: Expr) -> float:
