@@ -47,8 +47,6 @@ import argparse
 import json
 import math
 import os
-import resource
-import signal
 import subprocess
 import sys
 import tempfile
@@ -57,6 +55,8 @@ from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from fractions import Fraction
 from pathlib import Path
+
+from sweeps import GitFolder, Process, error_line, run_process, tree_commit
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -311,37 +311,9 @@ def worker(request_path: Path) -> None:
 # Running processes
 
 
-@dataclass
-class Process:
-    """What one run printed, its exit status (None: timed out) and wall time."""
-
-    returncode: int | None
-    stdout: str
-    stderr: str
-    wall_s: float
-
-
-def _limit_memory() -> None:
-    resource.setrlimit(resource.RLIMIT_AS, (MEMORY_BYTES, MEMORY_BYTES))
-
-
-def run_process(command: list[str], cwd: Path, timeout: float) -> Process:
-    """Run *command* in *cwd* in a fresh process group under the memory cap, killed
-    after *timeout* seconds."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        filter(None, [str(ROOT / "src"), env.get("PYTHONPATH", "")]))
-    start = time.perf_counter()
-    process = subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, start_new_session=True,
-                               preexec_fn=_limit_memory)
-    try:
-        out, err = process.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(process.pid, signal.SIGKILL)  # the group this run started
-        out, err = process.communicate()
-        return Process(None, out, err, time.perf_counter() - start)
-    return Process(process.returncode, out, err, time.perf_counter() - start)
+def run_capped(command: list[str], cwd: Path, timeout: float) -> Process:
+    """:func:`sweeps.run_process` under the memory cap."""
+    return run_process(command, cwd, timeout, MEMORY_BYTES)
 
 
 def storm_run(request: dict[str, object], folder: Path, timeout: float) -> tuple[
@@ -349,7 +321,7 @@ def storm_run(request: dict[str, object], folder: Path, timeout: float) -> tuple
     """The JSON lines the Storm worker prints for *request*, and its process."""
     path = folder / f"request-{os.getpid()}.json"
     path.write_text(json.dumps(request))
-    done = run_process([sys.executable, str(Path(__file__).resolve()), "--worker",
+    done = run_capped([sys.executable, str(Path(__file__).resolve()), "--worker",
                         str(path)], folder, timeout)
     lines = [json.loads(line) for line in done.stdout.splitlines() if line.startswith("{")]
     return lines, done
@@ -357,49 +329,6 @@ def storm_run(request: dict[str, object], folder: Path, timeout: float) -> tuple
 
 # ---------------------------------------------------------------------------
 # The models
-
-
-class Source:
-    """Storm's ``resources/examples/testfiles``: in a checkout's work tree, or at HEAD of a
-    bare git directory."""
-
-    def __init__(self, root: Path) -> None:
-        self.root = root
-        self.folder: Path | None = root / TESTFILES
-        if not self.folder.is_dir():
-            self.folder = None
-            if self._git("rev-parse", "--is-bare-repository") is None:
-                raise SystemExit(f"--root {root}: neither a checkout holding {TESTFILES} "
-                                 "nor a git directory")
-
-    def _git(self, *args: str) -> bytes | None:
-        where = ["-C", str(self.root)] if self.folder else ["--git-dir", str(self.root)]
-        done = subprocess.run(["git", *where, *args], capture_output=True, check=False)
-        return done.stdout if done.returncode == 0 else None
-
-    def commit(self) -> str:
-        """The commit the files come from (a checkout's HEAD; its work tree is read)."""
-        head = self._git("rev-parse", "HEAD")
-        return head.decode().strip() if head else "unknown (not a git checkout)"
-
-    def files(self) -> list[str]:
-        """Every file under dtmc/ and mdp/, relative to the testfiles folder."""
-        if self.folder:
-            return sorted(str(p.relative_to(self.folder)) for f in FOLDERS
-                          for p in (self.folder / f).iterdir() if p.is_file())
-        listed = self._git("ls-tree", "-r", "--name-only", "HEAD", "--",
-                           *(f"{TESTFILES}/{f}/" for f in FOLDERS)) or b""
-        return sorted(line.removeprefix(f"{TESTFILES}/")
-                      for line in listed.decode().splitlines())
-
-    def read(self, path: str) -> bytes:
-        """The file *path*, relative to the testfiles folder."""
-        if self.folder:
-            return (self.folder / path).read_bytes()
-        found = self._git("show", f"HEAD:{TESTFILES}/{path}")
-        if found is None:
-            raise FileNotFoundError(path)
-        return found
 
 
 def models_and_props(files: list[str]) -> list[tuple[str, str | None]]:
@@ -515,13 +444,6 @@ class Row:
     ours_pair: tuple[Number, Number] = (None, None)
 
 
-def _error_line(stderr: str) -> str:
-    """The ``error:`` line of a refusal (else stderr's last line)."""
-    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
-    errors = [line for line in lines if line.startswith("error:")]
-    return (errors or lines or [""])[-1]
-
-
 def _json_output(done: Process) -> dict[str, object] | None:
     lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
     try:
@@ -536,9 +458,9 @@ def failed(row: Row, done: Process) -> bool:
     if done.returncode is None:
         row.outcome = "timeout"
     elif "Traceback" in done.stderr or done.returncode not in (0, 2):
-        row.outcome, row.message = "error", f"exit {done.returncode}: {_error_line(done.stderr)}"
+        row.outcome, row.message = "error", f"exit {done.returncode}: {error_line(done.stderr)}"
     elif done.returncode == 2:
-        row.outcome, row.message = "refused", _error_line(done.stderr)
+        row.outcome, row.message = "refused", error_line(done.stderr)
     elif _json_output(done) is None:
         row.outcome, row.message = "error", "exit 0 without JSON"
     else:
@@ -635,11 +557,11 @@ def exact_verdict(case: Case, name: str, timeout: float, row: Row,
     DEADLOCK_REWARD, a difference of semantics rather than of numbers."""
     storm_text, _ = _storm_exact(case, name, timeout)
     parts = [f"Storm exact: {storm_text}"]
-    done = run_process(case.veribattery(*case.prop_args(name), "--exact"), case.folder,
+    done = run_capped(case.veribattery(*case.prop_args(name), "--exact"), case.folder,
                        timeout)
     output = _json_output(done) if done.returncode == 0 else None
     ours = fraction(output["results"][0].get("exact")) if output else None  # type: ignore[index]
-    parts.append(f"veribattery --exact: {ours if ours is not None else _error_line(done.stderr)}")
+    parts.append(f"veribattery --exact: {ours if ours is not None else error_line(done.stderr)}")
     if deadlocks and name.startswith(("R", "#")):
         fixed_text, fixed = _storm_exact(case, name, timeout, fix_deadlocks=True)
         parts.append(f"Storm exact with the {deadlocks} deadlock state(s) looping in PRISM, "
@@ -659,7 +581,7 @@ def _storm_exact(case: Case, name: str, timeout: float,
                             timeout)
     found = next((line for line in lines if line.get("property") == name), None)
     if found is None:
-        return ("timeout" if done.returncode is None else _error_line(done.stderr)), []
+        return ("timeout" if done.returncode is None else error_line(done.stderr)), []
     values = list(found.get("values") or [])  # type: ignore[call-overload]
     return (", ".join(map(str, values)) if values else str(found.get("error"))), values
 
@@ -668,7 +590,7 @@ def skipped_row(case: Case, why: str, timeout: float, storm_s: float | None = No
     """A model left out, with what veribattery makes of it (building it as it stands)."""
     probe = "P=? [ X true ]" if case.model.startswith("dtmc/") else "Pmax=? [ X true ]"
     command = case.veribattery("--property", probe, "--all-states")
-    done = run_process(command, case.folder, timeout)
+    done = run_capped(command, case.folder, timeout)
     seen = Row(case.model, "-", "")
     ours = (f"refuses too: {seen.message}" if failed(seen, done) and seen.outcome == "refused"
             else seen.outcome or "builds it")
@@ -685,7 +607,7 @@ def sweep_model(case: Case, timeout: float, add: callable) -> None:  # type: ign
     head = lines[0] if lines else {}
     if "model" not in head:
         why = head.get("build_error") or ("timeout" if done.returncode is None
-                                          else _error_line(done.stderr))
+                                          else error_line(done.stderr))
         add(skipped_row(case, f"Storm cannot build it: {why}", timeout, done.wall_s))
         return
     described = head["model"]
@@ -693,14 +615,14 @@ def sweep_model(case: Case, timeout: float, add: callable) -> None:  # type: ign
     probe = "P=? [ X true ]" if described["kind"] == "dtmc" else "Pmax=? [ X true ]"
     command = case.veribattery("--property", probe, "--all-states")
     add(build_row(case.model, described, command,
-                  run_process(command, case.folder, timeout), done.wall_s - storm_s))
+                  run_capped(command, case.folder, timeout), done.wall_s - storm_s))
     answers = {line["property"]: line for line in lines[1:] if "property" in line}
     for name in head["properties"]:
         storm = answers.get(name, {"error": "timeout" if done.returncode is None
-                                   else _error_line(done.stderr)})
+                                   else error_line(done.stderr)})
         command = case.veribattery(*case.prop_args(name))
         row = property_row(case.model, name, storm, command,
-                           run_process(command, case.folder, timeout))
+                           run_capped(command, case.folder, timeout))
         row.states = (row.states[0], described["states"])
         if name.startswith("#"):
             row.prop = f"{case.props} {name}: `{head['properties'][name]}`"
@@ -784,16 +706,6 @@ def write(out: Path, rows: list[Row], header: str) -> None:
     out.write_text("\n".join(lines) + "\n")
 
 
-def _tree_commit() -> str:
-    """This tree's commit, with ``+changes`` if its ``src`` differs."""
-    def git(*args: str) -> str:
-        return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True,
-                              check=False).stdout.strip()
-
-    dirty = git("status", "--porcelain", "--untracked-files=no", "src")
-    return (git("rev-parse", "--short", "HEAD") or "unknown") + (" +changes" if dirty else "")
-
-
 def progress(number: int, row: Row) -> None:
     """Print *row* as a progress line, and a traceback's stderr loudly."""
     print(f"[{number}] {row.model} {row.prop}: {row.outcome} {row.ours} vs {row.storm} "
@@ -803,7 +715,7 @@ def progress(number: int, row: Row) -> None:
               flush=True)
 
 
-def materialise(source: Source, model: str, props: str | None, folder: Path) -> None:
+def materialise(source: GitFolder, model: str, props: str | None, folder: Path) -> None:
     """Write *model* and *props* under *folder*, at their paths in the testfiles folder."""
     for name in filter(None, (model, props)):
         path = folder / name
@@ -822,10 +734,10 @@ def main() -> None:
     parser.add_argument("--timeout", type=float, default=300.0, help="seconds per process")
     parser.add_argument("--out", type=Path, default=ROOT / "docs/_bench/storm_testfiles.md")
     args = parser.parse_args()
-    source = Source(args.root.expanduser())
+    source = GitFolder(args.root.expanduser(), TESTFILES)
     start = time.perf_counter()
     rows: list[Row] = []
-    header = (f"veribattery at commit {_tree_commit()} against Storm "
+    header = (f"veribattery at commit {tree_commit()} against Storm "
               f"{_storm_version()} (stormpy, sound, relative precision "
               f"{float(Fraction(STORM_PRECISION)):g}) on Storm's commit "
               f"`{source.commit()}`; one process per property (one per model for Storm), "
@@ -842,7 +754,7 @@ def main() -> None:
         write(args.out, rows, f"{header}, {took}.")
 
     with tempfile.TemporaryDirectory() as tmp:
-        for model, props in models_and_props(source.files()):
+        for model, props in models_and_props(source.files(*FOLDERS)):
             if args.only not in model:
                 continue
             materialise(source, model, props, Path(tmp))
