@@ -41,7 +41,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import re
 import shlex
 import sys
@@ -53,7 +52,15 @@ from fractions import Fraction
 from pathlib import Path
 
 from bench_scale import byte_compile_sources
-from sweeps import GitFolder, Process, error_line, run_process, tree_commit
+from sweeps import (
+    GitFolder,
+    Number,
+    Process,
+    agree,
+    error_line,
+    run_process,
+    tree_commit,
+)
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -70,12 +77,9 @@ TITLES = {"mdp": "MDPs", "dtmc": "DTMCs"}
 MODEL_SUFFIXES = (".prism", ".nm", ".pm")
 #: A build stops (exit 2, a refusal) past this many times ``--max-states`` states.
 BUILD_CAP_FACTOR = 10
-RELATIVE_TOLERANCE = 1e-6
-ABSOLUTE_TOLERANCE = 1e-9
 #: Outcomes that make the exit status 1.
 FAILURES = ("NO", "error", "timeout")
 
-Number = float | bool | None
 
 
 def read_json(source: GitFolder, path: str) -> dict[str, object]:
@@ -258,18 +262,6 @@ def our_value(value: object) -> Number:
         except ValueError:
             return None
     return None
-
-
-def agree(ours: Number, reference: Number) -> bool:
-    """Whether our value matches the reference: truth values exactly, infinities by sign,
-    numbers to RELATIVE_TOLERANCE (ABSOLUTE_TOLERANCE near 0)."""
-    if isinstance(ours, bool) or isinstance(reference, bool):
-        return isinstance(ours, bool) and isinstance(reference, bool) and ours == reference
-    if ours is None or reference is None or math.isnan(ours) or math.isnan(reference):
-        return False
-    if math.isinf(ours) or math.isinf(reference):
-        return ours == reference
-    return abs(ours - reference) <= max(RELATIVE_TOLERANCE * abs(reference), ABSOLUTE_TOLERANCE)
 
 
 def show(value: Number) -> str:

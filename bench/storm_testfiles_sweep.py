@@ -56,7 +56,17 @@ from datetime import UTC, datetime
 from fractions import Fraction
 from pathlib import Path
 
-from sweeps import GitFolder, Process, error_line, run_process, tree_commit
+from sweeps import (
+    ABSOLUTE_TOLERANCE,
+    RELATIVE_TOLERANCE,
+    GitFolder,
+    Number,
+    Process,
+    agree,
+    error_line,
+    run_process,
+    tree_commit,
+)
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -64,8 +74,6 @@ TESTFILES = "resources/examples/testfiles"
 FOLDERS = ("dtmc", "mdp")
 MODEL_SUFFIXES = (".pm", ".nm", ".prism")
 PROPS_SUFFIXES = (".props", ".prctl", ".csl")
-RELATIVE_TOLERANCE = 1e-6
-ABSOLUTE_TOLERANCE = 1e-9
 MEMORY_BYTES = 8 * 1024**3
 #: Storm's sound solvers stop at this relative precision (its default is 1e-6).
 STORM_PRECISION = "1/10000000000"
@@ -105,7 +113,6 @@ DEADLOCK_REWARD = "Storm: deadlock reward 0"
 #: Outcomes that make the exit status 1.
 FAILURES = ("NO", "error", "timeout")
 
-Number = float | bool | None
 
 
 # ---------------------------------------------------------------------------
@@ -372,18 +379,6 @@ def fraction(value: object) -> Fraction | float | None:
         return None
 
 
-def close(ours: Number, theirs: Number) -> bool:
-    """Truth values exactly, infinities by sign, numbers to RELATIVE_TOLERANCE
-    (ABSOLUTE_TOLERANCE near 0)."""
-    if isinstance(ours, bool) or isinstance(theirs, bool):
-        return isinstance(ours, bool) and isinstance(theirs, bool) and ours == theirs
-    if ours is None or theirs is None or math.isnan(ours) or math.isnan(theirs):
-        return False
-    if math.isinf(ours) or math.isinf(theirs):
-        return ours == theirs
-    return abs(ours - theirs) <= max(RELATIVE_TOLERANCE * abs(theirs), ABSOLUTE_TOLERANCE)
-
-
 def storm_answer(values: list[object]) -> tuple[Number, Number]:
     """Storm's answer at the initial states: a truth value holding in all of them (twice),
     or the lowest and highest number."""
@@ -514,7 +509,7 @@ def property_row(model: str, name: str, storm: dict[str, object], command: list[
         row.outcome = "storm error"
         return row
     theirs = storm_answer(storm["values"])  # type: ignore[arg-type]
-    row.outcome = "yes" if close(ours[0], theirs[0]) and close(ours[1], theirs[1]) else "NO"
+    row.outcome = "yes" if agree(ours[0], theirs[0]) and agree(ours[1], theirs[1]) else "NO"
     return row
 
 
@@ -568,7 +563,7 @@ def exact_verdict(case: Case, name: str, timeout: float, row: Row,
                      f"so keeping their state rewards: {fixed_text}")
         answer = storm_answer([float(f) for f in map(fraction, fixed) if f is not None])
         low, high = row.ours_pair
-        if fixed and close(low, answer[0]) and close(high, answer[1]):
+        if fixed and agree(low, answer[0]) and agree(high, answer[1]):
             row.outcome = DEADLOCK_REWARD
     row.verdict = "; ".join(parts)
 

@@ -5,6 +5,7 @@ veribattery or Storm process with a timeout, and naming the tree measured."""
 from __future__ import annotations
 
 import errno
+import math
 import os
 import resource
 import signal
@@ -14,6 +15,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+#: Values agree to this relative tolerance ...
+RELATIVE_TOLERANCE = 1e-6
+#: ... or this absolute one, near 0.
+ABSOLUTE_TOLERANCE = 1e-9
+
+#: A value read off a tool's output: a number, a truth value, or none.
+Number = float | bool | None
 
 
 class GitFolder:
@@ -112,3 +120,15 @@ def tree_commit() -> str:
 
     dirty = git("status", "--porcelain", "--untracked-files=no", "src")
     return (git("rev-parse", "--short", "HEAD") or "unknown") + (" +changes" if dirty else "")
+
+
+def agree(ours: Number, reference: Number) -> bool:
+    """Whether our value matches the reference: truth values exactly, infinities by sign,
+    numbers to RELATIVE_TOLERANCE (ABSOLUTE_TOLERANCE near 0)."""
+    if isinstance(ours, bool) or isinstance(reference, bool):
+        return isinstance(ours, bool) and isinstance(reference, bool) and ours == reference
+    if ours is None or reference is None or math.isnan(ours) or math.isnan(reference):
+        return False
+    if math.isinf(ours) or math.isinf(reference):
+        return ours == reference
+    return abs(ours - reference) <= max(RELATIVE_TOLERANCE * abs(reference), ABSOLUTE_TOLERANCE)
