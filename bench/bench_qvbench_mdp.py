@@ -40,14 +40,9 @@ The report goes to ``docs/_bench/qvbench_mdp.md`` (``qvbench_dtmc.md`` for DTMCs
 from __future__ import annotations
 
 import argparse
-import errno
 import json
-import math
-import os
 import re
 import shlex
-import signal
-import subprocess
 import sys
 import tempfile
 import time
@@ -57,6 +52,15 @@ from fractions import Fraction
 from pathlib import Path
 
 from bench_scale import byte_compile_sources
+from sweeps import (
+    GitFolder,
+    Number,
+    Process,
+    agree,
+    error_line,
+    run_process,
+    tree_commit,
+)
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -73,53 +77,16 @@ TITLES = {"mdp": "MDPs", "dtmc": "DTMCs"}
 MODEL_SUFFIXES = (".prism", ".nm", ".pm")
 #: A build stops (exit 2, a refusal) past this many times ``--max-states`` states.
 BUILD_CAP_FACTOR = 10
-RELATIVE_TOLERANCE = 1e-6
-ABSOLUTE_TOLERANCE = 1e-9
 #: Outcomes that make the exit status 1.
 FAILURES = ("NO", "error", "timeout")
 
-Number = float | bool | None
 
 
-class Source:
-    """A ``benchmarks/TYPE`` folder of QVBS: in a checkout's work tree, or at HEAD of a
-    bare git directory."""
-
-    def __init__(self, root: Path, kind: str) -> None:
-        self.root = root
-        self.kind = kind
-        self.folder: Path | None = root / "benchmarks" / kind
-        if not self.folder.is_dir():
-            self.folder = None
-            if self._git("rev-parse", "--is-bare-repository") is None:
-                raise SystemExit(f"--root {root}: neither a checkout holding benchmarks/{kind} "
-                                 "nor a git directory")
-
-    def _git(self, *args: str) -> bytes | None:
-        """The output of git on the root (a bare git dir or a checkout), None on failure."""
-        where = ["-C", str(self.root)] if self.folder else ["--git-dir", str(self.root)]
-        done = subprocess.run(["git", *where, *args], capture_output=True, check=False)
-        return done.stdout if done.returncode == 0 else None
-
-    def commit(self) -> str:
-        """The commit the files come from (a checkout's HEAD; its work tree is read)."""
-        head = self._git("rev-parse", "HEAD")
-        return head.decode().strip() if head else "unknown (not a git checkout)"
-
-    def read(self, path: str) -> bytes:
-        """The file *path* (relative to ``benchmarks/TYPE``); FileNotFoundError if absent."""
-        if self.folder:
-            return (self.folder / path).read_bytes()
-        found = self._git("show", f"HEAD:benchmarks/{self.kind}/{path}")
-        if found is None:
-            raise FileNotFoundError(errno.ENOENT, "not at HEAD", path)
-        return found
-
-    def json(self, path: str) -> dict[str, object]:
-        """A JSON file (QVBS writes some with a byte-order mark)."""
-        data = json.loads(self.read(path).decode("utf-8-sig"))
-        assert isinstance(data, dict)
-        return data
+def read_json(source: GitFolder, path: str) -> dict[str, object]:
+    """A JSON file of QVBS (which writes some with a byte-order mark)."""
+    data = json.loads(source.read(path).decode("utf-8-sig"))
+    assert isinstance(data, dict)
+    return data
 
 
 @dataclass(frozen=True)
@@ -192,9 +159,9 @@ def _run_states(data: list[dict[str, object]]) -> int | None:
     return None
 
 
-def family_instances(source: Source, family: str) -> list[Instance]:
+def family_instances(source: GitFolder, family: str) -> list[Instance]:
     """The PRISM-language instances of *family* with a state count, and their references."""
-    index = source.json(f"{family}/index.json")
+    index = read_json(source, f"{family}/index.json")
     found: list[tuple[str, Instance]] = []
     for entry in index["files"]:  # type: ignore[attr-defined]
         original = entry.get("original-file") or []
@@ -213,7 +180,7 @@ def family_instances(source: Source, family: str) -> list[Instance]:
             found.append((entry["file"], instance))
     for listed in index.get("results") or []:  # type: ignore[attr-defined]
         path = listed if isinstance(listed, str) else listed["file"]
-        run = source.json(f"{family}/{path}")
+        run = read_json(source, f"{family}/{path}")
         tool_info = run["tool"]
         assert isinstance(tool_info, dict)
         variants = list(tool_info.get("variant") or [])
@@ -297,18 +264,6 @@ def our_value(value: object) -> Number:
     return None
 
 
-def agree(ours: Number, reference: Number) -> bool:
-    """Whether our value matches the reference: truth values exactly, infinities by sign,
-    numbers to RELATIVE_TOLERANCE (ABSOLUTE_TOLERANCE near 0)."""
-    if isinstance(ours, bool) or isinstance(reference, bool):
-        return isinstance(ours, bool) and isinstance(reference, bool) and ours == reference
-    if ours is None or reference is None or math.isnan(ours) or math.isnan(reference):
-        return False
-    if math.isinf(ours) or math.isinf(reference):
-        return ours == reference
-    return abs(ours - reference) <= max(RELATIVE_TOLERANCE * abs(reference), ABSOLUTE_TOLERANCE)
-
-
 def show(value: Number) -> str:
     """A value to 12 significant digits (truth values as ``true``/``false``)."""
     if value is None:
@@ -316,33 +271,6 @@ def show(value: Number) -> str:
     if isinstance(value, bool):
         return literal(value)
     return f"{value:.12g}"
-
-
-@dataclass
-class Process:
-    """What one run printed, its exit status (None: timed out) and wall time."""
-
-    returncode: int | None
-    stdout: str
-    stderr: str
-    wall_s: float
-
-
-def run_process(command: list[str], cwd: Path, timeout: float) -> Process:
-    """Run *command* in *cwd* in a fresh process group, killed after *timeout* seconds."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join(
-        filter(None, [str(ROOT / "src"), env.get("PYTHONPATH", "")]))
-    start = time.perf_counter()
-    process = subprocess.Popen(command, cwd=cwd, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        out, err = process.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        os.killpg(process.pid, signal.SIGKILL)  # the group this run started
-        out, err = process.communicate()
-        return Process(None, out, err, time.perf_counter() - start)
-    return Process(process.returncode, out, err, time.perf_counter() - start)
 
 
 @dataclass
@@ -367,13 +295,6 @@ class Row:
     exactly: bool = False  # compared with an exact reference, fraction for fraction
 
 
-def _error_line(stderr: str) -> str:
-    """The ``error:`` line of a refusal (else stderr's last line)."""
-    lines = [line.strip() for line in stderr.splitlines() if line.strip()]
-    errors = [line for line in lines if line.startswith("error:")]
-    return (errors or lines or [""])[-1]
-
-
 def outcome_row(instance: Instance, prop: str, command: list[str], done: Process,
                 inline: bool) -> Row:
     """A row from one finished (or timed-out) run."""
@@ -386,10 +307,10 @@ def outcome_row(instance: Instance, prop: str, command: list[str], done: Process
         row.outcome = "timeout"
         return row
     if "Traceback" in done.stderr or done.returncode not in (0, 2):
-        row.outcome, row.message = "error", f"exit {done.returncode}: {_error_line(done.stderr)}"
+        row.outcome, row.message = "error", f"exit {done.returncode}: {error_line(done.stderr)}"
         return row
     if done.returncode == 2:
-        row.outcome, row.message = "refused", _error_line(done.stderr)
+        row.outcome, row.message = "refused", error_line(done.stderr)
         return row
     lines = [line for line in done.stdout.splitlines() if line.startswith("{")]
     try:
@@ -578,17 +499,7 @@ def write(out: Path, kind: str, rows: list[Row], settings: str,
     out.write_text("\n".join(lines) + "\n")
 
 
-def _tree_commit() -> str:
-    """This tree's commit, with ``+changes`` if its work tree differs."""
-    def git(*args: str) -> str:
-        return subprocess.run(["git", "-C", str(ROOT), *args], capture_output=True, text=True,
-                              check=False).stdout.strip()
-
-    dirty = git("status", "--porcelain", "--untracked-files=no", "src")
-    return (git("rev-parse", "--short", "HEAD") or "unknown") + (" +changes" if dirty else "")
-
-
-def materialise(source: Source, instance: Instance, folder: Path) -> str:
+def materialise(source: GitFolder, instance: Instance, folder: Path) -> str:
     """Write *instance*'s model and properties files under *folder*; the properties' text."""
     for name in (instance.model, instance.props):
         path = folder / instance.family / name
@@ -627,13 +538,13 @@ def main() -> None:
     args = parser.parse_args()
     byte_compile_sources()
     sys.set_int_max_str_digits(0)  # (oscillators' index.json has integers of 6,000 digits)
-    source = Source(args.root.expanduser(), args.kind)
+    source = GitFolder(args.root.expanduser(), f"benchmarks/{args.kind}")
     mode = "_exact" if args.exact else ""
     out = args.out or ROOT / f"docs/_bench/qvbench_{args.kind}{mode}.md"
     cap = BUILD_CAP_FACTOR * args.max_states
     start = time.perf_counter()
     families = f"the families whose name contains `{args.only}`" if args.only else "all families"
-    header = (f"veribattery at commit {_tree_commit()} (`python -m veribattery prism ... "
+    header = (f"veribattery at commit {tree_commit()} (`python -m veribattery prism ... "
               f"--json{' --exact' if args.exact else ''}`, one property per fresh process, "
               f"timeout {args.timeout:.0f} s, "
               f"`--max-states {cap}`) on QVBS commit `{source.commit()}`, {families}: per "
