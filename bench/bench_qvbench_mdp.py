@@ -53,17 +53,16 @@ from pathlib import Path
 
 from bench_scale import byte_compile_sources
 from sweeps import (
+    ROOT,
     GitFolder,
     Number,
     Process,
     agree,
     error_line,
+    read_number,
     run_process,
     tree_commit,
 )
-
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
 
 #: The QVBS families written in the PRISM language (model and properties file), by type.
 FAMILIES = {
@@ -246,22 +245,8 @@ def reference_value(value: object) -> Number:
         word = value.strip().lower()
         if word in ("true", "false"):
             return word == "true"
-        return our_value(word.replace("∞", "inf"))
-    return our_value(value)
-
-
-def our_value(value: object) -> Number:
-    """A value of ``prism --json`` (``"Infinity"`` and ``"NaN"`` are strings there)."""
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(value, str):
-        try:
-            return float(value)
-        except ValueError:
-            return None
-    return None
+        return read_number(word.replace("∞", "inf"))
+    return read_number(value)
 
 
 def show(value: Number) -> str:
@@ -321,10 +306,10 @@ def outcome_row(instance: Instance, prop: str, command: list[str], done: Process
         return row
     row.states = output.get("model", {}).get("states")
     row.stopped = int(output.get("model", {}).get("stopped_states", 0))
-    row.value = our_value(result.get("value"))
+    row.value = read_number(result.get("value"))
     bounds = result.get("bounds")
     if isinstance(bounds, list) and len(bounds) == 2:
-        row.bounds = (our_value(bounds[0]), our_value(bounds[1]))
+        row.bounds = (read_number(bounds[0]), read_number(bounds[1]))
     if row.reference is None:
         row.outcome = "no reference"
         return row

@@ -56,20 +56,9 @@ from datetime import UTC, datetime
 from fractions import Fraction
 from pathlib import Path
 
-from sweeps import (
-    ABSOLUTE_TOLERANCE,
-    RELATIVE_TOLERANCE,
-    GitFolder,
-    Number,
-    Process,
-    agree,
-    error_line,
-    run_process,
-    tree_commit,
-)
+import sweeps
+from sweeps import ROOT, GitFolder, Number, Process, agree, read_number
 
-HERE = Path(__file__).resolve().parent
-ROOT = HERE.parent
 TESTFILES = "resources/examples/testfiles"
 FOLDERS = ("dtmc", "mdp")
 MODEL_SUFFIXES = (".pm", ".nm", ".prism")
@@ -320,7 +309,7 @@ def worker(request_path: Path) -> None:
 
 def run_capped(command: list[str], cwd: Path, timeout: float) -> Process:
     """:func:`sweeps.run_process` under the memory cap."""
-    return run_process(command, cwd, timeout, MEMORY_BYTES)
+    return sweeps.run_process(command, cwd, timeout, MEMORY_BYTES)
 
 
 def storm_run(request: dict[str, object], folder: Path, timeout: float) -> tuple[
@@ -355,20 +344,6 @@ def models_and_props(files: list[str]) -> list[tuple[str, str | None]]:
 # Values and their comparison
 
 
-def number(value: object) -> Number | Fraction:
-    """A value of either tool as a float (``"inf"``, ``"Infinity"``), a bool, or None."""
-    if isinstance(value, bool):
-        return value
-    if isinstance(value, (int, float)):
-        return float(value)
-    if isinstance(value, str):
-        try:
-            return float(value.replace("Infinity", "inf"))
-        except ValueError:
-            return None
-    return None
-
-
 def fraction(value: object) -> Fraction | float | None:
     """An exact value (``"p/q"``; infinities as floats), or None."""
     if isinstance(value, str) and "inf" in value.lower():
@@ -382,7 +357,7 @@ def fraction(value: object) -> Fraction | float | None:
 def storm_answer(values: list[object]) -> tuple[Number, Number]:
     """Storm's answer at the initial states: a truth value holding in all of them (twice),
     or the lowest and highest number."""
-    read = [number(v) for v in values]
+    read = [read_number(v) for v in values]
     if read and all(isinstance(v, bool) for v in read):
         return all(read), all(read)
     floats = [v for v in read if isinstance(v, float)]
@@ -395,8 +370,8 @@ def our_answer(result: dict[str, object]) -> tuple[Number, Number]:
     """veribattery's answer: its value twice, or the range over the initial states."""
     span = result.get("range")
     if isinstance(span, list) and len(span) == 2:
-        return number(span[0]), number(span[1])  # type: ignore[return-value]
-    value = number(result.get("value"))
+        return read_number(span[0]), read_number(span[1])  # type: ignore[return-value]
+    value = read_number(result.get("value"))
     return value, value  # type: ignore[return-value]
 
 
@@ -453,9 +428,10 @@ def failed(row: Row, done: Process) -> bool:
     if done.returncode is None:
         row.outcome = "timeout"
     elif "Traceback" in done.stderr or done.returncode not in (0, 2):
-        row.outcome, row.message = "error", f"exit {done.returncode}: {error_line(done.stderr)}"
+        refusal = sweeps.error_line(done.stderr)
+        row.outcome, row.message = "error", f"exit {done.returncode}: {refusal}"
     elif done.returncode == 2:
-        row.outcome, row.message = "refused", error_line(done.stderr)
+        row.outcome, row.message = "refused", sweeps.error_line(done.stderr)
     elif _json_output(done) is None:
         row.outcome, row.message = "error", "exit 0 without JSON"
     else:
@@ -491,7 +467,7 @@ def build_row(model: str, described: dict[str, object], command: list[str],
 def property_row(model: str, name: str, storm: dict[str, object], command: list[str],
                  done: Process) -> Row:
     """Compare veribattery's value of one property with Storm's."""
-    row = Row(model, name, "", done.wall_s, number(storm.get("wall_s")),  # type: ignore[arg-type]
+    row = Row(model, name, "", done.wall_s, read_number(storm.get("wall_s")),  # type: ignore[arg-type]
               command=command)
     if "error" in storm:
         row.storm = "error"
@@ -556,7 +532,8 @@ def exact_verdict(case: Case, name: str, timeout: float, row: Row,
                        timeout)
     output = _json_output(done) if done.returncode == 0 else None
     ours = fraction(output["results"][0].get("exact")) if output else None  # type: ignore[index]
-    parts.append(f"veribattery --exact: {ours if ours is not None else error_line(done.stderr)}")
+    shown = ours if ours is not None else sweeps.error_line(done.stderr)
+    parts.append(f"veribattery --exact: {shown}")
     if deadlocks and name.startswith(("R", "#")):
         fixed_text, fixed = _storm_exact(case, name, timeout, fix_deadlocks=True)
         parts.append(f"Storm exact with the {deadlocks} deadlock state(s) looping in PRISM, "
@@ -576,7 +553,7 @@ def _storm_exact(case: Case, name: str, timeout: float,
                             timeout)
     found = next((line for line in lines if line.get("property") == name), None)
     if found is None:
-        return ("timeout" if done.returncode is None else error_line(done.stderr)), []
+        return ("timeout" if done.returncode is None else sweeps.error_line(done.stderr)), []
     values = list(found.get("values") or [])  # type: ignore[call-overload]
     return (", ".join(map(str, values)) if values else str(found.get("error"))), values
 
@@ -602,7 +579,7 @@ def sweep_model(case: Case, timeout: float, add: callable) -> None:  # type: ign
     head = lines[0] if lines else {}
     if "model" not in head:
         why = head.get("build_error") or ("timeout" if done.returncode is None
-                                          else error_line(done.stderr))
+                                          else sweeps.error_line(done.stderr))
         add(skipped_row(case, f"Storm cannot build it: {why}", timeout, done.wall_s))
         return
     described = head["model"]
@@ -614,7 +591,7 @@ def sweep_model(case: Case, timeout: float, add: callable) -> None:  # type: ign
     answers = {line["property"]: line for line in lines[1:] if "property" in line}
     for name in head["properties"]:
         storm = answers.get(name, {"error": "timeout" if done.returncode is None
-                                   else error_line(done.stderr)})
+                                   else sweeps.error_line(done.stderr)})
         command = case.veribattery(*case.prop_args(name))
         row = property_row(case.model, name, storm, command,
                            run_capped(command, case.folder, timeout))
@@ -732,13 +709,13 @@ def main() -> None:
     source = GitFolder(args.root.expanduser(), TESTFILES)
     start = time.perf_counter()
     rows: list[Row] = []
-    header = (f"veribattery at commit {tree_commit()} against Storm "
+    header = (f"veribattery at commit {sweeps.tree_commit()} against Storm "
               f"{_storm_version()} (stormpy, sound, relative precision "
               f"{float(Fraction(STORM_PRECISION)):g}) on Storm's commit "
               f"`{source.commit()}`; one process per property (one per model for Storm), "
               f"timeout {args.timeout:.0f} s, `ulimit -v` {MEMORY_BYTES // 1024**3} GB. "
-              f"Agreement: relative tolerance {RELATIVE_TOLERANCE:g} (absolute "
-              f"{ABSOLUTE_TOLERANCE:g} near 0), infinities equal, truth values exactly; "
+              f"Agreement: relative tolerance {sweeps.RELATIVE_TOLERANCE:g} (absolute "
+              f"{sweeps.ABSOLUTE_TOLERANCE:g} near 0), infinities equal, truth values exactly; "
               f"a mismatch is checked again in exact arithmetic by both. "
               f"Run {datetime.now(UTC):%Y-%m-%d %H:%M} UTC")
 

@@ -122,6 +122,21 @@ def tree_commit() -> str:
     return (git("rev-parse", "--short", "HEAD") or "unknown") + (" +changes" if dirty else "")
 
 
+def read_number(value: object) -> Number:
+    """A value a tool printed, as a float (``"inf"``, ``"Infinity"``, ``"NaN"``), a truth
+    value, or None."""
+    if isinstance(value, bool):
+        return value
+    if isinstance(value, (int, float)):
+        return float(value)
+    if isinstance(value, str):
+        try:
+            return float(value.replace("Infinity", "inf"))
+        except ValueError:
+            return None
+    return None
+
+
 def agree(ours: Number, reference: Number) -> bool:
     """Whether our value matches the reference: truth values exactly, infinities by sign,
     numbers to RELATIVE_TOLERANCE (ABSOLUTE_TOLERANCE near 0)."""
