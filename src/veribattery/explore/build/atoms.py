@@ -112,9 +112,8 @@ class AtomicGroups:
         commands' guards on *frontier* evaluated so far, by the command's identity)."""
         offset = self.starts[group]
         chosen = self.groups[group]
-        indexes = tuple(chosen.index(p) for p in range(len(chosen.parts)))
-        yield from (offset + index
-                    for index in _combinations(chosen.parts, frontier, guards, indexes=indexes))
+        yield from (offset + index for index in
+                    _combinations(chosen.parts, frontier, guards, indexes=chosen.indexes))
 
 
 def _combinations(parts: tuple[tuple[CompiledCommand, ...], ...], frontier: IntArray,
