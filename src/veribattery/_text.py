@@ -4,7 +4,8 @@ Configs, PRISM models and properties, and PHM logs all decode the same way: a UT
 byte-order mark (as Windows editors and spreadsheets' "CSV UTF-8" write it) is
 dropped, newlines become ``\\n`` (as :meth:`pathlib.Path.read_text` gives them), and
 the first byte that is not UTF-8 is reported at its line and column, counted in
-characters as an editor counts them.
+characters as an editor counts them. And the one way messages count things
+(:func:`count_of`: ``1 state``, ``1,234 states``).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import codecs
 
 from veribattery.errors import Span, VeribatteryError
 
-__all__ = ["counted", "decode_text"]
+__all__ = ["count_of", "decode_text"]
 
 
 def decode_text(data: bytes, source: str, error: type[VeribatteryError]) -> str:
@@ -38,6 +39,6 @@ def _newlines(text: str) -> str:
     return text.replace("\r\n", "\n").replace("\r", "\n")
 
 
-def counted(count: int, noun: str, plural: str | None = None) -> str:
+def count_of(count: int, noun: str) -> str:
     """``1 state``, ``2 states``: *count* and *noun*, in the plural unless it is one."""
-    return f"{count:,} {noun if count == 1 else plural or noun + 's'}"
+    return f"{count:,} {noun if count == 1 else noun + 's'}"

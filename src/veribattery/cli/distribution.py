@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from veribattery._text import count_of
 from veribattery.cli.analysis_options import induced_mission, strategy_option
 from veribattery.cli.files import CSV_SUFFIXES, FIGURE_SUFFIXES, PathParam, check_output_file
 from veribattery.cli.output import (
@@ -160,7 +161,7 @@ def _deadline(limit: Deadline) -> str:
 
 
 def _print_table(dist: Distribution, limits: tuple[Deadline, ...]) -> None:
-    levels = f"{dist.values.size:,} level" + ("s" if dist.values.size != 1 else "")
+    levels = count_of(dist.values.size, "level")
     click.echo(f"Distribution of {dist.reward!r} to success/failure: {levels}, up to "
                f"{dist.values[-1]:g}")
     rows = _summary(dist, limits)

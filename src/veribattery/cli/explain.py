@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import click
 
+from veribattery._text import count_of
 from veribattery.cli.analysis_options import (
     MOST_PATHS,
     counted,
@@ -251,11 +252,10 @@ def _print_explanation(
     columns: Sequence[tuple[str, str]], *, marker: str | None,
 ) -> None:
     total = explanation.probability
-    count = explanation.inflow.states.size
+    entered_from = count_of(explanation.inflow.states.size, "state")
     click.echo(fit_text(
         f"P({explanation.target}) = {format_value(total)}  (exact; the breakdown sums to it "
-        f"over the {count:,} state{'s' * (count != 1)} {explanation.target} is "
-        "entered from)"))
+        f"over the {entered_from} {explanation.target} is entered from)"))
     for grouping in explanation.groupings:
         _print_grouping(grouping, total)
     for number, (path, rows) in enumerate(zip(explanation.paths, steps, strict=True), 1):

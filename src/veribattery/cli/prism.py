@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 import click
 
+from veribattery._text import count_of
 from veribattery.cli.analysis_options import MOST_PATHS, MOST_RUNS, counted
 from veribattery.cli.experiments import check_experiment_options, print_experiment
 from veribattery.cli.explain import prism_explain
@@ -343,8 +344,8 @@ def print_prism_run(run: ModelCheckRun | MdpCheckRun) -> None:
     )
     stopped = size.get("stopped_states", 0)
     if stopped:
-        print_dim(fit_text(f"{stopped:,} state{'s' * (stopped != 1)} left unexpanded: every "
-                           "property is decided there (--all-states)"))
+        print_dim(fit_text(f"{count_of(stopped, 'state')} left unexpanded: every property "
+                           "is decided there (--all-states)"))
     rows = [(_labelled(result), _shown(result)) for result in run.results]
     print_table(("property", "value"), rows)
     for note in exact_notes(value for _, value in rows):

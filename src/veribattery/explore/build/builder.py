@@ -21,7 +21,7 @@ import scipy.sparse as sp
 
 from veribattery._collector import collections_spaced
 from veribattery._memory import trim_heap
-from veribattery._text import counted
+from veribattery._text import count_of
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery.errors import ModelError
 from veribattery.explore.build.fused import Expansion, LayerPlan
@@ -40,9 +40,9 @@ from veribattery.lang.nodes import Expr, FlatModel, RewardItem, RewardStruct
 if TYPE_CHECKING:
     from veribattery.explore.build.successors import GroupSuccessors
 
-__all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "check_finite_reward",
-           "expand_frontier", "explore", "initial_states", "layer_plan", "memory_footprint",
-           "rewarded_actions"]
+__all__ = ["Expansion", "Layer", "assemble", "build_dtmc", "build_warnings",
+           "check_finite_reward", "expand_frontier", "explore", "initial_states", "layer_plan",
+           "memory_footprint", "rewarded_actions"]
 
 #: Frontier states expanded at once, at most.
 _CHUNK = 1 << 14
@@ -333,7 +333,7 @@ def assemble(
         rewards=rewards,
         deadlocks=deadlocks,
         nondeterministic=nondeterministic,
-        warnings=_warnings(deadlocks, nondeterministic),
+        warnings=build_warnings(deadlocks, nondeterministic),
     )
 
 
@@ -390,16 +390,14 @@ def _drain(layers: list[Layer], name: str, empty: np.ndarray) -> np.ndarray:
 _TRIM_BYTES = 32 << 20
 
 
-def _warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
-    found = []
-    if deadlocks:
-        loops = "self-loop" if deadlocks == 1 else "self-loops"
-        found.append(f"{counted(deadlocks, 'deadlock state')} ({loops} added)")
+def build_warnings(deadlocks: int, nondeterministic: int) -> tuple[str, ...]:
+    """What a build fixed (deadlocks) or drew uniformly (a DTMC's nondeterminism), as
+    PRISM reports it."""
+    loops = "self-loop" if deadlocks == 1 else "self-loops"
+    found = [f"{count_of(deadlocks, 'deadlock state')} ({loops} added)"] if deadlocks else []
     if nondeterministic:
-        found.append(
-            f"{nondeterministic} states with several enabled choices "
-            "(each taken with equal probability)"
-        )
+        found.append(f"{nondeterministic} states with several enabled choices "
+                     "(each taken with equal probability)")
     return tuple(found)
 
 

@@ -20,7 +20,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from veribattery._collector import collections_spaced
-from veribattery._text import counted
 from veribattery._types import BoolArray, FloatArray, IntArray
 from veribattery._unique import distinct
 from veribattery.explore.build.atoms import AtomicGroups
@@ -29,6 +28,7 @@ from veribattery.explore.build.builder import (
     _labels,
     _next_chunk,
     _over_states,
+    build_warnings,
     check_finite_reward,
     initial_states,
     layer_plan,
@@ -90,10 +90,7 @@ class BuiltMdp:
     @property
     def warnings(self) -> tuple[str, ...]:
         """What the build fixed, as PRISM reports it."""
-        if not self.deadlocks:
-            return ()
-        loops = "self-loop" if self.deadlocks == 1 else "self-loops"
-        return (f"{counted(self.deadlocks, 'deadlock state')} ({loops} added)",)
+        return build_warnings(self.deadlocks, 0)
 
 
 @collections_spaced
