@@ -140,9 +140,7 @@ def check_target(path: Path, *, force: bool = False) -> None:
         ``RESULTS.sweep.json`` that is a folder or (unless *force*) that exists without
         results it fingerprints.
     """
-    if path.is_dir():
-        raise ConfigError(f"-o {path}: is a folder; name a results file "
-                          f"({_choices(FORMATS)}) in it")
+    _refuse_folder(path)  # (before its suffix: a folder is no file of any type)
     _suffix(path)
     _check_writable(path)
     _check_meta(path, force=force)
@@ -164,13 +162,17 @@ def _check_writable(path: Path) -> None:
     folder = path.parent
     if not folder.is_dir():
         raise ConfigError(f"-o {path}: folder {folder} does not exist; create it first")
-    if path.is_dir():
-        raise ConfigError(f"-o {path}: is a folder; name a results file "
-                          f"({_choices(FORMATS)}) in it")
+    _refuse_folder(path)
     target = path if path.exists() else folder
     if (not os.access(target, os.W_OK) or not can_create_in(folder)  # the journal, meta
             or (path.exists() and not path.is_file())):
         raise ConfigError(f"-o {path}: cannot write there (read-only or permission denied)")
+
+
+def _refuse_folder(path: Path) -> None:
+    if path.is_dir():
+        raise ConfigError(f"-o {path}: is a folder; name a results file "
+                          f"({_choices(FORMATS)}) in it")
 
 
 def _check_meta(path: Path, *, force: bool) -> None:
