@@ -26,7 +26,7 @@ from veribattery.lang.transform import OTHER_MODEL_TYPES, ToNodes, unsupported_t
 if TYPE_CHECKING:
     from lark import Lark, UnexpectedInput
 
-__all__ = ["parse_model", "parse_properties", "parse_property"]
+__all__ = ["names_a_file", "parse_model", "parse_properties", "parse_property"]
 
 _GRAMMAR = Path(__file__).with_name("prism.lark")
 # Terminals that can start an operand: listed together as "an expression".
@@ -361,13 +361,15 @@ def _parse_source(source: str | Path, name: str | None, start: str) -> Any:
     try:
         return _parse(text, label, start)
     except PrismSyntaxError:
-        if not (isinstance(source, str) and _names_a_file(source)):
+        if not (isinstance(source, str) and names_a_file(source)):
             raise
     raise PrismSyntaxError(f"{source!r} was parsed as PRISM text, since a str is the text "
                            f"itself: give Path({source!r}) to read the file") from None
 
 
-def _names_a_file(text: str) -> bool:
+def names_a_file(text: str) -> bool:
+    """Whether *text*, given where a model or properties are expected, reads as a file's
+    name (one line, a PRISM suffix or an existing file) rather than PRISM text."""
     one_line = text.strip() and "\n" not in text.strip() and len(text) < 4096
     return bool(one_line) and (text.strip().endswith(_PRISM_SUFFIXES)
                                or Path(text.strip()).is_file())

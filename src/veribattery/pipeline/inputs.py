@@ -12,6 +12,7 @@ from pathlib import PurePath
 from veribattery.errors import ArgumentError, PrismSemanticError
 from veribattery.lang import FlatModel, Model, PropertiesFile, Property, undefined_constants
 from veribattery.lang.constants import require_constants
+from veribattery.lang.parser import names_a_file
 
 __all__ = ["parsed_model", "parsed_properties", "reject_unknown_constants"]
 
@@ -26,7 +27,7 @@ def parsed_model(model: object) -> Model:
         return model
     if isinstance(model, FlatModel):
         fix = "the Model it was flattened from: constants= gives the values"
-    elif isinstance(model, str) and not _names_a_file(model):
+    elif isinstance(model, str) and not names_a_file(model):
         fix = "veribattery.parse_model(text)"
     else:
         named = str(model) if isinstance(model, str | PurePath) else "model.pm"
@@ -77,11 +78,6 @@ def reject_unknown_constants(
             f"constant{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}: declared "
             "neither in the model nor in its properties, but given a value (by --const, "
             f"or constants= from Python); the undefined constants are: {hint}")
-
-
-def _names_a_file(name: str | PurePath) -> bool:
-    """Whether *name* reads as a file's name, not a model's text (which has spaces)."""
-    return isinstance(name, PurePath) or not any(c.isspace() for c in name.strip())
 
 
 def _cut(text: str, keep: int = 60) -> str:
