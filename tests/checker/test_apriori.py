@@ -15,6 +15,7 @@ from veribattery.checker.certify.apriori import (
     float_above,
     float_below,
     gamma,
+    least_positive,
 )
 
 
@@ -60,3 +61,23 @@ def test_a_product_that_may_underflow_is_refused() -> None:
     assert products.bound(np.array([tiny, 0.0]), up=True) is None
     assert products.bound(np.array([tiny * 4, 0.0]), up=True) is not None
     assert products.bound(np.zeros(2), up=True).tolist() == [0.0, 0.0]  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("values", [
+    [], [0.0, 0.0], [0.0, np.inf], [np.inf], [np.nan], [np.nan, 3.0], [-1.0, 2.0],
+    [-0.0, 5e-324], [-5e-324, 0.0], [1e308, 2.2250738585072014e-308, 7.0], [2.0, 1.0, 0.5],
+])
+def test_least_positive_entry(values: list[float]) -> None:
+    positive = [v for v in values if v > 0]
+    assert least_positive(np.array(values, dtype=np.float64)) == min(positive, default=np.inf)
+
+
+def test_least_positive_entry_of_random_vectors() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        x = rng.standard_normal(int(rng.integers(1, 40))) * 10.0 ** int(rng.integers(-320, 300))
+        x[rng.random(x.size) < 0.3] = 0.0
+        x[rng.random(x.size) < 0.05] = np.nan
+        positive = x[x > 0]
+        assert least_positive(x) == (positive.min() if positive.size else np.inf)
+        assert least_positive(x[::2]) == least_positive(x[::2].copy())

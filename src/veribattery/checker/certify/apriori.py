@@ -37,6 +37,10 @@ def gamma(k: int) -> Fraction:
     return k * UNIT / (1 - k * UNIT)
 
 
+#: The bit pattern of ``+inf`` as an unsigned integer.
+_INFINITY_PATTERN = np.uint64(0x7FF0000000000000)
+
+
 def float_below(q: Fraction) -> float:
     """The largest double at most *q*."""
     nearest = float(q)
@@ -50,8 +54,20 @@ def float_above(q: Fraction) -> float:
 
 
 def least_positive(values: FloatArray) -> float:
-    """The smallest positive entry of *values* (``inf`` if none)."""
-    return float(np.min(values, where=values > 0, initial=np.inf))
+    """The smallest positive entry of *values* (``inf`` if none).
+
+    On the doubles' bit patterns as unsigned integers, which order the positive ones as
+    their values, with 1 subtracted: 0 wraps around to the largest, and -0.0, the
+    negative numbers and NaN lie above ``+inf``'s pattern. One pass with no mask, where
+    a masked minimum cost a step-bounded round of resource-gathering (B=1300) 1-7 ms.
+    """
+    patterns = np.ascontiguousarray(values, dtype=np.float64).view(np.uint64)
+    if not patterns.size:
+        return math.inf
+    least = (patterns - np.uint64(1)).min()
+    if least >= _INFINITY_PATTERN:
+        return math.inf
+    return float(np.array(least + np.uint64(1), dtype=np.uint64).view(np.float64))
 
 
 def no_underflow(values: FloatArray, smallest: float) -> bool:

@@ -35,7 +35,7 @@ __all__ = ["DEEPEST", "ChoiceLevels"]
 _Array = TypeVar("_Array", FloatArray, BoolArray, IntArray)
 
 #: At most this many levels (choices of one state) are laid out; a Python step per
-#: level and round costs a few microseconds.
+#: level and round costs a few microseconds. (Ranks among them fit an int8.)
 DEEPEST = 64
 
 
@@ -116,9 +116,18 @@ class ChoiceLevels:
             marked = np.where(images == best[owner], ranks, np.iinfo(np.int64).max)
             first = np.minimum.reduceat(marked, self.groups[:-1])
             return np.where(first == np.iinfo(np.int64).max, 0, first)
-        rank = np.zeros(self.widths[0], dtype=np.int64)
+        # Each level sets its rank where it attains the best, the last (lowest) level
+        # winning, as ``rank + hit * (level - rank)`` in int8 (ranks fit: at most DEEPEST
+        # levels): no branch per entry, where a masked copy per level took a fifth of
+        # a round of resource-gathering's 1,300 (B=1300; 4.5 ms of its 10 ms product).
+        states = self.widths[0]
+        rank = np.zeros(states, dtype=np.int8)
+        hit, step = np.empty(states, dtype=bool), np.empty(states, dtype=np.int8)
         for level, start, width in self.spans:
-            np.copyto(rank[:width], level, where=images[start: start + width] == best[:width])
+            np.equal(images[start: start + width], best[:width], out=hit[:width])
+            np.subtract(level, rank[:width], out=step[:width])
+            step[:width] *= hit[:width].view(np.int8)
+            rank[:width] += step[:width]
         return rank
 
     def chosen(self, rank: IntArray) -> IntArray:
