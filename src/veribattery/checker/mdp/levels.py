@@ -27,12 +27,12 @@ from typing import TypeVar
 import numpy as np
 import scipy.sparse as sp
 
-from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray, RankArray
 from veribattery.checker.mdp.model import MDP
 
 __all__ = ["DEEPEST", "ChoiceLevels"]
 
-_Array = TypeVar("_Array", FloatArray, BoolArray, IntArray)
+_Array = TypeVar("_Array", FloatArray, BoolArray, IntArray, RankArray)
 
 #: At most this many levels (choices of one state) are laid out; a Python step per
 #: level and round costs a few microseconds. (Ranks among them fit an int8.)
@@ -107,7 +107,7 @@ class ChoiceLevels:
             reduce(best[:width], images[start: start + width], out=best[:width])
         return best
 
-    def first_attaining(self, images: FloatArray, best: FloatArray) -> IntArray:
+    def first_attaining(self, images: FloatArray, best: FloatArray) -> RankArray:
         """Per state (this layout's order), the rank among its choices of the first
         whose image equals *best* (0 where none does: a NaN optimum)."""
         if not self.leveled:
@@ -130,7 +130,7 @@ class ChoiceLevels:
             rank[:width] += step[:width]
         return rank
 
-    def chosen(self, rank: IntArray) -> IntArray:
+    def chosen(self, rank: RankArray) -> IntArray:
         """The model's choices, per state in the model's order, of *rank* per state in
         this layout's order."""
         return np.asarray(self.restored(rank) + self.groups[:-1], dtype=np.int64)

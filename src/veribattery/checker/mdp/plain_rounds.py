@@ -27,7 +27,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from veribattery._types import BoolArray, FloatArray, IntArray
+from veribattery._types import BoolArray, FloatArray, RankArray
 from veribattery.checker.certify import step_down, step_up
 from veribattery.checker.certify.apriori import (
     float_above,
@@ -50,7 +50,7 @@ SHARE = Fraction(1, 8)
 
 def plain_rounds(levels: ChoiceLevels, start: FloatArray, held: FloatArray,
                  moving: BoolArray, offset: FloatArray | None, objective: Objective,
-                 steps: int, decide: Callable[[IntArray], None],
+                 steps: int, decide: Callable[[RankArray], None],
                  progress: Progress | None = None) -> Bounds | None:
     """Bounds after *steps* rounds from the exact *start* (in *levels*' order; the
     states not *moving* hold their exact value in *held*), each round's choices told to

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray
+from veribattery._types import BoolArray, CsrMatrix, FloatArray, IntArray, RankArray
 from veribattery.checker.certify import (
     TERM_FLOOR,
     enclose_product,
@@ -344,7 +344,7 @@ class _Rows:
 
 def _round(levels: ChoiceLevels, rounds: _Rounds, value: FloatArray, radius: FloatArray,
            fixed_radius: FloatArray, rows: _Rows
-           ) -> tuple[FloatArray, FloatArray, IntArray]:
+           ) -> tuple[FloatArray, FloatArray, RankArray]:
     """One Bellman round, in *levels*' order: the point values, their error radius, the
     choices taken (each state's rank among its choices).
 
@@ -376,11 +376,11 @@ class _Decisions:
 
     def __init__(self, levels: ChoiceLevels) -> None:
         self._levels = levels
-        self._first: IntArray | None = None
-        self._last: IntArray | None = None
-        self._changes: list[tuple[IntArray, IntArray]] = []
+        self._first: RankArray | None = None
+        self._last: RankArray | None = None
+        self._changes: list[tuple[IntArray, RankArray]] = []
 
-    def add(self, rank: IntArray) -> None:
+    def add(self, rank: RankArray) -> None:
         """The choices of the next round, as ranks in *levels*' order."""
         if self._last is None:
             self._first = rank
@@ -398,7 +398,7 @@ class _Decisions:
                         for change in self._changes)
         return StepStrategy(steps, self._levels.chosen(self._first), changes, then)
 
-    def _chosen(self, positions: IntArray, ranks: IntArray) -> tuple[IntArray, IntArray]:
+    def _chosen(self, positions: IntArray, ranks: RankArray) -> tuple[IntArray, IntArray]:
         """The states at *positions* of the layout and their choices of *ranks*."""
         states = self._levels.order[positions]
         return states, self._levels.groups[states] + ranks
