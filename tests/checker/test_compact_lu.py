@@ -79,3 +79,55 @@ def test_falls_back_to_the_superlu_solve_when_the_probe_disagrees(
     lu = spla.splu(random_system(50, 3))
     solve = compact_solve(lu)
     assert solve == lu.solve
+
+
+def _triangles_by_operations(lu: spla.SuperLU) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    upper = sp.csc_matrix(lu.U)
+    lower = sp.csc_matrix(sp.tril(lu.L, -1, format="csc") + sp.diags(upper.diagonal()))
+    return lower, sp.csc_matrix(sp.triu(upper, 1, format="csc"))
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_triangles_read_off_the_factors_are_those_of_sparse_operations(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(5, 250))
+    A = random_system(n, seed) if seed % 2 else sp.csc_matrix(
+        sp.eye(n) - 0.9 * sp.random(n, n, density=min(1.0, 3 / n), random_state=rng))
+    orders = [{}, {"permc_spec": "NATURAL", "diag_pivot_thresh": 0.0},
+              {"permc_spec": "MMD_AT_PLUS_A", "diag_pivot_thresh": 0.0}]
+    for options in orders:
+        lu = spla.splu(A, **options)  # type: ignore[arg-type]
+        for found, expected in zip(compact_lu._triangles(lu), _triangles_by_operations(lu),
+                                   strict=True):
+            expected.sort_indices()
+            assert found.shape == expected.shape
+            assert found.indptr.tolist() == expected.indptr.tolist()
+            assert found.indices.tolist() == expected.indices.tolist()
+            assert found.data.view(np.int64).tolist() == expected.data.view(np.int64).tolist()
+
+
+def _unit_lower(n: int, seed: int) -> sp.csc_matrix:
+    rng = np.random.default_rng(seed)
+    strict = sp.tril(sp.random(n, n, density=min(1.0, 3 / n), random_state=rng), -1)
+    lower = sp.csc_matrix(strict * -1.0 + sp.eye(n))
+    lower.sort_indices()
+    return lower
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_unit_lower_solve_is_spsolve_triangular_bit_for_bit(seed: int) -> None:
+    if compact_lu._superlu is None:
+        pytest.fail("scipy's private triangular solve is gone (spsolve_triangular is used)")
+    n = int(np.random.default_rng(seed).integers(1, 300))
+    lower = _unit_lower(n, seed)
+    solve = compact_lu.unit_lower_solve(lower.copy())
+    assert solve is not None
+    b = np.random.default_rng(seed + 1).uniform(0.0, 1.0, n)
+    expected = spla.spsolve_triangular(lower.copy(), b.copy(), lower=True, unit_diagonal=True)
+    assert solve(b.copy()).view(np.int64).tolist() == expected.view(np.int64).tolist()
+
+
+def test_unit_lower_solve_steps_aside_when_its_probe_disagrees(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(compact_lu, "_triangular_agrees", False)
+    assert compact_lu.unit_lower_solve(_unit_lower(20, 1)) is None

@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import SuperLU
+from scipy.sparse.linalg import SuperLU, spsolve_triangular
 
 from veribattery._types import FloatArray
 
@@ -30,10 +30,12 @@ try:  # SuperLU's triangular solve, on the factors as arrays
 except ImportError:  # pragma: no cover -- scipy moved it: the SuperLU object is kept
     _superlu = None
 
-__all__ = ["compact_solve"]
+__all__ = ["compact_solve", "unit_lower_solve"]
 
 #: Whether the private triangular solve agreed with ``SuperLU.solve`` (None: not probed).
 _agrees: bool | None = None
+#: ... and with ``spsolve_triangular`` on a unit lower triangular matrix.
+_triangular_agrees: bool | None = None
 
 
 def compact_solve(lu: SuperLU) -> Callable[[FloatArray], FloatArray]:
@@ -55,13 +57,61 @@ def compact_solve(lu: SuperLU) -> Callable[[FloatArray], FloatArray]:
     return solve
 
 
+def unit_lower_solve(lower: sp.csc_matrix) -> Callable[[FloatArray], FloatArray] | None:
+    """``b -> lower^-1 b`` (*b* overwritten) for a lower triangular CSC with its unit
+    diagonal stored and sorted rows, or None where SuperLU's triangular solve is not
+    there or not as expected (then ``spsolve_triangular``).
+
+    The routine ``spsolve_triangular(lower, b, lower=True, unit_diagonal=True,
+    overwrite_A=True, overwrite_b=True)`` calls (scipy >= 1.14), on the same arrays,
+    made once: that function checks, sets the diagonal and casts the index arrays at
+    every call, 0.2 ms each, and a strategy's system on consensus is solved through
+    some forty runs of single-state components, several times per evaluation.
+    """
+    global _triangular_agrees
+    if _superlu is None or _triangular_agrees is False:
+        return None
+    if _triangular_agrees is None:
+        _triangular_agrees = _triangular_probe()
+        if not _triangular_agrees:
+            return None
+    return _lower_solve(lower)
+
+
+def _lower_solve(lower: sp.csc_matrix) -> Callable[[FloatArray], FloatArray]:
+    n = int(lower.shape[0])
+    arrays = _arrays(lower)
+    empty = (0, np.zeros(0, dtype=np.float64), np.zeros(0, dtype=np.intc),
+             np.zeros(n + 1, dtype=np.intc))
+
+    def solve(b: FloatArray) -> FloatArray:
+        x, info = _superlu.gstrs("N", n, *arrays, n, *empty,
+                                 np.ascontiguousarray(b, dtype=np.float64))
+        if info:
+            raise RuntimeError("triangular solve failed")
+        return np.asarray(x, dtype=np.float64)
+
+    return solve
+
+
+def _triangular_probe() -> bool:
+    """Whether the private path gives ``spsolve_triangular``'s result, bit for bit, on
+    a small system (whose rounding makes the order of the sums show)."""
+    lower = sp.csc_matrix(np.array([[1.0, 0.0, 0.0, 0.0], [-0.1, 1.0, 0.0, 0.0],
+                                    [-0.7, -0.3, 1.0, 0.0], [-0.2, -0.6, -0.9, 1.0]]))
+    b = np.array([0.3, 0.7, 0.1, 0.9])
+    try:
+        expected = spsolve_triangular(lower.copy(), b.copy(), lower=True, unit_diagonal=True)
+        return bool(np.array_equal(_lower_solve(lower)(b.copy()), expected))
+    except Exception:  # (any failure of the private path: scipy's own function is used)
+        return False
+
+
 def _factors_solve(lu: SuperLU) -> Callable[[FloatArray], FloatArray]:
     """The solve on *lu*'s factors as the triangular solve takes them: the unit lower
     factor's strict part with the upper factor's diagonal, and the strict upper part."""
     n = int(lu.shape[0])
-    upper = sp.csc_matrix(lu.U)
-    lower = sp.csc_matrix(sp.tril(lu.L, -1, format="csc") + sp.diags(upper.diagonal()))
-    upper = sp.csc_matrix(sp.triu(upper, 1, format="csc"))
+    lower, upper = _triangles(lu)
     lower_arrays = _arrays(lower)
     upper_arrays = _arrays(upper)
     rows, columns = np.asarray(lu.perm_r), np.asarray(lu.perm_c)
@@ -82,6 +132,41 @@ def _factors_solve(lu: SuperLU) -> Callable[[FloatArray], FloatArray]:
         return x if columns_kept is None else x[columns_kept]
 
     return solve
+
+
+def _triangles(lu: SuperLU) -> tuple[sp.csc_matrix, sp.csc_matrix]:
+    """The lower factor's strict part with the upper factor's diagonal (explicit zeros
+    dropped), and the upper factor's strict part (explicit zeros kept).
+
+    Read off the factors' arrays where every column of ``L`` starts with its diagonal
+    and every column of ``U`` ends with it (sorted rows, as SuperLU gives them): ~0.1 ms
+    for a component of a few hundred states, where ``tril``, ``diags``, their sum and
+    ``triu`` took 0.4-0.7 ms -- most of making the solver of a small component, and a
+    strategy's system on consensus has some forty such. Otherwise by those operations,
+    which give the same arrays.
+    """
+    lower, upper = sp.csc_matrix(lu.L), sp.csc_matrix(lu.U)
+    lower.sort_indices()
+    upper.sort_indices()
+    n = int(lu.shape[0])
+    diagonal_first, diagonal_last = lower.indptr[:-1], upper.indptr[1:] - 1
+    columns = np.arange(n)
+    if (n and np.all(np.diff(lower.indptr) > 0) and np.all(np.diff(upper.indptr) > 0)
+            and np.array_equal(lower.indices[diagonal_first], columns)
+            and np.array_equal(upper.indices[diagonal_last], columns)):
+        data = lower.data.copy()
+        data[diagonal_first] = upper.data[diagonal_last]
+        strict_lower = sp.csc_matrix((data, lower.indices, lower.indptr), shape=lower.shape)
+        # (the sum below drops the zeros it makes or is given; triu keeps stored ones)
+        strict_lower.eliminate_zeros()
+        off_diagonal = np.ones(upper.nnz, dtype=bool)
+        off_diagonal[diagonal_last] = False
+        indptr = upper.indptr - np.arange(n + 1, dtype=upper.indptr.dtype)
+        return strict_lower, sp.csc_matrix((upper.data[off_diagonal],
+                                            upper.indices[off_diagonal], indptr),
+                                           shape=upper.shape)
+    return (sp.csc_matrix(sp.tril(lower, -1, format="csc") + sp.diags(upper.diagonal())),
+            sp.csc_matrix(sp.triu(upper, 1, format="csc")))
 
 
 def _arrays(matrix: sp.csc_matrix) -> tuple[int, FloatArray, np.ndarray, np.ndarray]:

@@ -42,7 +42,7 @@ from scipy.sparse import linalg as spla
 
 from veribattery._types import FloatArray, IntArray
 from veribattery._unique import distinct
-from veribattery.checker.linalg.compact_lu import compact_solve
+from veribattery.checker.linalg.compact_lu import compact_solve, unit_lower_solve
 from veribattery.errors import CheckError
 
 __all__ = [
@@ -349,11 +349,14 @@ def _substitution(lower: sp.csc_matrix) -> Inverse:
         raise CheckError("a run of single-state components is not triangular")
     _scale_columns(lower, scale)
     lower.data[first] = 1.0  # exactly, as the solve reads it
+    triangular = unit_lower_solve(lower)
 
     def solve(b: FloatArray) -> FloatArray:
-        # (overwrite_A: it sets the diagonal to 1, where it is already)
-        y = spla.spsolve_triangular(lower, b, lower=True, unit_diagonal=True,
-                                    overwrite_A=True, overwrite_b=True)
+        if triangular is not None:
+            y = triangular(b)
+        else:  # (overwrite_A: it sets the diagonal to 1, where it is already)
+            y = spla.spsolve_triangular(lower, b, lower=True, unit_diagonal=True,
+                                        overwrite_A=True, overwrite_b=True)
         with np.errstate(over="ignore"):  # beyond the doubles: inf, rejected or certified
             return np.asarray(y, dtype=np.float64) * scale
 
