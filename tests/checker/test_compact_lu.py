@@ -131,3 +131,22 @@ def test_unit_lower_solve_steps_aside_when_its_probe_disagrees(
         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(compact_lu, "_triangular_agrees", False)
     assert compact_lu.unit_lower_solve(_unit_lower(20, 1)) is None
+
+
+def test_an_ill_conditioned_first_system_keeps_the_compact_solve(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    if compact_lu._superlu is None:
+        pytest.fail("scipy's private triangular solve is gone (the SuperLU object is kept)")
+    monkeypatch.setattr(compact_lu, "_agrees", None)
+    # A last column within 1e-6..1e-12 of the sum of the first two: the two solves'
+    # summation orders give results more than 1e-9 apart, relative.
+    rng = np.random.default_rng(0)
+    dense = sp.random(60, 60, density=0.1, random_state=0, format="csc").toarray()
+    dense[:, -1] = dense[:, 0] + dense[:, 1] + rng.uniform(-1, 1, 60) * 10.0 ** -rng.integers(
+        6, 13)
+    lu = spla.splu(sp.csc_matrix(dense))
+    probe = np.linspace(1.0, 2.0, 60)
+    assert not np.allclose(compact_lu._factors_solve(lu)(probe.copy()), lu.solve(probe),
+                           rtol=1e-9, atol=0.0)
+    assert compact_solve(lu) != lu.solve
+    assert compact_lu._agrees is True

@@ -21,7 +21,7 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.linalg import SuperLU, spsolve_triangular
+from scipy.sparse.linalg import SuperLU, splu, spsolve_triangular
 
 from veribattery._types import FloatArray
 
@@ -42,19 +42,27 @@ def compact_solve(lu: SuperLU) -> Callable[[FloatArray], FloatArray]:
     """``A^-1 b`` from the factors of *lu* (``Pr A Pc = L U``), without *lu* itself
     where the triangular solve behaves as expected, else *lu*'s own solve."""
     global _agrees
-    if _superlu is None or _agrees is False:
+    if _superlu is not None and _agrees is None:
+        _agrees = _factors_probe()
+    if _superlu is None or not _agrees:
         return lu.solve  # type: ignore[no-any-return]
-    solve = _factors_solve(lu)
-    if _agrees is None:
-        probe = np.linspace(1.0, 2.0, lu.shape[0])
-        try:
-            _agrees = bool(np.allclose(solve(probe.copy()), lu.solve(probe), rtol=1e-9,
-                                       atol=0.0))
-        except Exception:  # (any failure of the private path: the SuperLU object is kept)
-            _agrees = False
-        if not _agrees:
-            return lu.solve  # type: ignore[no-any-return]
-    return solve
+    return _factors_solve(lu)
+
+
+def _factors_probe() -> bool:
+    """Whether the solve on the factors gives the SuperLU object's, on a small system
+    with row and column exchanges. (Once probed on the first system a process met, an
+    ill-conditioned one -- two summation orders 1e-9 apart -- turned the compact solve
+    off for the whole process.)"""
+    A = sp.csc_matrix(np.array([[0.1, 2.0, 0.0, 1.0], [3.0, 0.2, 1.0, 0.0],
+                                [0.0, 1.0, 0.3, 4.0], [1.0, 0.0, 5.0, 0.4]]))
+    probe = np.linspace(1.0, 2.0, 4)
+    try:
+        lu = splu(A)
+        return bool(np.allclose(_factors_solve(lu)(probe.copy()), lu.solve(probe),
+                                rtol=1e-12, atol=0.0))
+    except Exception:  # (any failure of the private path: the SuperLU object is kept)
+        return False
 
 
 def unit_lower_solve(lower: sp.csc_matrix) -> Callable[[FloatArray], FloatArray] | None:
