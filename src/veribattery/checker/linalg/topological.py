@@ -7,8 +7,9 @@ permuted matrix block lower triangular. The system is then solved one
 
 * ``"substitution"``: a maximal run of *trivial* components (one state each,
   perhaps with a self-loop) is a triangular system. It is solved by one sparse
-  forward substitution in C (SuperLU's triangular solve, through
-  :func:`scipy.sparse.linalg.spsolve_triangular`): linear in the run's
+  forward substitution in C (SuperLU's triangular solve, the routine
+  :func:`scipy.sparse.linalg.spsolve_triangular` calls, on arrays made once:
+  :func:`~veribattery.checker.linalg.compact_lu.unit_lower_solve`): linear in the run's
   transitions whatever its depth, with no Python loop per state or per level.
   (A substitution level by level -- every state whose successors are known at
   once, vectorised in numpy -- costs a Python iteration per level, and a chain
