@@ -32,6 +32,10 @@ except ImportError:  # pragma: no cover -- scipy moved it: the SuperLU object is
 
 __all__ = ["compact_solve", "unit_lower_solve"]
 
+#: A CSC matrix as SuperLU's triangular solve reads it: entries, data, row indices,
+#: pointers.
+_Arrays = tuple[int, FloatArray, np.ndarray, np.ndarray]
+
 #: Whether the private triangular solve agreed with ``SuperLU.solve`` (None: not probed).
 _agrees: bool | None = None
 #: ... and with ``spsolve_triangular`` on a unit lower triangular matrix.
@@ -77,12 +81,10 @@ def unit_lower_solve(lower: sp.csc_matrix) -> Callable[[FloatArray], FloatArray]
     some forty runs of single-state components, several times per evaluation.
     """
     global _triangular_agrees
-    if _superlu is None or _triangular_agrees is False:
-        return None
-    if _triangular_agrees is None:
+    if _superlu is not None and _triangular_agrees is None:
         _triangular_agrees = _triangular_probe()
-        if not _triangular_agrees:
-            return None
+    if _superlu is None or not _triangular_agrees:
+        return None
     return _lower_solve(lower)
 
 
@@ -93,11 +95,7 @@ def _lower_solve(lower: sp.csc_matrix) -> Callable[[FloatArray], FloatArray]:
              np.zeros(n + 1, dtype=np.intc))
 
     def solve(b: FloatArray) -> FloatArray:
-        x, info = _superlu.gstrs("N", n, *arrays, n, *empty,
-                                 np.ascontiguousarray(b, dtype=np.float64))
-        if info:
-            raise RuntimeError("triangular solve failed")
-        return np.asarray(x, dtype=np.float64)
+        return _gstrs(n, arrays, empty, np.ascontiguousarray(b, dtype=np.float64))
 
     return solve
 
@@ -133,13 +131,19 @@ def _factors_solve(lu: SuperLU) -> Callable[[FloatArray], FloatArray]:
             permuted[:] = b
         else:
             permuted[rows_kept] = b
-        x, info = _superlu.gstrs("N", n, *lower_arrays, n, *upper_arrays, permuted)
-        if info:
-            raise RuntimeError("triangular solve failed")
-        x = np.asarray(x, dtype=np.float64)
+        x = _gstrs(n, lower_arrays, upper_arrays, permuted)
         return x if columns_kept is None else x[columns_kept]
 
     return solve
+
+
+def _gstrs(n: int, lower: _Arrays, upper: _Arrays, b: FloatArray) -> FloatArray:
+    """SuperLU's triangular solve of ``L U x = b`` on the arrays of *lower* (its
+    diagonal is ``U``'s) and *upper* (strict), *b* overwritten."""
+    x, info = _superlu.gstrs("N", n, *lower, n, *upper, b)
+    if info:
+        raise RuntimeError("triangular solve failed")
+    return np.asarray(x, dtype=np.float64)
 
 
 def _triangles(lu: SuperLU) -> tuple[sp.csc_matrix, sp.csc_matrix]:
@@ -177,7 +181,7 @@ def _triangles(lu: SuperLU) -> tuple[sp.csc_matrix, sp.csc_matrix]:
             sp.csc_matrix(sp.triu(upper, 1, format="csc")))
 
 
-def _arrays(matrix: sp.csc_matrix) -> tuple[int, FloatArray, np.ndarray, np.ndarray]:
+def _arrays(matrix: sp.csc_matrix) -> _Arrays:
     """*matrix* as the triangular solve reads it: entries, data, row indices, pointers."""
     matrix.sort_indices()
     return (int(matrix.nnz), np.ascontiguousarray(matrix.data, dtype=np.float64),
